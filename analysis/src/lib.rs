@@ -1,0 +1,18 @@
+//! `mrstudy-analysis`: the statistics of paired-comparison and task experiments.
+//!
+//! - Bradley–Terry item model (log-worth per condition) and factor model (object covariates,
+//!   λᵢ = Σₖ βₖ·xᵢₖ), maximum likelihood with Firth's bias reduction where separation makes the
+//!   MLE not exist;
+//! - Kendall & Babington Smith's coefficient of agreement (and its generalisation to unbalanced
+//!   designs), the coefficient of consistence;
+//! - per-group fits and tests, bootstrap over participants, observer screening;
+//! - Friedman tests, Kendall's W and Wilcoxon signed-rank post-hoc tests for lab tasks;
+//! - SVG worth plots.
+//!
+//! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
+//! renderer. It parses text it is handed and returns typed results; callers print them.
+
+pub mod error;
+pub mod pvalue;
+
+pub use error::{AnalysisError, Result};

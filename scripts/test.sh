@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Runs every test of the workspace on a fresh machine: installs the system packages the tests
+# need (when run as root on Debian), then `cargo test` over the whole workspace.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need=()
+# Packages the tests use; each line: a command or file that shows it is installed, then the package.
+while read -r probe package; do
+  [[ -z "$probe" ]] && continue
+  if [[ "$probe" == /* ]]; then [[ -e "$probe" ]] || need+=("$package")
+  else command -v "$probe" >/dev/null 2>&1 || need+=("$package"); fi
+done <<'LIST'
+LIST
+
+if ((${#need[@]})); then
+  if [[ $(id -u) -eq 0 ]] && command -v apt-get >/dev/null; then
+    echo "installing: ${need[*]}" >&2
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+  else
+    echo "missing system packages: ${need[*]} (install them, or run this script as root on Debian)" >&2
+    exit 1
+  fi
+fi
+
+cargo test --workspace --locked "$@"
