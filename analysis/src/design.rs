@@ -21,3 +21,355 @@ impl PairTally {
         self.wins_i + self.wins_j
     }
 }
+
+/// Aggregates judgments into one tally per unordered pair `(i < j)`, sorted by `(i, j)`.
+/// `rows` yields `(left, right, left_chosen, count)`.
+pub fn tally<I>(rows: I) -> Vec<PairTally>
+where
+    I: IntoIterator<Item = (u32, u32, bool, u64)>,
+{
+    let mut map: std::collections::HashMap<(u32, u32), (u64, u64)> = std::collections::HashMap::new();
+    for (left, right, left_chosen, count) in rows {
+        let (i, j, i_won) = if left < right { (left, right, left_chosen) } else { (right, left, !left_chosen) };
+        let entry = map.entry((i, j)).or_insert((0, 0));
+        if i_won {
+            entry.0 += count;
+        } else {
+            entry.1 += count;
+        }
+    }
+    let mut pairs: Vec<PairTally> = map
+        .into_iter()
+        .map(|((i, j), (wins_i, wins_j))| PairTally { i: i as usize, j: j as usize, wins_i, wins_j })
+        .collect();
+    pairs.sort_unstable_by_key(|pair| (pair.i, pair.j));
+    pairs
+}
+
+/// Faster tally for few conditions: a dense t×t table, no hashing.
+pub fn tally_dense<I>(n_conditions: usize, rows: I) -> Vec<PairTally>
+where
+    I: IntoIterator<Item = (u32, u32, bool, u64)>,
+{
+    let t = n_conditions;
+    let mut wins = vec![0u64; t * t];
+    for (left, right, left_chosen, count) in rows {
+        let (winner, loser) = if left_chosen { (left, right) } else { (right, left) };
+        wins[winner as usize * t + loser as usize] += count;
+    }
+    let mut pairs = Vec::new();
+    for i in 0..t {
+        for j in i + 1..t {
+            let (wins_i, wins_j) = (wins[i * t + j], wins[j * t + i]);
+            if wins_i + wins_j > 0 {
+                pairs.push(PairTally { i, j, wins_i, wins_j });
+            }
+        }
+    }
+    pairs
+}
+
+/// Connected components of the comparison graph over the conditions that were compared at
+/// least once. Each component lists its conditions in increasing index order; components are
+/// ordered by their smallest condition. Conditions never compared belong to no component.
+pub fn components(n_conditions: usize, pairs: &[PairTally]) -> Vec<Vec<usize>> {
+    let mut parent: Vec<usize> = (0..n_conditions).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let mut compared = vec![false; n_conditions];
+    for pair in pairs.iter().filter(|pair| pair.n() > 0) {
+        compared[pair.i] = true;
+        compared[pair.j] = true;
+        let (a, b) = (find(&mut parent, pair.i), find(&mut parent, pair.j));
+        if a != b {
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
+    for condition in 0..n_conditions {
+        if compared[condition] {
+            let root = find(&mut parent, condition);
+            by_root.entry(root).or_default().push(condition);
+        }
+    }
+    let mut list: Vec<Vec<usize>> = by_root.into_values().collect();
+    list.sort_by_key(|members| members[0]);
+    list
+}
+
+/// Zermelo's condition for the existence of the item-model MLE within one connected component:
+/// the directed "beat at least once" graph must be strongly connected. Returns the strongly
+/// connected components in topological order (winners first) when it is not, else `None`.
+/// With more than one, the first never lost to anyone outside it and the last never won
+/// against anyone outside it.
+pub fn separation(members: &[usize], pairs: &[PairTally]) -> Option<Vec<Vec<usize>>> {
+    let n = members.len();
+    if n < 2 {
+        return None;
+    }
+    let local: std::collections::HashMap<usize, usize> = members.iter().enumerate().map(|(k, &m)| (m, k)).collect();
+    let mut beats: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for pair in pairs {
+        let (Some(&a), Some(&b)) = (local.get(&pair.i), local.get(&pair.j)) else { continue };
+        if pair.wins_i > 0 {
+            beats[a].push(b);
+        }
+        if pair.wins_j > 0 {
+            beats[b].push(a);
+        }
+    }
+    let sccs = tarjan(&beats);
+    if sccs.len() == 1 {
+        return None;
+    }
+    // Tarjan yields SCCs in reverse topological order of the condensation.
+    Some(sccs.into_iter().rev().map(|scc| {
+        let mut scc: Vec<usize> = scc.into_iter().map(|k| members[k]).collect();
+        scc.sort_unstable();
+        scc
+    }).collect())
+}
+
+/// Tarjan's strongly-connected-components algorithm, iterative (no recursion limit).
+fn tarjan(edges: &[Vec<usize>]) -> Vec<Vec<usize>> {
+    let n = edges.len();
+    let mut index = vec![usize::MAX; n];
+    let mut low = vec![0; n];
+    let mut on_stack = vec![false; n];
+    let mut stack = Vec::new();
+    let mut result = Vec::new();
+    let mut counter = 0;
+    for start in 0..n {
+        if index[start] != usize::MAX {
+            continue;
+        }
+        let mut call: Vec<(usize, usize)> = vec![(start, 0)];
+        index[start] = counter;
+        low[start] = counter;
+        counter += 1;
+        stack.push(start);
+        on_stack[start] = true;
+        while let Some(&mut (v, ref mut next)) = call.last_mut() {
+            if *next < edges[v].len() {
+                let w = edges[v][*next];
+                *next += 1;
+                if index[w] == usize::MAX {
+                    index[w] = counter;
+                    low[w] = counter;
+                    counter += 1;
+                    stack.push(w);
+                    on_stack[w] = true;
+                    call.push((w, 0));
+                } else if on_stack[w] {
+                    low[v] = low[v].min(index[w]);
+                }
+            } else {
+                call.pop();
+                if let Some(&(parent, _)) = call.last() {
+                    low[parent] = low[parent].min(low[v]);
+                }
+                if low[v] == index[v] {
+                    let mut scc = Vec::new();
+                    while let Some(w) = stack.pop() {
+                        on_stack[w] = false;
+                        scc.push(w);
+                        if w == v {
+                            break;
+                        }
+                    }
+                    result.push(scc);
+                }
+            }
+        }
+    }
+    result
+}
+
+/// One term of a factor model: a factor, or a product of factors (an interaction).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Term {
+    /// Indices into the factor list; one for a main effect, several for an interaction.
+    pub factors: Vec<usize>,
+    /// Display name: factor names joined by `:`.
+    pub name: String,
+}
+
+/// Parses a model formula such as `gi+cm+ca+gi:ca` or `gi*ca + cm` over the given factors.
+/// `a*b` expands to `a + b + a:b`. Duplicate terms are kept once.
+pub fn parse_formula(formula: &str, factors: &[String]) -> crate::Result<Vec<Term>> {
+    let bad = |message: String| crate::AnalysisError::BadModel { formula: formula.to_string(), message };
+    let mut terms: Vec<Term> = Vec::new();
+    let push = |factor_indices: Vec<usize>, terms: &mut Vec<Term>| {
+        let mut sorted = factor_indices;
+        sorted.sort_unstable();
+        sorted.dedup();
+        if !terms.iter().any(|t| t.factors == sorted) {
+            let name = sorted.iter().map(|&k| factors[k].as_str()).collect::<Vec<_>>().join(":");
+            terms.push(Term { factors: sorted, name });
+        }
+    };
+    for raw in formula.split('+') {
+        let raw = raw.trim();
+        if raw.is_empty() {
+            return Err(bad("a term is empty (two `+` in a row, or one at an end)".to_string()));
+        }
+        let lookup = |name: &str| -> crate::Result<usize> {
+            let name = name.trim();
+            factors.iter().position(|f| f == name).ok_or_else(|| {
+                bad(format!("`{name}` is not a factor of the conditions file (factors: {})", factors.join(", ")))
+            })
+        };
+        if raw.contains('*') {
+            let parts: Vec<usize> = raw.split('*').map(lookup).collect::<crate::Result<_>>()?;
+            // All non-empty subsets, in order of size, as R expands a*b*c.
+            let n = parts.len();
+            let mut subsets: Vec<Vec<usize>> = (1..(1u32 << n)).map(|mask| (0..n).filter(|&k| mask & (1 << k) != 0).map(|k| parts[k]).collect()).collect();
+            subsets.sort_by_key(Vec::len);
+            for subset in subsets {
+                push(subset, &mut terms);
+            }
+        } else {
+            let parts: Vec<usize> = raw.split(':').map(lookup).collect::<crate::Result<_>>()?;
+            push(parts, &mut terms);
+        }
+    }
+    Ok(terms)
+}
+
+/// The covariate value of each term for each condition: `values[condition][term]`.
+pub fn term_values(levels: &[Vec<f64>], terms: &[Term]) -> Vec<Vec<f64>> {
+    levels.iter().map(|row| terms.iter().map(|term| term.factors.iter().map(|&k| row[k]).product()).collect()).collect()
+}
+
+/// Why a term was left out of a factor model.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Dropped {
+    /// The term takes one value over all compared conditions.
+    Constant,
+    /// The term is a linear combination of the named, earlier terms (over the compared pairs).
+    Collinear(Vec<usize>),
+}
+
+/// Chooses the identifiable terms: in formula order, a term is kept unless its pair
+/// differences (xᵢ − xⱼ over the compared pairs) are zero or a linear combination of the
+/// terms kept before it. Returns the kept term indices and the dropped ones with the reason.
+pub fn identifiable_terms(values: &[Vec<f64>], n_terms: usize, pairs: &[PairTally]) -> (Vec<usize>, Vec<(usize, Dropped)>) {
+    // Gram matrix of the pair-difference columns, each compared pair counted once.
+    let mut gram = vec![vec![0.0; n_terms]; n_terms];
+    for pair in pairs.iter().filter(|pair| pair.n() > 0) {
+        let d: Vec<f64> = (0..n_terms).map(|k| values[pair.i][k] - values[pair.j][k]).collect();
+        for a in 0..n_terms {
+            for b in 0..n_terms {
+                gram[a][b] += d[a] * d[b];
+            }
+        }
+    }
+    let mut kept: Vec<usize> = Vec::new();
+    let mut dropped = Vec::new();
+    for k in 0..n_terms {
+        let own = gram[k][k];
+        if own <= 0.0 {
+            dropped.push((k, Dropped::Constant));
+            continue;
+        }
+        // Project column k on the kept columns: solve G_KK c = g_K.
+        let m = kept.len();
+        let mut a: Vec<Vec<f64>> = kept.iter().map(|&r| kept.iter().map(|&c| gram[r][c]).collect()).collect();
+        let mut c: Vec<f64> = kept.iter().map(|&r| gram[r][k]).collect();
+        let solved = gauss_solve(&mut a, &mut c);
+        let residual = if m == 0 { own } else if solved { own - kept.iter().zip(&c).map(|(&r, ci)| ci * gram[r][k]).sum::<f64>() } else { own };
+        if residual <= 1e-9 * own {
+            let partners = kept.iter().zip(&c).filter(|(_, ci)| ci.abs() > 1e-8).map(|(&r, _)| r).collect();
+            dropped.push((k, Dropped::Collinear(partners)));
+        } else {
+            kept.push(k);
+        }
+    }
+    (kept, dropped)
+}
+
+/// Solves a small dense system in place by Gaussian elimination with partial pivoting; the
+/// solution replaces `b`. Returns false if the matrix is singular.
+fn gauss_solve(a: &mut [Vec<f64>], b: &mut [f64]) -> bool {
+    let n = b.len();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs())).unwrap();
+        if a[pivot][col].abs() < 1e-300 {
+            return false;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in col + 1..n {
+            let factor = a[row][col] / a[col][col];
+            for k in col..n {
+                a[row][k] -= factor * a[col][k];
+            }
+            b[row] -= factor * b[col];
+        }
+    }
+    for col in (0..n).rev() {
+        let sum: f64 = (col + 1..n).map(|k| a[col][k] * b[k]).sum();
+        b[col] = (b[col] - sum) / a[col][col];
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(i: usize, j: usize, wins_i: u64, wins_j: u64) -> PairTally {
+        PairTally { i, j, wins_i, wins_j }
+    }
+
+    #[test]
+    fn tallies_agree_dense_and_sparse() {
+        let rows = vec![(0, 1, true, 1), (1, 0, true, 2), (2, 0, false, 5), (1, 2, true, 1)];
+        let sparse = tally(rows.clone());
+        let dense = tally_dense(3, rows);
+        assert_eq!(sparse, dense);
+        assert_eq!(sparse, vec![t(0, 1, 1, 2), t(0, 2, 5, 0), t(1, 2, 1, 0)]);
+    }
+
+    #[test]
+    fn components_of_a_disconnected_design() {
+        let pairs = [t(0, 1, 1, 1), t(2, 3, 1, 0), t(3, 4, 0, 2)];
+        assert_eq!(components(6, &pairs), vec![vec![0, 1], vec![2, 3, 4]]);
+    }
+
+    #[test]
+    fn separation_names_the_winner() {
+        // 0 never loses; 1 and 2 beat each other.
+        let pairs = [t(0, 1, 3, 0), t(0, 2, 2, 0), t(1, 2, 1, 1)];
+        let sccs = separation(&[0, 1, 2], &pairs).unwrap();
+        assert_eq!(sccs, vec![vec![0], vec![1, 2]]);
+        let pairs = [t(0, 1, 3, 1), t(0, 2, 2, 1), t(1, 2, 1, 1)];
+        assert!(separation(&[0, 1, 2], &pairs).is_none());
+    }
+
+    #[test]
+    fn formula_expansion_and_errors() {
+        let factors: Vec<String> = ["gi", "cm", "ca"].iter().map(|s| s.to_string()).collect();
+        let terms = parse_formula("gi*ca + cm", &factors).unwrap();
+        let names: Vec<&str> = terms.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, vec!["gi", "ca", "gi:ca", "cm"]);
+        let error = parse_formula("gi+xx", &factors).unwrap_err().to_string();
+        assert_eq!(error, "model `gi+xx`: `xx` is not a factor of the conditions file (factors: gi, cm, ca)");
+        assert!(parse_formula("gi++cm", &factors).is_err());
+    }
+
+    #[test]
+    fn constant_and_collinear_terms_are_dropped() {
+        // Factors: a, b = 1 - a (collinear with a), c constant, d independent.
+        let levels = vec![vec![0.0, 1.0, 1.0, 0.0], vec![1.0, 0.0, 1.0, 0.0], vec![1.0, 0.0, 1.0, 1.0]];
+        let pairs = [t(0, 1, 1, 1), t(1, 2, 1, 1), t(0, 2, 1, 1)];
+        let (kept, dropped) = identifiable_terms(&levels, 4, &pairs);
+        assert_eq!(kept, vec![0, 3]);
+        assert_eq!(dropped, vec![(1, Dropped::Collinear(vec![0])), (2, Dropped::Constant)]);
+    }
+}
