@@ -12,8 +12,10 @@
 //! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
 //! renderer. It parses text it is handed and returns typed results; callers print them.
 
+pub mod data;
 pub mod design;
 pub mod error;
+pub mod fit;
 pub mod pvalue;
 
 pub use error::{AnalysisError, Result};
