@@ -1,1 +1,42 @@
-fn main(){}
+//! `mrstudy`: the command line. Thin by design: it parses arguments, reads and writes files,
+//! calls the library crates and turns one `anyhow::Result` into an exit code. Errors are printed
+//! to stderr as one sentence.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod analyze;
+mod bench;
+
+#[derive(Parser)]
+#[command(name = "mrstudy", version, about = "Perceptual studies of mixed-reality rendering: render stimuli, run studies, analyse judgments.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Analyse paired-comparison trials (Bradley–Terry worth, factor effects, agreement) or lab-task results (Friedman tests).
+    Analyze(analyze::AnalyzeArgs),
+    /// Measure speed (and error against a reference) of a part of mrstudy.
+    Bench(bench::BenchArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Analyze(args) => analyze::run(args),
+        Command::Bench(args) => bench::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            // One sentence: the outermost context, then its causes.
+            let causes: Vec<String> = error.chain().map(|e| e.to_string()).collect();
+            eprintln!("error: {}", causes.join(": "));
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,768 @@
+//! The whole paired-comparison analysis: from judgments to the Analysis JSON of DESIGN.md.
+//!
+//! Steps, each only where the data call for it:
+//! 1. tally judgments per unordered pair; find the connected components of the comparison graph;
+//! 2. item model per component (reference condition fixed at 0), by maximum likelihood, or —
+//!    where a condition set never loses or never wins within its component (separation, so the
+//!    MLE does not exist) — by Firth's bias-reduced likelihood, named in the output;
+//! 3. factor model over the identifiable terms of the formula (constant or collinear terms are
+//!    dropped with a warning), with its likelihood-ratio test against the item model;
+//! 4. agreement (Kendall & Babington Smith's u or its generalisation), consistence per
+//!    participant who compared every pair;
+//! 5. per group, the same again, and a likelihood-ratio test of equal effects across groups;
+//! 6. optionally a bootstrap over participants and observer screening.
+
+use std::collections::{BTreeMap, HashMap};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::agreement::{self, Agreement, AgreementOptions};
+use crate::data::{ConditionTable, Judgments};
+use crate::design::{self, Dropped, PairTally, Term};
+use crate::fit::{self, Fit, FitFailure, FitOptions, Method, ModelMatrix};
+use crate::pvalue::PValue;
+use crate::{AnalysisError, Result};
+
+/// When to run observer screening.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Screening {
+    /// On for designs up to [`SCREENING_AUTO_LIMIT`] conditions.
+    Auto,
+    On,
+    Off,
+}
+
+/// Screening refits the item model once per participant; above this many conditions `Auto`
+/// skips it (and says so).
+pub const SCREENING_AUTO_LIMIT: usize = 200;
+
+/// Options of an analysis. `Default` gives the documented defaults.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Reference condition (log-worth 0); default: first of the conditions file, else first by name.
+    pub reference: Option<String>,
+    /// Factor-model formula (`gi+cm+ca+gi:ca`, `gi*ca`); default: every factor, main effects.
+    pub model: Option<String>,
+    /// Column of the trials CSV to group by.
+    pub group_by: Option<String>,
+    /// Convergence tolerance on the largest parameter change.
+    pub tolerance: f64,
+    /// Monte-Carlo replicates for the agreement p-value where no closed form applies.
+    pub agreement_simulations: usize,
+    /// Bootstrap replicates over participants (0: none).
+    pub bootstrap: usize,
+    /// Seed of every random choice (agreement simulation, bootstrap).
+    pub seed: u64,
+    pub screening: Screening,
+    /// Participants whose leave-one-out p-value is below this are flagged.
+    pub screening_alpha: f64,
+    /// Use Firth's bias reduction for every model, not only under separation.
+    pub always_firth: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            reference: None,
+            model: None,
+            group_by: None,
+            tolerance: 1e-10,
+            agreement_simulations: 10_000,
+            bootstrap: 0,
+            seed: 1,
+            screening: Screening::Auto,
+            screening_alpha: 0.01,
+            always_firth: false,
+        }
+    }
+}
+
+/// One condition's row in the analysis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Item {
+    pub condition: String,
+    /// λ relative to the reference of its component; absent where the condition was never compared.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub log_worth: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub se: Option<f64>,
+    /// exp(λ) / Σ exp(λ) over its component.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worth: Option<f64>,
+    pub wins: u64,
+    pub comparisons: u64,
+    /// Index into `components`, present only when the comparison graph is disconnected.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub component: Option<usize>,
+    /// λ under the factor model, relative to the reference.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fitted_log_worth: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fitted_worth: Option<f64>,
+    /// Bootstrap percentile interval of `log_worth` (95 %).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ci: Option<[f64; 2]>,
+}
+
+/// A connected component of the comparison graph.
+#[derive(Debug, Clone, Serialize)]
+pub struct Component {
+    pub conditions: Vec<String>,
+    pub reference: String,
+    pub method: Method,
+    /// Conditions that never lost (resp. never won) within the component, where separation
+    /// made the maximum-likelihood estimate not exist.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub never_lost: Vec<String>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub never_won: Vec<String>,
+}
+
+/// Fit statistics of a model.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelSummary {
+    pub method: Method,
+    pub log_likelihood: f64,
+    pub deviance: f64,
+    pub aic: f64,
+    pub df_residual: i64,
+    pub parameters: usize,
+    pub iterations: usize,
+}
+
+impl ModelSummary {
+    fn from_fits(fits: &[&Fit]) -> ModelSummary {
+        let method = if fits.iter().any(|f| f.method == Method::Firth) { Method::Firth } else { Method::Ml };
+        let log_likelihood: f64 = fits.iter().map(|f| f.log_likelihood).sum();
+        let parameters: usize = fits.iter().map(|f| f.beta.len()).sum();
+        ModelSummary {
+            method,
+            log_likelihood,
+            deviance: fits.iter().map(|f| f.deviance).sum(),
+            aic: -2.0 * log_likelihood + 2.0 * parameters as f64,
+            df_residual: fits.iter().map(|f| f.n_observations as i64).sum::<i64>() - parameters as i64,
+            parameters,
+            iterations: fits.iter().map(|f| f.iterations).max().unwrap_or(0),
+        }
+    }
+}
+
+/// A likelihood-ratio test.
+#[derive(Debug, Clone, Serialize)]
+pub struct LrTest {
+    pub chi2: f64,
+    pub df: i64,
+    #[serde(flatten)]
+    pub p: PValue,
+}
+
+impl LrTest {
+    fn new(chi2: f64, df: i64) -> Option<LrTest> {
+        (df > 0).then(|| {
+            let chi2 = chi2.max(0.0);
+            LrTest { chi2, df, p: PValue::chi2_upper(chi2, df as f64) }
+        })
+    }
+}
+
+/// One term of the factor model.
+#[derive(Debug, Clone, Serialize)]
+pub struct Covariate {
+    pub name: String,
+    pub estimate: f64,
+    pub se: f64,
+    pub z: f64,
+    #[serde(flatten)]
+    pub p: PValue,
+    /// Bootstrap percentile interval (95 %).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ci: Option<[f64; 2]>,
+}
+
+/// A term left out of the factor model and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct DroppedTerm {
+    pub name: String,
+    pub reason: String,
+}
+
+/// The factor model's fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct CovariateModel {
+    pub formula: String,
+    #[serde(flatten)]
+    pub summary: ModelSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lr_vs_items: Option<LrTest>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dropped: Vec<DroppedTerm>,
+}
+
+/// Coefficient of consistence of one participant.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParticipantConsistence {
+    pub participant: String,
+    #[serde(flatten)]
+    pub consistence: agreement::Consistence,
+}
+
+/// Observer screening: how likely each participant's choices are under the consensus of the
+/// others (leave-one-out item model).
+#[derive(Debug, Clone, Serialize)]
+pub struct ObserverScreening {
+    pub alpha: f64,
+    pub participants: Vec<Observer>,
+    /// Names of the flagged participants (also marked in `participants`); nobody is dropped.
+    pub flagged: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Observer {
+    pub participant: String,
+    pub judgments: u64,
+    /// Mean log-likelihood per judgment under the leave-one-out fit.
+    pub mean_log_likelihood: f64,
+    /// Standardised log-likelihood: (observed − expected) / sd under the leave-one-out fit.
+    pub z: f64,
+    #[serde(flatten)]
+    pub p: PValue,
+    pub flagged: bool,
+}
+
+/// Bootstrap settings and outcome (the intervals sit on the items and covariates).
+#[derive(Debug, Clone, Serialize)]
+pub struct Bootstrap {
+    pub replicates: usize,
+    pub seed: u64,
+    /// Replicates whose fit did not exist (e.g. separation in a resample); left out of the intervals.
+    pub failed: usize,
+    pub level: f64,
+}
+
+/// The analysis of a data set (DESIGN.md's Analysis JSON).
+#[derive(Debug, Clone, Serialize)]
+pub struct Analysis {
+    pub judgments: u64,
+    pub participants: usize,
+    pub conditions: usize,
+    pub reference: String,
+    pub method: Method,
+    pub items: Vec<Item>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub components: Option<Vec<Component>>,
+    pub item_model: ModelSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub covariates: Option<Vec<Covariate>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub covariate_model: Option<CovariateModel>,
+    pub agreement: Agreement,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub consistence: Vec<ParticipantConsistence>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub groups: Option<BTreeMap<String, Analysis>>,
+    /// Likelihood-ratio test that the model's effects are equal in every group.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub group_test: Option<LrTest>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bootstrap: Option<Bootstrap>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub observers: Option<ObserverScreening>,
+    pub warnings: Vec<String>,
+}
+
+/// Parses the trials (and conditions) CSV text and analyses it.
+pub fn analyze(trials_csv: &str, conditions_csv: Option<&str>, options: &Options) -> Result<Analysis> {
+    analyze_named(trials_csv, "trials CSV", conditions_csv.map(|text| (text, "conditions CSV")), options)
+}
+
+/// As [`analyze`], with the sources' names used in error messages (e.g. file paths).
+pub fn analyze_named(trials_csv: &str, trials_name: &str, conditions: Option<(&str, &str)>, options: &Options) -> Result<Analysis> {
+    let table = conditions.map(|(text, name)| crate::data::parse_conditions(text, name)).transpose()?;
+    let judgments = crate::data::parse_trials(trials_csv, trials_name, table.as_ref(), options.group_by.as_deref())?;
+    analyze_judgments(&judgments, table.as_ref(), options)
+}
+
+/// Analyses parsed judgments.
+pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, options: &Options) -> Result<Analysis> {
+    if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
+        return Err(AnalysisError::BadOption { option: "tolerance".into(), message: format!("{} is not between 0 and 1", options.tolerance) });
+    }
+    let reference = match &options.reference {
+        Some(name) => judgments.conditions.iter().position(|c| c == name).ok_or_else(|| AnalysisError::BadOption {
+            option: "reference".into(),
+            message: format!("`{name}` is not a condition of the data (conditions: {})", judgments.conditions.join(", ")),
+        })?,
+        None => 0,
+    };
+    let terms = match table {
+        Some(table) if !table.factors.is_empty() => {
+            let formula = options.model.clone().unwrap_or_else(|| table.factors.join("+"));
+            Some((formula.clone(), design::parse_formula(&formula, &table.factors)?))
+        }
+        _ => {
+            if let Some(formula) = &options.model {
+                return Err(AnalysisError::BadModel { formula: formula.clone(), message: "a factor model needs a conditions file with factor columns".into() });
+            }
+            None
+        }
+    };
+
+    let mut analysis = analyze_subset(judgments, table, terms.as_ref(), reference, options, |_| true)?;
+
+    if !judgments.groups.is_empty() {
+        let mut groups = BTreeMap::new();
+        let mut grouped_ll = 0.0;
+        let mut grouped_parameters = 0usize;
+        let mut valid = true;
+        for (g, name) in judgments.groups.iter().enumerate() {
+            let sub = analyze_subset(judgments, table, terms.as_ref(), reference, options, |row| row.group == g as u32)?;
+            let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
+            valid &= model.method == Method::Ml;
+            grouped_ll += model.log_likelihood;
+            grouped_parameters += model.parameters;
+            groups.insert(name.clone(), sub);
+        }
+        let pooled = analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model);
+        if valid && pooled.method == Method::Ml {
+            analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
+        } else {
+            analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
+        }
+        analysis.groups = Some(groups);
+    }
+    Ok(analysis)
+}
+
+/// Per-participant judgments as (i, j, i won, count), i < j.
+type ParticipantRows = Vec<(usize, usize, bool, u64)>;
+
+struct ItemFit {
+    /// Per component: members, reference, fit, separation SCCs.
+    components: Vec<(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>)>,
+}
+
+fn fit_items(n_conditions: usize, pairs: &[PairTally], reference: usize, options: &Options) -> std::result::Result<ItemFit, FitFailure> {
+    let fit_options = FitOptions { tolerance: options.tolerance, ..FitOptions::default() };
+    let mut components = Vec::new();
+    for members in design::components(n_conditions, pairs) {
+        let component_reference = if members.contains(&reference) { reference } else { members[0] };
+        let x = ModelMatrix::items(n_conditions, &members, component_reference);
+        let in_component: Vec<PairTally> = pairs.iter().filter(|p| members.binary_search(&p.i).is_ok()).copied().collect();
+        let separated = design::separation(&members, &in_component);
+        let fit = if separated.is_some() || options.always_firth {
+            fit::fit_firth(&in_component, &x, fit_options)?
+        } else {
+            fit::fit_ml(&in_component, &x, None, fit_options)?
+        };
+        components.push((members, component_reference, fit, separated));
+    }
+    Ok(ItemFit { components })
+}
+
+fn failure_message(what: &str, failure: FitFailure) -> AnalysisError {
+    let message = match failure {
+        FitFailure::Singular => format!("the {what} is not identifiable (singular information matrix)"),
+        FitFailure::Separation => format!("the {what} has no finite maximum-likelihood estimate (separation) and its bias-reduced fit failed"),
+        FitFailure::NotConverged { iterations, last_change } => {
+            format!("the {what} did not converge in {iterations} iterations (last change {last_change:.3e})")
+        }
+    };
+    AnalysisError::Empty(message)
+}
+
+fn analyze_subset(
+    judgments: &Judgments,
+    table: Option<&ConditionTable>,
+    terms: Option<&(String, Vec<Term>)>,
+    reference: usize,
+    options: &Options,
+    keep: impl Fn(&crate::data::Judgment) -> bool + Sync,
+) -> Result<Analysis> {
+    let n_conditions = judgments.conditions.len();
+    let names = &judgments.conditions;
+    let rows: Vec<&crate::data::Judgment> = judgments.rows.iter().filter(|row| keep(row)).collect();
+    let tally_rows = rows.iter().map(|r| (r.left, r.right, r.left_chosen, r.count));
+    let pairs = if n_conditions <= 512 { design::tally_dense(n_conditions, tally_rows) } else { design::tally(tally_rows) };
+    let mut warnings = Vec::new();
+
+    let mut wins = vec![0u64; n_conditions];
+    let mut comparisons = vec![0u64; n_conditions];
+    for pair in &pairs {
+        wins[pair.i] += pair.wins_i;
+        wins[pair.j] += pair.wins_j;
+        comparisons[pair.i] += pair.n();
+        comparisons[pair.j] += pair.n();
+    }
+    let never = (0..n_conditions).filter(|&c| comparisons[c] == 0).map(|c| names[c].clone()).collect::<Vec<_>>();
+    if !never.is_empty() {
+        warnings.push(format!("never compared, so not estimated: {}", never.join(", ")));
+    }
+    let mut reference = reference;
+    if comparisons[reference] == 0 {
+        let replacement = (0..n_conditions).find(|&c| comparisons[c] > 0).expect("at least one judgment");
+        warnings.push(format!("the reference `{}` was never compared; `{}` is the reference instead", names[reference], names[replacement]));
+        reference = replacement;
+    }
+
+    let item_fit = fit_items(n_conditions, &pairs, reference, options).map_err(|f| failure_message("item model", f))?;
+    let multiple = item_fit.components.len() > 1;
+    if multiple {
+        let listed: Vec<String> = item_fit.components.iter().map(|(members, ..)| format!("{{{}}}", members.iter().map(|&m| names[m].as_str()).collect::<Vec<_>>().join(", "))).collect();
+        warnings.push(format!(
+            "the comparison graph is disconnected into {} components: {}; log-worth is relative to each component's reference and no difference across components is reported",
+            item_fit.components.len(),
+            listed.join(", ")
+        ));
+    }
+
+    let mut items: Vec<Item> = (0..n_conditions)
+        .map(|c| Item {
+            condition: names[c].clone(),
+            log_worth: None,
+            se: None,
+            worth: None,
+            wins: wins[c],
+            comparisons: comparisons[c],
+            component: None,
+            fitted_log_worth: None,
+            fitted_worth: None,
+            ci: None,
+        })
+        .collect();
+    let mut components = Vec::new();
+    for (k, (members, component_reference, fit, separated)) in item_fit.components.iter().enumerate() {
+        let x = ModelMatrix::items(n_conditions, members, *component_reference);
+        let lambdas: Vec<f64> = members.iter().map(|&m| x.predict(m, &fit.beta)).collect();
+        let max = lambdas.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let total: f64 = lambdas.iter().map(|l| (l - max).exp()).sum();
+        for (&member, &lambda) in members.iter().zip(&lambdas) {
+            let item = &mut items[member];
+            item.log_worth = Some(lambda);
+            item.se = Some(fit.variance_of(&x.rows[member]).sqrt());
+            item.worth = Some((lambda - max).exp() / total);
+            item.component = multiple.then_some(k);
+        }
+        let (mut never_lost, mut never_won) = (Vec::new(), Vec::new());
+        if let Some(sccs) = separated {
+            never_lost = sccs[0].iter().map(|&m| names[m].clone()).collect();
+            never_won = sccs[sccs.len() - 1].iter().map(|&m| names[m].clone()).collect();
+            warnings.push(format!(
+                "separation: within its comparisons {{{}}} never lost and {{{}}} never won, so the maximum-likelihood estimate does not exist; the item model is Firth's bias-reduced estimate",
+                never_lost.join(", "),
+                never_won.join(", ")
+            ));
+        }
+        components.push(Component {
+            conditions: members.iter().map(|&m| names[m].clone()).collect(),
+            reference: names[*component_reference].clone(),
+            method: fit.method,
+            never_lost,
+            never_won,
+        });
+    }
+    let item_fits: Vec<&Fit> = item_fit.components.iter().map(|(_, _, fit, _)| fit).collect();
+    let item_model = ModelSummary::from_fits(&item_fits);
+
+    // Factor model.
+    let mut covariates = None;
+    let mut covariate_model = None;
+    let mut factor_fit: Option<(Fit, ModelMatrix)> = None;
+    if let (Some(table), Some((formula, terms))) = (table, terms) {
+        let values = design::term_values(&table.levels, terms);
+        let (kept, dropped) = design::identifiable_terms(&values, terms.len(), &pairs);
+        let dropped_terms: Vec<DroppedTerm> = dropped
+            .iter()
+            .map(|(k, why)| DroppedTerm {
+                name: terms[*k].name.clone(),
+                reason: match why {
+                    Dropped::Constant => "constant over the compared conditions".to_string(),
+                    Dropped::Collinear(with) => format!("collinear with {}", with.iter().map(|&w| terms[w].name.as_str()).collect::<Vec<_>>().join(", ")),
+                },
+            })
+            .collect();
+        for term in &dropped_terms {
+            warnings.push(format!("factor model: `{}` dropped, {}", term.name, term.reason));
+        }
+        if kept.is_empty() {
+            warnings.push("factor model not fitted: no term varies over the compared conditions".into());
+        } else {
+            let x = ModelMatrix::covariates(&values, &kept);
+            let fit_options = FitOptions { tolerance: options.tolerance, ..FitOptions::default() };
+            let fit = if options.always_firth {
+                fit::fit_firth(&pairs, &x, fit_options)
+            } else {
+                match fit::fit_ml(&pairs, &x, None, fit_options) {
+                    Err(FitFailure::Separation) => {
+                        warnings.push("separation in the factor model: its maximum-likelihood estimate does not exist; the factor model is Firth's bias-reduced estimate".into());
+                        fit::fit_firth(&pairs, &x, fit_options)
+                    }
+                    other => other,
+                }
+            }
+            .map_err(|f| failure_message("factor model", f))?;
+            let summary = ModelSummary::from_fits(&[&fit]);
+            let lr_vs_items = if summary.method == Method::Ml && item_model.method == Method::Ml {
+                LrTest::new(2.0 * (item_model.log_likelihood - summary.log_likelihood), item_model.parameters as i64 - summary.parameters as i64)
+            } else {
+                None
+            };
+            if multiple {
+                warnings.push("the factor model relates the disconnected components only through its factors".into());
+            }
+            covariates = Some(
+                kept.iter()
+                    .enumerate()
+                    .map(|(column, &k)| {
+                        let estimate = fit.beta[column];
+                        let se = fit.se(column);
+                        let z = if se > 0.0 { estimate / se } else { 0.0 };
+                        Covariate { name: terms[k].name.clone(), estimate, se, z, p: PValue::normal_two_sided(z), ci: None }
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let reference_lambda = x.predict(reference, &fit.beta);
+            let fitted: Vec<Option<f64>> = (0..n_conditions).map(|c| (comparisons[c] > 0).then(|| x.predict(c, &fit.beta) - reference_lambda)).collect();
+            let max = fitted.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
+            let total: f64 = fitted.iter().flatten().map(|l| (l - max).exp()).sum();
+            for (item, lambda) in items.iter_mut().zip(&fitted) {
+                item.fitted_log_worth = *lambda;
+                item.fitted_worth = lambda.map(|l| (l - max).exp() / total);
+            }
+            covariate_model = Some(CovariateModel { formula: formula.clone(), summary, lr_vs_items, dropped: dropped_terms });
+            factor_fit = Some((fit, x));
+        }
+    }
+
+    let agreement = agreement::coefficient_of_agreement(&pairs, n_conditions, &AgreementOptions { simulations: options.agreement_simulations.max(1), seed: options.seed, ..AgreementOptions::default() })?;
+
+    // Per-participant judgments (for consistence, bootstrap and screening).
+    let mut by_participant: Vec<ParticipantRows> = vec![Vec::new(); judgments.participants.len()];
+    for row in &rows {
+        let (i, j, i_won) = if row.left < row.right { (row.left, row.right, row.left_chosen) } else { (row.right, row.left, !row.left_chosen) };
+        by_participant[row.participant as usize].push((i as usize, j as usize, i_won, row.count));
+    }
+    let active: Vec<usize> = (0..by_participant.len()).filter(|&p| !by_participant[p].is_empty()).collect();
+
+    let compared: Vec<usize> = (0..n_conditions).filter(|&c| comparisons[c] > 0).collect();
+    let consistence = consistence_per_participant(&by_participant, &active, &compared, &judgments.participants);
+
+    let mut analysis = Analysis {
+        judgments: rows.iter().map(|r| r.count).sum(),
+        participants: active.len(),
+        conditions: n_conditions,
+        reference: names[reference].clone(),
+        method: item_model.method,
+        items,
+        components: multiple.then_some(components.clone()).or_else(|| components.iter().any(|c| !c.never_lost.is_empty()).then_some(components)),
+        item_model,
+        covariates,
+        covariate_model,
+        agreement,
+        consistence,
+        groups: None,
+        group_test: None,
+        bootstrap: None,
+        observers: None,
+        warnings,
+    };
+
+    let screen = match options.screening {
+        Screening::On => true,
+        Screening::Off => false,
+        Screening::Auto => {
+            let auto = n_conditions <= SCREENING_AUTO_LIMIT;
+            if !auto {
+                analysis.warnings.push(format!("observer screening skipped: {n_conditions} conditions exceed the automatic limit of {SCREENING_AUTO_LIMIT} (ask for it explicitly)"));
+            }
+            auto
+        }
+    };
+    if screen {
+        if multiple || analysis.method != Method::Ml {
+            analysis.warnings.push("observer screening skipped: it needs a connected design with a maximum-likelihood item fit".into());
+        } else if active.len() < 3 {
+            analysis.warnings.push("observer screening skipped: it needs at least three participants".into());
+        } else {
+            analysis.observers = Some(screen_observers(&pairs, &item_fit.components[0], &by_participant, &active, &judgments.participants, options));
+        }
+    }
+    if options.bootstrap > 0 {
+        if active.len() < 2 {
+            analysis.warnings.push("bootstrap skipped: it needs at least two participants".into());
+        } else {
+            run_bootstrap(&mut analysis, &by_participant, &active, n_conditions, reference, factor_fit.as_ref().map(|(_, x)| x), options);
+        }
+    }
+    Ok(analysis)
+}
+
+fn consistence_per_participant(by_participant: &[ParticipantRows], active: &[usize], compared: &[usize], participant_names: &[String]) -> Vec<ParticipantConsistence> {
+    let t = compared.len();
+    if t < 3 {
+        return Vec::new();
+    }
+    let local: HashMap<usize, usize> = compared.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let n_pairs = t * (t - 1) / 2;
+    active
+        .iter()
+        .filter_map(|&p| {
+            let rows = &by_participant[p];
+            let mut seen = std::collections::HashSet::new();
+            for &(i, j, _, _) in rows {
+                seen.insert((i, j));
+            }
+            if seen.len() < n_pairs {
+                return None;
+            }
+            let mut expanded = Vec::new();
+            for &(i, j, won, count) in rows {
+                for _ in 0..count.min(1_000) {
+                    expanded.push((local[&i], local[&j], won));
+                }
+            }
+            let consistence = agreement::coefficient_of_consistence(&expanded, t).ok()?;
+            Some(ParticipantConsistence { participant: participant_names[p].clone(), consistence })
+        })
+        .collect()
+}
+
+fn subtract(pairs: &[PairTally], index: &HashMap<(usize, usize), usize>, rows: &ParticipantRows) -> Vec<PairTally> {
+    let mut out = pairs.to_vec();
+    for &(i, j, i_won, count) in rows {
+        let pair = &mut out[index[&(i, j)]];
+        if i_won { pair.wins_i -= count } else { pair.wins_j -= count }
+    }
+    out
+}
+
+fn screen_observers(
+    pairs: &[PairTally],
+    component: &(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>),
+    by_participant: &[ParticipantRows],
+    active: &[usize],
+    participant_names: &[String],
+    options: &Options,
+) -> ObserverScreening {
+    let (members, reference, full_fit, _) = component;
+    let n_conditions = by_participant.iter().flatten().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0).max(members.iter().max().map_or(0, |m| m + 1));
+    let x = ModelMatrix::items(n_conditions, members, *reference);
+    let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(k, p)| ((p.i, p.j), k)).collect();
+    let fit_options = FitOptions { tolerance: options.tolerance.max(1e-8), ..FitOptions::default() };
+    let observers: Vec<Observer> = active
+        .par_iter()
+        .map(|&p| {
+            let rows = &by_participant[p];
+            let others = subtract(pairs, &index, rows);
+            let beta = match fit::fit_ml(&others, &x, Some(&full_fit.beta), fit_options) {
+                Ok(fit) => fit.beta,
+                // The others alone separate: fall back to the bias-reduced consensus.
+                Err(_) => fit::fit_firth(&others, &x, fit_options).map(|f| f.beta).unwrap_or_else(|_| full_fit.beta.clone()),
+            };
+            let (mut observed, mut mean, mut variance, mut n) = (0.0, 0.0, 0.0, 0u64);
+            for &(i, j, i_won, count) in rows {
+                let eta = x.predict(i, &beta) - x.predict(j, &beta);
+                let ln_pi = -softplus(-eta);
+                let ln_1_pi = -softplus(eta);
+                let pi = ln_pi.exp();
+                let c = count as f64;
+                observed += c * if i_won { ln_pi } else { ln_1_pi };
+                mean += c * (pi * ln_pi + (1.0 - pi) * ln_1_pi);
+                variance += c * pi * (1.0 - pi) * (ln_pi - ln_1_pi).powi(2);
+                n += count;
+            }
+            let z = if variance > 0.0 { (observed - mean) / variance.sqrt() } else { 0.0 };
+            let p_value = PValue::normal_lower(z);
+            Observer {
+                participant: participant_names[p].clone(),
+                judgments: n,
+                mean_log_likelihood: observed / n.max(1) as f64,
+                z,
+                p: p_value,
+                flagged: p_value.p < options.screening_alpha,
+            }
+        })
+        .collect();
+    let flagged = observers.iter().filter(|o| o.flagged).map(|o| o.participant.clone()).collect();
+    ObserverScreening { alpha: options.screening_alpha, participants: observers, flagged }
+}
+
+fn softplus(x: f64) -> f64 {
+    if x > 0.0 { x + (-x).exp().ln_1p() } else { x.exp().ln_1p() }
+}
+
+fn percentile_interval(mut values: Vec<f64>, level: f64) -> Option<[f64; 2]> {
+    if values.len() < 2 {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let quantile = |q: f64| {
+        // R's quantile type 7.
+        let h = (values.len() - 1) as f64 * q;
+        let lo = h.floor() as usize;
+        let hi = (lo + 1).min(values.len() - 1);
+        values[lo] + (h - lo as f64) * (values[hi] - values[lo])
+    };
+    let alpha = (1.0 - level) / 2.0;
+    Some([quantile(alpha), quantile(1.0 - alpha)])
+}
+
+fn run_bootstrap(
+    analysis: &mut Analysis,
+    by_participant: &[ParticipantRows],
+    active: &[usize],
+    n_conditions: usize,
+    reference: usize,
+    factor_x: Option<&ModelMatrix>,
+    options: &Options,
+) {
+    const LEVEL: f64 = 0.95;
+    let fit_options = FitOptions { tolerance: options.tolerance.max(1e-8), ..FitOptions::default() };
+    let members: Vec<usize> = (0..n_conditions).filter(|&c| analysis.items[c].log_worth.is_some()).collect();
+    let single_component = analysis.items.iter().all(|i| i.component.is_none());
+    let x_items = ModelMatrix::items(n_conditions, &members, reference);
+    let replicates: Vec<Option<(Vec<f64>, Option<Vec<f64>>)>> = (0..options.bootstrap)
+        .into_par_iter()
+        .map(|b| {
+            let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+            rng.set_stream(b as u64 + 1);
+            let rows = (0..active.len()).flat_map(|_| {
+                let p = active[rng.random_range(0..active.len())];
+                by_participant[p].iter().map(|&(i, j, won, count)| (i as u32, j as u32, won, count))
+            });
+            let rows: Vec<_> = rows.collect();
+            let pairs = if n_conditions <= 512 { design::tally_dense(n_conditions, rows) } else { design::tally(rows) };
+            let items = if single_component {
+                let fit = fit::fit_ml(&pairs, &x_items, None, fit_options).ok()?;
+                Some(members.iter().map(|&m| x_items.predict(m, &fit.beta)).collect::<Vec<f64>>())
+            } else {
+                None
+            };
+            let factors = match factor_x {
+                Some(x) => Some(fit::fit_ml(&pairs, x, None, fit_options).ok()?.beta),
+                None => None,
+            };
+            Some((items.unwrap_or_default(), factors))
+        })
+        .collect();
+    let successful: Vec<&(Vec<f64>, Option<Vec<f64>>)> = replicates.iter().flatten().collect();
+    let failed = replicates.len() - successful.len();
+    if failed > 0 {
+        analysis.warnings.push(format!("bootstrap: {failed} of {} resamples had no finite fit (separation) and are left out of the intervals", replicates.len()));
+    }
+    if single_component {
+        for (k, &m) in members.iter().enumerate() {
+            analysis.items[m].ci = percentile_interval(successful.iter().map(|r| r.0[k]).collect(), LEVEL);
+        }
+    } else {
+        analysis.warnings.push("bootstrap: no intervals for log-worth across a disconnected design".into());
+    }
+    if let Some(covariates) = analysis.covariates.as_mut() {
+        for (k, covariate) in covariates.iter_mut().enumerate() {
+            covariate.ci = percentile_interval(successful.iter().filter_map(|r| r.1.as_ref().map(|f| f[k])).collect(), LEVEL);
+        }
+    }
+    analysis.bootstrap = Some(Bootstrap { replicates: options.bootstrap, seed: options.seed, failed, level: LEVEL });
+}

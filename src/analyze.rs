@@ -1,0 +1,170 @@
+//! `mrstudy analyze`: reads a trials CSV (paired comparisons) or a task CSV (lab tasks), runs the
+//! analysis crate and prints a table or the Analysis JSON, and optionally writes a worth plot.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use mrstudy_analysis::analysis::{Options, Screening};
+use mrstudy_analysis::plot::{EffectPoint, EffectSeries, WorthPoint, WorthSeries};
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Format {
+    Table,
+    Json,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ScreeningArg {
+    Auto,
+    On,
+    Off,
+}
+
+#[derive(Args)]
+pub struct AnalyzeArgs {
+    /// Trials CSV (`participant,left,right,chosen`, as `mrstudy export` writes) or a task CSV (`participant,condition,value`).
+    #[arg(long)]
+    trials: PathBuf,
+    /// Conditions CSV (`condition,<factor>,…`) for the factor model.
+    #[arg(long)]
+    conditions: Option<PathBuf>,
+    /// Fit everything per value of this column (e.g. `gender`) and test whether effects differ.
+    #[arg(long)]
+    group_by: Option<String>,
+    /// Reference condition (log-worth 0); default: first of the conditions file, else first by name.
+    #[arg(long)]
+    reference: Option<String>,
+    /// Factor-model formula, e.g. `gi+cm+ca+gi:ca` or `gi*ca+cm`; default: all factors, main effects.
+    #[arg(long)]
+    model: Option<String>,
+    #[arg(long, value_enum, default_value = "table")]
+    format: Format,
+    /// Write the worth plot (SVG) here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Bootstrap replicates over participants for intervals (0: none).
+    #[arg(long, default_value_t = 0)]
+    bootstrap: usize,
+    /// Seed for the bootstrap and the agreement simulation.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
+    #[arg(long, value_enum, default_value = "auto")]
+    screen: ScreeningArg,
+    /// Use Firth's bias-reduced estimate for every model, not only under separation.
+    #[arg(long)]
+    firth: bool,
+    /// Convergence tolerance (largest parameter change).
+    #[arg(long, default_value_t = 1e-10)]
+    tolerance: f64,
+}
+
+fn read(path: &PathBuf) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+/// Task CSVs have a `value` column and no `left`/`right`.
+fn is_task_csv(text: &str) -> bool {
+    let header = text.lines().next().unwrap_or("");
+    let columns: Vec<&str> = header.split(',').map(|c| c.trim().trim_matches('"')).collect();
+    columns.contains(&"value") && columns.contains(&"condition") && !columns.contains(&"left")
+}
+
+pub fn run(args: AnalyzeArgs) -> Result<()> {
+    let trials = read(&args.trials)?;
+    let trials_name = args.trials.display().to_string();
+    if is_task_csv(&trials) {
+        if args.conditions.is_some() || args.model.is_some() || args.plot.is_some() {
+            bail!("{trials_name} is a task CSV (participant,condition,value): --conditions, --model and --plot apply to paired comparisons only");
+        }
+        let analysis = mrstudy_analysis::task::analyze_task_csv(&trials, &trials_name)?;
+        match args.format {
+            Format::Json => println!("{}", serde_json::to_string_pretty(&analysis)?),
+            Format::Table => print!("{}", mrstudy_analysis::task::render_table(&analysis)),
+        }
+        return Ok(());
+    }
+    let conditions = args.conditions.as_ref().map(read).transpose()?;
+    let conditions_name = args.conditions.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+    let options = Options {
+        reference: args.reference,
+        model: args.model,
+        group_by: args.group_by,
+        tolerance: args.tolerance,
+        bootstrap: args.bootstrap,
+        seed: args.seed,
+        screening: match args.screen {
+            ScreeningArg::Auto => Screening::Auto,
+            ScreeningArg::On => Screening::On,
+            ScreeningArg::Off => Screening::Off,
+        },
+        always_firth: args.firth,
+        ..Options::default()
+    };
+    let analysis = mrstudy_analysis::analysis::analyze_named(&trials, &trials_name, conditions.as_deref().map(|text| (text, conditions_name.as_str())), &options)?;
+    // Render everything before writing anything: no partial output on error.
+    let text = match args.format {
+        Format::Json => serde_json::to_string_pretty(&analysis)? + "\n",
+        Format::Table => mrstudy_analysis::table::render(&analysis),
+    };
+    if let Some(path) = &args.plot {
+        let svg = worth_plot(&analysis);
+        std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    print!("{text}");
+    Ok(())
+}
+
+/// The worth plot of an analysis (and of its groups), with 95 % intervals: bootstrap where run,
+/// else Wald (λ ± 1.96·se).
+pub fn worth_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> String {
+    let conditions: Vec<String> = analysis.items.iter().map(|i| i.condition.clone()).collect();
+    let series_of = |name: &str, a: &mrstudy_analysis::analysis::Analysis| WorthSeries {
+        name: name.to_string(),
+        points: a
+            .items
+            .iter()
+            .filter_map(|item| {
+                let log_worth = item.log_worth?;
+                let (low, high) = match (item.ci, item.se) {
+                    (Some([lo, hi]), _) => (Some(lo), Some(hi)),
+                    (None, Some(se)) if se > 0.0 => (Some(log_worth - 1.96 * se), Some(log_worth + 1.96 * se)),
+                    _ => (None, None),
+                };
+                Some(WorthPoint { condition: item.condition.clone(), log_worth, low, high })
+            })
+            .collect(),
+    };
+    let mut series = vec![series_of("all", analysis)];
+    if let Some(groups) = &analysis.groups {
+        for (name, group) in groups {
+            series.push(series_of(name, group));
+        }
+    }
+    let title = format!("Worth of each condition (log scale, reference {}), 95 % intervals", analysis.reference);
+    mrstudy_analysis::plot::worth_plot(&title, &conditions, &series)
+}
+
+/// The factor-effect plot (estimates with 95 % intervals), if a factor model was fitted.
+#[allow(dead_code)]
+pub fn effect_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> Option<String> {
+    let covariates = analysis.covariates.as_ref()?;
+    let factors: Vec<String> = covariates.iter().map(|c| c.name.clone()).collect();
+    let series_of = |name: &str, a: &mrstudy_analysis::analysis::Analysis| EffectSeries {
+        name: name.to_string(),
+        points: a
+            .covariates
+            .iter()
+            .flatten()
+            .map(|c| EffectPoint { factor: c.name.clone(), estimate: c.estimate, low: Some(c.estimate - 1.96 * c.se), high: Some(c.estimate + 1.96 * c.se) })
+            .collect(),
+    };
+    let mut series = vec![series_of("all", analysis)];
+    if let Some(groups) = &analysis.groups {
+        for (name, group) in groups {
+            series.push(series_of(name, group));
+        }
+    }
+    Some(mrstudy_analysis::plot::effect_plot("Factor effects (logit scale), 95 % Wald intervals", &factors, &series))
+}
