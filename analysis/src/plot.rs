@@ -1,0 +1,819 @@
+//! SVG figures of analysis results, written by hand as strings (this crate does no IO).
+//!
+//! - [`worth_plot`] / [`worth_plot_with`]: log-worth per condition with 95 % intervals,
+//!   one series per group (e.g. all, female, male), optionally with each condition's worth
+//!   π beside it (the thesis' Figures 6.14(a) and 6.16(a));
+//! - [`effect_plot`]: factor estimates (`gi`, `cm`, `ca`, interactions) with 95 % intervals
+//!   per group (Figure 6.14(b));
+//! - [`line_plot`]: benchmark series of (x, y) points on linear or log10 axes.
+//!
+//! Worth and effect plots put one row per condition or factor, in the order given, and the
+//! logit scale horizontally with a dashed zero line; the groups' points are dodged within a
+//! row and told apart by colour (Okabe & Ito's colour-blind-safe palette) and marker shape
+//! (so they survive greyscale print). Rows rather than columns, because names may be long
+//! and there may be fifty conditions: labels stay horizontal and the figure grows down.
+//!
+//! Missing data is left out, never invented: a point without an interval has no bar, an
+//! interval with one bound is drawn one-sided, a condition a group could not estimate has
+//! no point in that group's series (its row stays), and a line-plot point that is not finite
+//! or not positive on a log axis is skipped and counted in a note under the plot. Every
+//! number goes through one formatter, so `NaN` and `inf` never reach the SVG; all text is
+//! XML-escaped. A figure without data is a valid SVG with its title and "no data".
+//!
+//! SVG has no text metrics, so margins come from an estimate of label widths in a
+//! Helvetica-like font (`svg::text_width`); labels over 40 characters are shortened with an
+//! ellipsis and keep their full text as a tooltip, as does every point.
+
+mod forest;
+mod line;
+mod scale;
+mod svg;
+
+use forest::{Annotation, Estimate, Labelled};
+
+/// One condition's log-worth λ (logit scale) with its 95 % interval, either bound of which
+/// may be missing.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WorthPoint {
+    pub condition: String,
+    pub log_worth: f64,
+    pub low: Option<f64>,
+    pub high: Option<f64>,
+}
+
+/// The log-worths of one group (e.g. "all", "female", "male"). Conditions the group could
+/// not estimate are simply absent.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WorthSeries {
+    pub name: String,
+    pub points: Vec<WorthPoint>,
+}
+
+/// Options of [`worth_plot_with`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WorthPlotOptions {
+    /// Print each condition's worth π = exp(λᵢ) / Σⱼ exp(λⱼ) beside the plot, one column per
+    /// series; the sum runs over the conditions present in that series.
+    pub show_worth: bool,
+    /// The reference condition (log-worth 0), named in the axis label.
+    pub reference: Option<String>,
+}
+
+/// One factor's (or interaction's) estimate on the logit scale with its 95 % interval.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EffectPoint {
+    pub factor: String,
+    pub estimate: f64,
+    pub low: Option<f64>,
+    pub high: Option<f64>,
+}
+
+/// The factor estimates of one group.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EffectSeries {
+    pub name: String,
+    pub points: Vec<EffectPoint>,
+}
+
+/// A line plot: markers joined by lines, in the order of each series' points.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LinePlot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    /// Log10 x axis; points with x ≤ 0 are skipped.
+    pub x_log: bool,
+    /// Log10 y axis; points with y ≤ 0 are skipped.
+    pub y_log: bool,
+    pub series: Vec<LineSeries>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LineSeries {
+    pub name: String,
+    /// (x, y) pairs; non-finite ones are skipped.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Log-worth per condition with 95 % intervals, one series per group, conditions in the
+/// order of `conditions` (conditions only the series name follow, in order of appearance).
+#[must_use]
+pub fn worth_plot(title: &str, conditions: &[String], series: &[WorthSeries]) -> String {
+    worth_plot_with(title, conditions, series, &WorthPlotOptions::default())
+}
+
+/// [`worth_plot`] with options: the worth π column and the reference condition.
+#[must_use]
+pub fn worth_plot_with(
+    title: &str,
+    conditions: &[String],
+    series: &[WorthSeries],
+    options: &WorthPlotOptions,
+) -> String {
+    let labelled = series
+        .iter()
+        .map(|series| {
+            let points = series
+                .points
+                .iter()
+                .map(|p| {
+                    (
+                        p.condition.clone(),
+                        Estimate::new(p.log_worth, p.low, p.high),
+                    )
+                })
+                .collect();
+            Labelled {
+                name: series.name.clone(),
+                points,
+            }
+        })
+        .collect();
+    let (rows, series) = forest::assemble(conditions, labelled);
+    let annotation = options.show_worth.then(|| Annotation {
+        header: "worth π".to_owned(),
+        cells: series.iter().map(|s| worth_column(&s.estimates)).collect(),
+    });
+    let value_label = match &options.reference {
+        Some(reference) => format!("log-worth λ (logit scale, {reference} = 0)"),
+        None => "log-worth λ (logit scale)".to_owned(),
+    };
+    forest::render(&forest::Spec {
+        title: title.to_owned(),
+        rows,
+        series,
+        value_label,
+        symbol: "λ",
+        annotation,
+    })
+}
+
+/// Factor estimates with 95 % intervals, one series per group, factors in the order of
+/// `factors` (factors only the series name follow, in order of appearance).
+#[must_use]
+pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> String {
+    let labelled = series
+        .iter()
+        .map(|series| {
+            let points = series
+                .points
+                .iter()
+                .map(|p| (p.factor.clone(), Estimate::new(p.estimate, p.low, p.high)))
+                .collect();
+            Labelled {
+                name: series.name.clone(),
+                points,
+            }
+        })
+        .collect();
+    let (rows, series) = forest::assemble(factors, labelled);
+    forest::render(&forest::Spec {
+        title: title.to_owned(),
+        rows,
+        series,
+        value_label: "effect on log-worth (logit scale)".to_owned(),
+        symbol: "β",
+        annotation: None,
+    })
+}
+
+/// Series of (x, y) points as markers joined by lines, on linear or log10 axes.
+#[must_use]
+pub fn line_plot(spec: &LinePlot) -> String {
+    line::render(spec)
+}
+
+/// Worth π of each present estimate, normalised over the present ones, as table cells.
+fn worth_column(estimates: &[Option<Estimate>]) -> Vec<Option<String>> {
+    let max = estimates
+        .iter()
+        .flatten()
+        .map(|e| e.value)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let total: f64 = estimates
+        .iter()
+        .flatten()
+        .map(|e| (e.value - max).exp())
+        .sum();
+    estimates
+        .iter()
+        .map(|estimate| {
+            let worth = (estimate.as_ref()?.value - max).exp() / total;
+            Some(if worth >= 0.0005 {
+                format!("{worth:.3}")
+            } else {
+                "<0.001".to_owned()
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CONDITIONS: [&str; 8] = ["LQ", "GI", "CM", "CA", "GI+CM", "GI+CA", "CM+CA", "HQ"];
+
+    fn conditions() -> Vec<String> {
+        CONDITIONS.iter().map(|c| (*c).to_owned()).collect()
+    }
+
+    fn point(condition: &str, log_worth: f64, half_width: Option<f64>) -> WorthPoint {
+        WorthPoint {
+            condition: condition.to_owned(),
+            log_worth,
+            low: half_width.map(|h| log_worth - h),
+            high: half_width.map(|h| log_worth + h),
+        }
+    }
+
+    /// Made-up log-worths shaped like the thesis' web survey: LQ is the reference (0, no
+    /// interval), the others between −0.6 and 1.2 with intervals of ±0.1…0.2.
+    fn thesis_like_worths() -> Vec<WorthSeries> {
+        let groups: [(&str, [f64; 8]); 3] = [
+            ("all", [0.0, 0.55, 0.31, -0.42, 0.93, 0.21, -0.08, 1.12]),
+            ("female", [0.0, 0.47, 0.40, -0.56, 0.88, 0.10, 0.02, 1.05]),
+            ("male", [0.0, 0.63, 0.22, -0.30, 1.01, 0.30, -0.17, 1.19]),
+        ];
+        groups
+            .iter()
+            .enumerate()
+            .map(|(group_idx, (name, log_worths))| WorthSeries {
+                name: (*name).to_owned(),
+                points: CONDITIONS
+                    .iter()
+                    .zip(log_worths)
+                    .enumerate()
+                    .map(|(idx, (condition, &lw))| {
+                        let half = 0.1 + 0.1 * ((idx + group_idx) % 5) as f64 / 4.0;
+                        point(
+                            condition,
+                            lw,
+                            (idx > 0).then_some(half + 0.03 * group_idx as f64),
+                        )
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+
+    fn thesis_like_effects() -> (Vec<String>, Vec<EffectSeries>) {
+        let factors = ["gi", "cm", "ca", "gi:cm", "gi:ca", "cm:ca"];
+        let groups: [(&str, [f64; 6]); 3] = [
+            ("all", [0.54, 0.31, -0.42, 0.08, 0.12, -0.05]),
+            ("female", [0.47, 0.40, -0.56, 0.01, 0.19, 0.04]),
+            ("male", [0.62, 0.22, -0.30, 0.15, 0.05, -0.13]),
+        ];
+        let series = groups
+            .iter()
+            .enumerate()
+            .map(|(group_idx, (name, estimates))| EffectSeries {
+                name: (*name).to_owned(),
+                points: factors
+                    .iter()
+                    .zip(estimates)
+                    .map(|(factor, &estimate)| {
+                        let half = 0.11 + 0.04 * group_idx as f64;
+                        EffectPoint {
+                            factor: (*factor).to_owned(),
+                            estimate,
+                            low: Some(estimate - half),
+                            high: Some(estimate + half),
+                        }
+                    })
+                    .collect(),
+            })
+            .collect();
+        (factors.iter().map(|f| (*f).to_owned()).collect(), series)
+    }
+
+    fn benchmark() -> LinePlot {
+        let cpu = [
+            (1.0, 0.21),
+            (4.0, 0.11),
+            (16.0, 0.052),
+            (64.0, 0.027),
+            (256.0, 0.013),
+            (1024.0, 0.0066),
+        ];
+        let gpu = [
+            (16.0, 0.081),
+            (64.0, 0.052),
+            (256.0, 0.038),
+            (1024.0, 0.033),
+        ];
+        LinePlot {
+            title: "Render time against error".to_owned(),
+            x_label: "time per frame (ms)".to_owned(),
+            y_label: "RMSE against the reference".to_owned(),
+            x_log: true,
+            y_log: true,
+            series: vec![
+                LineSeries {
+                    name: "CPU path tracer (spp)".to_owned(),
+                    points: cpu.iter().map(|&(spp, e)| (18.0 * spp, e)).collect(),
+                },
+                LineSeries {
+                    name: "GPU DIR (VPLs)".to_owned(),
+                    points: gpu
+                        .iter()
+                        .map(|&(vpls, e)| (1.2 + 0.05 * vpls, e))
+                        .collect(),
+                },
+                LineSeries {
+                    name: "GPU DIR + colour mapping".to_owned(),
+                    points: gpu
+                        .iter()
+                        .map(|&(vpls, e)| (1.9 + 0.05 * vpls, e * 0.8))
+                        .chain([(60.0, 0.0)])
+                        .collect(),
+                },
+            ],
+        }
+    }
+
+    /// Parses `svg` as XML, checks the basics every figure must meet, and returns the text
+    /// of its `<text>` elements (tooltips excluded).
+    fn check(svg: &str) -> Vec<String> {
+        for forbidden in ["NaN", "inf", "Inf"] {
+            assert!(!svg.contains(forbidden), "SVG contains {forbidden}:\n{svg}");
+        }
+        let document =
+            roxmltree::Document::parse(svg).unwrap_or_else(|e| panic!("not XML: {e}\n{svg}"));
+        let root = document.root_element();
+        assert_eq!(root.tag_name().name(), "svg");
+        assert_eq!(
+            root.tag_name().namespace(),
+            Some("http://www.w3.org/2000/svg")
+        );
+        for attribute in ["width", "height"] {
+            let value: f64 = root.attribute(attribute).unwrap().parse().unwrap();
+            assert!(value > 0.0 && value < 10_000.0, "{attribute} = {value}");
+        }
+        root.descendants()
+            .filter(|node| node.has_tag_name("text"))
+            .map(|node| {
+                node.children()
+                    .filter(|child| !child.has_tag_name("title"))
+                    .map(|child| child.text().unwrap_or(""))
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn tooltips(svg: &str) -> Vec<String> {
+        let document = roxmltree::Document::parse(svg).unwrap();
+        document
+            .descendants()
+            .filter(|node| {
+                node.has_tag_name("title") && node.parent().is_some_and(|p| !p.has_tag_name("svg"))
+            })
+            .map(|node| node.text().unwrap_or("").to_owned())
+            .collect()
+    }
+
+    #[test]
+    fn worth_plot_is_svg_with_every_condition_and_group() {
+        let svg = worth_plot(
+            "Web survey: all scenes",
+            &conditions(),
+            &thesis_like_worths(),
+        );
+        let texts = check(&svg);
+        for label in CONDITIONS
+            .iter()
+            .chain(&["all", "female", "male", "Web survey: all scenes"])
+        {
+            assert!(
+                texts.iter().any(|t| t == label),
+                "missing {label}: {texts:?}"
+            );
+        }
+        assert!(texts.iter().any(|t| t.starts_with("log-worth λ")));
+        assert_eq!(tooltips(&svg).len(), 3 * CONDITIONS.len());
+    }
+
+    #[test]
+    fn worth_plot_keeps_the_given_condition_order() {
+        let svg = worth_plot("", &conditions(), &thesis_like_worths());
+        let texts = check(&svg);
+        let positions: Vec<usize> = CONDITIONS
+            .iter()
+            .map(|c| texts.iter().position(|t| t == c).unwrap())
+            .collect();
+        assert!(positions.windows(2).all(|w| w[0] < w[1]), "{positions:?}");
+    }
+
+    #[test]
+    fn worth_plot_escapes_markup_in_names() {
+        let names = vec!["<b>GI & CM</b>".to_owned(), "LQ".to_owned()];
+        let series = vec![WorthSeries {
+            name: "\"men\" & <women>".to_owned(),
+            points: vec![
+                point("<b>GI & CM</b>", 0.4, Some(0.1)),
+                point("LQ", 0.0, None),
+            ],
+        }];
+        let svg = worth_plot("a < b & c > d", &names, &series);
+        assert!(!svg.contains("<b>") && !svg.contains("& "));
+        let texts = check(&svg);
+        for label in ["<b>GI & CM</b>", "\"men\" & <women>", "a < b & c > d"] {
+            assert!(
+                texts.iter().any(|t| t == label),
+                "missing {label}: {texts:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn worth_plot_draws_no_bar_without_an_interval() {
+        let bar = r#"stroke-width="1.6""#;
+        let names = vec!["LQ".to_owned()];
+        let series = |low, high| {
+            vec![WorthSeries {
+                name: "all".to_owned(),
+                points: vec![WorthPoint {
+                    condition: "LQ".to_owned(),
+                    log_worth: 0.3,
+                    low,
+                    high,
+                }],
+            }]
+        };
+        assert_eq!(
+            worth_plot("", &names, &series(None, None))
+                .matches(bar)
+                .count(),
+            0
+        );
+        assert_eq!(
+            worth_plot("", &names, &series(Some(0.1), Some(0.5)))
+                .matches(bar)
+                .count(),
+            3
+        );
+        assert_eq!(
+            worth_plot("", &names, &series(None, Some(0.5)))
+                .matches(bar)
+                .count(),
+            2
+        );
+        assert_eq!(
+            worth_plot("", &names, &series(Some(f64::NAN), Some(f64::INFINITY)))
+                .matches(bar)
+                .count(),
+            0
+        );
+        check(&worth_plot("", &names, &series(Some(f64::NAN), Some(0.5))));
+    }
+
+    #[test]
+    fn worth_plot_leaves_out_missing_points_but_keeps_their_rows() {
+        let mut series = thesis_like_worths();
+        series[2].points.retain(|p| p.condition != "CM+CA");
+        series[1].points[3].log_worth = f64::NAN;
+        let svg = worth_plot("missing", &conditions(), &series);
+        let texts = check(&svg);
+        assert!(texts.iter().any(|t| t == "CM+CA"));
+        let tooltips = tooltips(&svg);
+        assert_eq!(tooltips.len(), 3 * CONDITIONS.len() - 2);
+        assert!(!tooltips.iter().any(|t| t.starts_with("CM+CA (male)")));
+    }
+
+    #[test]
+    fn worth_plot_appends_conditions_not_in_the_list() {
+        let svg = worth_plot("", &["LQ".to_owned()], &thesis_like_worths());
+        let texts = check(&svg);
+        for label in CONDITIONS {
+            assert!(texts.iter().any(|t| t == label), "missing {label}");
+        }
+    }
+
+    #[test]
+    fn worth_column_shows_normalised_worths() {
+        let names = vec!["LQ".to_owned(), "HQ".to_owned(), "GI".to_owned()];
+        let series = vec![
+            WorthSeries {
+                name: "all".to_owned(),
+                points: vec![point("LQ", 0.0, None), point("HQ", 3f64.ln(), Some(0.2))],
+            },
+            WorthSeries {
+                name: "male".to_owned(),
+                points: vec![point("LQ", 0.0, None), point("GI", -20.0, None)],
+            },
+        ];
+        let options = WorthPlotOptions {
+            show_worth: true,
+            reference: Some("LQ".to_owned()),
+        };
+        let svg = worth_plot_with("", &names, &series, &options);
+        let texts = check(&svg);
+        for cell in [
+            "worth π",
+            "0.250",
+            "0.750",
+            "1.000",
+            "<0.001",
+            "–",
+            "log-worth λ (logit scale, LQ = 0)",
+        ] {
+            assert!(texts.iter().any(|t| t == cell), "missing {cell}: {texts:?}");
+        }
+    }
+
+    #[test]
+    fn worth_plot_handles_many_long_conditions() {
+        let names: Vec<String> = (0..50)
+            .map(|i| format!("condition number {i} with a long name, really long"))
+            .collect();
+        let series: Vec<WorthSeries> = ["all", "female", "male"]
+            .iter()
+            .map(|group| WorthSeries {
+                name: (*group).to_owned(),
+                points: names
+                    .iter()
+                    .enumerate()
+                    .map(|(i, n)| point(n, (i as f64 * 0.37).sin(), Some(0.15)))
+                    .collect(),
+            })
+            .collect();
+        let svg = worth_plot_with(
+            "fifty",
+            &names,
+            &series,
+            &WorthPlotOptions {
+                show_worth: true,
+                reference: None,
+            },
+        );
+        let texts = check(&svg);
+        assert!(
+            texts
+                .iter()
+                .filter(|t| t.starts_with("condition number") && t.ends_with('…'))
+                .count()
+                == 50
+        );
+        let tooltips = tooltips(&svg);
+        assert!(tooltips.iter().any(|t| t == &names[49]));
+        assert_eq!(tooltips.len(), 50 + 150);
+    }
+
+    #[test]
+    fn empty_inputs_give_a_no_data_figure() {
+        let no_points = vec![WorthSeries {
+            name: "all".to_owned(),
+            points: vec![point("LQ", f64::NAN, Some(1.0))],
+        }];
+        let figures = [
+            worth_plot("nothing", &[], &[]),
+            worth_plot("nothing", &conditions(), &[]),
+            worth_plot("nothing", &conditions(), &no_points),
+            effect_plot("nothing", &[], &[]),
+            line_plot(&LinePlot::default()),
+            line_plot(&LinePlot {
+                x_log: true,
+                series: vec![LineSeries {
+                    name: "s".to_owned(),
+                    points: vec![(0.0, 1.0), (f64::NAN, 2.0)],
+                }],
+                ..LinePlot::default()
+            }),
+        ];
+        for svg in figures {
+            let texts = check(&svg);
+            assert!(texts.iter().any(|t| t == "no data"), "{svg}");
+        }
+    }
+
+    #[test]
+    fn effect_plot_shows_every_factor_and_group() {
+        let (factors, series) = thesis_like_effects();
+        let svg = effect_plot("Factor effects", &factors, &series);
+        let texts = check(&svg);
+        for label in factors.iter().map(String::as_str).chain([
+            "all",
+            "female",
+            "male",
+            "effect on log-worth (logit scale)",
+        ]) {
+            assert!(texts.iter().any(|t| t == label), "missing {label}");
+        }
+        assert!(
+            tooltips(&svg)
+                .iter()
+                .any(|t| t == "gi (all): β = 0.54, 95 % CI [0.43, 0.65]")
+        );
+    }
+
+    #[test]
+    fn line_plot_has_series_labels_and_decade_ticks() {
+        let svg = line_plot(&benchmark());
+        let texts = check(&svg);
+        for label in [
+            "CPU path tracer (spp)",
+            "GPU DIR (VPLs)",
+            "GPU DIR + colour mapping",
+            "time per frame (ms)",
+            "RMSE against the reference",
+            "10",
+            "100",
+            "1000",
+            "0.01",
+            "0.1",
+        ] {
+            assert!(
+                texts.iter().any(|t| t == label),
+                "missing {label}: {texts:?}"
+            );
+        }
+        assert!(
+            texts
+                .iter()
+                .any(|t| t == "1 point not shown (not finite, or not positive on a log axis).")
+        );
+        assert_eq!(svg.matches("<polyline").count(), 3);
+    }
+
+    #[test]
+    fn line_plot_skips_points_a_log_axis_cannot_show() {
+        let spec = LinePlot {
+            title: "log".to_owned(),
+            x_label: "x".to_owned(),
+            y_label: "y".to_owned(),
+            x_log: true,
+            y_log: true,
+            series: vec![LineSeries {
+                name: "s".to_owned(),
+                points: vec![
+                    (0.0, 1.0),
+                    (-1.0, 1.0),
+                    (1.0, 0.0),
+                    (1.0, -2.0),
+                    (f64::INFINITY, 1.0),
+                    (1.0, 2.0),
+                    (10.0, 20.0),
+                    (100.0, 30.0),
+                ],
+            }],
+        };
+        let svg = line_plot(&spec);
+        let texts = check(&svg);
+        assert!(
+            texts
+                .iter()
+                .any(|t| t == "5 points not shown (not finite, or not positive on a log axis).")
+        );
+        assert_eq!(tooltips(&svg).len(), 3);
+    }
+
+    #[test]
+    fn line_plot_on_linear_axes_keeps_negative_values() {
+        let spec = LinePlot {
+            series: vec![LineSeries {
+                name: "s".to_owned(),
+                points: vec![(-1.0, -5.0), (0.0, 0.0), (2.0, 1e-3)],
+            }],
+            ..LinePlot::default()
+        };
+        let svg = line_plot(&spec);
+        check(&svg);
+        assert_eq!(tooltips(&svg).len(), 3);
+        assert!(!svg.contains("not shown"));
+    }
+
+    #[test]
+    fn line_plot_with_power_of_ten_ticks_is_well_formed() {
+        let spec = LinePlot {
+            y_log: true,
+            series: vec![LineSeries {
+                name: "s".to_owned(),
+                points: vec![(1.0, 1e-9), (2.0, 1e-6), (3.0, 1e-4)],
+            }],
+            ..LinePlot::default()
+        };
+        let svg = line_plot(&spec);
+        let texts = check(&svg);
+        assert!(texts.iter().any(|t| t == "10−9"), "{texts:?}");
+    }
+
+    /// Writes the example figures to `$MRSTUDY_PLOT_DIR` for looking at them
+    /// (`MRSTUDY_PLOT_DIR=/tmp cargo test -p mrstudy-analysis plot::tests::write -- --ignored`).
+    #[test]
+    #[ignore = "writes example figures to $MRSTUDY_PLOT_DIR"]
+    fn write_example_figures() {
+        let Some(dir) = std::env::var_os("MRSTUDY_PLOT_DIR") else {
+            return;
+        };
+        let dir = std::path::PathBuf::from(dir);
+        let options = WorthPlotOptions {
+            show_worth: true,
+            reference: Some("LQ".to_owned()),
+        };
+        let (factors, effects) = thesis_like_effects();
+        let mut missing = thesis_like_worths();
+        missing[2].points.retain(|p| p.condition != "CM+CA");
+        missing[1].points[2].low = None;
+        missing[1].points[2].high = None;
+        let long: Vec<String> = (0..30)
+            .map(|i| {
+                format!(
+                    "scene {} · {}",
+                    i / 8,
+                    [
+                        "LQ",
+                        "GI",
+                        "CM",
+                        "CA",
+                        "GI+CM+CA with adaptive colour mapping"
+                    ][i % 5]
+                )
+            })
+            .collect();
+        let long_series: Vec<WorthSeries> = ["all", "female", "male"]
+            .iter()
+            .enumerate()
+            .map(|(g, name)| WorthSeries {
+                name: (*name).to_owned(),
+                points: long
+                    .iter()
+                    .enumerate()
+                    .map(|(i, c)| {
+                        point(
+                            c,
+                            (i as f64 * 0.37 + g as f64 * 0.2).sin(),
+                            Some(0.12 + 0.02 * g as f64),
+                        )
+                    })
+                    .collect(),
+            })
+            .collect();
+        let figures = [
+            (
+                "worth.svg",
+                worth_plot(
+                    "Preference for rendering modes (web survey)",
+                    &conditions(),
+                    &thesis_like_worths(),
+                ),
+            ),
+            (
+                "worth-pi.svg",
+                worth_plot_with(
+                    "Preference for rendering modes (web survey)",
+                    &conditions(),
+                    &missing,
+                    &options,
+                ),
+            ),
+            (
+                "worth-long.svg",
+                worth_plot_with("Thirty long conditions", &long, &long_series, &options),
+            ),
+            (
+                "effect.svg",
+                effect_plot("Effects of the rendering factors", &factors, &effects),
+            ),
+            ("line.svg", line_plot(&benchmark())),
+            ("empty.svg", worth_plot("Nothing yet", &[], &[])),
+            (
+                "worth-one.svg",
+                worth_plot_with(
+                    "One group",
+                    &conditions(),
+                    &thesis_like_worths()[..1],
+                    &WorthPlotOptions {
+                        show_worth: true,
+                        reference: None,
+                    },
+                ),
+            ),
+            (
+                "line-linear.svg",
+                line_plot(&LinePlot {
+                    title: "Frame time against virtual point lights".to_owned(),
+                    x_label: "virtual point lights".to_owned(),
+                    y_label: "time per frame (ms)".to_owned(),
+                    series: vec![
+                        LineSeries {
+                            name: "1280×720".to_owned(),
+                            points: (1..=8)
+                                .map(|i| (128.0 * f64::from(i), 2.0 + 1.7 * f64::from(i)))
+                                .collect(),
+                        },
+                        LineSeries {
+                            name: "1920×1080".to_owned(),
+                            points: (1..=8)
+                                .map(|i| (128.0 * f64::from(i), 3.1 + 3.9 * f64::from(i)))
+                                .collect(),
+                        },
+                    ],
+                    ..LinePlot::default()
+                }),
+            ),
+        ];
+        for (name, svg) in figures {
+            std::fs::write(dir.join(name), svg).unwrap();
+        }
+    }
+}
