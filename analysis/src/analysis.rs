@@ -126,6 +126,9 @@ pub struct Component {
 pub struct ModelSummary {
     pub method: Method,
     pub log_likelihood: f64,
+    /// Log-likelihood without binomial coefficients (additive over data splits).
+    #[serde(skip)]
+    pub kernel_log_likelihood: f64,
     pub deviance: f64,
     pub aic: f64,
     pub df_residual: i64,
@@ -141,6 +144,7 @@ impl ModelSummary {
         ModelSummary {
             method,
             log_likelihood,
+            kernel_log_likelihood: fits.iter().map(|f| f.kernel_log_likelihood).sum(),
             deviance: fits.iter().map(|f| f.deviance).sum(),
             aic: -2.0 * log_likelihood + 2.0 * parameters as f64,
             df_residual: fits.iter().map(|f| f.n_observations as i64).sum::<i64>() - parameters as i64,
@@ -321,13 +325,14 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
             let sub = analyze_subset(judgments, table, terms.as_ref(), reference, options, |row| row.group == g as u32)?;
             let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
             valid &= model.method == Method::Ml;
-            grouped_ll += model.log_likelihood;
+            grouped_ll += model.kernel_log_likelihood;
             grouped_parameters += model.parameters;
             groups.insert(name.clone(), sub);
         }
         let pooled = analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model);
         if valid && pooled.method == Method::Ml {
-            analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
+            // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
+            analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.kernel_log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
         } else {
             analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
         }
@@ -440,7 +445,7 @@ fn analyze_subset(
         let total: f64 = lambdas.iter().map(|l| (l - max).exp()).sum();
         for (&member, &lambda) in members.iter().zip(&lambdas) {
             let item = &mut items[member];
-            item.log_worth = Some(lambda);
+            item.log_worth = Some(lambda + 0.0); // + 0.0 turns −0 into 0
             item.se = Some(fit.variance_of(&x.rows[member]).sqrt());
             item.worth = Some((lambda - max).exp() / total);
             item.component = multiple.then_some(k);

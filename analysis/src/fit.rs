@@ -128,6 +128,9 @@ pub struct Fit {
     pub covariance: Mat<f64>,
     /// Log-likelihood including binomial coefficients (as R's `logLik`).
     pub log_likelihood: f64,
+    /// Log-likelihood without the binomial coefficients, Σ y·ln π + (n−y)·ln(1−π): additive
+    /// over any split of the data, so likelihood-ratio tests across groups use it.
+    pub kernel_log_likelihood: f64,
     /// Residual deviance against the saturated model of one binomial per unordered pair.
     pub deviance: f64,
     /// Number of binomial observations (pairs with at least one judgment).
@@ -284,9 +287,11 @@ fn finish(method: Method, observations: &[Observation], beta: Vec<f64>, iteratio
     let (_, information, _) = score_and_information(observations, &beta, p);
     let covariance = if p == 0 { Mat::zeros(0, 0) } else { inverse(&information).ok_or(FitFailure::Singular)? };
     let constants: f64 = observations.iter().map(|o| ln_choose(o.n, o.wins)).sum();
+    let kernel = kernel_log_likelihood(observations, &beta);
     Ok(Fit {
         method,
-        log_likelihood: kernel_log_likelihood(observations, &beta) + constants,
+        log_likelihood: kernel + constants,
+        kernel_log_likelihood: kernel,
         deviance: deviance(observations, &beta),
         n_observations: observations.len(),
         beta,

@@ -108,7 +108,12 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
                 let _ = write!(out, ", χ² = {chi2:.3}, df = {df:.2}");
             }
             if let Some(p) = &a.p {
-                let _ = write!(out, ", p = {} ({:?})", PValue::display(p), a.method);
+                let method = match (a.method, a.simulations) {
+                    (crate::agreement::AgreementMethod::Simulation, Some(b)) => format!("Monte-Carlo, {b} simulations"),
+                    (crate::agreement::AgreementMethod::Chi2, _) => "χ² approximation".to_string(),
+                    _ => "—".to_string(),
+                };
+                let _ = write!(out, ", p = {} ({method})", PValue::display(p));
             }
             out.push('\n');
         }
