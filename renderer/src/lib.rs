@@ -1,8 +1,42 @@
-//! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and the GPU
-//! differential-rendering pipeline (differential instant radiosity, colour mapping, camera
-//! artifacts).
+//! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and image
+//! metrics. The GPU differential-rendering pipeline (differential instant radiosity, colour
+//! mapping, camera artifacts) builds on these and is not here yet.
 //!
-//! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene and a
-//! condition into images, masks and timings.
+//! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene into
+//! images, masks, timings and errors.
 //!
-//! Not built yet: see the renderer issues. This crate holds only this documentation until then.
+//! Code map:
+//! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
+//!   [`builtin`] holds the built-in scenes (survey set, DIR test scenes, lab task scene).
+//! - [`geometry`], [`bvh`], [`mesh`]: primitives, a binned-SAH BVH, glTF/OBJ loading.
+//! - [`material`]: Lambert plus energy-conserving Blinn–Phong, textures, emission.
+//! - [`light`]: spot, point, area (emissive triangles) and environment lights (HDR/EXR maps,
+//!   equirectangular or fish-eye, or a procedural sky with a window).
+//! - [`camera`]: pinhole intrinsics (field of view or K) and pose.
+//! - [`pathtracer`]: the unbiased CPU reference path tracer (NEE + MIS, rayon, progressive,
+//!   deterministic per seed).
+//! - [`reference`]: the photograph, the ground-truth composite, HDR buffers and masks.
+//! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
+//! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
+//! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
+
+pub mod builtin;
+pub mod bvh;
+pub mod camera;
+pub mod error;
+pub mod geometry;
+pub mod image;
+pub mod light;
+pub mod material;
+pub mod math;
+pub mod mesh;
+pub mod metrics;
+pub mod pathtracer;
+pub mod reference;
+pub mod scene;
+pub mod sensor;
+
+pub use error::RenderError;
+pub use image::{Image, Mask};
+pub use reference::{ReferenceOutput, ReferenceParams, render_reference};
+pub use scene::{Scene, SceneDesc};

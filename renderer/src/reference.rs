@@ -1,0 +1,193 @@
+//! The reference renders a study needs from the CPU path tracer: (a) the photograph — the real
+//! scene only, through the simulated camera; (b) the ground-truth composite — real and virtual
+//! objects, through the same camera, with the same path-tracing random numbers and the same
+//! sensor noise; (c) the linear HDR buffers of both and two masks: virtual coverage (fraction of
+//! primary samples that saw a virtual object) and the affected region (virtual coverage, or a
+//! radiance change between (a) and (b) above a relative threshold).
+
+use crate::error::{RenderError, Result};
+use crate::image::{Image, Mask};
+use crate::math::luminance;
+use crate::pathtracer::{Accumulator, Subset, TraceParams, World};
+use crate::scene::Scene;
+use crate::sensor;
+use serde::Serialize;
+use std::time::Instant;
+
+/// How a reference render runs.
+#[derive(Clone, Debug)]
+pub struct ReferenceParams {
+    pub spp: u32,
+    pub seed: u64,
+    pub max_depth: u32,
+    /// A pixel is "affected" when its (3×3-smoothed) luminance changes by more than this
+    /// fraction of the photograph's luminance there (floored at 5 % of the mean).
+    pub affected_threshold: f32,
+    /// A firefly is a pixel whose brightest sample exceeds this multiple of the image mean and
+    /// carries more than half of the pixel's value.
+    pub firefly_factor: f32,
+    /// Samples per progressive pass (the progress callback runs after each).
+    pub pass_spp: u32,
+}
+
+impl Default for ReferenceParams {
+    fn default() -> Self {
+        ReferenceParams { spp: 64, seed: 1, max_depth: 64, affected_threshold: 0.02, firefly_factor: 100.0, pass_spp: 4 }
+    }
+}
+
+/// Timings and counts of a reference render.
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderStats {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seconds: f64,
+    /// Camera samples (paths) per second over both renders.
+    pub samples_per_second: f64,
+    pub fireflies_photo: usize,
+    pub fireflies_ground_truth: usize,
+    /// Non-finite samples dropped (should be 0).
+    pub invalid_samples: u64,
+    pub virtual_coverage: f32,
+    pub affected_fraction: f32,
+    pub warnings: Vec<String>,
+}
+
+/// Everything a reference render produces.
+#[derive(Clone, Debug)]
+pub struct ReferenceOutput {
+    /// Linear radiance of the real scene.
+    pub hdr_real: Image,
+    /// Linear radiance of the composite (real and virtual).
+    pub hdr_full: Image,
+    /// The photograph: `hdr_real` through the simulated camera (display-encoded).
+    pub photo: Image,
+    /// The ground truth: `hdr_full` through the same camera and noise.
+    pub ground_truth: Image,
+    pub virtual_mask: Mask,
+    pub affected_mask: Mask,
+    pub stats: RenderStats,
+}
+
+fn progressive(world: &World, scene: &Scene, params: &ReferenceParams, done: &mut u32, total: u32, progress: &(dyn Fn(u32, u32) + Sync)) -> Accumulator {
+    let tp = TraceParams { seed: params.seed, max_depth: params.max_depth };
+    let mut acc = Accumulator::new(scene.camera.width, scene.camera.height);
+    while acc.spp < params.spp {
+        let n = params.pass_spp.max(1).min(params.spp - acc.spp);
+        acc.add_samples(world, &scene.camera, &tp, n);
+        *done += n;
+        progress(*done, total);
+    }
+    acc
+}
+
+/// The photograph alone: (linear radiance, camera output, stats). A scene with a background
+/// photograph returns that photograph.
+pub fn render_photo(scene: &Scene, params: &ReferenceParams, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, Image, RenderStats)> {
+    let start = Instant::now();
+    if let Some(bg) = &scene.background {
+        let display = bg.linear_to_srgb();
+        let stats = stats_for(scene, params, 0.0, 0, 0, 0, 0.0, 0.0);
+        return Ok((bg.clone(), display, stats));
+    }
+    let world = World::new(scene, Subset::RealOnly);
+    let mut done = 0;
+    let acc = progressive(&world, scene, params, &mut done, params.spp, progress);
+    let hdr = acc.image();
+    let photo = sensor::apply(&hdr, &scene.camera, &scene.sensor);
+    let secs = start.elapsed().as_secs_f64();
+    let stats = stats_for(scene, params, secs, acc.count_fireflies(params.firefly_factor), 0, acc.invalid_samples, 0.0, 0.0);
+    Ok((hdr, photo, stats))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn stats_for(scene: &Scene, params: &ReferenceParams, secs: f64, ff_photo: usize, ff_gt: usize, invalid: u64, coverage: f32, affected: f32) -> RenderStats {
+    let renders = if ff_gt > 0 || coverage > 0.0 || affected > 0.0 { 2.0 } else { 1.0 };
+    let samples = scene.camera.width as f64 * scene.camera.height as f64 * params.spp as f64 * renders;
+    let mut warnings = scene.warnings.clone();
+    if ff_photo + ff_gt > 0 {
+        warnings.push(format!("{} firefly pixels in the photograph and {} in the ground truth (counted, not clamped)", ff_photo, ff_gt));
+    }
+    RenderStats {
+        width: scene.camera.width,
+        height: scene.camera.height,
+        spp: params.spp,
+        seconds: secs,
+        samples_per_second: if secs > 0.0 { samples / secs } else { 0.0 },
+        fireflies_photo: ff_photo,
+        fireflies_ground_truth: ff_gt,
+        invalid_samples: invalid,
+        virtual_coverage: coverage,
+        affected_fraction: affected,
+        warnings,
+    }
+}
+
+/// Renders the photograph, the ground-truth composite, their HDR buffers and the masks.
+pub fn render_reference(scene: &Scene, params: &ReferenceParams, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<ReferenceOutput> {
+    if scene.background.is_some() {
+        return Err(RenderError::Unsupported(format!(
+            "scene `{}` uses a background photograph, so it has no synthesised ground truth; render it with --photo, or remove [background] to synthesise one",
+            scene.name
+        )));
+    }
+    let start = Instant::now();
+    let total = params.spp * 2;
+    let mut done = 0;
+    let real_world = World::new(scene, Subset::RealOnly);
+    let acc_real = progressive(&real_world, scene, params, &mut done, total, progress);
+    drop(real_world);
+    let full_world = World::new(scene, Subset::All);
+    let acc_full = progressive(&full_world, scene, params, &mut done, total, progress);
+    let hdr_real = acc_real.image();
+    let hdr_full = acc_full.image();
+    let photo = sensor::apply(&hdr_real, &scene.camera, &scene.sensor);
+    let ground_truth = sensor::apply(&hdr_full, &scene.camera, &scene.sensor);
+    let virtual_mask = Mask { width: hdr_full.width, height: hdr_full.height, values: acc_full.virtual_coverage() };
+    let affected_mask = affected_region(&hdr_real, &hdr_full, &virtual_mask, params.affected_threshold);
+    let secs = start.elapsed().as_secs_f64();
+    let mut stats = stats_for(
+        scene,
+        params,
+        secs,
+        acc_real.count_fireflies(params.firefly_factor),
+        acc_full.count_fireflies(params.firefly_factor),
+        acc_real.invalid_samples + acc_full.invalid_samples,
+        virtual_mask.coverage(),
+        0.0,
+    );
+    stats.samples_per_second = (hdr_full.pixels.len() as f64 * params.spp as f64 * 2.0) / secs.max(1e-9);
+    stats.affected_fraction = affected_mask.coverage();
+    Ok(ReferenceOutput { hdr_real, hdr_full, photo, ground_truth, virtual_mask, affected_mask, stats })
+}
+
+/// The affected region: virtual coverage, or a smoothed luminance change above `threshold` ×
+/// the photograph's (smoothed) luminance, floored at 5 % of its mean.
+pub fn affected_region(real: &Image, full: &Image, coverage: &Mask, threshold: f32) -> Mask {
+    let (w, h) = (real.width as i64, real.height as i64);
+    let yr: Vec<f32> = real.pixels.iter().map(|p| luminance(*p)).collect();
+    let yd: Vec<f32> = real.pixels.iter().zip(&full.pixels).map(|(a, b)| luminance(*b) - luminance(*a)).collect();
+    let box3 = |v: &[f32], x: i64, y: i64| -> f32 {
+        let mut s = 0.0;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let xx = (x + dx).clamp(0, w - 1);
+                let yy = (y + dy).clamp(0, h - 1);
+                s += v[(yy * w + xx) as usize];
+            }
+        }
+        s / 9.0
+    };
+    let floor = 0.05 * yr.iter().sum::<f32>() / yr.len().max(1) as f32;
+    let mut m = Mask::new(real.width, real.height);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let base = box3(&yr, x, y).max(floor);
+            let d = box3(&yd, x, y).abs();
+            m.values[i] = if coverage.values[i] > 0.0 || d > threshold * base { 1.0 } else { 0.0 };
+        }
+    }
+    m
+}
