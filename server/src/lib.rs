@@ -1,6 +1,159 @@
 //! `mrstudy-server`: the study server — study files, trial scheduling, sqlite storage through
-//! sqlx, the participant pages, the admin API and export, live-render WebSocket.
+//! sqlx, the participant pages, the admin API and pages, export, and the `serve` and
+//! `bench server` entry points the CLI calls.
 //!
 //! Invariant: only this crate and the CLI touch the network and the database.
 //!
-//! Not built yet: see the web-survey issue. This crate holds only this documentation until then.
+//! Map: [`study`] reads and checks study files; [`schedule`] makes a participant's trial
+//! schedule from a stored seed; [`prepared`] copies stimuli into the content-addressed store;
+//! [`storage`] is the database (migrations, the group-committing writer, reads); [`participant`]
+//! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
+//! the HTML pages built on them; [`export`] writes the trials CSV and JSON; [`serve`] starts
+//! everything from a data directory; [`bench`] measures the API under load. [`app`] builds the
+//! router apart from any socket, so tests drive it with `oneshot`.
+//!
+//! Studies whose stimuli must be rendered are skipped by `serve` with one warning line naming
+//! the study, until the renderer exists (see `studies/README.md`).
+
+pub mod admin;
+pub mod analysis;
+pub mod bench;
+pub mod error;
+pub mod export;
+pub mod pages;
+pub mod participant;
+pub mod prepared;
+pub mod schedule;
+pub mod serve;
+pub mod storage;
+pub mod study;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, Request};
+use axum::http::{HeaderValue, header};
+use axum::middleware::{self, Next};
+use axum::response::Response;
+
+pub use error::AppError;
+pub use prepared::{PreparedStudy, Studies};
+pub use storage::Storage;
+
+/// Largest request body accepted, in bytes.
+pub const BODY_LIMIT_BYTES: usize = 16 * 1024;
+
+/// Shared state of the HTTP handlers.
+#[derive(Clone)]
+pub struct AppState {
+    inner: Arc<StateInner>,
+}
+
+struct StateInner {
+    storage: Storage,
+    studies: Studies,
+    /// Slugs in the order the studies were loaded.
+    order: Vec<String>,
+    admin_token_sha256: [u8; 32],
+    stimuli_dir: PathBuf,
+}
+
+impl AppState {
+    pub fn new(
+        storage: Storage,
+        studies: Vec<Arc<PreparedStudy>>,
+        admin_token: &str,
+        stimuli_dir: PathBuf,
+    ) -> AppState {
+        let order = studies.iter().map(|study| study.study.slug.clone()).collect();
+        AppState {
+            inner: Arc::new(StateInner {
+                storage,
+                studies: studies
+                    .into_iter()
+                    .map(|study| (study.study.slug.clone(), study))
+                    .collect(),
+                order,
+                admin_token_sha256: sha256(admin_token.as_bytes()),
+                stimuli_dir,
+            }),
+        }
+    }
+
+    pub fn storage(&self) -> &Storage {
+        &self.inner.storage
+    }
+
+    pub fn study(&self, slug: &str) -> Option<&Arc<PreparedStudy>> {
+        self.inner.studies.get(slug)
+    }
+
+    /// The served studies in load order.
+    pub fn studies(&self) -> impl Iterator<Item = &Arc<PreparedStudy>> {
+        self.inner.order.iter().filter_map(|slug| self.inner.studies.get(slug))
+    }
+
+    pub fn stimuli_dir(&self) -> &std::path::Path {
+        &self.inner.stimuli_dir
+    }
+
+    /// Whether `token` is the admin token (compared by hash, in constant time).
+    pub fn is_admin_token(&self, token: &str) -> bool {
+        constant_time_eq(&sha256(token.as_bytes()), &self.inner.admin_token_sha256)
+    }
+}
+
+pub(crate) fn sha256(bytes: &[u8]) -> [u8; 32] {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).into()
+}
+
+pub(crate) fn constant_time_eq(first: &[u8], second: &[u8]) -> bool {
+    first.len() == second.len()
+        && first.iter().zip(second).fold(0u8, |acc, (a, b)| acc | (a ^ b)) == 0
+}
+
+/// `n` random bytes from the operating system, hex-encoded.
+pub(crate) fn random_hex(n: usize) -> String {
+    let mut bytes = vec![0u8; n];
+    getrandom::fill(&mut bytes).expect("the operating system's random number generator works");
+    hex::encode(bytes)
+}
+
+/// The whole application: participant API and pages, admin API and pages, static files and
+/// stimuli, with security headers and the body size limit.
+pub fn app(state: AppState) -> Router {
+    Router::new()
+        .merge(participant::router())
+        .merge(admin::router())
+        .merge(pages::router())
+        .fallback(pages::not_found)
+        .layer(DefaultBodyLimit::max(BODY_LIMIT_BYTES))
+        .layer(middleware::from_fn(security_headers))
+        .with_state(state)
+}
+
+/// Content-Security-Policy of every response: only this origin's scripts, styles and images,
+/// no framing, no plugins.
+pub const CONTENT_SECURITY_POLICY: &str = "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
+
+async fn security_headers(request: Request, next: Next) -> Response {
+    let is_api = request.uri().path().starts_with("/api/");
+    let mut response = next.run(request).await;
+    let headers = response.headers_mut();
+    headers
+        .entry(header::CONTENT_SECURITY_POLICY)
+        .or_insert(HeaderValue::from_static(CONTENT_SECURITY_POLICY));
+    headers.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
+    headers.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+    headers.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
+    headers.insert(
+        "cross-origin-opener-policy",
+        HeaderValue::from_static("same-origin"),
+    );
+    if is_api || !headers.contains_key(header::CACHE_CONTROL) {
+        headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    }
+    response
+}

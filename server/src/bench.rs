@@ -1,0 +1,1 @@
+//! `mrstudy bench server`: drives the API from loopback with concurrent simulated participants.

@@ -1,0 +1,196 @@
+//! HTML pages (askama templates in `web/templates/`), static files (`web/static/`, embedded in
+//! the binary) and stimuli (from the content-addressed store, cached as immutable).
+//!
+//! The participant page is one page whose stages (welcome and consent, demographics,
+//! instructions, trials, completion) are shown by `web/static/survey.js` on top of the JSON API.
+
+use askama::Template;
+use axum::Router;
+use axum::extract::{Path, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+
+use crate::prepared::{PreparedStudy, stimulus_content_type};
+use crate::study::{DemographicField, FieldType};
+use crate::{AppError, AppState};
+
+pub fn router() -> Router<AppState> {
+    Router::new()
+        .route("/", get(index))
+        .route("/studies/{slug}", get(study_page))
+        .route("/static/{file}", get(static_file))
+        .route("/stimuli/{name}", get(stimulus))
+}
+
+/// Static files, embedded at build time: (name, content type, bytes).
+const STATIC_FILES: &[(&str, &str, &str)] = &[
+    ("survey.js", "text/javascript; charset=utf-8", include_str!("../../web/static/survey.js")),
+    ("admin.js", "text/javascript; charset=utf-8", include_str!("../../web/static/admin.js")),
+    ("style.css", "text/css; charset=utf-8", include_str!("../../web/static/style.css")),
+];
+
+pub(crate) fn render<T: Template>(template: &T) -> Response {
+    match template.render() {
+        Ok(html) => Html(html).into_response(),
+        Err(error) => AppError::Internal(format!("template: {error}")).into_response(),
+    }
+}
+
+#[derive(Template)]
+#[template(path = "message.html")]
+struct MessagePage<'a> {
+    title: &'a str,
+    message: &'a str,
+}
+
+/// A plain page with a title and one sentence, with a status code.
+pub(crate) fn message_page(status: StatusCode, title: &str, message: &str) -> Response {
+    let mut response = render(&MessagePage { title, message });
+    *response.status_mut() = status;
+    response
+}
+
+pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
+    if uri.path().starts_with("/api/") {
+        AppError::NotFound(format!("There is no API call {}.", uri.path())).into_response()
+    } else {
+        message_page(StatusCode::NOT_FOUND, "Page not found", "There is no page at this address.")
+    }
+}
+
+pub struct StudyLink {
+    pub slug: String,
+    pub title: String,
+    pub trials: usize,
+}
+
+#[derive(Template)]
+#[template(path = "index.html")]
+struct IndexPage {
+    studies: Vec<StudyLink>,
+}
+
+async fn index(State(state): State<AppState>) -> Response {
+    let mut studies = Vec::new();
+    for prepared in state.studies() {
+        match state.storage().is_open(&prepared.study.slug).await {
+            Ok(true) => studies.push(StudyLink {
+                slug: prepared.study.slug.clone(),
+                title: prepared.study.title.clone(),
+                trials: prepared.study.trial_count(),
+            }),
+            Ok(false) => {}
+            Err(error) => return AppError::from(error).into_response(),
+        }
+    }
+    render(&IndexPage { studies })
+}
+
+/// A demographic field as the template shows it.
+pub struct FieldView {
+    pub name: String,
+    pub label: String,
+    pub is_choice: bool,
+    pub is_integer: bool,
+    pub options: Vec<String>,
+    pub min: String,
+    pub max: String,
+    pub required: bool,
+}
+
+impl From<&DemographicField> for FieldView {
+    fn from(field: &DemographicField) -> Self {
+        FieldView {
+            name: field.name.clone(),
+            label: field.label.clone(),
+            is_choice: field.field_type == FieldType::Choice,
+            is_integer: field.field_type == FieldType::Integer,
+            options: field.options.clone(),
+            min: field.min.map(|min| min.to_string()).unwrap_or_default(),
+            max: field.max.map(|max| max.to_string()).unwrap_or_default(),
+            required: field.required,
+        }
+    }
+}
+
+fn paragraphs(text: &str) -> Vec<String> {
+    text.split("\n\n")
+        .map(|paragraph| paragraph.split_whitespace().collect::<Vec<_>>().join(" "))
+        .filter(|paragraph| !paragraph.is_empty())
+        .collect()
+}
+
+#[derive(Template)]
+#[template(path = "study.html")]
+struct StudyPage {
+    slug: String,
+    title: String,
+    question: String,
+    open: bool,
+    trials: usize,
+    welcome: Vec<String>,
+    consent: Vec<String>,
+    instructions: Vec<String>,
+    thanks: Vec<String>,
+    fields: Vec<FieldView>,
+}
+
+impl StudyPage {
+    fn new(prepared: &PreparedStudy, open: bool) -> StudyPage {
+        let study = &prepared.study;
+        StudyPage {
+            slug: study.slug.clone(),
+            title: study.title.clone(),
+            question: study.question.clone(),
+            open,
+            trials: study.trial_count(),
+            welcome: paragraphs(&study.texts.welcome),
+            consent: paragraphs(&study.texts.consent),
+            instructions: paragraphs(&study.texts.instructions),
+            thanks: paragraphs(&study.texts.thanks),
+            fields: study.demographics.iter().map(FieldView::from).collect(),
+        }
+    }
+}
+
+async fn study_page(State(state): State<AppState>, Path(slug): Path<String>) -> Response {
+    let Some(prepared) = state.study(&slug) else {
+        return message_page(StatusCode::NOT_FOUND, "No such study", "There is no study at this address.");
+    };
+    match state.storage().is_open(&slug).await {
+        Ok(open) => render(&StudyPage::new(prepared, open)),
+        Err(error) => AppError::from(error).into_response(),
+    }
+}
+
+async fn static_file(Path(file): Path<String>) -> Response {
+    match STATIC_FILES.iter().find(|(name, _, _)| *name == file) {
+        Some((_, content_type, body)) => {
+            let mut response = (*body).into_response();
+            response.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+            response.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+            response
+        }
+        None => message_page(StatusCode::NOT_FOUND, "Not found", "There is no such file."),
+    }
+}
+
+async fn stimulus(State(state): State<AppState>, Path(name): Path<String>) -> Response {
+    let Some(content_type) = stimulus_content_type(&name) else {
+        return AppError::NotFound("There is no such stimulus.".into()).into_response();
+    };
+    match tokio::fs::read(state.stimuli_dir().join(&name)).await {
+        Ok(bytes) => {
+            let mut response = bytes.into_response();
+            let headers = response.headers_mut();
+            headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+            headers.insert(
+                header::CACHE_CONTROL,
+                HeaderValue::from_static("public, max-age=31536000, immutable"),
+            );
+            response
+        }
+        Err(_) => AppError::NotFound("There is no such stimulus.".into()).into_response(),
+    }
+}

@@ -1,0 +1,403 @@
+//! The participant area of the HTTP API (DESIGN.md): list open studies, join a study, get the
+//! next trial, answer it.
+//!
+//! A participant is identified by a random 128-bit id and authorised by a random 256-bit bearer
+//! token, of which only the SHA-256 is stored. A token opens only its own participant: any other
+//! id answers 403, a missing token 401. Every body is validated before anything is written, and
+//! a refused request changes nothing.
+
+use axum::Router;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
+
+use crate::error::{AppError, AppResult, Json};
+use crate::storage::{NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, Side};
+use crate::study::{FieldType, Study};
+use crate::{AppState, constant_time_eq, random_hex, sha256};
+
+pub fn router() -> Router<AppState> {
+    Router::new()
+        .route("/api/studies", get(list_studies))
+        .route("/api/studies/{slug}/participants", post(create_participant))
+        .route("/api/participants/{id}/next", get(next_trial))
+        .route("/api/participants/{id}/responses", post(create_response))
+}
+
+#[derive(Serialize)]
+struct StudySummary {
+    slug: String,
+    title: String,
+    kind: &'static str,
+    trials: usize,
+}
+
+async fn list_studies(State(state): State<AppState>) -> AppResult<Json<Vec<StudySummary>>> {
+    let mut open = Vec::new();
+    for prepared in state.studies() {
+        if state.storage().is_open(&prepared.study.slug).await? {
+            open.push(StudySummary {
+                slug: prepared.study.slug.clone(),
+                title: prepared.study.title.clone(),
+                kind: prepared.study.kind.as_str(),
+                trials: prepared.study.trial_count(),
+            });
+        }
+    }
+    Ok(Json(open))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JoinBody {
+    demographics: Map<String, Value>,
+    #[serde(default)]
+    client: Map<String, Value>,
+    #[serde(default)]
+    url_params: Map<String, Value>,
+}
+
+#[derive(Serialize)]
+struct Joined {
+    participant: String,
+    token: String,
+    trials: usize,
+}
+
+async fn create_participant(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    Json(body): Json<JoinBody>,
+) -> AppResult<Response> {
+    let prepared = state
+        .study(&slug)
+        .ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?
+        .clone();
+    if !state.storage().is_open(&slug).await? {
+        return Err(AppError::Forbidden(format!(
+            "The study \"{slug}\" is closed and accepts no new participants."
+        )));
+    }
+    let demographics = validate_demographics(&prepared.study, body.demographics)?;
+    let client = validate_client(body.client)?;
+    let url_params = validate_url_params(&prepared.study, body.url_params)?;
+    let id = random_hex(16);
+    let token = random_hex(32);
+    let mut seed_bytes = [0u8; 8];
+    getrandom::fill(&mut seed_bytes).expect("the operating system's random number generator works");
+    let trials = prepared.study.trial_count();
+    state
+        .storage()
+        .create_participant(NewParticipant {
+            study: prepared,
+            id: id.clone(),
+            token_sha256: sha256(token.as_bytes()).to_vec(),
+            random_seed: u64::from_le_bytes(seed_bytes),
+            demographics: Value::Object(demographics).to_string(),
+            client: Value::Object(client).to_string(),
+            url_params: Value::Object(url_params).to_string(),
+            random_completion_code: random_hex(6).to_uppercase(),
+        })
+        .await?;
+    Ok((
+        StatusCode::CREATED,
+        Json(Joined { participant: id, token, trials }),
+    )
+        .into_response())
+}
+
+fn validate_demographics(study: &Study, mut given: Map<String, Value>) -> AppResult<Map<String, Value>> {
+    let mut kept = Map::new();
+    for field in &study.demographics {
+        let value = given.remove(&field.name).unwrap_or(Value::Null);
+        let value = match (&value, field.field_type) {
+            (Value::Null, _) => {
+                if field.required {
+                    return Err(AppError::Unprocessable(format!(
+                        "The demographic field `{}` ({}) is required.",
+                        field.name, field.label
+                    )));
+                }
+                Value::Null
+            }
+            (Value::String(text), FieldType::Choice) if field.options.contains(text) => value,
+            (_, FieldType::Choice) => {
+                return Err(AppError::Unprocessable(format!(
+                    "The demographic field `{}` must be one of {}.",
+                    field.name,
+                    field.options.iter().map(|option| format!("\"{option}\"")).collect::<Vec<_>>().join(", ")
+                )));
+            }
+            (Value::Number(number), FieldType::Integer)
+                if number.as_i64().is_some_and(|n| {
+                    field.min.is_none_or(|min| n >= min) && field.max.is_none_or(|max| n <= max)
+                }) =>
+            {
+                value
+            }
+            (_, FieldType::Integer) => {
+                return Err(AppError::Unprocessable(format!(
+                    "The demographic field `{}` must be a whole number{}.",
+                    field.name,
+                    match (field.min, field.max) {
+                        (Some(min), Some(max)) => format!(" from {min} to {max}"),
+                        (Some(min), None) => format!(" of at least {min}"),
+                        (None, Some(max)) => format!(" of at most {max}"),
+                        (None, None) => String::new(),
+                    }
+                )));
+            }
+            (Value::String(text), FieldType::Text) if text.chars().count() <= 200 => {
+                Value::String(text.trim().to_string())
+            }
+            (_, FieldType::Text) => {
+                return Err(AppError::Unprocessable(format!(
+                    "The demographic field `{}` must be a text of at most 200 characters.",
+                    field.name
+                )));
+            }
+        };
+        kept.insert(field.name.clone(), value);
+    }
+    if let Some(unknown) = given.keys().next() {
+        return Err(AppError::Unprocessable(format!(
+            "The study asks no demographic field `{unknown}`; it asks {}.",
+            study.demographics.iter().map(|field| format!("`{}`", field.name)).collect::<Vec<_>>().join(", ")
+        )));
+    }
+    Ok(kept)
+}
+
+/// Client details: a flat JSON object of at most 20 short entries (viewport, devicePixelRatio,
+/// userAgent, …).
+fn validate_client(client: Map<String, Value>) -> AppResult<Map<String, Value>> {
+    if client.len() > 20 {
+        return Err(AppError::Unprocessable("`client` may have at most 20 entries.".into()));
+    }
+    for (key, value) in &client {
+        let ok = key.len() <= 64
+            && match value {
+                Value::String(text) => text.len() <= 1024,
+                Value::Number(_) | Value::Bool(_) | Value::Null => true,
+                Value::Array(items) => items.len() <= 4 && items.iter().all(Value::is_number),
+                Value::Object(_) => false,
+            };
+        if !ok {
+            return Err(AppError::Unprocessable(format!(
+                "`client.{}` must be a number, a boolean, a text of at most 1024 characters or a list of up to 4 numbers.",
+                key.chars().take(64).collect::<String>()
+            )));
+        }
+    }
+    Ok(client)
+}
+
+/// Keeps the URL parameters the study names (crowdsourcing ids such as `PROLIFIC_PID`); others
+/// are dropped, values must be short texts.
+fn validate_url_params(study: &Study, params: Map<String, Value>) -> AppResult<Map<String, Value>> {
+    let mut kept = Map::new();
+    for (key, value) in params {
+        if !study.url_params.contains(&key) {
+            continue;
+        }
+        match value {
+            Value::String(text) if text.len() <= 256 => {
+                kept.insert(key, Value::String(text));
+            }
+            _ => {
+                return Err(AppError::Unprocessable(format!(
+                    "The URL parameter `{key}` must be a text of at most 256 characters."
+                )));
+            }
+        }
+    }
+    Ok(kept)
+}
+
+/// The bearer token of a request: 401 if there is none.
+pub(crate) fn bearer(headers: &HeaderMap) -> AppResult<&str> {
+    headers
+        .get(header::AUTHORIZATION)
+        .and_then(|value| value.to_str().ok())
+        .and_then(|value| value.strip_prefix("Bearer "))
+        .map(str::trim)
+        .filter(|token| !token.is_empty())
+        .ok_or_else(|| AppError::Unauthorized("This call needs the header Authorization: Bearer <token>.".into()))
+}
+
+/// The participant `id`, if the request carries its token; 401 without a token, 403 with a
+/// token that is not this participant's (whether or not `id` exists).
+async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult<ParticipantRow> {
+    let token = bearer(headers)?;
+    let participant = if id.len() == 32 { state.storage().participant(id).await? } else { None };
+    match participant {
+        Some(participant) if constant_time_eq(&participant.token_sha256, &sha256(token.as_bytes())) => {
+            Ok(participant)
+        }
+        _ => Err(AppError::Forbidden(format!(
+            "This token does not give access to participant \"{}\".",
+            id.chars().take(64).collect::<String>()
+        ))),
+    }
+}
+
+#[derive(Serialize)]
+struct Image {
+    url: String,
+    alt: String,
+}
+
+#[derive(Serialize)]
+#[serde(untagged)]
+enum Next {
+    Trial {
+        trial: i64,
+        total: i64,
+        question: String,
+        left: Image,
+        right: Image,
+        /// Stimulus URLs of the trial after this one, to preload.
+        preload: Vec<String>,
+    },
+    Done {
+        done: bool,
+        completion_code: String,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        redirect: Option<String>,
+    },
+}
+
+pub(crate) fn stimulus_url(name: &str) -> String {
+    format!("/stimuli/{name}")
+}
+
+async fn next_trial(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<Next>> {
+    let participant = authorize(&state, &headers, &id).await?;
+    let prepared = state.study(&participant.study).ok_or_else(|| {
+        AppError::Gone(format!("The study \"{}\" is no longer served.", participant.study))
+    })?;
+    if participant.answered >= participant.trials {
+        return Ok(Json(Next::Done {
+            done: true,
+            redirect: redirect_url(&prepared.study, &participant),
+            completion_code: participant.completion_code,
+        }));
+    }
+    let number = participant.answered + 1;
+    let trial = state
+        .storage()
+        .trial(&participant.id, number)
+        .await?
+        .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
+    let following = if number < participant.trials {
+        state.storage().trial(&participant.id, number + 1).await?
+    } else {
+        None
+    };
+    state.storage().mark_shown(&participant.id, number);
+    Ok(Json(Next::Trial {
+        trial: trial.trial,
+        total: participant.trials,
+        question: prepared.study.question.clone(),
+        left: Image {
+            url: stimulus_url(&trial.left_stimulus),
+            alt: format!("Left image of trial {number}"),
+        },
+        right: Image {
+            url: stimulus_url(&trial.right_stimulus),
+            alt: format!("Right image of trial {number}"),
+        },
+        preload: following
+            .map(|following| vec![stimulus_url(&following.left_stimulus), stimulus_url(&following.right_stimulus)])
+            .unwrap_or_default(),
+    }))
+}
+
+/// The completion redirect with `{code}` and kept URL parameters filled in (URL-encoded).
+fn redirect_url(study: &Study, participant: &ParticipantRow) -> Option<String> {
+    let template = study.completion.redirect.as_ref()?;
+    let mut url = template.replace("{code}", &percent_encode(&participant.completion_code));
+    if let Ok(Value::Object(params)) = serde_json::from_str::<Value>(&participant.url_params) {
+        for (key, value) in params {
+            if let Value::String(value) = value {
+                url = url.replace(&format!("{{{key}}}"), &percent_encode(&value));
+            }
+        }
+    }
+    Some(url)
+}
+
+fn percent_encode(text: &str) -> String {
+    let mut encoded = String::new();
+    for byte in text.bytes() {
+        if byte.is_ascii_alphanumeric() || b"-_.~".contains(&byte) {
+            encoded.push(byte as char);
+        } else {
+            encoded.push_str(&format!("%{byte:02X}"));
+        }
+    }
+    encoded
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ResponseBody {
+    trial: i64,
+    chosen: Side,
+    rt_ms: f64,
+    #[serde(default)]
+    client: Map<String, Value>,
+}
+
+#[derive(Serialize)]
+struct Stored {
+    trial: i64,
+    chosen: Side,
+}
+
+/// Longest response time accepted: one hour.
+pub const MAX_RT_MS: f64 = 3_600_000.0;
+
+async fn create_response(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+    Json(body): Json<ResponseBody>,
+) -> AppResult<Response> {
+    let participant = authorize(&state, &headers, &id).await?;
+    if !(body.rt_ms.is_finite() && (0.0..=MAX_RT_MS).contains(&body.rt_ms)) {
+        return Err(AppError::Unprocessable(format!(
+            "`rt_ms` must be a number of milliseconds from 0 to {MAX_RT_MS}, found {}.",
+            body.rt_ms
+        )));
+    }
+    if body.trial < 1 || body.trial > participant.trials {
+        return Err(AppError::Unprocessable(format!(
+            "`trial` must be between 1 and {}, found {}.",
+            participant.trials, body.trial
+        )));
+    }
+    let client = validate_client(body.client)?;
+    let outcome = state
+        .storage()
+        .store_response(NewResponse {
+            participant: participant.id,
+            trial: body.trial,
+            chosen: body.chosen,
+            rt_ms: body.rt_ms,
+            client: Value::Object(client).to_string(),
+        })
+        .await?;
+    let status = match outcome {
+        ResponseOutcome::Created => StatusCode::CREATED,
+        ResponseOutcome::Repeated => StatusCode::OK,
+    };
+    Ok((status, Json(Stored { trial: body.trial, chosen: body.chosen })).into_response())
+}

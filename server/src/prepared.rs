@@ -1,0 +1,158 @@
+//! A study made ready to serve: its stimuli copied into the content-addressed stimulus store
+//! (`<data-dir>/stimuli/<sha256>.<ext>`), and schedules resolved to the stimulus files shown.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use crate::schedule::{self, PlannedKind};
+use crate::storage::Side;
+use crate::study::{IMAGE_TYPES, StimulusSource, Study, sha256_hex};
+
+/// Why a study could not be made ready.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PrepareError {
+    /// The study needs the renderer for scene configuration `scene`, and it is not built yet.
+    #[error("study \"{slug}\" ({file}) needs rendered stimuli (scene configuration \"{scene}\"), but mrstudy's renderer is not built yet")]
+    NeedsRenderer { slug: String, file: PathBuf, scene: String },
+    /// The study is a lab task study, which the web survey does not serve.
+    #[error("study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey")]
+    TaskStudy { slug: String, file: PathBuf },
+    #[error("cannot copy stimulus {path} into {store}: {source}")]
+    Io { path: PathBuf, store: PathBuf, source: std::io::Error },
+}
+
+/// A study whose every stimulus is in the stimulus store.
+#[derive(Debug)]
+pub struct PreparedStudy {
+    pub study: Study,
+    /// `[scene][condition]` → stimulus file name.
+    pub stimuli: Vec<Vec<String>>,
+    /// `[catch trial]` → (better, worse) stimulus file names.
+    pub catch_stimuli: Vec<(String, String)>,
+}
+
+/// One trial of a participant's schedule, as stored.
+#[derive(Debug, Clone)]
+pub struct ScheduledTrial {
+    pub left_condition: String,
+    pub right_condition: String,
+    pub left_scene: String,
+    pub right_scene: String,
+    pub left_stimulus: String,
+    pub right_stimulus: String,
+    pub catch_expected: Option<Side>,
+}
+
+/// Label of a catch trial's images in the export's `left`/`right`/`chosen` columns.
+pub fn catch_label(name: &str, better: bool) -> String {
+    format!("catch:{name}:{}", if better { "better" } else { "worse" })
+}
+
+impl PreparedStudy {
+    /// Copies the study's image files into `store` (named by content hash).
+    pub fn prepare(study: Study, store: &Path) -> Result<PreparedStudy, PrepareError> {
+        if study.kind == crate::study::StudyKind::Task {
+            return Err(PrepareError::TaskStudy { slug: study.slug, file: study.file });
+        }
+        let mut stimuli = Vec::new();
+        for scene in &study.scenes {
+            match &scene.source {
+                StimulusSource::Render(_) => {
+                    return Err(PrepareError::NeedsRenderer {
+                        slug: study.slug.clone(),
+                        file: study.file.clone(),
+                        scene: scene.name.clone(),
+                    });
+                }
+                StimulusSource::Images(paths) => {
+                    stimuli.push(
+                        paths.iter().map(|path| store_image(path, store)).collect::<Result<Vec<_>, _>>()?,
+                    );
+                }
+            }
+        }
+        let catch_stimuli = study
+            .catch
+            .iter()
+            .map(|catch| Ok((store_image(&catch.better, store)?, store_image(&catch.worse, store)?)))
+            .collect::<Result<Vec<_>, PrepareError>>()?;
+        Ok(PreparedStudy { study, stimuli, catch_stimuli })
+    }
+
+    /// The schedule of the participant with this seed.
+    pub fn schedule(&self, seed: u64) -> Vec<ScheduledTrial> {
+        let study = &self.study;
+        schedule::plan(study, seed)
+            .into_iter()
+            .map(|planned| match planned.kind {
+                PlannedKind::Pair { left, right } => ScheduledTrial {
+                    left_condition: study.conditions[left].name.clone(),
+                    right_condition: study.conditions[right].name.clone(),
+                    left_scene: study.scenes[planned.left_scene].name.clone(),
+                    right_scene: study.scenes[planned.right_scene].name.clone(),
+                    left_stimulus: self.stimuli[planned.left_scene][left].clone(),
+                    right_stimulus: self.stimuli[planned.right_scene][right].clone(),
+                    catch_expected: None,
+                },
+                PlannedKind::Catch { index, better_left } => {
+                    let catch = &study.catch[index];
+                    let (better, worse) = &self.catch_stimuli[index];
+                    let better_label = catch_label(&catch.name, true);
+                    let worse_label = catch_label(&catch.name, false);
+                    let (left_condition, right_condition, left_stimulus, right_stimulus) = if better_left {
+                        (better_label, worse_label, better.clone(), worse.clone())
+                    } else {
+                        (worse_label, better_label, worse.clone(), better.clone())
+                    };
+                    ScheduledTrial {
+                        left_condition,
+                        right_condition,
+                        left_scene: catch.name.clone(),
+                        right_scene: catch.name.clone(),
+                        left_stimulus,
+                        right_stimulus,
+                        catch_expected: Some(if better_left { Side::Left } else { Side::Right }),
+                    }
+                }
+            })
+            .collect()
+    }
+}
+
+fn store_image(path: &Path, store: &Path) -> Result<String, PrepareError> {
+    let io_error = |source| PrepareError::Io { path: path.to_path_buf(), store: store.to_path_buf(), source };
+    let bytes = std::fs::read(path).map_err(io_error)?;
+    let extension = path
+        .extension()
+        .and_then(|ext| ext.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let extension = if extension == "jpeg" { "jpg".to_string() } else { extension };
+    let name = format!("{}.{extension}", sha256_hex(&bytes));
+    let target = store.join(&name);
+    if !target.exists() {
+        std::fs::create_dir_all(store).map_err(io_error)?;
+        let temporary = store.join(format!(".{name}.partial"));
+        std::fs::write(&temporary, &bytes).map_err(io_error)?;
+        std::fs::rename(&temporary, &target).map_err(io_error)?;
+    }
+    Ok(name)
+}
+
+/// The content type of a stimulus file name, if it is one the store can hold: 64 lower-case
+/// hex digits, a dot and a known image extension. Anything else (`..`, slashes, other names)
+/// is refused, so stimulus paths cannot be traversed.
+pub fn stimulus_content_type(name: &str) -> Option<&'static str> {
+    let (hash, extension) = name.split_once('.')?;
+    if hash.len() != 64 || !hash.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+        return None;
+    }
+    IMAGE_TYPES
+        .iter()
+        .find(|(ext, _)| *ext == extension && *ext != "jpeg")
+        .map(|(_, content_type)| *content_type)
+}
+
+/// Studies by slug.
+pub type Studies = HashMap<String, std::sync::Arc<PreparedStudy>>;

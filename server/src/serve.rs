@@ -1,0 +1,218 @@
+//! `mrstudy serve`: from a data directory and a studies directory to a listening server.
+//!
+//! On start: create the data directory, open and migrate `mrstudy.db`, settle the admin token
+//! (`MRSTUDY_ADMIN_TOKEN`, else `<data-dir>/admin-token`, generated once), load and check every
+//! study file (an invalid one stops the start with its file, key and expectation), copy each
+//! study's stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and
+//! print one participant link per study and the admin link. A study whose stimuli need the
+//! renderer is skipped with one warning line naming it; the others are served.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::prepared::{PrepareError, PreparedStudy};
+use crate::storage::{OpenError, Storage};
+use crate::study::{StudyError, load_studies};
+use crate::{AppState, app};
+
+/// Where and what to serve.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    pub addr: String,
+    pub data_dir: PathBuf,
+    pub studies_dir: PathBuf,
+}
+
+/// Why the server could not start; each displays as one sentence.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ServeError {
+    #[error("cannot create the data directory {path}: {source}")]
+    DataDir { path: PathBuf, source: std::io::Error },
+    #[error(transparent)]
+    Open(#[from] OpenError),
+    #[error("invalid study file {0}")]
+    Study(#[from] StudyError),
+    #[error(transparent)]
+    Prepare(PrepareError),
+    #[error("MRSTUDY_ADMIN_TOKEN must be at least 16 characters of A-Z, a-z, 0-9, - and _")]
+    WeakAdminToken,
+    #[error("cannot read or write the admin token file {path}: {source}")]
+    AdminToken { path: PathBuf, source: std::io::Error },
+    #[error("cannot record study \"{slug}\" in the database: {source}")]
+    RecordStudy { slug: String, source: sqlx::Error },
+    #[error("cannot listen on {addr}: {source}")]
+    Bind { addr: String, source: std::io::Error },
+    #[error("the server stopped with an error: {0}")]
+    Server(std::io::Error),
+    #[error("cannot start the async runtime: {0}")]
+    Runtime(std::io::Error),
+}
+
+/// The admin token: `MRSTUDY_ADMIN_TOKEN` if set, else the one kept in `<data-dir>/admin-token`,
+/// generated (256 random bits, hex) and written there (mode 0600) the first time.
+pub fn admin_token(data_dir: &Path) -> Result<String, ServeError> {
+    if let Ok(token) = std::env::var("MRSTUDY_ADMIN_TOKEN") {
+        if token.len() < 16 || !token.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+            return Err(ServeError::WeakAdminToken);
+        }
+        return Ok(token);
+    }
+    let path = data_dir.join("admin-token");
+    let io_error = |source| ServeError::AdminToken { path: path.clone(), source };
+    match std::fs::read_to_string(&path) {
+        Ok(token) if !token.trim().is_empty() => return Ok(token.trim().to_string()),
+        Ok(_) => {}
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
+        Err(error) => return Err(io_error(error)),
+    }
+    let token = crate::random_hex(32);
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.mode(0o600);
+    }
+    use std::io::Write;
+    let mut file = options.open(&path).map_err(io_error)?;
+    file.write_all(format!("{token}\n").as_bytes()).map_err(io_error)?;
+    file.sync_all().map_err(io_error)?;
+    Ok(token)
+}
+
+/// A data directory opened and studies loaded: everything but the socket.
+pub struct Prepared {
+    pub state: AppState,
+    pub admin_token: String,
+    /// One line per study that is not served, to print as a warning.
+    pub skipped: Vec<String>,
+    pub slugs: Vec<String>,
+}
+
+/// Opens the data directory and loads the studies (see the module doc).
+pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, ServeError> {
+    std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
+    let storage = Storage::open(&data_dir.join("mrstudy.db")).await?;
+    let admin_token = admin_token(data_dir)?;
+    let studies = load_studies(studies_dir)?;
+    let stimuli_dir = data_dir.join("stimuli");
+    let mut prepared = Vec::new();
+    let mut skipped = Vec::new();
+    for study in studies {
+        match PreparedStudy::prepare(study, &stimuli_dir) {
+            Ok(study) => prepared.push(Arc::new(study)),
+            Err(error @ (PrepareError::NeedsRenderer { .. } | PrepareError::TaskStudy { .. })) => {
+                skipped.push(format!("{error}; not serving it"));
+            }
+            Err(error) => return Err(ServeError::Prepare(error)),
+        }
+    }
+    for study in &prepared {
+        storage
+            .upsert_study(study)
+            .await
+            .map_err(|source| ServeError::RecordStudy { slug: study.study.slug.clone(), source })?;
+    }
+    let slugs = prepared.iter().map(|study| study.study.slug.clone()).collect();
+    Ok(Prepared {
+        state: AppState::new(storage, prepared, &admin_token, stimuli_dir),
+        admin_token,
+        skipped,
+        slugs,
+    })
+}
+
+/// Runs `serve` to the end (Ctrl-C or SIGTERM): prints the warnings to stderr and the links to
+/// stdout once listening.
+pub fn run(config: ServeConfig) -> Result<(), ServeError> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(ServeError::Runtime)?;
+    runtime.block_on(async {
+        let prepared = prepare(&config.data_dir, &config.studies_dir).await?;
+        for line in &prepared.skipped {
+            eprintln!("warning: {line}");
+        }
+        if prepared.slugs.is_empty() {
+            eprintln!("warning: no study to serve in {}", config.studies_dir.display());
+        }
+        let listener = tokio::net::TcpListener::bind(&config.addr)
+            .await
+            .map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
+        let local: SocketAddr = listener
+            .local_addr()
+            .map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
+        let base = format!("http://{local}");
+        println!("mrstudy serving on {base} (data in {})", config.data_dir.display());
+        for slug in &prepared.slugs {
+            println!("participant link: {base}/studies/{slug}");
+        }
+        println!("admin link: {base}/admin/login?token={}", prepared.admin_token);
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        axum::serve(listener, app(prepared.state))
+            .with_graceful_shutdown(shutdown_signal())
+            .await
+            .map_err(ServeError::Server)
+    })
+}
+
+async fn shutdown_signal() {
+    let interrupt = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        _ = interrupt => {},
+        _ = terminate => {},
+    }
+}
+
+/// `mrstudy export`: the trials CSV, the JSON export or the conditions CSV of one study, read
+/// from `<data-dir>/mrstudy.db`.
+pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<String, String> {
+    let database = data_dir.join("mrstudy.db");
+    if !database.is_file() {
+        return Err(format!("there is no database at {}; pass the --data-dir that mrstudy serve used", database.display()));
+    }
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|error| format!("cannot start the async runtime: {error}"))?;
+    runtime.block_on(async {
+        let storage = Storage::open(&database).await.map_err(|error| error.to_string())?;
+        let pool = &storage.read;
+        let text = match format {
+            ExportFormat::Csv => crate::export::trials_csv(pool, slug, crate::export::CatchRows::Include).await,
+            ExportFormat::Json => crate::export::study_json(pool, slug)
+                .await
+                .map(|json| serde_json::to_string_pretty(&json).expect("JSON serialises") + "\n"),
+            ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| definition.conditions_csv()),
+        };
+        text.map_err(|error| error.to_string())
+    })
+}
+
+/// What `mrstudy export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// The trials CSV of DESIGN.md.
+    Csv,
+    /// Everything about each participant, with the whole schedule.
+    Json,
+    /// The conditions CSV of DESIGN.md.
+    Conditions,
+}
