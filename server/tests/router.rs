@@ -1,0 +1,495 @@
+//! Router tests: every API call and its error paths, admin authentication and the security
+//! properties, driven through `app(state)` with `oneshot` (no socket). Each test gets a fresh
+//! data directory and database, loading the repository's `studies/`.
+
+use std::path::{Path, PathBuf};
+
+use axum::Router;
+use axum::body::Body;
+use axum::http::{HeaderMap, Method, Request, StatusCode, header};
+use http_body_util::BodyExt;
+use mrstudy_server::serve::{Prepared, prepare};
+use mrstudy_server::app;
+use serde_json::{Value, json};
+use tower::ServiceExt;
+
+fn studies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies")
+}
+
+struct Fixture {
+    app: Router,
+    admin_token: String,
+    skipped: Vec<String>,
+    _data_dir: tempfile::TempDir,
+}
+
+async fn fixture() -> Fixture {
+    let data_dir = tempfile::tempdir().unwrap();
+    let Prepared { state, admin_token, skipped, .. } = prepare(data_dir.path(), &studies_dir()).await.unwrap();
+    Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
+}
+
+struct Answer {
+    status: StatusCode,
+    headers: HeaderMap,
+    bytes: Vec<u8>,
+}
+
+impl Answer {
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.bytes).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
+    }
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.bytes).into_owned()
+    }
+    /// A JSON error of the shape {"error": "one sentence"}.
+    fn error(&self) -> String {
+        let json = self.json();
+        let message = json["error"].as_str().unwrap_or_else(|| panic!("no error field: {json}")).to_string();
+        assert!(!message.is_empty());
+        message
+    }
+}
+
+async fn send(app: &Router, request: Request<Body>) -> Answer {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let headers = response.headers().clone();
+    let bytes = response.into_body().collect().await.unwrap().to_bytes().to_vec();
+    Answer { status, headers, bytes }
+}
+
+async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body: Option<Value>) -> Answer {
+    let mut request = Request::builder().method(method).uri(uri);
+    if let Some(token) = token {
+        request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
+    }
+    let request = match body {
+        Some(body) => request
+            .header(header::CONTENT_TYPE, "application/json")
+            .body(Body::from(body.to_string()))
+            .unwrap(),
+        None => request.body(Body::empty()).unwrap(),
+    };
+    send(app, request).await
+}
+
+fn demographics() -> Value {
+    json!({"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"})
+}
+
+async fn join(app: &Router) -> (String, String) {
+    let answer = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics(), "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"}, "url_params": {"PROLIFIC_PID": "abc123", "other": "dropped"}})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let json = answer.json();
+    (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
+}
+
+async fn answer_trial(app: &Router, id: &str, token: &str, trial: i64, chosen: &str) -> Answer {
+    call(
+        app,
+        Method::POST,
+        &format!("/api/participants/{id}/responses"),
+        Some(token),
+        Some(json!({"trial": trial, "chosen": chosen, "rt_ms": 812.5, "client": {"viewport": [1280, 800]}})),
+    )
+    .await
+}
+
+async fn started(fixture: &Fixture) -> i64 {
+    let answer = call(&fixture.app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await;
+    assert_eq!(answer.status, StatusCode::OK);
+    answer.json()["started"].as_i64().unwrap()
+}
+
+#[tokio::test]
+async fn studies_lists_open_studies_and_skips_those_needing_the_renderer() {
+    let fixture = fixture().await;
+    let answer = call(&fixture.app, Method::GET, "/api/studies", None, None).await;
+    assert_eq!(answer.status, StatusCode::OK);
+    assert_eq!(
+        answer.json(),
+        json!([{"slug": "shadows-demo", "title": "Does the sphere belong in the scene?", "kind": "paired-comparison", "trials": 7}])
+    );
+    assert_eq!(fixture.skipped.len(), 1, "{:?}", fixture.skipped);
+    assert!(fixture.skipped[0].contains("\"web-survey\""), "{:?}", fixture.skipped);
+    assert!(fixture.skipped[0].contains("renderer"), "{:?}", fixture.skipped);
+}
+
+#[tokio::test]
+async fn join_gives_a_random_id_and_a_256_bit_token() {
+    let fixture = fixture().await;
+    let (id, token) = join(&fixture.app).await;
+    assert_eq!(id.len(), 32, "128-bit id");
+    assert_eq!(token.len(), 64, "256-bit token as hex");
+    assert!(token.chars().all(|c| c.is_ascii_hexdigit()));
+    let (other_id, other_token) = join(&fixture.app).await;
+    assert_ne!(id, other_id);
+    assert_ne!(token, other_token);
+}
+
+#[tokio::test]
+async fn join_refuses_bad_input_without_changing_state() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let url = "/api/studies/shadows-demo/participants";
+    let cases: Vec<(Value, StatusCode, &str)> = vec![
+        (json!({}), StatusCode::UNPROCESSABLE_ENTITY, "demographics"),
+        (json!({"demographics": {"gender": "female"}}), StatusCode::UNPROCESSABLE_ENTITY, "age"),
+        (json!({"demographics": {"gender": "robot", "age": 30, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "gender"),
+        (json!({"demographics": {"gender": "female", "age": 7, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "16 to 110"),
+        (json!({"demographics": {"gender": "female", "age": "30", "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "whole number"),
+        (json!({"demographics": {"gender": "female", "age": 30.5, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "whole number"),
+        (json!({"demographics": {"gender": "female", "age": 30, "cg_experience": "none", "vision": "normal", "name": "Ann"}}), StatusCode::UNPROCESSABLE_ENTITY, "name"),
+        (json!({"demographics": demographics(), "extra": 1}), StatusCode::UNPROCESSABLE_ENTITY, "extra"),
+        (json!({"demographics": demographics(), "client": {"nested": {"a": 1}}}), StatusCode::UNPROCESSABLE_ENTITY, "client.nested"),
+        (json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": 5}}), StatusCode::UNPROCESSABLE_ENTITY, "PROLIFIC_PID"),
+        (json!({"demographics": []}), StatusCode::UNPROCESSABLE_ENTITY, "demographics"),
+    ];
+    for (body, status, mentions) in cases {
+        let answer = call(app, Method::POST, url, None, Some(body.clone())).await;
+        assert_eq!(answer.status, status, "{body}: {}", answer.text());
+        let error = answer.error();
+        assert!(error.contains(mentions), "{body}: error {error:?} should mention {mentions:?}");
+    }
+    // Not JSON, no content type, too large, unknown study.
+    let raw = |body: &str, content_type: Option<&str>| {
+        let mut request = Request::builder().method(Method::POST).uri(url);
+        if let Some(content_type) = content_type {
+            request = request.header(header::CONTENT_TYPE, content_type);
+        }
+        request.body(Body::from(body.to_string())).unwrap()
+    };
+    let answer = send(app, raw("{not json", Some("application/json"))).await;
+    assert_eq!(answer.status, StatusCode::BAD_REQUEST);
+    answer.error();
+    let answer = send(app, raw(&json!({"demographics": demographics()}).to_string(), None)).await;
+    assert_eq!(answer.status, StatusCode::BAD_REQUEST);
+    assert!(answer.error().contains("Content-Type"));
+    let huge = json!({"demographics": demographics(), "client": {"userAgent": "x".repeat(20_000)}}).to_string();
+    let answer = send(app, raw(&huge, Some("application/json"))).await;
+    assert_eq!(answer.status, StatusCode::PAYLOAD_TOO_LARGE);
+    answer.error();
+    let answer = call(app, Method::POST, "/api/studies/nope/participants", None, Some(json!({"demographics": demographics()}))).await;
+    assert_eq!(answer.status, StatusCode::NOT_FOUND);
+    answer.error();
+    assert_eq!(started(&fixture).await, 0, "no refused request created a participant");
+}
+
+#[tokio::test]
+async fn next_needs_the_participants_own_token() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let (id, token) = join(app).await;
+    let (other_id, other_token) = join(app).await;
+    let url = format!("/api/participants/{id}/next");
+    let answer = call(app, Method::GET, &url, None, None).await;
+    assert_eq!(answer.status, StatusCode::UNAUTHORIZED);
+    answer.error();
+    assert_eq!(answer.headers.get(header::WWW_AUTHENTICATE).unwrap(), "Bearer");
+    let answer = call(app, Method::GET, &url, Some(&other_token), None).await;
+    assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    answer.error();
+    let answer = call(app, Method::GET, &url, Some("0000"), None).await;
+    assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    let answer = call(app, Method::GET, "/api/participants/../next", Some(&token), None).await;
+    assert_ne!(answer.status, StatusCode::OK);
+    // Another participant's trials cannot be answered with one's own token either.
+    let answer = answer_trial(app, &other_id, &token, 1, "left").await;
+    assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    answer.error();
+
+    let answer = call(app, Method::GET, &url, Some(&token), None).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    let next = answer.json();
+    assert_eq!(next["trial"], 1);
+    assert_eq!(next["total"], 7);
+    assert_eq!(next["question"], "Please click on the image where you think that the virtual objects fit better into the real world.");
+    assert_eq!(next["preload"].as_array().unwrap().len(), 2);
+    assert_eq!(answer.headers.get(header::CACHE_CONTROL).unwrap(), "no-store");
+    // The stimuli are served, immutable, with their content type.
+    for side in ["left", "right"] {
+        let url = next[side]["url"].as_str().unwrap();
+        assert!(url.starts_with("/stimuli/") && url.ends_with(".png"), "{url}");
+        let image = call(app, Method::GET, url, None, None).await;
+        assert_eq!(image.status, StatusCode::OK);
+        assert_eq!(image.headers.get(header::CONTENT_TYPE).unwrap(), "image/png");
+        assert_eq!(image.headers.get(header::CACHE_CONTROL).unwrap(), "public, max-age=31536000, immutable");
+        assert_eq!(&image.bytes[1..4], b"PNG");
+    }
+}
+
+#[tokio::test]
+async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let (id, token) = join(app).await;
+    let answer = answer_trial(app, &id, &token, 1, "left").await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    assert_eq!(answer.json(), json!({"trial": 1, "chosen": "left"}));
+    let answer = answer_trial(app, &id, &token, 1, "left").await;
+    assert_eq!(answer.status, StatusCode::OK, "the same answer again");
+    let answer = answer_trial(app, &id, &token, 1, "right").await;
+    assert_eq!(answer.status, StatusCode::CONFLICT, "a different answer");
+    assert!(answer.error().contains("already answered"));
+    let answer = answer_trial(app, &id, &token, 3, "left").await;
+    assert_eq!(answer.status, StatusCode::CONFLICT, "skipping ahead");
+    assert!(answer.error().contains("next trial is 2"));
+
+    let url = format!("/api/participants/{id}/responses");
+    let bad: Vec<(Value, StatusCode, &str)> = vec![
+        (json!({"trial": 0, "chosen": "left", "rt_ms": 5}), StatusCode::UNPROCESSABLE_ENTITY, "trial"),
+        (json!({"trial": 8, "chosen": "left", "rt_ms": 5}), StatusCode::UNPROCESSABLE_ENTITY, "trial"),
+        (json!({"trial": 2, "chosen": "up", "rt_ms": 5}), StatusCode::UNPROCESSABLE_ENTITY, "chosen"),
+        (json!({"trial": 2, "chosen": "left", "rt_ms": -1}), StatusCode::UNPROCESSABLE_ENTITY, "rt_ms"),
+        (json!({"trial": 2, "chosen": "left", "rt_ms": 1e12}), StatusCode::UNPROCESSABLE_ENTITY, "rt_ms"),
+        (json!({"trial": 2, "chosen": "left"}), StatusCode::UNPROCESSABLE_ENTITY, "rt_ms"),
+        (json!({"trial": "2", "chosen": "left", "rt_ms": 5}), StatusCode::UNPROCESSABLE_ENTITY, "trial"),
+        (json!({"trial": 2, "chosen": "left", "rt_ms": 5, "sneaky": true}), StatusCode::UNPROCESSABLE_ENTITY, "sneaky"),
+    ];
+    for (body, status, mentions) in bad {
+        let answer = call(app, Method::POST, &url, Some(&token), Some(body.clone())).await;
+        assert_eq!(answer.status, status, "{body}: {}", answer.text());
+        let error = answer.error();
+        assert!(error.contains(mentions), "{body}: {error:?} should mention {mentions:?}");
+    }
+    // None of that changed anything: trial 2 is still next.
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await.json();
+    assert_eq!(next["trial"], 2);
+
+    for trial in 2..=7 {
+        let answer = answer_trial(app, &id, &token, trial, if trial % 2 == 0 { "right" } else { "left" }).await;
+        assert_eq!(answer.status, StatusCode::CREATED, "trial {trial}: {}", answer.text());
+    }
+    let done = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await;
+    assert_eq!(done.status, StatusCode::OK);
+    assert_eq!(done.json(), json!({"done": true, "completion_code": "DEMO-7F3A"}));
+    let answer = answer_trial(app, &id, &token, 7, if 7 % 2 == 0 { "right" } else { "left" }).await;
+    assert_eq!(answer.status, StatusCode::OK, "repeating the last answer after the end");
+
+    // The export has one row per answer, with the kept crowdsourcing parameter not in the CSV
+    // but in the JSON export.
+    let csv = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None).await;
+    assert_eq!(csv.status, StatusCode::OK);
+    assert!(csv.headers.get(header::CONTENT_TYPE).unwrap().to_str().unwrap().starts_with("text/csv"));
+    let text = csv.text();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,answered_at,catch,catch_passed,viewport,device_pixel_ratio,completed,gender,age,cg_experience,vision"
+    );
+    assert_eq!(lines.len(), 8);
+    assert_eq!(text.matches(",1,1,1280x800,").count() + text.matches(",1,0,1280x800,").count(), 1, "one catch row:\n{text}");
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let participant = &json["participants"][0];
+    assert_eq!(participant["url_params"], json!({"PROLIFIC_PID": "abc123"}));
+    assert_eq!(participant["client"]["devicePixelRatio"], 2);
+    assert_eq!(participant["schedule"].as_array().unwrap().len(), 7);
+    assert!(participant["schedule"][0]["shown_at"].is_string() || participant["schedule"][0]["shown_at"].is_null());
+    assert!(json.to_string().find(&token).is_none(), "the token is not exported");
+}
+
+#[tokio::test]
+async fn stimulus_and_static_paths_cannot_be_traversed() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    for path in [
+        "/stimuli/..%2F..%2Fmrstudy.db",
+        "/stimuli/../mrstudy.db",
+        "/stimuli/admin-token",
+        "/stimuli/%2e%2e%2fadmin-token",
+        &format!("/stimuli/{}.png", "0".repeat(64)),
+        &format!("/stimuli/{}.db", "a".repeat(64)),
+        "/static/..%2F..%2FCargo.toml",
+        "/static/style.css%00.js",
+    ] {
+        let answer = call(app, Method::GET, path, None, None).await;
+        assert!(answer.status == StatusCode::NOT_FOUND || answer.status == StatusCode::BAD_REQUEST, "{path}: {}", answer.status);
+        assert!(!answer.text().contains("SQLite"), "{path}");
+    }
+    let answer = call(app, Method::GET, "/static/survey.js", None, None).await;
+    assert_eq!(answer.status, StatusCode::OK);
+    assert!(answer.headers.get(header::CONTENT_TYPE).unwrap().to_str().unwrap().starts_with("text/javascript"));
+}
+
+#[tokio::test]
+async fn every_response_carries_the_security_headers() {
+    let fixture = fixture().await;
+    for path in ["/", "/studies/shadows-demo", "/api/studies", "/api/nope", "/nope", "/admin", "/static/style.css"] {
+        let answer = call(&fixture.app, Method::GET, path, None, None).await;
+        let csp = answer.headers.get(header::CONTENT_SECURITY_POLICY).unwrap_or_else(|| panic!("{path}: no CSP")).to_str().unwrap();
+        assert!(csp.contains("frame-ancestors 'none'"), "{path}: {csp}");
+        assert!(csp.contains("script-src 'self'"), "{path}: {csp}");
+        assert_eq!(answer.headers.get(header::X_CONTENT_TYPE_OPTIONS).unwrap(), "nosniff", "{path}");
+        assert_eq!(answer.headers.get(header::X_FRAME_OPTIONS).unwrap(), "DENY", "{path}");
+        assert_eq!(answer.headers.get(header::REFERRER_POLICY).unwrap(), "no-referrer", "{path}");
+    }
+    let answer = call(&fixture.app, Method::GET, "/api/nope", None, None).await;
+    assert_eq!(answer.status, StatusCode::NOT_FOUND);
+    answer.error();
+}
+
+#[tokio::test]
+async fn pages_render_with_the_study_texts_escaped() {
+    let fixture = fixture().await;
+    let page = call(&fixture.app, Method::GET, "/studies/shadows-demo", None, None).await;
+    assert_eq!(page.status, StatusCode::OK);
+    let html = page.text();
+    assert!(html.contains("data-study=\"shadows-demo\""));
+    assert!(html.contains("Experience with computer graphics"));
+    assert!(html.contains("<script src=\"/static/survey.js\"></script>"));
+    assert!(!html.contains("<script>"), "no inline script (CSP)");
+    let index = call(&fixture.app, Method::GET, "/", None, None).await.text();
+    assert!(index.contains("/studies/shadows-demo"));
+    assert!(!index.contains("/studies/web-survey"), "skipped study not listed");
+    let missing = call(&fixture.app, Method::GET, "/studies/web-survey", None, None).await;
+    assert_eq!(missing.status, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test]
+async fn admin_api_and_pages_refuse_without_the_token() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let token = fixture.admin_token.as_str();
+    let calls = [
+        (Method::GET, "/api/admin/studies"),
+        (Method::GET, "/api/admin/studies/shadows-demo"),
+        (Method::GET, "/api/admin/studies/shadows-demo/export.csv"),
+        (Method::GET, "/api/admin/studies/shadows-demo/export.json"),
+        (Method::GET, "/api/admin/studies/shadows-demo/conditions.csv"),
+        (Method::GET, "/api/admin/studies/shadows-demo/analysis"),
+        (Method::GET, "/api/admin/studies/shadows-demo/worth.svg"),
+        (Method::POST, "/api/admin/studies/shadows-demo/close"),
+        (Method::POST, "/api/admin/studies/shadows-demo/open"),
+    ];
+    let (_, participant_token) = join(app).await;
+    for (method, path) in &calls {
+        let answer = call(app, method.clone(), path, None, None).await;
+        assert_eq!(answer.status, StatusCode::UNAUTHORIZED, "{path}");
+        answer.error();
+        let answer = call(app, method.clone(), path, Some("wrong-token-wrong-token"), None).await;
+        assert_eq!(answer.status, StatusCode::FORBIDDEN, "{path}");
+        let answer = call(app, method.clone(), path, Some(&participant_token), None).await;
+        assert_eq!(answer.status, StatusCode::FORBIDDEN, "{path}: a participant token is not an admin token");
+    }
+    for page in ["/admin", "/admin/studies/shadows-demo", "/admin/login", "/admin/login?token=nope"] {
+        let answer = call(app, Method::GET, page, None, None).await;
+        assert!(answer.status == StatusCode::UNAUTHORIZED || answer.status == StatusCode::FORBIDDEN, "{page}: {}", answer.status);
+        assert!(!answer.text().contains("Started"), "{page}");
+    }
+    // With the token.
+    let answer = call(app, Method::GET, "/api/admin/studies", Some(token), None).await;
+    assert_eq!(answer.status, StatusCode::OK);
+    let studies = answer.json();
+    assert_eq!(studies[0]["slug"], "shadows-demo");
+    assert_eq!(studies[0]["started"], 1);
+    let conditions = call(app, Method::GET, "/api/admin/studies/shadows-demo/conditions.csv", Some(token), None).await;
+    assert_eq!(conditions.text(), "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n");
+    let missing = call(app, Method::GET, "/api/admin/studies/nope", Some(token), None).await;
+    assert_eq!(missing.status, StatusCode::NOT_FOUND);
+
+    // The login link sets an HttpOnly, SameSite=Strict cookie that opens the pages.
+    let login = call(app, Method::GET, &format!("/admin/login?token={token}"), None, None).await;
+    assert_eq!(login.status, StatusCode::SEE_OTHER);
+    let cookie = login.headers.get(header::SET_COOKIE).unwrap().to_str().unwrap().to_string();
+    assert!(cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"), "{cookie}");
+    let cookie_pair = cookie.split(';').next().unwrap().to_string();
+    let with_cookie = |method: Method, uri: &str, extra: Option<(&str, &str)>| {
+        let mut request = Request::builder().method(method).uri(uri).header(header::COOKIE, cookie_pair.clone());
+        if let Some((name, value)) = extra {
+            request = request.header(name, value);
+        }
+        request.body(Body::empty()).unwrap()
+    };
+    let page = send(app, with_cookie(Method::GET, "/admin", None)).await;
+    assert_eq!(page.status, StatusCode::OK);
+    assert!(page.text().contains("shadows-demo"));
+    let page = send(app, with_cookie(Method::GET, "/admin/studies/shadows-demo", None)).await;
+    assert_eq!(page.status, StatusCode::OK, "{}", page.text());
+    assert!(page.text().contains("Dropout"));
+    // A change by cookie needs X-Requested-With (no cross-site form can send it).
+    let close = send(app, with_cookie(Method::POST, "/api/admin/studies/shadows-demo/close", None)).await;
+    assert_eq!(close.status, StatusCode::FORBIDDEN);
+    let close = send(app, with_cookie(Method::POST, "/api/admin/studies/shadows-demo/close", Some(("x-requested-with", "mrstudy")))).await;
+    assert_eq!(close.status, StatusCode::OK);
+    assert_eq!(close.json(), json!({"slug": "shadows-demo", "open": false}));
+
+    // Closed: no new participants, not listed; reopened by bearer token.
+    let answer = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics()}))).await;
+    assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    assert!(answer.error().contains("closed"));
+    assert_eq!(call(app, Method::GET, "/api/studies", None, None).await.json(), json!([]));
+    let open = call(app, Method::POST, "/api/admin/studies/shadows-demo/open", Some(token), None).await;
+    assert_eq!(open.status, StatusCode::OK);
+    join(app).await;
+}
+
+#[tokio::test]
+async fn admin_stats_show_dropout_and_catch_failures() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let (finisher, finisher_token) = join(app).await;
+    let (dropout, dropout_token) = join(app).await;
+    join(app).await; // joins and answers nothing
+    let mut catch_failures = 0;
+    for trial in 1..=7 {
+        let next = call(app, Method::GET, &format!("/api/participants/{finisher}/next"), Some(&finisher_token), None).await.json();
+        assert_eq!(next["trial"], trial);
+        answer_trial(app, &finisher, &finisher_token, trial, "left").await;
+        let _ = &mut catch_failures;
+    }
+    for trial in 1..=3 {
+        answer_trial(app, &dropout, &dropout_token, trial, "right").await;
+    }
+    let stats = call(app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await.json();
+    assert_eq!(stats["started"], 3);
+    assert_eq!(stats["finished"], 1);
+    assert_eq!(stats["reached"], json!([3, 2, 2, 2, 1, 1, 1, 1]));
+    assert_eq!(stats["stopped_after"], json!([1, 0, 0, 1, 0, 0, 0, 0]));
+    assert_eq!(stats["responses"], 10);
+    assert_eq!(stats["median_rt_ms"], 812.5);
+    assert!((stats["completion_rate"].as_f64().unwrap() - 1.0 / 3.0).abs() < 1e-12);
+    // The finisher answered "left" on the catch trial: a failure iff the better image was right.
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let finisher_schedule = json["participants"][0]["schedule"].as_array().unwrap().clone();
+    let catch = finisher_schedule.iter().find(|trial| trial["catch_expected"].is_string()).unwrap();
+    let expected_failures = if catch["catch_expected"] == "left" { 0 } else { 1 };
+    assert_eq!(stats["catch_responses"], 1);
+    assert_eq!(stats["catch_failures"], expected_failures);
+    assert_eq!(stats["participants_failing_catch"], expected_failures);
+    // Every shown trial has its shown_at.
+    assert!(finisher_schedule.iter().all(|trial| trial["shown_at"].is_string()), "{finisher_schedule:?}");
+}
+
+#[tokio::test]
+async fn schedules_are_stored_and_reproducible_from_the_stored_seed() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    join(app).await;
+    join(app).await;
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let study = mrstudy_server::study::load_study(&studies_dir().join("shadows-demo.toml")).unwrap();
+    let data_dir = tempfile::tempdir().unwrap();
+    let prepared = mrstudy_server::PreparedStudy::prepare(study, data_dir.path()).unwrap();
+    for participant in json["participants"].as_array().unwrap() {
+        let seed: u64 = participant["seed"].as_str().unwrap().parse().unwrap();
+        let replayed = prepared.schedule(seed);
+        let stored = participant["schedule"].as_array().unwrap();
+        assert_eq!(replayed.len(), stored.len());
+        for (replayed, stored) in replayed.iter().zip(stored) {
+            assert_eq!(stored["left"], replayed.left_condition.as_str());
+            assert_eq!(stored["right"], replayed.right_condition.as_str());
+            assert_eq!(stored["scene_left"], replayed.left_scene.as_str());
+            assert_eq!(stored["left_stimulus"], replayed.left_stimulus.as_str());
+            assert_eq!(stored["right_stimulus"], replayed.right_stimulus.as_str());
+        }
+    }
+}
