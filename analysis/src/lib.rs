@@ -12,10 +12,15 @@
 //! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
 //! renderer. It parses text it is handed and returns typed results; callers print them.
 
+pub mod agreement;
+pub mod analysis;
 pub mod data;
 pub mod design;
 pub mod error;
 pub mod fit;
+pub mod plot;
 pub mod pvalue;
+pub mod table;
+pub mod task;
 
 pub use error::{AnalysisError, Result};
