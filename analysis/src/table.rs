@@ -111,6 +111,7 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
                 let method = match (a.method, a.simulations) {
                     (crate::agreement::AgreementMethod::Simulation, Some(b)) => format!("Monte-Carlo, {b} simulations"),
                     (crate::agreement::AgreementMethod::Chi2, _) => "χ² approximation".to_string(),
+                    (crate::agreement::AgreementMethod::Chi2Generalised, _) => "generalised χ², three matched cumulants".to_string(),
                     _ => "—".to_string(),
                 };
                 let _ = write!(out, ", p = {} ({method})", PValue::display(p));
