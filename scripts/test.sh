@@ -11,6 +11,8 @@ while read -r probe package; do
   if [[ "$probe" == /* ]]; then [[ -e "$probe" ]] || need+=("$package")
   else command -v "$probe" >/dev/null 2>&1 || need+=("$package"); fi
 done <<'LIST'
+chromium chromium
+chromedriver chromium-driver
 LIST
 
 if ((${#need[@]})); then

@@ -18,6 +18,8 @@ use serde_json::{Value, json};
 pub enum Target {
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
+    /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
+    Server,
 }
 
 #[derive(Args)]
@@ -37,6 +39,7 @@ pub struct BenchArgs {
 pub fn run(args: BenchArgs) -> Result<()> {
     let (adapter, rows, plots) = match args.target {
         Target::Analysis => bench_analysis(args.quick)?,
+        Target::Server => crate::serve::bench_server(args.quick)?,
     };
     if let Some(path) = &args.json {
         let document = json!({ "adapter": adapter, "rows": rows });

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 mod analyze;
 mod bench;
+mod serve;
 
 #[derive(Parser)]
 #[command(name = "mrstudy", version, about = "Perceptual studies of mixed-reality rendering: render stimuli, run studies, analyse judgments.")]
@@ -22,6 +23,10 @@ enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Measure speed (and error against a reference) of a part of mrstudy.
     Bench(bench::BenchArgs),
+    /// Run the web survey server: migrate the database, load the studies, print the participant and admin links.
+    Serve(serve::ServeArgs),
+    /// Write a study's trials CSV (or JSON, or conditions CSV) from the database.
+    Export(serve::ExportArgs),
 }
 
 fn main() -> ExitCode {
@@ -29,6 +34,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Analyze(args) => analyze::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Serve(args) => serve::run_serve(args),
+        Command::Export(args) => serve::run_export(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

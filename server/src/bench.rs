@@ -1,1 +1,282 @@
-//! `mrstudy bench server`: drives the API from loopback with concurrent simulated participants.
+//! `mrstudy bench server`: drives the API from loopback with many concurrent simulated
+//! participants and measures responses per second and response latency, with the durable
+//! writes of a real server (WAL, `synchronous = FULL`, group commit).
+//!
+//! The server runs in this process on its own tokio runtime (two worker threads) on a fresh
+//! data directory under `$TMPDIR`, serving a synthetic study shaped like the thesis survey
+//! (8 conditions, 13 anchored pairs × 5 = 65 trials, 6 scene configurations, tiny images). The
+//! simulated participants run on a second runtime and talk HTTP/1.1 over loopback: each joins,
+//! then loops `GET next` → `POST response` (no think time) until its 65 trials are done, then
+//! joins again, until the measured time is up. Only responses answered 201 count.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use serde_json::json;
+
+use crate::serve::prepare;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct BenchConfig {
+    /// Concurrent simulated participants.
+    pub participants: usize,
+    /// Measured time (after a one-second warm-up).
+    pub duration: Duration,
+}
+
+impl Default for BenchConfig {
+    fn default() -> Self {
+        BenchConfig { participants: 64, duration: Duration::from_secs(10) }
+    }
+}
+
+/// The measurements.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    pub participants: usize,
+    pub seconds: f64,
+    pub responses: u64,
+    pub responses_per_s: f64,
+    /// Latency of `POST …/responses` (201), in ms.
+    pub response_p50_ms: f64,
+    pub response_p90_ms: f64,
+    pub response_p99_ms: f64,
+    pub response_max_ms: f64,
+    /// Latency of `GET …/next`, in ms.
+    pub next_p50_ms: f64,
+    pub next_p99_ms: f64,
+    pub joins: u64,
+    pub errors: u64,
+    /// Where the database was (its file system decides what an fsync costs).
+    pub data_dir: String,
+}
+
+/// A 1×1 PNG.
+const TINY_PNG: &[u8] = &[
+    0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A, 0x00, 0x00, 0x00, 0x0D, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+    0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x02, 0x00, 0x00, 0x00, 0x90, 0x77, 0x53, 0xDE, 0x00, 0x00, 0x00,
+    0x0C, 0x49, 0x44, 0x41, 0x54, 0x08, 0xD7, 0x63, 0xF8, 0xCF, 0xC0, 0x00, 0x00, 0x03, 0x01, 0x01, 0x00, 0x18,
+    0xDD, 0x8D, 0xB0, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82,
+];
+
+const CONDITIONS: [(&str, [u8; 3]); 8] = [
+    ("LQ", [0, 0, 0]),
+    ("GI", [1, 0, 0]),
+    ("CM", [0, 1, 0]),
+    ("CA", [0, 0, 1]),
+    ("GI+CM", [1, 1, 0]),
+    ("GI+CA", [1, 0, 1]),
+    ("CM+CA", [0, 1, 1]),
+    ("HQ", [1, 1, 1]),
+];
+
+fn write_bench_study(dir: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir.join("images"))?;
+    std::fs::write(dir.join("images/tiny.png"), TINY_PNG)?;
+    let mut toml = String::from(
+        "slug = \"bench\"\ntitle = \"Bench\"\nkind = \"paired-comparison\"\nquestion = \"Which fits better?\"\n\
+         [texts]\nwelcome = \"w\"\nconsent = \"c\"\ninstructions = \"i\"\n\
+         [[demographics]]\nname = \"gender\"\nlabel = \"Gender\"\ntype = \"choice\"\noptions = [\"female\", \"male\"]\n\
+         [[demographics]]\nname = \"age\"\nlabel = \"Age\"\ntype = \"integer\"\nmin = 16\nmax = 110\n\
+         [[factors]]\nname = \"gi\"\n[[factors]]\nname = \"cm\"\n[[factors]]\nname = \"ca\"\n",
+    );
+    for (name, levels) in CONDITIONS {
+        toml += &format!(
+            "[[conditions]]\nname = \"{name}\"\nlevels = {{ gi = {}, cm = {}, ca = {} }}\n",
+            levels[0], levels[1], levels[2]
+        );
+    }
+    for scene in 1..=6 {
+        let images: Vec<String> =
+            CONDITIONS.iter().map(|(name, _)| format!("\"{name}\" = \"images/tiny.png\"")).collect();
+        toml += &format!("[[scenes]]\nname = \"s{scene}\"\nimages = {{ {} }}\n", images.join(", "));
+    }
+    toml += "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 5\nscenes = \"different\"\n";
+    std::fs::write(dir.join("bench.toml"), toml)
+}
+
+fn percentile(sorted: &[f64], quantile: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let rank = ((quantile * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
+
+#[derive(Default)]
+struct Tally {
+    response_ms: Vec<f64>,
+    next_ms: Vec<f64>,
+    joins: u64,
+    errors: u64,
+}
+
+/// Runs the benchmark (blocking).
+pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
+    let work = tempfile::Builder::new().prefix("mrstudy-bench-").tempdir().map_err(|error| format!("cannot create a temporary directory: {error}"))?;
+    let studies_dir = work.path().join("studies");
+    let data_dir = work.path().join("data");
+    write_bench_study(&studies_dir).map_err(|error| format!("cannot write the bench study: {error}"))?;
+
+    let server_runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("bench-server")
+        .enable_all()
+        .build()
+        .map_err(|error| format!("cannot start the server runtime: {error}"))?;
+    let address = server_runtime.block_on(async {
+        let prepared = prepare(&data_dir, &studies_dir).await.map_err(|error| error.to_string())?;
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(|error| error.to_string())?;
+        let address = listener.local_addr().map_err(|error| error.to_string())?;
+        tokio::spawn(async move {
+            let _ = axum::serve(listener, crate::app(prepared.state)).await;
+        });
+        Ok::<_, String>(address)
+    })?;
+
+    let client_runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("bench-client")
+        .enable_all()
+        .build()
+        .map_err(|error| format!("cannot start the client runtime: {error}"))?;
+    let base = format!("http://{address}");
+    let (tally, seconds) = client_runtime.block_on(async move {
+        let client = reqwest::Client::builder()
+            .pool_max_idle_per_host(config.participants)
+            .build()
+            .map_err(|error| error.to_string())?;
+        let measuring = Arc::new(AtomicBool::new(false));
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut tasks = Vec::new();
+        for _ in 0..config.participants {
+            let client = client.clone();
+            let base = base.clone();
+            let measuring = measuring.clone();
+            let stop = stop.clone();
+            tasks.push(tokio::spawn(async move { simulate(client, base, measuring, stop).await }));
+        }
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        measuring.store(true, Ordering::SeqCst);
+        let start = Instant::now();
+        tokio::time::sleep(config.duration).await;
+        measuring.store(false, Ordering::SeqCst);
+        let seconds = start.elapsed().as_secs_f64();
+        stop.store(true, Ordering::SeqCst);
+        let mut total = Tally::default();
+        for task in tasks {
+            let tally = task.await.map_err(|error| error.to_string())?;
+            total.response_ms.extend(tally.response_ms);
+            total.next_ms.extend(tally.next_ms);
+            total.joins += tally.joins;
+            total.errors += tally.errors;
+        }
+        Ok::<_, String>((total, seconds))
+    })?;
+    drop(client_runtime);
+    server_runtime.shutdown_timeout(Duration::from_secs(5));
+
+    let mut response_ms = tally.response_ms;
+    response_ms.sort_by(f64::total_cmp);
+    let mut next_ms = tally.next_ms;
+    next_ms.sort_by(f64::total_cmp);
+    Ok(BenchReport {
+        participants: config.participants,
+        seconds,
+        responses: response_ms.len() as u64,
+        responses_per_s: response_ms.len() as f64 / seconds,
+        response_p50_ms: percentile(&response_ms, 0.50),
+        response_p90_ms: percentile(&response_ms, 0.90),
+        response_p99_ms: percentile(&response_ms, 0.99),
+        response_max_ms: response_ms.last().copied().unwrap_or(0.0),
+        next_p50_ms: percentile(&next_ms, 0.50),
+        next_p99_ms: percentile(&next_ms, 0.99),
+        joins: tally.joins,
+        errors: tally.errors,
+        data_dir: data_dir.display().to_string(),
+    })
+}
+
+async fn simulate(client: reqwest::Client, base: String, measuring: Arc<AtomicBool>, stop: Arc<AtomicBool>) -> Tally {
+    let mut tally = Tally::default();
+    let mut choice = 0u64;
+    'participants: while !stop.load(Ordering::Relaxed) {
+        let joined = client
+            .post(format!("{base}/api/studies/bench/participants"))
+            .json(&json!({"demographics": {"gender": "female", "age": 30}, "client": {"viewport": [1280, 800]}}))
+            .send()
+            .await;
+        let Ok(joined) = joined else {
+            tally.errors += 1;
+            continue;
+        };
+        if joined.status() != reqwest::StatusCode::CREATED {
+            tally.errors += 1;
+            continue;
+        }
+        let Ok(joined) = joined.json::<serde_json::Value>().await else {
+            tally.errors += 1;
+            continue;
+        };
+        if measuring.load(Ordering::Relaxed) {
+            tally.joins += 1;
+        }
+        let id = joined["participant"].as_str().unwrap_or_default().to_string();
+        let token = joined["token"].as_str().unwrap_or_default().to_string();
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                break 'participants;
+            }
+            let started = Instant::now();
+            let next = client
+                .get(format!("{base}/api/participants/{id}/next"))
+                .bearer_auth(&token)
+                .send()
+                .await;
+            let next = match next {
+                Ok(next) if next.status().is_success() => next.json::<serde_json::Value>().await,
+                _ => {
+                    tally.errors += 1;
+                    continue 'participants;
+                }
+            };
+            let next_ms = started.elapsed().as_secs_f64() * 1e3;
+            let Ok(next) = next else {
+                tally.errors += 1;
+                continue 'participants;
+            };
+            if next["done"] == true {
+                continue 'participants;
+            }
+            if measuring.load(Ordering::Relaxed) {
+                tally.next_ms.push(next_ms);
+            }
+            choice = choice.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let started = Instant::now();
+            let stored = client
+                .post(format!("{base}/api/participants/{id}/responses"))
+                .bearer_auth(&token)
+                .json(&json!({"trial": next["trial"], "chosen": if choice >> 63 == 1 { "left" } else { "right" }, "rt_ms": 900.0}))
+                .send()
+                .await;
+            let response_ms = started.elapsed().as_secs_f64() * 1e3;
+            match stored {
+                Ok(stored) if stored.status() == reqwest::StatusCode::CREATED => {
+                    let _ = stored.bytes().await;
+                    if measuring.load(Ordering::Relaxed) {
+                        tally.response_ms.push(response_ms);
+                    }
+                }
+                _ => {
+                    tally.errors += 1;
+                    continue 'participants;
+                }
+            }
+        }
+    }
+    tally
+}

@@ -4,7 +4,8 @@
 //! Trials CSV: one row per answered trial, participants in the order they joined, trials in
 //! schedule order. Columns: `study,participant,trial,left,right,chosen,scene_left,scene_right,
 //! rt_ms,shown_at,answered_at,catch,catch_passed,viewport,device_pixel_ratio,completed`, then
-//! one column per demographic field. `catch` is 1 for catch trials (their `left`/`right` are
+//! one column per demographic field. `viewport` (`WxH`) and `device_pixel_ratio` are those the
+//! browser sent with the response, else when the participant joined. `catch` is 1 for catch trials (their `left`/`right` are
 //! `catch:<name>:better|worse`), and `catch_passed` is then 1 or 0; `completed` is 1 when the
 //! participant finished the study.
 
@@ -97,7 +98,7 @@ fn value_text(value: Option<&Value>) -> String {
 }
 
 const TRIAL_ROWS: &str = "
-    SELECT p.id AS participant, p.demographics, p.completed_at, t.trial, t.left_condition, t.right_condition,
+    SELECT p.id AS participant, p.demographics, p.completed_at, p.client AS participant_client, t.trial, t.left_condition, t.right_condition,
            t.left_scene, t.right_scene, t.left_stimulus, t.right_stimulus, t.catch_expected, t.shown_at,
            r.chosen, r.rt_ms, r.answered_at, r.client
     FROM participants p
@@ -133,8 +134,12 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, catch_rows: CatchRows) ->
         let chosen = if chosen_side == "left" { left.clone() } else { right.clone() };
         let demographics: Map<String, Value> =
             serde_json::from_str(&row.try_get::<String, _>("demographics")?).unwrap_or_default();
-        let client: Map<String, Value> =
+        // The client details sent with the response, else those sent when the participant joined.
+        let mut client: Map<String, Value> =
+            serde_json::from_str(&row.try_get::<String, _>("participant_client")?).unwrap_or_default();
+        let response_client: Map<String, Value> =
             serde_json::from_str(&row.try_get::<String, _>("client")?).unwrap_or_default();
+        client.extend(response_client);
         let viewport = match client.get("viewport") {
             Some(Value::Array(size)) if size.len() == 2 => format!("{}x{}", size[0], size[1]),
             _ => String::new(),

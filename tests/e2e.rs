@@ -1,0 +1,10 @@
+//! End-to-end tests of the `mrstudy` binary, built as one test binary with one module per area
+//! (`tests/e2e/*.rs`); each test gets its own temporary directory. (A crate root's `mod x;`
+//! looks for `tests/x.rs`, hence the `#[path]`s.)
+
+#[path = "e2e/browser.rs"]
+mod browser;
+#[path = "e2e/serve.rs"]
+mod serve;
+#[path = "e2e/serve_durability.rs"]
+mod serve_durability;

@@ -1,0 +1,215 @@
+//! `mrstudy serve` and `mrstudy export` as a user runs them: the binary on a real socket, a
+//! whole participant flow over HTTP, resuming, the export, and start-up errors.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+pub fn binary() -> &'static str {
+    env!("CARGO_BIN_EXE_mrstudy")
+}
+
+pub fn studies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")
+}
+
+/// A running `mrstudy serve`.
+pub struct Server {
+    pub child: Child,
+    pub base: String,
+    pub admin_token: String,
+    pub stderr: mpsc::Receiver<String>,
+}
+
+impl Server {
+    /// Starts `mrstudy serve` and waits for its links (at most 60 s).
+    pub fn start(data_dir: &Path, addr: &str) -> Server {
+        Server::try_start(data_dir, addr, &studies_dir()).unwrap_or_else(|error| panic!("{error}"))
+    }
+
+    pub fn try_start(data_dir: &Path, addr: &str, studies: &Path) -> Result<Server, String> {
+        let mut child = Command::new(binary())
+            .args(["serve", "--addr", addr, "--data-dir"])
+            .arg(data_dir)
+            .arg("--studies")
+            .arg(studies)
+            .env_remove("MRSTUDY_ADMIN_TOKEN")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|error| format!("cannot start {}: {error}", binary()))?;
+        let (stdout_lines, stdout_receiver) = mpsc::channel();
+        let stdout = child.stdout.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let _ = stdout_lines.send(line);
+            }
+        });
+        let (stderr_lines, stderr_receiver) = mpsc::channel();
+        let stderr = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                let _ = stderr_lines.send(line);
+            }
+        });
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let mut base = None;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match stdout_receiver.recv_timeout(left) {
+                Ok(line) => {
+                    if let Some(rest) = line.strip_prefix("mrstudy serving on ") {
+                        base = rest.split_whitespace().next().map(str::to_string);
+                    }
+                    if let Some(link) = line.strip_prefix("admin link: ") {
+                        let admin_token = link.split("token=").nth(1).unwrap_or_default().to_string();
+                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver });
+                    }
+                }
+                Err(_) => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    let errors: Vec<String> = stderr_receiver.try_iter().collect();
+                    return Err(format!("mrstudy serve did not print its links: {}", errors.join(" | ")));
+                }
+            }
+        }
+    }
+
+    pub fn kill(&mut self) {
+        let _ = self.child.kill(); // SIGKILL on Unix
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+pub fn client() -> reqwest::blocking::Client {
+    reqwest::blocking::Client::builder().timeout(Duration::from_secs(20)).build().unwrap()
+}
+
+pub fn demographics() -> Value {
+    json!({"gender": "male", "age": 44, "cg_experience": "some (hobby, courses)", "vision": "corrected to normal (glasses, lenses)"})
+}
+
+pub fn export(data_dir: &Path, study: &str, format: &str) -> String {
+    let output = Command::new(binary())
+        .args(["export", "--study", study, "--format", format, "--data-dir"])
+        .arg(data_dir)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "export failed: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).unwrap()
+}
+
+#[test]
+fn a_participant_completes_the_demo_study_over_a_real_socket() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let http = client();
+    let base = &server.base;
+
+    let studies: Value = http.get(format!("{base}/api/studies")).send().unwrap().json().unwrap();
+    assert_eq!(studies[0]["slug"], "shadows-demo");
+    assert_eq!(studies.as_array().unwrap().len(), 1);
+
+    let joined = http
+        .post(format!("{base}/api/studies/shadows-demo/participants"))
+        .json(&json!({"demographics": demographics(), "client": {"viewport": [800, 600], "devicePixelRatio": 1.5}}))
+        .send()
+        .unwrap();
+    assert_eq!(joined.status(), 201);
+    let joined: Value = joined.json().unwrap();
+    let id = joined["participant"].as_str().unwrap();
+    let token = joined["token"].as_str().unwrap();
+    assert_eq!(joined["trials"], 7);
+
+    for trial in 1..=7 {
+        // Asking twice (a reload) gives the same trial.
+        for _ in 0..2 {
+            let next: Value = http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap().json().unwrap();
+            assert_eq!(next["trial"], trial, "{next}");
+            let image = http.get(format!("{base}{}", next["left"]["url"].as_str().unwrap())).send().unwrap();
+            assert_eq!(image.status(), 200);
+        }
+        let stored = http
+            .post(format!("{base}/api/participants/{id}/responses"))
+            .bearer_auth(token)
+            .json(&json!({"trial": trial, "chosen": if trial % 3 == 0 { "right" } else { "left" }, "rt_ms": 1000 + trial}))
+            .send()
+            .unwrap();
+        assert_eq!(stored.status(), 201);
+    }
+    let done: Value = http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap().json().unwrap();
+    assert_eq!(done, json!({"done": true, "completion_code": "DEMO-7F3A"}));
+
+    // The admin CSV over HTTP and `mrstudy export` agree.
+    let over_http = http
+        .get(format!("{base}/api/admin/studies/shadows-demo/export.csv"))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    let from_cli = export(data_dir.path(), "shadows-demo", "csv");
+    assert_eq!(over_http, from_cli);
+    assert_eq!(from_cli.lines().count(), 8);
+    assert!(from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,male,44,"), "{from_cli}");
+    assert_eq!(export(data_dir.path(), "shadows-demo", "conditions"), "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n");
+    let json: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();
+    assert_eq!(json["participants"][0]["answered"], 7);
+
+    // The admin token was generated once and kept in the data directory.
+    let kept = std::fs::read_to_string(data_dir.path().join("admin-token")).unwrap();
+    assert_eq!(kept.trim(), server.admin_token);
+    assert!(server.admin_token.len() >= 32);
+}
+
+#[test]
+fn serve_skips_a_study_that_needs_the_renderer_with_one_warning() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    std::thread::sleep(Duration::from_millis(200));
+    let warnings: Vec<String> = server.stderr.try_iter().collect();
+    let about_survey: Vec<&String> = warnings.iter().filter(|line| line.contains("web-survey")).collect();
+    assert_eq!(about_survey.len(), 1, "{warnings:?}");
+    assert!(about_survey[0].starts_with("warning: "), "{warnings:?}");
+    assert!(about_survey[0].contains("renderer"), "{warnings:?}");
+}
+
+#[test]
+fn serve_refuses_an_invalid_study_file_naming_file_and_key() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(studies_dir().join("web-survey.toml")).unwrap();
+    std::fs::write(studies.path().join("broken.toml"), text.replace("repetitions = 5", "repetitions = 0")).unwrap();
+    let output = Command::new(binary())
+        .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
+        .arg(data_dir.path())
+        .arg("--studies")
+        .arg(studies.path())
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("broken.toml") && stderr.contains("design.repetitions") && stderr.contains("expected 1 to 100"), "{stderr}");
+}
+
+#[test]
+fn export_of_an_unknown_study_or_missing_database_is_one_clear_error() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let output = Command::new(binary()).args(["export", "--study", "nope", "--data-dir"]).arg(data_dir.path()).output().unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no database"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1);
+}

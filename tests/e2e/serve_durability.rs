@@ -1,0 +1,150 @@
+//! Durability: `mrstudy serve` is killed with SIGKILL again and again while simulated
+//! participants answer concurrently, and restarted each time; afterwards every response that was
+//! acknowledged (201, or 200 for a repeat) is in the database exactly once, with its answer.
+//!
+//! A SIGKILL loses what the process had not handed to the kernel; what survives it is what was
+//! committed. (Power loss also needs the fsync that `synchronous = FULL` does on every commit;
+//! no test here pulls the plug.)
+
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+use super::serve::{Server, demographics, export};
+
+/// Total time of the kill-and-restart phase.
+const KILL_PHASE: Duration = Duration::from_secs(20);
+const PARTICIPANTS: usize = 12;
+
+#[test]
+fn acknowledged_responses_survive_repeated_sigkill() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let addr = format!("127.0.0.1:{port}");
+    let base = format!("http://{addr}");
+    let mut server = Server::start(data_dir.path(), &addr);
+
+    let acknowledged: Arc<Mutex<Vec<(String, i64, String)>>> = Arc::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut clients = Vec::new();
+    for index in 0..PARTICIPANTS {
+        let acknowledged = acknowledged.clone();
+        let stop = stop.clone();
+        let base = base.clone();
+        clients.push(std::thread::spawn(move || participant_loop(index, &base, &stop, &acknowledged)));
+    }
+
+    let started = Instant::now();
+    let mut kills = 0;
+    let mut pseudo_random = 0x2545_F491_4F6C_DD1Du64;
+    while started.elapsed() < KILL_PHASE {
+        pseudo_random ^= pseudo_random << 13;
+        pseudo_random ^= pseudo_random >> 7;
+        pseudo_random ^= pseudo_random << 17;
+        std::thread::sleep(Duration::from_millis(300 + pseudo_random % 900));
+        server.kill();
+        kills += 1;
+        server = Server::start(data_dir.path(), &addr);
+    }
+    stop.store(true, Ordering::SeqCst);
+    let mut clients_acknowledged = 0;
+    for client in clients {
+        clients_acknowledged += client.join().unwrap();
+    }
+    server.kill();
+
+    let acknowledged = acknowledged.lock().unwrap().clone();
+    assert_eq!(clients_acknowledged, acknowledged.len());
+    assert!(kills >= 10, "only {kills} kills");
+    assert!(acknowledged.len() >= 200, "only {} acknowledged responses in {kills} kills", acknowledged.len());
+
+    // Read back what the database holds, through `mrstudy export`.
+    let stored: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();
+    let mut answers: HashMap<(String, i64), Vec<String>> = HashMap::new();
+    for participant in stored["participants"].as_array().unwrap() {
+        let id = participant["participant"].as_str().unwrap().to_string();
+        let mut answered = 0;
+        for trial in participant["schedule"].as_array().unwrap() {
+            if let Some(chosen) = trial["response"]["chosen"].as_str() {
+                answers.entry((id.clone(), trial["trial"].as_i64().unwrap())).or_default().push(chosen.to_string());
+                answered += 1;
+            }
+        }
+        assert_eq!(participant["answered"], answered, "the progress counter matches the responses");
+    }
+    let csv = export(data_dir.path(), "shadows-demo", "csv");
+    let mut rows: HashMap<(String, i64), usize> = HashMap::new();
+    for line in csv.lines().skip(1) {
+        let fields: Vec<&str> = line.split(',').collect();
+        *rows.entry((fields[1].to_string(), fields[2].parse().unwrap())).or_default() += 1;
+    }
+    let mut seen = HashSet::new();
+    for (participant, trial, chosen) in &acknowledged {
+        let key = (participant.clone(), *trial);
+        assert!(seen.insert(key.clone()), "acknowledged twice by the test itself: {key:?}");
+        let stored = answers.get(&key).unwrap_or_else(|| panic!("acknowledged response {key:?} is missing after {kills} kills"));
+        assert_eq!(stored, &vec![chosen.clone()], "{key:?}");
+        assert_eq!(rows.get(&key), Some(&1), "{key:?} exactly once in the CSV");
+    }
+    eprintln!(
+        "durability: {kills} SIGKILLs, {} acknowledged responses, {} stored, all acknowledged ones present exactly once",
+        acknowledged.len(),
+        rows.len()
+    );
+}
+
+/// One simulated participant after another: join, answer every trial, retrying through the
+/// restarts. Returns how many responses were acknowledged.
+fn participant_loop(index: usize, base: &str, stop: &AtomicBool, acknowledged: &Mutex<Vec<(String, i64, String)>>) -> usize {
+    let http = reqwest::blocking::Client::builder().timeout(Duration::from_secs(5)).build().unwrap();
+    let mut count = 0;
+    let mut choice = index as u64 + 1;
+    while !stop.load(Ordering::SeqCst) {
+        let joined = http
+            .post(format!("{base}/api/studies/shadows-demo/participants"))
+            .json(&json!({"demographics": demographics()}))
+            .send();
+        let Ok(joined) = joined else {
+            std::thread::sleep(Duration::from_millis(50));
+            continue;
+        };
+        if joined.status() != 201 {
+            std::thread::sleep(Duration::from_millis(50));
+            continue;
+        }
+        let Ok(joined) = joined.json::<Value>() else { continue };
+        let id = joined["participant"].as_str().unwrap().to_string();
+        let token = joined["token"].as_str().unwrap().to_string();
+        let trials = joined["trials"].as_i64().unwrap();
+        let mut trial = 1;
+        while trial <= trials && !stop.load(Ordering::SeqCst) {
+            choice = choice.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let chosen = if choice >> 63 == 1 { "left" } else { "right" };
+            // Retry this answer until the server acknowledges it.
+            loop {
+                if stop.load(Ordering::SeqCst) {
+                    return count;
+                }
+                let sent = http
+                    .post(format!("{base}/api/participants/{id}/responses"))
+                    .bearer_auth(&token)
+                    .json(&json!({"trial": trial, "chosen": chosen, "rt_ms": 500}))
+                    .send();
+                match sent {
+                    Ok(response) if response.status() == 201 || response.status() == 200 => {
+                        acknowledged.lock().unwrap().push((id.clone(), trial, chosen.to_string()));
+                        count += 1;
+                        break;
+                    }
+                    Ok(response) => panic!("unexpected {} for trial {trial}: {:?}", response.status(), response.text()),
+                    Err(_) => std::thread::sleep(Duration::from_millis(20)),
+                }
+            }
+            trial += 1;
+        }
+    }
+    count
+}
