@@ -237,11 +237,15 @@ async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult
         Some(participant) if constant_time_eq(&participant.token_sha256, &sha256(token.as_bytes())) => {
             Ok(participant)
         }
-        _ => Err(AppError::Forbidden(format!(
-            "This token does not give access to participant \"{}\".",
-            id.chars().take(64).collect::<String>()
-        ))),
+        _ => Err(forbidden(id)),
     }
+}
+
+fn forbidden(id: &str) -> AppError {
+    AppError::Forbidden(format!(
+        "This token does not give access to participant \"{}\".",
+        id.chars().take(64).collect::<String>()
+    ))
 }
 
 #[derive(Serialize)]
@@ -279,7 +283,14 @@ async fn next_trial(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<Next>> {
-    let participant = authorize(&state, &headers, &id).await?;
+    let token = bearer(&headers)?;
+    let found = if id.len() == 32 { state.storage().participant_with_next(&id).await? } else { None };
+    let (participant, trials) = match found {
+        Some((participant, trials)) if constant_time_eq(&participant.token_sha256, &sha256(token.as_bytes())) => {
+            (participant, trials)
+        }
+        _ => return Err(forbidden(&id)),
+    };
     let prepared = state.study(&participant.study).ok_or_else(|| {
         AppError::Gone(format!("The study \"{}\" is no longer served.", participant.study))
     })?;
@@ -291,16 +302,12 @@ async fn next_trial(
         }));
     }
     let number = participant.answered + 1;
-    let trial = state
-        .storage()
-        .trial(&participant.id, number)
-        .await?
+    let mut trials = trials.into_iter();
+    let trial = trials
+        .next()
+        .filter(|trial| trial.trial == number)
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
-    let following = if number < participant.trials {
-        state.storage().trial(&participant.id, number + 1).await?
-    } else {
-        None
-    };
+    let following = trials.next();
     state.storage().mark_shown(&participant.id, number);
     Ok(Json(Next::Trial {
         trial: trial.trial,

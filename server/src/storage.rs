@@ -238,6 +238,46 @@ impl Storage {
         .transpose()
     }
 
+    /// The participant with its next unanswered trial and the one after it (for preloading), in
+    /// one query.
+    pub async fn participant_with_next(
+        &self,
+        id: &str,
+    ) -> Result<Option<(ParticipantRow, Vec<TrialRow>)>, sqlx::Error> {
+        let rows = sqlx::query(
+            "SELECT p.id, p.study, p.token_sha256, p.trials, p.answered, p.completion_code, p.completed_at,
+                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus
+             FROM participants p
+             LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
+             WHERE p.id = ? ORDER BY t.trial",
+        )
+        .bind(id)
+        .fetch_all(&self.read)
+        .await?;
+        let Some(first) = rows.first() else { return Ok(None) };
+        let participant = ParticipantRow {
+            id: first.try_get("id")?,
+            study: first.try_get("study")?,
+            token_sha256: first.try_get("token_sha256")?,
+            trials: first.try_get("trials")?,
+            answered: first.try_get("answered")?,
+            completion_code: first.try_get("completion_code")?,
+            completed: first.try_get::<Option<String>, _>("completed_at")?.is_some(),
+            url_params: first.try_get("url_params")?,
+        };
+        let mut trials = Vec::new();
+        for row in &rows {
+            if let Some(trial) = row.try_get::<Option<i64>, _>("trial")? {
+                trials.push(TrialRow {
+                    trial,
+                    left_stimulus: row.try_get("left_stimulus")?,
+                    right_stimulus: row.try_get("right_stimulus")?,
+                });
+            }
+        }
+        Ok(Some((participant, trials)))
+    }
+
     pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
         let row = sqlx::query(
             "SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = ? AND trial = ?",
@@ -376,6 +416,33 @@ async fn store_response(
     connection: &mut SqliteConnection,
     response: &NewResponse,
 ) -> Result<Result<ResponseOutcome, AppError>, sqlx::Error> {
+    // The usual case in two statements: advance the participant's progress if this is the next
+    // trial, then insert the response. Responses are answered in order, so `answered` is the
+    // number of stored responses and trial `answered + 1` has none yet.
+    let advanced = sqlx::query(sqlx::AssertSqlSafe(format!(
+        "UPDATE participants SET answered = answered + 1,
+             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END
+         WHERE id = ? AND answered = ? AND ? <= trials"
+    )))
+    .bind(&response.participant)
+    .bind(response.trial - 1)
+    .bind(response.trial)
+    .execute(&mut *connection)
+    .await?;
+    if advanced.rows_affected() == 1 {
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at) VALUES (?, ?, ?, ?, ?, {NOW})"
+        )))
+        .bind(&response.participant)
+        .bind(response.trial)
+        .bind(response.chosen.as_str())
+        .bind(response.rt_ms)
+        .bind(&response.client)
+        .execute(&mut *connection)
+        .await?;
+        return Ok(Ok(ResponseOutcome::Created));
+    }
+    // Not the next trial: a repeat, a changed answer, or out of order.
     let existing: Option<String> =
         sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = ? AND trial = ?")
             .bind(&response.participant)
@@ -407,32 +474,11 @@ async fn store_response(
             response.trial
         ))));
     }
-    if response.trial != answered + 1 {
-        return Ok(Err(AppError::Conflict(format!(
-            "Trial {} cannot be answered yet: the next trial is {}.",
-            response.trial,
-            answered + 1
-        ))));
-    }
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at) VALUES (?, ?, ?, ?, ?, {NOW})"
-    )))
-    .bind(&response.participant)
-    .bind(response.trial)
-    .bind(response.chosen.as_str())
-    .bind(response.rt_ms)
-    .bind(&response.client)
-    .execute(&mut *connection)
-    .await?;
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "UPDATE participants SET answered = answered + 1,
-             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END
-         WHERE id = ?"
-    )))
-    .bind(&response.participant)
-    .execute(&mut *connection)
-    .await?;
-    Ok(Ok(ResponseOutcome::Created))
+    Ok(Err(AppError::Conflict(format!(
+        "Trial {} cannot be answered yet: the next trial is {}.",
+        response.trial,
+        answered + 1
+    ))))
 }
 
 async fn insert_participant(
