@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use crate::error::{AppError, AppResult, Json};
-use crate::export::{self, CatchRows, ExportError};
+use crate::export::{self, ExportError};
 use crate::participant::bearer;
 use crate::AppState;
 
@@ -261,7 +261,7 @@ fn download(content_type: &'static str, file_name: String, body: String) -> Resp
 
 async fn export_csv(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
     authorize(&state, &headers)?;
-    let csv = export::trials_csv(&state.storage().read, &slug, CatchRows::Include).await?;
+    let csv = export::trials_csv(&state.storage().read, &slug).await?;
     Ok(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv))
 }
 
@@ -289,13 +289,12 @@ async fn conditions_csv(
     ))
 }
 
-/// The live analysis of a study: the analysis crate run on the trials CSV without catch trials
-/// and the study's conditions CSV — exactly what `mrstudy export` (with its catch rows, which
-/// the analysis must skip) and `mrstudy analyze` give.
+/// The live analysis of a study: the analysis crate run on the trials CSV and the study's
+/// conditions CSV — exactly what `mrstudy export` and `mrstudy analyze --conditions` give.
 pub async fn analysis_json(state: &AppState, slug: &str) -> AppResult<serde_json::Value> {
     let pool = &state.storage().read;
     let definition = export::definition(pool, slug).await?;
-    let trials = export::trials_csv(pool, slug, CatchRows::Exclude).await?;
+    let trials = export::trials_csv(pool, slug).await?;
     crate::analysis::run(&trials, &definition.conditions_csv())
 }
 
@@ -312,7 +311,7 @@ async fn worth_svg(State(state): State<AppState>, Path(slug): Path<String>, head
     authorize(&state, &headers)?;
     let pool = &state.storage().read;
     let definition = export::definition(pool, &slug).await?;
-    let trials = export::trials_csv(pool, &slug, CatchRows::Exclude).await?;
+    let trials = export::trials_csv(pool, &slug).await?;
     let svg = crate::analysis::worth_svg(&trials, &definition.conditions_csv())?;
     let mut response = (StatusCode::OK, svg).into_response();
     let response_headers = response.headers_mut();

@@ -1,13 +1,19 @@
 //! Export: the trials CSV of DESIGN.md and a fuller JSON, read from the database alone (the
 //! study's definition is stored there), so `mrstudy export` works without the study files.
 //!
-//! Trials CSV: one row per answered trial, participants in the order they joined, trials in
-//! schedule order. Columns: `study,participant,trial,left,right,chosen,scene_left,scene_right,
-//! rt_ms,shown_at,answered_at,catch,catch_passed,viewport,device_pixel_ratio,completed`, then
-//! one column per demographic field. `viewport` (`WxH`) and `device_pixel_ratio` are those the
-//! browser sent with the response, else when the participant joined. `catch` is 1 for catch trials (their `left`/`right` are
-//! `catch:<name>:better|worse`), and `catch_passed` is then 1 or 0; `completed` is 1 when the
+//! Trials CSV: one row per answered paired-comparison trial (a judgment between two of the
+//! study's conditions), participants in the order they joined, trials in schedule order.
+//! Columns: `study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,
+//! answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,completed`, then one
+//! column per demographic field. `viewport` (`WxH`) and `device_pixel_ratio` are those the
+//! browser sent with the response, else when the participant joined; `completed` is 1 when the
 //! participant finished the study.
+//!
+//! Catch trials are not judgments between conditions, so they are not rows of the trials CSV
+//! (whose `left`/`right`/`chosen` hold condition names only, as the analysis expects); each row
+//! flags its participant instead: `catch_answered` and `catch_failed` count the participant's
+//! answered and failed catch trials, so screening is one filter. The JSON export holds every
+//! trial, catch trials included, with `catch_expected` and the response.
 
 use serde::Deserialize;
 use serde_json::{Map, Value, json};
@@ -74,13 +80,6 @@ pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<StoredDefinitio
     })
 }
 
-/// Which rows the trials CSV holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CatchRows {
-    Include,
-    Exclude,
-}
-
 fn format_number(value: f64) -> String {
     if value.fract() == 0.0 && value.abs() < 1e15 {
         format!("{}", value as i64)
@@ -107,16 +106,29 @@ const TRIAL_ROWS: &str = "
     WHERE p.study = ?";
 
 /// The trials CSV of a study.
-pub async fn trials_csv(pool: &SqlitePool, slug: &str, catch_rows: CatchRows) -> Result<String, ExportError> {
+pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> Result<String, ExportError> {
     let definition = definition(pool, slug).await?;
-    let rows = sqlx::query(sqlx::AssertSqlSafe(format!("{TRIAL_ROWS} AND r.chosen IS NOT NULL ORDER BY p.ordinal, t.trial")))
+    let catch_counts = sqlx::query(
+        "SELECT r.participant, COUNT(*) AS answered, COALESCE(SUM(r.chosen != t.catch_expected), 0) AS failed
+         FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
+         JOIN participants p ON p.id = r.participant
+         WHERE p.study = ? AND t.catch_expected IS NOT NULL GROUP BY r.participant",
+    )
+    .bind(slug)
+    .fetch_all(pool)
+    .await?;
+    let mut catch_by_participant: std::collections::HashMap<String, (i64, i64)> = Default::default();
+    for row in catch_counts {
+        catch_by_participant.insert(row.try_get("participant")?, (row.try_get("answered")?, row.try_get("failed")?));
+    }
+    let rows = sqlx::query(sqlx::AssertSqlSafe(format!("{TRIAL_ROWS} AND r.chosen IS NOT NULL AND t.catch_expected IS NULL ORDER BY p.ordinal, t.trial")))
         .bind(slug)
         .fetch_all(pool)
         .await?;
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = [
         "study", "participant", "trial", "left", "right", "chosen", "scene_left", "scene_right", "rt_ms",
-        "shown_at", "answered_at", "catch", "catch_passed", "viewport", "device_pixel_ratio", "completed",
+        "shown_at", "answered_at", "catch_answered", "catch_failed", "viewport", "device_pixel_ratio", "completed",
     ]
     .iter()
     .map(|column| column.to_string())
@@ -124,10 +136,8 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, catch_rows: CatchRows) ->
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
     for row in rows {
-        let catch_expected: Option<String> = row.try_get("catch_expected")?;
-        if catch_expected.is_some() && catch_rows == CatchRows::Exclude {
-            continue;
-        }
+        let participant: String = row.try_get("participant")?;
+        let (catch_answered, catch_failed) = catch_by_participant.get(&participant).copied().unwrap_or((0, 0));
         let chosen_side: String = row.try_get("chosen")?;
         let left: String = row.try_get("left_condition")?;
         let right: String = row.try_get("right_condition")?;
@@ -146,7 +156,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, catch_rows: CatchRows) ->
         };
         let mut record = vec![
             definition.slug.clone(),
-            row.try_get("participant")?,
+            participant,
             row.try_get::<i64, _>("trial")?.to_string(),
             left,
             right,
@@ -156,11 +166,8 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, catch_rows: CatchRows) ->
             format_number(row.try_get::<f64, _>("rt_ms")?),
             row.try_get::<Option<String>, _>("shown_at")?.unwrap_or_default(),
             row.try_get("answered_at")?,
-            if catch_expected.is_some() { "1" } else { "0" }.to_string(),
-            match &catch_expected {
-                Some(expected) => if *expected == chosen_side { "1" } else { "0" }.to_string(),
-                None => String::new(),
-            },
+            catch_answered.to_string(),
+            catch_failed.to_string(),
             viewport,
             value_text(client.get("devicePixelRatio")),
             if row.try_get::<Option<String>, _>("completed_at")?.is_some() { "1" } else { "0" }.to_string(),

@@ -196,7 +196,7 @@ pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<Strin
         let storage = Storage::open(&database).await.map_err(|error| error.to_string())?;
         let pool = &storage.read;
         let text = match format {
-            ExportFormat::Csv => crate::export::trials_csv(pool, slug, crate::export::CatchRows::Include).await,
+            ExportFormat::Csv => crate::export::trials_csv(pool, slug).await,
             ExportFormat::Json => crate::export::study_json(pool, slug)
                 .await
                 .map(|json| serde_json::to_string_pretty(&json).expect("JSON serialises") + "\n"),

@@ -284,10 +284,13 @@ async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code()
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
-        "study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,answered_at,catch,catch_passed,viewport,device_pixel_ratio,completed,gender,age,cg_experience,vision"
+        "study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,completed,gender,age,cg_experience,vision"
     );
-    assert_eq!(lines.len(), 8);
-    assert_eq!(text.matches(",1,1,1280x800,").count() + text.matches(",1,0,1280x800,").count(), 1, "one catch row:\n{text}");
+    assert_eq!(lines.len(), 7, "six judgments; the catch trial is not a row:\n{text}");
+    assert!(!text.contains("catch:"));
+    for line in &lines[1..] {
+        assert!(line.contains(",1,0,1280x800,2,1,") || line.contains(",1,1,1280x800,2,1,"), "catch columns, client, completed: {line}");
+    }
     let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
     let participant = &json["participants"][0];
     assert_eq!(participant["url_params"], json!({"PROLIFIC_PID": "abc123"}));
@@ -503,4 +506,49 @@ async fn schedules_are_stored_and_reproducible_from_the_stored_seed() {
             assert_eq!(stored["right_stimulus"], replayed.right_stimulus.as_str());
         }
     }
+}
+
+#[tokio::test]
+async fn live_analysis_runs_the_analysis_crate_on_the_export() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let token = fixture.admin_token.as_str();
+    // Before any judgment: a clear 4xx, no numbers.
+    let empty = call(app, Method::GET, "/api/admin/studies/shadows-demo/analysis", Some(token), None).await;
+    assert_eq!(empty.status, StatusCode::UNPROCESSABLE_ENTITY, "{}", empty.text());
+    assert!(empty.error().contains("analysis"));
+    // Participants who prefer the shadowed sphere, mostly.
+    for participant in 0..6 {
+        let (id, participant_token) = join(app).await;
+        for trial in 1..=7 {
+            let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&participant_token), None).await.json();
+            let _ = next;
+            let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(token), None).await.json();
+            let schedule = json["participants"][participant]["schedule"][trial as usize - 1].clone();
+            let left = schedule["left"].as_str().unwrap();
+            let right = schedule["right"].as_str().unwrap();
+            let score = |condition: &str| condition.contains("SH") as i32 * 2 + condition.contains("CA") as i32;
+            let chosen = if (score(left) >= score(right)) != (trial == 3 && participant % 3 == 0) { "left" } else { "right" };
+            assert_eq!(answer_trial(app, &id, &participant_token, trial, chosen).await.status, StatusCode::CREATED);
+        }
+    }
+    let analysis = call(app, Method::GET, "/api/admin/studies/shadows-demo/analysis", Some(token), None).await;
+    assert_eq!(analysis.status, StatusCode::OK, "{}", analysis.text());
+    let analysis = analysis.json();
+    assert_eq!(analysis["participants"], 6);
+    assert_eq!(analysis["judgments"], 36, "6 participants × 6 pairs; catch trials are not judgments");
+    assert_eq!(analysis["conditions"], 4);
+    assert_eq!(analysis["reference"], "LQ");
+    let covariates: Vec<&str> = analysis["covariates"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(covariates, ["shadow", "ca"]);
+    assert!(analysis["agreement"]["u"].is_number());
+    let svg = call(app, Method::GET, "/api/admin/studies/shadows-demo/worth.svg", Some(token), None).await;
+    assert_eq!(svg.status, StatusCode::OK);
+    assert_eq!(svg.headers.get(header::CONTENT_TYPE).unwrap(), "image/svg+xml");
+    assert!(svg.text().contains("<svg"));
+    let page = call(app, Method::GET, "/admin/studies/shadows-demo", Some(token), None).await;
+    assert_eq!(page.status, StatusCode::OK);
+    let html = page.text();
+    assert!(html.contains("coefficient of agreement u ="), "{html}");
+    assert!(html.contains("<td>shadow</td>"), "factor estimates table");
 }

@@ -161,7 +161,7 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
         .unwrap();
     let from_cli = export(data_dir.path(), "shadows-demo", "csv");
     assert_eq!(over_http, from_cli);
-    assert_eq!(from_cli.lines().count(), 8);
+    assert_eq!(from_cli.lines().count(), 7, "six judgments and the header:\n{from_cli}");
     assert!(from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,male,44,"), "{from_cli}");
     assert_eq!(export(data_dir.path(), "shadows-demo", "conditions"), "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n");
     let json: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();
@@ -212,4 +212,67 @@ fn export_of_an_unknown_study_or_missing_database_is_one_clear_error() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("no database"), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1);
+}
+
+#[test]
+fn exported_csv_fed_to_analyze_reproduces_the_live_analysis() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let http = client();
+    let base = &server.base;
+    for participant in 0..8u64 {
+        let joined: Value = http
+            .post(format!("{base}/api/studies/shadows-demo/participants"))
+            .json(&json!({"demographics": demographics()}))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        let id = joined["participant"].as_str().unwrap();
+        let token = joined["token"].as_str().unwrap();
+        let mut noise = participant * 7 + 3;
+        for trial in 1..=7 {
+            http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap();
+            noise = noise.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let chosen = if noise >> 62 == 0 { "right" } else { "left" };
+            let stored = http
+                .post(format!("{base}/api/participants/{id}/responses"))
+                .bearer_auth(token)
+                .json(&json!({"trial": trial, "chosen": chosen, "rt_ms": 700}))
+                .send()
+                .unwrap();
+            assert_eq!(stored.status(), 201);
+        }
+    }
+    let live: Value = http
+        .get(format!("{base}/api/admin/studies/shadows-demo/analysis"))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(live["judgments"], 48, "{live}");
+
+    let trials = data_dir.path().join("trials.csv");
+    let conditions = data_dir.path().join("conditions.csv");
+    for (format, path) in [("csv", &trials), ("conditions", &conditions)] {
+        let status = Command::new(binary())
+            .args(["export", "--study", "shadows-demo", "--format", format, "--out"])
+            .arg(path)
+            .arg("--data-dir")
+            .arg(data_dir.path())
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    let output = Command::new(binary())
+        .args(["analyze", "--format", "json", "--trials"])
+        .arg(&trials)
+        .arg("--conditions")
+        .arg(&conditions)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let offline: Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(offline, live, "mrstudy analyze on the export equals the admin page's live analysis");
 }
