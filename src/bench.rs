@@ -18,6 +18,8 @@ use serde_json::{Value, json};
 pub enum Target {
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
+    /// Rendering: with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render.
+    Render,
     /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
     Server,
 }
@@ -34,12 +36,20 @@ pub struct BenchArgs {
     /// Smaller sizes only (for a quick check).
     #[arg(long)]
     quick: bool,
+    /// bench render: measure the CPU reference path tracer.
+    #[arg(long)]
+    reference: bool,
+    /// bench render: the scene (default survey-1).
+    #[arg(long)]
+    scene: Option<String>,
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
     let (adapter, rows, plots) = match args.target {
         Target::Analysis => bench_analysis(args.quick)?,
+        Target::Render if args.reference => crate::render::bench_reference(args.scene.as_deref(), args.quick)?,
         Target::Server => crate::serve::bench_server(args.quick)?,
+        Target::Render => anyhow::bail!("bench render needs --reference (the GPU pipeline is not built yet)"),
     };
     if let Some(path) = &args.json {
         let document = json!({ "adapter": adapter, "rows": rows });

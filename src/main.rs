@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 mod analyze;
 mod bench;
+mod render;
 mod serve;
 
 #[derive(Parser)]
@@ -23,6 +24,8 @@ enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Measure speed (and error against a reference) of a part of mrstudy.
     Bench(bench::BenchArgs),
+    /// Render a scene: the reference photograph or ground-truth composite (CPU path tracer); `--list` names the built-in scenes.
+    Render(render::RenderArgs),
     /// Run the web survey server: migrate the database, load the studies, print the participant and admin links.
     Serve(serve::ServeArgs),
     /// Write a study's trials CSV (or JSON, or conditions CSV) from the database.
@@ -34,6 +37,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Analyze(args) => analyze::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Render(args) => render::run(args),
         Command::Serve(args) => serve::run_serve(args),
         Command::Export(args) => serve::run_export(args),
     };

@@ -4,6 +4,8 @@
 
 #[path = "e2e/browser.rs"]
 mod browser;
+#[path = "e2e/render.rs"]
+mod render;
 #[path = "e2e/serve.rs"]
 mod serve;
 #[path = "e2e/serve_durability.rs"]

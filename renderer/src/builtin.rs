@@ -285,7 +285,7 @@ fn survey(config: u32) -> SceneDesc {
     let bb = [[-0.2, 0.02], [0.24, 0.04], [0.22, 0.0], [-0.06, 0.08], [-0.2, 0.05], [0.18, 0.08]][(config - 1) as usize];
     objects.push(boxed("blue-box", role(&[4]), "blue-box", [0.05, 0.1, 0.05], bb, -25.0 + 10.0 * config as f32));
     let bk = [[0.02, 0.14], [-0.05, 0.15], [-0.2, 0.12], [-0.15, 0.0], [0.0, 0.14], [0.05, 0.12]][(config - 1) as usize];
-    objects.push(boxed("book", role(&[4, 6]), "book", [0.15, 0.03, 0.21], bk, 70.0 + 17.0 * config as f32));
+    objects.push(boxed("book", role(&[4, 6]), "book", [0.12, 0.025, 0.17], bk, 70.0 + 17.0 * config as f32));
     SceneDesc {
         name: String::new(),
         description: String::new(),
@@ -326,11 +326,14 @@ fn dir_scene(case: DirCase) -> SceneDesc {
         let d = [target[0] - pos[0], target[1] - pos[1], target[2] - pos[2]];
         let yaw = d[0].atan2(d[2]).to_degrees();
         let pitch = -(d[1] / (d[0] * d[0] + d[2] * d[2]).sqrt()).atan().to_degrees();
+        // the body sits behind the light, along the beam axis
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let back = [pos[0] - d[0] / len * 0.056, pos[1] - d[1] / len * 0.056, pos[2] - d[2] / len * 0.056];
         objects.push(ObjectDesc {
             radius: Some(0.012),
             height: Some(0.1),
             rotate_deg: Some([90.0 + pitch, yaw, 0.0]),
-            ..obj("pocket-lamp", Real, "cylinder", "metal", [pos[0] - 0.06 * d[0].signum() * 0.0, pos[1], pos[2]])
+            ..obj("pocket-lamp", Real, "cylinder", "metal", back)
         });
         lights.push(LightDesc {
             name: "pocket-lamp-light".into(),
@@ -346,6 +349,7 @@ fn dir_scene(case: DirCase) -> SceneDesc {
         });
     };
     let centre;
+    let mut azimuth = 10.0;
     match case {
         DirCase::EnvShadow | DirCase::LampCornell | DirCase::LampBox => {
             cornell_box(&mut objects, Virtual, [-0.08, -0.05], 0.16, 15.0);
@@ -369,17 +373,18 @@ fn dir_scene(case: DirCase) -> SceneDesc {
                 target: Some([0.0, 0.0, -0.05]),
                 inner_deg: Some(20.0),
                 outer_deg: Some(30.0),
-                intensity: 3.0,
+                intensity: 1.2,
                 color: Some(rgb(1.0, 0.95, 0.85)),
                 ..Default::default()
             });
             centre = [0.0, 0.04, -0.05];
+            azimuth = 60.0;
         }
     }
     SceneDesc {
         name: String::new(),
         description: String::new(),
-        camera: camera_at(10.0, 28.0, 0.6, centre, "webcam"),
+        camera: camera_at(azimuth, 28.0, 0.6, centre, "webcam"),
         materials,
         objects,
         lights,

@@ -679,3 +679,19 @@ fn resolve_environment(ctx: &mut Ctx, e: &EnvironmentDesc) -> Result<Environment
     }
     Ok(Environment::new(map, rotation))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_documented_example_scene_loads() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/example.toml");
+        let scene = Scene::load(&path).unwrap();
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+        assert_eq!(scene.sensor.jpeg_quality, Some(70));
+        assert!(scene.has_virtual());
+        let boxed = scene.objects.iter().find(|o| o.name == "box").unwrap();
+        assert!(boxed.proxy.is_some());
+    }
+}

@@ -1,0 +1,227 @@
+//! `mrstudy render` and `mrstudy bench render --reference`: thin wrappers over
+//! `mrstudy-renderer`. `render --reference` writes the ground-truth composite, `--photo` the
+//! photograph of the real scene, both by the CPU reference path tracer through the scene's
+//! simulated camera; `--buffers DIR` also writes the HDR buffers, both camera images, the masks
+//! and a JSON report. Conditions (`--condition`, `--factors`) need the GPU pipeline, which is
+//! not built yet.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use mrstudy_renderer::image::save_by_extension;
+use mrstudy_renderer::metrics;
+use mrstudy_renderer::pathtracer::{Accumulator, Subset, TraceParams, World};
+use mrstudy_renderer::reference::{ReferenceParams, render_photo, render_reference};
+use mrstudy_renderer::sensor::{self, SensorParams};
+use mrstudy_renderer::{Image, Mask, builtin, scene};
+use serde_json::{Value, json};
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// List the built-in scene names, one per line.
+    #[arg(long)]
+    list: bool,
+    /// A built-in scene name or a scene file (TOML).
+    #[arg(long)]
+    scene: Option<String>,
+    /// Render the ground-truth composite (real and virtual objects) with the reference path tracer.
+    #[arg(long, conflicts_with = "photo")]
+    reference: bool,
+    /// Render the photograph (real objects only) with the reference path tracer.
+    #[arg(long)]
+    photo: bool,
+    /// A condition by name (GPU pipeline; not built yet).
+    #[arg(long)]
+    condition: Option<String>,
+    /// Factors to switch on, e.g. `gi,ca` (GPU pipeline; not built yet).
+    #[arg(long)]
+    factors: Option<String>,
+    /// Samples per pixel of the reference path tracer.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    /// Image size WxH (intrinsics scale with it); default: the scene's.
+    #[arg(long)]
+    size: Option<String>,
+    /// Random seed of the path tracer.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Replace the scene's simulated camera by a preset: webcam, phone or clean.
+    #[arg(long)]
+    camera: Option<String>,
+    /// Output image: `.png` (camera output) or `.exr` (linear HDR radiance).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Also write every buffer into this directory: photo.png, ground_truth.png, real.exr,
+    /// full.exr, virtual_mask.png, affected_mask.png, report.json.
+    #[arg(long)]
+    buffers: Option<PathBuf>,
+    /// Print the scene as a scene file (TOML) and exit.
+    #[arg(long)]
+    print_toml: bool,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size `{s}` is not of the form WxH"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size `{s}`: bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size `{s}`: bad height"))?;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        bail!("--size `{s}` must be between 1x1 and 16384x16384");
+    }
+    Ok((w, h))
+}
+
+/// Loads a scene by name or path, applying `--size` and `--camera`.
+fn load_scene(name: &str, size: Option<&str>, camera: Option<&str>) -> Result<scene::Scene> {
+    let mut scene = scene::load(name)?;
+    if let Some(s) = size {
+        let (w, h) = parse_size(s)?;
+        scene = scene.with_size(w, h);
+    }
+    if let Some(preset) = camera {
+        let seed = scene.sensor.seed;
+        scene.sensor = SensorParams::preset(preset).with_context(|| format!("--camera `{preset}` is not one of webcam, phone, clean"))?;
+        scene.sensor.seed = seed;
+    }
+    Ok(scene)
+}
+
+fn progress_bar(total: u64, label: &str) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    bar.set_style(ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} spp {elapsed_precise} (eta {eta})").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
+    bar.set_message(label.to_string());
+    bar
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    if args.list {
+        for name in builtin::names() {
+            println!("{name}");
+        }
+        return Ok(());
+    }
+    let name = args.scene.as_deref().context("--scene NAME|FILE is required (see `mrstudy render --list`)")?;
+    let scene = load_scene(name, args.size.as_deref(), args.camera.as_deref())?;
+    if args.print_toml {
+        print!("{}", scene.desc.to_toml());
+        return Ok(());
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if args.condition.is_some() || args.factors.is_some() || !(args.reference || args.photo) {
+        bail!("rendering conditions needs the GPU pipeline, which is not built yet; use --reference or --photo for the CPU reference path tracer");
+    }
+    let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
+    if args.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
+    let label = format!("{} {}x{}", scene.name, scene.camera.width, scene.camera.height);
+    if args.photo {
+        let bar = progress_bar(args.spp as u64, &label);
+        let (hdr, photo, stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
+        bar.finish_and_clear();
+        save_by_extension(out, &hdr, &photo)?;
+        if let Some(dir) = &args.buffers {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            photo.save_png(&dir.join("photo.png"))?;
+            hdr.save_exr(&dir.join("real.exr"))?;
+            write_json(&dir.join("report.json"), &json!({ "scene": scene.name, "stats": stats }))?;
+        }
+        report(&stats.warnings, stats.seconds, stats.samples_per_second, out);
+    } else {
+        let bar = progress_bar(2 * args.spp as u64, &label);
+        let result = render_reference(&scene, &params, &|done, _| bar.set_position(done as u64))?;
+        bar.finish_and_clear();
+        save_by_extension(out, &result.hdr_full, &result.ground_truth)?;
+        if let Some(dir) = &args.buffers {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            result.photo.save_png(&dir.join("photo.png"))?;
+            result.ground_truth.save_png(&dir.join("ground_truth.png"))?;
+            result.hdr_real.save_exr(&dir.join("real.exr"))?;
+            result.hdr_full.save_exr(&dir.join("full.exr"))?;
+            result.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
+            result.affected_mask.save_png(&dir.join("affected_mask.png"))?;
+            let errors = metrics::compare(&result.hdr_full, &result.hdr_real, &result.ground_truth, &result.photo, Some(&result.affected_mask));
+            write_json(
+                &dir.join("report.json"),
+                &json!({ "scene": scene.name, "stats": result.stats, "photo_vs_ground_truth_in_affected_region": errors }),
+            )?;
+        }
+        report(&result.stats.warnings, result.stats.seconds, result.stats.samples_per_second, out);
+    }
+    Ok(())
+}
+
+fn report(warnings: &[String], seconds: f64, samples_per_second: f64, out: &Path) {
+    for w in warnings.iter().filter(|w| w.contains("firefly")) {
+        eprintln!("warning: {w}");
+    }
+    eprintln!("wrote {} in {:.1} s ({:.0} samples/s)", out.display(), seconds, samples_per_second);
+}
+
+fn write_json(path: &Path, value: &Value) -> Result<()> {
+    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `mrstudy bench render --reference`: samples per second of the reference path tracer, and
+/// its error against a high-spp render of the same scene as the sample count grows. Returns
+/// (adapter, rows, plots) for `bench`'s table/JSON/plot writer.
+pub fn bench_reference(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
+    let name = scene_name.unwrap_or("survey-1");
+    let (w, h, max_spp, ref_spp) = if quick { (48, 36, 64, 256) } else { (160, 120, 256, 2048) };
+    let scene = load_scene(name, Some(&format!("{w}x{h}")), None)?;
+    let threads = rayon::current_num_threads();
+    let adapter = format!("cpu reference path tracer ({threads} threads)");
+    eprintln!("{name} at {w}x{h}: reference at {ref_spp} spp (seed 1000) …");
+    let bar = progress_bar(2 * ref_spp as u64, "reference");
+    let reference = render_reference(&scene, &ReferenceParams { spp: ref_spp, seed: 1000, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
+    bar.finish_and_clear();
+    let affected: &Mask = &reference.affected_mask;
+    let world = World::new(&scene, Subset::All);
+    let params = TraceParams { seed: 1, ..TraceParams::default() };
+    let mut acc = Accumulator::new(w, h);
+    let mut rows = Vec::new();
+    let mut points_rmse = Vec::new();
+    let mut points_flip = Vec::new();
+    println!("{:<10} {:>6} {:>10} {:>14} {:>12} {:>12} {:>8}", "scene", "spp", "ms", "samples/s", "rmse(aff)", "rmse(all)", "flip");
+    let start = Instant::now();
+    let mut spp = 1u32;
+    while spp <= max_spp {
+        acc.add_samples(&world, &scene.camera, &params, spp - acc.spp);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let img: Image = acc.image();
+        let display = sensor::apply(&img, &scene.camera, &scene.sensor);
+        let rmse_aff = metrics::rmse(&reference.hdr_full, &img, Some(affected));
+        let rmse_all = metrics::rmse(&reference.hdr_full, &img, None);
+        let flip = metrics::flip(&reference.ground_truth, &display, Some(affected));
+        let sps = (w * h) as f64 * spp as f64 / (ms / 1e3);
+        println!("{:<10} {:>6} {:>10.1} {:>14.0} {:>12.5} {:>12.5} {:>8.4}", name, spp, ms, sps, rmse_aff, rmse_all, flip);
+        rows.push(json!({
+            "scene": name, "condition": "reference", "spp": spp, "ms": ms, "samples_per_s": sps,
+            "rmse": rmse_aff, "rmse_all": rmse_all, "flip": flip,
+            "width": w, "height": h, "reference_spp": ref_spp,
+        }));
+        points_rmse.push((ms, rmse_aff));
+        points_flip.push((ms, flip));
+        spp *= 2;
+    }
+    // the 1/√t guide through the first point
+    let guide: Vec<(f64, f64)> = points_rmse.first().map(|&(t0, e0)| points_rmse.iter().map(|&(t, _)| (t, e0 * (t0 / t).sqrt())).collect()).unwrap_or_default();
+    let plot = mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+        title: format!("Reference path tracer: error against time ({name}, {w}x{h}, {adapter})"),
+        x_label: "time (ms)".into(),
+        y_label: "error in the affected region".into(),
+        x_log: true,
+        y_log: true,
+        series: vec![
+            mrstudy_analysis::plot::LineSeries { name: "RMSE (linear)".into(), points: points_rmse },
+            mrstudy_analysis::plot::LineSeries { name: "1/sqrt(t)".into(), points: guide },
+            mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: points_flip },
+        ],
+    });
+    Ok((adapter, rows, vec![("render_reference.svg".to_string(), plot)]))
+}
