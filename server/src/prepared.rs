@@ -12,8 +12,9 @@ use crate::study::{IMAGE_TYPES, StimulusSource, Study, sha256_hex};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PrepareError {
-    /// The study needs the renderer for scene configuration `scene`, and it is not built yet.
-    #[error("study \"{slug}\" ({file}) needs rendered stimuli (scene configuration \"{scene}\"), but mrstudy's renderer is not built yet")]
+    /// The study needs the renderer for scene configuration `scene`, which cannot render
+    /// conditions yet.
+    #[error("study \"{slug}\" ({file}) needs stimuli rendered under its conditions (scene configuration \"{scene}\"), which mrstudy's renderer cannot make yet (its GPU pipeline is not built)")]
     NeedsRenderer { slug: String, file: PathBuf, scene: String },
     /// The study is a lab task study, which the web survey does not serve.
     #[error("study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey")]

@@ -675,6 +675,16 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                         "expected a scene file or a built-in scene name".into(),
                     ));
                 }
+                let is_builtin = mrstudy_renderer::builtin::names().any(|name| name == render);
+                if !is_builtin && !base.join(render).is_file() {
+                    return Err(fail(
+                        &format!("{key}.render"),
+                        format!(
+                            "expected a built-in scene of the renderer ({}) or an existing scene file, found \"{render}\"",
+                            mrstudy_renderer::builtin::names().collect::<Vec<_>>().join(", ")
+                        ),
+                    ));
+                }
                 StimulusSource::Render(render.clone())
             }
             (None, Some(images)) => {
@@ -999,10 +1009,10 @@ name = "HQ"
 levels = { gi = 2 }
 [[scenes]]
 name = "a"
-render = "table-1"
+render = "survey-1"
 [[scenes]]
 name = "b"
-render = "table-2"
+render = "survey-2"
 [design]
 pairs = "anchored"
 anchors = ["LQ", "HQ"]
@@ -1048,10 +1058,19 @@ scenes = "different"
     }
 
     #[test]
+    fn unknown_scene_for_the_renderer_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = write_study(dir.path(), &MINIMAL.replace("render = \"survey-2\"", "render = \"nowhere\""));
+        let error = load_study(&file).unwrap_err();
+        assert_eq!(error.key, "scenes[1].render");
+        assert!(error.expected.contains("survey-1"), "{error}");
+    }
+
+    #[test]
     fn missing_image_is_refused() {
         let dir = tempfile::tempdir().unwrap();
         let body = MINIMAL.replace(
-            "render = \"table-1\"",
+            "render = \"survey-1\"",
             "images = { LQ = \"lq.png\", GI = \"gi.png\", HQ = \"hq.png\" }",
         );
         let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
