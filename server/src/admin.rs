@@ -409,8 +409,11 @@ pub struct FunnelBar {
     pub reached: i64,
     pub stopped: i64,
     pub x: f64,
+    pub width: f64,
     pub height: f64,
     pub y: f64,
+    /// Whether the trial number is written under the bar.
+    pub label: bool,
 }
 
 /// One factor estimate row of the live analysis.
@@ -436,6 +439,7 @@ struct AdminStudyPage {
     stats: StudyStats,
     funnel: Vec<FunnelBar>,
     funnel_width: f64,
+    funnel_top: i64,
     analysis_error: Option<String>,
     judgments: String,
     agreement_u: Option<String>,
@@ -464,8 +468,11 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         }
         Err(error) => return error.into_response(),
     };
-    let bar_width = 12.0;
+    // Bars share about 640 px, each 4 to 40 px wide; the tallest is everyone who started.
+    let bar_count = stats.reached.len().max(1) as f64;
+    let bar_width = (640.0 / bar_count).clamp(4.0, 40.0) - 2.0;
     let max_reached = stats.reached.first().copied().unwrap_or(0).max(1) as f64;
+    let label_every = ((bar_count / 13.0).ceil() as usize).max(1);
     let funnel = stats
         .reached
         .iter()
@@ -476,16 +483,20 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
                 trial,
                 reached,
                 stopped: stats.stopped_after.get(trial).copied().unwrap_or(0),
-                x: 40.0 + trial as f64 * (bar_width + 2.0),
+                x: 50.0 + trial as f64 * (bar_width + 2.0),
+                width: bar_width,
                 height,
-                y: 130.0 - height,
+                y: 140.0 - height,
+                label: trial % label_every == 0 || trial + 1 == stats.reached.len(),
             }
         })
         .collect();
-    let funnel_width = 60.0 + stats.reached.len() as f64 * (bar_width + 2.0);
+    let funnel_width = 70.0 + bar_count * (bar_width + 2.0);
+    let funnel_top = stats.reached.first().copied().unwrap_or(0);
     let mut page = AdminStudyPage {
         funnel,
         funnel_width,
+        funnel_top,
         analysis_error: None,
         judgments: String::new(),
         agreement_u: None,
