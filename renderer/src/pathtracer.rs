@@ -284,6 +284,8 @@ pub struct Accumulator {
     virtual_hits: Vec<u32>,
     /// The brightest single sample (luminance) per pixel, for firefly statistics.
     pub max_sample: Vec<f32>,
+    /// Sum of squared sample luminances, for the per-pixel standard error.
+    sum_lum2: Vec<f64>,
     /// Samples that were NaN or infinite (dropped and counted; an unbiased tracer should have none).
     pub invalid_samples: u64,
 }
@@ -291,14 +293,14 @@ pub struct Accumulator {
 impl Accumulator {
     pub fn new(width: u32, height: u32) -> Self {
         let n = (width * height) as usize;
-        Accumulator { width, height, spp: 0, sum: vec![DVec3::ZERO; n], virtual_hits: vec![0; n], max_sample: vec![0.0; n], invalid_samples: 0 }
+        Accumulator { width, height, spp: 0, sum: vec![DVec3::ZERO; n], virtual_hits: vec![0; n], max_sample: vec![0.0; n], sum_lum2: vec![0.0; n], invalid_samples: 0 }
     }
 
     /// Adds samples `self.spp .. self.spp + n` to every pixel (rayon over rows).
     pub fn add_samples(&mut self, world: &World, camera: &Camera, params: &TraceParams, n: u32) {
         let w = self.width as usize;
         let start = self.spp;
-        let rows: Vec<(u64, Vec<(DVec3, u32, f32)>)> = (0..self.height)
+        let rows: Vec<(u64, Vec<(DVec3, u32, f32, f64)>)> = (0..self.height)
             .into_par_iter()
             .map(|y| {
                 let mut invalid = 0u64;
@@ -308,6 +310,7 @@ impl Accumulator {
                         let mut acc = DVec3::ZERO;
                         let mut vhits = 0u32;
                         let mut max_l = 0.0f32;
+                        let mut lum2 = 0.0f64;
                         for s in start..start + n {
                             let mut rng = Rng::for_stream(params.seed, pixel, s as u64);
                             let (jx, jy) = (rng.next_f32(), rng.next_f32());
@@ -319,11 +322,12 @@ impl Accumulator {
                             }
                             acc += l.as_dvec3();
                             max_l = max_l.max(luminance(l));
+                            lum2 += (luminance(l) as f64).powi(2);
                             if first.is_some_and(|o| world.object_roles[o as usize] == Role::Virtual) {
                                 vhits += 1;
                             }
                         }
-                        (acc, vhits, max_l)
+                        (acc, vhits, max_l, lum2)
                     })
                     .collect();
                 (invalid, row)
@@ -331,8 +335,9 @@ impl Accumulator {
             .collect();
         for (y, (invalid, row)) in rows.into_iter().enumerate() {
             self.invalid_samples += invalid;
-            for (x, (acc, vh, ml)) in row.into_iter().enumerate() {
+            for (x, (acc, vh, ml, l2)) in row.into_iter().enumerate() {
                 let i = y * w + x;
+                self.sum_lum2[i] += l2;
                 self.sum[i] += acc;
                 self.virtual_hits[i] += vh;
                 self.max_sample[i] = self.max_sample[i].max(ml);
@@ -345,6 +350,20 @@ impl Accumulator {
     pub fn image(&self) -> Image {
         let inv = 1.0 / self.spp.max(1) as f64;
         Image { width: self.width, height: self.height, pixels: self.sum.iter().map(|s| (*s * inv).as_vec3()).collect() }
+    }
+
+    /// Standard error of each pixel's mean luminance, from the spread of its samples.
+    pub fn luminance_standard_error(&self) -> Vec<f32> {
+        let n = self.spp.max(1) as f64;
+        self.sum
+            .iter()
+            .zip(&self.sum_lum2)
+            .map(|(s, s2)| {
+                let mean = luminance((*s / n).as_vec3()) as f64;
+                let var = (s2 / n - mean * mean).max(0.0) * n / (n - 1.0).max(1.0);
+                (var / n).sqrt() as f32
+            })
+            .collect()
     }
 
     /// Fraction of samples per pixel whose primary ray saw a virtual object.

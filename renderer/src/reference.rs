@@ -21,7 +21,8 @@ pub struct ReferenceParams {
     pub seed: u64,
     pub max_depth: u32,
     /// A pixel is "affected" when its (3×3-smoothed) luminance changes by more than this
-    /// fraction of the photograph's luminance there (floored at 5 % of the mean).
+    /// fraction of the photograph's luminance there (floored at 5 % of the mean) and by more
+    /// than three standard errors of the sampling noise.
     pub affected_threshold: f32,
     /// A firefly is a pixel whose brightest sample exceeds this multiple of the image mean and
     /// carries more than half of the pixel's value.
@@ -145,7 +146,8 @@ pub fn render_reference(scene: &Scene, params: &ReferenceParams, progress: &(dyn
     let photo = sensor::apply(&hdr_real, &scene.camera, &scene.sensor);
     let ground_truth = sensor::apply(&hdr_full, &scene.camera, &scene.sensor);
     let virtual_mask = Mask { width: hdr_full.width, height: hdr_full.height, values: acc_full.virtual_coverage() };
-    let affected_mask = affected_region(&hdr_real, &hdr_full, &virtual_mask, params.affected_threshold);
+    let noise: Vec<f32> = acc_real.luminance_standard_error().iter().zip(acc_full.luminance_standard_error()).map(|(a, b)| a + b).collect();
+    let affected_mask = affected_region(&hdr_real, &hdr_full, &virtual_mask, params.affected_threshold, &noise);
     let secs = start.elapsed().as_secs_f64();
     let mut stats = stats_for(
         scene,
@@ -162,9 +164,12 @@ pub fn render_reference(scene: &Scene, params: &ReferenceParams, progress: &(dyn
     Ok(ReferenceOutput { hdr_real, hdr_full, photo, ground_truth, virtual_mask, affected_mask, stats })
 }
 
-/// The affected region: virtual coverage, or a smoothed luminance change above `threshold` ×
-/// the photograph's (smoothed) luminance, floored at 5 % of its mean.
-pub fn affected_region(real: &Image, full: &Image, coverage: &Mask, threshold: f32) -> Mask {
+/// The affected region: virtual coverage, or a smoothed (3×3) luminance change that is both
+/// above `threshold` × the photograph's smoothed luminance (floored at 5 % of its mean) and
+/// above three standard errors of the Monte Carlo noise, so that path-tracing noise does not
+/// pass for a change. `noise` is the per-pixel sum of both renders' standard errors (may be
+/// empty: no noise); averaging nine pixels divides it by three.
+pub fn affected_region(real: &Image, full: &Image, coverage: &Mask, threshold: f32, noise: &[f32]) -> Mask {
     let (w, h) = (real.width as i64, real.height as i64);
     let yr: Vec<f32> = real.pixels.iter().map(|p| luminance(*p)).collect();
     let yd: Vec<f32> = real.pixels.iter().zip(&full.pixels).map(|(a, b)| luminance(*b) - luminance(*a)).collect();
@@ -186,7 +191,8 @@ pub fn affected_region(real: &Image, full: &Image, coverage: &Mask, threshold: f
             let i = (y * w + x) as usize;
             let base = box3(&yr, x, y).max(floor);
             let d = box3(&yd, x, y).abs();
-            m.values[i] = if coverage.values[i] > 0.0 || d > threshold * base { 1.0 } else { 0.0 };
+            let noise_floor = if noise.is_empty() { 0.0 } else { 3.0 * box3(noise, x, y) / 3.0 };
+            m.values[i] = if coverage.values[i] > 0.0 || (d > threshold * base && d > noise_floor) { 1.0 } else { 0.0 };
         }
     }
     m
