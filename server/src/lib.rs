@@ -57,6 +57,8 @@ struct StateInner {
     order: Vec<String>,
     admin_token_sha256: [u8; 32],
     stimuli_dir: PathBuf,
+    /// Participants' credentials by id, filled on first use (they never change).
+    credentials: std::sync::Mutex<std::collections::HashMap<String, participant::Credentials>>,
 }
 
 impl AppState {
@@ -77,6 +79,7 @@ impl AppState {
                 order,
                 admin_token_sha256: sha256(admin_token.as_bytes()),
                 stimuli_dir,
+                credentials: Default::default(),
             }),
         }
     }
@@ -96,6 +99,19 @@ impl AppState {
 
     pub fn stimuli_dir(&self) -> &std::path::Path {
         &self.inner.stimuli_dir
+    }
+
+    pub(crate) fn cached_credentials(&self, id: &str) -> Option<participant::Credentials> {
+        self.inner.credentials.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).get(id).cloned()
+    }
+
+    pub(crate) fn cache_credentials(&self, credentials: participant::Credentials) {
+        let mut cache = self.inner.credentials.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        // Bounded: a study server with more live participants than this just reads the database.
+        if cache.len() >= 1_000_000 {
+            cache.clear();
+        }
+        cache.insert(credentials.id.clone(), credentials);
     }
 
     /// Whether `token` is the admin token (compared by hash, in constant time).

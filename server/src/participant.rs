@@ -89,12 +89,13 @@ async fn create_participant(
     let mut seed_bytes = [0u8; 8];
     getrandom::fill(&mut seed_bytes).expect("the operating system's random number generator works");
     let trials = prepared.study.trial_count();
+    let token_sha256 = sha256(token.as_bytes()).to_vec();
     state
         .storage()
         .create_participant(NewParticipant {
             study: prepared,
             id: id.clone(),
-            token_sha256: sha256(token.as_bytes()).to_vec(),
+            token_sha256: token_sha256.clone(),
             random_seed: u64::from_le_bytes(seed_bytes),
             demographics: Value::Object(demographics).to_string(),
             client: Value::Object(client).to_string(),
@@ -102,6 +103,7 @@ async fn create_participant(
             random_completion_code: random_hex(6).to_uppercase(),
         })
         .await?;
+    state.cache_credentials(Credentials { id: id.clone(), token_sha256, trials: trials as i64 });
     Ok((
         StatusCode::CREATED,
         Json(Joined { participant: id, token, trials }),
@@ -230,13 +232,34 @@ pub(crate) fn bearer(headers: &HeaderMap) -> AppResult<&str> {
 
 /// The participant `id`, if the request carries its token; 401 without a token, 403 with a
 /// token that is not this participant's (whether or not `id` exists).
-async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult<ParticipantRow> {
+/// What a response needs to know of its participant; it never changes after joining, so it is
+/// kept in memory after the first lookup.
+#[derive(Debug, Clone)]
+pub(crate) struct Credentials {
+    pub id: String,
+    pub token_sha256: Vec<u8>,
+    pub trials: i64,
+}
+
+/// The participant `id`, if the request carries its token; 401 without a token, 403 with a
+/// token that is not this participant's (whether or not `id` exists).
+async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult<Credentials> {
     let token = bearer(headers)?;
-    let participant = if id.len() == 32 { state.storage().participant(id).await? } else { None };
-    match participant {
-        Some(participant) if constant_time_eq(&participant.token_sha256, &sha256(token.as_bytes())) => {
-            Ok(participant)
-        }
+    let credentials = match state.cached_credentials(id) {
+        Some(credentials) => Some(credentials),
+        None if id.len() == 32 => state.storage().participant(id).await?.map(|participant| {
+            let credentials = Credentials {
+                id: participant.id,
+                token_sha256: participant.token_sha256,
+                trials: participant.trials,
+            };
+            state.cache_credentials(credentials.clone());
+            credentials
+        }),
+        None => None,
+    };
+    match credentials {
+        Some(credentials) if constant_time_eq(&credentials.token_sha256, &sha256(token.as_bytes())) => Ok(credentials),
         _ => Err(forbidden(id)),
     }
 }
