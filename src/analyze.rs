@@ -43,6 +43,9 @@ pub struct AnalyzeArgs {
     /// Write the worth plot (SVG) here.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Write the factor-effect plot (SVG) here.
+    #[arg(long)]
+    effect_plot: Option<PathBuf>,
     /// Bootstrap replicates over participants for intervals (0: none).
     #[arg(long, default_value_t = 0)]
     bootstrap: usize,
@@ -75,7 +78,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let trials = read(&args.trials)?;
     let trials_name = args.trials.display().to_string();
     if is_task_csv(&trials) {
-        if args.conditions.is_some() || args.model.is_some() || args.plot.is_some() {
+        if args.conditions.is_some() || args.model.is_some() || args.plot.is_some() || args.effect_plot.is_some() {
             bail!("{trials_name} is a task CSV (participant,condition,value): --conditions, --model and --plot apply to paired comparisons only");
         }
         let analysis = mrstudy_analysis::task::analyze_task_csv(&trials, &trials_name)?;
@@ -108,8 +111,14 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         Format::Json => serde_json::to_string_pretty(&analysis)? + "\n",
         Format::Table => mrstudy_analysis::table::render(&analysis),
     };
+    let effects = match &args.effect_plot {
+        Some(path) => Some((path, effect_plot(&analysis).ok_or_else(|| anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns"))?)),
+        None => None,
+    };
     if let Some(path) = &args.plot {
-        let svg = worth_plot(&analysis);
+        std::fs::write(path, worth_plot(&analysis)).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some((path, svg)) = effects {
         std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     }
     print!("{text}");
@@ -147,7 +156,6 @@ pub fn worth_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> String {
 }
 
 /// The factor-effect plot (estimates with 95 % intervals), if a factor model was fitted.
-#[allow(dead_code)]
 pub fn effect_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> Option<String> {
     let covariates = analysis.covariates.as_ref()?;
     let factors: Vec<String> = covariates.iter().map(|c| c.name.clone()).collect();

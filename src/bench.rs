@@ -119,8 +119,8 @@ fn bench_analysis(quick: bool) -> Result<(String, Vec<Value>, Vec<(String, Strin
             println!(
                 "{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}",
                 row["bench"].as_str().unwrap_or(""),
-                row["conditions"],
-                row["judgments"],
+                row["conditions"].to_string(),
+                row["judgments"].to_string(),
                 row.get("tolerance").map(|t| format!("{:.0e}", t.as_f64().unwrap_or(0.0))).unwrap_or_else(|| "1e-10".into()),
                 row["ms"].as_f64().unwrap_or(0.0),
                 row.get("max_abs_error").map(|e| format!("{:.2e}", e.as_f64().unwrap_or(0.0))).unwrap_or_default()

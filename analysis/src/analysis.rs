@@ -615,6 +615,9 @@ fn consistence_per_participant(by_participant: &[ParticipantRows], active: &[usi
         .iter()
         .filter_map(|&p| {
             let rows = &by_participant[p];
+            if rows.len() < n_pairs {
+                return None;
+            }
             let mut seen = std::collections::HashSet::new();
             for &(i, j, _, _) in rows {
                 seen.insert((i, j));

@@ -23,26 +23,35 @@ impl PairTally {
 }
 
 /// Aggregates judgments into one tally per unordered pair `(i < j)`, sorted by `(i, j)`.
-/// `rows` yields `(left, right, left_chosen, count)`.
+/// `rows` yields `(left, right, left_chosen, count)`. Sort-based, so its cost does not depend
+/// on the number of conditions (a hash map is several times slower at a million pairs).
 pub fn tally<I>(rows: I) -> Vec<PairTally>
 where
     I: IntoIterator<Item = (u32, u32, bool, u64)>,
 {
-    let mut map: std::collections::HashMap<(u32, u32), (u64, u64)> = std::collections::HashMap::new();
-    for (left, right, left_chosen, count) in rows {
-        let (i, j, i_won) = if left < right { (left, right, left_chosen) } else { (right, left, !left_chosen) };
-        let entry = map.entry((i, j)).or_insert((0, 0));
+    // Key: i in the high 32 bits, j in the low; the flag says whether i won.
+    let mut keyed: Vec<(u64, bool, u64)> = rows
+        .into_iter()
+        .map(|(left, right, left_chosen, count)| {
+            let (i, j, i_won) = if left < right { (left, right, left_chosen) } else { (right, left, !left_chosen) };
+            ((u64::from(i) << 32) | u64::from(j), i_won, count)
+        })
+        .collect();
+    keyed.sort_unstable_by_key(|&(key, _, _)| key);
+    let mut pairs: Vec<PairTally> = Vec::new();
+    let mut last_key = u64::MAX;
+    for (key, i_won, count) in keyed {
+        if key != last_key {
+            pairs.push(PairTally { i: (key >> 32) as usize, j: (key & 0xffff_ffff) as usize, wins_i: 0, wins_j: 0 });
+            last_key = key;
+        }
+        let pair = pairs.last_mut().expect("pushed above");
         if i_won {
-            entry.0 += count;
+            pair.wins_i += count;
         } else {
-            entry.1 += count;
+            pair.wins_j += count;
         }
     }
-    let mut pairs: Vec<PairTally> = map
-        .into_iter()
-        .map(|((i, j), (wins_i, wins_j))| PairTally { i: i as usize, j: j as usize, wins_i, wins_j })
-        .collect();
-    pairs.sort_unstable_by_key(|pair| (pair.i, pair.j));
     pairs
 }
 

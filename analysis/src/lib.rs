@@ -23,4 +23,5 @@ pub mod pvalue;
 pub mod table;
 pub mod task;
 
+pub use analysis::{Analysis, Options, analyze};
 pub use error::{AnalysisError, Result};

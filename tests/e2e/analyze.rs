@@ -1,0 +1,131 @@
+//! `mrstudy analyze` end to end: the binary reads files, prints the table or the Analysis JSON,
+//! writes the worth plot, and refuses bad input with one sentence and a non-zero exit, writing
+//! nothing.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn mrstudy(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mrstudy")).args(args).output().expect("run mrstudy")
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A thesis-like anchored design: every condition against LQ and HQ, plus LQ–HQ.
+fn thesis_like(dir: &Path) -> (PathBuf, PathBuf) {
+    let conditions = "condition,gi,cm,ca\nLQ,0,0,0\nGI,1,0,0\nCM,0,1,0\nCA,0,0,1\nGI+CM,1,1,0\nGI+CA,1,0,1\nCM+CA,0,1,1\nHQ,1,1,1\n";
+    let lambda = |c: &str| -> f64 {
+        let x: Vec<f64> = conditions.lines().find(|l| l.starts_with(&format!("{c},"))).unwrap().split(',').skip(1).map(|v| v.parse().unwrap()).collect();
+        0.54 * x[0] - 0.44 * x[1] + 0.86 * x[2]
+    };
+    let names = ["LQ", "GI", "CM", "CA", "GI+CM", "GI+CA", "CM+CA", "HQ"];
+    let mut pairs = vec![("LQ", "HQ")];
+    for c in &names[1..7] {
+        pairs.push(("LQ", c));
+        pairs.push((c, "HQ"));
+    }
+    let mut trials = String::from("participant,left,right,chosen,gender\n");
+    let mut state = 12345u64;
+    for p in 0..40 {
+        let gender = if p % 3 == 0 { "female" } else { "male" };
+        for rep in 0..5 {
+            for &(a, b) in &pairs {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let uniform = (state >> 11) as f64 / (1u64 << 53) as f64;
+                let p_a = 1.0 / (1.0 + (lambda(b) - lambda(a)).exp());
+                let chosen = if uniform < p_a { a } else { b };
+                let (left, right) = if (p + rep) % 2 == 0 { (a, b) } else { (b, a) };
+                trials += &format!("p{p},{left},{right},{chosen},{gender}\n");
+            }
+        }
+    }
+    (write(dir, "trials.csv", &trials), write(dir, "conditions.csv", conditions))
+}
+
+#[test]
+fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let (trials, conditions) = thesis_like(dir.path());
+    let plot = dir.path().join("worth.svg");
+    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--group-by", "gender", "--plot", plot.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("2600 judgments by 40 participants on 8 conditions; reference LQ"), "{table}");
+    assert!(table.contains("factor model gi+cm+ca"));
+    assert!(table.contains("=== group: female ==="));
+    assert!(table.contains("Equal effects in every group"));
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"));
+    for name in ["GI+CA", "female", "male"] {
+        assert!(svg.contains(name), "plot lacks {name}");
+    }
+
+    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--format", "json"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(!text.contains("NaN") && !text.contains("null") && !text.contains("inf"));
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["judgments"], 2600);
+    assert_eq!(json["reference"], "LQ");
+    assert_eq!(json["items"][0]["log_worth"], 0.0);
+    let worth: f64 = json["items"].as_array().unwrap().iter().map(|i| i["worth"].as_f64().unwrap()).sum();
+    assert!((worth - 1.0).abs() < 1e-12);
+    let names: Vec<&str> = json["covariates"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(names, vec!["gi", "cm", "ca"]);
+    assert!(json["covariate_model"]["lr_vs_items"]["p"].is_number());
+    assert!(json["agreement"]["u"].is_number());
+    assert!(json.get("groups").is_none(), "no groups asked for, none printed");
+}
+
+#[test]
+fn analyze_reads_a_task_csv_and_runs_friedman() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("participant,condition,value\n");
+    for p in 0..8 {
+        for (k, condition) in ["none", "shadows", "shadows+indirect"].iter().enumerate() {
+            text += &format!("p{p},{condition},{}\n", 10.0 + k as f64 * 0.5 + ((p * 7 + k * 3) % 5) as f64 * 0.3);
+        }
+    }
+    let trials = write(dir.path(), "task.csv", &text);
+    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap(), "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let friedman = &json["measures"][0]["friedman"];
+    assert!(friedman["statistic"].is_number() && friedman["kendall_w"].is_number(), "{json}");
+}
+
+#[test]
+fn bad_input_is_one_sentence_with_non_zero_exit_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let plot = dir.path().join("never.svg");
+    let cases = [
+        ("participant,left,right,chosen\np1,LQ,HQ,HQ\np2,LQ,HQ\n", None, "line 3: the row has 3 fields but the header has 4"),
+        ("participant,left,right,chosen\np1,LQ,HQ,GI\n", None, "line 2, column `chosen`: `GI` is neither the left (`LQ`) nor the right (`HQ`) condition"),
+        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,0\n"), "line 2: condition `HQ` is not in the conditions file"),
+        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,0\nHQ,1\nLQ,1\n"), "line 4: condition `LQ` is listed twice (first on line 2)"),
+        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,off\nHQ,1\n"), "line 2, column `gi`: the factor level `off` is not a finite number"),
+    ];
+    for (k, (trials, conditions, expected)) in cases.iter().enumerate() {
+        let trials_path = write(dir.path(), &format!("t{k}.csv"), trials);
+        let mut args = vec!["analyze".to_string(), "--trials".into(), trials_path.to_str().unwrap().into(), "--plot".into(), plot.to_str().unwrap().into()];
+        if let Some(conditions) = conditions {
+            let path = write(dir.path(), &format!("c{k}.csv"), conditions);
+            args.extend(["--conditions".to_string(), path.to_str().unwrap().to_string()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = mrstudy(&args);
+        assert!(!out.status.success(), "case {k} succeeded");
+        assert!(out.stdout.is_empty(), "case {k} printed output");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert!(stderr.contains(expected), "case {k}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "case {k}: one line: {stderr}");
+        assert!(!plot.exists(), "case {k} wrote a plot");
+    }
+    let out = mrstudy(&["analyze", "--trials", "/nonexistent/trials.csv"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read /nonexistent/trials.csv"));
+}
