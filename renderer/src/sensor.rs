@@ -410,21 +410,43 @@ fn brown_conrady(x: f32, y: f32, k: [f32; 5]) -> (f32, f32) {
 }
 
 /// Warps the ideal image into the distorted one: the output pixel at distorted position x_d
-/// shows the ideal point x_u with D(x_u) = x_d (found by fixed-point iteration). Lateral
+/// shows the ideal point x_u with D(x_u) = x_d (found by fixed-point iteration), zoomed so that
+/// no sample leaves the rendered frame. Lateral
 /// chromatic aberration scales the red and blue sampling positions by 1 ± `ca`.
 fn distort(img: &Image, camera: &Camera, k: [f32; 5], ca: f32) -> Image {
     let mut out = Image::new(img.width, img.height);
     let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+    let undistort = |xd: f32, yd: f32| {
+        let (mut xu, mut yu) = (xd, yd);
+        for _ in 0..8 {
+            let (dx, dy) = brown_conrady(xu, yu, k);
+            xu += xd - dx;
+            yu += yd - dy;
+        }
+        (xu, yu)
+    };
+    // Barrel distortion would show scene beyond the rendered frame at the borders; rather than
+    // smear edge pixels there, zoom just enough that every sample stays inside the frame (what
+    // a camera's "valid pixels only" rectification does).
+    let (x0, x1) = (-cx / fx, (camera.width as f32 - cx) / fx);
+    let (y0, y1) = (-cy / fy, (camera.height as f32 - cy) / fy);
+    let mut zoom = 1.0f32;
+    for (xd, yd) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1), (x0, 0.0), (x1, 0.0), (0.0, y0), (0.0, y1)] {
+        let (xu, yu) = undistort(xd, yd);
+        let ca_max = 1.0 / (1.0 - ca.abs()).max(0.5);
+        if xu.abs() * ca_max > 1e-6 && xd != 0.0 {
+            zoom = zoom.min(xd.abs() / (xu.abs() * ca_max));
+        }
+        if yu.abs() * ca_max > 1e-6 && yd != 0.0 {
+            zoom = zoom.min(yd.abs() / (yu.abs() * ca_max));
+        }
+    }
     for y in 0..img.height {
         for x in 0..img.width {
             let xd = (x as f32 + 0.5 - cx) / fx;
             let yd = (y as f32 + 0.5 - cy) / fy;
-            let (mut xu, mut yu) = (xd, yd);
-            for _ in 0..8 {
-                let (dx, dy) = brown_conrady(xu, yu, k);
-                xu += xd - dx;
-                yu += yd - dy;
-            }
+            let (xu, yu) = undistort(xd, yd);
+            let (xu, yu) = (xu * zoom, yu * zoom);
             let mut px = [0.0f32; 3];
             for (c, scale) in [(0usize, 1.0 / (1.0 + ca)), (1, 1.0), (2, 1.0 / (1.0 - ca))] {
                 let sx = cx + xu * scale * fx;
