@@ -342,7 +342,46 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
 }
 
 /// Per-participant judgments as (i, j, i won, count), i < j.
-type ParticipantRows = Vec<(usize, usize, bool, u64)>;
+type ParticipantRow = (usize, usize, bool, u64);
+
+/// Every participant's judgments, contiguous per participant (built by a counting sort: two
+/// passes, no per-participant allocation).
+struct ByParticipant {
+    offsets: Vec<usize>,
+    entries: Vec<ParticipantRow>,
+}
+
+impl ByParticipant {
+    fn new(n_participants: usize, rows: &[&crate::data::Judgment]) -> ByParticipant {
+        let mut offsets = vec![0usize; n_participants + 1];
+        for row in rows {
+            offsets[row.participant as usize + 1] += 1;
+        }
+        for p in 0..n_participants {
+            offsets[p + 1] += offsets[p];
+        }
+        let mut cursor = offsets.clone();
+        let mut entries = vec![(0, 0, false, 0); rows.len()];
+        for row in rows {
+            let (i, j, i_won) = if row.left < row.right { (row.left, row.right, row.left_chosen) } else { (row.right, row.left, !row.left_chosen) };
+            let slot = &mut cursor[row.participant as usize];
+            entries[*slot] = (i as usize, j as usize, i_won, row.count);
+            *slot += 1;
+        }
+        ByParticipant { offsets, entries }
+    }
+
+    fn len(&self) -> usize {
+        self.offsets.len() - 1
+    }
+}
+
+impl std::ops::Index<usize> for ByParticipant {
+    type Output = [ParticipantRow];
+    fn index(&self, participant: usize) -> &[ParticipantRow] {
+        &self.entries[self.offsets[participant]..self.offsets[participant + 1]]
+    }
+}
 
 struct ItemFit {
     /// Per component: members, reference, fit, separation SCCs.
@@ -544,11 +583,7 @@ fn analyze_subset(
     let agreement = agreement::coefficient_of_agreement(&pairs, n_conditions, &AgreementOptions { simulations: options.agreement_simulations.max(1), seed: options.seed, ..AgreementOptions::default() })?;
 
     // Per-participant judgments (for consistence, bootstrap and screening).
-    let mut by_participant: Vec<ParticipantRows> = vec![Vec::new(); judgments.participants.len()];
-    for row in &rows {
-        let (i, j, i_won) = if row.left < row.right { (row.left, row.right, row.left_chosen) } else { (row.right, row.left, !row.left_chosen) };
-        by_participant[row.participant as usize].push((i as usize, j as usize, i_won, row.count));
-    }
+    let by_participant = ByParticipant::new(judgments.participants.len(), &rows);
     let active: Vec<usize> = (0..by_participant.len()).filter(|&p| !by_participant[p].is_empty()).collect();
 
     let compared: Vec<usize> = (0..n_conditions).filter(|&c| comparisons[c] > 0).collect();
@@ -604,7 +639,7 @@ fn analyze_subset(
     Ok(analysis)
 }
 
-fn consistence_per_participant(by_participant: &[ParticipantRows], active: &[usize], compared: &[usize], participant_names: &[String]) -> Vec<ParticipantConsistence> {
+fn consistence_per_participant(by_participant: &ByParticipant, active: &[usize], compared: &[usize], participant_names: &[String]) -> Vec<ParticipantConsistence> {
     let t = compared.len();
     if t < 3 {
         return Vec::new();
@@ -618,17 +653,29 @@ fn consistence_per_participant(by_participant: &[ParticipantRows], active: &[usi
             if rows.len() < n_pairs {
                 return None;
             }
-            let mut seen = std::collections::HashSet::new();
-            for &(i, j, _, _) in rows {
-                seen.insert((i, j));
-            }
-            if seen.len() < n_pairs {
+            // This participant's tallies per pair, then one judgment per pair by majority (a tie
+            // is passed on as one judgment each way, which leaves the participant without ζ).
+            let mut tallies: Vec<(usize, usize, u64, u64)> = rows.iter().map(|&(i, j, won, count)| if won { (i, j, count, 0) } else { (i, j, 0, count) }).collect();
+            tallies.sort_unstable_by_key(|&(i, j, _, _)| (i, j));
+            tallies.dedup_by(|next, kept| {
+                let same = (next.0, next.1) == (kept.0, kept.1);
+                if same {
+                    kept.2 += next.2;
+                    kept.3 += next.3;
+                }
+                same
+            });
+            if tallies.len() < n_pairs {
                 return None;
             }
-            let mut expanded = Vec::new();
-            for &(i, j, won, count) in rows {
-                for _ in 0..count.min(1_000) {
-                    expanded.push((local[&i], local[&j], won));
+            let mut expanded = Vec::with_capacity(n_pairs);
+            for &(i, j, wins, losses) in &tallies {
+                let (a, b) = (local[&i], local[&j]);
+                if wins >= losses {
+                    expanded.push((a, b, true));
+                }
+                if losses >= wins {
+                    expanded.push((a, b, false));
                 }
             }
             let consistence = agreement::coefficient_of_consistence(&expanded, t).ok()?;
@@ -637,7 +684,7 @@ fn consistence_per_participant(by_participant: &[ParticipantRows], active: &[usi
         .collect()
 }
 
-fn subtract(pairs: &[PairTally], index: &HashMap<(usize, usize), usize>, rows: &ParticipantRows) -> Vec<PairTally> {
+fn subtract(pairs: &[PairTally], index: &HashMap<(usize, usize), usize>, rows: &[ParticipantRow]) -> Vec<PairTally> {
     let mut out = pairs.to_vec();
     for &(i, j, i_won, count) in rows {
         let pair = &mut out[index[&(i, j)]];
@@ -649,13 +696,13 @@ fn subtract(pairs: &[PairTally], index: &HashMap<(usize, usize), usize>, rows: &
 fn screen_observers(
     pairs: &[PairTally],
     component: &(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>),
-    by_participant: &[ParticipantRows],
+    by_participant: &ByParticipant,
     active: &[usize],
     participant_names: &[String],
     options: &Options,
 ) -> ObserverScreening {
     let (members, reference, full_fit, _) = component;
-    let n_conditions = by_participant.iter().flatten().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0).max(members.iter().max().map_or(0, |m| m + 1));
+    let n_conditions = by_participant.entries.iter().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0).max(members.iter().max().map_or(0, |m| m + 1));
     let x = ModelMatrix::items(n_conditions, members, *reference);
     let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(k, p)| ((p.i, p.j), k)).collect();
     let fit_options = FitOptions { tolerance: options.tolerance.max(1e-8), ..FitOptions::default() };
@@ -719,7 +766,7 @@ fn percentile_interval(mut values: Vec<f64>, level: f64) -> Option<[f64; 2]> {
 
 fn run_bootstrap(
     analysis: &mut Analysis,
-    by_participant: &[ParticipantRows],
+    by_participant: &ByParticipant,
     active: &[usize],
     n_conditions: usize,
     reference: usize,

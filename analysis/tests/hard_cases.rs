@@ -198,3 +198,21 @@ fn observer_screening_flags_a_contrarian_and_drops_nobody() {
     assert_eq!(screening.participants.len(), 21, "everyone is listed");
     assert_eq!(analysis.participants, 21, "nobody is dropped");
 }
+
+#[test]
+fn consistence_uses_each_participants_majority_per_pair() {
+    // p1 is transitive by majority (A > B > C, A > C) with large repeated counts; p2 is circular.
+    let text = trials(&[
+        ("p1", "A", "B", "A", 5000), ("p1", "A", "B", "B", 1200),
+        ("p1", "B", "C", "B", 3), ("p1", "B", "C", "C", 1),
+        ("p1", "A", "C", "A", 2),
+        ("p2", "A", "B", "A", 1), ("p2", "B", "C", "B", 1), ("p2", "A", "C", "C", 1),
+        ("p3", "A", "B", "A", 1), ("p3", "A", "B", "B", 1), ("p3", "B", "C", "B", 1), ("p3", "A", "C", "C", 1),
+    ]);
+    let analysis = analyze(&text, None, &options()).unwrap();
+    let zeta = |name: &str| analysis.consistence.iter().find(|c| c.participant == name).unwrap().consistence.clone();
+    assert_eq!(zeta("p1").zeta, Some(1.0));
+    assert_eq!(zeta("p2").zeta, Some(0.0));
+    assert_eq!(zeta("p2").circular_triads, Some(1));
+    assert!(zeta("p3").zeta.is_none() && zeta("p3").reason.is_some(), "a tied pair leaves no ζ");
+}
