@@ -131,7 +131,10 @@ impl Storage {
             .journal_mode(SqliteJournalMode::Wal)
             .synchronous(SqliteSynchronous::Full)
             .foreign_keys(true)
-            .busy_timeout(Duration::from_secs(10));
+            .busy_timeout(Duration::from_secs(10))
+            // No checkpoint inside a participant's commit (it would stall that batch for the
+            // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
+            .pragma("wal_autocheckpoint", "0");
         let write = SqlitePoolOptions::new()
             .max_connections(1)
             .min_connections(1)
@@ -151,6 +154,7 @@ impl Storage {
             .map_err(|source| OpenError::Connect { path: path_text, source })?;
         let (sender, receiver) = mpsc::channel(4 * MAX_BATCH);
         tokio::spawn(writer(write.clone(), receiver));
+        tokio::spawn(checkpointer(read.clone()));
         Ok(Storage { read, write, jobs: sender })
     }
 
@@ -346,6 +350,21 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Job>) {
         batch.clear();
     }
 }
+
+/// Copies the WAL back into the database file once a second (a passive checkpoint: it never
+/// blocks the writer or readers), so the WAL stays small without any commit paying for it.
+async fn checkpointer(pool: SqlitePool) {
+    let mut interval = tokio::time::interval(CHECKPOINT_INTERVAL);
+    loop {
+        interval.tick().await;
+        if let Err(error) = sqlx::query("PRAGMA wal_checkpoint(PASSIVE)").execute(&pool).await {
+            eprintln!("warning: WAL checkpoint failed (will retry): {error}");
+        }
+    }
+}
+
+/// How often the WAL is checkpointed.
+pub const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(1);
 
 type Reply = Box<dyn FnOnce() + Send>;
 
