@@ -644,8 +644,18 @@ fn consistence_per_participant(by_participant: &ByParticipant, active: &[usize],
     if t < 3 {
         return Vec::new();
     }
-    let local: HashMap<usize, usize> = compared.iter().enumerate().map(|(k, &c)| (c, k)).collect();
     let n_pairs = t * (t - 1) / 2;
+    // A participant who compared every pair made at least n_pairs judgments; with thousands of
+    // conditions nobody does, and the grid below would not fit.
+    if active.iter().all(|&p| by_participant[p].len() < n_pairs) {
+        return Vec::new();
+    }
+    let mut local = vec![usize::MAX; by_participant.entries.iter().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0)];
+    for (k, &c) in compared.iter().enumerate() {
+        local[c] = k;
+    }
+    let mut grid = vec![(0u64, 0u64); t * t];
+    let mut touched: Vec<usize> = Vec::new();
     active
         .iter()
         .filter_map(|&p| {
@@ -653,30 +663,31 @@ fn consistence_per_participant(by_participant: &ByParticipant, active: &[usize],
             if rows.len() < n_pairs {
                 return None;
             }
-            // This participant's tallies per pair, then one judgment per pair by majority (a tie
-            // is passed on as one judgment each way, which leaves the participant without ζ).
-            let mut tallies: Vec<(usize, usize, u64, u64)> = rows.iter().map(|&(i, j, won, count)| if won { (i, j, count, 0) } else { (i, j, 0, count) }).collect();
-            tallies.sort_unstable_by_key(|&(i, j, _, _)| (i, j));
-            tallies.dedup_by(|next, kept| {
-                let same = (next.0, next.1) == (kept.0, kept.1);
-                if same {
-                    kept.2 += next.2;
-                    kept.3 += next.3;
+            // This participant's tallies per pair (in a t×t grid reused across participants),
+            // then one judgment per pair by majority; a tie is passed on as one judgment each
+            // way, which leaves the participant without ζ.
+            touched.clear();
+            for &(i, j, won, count) in rows {
+                let cell = local[i] * t + local[j];
+                if grid[cell] == (0, 0) {
+                    touched.push(cell);
                 }
-                same
-            });
-            if tallies.len() < n_pairs {
-                return None;
+                if won { grid[cell].0 += count } else { grid[cell].1 += count }
             }
-            let mut expanded = Vec::with_capacity(n_pairs);
-            for &(i, j, wins, losses) in &tallies {
-                let (a, b) = (local[&i], local[&j]);
-                if wins >= losses {
+            let complete = touched.len() == n_pairs;
+            let mut expanded = Vec::with_capacity(if complete { n_pairs } else { 0 });
+            for &cell in touched.iter() {
+                let (wins, losses) = std::mem::take(&mut grid[cell]);
+                let (a, b) = (cell / t, cell % t);
+                if complete && wins >= losses {
                     expanded.push((a, b, true));
                 }
-                if losses >= wins {
+                if complete && losses >= wins {
                     expanded.push((a, b, false));
                 }
+            }
+            if !complete {
+                return None;
             }
             let consistence = agreement::coefficient_of_consistence(&expanded, t).ok()?;
             Some(ParticipantConsistence { participant: participant_names[p].clone(), consistence })
