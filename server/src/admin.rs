@@ -368,14 +368,16 @@ async fn login(State(state): State<AppState>, Query(query): Query<LoginQuery>) -
     }
 }
 
-fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Response> {
+fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
     authorize(state, headers).map(|_| ()).map_err(|error| {
+        Box::new({
         let status = error.status();
         crate::pages::message_page(
             status,
             if status == StatusCode::UNAUTHORIZED { "Admin token needed" } else { "Wrong admin token" },
             "Open the admin link that mrstudy serve printed; it carries the admin token.",
         )
+        })
     })
 }
 
@@ -387,7 +389,7 @@ struct AdminPage {
 
 async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Response {
     if let Err(page) = page_authorize(&state, &headers) {
-        return page;
+        return *page;
     }
     let result: AppResult<Vec<StudyStats>> = async {
         let mut all = Vec::new();
@@ -459,7 +461,7 @@ pub(crate) fn format_number(value: &serde_json::Value, digits: usize) -> String 
 
 async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
     if let Err(page) = page_authorize(&state, &headers) {
-        return page;
+        return *page;
     }
     let stats = match stats(&state, &slug).await {
         Ok(stats) => stats,
