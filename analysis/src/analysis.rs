@@ -730,8 +730,8 @@ fn screen_observers(
             let (mut observed, mut mean, mut variance, mut n) = (0.0, 0.0, 0.0, 0u64);
             for &(i, j, i_won, count) in rows {
                 let eta = x.predict(i, &beta) - x.predict(j, &beta);
-                let ln_pi = -softplus(-eta);
-                let ln_1_pi = -softplus(eta);
+                let ln_pi = -fit::softplus(-eta);
+                let ln_1_pi = -fit::softplus(eta);
                 let pi = ln_pi.exp();
                 let c = count as f64;
                 observed += c * if i_won { ln_pi } else { ln_1_pi };
@@ -755,24 +755,13 @@ fn screen_observers(
     ObserverScreening { alpha: options.screening_alpha, participants: observers, flagged }
 }
 
-fn softplus(x: f64) -> f64 {
-    if x > 0.0 { x + (-x).exp().ln_1p() } else { x.exp().ln_1p() }
-}
-
 fn percentile_interval(mut values: Vec<f64>, level: f64) -> Option<[f64; 2]> {
     if values.len() < 2 {
         return None;
     }
     values.sort_by(f64::total_cmp);
-    let quantile = |q: f64| {
-        // R's quantile type 7.
-        let h = (values.len() - 1) as f64 * q;
-        let lo = h.floor() as usize;
-        let hi = (lo + 1).min(values.len() - 1);
-        values[lo] + (h - lo as f64) * (values[hi] - values[lo])
-    };
     let alpha = (1.0 - level) / 2.0;
-    Some([quantile(alpha), quantile(1.0 - alpha)])
+    Some([crate::task::quantile_type7(&values, alpha), crate::task::quantile_type7(&values, 1.0 - alpha)])
 }
 
 fn run_bootstrap(

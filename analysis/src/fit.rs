@@ -189,7 +189,7 @@ fn observations(pairs: &[PairTally], x: &ModelMatrix) -> Vec<Observation> {
 }
 
 /// ln(1 + eˣ) without overflow.
-fn softplus(x: f64) -> f64 {
+pub(crate) fn softplus(x: f64) -> f64 {
     if x > 0.0 { x + (-x).exp().ln_1p() } else { x.exp().ln_1p() }
 }
 
