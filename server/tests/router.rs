@@ -552,3 +552,40 @@ async fn live_analysis_runs_the_analysis_crate_on_the_export() {
     assert!(html.contains("coefficient of agreement u ="), "{html}");
     assert!(html.contains("<td>shadow</td>"), "factor estimates table");
 }
+
+#[tokio::test]
+async fn the_database_is_wal_with_full_sync() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let storage = mrstudy_server::Storage::open(&data_dir.path().join("mrstudy.db")).await.unwrap();
+    let journal_mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&storage.read).await.unwrap();
+    let synchronous: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&storage.read).await.unwrap();
+    let foreign_keys: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&storage.read).await.unwrap();
+    assert_eq!(journal_mode, "wal");
+    assert_eq!(synchronous, 2, "synchronous = FULL");
+    assert_eq!(foreign_keys, 1);
+}
+
+#[tokio::test]
+async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
+    // The demo study, with a crowdsourcing redirect, in a studies directory of its own.
+    let studies = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(studies_dir().join("shadows-demo.toml")).unwrap();
+    let text = text.replace(
+        "[completion]\ncode = \"DEMO-7F3A\"",
+        "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
+    );
+    assert!(text.contains("redirect ="));
+    std::fs::write(studies.path().join("demo.toml"), text.replace("\"shadows-demo/", &format!("\"{}/", studies_dir().join("shadows-demo").display()))).unwrap();
+    let data_dir = tempfile::tempdir().unwrap();
+    let Prepared { state, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    let app = app(state);
+    let (id, token) = join(&app).await; // with PROLIFIC_PID = abc123
+    for trial in 1..=7 {
+        assert_eq!(answer_trial(&app, &id, &token, trial, "left").await.status, StatusCode::CREATED);
+    }
+    let done = call(&app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await.json();
+    assert_eq!(
+        done,
+        json!({"done": true, "completion_code": "DEMO-7F3A", "redirect": "https://app.prolific.com/submissions/complete?cc=DEMO-7F3A&pid=abc123"})
+    );
+}
