@@ -78,6 +78,13 @@
     return { status: response.status, data };
   }
 
+  // A message on the stage in view (null clears it).
+  function notice(text) {
+    const element = $("stage-trial").hidden ? $("demographics-error") : $("trial-error");
+    element.textContent = text || "";
+    element.hidden = !text;
+  }
+
   const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
   // Retries network failures and 5xx answers with backoff; returns the first other answer.
@@ -86,12 +93,9 @@
     for (let attempt = 0; ; attempt++) {
       try {
         const answer = await api(method, path, payload);
-        if (answer.status < 500) { $("trial-error").hidden = true; return answer; }
+        if (answer.status < 500) { notice(null); return answer; }
       } catch (error) { /* network error: retry */ }
-      if (attempt >= 1) {
-        $("trial-error").textContent = "Connection problem: your answer is being saved, please wait…";
-        $("trial-error").hidden = false;
-      }
+      if (attempt >= 1) notice("Connection problem: your answers are being saved, please wait…");
       await sleep(delay);
       delay = Math.min(delay * 2, 8000);
     }
