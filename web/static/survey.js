@@ -192,6 +192,7 @@
     left.alt = trial.left.alt; right.alt = trial.right.alt;
     await Promise.all([decode(left, trial.left.url), decode(right, trial.right.url)]);
     if (current !== trial) return;
+    layout();
     $("pair").classList.remove("loading");
     $("choose-left").disabled = false; $("choose-right").disabled = false;
     // Both images are on screen at the next frame: the response time counts from there.
@@ -202,6 +203,28 @@
     });
     for (const url of trial.preload || []) { const image = new Image(); image.src = url; }
   }
+
+  // Both images at one scale (the same on-screen size for equal image sizes), as large as the
+  // viewport allows side by side, without scrolling.
+  function layout() {
+    const left = $("image-left"), right = $("image-right");
+    if (!left.naturalWidth || !right.naturalWidth) return;
+    const pair = $("pair");
+    const border = 8; // the buttons' borders, both sides
+    const gap = parseFloat(getComputedStyle(pair).columnGap) || 0;
+    let below = 0;
+    for (const hint of document.querySelectorAll("#stage-trial .hint")) below += hint.offsetHeight;
+    const width = (pair.clientWidth - gap) / 2 - border;
+    const height = window.innerHeight - pair.getBoundingClientRect().top - below - border - 12;
+    const scale = Math.max(0.05, Math.min(
+      width / left.naturalWidth, width / right.naturalWidth,
+      height / left.naturalHeight, height / right.naturalHeight));
+    for (const image of [left, right]) {
+      image.style.width = Math.floor(image.naturalWidth * scale) + "px";
+      image.style.height = Math.floor(image.naturalHeight * scale) + "px";
+    }
+  }
+  window.addEventListener("resize", () => { if (!$("stage-trial").hidden) layout(); });
 
   async function choose(side) {
     if (!accepting || !current) return;
