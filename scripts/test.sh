@@ -13,6 +13,7 @@ while read -r probe package; do
 done <<'LIST'
 chromium chromium
 chromedriver chromium-driver
+/usr/share/vulkan/icd.d/lvp_icd.x86_64.json mesa-vulkan-drivers
 LIST
 
 if ((${#need[@]})); then

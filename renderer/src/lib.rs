@@ -1,6 +1,6 @@
 //! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and image
-//! metrics. The GPU differential-rendering pipeline (differential instant radiosity, colour
-//! mapping, camera artifacts) builds on these and is not here yet.
+//! metrics, and the GPU differential-rendering pipeline ([`gpu`]: differential instant radiosity
+//! on wgpu; colour mapping and camera artifacts are not here yet).
 //!
 //! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene into
 //! images, masks, timings and errors.
@@ -19,12 +19,15 @@
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
+//! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, the shading pass writing
+//!   L_rv and L_r, differential composition (WGSL beside the Rust that drives it).
 
 pub mod builtin;
 pub mod bvh;
 pub mod camera;
 pub mod error;
 pub mod geometry;
+pub mod gpu;
 pub mod image;
 pub mod light;
 pub mod material;

@@ -1,0 +1,173 @@
+//! The GPU context: adapter choice (DESIGN.md "GPU": a hardware adapter if there is one, else a
+//! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
+//! software|gl` forces a kind), a headless device, and readback of buffers.
+
+use crate::error::{RenderError, Result};
+use std::fmt;
+
+/// Which kind of adapter to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdapterKind {
+    /// A real GPU (discrete, integrated or virtual), any backend.
+    Hardware,
+    /// A CPU implementation on Vulkan (lavapipe).
+    Software,
+    /// The GL backend (llvmpipe or a GL driver).
+    Gl,
+}
+
+impl AdapterKind {
+    pub fn parse(text: &str) -> Option<AdapterKind> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "hardware" => Some(AdapterKind::Hardware),
+            "software" => Some(AdapterKind::Software),
+            "gl" => Some(AdapterKind::Gl),
+            _ => None,
+        }
+    }
+
+    fn of(info: &wgpu::AdapterInfo) -> AdapterKind {
+        if info.backend == wgpu::Backend::Gl {
+            AdapterKind::Gl
+        } else if info.device_type == wgpu::DeviceType::Cpu {
+            AdapterKind::Software
+        } else {
+            AdapterKind::Hardware
+        }
+    }
+}
+
+impl fmt::Display for AdapterKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            AdapterKind::Hardware => "hardware",
+            AdapterKind::Software => "software",
+            AdapterKind::Gl => "gl",
+        })
+    }
+}
+
+/// A headless device and queue on the chosen adapter.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub kind: AdapterKind,
+}
+
+impl GpuContext {
+    /// Opens the adapter chosen by `MRSTUDY_ADAPTER`, or the best one available.
+    pub fn new() -> Result<GpuContext> {
+        let forced = match std::env::var("MRSTUDY_ADAPTER") {
+            Ok(v) if !v.trim().is_empty() => Some(AdapterKind::parse(&v).ok_or_else(|| {
+                RenderError::Unsupported(format!("MRSTUDY_ADAPTER is `{v}`; expected hardware, software or gl"))
+            })?),
+            _ => None,
+        };
+        GpuContext::with_kind(forced)
+    }
+
+    /// Opens an adapter of the given kind, or the best available when `None`.
+    pub fn with_kind(forced: Option<AdapterKind>) -> Result<GpuContext> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
+        let instance = wgpu::Instance::new(desc);
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN | wgpu::Backends::GL));
+        let found: Vec<String> = adapters.iter().map(|a| describe(&a.get_info())).collect();
+        let order = match forced {
+            Some(kind) => vec![kind],
+            None => vec![AdapterKind::Hardware, AdapterKind::Software, AdapterKind::Gl],
+        };
+        let chosen = order.iter().find_map(|kind| {
+            // within a kind, prefer Vulkan over GL
+            let mut candidates: Vec<&wgpu::Adapter> = adapters.iter().filter(|a| AdapterKind::of(&a.get_info()) == *kind).collect();
+            candidates.sort_by_key(|a| (a.get_info().backend != wgpu::Backend::Vulkan) as u8);
+            candidates.first().map(|a| ((*a).clone(), *kind))
+        });
+        let Some((adapter, kind)) = chosen else {
+            let wanted = forced.map(|k| format!("a {k} adapter")).unwrap_or_else(|| "any GPU adapter".into());
+            let seen = if found.is_empty() { "none".to_string() } else { found.join("; ") };
+            return Err(RenderError::Unsupported(format!(
+                "no {wanted} could be opened (adapters found: {seen}); install Mesa's lavapipe (`apt-get install mesa-vulkan-drivers`) for the software one"
+            )));
+        };
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("mrstudy"),
+            required_features: wgpu::Features::empty(),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::Unsupported(format!("the adapter {} refused a device: {e}", describe(&info))))?;
+        Ok(GpuContext { device, queue, info, kind })
+    }
+
+    /// The adapter in words, for reports: name, backend and kind.
+    pub fn adapter_name(&self) -> String {
+        describe(&self.info)
+    }
+
+    /// Blocks until the GPU has finished all submitted work.
+    pub fn wait(&self) {
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+    }
+
+    /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU.
+    pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Vec<u8> {
+        let slice = buffer.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        self.wait();
+        let bytes = slice.get_mapped_range().map(|view| view.to_vec()).unwrap_or_default();
+        buffer.unmap();
+        bytes
+    }
+
+    /// Copies a storage buffer to a fresh staging buffer and reads it back as `f32`s.
+    pub fn read_f32(&self, source: &wgpu::Buffer) -> Vec<f32> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: source.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
+        self.queue.submit([encoder.finish()]);
+        bytemuck::cast_slice(&self.read_buffer(&staging)).to_vec()
+    }
+
+    /// Reads a 2D texture of 16-byte texels (`Rgba32Float`) back as `[f32; 4]` per texel.
+    pub fn read_texture_rgba32(&self, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
+        self.read_texture(texture, 16).chunks_exact(16).map(|c| *bytemuck::from_bytes::<[f32; 4]>(c)).collect()
+    }
+
+    /// Reads a 2D texture (layer 0) with `texel_bytes` per texel, rows unpadded.
+    pub fn read_texture(&self, texture: &wgpu::Texture, texel_bytes: u32) -> Vec<u8> {
+        let (w, h) = (texture.width(), texture.height());
+        let row = w * texel_bytes;
+        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("texture readback"),
+            size: (padded * h) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo { buffer: &staging, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) } },
+            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        );
+        self.queue.submit([encoder.finish()]);
+        let bytes = self.read_buffer(&staging);
+        let mut out = Vec::with_capacity((row * h) as usize);
+        for y in 0..h as usize {
+            out.extend_from_slice(&bytes[y * padded as usize..y * padded as usize + row as usize]);
+        }
+        out
+    }
+}
+
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {})", info.name, info.backend, AdapterKind::of(info))
+}

@@ -1,0 +1,321 @@
+//! Invariants of differential instant radiosity, on the GPU adapter (lavapipe on machines
+//! without a GPU) at small resolution. A test prints why and passes only when no adapter at all
+//! can be opened. References: the CPU path tracer's affected-region mask ([`crate::reference`]).
+
+#![allow(clippy::needless_range_loop)]
+
+use super::vpl::GpuVpl;
+use super::*;
+use crate::reference::{ReferenceParams, render_reference};
+use crate::scene::{Role, SceneDesc};
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// A GPU-darkened or -brightened pixel changes by more than this (display units).
+const CHANGED: f32 = 1.0 / 255.0;
+/// Pixels the path tracer's affected region is grown by, for edge and bias differences.
+const MASK_DILATION: i64 = 2;
+
+fn renderer() -> Option<&'static DirRenderer> {
+    static RENDERER: OnceLock<Option<DirRenderer>> = OnceLock::new();
+    RENDERER
+        .get_or_init(|| match DirRenderer::new() {
+            Ok(r) => {
+                eprintln!("GPU tests on {}", r.ctx.adapter_name());
+                Some(r)
+            }
+            Err(e) => {
+                eprintln!("skipping GPU test: {e}");
+                None
+            }
+        })
+        .as_ref()
+}
+
+/// A floor, a real spot light from above and the side, and optional extra objects.
+fn scene_with(objects: &str) -> Scene {
+    let text = format!(
+        r#"
+name = "gpu-test"
+[camera]
+width = 128
+height = 96
+fov_y_deg = 50
+position = [0.0, 0.7, 0.9]
+look_at = [0.0, 0.0, 0.0]
+[camera.sensor]
+preset = "clean"
+[materials.floor]
+albedo = 0.6
+[materials.white]
+albedo = 0.8
+[materials.red]
+albedo = [0.8, 0.05, 0.05]
+[[objects]]
+name = "floor"
+role = "real"
+shape = "plane"
+size = [3.0, 3.0]
+material = "floor"
+{objects}
+[[lights]]
+kind = "spot"
+position = [0.35, 0.9, 0.35]
+target = [0.0, 0.0, 0.0]
+inner_deg = 35
+outer_deg = 45
+intensity = 1.0
+"#
+    );
+    let desc = SceneDesc::from_toml(&text, "gpu-test.toml").unwrap();
+    Scene::from_desc(desc, Path::new("."), "gpu-test.toml").unwrap()
+}
+
+const VIRTUAL_BOX: &str = r#"
+[[objects]]
+name = "virtual-box"
+role = "virtual"
+shape = "box"
+size = [0.15, 0.15, 0.15]
+translate = [0.0, 0.075, 0.0]
+material = "white"
+"#;
+
+const REAL_BOX: &str = r#"
+[[objects]]
+name = "real-box"
+role = "real"
+shape = "box"
+size = [0.2, 0.3, 0.2]
+translate = [0.1, 0.15, 0.1]
+material = "white"
+"#;
+
+const BEHIND: &str = r#"
+[[objects]]
+name = "virtual-box"
+role = "virtual"
+shape = "box"
+size = [0.06, 0.06, 0.06]
+translate = [-0.04, 0.03, -0.04]
+material = "white"
+"#;
+
+fn grey_photo(scene: &Scene) -> Image {
+    Image::filled(scene.camera.width, scene.camera.height, Vec3::splat(0.5))
+}
+
+fn params(condition: Condition) -> DirParams {
+    DirParams { condition, vpls: 64, shadow_map_size: 512, rsm_size: 32, ..DirParams::default() }
+}
+
+fn dilate(mask: &Mask, radius: i64) -> Mask {
+    let (w, h) = (mask.width as i64, mask.height as i64);
+    let mut out = Mask::new(mask.width, mask.height);
+    for y in 0..h {
+        for x in 0..w {
+            let mut any = false;
+            for dy in -radius..=radius {
+                for dx in -radius..=radius {
+                    let (xx, yy) = (x + dx, y + dy);
+                    any |= xx >= 0 && yy >= 0 && xx < w && yy < h && mask.values[(yy * w + xx) as usize] > 0.0;
+                }
+            }
+            out.values[(y * w + x) as usize] = if any { 1.0 } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// Per pixel: composite − photo, as luminance-free mean of the channels.
+fn deltas(render: &GpuRender, photo: &Image) -> Vec<f32> {
+    render.composite.pixels.iter().zip(&photo.pixels).map(|(c, p)| ((*c - *p).x + (*c - *p).y + (*c - *p).z) / 3.0).collect()
+}
+
+#[test]
+fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
+    let Some(r) = renderer() else { return };
+    // a photograph unlike any rendering: a gradient, so that any change shows
+    let mut scene = scene_with(VIRTUAL_BOX);
+    scene.objects.retain(|o| o.role == Role::Real);
+    let mut photo = Image::new(scene.camera.width, scene.camera.height);
+    for (i, p) in photo.pixels.iter_mut().enumerate() {
+        *p = Vec3::new((i % 128) as f32 / 127.0, (i / 128) as f32 / 95.0, 0.25);
+    }
+    for condition in [Condition::None, Condition::Shadows, Condition::Gi] {
+        let out = r.render(&scene, &photo, &params(condition)).unwrap();
+        let differing = out.composite.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a != b).count();
+        assert_eq!(differing, 0, "{condition:?}: {differing} pixels differ from the photograph");
+        assert_eq!(out.l_rv.pixels, out.l_r.pixels, "{condition:?}: L_rv and L_r must be identical");
+        if condition == Condition::Gi {
+            assert!(out.report.vpls > 0, "gi made no VPLs");
+        }
+    }
+}
+
+#[test]
+fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
+    let Some(r) = renderer() else { return };
+    let scene = scene_with(VIRTUAL_BOX);
+    let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+    let allowed = dilate(&reference.affected_mask, MASK_DILATION);
+    let out = r.render(&scene, &reference.photo, &params(Condition::Shadows)).unwrap();
+    let d = deltas(&out, &reference.photo);
+    let mut darkened = 0;
+    let mut outside = 0;
+    for i in 0..d.len() {
+        if reference.virtual_mask.values[i] > 0.0 {
+            continue;
+        }
+        if d[i].abs() > CHANGED {
+            if allowed.values[i] == 0.0 {
+                outside += 1;
+            }
+            if d[i] < -CHANGED {
+                darkened += 1;
+            }
+        }
+    }
+    assert!(darkened > 30, "the virtual box casts no visible shadow ({darkened} darkened pixels)");
+    assert_eq!(outside, 0, "{outside} pixels changed outside the path tracer's affected region");
+    // gi off: the virtual box casts no shadow at all
+    let off = r.render(&scene, &reference.photo, &params(Condition::None)).unwrap();
+    let d_off = deltas(&off, &reference.photo);
+    let changed_real = (0..d_off.len()).filter(|&i| reference.virtual_mask.values[i] == 0.0 && d_off[i].abs() > CHANGED).count();
+    assert!(changed_real < 10, "gi off changed {changed_real} real pixels");
+}
+
+#[test]
+fn the_double_shadow_case_adds_no_second_shadow() {
+    // real spot, a real box, and a virtual box in the real box's shadow (thesis Figures 5.15/5.16)
+    let Some(r) = renderer() else { return };
+    let scene = scene_with(&format!("{REAL_BOX}{BEHIND}"));
+    let photo = grey_photo(&scene);
+    let out = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let d = deltas(&out, &photo);
+    let darkened_real = (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && d[i] < -CHANGED).count();
+    assert!(darkened_real <= 3, "{darkened_real} real pixels darkened: a second shadow");
+    // control: without the real box the same virtual box does cast a shadow
+    let alone = scene_with(BEHIND);
+    let out = r.render(&alone, &photo, &params(Condition::Shadows)).unwrap();
+    let d = deltas(&out, &photo);
+    assert!(d.iter().filter(|&&x| x < -CHANGED).count() > 20, "the control casts no shadow");
+    // Figure 5.6: a virtual box between the light and the real box; where the real shadow
+    // already is (L_r = 0 on a real surface), nothing may change
+    let floating = "[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n";
+    let scene = scene_with(&format!("{REAL_BOX}{floating}"));
+    let out = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let d = deltas(&out, &photo);
+    let in_real_shadow: Vec<usize> = (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && out.l_r.pixels[i] == Vec3::ZERO).collect();
+    assert!(in_real_shadow.len() > 50, "no real shadow in view");
+    let changed = in_real_shadow.iter().filter(|&&i| d[i].abs() > CHANGED).count();
+    assert_eq!(changed, 0, "{changed} pixels of the real shadow changed: a double shadow");
+    assert!(d.iter().zip(&out.virtual_mask.values).filter(|(x, m)| **m == 0.0 && **x < -CHANGED).count() > 20, "the floating box casts no shadow of its own");
+}
+
+#[test]
+fn a_red_virtual_wall_adds_red_to_the_real_floor_beside_it() {
+    let Some(r) = renderer() else { return };
+    let wall = r#"
+[[objects]]
+name = "red-wall"
+role = "virtual"
+shape = "box"
+size = [0.02, 0.3, 0.6]
+translate = [-0.06, 0.15, 0.0]
+material = "red"
+"#;
+    let scene = scene_with(wall);
+    let photo = grey_photo(&scene);
+    // the wall takes a small share of the spot's flux: enough VPLs to land some on it
+    let gi = r.render(&scene, &photo, &DirParams { vpls: 1024, rsm_size: 64, ..params(Condition::Gi) }).unwrap();
+    assert!(gi.vpls.iter().any(|v| v.position[3] == 0.0), "no VPL on the virtual wall");
+    let shadows = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    // on real pixels (L_r > 0), the red minus green of the change grows with gi
+    let mut redder = 0.0f64;
+    let mut n = 0;
+    for i in 0..photo.pixels.len() {
+        if gi.l_r.pixels[i] != Vec3::ZERO {
+            let a = gi.composite.pixels[i] - shadows.composite.pixels[i];
+            redder += (a.x - a.y) as f64;
+            n += 1;
+        }
+    }
+    assert!(n > 0);
+    assert!(redder / n as f64 > 1e-3, "mean red-minus-green gain {}", redder / n as f64);
+}
+
+/// The VPL rows of eqs. 5.6–5.7, with one VPL given by hand above the floor.
+#[test]
+fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
+    let Some(r) = renderer() else { return };
+    let scene = scene_with(VIRTUAL_BOX);
+    let photo = grey_photo(&scene);
+    let p = params(Condition::Gi);
+    let vpl = |path: f32, ir: f32| GpuVpl { position: [0.2, 0.3, 0.2, path], normal: [0.0, -1.0, 0.0, ir], flux: [0.05, 0.05, 0.05, 0.0] };
+    let none = r.render_frame(&scene, &photo, &p, Some(&[])).unwrap();
+    let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
+    let (rv0, r0) = (sum(&none.l_rv), sum(&none.l_r));
+    // a VPL on a virtual object (path flag 0): L_rv only
+    let on_virtual = r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)])).unwrap();
+    assert!(sum(&on_virtual.l_rv) > rv0 * 1.01);
+    assert_eq!(on_virtual.l_r.pixels, none.l_r.pixels);
+    // a real VPL of a real light (path flag 1): both solutions, equally on real pixels
+    let real = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 0.0)])).unwrap();
+    assert!(sum(&real.l_r) > r0 * 1.01);
+    for i in 0..photo.pixels.len() {
+        if none.l_r.pixels[i] != Vec3::ZERO {
+            let (drv, dr) = (real.l_rv.pixels[i] - none.l_rv.pixels[i], real.l_r.pixels[i] - none.l_r.pixels[i]);
+            assert!((drv - dr).abs().max_element() < 1e-5, "pixel {i}: {drv} vs {dr}");
+        }
+    }
+    // ir = 1 (a real VPL behind a virtual blocker): L_r only
+    let ir = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 1.0)])).unwrap();
+    assert_eq!(ir.l_rv.pixels, none.l_rv.pixels);
+    assert!(sum(&ir.l_r) > r0 * 1.01);
+}
+
+#[test]
+fn passes_follow_the_condition() {
+    let Some(r) = renderer() else { return };
+    let scene = scene_with(VIRTUAL_BOX);
+    let photo = grey_photo(&scene);
+    let names = |c: Condition| r.render(&scene, &photo, &params(c)).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect::<Vec<_>>();
+    let none = names(Condition::None);
+    assert!(!none.iter().any(|p| p.contains("RSM") || p.contains("virtual")), "{none:?}");
+    let shadows = names(Condition::Shadows);
+    assert!(shadows.iter().any(|p| p.contains("virtual")) && !shadows.iter().any(|p| p.contains("RSM")), "{shadows:?}");
+    let gi = names(Condition::Gi);
+    assert!(gi.iter().any(|p| p.contains("RSM")) && gi.iter().any(|p| p.contains("VPL")), "{gi:?}");
+}
+
+#[test]
+#[ignore = "debugging aid: writes contact sheets to $TMPDIR/gpu-debug"]
+fn debug_dump() {
+    let Some(r) = renderer() else { return };
+    let dir = &std::env::temp_dir().join("gpu-debug");
+    std::fs::create_dir_all(dir).unwrap();
+    let wall = "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n";
+    for (name, scene) in [("box", scene_with(VIRTUAL_BOX)), ("wall", scene_with(wall)), ("double", scene_with(&format!("{REAL_BOX}{BEHIND}"))), ("floating", scene_with(&format!("{REAL_BOX}[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n")))] {
+        let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+        let mut grid = vec![vec![reference.photo.clone(), reference.ground_truth.clone(), reference.affected_mask.to_image()]];
+        for c in [Condition::None, Condition::Shadows, Condition::Gi] {
+            let out = r.render(&scene, &reference.photo, &params(c)).unwrap();
+            grid.push(vec![out.composite.clone(), out.l_rv.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(), out.l_r.map(|v| v / (Vec3::ONE + v)).linear_to_srgb()]);
+            let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
+            eprintln!("{name} {:?}: sums {:.3} {:.3} {} vpls {:?}", c, sum(&out.l_rv), sum(&out.l_r), out.report.vpls, out.report.passes.iter().map(|p| format!("{} {:.1}", p.pass, p.ms)).collect::<Vec<_>>());
+        }
+        let (w, h) = (grid[0][0].width, grid[0][0].height);
+        let mut sheet = Image::new(w * 3, h * grid.len() as u32);
+        for (row, images) in grid.iter().enumerate() {
+            for (col, img) in images.iter().enumerate() {
+                for y in 0..h {
+                    for x in 0..w {
+                        sheet.set(col as u32 * w + x, row as u32 * h + y, img.get(x, y));
+                    }
+                }
+            }
+        }
+        sheet.save_png(&dir.join(format!("{name}-sheet.png"))).unwrap();
+    }
+}

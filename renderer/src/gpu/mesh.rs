@@ -1,0 +1,141 @@
+//! The scene as the GPU sees it: one non-indexed triangle list (real objects first, then
+//! virtual ones, so either subset is one draw range) and a material table. Real objects use
+//! their proxy (the model the renderer believes in); spheres are tessellated. Materials keep
+//! the Blinn–Phong parameters of [`crate::material`] and the procedural patterns (wood, checker,
+//! stripes, evaluated in the shader exactly as on the CPU); an image texture is replaced by its
+//! mean colour (the built-in scenes use none).
+
+use crate::geometry::{Primitive, Triangle};
+use crate::material::{Material, Texture};
+use crate::scene::{Role, Scene};
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+/// One vertex: position, shading normal, texture coordinate, material index, role (0 real, 1 virtual).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+    pub material: u32,
+    pub role: u32,
+}
+
+/// One material (std430 layout, 64 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuMaterial {
+    /// Diffuse albedo kd; w: pattern kind (0 none, 1 wood, 2 checker, 3 stripes).
+    pub albedo: [f32; 4],
+    /// Pattern colour a; w: pattern scale.
+    pub pattern_a: [f32; 4],
+    /// Pattern colour b; w: Blinn–Phong exponent.
+    pub pattern_b: [f32; 4],
+    /// x: specular ks (grey: the mean of the channels); yzw: emitted radiance.
+    pub specular_emission: [f32; 4],
+}
+
+pub struct GpuMesh {
+    pub vertices: Vec<GpuVertex>,
+    /// Vertices `0..real_count` are real, the rest virtual.
+    pub real_count: u32,
+    pub materials: Vec<GpuMaterial>,
+    /// Centre and radius of the bounding sphere of all geometry.
+    pub bounds_centre: Vec3,
+    pub bounds_radius: f32,
+}
+
+impl GpuMesh {
+    pub fn virtual_count(&self) -> u32 {
+        self.vertices.len() as u32 - self.real_count
+    }
+}
+
+fn push_triangle(out: &mut Vec<GpuVertex>, tri: &Triangle, material: u32, role: u32) {
+    let ng = tri.geometric_normal();
+    for k in 0..3 {
+        let n = tri.n.map(|n| n[k]).unwrap_or(ng);
+        out.push(GpuVertex { position: tri.p[k].to_array(), normal: n.to_array(), uv: tri.uv[k].to_array(), material, role });
+    }
+}
+
+fn sphere_triangles(centre: Vec3, radius: f32, segments: u32) -> Vec<Triangle> {
+    let (n_phi, n_theta) = (segments.max(8), (segments / 2).max(4));
+    let point = |i: u32, j: u32| {
+        let phi = 2.0 * PI * i as f32 / n_phi as f32;
+        let theta = PI * j as f32 / n_theta as f32;
+        let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+        // the CPU tracer's sphere uv: u = 0.5 + atan2(z, x) / 2π, v = acos(y) / π
+        (centre + n * radius, n, Vec2::new(0.5 + n.z.atan2(n.x) / (2.0 * PI), theta / PI))
+    };
+    let mut tris = Vec::new();
+    for j in 0..n_theta {
+        for i in 0..n_phi {
+            let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+            for (x, y, z) in [(a, c, b), (a, d, c)] {
+                let tri = Triangle { p: [x.0, y.0, z.0], n: Some([x.1, y.1, z.1]), uv: [x.2, y.2, z.2] };
+                if tri.area() > 0.0 {
+                    tris.push(tri);
+                }
+            }
+        }
+    }
+    tris
+}
+
+fn gpu_material(m: &Material) -> GpuMaterial {
+    let ks = (m.specular.x + m.specular.y + m.specular.z) / 3.0;
+    let (kind, a, b, scale, albedo) = match &m.texture {
+        None => (0.0, Vec3::ZERO, Vec3::ZERO, 0.0, m.albedo),
+        Some(Texture::Wood { light, dark, rings }) => (1.0, *light, *dark, *rings, m.albedo),
+        Some(Texture::Checker { a, b, squares }) => (2.0, *a, *b, *squares, m.albedo),
+        Some(Texture::Stripes { a, b, count }) => (3.0, *a, *b, *count, m.albedo),
+        Some(Texture::Image(img)) => (0.0, Vec3::ZERO, Vec3::ZERO, 0.0, m.albedo * img.mean()),
+    };
+    GpuMaterial {
+        albedo: [albedo.x, albedo.y, albedo.z, kind],
+        pattern_a: [a.x, a.y, a.z, scale],
+        pattern_b: [b.x, b.y, b.z, m.exponent],
+        specular_emission: [ks, m.emission.x, m.emission.y, m.emission.z],
+    }
+}
+
+/// Builds the GPU mesh of a scene.
+pub fn build(scene: &Scene) -> GpuMesh {
+    let mut real = Vec::new();
+    let mut virt = Vec::new();
+    for object in &scene.objects {
+        let (prims, material) = match (&object.proxy, object.role) {
+            (Some((prims, material)), Role::Real) => (prims, *material),
+            _ => (&object.prims, object.material),
+        };
+        let (out, role) = if object.role == Role::Real { (&mut real, 0) } else { (&mut virt, 1) };
+        for prim in prims {
+            match prim {
+                Primitive::Triangle(tri) => push_triangle(out, tri, material as u32, role),
+                Primitive::Sphere { center, radius } => {
+                    for tri in sphere_triangles(*center, *radius, 32) {
+                        push_triangle(out, &tri, material as u32, role);
+                    }
+                }
+            }
+        }
+    }
+    let real_count = real.len() as u32;
+    real.extend(virt);
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for v in &real {
+        lo = lo.min(Vec3::from_array(v.position));
+        hi = hi.max(Vec3::from_array(v.position));
+    }
+    let (bounds_centre, bounds_radius) = if real.is_empty() { (Vec3::ZERO, 1.0) } else { ((lo + hi) * 0.5, ((hi - lo) * 0.5).length().max(1e-3)) };
+    GpuMesh {
+        vertices: real,
+        real_count,
+        materials: scene.materials.iter().map(gpu_material).collect(),
+        bounds_centre,
+        bounds_radius,
+    }
+}

@@ -1,0 +1,354 @@
+//! The GPU renderer (wgpu): differential instant radiosity (thesis Section 5.2, Figure 5.3) for
+//! the `gi` factor and its lower levels.
+//!
+//! A frame runs these passes, and only those the scene and the condition need:
+//! 1. **shadow maps**: per spot light a real-only map and, when the condition casts virtual
+//!    shadows and there is virtual geometry, a virtual-only map (two maps avoid the double
+//!    shadows of Figure 5.6);
+//! 2. **RSMs** (condition `gi` only): per spot light a real-only and a virtual-only reflective
+//!    shadow map, read back, and **VPL creation** from them ([`vpl`]);
+//! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
+//!    Blinn–Phong parameters);
+//! 4. **shading and composition** ([`shade`]): L_rv and L_r by equations 5.1–5.8, then
+//!    L_final = L'_cam + TM(L_rv) − TM(L_r) with the simplified Reinhard operator x/(1+x)
+//!    (then sRGB encoding), where L'_cam is the photograph with virtual pixels masked out.
+//!
+//! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
+//! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
+//! maps (V_rv = min(V_r, V_v)); `gi` adds one bounce of indirect light from VPLs.
+//!
+//! Not built yet (issue 5): VPL visibility (imperfect shadow maps — VPLs are unshadowed, V = 1),
+//! environment and area lights (only spot and point lights are modelled), multiple bounces,
+//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, Debevec's
+//! scaled composition, glossy VPLs (VPLs reflect diffusely).
+
+pub mod context;
+pub mod mesh;
+pub mod raster;
+pub mod shade;
+pub mod vpl;
+
+use crate::error::{RenderError, Result};
+use crate::image::{Image, Mask};
+use crate::scene::Scene;
+use context::GpuContext;
+use glam::{Mat4, Vec3};
+use raster::{Raster, SceneBuffers, Subset, SurfaceTargets, ViewUniform};
+use serde::Serialize;
+use shade::{GpuLight, Shade, ShadeParams};
+use std::time::Instant;
+
+/// The level of the `gi` factor, in the three modes of the preliminary study (thesis 6.3.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Condition {
+    /// gi off: virtual objects lit directly; no shadows cast by them, no indirect light.
+    None,
+    /// Shadows of virtual objects, no indirect light.
+    Shadows,
+    /// Shadows and one bounce of indirect light exchanged between real and virtual objects.
+    Gi,
+}
+
+impl Condition {
+    pub fn parse(name: &str) -> Option<Condition> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "none" | "off" | "lq" => Some(Condition::None),
+            "shadows" => Some(Condition::Shadows),
+            "gi" => Some(Condition::Gi),
+            _ => None,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Condition::None => "none",
+            Condition::Shadows => "shadows",
+            Condition::Gi => "gi",
+        }
+    }
+}
+
+/// The knobs of a GPU frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct DirParams {
+    pub condition: Condition,
+    /// VPL budget (gi only), split over the spot lights by flux.
+    pub vpls: u32,
+    /// Resolution of each shadow map.
+    pub shadow_map_size: u32,
+    /// Resolution of each reflective shadow map (gi only).
+    pub rsm_size: u32,
+    /// Exposure applied before the tone mapping x/(1+x).
+    pub exposure: f32,
+    /// The geometry term of a VPL uses max(d², clamp²): this distance in metres.
+    pub vpl_clamp_distance: f32,
+}
+
+impl Default for DirParams {
+    fn default() -> Self {
+        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 1024, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
+    }
+}
+
+/// One pass that ran and its wall-clock time (submitted alone and waited for).
+#[derive(Clone, Debug, Serialize)]
+pub struct PassTime {
+    pub pass: String,
+    pub ms: f64,
+}
+
+/// A GPU frame's images and report.
+pub struct GpuRender {
+    /// The composite, display-encoded like the photograph.
+    pub composite: Image,
+    /// Linear L_rv and L_r.
+    pub l_rv: Image,
+    pub l_r: Image,
+    /// 1 where the camera sees a virtual object (from the G-buffer).
+    pub virtual_mask: Mask,
+    /// The VPLs the frame used.
+    pub vpls: Vec<vpl::GpuVpl>,
+    pub report: GpuReport,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct GpuReport {
+    pub adapter: String,
+    pub scene: String,
+    pub condition: Condition,
+    pub width: u32,
+    pub height: u32,
+    pub vpls: usize,
+    pub params: DirParams,
+    pub passes: Vec<PassTime>,
+    /// Sum of the pass times.
+    pub ms: f64,
+}
+
+/// The device and the compiled pipelines, reusable across frames and scenes.
+pub struct DirRenderer {
+    pub ctx: GpuContext,
+    raster: Raster,
+    shade: Shade,
+}
+
+/// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
+/// clip-space matrix (depth 0..1), so that pixel centres match the CPU tracer's.
+pub fn camera_matrix(camera: &crate::camera::Camera, near: f32, far: f32) -> Mat4 {
+    let (w, h) = (camera.width as f32, camera.height as f32);
+    let rows = [
+        [2.0 * camera.fx / w, 0.0, 1.0 - 2.0 * camera.cx / w, 0.0],
+        [0.0, 2.0 * camera.fy / h, -(1.0 - 2.0 * camera.cy / h), 0.0],
+        [0.0, 0.0, far / (near - far), near * far / (near - far)],
+        [0.0, 0.0, -1.0, 0.0],
+    ];
+    let projection = Mat4::from_cols_array_2d(&rows).transpose();
+    let view = Mat4::from_mat3(camera.rotation.transpose()) * Mat4::from_translation(-camera.position);
+    projection * view
+}
+
+/// A spot light's perspective view over the scene bounds; returns (matrix, tan of half the fov).
+fn spot_view(position: Vec3, direction: Vec3, cos_outer: f32, centre: Vec3, radius: f32) -> (Mat4, f32) {
+    let half = (cos_outer.clamp(-1.0, 1.0).acos() * 1.05 + 0.01).min(80f32.to_radians());
+    let up = if direction.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y };
+    let far = (position - centre).length() + radius * 1.5;
+    let near = (far * 1e-4).max(1e-4);
+    let f = 1.0 / half.tan();
+    let projection = Mat4::from_cols_array_2d(&[[f, 0.0, 0.0, 0.0], [0.0, f, 0.0, 0.0], [0.0, 0.0, far / (near - far), near * far / (near - far)], [0.0, 0.0, -1.0, 0.0]]).transpose();
+    (projection * look_at(position, direction, up), half.tan())
+}
+
+/// World to a right-handed view space looking down −z along `direction`.
+fn look_at(eye: Vec3, direction: Vec3, up: Vec3) -> Mat4 {
+    let f = direction.normalize();
+    let s = f.cross(up).normalize();
+    let u = s.cross(f);
+    Mat4::from_cols_array_2d(&[[s.x, s.y, s.z, -s.dot(eye)], [u.x, u.y, u.z, -u.dot(eye)], [-f.x, -f.y, -f.z, f.dot(eye)], [0.0, 0.0, 0.0, 1.0]]).transpose()
+}
+
+fn timed<T>(ctx: &GpuContext, passes: &mut Vec<PassTime>, name: String, f: impl FnOnce() -> T) -> T {
+    let start = Instant::now();
+    let out = f();
+    ctx.wait();
+    passes.push(PassTime { pass: name, ms: start.elapsed().as_secs_f64() * 1e3 });
+    out
+}
+
+fn to_image(width: u32, height: u32, texels: &[f32]) -> Image {
+    Image { width, height, pixels: texels.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect() }
+}
+
+impl DirRenderer {
+    /// Opens the GPU (see [`GpuContext::new`]) and compiles the shaders.
+    pub fn new() -> Result<DirRenderer> {
+        Ok(DirRenderer::with_context(GpuContext::new()?))
+    }
+
+    pub fn with_context(ctx: GpuContext) -> DirRenderer {
+        let raster = Raster::new(&ctx);
+        let shade = Shade::new(&ctx);
+        DirRenderer { ctx, raster, shade }
+    }
+
+    /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
+    /// scene, display-encoded, at the scene's resolution).
+    pub fn render(&self, scene: &Scene, photo: &Image, params: &DirParams) -> Result<GpuRender> {
+        self.render_frame(scene, photo, params, None)
+    }
+
+    /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7).
+    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>) -> Result<GpuRender> {
+        let ctx = &self.ctx;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        if photo.width != width || photo.height != height {
+            return Err(RenderError::SizeMismatch { a_width: width, a_height: height, b_width: photo.width, b_height: photo.height });
+        }
+        let mut passes = Vec::new();
+        let mesh = mesh::build(scene);
+        let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
+        let has_virtual = mesh.virtual_count() > 0;
+        let virtual_maps = params.condition != Condition::None && has_virtual;
+
+        // 1. shadow maps: layer 2i real-only, 2i+1 virtual-only
+        let size = params.shadow_map_size.max(16);
+        let n_lights = scene.spots.len() as u32;
+        let shadow_maps = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow maps"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: (2 * n_lights).max(2) },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: raster::DISTANCE_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let layer_view = |layer: u32| {
+            shadow_maps.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2), base_array_layer: layer, array_layer_count: Some(1), ..Default::default() })
+        };
+        let mut lights = Vec::new();
+        let mut spot_views = Vec::new();
+        for (i, spot) in scene.spots.iter().enumerate() {
+            let (matrix, tan_half) = spot_view(spot.position, spot.direction, spot.cos_outer, mesh.bounds_centre, mesh.bounds_radius);
+            let view = ViewUniform::perspective(matrix, spot.position, spot.direction);
+            let layer = 2 * i as u32;
+            timed(ctx, &mut passes, format!("shadow map {} real", spot.name), || self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size));
+            if virtual_maps {
+                timed(ctx, &mut passes, format!("shadow map {} virtual", spot.name), || self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size));
+            }
+            lights.push(GpuLight {
+                view_proj: matrix.to_cols_array_2d(),
+                position: [spot.position.x, spot.position.y, spot.position.z, if spot.real { 1.0 } else { 0.0 }],
+                direction: [spot.direction.x, spot.direction.y, spot.direction.z, spot.cos_outer],
+                intensity: [spot.intensity.x, spot.intensity.y, spot.intensity.z, spot.cos_inner],
+                info: [0.0, layer as f32, 2.0 * tan_half / size as f32, 0.0],
+            });
+            spot_views.push((view, tan_half));
+        }
+
+        // 2. RSMs and VPLs (gi only)
+        let mut vpls = Vec::new();
+        if params.condition == Condition::Gi && n_lights > 0 && params.vpls > 0 {
+            let rsm_size = params.rsm_size.max(4);
+            let mut rsms = Vec::new();
+            for (spot, (view, tan_half)) in scene.spots.iter().zip(&spot_views) {
+                let mut read = |subset: Subset| {
+                    let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
+                    let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
+                    let label = if subset == Subset::Real { "real" } else { "virtual" };
+                    timed(ctx, &mut passes, format!("RSM {} {label}", spot.name), || self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets));
+                    let position = ctx.read_texture_rgba32(&targets.position);
+                    let normal = ctx.read_texture_rgba32(&targets.normal);
+                    let albedo = ctx.read_texture_rgba32(&targets.albedo);
+                    let dist: Vec<f32> = bytemuck::cast_slice(&ctx.read_texture(&distance, 4)).to_vec();
+                    (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+                };
+                let real = read(Subset::Real);
+                let virt = if has_virtual { read(Subset::Virtual) } else { vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()] };
+                rsms.push((spot, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt }));
+            }
+            let start = Instant::now();
+            vpls = vpl::create(&rsms, params.vpls);
+            passes.push(PassTime { pass: "VPL creation (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
+        }
+
+        if let Some(given) = given_vpls {
+            vpls = given.to_vec();
+        }
+
+        // 3. G-buffer
+        let gbuffer = SurfaceTargets::new(ctx, width, height, "g-buffer");
+        let far = (scene.camera.position - mesh.bounds_centre).length() + 2.0 * mesh.bounds_radius;
+        let camera_view = ViewUniform::perspective(camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far), scene.camera.position, -scene.camera.rotation.z_axis);
+        timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
+
+        // 4. shading and composition
+        let condition_code = match params.condition {
+            Condition::None => 0,
+            Condition::Shadows => 1,
+            Condition::Gi => 2,
+        };
+        let shade_params = ShadeParams {
+            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
+            size: [width, height, n_lights, vpls.len() as u32],
+            mode: [if virtual_maps { condition_code } else { 0 }, size, 0, 0],
+            tone: [params.exposure, params.vpl_clamp_distance * params.vpl_clamp_distance, 0.0, 0.0],
+        };
+        let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
+        let output = timed(ctx, &mut passes, "shading and composition".into(), || {
+            self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels)
+        });
+        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
+        let half = solutions.len() / 2;
+        let ms = passes.iter().map(|p| p.ms).sum();
+        Ok(GpuRender {
+            composite: to_image(width, height, &composite),
+            l_rv: to_image(width, height, &solutions[..half]),
+            l_r: to_image(width, height, &solutions[half..]),
+            virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
+            vpls: vpls.clone(),
+            report: GpuReport {
+                adapter: ctx.adapter_name(),
+                scene: scene.name.clone(),
+                condition: params.condition,
+                width,
+                height,
+                vpls: vpls.len(),
+                params: params.clone(),
+                passes,
+                ms,
+            },
+        })
+    }
+}
+
+#[cfg(test)]
+mod invariants;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
+    #[test]
+    fn every_shader_parses_and_validates_with_naga() {
+        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER)] {
+            let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+            let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
+            validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+        }
+    }
+
+    #[test]
+    fn camera_matrix_projects_like_the_cpu_camera() {
+        let camera = crate::camera::Camera::from_k(128, 96, [100.0, 110.0, 60.0, 50.0], Vec3::new(0.2, 0.5, 1.0), Vec3::ZERO, Vec3::Y);
+        let m = camera_matrix(&camera, 0.01, 10.0);
+        for p in [Vec3::new(0.1, 0.0, 0.0), Vec3::new(-0.2, 0.1, 0.3)] {
+            let (u, v) = camera.project(p).unwrap();
+            let clip = m * p.extend(1.0);
+            let (x, y) = (clip.x / clip.w, clip.y / clip.w);
+            assert!(((x * 0.5 + 0.5) * 128.0 - u).abs() < 1e-3, "{x} {u}");
+            assert!(((0.5 - y * 0.5) * 96.0 - v).abs() < 1e-3, "{y} {v}");
+            assert!((0.0..1.0).contains(&(clip.z / clip.w)));
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! Rasterisation passes (shader: `raster.wgsl`): the camera's G-buffer, a light's shadow map
+//! (distance to the light only) and its reflective shadow map (distance, position, normal,
+//! albedo). Every pass draws the scene's triangle list, or its real or virtual subset.
+
+use super::context::GpuContext;
+use super::mesh::{GpuMesh, GpuVertex};
+use glam::{Mat4, Vec3};
+use wgpu::util::DeviceExt;
+
+/// G-buffer and RSM attachments: position+flag, normal+exponent, albedo+ks.
+pub const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Shadow maps store the distance to the light (spot) or along the light (directional).
+pub const DISTANCE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// A viewpoint: matches `View` in raster.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ViewUniform {
+    pub view_proj: [[f32; 4]; 4],
+    pub eye: [f32; 4],
+    pub forward: [f32; 4],
+}
+
+impl ViewUniform {
+    pub fn perspective(view_proj: Mat4, eye: Vec3, forward: Vec3) -> Self {
+        ViewUniform { view_proj: view_proj.to_cols_array_2d(), eye: [eye.x, eye.y, eye.z, 0.0], forward: [forward.x, forward.y, forward.z, 0.0] }
+    }
+    pub fn orthographic(view_proj: Mat4, origin: Vec3, forward: Vec3) -> Self {
+        ViewUniform { view_proj: view_proj.to_cols_array_2d(), eye: [origin.x, origin.y, origin.z, 1.0], forward: [forward.x, forward.y, forward.z, 0.0] }
+    }
+}
+
+/// Which triangles a pass draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subset {
+    All,
+    Real,
+    Virtual,
+}
+
+/// The scene's geometry and materials on the GPU.
+pub struct SceneBuffers {
+    pub vertices: wgpu::Buffer,
+    pub materials: wgpu::Buffer,
+    pub real_count: u32,
+    pub total_count: u32,
+}
+
+impl SceneBuffers {
+    pub fn new(ctx: &GpuContext, mesh: &GpuMesh) -> Self {
+        let mut vertices = mesh.vertices.clone();
+        if vertices.is_empty() {
+            vertices.push(bytemuck::Zeroable::zeroed());
+        }
+        let mut materials = mesh.materials.clone();
+        if materials.is_empty() {
+            materials.push(bytemuck::Zeroable::zeroed());
+        }
+        SceneBuffers {
+            vertices: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("vertices"), contents: bytemuck::cast_slice(&vertices), usage: wgpu::BufferUsages::VERTEX }),
+            materials: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("materials"), contents: bytemuck::cast_slice(&materials), usage: wgpu::BufferUsages::STORAGE }),
+            real_count: mesh.real_count,
+            total_count: mesh.vertices.len() as u32,
+        }
+    }
+
+    fn range(&self, subset: Subset) -> std::ops::Range<u32> {
+        match subset {
+            Subset::All => 0..self.total_count,
+            Subset::Real => 0..self.real_count,
+            Subset::Virtual => self.real_count..self.total_count,
+        }
+    }
+}
+
+/// The three surface attachments (G-buffer or RSM).
+pub struct SurfaceTargets {
+    pub position: wgpu::Texture,
+    pub normal: wgpu::Texture,
+    pub albedo: wgpu::Texture,
+}
+
+impl SurfaceTargets {
+    pub fn new(ctx: &GpuContext, width: u32, height: u32, label: &str) -> Self {
+        let make = |what: &str| texture_2d(ctx, width, height, SURFACE_FORMAT, &format!("{label} {what}"));
+        SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
+    }
+}
+
+pub fn texture_2d(ctx: &GpuContext, width: u32, height: u32, format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+/// The three raster pipelines, built from one shader module.
+pub struct Raster {
+    gbuffer: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+    rsm: wgpu::RenderPipeline,
+}
+
+pub const SHADER: &str = include_str!("raster.wgsl");
+
+impl Raster {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("raster.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32, 4 => Uint32];
+        let layout = wgpu::VertexBufferLayout { array_stride: std::mem::size_of::<GpuVertex>() as u64, step_mode: wgpu::VertexStepMode::Vertex, attributes: &attributes };
+        let surface = Some(wgpu::ColorTargetState { format: SURFACE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let distance = Some(wgpu::ColorTargetState { format: DISTANCE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let pipeline = |label: &str, entry: &str, targets: &[Option<wgpu::ColorTargetState>]| {
+            ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                vertex: wgpu::VertexState { module: &module, entry_point: Some("vs_main"), compilation_options: Default::default(), buffers: &[Some(layout.clone())] },
+                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState { module: &module, entry_point: Some(entry), compilation_options: Default::default(), targets }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        Raster {
+            gbuffer: pipeline("g-buffer", "fs_gbuffer", &[surface.clone(), surface.clone(), surface.clone()]),
+            shadow: pipeline("shadow map", "fs_shadow", std::slice::from_ref(&distance)),
+            rsm: pipeline("reflective shadow map", "fs_rsm", &[distance, surface.clone(), surface.clone(), surface]),
+        }
+    }
+
+    fn bind_group(&self, ctx: &GpuContext, pipeline: &wgpu::RenderPipeline, scene: &SceneBuffers, view: &ViewUniform) -> wgpu::BindGroup {
+        let uniform = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("view"), contents: bytemuck::bytes_of(view), usage: wgpu::BufferUsages::UNIFORM });
+        let layout = pipeline.get_bind_group_layout(0);
+        // fs_shadow does not read the materials, so its derived layout has no binding 1
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+        if !std::ptr::eq(pipeline, &self.shadow) {
+            entries.push(wgpu::BindGroupEntry { binding: 1, resource: scene.materials.as_entire_binding() });
+        }
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+    }
+
+    fn depth(ctx: &GpuContext, width: u32, height: u32) -> wgpu::TextureView {
+        ctx.device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("depth"),
+                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn draw(&self, ctx: &GpuContext, pipeline: &wgpu::RenderPipeline, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, size: (u32, u32), targets: &[(&wgpu::TextureView, f64)]) {
+        let bind_group = self.bind_group(ctx, pipeline, scene, view);
+        let depth = Self::depth(ctx, size.0, size.1);
+        let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
+            .iter()
+            .map(|(view, clear)| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color { r: *clear, g: *clear, b: *clear, a: *clear }), store: wgpu::StoreOp::Store },
+                })
+            })
+            .collect();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: None,
+                color_attachments: &attachments,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            let range = scene.range(subset);
+            if !range.is_empty() {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_vertex_buffer(0, scene.vertices.slice(..));
+                pass.draw(range, 0..1);
+            }
+        }
+        ctx.queue.submit([encoder.finish()]);
+    }
+
+    /// The camera's G-buffer (all geometry); position.w is 0 where nothing was drawn.
+    pub fn gbuffer(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, targets: &SurfaceTargets) {
+        let size = (targets.position.width(), targets.position.height());
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
+        self.draw(ctx, &self.gbuffer, scene, view, Subset::All, size, &[(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)]);
+    }
+
+    /// A shadow map of `subset` into `distance` (a layer view); empty texels hold 1e30.
+    pub fn shadow_map(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, distance: &wgpu::TextureView, size: u32) {
+        self.draw(ctx, &self.shadow, scene, view, subset, (size, size), &[(distance, 1e30)]);
+    }
+
+    /// A reflective shadow map: distance plus the surfaces the light sees (its own resolution,
+    /// separate from the shadow map used for visibility).
+    pub fn rsm(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, distance: &wgpu::TextureView, targets: &SurfaceTargets) {
+        let size = (targets.position.width(), targets.position.height());
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
+        self.draw(ctx, &self.rsm, scene, view, subset, size, &[(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)]);
+    }
+}

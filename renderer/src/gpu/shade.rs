@@ -1,0 +1,114 @@
+//! The shading and composition pass (shader: `shade.wgsl`): L_rv and L_r by equations 5.1–5.8
+//! from the G-buffer, the shadow maps and the VPLs, then L_final = L'_cam + TM(L_rv) − TM(L_r).
+
+use super::context::GpuContext;
+use super::raster::{SceneBuffers, SurfaceTargets};
+use super::vpl::GpuVpl;
+use wgpu::util::DeviceExt;
+
+pub const SHADER: &str = include_str!("shade.wgsl");
+
+/// Matches `Params` in shade.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ShadeParams {
+    pub camera: [f32; 4],
+    pub size: [u32; 4],
+    pub mode: [u32; 4],
+    pub tone: [f32; 4],
+}
+
+/// Matches `Light` in shade.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuLight {
+    pub view_proj: [[f32; 4]; 4],
+    pub position: [f32; 4],
+    pub direction: [f32; 4],
+    pub intensity: [f32; 4],
+    pub info: [f32; 4],
+}
+
+pub struct Shade {
+    pipeline: wgpu::ComputePipeline,
+}
+
+/// What the shading pass writes, still on the GPU.
+pub struct ShadeOutput {
+    pub composite: wgpu::Buffer,
+    /// L_rv (first width·height texels) then L_r.
+    pub solutions: wgpu::Buffer,
+}
+
+impl Shade {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shade.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("shade"),
+            layout: None,
+            module: &module,
+            entry_point: Some("cs_shade"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Shade { pipeline }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub fn run(
+        &self,
+        ctx: &GpuContext,
+        params: &ShadeParams,
+        gbuffer: &SurfaceTargets,
+        shadow_maps: &wgpu::Texture,
+        lights: &[GpuLight],
+        vpls: &[GpuVpl],
+        scene: &SceneBuffers,
+        photo: &[[f32; 4]],
+    ) -> ShadeOutput {
+        let device = &ctx.device;
+        let storage = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::STORAGE });
+        let zero_light: GpuLight = bytemuck::Zeroable::zeroed();
+        let zero_vpl: GpuVpl = bytemuck::Zeroable::zeroed();
+        let lights_buffer = storage("lights", bytemuck::cast_slice(if lights.is_empty() { std::slice::from_ref(&zero_light) } else { lights }));
+        let vpls_buffer = storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
+        let photo_buffer = storage("photo", bytemuck::cast_slice(photo));
+        let pixels = (params.size[0] * params.size[1]) as u64;
+        let output = |label: &str, texels: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: texels * 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+        };
+        let composite = output("composite", pixels);
+        let solutions = output("solutions", 2 * pixels);
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("shade params"), contents: bytemuck::bytes_of(params), usage: wgpu::BufferUsages::UNIFORM });
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (gp, gn, ga) = (view(&gbuffer.position), view(&gbuffer.normal), view(&gbuffer.albedo));
+        let shadow_view = shadow_maps.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shade"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&gp) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&gn) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&ga) },
+                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&shadow_view) },
+                wgpu::BindGroupEntry { binding: 5, resource: lights_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: vpls_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: scene.materials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 8, resource: photo_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 9, resource: composite.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 10, resource: solutions.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(params.size[0].div_ceil(8), params.size[1].div_ceil(8), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        ShadeOutput { composite, solutions }
+    }
+}

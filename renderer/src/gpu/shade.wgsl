@@ -1,0 +1,212 @@
+// The shading pass of differential instant radiosity (thesis Section 5.2, equations 5.1-5.8)
+// and the differential composition (4.16-4.17) with the simplified Reinhard tone mapping.
+// One invocation per pixel: reads the G-buffer, the real-only and virtual-only shadow maps of
+// every primary light, and the VPL buffer; writes L_rv, L_r and the composite.
+// Driven by shade.rs.
+
+struct Params {
+    camera: vec4<f32>,          // xyz: camera position
+    size: vec4<u32>,            // width, height, light count, VPL count
+    mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size
+    tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared)
+}
+
+struct Light {
+    view_proj: mat4x4<f32>,
+    position: vec4<f32>,        // xyz; w: r(pl), 1 real, 0 virtual
+    direction: vec4<f32>,       // xyz: spot axis, or the direction light travels; w: cos outer
+    intensity: vec4<f32>,       // rgb: W/sr (spot) or W/m2 (directional); w: cos inner
+    info: vec4<f32>,            // x: kind (0 spot, 1 directional); y: layer of the real-only map
+                                // (the virtual-only map is the next); z: texel size (spot: at unit
+                                // distance; directional: in metres)
+}
+
+struct Vpl {
+    position: vec4<f32>,        // xyz; w: the path flag r(x) of eq. 5.9 (1: every element real)
+    normal: vec4<f32>,          // xyz; w: ir(VPL), 1: illuminates the real-only solution only
+    flux: vec4<f32>,            // rgb: reflected flux (W)
+}
+
+struct Material {
+    albedo: vec4<f32>,
+    pattern_a: vec4<f32>,
+    pattern_b: vec4<f32>,
+    specular_emission: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var g_position: texture_2d<f32>;
+@group(0) @binding(2) var g_normal: texture_2d<f32>;
+@group(0) @binding(3) var g_albedo: texture_2d<f32>;
+@group(0) @binding(4) var shadow_maps: texture_2d_array<f32>;
+@group(0) @binding(5) var<storage, read> lights: array<Light>;
+@group(0) @binding(6) var<storage, read> vpls: array<Vpl>;
+@group(0) @binding(7) var<storage, read> materials: array<Material>;
+@group(0) @binding(8) var<storage, read> photo: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read_write> composite: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r
+
+const PI: f32 = 3.14159265358979;
+
+// The BRDF of material.rs: kd/pi + ks D(h) / (4 (wi.h) max(cos i, cos o)),
+// D = (n+1)/(2 pi) cos^n(theta_h).
+fn brdf(n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>, kd: vec3<f32>, ks: f32, exponent: f32) -> vec3<f32> {
+    let co = dot(n, wo);
+    let ci = dot(n, wi);
+    if co <= 0.0 || ci <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    var f = kd / PI;
+    if ks > 0.0 {
+        let h = normalize(wo + wi);
+        let d = (exponent + 1.0) / (2.0 * PI) * pow(max(dot(n, h), 0.0), exponent);
+        f = f + vec3<f32>(ks * d / (4.0 * max(dot(wi, h), 1e-8) * max(ci, co)));
+    }
+    return f;
+}
+
+// Fraction of a 3x3 neighbourhood of the shadow map `layer` that sees `p` (normal-offset bias).
+fn visibility(light: Light, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let size = i32(params.mode.y);
+    var texel = light.info.z;
+    if light.info.x < 0.5 {
+        texel = texel * length(p - light.position.xyz);
+    }
+    let q = p + n * (1.5 * texel);
+    let clip = light.view_proj * vec4<f32>(q, 1.0);
+    if clip.w <= 0.0 {
+        return 1.0;
+    }
+    let ndc = clip.xy / clip.w;
+    if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 {
+        return 1.0;
+    }
+    var d = length(q - light.position.xyz);
+    if light.info.x > 0.5 {
+        d = dot(q - light.position.xyz, light.direction.xyz);
+    }
+    let centre = vec2<i32>(floor(vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5) * f32(size)));
+    let bias = 2.0 * texel;
+    var lit = 0.0;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let c = clamp(centre + vec2<i32>(dx, dy), vec2<i32>(0), vec2<i32>(size - 1));
+            let stored = textureLoad(shadow_maps, c, layer, 0).x;
+            lit += select(0.0, 1.0, d <= stored + bias);
+        }
+    }
+    return lit / 9.0;
+}
+
+// Radiant intensity of a spot towards `dir` (from the light): smoothstep between the cones.
+fn spot_intensity(light: Light, dir: vec3<f32>) -> vec3<f32> {
+    let c = dot(dir, light.direction.xyz);
+    let cos_inner = light.intensity.w;
+    let cos_outer = light.direction.w;
+    if c >= cos_inner {
+        return light.intensity.xyz;
+    }
+    if c <= cos_outer {
+        return vec3<f32>(0.0);
+    }
+    let t = (c - cos_outer) / (cos_inner - cos_outer);
+    return light.intensity.xyz * (t * t * (3.0 - 2.0 * t));
+}
+
+// The simplified Reinhard operator x / (1 + x) per channel, then sRGB encoding for display.
+fn srgb_encode(c: f32) -> f32 {
+    if c <= 0.0031308 {
+        return 12.92 * c;
+    }
+    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
+
+fn tone_map(l: vec3<f32>) -> vec3<f32> {
+    let x = max(l, vec3<f32>(0.0)) * params.tone.x;
+    let y = x / (vec3<f32>(1.0) + x);
+    return vec3<f32>(srgb_encode(y.x), srgb_encode(y.y), srgb_encode(y.z));
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = params.size.x;
+    let height = params.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let pix = vec2<i32>(id.xy);
+    let gp = textureLoad(g_position, pix, 0);
+    let flag = u32(gp.w + 0.5) & 3u;
+    if flag == 0u {
+        // nothing modelled here: the photograph as it is
+        composite[pixel] = photo[pixel];
+        solutions[pixel] = vec4<f32>(0.0);
+        solutions[pixel + width * height] = vec4<f32>(0.0);
+        return;
+    }
+    let material = materials[u32(gp.w + 0.5) / 4u];
+    let gn = textureLoad(g_normal, pix, 0);
+    let ga = textureLoad(g_albedo, pix, 0);
+    let p = gp.xyz;
+    let n = normalize(gn.xyz);
+    let wo = normalize(params.camera.xyz - p);
+    let kd = ga.xyz;
+    let ks = ga.w;
+    let exponent = gn.w;
+    // r(p): 1 for a real surface point
+    let r_p = select(0.0, 1.0, flag == 1u);
+    let condition = params.mode.x;
+
+    // emitters are seen directly in both solutions (real) or in L_rv only (virtual)
+    var l_rv = material.specular_emission.yzw;
+    var l_r = material.specular_emission.yzw * r_p;
+
+    // direct light from the primary lights (eqs. 5.1-5.5)
+    for (var i = 0u; i < params.size.z; i++) {
+        let light = lights[i];
+        var wi: vec3<f32>;
+        var e: vec3<f32>;
+        if light.info.x < 0.5 {
+            let to_light = light.position.xyz - p;
+            let d2 = max(dot(to_light, to_light), 1e-8);
+            wi = to_light / sqrt(d2);
+            e = spot_intensity(light, -wi) / d2;
+        } else {
+            wi = -light.direction.xyz;
+            e = light.intensity.xyz;
+        }
+        let l_o = brdf(n, wo, wi, kd, ks, exponent) * e * max(dot(n, wi), 0.0);
+        if all(l_o == vec3<f32>(0.0)) {
+            continue;
+        }
+        let layer = i32(light.info.y);
+        let v_r = visibility(light, layer, p, n);
+        var v_v = 1.0;
+        if condition >= 1u {
+            v_v = visibility(light, layer + 1, p, n);
+        }
+        let v_rv = min(v_r, v_v);                       // eq. 5.3
+        l_rv += l_o * v_rv;                             // eq. 5.1
+        l_r += l_o * (light.position.w * r_p) * v_r;    // eq. 5.2
+    }
+
+    // one indirect bounce from the VPLs (eqs. 5.6-5.8); no VPL visibility yet: V = 1
+    for (var i = 0u; i < params.size.w; i++) {
+        let vpl = vpls[i];
+        let to_vpl = vpl.position.xyz - p;
+        let d2 = max(dot(to_vpl, to_vpl), params.tone.y);   // the clamped geometry term
+        let wi = normalize(to_vpl);
+        let cos_vpl = max(dot(vpl.normal.xyz, -wi), 0.0);
+        let l_o = brdf(n, wo, wi, kd, ks, exponent) * (vpl.flux.xyz / PI) * cos_vpl * max(dot(n, wi), 0.0) / d2;
+        l_rv += l_o * (1.0 - vpl.normal.w);             // eq. 5.6
+        l_r += l_o * (vpl.position.w * r_p);            // eq. 5.7 (r(pl) folded into the path flag)
+    }
+
+    solutions[pixel] = vec4<f32>(l_rv, f32(flag)); // w: 1 real, 2 virtual surface
+    solutions[pixel + width * height] = vec4<f32>(l_r, 1.0);
+    // differential composition (4.16-4.17): the photograph, masked where a virtual object is seen
+    let cam = photo[pixel].xyz * r_p;
+    let delta = tone_map(l_rv) - tone_map(l_r);
+    composite[pixel] = vec4<f32>(clamp(cam + delta, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+}

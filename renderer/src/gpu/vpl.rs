@@ -1,0 +1,161 @@
+//! VPL creation from reflective shadow maps (thesis 5.2.7, "The Spot Light Source"). A real spot
+//! has two RSMs, real-only and virtual-only; a virtual spot too (its real-only map is then only
+//! used where no virtual surface is in front). Each RSM texel is a candidate VPL carrying the
+//! diffusely reflected flux albedo · I(ω) · dω of the light that reaches it; the flags follow
+//! section 5.2.3 and eqs. 5.9–5.10:
+//!
+//! - a real surface with nothing virtual in front: path flag r = r(pl), ir = 0;
+//! - a real surface behind a virtual one, for a real light: r = 1, ir = 1 (VPL 3 of Figure 5.7:
+//!   it exists only in the real-only solution); for a virtual light it does not exist;
+//! - a virtual surface in front (or alone): r = 0, ir = 0.
+//!
+//! The VPLs are drawn from all candidates of all spot lights together, in proportion to their
+//! flux (stratified inversion of the CDF, deterministic), and each carries flux / (N · p): the
+//! budget is thereby split over the lights by flux — the thesis's third distribution mode — and
+//! over the two RSMs by the flux they hold, with the compensation built in. The RSMs are read
+//! back and sampled on the CPU (a GPU sampler is future work).
+
+use crate::light::SpotLight;
+use crate::math::luminance;
+use glam::Vec3;
+
+/// One VPL: matches `Vpl` in shade.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuVpl {
+    /// xyz; w: the path flag (1: light and surface real).
+    pub position: [f32; 4],
+    /// xyz; w: ir(VPL) (1: only the real-only solution).
+    pub normal: [f32; 4],
+    pub flux: [f32; 4],
+}
+
+/// One RSM texel: position (w: flag + 4·material, 0 empty), normal, albedo, distance to the light.
+pub type RsmTexel = ([f32; 4], [f32; 4], [f32; 4], f32);
+
+/// The read-back RSMs of one spot light.
+pub struct RsmTexels {
+    pub size: u32,
+    /// Half-width of the light's image plane at unit distance (tan of half the field of view).
+    pub tan_half_fov: f32,
+    /// Per texel of the real-only map.
+    pub real: Vec<RsmTexel>,
+    /// The same for the virtual-only map.
+    pub virt: Vec<RsmTexel>,
+}
+
+struct Candidate {
+    vpl: GpuVpl,
+    weight: f32,
+}
+
+fn candidate(light: &SpotLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, path_flag: f32, ir: f32) -> Option<Candidate> {
+    let (position, normal, albedo, _) = texel;
+    let p = Vec3::new(position[0], position[1], position[2]);
+    let to_surface = p - light.position;
+    let dist = to_surface.length();
+    if dist <= 0.0 {
+        return None;
+    }
+    let intensity = light.intensity_towards(to_surface / dist);
+    // solid angle of the texel: pixel area on the unit image plane / (1 + x² + y²)^{3/2}
+    let (ix, iy) = ((idx as u32 % rsm.size) as f32 + 0.5, (idx as u32 / rsm.size) as f32 + 0.5);
+    let x = (2.0 * ix / rsm.size as f32 - 1.0) * rsm.tan_half_fov;
+    let y = (2.0 * iy / rsm.size as f32 - 1.0) * rsm.tan_half_fov;
+    let pixel = (2.0 * rsm.tan_half_fov / rsm.size as f32).powi(2);
+    let d_omega = pixel / (1.0 + x * x + y * y).powf(1.5);
+    let flux = Vec3::new(albedo[0], albedo[1], albedo[2]) * intensity * d_omega;
+    let weight = luminance(flux);
+    if weight <= 0.0 || !weight.is_finite() {
+        return None;
+    }
+    Some(Candidate {
+        vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] },
+        weight,
+    })
+}
+
+/// Draws `count` VPLs from the RSMs of the given spot lights.
+pub fn create(lights: &[(&SpotLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
+    let mut candidates = Vec::new();
+    for (light, rsm) in lights {
+        let r_pl = if light.real { 1.0 } else { 0.0 };
+        for idx in 0..rsm.real.len() {
+            let real = &rsm.real[idx];
+            let virt = &rsm.virt[idx];
+            let has_real = real.0[3] > 0.5;
+            let has_virt = virt.0[3] > 0.5;
+            let virtual_in_front = has_virt && (!has_real || virt.3 < real.3);
+            let found = if virtual_in_front {
+                let shadowed_real = if has_real && light.real { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
+                [candidate(light, rsm, idx, virt, 0.0, 0.0), shadowed_real]
+            } else if has_real {
+                [candidate(light, rsm, idx, real, r_pl, 0.0), None]
+            } else {
+                [None, None]
+            };
+            candidates.extend(found.into_iter().flatten());
+        }
+    }
+    let total: f64 = candidates.iter().map(|c| c.weight as f64).sum();
+    if candidates.is_empty() || total <= 0.0 || count == 0 {
+        return Vec::new();
+    }
+    let mut vpls = Vec::with_capacity(count as usize);
+    let mut cumulative = 0.0f64;
+    let mut next = 0usize;
+    for c in &candidates {
+        let p = c.weight as f64 / total;
+        cumulative += p;
+        // every stratum (k + 0.5) / count that falls into this candidate's CDF interval
+        while next < count as usize && (next as f64 + 0.5) / count as f64 <= cumulative {
+            let scale = (1.0 / (count as f64 * p)) as f32;
+            let mut vpl = c.vpl;
+            vpl.flux = [vpl.flux[0] * scale, vpl.flux[1] * scale, vpl.flux[2] * scale, 0.0];
+            vpls.push(vpl);
+            next += 1;
+        }
+    }
+    vpls
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spot(real: bool) -> SpotLight {
+        SpotLight { name: "s".into(), position: Vec3::new(0.0, 1.0, 0.0), direction: Vec3::NEG_Y, cos_inner: 0.5, cos_outer: 0.4, intensity: Vec3::ONE, real }
+    }
+
+    fn texel(y: f32, flag: f32, albedo: f32) -> RsmTexel {
+        ([0.0, y, 0.0, flag], [0.0, 1.0, 0.0, 1.0], [albedo, albedo, albedo, 0.0], 1.0 - y)
+    }
+
+    const EMPTY: RsmTexel = ([0.0; 4], [0.0; 4], [0.0; 4], 1e30);
+
+    #[test]
+    fn flux_is_conserved_and_flags_follow_section_5_2_3() {
+        // one texel: a real floor with a virtual box in front, under a real light
+        let rsm = RsmTexels { size: 1, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5)], virt: vec![texel(0.5, 2.0, 0.8)] };
+        let light = spot(true);
+        let vpls = create(&[(&light, rsm)], 64);
+        assert_eq!(vpls.len(), 64);
+        let (virt, real): (Vec<&GpuVpl>, Vec<&GpuVpl>) = vpls.iter().partition(|v| v.position[3] == 0.0);
+        assert!(virt.iter().all(|v| v.normal[3] == 0.0), "a VPL on a virtual surface lights L_rv");
+        assert!(real.iter().all(|v| v.normal[3] == 1.0), "a real VPL behind a virtual one lights L_r only");
+        // expected flux of each: albedo · I · dω; their sums are preserved by the sampling
+        let d_omega = 0.2f32 * 0.2;
+        let sum = |vs: &[&GpuVpl]| vs.iter().map(|v| v.flux[0]).sum::<f32>();
+        // stratified sampling rounds each candidate's share to whole VPLs: within 1/N
+        assert!((sum(&virt) / (0.8 * d_omega) - 1.0).abs() < 2.0 / 64.0, "{}", sum(&virt));
+        assert!((sum(&real) / (0.5 * d_omega) - 1.0).abs() < 2.0 / 64.0, "{}", sum(&real));
+    }
+
+    #[test]
+    fn virtual_light_gives_no_vpl_behind_virtual_surfaces_and_no_real_path_flag() {
+        let rsm = RsmTexels { size: 2, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY], virt: vec![texel(0.5, 2.0, 0.8), EMPTY, EMPTY, EMPTY] };
+        let light = spot(false);
+        let vpls = create(&[(&light, rsm)], 16);
+        assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0));
+    }
+}
