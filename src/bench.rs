@@ -18,7 +18,7 @@ use serde_json::{Value, json};
 pub enum Target {
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
-    /// Rendering: with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render.
+    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render.
     Render,
     /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
     Server,
@@ -39,7 +39,7 @@ pub struct BenchArgs {
     /// bench render: measure the CPU reference path tracer.
     #[arg(long)]
     reference: bool,
-    /// bench render: the scene (default survey-1).
+    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference).
     #[arg(long)]
     scene: Option<String>,
 }
@@ -49,7 +49,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         Target::Analysis => bench_analysis(args.quick)?,
         Target::Render if args.reference => crate::render::bench_reference(args.scene.as_deref(), args.quick)?,
         Target::Server => crate::serve::bench_server(args.quick)?,
-        Target::Render => anyhow::bail!("bench render needs --reference (the GPU pipeline is not built yet)"),
+        Target::Render => crate::render::bench_gpu(args.scene.as_deref(), args.quick)?,
     };
     if let Some(path) = &args.json {
         let document = json!({ "adapter": adapter, "rows": rows });

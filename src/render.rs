@@ -2,8 +2,10 @@
 //! `mrstudy-renderer`. `render --reference` writes the ground-truth composite, `--photo` the
 //! photograph of the real scene, both by the CPU reference path tracer through the scene's
 //! simulated camera; `--buffers DIR` also writes the HDR buffers, both camera images, the masks
-//! and a JSON report. Conditions (`--condition`, `--factors`) need the GPU pipeline, which is
-//! not built yet.
+//! and a JSON report. Conditions (`--condition gi|shadows|none`, `--factors gi`) render on the
+//! GPU (differential instant radiosity, `mrstudy_renderer::gpu`) over the path-traced
+//! photograph, at 1024x768 unless `--size` says otherwise; the factors `cm` and `ca` are not
+//! built yet and are refused.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -11,6 +13,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
 use mrstudy_renderer::image::save_by_extension;
 use mrstudy_renderer::metrics;
 use mrstudy_renderer::pathtracer::{Accumulator, Subset, TraceParams, World};
@@ -33,12 +36,15 @@ pub struct RenderArgs {
     /// Render the photograph (real objects only) with the reference path tracer.
     #[arg(long)]
     photo: bool,
-    /// A condition by name (GPU pipeline; not built yet).
-    #[arg(long)]
+    /// A condition by name, on the GPU: `gi` (shadows and indirect light), `shadows`, or `none`.
+    #[arg(long, conflicts_with = "factors")]
     condition: Option<String>,
-    /// Factors to switch on, e.g. `gi,ca` (GPU pipeline; not built yet).
+    /// Factors to switch on, on the GPU: `gi` (only `gi` is built; `cm` and `ca` are not yet).
     #[arg(long)]
     factors: Option<String>,
+    /// GPU: the VPL budget of the `gi` condition.
+    #[arg(long, default_value_t = 256)]
+    vpls: u32,
     /// Samples per pixel of the reference path tracer.
     #[arg(long, default_value_t = 64)]
     spp: u32,
@@ -111,8 +117,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if args.condition.is_some() || args.factors.is_some() || !(args.reference || args.photo) {
-        bail!("rendering conditions needs the GPU pipeline, which is not built yet; use --reference or --photo for the CPU reference path tracer");
+    if args.condition.is_some() || args.factors.is_some() {
+        return render_condition(&args, name);
+    }
+    if !(args.reference || args.photo) {
+        bail!("say what to render: --condition gi|shadows|none (GPU), or --reference or --photo (CPU reference path tracer)");
     }
     let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
     if args.spp == 0 {
@@ -153,6 +162,68 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         report(&result.stats.warnings, result.stats.seconds, result.stats.samples_per_second, out);
     }
+    Ok(())
+}
+
+/// The `gi` level asked for by `--condition` or `--factors`.
+fn condition_of(args: &RenderArgs) -> Result<Condition> {
+    if let Some(name) = &args.condition {
+        return Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (the cm and ca factors are not built yet)"));
+    }
+    let mut condition = Condition::None;
+    for factor in args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty()) {
+        match factor {
+            "gi" => condition = Condition::Gi,
+            "cm" | "ca" => bail!("the factor `{factor}` ({}) is not built yet; only `gi` renders on the GPU so far", if factor == "cm" { "adaptive colour mapping" } else { "camera artifacts" }),
+            other => bail!("--factors: unknown factor `{other}`; expected gi (cm and ca are not built yet)"),
+        }
+    }
+    Ok(condition)
+}
+
+/// `render --condition …`: the photograph by the path tracer, then the GPU frame over it.
+fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
+    let condition = condition_of(args)?;
+    if args.reference || args.photo {
+        bail!("--condition/--factors render on the GPU; leave out --reference and --photo");
+    }
+    let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
+    if args.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let size = args.size.clone().unwrap_or_else(|| "1024x768".to_string());
+    let scene = load_scene(name, Some(&size), args.camera.as_deref())?;
+    let renderer = DirRenderer::new()?;
+    eprintln!("adapter: {}", renderer.ctx.adapter_name());
+    let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
+    let label = format!("photo {} {}x{}", scene.name, scene.camera.width, scene.camera.height);
+    let bar = progress_bar(args.spp as u64, &label);
+    let (_, photo, photo_stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
+    bar.finish_and_clear();
+    let dir_params = DirParams { condition, vpls: args.vpls, ..DirParams::default() };
+    let frame = renderer.render(&scene, &photo, &dir_params)?;
+    save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
+    if let Some(dir) = &args.buffers {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        photo.save_png(&dir.join("photo.png"))?;
+        frame.composite.save_png(&dir.join("composite.png"))?;
+        frame.l_rv.save_exr(&dir.join("l_rv.exr"))?;
+        frame.l_r.save_exr(&dir.join("l_r.exr"))?;
+        frame.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
+        write_json(&dir.join("report.json"), &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds }))?;
+    }
+    for pass in &frame.report.passes {
+        eprintln!("  {:<32} {:>9.2} ms", pass.pass, pass.ms);
+    }
+    eprintln!(
+        "wrote {} ({} condition, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
+        out.display(),
+        condition.name(),
+        frame.report.vpls,
+        photo_stats.seconds,
+        frame.report.ms,
+        frame.report.adapter
+    );
     Ok(())
 }
 
@@ -224,4 +295,66 @@ pub fn bench_reference(scene_name: Option<&str>, quick: bool) -> Result<(String,
         ],
     });
     Ok((adapter, rows, vec![("render_reference.svg".to_string(), plot)]))
+}
+
+/// `mrstudy bench render` (GPU): frame time and error against the path-traced ground truth in
+/// the affected region, for the conditions none and shadows and for gi over a VPL sweep
+/// (16 … 1024). Each frame is rendered twice and the second timed (the first compiles the
+/// shaders on software adapters). Returns (adapter, rows, plots) for `bench`'s writer.
+pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
+    let names: Vec<String> = match scene_name {
+        Some(n) => vec![n.to_string()],
+        None if quick => vec!["dir-lamp-box".to_string()],
+        None => vec!["dir-lamp-box".to_string(), "dir-double-shadow".to_string(), "dir-lamp-cornell".to_string()],
+    };
+    let (w, h, ref_spp) = if quick { (96, 72, 64) } else { (256, 192, 512) };
+    let vpl_counts: &[u32] = if quick { &[16, 64, 256] } else { &[16, 32, 64, 128, 256, 512, 1024] };
+    let renderer = DirRenderer::new()?;
+    let adapter = renderer.ctx.adapter_name();
+    eprintln!("adapter: {adapter}");
+    let mut rows = Vec::new();
+    let mut plots = Vec::new();
+    println!("{:<18} {:<8} {:>6} {:>10} {:>10} {:>8}", "scene", "cond", "vpls", "ms", "rmse(aff)", "flip");
+    for name in &names {
+        let scene = load_scene(name, Some(&format!("{w}x{h}")), None)?;
+        eprintln!("{name} at {w}x{h}: reference at {ref_spp} spp …");
+        let bar = progress_bar(2 * ref_spp as u64, "reference");
+        let reference = render_reference(&scene, &ReferenceParams { spp: ref_spp, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
+        bar.finish_and_clear();
+        let affected = &reference.affected_mask;
+        let mut settings: Vec<(Condition, u32)> = vec![(Condition::None, 0), (Condition::Shadows, 0)];
+        settings.extend(vpl_counts.iter().map(|&n| (Condition::Gi, n)));
+        let mut points_rmse = Vec::new();
+        let mut points_flip = Vec::new();
+        for (condition, vpls) in settings {
+            let params = DirParams { condition, vpls, ..DirParams::default() };
+            renderer.render(&scene, &reference.photo, &params)?;
+            let frame = renderer.render(&scene, &reference.photo, &params)?;
+            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
+            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let ms = frame.report.ms;
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}", name, condition.name(), frame.report.vpls, ms, rmse, flip);
+            if condition == Condition::Gi {
+                points_rmse.push((vpls as f64, rmse));
+                points_flip.push((vpls as f64, flip));
+            }
+            rows.push(json!({
+                "scene": name, "condition": condition.name(), "vpls": vpls, "ms": ms, "rmse": rmse, "flip": flip,
+                "width": w, "height": h, "reference_spp": ref_spp, "shadow_map_size": params.shadow_map_size, "rsm_size": params.rsm_size,
+                "passes": frame.report.passes,
+            }));
+        }
+        plots.push((
+            format!("render_gpu_{name}.svg"),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("DIR gi: error against VPL count ({name}, {w}x{h}, {adapter})"),
+                x_label: "VPLs".into(),
+                y_label: "error in the affected region (display)".into(),
+                x_log: true,
+                y_log: false,
+                series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: points_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: points_flip }],
+            }),
+        ));
+    }
+    Ok((adapter, rows, plots))
 }

@@ -8,6 +8,8 @@ mod analyze;
 mod browser;
 #[path = "e2e/render.rs"]
 mod render;
+#[path = "e2e/render_gpu.rs"]
+mod render_gpu;
 #[path = "e2e/serve.rs"]
 mod serve;
 #[path = "e2e/serve_durability.rs"]

@@ -59,9 +59,7 @@ impl GpuContext {
     /// Opens the adapter chosen by `MRSTUDY_ADAPTER`, or the best one available.
     pub fn new() -> Result<GpuContext> {
         let forced = match std::env::var("MRSTUDY_ADAPTER") {
-            Ok(v) if !v.trim().is_empty() => Some(AdapterKind::parse(&v).ok_or_else(|| {
-                RenderError::Unsupported(format!("MRSTUDY_ADAPTER is `{v}`; expected hardware, software or gl"))
-            })?),
+            Ok(v) if !v.trim().is_empty() => Some(AdapterKind::parse(&v).ok_or_else(|| RenderError::Unsupported(format!("MRSTUDY_ADAPTER is `{v}`; expected hardware, software or gl")))?),
             _ => None,
         };
         GpuContext::with_kind(forced)
@@ -69,23 +67,23 @@ impl GpuContext {
 
     /// Opens an adapter of the given kind, or the best available when `None`.
     pub fn with_kind(forced: Option<AdapterKind>) -> Result<GpuContext> {
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
-        let instance = wgpu::Instance::new(desc);
-        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN | wgpu::Backends::GL));
-        let found: Vec<String> = adapters.iter().map(|a| describe(&a.get_info())).collect();
         let order = match forced {
             Some(kind) => vec![kind],
             None => vec![AdapterKind::Hardware, AdapterKind::Software, AdapterKind::Gl],
         };
-        let chosen = order.iter().find_map(|kind| {
-            // within a kind, prefer Vulkan over GL
-            let mut candidates: Vec<&wgpu::Adapter> = adapters.iter().filter(|a| AdapterKind::of(&a.get_info()) == *kind).collect();
-            candidates.sort_by_key(|a| (a.get_info().backend != wgpu::Backend::Vulkan) as u8);
-            candidates.first().map(|a| ((*a).clone(), *kind))
-        });
+        // Vulkan first; the GL backend is probed only when Vulkan has nothing of a wanted kind
+        // (probing GL without a display prints EGL complaints on headless machines)
+        let mut adapters = enumerate(wgpu::Backends::VULKAN);
+        let pick = |adapters: &[wgpu::Adapter]| order.iter().find_map(|kind| adapters.iter().find(|a| AdapterKind::of(&a.get_info()) == *kind && renders_float_targets(a)).map(|a| (a.clone(), *kind)));
+        let mut chosen = pick(&adapters);
+        if chosen.is_none() {
+            adapters.extend(enumerate(wgpu::Backends::GL));
+            chosen = pick(&adapters);
+        }
+        let found: Vec<String> =
+            adapters.iter().map(|a| if renders_float_targets(a) { describe(&a.get_info()) } else { format!("{} without 32-bit float render targets", describe(&a.get_info())) }).collect();
         let Some((adapter, kind)) = chosen else {
-            let wanted = forced.map(|k| format!("a {k} adapter")).unwrap_or_else(|| "any GPU adapter".into());
+            let wanted = forced.map(|k| format!("{k} adapter")).unwrap_or_else(|| "GPU adapter".into());
             let seen = if found.is_empty() { "none".to_string() } else { found.join("; ") };
             return Err(RenderError::Unsupported(format!(
                 "no {wanted} could be opened (adapters found: {seen}); install Mesa's lavapipe (`apt-get install mesa-vulkan-drivers`) for the software one"
@@ -166,6 +164,18 @@ impl GpuContext {
         }
         out
     }
+}
+
+/// The G-buffer and shadow maps render to `Rgba32Float` and `R32Float` (GL ES often cannot).
+fn renders_float_targets(adapter: &wgpu::Adapter) -> bool {
+    [wgpu::TextureFormat::Rgba32Float, wgpu::TextureFormat::R32Float].iter().all(|f| adapter.get_texture_format_features(*f).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT))
+}
+
+fn enumerate(backends: wgpu::Backends) -> Vec<wgpu::Adapter> {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = backends;
+    let instance = wgpu::Instance::new(desc);
+    pollster::block_on(instance.enumerate_adapters(backends))
 }
 
 fn describe(info: &wgpu::AdapterInfo) -> String {

@@ -136,21 +136,41 @@ fn deltas(render: &GpuRender, photo: &Image) -> Vec<f32> {
 fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
     let Some(r) = renderer() else { return };
     // a photograph unlike any rendering: a gradient, so that any change shows
-    let mut scene = scene_with(VIRTUAL_BOX);
-    scene.objects.retain(|o| o.role == Role::Real);
-    let mut photo = Image::new(scene.camera.width, scene.camera.height);
-    for (i, p) in photo.pixels.iter_mut().enumerate() {
-        *p = Vec3::new((i % 128) as f32 / 127.0, (i / 128) as f32 / 95.0, 0.25);
-    }
-    for condition in [Condition::None, Condition::Shadows, Condition::Gi] {
-        let out = r.render(&scene, &photo, &params(condition)).unwrap();
-        let differing = out.composite.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a != b).count();
-        assert_eq!(differing, 0, "{condition:?}: {differing} pixels differ from the photograph");
-        assert_eq!(out.l_rv.pixels, out.l_r.pixels, "{condition:?}: L_rv and L_r must be identical");
-        if condition == Condition::Gi {
-            assert!(out.report.vpls > 0, "gi made no VPLs");
+    // the test scene (a spot) and a built-in one lit by an environment map and a spot
+    let builtin = crate::scene::load("dir-lamp-box").unwrap().with_size(128, 96);
+    for mut scene in [scene_with(VIRTUAL_BOX), builtin] {
+        scene.objects.retain(|o| o.role == Role::Real);
+        let mut photo = Image::new(scene.camera.width, scene.camera.height);
+        for (i, p) in photo.pixels.iter_mut().enumerate() {
+            *p = Vec3::new((i % 128) as f32 / 127.0, (i / 128) as f32 / 95.0, 0.25);
+        }
+        for condition in [Condition::None, Condition::Shadows, Condition::Gi] {
+            let out = r.render(&scene, &photo, &params(condition)).unwrap();
+            let differing = out.composite.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a != b).count();
+            assert_eq!(differing, 0, "{condition:?}: {differing} pixels differ from the photograph");
+            assert_eq!(out.l_rv.pixels, out.l_r.pixels, "{condition:?}: L_rv and L_r must be identical");
+            if condition == Condition::Gi {
+                assert!(out.report.vpls > 0, "gi made no VPLs");
+            }
         }
     }
+}
+
+#[test]
+fn the_environment_light_casts_virtual_shadows_only_when_shadows_are_on() {
+    let Some(r) = renderer() else { return };
+    // DIR Figure 5.12: a virtual Cornell box on a real desk under environment light only
+    let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(128, 96);
+    assert!(scene.spots.is_empty());
+    let photo = grey_photo(&scene);
+    let darkened = |c: Condition| {
+        let out = r.render(&scene, &photo, &params(c)).unwrap();
+        assert!(out.report.passes.iter().any(|p| p.pass.starts_with("shadow maps environment")));
+        let d = deltas(&out, &photo);
+        (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && d[i] < -CHANGED).count()
+    };
+    assert_eq!(darkened(Condition::None), 0);
+    assert!(darkened(Condition::Shadows) > 50);
 }
 
 #[test]
@@ -296,14 +316,29 @@ fn debug_dump() {
     let dir = &std::env::temp_dir().join("gpu-debug");
     std::fs::create_dir_all(dir).unwrap();
     let wall = "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n";
-    for (name, scene) in [("box", scene_with(VIRTUAL_BOX)), ("wall", scene_with(wall)), ("double", scene_with(&format!("{REAL_BOX}{BEHIND}"))), ("floating", scene_with(&format!("{REAL_BOX}[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n")))] {
+    for (name, scene) in [
+        ("box", scene_with(VIRTUAL_BOX)),
+        ("wall", scene_with(wall)),
+        ("double", scene_with(&format!("{REAL_BOX}{BEHIND}"))),
+        (
+            "floating",
+            scene_with(&format!("{REAL_BOX}[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n")),
+        ),
+    ] {
         let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         let mut grid = vec![vec![reference.photo.clone(), reference.ground_truth.clone(), reference.affected_mask.to_image()]];
         for c in [Condition::None, Condition::Shadows, Condition::Gi] {
             let out = r.render(&scene, &reference.photo, &params(c)).unwrap();
             grid.push(vec![out.composite.clone(), out.l_rv.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(), out.l_r.map(|v| v / (Vec3::ONE + v)).linear_to_srgb()]);
             let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
-            eprintln!("{name} {:?}: sums {:.3} {:.3} {} vpls {:?}", c, sum(&out.l_rv), sum(&out.l_r), out.report.vpls, out.report.passes.iter().map(|p| format!("{} {:.1}", p.pass, p.ms)).collect::<Vec<_>>());
+            eprintln!(
+                "{name} {:?}: sums {:.3} {:.3} {} vpls {:?}",
+                c,
+                sum(&out.l_rv),
+                sum(&out.l_r),
+                out.report.vpls,
+                out.report.passes.iter().map(|p| format!("{} {:.1}", p.pass, p.ms)).collect::<Vec<_>>()
+            );
         }
         let (w, h) = (grid[0][0].width, grid[0][0].height);
         let mut sheet = Image::new(w * 3, h * grid.len() as u32);

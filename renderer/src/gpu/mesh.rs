@@ -44,6 +44,18 @@ pub struct GpuMesh {
     /// Centre and radius of the bounding sphere of all geometry.
     pub bounds_centre: Vec3,
     pub bounds_radius: f32,
+    /// The same for the virtual geometry alone (`None` without virtual objects).
+    pub virtual_bounds: Option<(Vec3, f32)>,
+}
+
+fn bounding_sphere(vertices: &[GpuVertex]) -> Option<(Vec3, f32)> {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for v in vertices {
+        lo = lo.min(Vec3::from_array(v.position));
+        hi = hi.max(Vec3::from_array(v.position));
+    }
+    if vertices.is_empty() { None } else { Some(((lo + hi) * 0.5, ((hi - lo) * 0.5).length().max(1e-3))) }
 }
 
 impl GpuMesh {
@@ -123,19 +135,8 @@ pub fn build(scene: &Scene) -> GpuMesh {
         }
     }
     let real_count = real.len() as u32;
+    let virtual_bounds = bounding_sphere(&virt);
     real.extend(virt);
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for v in &real {
-        lo = lo.min(Vec3::from_array(v.position));
-        hi = hi.max(Vec3::from_array(v.position));
-    }
-    let (bounds_centre, bounds_radius) = if real.is_empty() { (Vec3::ZERO, 1.0) } else { ((lo + hi) * 0.5, ((hi - lo) * 0.5).length().max(1e-3)) };
-    GpuMesh {
-        vertices: real,
-        real_count,
-        materials: scene.materials.iter().map(gpu_material).collect(),
-        bounds_centre,
-        bounds_radius,
-    }
+    let (bounds_centre, bounds_radius) = bounding_sphere(&real).unwrap_or((Vec3::ZERO, 1.0));
+    GpuMesh { virtual_bounds, vertices: real, real_count, materials: scene.materials.iter().map(gpu_material).collect(), bounds_centre, bounds_radius }
 }

@@ -2,9 +2,10 @@
 //! the `gi` factor and its lower levels.
 //!
 //! A frame runs these passes, and only those the scene and the condition need:
-//! 1. **shadow maps**: per spot light a real-only map and, when the condition casts virtual
-//!    shadows and there is virtual geometry, a virtual-only map (two maps avoid the double
-//!    shadows of Figure 5.6);
+//! 1. **shadow maps**: per spot light, and per directional light sampled from the environment
+//!    map (the thesis's environment VPLs on the hemisphere, used for direct light), a real-only
+//!    map and, when the condition casts virtual shadows and there is virtual geometry, a
+//!    virtual-only map (two maps avoid the double shadows of Figure 5.6);
 //! 2. **RSMs** (condition `gi` only): per spot light a real-only and a virtual-only reflective
 //!    shadow map, read back, and **VPL creation** from them ([`vpl`]);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
@@ -18,7 +19,8 @@
 //! maps (V_rv = min(V_r, V_v)); `gi` adds one bounce of indirect light from VPLs.
 //!
 //! Not built yet (issue 5): VPL visibility (imperfect shadow maps — VPLs are unshadowed, V = 1),
-//! environment and area lights (only spot and point lights are modelled), multiple bounces,
+//! indirect light from the environment (only spot lights make VPLs), area lights (emissive
+//! surfaces show in both solutions but light nothing), multiple bounces,
 //! interleaved sampling and the merge filter, temporal smoothing, motion vectors, Debevec's
 //! scaled composition, glossy VPLs (VPLs reflect diffusely).
 
@@ -74,8 +76,11 @@ pub struct DirParams {
     pub condition: Condition,
     /// VPL budget (gi only), split over the spot lights by flux.
     pub vpls: u32,
-    /// Resolution of each shadow map.
+    /// Resolution of each shadow map (spot and environment lights).
     pub shadow_map_size: u32,
+    /// Directional lights sampled from the environment map (importance by radiance), each with
+    /// its own real-only and virtual-only orthographic shadow maps; 0 ignores the environment.
+    pub env_lights: u32,
     /// Resolution of each reflective shadow map (gi only).
     pub rsm_size: u32,
     /// Exposure applied before the tone mapping x/(1+x).
@@ -86,7 +91,7 @@ pub struct DirParams {
 
 impl Default for DirParams {
     fn default() -> Self {
-        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 1024, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
+        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
     }
 }
 
@@ -158,6 +163,22 @@ fn spot_view(position: Vec3, direction: Vec3, cos_outer: f32, centre: Vec3, radi
     (projection * look_at(position, direction, up), half.tan())
 }
 
+/// Van der Corput radical inverse in base 2 (the second coordinate of a Hammersley set).
+fn radical_inverse(mut bits: u32) -> f32 {
+    bits = bits.reverse_bits();
+    bits as f32 * (1.0 / 4_294_967_296.0)
+}
+
+/// An orthographic view along `forward` covering a sphere of `radius` around `centre` across,
+/// and `depth` in front of and behind it along the light.
+fn directional_view(forward: Vec3, centre: Vec3, radius: f32, depth: f32) -> (Mat4, Vec3) {
+    let up = if forward.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y };
+    let eye = centre - forward * depth;
+    let (near, far) = (0.0, 2.0 * depth);
+    let projection = Mat4::from_cols_array_2d(&[[1.0 / radius, 0.0, 0.0, 0.0], [0.0, 1.0 / radius, 0.0, 0.0], [0.0, 0.0, -1.0 / (far - near), -near / (far - near)], [0.0, 0.0, 0.0, 1.0]]).transpose();
+    (projection * look_at(eye, forward, up), eye)
+}
+
 /// World to a right-handed view space looking down −z along `direction`.
 fn look_at(eye: Vec3, direction: Vec3, up: Vec3) -> Mat4 {
     let f = direction.normalize();
@@ -211,7 +232,20 @@ impl DirRenderer {
 
         // 1. shadow maps: layer 2i real-only, 2i+1 virtual-only
         let size = params.shadow_map_size.max(16);
-        let n_lights = scene.spots.len() as u32;
+        // the environment as directional lights: Hammersley points through the map's importance
+        // sampler, each carrying E = L / (N · pdf); they are real (r(pl) = 1)
+        let mut env_dirs = Vec::new();
+        if let Some(env) = scene.environment.as_ref().filter(|_| params.env_lights > 0) {
+            let n = params.env_lights;
+            for k in 0..n {
+                if let Some((dir, radiance, pdf)) = env.sample((k as f32 + 0.5) / n as f32, radical_inverse(k)) {
+                    if pdf > 0.0 && radiance.max_element() > 0.0 {
+                        env_dirs.push((-dir, radiance / (n as f32 * pdf)));
+                    }
+                }
+            }
+        }
+        let n_lights = (scene.spots.len() + env_dirs.len()) as u32;
         let shadow_maps = ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("shadow maps"),
             size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: (2 * n_lights).max(2) },
@@ -243,6 +277,34 @@ impl DirRenderer {
                 info: [0.0, layer as f32, 2.0 * tan_half / size as f32, 0.0],
             });
             spot_views.push((view, tan_half));
+        }
+        if !env_dirs.is_empty() {
+            // the maps cover where virtual objects can change anything: around them (3× their
+            // bounding radius, where their shadows fall), or everything without them
+            let (centre, radius) = match mesh.virtual_bounds {
+                Some((c, r)) => (c, (3.0 * r).min(mesh.bounds_radius)),
+                None => (mesh.bounds_centre, mesh.bounds_radius),
+            };
+            let depth = (mesh.bounds_centre - centre).length() + mesh.bounds_radius + 1e-3;
+            let first = lights.len() as u32;
+            timed(ctx, &mut passes, format!("shadow maps environment ({} directions{})", env_dirs.len(), if virtual_maps { ", real and virtual" } else { ", real" }), || {
+                for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
+                    let (matrix, eye) = directional_view(*forward, centre, radius, depth);
+                    let view = ViewUniform::orthographic(matrix, eye, *forward);
+                    let layer = 2 * (first + k as u32);
+                    self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size);
+                    if virtual_maps {
+                        self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size);
+                    }
+                    lights.push(GpuLight {
+                        view_proj: matrix.to_cols_array_2d(),
+                        position: [eye.x, eye.y, eye.z, 1.0],
+                        direction: [forward.x, forward.y, forward.z, 0.0],
+                        intensity: [irradiance.x, irradiance.y, irradiance.z, 0.0],
+                        info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
+                    });
+                }
+            });
         }
 
         // 2. RSMs and VPLs (gi only)
@@ -294,9 +356,7 @@ impl DirRenderer {
             tone: [params.exposure, params.vpl_clamp_distance * params.vpl_clamp_distance, 0.0, 0.0],
         };
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
-        let output = timed(ctx, &mut passes, "shading and composition".into(), || {
-            self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels)
-        });
+        let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels));
         let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
         let ms = passes.iter().map(|p| p.ms).sum();
@@ -306,17 +366,7 @@ impl DirRenderer {
             l_r: to_image(width, height, &solutions[half..]),
             virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
             vpls: vpls.clone(),
-            report: GpuReport {
-                adapter: ctx.adapter_name(),
-                scene: scene.name.clone(),
-                condition: params.condition,
-                width,
-                height,
-                vpls: vpls.len(),
-                params: params.clone(),
-                passes,
-                ms,
-            },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms },
         })
     }
 }

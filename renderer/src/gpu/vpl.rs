@@ -69,10 +69,7 @@ fn candidate(light: &SpotLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, p
     if weight <= 0.0 || !weight.is_finite() {
         return None;
     }
-    Some(Candidate {
-        vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] },
-        weight,
-    })
+    Some(Candidate { vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] }, weight })
 }
 
 /// Draws `count` VPLs from the RSMs of the given spot lights.
