@@ -54,3 +54,25 @@ fn render_refuses_factors_that_are_not_built() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("gi, shadows, none"));
 }
+
+#[test]
+fn bench_render_sweeps_vpls_and_names_the_adapter() {
+    let dir = temp_dir("bench");
+    let json = dir.join("bench.json");
+    let out = mrstudy().args(["bench", "render", "--quick", "--json"]).arg(&json).arg("--plot-dir").arg(&dir).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(doc["adapter"].as_str().is_some_and(|a| !a.is_empty()));
+    let rows = doc["rows"].as_array().unwrap();
+    let gi: Vec<&serde_json::Value> = rows.iter().filter(|r| r["condition"] == "gi").collect();
+    assert!(gi.len() >= 3, "{rows:?}");
+    for row in rows {
+        assert!(row["ms"].as_f64().unwrap() > 0.0 && row["rmse"].as_f64().unwrap().is_finite() && row["flip"].as_f64().unwrap().is_finite());
+    }
+    assert!(dir.join("render_gpu_dir-lamp-box.svg").exists());
+}
