@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use mrstudy_analysis::analysis::{Options, Screening};
-use mrstudy_analysis::plot::{EffectPoint, EffectSeries, WorthPoint, WorthSeries};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Format {
@@ -112,67 +111,15 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         Format::Table => mrstudy_analysis::table::render(&analysis),
     };
     let effects = match &args.effect_plot {
-        Some(path) => Some((path, effect_plot(&analysis).ok_or_else(|| anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns"))?)),
+        Some(path) => Some((path, analysis.effect_plot().ok_or_else(|| anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns"))?)),
         None => None,
     };
     if let Some(path) = &args.plot {
-        std::fs::write(path, worth_plot(&analysis)).with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(path, analysis.worth_plot()).with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some((path, svg)) = effects {
         std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     }
     print!("{text}");
     Ok(())
-}
-
-/// The worth plot of an analysis (and of its groups), with 95 % intervals: bootstrap where run,
-/// else Wald (λ ± 1.96·se).
-pub fn worth_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> String {
-    let conditions: Vec<String> = analysis.items.iter().map(|i| i.condition.clone()).collect();
-    let series_of = |name: &str, a: &mrstudy_analysis::analysis::Analysis| WorthSeries {
-        name: name.to_string(),
-        points: a
-            .items
-            .iter()
-            .filter_map(|item| {
-                let log_worth = item.log_worth?;
-                let (low, high) = match (item.ci, item.se) {
-                    (Some([lo, hi]), _) => (Some(lo), Some(hi)),
-                    (None, Some(se)) if se > 0.0 => (Some(log_worth - 1.96 * se), Some(log_worth + 1.96 * se)),
-                    _ => (None, None),
-                };
-                Some(WorthPoint { condition: item.condition.clone(), log_worth, low, high })
-            })
-            .collect(),
-    };
-    let mut series = vec![series_of("all", analysis)];
-    if let Some(groups) = &analysis.groups {
-        for (name, group) in groups {
-            series.push(series_of(name, group));
-        }
-    }
-    let title = format!("Worth of each condition (log scale, reference {}), 95 % intervals", analysis.reference);
-    mrstudy_analysis::plot::worth_plot(&title, &conditions, &series)
-}
-
-/// The factor-effect plot (estimates with 95 % intervals), if a factor model was fitted.
-pub fn effect_plot(analysis: &mrstudy_analysis::analysis::Analysis) -> Option<String> {
-    let covariates = analysis.covariates.as_ref()?;
-    let factors: Vec<String> = covariates.iter().map(|c| c.name.clone()).collect();
-    let series_of = |name: &str, a: &mrstudy_analysis::analysis::Analysis| EffectSeries {
-        name: name.to_string(),
-        points: a
-            .covariates
-            .iter()
-            .flatten()
-            .map(|c| EffectPoint { factor: c.name.clone(), estimate: c.estimate, low: Some(c.estimate - 1.96 * c.se), high: Some(c.estimate + 1.96 * c.se) })
-            .collect(),
-    };
-    let mut series = vec![series_of("all", analysis)];
-    if let Some(groups) = &analysis.groups {
-        for (name, group) in groups {
-            series.push(series_of(name, group));
-        }
-    }
-    Some(mrstudy_analysis::plot::effect_plot("Factor effects (logit scale), 95 % Wald intervals", &factors, &series))
 }

@@ -17,6 +17,7 @@ pub mod analysis;
 pub mod data;
 pub mod design;
 pub mod error;
+pub mod figures;
 pub mod fit;
 pub mod plot;
 pub mod pvalue;
