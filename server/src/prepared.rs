@@ -14,7 +14,7 @@ use crate::study::{IMAGE_TYPES, StimulusSource, Study, sha256_hex};
 pub enum PrepareError {
     /// The study needs the renderer for scene configuration `scene`, which cannot render
     /// conditions yet.
-    #[error("study \"{slug}\" ({file}) needs stimuli rendered under its conditions (scene configuration \"{scene}\"), which mrstudy's renderer cannot make yet (its GPU pipeline is not built)")]
+    #[error("study \"{slug}\" ({file}) needs stimuli rendered under its conditions (scene configuration \"{scene}\"), which mrstudy cannot make yet (the GPU renderer has the gi factor but not yet cm and ca, and serve does not render stimuli yet)")]
     NeedsRenderer { slug: String, file: PathBuf, scene: String },
     /// The study is a lab task study, which the web survey does not serve.
     #[error("study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey")]
