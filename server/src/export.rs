@@ -43,16 +43,10 @@ pub struct StoredCondition {
 impl StoredDefinition {
     /// The conditions CSV of DESIGN.md.
     pub fn conditions_csv(&self) -> String {
-        let mut writer = csv::Writer::from_writer(Vec::new());
-        let mut header = vec!["condition".to_string()];
-        header.extend(self.factors.iter().map(|factor| factor.name.clone()));
-        writer.write_record(&header).expect("writing to memory");
-        for condition in &self.conditions {
-            let mut row = vec![condition.name.clone()];
-            row.extend(condition.levels.iter().map(|level| format_number(*level)));
-            writer.write_record(&row).expect("writing to memory");
-        }
-        String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8")
+        crate::study::conditions_csv(
+            self.factors.iter().map(|factor| factor.name.as_str()),
+            self.conditions.iter().map(|condition| (condition.name.as_str(), condition.levels.as_slice())),
+        )
     }
 }
 
@@ -78,14 +72,6 @@ pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<StoredDefinitio
         slug: slug.to_string(),
         message: error.to_string(),
     })
-}
-
-fn format_number(value: f64) -> String {
-    if value.fract() == 0.0 && value.abs() < 1e15 {
-        format!("{}", value as i64)
-    } else {
-        format!("{value}")
-    }
 }
 
 fn value_text(value: Option<&Value>) -> String {
@@ -163,7 +149,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> Result<String, ExportE
             chosen,
             row.try_get("left_scene")?,
             row.try_get("right_scene")?,
-            format_number(row.try_get::<f64, _>("rt_ms")?),
+            crate::study::format_number(row.try_get::<f64, _>("rt_ms")?),
             row.try_get::<Option<String>, _>("shown_at")?.unwrap_or_default(),
             row.try_get("answered_at")?,
             catch_answered.to_string(),

@@ -346,24 +346,37 @@ impl Study {
 
     /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition.
     pub fn conditions_csv(&self) -> String {
-        let mut writer = csv::Writer::from_writer(Vec::new());
-        let mut header = vec!["condition".to_string()];
-        header.extend(self.factors.iter().map(|factor| factor.name.clone()));
-        writer.write_record(&header).expect("writing to memory");
-        for condition in &self.conditions {
-            let mut row = vec![condition.name.clone()];
-            row.extend(condition.levels.iter().map(|level| format_level(*level)));
-            writer.write_record(&row).expect("writing to memory");
-        }
-        String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8")
+        conditions_csv(
+            self.factors.iter().map(|factor| factor.name.as_str()),
+            self.conditions.iter().map(|condition| (condition.name.as_str(), condition.levels.as_slice())),
+        )
     }
 }
 
-fn format_level(level: f64) -> String {
-    if level.fract() == 0.0 && level.abs() < 1e15 {
-        format!("{}", level as i64)
+/// The conditions CSV of DESIGN.md from factor names and (condition, levels) rows; used for
+/// study files and for the definitions stored with a study in the database.
+pub(crate) fn conditions_csv<'a>(
+    factors: impl Iterator<Item = &'a str>,
+    conditions: impl Iterator<Item = (&'a str, &'a [f64])>,
+) -> String {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let mut header = vec!["condition".to_string()];
+    header.extend(factors.map(str::to_string));
+    writer.write_record(&header).expect("writing to memory");
+    for (name, levels) in conditions {
+        let mut row = vec![name.to_string()];
+        row.extend(levels.iter().map(|level| format_number(*level)));
+        writer.write_record(&row).expect("writing to memory");
+    }
+    String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8")
+}
+
+/// A number as CSV text: whole numbers without a decimal point.
+pub(crate) fn format_number(value: f64) -> String {
+    if value.fract() == 0.0 && value.abs() < 1e15 {
+        format!("{}", value as i64)
     } else {
-        format!("{level}")
+        format!("{value}")
     }
 }
 
