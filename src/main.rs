@@ -10,6 +10,7 @@ mod analyze;
 mod bench;
 mod render;
 mod serve;
+mod stimuli;
 
 #[derive(Parser)]
 #[command(name = "mrstudy", version, about = "Perceptual studies of mixed-reality rendering: render stimuli, run studies, analyse judgments.")]
@@ -28,6 +29,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Run the web survey server: migrate the database, load the studies, print the participant and admin links.
     Serve(serve::ServeArgs),
+    /// Render every stimulus a study needs (the photograph by the path tracer, each condition on the GPU), with a progress bar.
+    Stimuli(stimuli::StimuliArgs),
     /// Write a study's trials CSV (or JSON, or conditions CSV) from the database.
     Export(serve::ExportArgs),
 }
@@ -40,6 +43,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Serve(args) => serve::run_serve(args),
         Command::Export(args) => serve::run_export(args),
+        Command::Stimuli(args) => stimuli::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

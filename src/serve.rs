@@ -26,6 +26,7 @@ pub fn run_serve(args: ServeArgs) -> Result<()> {
         addr: args.addr,
         data_dir: args.data_dir,
         studies_dir: args.studies,
+        progress: Some(crate::stimuli::progress_bars()),
     })?;
     Ok(())
 }

@@ -122,6 +122,13 @@ impl Image {
         image::save_buffer(path, &self.to_rgb8(), self.width, self.height, image::ExtendedColorType::Rgb8)
             .map_err(|e| RenderError::Write { path: path.to_owned(), reason: e.to_string() })
     }
+    /// A display-encoded image as the bytes of an 8-bit PNG file.
+    pub fn encode_png(&self) -> Vec<u8> {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image::write_buffer_with_format(&mut bytes, &self.to_rgb8(), self.width, self.height, image::ExtendedColorType::Rgb8, image::ImageFormat::Png)
+            .expect("PNG encoding into memory of a buffer of the right size cannot fail");
+        bytes.into_inner()
+    }
     /// Writes a linear image as 32-bit float EXR.
     pub fn save_exr(&self, path: &Path) -> Result<()> {
         let data: Vec<f32> = self.pixels.iter().flat_map(|p| p.to_array()).collect();

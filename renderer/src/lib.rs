@@ -19,6 +19,8 @@
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
+//! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
+//!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
 //! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, the shading pass writing
 //!   L_rv and L_r, differential composition (WGSL beside the Rust that drives it).
 
@@ -38,6 +40,7 @@ pub mod pathtracer;
 pub mod reference;
 pub mod scene;
 pub mod sensor;
+pub mod stimulus;
 
 pub use error::RenderError;
 pub use image::{Image, Mask};

@@ -12,8 +12,8 @@
 //! everything from a data directory; [`bench`] measures the API under load. [`app`] builds the
 //! router apart from any socket, so tests drive it with `oneshot`.
 //!
-//! Studies whose stimuli must be rendered are skipped by `serve` with one warning line naming
-//! the study, until the renderer exists (see `studies/README.md`).
+//! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
+//! the path tracer, frame by the GPU renderer) into the store, only those that are missing.
 
 pub mod admin;
 pub mod analysis;
@@ -25,6 +25,7 @@ pub mod participant;
 pub mod prepared;
 pub mod schedule;
 pub mod serve;
+pub mod stimuli;
 pub mod storage;
 pub mod study;
 

@@ -1,5 +1,6 @@
 //! A study made ready to serve: its stimuli copied into the content-addressed stimulus store
-//! (`<data-dir>/stimuli/<sha256>.<ext>`), and schedules resolved to the stimulus files shown.
+//! (`<data-dir>/stimuli/<sha256>.<ext>`) — image files copied, rendered stimuli looked up in the
+//! store's index ([`crate::stimuli`]) — and schedules resolved to the stimulus files shown.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -12,10 +13,13 @@ use crate::study::{IMAGE_TYPES, StimulusSource, Study, sha256_hex};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PrepareError {
-    /// The study needs the renderer for scene configuration `scene`, which cannot render
-    /// conditions yet.
-    #[error("study \"{slug}\" ({file}) needs stimuli rendered under its conditions (scene configuration \"{scene}\"), which mrstudy cannot make yet (the GPU renderer has the gi factor but not yet cm and ca, and serve does not render stimuli yet)")]
-    NeedsRenderer { slug: String, file: PathBuf, scene: String },
+    /// Stimuli of the study that must be rendered are not in the store yet (`serve` renders
+    /// them at start-up; `mrstudy stimuli --study FILE` renders them ahead).
+    #[error("study \"{slug}\" ({file}) has {missing} stimuli still to render (scene configuration \"{scene}\" first); `mrstudy serve` renders them at start-up, `mrstudy stimuli --study {file}` ahead of it")]
+    NeedsRendering { slug: String, file: PathBuf, scene: String, missing: usize },
+    /// The rendered stimuli could not be listed (a scene or condition the renderer refuses).
+    #[error(transparent)]
+    Stimuli(#[from] crate::stimuli::StimuliError),
     /// The study is a lab task study, which the web survey does not serve.
     #[error("study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey")]
     TaskStudy { slug: String, file: PathBuf },
@@ -56,15 +60,18 @@ impl PreparedStudy {
         if study.kind == crate::study::StudyKind::Task {
             return Err(PrepareError::TaskStudy { slug: study.slug, file: study.file });
         }
+        let rendered = if study.needs_renderer() { crate::stimuli::needed(&study)? } else { Vec::new() };
         let mut stimuli = Vec::new();
-        for scene in &study.scenes {
+        for (scene_index, scene) in study.scenes.iter().enumerate() {
             match &scene.source {
                 StimulusSource::Render(_) => {
-                    return Err(PrepareError::NeedsRenderer {
-                        slug: study.slug.clone(),
-                        file: study.file.clone(),
-                        scene: scene.name.clone(),
-                    });
+                    let needed = rendered[scene_index].as_deref().unwrap_or_default();
+                    let names: Vec<Option<String>> = needed.iter().map(|needed| crate::stimuli::lookup(store, &needed.key)).collect();
+                    if names.iter().any(Option::is_none) {
+                        let missing = rendered.iter().flatten().flatten().filter(|n| crate::stimuli::lookup(store, &n.key).is_none()).count();
+                        return Err(PrepareError::NeedsRendering { slug: study.slug.clone(), file: study.file.clone(), scene: scene.name.clone(), missing });
+                    }
+                    stimuli.push(names.into_iter().flatten().collect());
                 }
                 StimulusSource::Images(paths) => {
                     stimuli.push(

@@ -2,10 +2,13 @@
 //!
 //! On start: create the data directory, open and migrate `mrstudy.db`, settle the admin token
 //! (`MRSTUDY_ADMIN_TOKEN`, else `<data-dir>/admin-token`, generated once), load and check every
-//! study file (an invalid one stops the start with its file, key and expectation), copy each
-//! study's stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and
-//! print one participant link per study and the admin link. A study whose stimuli need the
-//! renderer is skipped with one warning line naming it; the others are served.
+//! study file (an invalid one stops the start with its file, key and expectation), render the
+//! stimuli of studies that name scenes for the renderer and are not in the store yet
+//! ([`crate::stimuli`]; progress through [`ServeConfig::progress`]), copy each study's image
+//! stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and print one
+//! participant link per study and the admin link. A study whose stimuli cannot be rendered here
+//! (no GPU adapter, a factor the renderer lacks) is skipped with one warning line naming it and
+//! why; the others are served.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -16,12 +19,17 @@ use crate::storage::{OpenError, Storage};
 use crate::study::{StudyError, load_studies};
 use crate::{AppState, app};
 
+/// Told how rendering a study's stimuli goes: the study's slug and the step.
+pub type RenderProgress = Arc<dyn Fn(&str, &crate::stimuli::Progress) + Send + Sync>;
+
 /// Where and what to serve.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct ServeConfig {
     pub addr: String,
     pub data_dir: PathBuf,
     pub studies_dir: PathBuf,
+    /// Called while missing stimuli are rendered at start-up (None: quietly).
+    pub progress: Option<RenderProgress>,
 }
 
 /// Why the server could not start; each displays as one sentence.
@@ -91,8 +99,14 @@ pub struct Prepared {
     pub slugs: Vec<String>,
 }
 
-/// Opens the data directory and loads the studies (see the module doc).
+/// Opens the data directory and loads the studies (see the module doc), rendering missing
+/// stimuli quietly.
 pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, ServeError> {
+    prepare_with_progress(data_dir, studies_dir, None).await
+}
+
+/// [`prepare`], telling `progress` how rendering missing stimuli goes.
+pub async fn prepare_with_progress(data_dir: &Path, studies_dir: &Path, progress: Option<&RenderProgress>) -> Result<Prepared, ServeError> {
     std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
     let storage = Storage::open(&data_dir.join("mrstudy.db")).await?;
     let admin_token = admin_token(data_dir)?;
@@ -101,9 +115,22 @@ pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, Se
     let mut prepared = Vec::new();
     let mut skipped = Vec::new();
     for study in studies {
+        if study.needs_renderer() && study.kind != crate::study::StudyKind::Task {
+            // start-up work: rendering blocks this task, nothing is being served yet
+            let slug = study.slug.clone();
+            let report = |step: crate::stimuli::Progress| {
+                if let Some(progress) = progress {
+                    progress(&slug, &step);
+                }
+            };
+            if let Err(error) = crate::stimuli::render_missing(&study, &stimuli_dir, None, &report) {
+                skipped.push(format!("{error}; not serving it"));
+                continue;
+            }
+        }
         match PreparedStudy::prepare(study, &stimuli_dir) {
             Ok(study) => prepared.push(Arc::new(study)),
-            Err(error @ (PrepareError::NeedsRenderer { .. } | PrepareError::TaskStudy { .. })) => {
+            Err(error @ (PrepareError::NeedsRendering { .. } | PrepareError::TaskStudy { .. } | PrepareError::Stimuli(_))) => {
                 skipped.push(format!("{error}; not serving it"));
             }
             Err(error) => return Err(ServeError::Prepare(error)),
@@ -132,7 +159,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         .build()
         .map_err(ServeError::Runtime)?;
     runtime.block_on(async {
-        let prepared = prepare(&config.data_dir, &config.studies_dir).await?;
+        let prepared = prepare_with_progress(&config.data_dir, &config.studies_dir, config.progress.as_ref()).await?;
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }

@@ -194,6 +194,12 @@ pub struct RenderDefaults {
     /// Samples per pixel for path-traced parts, if the renderer needs them.
     #[serde(default)]
     pub spp: Option<u32>,
+    /// Seed of the path-traced photograph (and its camera noise).
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// VPL budget of the gi factor.
+    #[serde(default)]
+    pub vpls: Option<u32>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -739,6 +745,23 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
     {
         return Err(fail("render.size", "expected [width, height], each 1 to 8192".into()));
     }
+    if let Some(render) = &raw.render {
+        if render.spp.is_some_and(|spp| spp == 0 || spp > 65_536) {
+            return Err(fail("render.spp", "expected samples per pixel from 1 to 65536".into()));
+        }
+        if render.vpls.is_some_and(|vpls| vpls > 65_536) {
+            return Err(fail("render.vpls", "expected a VPL budget from 0 to 65536".into()));
+        }
+    }
+    // Rendered stimuli: every condition's factor levels must be ones the renderer renders.
+    if scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_))) {
+        for (index, condition) in conditions.iter().enumerate() {
+            let levels = raw.factors.iter().map(|factor| factor.name.as_str()).zip(condition.levels.iter().copied());
+            if let Err(reason) = mrstudy_renderer::stimulus::Factors::from_levels(levels) {
+                return Err(fail(&format!("conditions[{index}].levels"), format!("levels the renderer can render: {reason}")));
+            }
+        }
+    }
 
     // Design.
     let design = &raw.design;
@@ -1011,15 +1034,17 @@ consent = "c"
 instructions = "i"
 [[factors]]
 name = "gi"
+[[factors]]
+name = "ca"
 [[conditions]]
 name = "LQ"
-levels = { gi = 0 }
+levels = { gi = 0, ca = 0 }
 [[conditions]]
 name = "GI"
-levels = { gi = 1 }
+levels = { gi = 1, ca = 0 }
 [[conditions]]
 name = "HQ"
-levels = { gi = 2 }
+levels = { gi = 1, ca = 1 }
 [[scenes]]
 name = "a"
 render = "survey-1"
@@ -1034,13 +1059,22 @@ scenes = "different"
 "#;
 
     #[test]
+    fn a_level_the_renderer_cannot_render_names_the_condition_and_factor() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = write_study(dir.path(), &MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 2, ca = 1 }"));
+        let error = load_study(&file).unwrap_err();
+        assert_eq!(error.key, "conditions[2].levels");
+        assert!(error.expected.contains("`gi`") && error.expected.contains("level 2"), "{}", error.expected);
+    }
+
+    #[test]
     fn anchored_pairs_are_anchor_pairs_then_others_with_each_anchor() {
         let dir = tempfile::tempdir().unwrap();
         let study = load_study(&write_study(dir.path(), MINIMAL)).unwrap();
         assert_eq!(study.design.pairs, vec![(0, 2), (0, 1), (2, 1)]);
         assert_eq!(study.trial_count(), 6);
         assert!(study.needs_renderer());
-        assert_eq!(study.conditions_csv(), "condition,gi\nLQ,0\nGI,1\nHQ,2\n");
+        assert_eq!(study.conditions_csv(), "condition,gi,ca\nLQ,0,0\nGI,1,0\nHQ,1,1\n");
     }
 
     #[test]

@@ -13,8 +13,28 @@ pub fn binary() -> &'static str {
     env!("CARGO_BIN_EXE_mrstudy")
 }
 
-pub fn studies_dir() -> PathBuf {
+/// The repository's `studies/` folder.
+pub fn repo_studies_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")
+}
+
+/// A studies folder holding only the demo study (copied once per test process): the repository's
+/// folder also holds the thesis survey, whose 48 stimuli `serve` would render at start-up.
+pub fn studies_dir() -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("mrstudy-e2e-demo-studies-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
+        let repo = repo_studies_dir();
+        std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
+        for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
+            let path = entry.unwrap().path();
+            std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
+        }
+        dir
+    })
+    .clone()
 }
 
 /// A running `mrstudy serve`.
@@ -32,7 +52,13 @@ impl Server {
     }
 
     pub fn try_start(data_dir: &Path, addr: &str, studies: &Path) -> Result<Server, String> {
+        Server::try_start_with_env(data_dir, addr, studies, &[], Duration::from_secs(60))
+    }
+
+    /// [`Server::try_start`] with extra environment variables, waiting at most `wait`.
+    pub fn try_start_with_env(data_dir: &Path, addr: &str, studies: &Path, env: &[(&str, &str)], wait: Duration) -> Result<Server, String> {
         let mut child = Command::new(binary())
+            .envs(env.iter().copied())
             .args(["serve", "--addr", addr, "--data-dir"])
             .arg(data_dir)
             .arg("--studies")
@@ -56,7 +82,7 @@ impl Server {
                 let _ = stderr_lines.send(line);
             }
         });
-        let deadline = Instant::now() + Duration::from_secs(60);
+        let deadline = Instant::now() + wait;
         let mut base = None;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
@@ -173,23 +199,203 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
     assert!(server.admin_token.len() >= 32);
 }
 
+/// A study of two conditions (gi off and on) on one built-in scene, rendered tiny.
+pub fn write_rendered_study(dir: &Path) {
+    let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
+    let texts = &demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()];
+    let study = format!(
+        r#"slug = "rendered-mini"
+title = "Rendered"
+kind = "paired-comparison"
+question = "Which fits better?"
+
+{texts}
+[[factors]]
+name = "gi"
+
+[[conditions]]
+name = "LQ"
+levels = {{ gi = 0 }}
+
+[[conditions]]
+name = "GI"
+levels = {{ gi = 1 }}
+
+[render]
+size = [48, 36]
+spp = 2
+vpls = 16
+
+[[scenes]]
+name = "box"
+render = "dir-lamp-box"
+
+[design]
+pairs = "all"
+repetitions = 1
+scenes = "same"
+
+[completion]
+code = "MINI"
+"#
+    );
+    std::fs::write(dir.join("rendered-mini.toml"), study).unwrap();
+}
+
+fn gpu_available(server: &Result<Server, String>) -> bool {
+    match server {
+        Err(error) if error.contains("adapter") => {
+            eprintln!("skipping: no GPU adapter ({error})");
+            false
+        }
+        _ => true,
+    }
+}
+
 #[test]
-fn serve_skips_a_study_that_needs_the_renderer_with_one_warning() {
+fn serve_renders_missing_stimuli_on_first_start_and_reuses_them_after() {
     let data_dir = tempfile::tempdir().unwrap();
-    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let studies = tempfile::tempdir().unwrap();
+    write_rendered_study(studies.path());
+    let first = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path());
+    if !gpu_available(&first) {
+        return;
+    }
+    let server = first.unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let warnings: Vec<String> = server.stderr.try_iter().filter(|line| line.starts_with("warning")).collect();
+    let http = client();
+    let listed: Value = http.get(format!("{}/api/studies", server.base)).send().unwrap().json().unwrap();
+    if listed.as_array().unwrap().is_empty() && warnings.iter().any(|w| w.contains("adapter")) {
+        eprintln!("skipping: no GPU adapter ({warnings:?})");
+        return;
+    }
+    assert_eq!(listed[0]["slug"], "rendered-mini", "{listed} {warnings:?}");
+
+    // two stimuli rendered, indexed, and shown to a participant as 48×36 PNGs
+    let index = data_dir.path().join("stimuli/rendered");
+    let entries: Vec<PathBuf> = std::fs::read_dir(&index).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(entries.len(), 2, "{entries:?}");
+    let joined: Value = http
+        .post(format!("{}/api/studies/rendered-mini/participants", server.base))
+        .json(&json!({"demographics": {}}))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let next: Value = http
+        .get(format!("{}/api/participants/{}/next", server.base, joined["participant"].as_str().unwrap()))
+        .bearer_auth(joined["token"].as_str().unwrap())
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let mut images = Vec::new();
+    for side in ["left", "right"] {
+        let url = next[side]["url"].as_str().unwrap();
+        let bytes = http.get(format!("{}{url}", server.base)).send().unwrap().bytes().unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 48);
+        assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 36);
+        images.push(bytes);
+    }
+    assert_ne!(images[0], images[1], "gi on and off must differ on dir-lamp-box");
+    drop(server);
+
+    // a second start renders nothing: the index entries are untouched
+    let modified: Vec<_> = entries.iter().map(|e| std::fs::metadata(e).unwrap().modified().unwrap()).collect();
+    let again = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    let listed: Value = http.get(format!("{}/api/studies", again.base)).send().unwrap().json().unwrap();
+    assert_eq!(listed[0]["slug"], "rendered-mini");
+    let after: Vec<_> = entries.iter().map(|e| std::fs::metadata(e).unwrap().modified().unwrap()).collect();
+    assert_eq!(modified, after);
+}
+
+#[test]
+fn stimuli_renders_a_study_once_and_writes_named_copies() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_rendered_study(studies.path());
+    let run = || {
+        Command::new(binary())
+            .args(["stimuli", "--study"])
+            .arg(studies.path().join("rendered-mini.toml"))
+            .arg("--data-dir")
+            .arg(data_dir.path())
+            .arg("--out")
+            .arg(data_dir.path().join("named"))
+            .output()
+            .unwrap()
+    };
+    let first = run();
+    let stderr = String::from_utf8_lossy(&first.stderr);
+    if !first.status.success() && stderr.contains("adapter") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(first.status.success(), "{stderr}");
+    assert!(stderr.contains("rendered 2 stimuli, 0 were already"), "{stderr}");
+    for name in ["box__LQ.png", "box__GI.png"] {
+        let bytes = std::fs::read(data_dir.path().join("named").join(name)).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG", "{name}");
+    }
+    let second = run();
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(second.status.success() && stderr.contains("rendered 0 stimuli, 2 were already"), "{stderr}");
+}
+
+#[test]
+fn serve_skips_a_rendered_study_it_cannot_render_with_one_warning() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_rendered_study(studies.path());
+    for file in ["shadows-demo.toml"] {
+        std::fs::copy(studies_dir().join(file), studies.path().join(file)).unwrap();
+    }
+    let demo_images = studies.path().join("shadows-demo");
+    std::fs::create_dir_all(&demo_images).unwrap();
+    for entry in std::fs::read_dir(studies_dir().join("shadows-demo")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, demo_images.join(path.file_name().unwrap())).unwrap();
+    }
+    // GL llvmpipe cannot render the float targets the renderer needs: no adapter here
+    let server = Server::try_start_with_env(data_dir.path(), "127.0.0.1:0", studies.path(), &[("MRSTUDY_ADAPTER", "gl")], Duration::from_secs(60)).unwrap();
     std::thread::sleep(Duration::from_millis(200));
     let warnings: Vec<String> = server.stderr.try_iter().collect();
-    let about_survey: Vec<&String> = warnings.iter().filter(|line| line.contains("web-survey")).collect();
-    assert_eq!(about_survey.len(), 1, "{warnings:?}");
-    assert!(about_survey[0].starts_with("warning: "), "{warnings:?}");
-    assert!(about_survey[0].contains("renderer"), "{warnings:?}");
+    let about: Vec<&String> = warnings.iter().filter(|line| line.contains("rendered-mini")).collect();
+    assert_eq!(about.len(), 1, "{warnings:?}");
+    assert!(about[0].starts_with("warning: ") && about[0].contains("not serving it"), "{warnings:?}");
+    let listed: Value = client().get(format!("{}/api/studies", server.base)).send().unwrap().json().unwrap();
+    assert_eq!(listed.as_array().unwrap().len(), 1);
+    assert_eq!(listed[0]["slug"], "shadows-demo");
+}
+
+#[test]
+fn a_study_with_a_factor_the_renderer_lacks_is_refused_at_load() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_rendered_study(studies.path());
+    let path = studies.path().join("rendered-mini.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replace("name = \"gi\"", "name = \"bloom\"").replace("gi = ", "bloom = ");
+    std::fs::write(&path, text).unwrap();
+    let output = Command::new(binary())
+        .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
+        .arg(data_dir.path())
+        .arg("--studies")
+        .arg(studies.path())
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("rendered-mini.toml") && stderr.contains("conditions[0].levels") && stderr.contains("`bloom`"), "{stderr}");
 }
 
 #[test]
 fn serve_refuses_an_invalid_study_file_naming_file_and_key() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(studies_dir().join("web-survey.toml")).unwrap();
+    let text = std::fs::read_to_string(repo_studies_dir().join("web-survey.toml")).unwrap();
     std::fs::write(studies.path().join("broken.toml"), text.replace("repetitions = 5", "repetitions = 0")).unwrap();
     let output = Command::new(binary())
         .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])

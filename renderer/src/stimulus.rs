@@ -1,0 +1,194 @@
+//! Stimuli: one scene configuration under one combination of factor levels, rendered the way a
+//! study shows it — the photograph of the real scene by the CPU path tracer (through the
+//! scene's simulated camera), then the GPU frame composing the virtual objects over it.
+//!
+//! The factors the renderer knows are named here, with the levels it accepts:
+//! `gi` (0: virtual objects lit directly, no shadows or indirect light; 1: shadows and indirect
+//! light by differential instant radiosity), `shadows` (1 with `gi` 0: shadows only, the middle
+//! mode of the thesis's preliminary study), `cm` (adaptive colour mapping) and `ca` (camera
+//! artifacts). A level outside these, or a factor of another name, is refused with the factor
+//! and the level named — a stimulus is never rendered with a factor silently ignored.
+//!
+//! [`StimulusSettings::fingerprint`] names everything that decides the image (the scene as
+//! TOML, size, samples, seed, VPL budget, the factor levels and [`STIMULUS_VERSION`]), so callers
+//! can cache rendered stimuli and know when one must be rendered again.
+
+use crate::error::{RenderError, Result};
+use crate::gpu::{Condition, DirParams, DirRenderer, GpuRender};
+use crate::image::Image;
+use crate::reference::{ReferenceParams, RenderStats, render_photo};
+use crate::scene::Scene;
+use serde::Serialize;
+
+/// Bumped whenever a change to the renderer changes the stimuli it makes, so cached stimuli of
+/// an older renderer are rendered again.
+pub const STIMULUS_VERSION: u32 = 1;
+
+/// The factors a stimulus is rendered under.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Factors {
+    /// The gi factor's mode: none, shadows, or shadows and indirect light.
+    pub gi: Condition,
+    /// Adaptive colour mapping on.
+    pub cm: bool,
+    /// Camera artifacts on.
+    pub ca: bool,
+}
+
+impl Factors {
+    /// Factors from `(name, level)` pairs, as a study's condition lists them. Factors not named
+    /// are off.
+    pub fn from_levels<'a>(levels: impl IntoIterator<Item = (&'a str, f64)>) -> std::result::Result<Factors, String> {
+        let (mut gi, mut shadows, mut cm, mut ca) = (false, false, false, false);
+        for (name, level) in levels {
+            let on = if level == 0.0 {
+                false
+            } else if level == 1.0 {
+                true
+            } else {
+                return Err(format!("factor `{name}` has level {level}; the renderer knows the levels 0 (off) and 1 (on)"));
+            };
+            match name {
+                "gi" => gi = on,
+                "shadows" => shadows = on,
+                "cm" => cm = on,
+                "ca" => ca = on,
+                other => return Err(format!("the renderer knows no factor `{other}` (it renders gi, shadows, cm and ca)")),
+            }
+        }
+        let gi = match (gi, shadows) {
+            (true, _) => Condition::Gi,
+            (false, true) => Condition::Shadows,
+            (false, false) => Condition::None,
+        };
+        Ok(Factors { gi, cm, ca })
+    }
+
+    /// A short label such as `gi+ca` or `none`.
+    pub fn label(&self) -> String {
+        let mut parts = Vec::new();
+        match self.gi {
+            Condition::Gi => parts.push("gi"),
+            Condition::Shadows => parts.push("shadows"),
+            Condition::None => {}
+        }
+        if self.cm {
+            parts.push("cm");
+        }
+        if self.ca {
+            parts.push("ca");
+        }
+        if parts.is_empty() { "none".into() } else { parts.join("+") }
+    }
+}
+
+/// How stimuli are rendered: size, the path tracer's samples and seed, the VPL budget.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StimulusSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel of the path-traced photograph.
+    pub spp: u32,
+    pub seed: u64,
+    pub vpls: u32,
+}
+
+impl Default for StimulusSettings {
+    fn default() -> Self {
+        StimulusSettings { width: 1024, height: 768, spp: 64, seed: 1, vpls: 256 }
+    }
+}
+
+impl StimulusSettings {
+    /// The scene at the stimulus size.
+    pub fn sized(&self, scene: Scene) -> Scene {
+        if scene.camera.width == self.width && scene.camera.height == self.height { scene } else { scene.with_size(self.width, self.height) }
+    }
+
+    /// Text naming everything that decides the stimulus of `scene` (already sized) under
+    /// `factors`; equal texts give equal images. Hash it for a cache key.
+    pub fn fingerprint(&self, scene: &Scene, factors: &Factors) -> String {
+        format!(
+            "mrstudy stimulus v{STIMULUS_VERSION}\nsize {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{}",
+            self.width,
+            self.height,
+            self.spp,
+            self.seed,
+            self.vpls,
+            factors.label(),
+            scene.desc.to_toml()
+        )
+    }
+
+    /// The photograph of the scene's real part, display-encoded (the CPU path tracer through
+    /// the scene's camera); `progress(done, total)` is called as samples complete.
+    pub fn photo(&self, scene: &Scene, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, RenderStats)> {
+        if self.spp == 0 {
+            return Err(RenderError::Unsupported("a stimulus needs at least 1 sample per pixel for its photograph".into()));
+        }
+        let params = ReferenceParams { spp: self.spp, seed: self.seed, ..ReferenceParams::default() };
+        let (_, photo, stats) = render_photo(scene, &params, progress)?;
+        Ok((photo, stats))
+    }
+
+    /// The GPU parameters of a stimulus under `factors`, or why they cannot be rendered.
+    pub fn params(&self, factors: &Factors) -> Result<DirParams> {
+        if factors.cm {
+            return Err(RenderError::Unsupported("the cm factor (adaptive colour mapping) is not built into the GPU renderer yet".into()));
+        }
+        if factors.ca {
+            return Err(RenderError::Unsupported("the ca factor (camera artifacts) is not built into the GPU renderer yet".into()));
+        }
+        Ok(DirParams { condition: factors.gi, vpls: self.vpls, ..DirParams::default() })
+    }
+
+    /// Renders one stimulus over `photo` (from [`StimulusSettings::photo`] of the same scene).
+    pub fn render(&self, renderer: &DirRenderer, scene: &Scene, photo: &Image, factors: &Factors) -> Result<GpuRender> {
+        let params = self.params(factors)?;
+        renderer.render(scene, photo, &params)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn levels(pairs: &[(&'static str, f64)]) -> std::result::Result<Factors, String> {
+        Factors::from_levels(pairs.iter().copied())
+    }
+
+    #[test]
+    fn factor_levels_map_to_the_three_gi_modes() {
+        assert_eq!(levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(), Factors { gi: Condition::None, cm: false, ca: false });
+        assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, Condition::Gi);
+        assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, Condition::Shadows);
+        assert_eq!(levels(&[("gi", 1.0), ("shadows", 1.0)]).unwrap().gi, Condition::Gi);
+        assert_eq!(levels(&[("gi", 1.0), ("cm", 1.0), ("ca", 1.0)]).unwrap().label(), "gi+cm+ca");
+        assert_eq!(levels(&[]).unwrap().label(), "none");
+    }
+
+    #[test]
+    fn unknown_factors_and_levels_are_refused_by_name() {
+        let error = levels(&[("gi", 2.0)]).unwrap_err();
+        assert!(error.contains("`gi`") && error.contains("level 2"), "{error}");
+        let error = levels(&[("bloom", 1.0)]).unwrap_err();
+        assert!(error.contains("`bloom`"), "{error}");
+        assert!(levels(&[("gi", f64::NAN)]).is_err());
+    }
+
+    #[test]
+    fn the_fingerprint_changes_with_every_input() {
+        let scene = crate::scene::load("dir-lamp-box").unwrap();
+        let settings = StimulusSettings { width: 64, height: 48, ..StimulusSettings::default() };
+        let scene = settings.sized(scene);
+        let gi = levels(&[("gi", 1.0)]).unwrap();
+        let none = levels(&[]).unwrap();
+        let base = settings.fingerprint(&scene, &gi);
+        assert_eq!(base, settings.fingerprint(&scene, &gi));
+        assert_ne!(base, settings.fingerprint(&scene, &none));
+        assert_ne!(base, StimulusSettings { spp: 2, ..settings.clone() }.fingerprint(&scene, &gi));
+        assert_ne!(base, StimulusSettings { seed: 2, ..settings.clone() }.fingerprint(&scene, &gi));
+        let other = StimulusSettings { width: 32, height: 24, ..settings.clone() };
+        assert_ne!(base, other.fingerprint(&other.sized(crate::scene::load("dir-lamp-box").unwrap()), &gi));
+    }
+}

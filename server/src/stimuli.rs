@@ -1,0 +1,256 @@
+//! Rendered stimuli: the scene configurations of a study that name a scene for the renderer
+//! (`render = "survey-1"` or a scene file) are rendered under every condition's factor levels
+//! and kept in the content-addressed stimulus store, so `serve` renders only what is missing.
+//!
+//! Each stimulus is found through an index entry `<store>/rendered/<key>` whose content is the
+//! stored file's name; the key is the SHA-256 of the renderer's fingerprint of the stimulus
+//! (scene as TOML, size, samples, seed, VPLs, factor levels, renderer version — see
+//! [`mrstudy_renderer::stimulus`]). Entries are written after their image, each by a rename, so
+//! an interrupted run leaves no entry pointing at a partial file; the next start renders what is
+//! still missing.
+
+use std::path::{Path, PathBuf};
+
+use mrstudy_renderer::gpu::DirRenderer;
+use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
+use mrstudy_renderer::RenderError;
+
+use crate::study::{StimulusSource, Study, sha256_hex};
+
+/// Why the stimuli of a study could not be rendered.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StimuliError {
+    /// A condition's factor levels are not something the renderer can render.
+    #[error("study \"{slug}\" ({file}): condition \"{condition}\": {reason}")]
+    Factors { slug: String, file: PathBuf, condition: String, reason: String },
+    /// The scene could not be loaded or rendered (the renderer's own sentence).
+    #[error("study \"{slug}\" ({file}): scene configuration \"{scene}\": {source}")]
+    Render { slug: String, file: PathBuf, scene: String, source: RenderError },
+    /// No GPU adapter could be opened (the stimuli need the GPU renderer).
+    #[error("study \"{slug}\" ({file}) needs its stimuli rendered on the GPU, and no adapter could be opened: {source}")]
+    NoGpu { slug: String, file: PathBuf, source: RenderError },
+    #[error("cannot write {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+/// One stimulus a study needs from the renderer.
+#[derive(Debug, Clone)]
+pub struct Needed {
+    pub scene_index: usize,
+    pub condition_index: usize,
+    /// Scene configuration and condition names, for messages and file names.
+    pub scene: String,
+    pub condition: String,
+    pub factors: Factors,
+    /// SHA-256 of the fingerprint: the index entry's name.
+    pub key: String,
+}
+
+/// What the progress callback is told.
+#[derive(Debug, Clone)]
+pub enum Progress {
+    /// Rendering starts: `photos` photographs and `stimuli` GPU frames to make.
+    Start { photos: usize, stimuli: usize },
+    /// A photograph's samples: `done` of `total` samples per pixel.
+    Photo { scene: String, done: u32, total: u32 },
+    /// A stimulus was rendered and stored.
+    Stimulus { scene: String, condition: String, ms: f64 },
+}
+
+/// The render settings of a study (its `[render]` table; defaults of the renderer otherwise).
+pub fn settings(study: &Study) -> StimulusSettings {
+    let defaults = StimulusSettings::default();
+    match &study.render {
+        Some(render) => StimulusSettings {
+            width: render.size[0],
+            height: render.size[1],
+            spp: render.spp.unwrap_or(defaults.spp),
+            seed: render.seed.unwrap_or(defaults.seed),
+            vpls: render.vpls.unwrap_or(defaults.vpls),
+        },
+        None => defaults,
+    }
+}
+
+/// The factors of each condition, or the first condition the renderer cannot render.
+pub fn condition_factors(study: &Study) -> Result<Vec<Factors>, StimuliError> {
+    study
+        .conditions
+        .iter()
+        .map(|condition| {
+            let levels = study.factors.iter().map(|factor| factor.name.as_str()).zip(condition.levels.iter().copied());
+            Factors::from_levels(levels).map_err(|reason| StimuliError::Factors {
+                slug: study.slug.clone(),
+                file: study.file.clone(),
+                condition: condition.name.clone(),
+                reason,
+            })
+        })
+        .collect()
+}
+
+/// The renderer's scene of a scene configuration, at the study's stimulus size.
+fn load_scene(study: &Study, scene_index: usize, render: &str, settings: &StimulusSettings) -> Result<mrstudy_renderer::Scene, StimuliError> {
+    let base = study.file.parent().unwrap_or(Path::new("."));
+    let is_builtin = mrstudy_renderer::builtin::names().any(|name| name == render);
+    let name = if is_builtin { render.to_string() } else { base.join(render).to_string_lossy().into_owned() };
+    let scene = mrstudy_renderer::scene::load(&name).map_err(|source| StimuliError::Render {
+        slug: study.slug.clone(),
+        file: study.file.clone(),
+        scene: study.scenes[scene_index].name.clone(),
+        source,
+    })?;
+    Ok(settings.sized(scene))
+}
+
+fn index_path(store: &Path, key: &str) -> PathBuf {
+    store.join("rendered").join(key)
+}
+
+/// The stored file name of a rendered stimulus, if it is in the store.
+pub fn lookup(store: &Path, key: &str) -> Option<String> {
+    let name = std::fs::read_to_string(index_path(store, key)).ok()?;
+    let name = name.trim().to_string();
+    store.join(&name).is_file().then_some(name)
+}
+
+/// Every stimulus the study needs from the renderer, with its cache key, `[scene][condition]`
+/// (`None` where the scene configuration has image files).
+pub fn needed(study: &Study) -> Result<Vec<Option<Vec<Needed>>>, StimuliError> {
+    let settings = settings(study);
+    let factors = condition_factors(study)?;
+    let mut out = Vec::new();
+    for (scene_index, scene) in study.scenes.iter().enumerate() {
+        let StimulusSource::Render(render) = &scene.source else {
+            out.push(None);
+            continue;
+        };
+        let loaded = load_scene(study, scene_index, render, &settings)?;
+        out.push(Some(
+            study
+                .conditions
+                .iter()
+                .enumerate()
+                .map(|(condition_index, condition)| Needed {
+                    scene_index,
+                    condition_index,
+                    scene: scene.name.clone(),
+                    condition: condition.name.clone(),
+                    factors: factors[condition_index],
+                    key: sha256_hex(settings.fingerprint(&loaded, &factors[condition_index]).as_bytes()),
+                })
+                .collect(),
+        ));
+    }
+    Ok(out)
+}
+
+/// The stimuli of `study` not yet in `store`.
+pub fn missing(study: &Study, store: &Path) -> Result<Vec<Needed>, StimuliError> {
+    Ok(needed(study)?
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|needed| lookup(store, &needed.key).is_none())
+        .collect())
+}
+
+/// Writes `bytes` into the store as `<sha256>.<extension>` (if not there) and returns the name.
+pub fn store_bytes(bytes: &[u8], extension: &str, store: &Path) -> Result<String, std::io::Error> {
+    let name = format!("{}.{extension}", sha256_hex(bytes));
+    let target = store.join(&name);
+    if !target.exists() {
+        std::fs::create_dir_all(store)?;
+        write_atomically(&store.join(format!(".{name}.partial")), &target, bytes)?;
+    }
+    Ok(name)
+}
+
+fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(), std::io::Error> {
+    use std::io::Write;
+    let mut file = std::fs::File::create(temporary)?;
+    file.write_all(bytes)?;
+    file.sync_all()?;
+    std::fs::rename(temporary, target)
+}
+
+/// Renders the study's missing stimuli into `store`; with `copies`, also writes each rendered
+/// stimulus there as `<scene>__<condition>.png`. Returns how many were rendered.
+pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progress: &(dyn Fn(Progress) + Sync)) -> Result<usize, StimuliError> {
+    let missing = missing(study, store)?;
+    if missing.is_empty() {
+        return Ok(0);
+    }
+    let settings = settings(study);
+    // refuse factors the GPU renderer cannot render before spending time on photographs
+    for needed in &missing {
+        settings.params(&needed.factors).map_err(|source| StimuliError::Render {
+            slug: study.slug.clone(),
+            file: study.file.clone(),
+            scene: needed.scene.clone(),
+            source,
+        })?;
+    }
+    let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu { slug: study.slug.clone(), file: study.file.clone(), source })?;
+    let mut scenes: Vec<usize> = missing.iter().map(|needed| needed.scene_index).collect();
+    scenes.dedup();
+    progress(Progress::Start { photos: scenes.len(), stimuli: missing.len() });
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| StimuliError::Io { path, source }
+    };
+    std::fs::create_dir_all(store.join("rendered")).map_err(io(&store.join("rendered")))?;
+    if let Some(dir) = copies {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+    }
+    for scene_index in scenes {
+        let StimulusSource::Render(render) = &study.scenes[scene_index].source else { continue };
+        let scene_name = study.scenes[scene_index].name.clone();
+        let render_error = |source| StimuliError::Render { slug: study.slug.clone(), file: study.file.clone(), scene: scene_name.clone(), source };
+        let scene = load_scene(study, scene_index, render, &settings)?;
+        let (photo, _) = settings
+            .photo(&scene, &|done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total }))
+            .map_err(render_error)?;
+        for needed in missing.iter().filter(|needed| needed.scene_index == scene_index) {
+            let frame = settings.render(&renderer, &scene, &photo, &needed.factors).map_err(render_error)?;
+            let bytes = frame.composite.encode_png();
+            let name = store_bytes(&bytes, "png", store).map_err(io(store))?;
+            let entry = index_path(store, &needed.key);
+            write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes()).map_err(io(&entry))?;
+            if let Some(dir) = copies {
+                let copy = dir.join(format!("{}__{}.png", file_safe(&needed.scene), file_safe(&needed.condition)));
+                std::fs::write(&copy, &bytes).map_err(io(&copy))?;
+            }
+            progress(Progress::Stimulus { scene: needed.scene.clone(), condition: needed.condition.clone(), ms: frame.report.ms });
+        }
+    }
+    Ok(missing.len())
+}
+
+/// A name usable in a file name: letters, digits, `-`, `_`, `.`; anything else becomes `-`.
+fn file_safe(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '-' }).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_safe_names_keep_plain_characters_only() {
+        assert_eq!(file_safe("GI+CA"), "GI-CA");
+        assert_eq!(file_safe("survey-1"), "survey-1");
+        assert_eq!(file_safe("../x"), "..-x");
+    }
+
+    #[test]
+    fn stored_bytes_are_named_by_content_and_written_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = store_bytes(b"abc", "png", dir.path()).unwrap();
+        assert_eq!(a, format!("{}.png", sha256_hex(b"abc")));
+        assert_eq!(store_bytes(b"abc", "png", dir.path()).unwrap(), a);
+        assert_eq!(std::fs::read(dir.path().join(&a)).unwrap(), b"abc");
+        assert!(crate::prepared::stimulus_content_type(&a).is_some());
+    }
+}

@@ -1,0 +1,77 @@
+//! `mrstudy stimuli` and the start-up rendering of `mrstudy serve`: progress bars around
+//! `mrstudy_server::stimuli`, which renders a study's missing stimuli into the stimulus store.
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use anyhow::{Context, Result};
+use clap::Args;
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use mrstudy_server::stimuli::{self, Progress};
+
+#[derive(Args)]
+pub struct StimuliArgs {
+    /// The study file (TOML) whose stimuli to render.
+    #[arg(long)]
+    study: PathBuf,
+    /// Data directory whose stimulus store receives them (the one `mrstudy serve` uses).
+    #[arg(long, default_value = "./mrstudy-data")]
+    data_dir: PathBuf,
+    /// Also write every rendered stimulus here as `<scene>__<condition>.png`.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Progress bars for rendering: one for the photograph being path-traced, one for the stimuli.
+pub fn progress_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
+    let bars = MultiProgress::new();
+    let state: Mutex<Option<(ProgressBar, ProgressBar)>> = Mutex::new(None);
+    Arc::new(move |slug: &str, step: &Progress| {
+        let mut state = state.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match step {
+            Progress::Start { photos, stimuli } => {
+                let style = ProgressStyle::with_template("{msg:40} [{bar:30}] {pos}/{len} {elapsed_precise} (eta {eta})")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> ");
+                let photo = bars.add(ProgressBar::new(1).with_style(style.clone()));
+                let frames = bars.add(ProgressBar::new(*stimuli as u64).with_style(style));
+                frames.set_message(format!("{slug}: {stimuli} stimuli ({photos} photographs first)"));
+                *state = Some((photo, frames));
+            }
+            Progress::Photo { scene, done, total } => {
+                if let Some((photo, _)) = state.as_ref() {
+                    photo.set_length(*total as u64);
+                    photo.set_position(*done as u64);
+                    photo.set_message(format!("photograph {scene} (spp)"));
+                }
+            }
+            Progress::Stimulus { scene, condition, .. } => {
+                if let Some((photo, frames)) = state.as_ref() {
+                    frames.inc(1);
+                    frames.set_message(format!("{slug}: {scene} {condition}"));
+                    if frames.position() == frames.length().unwrap_or(0) {
+                        photo.finish_and_clear();
+                        frames.finish_and_clear();
+                    }
+                }
+            }
+        }
+    })
+}
+
+pub fn run(args: StimuliArgs) -> Result<()> {
+    let study = mrstudy_server::study::load_study(&args.study)?;
+    let store = args.data_dir.join("stimuli");
+    let progress = progress_bars();
+    let slug = study.slug.clone();
+    let rendered = stimuli::render_missing(&study, &store, args.out.as_deref(), &|step| progress(&slug, &step))
+        .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
+    let total: usize = stimuli::needed(&study)?.into_iter().flatten().map(|scene| scene.len()).sum();
+    eprintln!(
+        "study \"{}\": rendered {rendered} stimuli, {} were already in {} ({total} rendered stimuli in all)",
+        study.slug,
+        total - rendered,
+        store.display()
+    );
+    Ok(())
+}
