@@ -45,6 +45,12 @@ pub struct RenderArgs {
     /// GPU: the VPL budget of the `gi` condition.
     #[arg(long, default_value_t = 256)]
     vpls: u32,
+    /// GPU: resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
+    #[arg(long, default_value_t = 128)]
+    ism_size: u32,
+    /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
+    #[arg(long, default_value_t = 1024)]
+    ism_points: u32,
     /// Samples per pixel of the reference path tracer.
     #[arg(long, default_value_t = 64)]
     spp: u32,
@@ -200,7 +206,7 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
     let bar = progress_bar(args.spp as u64, &label);
     let (_, photo, photo_stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
-    let dir_params = DirParams { condition, vpls: args.vpls, ..DirParams::default() };
+    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, ..DirParams::default() };
     let frame = renderer.render(&scene, &photo, &dir_params)?;
     save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = &args.buffers {
@@ -341,9 +347,40 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
             rows.push(json!({
                 "scene": name, "condition": condition.name(), "vpls": vpls, "ms": ms, "rmse": rmse, "flip": flip,
                 "width": w, "height": h, "reference_spp": ref_spp, "shadow_map_size": params.shadow_map_size, "rsm_size": params.rsm_size,
+                "ism_size": params.ism_size, "ism_points": params.ism_points,
                 "passes": frame.report.passes,
             }));
         }
+        // ISM resolution at 256 VPLs (0: VPLs unshadowed, no ISMs made)
+        let ism_sizes: &[u32] = if quick { &[0, 64] } else { &[0, 32, 64, 128, 256] };
+        let mut ism_rmse = Vec::new();
+        let mut ism_flip = Vec::new();
+        for &ism_size in ism_sizes {
+            let params = DirParams { condition: Condition::Gi, vpls: 256, ism_size, ..DirParams::default() };
+            renderer.render(&scene, &reference.photo, &params)?;
+            let frame = renderer.render(&scene, &reference.photo, &params)?;
+            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
+            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let ism_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("ISMs")).map(|p| p.ms).sum();
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   ISM {}² ({:.1} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip, ism_size, ism_ms);
+            ism_rmse.push((ism_size.max(1) as f64, rmse));
+            ism_flip.push((ism_size.max(1) as f64, flip));
+            rows.push(json!({
+                "scene": name, "condition": "gi", "vpls": 256, "ism_size": ism_size, "ism_points": params.ism_points, "ism_ms": ism_ms,
+                "ms": frame.report.ms, "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp, "passes": frame.report.passes,
+            }));
+        }
+        plots.push((
+            format!("render_gpu_ism_{name}.svg"),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("DIR gi, 256 VPLs: error against ISM size ({name}, {w}x{h}, {adapter}; 1 = no ISMs)"),
+                x_label: "ISM size (texels per side)".into(),
+                y_label: "error in the affected region (display)".into(),
+                x_log: true,
+                y_log: false,
+                series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: ism_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: ism_flip }],
+            }),
+        ));
         plots.push((
             format!("render_gpu_{name}.svg"),
             mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {

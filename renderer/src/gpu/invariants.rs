@@ -271,7 +271,8 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let photo = grey_photo(&scene);
-    let p = params(Condition::Gi);
+    // flags only: no VPL visibility (the ISM tests below cover it)
+    let p = DirParams { ism_size: 0, ..params(Condition::Gi) };
     let vpl = |path: f32, ir: f32| GpuVpl { position: [0.2, 0.3, 0.2, path], normal: [0.0, -1.0, 0.0, ir], flux: [0.05, 0.05, 0.05, 0.0] };
     let none = r.render_frame(&scene, &photo, &p, Some(&[])).unwrap();
     let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
@@ -295,6 +296,52 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
     assert!(sum(&ir.l_r) > r0 * 1.01);
 }
 
+/// The light one real VPL straight above the origin adds to each solution at world point `at`
+/// (its render minus the render without it), as (ΔL_rv, ΔL_r) summed over the channels.
+fn vpl_light_at(r: &DirRenderer, scene: &Scene, p: &DirParams, at: Vec3) -> (f32, f32) {
+    let photo = grey_photo(scene);
+    let vpl = GpuVpl { position: [0.0, 0.4, 0.0, 1.0], normal: [0.0, -1.0, 0.0, 0.0], flux: [0.05, 0.05, 0.05, 0.0] };
+    let without = r.render_frame(scene, &photo, p, Some(&[])).unwrap();
+    let with = r.render_frame(scene, &photo, p, Some(&[vpl])).unwrap();
+    let (u, v) = scene.camera.project(at).unwrap();
+    let i = v as usize * scene.camera.width as usize + u as usize;
+    let sum = |x: Vec3| x.x + x.y + x.z;
+    (sum(with.l_rv.pixels[i] - without.l_rv.pixels[i]), sum(with.l_r.pixels[i] - without.l_r.pixels[i]))
+}
+
+#[test]
+fn imperfect_shadow_maps_shadow_a_vpl_by_the_virtual_cloud_in_l_rv_only() {
+    let Some(r) = renderer() else { return };
+    let scene = scene_with(VIRTUAL_BOX);
+    let with_isms = params(Condition::Gi);
+    // the floor just in front of the virtual box: the box hides the VPL above it
+    let shadowed = Vec3::new(0.0, 0.0, 0.1);
+    let (rv, real) = vpl_light_at(r, &scene, &with_isms, shadowed);
+    assert!(real > 1e-3, "the VPL lights the floor in the real-only solution: {real}");
+    assert!(rv < 0.2 * real, "the virtual box shadows it in L_rv: ΔL_rv {rv}, ΔL_r {real}");
+    // without ISMs the VPL is unshadowed: both solutions gain the same
+    let (rv0, real0) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..with_isms.clone() }, shadowed);
+    assert!((rv0 - real0).abs() < 1e-4 * real0.max(1e-3) + 1e-6 && (real0 - real).abs() < 0.05 * real, "{rv0} {real0} {real}");
+    // open floor away from the box: no false self-shadowing by the floor's own splats
+    let open = Vec3::new(0.25, 0.0, 0.2);
+    let (rv, real) = vpl_light_at(r, &scene, &with_isms, open);
+    let (_, unshadowed) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..with_isms.clone() }, open);
+    assert!((rv - unshadowed).abs() < 0.02 * unshadowed && (real - unshadowed).abs() < 0.02 * unshadowed, "{rv} {real} {unshadowed}");
+}
+
+#[test]
+fn imperfect_shadow_maps_shadow_a_vpl_by_the_real_cloud_in_both_solutions() {
+    let Some(r) = renderer() else { return };
+    let real_box = "[[objects]]\nname = \"real-box\"\nrole = \"real\"\nshape = \"box\"\nsize = [0.15, 0.15, 0.15]\ntranslate = [0.0, 0.075, 0.0]\nmaterial = \"white\"\n";
+    let scene = scene_with(real_box);
+    let p = params(Condition::Gi);
+    let (rv, real) = vpl_light_at(r, &scene, &p, Vec3::new(0.0, 0.0, 0.1));
+    let (_, unshadowed) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..p.clone() }, Vec3::new(0.0, 0.0, 0.1));
+    assert!(unshadowed > 1e-3);
+    assert!(real < 0.2 * unshadowed && rv < 0.2 * unshadowed, "ΔL_rv {rv}, ΔL_r {real}, unshadowed {unshadowed}");
+    assert!((rv - real).abs() < 1e-6, "a real occluder shadows both solutions alike: {rv} {real}");
+}
+
 #[test]
 fn passes_follow_the_condition() {
     let Some(r) = renderer() else { return };
@@ -307,6 +354,8 @@ fn passes_follow_the_condition() {
     assert!(shadows.iter().any(|p| p.contains("virtual")) && !shadows.iter().any(|p| p.contains("RSM")), "{shadows:?}");
     let gi = names(Condition::Gi);
     assert!(gi.iter().any(|p| p.contains("RSM")) && gi.iter().any(|p| p.contains("VPL")), "{gi:?}");
+    assert!(gi.iter().any(|p| p.starts_with("ISMs")), "{gi:?}");
+    assert!(!shadows.iter().chain(&none).any(|p| p.starts_with("ISMs")), "no ISMs without VPLs: {shadows:?}");
 }
 
 #[test]

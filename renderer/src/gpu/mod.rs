@@ -25,6 +25,7 @@
 //! scaled composition, glossy VPLs (VPLs reflect diffusely).
 
 pub mod context;
+pub mod ism;
 pub mod mesh;
 pub mod raster;
 pub mod shade;
@@ -87,11 +88,16 @@ pub struct DirParams {
     pub exposure: f32,
     /// The geometry term of a VPL uses max(d², clamp²): this distance in metres.
     pub vpl_clamp_distance: f32,
+    /// Resolution of each VPL's imperfect shadow map (its tile of the atlas); 0: VPLs are
+    /// unshadowed (V = 1), no ISMs are made.
+    pub ism_size: u32,
+    /// Points of each point cloud (real, virtual) splatted into each VPL's ISM.
+    pub ism_points: u32,
 }
 
 impl Default for DirParams {
     fn default() -> Self {
-        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
+        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05, ism_size: 128, ism_points: 1024 }
     }
 }
 
@@ -135,6 +141,7 @@ pub struct DirRenderer {
     pub ctx: GpuContext,
     raster: Raster,
     shade: Shade,
+    ism: ism::Ism,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -208,7 +215,8 @@ impl DirRenderer {
     pub fn with_context(ctx: GpuContext) -> DirRenderer {
         let raster = Raster::new(&ctx);
         let shade = Shade::new(&ctx);
-        DirRenderer { ctx, raster, shade }
+        let ism = ism::Ism::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
@@ -337,6 +345,16 @@ impl DirRenderer {
             vpls = given.to_vec();
         }
 
+        // 2b. imperfect shadow maps: VPL visibility from the real and the virtual point clouds
+        let ism_atlas = if !vpls.is_empty() && params.ism_size > 0 && params.ism_points > 0 {
+            let max_distance = 2.0 * mesh.bounds_radius * 1.01;
+            Some(timed(ctx, &mut passes, format!("ISMs ({} VPLs, {}² each, {} points per cloud)", vpls.len(), params.ism_size, params.ism_points), || {
+                self.ism.render(ctx, &mesh, &vpls, params.ism_points, params.ism_size, max_distance)
+            }))
+        } else {
+            None
+        };
+
         // 3. G-buffer
         let gbuffer = SurfaceTargets::new(ctx, width, height, "g-buffer");
         let far = (scene.camera.position - mesh.bounds_centre).length() + 2.0 * mesh.bounds_radius;
@@ -350,13 +368,18 @@ impl DirRenderer {
             Condition::Gi => 2,
         };
         let shade_params = ShadeParams {
-            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
+            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, ism_atlas.as_ref().map_or(0.0, |a| a.splat_radius[1])],
             size: [width, height, n_lights, vpls.len() as u32],
-            mode: [if virtual_maps { condition_code } else { 0 }, size, 0, 0],
-            tone: [params.exposure, params.vpl_clamp_distance * params.vpl_clamp_distance, 0.0, 0.0],
+            mode: [if virtual_maps { condition_code } else { 0 }, size, ism_atlas.as_ref().map_or(0, |a| a.tile_size), ism_atlas.as_ref().map_or(1, |a| a.tiles_per_row)],
+            tone: [
+                params.exposure,
+                params.vpl_clamp_distance * params.vpl_clamp_distance,
+                ism_atlas.as_ref().map_or(0.0, |a| a.inv_max_distance),
+                ism_atlas.as_ref().map_or(0.0, |a| a.splat_radius[0]),
+            ],
         };
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
-        let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels));
+        let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels, ism_atlas.as_ref().map(|a| &a.texture)));
         let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
         let ms = passes.iter().map(|p| p.ms).sum();
@@ -381,7 +404,7 @@ mod tests {
     /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER)] {
+        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("ism.wgsl", ism::SHADER)] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));

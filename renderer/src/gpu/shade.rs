@@ -65,6 +65,7 @@ impl Shade {
         vpls: &[GpuVpl],
         scene: &SceneBuffers,
         photo: &[[f32; 4]],
+        ism: Option<&wgpu::Texture>,
     ) -> ShadeOutput {
         let device = &ctx.device;
         let storage = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::STORAGE });
@@ -83,6 +84,25 @@ impl Shade {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (gp, gn, ga) = (view(&gbuffer.position), view(&gbuffer.normal), view(&gbuffer.albedo));
         let shadow_view = shadow_maps.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
+        // without ISMs the shader reads none (tile size 0), but the binding must exist
+        let placeholder;
+        let ism = match ism {
+            Some(texture) => texture,
+            None => {
+                placeholder = device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("no ism"),
+                    size: wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 2 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: super::ism::DEPTH_FORMAT,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                });
+                &placeholder
+            }
+        };
+        let ism_view = ism.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
         let layout = self.pipeline.get_bind_group_layout(0);
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),
@@ -99,6 +119,7 @@ impl Shade {
                 wgpu::BindGroupEntry { binding: 8, resource: photo_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 9, resource: composite.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 10, resource: solutions.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 11, resource: wgpu::BindingResource::TextureView(&ism_view) },
             ],
         });
         let mut encoder = device.create_command_encoder(&Default::default());

@@ -5,10 +5,12 @@
 // Driven by shade.rs.
 
 struct Params {
-    camera: vec4<f32>,          // xyz: camera position
+    camera: vec4<f32>,          // xyz: camera position; w: ISM splat radius of the virtual cloud (m)
     size: vec4<u32>,            // width, height, light count, VPL count
-    mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size
-    tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared)
+    mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size;
+                                // z: ISM tile size (0: no VPL visibility); w: ISM tiles per row
+    tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared);
+                                // z: 1 / the ISMs' maximum distance; w: ISM splat radius of the real cloud (m)
 }
 
 struct Light {
@@ -45,6 +47,7 @@ struct Material {
 @group(0) @binding(8) var<storage, read> photo: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> composite: array<vec4<f32>>;
 @group(0) @binding(10) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r
+@group(0) @binding(11) var ism: texture_depth_2d_array;  // layer 0: real points, 1: virtual points
 
 const PI: f32 = 3.14159265358979;
 
@@ -96,6 +99,48 @@ fn visibility(light: Light, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
         }
     }
     return lit / 9.0;
+}
+
+// An orthonormal basis around n (Duff et al. 2017), the same as ism.wgsl's.
+fn basis_x(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(1.0 + s * n.x * n.x * a, s * n.x * n.y * a, -s * n.x);
+}
+
+fn basis_y(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
+}
+
+// Visibility of VPL `index` at p from the ISM atlas `layer` (ism.wgsl's paraboloid tiles), with a
+// normal offset of a quarter of the cloud's splat radius and a depth bias of 1 % of the distance
+// (geometry-aligned splats lie in their surface's plane, so little bias is needed); 1 where no
+// ISMs were made.
+fn ism_visibility(index: u32, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let tile_size = params.mode.z;
+    if tile_size == 0u {
+        return 1.0;
+    }
+    let vpl = vpls[index];
+    let radius = select(params.tone.w, params.camera.w, layer == 1);
+    let q = p + n * (0.25 * radius);
+    let d = q - vpl.position.xyz;
+    let dist = max(length(d), 1e-6);
+    let nv = vpl.normal.xyz;
+    let local = vec3<f32>(dot(d, basis_x(nv)), dot(d, basis_y(nv)), dot(d, nv)) / dist;
+    if local.z <= 0.0 {
+        return 1.0;
+    }
+    let uv = local.xy / (1.0 + local.z);
+    let tiles = params.mode.w;
+    let tile = vec2<f32>(f32(index % tiles), f32(index / tiles));
+    let texel = vec2<i32>(floor((tile + (uv * 0.5 + vec2<f32>(0.5))) * f32(tile_size)));
+    let lo = vec2<i32>(tile) * i32(tile_size);
+    let c = clamp(texel, lo, lo + vec2<i32>(i32(tile_size) - 1));
+    let stored = textureLoad(ism, c, layer, 0);
+    return select(0.0, 1.0, dist * 0.99 * params.tone.z <= stored);
 }
 
 // Radiant intensity of a spot towards `dir` (from the light): smoothstep between the cones.
@@ -191,7 +236,8 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
         l_r += l_o * (light.position.w * r_p) * v_r;    // eq. 5.2
     }
 
-    // one indirect bounce from the VPLs (eqs. 5.6-5.8); no VPL visibility yet: V = 1
+    // one indirect bounce from the VPLs (eqs. 5.6-5.8), visibility from the ISMs: V_r from the
+    // real point cloud, V_v from the virtual one, min(V_r, V_v) for L_rv as in eq. 5.3
     for (var i = 0u; i < params.size.w; i++) {
         let vpl = vpls[i];
         let to_vpl = vpl.position.xyz - p;
@@ -199,8 +245,13 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
         let wi = normalize(to_vpl);
         let cos_vpl = max(dot(vpl.normal.xyz, -wi), 0.0);
         let l_o = brdf(n, wo, wi, kd, ks, exponent) * (vpl.flux.xyz / PI) * cos_vpl * max(dot(n, wi), 0.0) / d2;
-        l_rv += l_o * (1.0 - vpl.normal.w);             // eq. 5.6
-        l_r += l_o * (vpl.position.w * r_p);            // eq. 5.7 (r(pl) folded into the path flag)
+        if all(l_o == vec3<f32>(0.0)) {
+            continue;
+        }
+        let v_r = ism_visibility(i, 0, p, n);
+        let v_v = ism_visibility(i, 1, p, n);
+        l_rv += l_o * min(v_r, v_v) * (1.0 - vpl.normal.w);   // eq. 5.6
+        l_r += l_o * v_r * (vpl.position.w * r_p);            // eq. 5.7 (r(pl) folded into the path flag)
     }
 
     solutions[pixel] = vec4<f32>(l_rv, f32(flag)); // w: 1 real, 2 virtual surface

@@ -1,0 +1,119 @@
+// Imperfect shadow maps (Ritschel et al. 2008; thesis 5.2.4 and 5.2.8): one small hemispherical
+// depth map per VPL, all in one atlas, rendered from a point cloud instead of the triangles.
+// One instance per (VPL, point): the point is drawn on the GPU from the subset's triangles in
+// proportion to their area (stratified per VPL, rotated by a per-VPL offset, so every VPL sees
+// its own cloud spread over all surfaces), then splatted as a quad in the point's tangent plane
+// (geometry-aligned splats, 5.2.8) whose four corners are each mapped into the VPL's hemisphere
+// (paraboloid mapping of every corner, so a splat grows and shrinks with its position relative
+// to the VPL). The depth is the distance to the VPL over a scene-wide maximum. Driven by ism.rs.
+
+struct IsmParams {
+    counts: vec4<u32>,    // x: points per VPL; y: tiles per atlas row; z: tile size (texels); w: atlas size (texels)
+    subset: vec4<u32>,    // x: first triangle of the subset; y: its triangle count; z: VPL count
+    scale: vec4<f32>,     // x: 1 / maximum distance; y: splat radius (m)
+}
+
+struct Vpl {
+    position: vec4<f32>,
+    normal: vec4<f32>,
+    flux: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> params: IsmParams;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;   // 3 per triangle
+@group(0) @binding(2) var<storage, read> cdf: array<f32>;               // per subset triangle, ends at 1
+@group(0) @binding(3) var<storage, read> vpls: array<Vpl>;
+
+struct SplatOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) tile: vec2<u32>,
+}
+
+// A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
+fn pcg(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+fn unit(v: u32) -> f32 {
+    return f32(v >> 8u) * (1.0 / 16777216.0);
+}
+
+// An orthonormal basis around n (Duff et al. 2017); shade.wgsl uses the same one.
+fn basis_x(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(1.0 + s * n.x * n.x * a, s * n.x * n.y * a, -s * n.x);
+}
+
+fn basis_y(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
+}
+
+@vertex
+fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> SplatOut {
+    var out: SplatOut;
+    let per_vpl = params.counts.x;
+    let vpl_index = instance / per_vpl;
+    let k = instance % per_vpl;
+    let tiles = params.counts.y;
+    out.tile = vec2<u32>(vpl_index % tiles, vpl_index / tiles);
+
+    // the k-th of this VPL's stratified area samples
+    let rotation = unit(pcg(vpl_index * 2654435761u + 1u));
+    let u = fract((f32(k) + 0.5) / f32(per_vpl) + rotation);
+    var lo = 0u;
+    var hi = params.subset.y - 1u;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        if cdf[mid] < u {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    let triangle = params.subset.x + lo;
+    let a = positions[3u * triangle].xyz;
+    let b = positions[3u * triangle + 1u].xyz;
+    let c = positions[3u * triangle + 2u].xyz;
+    let h = pcg(instance ^ 0x9e3779b9u);
+    let r1 = sqrt(unit(h));
+    let r2 = unit(pcg(h));
+    let p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
+    var n = cross(b - a, c - a);
+    n = n / max(length(n), 1e-20);
+
+    // the splat's corner in the point's tangent plane (two triangles: corners 0 1 2, 2 1 3)
+    let corners = array<vec2<f32>, 6>(vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0));
+    let corner = corners[vertex % 6u] * params.scale.y;
+    let q = p + basis_x(n) * corner.x + basis_y(n) * corner.y;
+
+    // into the VPL's hemisphere
+    let vpl = vpls[vpl_index];
+    let nv = vpl.normal.xyz;
+    let d = q - vpl.position.xyz;
+    let dist = max(length(d), 1e-6);
+    let local = vec3<f32>(dot(d, basis_x(nv)), dot(d, basis_y(nv)), dot(d, nv)) / dist;
+    // behind the VPL's surface: nothing there can shadow its light; put it beyond the far plane
+    if local.z < -0.05 {
+        out.clip = vec4<f32>(0.0, 0.0, 2.0, 1.0);
+        return out;
+    }
+    let uv = local.xy / (1.0 + max(local.z, 0.0));
+    let texel = (vec2<f32>(out.tile) + (uv * 0.5 + vec2<f32>(0.5))) * f32(params.counts.z);
+    let ndc = texel / f32(params.counts.w) * 2.0 - vec2<f32>(1.0);
+    out.clip = vec4<f32>(ndc.x, -ndc.y, clamp(dist * params.scale.x, 0.0, 1.0), 1.0);
+    return out;
+}
+
+// Keeps a splat inside its VPL's tile.
+@fragment
+fn fs_splat(in: SplatOut) {
+    let tile = vec2<u32>(floor(in.clip.xy / f32(params.counts.z)));
+    if any(tile != in.tile) {
+        discard;
+    }
+}
