@@ -32,9 +32,8 @@ pub struct IsmAtlas {
     pub tile_size: u32,
     /// 1 / the distance that maps to depth 1.
     pub inv_max_distance: f32,
-    /// Splat radius in metres per cloud (real, virtual): about twice the area each point stands
-    /// for, so a cloud's splats close over its surfaces; the lookup offsets the receiver by a
-    /// quarter of it along its normal.
+    /// Splat (disc) radius in metres per cloud (real, virtual): discs of about twice the area
+    /// each point stands for, so a cloud's splats close over its surfaces.
     pub splat_radius: [f32; 2],
     /// Points drawn per VPL and subset (0 where the subset has no surface).
     pub points: [u32; 2],

@@ -5,7 +5,11 @@
 // its own cloud spread over all surfaces), then splatted as a quad in the point's tangent plane
 // (geometry-aligned splats, 5.2.8) whose four corners are each mapped into the VPL's hemisphere
 // (paraboloid mapping of every corner, so a splat grows and shrinks with its position relative
-// to the VPL). The depth is the distance to the VPL over a scene-wide maximum. Driven by ism.rs.
+// to the VPL). Each covered texel then intersects its own direction with the splat's plane and
+// keeps the hit only inside the splat's disc, writing the exact distance to the VPL (over a
+// scene-wide maximum) rather than a depth interpolated across the quad: a surface's own splats
+// then lie exactly in it, which keeps receivers from shadowing themselves at grazing angles.
+// Driven by ism.rs.
 
 struct IsmParams {
     counts: vec4<u32>,    // x: points per VPL; y: tiles per atlas row; z: tile size (texels); w: atlas size (texels)
@@ -27,6 +31,8 @@ struct Vpl {
 struct SplatOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) @interpolate(flat) tile: vec2<u32>,
+    @location(1) @interpolate(flat) point: vec3<f32>,
+    @location(2) @interpolate(flat) normal: vec3<f32>,
 }
 
 // A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
@@ -85,6 +91,8 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     let p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
     var n = cross(b - a, c - a);
     n = n / max(length(n), 1e-20);
+    out.point = p;
+    out.normal = n;
 
     // the splat's corner in the point's tangent plane (two triangles: corners 0 1 2, 2 1 3)
     let corners = array<vec2<f32>, 6>(vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0));
@@ -109,11 +117,37 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     return out;
 }
 
-// Keeps a splat inside its VPL's tile.
+// Keeps a splat inside its VPL's tile and its disc; writes the exact distance along the texel's
+// direction to the splat's plane.
 @fragment
-fn fs_splat(in: SplatOut) {
-    let tile = vec2<u32>(floor(in.clip.xy / f32(params.counts.z)));
+fn fs_splat(in: SplatOut) -> @builtin(frag_depth) f32 {
+    let tile_size = f32(params.counts.z);
+    let tile = vec2<u32>(floor(in.clip.xy / tile_size));
     if any(tile != in.tile) {
         discard;
     }
+    // the texel centre's direction: the inverse paraboloid mapping
+    let uv = (in.clip.xy / tile_size - vec2<f32>(in.tile)) * 2.0 - vec2<f32>(1.0);
+    let r2 = dot(uv, uv);
+    if r2 > 1.0 {
+        discard;
+    }
+    let local = vec3<f32>(2.0 * uv, 1.0 - r2) / (1.0 + r2);
+    let vpl = vpls[in.tile.y * params.counts.y + in.tile.x];
+    // the VPL's own surface (its plane through the VPL, up to half a splat radius) cannot shadow
+    // it: its discs would only cover the horizon with distances near 0
+    if abs(dot(in.point - vpl.position.xyz, in.normal)) < 0.5 * params.scale.y {
+        discard;
+    }
+    let nv = vpl.normal.xyz;
+    let dir = basis_x(nv) * local.x + basis_y(nv) * local.y + nv * local.z;
+    let denom = dot(dir, in.normal);
+    if abs(denom) < 1e-6 {
+        discard;
+    }
+    let t = dot(in.point - vpl.position.xyz, in.normal) / denom;
+    if t <= 0.0 || length(vpl.position.xyz + dir * t - in.point) > params.scale.y {
+        discard;
+    }
+    return clamp(t * params.scale.x, 0.0, 1.0);
 }

@@ -368,14 +368,14 @@ impl DirRenderer {
             Condition::Gi => 2,
         };
         let shade_params = ShadeParams {
-            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, ism_atlas.as_ref().map_or(0.0, |a| a.splat_radius[1])],
+            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
             size: [width, height, n_lights, vpls.len() as u32],
             mode: [if virtual_maps { condition_code } else { 0 }, size, ism_atlas.as_ref().map_or(0, |a| a.tile_size), ism_atlas.as_ref().map_or(1, |a| a.tiles_per_row)],
             tone: [
                 params.exposure,
                 params.vpl_clamp_distance * params.vpl_clamp_distance,
                 ism_atlas.as_ref().map_or(0.0, |a| a.inv_max_distance),
-                ism_atlas.as_ref().map_or(0.0, |a| a.splat_radius[0]),
+                0.0,
             ],
         };
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();

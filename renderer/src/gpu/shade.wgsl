@@ -5,12 +5,12 @@
 // Driven by shade.rs.
 
 struct Params {
-    camera: vec4<f32>,          // xyz: camera position; w: ISM splat radius of the virtual cloud (m)
+    camera: vec4<f32>,          // xyz: camera position
     size: vec4<u32>,            // width, height, light count, VPL count
     mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size;
                                 // z: ISM tile size (0: no VPL visibility); w: ISM tiles per row
     tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared);
-                                // z: 1 / the ISMs' maximum distance; w: ISM splat radius of the real cloud (m)
+                                // z: 1 / the ISMs' maximum distance
 }
 
 struct Light {
@@ -114,18 +114,18 @@ fn basis_y(n: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
 }
 
-// Visibility of VPL `index` at p from the ISM atlas `layer` (ism.wgsl's paraboloid tiles), with a
-// normal offset of a quarter of the cloud's splat radius and a depth bias of 1 % of the distance
-// (geometry-aligned splats lie in their surface's plane, so little bias is needed); 1 where no
-// ISMs were made.
+// Visibility of VPL `index` at p from the ISM atlas `layer` (ism.wgsl's paraboloid tiles). The
+// splats store exact distances to their surfaces' planes, so a receiver is offset along its
+// normal only by about two texels' footprint at its distance (plus 2 mm) and compared with a
+// 0.5 % depth bias; 1 where no ISMs were made.
 fn ism_visibility(index: u32, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let tile_size = params.mode.z;
     if tile_size == 0u {
         return 1.0;
     }
     let vpl = vpls[index];
-    let radius = select(params.tone.w, params.camera.w, layer == 1);
-    let q = p + n * (0.25 * radius);
+    let footprint = length(p - vpl.position.xyz) * 4.0 / f32(tile_size);
+    let q = p + n * (footprint + 0.002);
     let d = q - vpl.position.xyz;
     let dist = max(length(d), 1e-6);
     let nv = vpl.normal.xyz;
@@ -140,7 +140,7 @@ fn ism_visibility(index: u32, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let lo = vec2<i32>(tile) * i32(tile_size);
     let c = clamp(texel, lo, lo + vec2<i32>(i32(tile_size) - 1));
     let stored = textureLoad(ism, c, layer, 0);
-    return select(0.0, 1.0, dist * 0.99 * params.tone.z <= stored);
+    return select(0.0, 1.0, dist * 0.995 * params.tone.z <= stored);
 }
 
 // Radiant intensity of a spot towards `dir` (from the light): smoothstep between the cones.
