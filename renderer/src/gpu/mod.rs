@@ -25,6 +25,7 @@
 //! scaled composition, glossy VPLs (VPLs reflect diffusely).
 
 pub mod context;
+pub mod indirect;
 pub mod ism;
 pub mod mesh;
 pub mod raster;
@@ -404,7 +405,7 @@ mod tests {
     /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("ism.wgsl", ism::SHADER)] {
+        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("ism.wgsl", ism::SHADER), ("indirect.wgsl", indirect::SHADER)] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
