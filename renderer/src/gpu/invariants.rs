@@ -273,15 +273,15 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
     let photo = grey_photo(&scene);
     let p = params(Condition::Gi);
     let vpl = |path: f32, ir: f32| GpuVpl { position: [0.2, 0.3, 0.2, path], normal: [0.0, -1.0, 0.0, ir], flux: [0.05, 0.05, 0.05, 0.0] };
-    let none = r.render_frame(&scene, &photo, &p, Some(&[])).unwrap();
+    let none = r.render_frame(&scene, &photo, &p, Some(&[]), &mut CmState::default()).unwrap();
     let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
     let (rv0, r0) = (sum(&none.l_rv), sum(&none.l_r));
     // a VPL on a virtual object (path flag 0): L_rv only
-    let on_virtual = r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)])).unwrap();
+    let on_virtual = r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)]), &mut CmState::default()).unwrap();
     assert!(sum(&on_virtual.l_rv) > rv0 * 1.01);
     assert_eq!(on_virtual.l_r.pixels, none.l_r.pixels);
     // a real VPL of a real light (path flag 1): both solutions, equally on real pixels
-    let real = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 0.0)])).unwrap();
+    let real = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 0.0)]), &mut CmState::default()).unwrap();
     assert!(sum(&real.l_r) > r0 * 1.01);
     for i in 0..photo.pixels.len() {
         if none.l_r.pixels[i] != Vec3::ZERO {
@@ -290,7 +290,7 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
         }
     }
     // ir = 1 (a real VPL behind a virtual blocker): L_r only
-    let ir = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 1.0)])).unwrap();
+    let ir = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 1.0)]), &mut CmState::default()).unwrap();
     assert_eq!(ir.l_rv.pixels, none.l_rv.pixels);
     assert!(sum(&ir.l_r) > r0 * 1.01);
 }

@@ -10,9 +10,13 @@
 //!    shadow map, read back, and **VPL creation** from them ([`vpl`]);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
 //!    Blinn–Phong parameters);
-//! 4. **shading and composition** ([`shade`]): L_rv and L_r by equations 5.1–5.8, then
-//!    L_final = L'_cam + TM(L_rv) − TM(L_r) with the simplified Reinhard operator x/(1+x)
-//!    (then sRGB encoding), where L'_cam is the photograph with virtual pixels masked out.
+//! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8;
+//! 5. **colour mapping** ([`cm`], the `cm` factor, [`crate::cm`]): τ applied to both buffers
+//!    (thesis 4.18 / 4.28) — `off` is the simplified Reinhard operator x/(1+x) then sRGB
+//!    encoding; `statistics`, `samples` and `rohmer` first reduce statistics on the GPU and
+//!    solve their tiny systems on the CPU;
+//! 6. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
+//!    form, where L'_cam is the photograph with virtual pixels masked out.
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
@@ -21,15 +25,18 @@
 //! Not built yet (issue 5): VPL visibility (imperfect shadow maps — VPLs are unshadowed, V = 1),
 //! indirect light from the environment (only spot lights make VPLs), area lights (emissive
 //! surfaces show in both solutions but light nothing), multiple bounces,
-//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, Debevec's
-//! scaled composition, glossy VPLs (VPLs reflect diffusely).
+//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, glossy VPLs
+//! (VPLs reflect diffusely).
 
+pub mod cm;
+pub mod compose;
 pub mod context;
 pub mod mesh;
 pub mod raster;
 pub mod shade;
 pub mod vpl;
 
+use crate::cm::{CmParams, CmReport, CmState, Composition};
 use crate::error::{RenderError, Result};
 use crate::image::{Image, Mask};
 use crate::scene::Scene;
@@ -83,15 +90,30 @@ pub struct DirParams {
     pub env_lights: u32,
     /// Resolution of each reflective shadow map (gi only).
     pub rsm_size: u32,
-    /// Exposure applied before the tone mapping x/(1+x).
+    /// Exposure applied before the tone mapping x/(1+x) (every cm method but `rohmer` maps
+    /// tone-mapped values).
     pub exposure: f32,
     /// The geometry term of a VPL uses max(d², clamp²): this distance in metres.
     pub vpl_clamp_distance: f32,
+    /// The colour mapping of both GI buffers (the `cm` factor); default `off` (Reinhard).
+    pub cm: CmParams,
+    /// How the mapped differential is added to the photograph.
+    pub composition: Composition,
 }
 
 impl Default for DirParams {
     fn default() -> Self {
-        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
+        DirParams {
+            condition: Condition::Gi,
+            vpls: 256,
+            shadow_map_size: 512,
+            env_lights: 32,
+            rsm_size: 128,
+            exposure: 1.0,
+            vpl_clamp_distance: 0.05,
+            cm: CmParams::default(),
+            composition: Composition::Additive,
+        }
     }
 }
 
@@ -111,6 +133,8 @@ pub struct GpuRender {
     pub l_r: Image,
     /// 1 where the camera sees a virtual object (from the G-buffer).
     pub virtual_mask: Mask,
+    /// Per pixel: 0 nothing modelled, 1 real surface, 2 virtual surface (from the G-buffer).
+    pub flags: Vec<u32>,
     /// The VPLs the frame used.
     pub vpls: Vec<vpl::GpuVpl>,
     pub report: GpuReport,
@@ -128,6 +152,8 @@ pub struct GpuReport {
     pub passes: Vec<PassTime>,
     /// Sum of the pass times.
     pub ms: f64,
+    /// What the colour mapping estimated, and any fallback it took.
+    pub cm: CmReport,
 }
 
 /// The device and the compiled pipelines, reusable across frames and scenes.
@@ -135,6 +161,8 @@ pub struct DirRenderer {
     pub ctx: GpuContext,
     raster: Raster,
     shade: Shade,
+    cm: cm::CmPasses,
+    compose: compose::Compose,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -208,17 +236,26 @@ impl DirRenderer {
     pub fn with_context(ctx: GpuContext) -> DirRenderer {
         let raster = Raster::new(&ctx);
         let shade = Shade::new(&ctx);
-        DirRenderer { ctx, raster, shade }
+        let cm = cm::CmPasses::new(&ctx);
+        let compose = compose::Compose::new(&ctx);
+        DirRenderer { ctx, raster, shade, cm, compose }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
-    /// scene, display-encoded, at the scene's resolution).
+    /// scene, display-encoded, at the scene's resolution), as a single frame without colour
+    /// mapping history.
     pub fn render(&self, scene: &Scene, photo: &Image, params: &DirParams) -> Result<GpuRender> {
-        self.render_frame(scene, photo, params, None)
+        self.render_frame(scene, photo, params, None, &mut CmState::default())
+    }
+
+    /// [`DirRenderer::render`] for live use: `state` carries the colour mapping's smoothing
+    /// (sample-based, eq. 4.27) and Rohmer's previous C_t from frame to frame.
+    pub fn render_with_state(&self, scene: &Scene, photo: &Image, params: &DirParams, state: &mut CmState) -> Result<GpuRender> {
+        self.render_frame(scene, photo, params, None, state)
     }
 
     /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7).
-    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>) -> Result<GpuRender> {
+    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>, state: &mut CmState) -> Result<GpuRender> {
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         if photo.width != width || photo.height != height {
@@ -343,7 +380,7 @@ impl DirRenderer {
         let camera_view = ViewUniform::perspective(camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far), scene.camera.position, -scene.camera.rotation.z_axis);
         timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
 
-        // 4. shading and composition
+        // 4. shading
         let condition_code = match params.condition {
             Condition::None => 0,
             Condition::Shadows => 1,
@@ -355,9 +392,20 @@ impl DirRenderer {
             mode: [if virtual_maps { condition_code } else { 0 }, size, 0, 0],
             tone: [params.exposure, params.vpl_clamp_distance * params.vpl_clamp_distance, 0.0, 0.0],
         };
+        let output = timed(ctx, &mut passes, "shading".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers));
+
+        // 5. colour mapping of both buffers (the cm factor)
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
-        let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels));
-        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
+        let photo_buffer = timed(ctx, &mut passes, "upload photograph".into(), || {
+            use wgpu::util::DeviceExt;
+            ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("photo"), contents: bytemuck::cast_slice(&photo_texels), usage: wgpu::BufferUsages::STORAGE })
+        });
+        let cm_buffers = cm::CmBuffers { width, height, solutions: &output.solutions, photo: &photo_buffer };
+        let (mapped, cm_report) = self.cm.run(ctx, &mut passes, &cm_buffers, &photo.pixels, &params.cm, params.exposure, state);
+
+        // 6. composition
+        let composite = timed(ctx, &mut passes, "composition".into(), || self.compose.run(ctx, width, height, cm_report.mapping.linear_domain(), params.composition, &mapped, &photo_buffer));
+        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
         let ms = passes.iter().map(|p| p.ms).sum();
         Ok(GpuRender {
@@ -365,8 +413,9 @@ impl DirRenderer {
             l_rv: to_image(width, height, &solutions[..half]),
             l_r: to_image(width, height, &solutions[half..]),
             virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
+            flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report },
         })
     }
 }
@@ -375,13 +424,16 @@ impl DirRenderer {
 mod invariants;
 
 #[cfg(test)]
+mod cm_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
     /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER)] {
+        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("cm.wgsl", cm::SHADER), ("compose.wgsl", compose::SHADER)] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));

@@ -1,14 +1,13 @@
-// The shading pass of differential instant radiosity (thesis Section 5.2, equations 5.1-5.8)
-// and the differential composition (4.16-4.17) with the simplified Reinhard tone mapping.
+// The shading pass of differential instant radiosity (thesis Section 5.2, equations 5.1-5.8).
 // One invocation per pixel: reads the G-buffer, the real-only and virtual-only shadow maps of
-// every primary light, and the VPL buffer; writes L_rv, L_r and the composite.
-// Driven by shade.rs.
+// every primary light, and the VPL buffer; writes L_rv and L_r. Colour mapping (cm.wgsl) and
+// composition (compose.wgsl) follow. Driven by shade.rs.
 
 struct Params {
     camera: vec4<f32>,          // xyz: camera position
     size: vec4<u32>,            // width, height, light count, VPL count
     mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size
-    tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared)
+    tone: vec4<f32>,            // x: unused; y: VPL distance clamp (squared)
 }
 
 struct Light {
@@ -42,9 +41,7 @@ struct Material {
 @group(0) @binding(5) var<storage, read> lights: array<Light>;
 @group(0) @binding(6) var<storage, read> vpls: array<Vpl>;
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
-@group(0) @binding(8) var<storage, read> photo: array<vec4<f32>>;
-@group(0) @binding(9) var<storage, read_write> composite: array<vec4<f32>>;
-@group(0) @binding(10) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r
+@group(0) @binding(8) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r
 
 const PI: f32 = 3.14159265358979;
 
@@ -113,20 +110,6 @@ fn spot_intensity(light: Light, dir: vec3<f32>) -> vec3<f32> {
     return light.intensity.xyz * (t * t * (3.0 - 2.0 * t));
 }
 
-// The simplified Reinhard operator x / (1 + x) per channel, then sRGB encoding for display.
-fn srgb_encode(c: f32) -> f32 {
-    if c <= 0.0031308 {
-        return 12.92 * c;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
-
-fn tone_map(l: vec3<f32>) -> vec3<f32> {
-    let x = max(l, vec3<f32>(0.0)) * params.tone.x;
-    let y = x / (vec3<f32>(1.0) + x);
-    return vec3<f32>(srgb_encode(y.x), srgb_encode(y.y), srgb_encode(y.z));
-}
-
 @compute @workgroup_size(8, 8)
 fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let width = params.size.x;
@@ -139,8 +122,7 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let gp = textureLoad(g_position, pix, 0);
     let flag = u32(gp.w + 0.5) & 3u;
     if flag == 0u {
-        // nothing modelled here: the photograph as it is
-        composite[pixel] = photo[pixel];
+        // nothing modelled here: composition keeps the photograph
         solutions[pixel] = vec4<f32>(0.0);
         solutions[pixel + width * height] = vec4<f32>(0.0);
         return;
@@ -205,8 +187,4 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
 
     solutions[pixel] = vec4<f32>(l_rv, f32(flag)); // w: 1 real, 2 virtual surface
     solutions[pixel + width * height] = vec4<f32>(l_r, 1.0);
-    // differential composition (4.16-4.17): the photograph, masked where a virtual object is seen
-    let cam = photo[pixel].xyz * r_p;
-    let delta = tone_map(l_rv) - tone_map(l_r);
-    composite[pixel] = vec4<f32>(clamp(cam + delta, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
 }
