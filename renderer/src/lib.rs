@@ -27,6 +27,7 @@
 pub mod builtin;
 pub mod bvh;
 pub mod camera;
+pub mod cm;
 pub mod error;
 pub mod geometry;
 pub mod gpu;

@@ -10,9 +10,13 @@
 //!    shadow map, read back, and **VPL creation** from them ([`vpl`]);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
 //!    Blinn–Phong parameters);
-//! 4. **shading and composition** ([`shade`]): L_rv and L_r by equations 5.1–5.8, then
-//!    L_final = L'_cam + TM(L_rv) − TM(L_r) with the simplified Reinhard operator x/(1+x)
-//!    (then sRGB encoding), where L'_cam is the photograph with virtual pixels masked out.
+//! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8;
+//! 5. **colour mapping** ([`cm`], the `cm` factor, [`crate::cm`]): τ applied to both buffers
+//!    (thesis 4.18 / 4.28) — `off` is the simplified Reinhard operator x/(1+x) then sRGB
+//!    encoding; `statistics`, `samples` and `rohmer` first reduce statistics on the GPU and
+//!    solve their tiny systems on the CPU;
+//! 6. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
+//!    form, where L'_cam is the photograph with virtual pixels masked out.
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
@@ -21,9 +25,11 @@
 //! Not built yet (issue 5): VPL visibility (imperfect shadow maps — VPLs are unshadowed, V = 1),
 //! indirect light from the environment (only spot lights make VPLs), area lights (emissive
 //! surfaces show in both solutions but light nothing), multiple bounces,
-//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, Debevec's
-//! scaled composition, glossy VPLs (VPLs reflect diffusely).
+//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, glossy VPLs
+//! (VPLs reflect diffusely).
 
+pub mod cm;
+pub mod compose;
 pub mod context;
 pub mod indirect;
 pub mod ism;
@@ -32,6 +38,7 @@ pub mod raster;
 pub mod shade;
 pub mod vpl;
 
+use crate::cm::{CmParams, CmReport, CmState, Composition};
 use crate::error::{RenderError, Result};
 use crate::image::{Image, Mask};
 use crate::scene::Scene;
@@ -85,7 +92,8 @@ pub struct DirParams {
     pub env_lights: u32,
     /// Resolution of each reflective shadow map (gi only).
     pub rsm_size: u32,
-    /// Exposure applied before the tone mapping x/(1+x).
+    /// Exposure applied before the tone mapping x/(1+x) (every cm method but `rohmer` maps
+    /// tone-mapped values).
     pub exposure: f32,
     /// The geometry term of a VPL uses max(d², clamp²): this distance in metres.
     pub vpl_clamp_distance: f32,
@@ -94,11 +102,34 @@ pub struct DirParams {
     pub ism_size: u32,
     /// Points of each point cloud (real, virtual) splatted into each VPL's ISM.
     pub ism_points: u32,
+    /// The colour mapping of both GI buffers (the `cm` factor); default `off` (Reinhard).
+    pub cm: CmParams,
+    /// How the mapped differential is added to the photograph.
+    pub composition: Composition,
+    /// Interleaved sampling (thesis 5.2.10): the G-buffer is split into n × n classes, each
+    /// pixel shades 1/n² of the VPLs, a geometry-aware filter merges the classes; 1: off.
+    pub interleave: u32,
+    /// The weights of temporal smoothing (5.11–5.14), used by [`DirRenderer::render_with_state`].
+    pub temporal: indirect::TemporalParams,
 }
 
 impl Default for DirParams {
     fn default() -> Self {
-        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05, ism_size: 128, ism_points: 1024 }
+        DirParams {
+            condition: Condition::Gi,
+            vpls: 256,
+            shadow_map_size: 512,
+            env_lights: 32,
+            rsm_size: 128,
+            exposure: 1.0,
+            vpl_clamp_distance: 0.05,
+            ism_size: 128,
+            ism_points: 1024,
+            cm: CmParams::default(),
+            composition: Composition::Additive,
+            interleave: 1,
+            temporal: indirect::TemporalParams::default(),
+        }
     }
 }
 
@@ -118,6 +149,8 @@ pub struct GpuRender {
     pub l_r: Image,
     /// 1 where the camera sees a virtual object (from the G-buffer).
     pub virtual_mask: Mask,
+    /// Per pixel: 0 nothing modelled, 1 real surface, 2 virtual surface (from the G-buffer).
+    pub flags: Vec<u32>,
     /// The VPLs the frame used.
     pub vpls: Vec<vpl::GpuVpl>,
     pub report: GpuReport,
@@ -135,6 +168,16 @@ pub struct GpuReport {
     pub passes: Vec<PassTime>,
     /// Sum of the pass times.
     pub ms: f64,
+    /// What the colour mapping estimated, and any fallback it took.
+    pub cm: CmReport,
+}
+
+/// What live rendering carries from frame to frame: the colour mapping's smoothing and the
+/// indirect light's temporal smoothing (5.2.9). A fresh state has no history.
+#[derive(Default)]
+pub struct LiveState {
+    pub cm: CmState,
+    pub temporal: Option<indirect::TemporalState>,
 }
 
 /// The device and the compiled pipelines, reusable across frames and scenes.
@@ -143,6 +186,9 @@ pub struct DirRenderer {
     raster: Raster,
     shade: Shade,
     ism: ism::Ism,
+    cm: cm::CmPasses,
+    compose: compose::Compose,
+    indirect: indirect::IndirectPass,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -217,17 +263,29 @@ impl DirRenderer {
         let raster = Raster::new(&ctx);
         let shade = Shade::new(&ctx);
         let ism = ism::Ism::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism }
+        let cm = cm::CmPasses::new(&ctx);
+        let compose = compose::Compose::new(&ctx);
+        let indirect = indirect::IndirectPass::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
-    /// scene, display-encoded, at the scene's resolution).
+    /// scene, display-encoded, at the scene's resolution), as a single frame without colour
+    /// mapping history.
     pub fn render(&self, scene: &Scene, photo: &Image, params: &DirParams) -> Result<GpuRender> {
-        self.render_frame(scene, photo, params, None)
+        self.render_frame(scene, photo, params, None, &mut LiveState::default(), false)
     }
 
-    /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7).
-    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>) -> Result<GpuRender> {
+    /// [`DirRenderer::render`] for live use: `state` carries the colour mapping's smoothing
+    /// (sample-based, eq. 4.27), Rohmer's previous C_t and the indirect light of the previous
+    /// frame for temporal smoothing (5.11–5.15, weights `params.temporal`) from frame to frame.
+    pub fn render_with_state(&self, scene: &Scene, photo: &Image, params: &DirParams, state: &mut LiveState) -> Result<GpuRender> {
+        self.render_frame(scene, photo, params, None, state, true)
+    }
+
+    /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7),
+    /// and temporal smoothing against `state` when `temporal`.
+    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>, state: &mut LiveState, temporal: bool) -> Result<GpuRender> {
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         if photo.width != width || photo.height != height {
@@ -359,10 +417,11 @@ impl DirRenderer {
         // 3. G-buffer
         let gbuffer = SurfaceTargets::new(ctx, width, height, "g-buffer");
         let far = (scene.camera.position - mesh.bounds_centre).length() + 2.0 * mesh.bounds_radius;
-        let camera_view = ViewUniform::perspective(camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far), scene.camera.position, -scene.camera.rotation.z_axis);
+        let camera_view_proj = camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far);
+        let camera_view = ViewUniform::perspective(camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
         timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
 
-        // 4. shading and composition
+        // 4. shading
         let condition_code = match params.condition {
             Condition::None => 0,
             Condition::Shadows => 1,
@@ -373,15 +432,53 @@ impl DirRenderer {
             size: [width, height, n_lights, vpls.len() as u32],
             mode: [if virtual_maps { condition_code } else { 0 }, size, ism_atlas.as_ref().map_or(0, |a| a.tile_size), ism_atlas.as_ref().map_or(1, |a| a.tiles_per_row)],
             tone: [
-                params.exposure,
+                params.interleave.max(1) as f32,
                 params.vpl_clamp_distance * params.vpl_clamp_distance,
                 ism_atlas.as_ref().map_or(0.0, |a| a.inv_max_distance),
                 0.0,
             ],
         };
+        let shading_label = if params.interleave > 1 && !vpls.is_empty() { format!("shading (VPLs interleaved {0}×{0})", params.interleave) } else { "shading".to_string() };
+        let output = timed(ctx, &mut passes, shading_label, || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, ism_atlas.as_ref().map(|a| &a.texture)));
+
+        // 4b. the indirect light: merge of the interleaved classes, temporal smoothing, sum
+        if let Some(raw) = &output.indirect {
+            let split = params.interleave.max(1);
+            let inputs = indirect::IndirectInputs {
+                width,
+                height,
+                split,
+                gbuffer: &gbuffer,
+                raw,
+                solutions: &output.solutions,
+                camera: scene.camera.position,
+                view_proj: camera_view_proj,
+                scene_radius: mesh.bounds_radius,
+            };
+            let mut steps = Vec::new();
+            if split > 1 {
+                steps.push(format!("merge {split}×{split}"));
+            }
+            if temporal {
+                steps.push(if state.temporal.is_some() { "temporal smoothing".to_string() } else { "temporal smoothing (first frame)".to_string() });
+            }
+            steps.push("sum".into());
+            let label = format!("indirect light ({})", steps.join(", "));
+            timed(ctx, &mut passes, label, || self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, &mut state.temporal))));
+        }
+
+        // 5. colour mapping of both buffers (the cm factor)
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
-        let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels, ism_atlas.as_ref().map(|a| &a.texture)));
-        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
+        let photo_buffer = timed(ctx, &mut passes, "upload photograph".into(), || {
+            use wgpu::util::DeviceExt;
+            ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("photo"), contents: bytemuck::cast_slice(&photo_texels), usage: wgpu::BufferUsages::STORAGE })
+        });
+        let cm_buffers = cm::CmBuffers { width, height, solutions: &output.solutions, photo: &photo_buffer };
+        let (mapped, cm_report) = self.cm.run(ctx, &mut passes, &cm_buffers, &photo.pixels, &params.cm, params.exposure, &mut state.cm);
+
+        // 6. composition
+        let composite = timed(ctx, &mut passes, "composition".into(), || self.compose.run(ctx, width, height, cm_report.mapping.linear_domain(), params.composition, &mapped, &photo_buffer));
+        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
         let ms = passes.iter().map(|p| p.ms).sum();
         Ok(GpuRender {
@@ -389,8 +486,9 @@ impl DirRenderer {
             l_rv: to_image(width, height, &solutions[..half]),
             l_r: to_image(width, height, &solutions[half..]),
             virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
+            flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report },
         })
     }
 }
@@ -399,13 +497,23 @@ impl DirRenderer {
 mod invariants;
 
 #[cfg(test)]
+mod cm_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
     /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("ism.wgsl", ism::SHADER), ("indirect.wgsl", indirect::SHADER)] {
+        for (name, source) in [
+            ("raster.wgsl", raster::SHADER),
+            ("shade.wgsl", shade::SHADER),
+            ("ism.wgsl", ism::SHADER),
+            ("indirect.wgsl", indirect::SHADER),
+            ("cm.wgsl", cm::SHADER),
+            ("compose.wgsl", compose::SHADER),
+        ] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));

@@ -1,5 +1,6 @@
-//! The shading and composition pass (shader: `shade.wgsl`): L_rv and L_r by equations 5.1–5.8
-//! from the G-buffer, the shadow maps and the VPLs, then L_final = L'_cam + TM(L_rv) − TM(L_r).
+//! The shading pass (shader: `shade.wgsl`): L_rv and L_r by equations 5.1–5.8 from the
+//! G-buffer, the shadow maps and the VPLs. Colour mapping ([`super::cm`]) and composition
+//! ([`super::compose`]) read its output.
 
 use super::context::GpuContext;
 use super::raster::{SceneBuffers, SurfaceTargets};
@@ -35,9 +36,12 @@ pub struct Shade {
 
 /// What the shading pass writes, still on the GPU.
 pub struct ShadeOutput {
-    pub composite: wgpu::Buffer,
-    /// L_rv (first width·height texels) then L_r.
+    /// L_rv (first width·height texels; w: 0 nothing modelled, 1 real, 2 virtual surface) then
+    /// L_r: the direct light (and emission) only.
     pub solutions: wgpu::Buffer,
+    /// The indirect light from the VPLs, I_rv then I_r, as shaded (one interleaved class per
+    /// pixel, scaled); `None` without VPLs.
+    pub indirect: Option<wgpu::Buffer>,
 }
 
 impl Shade {
@@ -64,7 +68,6 @@ impl Shade {
         lights: &[GpuLight],
         vpls: &[GpuVpl],
         scene: &SceneBuffers,
-        photo: &[[f32; 4]],
         ism: Option<&wgpu::Texture>,
     ) -> ShadeOutput {
         let device = &ctx.device;
@@ -73,13 +76,12 @@ impl Shade {
         let zero_vpl: GpuVpl = bytemuck::Zeroable::zeroed();
         let lights_buffer = storage("lights", bytemuck::cast_slice(if lights.is_empty() { std::slice::from_ref(&zero_light) } else { lights }));
         let vpls_buffer = storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
-        let photo_buffer = storage("photo", bytemuck::cast_slice(photo));
         let pixels = (params.size[0] * params.size[1]) as u64;
         let output = |label: &str, texels: u64| {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: texels * 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
         };
-        let composite = output("composite", pixels);
         let solutions = output("solutions", 2 * pixels);
+        let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("shade params"), contents: bytemuck::bytes_of(params), usage: wgpu::BufferUsages::UNIFORM });
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (gp, gn, ga) = (view(&gbuffer.position), view(&gbuffer.normal), view(&gbuffer.albedo));
@@ -116,10 +118,9 @@ impl Shade {
                 wgpu::BindGroupEntry { binding: 5, resource: lights_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 6, resource: vpls_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 7, resource: scene.materials.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 8, resource: photo_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 9, resource: composite.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 10, resource: solutions.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 11, resource: wgpu::BindingResource::TextureView(&ism_view) },
+                wgpu::BindGroupEntry { binding: 8, resource: solutions.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&ism_view) },
+                wgpu::BindGroupEntry { binding: 10, resource: indirect.as_entire_binding() },
             ],
         });
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -130,6 +131,6 @@ impl Shade {
             pass.dispatch_workgroups(params.size[0].div_ceil(8), params.size[1].div_ceil(8), 1);
         }
         ctx.queue.submit([encoder.finish()]);
-        ShadeOutput { composite, solutions }
+        ShadeOutput { solutions, indirect: (!vpls.is_empty()).then_some(indirect) }
     }
 }

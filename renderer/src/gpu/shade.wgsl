@@ -1,16 +1,15 @@
-// The shading pass of differential instant radiosity (thesis Section 5.2, equations 5.1-5.8)
-// and the differential composition (4.16-4.17) with the simplified Reinhard tone mapping.
+// The shading pass of differential instant radiosity (thesis Section 5.2, equations 5.1-5.8).
 // One invocation per pixel: reads the G-buffer, the real-only and virtual-only shadow maps of
-// every primary light, and the VPL buffer; writes L_rv, L_r and the composite.
-// Driven by shade.rs.
+// every primary light, and the VPL buffer; writes L_rv and L_r. Colour mapping (cm.wgsl) and
+// composition (compose.wgsl) follow. Driven by shade.rs.
 
 struct Params {
     camera: vec4<f32>,          // xyz: camera position
     size: vec4<u32>,            // width, height, light count, VPL count
     mode: vec4<u32>,            // x: condition (0 none, 1 shadows, 2 gi); y: shadow map size;
                                 // z: ISM tile size (0: no VPL visibility); w: ISM tiles per row
-    tone: vec4<f32>,            // x: exposure of the tone mapping; y: VPL distance clamp (squared);
-                                // z: 1 / the ISMs' maximum distance
+    tone: vec4<f32>,            // x: interleaved-sampling split n (1: none); y: VPL distance clamp
+                                // (squared); z: 1 / the ISMs' maximum distance
 }
 
 struct Light {
@@ -44,10 +43,9 @@ struct Material {
 @group(0) @binding(5) var<storage, read> lights: array<Light>;
 @group(0) @binding(6) var<storage, read> vpls: array<Vpl>;
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
-@group(0) @binding(8) var<storage, read> photo: array<vec4<f32>>;
-@group(0) @binding(9) var<storage, read_write> composite: array<vec4<f32>>;
-@group(0) @binding(10) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r
-@group(0) @binding(11) var ism: texture_depth_2d_array;  // layer 0: real points, 1: virtual points
+@group(0) @binding(8) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r: direct light
+@group(0) @binding(9) var ism: texture_depth_2d_array;  // layer 0: real points, 1: virtual points
+@group(0) @binding(10) var<storage, read_write> indirect: array<vec4<f32>>; // I_rv then I_r (with VPLs)
 
 const PI: f32 = 3.14159265358979;
 
@@ -158,20 +156,6 @@ fn spot_intensity(light: Light, dir: vec3<f32>) -> vec3<f32> {
     return light.intensity.xyz * (t * t * (3.0 - 2.0 * t));
 }
 
-// The simplified Reinhard operator x / (1 + x) per channel, then sRGB encoding for display.
-fn srgb_encode(c: f32) -> f32 {
-    if c <= 0.0031308 {
-        return 12.92 * c;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
-
-fn tone_map(l: vec3<f32>) -> vec3<f32> {
-    let x = max(l, vec3<f32>(0.0)) * params.tone.x;
-    let y = x / (vec3<f32>(1.0) + x);
-    return vec3<f32>(srgb_encode(y.x), srgb_encode(y.y), srgb_encode(y.z));
-}
-
 @compute @workgroup_size(8, 8)
 fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let width = params.size.x;
@@ -184,10 +168,13 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let gp = textureLoad(g_position, pix, 0);
     let flag = u32(gp.w + 0.5) & 3u;
     if flag == 0u {
-        // nothing modelled here: the photograph as it is
-        composite[pixel] = photo[pixel];
+        // nothing modelled here: composition keeps the photograph
         solutions[pixel] = vec4<f32>(0.0);
         solutions[pixel + width * height] = vec4<f32>(0.0);
+        if params.size.w > 0u {
+            indirect[pixel] = vec4<f32>(0.0);
+            indirect[pixel + width * height] = vec4<f32>(0.0);
+        }
         return;
     }
     let material = materials[u32(gp.w + 0.5) / 4u];
@@ -237,27 +224,34 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 
     // one indirect bounce from the VPLs (eqs. 5.6-5.8), visibility from the ISMs: V_r from the
-    // real point cloud, V_v from the virtual one, min(V_r, V_v) for L_rv as in eq. 5.3
-    for (var i = 0u; i < params.size.w; i++) {
-        let vpl = vpls[i];
-        let to_vpl = vpl.position.xyz - p;
-        let d2 = max(dot(to_vpl, to_vpl), params.tone.y);   // the clamped geometry term
-        let wi = normalize(to_vpl);
-        let cos_vpl = max(dot(vpl.normal.xyz, -wi), 0.0);
-        let l_o = brdf(n, wo, wi, kd, ks, exponent) * (vpl.flux.xyz / PI) * cos_vpl * max(dot(n, wi), 0.0) / d2;
-        if all(l_o == vec3<f32>(0.0)) {
-            continue;
+    // real point cloud, V_v from the virtual one, min(V_r, V_v) for L_rv as in eq. 5.3. With
+    // interleaved sampling (split n > 1) this pixel takes only the VPLs of its class, scaled by
+    // n², and indirect.wgsl merges the classes.
+    if params.size.w > 0u {
+        let split = max(u32(params.tone.x + 0.5), 1u);
+        let classes = split * split;
+        var i_rv = vec3<f32>(0.0);
+        var i_r = vec3<f32>(0.0);
+        for (var i = (id.x % split) + split * (id.y % split); i < params.size.w; i += classes) {
+            let vpl = vpls[i];
+            let to_vpl = vpl.position.xyz - p;
+            let d2 = max(dot(to_vpl, to_vpl), params.tone.y);   // the clamped geometry term
+            let wi = normalize(to_vpl);
+            let cos_vpl = max(dot(vpl.normal.xyz, -wi), 0.0);
+            let l_o = brdf(n, wo, wi, kd, ks, exponent) * (vpl.flux.xyz / PI) * cos_vpl * max(dot(n, wi), 0.0) / d2;
+            if all(l_o == vec3<f32>(0.0)) {
+                continue;
+            }
+            let v_r = ism_visibility(i, 0, p, n);
+            let v_v = ism_visibility(i, 1, p, n);
+            i_rv += l_o * min(v_r, v_v) * (1.0 - vpl.normal.w);   // eq. 5.6
+            i_r += l_o * v_r * (vpl.position.w * r_p);            // eq. 5.7 (r(pl) folded into the path flag)
         }
-        let v_r = ism_visibility(i, 0, p, n);
-        let v_v = ism_visibility(i, 1, p, n);
-        l_rv += l_o * min(v_r, v_v) * (1.0 - vpl.normal.w);   // eq. 5.6
-        l_r += l_o * v_r * (vpl.position.w * r_p);            // eq. 5.7 (r(pl) folded into the path flag)
+        indirect[pixel] = vec4<f32>(i_rv * f32(classes), 0.0);
+        indirect[pixel + width * height] = vec4<f32>(i_r * f32(classes), 0.0);
     }
 
+    // direct light (and emission); indirect.wgsl adds the indirect light
     solutions[pixel] = vec4<f32>(l_rv, f32(flag)); // w: 1 real, 2 virtual surface
     solutions[pixel + width * height] = vec4<f32>(l_r, 1.0);
-    // differential composition (4.16-4.17): the photograph, masked where a virtual object is seen
-    let cam = photo[pixel].xyz * r_p;
-    let delta = tone_map(l_rv) - tone_map(l_r);
-    composite[pixel] = vec4<f32>(clamp(cam + delta, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
 }

@@ -1,0 +1,320 @@
+//! Tests of the CPU colour mapping on synthetic buffers: known transforms recovered, and the
+//! hard cases (uniform proxy, empty mask, too few pairs, singular systems, saturated camera
+//! pixels, HDR input) with their documented fallbacks and no NaN.
+
+use super::colour::*;
+use super::*;
+use crate::math::Rng;
+use glam::Mat3;
+
+/// A frame of 8×8 patches of random colours on real surfaces (L_r up to `peak`), a virtual
+/// block in the middle, the camera made by `camera` from L_r.
+pub(crate) struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub l_rv: Vec<Vec3>,
+    pub l_r: Vec<Vec3>,
+    pub flags: Vec<u32>,
+    pub photo: Vec<Vec3>,
+}
+
+impl Frame {
+    pub fn new(width: u32, height: u32, peak: f32, seed: u64, camera: impl Fn(Vec3) -> Vec3) -> Frame {
+        let n = (width * height) as usize;
+        let (mut l_rv, mut l_r, mut flags, mut photo) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+        for y in 0..height {
+            for x in 0..width {
+                let mut rng = Rng::for_stream(seed, ((y / 8) * 1000 + x / 8) as u64, 0);
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * peak * 0.9 + Vec3::splat(0.05 * peak);
+                let virt = x >= width / 3 && x < 2 * width / 3 && y >= height / 3 && y < 2 * height / 3;
+                // the virtual object is a red-ish shaded block; L_rv on real pixels adds a shadow
+                let shade = 0.3 + 0.7 * (x as f32 / width as f32);
+                if virt {
+                    l_rv.push(Vec3::new(0.8, 0.25, 0.1) * peak * shade);
+                    l_r.push(Vec3::ZERO);
+                    flags.push(2);
+                } else {
+                    let darken = if y > 2 * height / 3 && x > width / 3 { 0.5 } else { 1.0 };
+                    l_rv.push(c * darken);
+                    l_r.push(c);
+                    flags.push(1);
+                }
+                photo.push(camera(c));
+            }
+        }
+        Frame { width, height, l_rv, l_r, flags, photo }
+    }
+    pub fn input(&self) -> CmInput<'_> {
+        CmInput { width: self.width, height: self.height, l_rv: &self.l_rv, l_r: &self.l_r, flags: &self.flags, photo: &self.photo }
+    }
+}
+
+fn params(method: CmMethod) -> CmParams {
+    CmParams { method, ..CmParams::default() }
+}
+
+fn all_finite(out: &CmOutput) {
+    for v in out.mapped_rv.iter().chain(&out.mapped_r).chain(&out.composite) {
+        assert!(v.is_finite(), "non-finite value {v} ({:?})", out.report);
+    }
+    for v in &out.composite {
+        assert!(v.min_element() >= 0.0 && v.max_element() <= 1.0, "composite {v} outside [0, 1]");
+    }
+}
+
+#[test]
+fn off_is_reinhard_then_srgb_and_composes_like_the_old_shader() {
+    let f = Frame::new(48, 36, 1.0, 1, |c| srgb_encode3(tone_map(c, 1.0)));
+    let out = cpu_frame(&f.input(), &params(CmMethod::Off), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    let x = Vec3::new(0.5, 2.0, 0.0);
+    assert_eq!(Mapping::Off.apply(x, 1.0), Vec3::new(srgb_encode(1.0 / 3.0), srgb_encode(2.0 / 3.0), 0.0));
+    // virtual pixels show τ(L_rv), real ones photo + τ(L_rv) − τ(L_r)
+    let i = (18 * 48 + 24) as usize;
+    assert_eq!(out.composite[i], srgb_encode3(tone_map(f.l_rv[i], 1.0)).clamp(Vec3::ZERO, Vec3::ONE));
+}
+
+#[test]
+fn without_a_differential_every_method_returns_the_photograph_bit_for_bit() {
+    let mut f = Frame::new(48, 36, 3.0, 2, |c| gamma_encode(c * 0.3));
+    f.flags.iter_mut().for_each(|g| *g = 1);
+    f.l_r = f.l_r.iter().map(|c| if *c == Vec3::ZERO { Vec3::splat(0.5) } else { *c }).collect();
+    f.l_rv = f.l_r.clone();
+    for method in CmMethod::ALL {
+        for composition in [Composition::Additive, Composition::Scaled] {
+            let out = cpu_frame(&f.input(), &params(method), 1.0, composition, &mut CmState::default());
+            assert_eq!(out.composite, f.photo, "{method:?} {composition:?}");
+        }
+    }
+}
+
+#[test]
+fn statistics_transfers_a_known_lab_shift_and_scale() {
+    // camera = the Lab transfer of TM(L_r) with known ratio and means: the estimate recovers it
+    let (ratio, shift) = (Vec3::new(1.2, 0.8, 1.1), Vec3::new(-3.0, 4.0, -6.0));
+    let f0 = Frame::new(64, 48, 1.0, 3, |c| c);
+    let labs: Vec<Vec3> = f0.l_r.iter().zip(&f0.flags).filter(|(_, g)| **g == 1).map(|(c, _)| linear_to_lab(tone_map(*c, 1.0))).collect();
+    let mean = labs.iter().copied().sum::<Vec3>() / labs.len() as f32;
+    let f = Frame::new(64, 48, 1.0, 3, |c| {
+        let lab = (linear_to_lab(tone_map(c, 1.0)) - mean) * ratio + mean + shift;
+        srgb_encode3(lab_to_linear(lab).max(Vec3::ZERO))
+    });
+    let out = cpu_frame(&f.input(), &params(CmMethod::Statistics), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    let Mapping::Statistics { mean_source, mean_target, ratio: r } = out.report.mapping else { panic!("{:?}", out.report) };
+    for c in 0..3 {
+        assert!((r[c] - ratio[c]).abs() < 0.03, "ratio {r:?} against {ratio}");
+        assert!((mean_target[c] - mean_source[c] - shift[c]).abs() < 0.3, "means {mean_source:?} {mean_target:?}");
+    }
+    assert!(out.report.fallback.is_none());
+}
+
+#[test]
+fn a_uniform_proxy_has_zero_variance_and_falls_back_to_a_mean_shift() {
+    let mut f = Frame::new(48, 36, 1.0, 4, |c| srgb_encode3(c * 0.7));
+    for (c, g) in f.l_r.iter_mut().zip(&f.flags) {
+        if *g == 1 {
+            *c = Vec3::new(0.4, 0.3, 0.2);
+        }
+    }
+    let out = cpu_frame(&f.input(), &params(CmMethod::Statistics), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    let Mapping::Statistics { ratio, .. } = out.report.mapping else { panic!() };
+    assert_eq!(ratio, [1.0; 3]);
+    assert!(out.report.fallback.as_deref().unwrap().contains("zero variance"), "{:?}", out.report.fallback);
+    // zero variance in the camera instead: ratio 0, still finite
+    let mut g = Frame::new(48, 36, 1.0, 4, |_| Vec3::splat(0.5));
+    g.photo.iter_mut().for_each(|p| *p = Vec3::splat(0.5));
+    let out = cpu_frame(&g.input(), &params(CmMethod::Statistics), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    let Mapping::Statistics { ratio, .. } = out.report.mapping else { panic!() };
+    assert!(ratio.iter().all(|r| r.abs() < 1e-2), "{ratio:?}");
+}
+
+#[test]
+fn a_mask_that_empties_the_image_falls_back_for_every_method() {
+    // every pixel virtual: n = n_zero
+    let mut f = Frame::new(32, 24, 1.0, 5, |c| srgb_encode3(c));
+    f.flags.iter_mut().for_each(|g| *g = 2);
+    f.l_r.iter_mut().for_each(|c| *c = Vec3::ZERO);
+    for method in [CmMethod::Statistics, CmMethod::Samples, CmMethod::Rohmer] {
+        let out = cpu_frame(&f.input(), &params(method), 1.0, Composition::Scaled, &mut CmState::default());
+        all_finite(&out);
+        assert!(out.report.fallback.is_some(), "{method:?} reported no fallback");
+        assert_eq!(out.report.pairs, 0, "{method:?}");
+    }
+}
+
+#[test]
+fn saturated_camera_pixels_are_excluded() {
+    // the brightest patches clip in the camera: statistics count them out, Rohmer still
+    // recovers the exposure gain of the rest
+    let gain = 0.6;
+    let f = Frame::new(64, 48, 2.5, 6, |c| gamma_encode(c * gain));
+    let input = f.input();
+    let p = params(CmMethod::Statistics);
+    let clipped = (0..f.photo.len()).filter(|&i| f.flags[i] == 1 && f.photo[i].max_element() >= p.saturated).count();
+    assert!(clipped > 100, "test needs clipped pixels ({clipped})");
+    let sums = statistics::cpu_sums(&input, &p, 1.0);
+    let real = f.flags.iter().filter(|g| **g == 1).count();
+    assert_eq!(sums[0] as usize, real - clipped);
+    let out = cpu_frame(&input, &params(CmMethod::Rohmer), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    let Mapping::Linear { rows } = out.report.mapping else { panic!() };
+    for (k, row) in rows.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            let want = if j == k { gain } else { 0.0 };
+            assert!((v - want).abs() < 0.02, "C⁻¹ {rows:?} against {gain}·I ({:?})", out.report.fallback);
+        }
+    }
+}
+
+#[test]
+fn rohmer_recovers_a_colour_matrix_and_its_inverse_maps_back() {
+    // u = M r (white balance with some cross-talk), camera = u^(1/2.2): C = M⁻¹, mapping = M
+    let m = Mat3::from_cols_array_2d(&[[0.55, 0.03, 0.02], [0.05, 0.5, 0.04], [0.01, 0.05, 0.42]]);
+    let f = Frame::new(96, 72, 1.2, 7, |c| gamma_encode(m * c));
+    let out = cpu_frame(&f.input(), &params(CmMethod::Rohmer), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    assert!(out.report.fallback.is_none(), "{:?}", out.report.fallback);
+    assert!(out.report.pairs > 1000, "{} pairs", out.report.pairs);
+    let Mapping::Linear { rows } = out.report.mapping else { panic!() };
+    let got = rohmer::from_rows(rows);
+    for (a, b) in got.to_cols_array().iter().zip(m.to_cols_array()) {
+        assert!((a - b).abs() < 0.01, "C⁻¹ = {got} against {m}");
+    }
+}
+
+#[test]
+fn rohmer_falls_back_to_the_diagonal_approximation_for_grey_only_pairs() {
+    // all real colours grey: U W² Uᵀ has rank 1; A_t still recovers the per-channel gains
+    let gains = Vec3::new(0.5, 0.45, 0.4);
+    let mut f = Frame::new(64, 48, 1.0, 8, |c| c);
+    for (i, c) in f.l_r.iter_mut().enumerate() {
+        if f.flags[i] == 1 {
+            *c = Vec3::splat(c.x);
+        }
+    }
+    f.photo = f.l_r.iter().map(|c| gamma_encode(*c * gains)).collect();
+    let out = cpu_frame(&f.input(), &params(CmMethod::Rohmer), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    assert!(out.report.fallback.as_deref().unwrap().contains("ill-conditioned"), "{:?}", out.report.fallback);
+    let Mapping::Linear { rows } = out.report.mapping else { panic!() };
+    for k in 0..3 {
+        assert!((rows[k][k] - gains[k]).abs() < 0.01, "{rows:?}");
+    }
+    // an explicitly singular system through fit_matrix, and too few pairs
+    let p = CmParams::default();
+    let a = Mat3::from_diagonal(Vec3::splat(2.0));
+    let mut sums = vec![0f64; rohmer::KF];
+    sums[0] = 5000.0;
+    let (c, why) = rohmer::fit_matrix(&sums, &a, &p);
+    assert_eq!(c, a);
+    assert!(why.unwrap().contains("singular"));
+    sums[0] = 5.0;
+    assert!(rohmer::fit_matrix(&sums, &a, &p).1.unwrap().contains("fewer than"));
+}
+
+#[test]
+fn samples_fit_a_known_affine_camera_and_smooth_across_frames() {
+    // camera = A·sRGB(TM(L_r)) + b: the affine regression recovers it from matched pairs
+    let a = [[0.9, 0.05, 0.0, 0.03], [0.02, 0.8, 0.05, 0.05], [0.0, 0.1, 0.7, 0.02]];
+    let affine = |c: Vec3, a: [[f32; 4]; 3]| {
+        let d = srgb_encode3(tone_map(c, 1.0));
+        Vec3::new(a[0][0] * d.x + a[0][1] * d.y + a[0][2] * d.z + a[0][3], a[1][0] * d.x + a[1][1] * d.y + a[1][2] * d.z + a[1][3], a[2][0] * d.x + a[2][1] * d.y + a[2][2] * d.z + a[2][3])
+    };
+    let f = Frame::new(64, 48, 1.0, 9, |c| affine(c, a));
+    let mut state = CmState::default();
+    let out = cpu_frame(&f.input(), &params(CmMethod::Samples), 1.0, Composition::Additive, &mut state);
+    all_finite(&out);
+    let Mapping::Affine { rows } = out.report.mapping else { panic!() };
+    // the swapped pairs distort the fit only where the camera is not channel-symmetric; the
+    // pairs themselves lie on the true map, so check the map on the sampled colours
+    let pairs = out.report.pairs;
+    assert!(pairs >= 8, "{pairs}");
+    assert!(rows.iter().flatten().all(|v| v.is_finite()));
+    // smoothing: a second frame with another camera gives u·new + (1 − u)·old exactly
+    let first = rows;
+    let b = [[0.5, 0.0, 0.0, 0.1], [0.0, 0.5, 0.0, 0.1], [0.0, 0.0, 0.5, 0.1]];
+    let g = Frame::new(64, 48, 1.0, 9, |c| affine(c, b));
+    let fresh = cpu_frame(&g.input(), &params(CmMethod::Samples), 1.0, Composition::Additive, &mut CmState::default());
+    let Mapping::Affine { rows: new } = fresh.report.mapping else { panic!() };
+    let second = cpu_frame(&g.input(), &params(CmMethod::Samples), 1.0, Composition::Additive, &mut state);
+    let Mapping::Affine { rows: smoothed } = second.report.mapping else { panic!() };
+    for k in 0..3 {
+        for j in 0..4 {
+            assert!((smoothed[k][j] - (0.3 * new[k][j] + 0.7 * first[k][j])).abs() < 1e-6);
+        }
+    }
+    assert_eq!(state.frames, 2);
+    // a channel-symmetric camera (same affine on every channel) is recovered exactly
+    let c = [[0.8, 0.0, 0.0, 0.05], [0.0, 0.8, 0.0, 0.05], [0.0, 0.0, 0.8, 0.05]];
+    let h = Frame::new(64, 48, 1.0, 9, |x| affine(x, c));
+    let out = cpu_frame(&h.input(), &params(CmMethod::Samples), 1.0, Composition::Additive, &mut CmState::default());
+    let Mapping::Affine { rows } = out.report.mapping else { panic!() };
+    if out.report.fallback.is_none() {
+        for k in 0..3 {
+            for j in 0..4 {
+                assert!((rows[k][j] - c[k][j]).abs() < 1e-3, "{rows:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn samples_with_fewer_pairs_than_unknowns_fall_back() {
+    let pairs = vec![(Vec3::new(0.2, 0.3, 0.4), Vec3::new(0.25, 0.3, 0.35))];
+    assert!(samples::regress(&pairs, Regression::Affine).is_none());
+    let (rows, why) = samples::fit(&pairs, Regression::Affine);
+    assert_eq!(rows, samples::IDENTITY);
+    assert!(why.unwrap().contains("too few or singular"));
+    // two pairs of distinct values: the per-channel polynomial fits, the affine one cannot
+    let pairs = vec![(Vec3::splat(0.2), Vec3::splat(0.3)), (Vec3::splat(0.6), Vec3::splat(0.5))];
+    let (rows, why) = samples::fit(&pairs, Regression::Affine);
+    assert!(why.unwrap().contains("per-channel"));
+    assert!((rows[0][0] - 0.5).abs() < 1e-5 && (rows[0][3] - 0.2).abs() < 1e-5, "{rows:?}");
+    // one virtual pixel in a frame: one pair plus its swap, below the affine's four unknowns
+    let mut f = Frame::new(32, 24, 1.0, 10, |c| srgb_encode3(c));
+    let first_virtual = f.flags.iter().position(|g| *g == 2).unwrap();
+    for (i, g) in f.flags.iter_mut().enumerate() {
+        if *g == 2 && i != first_virtual {
+            *g = 1;
+        }
+    }
+    let out = cpu_frame(&f.input(), &params(CmMethod::Samples), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    assert_eq!(out.report.pairs, 2);
+    assert!(out.report.fallback.is_some());
+}
+
+#[test]
+fn hdr_inputs_above_one_stay_finite_in_every_method_and_composition() {
+    let f = Frame::new(48, 36, 50.0, 11, |c| srgb_encode3(tone_map(c, 0.2)));
+    for method in CmMethod::ALL {
+        for composition in [Composition::Additive, Composition::Scaled] {
+            let out = cpu_frame(&f.input(), &params(method), 1.0, composition, &mut CmState::default());
+            all_finite(&out);
+        }
+    }
+    // NaN in the inputs: the mapping of a NaN pixel is not defined, but the estimate is
+    let mut g = Frame::new(48, 36, 2.0, 12, |c| srgb_encode3(c * 0.3));
+    g.l_r[5] = Vec3::splat(f32::NAN);
+    g.l_rv[5] = Vec3::splat(f32::NAN);
+    for method in [CmMethod::Statistics, CmMethod::Rohmer] {
+        let out = cpu_frame(&g.input(), &params(method), 1.0, Composition::Additive, &mut CmState::default());
+        assert!(out.composite.iter().enumerate().all(|(i, v)| i == 5 || v.is_finite()), "{method:?}");
+    }
+}
+
+#[test]
+fn scaled_composition_is_debevecs_ratio() {
+    let photo = Vec3::new(0.4, 0.5, 0.6);
+    let (m_rv, m_r) = (Vec3::new(0.2, 0.3, 0.4), Vec3::new(0.4, 0.6, 0.0));
+    let out = compose(false, Composition::Scaled, photo, 1, m_rv, m_r);
+    // α = cam/τ(L_r): 1 and 5/6; the blue channel has τ(L_r) = 0, so α = 1 there
+    assert!((out - Vec3::new(0.2, 0.25, 1.0)).abs().max_element() < 1e-6, "{out}");
+    let add = compose(false, Composition::Additive, photo, 1, m_rv, m_r);
+    assert!((add - Vec3::new(0.2, 0.2, 1.0)).abs().max_element() < 1e-6, "{add}");
+    // virtual pixels: α = 1, the camera is masked
+    assert_eq!(compose(false, Composition::Scaled, photo, 2, m_rv, Vec3::ZERO), m_rv);
+}

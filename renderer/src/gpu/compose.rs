@@ -1,0 +1,63 @@
+//! The composition pass (shader: `compose.wgsl`): the colour-mapped differential added to the
+//! photograph — additively (thesis 4.17) or scaled by α = L'_cam/τ(L_r) (Debevec; thesis
+//! 5.16–5.17) — in display values, or in the camera's gamma-2.2 linear space when the mapping
+//! is Rohmer's C⁻¹. Mirrors [`crate::cm::compose`].
+
+use super::context::GpuContext;
+use crate::cm::Composition;
+use wgpu::util::DeviceExt;
+
+pub const SHADER: &str = include_str!("compose.wgsl");
+
+pub struct Compose {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl Compose {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("compose.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("compose"),
+            layout: None,
+            module: &module,
+            entry_point: Some("cs_compose"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Compose { pipeline }
+    }
+
+    /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
+    /// composite buffer (one vec4 per pixel, display-encoded).
+    pub fn run(&self, ctx: &GpuContext, width: u32, height: u32, linear_domain: bool, composition: Composition, mapped: &wgpu::Buffer, photo: &wgpu::Buffer) -> wgpu::Buffer {
+        let device = &ctx.device;
+        let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("compose params"), contents: bytemuck::cast_slice(&size), usage: wgpu::BufferUsages::UNIFORM });
+        let composite = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("composite"),
+            size: width as u64 * height as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("compose"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: mapped.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: photo.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        composite
+    }
+}

@@ -1,0 +1,69 @@
+// The differential composition (thesis 4.17 / 4.19 / 4.29, or Debevec's scaled form 5.16-5.17)
+// of the colour-mapped GI buffers over the photograph; driven by compose.rs, mirrors
+// cm::compose in renderer/src/cm/mod.rs.
+//   flag 0 (nothing modelled), or a real pixel whose mapped differential is exactly zero:
+//     the photograph as it is
+//   otherwise: cam' + alpha (tau(L_rv) - tau(L_r)), clamped to [0, 1], where cam' is the
+//     photograph masked at virtual pixels, alpha = 1 (additive) or cam'/tau(L_r) per channel
+//     (scaled; 1 where tau(L_r) <= 1e-4 or at virtual pixels); in the linear domain (Rohmer)
+//     cam is the photograph decoded with gamma 2.2 and the result is encoded again.
+
+struct Compose {
+    size: vec4<u32>,    // width, height, linear domain (0/1), composition (0 additive, 1 scaled)
+}
+
+@group(0) @binding(0) var<uniform> params: Compose;
+@group(0) @binding(1) var<storage, read> mapped: array<vec4<f32>>;   // tau(L_rv) (w: flag), tau(L_r)
+@group(0) @binding(2) var<storage, read> photo: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> composite: array<vec4<f32>>;
+
+fn gamma_decode1(x: f32) -> f32 {
+    return select(0.0, pow(x, 2.2), x > 0.0);
+}
+
+fn gamma_encode1(x: f32) -> f32 {
+    let c = clamp(x, 0.0, 1.0);
+    return select(0.0, pow(c, 1.0 / 2.2), c > 0.0);
+}
+
+fn alpha(cam: f32, m: f32, real: bool) -> f32 {
+    if real && m > 1e-4 {
+        return cam / m;
+    }
+    return 1.0;
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_compose(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = params.size.x;
+    let height = params.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let rv = mapped[pixel];
+    let m_rv = rv.xyz;
+    let m_r = mapped[pixel + width * height].xyz;
+    let flag = u32(rv.w + 0.5);
+    let p = photo[pixel];
+    if flag == 0u || (flag == 1u && all(m_rv == m_r)) {
+        composite[pixel] = p;
+        return;
+    }
+    let real = flag == 1u;
+    let linear = params.size.z == 1u;
+    var cam = p.xyz;
+    if linear {
+        cam = vec3<f32>(gamma_decode1(cam.x), gamma_decode1(cam.y), gamma_decode1(cam.z));
+    }
+    cam = cam * select(0.0, 1.0, real);
+    var delta = m_rv - m_r;
+    if params.size.w == 1u {
+        delta = delta * vec3<f32>(alpha(cam.x, m_r.x, real), alpha(cam.y, m_r.y, real), alpha(cam.z, m_r.z, real));
+    }
+    var out = clamp(cam + delta, vec3<f32>(0.0), vec3<f32>(1.0));
+    if linear {
+        out = vec3<f32>(gamma_encode1(out.x), gamma_encode1(out.y), gamma_encode1(out.z));
+    }
+    composite[pixel] = vec4<f32>(out, 1.0);
+}
