@@ -5,14 +5,15 @@
 //! The factors the renderer knows are named here, with the levels it accepts:
 //! `gi` (0: virtual objects lit directly, no shadows or indirect light; 1: shadows and indirect
 //! light by differential instant radiosity), `shadows` (1 with `gi` 0: shadows only, the middle
-//! mode of the thesis's preliminary study), `cm` (adaptive colour mapping) and `ca` (camera
-//! artifacts). A level outside these, or a factor of another name, is refused with the factor
+//! mode of the thesis's preliminary study), `cm` (adaptive colour mapping: the thesis's
+//! statistics-based transfer in CIELab, as in its web survey) and `ca` (camera artifacts). A level outside these, or a factor of another name, is refused with the factor
 //! and the level named — a stimulus is never rendered with a factor silently ignored.
 //!
 //! [`StimulusSettings::fingerprint`] names everything that decides the image (the scene as
 //! TOML, size, samples, seed, VPL budget, the factor levels and [`STIMULUS_VERSION`]), so callers
 //! can cache rendered stimuli and know when one must be rendered again.
 
+use crate::cm::{CmMethod, CmParams};
 use crate::error::{RenderError, Result};
 use crate::gpu::{Condition, DirParams, DirRenderer, GpuRender};
 use crate::image::Image;
@@ -22,7 +23,7 @@ use serde::Serialize;
 
 /// Bumped whenever a change to the renderer changes the stimuli it makes, so cached stimuli of
 /// an older renderer are rendered again.
-pub const STIMULUS_VERSION: u32 = 1;
+pub const STIMULUS_VERSION: u32 = 2;
 
 /// The factors a stimulus is rendered under.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -133,13 +134,15 @@ impl StimulusSettings {
 
     /// The GPU parameters of a stimulus under `factors`, or why they cannot be rendered.
     pub fn params(&self, factors: &Factors) -> Result<DirParams> {
-        if factors.cm {
-            return Err(RenderError::Unsupported("the cm factor (adaptive colour mapping) is not built into the GPU renderer yet".into()));
-        }
         if factors.ca {
             return Err(RenderError::Unsupported("the ca factor (camera artifacts) is not built into the GPU renderer yet".into()));
         }
-        Ok(DirParams { condition: factors.gi, vpls: self.vpls, ..DirParams::default() })
+        let mut params = DirParams { condition: factors.gi, vpls: self.vpls, ..DirParams::default() };
+        if factors.cm {
+            // the thesis's web-survey cm: statistics-based colour transfer in CIELab (4.30–4.38)
+            params.cm = CmParams { method: CmMethod::Statistics, ..CmParams::default() };
+        }
+        Ok(params)
     }
 
     /// Renders one stimulus over `photo` (from [`StimulusSettings::photo`] of the same scene).
