@@ -24,6 +24,7 @@
 
 pub mod builtin;
 pub mod bvh;
+pub mod ca;
 pub mod camera;
 pub mod error;
 pub mod geometry;

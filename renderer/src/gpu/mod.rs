@@ -24,6 +24,7 @@
 //! interleaved sampling and the merge filter, temporal smoothing, motion vectors, Debevec's
 //! scaled composition, glossy VPLs (VPLs reflect diffusely).
 
+pub mod artifacts;
 pub mod context;
 pub mod mesh;
 pub mod raster;
@@ -87,11 +88,14 @@ pub struct DirParams {
     pub exposure: f32,
     /// The geometry term of a VPL uses max(d², clamp²): this distance in metres.
     pub vpl_clamp_distance: f32,
+    /// The `ca` factor: the camera-artifact chain applied after the composite ([`artifacts`]);
+    /// None: off.
+    pub camera_artifacts: Option<crate::ca::CaParams>,
 }
 
 impl Default for DirParams {
     fn default() -> Self {
-        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05 }
+        DirParams { condition: Condition::Gi, vpls: 256, shadow_map_size: 512, env_lights: 32, rsm_size: 128, exposure: 1.0, vpl_clamp_distance: 0.05, camera_artifacts: None }
     }
 }
 
@@ -128,6 +132,8 @@ pub struct GpuReport {
     pub passes: Vec<PassTime>,
     /// Sum of the pass times.
     pub ms: f64,
+    /// What the ca pass saw (None when it did not run).
+    pub camera_artifacts: Option<crate::ca::CaReport>,
 }
 
 /// The device and the compiled pipelines, reusable across frames and scenes.
@@ -135,6 +141,7 @@ pub struct DirRenderer {
     pub ctx: GpuContext,
     raster: Raster,
     shade: Shade,
+    artifacts: artifacts::Artifacts,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -208,7 +215,8 @@ impl DirRenderer {
     pub fn with_context(ctx: GpuContext) -> DirRenderer {
         let raster = Raster::new(&ctx);
         let shade = Shade::new(&ctx);
-        DirRenderer { ctx, raster, shade }
+        let artifacts = artifacts::Artifacts::new(&ctx);
+        DirRenderer { ctx, raster, shade, artifacts }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
@@ -359,14 +367,23 @@ impl DirRenderer {
         let output = timed(ctx, &mut passes, "shading and composition".into(), || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, &photo_texels));
         let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&output.composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
+        let mut composite = to_image(width, height, &composite);
+        let virtual_mask = Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() };
+        // 5. camera artifacts (the ca factor) on the virtual layers of the composite
+        let mut ca_report = None;
+        if let Some(ca) = &params.camera_artifacts {
+            let (out, report) = timed(ctx, &mut passes, "camera artifacts (ca)".into(), || self.artifacts.run(ctx, &composite, photo, &virtual_mask, &scene.camera, ca))?;
+            composite = out;
+            ca_report = Some(report);
+        }
         let ms = passes.iter().map(|p| p.ms).sum();
         Ok(GpuRender {
-            composite: to_image(width, height, &composite),
+            composite,
             l_rv: to_image(width, height, &solutions[..half]),
             l_r: to_image(width, height, &solutions[half..]),
-            virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
+            virtual_mask,
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, camera_artifacts: ca_report },
         })
     }
 }
@@ -381,7 +398,7 @@ mod tests {
     /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER)] {
+        for (name, source) in [("raster.wgsl", raster::SHADER), ("shade.wgsl", shade::SHADER), ("artifacts.wgsl", artifacts::SHADER)] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
