@@ -44,12 +44,41 @@ fn render_condition_gi_writes_the_composite_and_a_report_of_its_passes() {
 }
 
 #[test]
+fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
+    let dir = temp_dir("gi-ca");
+    let png = dir.join("gi-ca.png");
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-double-shadow", "--factors", "gi,ca", "--ca-params", "estimate", "--camera", "webcam", "--size", "64x48", "--spp", "2", "--vpls", "16", "--out"])
+        .arg(&png)
+        .arg("--buffers")
+        .arg(dir.join("buffers"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    assert!(png.exists());
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let passes: Vec<&str> = report["gpu"]["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
+    assert!(passes.iter().any(|p| p.starts_with("camera artifacts")), "{passes:?}");
+    assert_eq!(report["gpu"]["params"]["camera_artifacts"]["source"], "estimate");
+    assert!(report["ca_estimates"]["noise"]["sigma"].as_f64().is_some_and(|s| s.is_finite()), "{report}");
+    assert!(stderr.contains("ca estimates"), "{stderr}");
+    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "ca", "--ca-params", "guess", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--ca-params `guess`"));
+}
+
+#[test]
 fn render_refuses_factors_that_are_not_built() {
-    let dir = temp_dir("ca");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,ca", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    let dir = temp_dir("cm");
+    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,cm", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("`ca`") && stderr.contains("not built yet"), "{stderr}");
+    assert!(stderr.contains("`cm`") && stderr.contains("not built yet"), "{stderr}");
     let out = mrstudy().args(["render", "--scene", "survey-1", "--condition", "HQ", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("gi, shadows, none"));

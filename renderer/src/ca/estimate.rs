@@ -14,9 +14,11 @@
 //!   ("gaussian"); no usable sample (a uniform or fully clipped image) → a = b = 0 ("none").
 //! - **Blur** ([`blur`]): edge-based. At local maxima of the Sobel gradient, the edge profile is
 //!   sampled across the edge (±8 px, 0.25 px steps, bilinear); isolated steps (flat plateaus,
-//!   contrast ≥ 0.1) give a 10–90 % rise distance. The median over edges is mapped to the radius
-//!   of a defocus disc through a calibration table made by the same measurement on ideal
-//!   area-sampled edges blurred by discs of known radius (0 … 6 px). No edge → None.
+//!   contrast ≥ 0.1) give a 10–90 % rise distance. Its 20th percentile over edges (shading and
+//!   soft shadows make many edges wider than the camera's blur; the sharpest ones show the
+//!   camera) is mapped to the radius of a defocus disc through a calibration table made by the
+//!   same measurement on an ideal area-sampled disc (edges at every angle) blurred by discs of known radius (0 … 6 px).
+//!   No edge → None.
 //! - **JPEG quality** ([`jpeg_quality`]): the luma DCT coefficients of the 8×8 grid are
 //!   quantised to multiples of the table step q. For the 9 lowest AC frequencies the candidates
 //!   are the mode of round(|c|) over |c| ≥ 1.5 (the ±q cluster is usually the most populated
@@ -54,7 +56,7 @@ pub struct NoiseEstimate {
 pub struct BlurEstimate {
     /// Equivalent defocus disc radius in pixels; None without a usable edge.
     pub radius_px: Option<f32>,
-    /// Median 10–90 % edge rise distance (pixels).
+    /// 20th percentile of the 10–90 % edge rise distances (pixels).
     pub edge_width_px: Option<f32>,
     pub edges: usize,
 }
@@ -193,7 +195,7 @@ fn sample_gray(g: &[f32], w: usize, h: usize, px: f32, py: f32) -> f32 {
     top * (1.0 - fy) + bottom * fy
 }
 
-/// Median 10–90 % rise distance of isolated step edges and the number measured.
+/// 20th percentile of the 10–90 % rise distances of isolated step edges, and their number.
 fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
     let (w, h) = (img.width as usize, img.height as usize);
     if w < 8 || h < 8 {
@@ -241,7 +243,7 @@ fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
             let ends = [(cx - nx * REACH, cy - ny * REACH), (cx + nx * REACH, cy + ny * REACH)];
             if ends.iter().any(|&(ex, ey)| {
                 let (ex, ey) = (ex.floor() as i64, ey.floor() as i64);
-                ex < 0 || ey < 0 || ex >= w as i64 || ey >= h as i64 || !inside(region, ey as usize * w + ex as usize)
+                ex < 0 || ey < 0 || ex >= w as i64 || ey >= h as i64
             }) {
                 continue;
             }
@@ -298,8 +300,9 @@ fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
     if widths.is_empty() {
         return (None, 0);
     }
+    // the sharpest fifth: shading and soft shadows make many edges wider than the camera's blur
     widths.sort_by(f32::total_cmp);
-    (Some(widths[widths.len() / 2]), widths.len())
+    (Some(widths[widths.len() / 5]), widths.len())
 }
 
 /// (disc radius, median edge width) pairs of ideal edges, for radii 0, 0.25, … 6 px.
@@ -317,7 +320,7 @@ fn calibration() -> &'static Vec<(f32, f32)> {
     })
 }
 
-/// Blur of `img` over `region` as an equivalent defocus disc radius.
+/// Blur of `img` as an equivalent defocus disc radius, from edges centred in `region`.
 pub fn blur(img: &Image, region: Option<&Mask>) -> BlurEstimate {
     let (width, edges) = edge_widths(img, region);
     let radius = width.map(|wd| {
@@ -434,10 +437,30 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
     let mut p = CaParams::from_sensor(scene);
     p.source = ParamSource::Estimate;
     p.jpeg_quality = est.jpeg.quality;
-    // noise: a·d + b, divided by the chain's noise gain measured on a flat field at d = 0.5
+    // noise: the measured variance per intensity bin (linear between bin centres, constant
+    // beyond; a·d + b where fewer than two bins), then scaled so that the chain itself — whose
+    // demosaicing, sharpening and compression change noise strongly and non-linearly — shows
+    // the measured σ at mid grey (bisection on the injected level, flat field)
+    let bins = &est.noise.bins;
     let mut lut = [0.0f32; NOISE_LUT];
     for (k, v) in lut.iter_mut().enumerate() {
-        *v = (est.noise.a * k as f32 / (NOISE_LUT - 1) as f32 + est.noise.b).max(0.0);
+        let d = k as f32 / (NOISE_LUT - 1) as f32;
+        *v = if bins.len() >= 2 {
+            let first = bins[0];
+            let last = bins[bins.len() - 1];
+            if d <= first.0 {
+                first.1 * first.1
+            } else if d >= last.0 {
+                last.1 * last.1
+            } else {
+                let j = bins.windows(2).position(|b| d >= b[0].0 && d <= b[1].0).unwrap_or(0);
+                let (b0, b1) = (bins[j], bins[j + 1]);
+                let f = (d - b0.0) / (b1.0 - b0.0).max(1e-6);
+                b0.1 * b0.1 * (1.0 - f) + b1.1 * b1.1 * f
+            }
+        } else {
+            (est.noise.a * d + est.noise.b).max(0.0)
+        };
     }
     p.noise_variance = lut;
     p.defocus_px = 0.0;
@@ -449,13 +472,19 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
         let mut probe = p.clone();
         probe.distortion = [0.0; 5];
         probe.chromatic_aberration = 0.0;
-        probe.noise_variance = [v_mid; NOISE_LUT];
-        if let Ok((out, _)) = super::apply_cpu(&field, &field, &mask, &camera, &probe) {
-            let measured = noise(&out, None).sigma;
-            let gain = (measured * measured / v_mid).clamp(0.05, 20.0);
-            for v in p.noise_variance.iter_mut() {
-                *v /= gain;
-            }
+        let mut measured_at = |scale: f32| -> f32 {
+            probe.noise_variance = [v_mid * scale; NOISE_LUT];
+            super::apply_cpu(&field, &field, &mask, &camera, &probe).map(|(out, _)| noise(&out, None).sigma.powi(2)).unwrap_or(0.0)
+        };
+        // log-bisection of the scale s with measured(s) = v_mid, s in [1e-2, 1e4]
+        let (mut lo, mut hi) = (-2.0f32, 4.0f32);
+        for _ in 0..14 {
+            let mid = 0.5 * (lo + hi);
+            if measured_at(10f32.powf(mid)) < v_mid { lo = mid } else { hi = mid }
+        }
+        let scale = 10f32.powf(0.5 * (lo + hi));
+        for v in p.noise_variance.iter_mut() {
+            *v *= scale;
         }
     }
     // blur: the disc radius whose chain output (no noise) shows the measured edge width
@@ -486,18 +515,20 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
     (p, est)
 }
 
-/// An ideal area-sampled edge at 20° through the centre (the calibration target), 8×8 subsamples.
+/// The calibration target: a bright disc of radius 0.3·size on a dark ground, area-sampled with
+/// 8×8 subsamples (edges at every angle).
 fn calibration_edge(size: u32) -> Image {
-    let (nx, ny) = (20f32.to_radians().cos(), 20f32.to_radians().sin());
+    let r = 0.3 * size as f32;
+    let c = size as f32 / 2.0;
     let mut edge = Image::new(size, size);
     for y in 0..size {
         for x in 0..size {
             let mut s = 0.0;
             for sy in 0..8 {
                 for sx in 0..8 {
-                    let px = x as f32 + (sx as f32 + 0.5) / 8.0 - size as f32 / 2.0;
-                    let py = y as f32 + (sy as f32 + 0.5) / 8.0 - size as f32 / 2.0;
-                    if px * nx + py * ny > 0.0 {
+                    let px = x as f32 + (sx as f32 + 0.5) / 8.0 - c;
+                    let py = y as f32 + (sy as f32 + 0.5) / 8.0 - c;
+                    if px * px + py * py < r * r {
                         s += 1.0;
                     }
                 }

@@ -34,6 +34,7 @@
 //! WGSL. Not simulated: vignetting, white balance and the tone curve (the composite already has
 //! the frame's colour mapping), chroma subsampling; all stages work on display-encoded values.
 
+pub mod accuracy;
 pub mod estimate;
 pub mod jpeg;
 
