@@ -416,6 +416,9 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
     let mut blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
     let mut configuration = 0.0;
     let fmt = |v: Option<f32>| v.map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into());
+    // σ_virt: noise on the frame's virtual objects above the ca-off frame's floor; σ_gt: the
+    // camera's noise on the same pixels of the ground truth (above its noise-free floor);
+    // σ_real: the photograph's untouched pixels; r: blur as a disc radius (px)
     println!("{:<18} {:<7} {:<9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>7} {:>9} {:>9}", "scene", "camera", "ca", "σ_virt", "σ_gt", "σ_real", "r_virt", "r_gt", "r_real", "ca ms", "rmse(aff)");
     for name in &names {
         let base = load_scene(name, Some(&format!("{w}x{h}")), None)?;
@@ -430,15 +433,23 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
             scene.sensor.seed = seed;
             let photo = sensor::apply(&reference.hdr_real, &scene.camera, &scene.sensor);
             let truth = sensor::apply(&reference.hdr_full, &scene.camera, &scene.sensor);
+            // the ground truth without sensor noise: its σ is the path tracer's noise and the
+            // shading's residue, which the camera's σ is corrected for (σ_cam² = σ_gt² − σ_floor²)
+            let mut quiet = scene.sensor.clone();
+            quiet.noise = [0.0, 0.0];
+            let truth_quiet = sensor::apply(&reference.hdr_full, &scene.camera, &quiet);
             let regions = Regions::new(&reference.virtual_mask, &reference.affected_mask, &scene.camera, &scene.sensor);
             let affected = accuracy::warp_mask(&reference.affected_mask, &scene.camera, &scene.sensor);
             let real = accuracy::measure(&photo, &regions.real, &regions.real);
             let gt = accuracy::measure(&truth, &regions.virtual_inner, &regions.virtual_edges);
+            let floor = accuracy::measure(&truth_quiet, &regions.virtual_inner, &regions.virtual_edges).noise_sigma;
+            let camera_sigma = (gt.noise_sigma.powi(2) - floor.powi(2)).max(0.0).sqrt();
             configuration += 1.0;
-            noise_series[modes.len()].push((configuration, gt.noise_sigma as f64));
+            noise_series[modes.len()].push((configuration, camera_sigma as f64));
             if let Some(r) = gt.blur_radius_px {
                 blur_series[modes.len()].push((configuration, r as f64));
             }
+            let mut frame_floor = 0.0f32;
             for (k, (mode, source)) in modes.iter().enumerate() {
                 let camera_artifacts = source.map(|s| match s {
                     ParamSource::Scene => CaParams::from_sensor(&scene.sensor),
@@ -448,6 +459,10 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                 renderer.render(&scene, &photo, &params)?;
                 let frame = renderer.render(&scene, &photo, &params)?;
                 let stats = accuracy::measure(&frame.composite, &regions.virtual_inner, &regions.virtual_edges);
+                if k == 0 {
+                    frame_floor = stats.noise_sigma;
+                }
+                let virtual_sigma = (stats.noise_sigma.powi(2) - frame_floor.powi(2)).max(0.0).sqrt();
                 let ca_ms = frame.report.passes.iter().find(|p| p.pass.starts_with("camera artifacts")).map(|p| p.ms);
                 let rmse = metrics::rmse(&truth, &frame.composite, Some(&affected));
                 let flip = metrics::flip(&truth, &frame.composite, Some(&affected));
@@ -456,8 +471,8 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     name,
                     preset,
                     mode,
-                    stats.noise_sigma,
-                    gt.noise_sigma,
+                    virtual_sigma,
+                    camera_sigma,
                     real.noise_sigma,
                     fmt(stats.blur_radius_px),
                     fmt(gt.blur_radius_px),
@@ -465,7 +480,7 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     ca_ms.map(|m| format!("{m:.2}")).unwrap_or_else(|| "-".into()),
                     rmse
                 );
-                noise_series[k].push((configuration, stats.noise_sigma as f64));
+                noise_series[k].push((configuration, virtual_sigma as f64));
                 if let Some(r) = stats.blur_radius_px {
                     blur_series[k].push((configuration, r as f64));
                 }
@@ -473,7 +488,9 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     "bench": "ca-accuracy", "scene": name, "camera": preset, "ca": mode, "configuration": configuration,
                     "width": w, "height": h, "reference_spp": ref_spp,
                     "virtual": stats, "ground_truth_virtual": gt, "photo_real": real,
-                    "noise_ratio_to_ground_truth": if gt.noise_sigma > 0.0 { Some(stats.noise_sigma / gt.noise_sigma) } else { None },
+                    "virtual_noise_sigma": virtual_sigma, "camera_noise_sigma": camera_sigma,
+                    "ground_truth_noise_floor": floor, "frame_noise_floor": frame_floor,
+                    "noise_ratio_to_ground_truth": if camera_sigma > 0.0 { Some(virtual_sigma / camera_sigma) } else { None },
                     "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
                     "ca_ms": ca_ms, "ms": frame.report.ms, "rmse": rmse, "flip": flip,
                     "ca_params": frame.report.params.camera_artifacts,
@@ -489,7 +506,7 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
             mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
                 title: format!("ca: noise σ on the virtual objects ({w}x{h}, {adapter})"),
                 x_label: "configuration (scene × camera, see the table)".into(),
-                y_label: "Immerkær σ (display units)".into(),
+                y_label: "camera noise σ above the noise-free floor (Immerkær, display)".into(),
                 x_log: false,
                 y_log: true,
                 series: series(&noise_series),

@@ -75,9 +75,11 @@ impl Regions {
     }
 }
 
-/// Noise over `noise_region` and blur over `blur_region` of `img`.
+/// Noise over `noise_region` and blur over `blur_region` of `img`, quantised to 8 bits first
+/// (what is shown; the photograph was quantised by the camera).
 pub fn measure(img: &Image, noise_region: &Mask, blur_region: &Mask) -> RegionStats {
-    let n = noise(img, Some(noise_region));
-    let b = blur(img, Some(blur_region));
+    let img = super::estimate::quantised(img);
+    let n = noise(&img, Some(noise_region));
+    let b = blur(&img, Some(blur_region));
     RegionStats { noise_sigma: n.sigma, noise_samples: n.samples, blur_radius_px: b.radius_px, blur_edges: b.edges }
 }

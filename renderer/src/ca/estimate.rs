@@ -423,6 +423,11 @@ pub fn jpeg_quality(img: &Image) -> JpegEstimate {
     JpegEstimate { quality: Some(best.1), steps }
 }
 
+/// The image as 8-bit values (what a PNG of it holds, and what a camera delivers).
+pub fn quantised(img: &Image) -> Image {
+    Image::from_rgb8(img.width, img.height, &img.to_rgb8())
+}
+
 /// All three estimates of a photograph.
 pub fn estimate(photo: &Image) -> Estimates {
     Estimates { noise: noise(photo, None), blur: blur(photo, None), jpeg: jpeg_quality(photo) }
@@ -474,7 +479,8 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
         probe.chromatic_aberration = 0.0;
         let mut measured_at = |scale: f32| -> f32 {
             probe.noise_variance = [v_mid * scale; NOISE_LUT];
-            super::apply_cpu(&field, &field, &mask, &camera, &probe).map(|(out, _)| noise(&out, None).sigma.powi(2)).unwrap_or(0.0)
+            // measured on 8-bit values, as the photograph was
+            super::apply_cpu(&field, &field, &mask, &camera, &probe).map(|(out, _)| noise(&quantised(&out), None).sigma.powi(2)).unwrap_or(0.0)
         };
         // log-bisection of the scale s with measured(s) = v_mid, s in [1e-2, 1e4]
         let (mut lo, mut hi) = (-2.0f32, 4.0f32);
@@ -498,7 +504,7 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
         let mask = Mask { width: edge.width, height: edge.height, values: vec![1.0; edge.pixels.len()] };
         let width_at = |r: f32, probe: &mut CaParams| {
             probe.defocus_px = r;
-            super::apply_cpu(&edge, &edge, &mask, &camera, probe).ok().and_then(|(out, _)| edge_widths(&out, None).0)
+            super::apply_cpu(&edge, &edge, &mask, &camera, probe).ok().and_then(|(out, _)| edge_widths(&quantised(&out), None).0)
         };
         let (mut lo, mut hi) = (0.0f32, 6.0f32);
         if width_at(0.0, &mut probe).is_some_and(|w0| w0 < target) {
