@@ -331,7 +331,8 @@ pub fn bench_reference(scene_name: Option<&str>, quick: bool) -> Result<(String,
 
 /// `mrstudy bench render` (GPU): frame time and error against the path-traced ground truth in
 /// the affected region, for the conditions none and shadows and for gi over a VPL sweep
-/// (16 … 1024). Each frame is rendered twice and the second timed (the first compiles the
+/// (16 … 1024), then gi with and without the ca factor through the webcam and phone cameras
+/// (the ca pass timed). Each frame is rendered twice and the second timed (the first compiles the
 /// shaders on software adapters). Returns (adapter, rows, plots) for `bench`'s writer.
 pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
     let names: Vec<String> = match scene_name {
@@ -375,6 +376,29 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
                 "width": w, "height": h, "reference_spp": ref_spp, "shadow_map_size": params.shadow_map_size, "rsm_size": params.rsm_size,
                 "passes": frame.report.passes,
             }));
+        }
+        // the ca factor on top of gi (scene camera parameters): its pass time and the error
+        for preset in ["webcam", "phone"] {
+            let mut cam_scene = scene.clone();
+            let seed = cam_scene.sensor.seed;
+            cam_scene.sensor = SensorParams::preset(preset).context("preset")?;
+            cam_scene.sensor.seed = seed;
+            let photo = sensor::apply(&reference.hdr_real, &cam_scene.camera, &cam_scene.sensor);
+            let truth = sensor::apply(&reference.hdr_full, &cam_scene.camera, &cam_scene.sensor);
+            for ca in [false, true] {
+                let params = DirParams { condition: Condition::Gi, camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)), ..DirParams::default() };
+                renderer.render(&cam_scene, &photo, &params)?;
+                let frame = renderer.render(&cam_scene, &photo, &params)?;
+                let rmse = metrics::rmse(&truth, &frame.composite, Some(affected));
+                let flip = metrics::flip(&truth, &frame.composite, Some(affected));
+                let ca_ms = frame.report.passes.iter().find(|p| p.pass.starts_with("camera artifacts")).map(|p| p.ms);
+                let label = if ca { format!("gi+ca/{preset}") } else { format!("gi/{preset}") };
+                println!("{:<18} {:<12} {:>6} {:>10.2} {:>10.5} {:>8.4}   ca pass {}", name, label, frame.report.vpls, frame.report.ms, rmse, flip, ca_ms.map(|m| format!("{m:.2} ms")).unwrap_or_else(|| "-".into()));
+                rows.push(json!({
+                    "scene": name, "condition": if ca { "gi+ca" } else { "gi" }, "camera": preset, "vpls": params.vpls, "ms": frame.report.ms, "ca_ms": ca_ms,
+                    "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp, "passes": frame.report.passes,
+                }));
+            }
         }
         plots.push((
             format!("render_gpu_{name}.svg"),

@@ -28,7 +28,8 @@
 //! output is the photograph bit for bit (tested).
 //!
 //! Noise is a variance table over display values (17 entries, 0, 1/16 … 1; linear in between):
-//! from the scene's camera by the delta method through its response (σ_d = R′(y)·√(a·y + b)), or
+//! from the scene's camera, the variance of its response R applied to the clipped noisy sensor
+//! value (R(clip(y + √(a·y + b)·Z)) at d = R(y), by quadrature), or
 //! estimated as a·d + b from the photograph and divided by the chain's own noise gain. The normal
 //! deviates come from a PCG hash of (seed, pixel, channel) ([`normal`]), written identically in
 //! WGSL. Not simulated: vignetting, white balance and the tone curve (the composite already has
@@ -181,14 +182,22 @@ pub fn display_curve(p: &SensorParams, y: f32) -> f32 {
     if p.contrast != 1.0 { ((c - 0.5) * p.contrast + 0.5).clamp(0.0, 1.0) } else { c }
 }
 
-/// The camera's noise a·y + b (sensor values) as a variance table over display values, by the
-/// delta method: σ_d(d) = R′(y)·√(a·y + b) with d = R(y).
+/// The camera's noise a·y + b (sensor values) as a variance table over display values: at each
+/// d = R(y), the variance of R(clip(y + σ(y)·Z, 0, 1)) with σ(y)² = a·y + b and Z standard
+/// normal (by quadrature over Z ∈ [−6, 6], 481 points), i.e. the noise as the camera's response
+/// and clipping shape it. Near black, where the curve is steep, this is much less than the
+/// delta method's R′(y)²·σ(y)².
 pub fn display_noise_lut(p: &SensorParams) -> [f32; NOISE_LUT] {
     let [a, b] = p.noise;
     let mut lut = [0.0f32; NOISE_LUT];
     if a <= 0.0 && b <= 0.0 {
         return lut;
     }
+    // the normal density on the quadrature nodes (trapezoid rule), normalised to sum to 1
+    const NODES: usize = 481;
+    let z: Vec<f64> = (0..NODES).map(|k| -6.0 + 12.0 * k as f64 / (NODES - 1) as f64).collect();
+    let pdf: Vec<f64> = z.iter().map(|z| (-0.5 * z * z).exp()).collect();
+    let total: f64 = pdf.iter().sum();
     for (k, out) in lut.iter_mut().enumerate() {
         let d = k as f32 / (NOISE_LUT - 1) as f32;
         // the smallest y in [0, 1] with R(y) ≥ d (R is non-decreasing)
@@ -198,10 +207,15 @@ pub fn display_noise_lut(p: &SensorParams) -> [f32; NOISE_LUT] {
             if display_curve(p, mid) < d { lo = mid } else { hi = mid }
         }
         let y = hi;
-        let h = 2e-3f32;
-        let (y0, y1) = ((y - h).max(0.0), (y + h).min(1.0));
-        let slope = (display_curve(p, y1) - display_curve(p, y0)) / (y1 - y0);
-        *out = slope * slope * (a * y + b).max(0.0);
+        let sigma = (a * y + b).max(0.0).sqrt();
+        let (mut m1, mut m2) = (0.0f64, 0.0f64);
+        for (zk, wk) in z.iter().zip(&pdf) {
+            let v = display_curve(p, (y + sigma * *zk as f32).clamp(0.0, 1.0)) as f64;
+            m1 += wk * v;
+            m2 += wk * v * v;
+        }
+        let (m1, m2) = (m1 / total, m2 / total);
+        *out = (m2 - m1 * m1).max(0.0) as f32;
     }
     lut
 }

@@ -12,7 +12,9 @@
 //!    Blinn–Phong parameters);
 //! 4. **shading and composition** ([`shade`]): L_rv and L_r by equations 5.1–5.8, then
 //!    L_final = L'_cam + TM(L_rv) − TM(L_r) with the simplified Reinhard operator x/(1+x)
-//!    (then sRGB encoding), where L'_cam is the photograph with virtual pixels masked out.
+//!    (then sRGB encoding), where L'_cam is the photograph with virtual pixels masked out;
+//! 5. with the `ca` factor ([`DirParams::camera_artifacts`]), the camera-artifact chain on the
+//!    composite's virtual layers ([`artifacts`], see [`crate::ca`]).
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
