@@ -421,7 +421,11 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
 /// traced, through the simulated camera) shows what the camera does to the virtual objects;
 /// the same estimators run on the same pixels of each GPU frame (`mrstudy_renderer::ca::accuracy`),
 /// and on the untouched real pixels of the photograph. Also times the ca pass and reports the
-/// frame's error against the ground truth in the affected region. Returns (adapter, rows, plots).
+/// frame's error against the ground truth in the affected region. Rows with `"layer":
+/// "path-traced"` apply the chain (CPU reference) to the path-traced virtual objects through
+/// the camera with its artifact stages off, which isolates the chain from the GPU renderer's
+/// shading and tone mapping and shares the ground truth's path-tracing noise. Returns
+/// (adapter, rows, plots).
 pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
     use mrstudy_renderer::ca::accuracy::{self, Regions};
     let names: Vec<String> = match scene_name {
@@ -438,6 +442,8 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
     let modes: [(&str, Option<ParamSource>); 3] = [("off", None), ("scene", Some(ParamSource::Scene)), ("estimate", Some(ParamSource::Estimate))];
     let mut noise_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
     let mut blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut layer_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut layer_blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
     let mut configuration = 0.0;
     let fmt = |v: Option<f32>| v.map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into());
     // σ_virt: noise on the frame's virtual objects above the ca-off frame's floor; σ_gt: the
@@ -517,8 +523,67 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     "noise_ratio_to_ground_truth": if camera_sigma > 0.0 { Some(virtual_sigma / camera_sigma) } else { None },
                     "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
                     "ca_ms": ca_ms, "ms": frame.report.ms, "rmse": rmse, "flip": flip,
-                    "ca_params": frame.report.params.camera_artifacts,
+                    "ca_params": frame.report.params.camera_artifacts, "layer": "gpu",
                 }));
+            }
+            // the chain alone, without the GPU renderer's shading and tone differences: the
+            // virtual layer is the path-traced radiance through the camera with every artifact
+            // stage off (the same path-tracing noise as the ground truth), then the ca chain
+            let mut clean = scene.sensor.clone();
+            clean.distortion = [0.0; 5];
+            clean.chromatic_aberration = 0.0;
+            clean.defocus_px = 0.0;
+            clean.bayer = false;
+            clean.noise = [0.0, 0.0];
+            clean.sharpen = 0.0;
+            clean.jpeg_quality = None;
+            clean.vignetting = 0.0;
+            let clean_full = sensor::apply(&reference.hdr_full, &scene.camera, &clean);
+            let coverage = Mask { width: w, height: h, values: reference.virtual_mask.values.iter().map(|v| if *v > 0.5 { 1.0 } else { 0.0 }).collect() };
+            let mut layer = photo.clone();
+            for (i, px) in layer.pixels.iter_mut().enumerate() {
+                if coverage.values[i] > 0.0 {
+                    *px = clean_full.pixels[i];
+                }
+            }
+            for (k, (mode, source)) in modes.iter().enumerate() {
+                let out = match source {
+                    None => layer.clone(),
+                    Some(s) => {
+                        let p = if *s == ParamSource::Scene { CaParams::from_sensor(&scene.sensor) } else { estimate::params_from_photo(&photo, &scene.sensor).0 };
+                        mrstudy_renderer::ca::apply_cpu(&layer, &photo, &coverage, &scene.camera, &p)?.0
+                    }
+                };
+                let stats = accuracy::measure(&out, &regions.virtual_inner, &regions.virtual_edges);
+                println!(
+                    "{:<18} {:<7} {:<9} {:>9.5} {:>9.5} {:>9.5} {:>7} {:>7} {:>7} {:>9} {:>9}",
+                    name,
+                    preset,
+                    format!("pt-{mode}"),
+                    stats.noise_sigma,
+                    gt.noise_sigma,
+                    real.noise_sigma,
+                    fmt(stats.blur_radius_px),
+                    fmt(gt.blur_radius_px),
+                    fmt(real.blur_radius_px),
+                    "(cpu)",
+                    "-"
+                );
+                layer_series[k].push((configuration, stats.noise_sigma as f64));
+                if let Some(r) = stats.blur_radius_px {
+                    layer_blur_series[k].push((configuration, r as f64));
+                }
+                rows.push(json!({
+                    "bench": "ca-accuracy", "scene": name, "camera": preset, "ca": mode, "configuration": configuration, "layer": "path-traced",
+                    "width": w, "height": h, "reference_spp": ref_spp,
+                    "virtual": stats, "ground_truth_virtual": gt, "photo_real": real,
+                    "noise_ratio_to_ground_truth": if gt.noise_sigma > 0.0 { Some(stats.noise_sigma / gt.noise_sigma) } else { None },
+                    "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
+                }));
+            }
+            layer_series[modes.len()].push((configuration, gt.noise_sigma as f64));
+            if let Some(r) = gt.blur_radius_px {
+                layer_blur_series[modes.len()].push((configuration, r as f64));
             }
         }
     }
@@ -545,6 +610,28 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                 x_log: false,
                 y_log: false,
                 series: series(&blur_series),
+            }),
+        ),
+        (
+            "render_ca_noise_layer.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca chain alone on the path-traced virtual layer: noise σ ({w}x{h}, CPU reference)"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "Immerkær σ on the virtual objects (display)".into(),
+                x_log: false,
+                y_log: true,
+                series: series(&layer_series),
+            }),
+        ),
+        (
+            "render_ca_blur_layer.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca chain alone on the path-traced virtual layer: blur ({w}x{h}, CPU reference)"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "equivalent disc radius (px)".into(),
+                x_log: false,
+                y_log: false,
+                series: series(&layer_blur_series),
             }),
         ),
     ];
