@@ -547,16 +547,22 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                 }
             }
             for (k, (mode, source)) in modes.iter().enumerate() {
+                let mut cpu_ms = 0.0;
                 let out = match source {
                     None => layer.clone(),
                     Some(s) => {
                         let p = if *s == ParamSource::Scene { CaParams::from_sensor(&scene.sensor) } else { estimate::params_from_photo(&photo, &scene.sensor).0 };
-                        mrstudy_renderer::ca::apply_cpu(&layer, &photo, &coverage, &scene.camera, &p)?.0
+                        let start = Instant::now();
+                        let out = mrstudy_renderer::ca::apply_cpu(&layer, &photo, &coverage, &scene.camera, &p)?.0;
+                        cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+                        out
                     }
                 };
+                let rmse = metrics::rmse(&truth, &out, Some(&affected));
+                let flip = metrics::flip(&truth, &out, Some(&affected));
                 let stats = accuracy::measure(&out, &regions.virtual_inner, &regions.virtual_edges);
                 println!(
-                    "{:<18} {:<7} {:<9} {:>9.5} {:>9.5} {:>9.5} {:>7} {:>7} {:>7} {:>9} {:>9}",
+                    "{:<18} {:<7} {:<9} {:>9.5} {:>9.5} {:>9.5} {:>7} {:>7} {:>7} {:>9} {:>9.5}",
                     name,
                     preset,
                     format!("pt-{mode}"),
@@ -566,8 +572,8 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     fmt(stats.blur_radius_px),
                     fmt(gt.blur_radius_px),
                     fmt(real.blur_radius_px),
-                    "(cpu)",
-                    "-"
+                    format!("{cpu_ms:.0} cpu"),
+                    rmse
                 );
                 layer_series[k].push((configuration, stats.noise_sigma as f64));
                 if let Some(r) = stats.blur_radius_px {
@@ -579,6 +585,7 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
                     "virtual": stats, "ground_truth_virtual": gt, "photo_real": real,
                     "noise_ratio_to_ground_truth": if gt.noise_sigma > 0.0 { Some(stats.noise_sigma / gt.noise_sigma) } else { None },
                     "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
+                    "ms": cpu_ms, "rmse": rmse, "flip": flip, "timed_on": "cpu (CPU reference implementation)",
                 }));
             }
             layer_series[modes.len()].push((configuration, gt.noise_sigma as f64));

@@ -105,3 +105,33 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
     }
     assert!(dir.join("render_gpu_dir-lamp-box.svg").exists());
 }
+
+#[test]
+fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
+    let dir = temp_dir("bench-ca");
+    let json = dir.join("ca.json");
+    let out = mrstudy().args(["bench", "render", "--ca", "--quick", "--json"]).arg(&json).arg("--plot-dir").arg(&dir).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    for layer in ["gpu", "path-traced"] {
+        for ca in ["off", "scene", "estimate"] {
+            assert!(rows.iter().any(|r| r["layer"] == layer && r["ca"] == ca), "no {layer}/{ca} row");
+        }
+    }
+    for row in rows {
+        assert!(row["virtual"]["noise_sigma"].as_f64().is_some_and(f64::is_finite), "{row}");
+        if row["layer"] == "gpu" && row["ca"] != "off" {
+            assert!(row["ca_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{row}");
+        }
+    }
+    // ca on adds noise to the noise-free GPU rendering of the virtual objects
+    let sigma = |ca: &str| rows.iter().find(|r| r["layer"] == "gpu" && r["ca"] == ca && r["camera"] == "webcam").unwrap()["virtual"]["noise_sigma"].as_f64().unwrap();
+    assert!(sigma("scene") > sigma("off"), "{rows:?}");
+    assert!(dir.join("render_ca_noise.svg").exists() && dir.join("render_ca_blur_layer.svg").exists());
+}
