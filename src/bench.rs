@@ -18,7 +18,7 @@ use serde_json::{Value, json};
 pub enum Target {
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
-    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render.
+    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on.
     Render,
     /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
     Server,
@@ -39,6 +39,10 @@ pub struct BenchArgs {
     /// bench render: measure the CPU reference path tracer.
     #[arg(long)]
     reference: bool,
+    /// bench render: the ca factor's accuracy — noise and blur on the virtual objects against
+    /// the camera's (ground truth), ca off / scene / estimated parameters, per scene and preset.
+    #[arg(long, conflicts_with = "reference")]
+    ca: bool,
     /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference).
     #[arg(long)]
     scene: Option<String>,
@@ -48,6 +52,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let (adapter, rows, plots) = match args.target {
         Target::Analysis => bench_analysis(args.quick)?,
         Target::Render if args.reference => crate::render::bench_reference(args.scene.as_deref(), args.quick)?,
+        Target::Render if args.ca => crate::render::bench_ca(args.scene.as_deref(), args.quick)?,
         Target::Server => crate::serve::bench_server(args.quick)?,
         Target::Render => crate::render::bench_gpu(args.scene.as_deref(), args.quick)?,
     };

@@ -4,8 +4,10 @@
 //! simulated camera; `--buffers DIR` also writes the HDR buffers, both camera images, the masks
 //! and a JSON report. Conditions (`--condition gi|shadows|none`, `--factors gi`) render on the
 //! GPU (differential instant radiosity, `mrstudy_renderer::gpu`) over the path-traced
-//! photograph, at 1024x768 unless `--size` says otherwise; the factors `cm` and `ca` are not
-//! built yet and are refused.
+//! photograph, at 1024x768 unless `--size` says otherwise. The factor `ca` (`--factors gi,ca`)
+//! adds the camera-artifact chain (`mrstudy_renderer::ca`), its parameters from the scene's
+//! camera or estimated from the photograph (`--ca-params scene|estimate`); `cm` is not built
+//! yet and is refused.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -13,6 +15,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use mrstudy_renderer::ca::{CaParams, ParamSource, estimate};
 use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
 use mrstudy_renderer::image::save_by_extension;
 use mrstudy_renderer::metrics;
@@ -39,9 +42,14 @@ pub struct RenderArgs {
     /// A condition by name, on the GPU: `gi` (shadows and indirect light), `shadows`, or `none`.
     #[arg(long, conflicts_with = "factors")]
     condition: Option<String>,
-    /// Factors to switch on, on the GPU: `gi` (only `gi` is built; `cm` and `ca` are not yet).
+    /// Factors to switch on, on the GPU: `gi` (indirect light and shadows), `ca` (camera
+    /// artifacts); `cm` is not built yet.
     #[arg(long)]
     factors: Option<String>,
+    /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
+    /// `estimate` (noise, blur and JPEG quality measured on the photograph).
+    #[arg(long, default_value = "scene")]
+    ca_params: String,
     /// GPU: the VPL budget of the `gi` condition.
     #[arg(long, default_value_t = 256)]
     vpls: u32,
@@ -171,25 +179,28 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The `gi` level asked for by `--condition` or `--factors`.
-fn condition_of(args: &RenderArgs) -> Result<Condition> {
+/// The `gi` level and whether `ca` is on, asked for by `--condition` or `--factors`.
+fn condition_of(args: &RenderArgs) -> Result<(Condition, bool)> {
     if let Some(name) = &args.condition {
-        return Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (the cm and ca factors are not built yet)"));
+        return Ok((Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (use --factors for ca)"))?, false));
     }
     let mut condition = Condition::None;
+    let mut ca = false;
     for factor in args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty()) {
         match factor {
             "gi" => condition = Condition::Gi,
-            "cm" | "ca" => bail!("the factor `{factor}` ({}) is not built yet; only `gi` renders on the GPU so far", if factor == "cm" { "adaptive colour mapping" } else { "camera artifacts" }),
-            other => bail!("--factors: unknown factor `{other}`; expected gi (cm and ca are not built yet)"),
+            "ca" => ca = true,
+            "cm" => bail!("the factor `cm` (adaptive colour mapping) is not built yet; gi and ca render on the GPU"),
+            other => bail!("--factors: unknown factor `{other}`; expected gi or ca (cm is not built yet)"),
         }
     }
-    Ok(condition)
+    Ok((condition, ca))
 }
 
 /// `render --condition …`: the photograph by the path tracer, then the GPU frame over it.
 fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
-    let condition = condition_of(args)?;
+    let (condition, ca) = condition_of(args)?;
+    let ca_source = ParamSource::parse(&args.ca_params).with_context(|| format!("--ca-params `{}` is not one of scene, estimate", args.ca_params))?;
     if args.reference || args.photo {
         bail!("--condition/--factors render on the GPU; leave out --reference and --photo");
     }
@@ -206,7 +217,27 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
     let bar = progress_bar(args.spp as u64, &label);
     let (_, photo, photo_stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
-    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, ..DirParams::default() };
+    let mut ca_estimates = None;
+    let camera_artifacts = ca.then(|| match ca_source {
+        ParamSource::Scene => CaParams::from_sensor(&scene.sensor),
+        ParamSource::Estimate => {
+            let (params, estimates) = estimate::params_from_photo(&photo, &scene.sensor);
+            ca_estimates = Some(estimates);
+            params
+        }
+    });
+    if let Some(e) = &ca_estimates {
+        eprintln!(
+            "ca estimates from the photograph: noise σ {:.4} (σ² = {:.2e}·d + {:.2e}, {}), blur {}, JPEG quality {}",
+            e.noise.sigma,
+            e.noise.a,
+            e.noise.b,
+            e.noise.fit,
+            e.blur.radius_px.map(|r| format!("disc radius {r:.2} px ({} edges)", e.blur.edges)).unwrap_or_else(|| "not measurable (no isolated edges)".into()),
+            e.jpeg.quality.map(|q| q.to_string()).unwrap_or_else(|| "not detectable (none, or above about 95)".into())
+        );
+    }
+    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, camera_artifacts, ..DirParams::default() };
     let frame = renderer.render(&scene, &photo, &dir_params)?;
     save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = &args.buffers {
@@ -216,15 +247,16 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
         frame.l_rv.save_exr(&dir.join("l_rv.exr"))?;
         frame.l_r.save_exr(&dir.join("l_r.exr"))?;
         frame.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
-        write_json(&dir.join("report.json"), &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds }))?;
+        write_json(&dir.join("report.json"), &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates }))?;
     }
     for pass in &frame.report.passes {
         eprintln!("  {:<32} {:>9.2} ms", pass.pass, pass.ms);
     }
     eprintln!(
-        "wrote {} ({} condition, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
+        "wrote {} ({} condition{}, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
         out.display(),
         condition.name(),
+        if ca { format!(", ca from the {}", if ca_source == ParamSource::Scene { "scene's camera" } else { "photograph" }) } else { String::new() },
         frame.report.vpls,
         photo_stats.seconds,
         frame.report.ms,
@@ -305,7 +337,8 @@ pub fn bench_reference(scene_name: Option<&str>, quick: bool) -> Result<(String,
 
 /// `mrstudy bench render` (GPU): frame time and error against the path-traced ground truth in
 /// the affected region, for the conditions none and shadows and for gi over a VPL sweep
-/// (16 … 1024). Each frame is rendered twice and the second timed (the first compiles the
+/// (16 … 1024), then gi with and without the ca factor through the webcam and phone cameras
+/// (the ca pass timed). Each frame is rendered twice and the second timed (the first compiles the
 /// shaders on software adapters). Returns (adapter, rows, plots) for `bench`'s writer.
 pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
     let names: Vec<String> = match scene_name {
@@ -381,6 +414,29 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
                 series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: ism_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: ism_flip }],
             }),
         ));
+        // the ca factor on top of gi (scene camera parameters): its pass time and the error
+        for preset in ["webcam", "phone"] {
+            let mut cam_scene = scene.clone();
+            let seed = cam_scene.sensor.seed;
+            cam_scene.sensor = SensorParams::preset(preset).context("preset")?;
+            cam_scene.sensor.seed = seed;
+            let photo = sensor::apply(&reference.hdr_real, &cam_scene.camera, &cam_scene.sensor);
+            let truth = sensor::apply(&reference.hdr_full, &cam_scene.camera, &cam_scene.sensor);
+            for ca in [false, true] {
+                let params = DirParams { condition: Condition::Gi, camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)), ..DirParams::default() };
+                renderer.render(&cam_scene, &photo, &params)?;
+                let frame = renderer.render(&cam_scene, &photo, &params)?;
+                let rmse = metrics::rmse(&truth, &frame.composite, Some(affected));
+                let flip = metrics::flip(&truth, &frame.composite, Some(affected));
+                let ca_ms = frame.report.passes.iter().find(|p| p.pass.starts_with("camera artifacts")).map(|p| p.ms);
+                let label = if ca { format!("gi+ca/{preset}") } else { format!("gi/{preset}") };
+                println!("{:<18} {:<12} {:>6} {:>10.2} {:>10.5} {:>8.4}   ca pass {}", name, label, frame.report.vpls, frame.report.ms, rmse, flip, ca_ms.map(|m| format!("{m:.2} ms")).unwrap_or_else(|| "-".into()));
+                rows.push(json!({
+                    "scene": name, "condition": if ca { "gi+ca" } else { "gi" }, "camera": preset, "vpls": params.vpls, "ms": frame.report.ms, "ca_ms": ca_ms,
+                    "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp, "passes": frame.report.passes,
+                }));
+            }
+        }
         plots.push((
             format!("render_gpu_{name}.svg"),
             mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
@@ -393,5 +449,235 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
             }),
         ));
     }
+    Ok((adapter, rows, plots))
+}
+
+/// `mrstudy bench render --ca`: how closely noise and blur on the virtual objects match the
+/// camera, per scene and camera preset, with the ca factor off, on with the scene's camera
+/// parameters and on with parameters estimated from the photograph. The ground truth (path
+/// traced, through the simulated camera) shows what the camera does to the virtual objects;
+/// the same estimators run on the same pixels of each GPU frame (`mrstudy_renderer::ca::accuracy`),
+/// and on the untouched real pixels of the photograph. Also times the ca pass and reports the
+/// frame's error against the ground truth in the affected region. Rows with `"layer":
+/// "path-traced"` apply the chain (CPU reference) to the path-traced virtual objects through
+/// the camera with its artifact stages off, which isolates the chain from the GPU renderer's
+/// shading and tone mapping and shares the ground truth's path-tracing noise. Returns
+/// (adapter, rows, plots).
+pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
+    use mrstudy_renderer::ca::accuracy::{self, Regions};
+    let names: Vec<String> = match scene_name {
+        Some(n) => vec![n.to_string()],
+        None if quick => vec!["dir-double-shadow".to_string()],
+        None => ["survey-1", "survey-4", "dir-double-shadow", "dir-lamp-box"].iter().map(|s| s.to_string()).collect(),
+    };
+    let (w, h, ref_spp) = if quick { (128, 96, 64) } else { (192, 144, 256) };
+    let presets = ["webcam", "phone"];
+    let renderer = DirRenderer::new()?;
+    let adapter = renderer.ctx.adapter_name();
+    eprintln!("adapter: {adapter}");
+    let mut rows = Vec::new();
+    let modes: [(&str, Option<ParamSource>); 3] = [("off", None), ("scene", Some(ParamSource::Scene)), ("estimate", Some(ParamSource::Estimate))];
+    let mut noise_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut layer_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut layer_blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
+    let mut configuration = 0.0;
+    let fmt = |v: Option<f32>| v.map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into());
+    // σ_virt: noise on the frame's virtual objects above the ca-off frame's floor; σ_gt: the
+    // camera's noise on the same pixels of the ground truth (above its noise-free floor);
+    // σ_real: the photograph's untouched pixels; r: blur as a disc radius (px)
+    println!("{:<18} {:<7} {:<9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>7} {:>9} {:>9}", "scene", "camera", "ca", "σ_virt", "σ_gt", "σ_real", "r_virt", "r_gt", "r_real", "ca ms", "rmse(aff)");
+    for name in &names {
+        let base = load_scene(name, Some(&format!("{w}x{h}")), None)?;
+        eprintln!("{name} at {w}x{h}: reference at {ref_spp} spp …");
+        let bar = progress_bar(2 * ref_spp as u64, "reference");
+        let reference = render_reference(&base, &ReferenceParams { spp: ref_spp, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
+        bar.finish_and_clear();
+        for preset in presets {
+            let mut scene = base.clone();
+            let seed = scene.sensor.seed;
+            scene.sensor = SensorParams::preset(preset).context("preset")?;
+            scene.sensor.seed = seed;
+            let photo = sensor::apply(&reference.hdr_real, &scene.camera, &scene.sensor);
+            let truth = sensor::apply(&reference.hdr_full, &scene.camera, &scene.sensor);
+            // the ground truth without sensor noise: its σ is the path tracer's noise and the
+            // shading's residue, which the camera's σ is corrected for (σ_cam² = σ_gt² − σ_floor²)
+            let mut quiet = scene.sensor.clone();
+            quiet.noise = [0.0, 0.0];
+            let truth_quiet = sensor::apply(&reference.hdr_full, &scene.camera, &quiet);
+            let regions = Regions::new(&reference.virtual_mask, &reference.affected_mask, &scene.camera, &scene.sensor);
+            let affected = accuracy::warp_mask(&reference.affected_mask, &scene.camera, &scene.sensor);
+            let real = accuracy::measure(&photo, &regions.real, &regions.real);
+            let gt = accuracy::measure(&truth, &regions.virtual_inner, &regions.virtual_edges);
+            let floor = accuracy::measure(&truth_quiet, &regions.virtual_inner, &regions.virtual_edges).noise_sigma;
+            let camera_sigma = (gt.noise_sigma.powi(2) - floor.powi(2)).max(0.0).sqrt();
+            configuration += 1.0;
+            noise_series[modes.len()].push((configuration, camera_sigma as f64));
+            if let Some(r) = gt.blur_radius_px {
+                blur_series[modes.len()].push((configuration, r as f64));
+            }
+            let mut frame_floor = 0.0f32;
+            for (k, (mode, source)) in modes.iter().enumerate() {
+                let camera_artifacts = source.map(|s| match s {
+                    ParamSource::Scene => CaParams::from_sensor(&scene.sensor),
+                    ParamSource::Estimate => estimate::params_from_photo(&photo, &scene.sensor).0,
+                });
+                let params = DirParams { condition: Condition::Gi, camera_artifacts, ..DirParams::default() };
+                renderer.render(&scene, &photo, &params)?;
+                let frame = renderer.render(&scene, &photo, &params)?;
+                let stats = accuracy::measure(&frame.composite, &regions.virtual_inner, &regions.virtual_edges);
+                if k == 0 {
+                    frame_floor = stats.noise_sigma;
+                }
+                let virtual_sigma = (stats.noise_sigma.powi(2) - frame_floor.powi(2)).max(0.0).sqrt();
+                let ca_ms = frame.report.passes.iter().find(|p| p.pass.starts_with("camera artifacts")).map(|p| p.ms);
+                let rmse = metrics::rmse(&truth, &frame.composite, Some(&affected));
+                let flip = metrics::flip(&truth, &frame.composite, Some(&affected));
+                println!(
+                    "{:<18} {:<7} {:<9} {:>9.5} {:>9.5} {:>9.5} {:>7} {:>7} {:>7} {:>9} {:>9.5}",
+                    name,
+                    preset,
+                    mode,
+                    virtual_sigma,
+                    camera_sigma,
+                    real.noise_sigma,
+                    fmt(stats.blur_radius_px),
+                    fmt(gt.blur_radius_px),
+                    fmt(real.blur_radius_px),
+                    ca_ms.map(|m| format!("{m:.2}")).unwrap_or_else(|| "-".into()),
+                    rmse
+                );
+                noise_series[k].push((configuration, virtual_sigma as f64));
+                if let Some(r) = stats.blur_radius_px {
+                    blur_series[k].push((configuration, r as f64));
+                }
+                rows.push(json!({
+                    "bench": "ca-accuracy", "scene": name, "camera": preset, "ca": mode, "configuration": configuration,
+                    "width": w, "height": h, "reference_spp": ref_spp,
+                    "virtual": stats, "ground_truth_virtual": gt, "photo_real": real,
+                    "virtual_noise_sigma": virtual_sigma, "camera_noise_sigma": camera_sigma,
+                    "ground_truth_noise_floor": floor, "frame_noise_floor": frame_floor,
+                    "noise_ratio_to_ground_truth": if camera_sigma > 0.0 { Some(virtual_sigma / camera_sigma) } else { None },
+                    "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
+                    "ca_ms": ca_ms, "ms": frame.report.ms, "rmse": rmse, "flip": flip,
+                    "ca_params": frame.report.params.camera_artifacts, "layer": "gpu",
+                }));
+            }
+            // the chain alone, without the GPU renderer's shading and tone differences: the
+            // virtual layer is the path-traced radiance through the camera with every artifact
+            // stage off (the same path-tracing noise as the ground truth), then the ca chain
+            let mut clean = scene.sensor.clone();
+            clean.distortion = [0.0; 5];
+            clean.chromatic_aberration = 0.0;
+            clean.defocus_px = 0.0;
+            clean.bayer = false;
+            clean.noise = [0.0, 0.0];
+            clean.sharpen = 0.0;
+            clean.jpeg_quality = None;
+            clean.vignetting = 0.0;
+            let clean_full = sensor::apply(&reference.hdr_full, &scene.camera, &clean);
+            let coverage = Mask { width: w, height: h, values: reference.virtual_mask.values.iter().map(|v| if *v > 0.5 { 1.0 } else { 0.0 }).collect() };
+            let mut layer = photo.clone();
+            for (i, px) in layer.pixels.iter_mut().enumerate() {
+                if coverage.values[i] > 0.0 {
+                    *px = clean_full.pixels[i];
+                }
+            }
+            for (k, (mode, source)) in modes.iter().enumerate() {
+                let mut cpu_ms = 0.0;
+                let out = match source {
+                    None => layer.clone(),
+                    Some(s) => {
+                        let p = if *s == ParamSource::Scene { CaParams::from_sensor(&scene.sensor) } else { estimate::params_from_photo(&photo, &scene.sensor).0 };
+                        let start = Instant::now();
+                        let out = mrstudy_renderer::ca::apply_cpu(&layer, &photo, &coverage, &scene.camera, &p)?.0;
+                        cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+                        out
+                    }
+                };
+                let rmse = metrics::rmse(&truth, &out, Some(&affected));
+                let flip = metrics::flip(&truth, &out, Some(&affected));
+                let stats = accuracy::measure(&out, &regions.virtual_inner, &regions.virtual_edges);
+                println!(
+                    "{:<18} {:<7} {:<9} {:>9.5} {:>9.5} {:>9.5} {:>7} {:>7} {:>7} {:>9} {:>9.5}",
+                    name,
+                    preset,
+                    format!("pt-{mode}"),
+                    stats.noise_sigma,
+                    gt.noise_sigma,
+                    real.noise_sigma,
+                    fmt(stats.blur_radius_px),
+                    fmt(gt.blur_radius_px),
+                    fmt(real.blur_radius_px),
+                    format!("{cpu_ms:.0} cpu"),
+                    rmse
+                );
+                layer_series[k].push((configuration, stats.noise_sigma as f64));
+                if let Some(r) = stats.blur_radius_px {
+                    layer_blur_series[k].push((configuration, r as f64));
+                }
+                rows.push(json!({
+                    "bench": "ca-accuracy", "scene": name, "camera": preset, "ca": mode, "configuration": configuration, "layer": "path-traced",
+                    "width": w, "height": h, "reference_spp": ref_spp,
+                    "virtual": stats, "ground_truth_virtual": gt, "photo_real": real,
+                    "noise_ratio_to_ground_truth": if gt.noise_sigma > 0.0 { Some(stats.noise_sigma / gt.noise_sigma) } else { None },
+                    "blur_difference_to_ground_truth_px": stats.blur_radius_px.zip(gt.blur_radius_px).map(|(a, b)| a - b),
+                    "ms": cpu_ms, "rmse": rmse, "flip": flip, "timed_on": "cpu (CPU reference implementation)",
+                }));
+            }
+            layer_series[modes.len()].push((configuration, gt.noise_sigma as f64));
+            if let Some(r) = gt.blur_radius_px {
+                layer_blur_series[modes.len()].push((configuration, r as f64));
+            }
+        }
+    }
+    let names_of = ["ca off", "ca scene", "ca estimate", "ground truth"];
+    let series = |data: &[Vec<(f64, f64)>]| data.iter().zip(names_of).map(|(p, n)| mrstudy_analysis::plot::LineSeries { name: n.into(), points: p.clone() }).collect();
+    let plots = vec![
+        (
+            "render_ca_noise.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca: noise σ on the virtual objects ({w}x{h}, {adapter})"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "camera noise σ above the noise-free floor (Immerkær, display)".into(),
+                x_log: false,
+                y_log: true,
+                series: series(&noise_series),
+            }),
+        ),
+        (
+            "render_ca_blur.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca: blur on the virtual objects' edges ({w}x{h}, {adapter})"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "equivalent disc radius (px)".into(),
+                x_log: false,
+                y_log: false,
+                series: series(&blur_series),
+            }),
+        ),
+        (
+            "render_ca_noise_layer.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca chain alone on the path-traced virtual layer: noise σ ({w}x{h}, CPU reference)"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "Immerkær σ on the virtual objects (display)".into(),
+                x_log: false,
+                y_log: true,
+                series: series(&layer_series),
+            }),
+        ),
+        (
+            "render_ca_blur_layer.svg".to_string(),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("ca chain alone on the path-traced virtual layer: blur ({w}x{h}, CPU reference)"),
+                x_label: "configuration (scene × camera, see the table)".into(),
+                y_label: "equivalent disc radius (px)".into(),
+                x_log: false,
+                y_log: false,
+                series: series(&layer_blur_series),
+            }),
+        ),
+    ];
     Ok((adapter, rows, plots))
 }

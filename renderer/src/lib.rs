@@ -1,6 +1,6 @@
 //! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and image
 //! metrics, and the GPU differential-rendering pipeline ([`gpu`]: differential instant radiosity
-//! on wgpu; colour mapping and camera artifacts are not here yet).
+//! on wgpu, and the camera-artifact factor [`ca`]; colour mapping is not here yet).
 //!
 //! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene into
 //! images, masks, timings and errors.
@@ -17,6 +17,9 @@
 //!   deterministic per seed).
 //! - [`reference`]: the photograph, the ground-truth composite, HDR buffers and masks.
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
+//! - [`ca`]: the `ca` factor — Klein & Murray's camera chain on the virtual layers (CPU reference;
+//!   the GPU pass is [`gpu::artifacts`]) and single-image estimators of noise, blur and JPEG
+//!   quality ([`ca::estimate`]).
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
@@ -26,6 +29,7 @@
 
 pub mod builtin;
 pub mod bvh;
+pub mod ca;
 pub mod camera;
 pub mod cm;
 pub mod error;

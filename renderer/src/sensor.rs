@@ -345,12 +345,13 @@ pub fn demosaic_bilinear(raw: &[f32], w: u32, h: u32) -> Image {
     out
 }
 
-fn disc_blur(img: &Image, radius: f32) -> Image {
+/// The taps (dx, dy, weight) of a disc of `radius` pixels: each weight is the area of the pixel
+/// inside the disc, approximated by 4×4 supersampling (not normalised).
+pub(crate) fn disc_taps(radius: f32) -> Vec<(i64, i64, f32)> {
     let r = radius.ceil() as i64;
     let mut taps = Vec::new();
     for dy in -r..=r {
         for dx in -r..=r {
-            // area of the pixel inside the disc, approximated by 4×4 supersampling
             let mut inside = 0;
             for sy in 0..4 {
                 for sx in 0..4 {
@@ -366,6 +367,11 @@ fn disc_blur(img: &Image, radius: f32) -> Image {
             }
         }
     }
+    taps
+}
+
+pub(crate) fn disc_blur(img: &Image, radius: f32) -> Image {
+    let taps = disc_taps(radius);
     if taps.is_empty() {
         return img.clone();
     }
@@ -401,12 +407,44 @@ fn gaussian3(img: &Image) -> Image {
 }
 
 /// Brown–Conrady forward model on normalised coordinates.
-fn brown_conrady(x: f32, y: f32, k: [f32; 5]) -> (f32, f32) {
+pub(crate) fn brown_conrady(x: f32, y: f32, k: [f32; 5]) -> (f32, f32) {
     let r2 = x * x + y * y;
     let radial = 1.0 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2 * r2 * r2;
     let xd = x * radial + 2.0 * k[2] * x * y + k[3] * (r2 + 2.0 * x * x);
     let yd = y * radial + k[2] * (r2 + 2.0 * y * y) + 2.0 * k[3] * x * y;
     (xd, yd)
+}
+
+/// The ideal point x_u with D(x_u) = x_d (Brown–Conrady inverted by 8 fixed-point steps).
+pub(crate) fn undistort(xd: f32, yd: f32, k: [f32; 5]) -> (f32, f32) {
+    let (mut xu, mut yu) = (xd, yd);
+    for _ in 0..8 {
+        let (dx, dy) = brown_conrady(xu, yu, k);
+        xu += xd - dx;
+        yu += yd - dy;
+    }
+    (xu, yu)
+}
+
+/// Barrel distortion would show scene beyond the rendered frame at the borders; rather than
+/// smear edge pixels there, [`apply`] zooms just enough that every sample stays inside the
+/// frame (what a camera's "valid pixels only" rectification does). This is that zoom.
+pub(crate) fn distortion_zoom(camera: &Camera, k: [f32; 5], ca: f32) -> f32 {
+    let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
+    let (x0, x1) = (-cx / fx, (camera.width as f32 - cx) / fx);
+    let (y0, y1) = (-cy / fy, (camera.height as f32 - cy) / fy);
+    let mut zoom = 1.0f32;
+    for (xd, yd) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1), (x0, 0.0), (x1, 0.0), (0.0, y0), (0.0, y1)] {
+        let (xu, yu) = undistort(xd, yd, k);
+        let ca_max = 1.0 / (1.0 - ca.abs()).max(0.5);
+        if xu.abs() * ca_max > 1e-6 && xd != 0.0 {
+            zoom = zoom.min(xd.abs() / (xu.abs() * ca_max));
+        }
+        if yu.abs() * ca_max > 1e-6 && yd != 0.0 {
+            zoom = zoom.min(yd.abs() / (yu.abs() * ca_max));
+        }
+    }
+    zoom
 }
 
 /// Warps the ideal image into the distorted one: the output pixel at distorted position x_d
@@ -416,36 +454,12 @@ fn brown_conrady(x: f32, y: f32, k: [f32; 5]) -> (f32, f32) {
 fn distort(img: &Image, camera: &Camera, k: [f32; 5], ca: f32) -> Image {
     let mut out = Image::new(img.width, img.height);
     let (fx, fy, cx, cy) = (camera.fx, camera.fy, camera.cx, camera.cy);
-    let undistort = |xd: f32, yd: f32| {
-        let (mut xu, mut yu) = (xd, yd);
-        for _ in 0..8 {
-            let (dx, dy) = brown_conrady(xu, yu, k);
-            xu += xd - dx;
-            yu += yd - dy;
-        }
-        (xu, yu)
-    };
-    // Barrel distortion would show scene beyond the rendered frame at the borders; rather than
-    // smear edge pixels there, zoom just enough that every sample stays inside the frame (what
-    // a camera's "valid pixels only" rectification does).
-    let (x0, x1) = (-cx / fx, (camera.width as f32 - cx) / fx);
-    let (y0, y1) = (-cy / fy, (camera.height as f32 - cy) / fy);
-    let mut zoom = 1.0f32;
-    for (xd, yd) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1), (x0, 0.0), (x1, 0.0), (0.0, y0), (0.0, y1)] {
-        let (xu, yu) = undistort(xd, yd);
-        let ca_max = 1.0 / (1.0 - ca.abs()).max(0.5);
-        if xu.abs() * ca_max > 1e-6 && xd != 0.0 {
-            zoom = zoom.min(xd.abs() / (xu.abs() * ca_max));
-        }
-        if yu.abs() * ca_max > 1e-6 && yd != 0.0 {
-            zoom = zoom.min(yd.abs() / (yu.abs() * ca_max));
-        }
-    }
+    let zoom = distortion_zoom(camera, k, ca);
     for y in 0..img.height {
         for x in 0..img.width {
             let xd = (x as f32 + 0.5 - cx) / fx;
             let yd = (y as f32 + 0.5 - cy) / fy;
-            let (xu, yu) = undistort(xd, yd);
+            let (xu, yu) = undistort(xd, yd, k);
             let (xu, yu) = (xu * zoom, yu * zoom);
             let mut px = [0.0f32; 3];
             for (c, scale) in [(0usize, 1.0 / (1.0 + ca)), (1, 1.0), (2, 1.0 / (1.0 - ca))] {

@@ -6,13 +6,15 @@
 //! `gi` (0: virtual objects lit directly, no shadows or indirect light; 1: shadows and indirect
 //! light by differential instant radiosity), `shadows` (1 with `gi` 0: shadows only, the middle
 //! mode of the thesis's preliminary study), `cm` (adaptive colour mapping: the thesis's
-//! statistics-based transfer in CIELab, as in its web survey) and `ca` (camera artifacts). A level outside these, or a factor of another name, is refused with the factor
+//! statistics-based transfer in CIELab, as in its web survey) and `ca` (camera artifacts:
+//! Klein & Murray's chain with the parameters of the scene's simulated camera). A level outside these, or a factor of another name, is refused with the factor
 //! and the level named — a stimulus is never rendered with a factor silently ignored.
 //!
 //! [`StimulusSettings::fingerprint`] names everything that decides the image (the scene as
 //! TOML, size, samples, seed, VPL budget, the factor levels and [`STIMULUS_VERSION`]), so callers
 //! can cache rendered stimuli and know when one must be rendered again.
 
+use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
 use crate::error::{RenderError, Result};
 use crate::gpu::{Condition, DirParams, DirRenderer, GpuRender};
@@ -132,23 +134,23 @@ impl StimulusSettings {
         Ok((photo, stats))
     }
 
-    /// The GPU parameters of a stimulus under `factors`, or why they cannot be rendered.
-    pub fn params(&self, factors: &Factors) -> Result<DirParams> {
-        if factors.ca {
-            return Err(RenderError::Unsupported("the ca factor (camera artifacts) is not built into the GPU renderer yet".into()));
-        }
+    /// The GPU parameters of a stimulus of `scene` under `factors`.
+    pub fn params(&self, scene: &Scene, factors: &Factors) -> DirParams {
         let mut params = DirParams { condition: factors.gi, vpls: self.vpls, ..DirParams::default() };
         if factors.cm {
             // the thesis's web-survey cm: statistics-based colour transfer in CIELab (4.30–4.38)
             params.cm = CmParams { method: CmMethod::Statistics, ..CmParams::default() };
         }
-        Ok(params)
+        if factors.ca {
+            // Klein & Murray's chain with the scene camera's own parameters
+            params.camera_artifacts = Some(CaParams::from_sensor(&scene.sensor));
+        }
+        params
     }
 
     /// Renders one stimulus over `photo` (from [`StimulusSettings::photo`] of the same scene).
     pub fn render(&self, renderer: &DirRenderer, scene: &Scene, photo: &Image, factors: &Factors) -> Result<GpuRender> {
-        let params = self.params(factors)?;
-        renderer.render(scene, photo, &params)
+        renderer.render(scene, photo, &self.params(scene, factors))
     }
 }
 

@@ -183,15 +183,6 @@ pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progre
         return Ok(0);
     }
     let settings = settings(study);
-    // refuse factors the GPU renderer cannot render before spending time on photographs
-    for needed in &missing {
-        settings.params(&needed.factors).map_err(|source| StimuliError::Render {
-            slug: study.slug.clone(),
-            file: study.file.clone(),
-            scene: needed.scene.clone(),
-            source,
-        })?;
-    }
     let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu { slug: study.slug.clone(), file: study.file.clone(), source })?;
     let mut scenes: Vec<usize> = missing.iter().map(|needed| needed.scene_index).collect();
     scenes.dedup();

@@ -44,12 +44,41 @@ fn render_condition_gi_writes_the_composite_and_a_report_of_its_passes() {
 }
 
 #[test]
+fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
+    let dir = temp_dir("gi-ca");
+    let png = dir.join("gi-ca.png");
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-double-shadow", "--factors", "gi,ca", "--ca-params", "estimate", "--camera", "webcam", "--size", "64x48", "--spp", "2", "--vpls", "16", "--out"])
+        .arg(&png)
+        .arg("--buffers")
+        .arg(dir.join("buffers"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    assert!(png.exists());
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let passes: Vec<&str> = report["gpu"]["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
+    assert!(passes.iter().any(|p| p.starts_with("camera artifacts")), "{passes:?}");
+    assert_eq!(report["gpu"]["params"]["camera_artifacts"]["source"], "estimate");
+    assert!(report["ca_estimates"]["noise"]["sigma"].as_f64().is_some_and(|s| s.is_finite()), "{report}");
+    assert!(stderr.contains("ca estimates"), "{stderr}");
+    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "ca", "--ca-params", "guess", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--ca-params `guess`"));
+}
+
+#[test]
 fn render_refuses_factors_that_are_not_built() {
-    let dir = temp_dir("ca");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,ca", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    let dir = temp_dir("cm");
+    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,cm", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("`ca`") && stderr.contains("not built yet"), "{stderr}");
+    assert!(stderr.contains("`cm`") && stderr.contains("not built yet"), "{stderr}");
     let out = mrstudy().args(["render", "--scene", "survey-1", "--condition", "HQ", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("gi, shadows, none"));
@@ -75,4 +104,34 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
         assert!(row["ms"].as_f64().unwrap() > 0.0 && row["rmse"].as_f64().unwrap().is_finite() && row["flip"].as_f64().unwrap().is_finite());
     }
     assert!(dir.join("render_gpu_dir-lamp-box.svg").exists());
+}
+
+#[test]
+fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
+    let dir = temp_dir("bench-ca");
+    let json = dir.join("ca.json");
+    let out = mrstudy().args(["bench", "render", "--ca", "--quick", "--json"]).arg(&json).arg("--plot-dir").arg(&dir).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    for layer in ["gpu", "path-traced"] {
+        for ca in ["off", "scene", "estimate"] {
+            assert!(rows.iter().any(|r| r["layer"] == layer && r["ca"] == ca), "no {layer}/{ca} row");
+        }
+    }
+    for row in rows {
+        assert!(row["virtual"]["noise_sigma"].as_f64().is_some_and(f64::is_finite), "{row}");
+        if row["layer"] == "gpu" && row["ca"] != "off" {
+            assert!(row["ca_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{row}");
+        }
+    }
+    // ca on adds noise to the noise-free GPU rendering of the virtual objects
+    let sigma = |ca: &str| rows.iter().find(|r| r["layer"] == "gpu" && r["ca"] == ca && r["camera"] == "webcam").unwrap()["virtual"]["noise_sigma"].as_f64().unwrap();
+    assert!(sigma("scene") > sigma("off"), "{rows:?}");
+    assert!(dir.join("render_ca_noise.svg").exists() && dir.join("render_ca_blur_layer.svg").exists());
 }

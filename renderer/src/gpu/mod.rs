@@ -17,6 +17,8 @@
 //!    solve their tiny systems on the CPU;
 //! 6. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
 //!    form, where L'_cam is the photograph with virtual pixels masked out.
+//! 7. with the `ca` factor ([`DirParams::camera_artifacts`]), the camera-artifact chain on the
+//!    composite's virtual layers ([`artifacts`], see [`crate::ca`]).
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
@@ -28,6 +30,7 @@
 //! interleaved sampling and the merge filter, temporal smoothing, motion vectors, glossy VPLs
 //! (VPLs reflect diffusely).
 
+pub mod artifacts;
 pub mod cm;
 pub mod compose;
 pub mod context;
@@ -111,6 +114,9 @@ pub struct DirParams {
     pub interleave: u32,
     /// The weights of temporal smoothing (5.11–5.14), used by [`DirRenderer::render_with_state`].
     pub temporal: indirect::TemporalParams,
+    /// The `ca` factor: the camera-artifact chain applied after the composite ([`artifacts`]);
+    /// None: off.
+    pub camera_artifacts: Option<crate::ca::CaParams>,
 }
 
 impl Default for DirParams {
@@ -129,6 +135,7 @@ impl Default for DirParams {
             composition: Composition::Additive,
             interleave: 1,
             temporal: indirect::TemporalParams::default(),
+            camera_artifacts: None,
         }
     }
 }
@@ -170,6 +177,8 @@ pub struct GpuReport {
     pub ms: f64,
     /// What the colour mapping estimated, and any fallback it took.
     pub cm: CmReport,
+    /// What the ca pass saw (None when it did not run).
+    pub camera_artifacts: Option<crate::ca::CaReport>,
 }
 
 /// What live rendering carries from frame to frame: the colour mapping's smoothing and the
@@ -189,6 +198,7 @@ pub struct DirRenderer {
     cm: cm::CmPasses,
     compose: compose::Compose,
     indirect: indirect::IndirectPass,
+    artifacts: artifacts::Artifacts,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -266,7 +276,8 @@ impl DirRenderer {
         let cm = cm::CmPasses::new(&ctx);
         let compose = compose::Compose::new(&ctx);
         let indirect = indirect::IndirectPass::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect }
+        let artifacts = artifacts::Artifacts::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
@@ -480,15 +491,24 @@ impl DirRenderer {
         let composite = timed(ctx, &mut passes, "composition".into(), || self.compose.run(ctx, width, height, cm_report.mapping.linear_domain(), params.composition, &mapped, &photo_buffer));
         let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
+        let mut composite = to_image(width, height, &composite);
+        let virtual_mask = Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() };
+        // 5. camera artifacts (the ca factor) on the virtual layers of the composite
+        let mut ca_report = None;
+        if let Some(ca) = &params.camera_artifacts {
+            let (out, report) = timed(ctx, &mut passes, "camera artifacts (ca)".into(), || self.artifacts.run(ctx, &composite, photo, &virtual_mask, &scene.camera, ca))?;
+            composite = out;
+            ca_report = Some(report);
+        }
         let ms = passes.iter().map(|p| p.ms).sum();
         Ok(GpuRender {
-            composite: to_image(width, height, &composite),
+            composite,
             l_rv: to_image(width, height, &solutions[..half]),
             l_r: to_image(width, height, &solutions[half..]),
-            virtual_mask: Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() },
+            virtual_mask,
             flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report, camera_artifacts: ca_report },
         })
     }
 }
@@ -513,6 +533,7 @@ mod tests {
             ("indirect.wgsl", indirect::SHADER),
             ("cm.wgsl", cm::SHADER),
             ("compose.wgsl", compose::SHADER),
+            ("artifacts.wgsl", artifacts::SHADER),
         ] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
