@@ -414,6 +414,21 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
                 series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: ism_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: ism_flip }],
             }),
         ));
+        // interleaved sampling at 256 VPLs: the tile split n (n × n classes, merge filter)
+        let splits: &[u32] = if quick { &[1, 4] } else { &[1, 2, 4] };
+        for &interleave in splits {
+            let params = DirParams { condition: Condition::Gi, vpls: 256, interleave, ..DirParams::default() };
+            renderer.render(&scene, &reference.photo, &params)?;
+            let frame = renderer.render(&scene, &reference.photo, &params)?;
+            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
+            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let shading_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("shading") || p.pass.starts_with("indirect light")).map(|p| p.ms).sum();
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   tiles {interleave}×{interleave} (shading + merge {shading_ms:.1} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip);
+            rows.push(json!({
+                "scene": name, "condition": "gi", "vpls": 256, "interleave": interleave, "shading_ms": shading_ms,
+                "ms": frame.report.ms, "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp, "passes": frame.report.passes,
+            }));
+        }
         // the ca factor on top of gi (scene camera parameters): its pass time and the error
         for preset in ["webcam", "phone"] {
             let mut cam_scene = scene.clone();
@@ -448,6 +463,22 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
                 series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: points_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: points_flip }],
             }),
         ));
+    }
+    // the thesis's setting at its resolution: 256 VPLs, 128² ISMs of 1024 points, 4×4 tiles,
+    // 1024×768 — frame time only (a path-traced reference at this size is beyond this bench)
+    let (tw, th) = if quick { (320, 240) } else { (1024, 768) };
+    let scene = load_scene(&names[0], Some(&format!("{tw}x{th}")), None)?;
+    let (_, photo, _) = render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
+    for interleave in [1, 4] {
+        let params = DirParams { condition: Condition::Gi, vpls: 256, ism_size: 128, ism_points: 1024, interleave, ..DirParams::default() };
+        renderer.render(&scene, &photo, &params)?;
+        let frame = renderer.render(&scene, &photo, &params)?;
+        let fps = 1000.0 / frame.report.ms.max(1e-9);
+        println!("{:<18} {:<8} {:>6} {:>10.2}   thesis setting at {tw}x{th}, tiles {interleave}×{interleave}: {fps:.2} fps", names[0], "gi", 256, frame.report.ms);
+        rows.push(json!({
+            "scene": names[0], "condition": "gi", "vpls": 256, "ism_size": 128, "ism_points": 1024, "interleave": interleave, "setting": "thesis",
+            "ms": frame.report.ms, "fps": fps, "width": tw, "height": th, "passes": frame.report.passes,
+        }));
     }
     Ok((adapter, rows, plots))
 }
