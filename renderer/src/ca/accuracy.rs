@@ -18,6 +18,8 @@ use serde::Serialize;
 /// Noise σ (display units) and blur (disc radius, px) measured on one image region.
 #[derive(Clone, Debug, Serialize)]
 pub struct RegionStats {
+    /// Mean display value (over channels) in the noise region.
+    pub mean: f32,
     pub noise_sigma: f32,
     pub noise_samples: usize,
     pub blur_radius_px: Option<f32>,
@@ -81,5 +83,13 @@ pub fn measure(img: &Image, noise_region: &Mask, blur_region: &Mask) -> RegionSt
     let img = super::estimate::quantised(img);
     let n = noise(&img, Some(noise_region));
     let b = blur(&img, Some(blur_region));
-    RegionStats { noise_sigma: n.sigma, noise_samples: n.samples, blur_radius_px: b.radius_px, blur_edges: b.edges }
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for (p, m) in img.pixels.iter().zip(&noise_region.values) {
+        if *m > 0.5 {
+            sum += ((p.x + p.y + p.z) / 3.0) as f64;
+            count += 1;
+        }
+    }
+    let mean = if count > 0 { (sum / count as f64) as f32 } else { 0.0 };
+    RegionStats { mean, noise_sigma: n.sigma, noise_samples: n.samples, blur_radius_px: b.radius_px, blur_edges: b.edges }
 }

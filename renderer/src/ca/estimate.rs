@@ -110,9 +110,9 @@ pub fn noise(img: &Image, region: Option<&Mask>) -> NoiseEstimate {
                     let at = |dx: usize, dy: usize| val(img.pixels[(y + dy - 1) * w + x + dx - 1][c]);
                     let mut vals = [0.0f32; 9];
                     let mut clipped = false;
-                    for k in 0..9 {
-                        vals[k] = at(k % 3, k / 3);
-                        clipped |= !(vals[k] > 0.01 && vals[k] < 0.99);
+                    for (k, v) in vals.iter_mut().enumerate() {
+                        *v = at(k % 3, k / 3);
+                        clipped |= !(*v > 0.01 && *v < 0.99);
                     }
                     if clipped {
                         continue;
@@ -290,10 +290,10 @@ fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
             };
             let a = if profile[centre] > l10 { cross(l10, true) } else { cross(l10, false) };
             let b = if profile[centre] < l90 { cross(l90, false) } else { cross(l90, true) };
-            if let (Some(a), Some(b)) = (a, b) {
-                if b > a {
-                    widths.push((b - a) * STEP);
-                }
+            if let (Some(a), Some(b)) = (a, b)
+                && b > a
+            {
+                widths.push((b - a) * STEP);
             }
         }
     }
@@ -327,10 +327,10 @@ pub fn blur(img: &Image, region: Option<&Mask>) -> BlurEstimate {
         let table = calibration();
         // the width grows with the radius; interpolate, clamping below the first entry
         let mut r = table.last().map(|t| t.0).unwrap_or(0.0);
-        if let Some(first) = table.first() {
-            if wd <= first.1 {
-                r = first.0;
-            }
+        if let Some(first) = table.first()
+            && wd <= first.1
+        {
+            r = first.0;
         }
         for pair in table.windows(2) {
             let ((r0, w0), (r1, w1)) = (pair[0], pair[1]);
@@ -379,7 +379,7 @@ pub fn jpeg_quality(img: &Image) -> JpegEstimate {
         let mut hist = vec![0usize; 256];
         for c in cs {
             let a = c.abs();
-            if a >= 1.5 && a < 255.5 {
+            if (1.5..255.5).contains(&a) {
                 hist[a.round() as usize] += 1;
             }
         }
@@ -391,12 +391,11 @@ pub fn jpeg_quality(img: &Image) -> JpegEstimate {
         for k in 1..=3 {
             for delta in [-1.0f32, 0.0, 1.0] {
                 let q = (mode / k as f32).round() + delta;
-                if q >= 2.0 {
-                    if let Some(ms) = residual(cs, q) {
-                        if ms < best.0 {
-                            best = (ms, q);
-                        }
-                    }
+                if q >= 2.0
+                    && let Some(ms) = residual(cs, q)
+                    && ms < best.0
+                {
+                    best = (ms, q);
                 }
             }
         }

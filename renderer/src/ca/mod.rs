@@ -30,7 +30,8 @@
 //! Noise is a variance table over display values (17 entries, 0, 1/16 … 1; linear in between):
 //! from the scene's camera, the variance of its response R applied to the clipped noisy sensor
 //! value (R(clip(y + √(a·y + b)·Z)) at d = R(y), by quadrature), or
-//! estimated as a·d + b from the photograph and divided by the chain's own noise gain. The normal
+//! measured on the photograph per intensity bin (a·d + b where bins are too few) and scaled so
+//! that the chain itself reproduces the measured σ ([`estimate::params_from_photo`]). The normal
 //! deviates come from a PCG hash of (seed, pixel, channel) ([`normal`]), written identically in
 //! WGSL. Not simulated: vignetting, white balance and the tone curve (the composite already has
 //! the frame's colour mapping), chroma subsampling; all stages work on display-encoded values.
