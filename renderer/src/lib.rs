@@ -1,6 +1,6 @@
 //! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and image
 //! metrics, and the GPU differential-rendering pipeline ([`gpu`]: differential instant radiosity
-//! on wgpu; colour mapping and camera artifacts are not here yet).
+//! on wgpu, with the colour mapping of [`cm`]; camera artifacts are not here yet).
 //!
 //! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene into
 //! images, masks, timings and errors.
@@ -19,8 +19,11 @@
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
+//! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
+//!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
+//!   HSV and CIEDE2000.
 //! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, the shading pass writing
-//!   L_rv and L_r, differential composition (WGSL beside the Rust that drives it).
+//!   L_rv and L_r, the cm passes, differential composition (WGSL beside the Rust that drives it).
 
 pub mod builtin;
 pub mod bvh;
