@@ -41,9 +41,12 @@ pub struct BenchArgs {
     reference: bool,
     /// bench render: the ca factor's accuracy — noise and blur on the virtual objects against
     /// the camera's (ground truth), ca off / scene / estimated parameters, per scene and preset.
-    #[arg(long, conflicts_with = "reference")]
+    #[arg(long, conflicts_with_all = ["reference", "cm"])]
     ca: bool,
-    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference).
+    /// bench render: each colour-mapping (cm) method's CIEDE2000 on the virtual objects against the ground truth through the known camera, over camera presets and settings.
+    #[arg(long, conflicts_with = "reference")]
+    cm: bool,
+    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm).
     #[arg(long)]
     scene: Option<String>,
 }
@@ -53,6 +56,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         Target::Analysis => bench_analysis(args.quick)?,
         Target::Render if args.reference => crate::render::bench_reference(args.scene.as_deref(), args.quick)?,
         Target::Render if args.ca => crate::render::bench_ca(args.scene.as_deref(), args.quick)?,
+        Target::Render if args.cm => crate::render::bench_cm(args.scene.as_deref(), args.quick)?,
         Target::Server => crate::serve::bench_server(args.quick)?,
         Target::Render => crate::render::bench_gpu(args.scene.as_deref(), args.quick)?,
     };

@@ -4,10 +4,14 @@
 //! simulated camera; `--buffers DIR` also writes the HDR buffers, both camera images, the masks
 //! and a JSON report. Conditions (`--condition gi|shadows|none`, `--factors gi`) render on the
 //! GPU (differential instant radiosity, `mrstudy_renderer::gpu`) over the path-traced
-//! photograph, at 1024x768 unless `--size` says otherwise. The factor `ca` (`--factors gi,ca`)
-//! adds the camera-artifact chain (`mrstudy_renderer::ca`), its parameters from the scene's
-//! camera or estimated from the photograph (`--ca-params scene|estimate`); `cm` is not built
-//! yet and is refused.
+//! photograph, at 1024x768 unless `--size` says otherwise. The factor `cm` (`--factors gi,cm`)
+//! is the thesis's statistics-based colour mapping; `--cm off|statistics|samples|rohmer` picks
+//! any method and `--composition additive|scaled` the composition. The factor `ca`
+//! (`--factors gi,ca`) adds the camera-artifact chain (`mrstudy_renderer::ca`), its parameters
+//! from the scene's camera or estimated from the photograph (`--ca-params scene|estimate`).
+//! `bench render --cm` measures each cm method's colour error on the virtual objects against the
+//! ground truth through the known camera ([`bench_cm`]), `bench render --ca` the camera
+//! artifacts' noise and blur.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -16,6 +20,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use mrstudy_renderer::ca::{CaParams, ParamSource, estimate};
+use mrstudy_renderer::cm::{CmMethod, CmParams, Composition};
 use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
 use mrstudy_renderer::image::save_by_extension;
 use mrstudy_renderer::metrics;
@@ -42,14 +47,21 @@ pub struct RenderArgs {
     /// A condition by name, on the GPU: `gi` (shadows and indirect light), `shadows`, or `none`.
     #[arg(long, conflicts_with = "factors")]
     condition: Option<String>,
-    /// Factors to switch on, on the GPU: `gi` (indirect light and shadows), `ca` (camera
-    /// artifacts); `cm` is not built yet.
+    /// Factors to switch on, on the GPU: `gi` (indirect light and shadows), `cm` (the
+    /// statistics-based colour mapping), `ca` (camera artifacts).
     #[arg(long)]
     factors: Option<String>,
     /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
     /// `estimate` (noise, blur and JPEG quality measured on the photograph).
     #[arg(long, default_value = "scene")]
     ca_params: String,
+    /// GPU: the colour mapping of the GI buffers: off (Reinhard), statistics, samples or rohmer
+    /// (overrides what --factors implies).
+    #[arg(long)]
+    cm: Option<String>,
+    /// GPU: the composition: additive (default) or scaled (Debevec: α = L'_cam / τ(L_r)).
+    #[arg(long, default_value = "additive")]
+    composition: String,
     /// GPU: the VPL budget of the `gi` condition.
     #[arg(long, default_value_t = 256)]
     vpls: u32,
@@ -131,7 +143,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if args.condition.is_some() || args.factors.is_some() {
+    if args.condition.is_some() || args.factors.is_some() || args.cm.is_some() {
         return render_condition(&args, name);
     }
     if !(args.reference || args.photo) {
@@ -179,27 +191,35 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The `gi` level and whether `ca` is on, asked for by `--condition` or `--factors`.
-fn condition_of(args: &RenderArgs) -> Result<(Condition, bool)> {
-    if let Some(name) = &args.condition {
-        return Ok((Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (use --factors for ca)"))?, false));
-    }
-    let mut condition = Condition::None;
+/// The `gi` level, the colour mapping and whether `ca` is on, asked for by `--condition` or
+/// `--factors`, and `--cm`.
+fn condition_of(args: &RenderArgs) -> Result<(Condition, CmMethod, bool)> {
+    let mut method = CmMethod::Off;
     let mut ca = false;
-    for factor in args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty()) {
-        match factor {
-            "gi" => condition = Condition::Gi,
-            "ca" => ca = true,
-            "cm" => bail!("the factor `cm` (adaptive colour mapping) is not built yet; gi and ca render on the GPU"),
-            other => bail!("--factors: unknown factor `{other}`; expected gi or ca (cm is not built yet)"),
+    let condition = if let Some(name) = &args.condition {
+        Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))?
+    } else {
+        let mut condition = Condition::None;
+        for factor in args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty()) {
+            match factor {
+                "gi" => condition = Condition::Gi,
+                "cm" => method = CmMethod::Statistics,
+                "ca" => ca = true,
+                other => bail!("--factors: unknown factor `{other}`; expected gi, cm or ca"),
+            }
         }
+        condition
+    };
+    if let Some(name) = &args.cm {
+        method = CmMethod::parse(name).with_context(|| format!("--cm `{name}` is not one of off, statistics, samples, rohmer"))?;
     }
-    Ok((condition, ca))
+    Ok((condition, method, ca))
 }
 
 /// `render --condition …`: the photograph by the path tracer, then the GPU frame over it.
 fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
-    let (condition, ca) = condition_of(args)?;
+    let (condition, method, ca) = condition_of(args)?;
+    let composition = Composition::parse(&args.composition).with_context(|| format!("--composition `{}` is not one of additive, scaled", args.composition))?;
     let ca_source = ParamSource::parse(&args.ca_params).with_context(|| format!("--ca-params `{}` is not one of scene, estimate", args.ca_params))?;
     if args.reference || args.photo {
         bail!("--condition/--factors render on the GPU; leave out --reference and --photo");
@@ -237,7 +257,7 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
             e.jpeg.quality.map(|q| q.to_string()).unwrap_or_else(|| "not detectable (none, or above about 95)".into())
         );
     }
-    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, camera_artifacts, ..DirParams::default() };
+    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, cm: CmParams { method, ..CmParams::default() }, composition, camera_artifacts, ..DirParams::default() };
     let frame = renderer.render(&scene, &photo, &dir_params)?;
     save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = &args.buffers {
@@ -250,12 +270,16 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
         write_json(&dir.join("report.json"), &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates }))?;
     }
     for pass in &frame.report.passes {
-        eprintln!("  {:<32} {:>9.2} ms", pass.pass, pass.ms);
+        eprintln!("  {:<40} {:>9.2} ms", pass.pass, pass.ms);
+    }
+    if let Some(why) = &frame.report.cm.fallback {
+        eprintln!("warning: colour mapping {}: {why}", method.name());
     }
     eprintln!(
-        "wrote {} ({} condition{}, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
+        "wrote {} ({} condition, cm {}{}, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
         out.display(),
         condition.name(),
+        method.name(),
         if ca { format!(", ca from the {}", if ca_source == ParamSource::Scene { "scene's camera" } else { "photograph" }) } else { String::new() },
         frame.report.vpls,
         photo_stats.seconds,
@@ -414,6 +438,23 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
                 series: vec![mrstudy_analysis::plot::LineSeries { name: "RMSE".into(), points: ism_rmse }, mrstudy_analysis::plot::LineSeries { name: "FLIP".into(), points: ism_flip }],
             }),
         ));
+        // the colour mappings at gi: the time of each cm pass and of the composition
+        let cm_vpls = if quick { 64 } else { 256 };
+        for method in CmMethod::ALL {
+            let params = DirParams { condition: Condition::Gi, vpls: cm_vpls, cm: CmParams { method, ..CmParams::default() }, ..DirParams::default() };
+            renderer.render(&scene, &reference.photo, &params)?;
+            let frame = renderer.render(&scene, &reference.photo, &params)?;
+            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
+            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let cm_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("cm ")).map(|p| p.ms).sum();
+            let compose_ms: f64 = frame.report.passes.iter().filter(|p| p.pass == "composition").map(|p| p.ms).sum();
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}  cm {:<10} {:>8.2} ms (+ composition {:.2} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip, method.name(), cm_ms, compose_ms);
+            rows.push(json!({
+                "scene": name, "condition": "gi", "cm": method.name(), "vpls": cm_vpls, "ms": frame.report.ms, "cm_ms": cm_ms, "composition_ms": compose_ms,
+                "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp,
+                "passes": frame.report.passes, "cm_report": frame.report.cm,
+            }));
+        }
         // interleaved sampling at 256 VPLs: the tile split n (n × n classes, merge filter)
         let splits: &[u32] = if quick { &[1, 4] } else { &[1, 2, 4] };
         for &interleave in splits {
@@ -710,5 +751,134 @@ pub fn bench_ca(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
             }),
         ),
     ];
+    Ok((adapter, rows, plots))
+}
+
+/// The camera settings of the cm accuracy benchmark: Figure 4.16's rows (normal; contrast up and
+/// down; saturation up and down) and exposure changes, each relative to the preset.
+const CM_SETTINGS: [(&str, fn(&mut SensorParams)); 7] = [
+    ("normal", |_| {}),
+    ("contrast+", |p| p.contrast *= 1.3),
+    ("contrast-", |p| p.contrast *= 0.75),
+    ("saturation+", |p| p.saturation *= 1.4),
+    ("saturation-", |p| p.saturation *= 0.6),
+    ("exposure+1", |p| p.exposure_ev += 1.0),
+    ("exposure-1", |p| p.exposure_ev -= 1.0),
+];
+
+/// Mean and 95th percentile of a list of errors (0 and 0 when empty).
+fn mean_p95(errors: &mut [f64]) -> (f64, f64) {
+    if errors.is_empty() {
+        return (0.0, 0.0);
+    }
+    errors.sort_by(f64::total_cmp);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    let k = ((0.95 * errors.len() as f64).ceil() as usize).clamp(1, errors.len()) - 1;
+    (mean, errors[k])
+}
+
+/// `mrstudy bench render --cm`: each colour-mapping method's colour error on the virtual
+/// objects against the ground-truth composite through the known camera. Per built-in scene the
+/// path tracer renders the real-only and full HDR buffers once; per camera preset and setting
+/// ([`CM_SETTINGS`]) both go through the simulated camera — with its geometric stages
+/// (distortion, chromatic aberration, defocus) off, as they belong to the `ca` factor — and the
+/// GPU frame (gi, 128 VPLs) is composed over the photograph with each cm method. Error: CIEDE2000
+/// (sRGB → CIELab; the E-scaled Lab of `cm::colour` equals D65 Lab for sRGB input) over the
+/// pixels where the G-buffer sees a virtual surface and the path tracer's coverage is full.
+pub fn bench_cm(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
+    let names: Vec<String> = match scene_name {
+        Some(n) => vec![n.to_string()],
+        None if quick => vec!["survey-1".to_string()],
+        None => builtin::names().map(str::to_string).collect(),
+    };
+    let (w, h, spp) = if quick { (80, 60, 16) } else { (160, 120, 64) };
+    let presets: Vec<&str> = if quick { vec!["webcam"] } else { SensorParams::PRESETS.to_vec() };
+    let renderer = DirRenderer::new()?;
+    let adapter = renderer.ctx.adapter_name();
+    eprintln!("adapter: {adapter}");
+    let mut rows = Vec::new();
+    let mut warmed = false;
+    // (preset, setting, method) → per-scene (mean, p95)
+    let mut summary: std::collections::BTreeMap<(usize, usize, usize), Vec<(f64, f64)>> = Default::default();
+    println!("{:<18} {:<7} {:<12} {:<11} {:>8} {:>8} {:>7} {:>8}", "scene", "camera", "setting", "cm", "dE mean", "dE p95", "pixels", "cm ms");
+    for name in &names {
+        let scene = load_scene(name, Some(&format!("{w}x{h}")), None)?;
+        eprintln!("{name} at {w}x{h}: reference at {spp} spp …");
+        let bar = progress_bar(2 * spp as u64, "reference");
+        let reference = render_reference(&scene, &ReferenceParams { spp, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
+        bar.finish_and_clear();
+        for (pi, preset) in presets.iter().enumerate() {
+            for (si, (setting, alter)) in CM_SETTINGS.iter().enumerate() {
+                let mut sensor = SensorParams::preset(preset).with_context(|| format!("no camera preset `{preset}`"))?;
+                sensor.seed = scene.sensor.seed;
+                sensor.distortion = [0.0; 5];
+                sensor.chromatic_aberration = 0.0;
+                sensor.defocus_px = 0.0;
+                alter(&mut sensor);
+                let photo = sensor::apply(&reference.hdr_real, &scene.camera, &sensor);
+                let truth = sensor::apply(&reference.hdr_full, &scene.camera, &sensor);
+                for (mi, method) in CmMethod::ALL.iter().enumerate() {
+                    let params = DirParams { condition: Condition::Gi, vpls: 128, cm: CmParams { method: *method, ..CmParams::default() }, ..DirParams::default() };
+                    if !warmed {
+                        // the first frame of each method compiles its shaders on software adapters
+                        renderer.render(&scene, &photo, &params)?;
+                    }
+                    let frame = renderer.render(&scene, &photo, &params)?;
+                    let mut errors: Vec<f64> = (0..photo.pixels.len())
+                        .filter(|&i| frame.flags[i] == 2 && reference.virtual_mask.values[i] >= 0.999)
+                        .map(|i| mrstudy_renderer::cm::colour::ciede2000_display(truth.pixels[i], frame.composite.pixels[i]))
+                        .collect();
+                    let pixels = errors.len();
+                    let (mean, p95) = mean_p95(&mut errors);
+                    let cm_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("cm ")).map(|p| p.ms).sum();
+                    println!("{:<18} {:<7} {:<12} {:<11} {:>8.2} {:>8.2} {:>7} {:>8.2}", name, preset, setting, method.name(), mean, p95, pixels, cm_ms);
+                    rows.push(json!({
+                        "scene": name, "camera": preset, "setting": setting, "cm": method.name(),
+                        "de2000_mean": mean, "de2000_p95": p95, "pixels": pixels, "cm_ms": cm_ms, "ms": frame.report.ms,
+                        "fallback": frame.report.cm.fallback, "cm_pairs": frame.report.cm.pairs,
+                        "width": w, "height": h, "reference_spp": spp, "vpls": 128,
+                    }));
+                    if pixels > 0 {
+                        summary.entry((pi, si, mi)).or_default().push((mean, p95));
+                    }
+                }
+                warmed = true;
+            }
+        }
+    }
+    // the averages over scenes: a table and, per camera preset, a plot
+    println!("\nmean over scenes of CIEDE2000 on virtual pixels: mean (95th percentile)");
+    print!("{:<7} {:<12}", "camera", "setting");
+    for m in CmMethod::ALL {
+        print!(" {:>16}", m.name());
+    }
+    println!();
+    let mut plots = Vec::new();
+    for (pi, preset) in presets.iter().enumerate() {
+        let mut series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); CmMethod::ALL.len()];
+        for (si, (setting, _)) in CM_SETTINGS.iter().enumerate() {
+            print!("{:<7} {:<12}", preset, setting);
+            for (mi, method) in CmMethod::ALL.iter().enumerate() {
+                let v = summary.get(&(pi, si, mi)).cloned().unwrap_or_default();
+                let n = v.len().max(1) as f64;
+                let (mean, p95) = (v.iter().map(|x| x.0).sum::<f64>() / n, v.iter().map(|x| x.1).sum::<f64>() / n);
+                print!(" {:>7.2} ({:>6.2})", mean, p95);
+                series[mi].push(((si + 1) as f64, mean));
+                rows.push(json!({ "scene": "mean over scenes", "scenes": v.len(), "camera": preset, "setting": setting, "cm": method.name(), "de2000_mean": mean, "de2000_p95": p95 }));
+            }
+            println!();
+        }
+        plots.push((
+            format!("render_cm_{preset}.svg"),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("cm accuracy, camera {preset} ({w}x{h}, mean over {} scenes, {adapter})", names.len()),
+                x_label: "setting: 1 normal, 2 contrast+, 3 contrast-, 4 saturation+, 5 saturation-, 6 exposure+1, 7 exposure-1".into(),
+                y_label: "CIEDE2000 on virtual pixels (mean)".into(),
+                x_log: false,
+                y_log: false,
+                series: CmMethod::ALL.iter().zip(series).map(|(m, points)| mrstudy_analysis::plot::LineSeries { name: m.name().into(), points }).collect(),
+            }),
+        ));
+    }
     Ok((adapter, rows, plots))
 }

@@ -1,6 +1,6 @@
 //! `mrstudy-renderer`: scenes, the simulated camera, the CPU reference path tracer and image
 //! metrics, and the GPU differential-rendering pipeline ([`gpu`]: differential instant radiosity
-//! on wgpu, and the camera-artifact factor [`ca`]; colour mapping is not here yet).
+//! on wgpu, with the colour mapping of [`cm`] and the camera-artifact factor [`ca`]).
 //!
 //! Invariant: the renderer knows nothing of studies, participants or HTTP. It turns a scene into
 //! images, masks, timings and errors.
@@ -24,8 +24,11 @@
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
 //!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
+//! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
+//!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
+//!   HSV and CIEDE2000.
 //! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, the shading pass writing
-//!   L_rv and L_r, differential composition (WGSL beside the Rust that drives it).
+//!   L_rv and L_r, the cm passes, differential composition (WGSL beside the Rust that drives it).
 
 pub mod builtin;
 pub mod bvh;

@@ -73,12 +73,12 @@ fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
 }
 
 #[test]
-fn render_refuses_factors_that_are_not_built() {
-    let dir = temp_dir("cm");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,cm", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+fn render_refuses_unknown_factors_and_conditions() {
+    let dir = temp_dir("unknown");
+    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,bloom", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("`cm`") && stderr.contains("not built yet"), "{stderr}");
+    assert!(stderr.contains("`bloom`") && stderr.contains("gi, cm"), "{stderr}");
     let out = mrstudy().args(["render", "--scene", "survey-1", "--condition", "HQ", "--out"]).arg(dir.join("x.png")).output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("gi, shadows, none"));
@@ -101,9 +101,17 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
     let gi: Vec<&serde_json::Value> = rows.iter().filter(|r| r["condition"] == "gi").collect();
     assert!(gi.len() >= 3, "{rows:?}");
     for row in rows {
-        assert!(row["ms"].as_f64().unwrap() > 0.0 && row["rmse"].as_f64().unwrap().is_finite() && row["flip"].as_f64().unwrap().is_finite());
+        assert!(row["ms"].as_f64().unwrap() > 0.0, "{row}");
+        if row["setting"] == "thesis" {
+            // the thesis's setting at full size is timed only: no reference at that size
+            assert!(row["fps"].as_f64().is_some_and(|f| f > 0.0) && row["rmse"].is_null(), "{row}");
+        } else {
+            assert!(row["rmse"].as_f64().unwrap().is_finite() && row["flip"].as_f64().unwrap().is_finite(), "{row}");
+        }
     }
-    assert!(dir.join("render_gpu_dir-lamp-box.svg").exists());
+    // the knobs swept: VPLs, ISM size, tile split
+    assert!(rows.iter().any(|r| r["ism_size"] == 0) && rows.iter().any(|r| r["interleave"] == 4), "{rows:?}");
+    assert!(dir.join("render_gpu_dir-lamp-box.svg").exists() && dir.join("render_gpu_ism_dir-lamp-box.svg").exists());
 }
 
 #[test]
@@ -134,4 +142,39 @@ fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
     let sigma = |ca: &str| rows.iter().find(|r| r["layer"] == "gpu" && r["ca"] == ca && r["camera"] == "webcam").unwrap()["virtual"]["noise_sigma"].as_f64().unwrap();
     assert!(sigma("scene") > sigma("off"), "{rows:?}");
     assert!(dir.join("render_ca_noise.svg").exists() && dir.join("render_ca_blur_layer.svg").exists());
+}
+
+#[test]
+fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_passes() {
+    let dir = temp_dir("cm");
+    let png = dir.join("gicm.png");
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-lamp-box", "--factors", "gi,cm", "--size", "48x36", "--spp", "2", "--vpls", "16", "--out"])
+        .arg(&png)
+        .arg("--buffers")
+        .arg(dir.join("buffers"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let gpu = &report["gpu"];
+    assert_eq!(gpu["cm"]["method"], "statistics");
+    assert_eq!(gpu["cm"]["mapping"]["kind"], "statistics");
+    let passes: Vec<&str> = gpu["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
+    assert!(passes.contains(&"cm statistics: reduction") && passes.contains(&"composition"), "{passes:?}");
+    // any method by name, Debevec's composition; bad names are refused with the choices
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-lamp-box", "--condition", "shadows", "--cm", "rohmer", "--composition", "scaled", "--size", "48x36", "--spp", "2", "--out"])
+        .arg(dir.join("r.png"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = mrstudy().args(["render", "--scene", "dir-lamp-box", "--cm", "magic", "--size", "48x36", "--out"]).arg(dir.join("m.png")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("off, statistics, samples, rohmer"));
 }
