@@ -5,7 +5,10 @@
 //! study file (an invalid one stops the start with its file, key and expectation), copy each
 //! study's stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and
 //! print one participant link per study and the admin link. A study whose stimuli need the
-//! renderer is skipped with one warning line naming it; the others are served.
+//! renderer is skipped with one warning line naming it; the others are served. Task studies
+//! start in the background once listening ([`start_lab`]): one line per study with its frame
+//! rate (a warning when too slow for interactive rates) and its `lab link:`, or one warning line
+//! naming why they are not served (no GPU adapter).
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -13,7 +16,8 @@ use std::sync::Arc;
 
 use crate::prepared::{PrepareError, PreparedStudy};
 use crate::storage::{OpenError, Storage};
-use crate::study::{StudyError, load_studies};
+use crate::study::{LoadedStudy, StudyError, load_studies};
+use crate::task::study::TaskStudy;
 use crate::{AppState, app};
 
 /// Where and what to serve.
@@ -89,6 +93,8 @@ pub struct Prepared {
     /// One line per study that is not served, to print as a warning.
     pub skipped: Vec<String>,
     pub slugs: Vec<String>,
+    /// Task studies, to start with [`start_lab`] once listening.
+    pub tasks: Vec<TaskStudy>,
 }
 
 /// Opens the data directory and loads the studies (see the module doc).
@@ -100,7 +106,15 @@ pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, Se
     let stimuli_dir = data_dir.join("stimuli");
     let mut prepared = Vec::new();
     let mut skipped = Vec::new();
+    let mut tasks = Vec::new();
     for study in studies {
+        let study = match study {
+            LoadedStudy::Survey(study) => study,
+            LoadedStudy::Task(task) => {
+                tasks.push(task);
+                continue;
+            }
+        };
         match PreparedStudy::prepare(study, &stimuli_dir) {
             Ok(study) => prepared.push(Arc::new(study)),
             Err(error @ (PrepareError::NeedsRenderer { .. } | PrepareError::TaskStudy { .. })) => {
@@ -121,7 +135,18 @@ pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, Se
         admin_token,
         skipped,
         slugs,
+        tasks,
     })
+}
+
+/// Starts the lab for the task studies (the renderer thread, scenes, photographs, frame-time
+/// measurement) and installs it in `state`. Returns the lines to print: (information, warnings).
+pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path) -> (Vec<String>, Vec<String>) {
+    let start = crate::task::start(tasks, data_dir, state.storage()).await;
+    if let Some(lab) = start.lab {
+        state.set_lab(lab);
+    }
+    (start.info, start.warnings)
 }
 
 /// Runs `serve` to the end (Ctrl-C or SIGTERM): prints the warnings to stderr and the links to
@@ -136,7 +161,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }
-        if prepared.slugs.is_empty() {
+        if prepared.slugs.is_empty() && prepared.tasks.is_empty() {
             eprintln!("warning: no study to serve in {}", config.studies_dir.display());
         }
         let listener = tokio::net::TcpListener::bind(&config.addr)
@@ -153,6 +178,29 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         println!("admin link: {base}/admin/login?token={}", prepared.admin_token);
         use std::io::Write;
         let _ = std::io::stdout().flush();
+        if !prepared.tasks.is_empty() {
+            // the lab starts in the background: opening the GPU and path-tracing the photograph
+            // must not keep the web survey from being served
+            let state = prepared.state.clone();
+            let tasks = prepared.tasks;
+            let data_dir = config.data_dir.clone();
+            tokio::spawn(async move {
+                let slugs: Vec<String> = tasks.iter().map(|task| task.slug.clone()).collect();
+                let (info, warnings) = start_lab(&state, tasks, &data_dir).await;
+                for line in &warnings {
+                    eprintln!("warning: {line}");
+                }
+                for line in &info {
+                    println!("{line}");
+                }
+                if let Some(lab) = state.lab() {
+                    for slug in slugs.iter().filter(|slug| lab.studies.contains_key(*slug)) {
+                        println!("lab link: {base}/lab/{slug}");
+                    }
+                }
+                let _ = std::io::stdout().flush();
+            });
+        }
         axum::serve(listener, app(prepared.state))
             .with_graceful_shutdown(shutdown_signal())
             .await
