@@ -98,6 +98,8 @@ struct Active {
 
 struct Pending {
     trial: u32,
+    /// Keys of the trial included in this frame.
+    inputs: usize,
     input_at: Option<Instant>,
     answer: oneshot::Receiver<Result<Frame, String>>,
 }
@@ -394,7 +396,7 @@ impl Session {
             })
             .map_err(AppError::Internal)?;
         active.dirty = false;
-        self.pending = Some(Pending { trial: active.planned.trial, input_at: active.unrendered_since.take(), answer });
+        self.pending = Some(Pending { trial: active.planned.trial, inputs: active.keys.len(), input_at: active.unrendered_since.take(), answer });
         Ok(())
     }
 
@@ -421,6 +423,7 @@ impl Session {
             "type": "frame",
             "n": self.frame_number,
             "trial": trial,
+            "inputs": pending.inputs,
             "width": frame.width,
             "height": frame.height,
             "render_ms": round3(frame.render_ms),
