@@ -249,6 +249,8 @@ pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<Strin
                 .await
                 .map(|json| serde_json::to_string_pretty(&json).expect("JSON serialises") + "\n"),
             ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| definition.conditions_csv()),
+            ExportFormat::Task => return crate::task::results::task_csv(pool, slug).await.map_err(|error| error.to_string()),
+            ExportFormat::TaskTrials => return crate::task::results::trials_csv(pool, slug).await.map_err(|error| error.to_string()),
         };
         text.map_err(|error| error.to_string())
     })
@@ -263,4 +265,8 @@ pub enum ExportFormat {
     Json,
     /// The conditions CSV of DESIGN.md.
     Conditions,
+    /// A task study's long CSV for `mrstudy analyze` (see [`crate::task::results`]).
+    Task,
+    /// A task study's trials, one row per answered trial.
+    TaskTrials,
 }

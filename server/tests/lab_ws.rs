@@ -226,13 +226,31 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let trial = json_of(&mut socket, "trial").await;
     assert_eq!(trial["trial"], 4);
     frame_with_inputs(&mut socket, 0).await;
+    // answer and start the next trial while a frame is still rendering: the stale frame is
+    // dropped and the next trial still gets its first frame
+    send(&mut socket, json!({"type": "key", "key": "ArrowRight"})).await;
     send(&mut socket, json!({"type": "answer", "trial": 4})).await;
-    json_of(&mut socket, "saved").await;
+    send(&mut socket, json!({"type": "ready"})).await;
+    let mut saw = Vec::new();
+    loop {
+        match recv(&mut socket).await {
+            Incoming::Json(value) if value["type"] == "trial" => {
+                saw.push("trial");
+                break;
+            }
+            Incoming::Json(value) => saw.push(if value["type"] == "saved" { "saved" } else { "frame" }),
+            Incoming::Binary(_) => {}
+        }
+    }
+    assert!(saw.contains(&"saved"), "{saw:?}");
     for number in 5..=6 {
-        send(&mut socket, json!({"type": "ready"})).await;
-        let trial = json_of(&mut socket, "trial").await;
-        assert_eq!(trial["kind"], "contact");
-        frame_with_inputs(&mut socket, 0).await;
+        if number == 6 {
+            send(&mut socket, json!({"type": "ready"})).await;
+            let trial = json_of(&mut socket, "trial").await;
+            assert_eq!(trial["kind"], "contact");
+        }
+        let (meta, _, _) = frame_with_inputs(&mut socket, 0).await;
+        assert_eq!(meta["trial"], number);
         refused(&mut socket, json!({"type": "key", "key": "ArrowLeft"}), "ArrowUp and ArrowDown").await;
         send(&mut socket, json!({"type": "key", "key": "ArrowDown"})).await;
         frame_with_inputs(&mut socket, 1).await;

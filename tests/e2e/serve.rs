@@ -23,6 +23,8 @@ pub struct Server {
     pub base: String,
     pub admin_token: String,
     pub stderr: mpsc::Receiver<String>,
+    /// stdout lines after the admin link (e.g. the lab's lines, printed once it has started).
+    pub stdout: mpsc::Receiver<String>,
 }
 
 impl Server {
@@ -32,7 +34,13 @@ impl Server {
     }
 
     pub fn try_start(data_dir: &Path, addr: &str, studies: &Path) -> Result<Server, String> {
+        Server::try_start_with_env(data_dir, addr, studies, &[])
+    }
+
+    /// [`Server::try_start`] with extra environment variables.
+    pub fn try_start_with_env(data_dir: &Path, addr: &str, studies: &Path, env: &[(&str, &str)]) -> Result<Server, String> {
         let mut child = Command::new(binary())
+            .envs(env.iter().copied())
             .args(["serve", "--addr", addr, "--data-dir"])
             .arg(data_dir)
             .arg("--studies")
@@ -67,7 +75,7 @@ impl Server {
                     }
                     if let Some(link) = line.strip_prefix("admin link: ") {
                         let admin_token = link.split("token=").nth(1).unwrap_or_default().to_string();
-                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver });
+                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver, stdout: stdout_receiver });
                     }
                 }
                 Err(_) => {

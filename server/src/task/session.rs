@@ -403,7 +403,11 @@ impl Session {
     async fn deliver(&mut self, pending: Pending, frame: Frame) -> Result<(), axum::Error> {
         self.render_state = frame.state.clone();
         let Some(active) = self.active.as_mut().filter(|active| active.planned.trial == pending.trial) else {
-            // the trial ended while this frame rendered
+            // the trial ended while this frame rendered: drop it, and render the next trial's
+            // first frame if that trial started meanwhile
+            if let Err(Refusal(message)) = self.request_frame() {
+                self.send(json!({"type": "error", "message": message})).await?;
+            }
             return Ok(());
         };
         self.frame_number += 1;
