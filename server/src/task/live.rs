@@ -233,7 +233,8 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
     }
     let real_centre = scene.object_centre(&study.real_object).ok_or_else(|| context("the real object has no geometry"))?;
     let base_centre = scene.object_centre(&study.virtual_object).ok_or_else(|| context("the virtual object has no geometry"))?;
-    let layout = Layout { real_centre: real_centre.as_dvec3().to_array(), half_height: f64::from(real_centre.y) };
+    let half = f64::from(real_centre.y);
+    let layout = Layout { real_centre: real_centre.as_dvec3().to_array(), half_height: half, reach: reach(&scene.camera, real_centre.as_dvec3(), half) };
     let photo = cached_photo(&scene, study, cache_dir)?;
     Ok(LabScene {
         slug: study.slug.clone(),
@@ -250,6 +251,34 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
             ..DirParams::default()
         },
         jpeg_quality: study.render.jpeg_quality,
+    })
+}
+
+/// How far (m, up to 0.30) the virtual cube can move from the real one towards −x, +x, −z and
+/// +z with every corner — up to 10 cm above the table for the contact task — inside the image
+/// with a 3 % margin.
+fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64) -> [f64; 4] {
+    let (width, height) = (camera.width as f32, camera.height as f32);
+    let (mx, my) = (0.03 * width, 0.03 * height);
+    let visible = |centre: glam::DVec3| {
+        [-1.0, 1.0].iter().all(|&sx: &f64| {
+            [-1.0, 1.0].iter().all(|&sz: &f64| {
+                [-half, half + 0.10].iter().all(|&dy| {
+                    let corner = (centre + glam::DVec3::new(sx * half, dy, sz * half)).as_vec3();
+                    camera.project(corner).is_some_and(|(px, py)| px >= mx && px <= width - mx && py >= my && py <= height - my)
+                })
+            })
+        })
+    };
+    let directions = [-glam::DVec3::X, glam::DVec3::X, -glam::DVec3::Z, glam::DVec3::Z];
+    directions.map(|direction| {
+        let mut reach = 0.0;
+        let mut distance = 0.005;
+        while distance <= 0.30 + 1e-9 && visible(real + direction * distance) {
+            reach = distance;
+            distance += 0.005;
+        }
+        reach
     })
 }
 

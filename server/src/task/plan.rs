@@ -5,7 +5,9 @@
 //! (conditions taken in the participant's order, cyclically; not analysed), then one block per
 //! condition in the participant's counterbalanced order (row `ordinal mod rows` of the Williams
 //! design or Latin square, see [`super::williams`]), `trials_per_condition` trials each.
-//! Positions are drawn from ChaCha8 seeded with the participant seed (`seed_from_u64`, fixed by
+//! Positions are drawn until the virtual cube lies wholly in the camera's view (the layout's
+//! `reach`, measured from the scene's camera at start-up; after [`MAX_DRAWS`] draws the last one
+//! is clamped into reach). They come from ChaCha8 seeded with the participant seed (`seed_from_u64`, fixed by
 //! rand_chacha's reproducibility guarantee); the draws are written out here, not taken from
 //! `rand`'s distributions, so a stored seed keeps reproducing its schedule.
 
@@ -22,12 +24,31 @@ use super::williams;
 pub const TASK_SCHEDULE_VERSION: i64 = 1;
 
 /// Where the cubes are: the real cube's centre (metres, scene coordinates; the table top is
-/// y = 0) and the cubes' half height.
+/// y = 0), the cubes' half height, and how far the virtual cube may go from the real one and
+/// stay wholly in the camera's view: `reach` = [towards −x, +x, −z, +z] in metres.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Layout {
     pub real_centre: [f64; 3],
     pub half_height: f64,
+    pub reach: [f64; 4],
 }
+
+impl Layout {
+    /// Whether a centre is within `reach` of the real cube (in x and z).
+    pub fn within_reach(&self, centre: DVec3) -> bool {
+        let (dx, dz) = (centre.x - self.real_centre[0], centre.z - self.real_centre[2]);
+        -self.reach[0] <= dx && dx <= self.reach[1] && -self.reach[2] <= dz && dz <= self.reach[3]
+    }
+
+    /// The nearest centre within reach (x and z clamped).
+    pub fn clamp(&self, centre: DVec3) -> DVec3 {
+        let r = self.real_centre;
+        DVec3::new(centre.x.clamp(r[0] - self.reach[0], r[0] + self.reach[1]), centre.y, centre.z.clamp(r[2] - self.reach[2], r[2] + self.reach[3]))
+    }
+}
+
+/// Draws per position before giving up and clamping the last draw into reach.
+pub const MAX_DRAWS: usize = 1000;
 
 /// One planned trial.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -106,17 +127,30 @@ pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, ordinal: u64) -> Vec<
             conditions.extend(std::iter::repeat_n((study.conditions[index], false), study.trials_per_condition as usize));
         }
         for (condition, practice) in conditions {
-            let distance = stream.between(task.min_cm, task.max_cm) / 100.0;
-            let (start, target) = match task.kind {
-                TaskKind::Distance => {
-                    let at = real + stream.direction(task.directions) * distance;
-                    (at, at)
+            // positions are drawn until the cube is wholly in view (rejection sampling)
+            let mut draw = 0;
+            let (start, target) = loop {
+                draw += 1;
+                let distance = stream.between(task.min_cm, task.max_cm) / 100.0;
+                let (start, target) = match task.kind {
+                    TaskKind::Distance => {
+                        let at = real + stream.direction(task.directions) * distance;
+                        (at, at)
+                    }
+                    TaskKind::Placement => (real + stream.direction(Directions::Any) * distance, real),
+                    TaskKind::Contact => {
+                        let beside = real + stream.direction(Directions::Any) * distance;
+                        let height = stream.between(task.min_height_cm, task.max_height_cm) / 100.0;
+                        (beside + DVec3::Y * height, beside)
+                    }
+                };
+                if layout.within_reach(start) {
+                    break (start, target);
                 }
-                TaskKind::Placement => (real + stream.direction(Directions::Any) * distance, real),
-                TaskKind::Contact => {
-                    let beside = real + stream.direction(Directions::Any) * distance;
-                    let height = stream.between(task.min_height_cm, task.max_height_cm) / 100.0;
-                    (beside + DVec3::Y * height, beside)
+                if draw >= MAX_DRAWS {
+                    let start = layout.clamp(start);
+                    let target = if task.kind == TaskKind::Contact { DVec3::new(start.x, target.y, start.z) } else if task.kind == TaskKind::Distance { start } else { target };
+                    break (start, target);
                 }
             };
             trials.push(PlannedTaskTrial {
@@ -159,7 +193,23 @@ kind = "contact"
         super::super::study::parse(text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
     }
 
-    const LAYOUT: Layout = Layout { real_centre: [0.0, 0.025, 0.0], half_height: 0.025 };
+    const LAYOUT: Layout = Layout { real_centre: [0.0, 0.025, 0.0], half_height: 0.025, reach: [0.3; 4] };
+
+    #[test]
+    fn positions_stay_within_the_view() {
+        let study = study();
+        let layout = Layout { reach: [0.22, 0.25, 0.3, 0.1], ..LAYOUT };
+        let mut towards_camera = 0;
+        for seed in 0..50 {
+            for trial in plan(&study, &layout, seed, seed) {
+                let start = DVec3::from(trial.start);
+                assert!(layout.within_reach(start), "{trial:?}");
+                assert!(start.z <= 0.1 + 1e-12);
+                towards_camera += (start.z > 0.05) as usize;
+            }
+        }
+        assert!(towards_camera > 0, "positions towards the camera still occur where they fit");
+    }
 
     #[test]
     fn a_schedule_is_reproducible_and_follows_the_counterbalanced_order() {

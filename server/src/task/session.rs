@@ -358,11 +358,10 @@ impl Session {
         if active.keys.len() >= MAX_KEYS_PER_TRIAL {
             return Err(Refusal(format!("This trial already has {MAX_KEYS_PER_TRIAL} keys; answer it.")));
         }
-        let real = DVec3::from(self.study.layout.real_centre);
-        let half = self.study.layout.half_height;
-        let lo = DVec3::new(real.x - 0.3, half - 0.02, real.z - 0.3);
-        let hi = DVec3::new(real.x + 0.3, half + 0.3, real.z + 0.3);
-        active.position = (active.position + delta).clamp(lo, hi);
+        // the cube stays in view (x, z within the layout's reach) and at most 2 cm into the table
+        let layout = self.study.layout;
+        let moved = layout.clamp(active.position + delta);
+        active.position = DVec3::new(moved.x, moved.y.clamp(layout.half_height - 0.02, layout.half_height + 0.30), moved.z);
         let now = Instant::now();
         active.keys.push(json!({
             "key": key,
