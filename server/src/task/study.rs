@@ -518,4 +518,22 @@ kind = "placement"
         let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nmax_cm = 80")).unwrap_err();
         assert_eq!(error.key, "tasks[1].min_cm");
     }
+
+    #[test]
+    fn the_shipped_lab_study_loads_as_a_task_study() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
+        let studies = crate::study::load_studies(&dir).unwrap();
+        let task = studies
+            .iter()
+            .find_map(|study| match study {
+                crate::study::LoadedStudy::Task(task) => Some(task),
+                _ => None,
+            })
+            .expect("studies/lab-task.toml is a task study");
+        assert_eq!(task.slug, "lab-task");
+        assert_eq!(task.tasks.iter().map(|t| t.kind).collect::<Vec<_>>(), vec![TaskKind::Distance, TaskKind::Placement, TaskKind::Contact]);
+        assert_eq!(task.trial_count(), 30);
+        let error = crate::study::load_study(&dir.join("lab-task.toml")).unwrap_err();
+        assert_eq!(error.key, "kind");
+    }
 }
