@@ -25,7 +25,7 @@ pub fn williams(n: usize) -> Vec<Vec<usize>> {
         })
         .collect();
     let square: Vec<Vec<usize>> = (0..n).map(|row| first.iter().map(|c| (c + row) % n).collect()).collect();
-    if n % 2 == 0 || n == 1 {
+    if n.is_multiple_of(2) || n == 1 {
         square
     } else {
         let mirror: Vec<Vec<usize>> = square.iter().map(|row| row.iter().rev().copied().collect()).collect();
@@ -39,6 +39,7 @@ pub fn latin(n: usize) -> Vec<Vec<usize>> {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
 
