@@ -158,6 +158,9 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
         .text()
         .unwrap();
     assert!(page.contains("frames/s") && page.contains("Friedman") && page.contains("task distance, measure error_cm"), "{page}");
+    assert!(page.contains("Targets are drawn within the camera's view"), "{page}");
+    let overview = client().get(format!("{}/admin", server.base)).bearer_auth(&server.admin_token).send().unwrap().text().unwrap();
+    assert!(overview.contains("/admin/lab/lab") && overview.contains("Lab task studies"), "{overview}");
     let csv = export(data_dir.path(), "lab", "task");
     let rows: Vec<&str> = csv.lines().collect();
     assert_eq!(rows[0], "participant,task,measure,condition,value,trials,label");

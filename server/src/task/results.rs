@@ -199,6 +199,8 @@ pub struct LabReport {
     pub frame_ms: Option<f64>,
     pub interactive: Option<bool>,
     pub rate: Option<String>,
+    /// How far targets may lie from the real cube and stay in view, cm: [−x, +x, −z (away), +z (towards the camera)].
+    pub reach_cm: Option<[f64; 4]>,
     pub smoothing: bool,
     pub participants: Vec<ParticipantProgress>,
     pub rendering: Vec<RenderingRow>,
@@ -297,6 +299,7 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         frame_ms: served.as_ref().map(|(_, study)| study.frame_ms),
         interactive: served.as_ref().map(|(_, study)| study.interactive),
         rate: served.as_ref().map(|(lab, study)| study.rate_line(&lab.adapter)),
+        reach_cm: served.as_ref().map(|(_, study)| study.layout.reach.map(|r| (r * 1000.0).round() / 10.0)),
         smoothing: false,
         participants,
         rendering,
