@@ -4,7 +4,6 @@
 //! durable rows, and the task CSV read back by the analysis crate. Runs on the GPU (lavapipe
 //! where there is none) at 96×72; skips with a note when no adapter can be opened.
 
-use std::path::Path;
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
@@ -277,5 +276,4 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     assert!(labels.contains(&"task contact, measure signed_error_cm".to_string()), "{labels:?}");
     let trials = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
     assert_eq!(trials.lines().count(), 7, "{trials}");
-    let _ = Path::new(".");
 }
