@@ -39,6 +39,10 @@ enum ExportFormat {
     Json,
     /// The conditions CSV (DESIGN.md) of the study, for `mrstudy analyze --conditions`.
     Conditions,
+    /// Task study: the long CSV participant,task,measure,condition,value,… for `mrstudy analyze`.
+    Task,
+    /// Task study: one row per answered trial with every stored column.
+    TaskTrials,
 }
 
 #[derive(Args)]
@@ -61,6 +65,8 @@ pub fn run_export(args: ExportArgs) -> Result<()> {
         ExportFormat::Csv => mrstudy_server::serve::ExportFormat::Csv,
         ExportFormat::Json => mrstudy_server::serve::ExportFormat::Json,
         ExportFormat::Conditions => mrstudy_server::serve::ExportFormat::Conditions,
+        ExportFormat::Task => mrstudy_server::serve::ExportFormat::Task,
+        ExportFormat::TaskTrials => mrstudy_server::serve::ExportFormat::TaskTrials,
     };
     let text = match mrstudy_server::serve::export(&args.data_dir, &args.study, format) {
         Ok(text) => text,

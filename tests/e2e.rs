@@ -10,6 +10,8 @@ mod browser;
 mod render;
 #[path = "e2e/render_gpu.rs"]
 mod render_gpu;
+#[path = "e2e/lab.rs"]
+mod lab;
 #[path = "e2e/serve.rs"]
 mod serve;
 #[path = "e2e/serve_durability.rs"]

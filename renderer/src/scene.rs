@@ -460,6 +460,47 @@ impl Scene {
         self
     }
 
+    /// The centre of the axis-aligned bounds of object `name`'s primitives, or None when there
+    /// is no such object (or it has no primitives).
+    pub fn object_centre(&self, name: &str) -> Option<Vec3> {
+        let object = self.objects.iter().find(|o| o.name == name)?;
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for prim in &object.prims {
+            let b = prim.bounds();
+            lo = lo.min(b.min);
+            hi = hi.max(b.max);
+        }
+        (lo.is_finite() && hi.is_finite()).then(|| (lo + hi) * 0.5)
+    }
+
+    /// Moves object `name` (and its proxy) rigidly by `offset` metres, and its description with
+    /// it; false when there is no such object or the offset is not finite. Lights are not moved.
+    /// (For interactive tasks: a frame per input without resolving the whole scene again.)
+    pub fn translate_object(&mut self, name: &str, offset: Vec3) -> bool {
+        if !offset.is_finite() {
+            return false;
+        }
+        let Some(object) = self.objects.iter_mut().find(|o| o.name == name) else { return false };
+        let shift = |prims: &mut Vec<Primitive>| {
+            for prim in prims.iter_mut() {
+                match prim {
+                    Primitive::Triangle(tri) => tri.p.iter_mut().for_each(|p| *p += offset),
+                    Primitive::Sphere { center, .. } => *center += offset,
+                }
+            }
+        };
+        shift(&mut object.prims);
+        if let Some((proxy, _)) = object.proxy.as_mut() {
+            shift(proxy);
+        }
+        if let Some(desc) = self.desc.objects.iter_mut().find(|o| o.name == name) {
+            let t = desc.translate.unwrap_or([0.0; 3]);
+            desc.translate = Some([t[0] + offset.x, t[1] + offset.y, t[2] + offset.z]);
+        }
+        true
+    }
+
     /// Whether the scene has anything virtual (objects or lights).
     pub fn has_virtual(&self) -> bool {
         self.objects.iter().any(|o| o.role == Role::Virtual) || self.spots.iter().any(|s| !s.real)
@@ -693,5 +734,20 @@ mod tests {
         assert!(scene.has_virtual());
         let boxed = scene.objects.iter().find(|o| o.name == "box").unwrap();
         assert!(boxed.proxy.is_some());
+    }
+
+    #[test]
+    fn translating_an_object_moves_its_centre_and_nothing_else() {
+        let mut scene = load("lab-task").unwrap();
+        let before = scene.object_centre("virtual-cube").unwrap();
+        let real = scene.object_centre("real-cube").unwrap();
+        assert!((real - Vec3::new(0.0, 0.025, 0.0)).length() < 1e-5, "{real}");
+        assert!(scene.translate_object("virtual-cube", Vec3::new(0.01, 0.02, -0.03)));
+        let after = scene.object_centre("virtual-cube").unwrap();
+        assert!((after - before - Vec3::new(0.01, 0.02, -0.03)).length() < 1e-5);
+        assert_eq!(scene.object_centre("real-cube").unwrap(), real);
+        assert!(!scene.translate_object("no-such-object", Vec3::X));
+        assert!(!scene.translate_object("virtual-cube", Vec3::new(f32::NAN, 0.0, 0.0)));
+        assert!(scene.object_centre("no-such-object").is_none());
     }
 }

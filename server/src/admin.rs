@@ -56,6 +56,11 @@ fn cookie_token(headers: &HeaderMap) -> Option<&str> {
         .map(|(_, value)| value)
 }
 
+/// Checks the admin token (header or cookie), for read-only admin calls of other modules.
+pub(crate) fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
+    authorize(state, headers).map(|_| ())
+}
+
 fn authorize(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
     let (token, via) = match bearer(headers) {
         Ok(token) => (token, Via::Header),
@@ -216,7 +221,7 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
 }
 
 async fn all_slugs(state: &AppState) -> AppResult<Vec<String>> {
-    Ok(sqlx::query_scalar("SELECT slug FROM studies ORDER BY first_loaded_at, slug")
+    Ok(sqlx::query_scalar("SELECT slug FROM studies WHERE kind <> 'task' ORDER BY first_loaded_at, slug")
         .fetch_all(&state.storage().read)
         .await?)
 }
@@ -249,7 +254,7 @@ impl From<ExportError> for AppError {
     }
 }
 
-fn download(content_type: &'static str, file_name: String, body: String) -> Response {
+pub(crate) fn download(content_type: &'static str, file_name: String, body: String) -> Response {
     let mut response = (StatusCode::OK, body).into_response();
     let headers = response.headers_mut();
     headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
@@ -385,6 +390,8 @@ fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Respo
 #[template(path = "admin.html")]
 struct AdminPage {
     studies: Vec<StudyStats>,
+    /// Lab task studies being served: (slug, title, frame-rate line, interactive).
+    lab: Vec<(String, String, String, bool)>,
 }
 
 async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Response {
@@ -400,7 +407,7 @@ async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Respon
     }
     .await;
     match result {
-        Ok(studies) => crate::pages::render(&AdminPage { studies }),
+        Ok(studies) => crate::pages::render(&AdminPage { studies, lab: crate::task::results::overview(&state) }),
         Err(error) => error.into_response(),
     }
 }

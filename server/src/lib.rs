@@ -8,12 +8,15 @@
 //! schedule from a stored seed; [`prepared`] copies stimuli into the content-addressed store;
 //! [`storage`] is the database (migrations, the group-committing writer, reads); [`participant`]
 //! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
-//! the HTML pages built on them; [`export`] writes the trials CSV and JSON; [`serve`] starts
+//! the HTML pages built on them; [`task`] the lab task studies (live renderer, WebSocket
+//! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
 //! everything from a data directory; [`bench`] measures the API under load. [`app`] builds the
 //! router apart from any socket, so tests drive it with `oneshot`.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
 //! the path tracer, frame by the GPU renderer) into the store, only those that are missing.
+//! Task studies run in the lab against the live renderer ([`task`]): `serve` starts them in the
+//! background once listening.
 
 pub mod admin;
 pub mod analysis;
@@ -28,6 +31,7 @@ pub mod serve;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
+pub mod task;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -60,6 +64,8 @@ struct StateInner {
     stimuli_dir: PathBuf,
     /// Participants' credentials by id, filled on first use (they never change).
     credentials: std::sync::Mutex<std::collections::HashMap<String, participant::Credentials>>,
+    /// The lab (task studies and the live renderer), once started (see [`task::start`]).
+    lab: std::sync::OnceLock<Arc<task::Lab>>,
 }
 
 impl AppState {
@@ -81,6 +87,7 @@ impl AppState {
                 admin_token_sha256: sha256(admin_token.as_bytes()),
                 stimuli_dir,
                 credentials: Default::default(),
+                lab: std::sync::OnceLock::new(),
             }),
         }
     }
@@ -96,6 +103,16 @@ impl AppState {
     /// The served studies in load order.
     pub fn studies(&self) -> impl Iterator<Item = &Arc<PreparedStudy>> {
         self.inner.order.iter().filter_map(|slug| self.inner.studies.get(slug))
+    }
+
+    /// The lab, once it has started and serves at least one task study.
+    pub fn lab(&self) -> Option<Arc<task::Lab>> {
+        self.inner.lab.get().cloned()
+    }
+
+    /// Installs the started lab; false if one was installed before.
+    pub fn set_lab(&self, lab: task::Lab) -> bool {
+        self.inner.lab.set(Arc::new(lab)).is_ok()
     }
 
     pub fn stimuli_dir(&self) -> &std::path::Path {
@@ -145,6 +162,7 @@ pub fn app(state: AppState) -> Router {
         .merge(participant::router())
         .merge(admin::router())
         .merge(pages::router())
+        .merge(task::router())
         .fallback(pages::not_found)
         .layer(DefaultBodyLimit::max(BODY_LIMIT_BYTES))
         .layer(middleware::from_fn(security_headers))

@@ -27,6 +27,7 @@ pub fn router() -> Router<AppState> {
 const STATIC_FILES: &[(&str, &str, &str)] = &[
     ("survey.js", "text/javascript; charset=utf-8", include_str!("../../web/static/survey.js")),
     ("admin.js", "text/javascript; charset=utf-8", include_str!("../../web/static/admin.js")),
+    ("lab.js", "text/javascript; charset=utf-8", include_str!("../../web/static/lab.js")),
     ("style.css", "text/css; charset=utf-8", include_str!("../../web/static/style.css")),
 ];
 

@@ -7,8 +7,11 @@
 //! ([`crate::stimuli`]; progress through [`ServeConfig::progress`]), copy each study's image
 //! stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and print one
 //! participant link per study and the admin link. A study whose stimuli cannot be rendered here
-//! (no GPU adapter, a factor the renderer lacks) is skipped with one warning line naming it and
-//! why; the others are served.
+//! (no GPU adapter, a scene that fails) is skipped with one warning line naming it and
+//! why; the others are served. Task studies start in the background once listening
+//! ([`start_lab`]): one line per study with its frame rate (a warning when too slow for
+//! interactive rates) and its `lab link:`, or one warning line naming why they are not served
+//! (no GPU adapter).
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -16,7 +19,8 @@ use std::sync::Arc;
 
 use crate::prepared::{PrepareError, PreparedStudy};
 use crate::storage::{OpenError, Storage};
-use crate::study::{StudyError, load_studies};
+use crate::study::{LoadedStudy, StudyError, load_studies};
+use crate::task::study::TaskStudy;
 use crate::{AppState, app};
 
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
@@ -97,6 +101,8 @@ pub struct Prepared {
     /// One line per study that is not served, to print as a warning.
     pub skipped: Vec<String>,
     pub slugs: Vec<String>,
+    /// Task studies, to start with [`start_lab`] once listening.
+    pub tasks: Vec<TaskStudy>,
 }
 
 /// Opens the data directory and loads the studies (see the module doc), rendering missing
@@ -114,8 +120,16 @@ pub async fn prepare_with_progress(data_dir: &Path, studies_dir: &Path, progress
     let stimuli_dir = data_dir.join("stimuli");
     let mut prepared = Vec::new();
     let mut skipped = Vec::new();
+    let mut tasks = Vec::new();
     for study in studies {
-        if study.needs_renderer() && study.kind != crate::study::StudyKind::Task {
+        let study = match study {
+            LoadedStudy::Survey(study) => study,
+            LoadedStudy::Task(task) => {
+                tasks.push(task);
+                continue;
+            }
+        };
+        if study.needs_renderer() {
             // start-up work: rendering blocks this task, nothing is being served yet
             let slug = study.slug.clone();
             let report = |step: crate::stimuli::Progress| {
@@ -148,7 +162,18 @@ pub async fn prepare_with_progress(data_dir: &Path, studies_dir: &Path, progress
         admin_token,
         skipped,
         slugs,
+        tasks,
     })
+}
+
+/// Starts the lab for the task studies (the renderer thread, scenes, photographs, frame-time
+/// measurement) and installs it in `state`. Returns the lines to print: (information, warnings).
+pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path) -> (Vec<String>, Vec<String>) {
+    let start = crate::task::start(tasks, data_dir, state.storage()).await;
+    if let Some(lab) = start.lab {
+        state.set_lab(lab);
+    }
+    (start.info, start.warnings)
 }
 
 /// Runs `serve` to the end (Ctrl-C or SIGTERM): prints the warnings to stderr and the links to
@@ -163,7 +188,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }
-        if prepared.slugs.is_empty() {
+        if prepared.slugs.is_empty() && prepared.tasks.is_empty() {
             eprintln!("warning: no study to serve in {}", config.studies_dir.display());
         }
         let listener = tokio::net::TcpListener::bind(&config.addr)
@@ -180,6 +205,29 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         println!("admin link: {base}/admin/login?token={}", prepared.admin_token);
         use std::io::Write;
         let _ = std::io::stdout().flush();
+        if !prepared.tasks.is_empty() {
+            // the lab starts in the background: opening the GPU and path-tracing the photograph
+            // must not keep the web survey from being served
+            let state = prepared.state.clone();
+            let tasks = prepared.tasks;
+            let data_dir = config.data_dir.clone();
+            tokio::spawn(async move {
+                let slugs: Vec<String> = tasks.iter().map(|task| task.slug.clone()).collect();
+                let (info, warnings) = start_lab(&state, tasks, &data_dir).await;
+                for line in &warnings {
+                    eprintln!("warning: {line}");
+                }
+                for line in &info {
+                    println!("{line}");
+                }
+                if let Some(lab) = state.lab() {
+                    for slug in slugs.iter().filter(|slug| lab.studies.contains_key(*slug)) {
+                        println!("lab link: {base}/lab/{slug}");
+                    }
+                }
+                let _ = std::io::stdout().flush();
+            });
+        }
         axum::serve(listener, app(prepared.state))
             .with_graceful_shutdown(shutdown_signal())
             .await
@@ -228,6 +276,8 @@ pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<Strin
                 .await
                 .map(|json| serde_json::to_string_pretty(&json).expect("JSON serialises") + "\n"),
             ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| definition.conditions_csv()),
+            ExportFormat::Task => return crate::task::results::task_csv(pool, slug).await.map_err(|error| error.to_string()),
+            ExportFormat::TaskTrials => return crate::task::results::trials_csv(pool, slug).await.map_err(|error| error.to_string()),
         };
         text.map_err(|error| error.to_string())
     })
@@ -242,4 +292,8 @@ pub enum ExportFormat {
     Json,
     /// The conditions CSV of DESIGN.md.
     Conditions,
+    /// A task study's long CSV for `mrstudy analyze` (see [`crate::task::results`]).
+    Task,
+    /// A task study's trials, one row per answered trial.
+    TaskTrials,
 }

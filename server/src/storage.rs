@@ -106,6 +106,8 @@ enum Job {
     Shown { participant: String, trial: i64 },
     Participant(Box<NewParticipant>, oneshot::Sender<Result<(), AppError>>),
     SetOpen(String, bool, oneshot::Sender<Result<(), AppError>>),
+    /// A write of a lab task study (participant with schedule, or a trial's result).
+    Task(Box<crate::task::store::TaskWrite>, oneshot::Sender<Result<crate::task::store::TaskWritten, AppError>>),
 }
 
 impl Job {
@@ -114,6 +116,7 @@ impl Job {
         match self {
             Job::Response(_, reply) => drop(reply.send(Err(error()))),
             Job::Participant(_, reply) | Job::SetOpen(_, _, reply) => drop(reply.send(Err(error()))),
+            Job::Task(_, reply) => drop(reply.send(Err(error()))),
             Job::Shown { .. } => {}
         }
     }
@@ -204,6 +207,18 @@ impl Storage {
             participant: participant.to_string(),
             trial,
         });
+    }
+
+    /// Runs a task study write in the next group commit and answers after it is durable.
+    pub async fn task_write(&self, write: crate::task::store::TaskWrite) -> Result<crate::task::store::TaskWritten, AppError> {
+        let (reply, answer) = oneshot::channel();
+        self.send(Job::Task(Box::new(write), reply)).await?;
+        answer.await.map_err(|_| writer_gone())?
+    }
+
+    /// The write connection, for start-up writes before participants arrive.
+    pub(crate) fn write_pool(&self) -> &SqlitePool {
+        &self.write
     }
 
     async fn send(&self, job: Job) -> Result<(), AppError> {
@@ -390,6 +405,7 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                 insert_participant(&mut transaction, participant).await?;
                 Some(Ok(Outcome::Done))
             }
+            Job::Task(write, _) => Some(crate::task::store::execute(&mut transaction, write).await?.map(Outcome::Task)),
             Job::SetOpen(slug, open, _) => {
                 let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
                     .bind(*open as i64)
@@ -412,7 +428,7 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
             (Job::Response(_, reply), Some(outcome)) => replies.push(Box::new(move || {
                 let _ = reply.send(outcome.map(|outcome| match outcome {
                     Outcome::Response(outcome) => outcome,
-                    Outcome::Done => ResponseOutcome::Created,
+                    _ => ResponseOutcome::Created,
                 }));
             })),
             (Job::Participant(_, reply), Some(outcome)) | (Job::SetOpen(_, _, reply), Some(outcome)) => {
@@ -420,6 +436,12 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                     let _ = reply.send(outcome.map(|_| ()));
                 }))
             }
+            (Job::Task(_, reply), Some(outcome)) => replies.push(Box::new(move || {
+                let _ = reply.send(outcome.and_then(|outcome| match outcome {
+                    Outcome::Task(written) => Ok(written),
+                    _ => Err(AppError::Internal("a task write had no task outcome".into())),
+                }));
+            })),
             _ => {}
         }
     }
@@ -428,6 +450,7 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
 
 enum Outcome {
     Response(ResponseOutcome),
+    Task(crate::task::store::TaskWritten),
     Done,
 }
 

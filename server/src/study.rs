@@ -386,8 +386,32 @@ pub(crate) fn format_number(value: f64) -> String {
     }
 }
 
-/// Reads and checks one study file.
-pub fn load_study(file: &Path) -> Result<Study, StudyError> {
+/// A study file of either kind.
+#[derive(Debug, Clone)]
+pub enum LoadedStudy {
+    /// `kind = "paired-comparison"`: the web survey.
+    Survey(Study),
+    /// `kind = "task"`: the lab task study against the live renderer.
+    Task(crate::task::study::TaskStudy),
+}
+
+impl LoadedStudy {
+    pub fn slug(&self) -> &str {
+        match self {
+            LoadedStudy::Survey(study) => &study.slug,
+            LoadedStudy::Task(study) => &study.slug,
+        }
+    }
+    pub fn file(&self) -> &Path {
+        match self {
+            LoadedStudy::Survey(study) => &study.file,
+            LoadedStudy::Task(study) => &study.file,
+        }
+    }
+}
+
+/// Reads and checks one study file of either kind (by its `kind` key).
+pub fn load_any(file: &Path) -> Result<LoadedStudy, StudyError> {
     let bytes = std::fs::read(file).map_err(|error| StudyError {
         file: file.to_path_buf(),
         key: String::new(),
@@ -398,18 +422,39 @@ pub fn load_study(file: &Path) -> Result<Study, StudyError> {
         key: String::new(),
         expected: "expected UTF-8 text".to_string(),
     })?;
+    let base = file.parent().unwrap_or(Path::new("."));
+    let table: toml::Table = toml::from_str(&text).map_err(|error| StudyError {
+        file: file.to_path_buf(),
+        key: String::new(),
+        expected: one_line(&error.to_string()),
+    })?;
+    if table.get("kind").and_then(|kind| kind.as_str()) == Some("task") {
+        return crate::task::study::parse(&text, file, base, sha256_hex(&bytes)).map(LoadedStudy::Task);
+    }
     let raw: StudyFile = toml::from_str(&text).map_err(|error| StudyError {
         file: file.to_path_buf(),
         key: String::new(),
         expected: one_line(&error.to_string()),
     })?;
-    let base = file.parent().unwrap_or(Path::new("."));
-    check(raw, file, base, sha256_hex(&bytes))
+    check(raw, file, base, sha256_hex(&bytes)).map(LoadedStudy::Survey)
+}
+
+/// Reads and checks one paired-comparison study file (a task study is refused: see
+/// [`load_any`]).
+pub fn load_study(file: &Path) -> Result<Study, StudyError> {
+    match load_any(file)? {
+        LoadedStudy::Survey(study) => Ok(study),
+        LoadedStudy::Task(_) => Err(StudyError {
+            file: file.to_path_buf(),
+            key: "kind".into(),
+            expected: "expected a paired-comparison study here, found a task study".into(),
+        }),
+    }
 }
 
 /// Loads every `*.toml` directly under `dir`, sorted by file name; stops at the first invalid
 /// file. Two files with the same slug are refused.
-pub fn load_studies(dir: &Path) -> Result<Vec<Study>, StudyError> {
+pub fn load_studies(dir: &Path) -> Result<Vec<LoadedStudy>, StudyError> {
     let entries = std::fs::read_dir(dir).map_err(|error| StudyError {
         file: dir.to_path_buf(),
         key: String::new(),
@@ -420,17 +465,17 @@ pub fn load_studies(dir: &Path) -> Result<Vec<Study>, StudyError> {
         .filter(|path| path.extension().is_some_and(|ext| ext == "toml") && path.is_file())
         .collect();
     files.sort();
-    let mut studies: Vec<Study> = Vec::new();
+    let mut studies: Vec<LoadedStudy> = Vec::new();
     for file in files {
-        let study = load_study(&file)?;
-        if let Some(other) = studies.iter().find(|other| other.slug == study.slug) {
+        let study = load_any(&file)?;
+        if let Some(other) = studies.iter().find(|other| other.slug() == study.slug()) {
             return Err(StudyError {
                 file,
                 key: "slug".into(),
                 expected: format!(
                     "expected a slug not used by another study, but {} uses \"{}\" too",
-                    other.file.display(),
-                    study.slug
+                    other.file().display(),
+                    study.slug()
                 ),
             });
         }
@@ -439,7 +484,7 @@ pub fn load_studies(dir: &Path) -> Result<Vec<Study>, StudyError> {
     Ok(studies)
 }
 
-fn one_line(message: &str) -> String {
+pub(crate) fn one_line(message: &str) -> String {
     let lines: Vec<&str> = message
         .lines()
         .map(str::trim)
@@ -460,7 +505,7 @@ fn is_identifier(name: &str) -> bool {
         && name.len() <= 64
 }
 
-fn is_slug(name: &str) -> bool {
+pub(crate) fn is_slug(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
         && name

@@ -295,3 +295,63 @@ fn the_trial_page_fits_a_phone_screen() {
     driver.screenshot(&screenshot_path("browser-trial-phone.png"));
     assert_eq!(fits, json!(true));
 }
+
+#[test]
+fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    // larger frames than the other lab tests, so the screenshot shows something
+    let study = super::lab::SMALL_STUDY.replace("size = [96, 72]", "size = [320, 240]").replace("photo_spp = 2", "photo_spp = 8");
+    std::fs::write(studies.path().join("lab.toml"), study).unwrap();
+    let Some(server) = super::lab::lab_server(data_dir.path(), studies.path()) else { return };
+    let driver = Driver::start(1000, 900);
+    driver.go(&format!("{}/lab/lab", server.base));
+    driver.type_into("#lab-label", "chromium");
+    driver.click("#lab-start-button");
+    // three distance trials first
+    for trial in 1..=3 {
+        driver.wait_for(&format!("document.getElementById('lab-progress').textContent.includes('Trial {trial} of 6')"));
+        driver.wait_for("document.getElementById('lab-frame').dataset.shown");
+        if trial == 1 {
+            driver.screenshot(&screenshot_path("lab-distance.png"));
+        }
+        driver.type_into("#lab-cm", "15");
+        driver.click("#lab-distance button");
+        driver.wait_visible("lab-next");
+        driver.click("#lab-next");
+    }
+    // placement: the first frame, then arrow keys
+    driver.wait_for("document.getElementById('lab-progress').textContent.includes('Trial 4 of 6')");
+    driver.wait_for("document.getElementById('lab-frame').dataset.shown && !document.getElementById('lab-keys').hidden");
+    driver.wait_for("document.getElementById('lab-frame').complete");
+    let before = driver.script("return document.getElementById('lab-frame').src;");
+    let shown_before = driver.script("return Number(document.getElementById('lab-frame').dataset.shown);").as_u64().unwrap();
+    driver.screenshot(&screenshot_path("lab-placement-before.png"));
+    for _ in 0..8 {
+        driver.type_into("body", "\u{E012}"); // ArrowLeft
+    }
+    driver.type_into("body", "\u{E013}\u{E013}"); // ArrowUp
+    driver.wait_for(&format!("Number(document.getElementById('lab-frame').dataset.shown) > {shown_before} && document.getElementById('lab-frame').complete"));
+    // let the last coalesced frame arrive
+    std::thread::sleep(Duration::from_millis(800));
+    let after = driver.script("return document.getElementById('lab-frame').src;");
+    assert_ne!(before, after, "the frame changed after the arrow keys");
+    driver.screenshot(&screenshot_path("lab-placement-after.png"));
+    driver.type_into("body", "\u{E007}"); // Enter confirms
+    driver.wait_visible("lab-next");
+    let stored: Value = client()
+        .get(format!("{}/api/admin/lab/lab/analysis", server.base))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(stored["participants"][0]["answered"], 4, "{stored}");
+    assert_eq!(stored["participants"][0]["label"], "chromium");
+    let trials = super::serve::export(data_dir.path(), "lab", "task-trials");
+    let placement = trials.lines().nth(4).unwrap();
+    assert!(placement.contains("ArrowLeft") && placement.contains("ArrowUp"), "{placement}");
+}

@@ -43,6 +43,8 @@ pub struct Server {
     pub base: String,
     pub admin_token: String,
     pub stderr: mpsc::Receiver<String>,
+    /// stdout lines after the admin link (e.g. the lab's lines, printed once it has started).
+    pub stdout: mpsc::Receiver<String>,
 }
 
 impl Server {
@@ -93,7 +95,7 @@ impl Server {
                     }
                     if let Some(link) = line.strip_prefix("admin link: ") {
                         let admin_token = link.split("token=").nth(1).unwrap_or_default().to_string();
-                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver });
+                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver, stdout: stdout_receiver });
                     }
                 }
                 Err(_) => {

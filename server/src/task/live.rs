@@ -1,0 +1,323 @@
+//! The live renderer of task studies: one dedicated thread owning the one wgpu device
+//! ([`DirRenderer`]), fed frame jobs through a channel and answering each with a JPEG.
+//!
+//! Each task study registers a [`LabScene`]: its scene at the live resolution, with the virtual
+//! cube turned to the real cube's orientation, and the photograph of the real scene (CPU path
+//! tracer, rendered once and cached as an 8-bit PNG in `<data-dir>/lab/`, so later starts and
+//! the first start show the same pixels). A frame job names the study, the condition, where the
+//! virtual cube's centre is, and carries the session's [`SessionRenderState`] in and out, so a
+//! renderer with temporal smoothing can keep per-session history frame to frame. The renderer
+//! has no temporal smoothing yet (thesis 5.2.9, not built in `mrstudy_renderer::gpu`): the state
+//! says so (`smoothing: false`) and every trial stores it.
+//!
+//! Jobs are rendered in arrival order. A session keeps at most one job in flight and coalesces
+//! the inputs that arrive meanwhile into its next job (see [`super::session`]), so a slow
+//! adapter shows fewer frames rather than a growing queue.
+
+use std::path::Path;
+use std::sync::mpsc;
+use std::time::Instant;
+
+use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
+use mrstudy_renderer::image::Image;
+use mrstudy_renderer::reference::{ReferenceParams, render_photo};
+use mrstudy_renderer::scene::Scene;
+use tokio::sync::oneshot;
+
+use super::plan::Layout;
+use super::study::TaskStudy;
+
+/// Default live resolution on a software adapter (lavapipe, llvmpipe).
+pub const SOFTWARE_SIZE: [u32; 2] = [160, 120];
+/// Default live resolution on a GPU.
+pub const HARDWARE_SIZE: [u32; 2] = [320, 240];
+
+/// The adapter the renderer thread opened.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AdapterInfo {
+    /// The adapter's name and backend.
+    pub adapter: String,
+    /// `hardware`, `software` or `gl`.
+    pub kind: String,
+}
+
+impl AdapterInfo {
+    pub fn is_software(&self) -> bool {
+        self.kind != "hardware"
+    }
+}
+
+/// Per-session renderer state, passed into each frame job and handed back with the frame.
+#[derive(Debug, Clone, Default)]
+pub struct SessionRenderState {
+    /// Frames rendered for this session.
+    pub frames: u64,
+    /// Whether temporal smoothing was applied to the last frame (always false: not built).
+    pub smoothing: bool,
+    /// The previous composite, kept for temporal smoothing once the renderer has it.
+    pub previous: Option<std::sync::Arc<Image>>,
+}
+
+/// One study's scene made ready for live frames.
+pub struct LabScene {
+    pub slug: String,
+    pub scene: Scene,
+    pub photo: Image,
+    pub virtual_object: String,
+    /// The virtual object's centre in `scene` (frames move it from here).
+    pub base_centre: glam::Vec3,
+    pub layout: Layout,
+    pub params: DirParams,
+    pub jpeg_quality: u8,
+}
+
+/// A rendered, encoded frame.
+#[derive(Debug)]
+pub struct Frame {
+    pub jpeg: Vec<u8>,
+    pub width: u32,
+    pub height: u32,
+    /// Wall-clock time of the frame on the renderer thread (scene update, all passes, read-back)
+    /// and of the JPEG encoding.
+    pub render_ms: f64,
+    pub encode_ms: f64,
+    pub state: SessionRenderState,
+}
+
+/// A frame to render.
+pub struct FrameJob {
+    pub study: String,
+    pub condition: Condition,
+    /// The virtual cube's centre, metres.
+    pub centre: [f64; 3],
+    pub state: SessionRenderState,
+    pub reply: oneshot::Sender<Result<Frame, String>>,
+}
+
+enum Request {
+    Register(Box<LabScene>),
+    Frame(FrameJob),
+}
+
+/// The handle of the renderer thread; cheap to clone. The thread ends when every handle is gone.
+#[derive(Clone)]
+pub struct LabRenderer {
+    sender: mpsc::Sender<Request>,
+    pub adapter: AdapterInfo,
+}
+
+impl LabRenderer {
+    /// Starts the renderer thread and opens the GPU on it; the error says why no adapter could
+    /// be opened.
+    pub fn start() -> Result<LabRenderer, String> {
+        let (sender, receiver) = mpsc::channel::<Request>();
+        let (ready, started) = mpsc::channel::<Result<AdapterInfo, String>>();
+        std::thread::Builder::new()
+            .name("mrstudy-lab-renderer".into())
+            .spawn(move || {
+                let renderer = match DirRenderer::new() {
+                    Ok(renderer) => renderer,
+                    Err(error) => {
+                        let _ = ready.send(Err(error.to_string()));
+                        return;
+                    }
+                };
+                let info = &renderer.ctx.info;
+                let _ = ready.send(Ok(AdapterInfo {
+                    adapter: format!("{} ({:?})", info.name, info.backend),
+                    kind: renderer.ctx.kind.to_string(),
+                }));
+                run(renderer, receiver);
+            })
+            .map_err(|error| format!("cannot start the renderer thread: {error}"))?;
+        let adapter = started.recv().map_err(|_| "the renderer thread stopped while opening the GPU".to_string())??;
+        Ok(LabRenderer { sender, adapter })
+    }
+
+    /// Hands a prepared scene to the renderer thread.
+    pub fn register(&self, scene: LabScene) -> Result<(), String> {
+        self.sender.send(Request::Register(Box::new(scene))).map_err(|_| "the renderer thread has stopped".to_string())
+    }
+
+    /// Queues a frame; the answer comes on `job.reply`.
+    pub fn submit(&self, job: FrameJob) -> Result<(), String> {
+        self.sender.send(Request::Frame(job)).map_err(|_| "the renderer thread has stopped".to_string())
+    }
+
+    /// Renders one frame and waits for it.
+    pub async fn frame(&self, study: &str, condition: Condition, centre: [f64; 3], state: SessionRenderState) -> Result<Frame, String> {
+        let (reply, answer) = oneshot::channel();
+        self.submit(FrameJob { study: study.to_string(), condition, centre, state, reply })?;
+        answer.await.map_err(|_| "the renderer thread stopped during a frame".to_string())?
+    }
+}
+
+fn run(renderer: DirRenderer, receiver: mpsc::Receiver<Request>) {
+    let mut scenes: Vec<LabScene> = Vec::new();
+    while let Ok(request) = receiver.recv() {
+        match request {
+            Request::Register(scene) => {
+                scenes.retain(|other| other.slug != scene.slug);
+                scenes.push(*scene);
+            }
+            Request::Frame(job) => {
+                let result = match scenes.iter().find(|scene| scene.slug == job.study) {
+                    Some(lab) => render_frame(&renderer, lab, &job),
+                    None => Err(format!("no live scene is registered for study \"{}\"", job.study)),
+                };
+                let _ = job.reply.send(result);
+            }
+        }
+    }
+}
+
+fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Result<Frame, String> {
+    let centre = glam::DVec3::from(job.centre).as_vec3();
+    if !centre.is_finite() {
+        return Err("the virtual cube's position is not finite".into());
+    }
+    let mut scene = lab.scene.clone();
+    scene.translate_object(&lab.virtual_object, centre - lab.base_centre);
+    let params = DirParams { condition: job.condition, ..lab.params.clone() };
+    let render_start = Instant::now();
+    let render = renderer.render(&scene, &lab.photo, &params).map_err(|error| error.to_string())?;
+    let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
+    let encode_start = Instant::now();
+    let jpeg = encode_jpeg(&render.composite, lab.jpeg_quality)?;
+    let encode_ms = encode_start.elapsed().as_secs_f64() * 1e3;
+    let mut state = job.state.clone();
+    state.frames += 1;
+    state.smoothing = false;
+    state.previous = None;
+    Ok(Frame { jpeg, width: render.composite.width, height: render.composite.height, render_ms, encode_ms, state })
+}
+
+/// A display-encoded image as baseline JPEG.
+pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, String> {
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality.clamp(1, 100))
+        .encode(&image.to_rgb8(), image.width, image.height, image::ExtendedColorType::Rgb8)
+        .map_err(|error| format!("cannot encode a frame as JPEG: {error}"))?;
+    Ok(bytes)
+}
+
+/// Loads a task study's scene at the live size, turns the virtual cube to the real cube's
+/// orientation, and renders (or reads from the cache under `cache_dir`) its photograph.
+pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, String> {
+    let context = |what: &str| format!("study \"{}\": {what}", study.slug);
+    let mut desc = match mrstudy_renderer::builtin::get(&study.scene) {
+        Some(desc) => desc,
+        None => {
+            let text = std::fs::read_to_string(&study.scene).map_err(|error| context(&format!("cannot read scene file {}: {error}", study.scene)))?;
+            mrstudy_renderer::scene::SceneDesc::from_toml(&text, &study.scene).map_err(|error| context(&error.to_string()))?
+        }
+    };
+    let real_rotation = desc.objects.iter().find(|o| o.name == study.real_object).map(|o| o.rotate_deg);
+    let Some(real_rotation) = real_rotation else {
+        return Err(context(&format!("scene \"{}\" has no object named \"{}\" (scene.real_object)", study.scene, study.real_object)));
+    };
+    let Some(virtual_desc) = desc.objects.iter_mut().find(|o| o.name == study.virtual_object) else {
+        return Err(context(&format!("scene \"{}\" has no object named \"{}\" (scene.virtual_object)", study.scene, study.virtual_object)));
+    };
+    virtual_desc.rotate_deg = real_rotation;
+    let [width, height] = study.render.size.unwrap_or(if software { SOFTWARE_SIZE } else { HARDWARE_SIZE });
+    let base = Path::new(&study.scene).parent().unwrap_or(Path::new("."));
+    let scene = Scene::from_desc(desc, base, &study.scene).map_err(|error| context(&error.to_string()))?.with_size(width, height);
+    let real = scene.objects.iter().find(|o| o.name == study.real_object).ok_or_else(|| context("the real object vanished"))?;
+    if real.role != mrstudy_renderer::scene::Role::Real {
+        return Err(context(&format!("object \"{}\" is not real (scene.real_object)", study.real_object)));
+    }
+    let virtual_object = scene.objects.iter().find(|o| o.name == study.virtual_object).ok_or_else(|| context("the virtual object vanished"))?;
+    if virtual_object.role != mrstudy_renderer::scene::Role::Virtual {
+        return Err(context(&format!("object \"{}\" is not virtual (scene.virtual_object)", study.virtual_object)));
+    }
+    let real_centre = scene.object_centre(&study.real_object).ok_or_else(|| context("the real object has no geometry"))?;
+    let base_centre = scene.object_centre(&study.virtual_object).ok_or_else(|| context("the virtual object has no geometry"))?;
+    let half = f64::from(real_centre.y);
+    let layout = Layout { real_centre: real_centre.as_dvec3().to_array(), half_height: half, reach: reach(&scene.camera, real_centre.as_dvec3(), half) };
+    let photo = cached_photo(&scene, study, cache_dir)?;
+    Ok(LabScene {
+        slug: study.slug.clone(),
+        scene,
+        photo,
+        virtual_object: study.virtual_object.clone(),
+        base_centre,
+        layout,
+        params: DirParams {
+            condition: Condition::Gi,
+            vpls: study.render.vpls,
+            shadow_map_size: study.render.shadow_map_size,
+            env_lights: study.render.env_lights,
+            ..DirParams::default()
+        },
+        jpeg_quality: study.render.jpeg_quality,
+    })
+}
+
+/// How far (m, up to 0.30) the virtual cube can move from the real one towards −x, +x, −z and
+/// +z with every corner — up to 10 cm above the table for the contact task — inside the image
+/// with a 3 % margin.
+fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64) -> [f64; 4] {
+    let (width, height) = (camera.width as f32, camera.height as f32);
+    let (mx, my) = (0.03 * width, 0.03 * height);
+    let visible = |centre: glam::DVec3| {
+        [-1.0, 1.0].iter().all(|&sx: &f64| {
+            [-1.0, 1.0].iter().all(|&sz: &f64| {
+                [-half, half + 0.10].iter().all(|&dy| {
+                    let corner = (centre + glam::DVec3::new(sx * half, dy, sz * half)).as_vec3();
+                    camera.project(corner).is_some_and(|(px, py)| px >= mx && px <= width - mx && py >= my && py <= height - my)
+                })
+            })
+        })
+    };
+    let directions = [-glam::DVec3::X, glam::DVec3::X, -glam::DVec3::Z, glam::DVec3::Z];
+    directions.map(|direction| {
+        let mut reach = 0.0;
+        let mut distance = 0.005;
+        while distance <= 0.30 + 1e-9 && visible(real + direction * distance) {
+            reach = distance;
+            distance += 0.005;
+        }
+        reach
+    })
+}
+
+/// The photograph of the real scene at the live size, from `cache_dir` when it is there (named
+/// by a hash of the scene description, size and samples), else path-traced and stored.
+fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Image, String> {
+    let key = crate::study::sha256_hex(format!("{}\n{}x{}\n{}", scene.desc.to_toml(), scene.camera.width, scene.camera.height, study.render.photo_spp).as_bytes());
+    let path = cache_dir.join(format!("photo-{}-{}x{}-{}.png", study.slug, scene.camera.width, scene.camera.height, &key[..16]));
+    if let Ok(image) = image::open(&path) {
+        let rgb = image.into_rgb8();
+        if rgb.width() == scene.camera.width && rgb.height() == scene.camera.height {
+            return Ok(Image::from_rgb8(rgb.width(), rgb.height(), rgb.as_raw()));
+        }
+    }
+    let params = ReferenceParams { spp: study.render.photo_spp, ..ReferenceParams::default() };
+    let (_, photo, _) = render_photo(scene, &params, &|_, _| {}).map_err(|error| format!("study \"{}\": cannot render the photograph: {error}", study.slug))?;
+    let bytes = photo.to_rgb8();
+    std::fs::create_dir_all(cache_dir).map_err(|error| format!("cannot create {}: {error}", cache_dir.display()))?;
+    let temporary = cache_dir.join(format!(".{}.partial.png", key));
+    image::save_buffer(&temporary, &bytes, photo.width, photo.height, image::ExtendedColorType::Rgb8)
+        .and_then(|_| std::fs::rename(&temporary, &path).map_err(image::ImageError::IoError))
+        .map_err(|error| format!("cannot write the photograph cache {}: {error}", path.display()))?;
+    Ok(Image::from_rgb8(photo.width, photo.height, &bytes))
+}
+
+/// Frame-time measurement at start-up: renders `frames` frames (after one warm-up) of the
+/// study's scene under its most expensive condition and returns the median of render plus
+/// encode time in ms.
+pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<f64, String> {
+    let condition = if study.conditions.contains(&Condition::Gi) { Condition::Gi } else { *study.conditions.last().unwrap_or(&Condition::None) };
+    let mut state = SessionRenderState::default();
+    let mut times = Vec::new();
+    for index in 0..=frames {
+        let frame = renderer.frame(&study.slug, condition, centre, state).await?;
+        if index > 0 {
+            times.push(frame.render_ms + frame.encode_ms);
+        }
+        state = frame.state;
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times.get(times.len() / 2).copied().unwrap_or(0.0))
+}

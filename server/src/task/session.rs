@@ -1,0 +1,588 @@
+//! The live WebSocket session of a task study (`GET /api/lab/{slug}/ws`): one connection runs
+//! one participant's trials. The protocol is documented in `studies/README.md` ("The live
+//! WebSocket API"); in short, the client sends JSON text messages `start`, `resume`, `ready`,
+//! `key` and `answer`, and the server answers with `session`, `trial`, `frame` (a JSON text
+//! message followed by one binary message: the frame number as a big-endian u32, then the JPEG),
+//! `saved`, `done` and `error`.
+//!
+//! Rendering: every accepted key moves the virtual cube at once; the session keeps at most one
+//! frame job in flight on the renderer thread, and when keys arrive while it renders they are
+//! coalesced into one next frame showing the latest position. Per frame the session measures the
+//! renderer's time and the latency from the oldest input not yet shown to the frame being sent.
+//!
+//! Bad input — malformed or unknown messages, keys outside a key task, answers out of range, an
+//! answer to another trial or a finished one — gets one `error` message with a sentence and
+//! changes nothing. A trial's result is committed to the database before `saved` is sent.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::extract::ws::{Message, Utf8Bytes, WebSocket, WebSocketUpgrade};
+use axum::extract::{Path, State};
+use axum::response::Response;
+use glam::DVec3;
+use serde::Deserialize;
+use serde_json::{Value, json};
+use tokio::sync::oneshot;
+
+use super::live::{Frame, FrameJob, SessionRenderState};
+use super::plan::PlannedTaskTrial;
+use super::store::{self, NewTaskParticipant, TaskWrite, TaskWritten, TrialResult};
+use super::study::TaskKind;
+use super::{Lab, LabStudy};
+use crate::AppState;
+use crate::error::AppError;
+
+/// Largest text message accepted from a client, in bytes.
+pub const MAX_MESSAGE_BYTES: usize = 4096;
+/// Keys kept in one trial's key log; further keys are refused.
+pub const MAX_KEYS_PER_TRIAL: usize = 5000;
+
+pub async fn websocket(State(state): State<AppState>, Path(slug): Path<String>, upgrade: WebSocketUpgrade) -> Result<Response, AppError> {
+    let lab = state.lab().ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\" (no lab studies are served).")))?;
+    let study = lab
+        .studies
+        .get(&slug)
+        .cloned()
+        .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\".")))?;
+    Ok(upgrade.max_message_size(MAX_MESSAGE_BYTES).on_upgrade(move |socket| async move {
+        let mut session = Session { state, lab, study, socket, participant: None, trials: Vec::new(), answered: 0, active: None, pending: None, render_state: SessionRenderState::default(), frame_number: 0 };
+        session.run().await;
+    }))
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+enum ClientMessage {
+    Start {
+        #[serde(default)]
+        label: String,
+    },
+    Resume {
+        participant: String,
+        token: String,
+    },
+    Ready {},
+    Key {
+        key: String,
+        #[serde(default)]
+        t: Option<f64>,
+    },
+    Answer {
+        trial: u32,
+        #[serde(default)]
+        cm: Option<f64>,
+    },
+}
+
+struct Participant {
+    id: String,
+    label: String,
+}
+
+/// The trial being worked on.
+struct Active {
+    planned: PlannedTaskTrial,
+    position: DVec3,
+    sent_at: Instant,
+    first_frame: Option<(Instant, String)>,
+    keys: Vec<Value>,
+    frames: u32,
+    frame_ms: Vec<f64>,
+    latencies: Vec<f64>,
+    /// The oldest input not yet in a requested frame.
+    unrendered_since: Option<Instant>,
+    /// Whether the position changed since the last requested frame.
+    dirty: bool,
+}
+
+struct Pending {
+    trial: u32,
+    /// Keys of the trial included in this frame.
+    inputs: usize,
+    input_at: Option<Instant>,
+    answer: oneshot::Receiver<Result<Frame, String>>,
+}
+
+struct Session {
+    state: AppState,
+    lab: Arc<Lab>,
+    study: Arc<LabStudy>,
+    socket: WebSocket,
+    participant: Option<Participant>,
+    trials: Vec<PlannedTaskTrial>,
+    answered: u32,
+    active: Option<Active>,
+    pending: Option<Pending>,
+    render_state: SessionRenderState,
+    frame_number: u32,
+}
+
+/// Why a message was refused: sent to the client, nothing changed.
+struct Refusal(String);
+
+impl From<AppError> for Refusal {
+    fn from(error: AppError) -> Self {
+        if error.status().is_server_error() {
+            eprintln!("error: lab session: {error}");
+            Refusal("The server could not complete this; the error has been logged.".into())
+        } else {
+            Refusal(error.to_string())
+        }
+    }
+}
+
+impl From<sqlx::Error> for Refusal {
+    fn from(error: sqlx::Error) -> Self {
+        AppError::Database(error).into()
+    }
+}
+
+impl Session {
+    async fn run(&mut self) {
+        loop {
+            let frame_ready = async {
+                match self.pending.as_mut() {
+                    Some(pending) => (&mut pending.answer).await,
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                message = self.socket.recv() => {
+                    let Some(Ok(message)) = message else { return };
+                    let outcome = match message {
+                        Message::Text(text) => self.handle(text.as_str()).await,
+                        Message::Binary(_) => Err(Refusal("Binary messages are not accepted; send JSON text messages.".into())),
+                        Message::Close(_) => return,
+                        Message::Ping(_) | Message::Pong(_) => Ok(()),
+                    };
+                    if let Err(Refusal(message)) = outcome
+                        && self.send(json!({"type": "error", "message": message})).await.is_err()
+                    {
+                        return;
+                    }
+                }
+                answer = frame_ready => {
+                    let pending = self.pending.take().expect("a frame was pending");
+                    let frame = match answer {
+                        Ok(Ok(frame)) => frame,
+                        Ok(Err(message)) => {
+                            eprintln!("error: lab study \"{}\": a frame failed: {message}", self.study.study.slug);
+                            let _ = self.send(json!({"type": "error", "message": format!("The renderer could not make a frame: {message}")})).await;
+                            continue;
+                        }
+                        Err(_) => {
+                            let _ = self.send(json!({"type": "error", "message": "The renderer has stopped."})).await;
+                            return;
+                        }
+                    };
+                    if self.deliver(pending, frame).await.is_err() {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+
+    async fn send(&mut self, value: Value) -> Result<(), axum::Error> {
+        self.socket.send(Message::Text(Utf8Bytes::from(value.to_string()))).await
+    }
+
+    async fn handle(&mut self, text: &str) -> Result<(), Refusal> {
+        let value: Value = serde_json::from_str(text).map_err(|_| Refusal("The message is not valid JSON.".into()))?;
+        let kind = value.get("type").and_then(Value::as_str).unwrap_or("").to_string();
+        if !["start", "resume", "ready", "key", "answer"].contains(&kind.as_str()) {
+            return Err(Refusal(format!("Unknown message type \"{kind}\"; expected start, resume, ready, key or answer.")));
+        }
+        let message: ClientMessage = serde_json::from_value(value).map_err(|error| Refusal(format!("The {kind} message does not have the expected fields: {error}.")))?;
+        match message {
+            ClientMessage::Start { label } => self.start(label).await,
+            ClientMessage::Resume { participant, token } => self.resume(participant, token).await,
+            ClientMessage::Ready {} => self.ready().await,
+            ClientMessage::Key { key, t } => self.key(key, t),
+            ClientMessage::Answer { trial, cm } => self.answer(trial, cm).await,
+        }
+    }
+
+    fn session_message(&self, token: Option<&str>) -> Value {
+        let participant = self.participant.as_ref().expect("a participant");
+        json!({
+            "type": "session",
+            "participant": participant.id,
+            "token": token,
+            "label": participant.label,
+            "trials": self.trials.len(),
+            "answered": self.answered,
+            "adapter": self.lab.adapter.adapter,
+            "adapter_kind": self.lab.adapter.kind,
+            "smoothing": self.render_state.smoothing,
+            "frame_ms": self.study.frame_ms,
+            "interactive": self.study.interactive,
+        })
+    }
+
+    async fn start(&mut self, label: String) -> Result<(), Refusal> {
+        if self.participant.is_some() {
+            return Err(Refusal("This connection already runs a participant; open a new connection for another.".into()));
+        }
+        let label = label.trim().to_string();
+        if label.chars().count() > 64 || label.chars().any(char::is_control) {
+            return Err(Refusal("The participant label must be at most 64 characters without control characters.".into()));
+        }
+        if !self.state.storage().is_open(&self.study.study.slug).await? {
+            return Err(Refusal(format!("Study \"{}\" is closed; the admin page can open it.", self.study.study.slug)));
+        }
+        let token = crate::random_hex(32);
+        let id = crate::random_hex(16);
+        let mut seed_bytes = [0u8; 8];
+        getrandom::fill(&mut seed_bytes).map_err(|error| AppError::Internal(format!("no random seed: {error}")))?;
+        let written = self
+            .state
+            .storage()
+            .task_write(TaskWrite::Participant(NewTaskParticipant {
+                study: self.study.study.clone(),
+                layout: self.study.layout,
+                id: id.clone(),
+                label: label.clone(),
+                token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+                random_seed: u64::from_le_bytes(seed_bytes),
+            }))
+            .await?;
+        let TaskWritten::Participant { trials, .. } = written else {
+            return Err(AppError::Internal("creating a participant wrote something else".into()).into());
+        };
+        self.participant = Some(Participant { id, label });
+        self.trials = trials;
+        self.answered = 0;
+        let message = self.session_message(Some(&token));
+        let _ = self.send(message).await;
+        Ok(())
+    }
+
+    async fn resume(&mut self, id: String, token: String) -> Result<(), Refusal> {
+        if self.participant.is_some() {
+            return Err(Refusal("This connection already runs a participant; open a new connection for another.".into()));
+        }
+        let refused = || Refusal("No participant of this study has that id and token.".into());
+        let row = store::participant(self.state.storage(), &id).await?.ok_or_else(refused)?;
+        if row.study != self.study.study.slug || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256) {
+            return Err(refused());
+        }
+        self.trials = store::planned_trials(self.state.storage(), &id).await?;
+        self.answered = row.answered as u32;
+        self.participant = Some(Participant { id, label: row.label });
+        let message = self.session_message(None);
+        let _ = self.send(message).await;
+        Ok(())
+    }
+
+    async fn ready(&mut self) -> Result<(), Refusal> {
+        if self.participant.is_none() {
+            return Err(Refusal("Start or resume a participant first.".into()));
+        }
+        if let Some(active) = &self.active {
+            return Err(Refusal(format!("Trial {} is still running; answer it first.", active.planned.trial)));
+        }
+        if self.answered as usize >= self.trials.len() {
+            let thanks = self.study.study.texts.thanks.clone();
+            let _ = self.send(json!({"type": "done", "trials": self.trials.len(), "thanks": thanks})).await;
+            return Ok(());
+        }
+        let planned = self.trials[self.answered as usize].clone();
+        let task = self.study.study.task(&planned.task).ok_or_else(|| AppError::Internal(format!("the schedule names task \"{}\", which the study file no longer has", planned.task)))?;
+        let first_of_task = planned.trial == 1 || self.trials[planned.trial as usize - 2].task != planned.task;
+        let answer = match task.kind {
+            TaskKind::Distance => json!({"unit": "cm", "min": 0, "max": task.answer_max_cm}),
+            _ => Value::Null,
+        };
+        let keys: &[&str] = match task.kind {
+            TaskKind::Distance => &[],
+            TaskKind::Placement => &["ArrowLeft", "ArrowRight", "ArrowUp", "ArrowDown"],
+            TaskKind::Contact => &["ArrowUp", "ArrowDown"],
+        };
+        let message = json!({
+            "type": "trial",
+            "trial": planned.trial,
+            "of": self.trials.len(),
+            "task": planned.task,
+            "kind": task.kind.as_str(),
+            "practice": planned.practice,
+            "first_of_task": first_of_task,
+            "instructions": task.instructions,
+            "answer": answer,
+            "keys": keys,
+        });
+        self.active = Some(Active {
+            position: DVec3::from(planned.start),
+            planned,
+            sent_at: Instant::now(),
+            first_frame: None,
+            keys: Vec::new(),
+            frames: 0,
+            frame_ms: Vec::new(),
+            latencies: Vec::new(),
+            unrendered_since: None,
+            dirty: true,
+        });
+        let _ = self.send(message).await;
+        self.request_frame()?;
+        Ok(())
+    }
+
+    fn key(&mut self, key: String, client_t: Option<f64>) -> Result<(), Refusal> {
+        let Some(active) = self.active.as_mut() else {
+            return Err(Refusal("There is no running trial to move the cube in; send ready first.".into()));
+        };
+        let task = self.study.study.task(&active.planned.task).expect("the task exists (checked by ready)");
+        let step = task.step_cm / 100.0;
+        let delta = match (task.kind, key.as_str()) {
+            (TaskKind::Distance, _) => return Err(Refusal("The distance task takes a typed answer, not keys.".into())),
+            (TaskKind::Placement, "ArrowLeft") => DVec3::new(-step, 0.0, 0.0),
+            (TaskKind::Placement, "ArrowRight") => DVec3::new(step, 0.0, 0.0),
+            (TaskKind::Placement, "ArrowUp") => DVec3::new(0.0, 0.0, -step),
+            (TaskKind::Placement, "ArrowDown") => DVec3::new(0.0, 0.0, step),
+            (TaskKind::Contact, "ArrowUp") => DVec3::new(0.0, step, 0.0),
+            (TaskKind::Contact, "ArrowDown") => DVec3::new(0.0, -step, 0.0),
+            (kind, other) => {
+                return Err(Refusal(format!(
+                    "Key \"{}\" does not move the cube in the {} task; use {}.",
+                    other.chars().take(32).collect::<String>(),
+                    kind.as_str(),
+                    if kind == TaskKind::Contact { "ArrowUp and ArrowDown" } else { "the arrow keys" }
+                )));
+            }
+        };
+        if client_t.is_some_and(|t| !t.is_finite()) {
+            return Err(Refusal("The key's time t must be a finite number of milliseconds.".into()));
+        }
+        if active.keys.len() >= MAX_KEYS_PER_TRIAL {
+            return Err(Refusal(format!("This trial already has {MAX_KEYS_PER_TRIAL} keys; answer it.")));
+        }
+        // the cube stays in view (x, z within the layout's reach) and at most 2 cm into the table
+        let layout = self.study.layout;
+        let moved = layout.clamp(active.position + delta);
+        active.position = DVec3::new(moved.x, moved.y.clamp(layout.half_height - 0.02, layout.half_height + 0.30), moved.z);
+        let now = Instant::now();
+        active.keys.push(json!({
+            "key": key,
+            "t_ms": round3(now.duration_since(active.sent_at).as_secs_f64() * 1e3),
+            "client_t_ms": client_t,
+            "x": active.position.x, "y": active.position.y, "z": active.position.z,
+        }));
+        active.dirty = true;
+        active.unrendered_since.get_or_insert(now);
+        if self.pending.is_none() {
+            self.request_frame()?;
+        }
+        Ok(())
+    }
+
+    /// Submits a frame of the active trial's current position when none is in flight.
+    fn request_frame(&mut self) -> Result<(), Refusal> {
+        let Some(active) = self.active.as_mut() else { return Ok(()) };
+        if self.pending.is_some() || !active.dirty {
+            return Ok(());
+        }
+        let (reply, answer) = oneshot::channel();
+        self.lab
+            .renderer
+            .submit(FrameJob {
+                study: self.study.study.slug.clone(),
+                condition: active.planned.condition,
+                centre: active.position.to_array(),
+                state: self.render_state.clone(),
+                reply,
+            })
+            .map_err(AppError::Internal)?;
+        active.dirty = false;
+        self.pending = Some(Pending { trial: active.planned.trial, inputs: active.keys.len(), input_at: active.unrendered_since.take(), answer });
+        Ok(())
+    }
+
+    async fn deliver(&mut self, pending: Pending, frame: Frame) -> Result<(), axum::Error> {
+        self.render_state = frame.state.clone();
+        let Some(active) = self.active.as_mut().filter(|active| active.planned.trial == pending.trial) else {
+            // the trial ended while this frame rendered: drop it, and render the next trial's
+            // first frame if that trial started meanwhile
+            if let Err(Refusal(message)) = self.request_frame() {
+                self.send(json!({"type": "error", "message": message})).await?;
+            }
+            return Ok(());
+        };
+        self.frame_number += 1;
+        let now = Instant::now();
+        let latency = pending.input_at.map(|at| now.duration_since(at).as_secs_f64() * 1e3);
+        let frame_ms = frame.render_ms + frame.encode_ms;
+        active.frames += 1;
+        active.frame_ms.push(frame_ms);
+        if let Some(latency) = latency {
+            active.latencies.push(latency);
+        }
+        if active.first_frame.is_none() {
+            active.first_frame = Some((now, iso_now()));
+        }
+        let trial = active.planned.trial;
+        let meta = json!({
+            "type": "frame",
+            "n": self.frame_number,
+            "trial": trial,
+            "inputs": pending.inputs,
+            "width": frame.width,
+            "height": frame.height,
+            "render_ms": round3(frame.render_ms),
+            "encode_ms": round3(frame.encode_ms),
+            "latency_ms": latency.map(round3),
+            "smoothing": frame.state.smoothing,
+            "bytes": frame.jpeg.len(),
+        });
+        self.send(meta).await?;
+        let mut binary = Vec::with_capacity(4 + frame.jpeg.len());
+        binary.extend_from_slice(&self.frame_number.to_be_bytes());
+        binary.extend_from_slice(&frame.jpeg);
+        self.socket.send(Message::Binary(binary.into())).await?;
+        // inputs that arrived while this frame rendered: one frame for all of them
+        if let Err(Refusal(message)) = self.request_frame() {
+            self.send(json!({"type": "error", "message": message})).await?;
+        }
+        Ok(())
+    }
+
+    async fn answer(&mut self, trial: u32, cm: Option<f64>) -> Result<(), Refusal> {
+        let Some(participant) = self.participant.as_ref() else {
+            return Err(Refusal("Start or resume a participant first.".into()));
+        };
+        if trial as usize > self.trials.len() || trial == 0 {
+            return Err(Refusal(format!("There is no trial {trial}; the schedule has {}.", self.trials.len())));
+        }
+        if trial <= self.answered {
+            return Err(Refusal(format!("Trial {trial} is already answered.")));
+        }
+        let Some(active) = self.active.as_ref().filter(|active| active.planned.trial == trial) else {
+            return Err(Refusal(match &self.active {
+                Some(active) => format!("Trial {trial} is not the running trial; trial {} is.", active.planned.trial),
+                None => format!("Trial {trial} has not started; send ready first."),
+            }));
+        };
+        let task = self.study.study.task(&active.planned.task).expect("the task exists (checked by ready)");
+        let real = DVec3::from(self.study.layout.real_centre);
+        let start = DVec3::from(active.planned.start);
+        let target = DVec3::from(active.planned.target);
+        let (answer_cm, final_position, error_axes, signed) = match task.kind {
+            TaskKind::Distance => {
+                let Some(cm) = cm else {
+                    return Err(Refusal("The distance task needs the answer in cm: {\"type\": \"answer\", \"trial\": N, \"cm\": number}.".into()));
+                };
+                if !cm.is_finite() || cm < 0.0 || cm > task.answer_max_cm {
+                    return Err(Refusal(format!("The distance must be between 0 and {} cm, not {cm}.", task.answer_max_cm)));
+                }
+                let offset = start - real;
+                let truth = offset.length() * 100.0;
+                let signed = cm - truth;
+                let axes = offset.normalize_or_zero() * signed;
+                (Some(cm), None, axes, Some(signed))
+            }
+            TaskKind::Placement | TaskKind::Contact => {
+                if cm.is_some() {
+                    return Err(Refusal(format!("The {} task is answered by confirming the cube's position, without cm.", task.kind.as_str())));
+                }
+                let error = (active.position - target) * 100.0;
+                let signed = (task.kind == TaskKind::Contact).then_some(error.y);
+                (None, Some(active.position.to_array()), error, signed)
+            }
+        };
+        let error_cm = match task.kind {
+            TaskKind::Distance => signed.unwrap_or(0.0).abs(),
+            _ => error_axes.length(),
+        };
+        let now = Instant::now();
+        let (started, started_at) = active.first_frame.clone().unwrap_or((active.sent_at, iso_now()));
+        let completion_ms = now.duration_since(started).as_secs_f64() * 1e3;
+        let mut latencies = active.latencies.clone();
+        latencies.sort_by(f64::total_cmp);
+        let result = TrialResult {
+            participant: participant.id.clone(),
+            trial,
+            answer_cm,
+            final_position,
+            error_cm,
+            signed_error_cm: signed,
+            error_axes_cm: error_axes.to_array(),
+            completion_ms,
+            key_log: Value::Array(active.keys.clone()).to_string(),
+            frames: active.frames,
+            frame_ms_mean: mean(&active.frame_ms),
+            frame_ms_max: active.frame_ms.iter().copied().reduce(f64::max),
+            latency_ms_mean: mean(&latencies),
+            latency_ms_p95: (!latencies.is_empty()).then(|| latencies[((latencies.len() as f64 * 0.95).ceil() as usize).clamp(1, latencies.len()) - 1]),
+            smoothing: self.render_state.smoothing,
+            adapter: self.lab.adapter.adapter.clone(),
+            started_at,
+        };
+        let practice = active.planned.practice;
+        let written = self.state.storage().task_write(TaskWrite::Result(result.clone())).await?;
+        let TaskWritten::Result { answered, completed } = written else {
+            return Err(AppError::Internal("storing a result wrote something else".into()).into());
+        };
+        self.answered = answered;
+        self.active = None;
+        let _ = self
+            .send(json!({
+                "type": "saved",
+                "trial": trial,
+                "answered": answered,
+                "of": self.trials.len(),
+                "completed": completed,
+                "practice": practice,
+                "error_cm": round3(result.error_cm),
+                "error_x_cm": round3(result.error_axes_cm[0]),
+                "error_y_cm": round3(result.error_axes_cm[1]),
+                "error_z_cm": round3(result.error_axes_cm[2]),
+                "completion_ms": round3(result.completion_ms),
+                "frames": result.frames,
+                "frame_ms_mean": result.frame_ms_mean.map(round3),
+                "latency_ms_mean": result.latency_ms_mean.map(round3),
+            }))
+            .await;
+        if completed {
+            let thanks = self.study.study.texts.thanks.clone();
+            let _ = self.send(json!({"type": "done", "trials": self.trials.len(), "thanks": thanks})).await;
+        }
+        Ok(())
+    }
+}
+
+fn mean(values: &[f64]) -> Option<f64> {
+    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+}
+
+fn round3(value: f64) -> f64 {
+    (value * 1000.0).round() / 1000.0
+}
+
+/// Now as UTC ISO 8601 with milliseconds, as the database stores times.
+pub fn iso_now() -> String {
+    let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let (secs, millis) = (since.as_secs() as i64, since.subsec_millis());
+    let (days, rest) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // civil from days (Howard Hinnant's algorithm)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + if month <= 2 { 1 } else { 0 };
+    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z", rest / 3600, rest % 3600 / 60, rest % 60)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn iso_now_looks_like_sqlite_time() {
+        let now = super::iso_now();
+        assert_eq!(now.len(), 24, "{now}");
+        assert!(now.starts_with("20") && now.ends_with('Z') && &now[10..11] == "T", "{now}");
+    }
+}

@@ -1,0 +1,279 @@
+//! The live WebSocket session of a task study, driven by a WebSocket client over a real socket:
+//! a complete distance trial, a complete placement trial and a contact trial, bad input at
+//! every step (each answered with an error and changing nothing), resume with the token, the
+//! durable rows, and the task CSV read back by the analysis crate. Runs on the GPU (lavapipe
+//! where there is none) at 96×72; skips with a note when no adapter can be opened.
+
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use mrstudy_server::serve::{Prepared, prepare, start_lab};
+use serde_json::{Value, json};
+use sqlx::Row;
+use tokio_tungstenite::tungstenite::Message;
+
+type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+const STUDY: &str = r#"
+slug = "lab"
+title = "Lab"
+kind = "task"
+[texts]
+welcome = "Hello."
+instructions = "Do the tasks."
+[design]
+conditions = ["none", "gi"]
+trials_per_condition = 1
+practice = 0
+seed = 5
+[render]
+size = [96, 72]
+photo_spp = 2
+vpls = 16
+shadow_map_size = 128
+env_lights = 4
+[[tasks]]
+kind = "distance"
+[[tasks]]
+kind = "placement"
+step_cm = 1
+[[tasks]]
+kind = "contact"
+"#;
+
+enum Incoming {
+    Json(Value),
+    Binary(Vec<u8>),
+}
+
+async fn recv(socket: &mut Socket) -> Incoming {
+    loop {
+        let message = tokio::time::timeout(Duration::from_secs(60), socket.next()).await.expect("a message within 60 s").expect("the socket is open").expect("no socket error");
+        match message {
+            Message::Text(text) => return Incoming::Json(serde_json::from_str(text.as_str()).unwrap()),
+            Message::Binary(bytes) => return Incoming::Binary(bytes.to_vec()),
+            _ => continue,
+        }
+    }
+}
+
+async fn json_of(socket: &mut Socket, kind: &str) -> Value {
+    match recv(socket).await {
+        Incoming::Json(value) => {
+            assert_eq!(value["type"], kind, "{value}");
+            value
+        }
+        Incoming::Binary(_) => panic!("expected a {kind} message, got binary"),
+    }
+}
+
+async fn send(socket: &mut Socket, value: Value) {
+    socket.send(Message::Text(value.to_string().into())).await.unwrap();
+}
+
+/// Reads frames until one includes `inputs` keys; returns (meta, jpeg) of that frame and how
+/// many frames came.
+async fn frame_with_inputs(socket: &mut Socket, inputs: usize) -> (Value, Vec<u8>, usize) {
+    let mut count = 0;
+    loop {
+        let meta = json_of(socket, "frame").await;
+        let Incoming::Binary(bytes) = recv(socket).await else { panic!("the frame's binary message must follow its meta") };
+        count += 1;
+        let number = u32::from_be_bytes(bytes[..4].try_into().unwrap());
+        assert_eq!(number as u64, meta["n"].as_u64().unwrap());
+        assert_eq!(&bytes[4..6], &[0xFF, 0xD8], "a JPEG");
+        assert_eq!(meta["bytes"].as_u64().unwrap() as usize, bytes.len() - 4);
+        if meta["inputs"].as_u64().unwrap() as usize == inputs {
+            return (meta, bytes[4..].to_vec(), count);
+        }
+    }
+}
+
+/// Sends `message` and expects an error naming `needle`.
+async fn refused(socket: &mut Socket, message: Value, needle: &str) {
+    send(socket, message).await;
+    let error = json_of(socket, "error").await;
+    assert!(error["message"].as_str().unwrap().contains(needle), "{error}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    std::fs::write(studies.path().join("lab.toml"), STUDY).unwrap();
+    let Prepared { state, tasks, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    assert_eq!(tasks.len(), 1);
+    let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
+    if state.lab().is_none() {
+        assert!(warnings.iter().any(|w| w.contains("GPU adapter")), "{warnings:?}");
+        eprintln!("skipping: {warnings:?}");
+        return;
+    }
+    assert_eq!(info.len() + warnings.len(), 1, "one frame-rate line: {info:?} {warnings:?}");
+    eprintln!("{}", info.iter().chain(&warnings).next().unwrap());
+    assert!(info.iter().chain(&warnings).all(|line| line.contains("frames/s")));
+    // the photograph was cached in the data dir
+    assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() == 1);
+
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let storage = state.storage().clone();
+    tokio::spawn(async move { axum::serve(listener, mrstudy_server::app(state)).await.unwrap() });
+    let url = format!("ws://{addr}/api/lab/lab/ws");
+    let (mut socket, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
+
+    // before a participant
+    refused(&mut socket, json!({"type": "ready"}), "Start or resume").await;
+    refused(&mut socket, json!({"type": "dance"}), "Unknown message type \"dance\"").await;
+    refused(&mut socket, json!({"type": "start", "label": "x", "extra": 1}), "expected fields").await;
+    send(&mut socket, json!({"type": "start", "label": "P01"})).await;
+    let session = json_of(&mut socket, "session").await;
+    let participant = session["participant"].as_str().unwrap().to_string();
+    let token = session["token"].as_str().unwrap().to_string();
+    assert_eq!(session["trials"], 6);
+    assert_eq!(session["smoothing"], false);
+    refused(&mut socket, json!({"type": "start", "label": "P02"}), "already runs a participant").await;
+
+    // trial 1: distance
+    send(&mut socket, json!({"type": "ready"})).await;
+    let trial = json_of(&mut socket, "trial").await;
+    assert_eq!(trial["trial"], 1);
+    assert_eq!(trial["kind"], "distance");
+    let (first, _, _) = frame_with_inputs(&mut socket, 0).await;
+    assert_eq!(first["trial"], 1);
+    assert!(first["latency_ms"].is_null(), "no input yet: {first}");
+    refused(&mut socket, json!({"type": "key", "key": "ArrowLeft"}), "typed answer").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 1}), "needs the answer in cm").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 1, "cm": -3}), "between 0 and 200").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 1, "cm": 1e9}), "between 0 and 200").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 2, "cm": 10}), "not the running trial").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 99, "cm": 10}), "no trial 99").await;
+    refused(&mut socket, json!({"type": "ready"}), "still running").await;
+    send(&mut socket, json!({"type": "answer", "trial": 1, "cm": 12.5})).await;
+    let saved = json_of(&mut socket, "saved").await;
+    assert_eq!(saved["answered"], 1);
+    // durable before `saved`: the row is there, with the truth from the stored start
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let start: [f64; 3] = [row.get("start_x"), row.get("start_y"), row.get("start_z")];
+    let truth = ((start[0]).powi(2) + (start[2]).powi(2)).sqrt() * 100.0;
+    assert!((start[1] - 0.025).abs() < 1e-6, "the virtual cube stands on the table");
+    assert_eq!(row.get::<f64, _>("answer_cm"), 12.5);
+    assert!((row.get::<f64, _>("error_cm") - (12.5 - truth).abs()).abs() < 1e-9);
+    assert!((row.get::<f64, _>("signed_error_cm") - (12.5 - truth)).abs() < 1e-9);
+    let axes = [row.get::<f64, _>("error_x_cm"), row.get::<f64, _>("error_y_cm"), row.get::<f64, _>("error_z_cm")];
+    assert!(((axes[0].powi(2) + axes[2].powi(2)).sqrt() - (12.5 - truth).abs()).abs() < 1e-9, "{axes:?}");
+    assert!(row.get::<i64, _>("frames") >= 1);
+    assert!(row.get::<f64, _>("completion_ms") > 0.0);
+    // answering a finished trial changes nothing
+    refused(&mut socket, json!({"type": "answer", "trial": 1, "cm": 20}), "already answered").await;
+    let again: f64 = sqlx::query_scalar("SELECT answer_cm FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    assert_eq!(again, 12.5);
+
+    // trial 2: distance under the second condition; then trial 3: placement
+    send(&mut socket, json!({"type": "ready"})).await;
+    let trial = json_of(&mut socket, "trial").await;
+    assert_eq!(trial["trial"], 2);
+    frame_with_inputs(&mut socket, 0).await;
+    send(&mut socket, json!({"type": "answer", "trial": 2, "cm": 10})).await;
+    json_of(&mut socket, "saved").await;
+    send(&mut socket, json!({"type": "ready"})).await;
+    let trial = json_of(&mut socket, "trial").await;
+    assert_eq!(trial["kind"], "placement");
+    let (_, before, _) = frame_with_inputs(&mut socket, 0).await;
+    refused(&mut socket, json!({"type": "key", "key": "PageUp"}), "does not move the cube").await;
+    refused(&mut socket, json!({"type": "key", "key": "ArrowLeft", "t": "soon"}), "expected fields").await;
+    // ten keys in a burst: coalesced into fewer frames, the last showing all of them
+    let keys = ["ArrowLeft", "ArrowLeft", "ArrowLeft", "ArrowUp", "ArrowUp", "ArrowRight", "ArrowDown", "ArrowLeft", "ArrowLeft", "ArrowUp"];
+    for (index, key) in keys.iter().enumerate() {
+        send(&mut socket, json!({"type": "key", "key": key, "t": index as f64 * 5.0})).await;
+    }
+    let (last, after, frames) = frame_with_inputs(&mut socket, keys.len()).await;
+    assert!(frames < keys.len(), "keys arriving during a frame are coalesced: {frames} frames for {} keys", keys.len());
+    assert!(last["latency_ms"].as_f64().unwrap() > 0.0);
+    assert_ne!(before, after, "the frame changes when the cube moves");
+    refused(&mut socket, json!({"type": "answer", "trial": 3, "cm": 4}), "without cm").await;
+    send(&mut socket, json!({"type": "answer", "trial": 3})).await;
+    let saved = json_of(&mut socket, "saved").await;
+    assert_eq!(saved["answered"], 3);
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 3").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let start = [row.get::<f64, _>("start_x"), row.get::<f64, _>("start_z")];
+    // 1 cm steps: x −1 −1 −1 +1 −1 −1 = −4 cm, z −1 −1 +1 −1 = −2 cm
+    let final_position = [row.get::<f64, _>("final_x"), row.get::<f64, _>("final_z")];
+    assert!((final_position[0] - (start[0] - 0.04)).abs() < 1e-9, "{final_position:?} from {start:?}");
+    assert!((final_position[1] - (start[1] - 0.02)).abs() < 1e-9);
+    assert!((row.get::<f64, _>("error_x_cm") - final_position[0] * 100.0).abs() < 1e-6, "the target is the real cube at x = 0");
+    let total = (row.get::<f64, _>("error_x_cm").powi(2) + row.get::<f64, _>("error_z_cm").powi(2)).sqrt();
+    assert!((row.get::<f64, _>("error_cm") - total).abs() < 1e-9);
+    let log: Value = serde_json::from_str(&row.get::<String, _>("key_log")).unwrap();
+    assert_eq!(log.as_array().unwrap().len(), keys.len());
+    assert_eq!(log[0]["key"], "ArrowLeft");
+    assert_eq!(log[9]["client_t_ms"], 45.0);
+    assert!(row.get::<Option<f64>, _>("latency_ms_mean").unwrap() > 0.0);
+    assert_eq!(row.get::<i64, _>("smoothing"), 0);
+
+    // a second connection resumes the participant with the token (a wrong token is refused)
+    drop(socket);
+    let (mut socket, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
+    refused(&mut socket, json!({"type": "resume", "participant": participant, "token": "0".repeat(64)}), "No participant").await;
+    send(&mut socket, json!({"type": "resume", "participant": participant, "token": token})).await;
+    let session = json_of(&mut socket, "session").await;
+    assert_eq!(session["answered"], 3);
+    assert!(session["token"].is_null());
+    refused(&mut socket, json!({"type": "answer", "trial": 3}), "already answered").await;
+    // trials 4–6; contact uses up and down only
+    send(&mut socket, json!({"type": "ready"})).await;
+    let trial = json_of(&mut socket, "trial").await;
+    assert_eq!(trial["trial"], 4);
+    frame_with_inputs(&mut socket, 0).await;
+    // answer and start the next trial while a frame is still rendering: the stale frame is
+    // dropped and the next trial still gets its first frame
+    send(&mut socket, json!({"type": "key", "key": "ArrowRight"})).await;
+    send(&mut socket, json!({"type": "answer", "trial": 4})).await;
+    send(&mut socket, json!({"type": "ready"})).await;
+    let mut saw = Vec::new();
+    loop {
+        match recv(&mut socket).await {
+            Incoming::Json(value) if value["type"] == "trial" => {
+                saw.push("trial");
+                break;
+            }
+            Incoming::Json(value) => saw.push(if value["type"] == "saved" { "saved" } else { "frame" }),
+            Incoming::Binary(_) => {}
+        }
+    }
+    assert!(saw.contains(&"saved"), "{saw:?}");
+    for number in 5..=6 {
+        if number == 6 {
+            send(&mut socket, json!({"type": "ready"})).await;
+            let trial = json_of(&mut socket, "trial").await;
+            assert_eq!(trial["kind"], "contact");
+        }
+        let (meta, _, _) = frame_with_inputs(&mut socket, 0).await;
+        assert_eq!(meta["trial"], number);
+        refused(&mut socket, json!({"type": "key", "key": "ArrowLeft"}), "ArrowUp and ArrowDown").await;
+        send(&mut socket, json!({"type": "key", "key": "ArrowDown"})).await;
+        frame_with_inputs(&mut socket, 1).await;
+        send(&mut socket, json!({"type": "answer", "trial": number})).await;
+        let saved = json_of(&mut socket, "saved").await;
+        assert_eq!(saved["completed"], number == 6);
+        let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = ?").bind(&participant).bind(number).fetch_one(&storage.read).await.unwrap();
+        let height = row.get::<f64, _>("start_y") - 0.0025 - 0.025;
+        assert!((row.get::<f64, _>("signed_error_cm") - height * 100.0).abs() < 1e-6, "height left above the table after one 0.25 cm step down");
+        assert_eq!(row.get::<f64, _>("error_x_cm"), 0.0);
+    }
+    json_of(&mut socket, "done").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 6}), "already answered").await;
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    assert_eq!(answered, 6);
+
+    // the task CSV is what the analysis reads
+    let csv = mrstudy_server::task::results::task_csv(&storage.read, "lab").await.unwrap();
+    assert!(csv.starts_with("participant,task,measure,condition,value,trials,label\n"), "{csv}");
+    let analysis = mrstudy_analysis::task::analyze_task_csv(&csv, "lab-task.csv").unwrap();
+    assert_eq!(analysis.grouped_by, vec!["task", "measure"]);
+    let labels: Vec<String> = analysis.measures.iter().map(|m| m.group.label()).collect();
+    assert!(labels.contains(&"task distance, measure error_cm".to_string()), "{labels:?}");
+    assert!(labels.contains(&"task contact, measure signed_error_cm".to_string()), "{labels:?}");
+    let trials = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
+    assert_eq!(trials.lines().count(), 7, "{trials}");
+}
