@@ -19,6 +19,7 @@ pub const RGB_TO_XYZ_E: [[f32; 3]; 3] = [
     [0.017_721_742, 0.109_452_41, 0.872_772_8],
 ];
 /// Its inverse (numpy.linalg.inv of the matrix above).
+#[allow(clippy::excessive_precision)]
 pub const XYZ_E_TO_RGB: [[f32; 3]; 3] = [
     [3.080_071_7, -1.537_208, -0.543_035_34],
     [-0.920_925_94, 1.875_756, 0.045_214_98],

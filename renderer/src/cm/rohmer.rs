@@ -67,7 +67,8 @@ pub fn hsv_distance(a: Vec3, b: Vec3) -> f32 {
 pub fn filter1(input: &CmInput, i: usize, params: &CmParams, exposure: f32) -> Option<f32> {
     let (w, h) = (input.width as usize, input.height as usize);
     let (x, y) = (i % w, i / w);
-    if input.flags[i] != 1 || !(luminance(input.l_r[i]) > 1e-6) {
+    let lum = luminance(input.l_r[i]);
+    if input.flags[i] != 1 || lum.is_nan() || lum <= 1e-6 {
         return None;
     }
     let cam = input.photo[i];
@@ -146,6 +147,7 @@ fn det(m: &M3) -> f64 {
     m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
+#[allow(clippy::needless_range_loop)]
 fn inverse(m: &M3) -> Option<M3> {
     let d = det(m);
     if d == 0.0 || !d.is_finite() {

@@ -59,6 +59,7 @@ pub fn cpu_matches(input: &CmInput, params: &CmParams, exposure: f32, colours: &
 
 /// Least squares for one output channel: rows of regressors `x` and targets `y`; None when the
 /// normal matrix is singular.
+#[allow(clippy::needless_range_loop)]
 fn least_squares(x: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
     let p = x.first()?.len();
     let mut a = vec![vec![0f64; p + 1]; p];
@@ -143,10 +144,8 @@ pub fn fit(pairs: &[(Vec3, Vec3)], mode: Regression) -> ([[f32; 4]; 3], Option<S
     if let Some(rows) = regress(pairs, mode) {
         return (rows, None);
     }
-    if mode != Regression::PerChannel {
-        if let Some(rows) = regress(pairs, Regression::PerChannel) {
-            return (rows, Some(format!("{} pairs: too few or singular for the {mode:?} polynomial; per-channel polynomial used", pairs.len())));
-        }
+    if let Some(rows) = (mode != Regression::PerChannel).then(|| regress(pairs, Regression::PerChannel)).flatten() {
+        return (rows, Some(format!("{} pairs: too few or singular for the {mode:?} polynomial; per-channel polynomial used", pairs.len())));
     }
     (IDENTITY, Some(format!("{} pairs: too few or singular for any polynomial; identity (cm off)", pairs.len())))
 }

@@ -29,6 +29,7 @@ impl Compose {
 
     /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
     /// composite buffer (one vec4 per pixel, display-encoded).
+    #[allow(clippy::too_many_arguments)]
     pub fn run(&self, ctx: &GpuContext, width: u32, height: u32, linear_domain: bool, composition: Composition, mapped: &wgpu::Buffer, photo: &wgpu::Buffer) -> wgpu::Buffer {
         let device = &ctx.device;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
