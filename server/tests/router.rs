@@ -1,6 +1,6 @@
 //! Router tests: every API call and its error paths, admin authentication and the security
 //! properties, driven through `app(state)` with `oneshot` (no socket). Each test gets a fresh
-//! data directory and database, loading the repository's `studies/`.
+//! data directory and database, loading the demo study and a survey it cannot render.
 
 use std::path::{Path, PathBuf};
 
@@ -13,8 +13,27 @@ use mrstudy_server::app;
 use serde_json::{Value, json};
 use tower::ServiceExt;
 
-fn studies_dir() -> PathBuf {
+fn repo_studies_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies")
+}
+
+/// The demo study and the thesis survey, whose first scene is a scene file that does not parse:
+/// `serve` skips the survey (its stimuli cannot be rendered) without opening the GPU, where the
+/// repository's survey would have its 48 stimuli rendered by `prepare`.
+fn studies_dir(work: &Path) -> PathBuf {
+    let dir = work.join("studies");
+    let repo = repo_studies_dir();
+    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
+    std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
+    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
+    }
+    let survey = std::fs::read_to_string(repo.join("web-survey.toml")).unwrap();
+    std::fs::write(dir.join("web-survey.toml"), survey.replacen("render = \"survey-1\"", "render = \"scenes/broken.toml\"", 1)).unwrap();
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    std::fs::write(dir.join("scenes/broken.toml"), "this is not a scene file").unwrap();
+    dir
 }
 
 struct Fixture {
@@ -26,7 +45,8 @@ struct Fixture {
 
 async fn fixture() -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
-    let Prepared { state, admin_token, skipped, .. } = prepare(data_dir.path(), &studies_dir()).await.unwrap();
+    let studies = studies_dir(data_dir.path());
+    let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
     Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
 }
 
@@ -111,7 +131,7 @@ async fn started(fixture: &Fixture) -> i64 {
 }
 
 #[tokio::test]
-async fn studies_lists_open_studies_and_skips_those_needing_the_renderer() {
+async fn studies_lists_open_studies_and_skips_those_it_cannot_render() {
     let fixture = fixture().await;
     let answer = call(&fixture.app, Method::GET, "/api/studies", None, None).await;
     assert_eq!(answer.status, StatusCode::OK);
@@ -121,7 +141,7 @@ async fn studies_lists_open_studies_and_skips_those_needing_the_renderer() {
     );
     assert_eq!(fixture.skipped.len(), 1, "{:?}", fixture.skipped);
     assert!(fixture.skipped[0].contains("\"web-survey\""), "{:?}", fixture.skipped);
-    assert!(fixture.skipped[0].contains("renderer"), "{:?}", fixture.skipped);
+    assert!(fixture.skipped[0].contains("scene configuration \"survey-1\"") && fixture.skipped[0].contains("broken.toml"), "{:?}", fixture.skipped);
 }
 
 #[tokio::test]
@@ -490,7 +510,7 @@ async fn schedules_are_stored_and_reproducible_from_the_stored_seed() {
     join(app).await;
     join(app).await;
     let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
-    let study = mrstudy_server::study::load_study(&studies_dir().join("shadows-demo.toml")).unwrap();
+    let study = mrstudy_server::study::load_study(&repo_studies_dir().join("shadows-demo.toml")).unwrap();
     let data_dir = tempfile::tempdir().unwrap();
     let prepared = mrstudy_server::PreparedStudy::prepare(study, data_dir.path()).unwrap();
     for participant in json["participants"].as_array().unwrap() {
@@ -569,13 +589,13 @@ async fn the_database_is_wal_with_full_sync() {
 async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
     // The demo study, with a crowdsourcing redirect, in a studies directory of its own.
     let studies = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(studies_dir().join("shadows-demo.toml")).unwrap();
+    let text = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
     let text = text.replace(
         "[completion]\ncode = \"DEMO-7F3A\"",
         "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
     );
     assert!(text.contains("redirect ="));
-    std::fs::write(studies.path().join("demo.toml"), text.replace("\"shadows-demo/", &format!("\"{}/", studies_dir().join("shadows-demo").display()))).unwrap();
+    std::fs::write(studies.path().join("demo.toml"), text.replace("\"shadows-demo/", &format!("\"{}/", repo_studies_dir().join("shadows-demo").display()))).unwrap();
     let data_dir = tempfile::tempdir().unwrap();
     let Prepared { state, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
     let app = app(state);

@@ -4,11 +4,12 @@
 //! Each task study registers a [`LabScene`]: its scene at the live resolution, with the virtual
 //! cube turned to the real cube's orientation, and the photograph of the real scene (CPU path
 //! tracer, rendered once and cached as an 8-bit PNG in `<data-dir>/lab/`, so later starts and
-//! the first start show the same pixels). A frame job names the study, the condition, where the
-//! virtual cube's centre is, and carries the session's [`SessionRenderState`] in and out, so a
-//! renderer with temporal smoothing can keep per-session history frame to frame. The renderer
-//! has no temporal smoothing yet (thesis 5.2.9, not built in `mrstudy_renderer::gpu`): the state
-//! says so (`smoothing: false`) and every trial stores it.
+//! the first start show the same pixels). A frame job names the study, the condition, the trial,
+//! where the virtual cube's centre is, and carries the session's [`SessionRenderState`] in and
+//! out: the renderer's [`LiveState`] with the previous frame's indirect light for temporal
+//! smoothing (thesis 5.2.9, eqs. 5.11–5.15, `DirRenderer::render_with_state`) and the colour
+//! mapping's history. The history starts afresh with each trial (and each condition), so one
+//! trial's light never shows in the next; `smoothing` says whether the last frame reused any.
 //!
 //! Jobs are rendered in arrival order. A session keeps at most one job in flight and coalesces
 //! the inputs that arrive meanwhile into its next job (see [`super::session`]), so a slow
@@ -18,7 +19,7 @@ use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
 
-use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
+use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer, LiveState};
 use mrstudy_renderer::image::Image;
 use mrstudy_renderer::reference::{ReferenceParams, render_photo};
 use mrstudy_renderer::scene::Scene;
@@ -48,14 +49,23 @@ impl AdapterInfo {
 }
 
 /// Per-session renderer state, passed into each frame job and handed back with the frame.
-#[derive(Debug, Clone, Default)]
+#[derive(Clone, Default)]
 pub struct SessionRenderState {
     /// Frames rendered for this session.
     pub frames: u64,
-    /// Whether temporal smoothing was applied to the last frame (always false: not built).
+    /// Whether the last frame was smoothed with the one before it (temporal smoothing ran with
+    /// a history: the same trial, a `gi` frame with VPLs).
     pub smoothing: bool,
-    /// The previous composite, kept for temporal smoothing once the renderer has it.
-    pub previous: Option<std::sync::Arc<Image>>,
+    /// The trial and condition of the last frame; another trial starts a fresh history.
+    pub last: Option<(u32, Condition)>,
+    /// The renderer's history (GPU buffers); one frame of a session is in flight at a time.
+    pub live: std::sync::Arc<std::sync::Mutex<LiveState>>,
+}
+
+impl std::fmt::Debug for SessionRenderState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SessionRenderState").field("frames", &self.frames).field("smoothing", &self.smoothing).field("last", &self.last).finish_non_exhaustive()
+    }
 }
 
 /// One study's scene made ready for live frames.
@@ -88,6 +98,8 @@ pub struct Frame {
 pub struct FrameJob {
     pub study: String,
     pub condition: Condition,
+    /// The trial the frame belongs to (a new trial starts a fresh smoothing history).
+    pub trial: u32,
     /// The virtual cube's centre, metres.
     pub centre: [f64; 3],
     pub state: SessionRenderState,
@@ -145,9 +157,9 @@ impl LabRenderer {
     }
 
     /// Renders one frame and waits for it.
-    pub async fn frame(&self, study: &str, condition: Condition, centre: [f64; 3], state: SessionRenderState) -> Result<Frame, String> {
+    pub async fn frame(&self, study: &str, condition: Condition, trial: u32, centre: [f64; 3], state: SessionRenderState) -> Result<Frame, String> {
         let (reply, answer) = oneshot::channel();
-        self.submit(FrameJob { study: study.to_string(), condition, centre, state, reply })?;
+        self.submit(FrameJob { study: study.to_string(), condition, trial, centre, state, reply })?;
         answer.await.map_err(|_| "the renderer thread stopped during a frame".to_string())?
     }
 }
@@ -179,16 +191,22 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
     let mut scene = lab.scene.clone();
     scene.translate_object(&lab.virtual_object, centre - lab.base_centre);
     let params = DirParams { condition: job.condition, ..lab.params.clone() };
+    let mut state = job.state.clone();
     let render_start = Instant::now();
-    let render = renderer.render(&scene, &lab.photo, &params).map_err(|error| error.to_string())?;
+    let render = {
+        let mut live = state.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        if state.last != Some((job.trial, job.condition)) {
+            *live = LiveState::default();
+        }
+        renderer.render_with_state(&scene, &lab.photo, &params, &mut live).map_err(|error| error.to_string())?
+    };
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
     let encode_start = Instant::now();
     let jpeg = encode_jpeg(&render.composite, lab.jpeg_quality)?;
     let encode_ms = encode_start.elapsed().as_secs_f64() * 1e3;
-    let mut state = job.state.clone();
     state.frames += 1;
-    state.smoothing = false;
-    state.previous = None;
+    state.last = Some((job.trial, job.condition));
+    state.smoothing = render.report.passes.iter().any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
     Ok(Frame { jpeg, width: render.composite.width, height: render.composite.height, render_ms, encode_ms, state })
 }
 
@@ -312,7 +330,7 @@ pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3]
     let mut state = SessionRenderState::default();
     let mut times = Vec::new();
     for index in 0..=frames {
-        let frame = renderer.frame(&study.slug, condition, centre, state).await?;
+        let frame = renderer.frame(&study.slug, condition, 0, centre, state).await?;
         if index > 0 {
             times.push(frame.render_ms + frame.encode_ms);
         }

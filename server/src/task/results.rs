@@ -300,7 +300,8 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         interactive: served.as_ref().map(|(_, study)| study.interactive),
         rate: served.as_ref().map(|(lab, study)| study.rate_line(&lab.adapter)),
         reach_cm: served.as_ref().map(|(_, study)| study.layout.reach.map(|r| (r * 1000.0).round() / 10.0)),
-        smoothing: false,
+        // every live frame of a task study goes through `render_with_state` (live.rs)
+        smoothing: served.is_some(),
         participants,
         rendering,
         analysis,

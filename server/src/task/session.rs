@@ -389,6 +389,7 @@ impl Session {
             .submit(FrameJob {
                 study: self.study.study.slug.clone(),
                 condition: active.planned.condition,
+                trial: active.planned.trial,
                 centre: active.position.to_array(),
                 state: self.render_state.clone(),
                 reply,
