@@ -27,8 +27,9 @@
 //! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
 //!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
 //!   HSV and CIEDE2000.
-//! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, the shading pass writing
-//!   L_rv and L_r, the cm passes, differential composition (WGSL beside the Rust that drives it).
+//! - [`gpu`]: adapter choice, G-buffer, shadow maps, RSMs and VPLs, imperfect shadow maps, the
+//!   shading pass writing L_rv and L_r, interleaved-sampling merge and temporal smoothing, the cm
+//!   passes, differential composition (WGSL beside the Rust that drives it).
 
 pub mod builtin;
 pub mod bvh;

@@ -7,28 +7,34 @@
 //!    map and, when the condition casts virtual shadows and there is virtual geometry, a
 //!    virtual-only map (two maps avoid the double shadows of Figure 5.6);
 //! 2. **RSMs** (condition `gi` only): per spot light a real-only and a virtual-only reflective
-//!    shadow map, read back, and **VPL creation** from them ([`vpl`]);
+//!    shadow map, read back, and **VPL creation** from them ([`vpl`]); then the **imperfect
+//!    shadow maps** of the VPLs ([`ism`]: real and virtual point clouds, geometry-aligned
+//!    splats; not made when `ism_size` is 0 or there are no VPLs);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
 //!    Blinn–Phong parameters);
-//! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8;
-//! 5. **colour mapping** ([`cm`], the `cm` factor, [`crate::cm`]): τ applied to both buffers
+//! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8, the VPLs of each pixel's
+//!    interleaved class only when `interleave` > 1;
+//! 5. the **indirect light** ([`indirect`], only with VPLs): the geometry-aware merge of the
+//!    interleaved classes and, in live rendering ([`DirRenderer::render_with_state`]), temporal
+//!    smoothing by 5.11–5.15, then the sum with the direct light;
+//! 6. **colour mapping** ([`cm`], the `cm` factor, [`crate::cm`]): τ applied to both buffers
 //!    (thesis 4.18 / 4.28) — `off` is the simplified Reinhard operator x/(1+x) then sRGB
 //!    encoding; `statistics`, `samples` and `rohmer` first reduce statistics on the GPU and
 //!    solve their tiny systems on the CPU;
-//! 6. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
-//!    form, where L'_cam is the photograph with virtual pixels masked out.
-//! 7. with the `ca` factor ([`DirParams::camera_artifacts`]), the camera-artifact chain on the
+//! 7. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
+//!    form, where L'_cam is the photograph with virtual pixels masked out;
+//! 8. with the `ca` factor ([`DirParams::camera_artifacts`]), the camera-artifact chain on the
 //!    composite's virtual layers ([`artifacts`], see [`crate::ca`]).
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
 //! maps (V_rv = min(V_r, V_v)); `gi` adds one bounce of indirect light from VPLs.
 //!
-//! Not built yet (issue 5): VPL visibility (imperfect shadow maps — VPLs are unshadowed, V = 1),
-//! indirect light from the environment (only spot lights make VPLs), area lights (emissive
-//! surfaces show in both solutions but light nothing), multiple bounces,
-//! interleaved sampling and the merge filter, temporal smoothing, motion vectors, glossy VPLs
-//! (VPLs reflect diffusely).
+//! Not built yet (issue 5): indirect light from the environment (only spot lights make VPLs;
+//! the environment lights directly, as directional lights), area lights (emissive surfaces show
+//! in both solutions but light nothing), multiple bounces, per-object motion vectors (temporal
+//! smoothing reprojects with the camera), glossy VPLs (VPLs reflect diffusely), RSM sampling on
+//! the GPU.
 
 pub mod artifacts;
 pub mod cm;
