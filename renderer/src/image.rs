@@ -195,6 +195,10 @@ pub fn srgb_decode(c: f32) -> f32 {
 /// Writes an image by extension: `.exr` as linear float, anything else as 8-bit PNG. `linear` is
 /// the linear version (for EXR) and `display` the display-encoded one (for PNG).
 pub fn save_by_extension(path: &Path, linear: &Image, display: &Image) -> Result<()> {
+    // the output's folder is made if missing (`--out renders/gi.png`)
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| RenderError::Write { path: path.to_owned(), reason: format!("cannot create its folder: {e}") })?;
+    }
     if path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         linear.save_exr(path)
     } else {

@@ -18,7 +18,8 @@ fn temp_dir(name: &str) -> PathBuf {
 #[test]
 fn render_condition_gi_writes_the_composite_and_a_report_of_its_passes() {
     let dir = temp_dir("gi");
-    let png = dir.join("gi.png");
+    // the output's folder does not exist yet: render makes it
+    let png = dir.join("new-folder").join("gi.png");
     let out = mrstudy()
         .args(["render", "--scene", "dir-double-shadow", "--condition", "gi", "--size", "64x48", "--spp", "2", "--vpls", "32", "--out"])
         .arg(&png)
