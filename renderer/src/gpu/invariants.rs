@@ -420,18 +420,19 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     assert!(changed.iter().all(|&i| c[i] == 0.0), "confidence where the surface changed: {:?}", changed.iter().map(|&i| c[i]).filter(|c| *c > 0.0).collect::<Vec<_>>());
 }
 
-/// Against the reference: on the DIR scenes (Figures 5.12–5.17) the `gi` composite is closer
-/// to the path-traced ground-truth composite than the gi-off (`none`) one, by FLIP in the
-/// affected region (96×72, ground truth at 64 spp). Not asserted on the survey scenes and the
-/// lab scene: there the light is mostly the environment's, whose bounces DIR does not make yet
-/// (only spot lights make VPLs), so the interior of the virtual Cornell box, shadowed from the
-/// sky, stays darker than the ground truth's and gi is no better or worse than none (survey-1
-/// 0.428 → 0.473, survey-3 0.495 → 0.520; the others within ±0.015). Prints every scene's numbers.
+/// Against the reference, on every built-in scene: the `gi` composite is closer to the
+/// path-traced ground-truth composite than the gi-off (`none`) one, by FLIP in the affected
+/// region (96×72, ground truth at 64 spp). Measured: gi wins on ten of the eleven scenes (e.g.
+/// survey-2 0.453 → 0.365, dir-lamp-box 0.409 → 0.334); on survey-1 it is 0.007 worse (0.4285 →
+/// 0.4351): the inside of its virtual Cornell box, lit in the ground truth by the sky through the
+/// open side and by interreflection, stays darker with one bounce (multiple bounces are not
+/// built). There gi may not be worse than gi off by more than 0.01. Without the environment's
+/// VPLs (only spot lights making VPLs) gi lost on survey-1 and survey-3 by 0.045 and 0.026.
 #[test]
-fn gi_brings_the_dir_scenes_closer_to_the_ground_truth() {
+fn gi_brings_every_built_in_scene_closer_to_the_ground_truth() {
     let Some(r) = renderer() else { return };
     let mut failures = Vec::new();
-    for name in ["dir-env-shadow", "dir-lamp-cornell", "dir-lamp-box", "dir-double-shadow"] {
+    for name in crate::builtin::names() {
         let scene = crate::scene::load(name).unwrap().with_size(96, 72);
         let reference = render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         if reference.affected_mask.coverage() == 0.0 {
@@ -444,8 +445,9 @@ fn gi_brings_the_dir_scenes_closer_to_the_ground_truth() {
         };
         let (none, gi) = (flip(Condition::None), flip(Condition::Gi));
         eprintln!("{name}: FLIP in the affected region, gi off {none:.4}, gi on {gi:.4}");
-        if gi >= none {
-            failures.push(format!("{name}: gi {gi:.4} not below gi off {none:.4}"));
+        let allowed = if name == "survey-1" { 0.01 } else { 0.0 };
+        if gi >= none + allowed {
+            failures.push(format!("{name}: gi {gi:.4} not below gi off {none:.4} (+{allowed})"));
         }
     }
     assert!(failures.is_empty(), "{failures:?}");

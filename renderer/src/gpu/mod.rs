@@ -6,8 +6,9 @@
 //!    map (the thesis's environment VPLs on the hemisphere, used for direct light), a real-only
 //!    map and, when the condition casts virtual shadows and there is virtual geometry, a
 //!    virtual-only map (two maps avoid the double shadows of Figure 5.6);
-//! 2. **RSMs** (condition `gi` only): per spot light a real-only and a virtual-only reflective
-//!    shadow map, read back, and **VPL creation** from them ([`vpl`]); then the **imperfect
+//! 2. **RSMs** (condition `gi` only): per spot light, and along `env_vpl_directions` of the
+//!    environment's directions (orthographic), a real-only and a virtual-only reflective shadow
+//!    map, read back, and **VPL creation** from them by flux ([`vpl`]); then the **imperfect
 //!    shadow maps** of the VPLs ([`ism`]: real and virtual point clouds, geometry-aligned
 //!    splats; not made when `ism_size` is 0 or there are no VPLs);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
@@ -30,8 +31,7 @@
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
 //! maps (V_rv = min(V_r, V_v)); `gi` adds one bounce of indirect light from VPLs.
 //!
-//! Not built yet (issue 5): indirect light from the environment (only spot lights make VPLs;
-//! the environment lights directly, as directional lights), area lights (emissive surfaces show
+//! Not built yet (issue 5): area lights (emissive surfaces show
 //! in both solutions but light nothing), multiple bounces, per-object motion vectors (temporal
 //! smoothing reprojects with the camera), glossy VPLs (VPLs reflect diffusely), RSM sampling on
 //! the GPU.
@@ -101,6 +101,9 @@ pub struct DirParams {
     pub env_lights: u32,
     /// Resolution of each reflective shadow map (gi only).
     pub rsm_size: u32,
+    /// Environment directions that also get RSMs and so make VPLs (gi only): the environment's
+    /// light bounces; 0: only spot lights make VPLs.
+    pub env_vpl_directions: u32,
     /// Exposure applied before the tone mapping x/(1+x) (every cm method but `rohmer` maps
     /// tone-mapped values).
     pub exposure: f32,
@@ -133,6 +136,7 @@ impl Default for DirParams {
             shadow_map_size: 512,
             env_lights: 32,
             rsm_size: 128,
+            env_vpl_directions: 8,
             exposure: 1.0,
             vpl_clamp_distance: 0.05,
             ism_size: 128,
@@ -362,14 +366,15 @@ impl DirRenderer {
             });
             spot_views.push((view, tan_half));
         }
+        // the environment's maps cover where virtual objects can change anything: around them (3×
+        // their bounding radius, where their shadows fall), or everything without them
+        let (env_centre, env_radius) = match mesh.virtual_bounds {
+            Some((c, r)) => (c, (3.0 * r).min(mesh.bounds_radius)),
+            None => (mesh.bounds_centre, mesh.bounds_radius),
+        };
+        let env_depth = (mesh.bounds_centre - env_centre).length() + mesh.bounds_radius + 1e-3;
         if !env_dirs.is_empty() {
-            // the maps cover where virtual objects can change anything: around them (3× their
-            // bounding radius, where their shadows fall), or everything without them
-            let (centre, radius) = match mesh.virtual_bounds {
-                Some((c, r)) => (c, (3.0 * r).min(mesh.bounds_radius)),
-                None => (mesh.bounds_centre, mesh.bounds_radius),
-            };
-            let depth = (mesh.bounds_centre - centre).length() + mesh.bounds_radius + 1e-3;
+            let (centre, radius, depth) = (env_centre, env_radius, env_depth);
             let first = lights.len() as u32;
             timed(ctx, &mut passes, format!("shadow maps environment ({} directions{})", env_dirs.len(), if virtual_maps { ", real and virtual" } else { ", real" }), || {
                 for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
@@ -396,21 +401,37 @@ impl DirRenderer {
         if params.condition == Condition::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
             let mut rsms = Vec::new();
+            let read_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
+                let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
+                let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
+                let label = if subset == Subset::Real { "real" } else { "virtual" };
+                timed(ctx, passes, format!("RSM {name} {label}"), || self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets));
+                let position = ctx.read_texture_rgba32(&targets.position);
+                let normal = ctx.read_texture_rgba32(&targets.normal);
+                let albedo = ctx.read_texture_rgba32(&targets.albedo);
+                let dist: Vec<f32> = bytemuck::cast_slice(&ctx.read_texture(&distance, 4)).to_vec();
+                (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+            };
+            let read_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
+                let real = read_rsm(passes, view, name, Subset::Real);
+                let virt = if has_virtual { read_rsm(passes, view, name, Subset::Virtual) } else { vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()] };
+                (real, virt)
+            };
             for (spot, (view, tan_half)) in scene.spots.iter().zip(&spot_views) {
-                let mut read = |subset: Subset| {
-                    let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
-                    let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
-                    let label = if subset == Subset::Real { "real" } else { "virtual" };
-                    timed(ctx, &mut passes, format!("RSM {} {label}", spot.name), || self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets));
-                    let position = ctx.read_texture_rgba32(&targets.position);
-                    let normal = ctx.read_texture_rgba32(&targets.normal);
-                    let albedo = ctx.read_texture_rgba32(&targets.albedo);
-                    let dist: Vec<f32> = bytemuck::cast_slice(&ctx.read_texture(&distance, 4)).to_vec();
-                    (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
-                };
-                let real = read(Subset::Real);
-                let virt = if has_virtual { read(Subset::Virtual) } else { vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()] };
-                rsms.push((spot, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt }));
+                let (real, virt) = read_pair(&mut passes, view, &spot.name);
+                rsms.push((vpl::RsmLight::Spot(spot), vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt }));
+            }
+            // the environment's light bounces too: orthographic RSMs along a subset of its
+            // directions (evenly spread over the importance-sampled ones), each standing for
+            // n / k of them
+            let k = (params.env_vpl_directions as usize).min(env_dirs.len());
+            for j in 0..k {
+                let (forward, irradiance) = env_dirs[j * env_dirs.len() / k];
+                let (matrix, eye) = directional_view(forward, env_centre, env_radius, env_depth);
+                let view = ViewUniform::orthographic(matrix, eye, forward);
+                let (real, virt) = read_pair(&mut passes, &view, &format!("environment {}", j + 1));
+                let light = vpl::RsmLight::Directional { irradiance: irradiance * (env_dirs.len() as f32 / k as f32), texel_area: (2.0 * env_radius / rsm_size as f32).powi(2) };
+                rsms.push((light, vpl::RsmTexels { size: rsm_size, tan_half_fov: 0.0, real, virt }));
             }
             let start = Instant::now();
             vpls = vpl::create(&rsms, params.vpls);

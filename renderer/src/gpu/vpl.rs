@@ -1,4 +1,6 @@
-//! VPL creation from reflective shadow maps (thesis 5.2.7, "The Spot Light Source"). A real spot
+//! VPL creation from reflective shadow maps (thesis 5.2.7, "The Spot Light Source"), of spot
+//! lights and of directions of the environment light (orthographic RSMs; the environment is real,
+//! and a texel reflects albedo · E · its area across the beam). A real spot
 //! has two RSMs, real-only and virtual-only; a virtual spot too (its real-only map is then only
 //! used where no virtual surface is in front). Each RSM texel is a candidate VPL carrying the
 //! diffusely reflected flux albedo · I(ω) · dω of the light that reaches it; the flags follow
@@ -44,14 +46,46 @@ pub struct RsmTexels {
     pub virt: Vec<RsmTexel>,
 }
 
+/// The primary light an RSM was rendered from.
+#[derive(Clone, Copy, Debug)]
+pub enum RsmLight<'a> {
+    /// A spot light (perspective RSM).
+    Spot(&'a SpotLight),
+    /// A direction of the environment light (orthographic RSM): irradiance on a surface facing
+    /// it (W/m²) and the area of one texel across the beam (m²). The environment is real.
+    Directional { irradiance: Vec3, texel_area: f32 },
+}
+
+impl RsmLight<'_> {
+    fn real(&self) -> bool {
+        match self {
+            RsmLight::Spot(light) => light.real,
+            RsmLight::Directional { .. } => true,
+        }
+    }
+}
+
 struct Candidate {
     vpl: GpuVpl,
     weight: f32,
 }
 
-fn candidate(light: &SpotLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, path_flag: f32, ir: f32) -> Option<Candidate> {
+fn candidate(light: &RsmLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, path_flag: f32, ir: f32) -> Option<Candidate> {
     let (position, normal, albedo, _) = texel;
     let p = Vec3::new(position[0], position[1], position[2]);
+    let light = match light {
+        RsmLight::Spot(light) => *light,
+        RsmLight::Directional { irradiance, texel_area } => {
+            // the texel's footprint across the beam receives E · A; a diffuse surface reflects
+            // albedo times that, whatever its tilt
+            let flux = Vec3::new(albedo[0], albedo[1], albedo[2]) * *irradiance * *texel_area;
+            let weight = luminance(flux);
+            if weight <= 0.0 || !weight.is_finite() {
+                return None;
+            }
+            return Some(Candidate { vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] }, weight });
+        }
+    };
     let to_surface = p - light.position;
     let dist = to_surface.length();
     if dist <= 0.0 {
@@ -72,11 +106,12 @@ fn candidate(light: &SpotLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, p
     Some(Candidate { vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] }, weight })
 }
 
-/// Draws `count` VPLs from the RSMs of the given spot lights.
-pub fn create(lights: &[(&SpotLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
+/// Draws `count` VPLs from the RSMs of the given lights (spot lights and environment
+/// directions).
+pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
     let mut candidates = Vec::new();
     for (light, rsm) in lights {
-        let r_pl = if light.real { 1.0 } else { 0.0 };
+        let r_pl = if light.real() { 1.0 } else { 0.0 };
         for idx in 0..rsm.real.len() {
             let real = &rsm.real[idx];
             let virt = &rsm.virt[idx];
@@ -84,7 +119,7 @@ pub fn create(lights: &[(&SpotLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
             let has_virt = virt.0[3] > 0.5;
             let virtual_in_front = has_virt && (!has_real || virt.3 < real.3);
             let found = if virtual_in_front {
-                let shadowed_real = if has_real && light.real { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
+                let shadowed_real = if has_real && light.real() { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
                 [candidate(light, rsm, idx, virt, 0.0, 0.0), shadowed_real]
             } else if has_real {
                 [candidate(light, rsm, idx, real, r_pl, 0.0), None]
@@ -135,7 +170,7 @@ mod tests {
         // one texel: a real floor with a virtual box in front, under a real light
         let rsm = RsmTexels { size: 1, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5)], virt: vec![texel(0.5, 2.0, 0.8)] };
         let light = spot(true);
-        let vpls = create(&[(&light, rsm)], 64);
+        let vpls = create(&[(RsmLight::Spot(&light), rsm)], 64);
         assert_eq!(vpls.len(), 64);
         let (virt, real): (Vec<&GpuVpl>, Vec<&GpuVpl>) = vpls.iter().partition(|v| v.position[3] == 0.0);
         assert!(virt.iter().all(|v| v.normal[3] == 0.0), "a VPL on a virtual surface lights L_rv");
@@ -149,10 +184,27 @@ mod tests {
     }
 
     #[test]
+    fn an_environment_direction_reflects_albedo_times_irradiance_times_texel_area() {
+        // two texels: a real floor, and a virtual box in front of the real floor
+        let rsm = RsmTexels { size: 2, tan_half_fov: 0.0, real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY], virt: vec![EMPTY, texel(0.5, 2.0, 0.8), EMPTY, EMPTY] };
+        let light = RsmLight::Directional { irradiance: Vec3::splat(2.0), texel_area: 0.01 };
+        let vpls = create(&[(light, rsm)], 300);
+        assert_eq!(vpls.len(), 300);
+        let sum = |f: &dyn Fn(&GpuVpl) -> bool| vpls.iter().filter(|v| f(v)).map(|v| v.flux[0] as f64).sum::<f64>();
+        // the open floor texel: a real path (r = 1, ir = 0), flux 0.5 · 2 · 0.01
+        let open = sum(&|v| v.position[3] == 1.0 && v.normal[3] == 0.0);
+        assert!((open / 0.01 - 1.0).abs() < 0.02, "{open}");
+        // the virtual box (r = 0) and the real floor behind it, for the real-only solution (ir = 1)
+        let virt = sum(&|v| v.position[3] == 0.0);
+        let behind = sum(&|v| v.normal[3] == 1.0);
+        assert!((virt / 0.016 - 1.0).abs() < 0.02 && (behind / 0.01 - 1.0).abs() < 0.02, "{virt} {behind}");
+    }
+
+    #[test]
     fn virtual_light_gives_no_vpl_behind_virtual_surfaces_and_no_real_path_flag() {
         let rsm = RsmTexels { size: 2, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY], virt: vec![texel(0.5, 2.0, 0.8), EMPTY, EMPTY, EMPTY] };
         let light = spot(false);
-        let vpls = create(&[(&light, rsm)], 16);
+        let vpls = create(&[(RsmLight::Spot(&light), rsm)], 16);
         assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0));
     }
 }
