@@ -385,16 +385,22 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         let reference = render_reference(&scene, &ReferenceParams { spp: ref_spp, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
         bar.finish_and_clear();
         let affected = &reference.affected_mask;
+        // one frame rendered twice (the first compiles the shaders on software adapters), the
+        // second timed, and its error against the ground truth in the affected region
+        let measure = |params: &DirParams| -> Result<(mrstudy_renderer::gpu::GpuRender, f64, f64)> {
+            renderer.render(&scene, &reference.photo, params)?;
+            let frame = renderer.render(&scene, &reference.photo, params)?;
+            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
+            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            Ok((frame, rmse, flip))
+        };
         let mut settings: Vec<(Condition, u32)> = vec![(Condition::None, 0), (Condition::Shadows, 0)];
         settings.extend(vpl_counts.iter().map(|&n| (Condition::Gi, n)));
         let mut points_rmse = Vec::new();
         let mut points_flip = Vec::new();
         for (condition, vpls) in settings {
             let params = DirParams { condition, vpls, ..DirParams::default() };
-            renderer.render(&scene, &reference.photo, &params)?;
-            let frame = renderer.render(&scene, &reference.photo, &params)?;
-            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
-            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let (frame, rmse, flip) = measure(&params)?;
             let ms = frame.report.ms;
             println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}", name, condition.name(), frame.report.vpls, ms, rmse, flip);
             if condition == Condition::Gi {
@@ -414,10 +420,7 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         let mut ism_flip = Vec::new();
         for &ism_size in ism_sizes {
             let params = DirParams { condition: Condition::Gi, vpls: 256, ism_size, ..DirParams::default() };
-            renderer.render(&scene, &reference.photo, &params)?;
-            let frame = renderer.render(&scene, &reference.photo, &params)?;
-            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
-            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let (frame, rmse, flip) = measure(&params)?;
             let ism_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("ISMs")).map(|p| p.ms).sum();
             println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   ISM {}² ({:.1} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip, ism_size, ism_ms);
             ism_rmse.push((ism_size.max(1) as f64, rmse));
@@ -442,10 +445,7 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         let cm_vpls = if quick { 64 } else { 256 };
         for method in CmMethod::ALL {
             let params = DirParams { condition: Condition::Gi, vpls: cm_vpls, cm: CmParams { method, ..CmParams::default() }, ..DirParams::default() };
-            renderer.render(&scene, &reference.photo, &params)?;
-            let frame = renderer.render(&scene, &reference.photo, &params)?;
-            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
-            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let (frame, rmse, flip) = measure(&params)?;
             let cm_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("cm ")).map(|p| p.ms).sum();
             let compose_ms: f64 = frame.report.passes.iter().filter(|p| p.pass == "composition").map(|p| p.ms).sum();
             println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}  cm {:<10} {:>8.2} ms (+ composition {:.2} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip, method.name(), cm_ms, compose_ms);
@@ -459,10 +459,7 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         let splits: &[u32] = if quick { &[1, 4] } else { &[1, 2, 4] };
         for &interleave in splits {
             let params = DirParams { condition: Condition::Gi, vpls: 256, interleave, ..DirParams::default() };
-            renderer.render(&scene, &reference.photo, &params)?;
-            let frame = renderer.render(&scene, &reference.photo, &params)?;
-            let rmse = metrics::rmse(&reference.ground_truth, &frame.composite, Some(affected));
-            let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
+            let (frame, rmse, flip) = measure(&params)?;
             let shading_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("shading") || p.pass.starts_with("indirect light")).map(|p| p.ms).sum();
             println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   tiles {interleave}×{interleave} (shading + merge {shading_ms:.1} ms)", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip);
             rows.push(json!({

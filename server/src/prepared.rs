@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use crate::schedule::{self, PlannedKind};
 use crate::storage::Side;
-use crate::study::{IMAGE_TYPES, StimulusSource, Study, sha256_hex};
+use crate::study::{IMAGE_TYPES, StimulusSource, Study};
 
 /// Why a study could not be made ready.
 #[derive(Debug, thiserror::Error)]
@@ -137,15 +137,7 @@ fn store_image(path: &Path, store: &Path) -> Result<String, PrepareError> {
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     let extension = if extension == "jpeg" { "jpg".to_string() } else { extension };
-    let name = format!("{}.{extension}", sha256_hex(&bytes));
-    let target = store.join(&name);
-    if !target.exists() {
-        std::fs::create_dir_all(store).map_err(io_error)?;
-        let temporary = store.join(format!(".{name}.partial"));
-        std::fs::write(&temporary, &bytes).map_err(io_error)?;
-        std::fs::rename(&temporary, &target).map_err(io_error)?;
-    }
-    Ok(name)
+    crate::stimuli::store_bytes(&bytes, &extension, store).map_err(io_error)
 }
 
 /// The content type of a stimulus file name, if it is one the store can hold: 64 lower-case

@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
-use super::serve::{Server, binary, client, export, repo_studies_dir, studies_dir};
+use super::serve::{Server, binary, client, copy_demo_study, export, repo_studies_dir};
 
 /// A small, fast task study: 96×72 frames, one trial per condition, no practice.
 pub const SMALL_STUDY: &str = r#"
@@ -122,12 +122,7 @@ fn serve_without_a_gpu_adapter_warns_once_and_serves_the_rest() {
     // the demo survey and the shipped lab study
     let studies = tempfile::tempdir().unwrap();
     std::fs::copy(repo_studies_dir().join("lab-task.toml"), studies.path().join("lab-task.toml")).unwrap();
-    std::fs::copy(studies_dir().join("shadows-demo.toml"), studies.path().join("shadows-demo.toml")).unwrap();
-    std::fs::create_dir_all(studies.path().join("shadows-demo")).unwrap();
-    for entry in std::fs::read_dir(studies_dir().join("shadows-demo")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, studies.path().join("shadows-demo").join(path.file_name().unwrap())).unwrap();
-    }
+    copy_demo_study(studies.path());
     let server = Server::try_start_with_env(data_dir.path(), "127.0.0.1:0", studies.path(), &[("MRSTUDY_ADAPTER", "no-such-kind")], Duration::from_secs(60)).unwrap();
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut lab_warnings = Vec::new();

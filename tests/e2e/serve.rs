@@ -25,16 +25,21 @@ pub fn studies_dir() -> PathBuf {
     DIR.get_or_init(|| {
         let dir = std::env::temp_dir().join(format!("mrstudy-e2e-demo-studies-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
-        let repo = repo_studies_dir();
-        std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
-        for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
-            let path = entry.unwrap().path();
-            std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
-        }
+        copy_demo_study(&dir);
         dir
     })
     .clone()
+}
+
+/// Copies the demo study (its file and its images) from the repository into `dir`.
+pub fn copy_demo_study(dir: &Path) {
+    let repo = repo_studies_dir();
+    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
+    std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
+    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
+    }
 }
 
 /// A running `mrstudy serve`.
@@ -351,15 +356,7 @@ fn serve_skips_a_rendered_study_it_cannot_render_with_one_warning() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     write_rendered_study(studies.path());
-    for file in ["shadows-demo.toml"] {
-        std::fs::copy(studies_dir().join(file), studies.path().join(file)).unwrap();
-    }
-    let demo_images = studies.path().join("shadows-demo");
-    std::fs::create_dir_all(&demo_images).unwrap();
-    for entry in std::fs::read_dir(studies_dir().join("shadows-demo")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, demo_images.join(path.file_name().unwrap())).unwrap();
-    }
+    copy_demo_study(studies.path());
     // GL llvmpipe cannot render the float targets the renderer needs: no adapter here
     let server = Server::try_start_with_env(data_dir.path(), "127.0.0.1:0", studies.path(), &[("MRSTUDY_ADAPTER", "gl")], Duration::from_secs(60)).unwrap();
     std::thread::sleep(Duration::from_millis(200));

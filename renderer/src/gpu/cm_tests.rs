@@ -6,20 +6,7 @@ use super::*;
 use crate::cm::colour::gamma_encode;
 use crate::cm::{CmInput, CmMethod, cpu_frame};
 use crate::scene::Role;
-use std::sync::OnceLock;
-
-fn renderer() -> Option<&'static DirRenderer> {
-    static RENDERER: OnceLock<Option<DirRenderer>> = OnceLock::new();
-    RENDERER
-        .get_or_init(|| match DirRenderer::new() {
-            Ok(r) => Some(r),
-            Err(e) => {
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        })
-        .as_ref()
-}
+use super::invariants::renderer;
 
 fn params(method: CmMethod, composition: Composition) -> DirParams {
     DirParams { condition: Condition::Shadows, env_lights: 8, shadow_map_size: 256, cm: CmParams { method, min_pairs: 50, ..CmParams::default() }, composition, ..DirParams::default() }

@@ -16,7 +16,9 @@ const CHANGED: f32 = 1.0 / 255.0;
 /// Pixels the path tracer's affected region is grown by, for edge and bias differences.
 const MASK_DILATION: i64 = 2;
 
-fn renderer() -> Option<&'static DirRenderer> {
+/// The GPU tests' one renderer (one device, shaders compiled once per test binary); None, with
+/// the reason printed, when no adapter opens.
+pub(super) fn renderer() -> Option<&'static DirRenderer> {
     static RENDERER: OnceLock<Option<DirRenderer>> = OnceLock::new();
     RENDERER
         .get_or_init(|| match DirRenderer::new() {
