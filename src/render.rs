@@ -71,6 +71,13 @@ pub struct RenderArgs {
     /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
     #[arg(long, default_value_t = 1024)]
     ism_points: u32,
+    /// GPU: bounces of indirect light in the `gi` condition (1: the single bounce of the RSM
+    /// VPLs; more add the multiple-bounce light source of thesis 5.2.7, at most 8).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
+    bounces: u32,
+    /// GPU: candidate points each multiple-bounce slot searches.
+    #[arg(long, default_value_t = 4096)]
+    bounce_candidates: u32,
     /// Samples per pixel of the reference path tracer.
     #[arg(long, default_value_t = 64)]
     spp: u32,
@@ -257,7 +264,7 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
             e.jpeg.quality.map(|q| q.to_string()).unwrap_or_else(|| "not detectable (none, or above about 95)".into())
         );
     }
-    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, cm: CmParams { method, ..CmParams::default() }, composition, camera_artifacts, ..DirParams::default() };
+    let dir_params = DirParams { condition, vpls: args.vpls, ism_size: args.ism_size, ism_points: args.ism_points, bounces: args.bounces, bounce_candidates: args.bounce_candidates, cm: CmParams { method, ..CmParams::default() }, composition, camera_artifacts, ..DirParams::default() };
     let frame = renderer.render(&scene, &photo, &dir_params)?;
     save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = &args.buffers {
@@ -385,6 +392,16 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         let reference = render_reference(&scene, &ReferenceParams { spp: ref_spp, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| bar.set_position(d as u64))?;
         bar.finish_and_clear();
         let affected = &reference.affected_mask;
+        // the path tracer's own error against time on this frame: the full scene (real and
+        // virtual) path traced at 1, 2, 4, … spp (another seed), through the same camera
+        let pt_curve = path_tracer_curve(&scene, &reference, if quick { 64 } else { 256 });
+        for point in &pt_curve {
+            rows.push(json!({
+                "scene": name, "condition": "path tracer", "spp": point.spp, "ms": point.ms, "rmse_linear": point.rmse, "flip_camera": point.flip,
+                "width": w, "height": h, "reference_spp": ref_spp,
+            }));
+        }
+        let mut dir_points = Vec::new();
         // one frame rendered twice (the first compiles the shaders on software adapters), the
         // second timed, and its error against the ground truth in the affected region
         let measure = |params: &DirParams| -> Result<(mrstudy_renderer::gpu::GpuRender, f64, f64)> {
@@ -402,16 +419,62 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
             let params = DirParams { condition, vpls, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let ms = frame.report.ms;
-            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}", name, condition.name(), frame.report.vpls, ms, rmse, flip);
+            // the light transport against the path tracer's: DIR's linear composite, its RMSE
+            // and its FLIP through the true camera, and the path tracer's time to the same RMSE
+            let linear = dir_linear_composite(&frame, &reference.hdr_real);
+            let rmse_linear = metrics::rmse(&reference.hdr_full, &linear, Some(affected));
+            let flip_camera = metrics::flip(&reference.ground_truth, &sensor::apply(&linear, &scene.camera, &scene.sensor), Some(affected));
+            let (pt_ms, bound) = path_tracer_time_to(&pt_curve, rmse_linear, |p| p.rmse);
+            let (pt_ms_flip, bound_flip) = path_tracer_time_to(&pt_curve, flip_camera, |p| p.flip);
+            let speedup = pt_ms / ms.max(1e-9);
+            let speedup_flip = pt_ms_flip / ms.max(1e-9);
+            let versus = match bound {
+                Bound::Exact => format!("linear RMSE {rmse_linear:.4}: the path tracer needs {pt_ms:.0} ms, {speedup:.2}×"),
+                Bound::AtMost => format!("linear RMSE {rmse_linear:.4}: the path tracer at 1 spp ({pt_ms:.0} ms) is as close, ≤ {speedup:.2}×"),
+                Bound::AtLeast => format!("linear RMSE {rmse_linear:.4}: the path tracer is not as close in {pt_ms:.0} ms, > {speedup:.2}×"),
+            };
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   {versus}", name, condition.name(), frame.report.vpls, ms, rmse, flip);
             if condition == Condition::Gi {
                 points_rmse.push((vpls as f64, rmse));
                 points_flip.push((vpls as f64, flip));
+                dir_points.push((ms, rmse_linear));
             }
             rows.push(json!({
                 "scene": name, "condition": condition.name(), "vpls": vpls, "ms": ms, "rmse": rmse, "flip": flip,
                 "width": w, "height": h, "reference_spp": ref_spp, "shadow_map_size": params.shadow_map_size, "rsm_size": params.rsm_size,
-                "ism_size": params.ism_size, "ism_points": params.ism_points,
+                "ism_size": params.ism_size, "ism_points": params.ism_points, "bounces": params.bounces,
+                "rmse_linear": rmse_linear, "flip_camera": flip_camera,
+                "path_tracer_ms_to_same_rmse": pt_ms, "path_tracer_bound": bound.name(), "speedup_over_path_tracer": speedup,
+                "path_tracer_ms_to_same_flip": pt_ms_flip, "path_tracer_bound_flip": bound_flip.name(), "speedup_over_path_tracer_flip": speedup_flip,
                 "passes": frame.report.passes,
+            }));
+        }
+        plots.push((
+            format!("render_gpu_vs_path_tracer_{name}.svg"),
+            mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
+                title: format!("DIR gi (16 … 1024 VPLs) against the path tracer (1 … {} spp): linear RMSE against time ({name}, {w}x{h}, {adapter})", pt_curve.last().map_or(0, |p| p.spp)),
+                x_label: "time (ms)".into(),
+                y_label: "RMSE of radiance in the affected region".into(),
+                x_log: true,
+                y_log: true,
+                series: vec![
+                    mrstudy_analysis::plot::LineSeries { name: "path tracer".into(), points: pt_curve.iter().map(|p| (p.ms, p.rmse)).collect() },
+                    mrstudy_analysis::plot::LineSeries { name: "DIR gi".into(), points: dir_points },
+                ],
+            }),
+        ));
+        // the multiple-bounce light source (5.2.7): bounces and candidates per slot
+        let bounce_settings: &[(u32, u32, u32)] = if quick { &[(256, 1, 4096), (256, 3, 4096)] } else { &[(256, 1, 4096), (256, 2, 4096), (256, 3, 1024), (256, 3, 4096), (256, 3, 16384), (1024, 1, 4096), (1024, 3, 4096)] };
+        for &(vpls, bounces, bounce_candidates) in bounce_settings {
+            let params = DirParams { condition: Condition::Gi, vpls, bounces, bounce_candidates, ..DirParams::default() };
+            let (frame, rmse, flip) = measure(&params)?;
+            let bounce_ms: f64 = frame.report.passes.iter().filter(|p| p.pass.starts_with("bounce ")).map(|p| p.ms).sum();
+            let found: Vec<String> = frame.report.bounces.iter().map(|b| format!("{}/{} found, {} VPLs", b.found, b.slots, b.vpls)).collect();
+            println!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}   bounces {bounces}, {bounce_candidates} candidates ({bounce_ms:.1} ms; {})", name, "gi", frame.report.vpls, frame.report.ms, rmse, flip, found.join("; "));
+            rows.push(json!({
+                "scene": name, "condition": "gi", "vpls": vpls, "bounces": bounces, "bounce_candidates": bounce_candidates, "bounce_ms": bounce_ms,
+                "ms": frame.report.ms, "rmse": rmse, "flip": flip, "width": w, "height": h, "reference_spp": ref_spp,
+                "bounce_report": frame.report.bounces, "passes": frame.report.passes,
             }));
         }
         // ISM resolution at 256 VPLs (0: VPLs unshadowed, no ISMs made)
@@ -519,6 +582,93 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         }));
     }
     Ok((adapter, rows, plots))
+}
+
+/// One point of the path tracer's error curve: RMSE of linear radiance against the ground
+/// truth's, FLIP of the camera's output against the ground truth's (affected region).
+struct PtPoint {
+    spp: u32,
+    ms: f64,
+    rmse: f64,
+    flip: f64,
+}
+
+/// The reference path tracer on the whole frame (real and virtual objects, seed 1000 — not the
+/// ground truth's), at 1, 2, 4, … `max_spp` samples per pixel: cumulative time and the errors
+/// of its image against the ground truth in the affected region.
+fn path_tracer_curve(scene: &scene::Scene, reference: &mrstudy_renderer::ReferenceOutput, max_spp: u32) -> Vec<PtPoint> {
+    let world = World::new(scene, Subset::All);
+    let params = TraceParams { seed: 1000, ..TraceParams::default() };
+    let mut acc = Accumulator::new(scene.camera.width, scene.camera.height);
+    let mut points = Vec::new();
+    let start = Instant::now();
+    let mut spp = 1;
+    while spp <= max_spp {
+        acc.add_samples(&world, &scene.camera, &params, spp - acc.spp);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let image = acc.image();
+        let display = sensor::apply(&image, &scene.camera, &scene.sensor);
+        let rmse = metrics::rmse(&reference.hdr_full, &image, Some(&reference.affected_mask));
+        let flip = metrics::flip(&reference.ground_truth, &display, Some(&reference.affected_mask));
+        points.push(PtPoint { spp, ms, rmse, flip });
+        spp *= 2;
+    }
+    points
+}
+
+/// DIR's composite in linear radiance, as the path tracer would see it: the photograph's
+/// radiance (the reference's real-only render, which the camera would capture) plus
+/// L_rv − L_r, and L_rv where the camera sees a virtual object. Errors of this image measure
+/// the light transport alone — the display composite adds the tone mapping's mismatch with the
+/// camera (the cm factor's business), which the path tracer, rendered through the true camera,
+/// does not have.
+fn dir_linear_composite(frame: &mrstudy_renderer::gpu::GpuRender, photo_radiance: &Image) -> Image {
+    let mut out = photo_radiance.clone();
+    for (i, p) in out.pixels.iter_mut().enumerate() {
+        let (rv, r) = (frame.l_rv.pixels[i], frame.l_r.pixels[i]);
+        let differential = *p + rv - r;
+        *p = if frame.virtual_mask.values[i] > 0.5 { rv } else { differential.max(differential * 0.0) };
+    }
+    out
+}
+
+/// Whether the path tracer's time to an error is measured or only bounded.
+#[derive(Clone, Copy, Debug)]
+enum Bound {
+    Exact,
+    /// Already reached at 1 spp: the time is an upper bound.
+    AtMost,
+    /// Not reached at the curve's largest count: the time is a lower bound.
+    AtLeast,
+}
+
+impl Bound {
+    fn name(self) -> &'static str {
+        match self {
+            Bound::Exact => "interpolated",
+            Bound::AtMost => "at most",
+            Bound::AtLeast => "at least",
+        }
+    }
+}
+
+/// The path tracer's time to reach `error` by `metric`: interpolated in log time between the
+/// two sample counts that bracket it (the error falls with the samples in expectation; the
+/// first crossing is taken).
+fn path_tracer_time_to(curve: &[PtPoint], error: f64, metric: impl Fn(&PtPoint) -> f64) -> (f64, Bound) {
+    let Some(first) = curve.first() else { return (0.0, Bound::AtLeast) };
+    if metric(first) <= error {
+        return (first.ms, Bound::AtMost);
+    }
+    for pair in curve.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        let (ea, eb) = (metric(a), metric(b));
+        if eb <= error {
+            let f = if ea > eb { (ea - error) / (ea - eb) } else { 1.0 };
+            return ((a.ms.ln() + f * (b.ms.ln() - a.ms.ln())).exp(), Bound::Exact);
+        }
+    }
+    (curve.last().map_or(0.0, |p| p.ms), Bound::AtLeast)
 }
 
 /// `mrstudy bench render --ca`: how closely noise and blur on the virtual objects match the
@@ -878,4 +1028,22 @@ pub fn bench_cm(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<Va
         ));
     }
     Ok((adapter, rows, plots))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_path_tracers_time_to_an_error_is_interpolated_or_bounded() {
+        let curve: Vec<PtPoint> = [(1, 10.0, 0.8), (2, 20.0, 0.6), (4, 40.0, 0.4)].iter().map(|&(spp, ms, flip)| PtPoint { spp, ms, rmse: 0.0, flip }).collect();
+        let (ms, bound) = path_tracer_time_to(&curve, 0.5, |p| p.flip);
+        // halfway between 0.6 and 0.4: halfway in log time between 20 and 40 ms
+        assert!(matches!(bound, Bound::Exact) && (ms - 800f64.sqrt()).abs() < 1e-9, "{ms}");
+        let (ms, bound) = path_tracer_time_to(&curve, 0.6, |p| p.flip);
+        assert!(matches!(bound, Bound::Exact) && (ms - 20.0).abs() < 1e-9, "{ms}");
+        assert!(matches!(path_tracer_time_to(&curve, 0.9, |p| p.flip), (10.0, Bound::AtMost)));
+        assert!(matches!(path_tracer_time_to(&curve, 0.1, |p| p.flip), (40.0, Bound::AtLeast)));
+        assert!(matches!(path_tracer_time_to(&[], 0.1, |p| p.flip), (_, Bound::AtLeast)));
+    }
 }

@@ -25,7 +25,7 @@ use serde::Serialize;
 
 /// Bumped whenever a change to the renderer changes the stimuli it makes, so cached stimuli of
 /// an older renderer are rendered again.
-pub const STIMULUS_VERSION: u32 = 3;
+pub const STIMULUS_VERSION: u32 = 4;
 
 /// The factors a stimulus is rendered under.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

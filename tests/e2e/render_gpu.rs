@@ -103,7 +103,10 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
     assert!(gi.len() >= 3, "{rows:?}");
     for row in rows {
         assert!(row["ms"].as_f64().unwrap() > 0.0, "{row}");
-        if row["setting"] == "thesis" {
+        if row["condition"] == "path tracer" {
+            // the path tracer's own curve: linear RMSE and FLIP through the camera per spp
+            assert!(row["spp"].as_u64().is_some() && row["rmse_linear"].as_f64().unwrap().is_finite() && row["flip_camera"].as_f64().unwrap().is_finite(), "{row}");
+        } else if row["setting"] == "thesis" {
             // the thesis's setting at full size is timed only: no reference at that size
             assert!(row["fps"].as_f64().is_some_and(|f| f > 0.0) && row["rmse"].is_null(), "{row}");
         } else {
@@ -113,6 +116,14 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
     // the knobs swept: VPLs, ISM size, tile split
     assert!(rows.iter().any(|r| r["ism_size"] == 0) && rows.iter().any(|r| r["interleave"] == 4), "{rows:?}");
     assert!(dir.join("render_gpu_dir-lamp-box.svg").exists() && dir.join("render_gpu_ism_dir-lamp-box.svg").exists());
+    // DIR against the path tracer: each gi frame of the VPL sweep gets the path tracer's time to
+    // its error, and the ratio
+    assert!(rows.iter().filter(|r| r["condition"] == "path tracer").count() >= 5, "{rows:?}");
+    let compared: Vec<&serde_json::Value> = rows.iter().filter(|r| r["speedup_over_path_tracer"].is_number()).collect();
+    assert!(compared.len() >= 3 && compared.iter().all(|r| r["speedup_over_path_tracer"].as_f64().unwrap() > 0.0 && r["path_tracer_bound"].is_string()), "{compared:?}");
+    assert!(dir.join("render_gpu_vs_path_tracer_dir-lamp-box.svg").exists());
+    // the multiple-bounce sweep reports its bounces
+    assert!(rows.iter().any(|r| r["bounces"] == 3 && r["bounce_report"].as_array().is_some_and(|b| b.len() == 2)), "{rows:?}");
 }
 
 #[test]

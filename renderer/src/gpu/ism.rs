@@ -13,7 +13,7 @@ use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
 use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = include_str!("ism.wgsl");
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("ism.wgsl"));
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// Matches `IsmParams` in ism.wgsl.

@@ -11,6 +11,9 @@
 //!    map, read back, and **VPL creation** from them by flux ([`vpl`]); then the **imperfect
 //!    shadow maps** of the VPLs ([`ism`]: real and virtual point clouds, geometry-aligned
 //!    splats; not made when `ism_size` is 0 or there are no VPLs);
+//!    With `bounces` > 1, the **multiple-bounce light source** ([`bounce`], 5.2.7) spawns
+//!    further VPLs from these before the ISMs are made, and the budget is split by flux over
+//!    all sources;
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
 //!    Blinn–Phong parameters);
 //! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8, the VPLs of each pixel's
@@ -29,14 +32,14 @@
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
-//! maps (V_rv = min(V_r, V_v)); `gi` adds one bounce of indirect light from VPLs.
+//! maps (V_rv = min(V_r, V_v)); `gi` adds indirect light from VPLs (`bounces`, default 3).
 //!
-//! Not built yet (issue 5): area lights (emissive surfaces show
-//! in both solutions but light nothing), multiple bounces, per-object motion vectors (temporal
-//! smoothing reprojects with the camera), glossy VPLs (VPLs reflect diffusely), RSM sampling on
-//! the GPU.
+//! Not built: area lights (emissive surfaces show in both solutions but light nothing),
+//! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
+//! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
 
 pub mod artifacts;
+pub mod bounce;
 pub mod cm;
 pub mod compose;
 pub mod context;
@@ -66,7 +69,8 @@ pub enum Condition {
     None,
     /// Shadows of virtual objects, no indirect light.
     Shadows,
-    /// Shadows and one bounce of indirect light exchanged between real and virtual objects.
+    /// Shadows and indirect light exchanged between real and virtual objects
+    /// ([`DirParams::bounces`]).
     Gi,
 }
 
@@ -126,7 +130,20 @@ pub struct DirParams {
     /// The `ca` factor: the camera-artifact chain applied after the composite ([`artifacts`]);
     /// None: off.
     pub camera_artifacts: Option<crate::ca::CaParams>,
+    /// Bounces of indirect light (gi only): 1 is the single bounce of the RSM VPLs; each further
+    /// bounce adds the multiple-bounce light source of 5.2.7 ([`bounce`]), spawned from the
+    /// VPLs of the bounce before, and takes its share of `vpls` by flux. At most
+    /// [`MAX_BOUNCES`].
+    pub bounces: u32,
+    /// Candidate points each multiple-bounce slot searches (drawn by area from all surfaces).
+    pub bounce_candidates: u32,
+    /// Half angle (degrees) of the cone around a slot's direction in which a candidate is valid
+    /// (the thesis: 5°).
+    pub bounce_cone_degrees: f32,
 }
+
+/// The most bounces of indirect light a frame computes ([`DirParams::bounces`]).
+pub const MAX_BOUNCES: u32 = 8;
 
 impl Default for DirParams {
     fn default() -> Self {
@@ -146,6 +163,9 @@ impl Default for DirParams {
             interleave: 1,
             temporal: indirect::TemporalParams::default(),
             camera_artifacts: None,
+            bounces: 3,
+            bounce_candidates: 4096,
+            bounce_cone_degrees: 5.0,
         }
     }
 }
@@ -189,6 +209,8 @@ pub struct GpuReport {
     pub cm: CmReport,
     /// What the ca pass saw (None when it did not run).
     pub camera_artifacts: Option<crate::ca::CaReport>,
+    /// The multiple-bounce light sources that ran (empty with one bounce).
+    pub bounces: Vec<bounce::BounceReport>,
 }
 
 /// What live rendering carries from frame to frame: the colour mapping's smoothing and the
@@ -209,6 +231,7 @@ pub struct DirRenderer {
     compose: compose::Compose,
     indirect: indirect::IndirectPass,
     artifacts: artifacts::Artifacts,
+    bounce: bounce::Bounce,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -287,7 +310,8 @@ impl DirRenderer {
         let compose = compose::Compose::new(&ctx);
         let indirect = indirect::IndirectPass::new(&ctx);
         let artifacts = artifacts::Artifacts::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts }
+        let bounce = bounce::Bounce::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
@@ -398,9 +422,9 @@ impl DirRenderer {
 
         // 2. RSMs and VPLs (gi only)
         let mut vpls = Vec::new();
+        let mut rsms = Vec::new();
         if params.condition == Condition::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
-            let mut rsms = Vec::new();
             let read_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
                 let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
                 let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
@@ -440,6 +464,43 @@ impl DirRenderer {
 
         if let Some(given) = given_vpls {
             vpls = given.to_vec();
+        }
+
+        // 2a. the multiple-bounce light source (5.2.7), once per further bounce: a pilot over the
+        // whole budget measures the bounce's flux; the budget is then split by flux over the
+        // primary lights and the bounces (the third distribution mode) — the thesis takes those
+        // fluxes from the previous frame, a single stimulus frame measures them first
+        let mut bounce_reports: Vec<bounce::BounceReport> = Vec::new();
+        if params.condition == Condition::Gi && params.bounces > 1 && !vpls.is_empty() {
+            if let Some(bounce_scene) = bounce::BounceScene::new(ctx, &mesh) {
+                let budget = params.vpls.max(1);
+                let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
+                let mut sources = vpls.clone();
+                for b in 2..=params.bounces.min(MAX_BOUNCES) {
+                    let search = bounce::BounceSearch { candidates: params.bounce_candidates, cone_degrees: params.bounce_cone_degrees, seed: b.wrapping_mul(0x9e37_79b9) };
+                    let label = format!("bounce {b} ({budget} slots, {} candidates each, cone {}°)", search.candidates, search.cone_degrees);
+                    let (next, found, real_only) = timed(ctx, &mut passes, label, || self.bounce.spawn(ctx, &bounce_scene, &mesh, &scene.materials, &sources, budget, &search, mesh.bounds_radius));
+                    bounce_reports.push(bounce::BounceReport { bounce: b, slots: budget, found, real_only, flux: vpl::luminance_flux(&next) as f32, vpls: 0 });
+                    if next.is_empty() {
+                        break;
+                    }
+                    pilots.push(next.clone());
+                    sources = next;
+                }
+                let start = Instant::now();
+                let mut fluxes = vec![vpl::luminance_flux(&vpls)];
+                fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
+                let counts = vpl::split_budget(budget, &fluxes);
+                if given_vpls.is_none() {
+                    vpls = vpl::create(&rsms, counts[0]);
+                }
+                for (k, pilot) in pilots.iter().enumerate() {
+                    let drawn = vpl::resample(pilot, counts[k + 1]);
+                    bounce_reports[k].vpls = drawn.len();
+                    vpls.extend(drawn);
+                }
+                passes.push(PassTime { pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()), ms: start.elapsed().as_secs_f64() * 1e3 });
+            }
         }
 
         // 2b. imperfect shadow maps: VPL visibility from the real and the virtual point clouds
@@ -535,7 +596,7 @@ impl DirRenderer {
             virtual_mask,
             flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report, camera_artifacts: ca_report },
+            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report, camera_artifacts: ca_report, bounces: bounce_reports },
         })
     }
 }
@@ -561,6 +622,7 @@ mod tests {
             ("cm.wgsl", cm::SHADER),
             ("compose.wgsl", compose::SHADER),
             ("artifacts.wgsl", artifacts::SHADER),
+            ("bounce.wgsl", bounce::SHADER),
         ] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
             let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());

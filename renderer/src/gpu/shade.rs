@@ -7,7 +7,7 @@ use super::raster::{SceneBuffers, SurfaceTargets};
 use super::vpl::GpuVpl;
 use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = include_str!("shade.wgsl");
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("shade.wgsl"));
 
 /// Matches `Params` in shade.wgsl.
 #[repr(C)]

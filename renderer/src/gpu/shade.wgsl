@@ -99,18 +99,7 @@ fn visibility(light: Light, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
     return lit / 9.0;
 }
 
-// An orthonormal basis around n (Duff et al. 2017), the same as ism.wgsl's.
-fn basis_x(n: vec3<f32>) -> vec3<f32> {
-    let s = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (s + n.z);
-    return vec3<f32>(1.0 + s * n.x * n.x * a, s * n.x * n.y * a, -s * n.x);
-}
-
-fn basis_y(n: vec3<f32>) -> vec3<f32> {
-    let s = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (s + n.z);
-    return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
-}
+// basis_x and basis_y: common.wgsl.
 
 // Visibility of VPL `index` at p from the ISM atlas `layer` (ism.wgsl's paraboloid tiles). The
 // splats store exact distances to their surfaces' planes, so a receiver is offset along its

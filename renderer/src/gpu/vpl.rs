@@ -129,6 +129,12 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
             candidates.extend(found.into_iter().flatten());
         }
     }
+    draw(&candidates, count)
+}
+
+/// Draws `count` VPLs from weighted candidates: stratified inversion of the weights' CDF, each
+/// drawn VPL carrying flux / (count · p) (deterministic).
+fn draw(candidates: &[Candidate], count: u32) -> Vec<GpuVpl> {
     let total: f64 = candidates.iter().map(|c| c.weight as f64).sum();
     if candidates.is_empty() || total <= 0.0 || count == 0 {
         return Vec::new();
@@ -136,7 +142,7 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
     let mut vpls = Vec::with_capacity(count as usize);
     let mut cumulative = 0.0f64;
     let mut next = 0usize;
-    for c in &candidates {
+    for c in candidates {
         let p = c.weight as f64 / total;
         cumulative += p;
         // every stratum (k + 0.5) / count that falls into this candidate's CDF interval
@@ -149,6 +155,50 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
         }
     }
     vpls
+}
+
+/// Draws `count` VPLs from a larger set in proportion to their flux, keeping its total flux in
+/// expectation (each carries total / count in luminance): how a bounce's pilot VPLs shrink to
+/// the bounce's share of the budget.
+pub fn resample(vpls: &[GpuVpl], count: u32) -> Vec<GpuVpl> {
+    let candidates: Vec<Candidate> = vpls
+        .iter()
+        .filter_map(|v| {
+            let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
+            (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
+        })
+        .collect();
+    draw(&candidates, count)
+}
+
+/// Total luminance flux of a set of VPLs.
+pub fn luminance_flux(vpls: &[GpuVpl]) -> f64 {
+    vpls.iter().map(|v| luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2])) as f64).filter(|w| w.is_finite()).sum()
+}
+
+/// Splits `budget` VPLs over light sources in proportion to their flux (the thesis's third
+/// distribution mode), by largest remainder; a source with flux gets at least one VPL while the
+/// budget lasts.
+pub fn split_budget(budget: u32, fluxes: &[f64]) -> Vec<u32> {
+    let valid: Vec<f64> = fluxes.iter().map(|f| if f.is_finite() && *f > 0.0 { *f } else { 0.0 }).collect();
+    let total: f64 = valid.iter().sum();
+    if total <= 0.0 {
+        return vec![0; fluxes.len()];
+    }
+    let exact: Vec<f64> = valid.iter().map(|f| budget as f64 * f / total).collect();
+    let mut counts: Vec<u32> = exact.iter().map(|e| e.floor() as u32).collect();
+    let mut left = budget - counts.iter().sum::<u32>();
+    // first, every source with flux and no VPL yet; then the largest remainders
+    let mut order: Vec<usize> = (0..exact.len()).filter(|&i| valid[i] > 0.0).collect();
+    order.sort_by(|&a, &b| (counts[a] > 0).cmp(&(counts[b] > 0)).then((exact[b] - exact[b].floor()).total_cmp(&(exact[a] - exact[a].floor()))));
+    for i in order {
+        if left == 0 {
+            break;
+        }
+        counts[i] += 1;
+        left -= 1;
+    }
+    counts
 }
 
 #[cfg(test)]
@@ -198,6 +248,21 @@ mod tests {
         let virt = sum(&|v| v.position[3] == 0.0);
         let behind = sum(&|v| v.normal[3] == 1.0);
         assert!((virt / 0.016 - 1.0).abs() < 0.02 && (behind / 0.01 - 1.0).abs() < 0.02, "{virt} {behind}");
+    }
+
+    #[test]
+    fn resampling_keeps_the_flux_and_the_budget_split_follows_it() {
+        let vpl = |f: f32| GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [f, f, f, 0.0] };
+        let set: Vec<GpuVpl> = (1..=40).map(|k| vpl(k as f32)).collect();
+        let drawn = resample(&set, 10);
+        assert_eq!(drawn.len(), 10);
+        assert!((luminance_flux(&drawn) / luminance_flux(&set) - 1.0).abs() < 1e-5);
+        assert!(resample(&[vpl(0.0), vpl(f32::NAN)], 4).is_empty());
+        assert_eq!(split_budget(256, &[3.0, 1.0]), vec![192, 64]);
+        assert_eq!(split_budget(10, &[1.0, 1.0, 1.0]).iter().sum::<u32>(), 10);
+        assert_eq!(split_budget(4, &[1000.0, 1.0]), vec![3, 1], "every source with flux gets a VPL");
+        assert_eq!(split_budget(8, &[1.0, 0.0, f64::NAN]), vec![8, 0, 0]);
+        assert_eq!(split_budget(8, &[0.0]), vec![0]);
     }
 
     #[test]

@@ -273,6 +273,9 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
             env_vpl_directions: 2,
             ism_size: 32,
             ism_points: 256,
+            // one bounce: the multiple-bounce light source's search (two further bounces over
+            // 4096 candidates per slot) would add about 60 ms a frame on lavapipe
+            bounces: 1,
             ..DirParams::default()
         },
         jpeg_quality: study.render.jpeg_quality,

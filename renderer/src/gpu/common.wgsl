@@ -1,0 +1,26 @@
+// Functions shared by several shaders of the GPU renderer; the Rust side prepends this file to
+// ism.wgsl, shade.wgsl and bounce.wgsl (`concat!`), so each of them is defined once.
+
+// A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
+fn pcg(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+fn unit(v: u32) -> f32 {
+    return f32(v >> 8u) * (1.0 / 16777216.0);
+}
+
+// An orthonormal basis around n (Duff et al. 2017).
+fn basis_x(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(1.0 + s * n.x * n.x * a, s * n.x * n.y * a, -s * n.x);
+}
+
+fn basis_y(n: vec3<f32>) -> vec3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
+}
