@@ -452,7 +452,7 @@ pub fn bench_gpu(scene_name: Option<&str>, quick: bool) -> Result<(String, Vec<V
         plots.push((
             format!("render_gpu_vs_path_tracer_{name}.svg"),
             mrstudy_analysis::plot::line_plot(&mrstudy_analysis::plot::LinePlot {
-                title: format!("DIR gi (16 … 1024 VPLs) against the path tracer (1 … {} spp): linear RMSE against time ({name}, {w}x{h}, {adapter})", pt_curve.last().map_or(0, |p| p.spp)),
+                title: format!("DIR gi (16–1024 VPLs) vs the path tracer (1–{} spp), {name}, {w}x{h}", pt_curve.last().map_or(0, |p| p.spp)),
                 x_label: "time (ms)".into(),
                 y_label: "RMSE of radiance in the affected region".into(),
                 x_log: true,
