@@ -28,6 +28,8 @@
 use super::context::GpuContext;
 use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
+// the PCG hash of common.wgsl, written once in Rust
+use crate::ca::pcg_hash as hash;
 use crate::material::Material;
 use crate::math::luminance;
 use glam::{Vec2, Vec3};
@@ -81,11 +83,7 @@ pub struct BounceScene {
 impl BounceScene {
     /// `None` when the scene has no surface area.
     pub fn new(ctx: &GpuContext, mesh: &GpuMesh) -> Option<BounceScene> {
-        let positions: Vec<[f32; 4]> = mesh
-            .vertices
-            .iter()
-            .map(|v| [v.position[0], v.position[1], v.position[2], v.role as f32])
-            .collect();
+        let positions = mesh.positions_with_role();
         let triangles = mesh.vertices.len() / 3;
         let (cdf, _) = super::ism::area_cdf(&positions, 0..triangles)?;
         let device = &ctx.device;
@@ -129,13 +127,6 @@ struct SlotSource {
     direction: Vec3,
 }
 
-fn hash(mut x: u32) -> u32 {
-    // the PCG hash of common.wgsl
-    x = x.wrapping_mul(747796405).wrapping_add(2891336453);
-    let word = ((x >> ((x >> 28) + 4)) ^ x).wrapping_mul(277803737);
-    (word >> 22) ^ word
-}
-
 fn unit(v: u32) -> f32 {
     (v >> 8) as f32 * (1.0 / 16_777_216.0)
 }
@@ -148,21 +139,7 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
         .map(|v| luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2])).max(0.0) as f64)
         .map(|w| if w.is_finite() { w } else { 0.0 })
         .collect();
-    let total: f64 = weights.iter().sum();
-    if total <= 0.0 || slots == 0 {
-        return Vec::new();
-    }
-    let mut linked: Vec<(usize, f64)> = Vec::with_capacity(slots as usize);
-    let mut cumulative = 0.0f64;
-    let mut next = 0usize;
-    for (i, w) in weights.iter().enumerate() {
-        let p = w / total;
-        cumulative += p;
-        while next < slots as usize && (next as f64 + 0.5) / slots as f64 <= cumulative {
-            linked.push((i, p));
-            next += 1;
-        }
-    }
+    let linked = super::vpl::stratify(&weights, slots);
     let mut out = Vec::with_capacity(linked.len());
     let mut start = 0;
     while start < linked.len() {
@@ -179,7 +156,7 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
         let (rot1, rot2) = (unit(h), unit(hash(h)));
         for l in 0..m {
             let u1 = ((l as f32 + 0.5) / m as f32 + rot1).fract();
-            let u2 = (l.reverse_bits() as f32 * (1.0 / 4_294_967_296.0) + rot2).fract();
+            let u2 = (super::radical_inverse(l) + rot2).fract();
             let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
             let direction =
                 (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt())

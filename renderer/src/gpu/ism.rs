@@ -104,7 +104,7 @@ impl Ism {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let positions: Vec<[f32; 4]> = mesh.vertices.iter().map(|v| [v.position[0], v.position[1], v.position[2], v.role as f32]).collect();
+        let positions = mesh.positions_with_role();
         let n_triangles = mesh.vertices.len() / 3;
         let real_triangles = mesh.real_count as usize / 3;
         let subsets = [0..real_triangles, real_triangles..n_triangles];

@@ -62,6 +62,12 @@ impl GpuMesh {
     pub fn virtual_count(&self) -> u32 {
         self.vertices.len() as u32 - self.real_count
     }
+
+    /// Every vertex's position with its role in w (0 real, 1 virtual): three per triangle, as
+    /// the ISM and multiple-bounce shaders read them.
+    pub fn positions_with_role(&self) -> Vec<[f32; 4]> {
+        self.vertices.iter().map(|v| [v.position[0], v.position[1], v.position[2], v.role as f32]).collect()
+    }
 }
 
 fn push_triangle(out: &mut Vec<GpuVertex>, tri: &Triangle, material: u32, role: u32) {

@@ -135,26 +135,39 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
 /// Draws `count` VPLs from weighted candidates: stratified inversion of the weights' CDF, each
 /// drawn VPL carrying flux / (count · p) (deterministic).
 fn draw(candidates: &[Candidate], count: u32) -> Vec<GpuVpl> {
-    let total: f64 = candidates.iter().map(|c| c.weight as f64).sum();
-    if candidates.is_empty() || total <= 0.0 || count == 0 {
+    let weights: Vec<f64> = candidates.iter().map(|c| c.weight as f64).collect();
+    stratify(&weights, count)
+        .into_iter()
+        .map(|(i, p)| {
+            let scale = (1.0 / (count as f64 * p)) as f32;
+            let mut vpl = candidates[i].vpl;
+            vpl.flux = [vpl.flux[0] * scale, vpl.flux[1] * scale, vpl.flux[2] * scale, 0.0];
+            vpl
+        })
+        .collect()
+}
+
+/// Stratified inversion of the CDF of non-negative `weights`: for each stratum (k + 0.5) / count,
+/// the index whose CDF interval holds it and that index's probability, in index order; empty
+/// when the weights sum to zero or `count` is 0. VPL creation and the multiple-bounce source's
+/// slots draw with it.
+pub fn stratify(weights: &[f64], count: u32) -> Vec<(usize, f64)> {
+    let total: f64 = weights.iter().sum();
+    if weights.is_empty() || total <= 0.0 || count == 0 {
         return Vec::new();
     }
-    let mut vpls = Vec::with_capacity(count as usize);
+    let mut drawn = Vec::with_capacity(count as usize);
     let mut cumulative = 0.0f64;
     let mut next = 0usize;
-    for c in candidates {
-        let p = c.weight as f64 / total;
+    for (i, w) in weights.iter().enumerate() {
+        let p = w / total;
         cumulative += p;
-        // every stratum (k + 0.5) / count that falls into this candidate's CDF interval
         while next < count as usize && (next as f64 + 0.5) / count as f64 <= cumulative {
-            let scale = (1.0 / (count as f64 * p)) as f32;
-            let mut vpl = c.vpl;
-            vpl.flux = [vpl.flux[0] * scale, vpl.flux[1] * scale, vpl.flux[2] * scale, 0.0];
-            vpls.push(vpl);
+            drawn.push((i, p));
             next += 1;
         }
     }
-    vpls
+    drawn
 }
 
 /// Draws `count` VPLs from a larger set in proportion to their flux, keeping its total flux in
