@@ -87,6 +87,86 @@ struct StudyFile {
     catch: Vec<CatchFile>,
     #[serde(default)]
     completion: Completion,
+    #[serde(default = "default_min_response_ms")]
+    min_response_ms: u32,
+    #[serde(default)]
+    unique_external_id: bool,
+    #[serde(default)]
+    min_viewport: Option<[u32; 2]>,
+    #[serde(default)]
+    devices: Option<Vec<Device>>,
+    #[serde(default)]
+    orientation: Option<Orientation>,
+    #[serde(default)]
+    display: Display,
+    #[serde(default = "default_abandon_after_minutes")]
+    abandon_after_minutes: u32,
+}
+
+fn default_min_response_ms() -> u32 {
+    300
+}
+
+fn default_abandon_after_minutes() -> u32 {
+    30
+}
+
+/// A kind of device a participant may use (`devices = ["desktop"]`); told apart on the client by
+/// its pointer and screen (see `web/static/survey.js`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    Desktop,
+    Tablet,
+    Phone,
+}
+
+impl Device {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Device::Desktop => "desktop",
+            Device::Tablet => "tablet",
+            Device::Phone => "phone",
+        }
+    }
+}
+
+/// The screen orientation a study requires.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orientation {
+    Landscape,
+    Portrait,
+}
+
+/// How stimuli are scaled on screen: `native` never enlarges them beyond one image pixel per
+/// CSS pixel (they may shrink to fit); `fit` scales them to the space available.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Display {
+    #[default]
+    Native,
+    Fit,
+}
+
+/// Who may take part and how answers are checked: the response-time floor, one run per
+/// external id, the screen requirements, and when an unfinished participant counts as abandoned.
+#[derive(Debug, Clone, Serialize)]
+pub struct Participation {
+    /// Responses faster than this (client response time or server time since serving the trial)
+    /// are stored and flagged `too_fast`; the page accepts no answer before it.
+    pub min_response_ms: u32,
+    /// One run per value of the study's first URL parameter that is present (e.g.
+    /// `PROLIFIC_PID`): a second join with the same value resumes the first run.
+    pub unique_external_id: bool,
+    /// Smallest viewport in CSS pixels, `[width, height]`.
+    pub min_viewport: Option<[u32; 2]>,
+    /// Devices allowed (all when empty).
+    pub devices: Vec<Device>,
+    pub orientation: Option<Orientation>,
+    pub display: Display,
+    /// An unfinished participant with no activity for this long counts as abandoned.
+    pub abandon_after_minutes: u32,
 }
 
 fn default_true() -> bool {
@@ -326,6 +406,7 @@ pub struct Study {
     pub design: Design,
     pub catch: Vec<CatchTrial>,
     pub completion: Completion,
+    pub participation: Participation,
     /// The file it was read from.
     pub file: PathBuf,
     /// SHA-256 of the file's bytes, hex; stored with each participant.
@@ -971,6 +1052,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         ));
     }
 
+    let participation = check_participation(&raw, &fail)?;
     Ok(Study {
         slug: raw.slug,
         title: raw.title,
@@ -998,6 +1080,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         },
         catch,
         completion: raw.completion,
+        participation,
         file: file.to_path_buf(),
         file_sha256,
     })
@@ -1030,6 +1113,46 @@ pub const IMAGE_TYPES: &[(&str, &str)] = &[
     ("jpeg", "image/jpeg"),
     ("webp", "image/webp"),
 ];
+
+/// The participation keys: response-time floor, external ids, screen requirements.
+fn check_participation(raw: &StudyFile, fail: &dyn Fn(&str, String) -> StudyError) -> Result<Participation, StudyError> {
+    if raw.min_response_ms > 60_000 {
+        return Err(fail("min_response_ms", format!("expected at most 60000 ms, found {}", raw.min_response_ms)));
+    }
+    if let Some([width, height]) = raw.min_viewport
+        && (width == 0 || height == 0 || width > 10_000 || height > 10_000)
+    {
+        return Err(fail(
+            "min_viewport",
+            format!("expected [width, height] in CSS pixels from 1 to 10000, found [{width}, {height}]"),
+        ));
+    }
+    if raw.unique_external_id && raw.url_params.is_empty() {
+        return Err(fail(
+            "unique_external_id",
+            "expected `url_params` to name the external id (e.g. \"PROLIFIC_PID\"), found none".into(),
+        ));
+    }
+    if raw.abandon_after_minutes == 0 {
+        return Err(fail("abandon_after_minutes", "expected at least 1 minute, found 0".into()));
+    }
+    let devices = match &raw.devices {
+        Some(devices) if devices.is_empty() => {
+            return Err(fail("devices", "expected at least one of \"desktop\", \"tablet\", \"phone\"".into()));
+        }
+        Some(devices) => devices.clone(),
+        None => Vec::new(),
+    };
+    Ok(Participation {
+        min_response_ms: raw.min_response_ms,
+        unique_external_id: raw.unique_external_id,
+        min_viewport: raw.min_viewport,
+        devices,
+        orientation: raw.orientation,
+        display: raw.display,
+        abandon_after_minutes: raw.abandon_after_minutes,
+    })
+}
 
 fn check_image(
     fail: &dyn Fn(&str, String) -> StudyError,
