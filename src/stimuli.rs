@@ -17,7 +17,8 @@ pub struct StimuliArgs {
     /// Data directory whose stimulus store receives them (the one `mrstudy serve` uses).
     #[arg(long, default_value = "./mrstudy-data")]
     data_dir: PathBuf,
-    /// Also write every rendered stimulus here as `<scene>__<condition>.png`.
+    /// Also write every stimulus of the study here as `<scene>__<condition>.png` (rendered now,
+    /// rendered before, or an image file of the study).
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -64,8 +65,13 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     let store = args.data_dir.join("stimuli");
     let progress = progress_bars();
     let slug = study.slug.clone();
-    let rendered = stimuli::render_missing(&study, &store, args.out.as_deref(), &|step| progress(&slug, &step))
+    let rendered = stimuli::render_missing(&study, &store, None, &|step| progress(&slug, &step))
         .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
+    if let Some(out) = &args.out {
+        let written = stimuli::write_copies(&study, &store, out)
+            .with_context(|| format!("cannot write the stimuli of {} into {}", args.study.display(), out.display()))?;
+        eprintln!("wrote {written} stimuli into {}", out.display());
+    }
     let total: usize = stimuli::needed(&study)?.into_iter().flatten().map(|scene| scene.len()).sum();
     eprintln!(
         "study \"{}\": rendered {rendered} stimuli, {} were already in {} ({total} rendered stimuli in all)",

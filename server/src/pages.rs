@@ -135,6 +135,10 @@ struct StudyPage {
     instructions: Vec<String>,
     thanks: Vec<String>,
     fields: Vec<FieldView>,
+    /// `min_response_ms`: the page accepts no answer sooner after a pair is on screen.
+    min_response_ms: u32,
+    /// `native` or `fit` (how stimuli are scaled).
+    display: &'static str,
 }
 
 impl StudyPage {
@@ -151,6 +155,11 @@ impl StudyPage {
             instructions: paragraphs(&study.texts.instructions),
             thanks: paragraphs(&study.texts.thanks),
             fields: study.demographics.iter().map(FieldView::from).collect(),
+            min_response_ms: study.participation.min_response_ms,
+            display: match study.participation.display {
+                crate::study::Display::Native => "native",
+                crate::study::Display::Fit => "fit",
+            },
         }
     }
 }

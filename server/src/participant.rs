@@ -15,14 +15,15 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, Side};
-use crate::study::{FieldType, Study};
+use crate::storage::{JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, ScreenOut, Side};
+use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::{AppState, constant_time_eq, random_hex, sha256};
 
 pub fn router() -> Router<AppState> {
     Router::new()
         .route("/api/studies", get(list_studies))
         .route("/api/studies/{slug}/participants", post(create_participant))
+        .route("/api/studies/{slug}/screen", post(check_screen))
         .route("/api/participants/{id}/next", get(next_trial))
         .route("/api/participants/{id}/responses", post(create_response))
 }
@@ -58,6 +59,12 @@ struct JoinBody {
     client: Map<String, Value>,
     #[serde(default)]
     url_params: Map<String, Value>,
+    /// The token of an admin preview link: the participant is a pilot.
+    #[serde(default)]
+    preview: Option<String>,
+    /// The id of this visitor's earlier screen-out, withdrawn now that the screen fits.
+    #[serde(default)]
+    screen_out: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -65,6 +72,171 @@ struct Joined {
     participant: String,
     token: String,
     trials: usize,
+    /// True when the study keeps one run per external id and this id had joined before: the
+    /// earlier run continues (at its next unanswered trial).
+    resumed: bool,
+}
+
+/// Whether a preview token (if any) is one of the study's preview links: Ok(true) for a pilot,
+/// 403 for a token that is not.
+async fn pilot(state: &AppState, slug: &str, preview: Option<&str>) -> AppResult<bool> {
+    let Some(token) = preview.map(str::trim).filter(|token| !token.is_empty()) else { return Ok(false) };
+    if state.storage().is_preview(slug, &sha256(token.as_bytes())).await? {
+        Ok(true)
+    } else {
+        Err(AppError::Forbidden(format!(
+            "This preview link is not valid for the study \"{slug}\"; ask the researcher for a new one."
+        )))
+    }
+}
+
+/// The device a page reported in `client.device`, if any.
+fn reported_device(client: &Map<String, Value>) -> Option<Device> {
+    match client.get("device").and_then(Value::as_str)? {
+        "desktop" => Some(Device::Desktop),
+        "tablet" => Some(Device::Tablet),
+        "phone" => Some(Device::Phone),
+        _ => None,
+    }
+}
+
+/// The viewport a page reported in `client.viewport` (`[width, height]` in CSS pixels).
+fn reported_viewport(client: &Map<String, Value>) -> Option<[f64; 2]> {
+    let viewport = client.get("viewport")?.as_array()?;
+    match viewport.as_slice() {
+        [width, height] => Some([width.as_f64()?, height.as_f64()?]),
+        _ => None,
+    }
+}
+
+/// Why a visitor's screen does not meet the study's requirements, as the one sentence shown
+/// to them; None when it does (or when the client did not say: API clients without a page).
+pub(crate) fn screen_refusal(participation: &Participation, client: &Map<String, Value>) -> Option<String> {
+    if !participation.devices.is_empty()
+        && let Some(device) = reported_device(client)
+        && !participation.devices.contains(&device)
+    {
+        let allowed: Vec<&str> = participation
+            .devices
+            .iter()
+            .map(|device| match device {
+                Device::Desktop => "a desktop or laptop computer",
+                Device::Tablet => "a tablet",
+                Device::Phone => "a phone",
+            })
+            .collect();
+        let allowed = match allowed.as_slice() {
+            [one] => one.to_string(),
+            [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
+            [] => unreachable!("devices is not empty"),
+        };
+        return Some(format!(
+            "This study can only be done on {allowed}, not on {}: please open the link there.",
+            match device {
+                Device::Desktop => "a desktop or laptop computer",
+                Device::Tablet => "a tablet",
+                Device::Phone => "a phone",
+            }
+        ));
+    }
+    let viewport = reported_viewport(client);
+    if let (Some([min_width, min_height]), Some([width, height])) = (participation.min_viewport, viewport)
+        && (width < f64::from(min_width) || height < f64::from(min_height))
+    {
+        return Some(format!(
+            "This study needs a browser window of at least {min_width} × {min_height} pixels and yours is {} × {}: please enlarge the window or use a larger screen.",
+            width.round() as i64,
+            height.round() as i64
+        ));
+    }
+    if let (Some(orientation), Some([width, height])) = (participation.orientation, viewport) {
+        let landscape = width >= height;
+        match orientation {
+            Orientation::Landscape if !landscape => {
+                return Some("This study needs your screen in landscape orientation (wider than tall): please turn your device.".into());
+            }
+            Orientation::Portrait if landscape => {
+                return Some("This study needs your screen in portrait orientation (taller than wide): please turn your device.".into());
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScreenBody {
+    #[serde(default)]
+    client: Map<String, Value>,
+    #[serde(default)]
+    url_params: Map<String, Value>,
+    #[serde(default)]
+    preview: Option<String>,
+    /// This visitor's earlier screen-out, updated rather than counted again.
+    #[serde(default)]
+    screen_out: Option<String>,
+}
+
+#[derive(Serialize)]
+struct ScreenAnswer {
+    meets: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reason: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    screen_out: Option<String>,
+}
+
+/// Checks a visitor's screen against the study's requirements before anything is asked of
+/// them: `200 {meets: true}`, or `201 {meets: false, reason, screen_out}` with the visitor
+/// recorded as screened out (counted in the funnel; the same visitor checking again updates
+/// that record, and joining later withdraws it).
+async fn check_screen(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    Json(body): Json<ScreenBody>,
+) -> AppResult<Response> {
+    let prepared = state
+        .study(&slug)
+        .ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?
+        .clone();
+    let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
+    let client = validate_client(body.client)?;
+    let Some(reason) = screen_refusal(&prepared.study.participation, &client) else {
+        return Ok(Json(ScreenAnswer { meets: true, reason: None, screen_out: None }).into_response());
+    };
+    let id = match body.screen_out {
+        Some(id) if id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()) => id,
+        _ => random_hex(16),
+    };
+    let url_params = validate_url_params(&prepared.study, body.url_params)?;
+    record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
+    Ok((StatusCode::CREATED, Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id) })).into_response())
+}
+
+async fn record_screen_out(
+    state: &AppState,
+    slug: &str,
+    id: &str,
+    reason: &str,
+    client: &Map<String, Value>,
+    url_params: &Map<String, Value>,
+    pilot: bool,
+) -> AppResult<()> {
+    state
+        .storage()
+        .screen_out(
+            id,
+            Some(ScreenOut {
+                id: id.to_string(),
+                study: slug.to_string(),
+                reason: reason.to_string(),
+                client: Value::Object(client.clone()).to_string(),
+                url_params: Value::Object(url_params.clone()).to_string(),
+                pilot,
+            }),
+        )
+        .await
 }
 
 async fn create_participant(
@@ -76,7 +248,9 @@ async fn create_participant(
         .study(&slug)
         .ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?
         .clone();
-    if !state.storage().is_open(&slug).await? {
+    let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
+    // A preview runs the study as a participant would, also before the study is opened.
+    if !pilot && !state.storage().is_open(&slug).await? {
         return Err(AppError::Forbidden(format!(
             "The study \"{slug}\" is closed and accepts no new participants."
         )));
@@ -84,13 +258,28 @@ async fn create_participant(
     let demographics = validate_demographics(&prepared.study, body.demographics)?;
     let client = validate_client(body.client)?;
     let url_params = validate_url_params(&prepared.study, body.url_params)?;
+    if let Some(reason) = screen_refusal(&prepared.study.participation, &client) {
+        let id = random_hex(16);
+        record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
+        return Err(AppError::Unprocessable(reason));
+    }
+    // One run per external id: the first of the study's URL parameters that is present.
+    let external_key = (prepared.study.participation.unique_external_id && !pilot)
+        .then(|| {
+            prepared.study.url_params.iter().find_map(|name| match url_params.get(name) {
+                Some(Value::String(value)) if !value.trim().is_empty() => Some(format!("{name}={}", value.trim())),
+                _ => None,
+            })
+        })
+        .flatten();
+    let withdraw_screen_out = body.screen_out.filter(|id| id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()));
     let id = random_hex(16);
     let token = random_hex(32);
     let mut seed_bytes = [0u8; 8];
     getrandom::fill(&mut seed_bytes).expect("the operating system's random number generator works");
     let trials = prepared.study.trial_count();
     let token_sha256 = sha256(token.as_bytes()).to_vec();
-    state
+    let outcome = state
         .storage()
         .create_participant(NewParticipant {
             study: prepared,
@@ -101,14 +290,17 @@ async fn create_participant(
             client: Value::Object(client).to_string(),
             url_params: Value::Object(url_params).to_string(),
             random_completion_code: random_hex(6).to_uppercase(),
+            pilot,
+            external_key,
+            withdraw_screen_out,
         })
         .await?;
-    state.cache_credentials(Credentials { id: id.clone(), token_sha256, trials: trials as i64 });
-    Ok((
-        StatusCode::CREATED,
-        Json(Joined { participant: id, token, trials }),
-    )
-        .into_response())
+    let (status, id, trials, resumed) = match outcome {
+        JoinOutcome::Created => (StatusCode::CREATED, id, trials as i64, false),
+        JoinOutcome::Resumed { id, trials } => (StatusCode::OK, id, trials, true),
+    };
+    state.cache_credentials(Credentials { id: id.clone(), study: slug.clone(), token_sha256, trials });
+    Ok((status, Json(Joined { participant: id, token, trials: trials as usize, resumed })).into_response())
 }
 
 fn validate_demographics(study: &Study, mut given: Map<String, Value>) -> AppResult<Map<String, Value>> {
@@ -237,6 +429,7 @@ pub(crate) fn bearer(headers: &HeaderMap) -> AppResult<&str> {
 #[derive(Debug, Clone)]
 pub(crate) struct Credentials {
     pub id: String,
+    pub study: String,
     pub token_sha256: Vec<u8>,
     pub trials: i64,
 }
@@ -250,6 +443,7 @@ async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult
         None if id.len() == 32 => state.storage().participant(id).await?.map(|participant| {
             let credentials = Credentials {
                 id: participant.id,
+                study: participant.study,
                 token_sha256: participant.token_sha256,
                 trials: participant.trials,
             };
@@ -331,7 +525,7 @@ async fn next_trial(
         .filter(|trial| trial.trial == number)
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
-    state.storage().mark_shown(&participant.id, number);
+    state.storage().mark_shown(&participant.id, number).await?;
     Ok(Json(Next::Trial {
         trial: trial.trial,
         total: participant.trials,
@@ -415,6 +609,7 @@ async fn create_response(
         )));
     }
     let client = validate_client(body.client)?;
+    let min_response_ms = state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
     let outcome = state
         .storage()
         .store_response(NewResponse {
@@ -423,6 +618,7 @@ async fn create_response(
             chosen: body.chosen,
             rt_ms: body.rt_ms,
             client: Value::Object(client).to_string(),
+            min_response_ms,
         })
         .await?;
     let status = match outcome {

@@ -219,6 +219,49 @@ pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progre
     Ok(missing.len())
 }
 
+/// Writes every stimulus of the study into `dir` as `<scene>__<condition>.<extension>`: the
+/// rendered ones from the store (whether rendered now or before) and the image files of scene
+/// configurations that have them. Returns how many were written; a rendered stimulus missing
+/// from the store is an error naming it (render it first).
+pub fn write_copies(study: &Study, store: &Path, dir: &Path) -> Result<usize, StimuliError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| StimuliError::Io { path, source }
+    };
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut written = 0;
+    for (scene_index, needed) in needed(study)?.into_iter().enumerate() {
+        let scene = &study.scenes[scene_index];
+        match (needed, &scene.source) {
+            (Some(needed), _) => {
+                for needed in needed {
+                    let name = lookup(store, &needed.key).ok_or_else(|| StimuliError::Io {
+                        path: store.join("rendered").join(&needed.key),
+                        source: std::io::Error::new(
+                            std::io::ErrorKind::NotFound,
+                            format!("the stimulus {} / {} is not in the store", needed.scene, needed.condition),
+                        ),
+                    })?;
+                    let extension = Path::new(&name).extension().and_then(|e| e.to_str()).unwrap_or("png").to_string();
+                    let copy = dir.join(format!("{}__{}.{extension}", file_safe(&needed.scene), file_safe(&needed.condition)));
+                    std::fs::copy(store.join(&name), &copy).map_err(io(&copy))?;
+                    written += 1;
+                }
+            }
+            (None, StimulusSource::Images(images)) => {
+                for (condition, image) in study.conditions.iter().zip(images) {
+                    let extension = image.extension().and_then(|e| e.to_str()).unwrap_or("png").to_ascii_lowercase();
+                    let copy = dir.join(format!("{}__{}.{extension}", file_safe(&scene.name), file_safe(&condition.name)));
+                    std::fs::copy(image, &copy).map_err(io(&copy))?;
+                    written += 1;
+                }
+            }
+            (None, StimulusSource::Render(_)) => {}
+        }
+    }
+    Ok(written)
+}
+
 /// A name usable in a file name: letters, digits, `-`, `_`, `.`; anything else becomes `-`.
 fn file_safe(name: &str) -> String {
     name.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '-' }).collect()

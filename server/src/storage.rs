@@ -59,6 +59,8 @@ pub struct NewResponse {
     pub chosen: Side,
     pub rt_ms: f64,
     pub client: String,
+    /// The study's `min_response_ms`: a faster response is stored flagged `too_fast`.
+    pub min_response_ms: u32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -99,12 +101,43 @@ pub struct NewParticipant {
     pub url_params: String,
     /// Used when the study has no fixed completion code.
     pub random_completion_code: String,
+    /// Joined through an admin preview link.
+    pub pilot: bool,
+    /// The external id when the study keeps one run per external id: a participant already
+    /// stored with it is resumed (given this token) instead of created.
+    pub external_key: Option<String>,
+    /// A screen-out of this visitor to withdraw (they now meet the requirements and joined).
+    pub withdraw_screen_out: Option<String>,
+}
+
+/// What joining did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum JoinOutcome {
+    /// A new participant with the given id.
+    Created,
+    /// The study keeps one run per external id and this one had joined before: that
+    /// participant (`id`) now answers to the new token.
+    Resumed { id: String, trials: i64 },
+}
+
+/// A visitor who does not meet the study's screen requirements.
+#[derive(Debug, Clone)]
+pub struct ScreenOut {
+    /// Random id; an existing row with this id (the same visitor checking again) is updated.
+    pub id: String,
+    pub study: String,
+    pub reason: String,
+    pub client: String,
+    pub url_params: String,
+    pub pilot: bool,
 }
 
 enum Job {
     Response(NewResponse, oneshot::Sender<Result<ResponseOutcome, AppError>>),
     Shown { participant: String, trial: i64 },
-    Participant(Box<NewParticipant>, oneshot::Sender<Result<(), AppError>>),
+    Participant(Box<NewParticipant>, oneshot::Sender<Result<JoinOutcome, AppError>>),
+    /// Records (or updates) a screen-out; `None` withdraws the row with this id.
+    ScreenOut(String, Option<Box<ScreenOut>>, oneshot::Sender<Result<(), AppError>>),
     SetOpen(String, bool, oneshot::Sender<Result<(), AppError>>),
     /// A write of a lab task study (participant with schedule, or a trial's result).
     Task(Box<crate::task::store::TaskWrite>, oneshot::Sender<Result<crate::task::store::TaskWritten, AppError>>),
@@ -115,7 +148,8 @@ impl Job {
         let error = || AppError::Internal(message.to_string());
         match self {
             Job::Response(_, reply) => drop(reply.send(Err(error()))),
-            Job::Participant(_, reply) | Job::SetOpen(_, _, reply) => drop(reply.send(Err(error()))),
+            Job::Participant(_, reply) => drop(reply.send(Err(error()))),
+            Job::SetOpen(_, _, reply) | Job::ScreenOut(_, _, reply) => drop(reply.send(Err(error()))),
             Job::Task(_, reply) => drop(reply.send(Err(error()))),
             Job::Shown { .. } => {}
         }
@@ -189,10 +223,27 @@ impl Storage {
         answer.await.map_err(|_| writer_gone())?
     }
 
-    pub async fn create_participant(&self, participant: NewParticipant) -> Result<(), AppError> {
+    pub async fn create_participant(&self, participant: NewParticipant) -> Result<JoinOutcome, AppError> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Participant(Box::new(participant), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
+    }
+
+    /// Records a screen-out (`Some`), or withdraws the one with `id` (`None`); durable on return.
+    pub async fn screen_out(&self, id: &str, screen_out: Option<ScreenOut>) -> Result<(), AppError> {
+        let (reply, answer) = oneshot::channel();
+        self.send(Job::ScreenOut(id.to_string(), screen_out.map(Box::new), reply)).await?;
+        answer.await.map_err(|_| writer_gone())?
+    }
+
+    /// Whether `token_sha256` is a preview link of the study.
+    pub async fn is_preview(&self, study: &str, token_sha256: &[u8]) -> Result<bool, sqlx::Error> {
+        let found: Option<i64> = sqlx::query_scalar("SELECT 1 FROM previews WHERE study = ? AND token_sha256 = ?")
+            .bind(study)
+            .bind(token_sha256)
+            .fetch_optional(&self.read)
+            .await?;
+        Ok(found.is_some())
     }
 
     pub async fn set_open(&self, slug: &str, open: bool) -> Result<(), AppError> {
@@ -201,12 +252,12 @@ impl Storage {
         answer.await.map_err(|_| writer_gone())?
     }
 
-    /// Records that a trial was sent, if it had not been; does not wait for the commit.
-    pub fn mark_shown(&self, participant: &str, trial: i64) {
-        let _ = self.jobs.try_send(Job::Shown {
-            participant: participant.to_string(),
-            trial,
-        });
+    /// Records that a trial was served, if it had not been. It waits for a place in the
+    /// writer's queue, not for the commit: the queue is first in, first out, so the record is
+    /// committed no later than any response to the trial, which can only be sent after the
+    /// trial was served (a response to a trial never served is refused).
+    pub async fn mark_shown(&self, participant: &str, trial: i64) -> Result<(), AppError> {
+        self.send(Job::Shown { participant: participant.to_string(), trial }).await
     }
 
     /// Runs a task study write in the next group commit and answers after it is durable.
@@ -401,8 +452,9 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                 .await?;
                 None
             }
-            Job::Participant(participant, _) => {
-                insert_participant(&mut transaction, participant).await?;
+            Job::Participant(participant, _) => Some(Ok(Outcome::Joined(insert_participant(&mut transaction, participant).await?))),
+            Job::ScreenOut(id, screen_out, _) => {
+                write_screen_out(&mut transaction, id, screen_out.as_deref()).await?;
                 Some(Ok(Outcome::Done))
             }
             Job::Task(write, _) => Some(crate::task::store::execute(&mut transaction, write).await?.map(Outcome::Task)),
@@ -431,7 +483,13 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                     _ => ResponseOutcome::Created,
                 }));
             })),
-            (Job::Participant(_, reply), Some(outcome)) | (Job::SetOpen(_, _, reply), Some(outcome)) => {
+            (Job::Participant(_, reply), Some(outcome)) => replies.push(Box::new(move || {
+                let _ = reply.send(outcome.and_then(|outcome| match outcome {
+                    Outcome::Joined(joined) => Ok(joined),
+                    _ => Err(AppError::Internal("a join had no join outcome".into())),
+                }));
+            })),
+            (Job::SetOpen(_, _, reply), Some(outcome)) | (Job::ScreenOut(_, _, reply), Some(outcome)) => {
                 replies.push(Box::new(move || {
                     let _ = reply.send(outcome.map(|_| ()));
                 }))
@@ -450,6 +508,7 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
 
 enum Outcome {
     Response(ResponseOutcome),
+    Joined(JoinOutcome),
     Task(crate::task::store::TaskWritten),
     Done,
 }
@@ -458,6 +517,34 @@ async fn store_response(
     connection: &mut SqliteConnection,
     response: &NewResponse,
 ) -> Result<Result<ResponseOutcome, AppError>, sqlx::Error> {
+    // Only a trial that was served can be answered; the server's own time since serving it
+    // (first serving, so a reload never shortens it) is stored beside the client's.
+    let served = sqlx::query(
+        "SELECT shown_at IS NOT NULL AS served,
+                (julianday('now') - julianday(shown_at)) * 86400000.0 AS served_ms
+         FROM trials WHERE participant = ? AND trial = ?",
+    )
+    .bind(&response.participant)
+    .bind(response.trial)
+    .fetch_optional(&mut *connection)
+    .await?;
+    let mut served_ms: Option<f64> = None;
+    if let Some(served) = &served {
+        if !served.try_get::<bool, _>("served")? {
+            let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
+                .bind(&response.participant)
+                .fetch_one(&mut *connection)
+                .await?;
+            return Ok(Err(AppError::Conflict(format!(
+                "Trial {} was never served to this participant, so it cannot be answered (the next trial is {}; get it from …/next first).",
+                response.trial,
+                answered + 1
+            ))));
+        }
+        served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
+    }
+    let floor = f64::from(response.min_response_ms);
+    let too_fast = response.rt_ms < floor || served_ms.is_some_and(|ms| ms < floor);
     // The usual case in two statements: advance the participant's progress if this is the next
     // trial, then insert the response. Responses are answered in order, so `answered` is the
     // number of stored responses and trial `answered + 1` has none yet.
@@ -473,13 +560,16 @@ async fn store_response(
     .await?;
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at) VALUES (?, ?, ?, ?, ?, {NOW})"
+            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms)
+             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?)"
         )))
         .bind(&response.participant)
         .bind(response.trial)
         .bind(response.chosen.as_str())
         .bind(response.rt_ms)
         .bind(&response.client)
+        .bind(too_fast as i64)
+        .bind(served_ms)
         .execute(&mut *connection)
         .await?;
         return Ok(Ok(ResponseOutcome::Created));
@@ -523,11 +613,62 @@ async fn store_response(
     ))))
 }
 
+async fn write_screen_out(
+    connection: &mut SqliteConnection,
+    id: &str,
+    screen_out: Option<&ScreenOut>,
+) -> Result<(), sqlx::Error> {
+    match screen_out {
+        None => {
+            sqlx::query("DELETE FROM screen_outs WHERE id = ?").bind(id).execute(&mut *connection).await?;
+        }
+        Some(screen_out) => {
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
+                 VALUES (?, ?, ?, ?, ?, ?, {NOW})
+                 ON CONFLICT (id) DO UPDATE SET reason = excluded.reason, client = excluded.client"
+            )))
+            .bind(id)
+            .bind(&screen_out.study)
+            .bind(&screen_out.reason)
+            .bind(&screen_out.client)
+            .bind(&screen_out.url_params)
+            .bind(screen_out.pilot as i64)
+            .execute(&mut *connection)
+            .await?;
+        }
+    }
+    Ok(())
+}
+
 async fn insert_participant(
     connection: &mut SqliteConnection,
     participant: &NewParticipant,
-) -> Result<(), sqlx::Error> {
+) -> Result<JoinOutcome, sqlx::Error> {
     let study = &participant.study.study;
+    if let Some(withdraw) = &participant.withdraw_screen_out {
+        sqlx::query("DELETE FROM screen_outs WHERE id = ? AND study = ?")
+            .bind(withdraw)
+            .bind(&study.slug)
+            .execute(&mut *connection)
+            .await?;
+    }
+    if let Some(external_key) = &participant.external_key {
+        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = ? AND external_key = ?")
+            .bind(&study.slug)
+            .bind(external_key)
+            .fetch_optional(&mut *connection)
+            .await?;
+        if let Some(existing) = existing {
+            let id: String = existing.try_get("id")?;
+            sqlx::query("UPDATE participants SET token_sha256 = ? WHERE id = ?")
+                .bind(&participant.token_sha256)
+                .bind(&id)
+                .execute(&mut *connection)
+                .await?;
+            return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
+        }
+    }
     let ordinal: i64 = sqlx::query_scalar(
         "SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?",
     )
@@ -546,8 +687,8 @@ async fn insert_participant(
         .unwrap_or_else(|| participant.random_completion_code.clone());
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO participants (id, study, ordinal, token_sha256, seed, schedule_version, file_sha256,
-             demographics, client, url_params, trials, completion_code, created_at)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW})"
+             demographics, client, url_params, trials, completion_code, created_at, pilot, external_key)
+         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, ?, ?)"
     )))
     .bind(&participant.id)
     .bind(&study.slug)
@@ -561,6 +702,8 @@ async fn insert_participant(
     .bind(&participant.url_params)
     .bind(trials.len() as i64)
     .bind(completion_code)
+    .bind(participant.pilot as i64)
+    .bind(&participant.external_key)
     .execute(&mut *connection)
     .await?;
     for (index, trial) in trials.iter().enumerate() {
@@ -580,5 +723,5 @@ async fn insert_participant(
         .execute(&mut *connection)
         .await?;
     }
-    Ok(())
+    Ok(JoinOutcome::Created)
 }

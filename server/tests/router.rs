@@ -113,7 +113,10 @@ async fn join(app: &Router) -> (String, String) {
     (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
 }
 
+/// Answers `trial` as a page would: it first gets the next trial (which the server records as
+/// served), then posts the answer.
 async fn answer_trial(app: &Router, id: &str, token: &str, trial: i64, chosen: &str) -> Answer {
+    call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
     call(
         app,
         Method::POST,
@@ -608,4 +611,201 @@ async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
         done,
         json!({"done": true, "completion_code": "DEMO-7F3A", "redirect": "https://app.prolific.com/submissions/complete?cc=DEMO-7F3A&pid=abc123"})
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Trustworthy responses: only served trials can be answered, too-fast answers are flagged,
+// preview links make pilots, one run per external id, screen requirements.
+
+/// The demo study with extra top-level keys (participation keys), in a fresh data directory.
+async fn fixture_with(extra: &str) -> Fixture {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = studies_dir(data_dir.path());
+    let file = studies.join("shadows-demo.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let text = text.replacen("\n[texts]", &format!("\n{extra}\n\n[texts]"), 1);
+    std::fs::write(&file, text).unwrap();
+    let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
+    Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
+}
+
+async fn database(fixture: &Fixture) -> sqlx::SqlitePool {
+    let path = fixture._data_dir.path().join("data/mrstudy.db");
+    sqlx::SqlitePool::connect(&format!("sqlite://{}?mode=ro", path.display())).await.unwrap()
+}
+
+async fn post_response(app: &Router, id: &str, token: &str, trial: i64, rt_ms: f64) -> Answer {
+    call(
+        app,
+        Method::POST,
+        &format!("/api/participants/{id}/responses"),
+        Some(token),
+        Some(json!({"trial": trial, "chosen": "left", "rt_ms": rt_ms})),
+    )
+    .await
+}
+
+#[tokio::test]
+async fn a_response_to_a_trial_never_served_is_refused_and_nothing_is_stored() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let (id, token) = join(app).await;
+    let answer = post_response(app, &id, &token, 1, 900.0).await;
+    assert_eq!(answer.status, StatusCode::CONFLICT, "{}", answer.text());
+    assert!(answer.error().contains("never served"), "{}", answer.text());
+    let db = database(&fixture).await;
+    let stored: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM responses").fetch_one(&db).await.unwrap();
+    assert_eq!(stored, 0, "a refused response stores nothing");
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants").fetch_one(&db).await.unwrap();
+    assert_eq!(answered, 0);
+    // Once served, the same answer is taken.
+    call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await;
+    let answer = post_response(app, &id, &token, 1, 900.0).await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    // Trial 2 has not been served yet: refused too.
+    let answer = post_response(app, &id, &token, 2, 900.0).await;
+    assert_eq!(answer.status, StatusCode::CONFLICT);
+    assert!(answer.error().contains("never served") && answer.error().contains("next trial is 2"));
+}
+
+#[tokio::test]
+async fn a_too_fast_response_is_stored_and_flagged_by_the_client_or_the_server_clock() {
+    let fixture = fixture_with("min_response_ms = 300").await;
+    let app = &fixture.app;
+    let (id, token) = join(app).await;
+    let next = format!("/api/participants/{id}/next");
+    // 1: 120 ms by the client's clock (and at once by the server's).
+    call(app, Method::GET, &next, Some(&token), None).await;
+    assert_eq!(post_response(app, &id, &token, 1, 120.0).await.status, StatusCode::CREATED);
+    // 2: a plausible client time, but the server served the trial a moment ago.
+    call(app, Method::GET, &next, Some(&token), None).await;
+    assert_eq!(post_response(app, &id, &token, 2, 812.0).await.status, StatusCode::CREATED);
+    // 3: slow enough by both clocks.
+    call(app, Method::GET, &next, Some(&token), None).await;
+    tokio::time::sleep(std::time::Duration::from_millis(400)).await;
+    assert_eq!(post_response(app, &id, &token, 3, 812.0).await.status, StatusCode::CREATED);
+    let db = database(&fixture).await;
+    let rows: Vec<(i64, i64, f64)> = sqlx::query_as("SELECT trial, too_fast, served_ms FROM responses ORDER BY trial")
+        .fetch_all(&db)
+        .await
+        .unwrap();
+    assert_eq!(rows.len(), 3, "too-fast responses are stored, never dropped");
+    assert_eq!((rows[0].1, rows[1].1, rows[2].1), (1, 1, 0), "{rows:?}");
+    assert!(rows[2].2 >= 380.0, "the server's time from serving to answer: {rows:?}");
+}
+
+#[tokio::test]
+async fn a_preview_link_makes_a_pilot_also_while_the_study_is_closed() {
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let closed = call(app, Method::POST, "/api/admin/studies/shadows-demo/close", Some(&fixture.admin_token), None).await;
+    assert!(closed.status.is_success(), "{}", closed.text());
+    // A preview token as the admin API stores it (SHA-256 of the token).
+    let token = "preview-token-for-the-test-0123456789abcdef";
+    let hash = {
+        use sha2::Digest;
+        sha2::Sha256::digest(token.as_bytes()).to_vec()
+    };
+    let path = fixture._data_dir.path().join("data/mrstudy.db");
+    let writer = sqlx::SqlitePool::connect(&format!("sqlite://{}", path.display())).await.unwrap();
+    sqlx::query("INSERT INTO previews (token_sha256, study, created_at) VALUES (?, 'shadows-demo', '2026-11-23T00:00:00.000Z')")
+        .bind(&hash)
+        .execute(&writer)
+        .await
+        .unwrap();
+    let body = |preview: &str| json!({"demographics": demographics(), "preview": preview});
+    let refused = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body("not-a-preview"))).await;
+    assert_eq!(refused.status, StatusCode::FORBIDDEN);
+    assert!(refused.error().contains("preview link"));
+    let closed_join = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics()}))).await;
+    assert_eq!(closed_join.status, StatusCode::FORBIDDEN, "closed to everybody else");
+    let joined = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body(token))).await;
+    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
+    let pilots: Vec<(String, i64)> = sqlx::query_as("SELECT id, pilot FROM participants").fetch_all(&writer).await.unwrap();
+    assert_eq!(pilots, vec![(joined.json()["participant"].as_str().unwrap().to_string(), 1)]);
+}
+
+#[tokio::test]
+async fn one_run_per_external_id_a_second_join_resumes_the_first() {
+    let fixture = fixture_with("unique_external_id = true").await;
+    let app = &fixture.app;
+    let join_as = |pid: &'static str| {
+        call(
+            app,
+            Method::POST,
+            "/api/studies/shadows-demo/participants",
+            None,
+            Some(json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": pid}})),
+        )
+    };
+    let first = join_as("PID-1").await;
+    assert_eq!(first.status, StatusCode::CREATED);
+    let first = first.json();
+    let (id, old_token) = (first["participant"].as_str().unwrap(), first["token"].as_str().unwrap());
+    assert_eq!(answer_trial(app, id, old_token, 1, "left").await.status, StatusCode::CREATED);
+    let again = join_as("PID-1").await;
+    assert_eq!(again.status, StatusCode::OK, "{}", again.text());
+    let again = again.json();
+    assert_eq!(again["participant"], id, "the same run");
+    assert_eq!(again["resumed"], true);
+    let new_token = again["token"].as_str().unwrap();
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(new_token), None).await;
+    assert_eq!(next.json()["trial"], 2, "continues at its next unanswered trial");
+    let old = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(old_token), None).await;
+    assert_eq!(old.status, StatusCode::FORBIDDEN, "the old token no longer opens the run");
+    let other = join_as("PID-2").await;
+    assert_eq!(other.status, StatusCode::CREATED);
+    assert_ne!(other.json()["participant"], id);
+    let db = database(&fixture).await;
+    let count: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM participants").fetch_one(&db).await.unwrap();
+    assert_eq!(count, 2);
+}
+
+#[tokio::test]
+async fn screen_requirements_refuse_a_phone_and_a_small_window_and_count_the_screen_out() {
+    let fixture = fixture_with("devices = [\"desktop\"]\nmin_viewport = [1000, 700]\norientation = \"landscape\"").await;
+    let app = &fixture.app;
+    let db = database(&fixture).await;
+    let screen_outs = || async { sqlx::query_scalar::<_, i64>("SELECT COUNT(*) FROM screen_outs").fetch_one(&db).await.unwrap() };
+    let check = |client: Value, screen_out: Option<String>| {
+        call(app, Method::POST, "/api/studies/shadows-demo/screen", None, Some(json!({"client": client, "screen_out": screen_out})))
+    };
+    let phone = json!({"device": "phone", "viewport": [390, 844]});
+    let answer = check(phone.clone(), None).await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let answer = answer.json();
+    assert_eq!(answer["meets"], false);
+    assert!(answer["reason"].as_str().unwrap().contains("desktop or laptop computer"), "{answer}");
+    let id = answer["screen_out"].as_str().unwrap().to_string();
+    assert_eq!(screen_outs().await, 1);
+    // The same visitor checking again is not counted twice.
+    check(phone.clone(), Some(id.clone())).await;
+    assert_eq!(screen_outs().await, 1);
+    // A small desktop window: the sentence names both sizes.
+    let small = check(json!({"device": "desktop", "viewport": [800, 600]}), None).await.json();
+    assert!(small["reason"].as_str().unwrap().contains("1000 × 700") && small["reason"].as_str().unwrap().contains("800 × 600"), "{small}");
+    let portrait = check(json!({"device": "desktop", "viewport": [1000, 1400]}), None).await.json();
+    assert!(portrait["reason"].as_str().unwrap().contains("landscape"), "{portrait}");
+    assert_eq!(screen_outs().await, 3);
+    // A fitting screen meets them.
+    let fits = check(json!({"device": "desktop", "viewport": [1280, 800]}), None).await;
+    assert_eq!((fits.status, fits.json()["meets"].clone()), (StatusCode::OK, json!(true)));
+    // Joining from a phone is refused by the server too, and counted.
+    let refused = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics(), "client": phone}))).await;
+    assert_eq!(refused.status, StatusCode::UNPROCESSABLE_ENTITY);
+    assert!(refused.error().contains("desktop"));
+    assert_eq!(screen_outs().await, 4);
+    let participants: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM participants").fetch_one(&db).await.unwrap();
+    assert_eq!(participants, 0);
+    // The first visitor moved to a computer and joined: their screen-out is withdrawn.
+    let joined = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics(), "client": {"device": "desktop", "viewport": [1280, 800]}, "screen_out": id})),
+    )
+    .await;
+    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
+    assert_eq!(screen_outs().await, 3);
 }

@@ -346,9 +346,16 @@ fn stimuli_renders_a_study_once_and_writes_named_copies() {
         let bytes = std::fs::read(data_dir.path().join("named").join(name)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG", "{name}");
     }
+    // A second run renders nothing and still writes every stimulus (they were already stored).
+    std::fs::remove_dir_all(data_dir.path().join("named")).unwrap();
     let second = run();
     let stderr = String::from_utf8_lossy(&second.stderr);
     assert!(second.status.success() && stderr.contains("rendered 0 stimuli, 2 were already"), "{stderr}");
+    assert!(stderr.contains("wrote 2 stimuli into"), "{stderr}");
+    for name in ["box__LQ.png", "box__GI.png"] {
+        let bytes = std::fs::read(data_dir.path().join("named").join(name)).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG", "{name}");
+    }
 }
 
 #[test]

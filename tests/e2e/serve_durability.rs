@@ -134,6 +134,12 @@ fn participant_loop(index: usize, base: &str, stop: &AtomicBool, acknowledged: &
                 if stop.load(Ordering::SeqCst) {
                     return count;
                 }
+                // A response is accepted only for a trial the server has served: ask for it
+                // first (again after a restart; serving is idempotent).
+                if http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(&token).send().is_err() {
+                    std::thread::sleep(Duration::from_millis(20));
+                    continue;
+                }
                 let sent = http
                     .post(format!("{base}/api/participants/{id}/responses"))
                     .bearer_auth(&token)

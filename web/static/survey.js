@@ -4,19 +4,37 @@
 // fragment, so reloading or coming back with the same link resumes at the next unanswered trial.
 // A response is sent until the server confirms it (201, or 200 for a repeat) before the next
 // trial or the completion page is shown, so no answer is lost to a reload or a redirect.
+//
+// Every stored answer must be one the participant gave on purpose, so an answer counts only
+// when: both images of the pair are decoded and on screen; the study's `min_response_ms` has
+// passed since then; the press began after the pair was shown (the click on "Start", or the
+// second click of a double click, never answers a trial); the key is not an auto-repeat of a
+// held key; and the trial has not been answered already. The server flags responses faster
+// than `min_response_ms` by its own clock as well, and refuses answers to trials it never served.
 "use strict";
 
 (function () {
   const body = document.body;
   const slug = body.dataset.study;
   const studyOpen = body.dataset.open === "true";
-  const storageKey = "mrstudy:" + slug;
+  const minResponseMs = Number(body.dataset.minResponseMs || 0);
+  const display = body.dataset.display || "native";
+  const query = new URLSearchParams(location.search);
+  // An admin preview link (`?preview=TOKEN`): the participant is a pilot, kept apart.
+  const preview = query.get("preview") || null;
+  const storageKey = "mrstudy:" + slug + (preview ? ":preview" : "");
   const $ = (id) => document.getElementById(id);
 
-  let session = null; // {participant, token}
+  let session = null; // {participant, token, started}
   let current = null; // the trial shown
-  let shownAt = 0; // performance.now() when both images were on screen
+  let shownAt = Infinity; // performance.now() when both images were on screen
   let accepting = false;
+  const answered = new Set(); // trials answered in this page
+  // When the press now under way began (pointerdown on a choice, or a fresh keydown), in the
+  // clock of performance.now(); an answer needs a press that began after the pair was shown.
+  let pressedAt = -Infinity;
+  let screenOut = null; // id of this visitor's screen-out record, if the screen did not fit
+  try { screenOut = sessionStorage.getItem(storageKey + ":screen-out"); } catch (error) { /* none */ }
 
   function show(stage) {
     for (const section of document.querySelectorAll("main > section")) {
@@ -31,8 +49,20 @@
     show("error");
   }
 
+  // The kind of device, from the user agent, the pointer and the screen's short side.
+  function deviceKind() {
+    const ua = navigator.userAgent || "";
+    const shortSide = Math.min(window.screen.width || 0, window.screen.height || 0) || Math.min(window.innerWidth, window.innerHeight);
+    const coarseOnly = window.matchMedia && matchMedia("(pointer: coarse)").matches && !matchMedia("(any-pointer: fine)").matches;
+    if (/iPhone|iPod|Android.*Mobile|Mobile.*Firefox|Windows Phone/i.test(ua)) return "phone";
+    if (/iPad|Tablet|Android/i.test(ua) || (/Macintosh/.test(ua) && navigator.maxTouchPoints > 1)) return "tablet";
+    if (coarseOnly) return shortSide < 600 ? "phone" : "tablet";
+    return shortSide < 500 ? "phone" : "desktop";
+  }
+
   function clientInfo() {
     return {
+      device: deviceKind(),
       viewport: [window.innerWidth, window.innerHeight],
       screen: [window.screen.width, window.screen.height],
       devicePixelRatio: window.devicePixelRatio || 1,
@@ -43,19 +73,21 @@
 
   function loadSession() {
     const fragment = new URLSearchParams(location.hash.slice(1));
+    let stored = null;
+    try { stored = JSON.parse(localStorage.getItem(storageKey) || "null"); } catch (error) { /* storage unavailable */ }
     if (fragment.get("p") && fragment.get("t")) {
-      return { participant: fragment.get("p"), token: fragment.get("t") };
+      const same = stored && stored.participant === fragment.get("p");
+      return { participant: fragment.get("p"), token: fragment.get("t"),
+        started: fragment.get("s") === "1" || !!(same && stored.started) };
     }
-    try {
-      const stored = JSON.parse(localStorage.getItem(storageKey) || "null");
-      if (stored && stored.participant && stored.token) return stored;
-    } catch (error) { /* storage unavailable */ }
+    if (stored && stored.participant && stored.token) return stored;
     return null;
   }
 
   function saveSession() {
     try { localStorage.setItem(storageKey, JSON.stringify(session)); } catch (error) { /* private mode */ }
     const fragment = new URLSearchParams({ p: session.participant, t: session.token });
+    if (session.started) fragment.set("s", "1");
     history.replaceState(null, "", location.pathname + location.search + "#" + fragment.toString());
   }
 
@@ -101,14 +133,52 @@
     }
   }
 
+  function urlParams() {
+    const kept = {};
+    for (const [key, value] of query) if (key !== "preview") kept[key] = value;
+    return kept;
+  }
+
+  // Checks the screen against the study's requirements (server side, so the sentence and the
+  // record are the same for everybody). Resolves when it fits; until then the visitor sees one
+  // sentence, is counted as screened out, and the check runs again when the window changes.
+  function screenFits() {
+    return new Promise((resolve) => {
+      let timer = null;
+      async function check() {
+        const answer = await persistent("POST", "/api/studies/" + encodeURIComponent(slug) + "/screen",
+          { client: clientInfo(), url_params: urlParams(), preview, screen_out: screenOut });
+        if (answer.status === 200 && answer.data && answer.data.meets) {
+          window.removeEventListener("resize", later);
+          resolve(true);
+          return;
+        }
+        if (answer.status === 201 && answer.data) {
+          screenOut = answer.data.screen_out;
+          try { sessionStorage.setItem(storageKey + ":screen-out", screenOut); } catch (error) { /* none */ }
+          $("screen-reason").textContent = answer.data.reason;
+          show("screen");
+          return;
+        }
+        window.removeEventListener("resize", later);
+        fatal((answer.data && answer.data.error) || "The study could not start.");
+      }
+      function later() { clearTimeout(timer); timer = setTimeout(check, 400); }
+      window.addEventListener("resize", later);
+      check();
+    });
+  }
+
   async function start() {
     session = loadSession();
     if (session) {
       saveSession();
-      await nextTrial();
-    } else if (!studyOpen) {
+      // A reload before "Start" shows the instructions again instead of skipping them.
+      if (session.started) await nextTrial(); else show("instructions");
+    } else if (!studyOpen && !preview) {
       show("closed");
     } else {
+      await screenFits();
       show("welcome");
     }
   }
@@ -126,7 +196,15 @@
     if (!form.checkValidity()) {
       const invalid = form.querySelector(":invalid");
       const label = invalid ? form.querySelector('label[for="' + invalid.id + '"]') : null;
-      error.textContent = "Please answer: " + (label ? label.textContent : "all questions") + ".";
+      const name = label ? label.textContent.replace(/ \(optional\)$/, "") : "all questions";
+      const validity = invalid ? invalid.validity : null;
+      if (validity && (validity.rangeUnderflow || validity.rangeOverflow || validity.stepMismatch || validity.badInput)) {
+        const min = invalid.getAttribute("min"), max = invalid.getAttribute("max");
+        const range = min && max ? " from " + min + " to " + max : min ? " of at least " + min : max ? " of at most " + max : "";
+        error.textContent = name + ": please enter a whole number" + range + ".";
+      } else {
+        error.textContent = "Please answer: " + name + ".";
+      }
       error.hidden = false;
       if (invalid) invalid.focus();
       return;
@@ -137,14 +215,13 @@
       if (value === "") { demographics[element.name] = null; continue; }
       demographics[element.name] = element.dataset.kind === "integer" ? Number(value) : value;
     }
-    const urlParams = {};
-    for (const [key, value] of new URLSearchParams(location.search)) urlParams[key] = value;
     $("demographics-continue").disabled = true;
     try {
       const answer = await persistent("POST", "/api/studies/" + encodeURIComponent(slug) + "/participants",
-        { demographics, client: clientInfo(), url_params: urlParams });
-      if (answer.status === 201) {
-        session = { participant: answer.data.participant, token: answer.data.token };
+        { demographics, client: clientInfo(), url_params: urlParams(), preview, screen_out: screenOut });
+      if (answer.status === 201 || answer.status === 200) {
+        session = { participant: answer.data.participant, token: answer.data.token, started: false };
+        try { sessionStorage.removeItem(storageKey + ":screen-out"); } catch (error) { /* none */ }
         saveSession();
         show("instructions");
       } else {
@@ -156,10 +233,17 @@
     }
   });
 
-  $("start").addEventListener("click", () => nextTrial());
+  $("start").addEventListener("click", () => {
+    if (!session || session.started) return; // a second click of a double click
+    session.started = true;
+    saveSession();
+    $("start").disabled = true;
+    nextTrial();
+  });
 
   async function nextTrial() {
     accepting = false;
+    shownAt = Infinity;
     const answer = await persistent("GET", "/api/participants/" + encodeURIComponent(session.participant) + "/next");
     if (answer.status === 401 || answer.status === 403 || answer.status === 404) {
       forgetSession();
@@ -171,36 +255,50 @@
     await showTrial(answer.data);
   }
 
+  // Resolves true when the image is loaded and decoded, false when it cannot be.
   function decode(image, url) {
     return new Promise((resolve) => {
-      image.onload = () => resolve();
-      image.onerror = () => resolve();
+      image.onload = () => resolve(true);
+      image.onerror = () => resolve(false);
       image.src = url;
-      if (image.complete) resolve();
-    }).then(() => (image.decode ? image.decode().catch(() => {}) : undefined));
+      if (image.complete && image.naturalWidth > 0) resolve(true);
+    }).then((loaded) => loaded && (image.decode ? image.decode().then(() => true, () => image.naturalWidth > 0) : true));
   }
 
   async function showTrial(trial) {
     current = trial;
+    pressedAt = -Infinity;
     show("trial");
     const left = $("image-left"), right = $("image-right");
     $("pair").classList.add("loading");
+    const loadingNote = setTimeout(() => { if (current === trial) $("pair-loading").hidden = false; }, 150);
     $("choose-left").disabled = true; $("choose-right").disabled = true;
     $("trial-progress").textContent = "Trial " + trial.trial + " of " + trial.total;
     $("trial-question").textContent = trial.question;
     $("progress-fill").style.width = (100 * (trial.trial - 1) / trial.total) + "%";
     left.alt = trial.left.alt; right.alt = trial.right.alt;
-    await Promise.all([decode(left, trial.left.url), decode(right, trial.right.url)]);
+    const loaded = await Promise.all([decode(left, trial.left.url), decode(right, trial.right.url)]);
+    clearTimeout(loadingNote);
     if (current !== trial) return;
+    if (!loaded[0] || !loaded[1]) {
+      // An image did not arrive: say so and load the trial again (it stays unanswerable).
+      notice("The images could not be loaded; trying again…");
+      await sleep(1500);
+      if (current === trial) { left.removeAttribute("src"); right.removeAttribute("src"); await nextTrial(); }
+      return;
+    }
+    notice(null);
     layout();
+    $("pair-loading").hidden = true;
     $("pair").classList.remove("loading");
     $("choose-left").disabled = false; $("choose-right").disabled = false;
-    // Both images are on screen at the next frame: the response time counts from there.
-    requestAnimationFrame(() => {
+    // Both images are painted after the next frame: the response time counts from there.
+    requestAnimationFrame(() => requestAnimationFrame(() => {
+      if (current !== trial) return;
       shownAt = performance.now();
       accepting = true;
       body.dataset.trial = String(trial.trial);
-    });
+    }));
     for (const url of trial.preload || []) { const image = new Image(); image.src = url; }
   }
 
@@ -216,9 +314,11 @@
     for (const hint of document.querySelectorAll("#stage-trial .hint")) below += hint.offsetHeight;
     const width = (pair.clientWidth - gap) / 2 - border;
     const height = window.innerHeight - pair.getBoundingClientRect().top - below - border - 12;
-    const scale = Math.max(0.05, Math.min(
+    let scale = Math.max(0.05, Math.min(
       width / left.naturalWidth, width / right.naturalWidth,
       height / left.naturalHeight, height / right.naturalHeight));
+    // `display = "native"`: never more than one image pixel per device pixel (no upscaling).
+    if (display === "native") scale = Math.min(scale, 1 / (window.devicePixelRatio || 1));
     for (const image of [left, right]) {
       image.style.width = Math.floor(image.naturalWidth * scale) + "px";
       image.style.height = Math.floor(image.naturalHeight * scale) + "px";
@@ -226,17 +326,27 @@
   }
   window.addEventListener("resize", () => { if (!$("stage-trial").hidden) layout(); });
 
-  async function choose(side) {
-    if (!accepting || !current) return;
+  // An answer from a press that began at `pressed` (performance.now() clock); ignored unless
+  // the pair is on screen, the press began after it appeared, min_response_ms has passed and
+  // this trial has no answer yet.
+  async function choose(side, pressed) {
+    if (!accepting || !current || answered.has(current.trial)) return;
+    if (!(pressed >= shownAt)) return;
+    if (performance.now() - shownAt < minResponseMs) return;
     accepting = false;
     const rtMs = Math.round((performance.now() - shownAt) * 10) / 10;
     const trial = current;
+    answered.add(trial.trial);
     $("choose-left").disabled = true; $("choose-right").disabled = true;
+    // No focus or highlight carries over to the next pair (on touch screens the tapped side
+    // would look pre-selected).
+    if (document.activeElement && document.activeElement.blur) document.activeElement.blur();
     $("choose-" + side).classList.add("chosen");
     const answer = await persistent("POST", "/api/participants/" + encodeURIComponent(session.participant) + "/responses",
       { trial: trial.trial, chosen: side, rt_ms: rtMs, client: clientInfo() });
     $("choose-" + side).classList.remove("chosen");
     if (answer.status === 201 || answer.status === 200 || answer.status === 409) {
+      if (answer.status === 409) answered.delete(trial.trial);
       // 409: this trial was answered in another tab; continue where the server is.
       await nextTrial();
     } else {
@@ -244,13 +354,32 @@
     }
   }
 
-  $("choose-left").addEventListener("click", () => choose("left"));
-  $("choose-right").addEventListener("click", () => choose("right"));
+  for (const side of ["left", "right"]) {
+    const button = $("choose-" + side);
+    button.addEventListener("pointerdown", (event) => { pressedAt = event.timeStamp; });
+    // A click from the keyboard (Enter or Space on the focused image) has no pointerdown: its
+    // press began at the keydown, which is recorded below.
+    button.addEventListener("click", (event) => {
+      const pressed = pressedAt;
+      pressedAt = -Infinity;
+      choose(side, pressed);
+    });
+  }
   document.addEventListener("keydown", (event) => {
     if ($("stage-trial").hidden || event.altKey || event.ctrlKey || event.metaKey) return;
-    if (event.key === "ArrowLeft") { event.preventDefault(); choose("left"); }
-    if (event.key === "ArrowRight") { event.preventDefault(); choose("right"); }
-  });
+    const arrow = event.key === "ArrowLeft" ? "left" : event.key === "ArrowRight" ? "right" : null;
+    if (arrow || event.key === "Enter" || event.key === " ") {
+      // A held key repeats: only its first press counts, and only once.
+      if (event.repeat) { event.preventDefault(); return; }
+      pressedAt = event.timeStamp;
+    }
+    if (arrow) {
+      event.preventDefault();
+      const pressed = pressedAt;
+      pressedAt = -Infinity;
+      choose(arrow, pressed);
+    }
+  }, true);
 
   function finish(done) {
     body.dataset.trial = "done";
@@ -263,7 +392,7 @@
     }
   }
 
-  $("retry").addEventListener("click", () => { if (session) nextTrial(); else show("welcome"); });
+  $("retry").addEventListener("click", () => { if (session && session.started) nextTrial(); else if (session) show("instructions"); else show("welcome"); });
 
   start().catch((error) => fatal("The study could not start: " + error));
 })();
