@@ -16,3 +16,5 @@ mod lab;
 mod serve;
 #[path = "e2e/serve_durability.rs"]
 mod serve_durability;
+#[path = "e2e/survey_input.rs"]
+mod survey_input;

@@ -18,7 +18,7 @@ const CHROMIUM: &str = "/usr/bin/chromium";
 const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 const WAIT: Duration = Duration::from_secs(20);
 
-struct Driver {
+pub(super) struct Driver {
     child: Child,
     base: String,
     session: String,
@@ -35,7 +35,12 @@ impl Drop for Driver {
 }
 
 impl Driver {
-    fn start(width: u32, height: u32) -> Driver {
+    pub(super) fn start(width: u32, height: u32) -> Driver {
+        Driver::start_with(width, height, json!({}))
+    }
+
+    /// A session with extra `goog:chromeOptions` entries (e.g. `mobileEmulation`).
+    pub(super) fn start_with(width: u32, height: u32, extra_options: Value) -> Driver {
         let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
         let child = Command::new(CHROMEDRIVER)
             .arg(format!("--port={port}"))
@@ -51,7 +56,7 @@ impl Driver {
             std::thread::sleep(Duration::from_millis(100));
         }
         let profile = tempfile::tempdir().unwrap();
-        let capabilities = json!({"capabilities": {"alwaysMatch": {
+        let mut capabilities = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
             "goog:chromeOptions": {
                 "binary": CHROMIUM,
@@ -63,6 +68,11 @@ impl Driver {
                 ]
             }
         }}});
+        if let Value::Object(extra) = extra_options {
+            for (key, value) in extra {
+                capabilities["capabilities"]["alwaysMatch"]["goog:chromeOptions"][key] = value;
+            }
+        }
         let answer: Value = http.post(format!("{base}/session")).json(&capabilities).send().unwrap().json().unwrap();
         let session = answer["value"]["sessionId"]
             .as_str()
@@ -71,7 +81,7 @@ impl Driver {
         Driver { child, base, session, http, _profile: profile }
     }
 
-    fn command(&self, method: reqwest::Method, path: &str, body: Value) -> Value {
+    pub(super) fn command(&self, method: reqwest::Method, path: &str, body: Value) -> Value {
         let url = format!("{}/session/{}{path}", self.base, self.session);
         let request = self.http.request(method, url);
         let request = if body.is_null() { request } else { request.json(&body) };
@@ -82,40 +92,40 @@ impl Driver {
         answer["value"].clone()
     }
 
-    fn go(&self, url: &str) {
+    pub(super) fn go(&self, url: &str) {
         self.command(reqwest::Method::POST, "/url", json!({"url": url}));
     }
 
-    fn refresh(&self) {
+    pub(super) fn refresh(&self) {
         self.command(reqwest::Method::POST, "/refresh", json!({}));
     }
 
-    fn script(&self, script: &str) -> Value {
+    pub(super) fn script(&self, script: &str) -> Value {
         self.command(reqwest::Method::POST, "/execute/sync", json!({"script": script, "args": []}))
     }
 
-    fn element(&self, css: &str) -> String {
+    pub(super) fn element(&self, css: &str) -> String {
         let found = self.command(reqwest::Method::POST, "/element", json!({"using": "css selector", "value": css}));
         found.as_object().unwrap().values().next().unwrap().as_str().unwrap().to_string()
     }
 
-    fn click(&self, css: &str) {
+    pub(super) fn click(&self, css: &str) {
         let element = self.element(css);
         self.command(reqwest::Method::POST, &format!("/element/{element}/click"), json!({}));
     }
 
-    fn type_into(&self, css: &str, text: &str) {
+    pub(super) fn type_into(&self, css: &str, text: &str) {
         let element = self.element(css);
         self.command(reqwest::Method::POST, &format!("/element/{element}/value"), json!({"text": text}));
     }
 
-    fn text(&self, css: &str) -> String {
+    pub(super) fn text(&self, css: &str) -> String {
         let element = self.element(css);
         self.command(reqwest::Method::GET, &format!("/element/{element}/text"), Value::Null).as_str().unwrap().to_string()
     }
 
     /// Waits until the JavaScript expression is true.
-    fn wait_for(&self, expression: &str) {
+    pub(super) fn wait_for(&self, expression: &str) {
         let deadline = Instant::now() + WAIT;
         loop {
             if self.script(&format!("return !!({expression});")) == json!(true) {
@@ -129,15 +139,34 @@ impl Driver {
         }
     }
 
-    fn wait_visible(&self, id: &str) {
+    pub(super) fn wait_visible(&self, id: &str) {
         self.wait_for(&format!("document.getElementById('{id}') && !document.getElementById('{id}').hidden"));
     }
 
-    fn wait_trial(&self, trial: &str) {
+    pub(super) fn wait_trial(&self, trial: &str) {
         self.wait_for(&format!("document.body.dataset.trial === '{trial}'"));
     }
 
-    fn screenshot(&self, path: &Path) {
+    /// A Chrome DevTools Protocol command (trusted input events: auto-repeated keys, clicks
+    /// with a click count, touches).
+    pub(super) fn cdp(&self, cmd: &str, params: Value) -> Value {
+        let url = format!("{}/session/{}/goog/cdp/execute", self.base, self.session);
+        let answer: Value = self.http.post(url).json(&json!({"cmd": cmd, "params": params})).send().unwrap().json().unwrap();
+        if answer["value"].get("error").is_some() {
+            panic!("CDP {cmd}: {}", answer["value"]);
+        }
+        answer["value"].clone()
+    }
+
+    /// The centre of an element in CSS pixels of the viewport.
+    pub(super) fn centre(&self, css: &str) -> (f64, f64) {
+        let centre = self.script(&format!(
+            "const r = document.querySelector('{css}').getBoundingClientRect(); return [r.left + r.width / 2, r.top + r.height / 2];"
+        ));
+        (centre[0].as_f64().unwrap(), centre[1].as_f64().unwrap())
+    }
+
+    pub(super) fn screenshot(&self, path: &Path) {
         let data = self.command(reqwest::Method::GET, "/screenshot", Value::Null);
         std::fs::write(path, base64_decode(data.as_str().unwrap())).unwrap();
         eprintln!("screenshot: {}", path.display());
@@ -167,7 +196,7 @@ fn base64_decode(text: &str) -> Vec<u8> {
     out
 }
 
-fn browser_available() -> bool {
+pub(super) fn browser_available() -> bool {
     if Path::new(CHROMIUM).exists() && Path::new(CHROMEDRIVER).exists() {
         return true;
     }
@@ -178,7 +207,7 @@ fn browser_available() -> bool {
     panic!("the browser test needs {CHROMIUM} and {CHROMEDRIVER} (Debian packages chromium and chromium-driver; scripts/test.sh installs them), or MRSTUDY_SKIP_BROWSER_TESTS=1");
 }
 
-fn screenshot_path(name: &str) -> PathBuf {
+pub(super) fn screenshot_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
 }
 

@@ -1,0 +1,269 @@
+//! Input hygiene of the survey page in headless Chromium against a real `mrstudy serve` and its
+//! sqlite database: every stored answer must be one a participant gave on purpose. Trusted
+//! input events come through the DevTools protocol (a double click with its click count, a key
+//! held down with auto-repeat, touches on an emulated phone), then the test counts what the
+//! server stored. Screenshots at 1280×800 and 390×844 go to `$CARGO_TARGET_TMPDIR`.
+
+use std::path::Path;
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+use super::browser::{Driver, browser_available, screenshot_path};
+use super::serve::{Server, client, copy_demo_study};
+
+/// The demo study with extra top-level keys, in its own studies folder.
+fn demo_with(dir: &Path, extra: &str) {
+    copy_demo_study(dir);
+    let file = dir.join("shadows-demo.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replacen("\n[texts]", &format!("\n{extra}\n\n[texts]"), 1)).unwrap();
+}
+
+/// Rows of a query on the server's database (read-only), as text.
+fn query(data_dir: &Path, sql: &str) -> Vec<Vec<String>> {
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    runtime.block_on(async {
+        use sqlx::Row;
+        let url = format!("sqlite://{}?mode=ro", data_dir.join("mrstudy.db").display());
+        let pool = sqlx::SqlitePool::connect(&url).await.unwrap();
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql.to_string())).fetch_all(&pool).await.unwrap();
+        rows.iter()
+            .map(|row| {
+                (0..row.len())
+                    .map(|index| {
+                        row.try_get::<Option<String>, _>(index)
+                            .map(|value| value.unwrap_or_default())
+                            .or_else(|_| row.try_get::<i64, _>(index).map(|value| value.to_string()))
+                            .or_else(|_| row.try_get::<f64, _>(index).map(|value| value.to_string()))
+                            .unwrap()
+                    })
+                    .collect()
+            })
+            .collect()
+    })
+}
+
+fn answered(data_dir: &Path) -> i64 {
+    query(data_dir, "SELECT COUNT(*) FROM responses")[0][0].parse().unwrap()
+}
+
+/// Consent and demographics, up to the instructions.
+fn enter(driver: &Driver, base: &str, query: &str) {
+    driver.go(&format!("{base}/studies/shadows-demo{query}"));
+    driver.wait_visible("stage-welcome");
+    driver.click("#consent");
+    driver.click("#consent-continue");
+    driver.wait_visible("stage-demographics");
+    driver.click("#field-gender option[value='female']");
+    driver.type_into("#field-age", "34");
+    driver.click("#field-cg_experience option[value='none']");
+    driver.click("#field-vision option[value='normal']");
+    driver.click("#demographics-continue");
+    driver.wait_visible("stage-instructions");
+}
+
+fn mouse_click(driver: &Driver, (x, y): (f64, f64), count: u32) {
+    for kind in ["mousePressed", "mouseReleased"] {
+        driver.cdp("Input.dispatchMouseEvent", json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": count}));
+    }
+}
+
+fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
+    driver.cdp(
+        "Input.dispatchKeyEvent",
+        json!({"type": kind, "key": name, "code": name, "windowsVirtualKeyCode": code, "nativeVirtualKeyCode": code, "autoRepeat": repeat}),
+    );
+}
+
+/// Waits for the trial, then longer than `min_response_ms` (300 ms), so a fresh press counts.
+fn ready(driver: &Driver, trial: &str) {
+    driver.wait_trial(trial);
+    std::thread::sleep(Duration::from_millis(450));
+}
+
+#[test]
+fn a_double_click_answers_one_trial_and_a_double_click_on_start_answers_none() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &server.base, "");
+    driver.screenshot(&screenshot_path("survey-instructions-desktop.png"));
+
+    // A double click on "Start": the first starts, the second (120 ms later, where the left
+    // image appears) must not answer trial 1.
+    let start = driver.centre("#start");
+    mouse_click(&driver, start, 1);
+    std::thread::sleep(Duration::from_millis(120));
+    mouse_click(&driver, start, 2);
+    driver.wait_trial("1");
+    std::thread::sleep(Duration::from_millis(1000));
+    assert_eq!(answered(data_dir.path()), 0, "a double click on Start answered a trial");
+    assert_eq!(driver.script("return document.body.dataset.trial;"), json!("1"));
+    driver.screenshot(&screenshot_path("survey-trial-desktop.png"));
+
+    // A double click on the left image, 120 ms apart: one answer, to trial 1 only.
+    ready(&driver, "1");
+    let left = driver.centre("#image-left");
+    mouse_click(&driver, left, 1);
+    std::thread::sleep(Duration::from_millis(120));
+    mouse_click(&driver, left, 2);
+    driver.wait_trial("2");
+    std::thread::sleep(Duration::from_millis(1000));
+    assert_eq!(answered(data_dir.path()), 1, "the second click answered the next trial");
+    assert_eq!(driver.script("return document.body.dataset.trial;"), json!("2"));
+    let stored = query(data_dir.path(), "SELECT trial, chosen, too_fast FROM responses");
+    assert_eq!(stored, vec![vec!["1".to_string(), "left".to_string(), "0".to_string()]]);
+
+    // A deliberate click after the minimum time answers trial 2.
+    ready(&driver, "2");
+    driver.click("#choose-right");
+    driver.wait_trial("3");
+    assert_eq!(answered(data_dir.path()), 2);
+}
+
+#[test]
+fn a_held_arrow_key_answers_one_trial() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &server.base, "");
+    driver.click("#start");
+    ready(&driver, "1");
+    // Held for one second: one press, then auto-repeat keydowns every 33 ms (as an OS does).
+    key(&driver, "keyDown", "ArrowLeft", 37, false);
+    let until = std::time::Instant::now() + Duration::from_secs(1);
+    while std::time::Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(33));
+        key(&driver, "keyDown", "ArrowLeft", 37, true);
+    }
+    key(&driver, "keyUp", "ArrowLeft", 37, false);
+    std::thread::sleep(Duration::from_millis(800));
+    assert_eq!(answered(data_dir.path()), 1, "auto-repeat answered more trials");
+    driver.wait_trial("2");
+    // A fresh press answers the next one.
+    std::thread::sleep(Duration::from_millis(400));
+    key(&driver, "keyDown", "ArrowRight", 39, false);
+    key(&driver, "keyUp", "ArrowRight", 39, false);
+    driver.wait_trial("3");
+    let stored = query(data_dir.path(), "SELECT trial, chosen FROM responses ORDER BY trial");
+    assert_eq!(stored, vec![vec!["1".to_string(), "left".to_string()], vec!["2".to_string(), "right".to_string()]]);
+}
+
+#[test]
+fn a_reload_on_the_instructions_shows_them_again_and_an_age_out_of_range_is_named() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let driver = Driver::start(1280, 800);
+    driver.go(&format!("{}/studies/shadows-demo", server.base));
+    driver.wait_visible("stage-welcome");
+    driver.click("#consent");
+    driver.click("#consent-continue");
+    driver.click("#field-gender option[value='female']");
+    driver.type_into("#field-age", "12");
+    driver.click("#field-cg_experience option[value='none']");
+    driver.click("#field-vision option[value='normal']");
+    driver.click("#demographics-continue");
+    driver.wait_for("!document.getElementById('demographics-error').hidden");
+    let message = driver.text("#demographics-error");
+    assert_eq!(message, "Age in years: please enter a whole number from 16 to 110.");
+    driver.screenshot(&screenshot_path("survey-age-range-desktop.png"));
+    driver.script("document.getElementById('field-age').value = '';");
+    driver.type_into("#field-age", "34");
+    driver.click("#demographics-continue");
+    driver.wait_visible("stage-instructions");
+    driver.refresh();
+    driver.wait_visible("stage-instructions");
+    assert_eq!(driver.script("return document.getElementById('stage-trial').hidden;"), json!(true));
+    driver.click("#start");
+    driver.wait_trial("1");
+    // Once started, a reload resumes at the trial.
+    driver.refresh();
+    driver.wait_trial("1");
+    assert_eq!(answered(data_dir.path()), 0);
+}
+
+const IPHONE: &str = "Mozilla/5.0 (iPhone; CPU iPhone OS 17_0 like Mac OS X) AppleWebKit/605.1.15 (KHTML, like Gecko) Version/17.0 Mobile/15E148 Safari/604.1";
+
+fn phone() -> Driver {
+    Driver::start_with(
+        390,
+        844,
+        json!({"mobileEmulation": {"deviceMetrics": {"width": 390, "height": 844, "pixelRatio": 3, "touch": true}, "userAgent": IPHONE}}),
+    )
+}
+
+#[test]
+fn a_phone_is_refused_when_the_study_wants_a_desktop_and_counted_as_screened_out() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    demo_with(studies.path(), "devices = [\"desktop\"]\nmin_viewport = [800, 500]");
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    let driver = phone();
+    driver.go(&format!("{}/studies/shadows-demo?PROLIFIC_PID=phone-pid", server.base));
+    driver.wait_visible("stage-screen");
+    let reason = driver.text("#screen-reason");
+    assert!(reason.contains("only be done on a desktop or laptop computer, not on a phone"), "{reason}");
+    assert_eq!(driver.script("return document.getElementById('stage-welcome').hidden;"), json!(true));
+    driver.screenshot(&screenshot_path("survey-screened-out-phone.png"));
+    let screen_outs = query(data_dir.path(), "SELECT reason, url_params FROM screen_outs");
+    assert_eq!(screen_outs.len(), 1, "{screen_outs:?}");
+    assert!(screen_outs[0][1].contains("phone-pid"));
+    // A reload is the same visitor: still one.
+    driver.refresh();
+    driver.wait_visible("stage-screen");
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "1");
+
+    // A desktop window of 1280×800 meets the requirements and shows the study.
+    let desktop = Driver::start(1280, 800);
+    desktop.go(&format!("{}/studies/shadows-demo", server.base));
+    desktop.wait_visible("stage-welcome");
+    desktop.screenshot(&screenshot_path("survey-welcome-desktop.png"));
+    assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "1");
+}
+
+#[test]
+fn on_a_touch_screen_the_tapped_side_is_not_preselected_on_the_next_pair() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let driver = phone();
+    enter(&driver, &server.base, "");
+    driver.screenshot(&screenshot_path("survey-instructions-phone.png"));
+    driver.click("#start");
+    ready(&driver, "1");
+    driver.screenshot(&screenshot_path("survey-trial-phone.png"));
+    let (x, y) = driver.centre("#image-left");
+    for kind in ["touchStart", "touchEnd"] {
+        let points: Value = if kind == "touchEnd" { json!([]) } else { json!([{"x": x, "y": y}]) };
+        driver.cdp("Input.dispatchTouchEvent", json!({"type": kind, "touchPoints": points}));
+    }
+    driver.wait_trial("2");
+    assert_eq!(answered(data_dir.path()), 1);
+    let state = driver.script(
+        "const l = document.getElementById('choose-left'), r = document.getElementById('choose-right');
+         return [document.activeElement === l || document.activeElement === r,
+                 l.classList.contains('chosen') || r.classList.contains('chosen'),
+                 getComputedStyle(l).borderTopColor, getComputedStyle(r).borderTopColor];",
+    );
+    assert_eq!(state[0], json!(false), "a choice keeps the focus: {state}");
+    assert_eq!(state[1], json!(false), "a choice keeps the chosen mark: {state}");
+    assert_eq!(state[2], state[3], "both sides look the same on the new pair: {state}");
+    assert_eq!(state[2], json!("rgba(0, 0, 0, 0)"), "{state}");
+    let _ = client();
+}
