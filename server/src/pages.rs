@@ -139,6 +139,10 @@ struct StudyPage {
     min_response_ms: u32,
     /// `native` or `fit` (how stimuli are scaled).
     display: &'static str,
+    /// `landscape`, `portrait` or empty: checked again during the trials.
+    orientation: &'static str,
+    /// `min_viewport` as `W,H`, or empty.
+    min_viewport: String,
 }
 
 impl StudyPage {
@@ -160,6 +164,12 @@ impl StudyPage {
                 crate::study::Display::Native => "native",
                 crate::study::Display::Fit => "fit",
             },
+            orientation: match study.participation.orientation {
+                Some(crate::study::Orientation::Landscape) => "landscape",
+                Some(crate::study::Orientation::Portrait) => "portrait",
+                None => "",
+            },
+            min_viewport: study.participation.min_viewport.map(|[w, h]| format!("{w},{h}")).unwrap_or_default(),
         }
     }
 }

@@ -143,8 +143,13 @@ impl Driver {
         self.wait_for(&format!("document.getElementById('{id}') && !document.getElementById('{id}').hidden"));
     }
 
+    /// Waits until the trial is on screen and, for a trial, until the page takes answers: the
+    /// demo study's `min_response_ms` (300 ms) after the pair appeared.
     pub(super) fn wait_trial(&self, trial: &str) {
         self.wait_for(&format!("document.body.dataset.trial === '{trial}'"));
+        if trial != "done" {
+            std::thread::sleep(Duration::from_millis(350));
+        }
     }
 
     /// A Chrome DevTools Protocol command (trusted input events: auto-repeated keys, clicks

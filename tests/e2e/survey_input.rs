@@ -79,7 +79,7 @@ fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
 /// Waits for the trial, then longer than `min_response_ms` (300 ms), so a fresh press counts.
 fn ready(driver: &Driver, trial: &str) {
     driver.wait_trial(trial);
-    std::thread::sleep(Duration::from_millis(450));
+    std::thread::sleep(Duration::from_millis(100));
 }
 
 #[test]
@@ -99,7 +99,7 @@ fn a_double_click_answers_one_trial_and_a_double_click_on_start_answers_none() {
     mouse_click(&driver, start, 1);
     std::thread::sleep(Duration::from_millis(120));
     mouse_click(&driver, start, 2);
-    driver.wait_trial("1");
+    driver.wait_for("document.body.dataset.trial === '1'");
     std::thread::sleep(Duration::from_millis(1000));
     assert_eq!(answered(data_dir.path()), 0, "a double click on Start answered a trial");
     assert_eq!(driver.script("return document.body.dataset.trial;"), json!("1"));
@@ -111,7 +111,7 @@ fn a_double_click_answers_one_trial_and_a_double_click_on_start_answers_none() {
     mouse_click(&driver, left, 1);
     std::thread::sleep(Duration::from_millis(120));
     mouse_click(&driver, left, 2);
-    driver.wait_trial("2");
+    driver.wait_for("document.body.dataset.trial === '2'");
     std::thread::sleep(Duration::from_millis(1000));
     assert_eq!(answered(data_dir.path()), 1, "the second click answered the next trial");
     assert_eq!(driver.script("return document.body.dataset.trial;"), json!("2"));

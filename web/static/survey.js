@@ -33,6 +33,8 @@
   // When the press now under way began (pointerdown on a choice, or a fresh keydown), in the
   // clock of performance.now(); an answer needs a press that began after the pair was shown.
   let pressedAt = -Infinity;
+  const needOrientation = body.dataset.orientation || "";
+  const minViewport = (body.dataset.minViewport || "").split(",").map(Number).filter((n) => n > 0);
   let screenOut = null; // id of this visitor's screen-out record, if the screen did not fit
   try { screenOut = sessionStorage.getItem(storageKey + ":screen-out"); } catch (error) { /* none */ }
 
@@ -324,13 +326,32 @@
       image.style.height = Math.floor(image.naturalHeight * scale) + "px";
     }
   }
-  window.addEventListener("resize", () => { if (!$("stage-trial").hidden) layout(); });
+  window.addEventListener("resize", () => { if (!$("stage-trial").hidden) { layout(); checkScreenDuringTrials(); } });
 
   // An answer from a press that began at `pressed` (performance.now() clock); ignored unless
   // the pair is on screen, the press began after it appeared, min_response_ms has passed and
   // this trial has no answer yet.
+  // During the trials the window must still meet the study's orientation and size (a phone
+  // turned mid-study): until it does again, a sentence says so and no answer is taken.
+  function screenWarning() {
+    const width = window.innerWidth, height = window.innerHeight;
+    if (needOrientation === "landscape" && width < height) return "Please turn your device back to landscape (wider than tall) to go on.";
+    if (needOrientation === "portrait" && width > height) return "Please turn your device back to portrait (taller than wide) to go on.";
+    if (minViewport.length === 2 && (width < minViewport[0] || height < minViewport[1])) {
+      return "Please make the window at least " + minViewport[0] + " × " + minViewport[1] + " pixels again to go on.";
+    }
+    return null;
+  }
+  function checkScreenDuringTrials() {
+    const warning = screenWarning();
+    $("screen-warning").textContent = warning || "";
+    $("screen-warning").hidden = !warning;
+    return !warning;
+  }
+
   async function choose(side, pressed) {
     if (!accepting || !current || answered.has(current.trial)) return;
+    if (!checkScreenDuringTrials()) return;
     if (!(pressed >= shownAt)) return;
     if (performance.now() - shownAt < minResponseMs) return;
     accepting = false;
@@ -394,5 +415,6 @@
 
   $("retry").addEventListener("click", () => { if (session && session.started) nextTrial(); else if (session) show("instructions"); else show("welcome"); });
 
+  if (preview) $("preview-note").hidden = false;
   start().catch((error) => fatal("The study could not start: " + error));
 })();
