@@ -56,7 +56,7 @@ impl Analysis {
                 series.push(worth_series(name, group));
             }
         }
-        let title = format!("Worth of each condition (log scale, reference {}), 95 % intervals", self.reference);
+        let title = format!("Worth of each condition (log scale, reference {}), 95\u{a0}% intervals", self.reference);
         worth_plot(&title, &conditions, &series)
     }
 
@@ -70,6 +70,6 @@ impl Analysis {
                 series.push(effect_series(name, group));
             }
         }
-        Some(effect_plot("Factor effects (logit scale), 95 % intervals", &factors, &series))
+        Some(effect_plot("Factor effects (logit scale), 95\u{a0}% intervals", &factors, &series))
     }
 }
