@@ -9,7 +9,9 @@
 //!    dropped with a warning), with its likelihood-ratio test against the item model;
 //! 4. agreement (Kendall & Babington Smith's u or its generalisation), consistence per
 //!    participant who compared every pair;
-//! 5. per group, the same again, and a likelihood-ratio test of equal effects across groups;
+//! 5. per group, the same again (a group that cannot be fitted is reported as not estimable,
+//!    with the reason, and the others go on), and a likelihood-ratio test of equal effects
+//!    across the estimable groups;
 //! 6. optionally a bootstrap over participants and observer screening.
 
 use std::collections::{BTreeMap, HashMap};

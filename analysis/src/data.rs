@@ -369,14 +369,19 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
 
     // Leave out pilot and excluded participants, then renumber participants and groups (and,
     // below, conditions) so that only what is analysed remains.
+    #[derive(Clone, Copy)]
+    enum Reason {
+        Pilot,
+        Excluded,
+    }
     let mut left_out = LeftOut::default();
-    let reason: Vec<Option<bool>> = marks
+    let reason: Vec<Option<Reason>> = marks
         .iter()
         .map(|&(pilot, excluded)| {
             if pilot && !options.include_pilots {
-                Some(true)
+                Some(Reason::Pilot)
             } else if excluded && !options.include_excluded {
-                Some(false)
+                Some(Reason::Excluded)
             } else {
                 None
             }
@@ -384,8 +389,8 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
         .collect();
     for why in &reason {
         match why {
-            Some(true) => left_out.pilots += 1,
-            Some(false) => left_out.excluded += 1,
+            Some(Reason::Pilot) => left_out.pilots += 1,
+            Some(Reason::Excluded) => left_out.excluded += 1,
             None => {}
         }
     }
@@ -393,8 +398,8 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
         let all_rows = std::mem::take(&mut judgments.rows);
         for row in all_rows {
             match reason[row.participant as usize] {
-                Some(true) => left_out.pilot_judgments += row.count,
-                Some(false) => left_out.excluded_judgments += row.count,
+                Some(Reason::Pilot) => left_out.pilot_judgments += row.count,
+                Some(Reason::Excluded) => left_out.excluded_judgments += row.count,
                 None => judgments.rows.push(row),
             }
         }

@@ -385,7 +385,9 @@ mod tests {
             .collect();
         let lines = root
             .descendants()
-            .filter(|node| node.has_tag_name("text") && node.attribute("font-weight") == Some("bold"))
+            .filter(|node| {
+                node.has_tag_name("text") && node.attribute("font-weight") == Some("bold")
+            })
             .map(|node| {
                 let text = node.text().unwrap_or("").to_owned();
                 let x: f64 = node.attribute("x").unwrap().parse().unwrap();
@@ -409,19 +411,32 @@ mod tests {
         let worths = thesis_like_worths();
         let (factors, effects) = thesis_like_effects();
         // The analysis' own title with the longest condition name of the thesis' design.
-        let worth_title = "Worth of each condition (log scale, reference GI+CM+CA), 95\u{a0}% intervals";
+        let worth_title =
+            "Worth of each condition (log scale, reference GI+CM+CA), 95\u{a0}% intervals";
         let figures = [
             (long, worth_plot(long, &conditions(), &worths)),
-            (worth_title, worth_plot(worth_title, &conditions(), &worths[..1])),
+            (
+                worth_title,
+                worth_plot(worth_title, &conditions(), &worths[..1]),
+            ),
             (long, effect_plot(long, &factors, &effects)),
-            (long, line_plot(&LinePlot { title: long.to_owned(), ..benchmark() })),
+            (
+                long,
+                line_plot(&LinePlot {
+                    title: long.to_owned(),
+                    ..benchmark()
+                }),
+            ),
             (long, worth_plot(long, &[], &[])),
         ];
         for (title, svg) in &figures {
             check(svg);
             let (width, lines) = title_extents(svg);
             for (text, left, right) in &lines {
-                assert!(*left >= 0.0 && *right <= width, "title line `{text}` spans {left:.1}..{right:.1}, view box 0..{width}");
+                assert!(
+                    *left >= 0.0 && *right <= width,
+                    "title line `{text}` spans {left:.1}..{right:.1}, view box 0..{width}"
+                );
             }
             // Wrapped, not widened without bound, and no word lost.
             assert!(width < 800.0, "width {width}");
@@ -430,7 +445,11 @@ mod tests {
         }
         // The no-break space holds "95 %" together.
         let (_, lines) = title_extents(&figures[0].1);
-        assert!(lines.iter().any(|(text, ..)| text.ends_with("95\u{a0}% intervals")));
+        assert!(
+            lines
+                .iter()
+                .any(|(text, ..)| text.ends_with("95\u{a0}% intervals"))
+        );
     }
 
     #[test]

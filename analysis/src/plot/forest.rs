@@ -8,9 +8,7 @@
 use std::fmt::Write as _;
 
 use super::scale::{Axis, TickLabel};
-use super::svg::{
-    self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, OUTER, Px, Svg, TICK_SIZE,
-};
+use super::svg::{self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, OUTER, Px, Svg, TICK_SIZE};
 
 /// Width of the value axis, px.
 const PLOT_WIDTH: f64 = 460.0;

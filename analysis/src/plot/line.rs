@@ -70,7 +70,10 @@ pub(super) fn render(spec: &LinePlot) -> String {
         .major
         .last()
         .map_or(0.0, |tick| tick_label_width(&tick.label) / 2.0);
-    let title = svg::Title::layout(&spec.title, plot_right + last_x_tick_overhang.max(8.0) + OUTER);
+    let title = svg::Title::layout(
+        &spec.title,
+        plot_right + last_x_tick_overhang.max(8.0) + OUTER,
+    );
     let width = title.width;
 
     // Vertical layout: title, legend, plot, x tick labels, x label, note.

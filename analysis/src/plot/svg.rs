@@ -155,7 +155,10 @@ pub(super) fn title_width(text: &str) -> f64 {
 /// lines for an empty title.
 pub(super) fn wrap_title(title: &str, max_width: f64) -> Vec<String> {
     let mut lines: Vec<String> = Vec::new();
-    for word in title.split([' ', '\t', '\n', '\r']).filter(|word| !word.is_empty()) {
+    for word in title
+        .split([' ', '\t', '\n', '\r'])
+        .filter(|word| !word.is_empty())
+    {
         match lines.last_mut() {
             Some(line) if title_width(&format!("{line} {word}")) <= max_width => {
                 line.push(' ');
@@ -177,8 +180,14 @@ pub(super) struct Title {
 impl Title {
     pub fn layout(title: &str, content_width: f64) -> Title {
         let lines = wrap_title(title, (content_width - 2.0 * OUTER).max(MIN_TITLE_WRAP));
-        let widest = lines.iter().map(|line| title_width(line)).fold(0.0, f64::max);
-        Title { lines, width: content_width.max(widest + 2.0 * OUTER) }
+        let widest = lines
+            .iter()
+            .map(|line| title_width(line))
+            .fold(0.0, f64::max);
+        Title {
+            lines,
+            width: content_width.max(widest + 2.0 * OUTER),
+        }
     }
 
     /// Vertical space the title takes above the next element, px (0 without a title).
@@ -192,7 +201,11 @@ impl Title {
     /// Draws the lines centred on `centre_x`, the first baseline at `top + TITLE_SIZE`.
     pub fn draw(&self, svg: &mut Svg, centre_x: f64, top: f64) {
         for (line_idx, line) in self.lines.iter().enumerate() {
-            svg.text((centre_x, top + TITLE_SIZE + line_idx as f64 * TITLE_LINE), line, &title_attributes());
+            svg.text(
+                (centre_x, top + TITLE_SIZE + line_idx as f64 * TITLE_LINE),
+                line,
+                &title_attributes(),
+            );
         }
     }
 }
