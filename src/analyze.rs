@@ -60,6 +60,12 @@ pub struct AnalyzeArgs {
     /// Convergence tolerance (largest parameter change).
     #[arg(long, default_value_t = 1e-10)]
     tolerance: f64,
+    /// Keep participants marked `pilot = true` in the trials CSV (default: left out, and said so).
+    #[arg(long)]
+    include_pilots: bool,
+    /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
+    #[arg(long)]
+    include_excluded: bool,
 }
 
 fn read(path: &PathBuf) -> Result<String> {
@@ -102,6 +108,8 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             ScreeningArg::Off => Screening::Off,
         },
         always_firth: args.firth,
+        include_pilots: args.include_pilots,
+        include_excluded: args.include_excluded,
         ..Options::default()
     };
     let analysis = mrstudy_analysis::analysis::analyze_named(&trials, &trials_name, conditions.as_deref().map(|text| (text, conditions_name.as_str())), &options)?;

@@ -9,7 +9,9 @@
 //!    dropped with a warning), with its likelihood-ratio test against the item model;
 //! 4. agreement (Kendall & Babington Smith's u or its generalisation), consistence per
 //!    participant who compared every pair;
-//! 5. per group, the same again, and a likelihood-ratio test of equal effects across groups;
+//! 5. per group, the same again (a group that cannot be fitted is reported as not estimable,
+//!    with the reason, and the others go on), and a likelihood-ratio test of equal effects
+//!    across the estimable groups;
 //! 6. optionally a bootstrap over participants and observer screening.
 
 use std::collections::{BTreeMap, HashMap};
@@ -20,7 +22,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::agreement::{self, Agreement, AgreementOptions};
-use crate::data::{ConditionTable, Judgments};
+use crate::data::{ConditionTable, Judgments, LeftOut, TrialsOptions};
 use crate::design::{self, Dropped, PairTally, Term};
 use crate::fit::{self, Fit, FitFailure, FitOptions, Method, ModelMatrix};
 use crate::pvalue::PValue;
@@ -61,6 +63,10 @@ pub struct Options {
     pub screening_alpha: f64,
     /// Use Firth's bias reduction for every model, not only under separation.
     pub always_firth: bool,
+    /// Keep participants the trials CSV marks `pilot = true` (default: left out, and said so).
+    pub include_pilots: bool,
+    /// Keep participants the trials CSV marks `excluded = true` (default: left out, and said so).
+    pub include_excluded: bool,
 }
 
 impl Default for Options {
@@ -76,6 +82,8 @@ impl Default for Options {
             screening: Screening::Auto,
             screening_alpha: 0.01,
             always_firth: false,
+            include_pilots: false,
+            include_excluded: false,
         }
     }
 }
@@ -246,6 +254,35 @@ pub struct Bootstrap {
     pub level: f64,
 }
 
+/// A group of `--group-by` whose models could not be fitted, and why; the other groups and the
+/// test across groups go on without it.
+#[derive(Debug, Clone, Serialize)]
+pub struct NotEstimable {
+    /// Always `false`: tells this entry from an estimated group's analysis in the JSON.
+    pub estimable: bool,
+    pub judgments: u64,
+    pub participants: usize,
+    pub reason: String,
+}
+
+/// One group's result: its analysis, or why there is none.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum GroupResult {
+    Estimated(Box<Analysis>),
+    NotEstimable(NotEstimable),
+}
+
+impl GroupResult {
+    /// The group's analysis, where it could be estimated.
+    pub fn analysis(&self) -> Option<&Analysis> {
+        match self {
+            GroupResult::Estimated(analysis) => Some(analysis),
+            GroupResult::NotEstimable(_) => None,
+        }
+    }
+}
+
 /// The analysis of a data set (DESIGN.md's Analysis JSON).
 #[derive(Debug, Clone, Serialize)]
 pub struct Analysis {
@@ -265,11 +302,18 @@ pub struct Analysis {
     pub agreement: Agreement,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub consistence: Vec<ParticipantConsistence>,
+    /// Per group of `--group-by`: its analysis, or why it could not be estimated.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub groups: Option<BTreeMap<String, Analysis>>,
-    /// Likelihood-ratio test that the model's effects are equal in every group.
+    pub groups: Option<BTreeMap<String, GroupResult>>,
+    /// Likelihood-ratio test that the model's effects are equal in every estimable group.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub group_test: Option<LrTest>,
+    /// Groups left out of `group_test` because they could not be estimated.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub group_test_left_out: Vec<String>,
+    /// Participants (pilots, excluded) left out before the analysis; absent when none were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub left_out: Option<LeftOut>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bootstrap: Option<Bootstrap>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -285,8 +329,14 @@ pub fn analyze(trials_csv: &str, conditions_csv: Option<&str>, options: &Options
 /// As [`analyze`], with the sources' names used in error messages (e.g. file paths).
 pub fn analyze_named(trials_csv: &str, trials_name: &str, conditions: Option<(&str, &str)>, options: &Options) -> Result<Analysis> {
     let table = conditions.map(|(text, name)| crate::data::parse_conditions(text, name)).transpose()?;
-    let judgments = crate::data::parse_trials(trials_csv, trials_name, table.as_ref(), options.group_by.as_deref())?;
-    analyze_judgments(&judgments, table.as_ref(), options)
+    let trials_options = TrialsOptions { group_by: options.group_by.clone(), include_pilots: options.include_pilots, include_excluded: options.include_excluded };
+    let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table.as_ref(), &trials_options)?;
+    let mut analysis = analyze_judgments(&parsed.judgments, table.as_ref(), options)?;
+    if !parsed.left_out.is_empty() {
+        analysis.warnings.insert(0, parsed.left_out.describe());
+        analysis.left_out = Some(parsed.left_out);
+    }
+    Ok(analysis)
 }
 
 /// Analyses parsed judgments.
@@ -321,21 +371,67 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         let mut grouped_ll = 0.0;
         let mut grouped_parameters = 0usize;
         let mut valid = true;
+        let mut estimable = vec![false; judgments.groups.len()];
+        let mut left_out = Vec::new();
         for (g, name) in judgments.groups.iter().enumerate() {
-            let sub = analyze_subset(judgments, table, terms.as_ref(), reference, options, |row| row.group == g as u32)?;
-            let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
-            valid &= model.method == Method::Ml;
-            grouped_ll += model.kernel_log_likelihood;
-            grouped_parameters += model.parameters;
-            groups.insert(name.clone(), sub);
+            let in_group = |row: &crate::data::Judgment| row.group == g as u32;
+            match analyze_subset(judgments, table, terms.as_ref(), reference, options, in_group) {
+                Ok(sub) => {
+                    let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
+                    valid &= model.method == Method::Ml;
+                    grouped_ll += model.kernel_log_likelihood;
+                    grouped_parameters += model.parameters;
+                    estimable[g] = true;
+                    groups.insert(name.clone(), GroupResult::Estimated(Box::new(sub)));
+                }
+                Err(error) => {
+                    let rows = judgments.rows.iter().filter(|row| in_group(row));
+                    let mut participants: Vec<u32> = rows.clone().map(|row| row.participant).collect();
+                    participants.sort_unstable();
+                    participants.dedup();
+                    let reason = error.to_string();
+                    analysis.warnings.push(format!("group `{name}` could not be estimated: {reason}"));
+                    left_out.push(name.clone());
+                    groups.insert(
+                        name.clone(),
+                        GroupResult::NotEstimable(NotEstimable { estimable: false, judgments: rows.map(|row| row.count).sum(), participants: participants.len(), reason }),
+                    );
+                }
+            }
         }
-        let pooled = analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model);
-        if valid && pooled.method == Method::Ml {
-            // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
-            analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.kernel_log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
-        } else {
+        let n_estimable = estimable.iter().filter(|&&e| e).count();
+        if n_estimable < 2 {
+            analysis.warnings.push(format!(
+                "no test of equal effects across groups: it needs at least two estimable groups, and {n_estimable} of {} could be estimated",
+                judgments.groups.len()
+            ));
+        } else if !valid {
             analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
+        } else {
+            // The pooled model over the same judgments as the groups: all of them, or only the
+            // estimable groups' (then refitted, without agreement simulation, screening or bootstrap).
+            let restricted;
+            let pooled = if left_out.is_empty() {
+                analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model)
+            } else {
+                let pooled_options = Options { bootstrap: 0, screening: Screening::Off, agreement_simulations: 1, ..options.clone() };
+                restricted = analyze_subset(judgments, table, terms.as_ref(), reference, &pooled_options, |row| estimable[row.group as usize])?;
+                restricted.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&restricted.item_model)
+            };
+            if pooled.method == Method::Ml {
+                // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
+                analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.kernel_log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
+                if !left_out.is_empty() {
+                    analysis.warnings.push(format!(
+                        "the test of equal effects across groups uses only the estimable groups; left out: {}",
+                        left_out.iter().map(|name| format!("`{name}`")).collect::<Vec<_>>().join(", ")
+                    ));
+                }
+            } else {
+                analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
+            }
         }
+        analysis.group_test_left_out = if analysis.group_test.is_some() { left_out } else { Vec::new() };
         analysis.groups = Some(groups);
     }
     Ok(analysis)
@@ -604,6 +700,8 @@ fn analyze_subset(
         consistence,
         groups: None,
         group_test: None,
+        group_test_left_out: Vec::new(),
+        left_out: None,
         bootstrap: None,
         observers: None,
         warnings,

@@ -7,6 +7,12 @@
 //! identical judgments, so aggregated tallies (up to 10⁹ and more per pair) can be analysed
 //! without expanding them. Other columns are ignored, except the one named for grouping.
 //!
+//! Pilot and excluded participants: where the trials CSV has the columns `pilot` and
+//! `excluded` (`true`/`false`, as `mrstudy export` writes them), every judgment of a
+//! participant marked `true` in either is left out unless [`TrialsOptions`] asks to keep them,
+//! and [`LeftOut`] says how many participants and judgments went and why. A file without these
+//! columns is read as it is. Any other value in them is an error naming line and column.
+//!
 //! Conditions CSV: `condition,<factor>,<factor>,…`, one row per condition, numeric levels.
 
 use std::collections::HashMap;
@@ -43,6 +49,74 @@ impl Judgments {
     pub fn n_judgments(&self) -> u64 {
         self.rows.iter().map(|row| row.count).sum()
     }
+}
+
+/// How to read a trials CSV. `Default` is the documented default: no grouping, pilot and
+/// excluded participants left out.
+#[derive(Debug, Clone, Default)]
+pub struct TrialsOptions {
+    /// Column to group by.
+    pub group_by: Option<String>,
+    /// Keep participants marked `pilot = true`.
+    pub include_pilots: bool,
+    /// Keep participants marked `excluded = true`.
+    pub include_excluded: bool,
+}
+
+/// Participants left out of an analysis and why. Each participant is counted once: as a pilot
+/// when left out as one, else as excluded.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LeftOut {
+    /// Participants left out because `pilot` is `true`.
+    pub pilots: usize,
+    /// Their judgments.
+    pub pilot_judgments: u64,
+    /// Participants left out because `excluded` is `true` (and not already as pilots).
+    pub excluded: usize,
+    pub excluded_judgments: u64,
+}
+
+impl LeftOut {
+    pub fn participants(&self) -> usize {
+        self.pilots + self.excluded
+    }
+
+    pub fn judgments(&self) -> u64 {
+        self.pilot_judgments + self.excluded_judgments
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.participants() == 0
+    }
+
+    /// One sentence for the warnings: how many went, and why.
+    pub fn describe(&self) -> String {
+        let plural = |n: usize, one: &str, many: &str| if n == 1 { format!("{n} {one}") } else { format!("{n} {many}") };
+        let mut reasons = Vec::new();
+        if self.pilots > 0 {
+            reasons.push(format!("{} with {} (pilot = true)", plural(self.pilots, "pilot participant", "pilot participants"), plural_u64(self.pilot_judgments)));
+        }
+        if self.excluded > 0 {
+            reasons.push(format!("{} with {} (excluded = true)", plural(self.excluded, "excluded participant", "excluded participants"), plural_u64(self.excluded_judgments)));
+        }
+        format!(
+            "left out {} and {}: {}",
+            plural(self.participants(), "participant", "participants"),
+            plural_u64(self.judgments()),
+            reasons.join("; ")
+        )
+    }
+}
+
+fn plural_u64(judgments: u64) -> String {
+    if judgments == 1 { "1 judgment".to_string() } else { format!("{judgments} judgments") }
+}
+
+/// The judgments of a trials CSV, and the participants left out of them.
+#[derive(Debug, Clone)]
+pub struct ParsedTrials {
+    pub judgments: Judgments,
+    pub left_out: LeftOut,
 }
 
 /// Factor levels per condition, from a conditions CSV.
@@ -155,8 +229,28 @@ pub fn parse_conditions(text: &str, source_name: &str) -> Result<ConditionTable>
 }
 
 /// Parses a trials CSV. Conditions are indexed in the order of `conditions` when it is given
-/// (and every condition of the trials must be in it); otherwise sorted by name.
+/// (and every condition of the trials must be in it); otherwise sorted by name. Pilot and
+/// excluded participants are left out (see [`parse_trials_with`] to keep them or to learn how
+/// many went).
 pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&ConditionTable>, group_by: Option<&str>) -> Result<Judgments> {
+    let options = TrialsOptions { group_by: group_by.map(str::to_string), ..TrialsOptions::default() };
+    Ok(parse_trials_with(text, source_name, conditions, &options)?.judgments)
+}
+
+/// A `true`/`false` cell (ASCII case ignored, as spreadsheets write `TRUE`).
+fn parse_flag(cell: &str) -> Option<bool> {
+    if cell.eq_ignore_ascii_case("true") {
+        Some(true)
+    } else if cell.eq_ignore_ascii_case("false") {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// As [`parse_trials`], with options, returning also who was left out.
+pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&ConditionTable>, options: &TrialsOptions) -> Result<ParsedTrials> {
+    let group_by = options.group_by.as_deref();
     let mut reader = reader(text);
     let headers = reader.headers().map_err(|e| csv_error(source_name, e))?.clone();
     let participant_column = header_index(source_name, &headers, "participant")?;
@@ -165,6 +259,10 @@ pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&Condition
     let chosen_column = header_index(source_name, &headers, "chosen")?;
     let count_column = headers.iter().position(|h| h.trim() == "count");
     let group_column = group_by.map(|column| header_index(source_name, &headers, column)).transpose()?;
+    let pilot_column = headers.iter().position(|h| h.trim() == "pilot");
+    let excluded_column = headers.iter().position(|h| h.trim() == "excluded");
+    // Per participant (by index): marked pilot, marked excluded, in any of their rows.
+    let mut marks: Vec<(bool, bool)> = Vec::new();
 
     let mut condition_index: HashMap<String, u32> = HashMap::new();
     let mut condition_names: Vec<String> = Vec::new();
@@ -232,6 +330,16 @@ pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&Condition
             judgments.participants.push(participant_name.to_string());
             next
         });
+        if marks.len() <= participant as usize {
+            marks.push((false, false));
+        }
+        for (column, name, is_pilot) in [(pilot_column, "pilot", true), (excluded_column, "excluded", false)] {
+            let Some(k) = column else { continue };
+            let cell = field(k);
+            let flag = parse_flag(cell).ok_or_else(|| bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
+            let mark = &mut marks[participant as usize];
+            if is_pilot { mark.0 |= flag } else { mark.1 |= flag }
+        }
         let count = match count_column {
             None => 1,
             Some(k) => {
@@ -258,11 +366,83 @@ pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&Condition
     if judgments.rows.is_empty() {
         return Err(AnalysisError::Empty(format!("{source_name}: there are no trials in the file")));
     }
+
+    // Leave out pilot and excluded participants, then renumber participants and groups (and,
+    // below, conditions) so that only what is analysed remains.
+    #[derive(Clone, Copy)]
+    enum Reason {
+        Pilot,
+        Excluded,
+    }
+    let mut left_out = LeftOut::default();
+    let reason: Vec<Option<Reason>> = marks
+        .iter()
+        .map(|&(pilot, excluded)| {
+            if pilot && !options.include_pilots {
+                Some(Reason::Pilot)
+            } else if excluded && !options.include_excluded {
+                Some(Reason::Excluded)
+            } else {
+                None
+            }
+        })
+        .collect();
+    for why in &reason {
+        match why {
+            Some(Reason::Pilot) => left_out.pilots += 1,
+            Some(Reason::Excluded) => left_out.excluded += 1,
+            None => {}
+        }
+    }
+    if !left_out.is_empty() {
+        let all_rows = std::mem::take(&mut judgments.rows);
+        for row in all_rows {
+            match reason[row.participant as usize] {
+                Some(Reason::Pilot) => left_out.pilot_judgments += row.count,
+                Some(Reason::Excluded) => left_out.excluded_judgments += row.count,
+                None => judgments.rows.push(row),
+            }
+        }
+        if judgments.rows.is_empty() {
+            return Err(AnalysisError::Empty(format!(
+                "{source_name}: every participant is a pilot or excluded, so no trials are left to analyse ({})",
+                left_out.describe()
+            )));
+        }
+        let mut participant_map = vec![u32::MAX; judgments.participants.len()];
+        let mut group_map = vec![u32::MAX; judgments.groups.len()];
+        let (mut participants, mut groups) = (Vec::new(), Vec::new());
+        for row in &mut judgments.rows {
+            let p = row.participant as usize;
+            if participant_map[p] == u32::MAX {
+                participant_map[p] = participants.len() as u32;
+                participants.push(std::mem::take(&mut judgments.participants[p]));
+            }
+            row.participant = participant_map[p];
+            if group_column.is_some() {
+                let g = row.group as usize;
+                if group_map[g] == u32::MAX {
+                    group_map[g] = groups.len() as u32;
+                    groups.push(std::mem::take(&mut judgments.groups[g]));
+                }
+                row.group = group_map[g];
+            }
+        }
+        judgments.participants = participants;
+        judgments.groups = groups;
+    }
+
     if conditions.is_none() {
+        // Conditions only left-out participants compared are dropped.
+        let mut used = vec![left_out.is_empty(); condition_names.len()];
+        for row in &judgments.rows {
+            used[row.left as usize] = true;
+            used[row.right as usize] = true;
+        }
         // Sorted by name, so results do not depend on row order.
-        let mut order: Vec<usize> = (0..condition_names.len()).collect();
+        let mut order: Vec<usize> = (0..condition_names.len()).filter(|&c| used[c]).collect();
         order.sort_by(|&a, &b| condition_names[a].cmp(&condition_names[b]));
-        let mut new_index = vec![0u32; order.len()];
+        let mut new_index = vec![0u32; condition_names.len()];
         for (new, &old) in order.iter().enumerate() {
             new_index[old] = new as u32;
         }
@@ -273,7 +453,7 @@ pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&Condition
         condition_names = order.iter().map(|&old| condition_names[old].clone()).collect();
     }
     judgments.conditions = condition_names;
-    Ok(judgments)
+    Ok(ParsedTrials { judgments, left_out })
 }
 
 #[cfg(test)]

@@ -51,9 +51,12 @@ impl Analysis {
         let conditions: Vec<String> = self.items.iter().map(|i| i.condition.clone()).collect();
         let mut series = vec![worth_series("all", self)];
         for (name, group) in self.groups.iter().flatten() {
-            series.push(worth_series(name, group));
+            // A group that could not be estimated has no series (it is named in the warnings).
+            if let Some(group) = group.analysis() {
+                series.push(worth_series(name, group));
+            }
         }
-        let title = format!("Worth of each condition (log scale, reference {}), 95 % intervals", self.reference);
+        let title = format!("Worth of each condition (log scale, reference {}), 95\u{a0}% intervals", self.reference);
         worth_plot(&title, &conditions, &series)
     }
 
@@ -63,8 +66,10 @@ impl Analysis {
         let factors: Vec<String> = covariates.iter().map(|c| c.name.clone()).collect();
         let mut series = vec![effect_series("all", self)];
         for (name, group) in self.groups.iter().flatten() {
-            series.push(effect_series(name, group));
+            if let Some(group) = group.analysis() {
+                series.push(effect_series(name, group));
+            }
         }
-        Some(effect_plot("Factor effects (logit scale), 95 % intervals", &factors, &series))
+        Some(effect_plot("Factor effects (logit scale), 95\u{a0}% intervals", &factors, &series))
     }
 }

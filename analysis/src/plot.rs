@@ -372,6 +372,86 @@ mod tests {
             .collect()
     }
 
+    /// Every bold (title) line of `svg`, with its estimated left and right edges and the
+    /// figure's view-box width.
+    fn title_extents(svg: &str) -> (f64, Vec<(String, f64, f64)>) {
+        let document = roxmltree::Document::parse(svg).unwrap();
+        let root = document.root_element();
+        let view_box: Vec<f64> = root
+            .attribute("viewBox")
+            .unwrap()
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let lines = root
+            .descendants()
+            .filter(|node| {
+                node.has_tag_name("text") && node.attribute("font-weight") == Some("bold")
+            })
+            .map(|node| {
+                let text = node.text().unwrap_or("").to_owned();
+                let x: f64 = node.attribute("x").unwrap().parse().unwrap();
+                let size: f64 = node.attribute("font-size").unwrap().parse().unwrap();
+                let width = svg::text_width(&text, size) * svg::BOLD_WIDTH;
+                let (left, right) = match node.attribute("text-anchor") {
+                    Some("middle") => (x - width / 2.0, x + width / 2.0),
+                    Some("end") => (x - width, x),
+                    _ => (x, x + width),
+                };
+                (text, left, right)
+            })
+            .collect();
+        (view_box[2], lines)
+    }
+
+    #[test]
+    fn long_titles_fit_inside_the_view_box() {
+        let long = "Preference for rendering modes in the web survey of 2026, all participants \
+                    who completed it on a phone or a tablet, 95\u{a0}% intervals";
+        let worths = thesis_like_worths();
+        let (factors, effects) = thesis_like_effects();
+        // The analysis' own title with the longest condition name of the thesis' design.
+        let worth_title =
+            "Worth of each condition (log scale, reference GI+CM+CA), 95\u{a0}% intervals";
+        let figures = [
+            (long, worth_plot(long, &conditions(), &worths)),
+            (
+                worth_title,
+                worth_plot(worth_title, &conditions(), &worths[..1]),
+            ),
+            (long, effect_plot(long, &factors, &effects)),
+            (
+                long,
+                line_plot(&LinePlot {
+                    title: long.to_owned(),
+                    ..benchmark()
+                }),
+            ),
+            (long, worth_plot(long, &[], &[])),
+        ];
+        for (title, svg) in &figures {
+            check(svg);
+            let (width, lines) = title_extents(svg);
+            for (text, left, right) in &lines {
+                assert!(
+                    *left >= 0.0 && *right <= width,
+                    "title line `{text}` spans {left:.1}..{right:.1}, view box 0..{width}"
+                );
+            }
+            // Wrapped, not widened without bound, and no word lost.
+            assert!(width < 800.0, "width {width}");
+            let joined: Vec<&str> = lines.iter().map(|(text, ..)| text.as_str()).collect();
+            assert_eq!(joined.join(" "), *title);
+        }
+        // The no-break space holds "95 %" together.
+        let (_, lines) = title_extents(&figures[0].1);
+        assert!(
+            lines
+                .iter()
+                .any(|(text, ..)| text.ends_with("95\u{a0}% intervals"))
+        );
+    }
+
     #[test]
     fn worth_plot_is_svg_with_every_condition_and_group() {
         let svg = worth_plot(

@@ -1,17 +1,41 @@
 //! The analysis as a readable plain-text report for the terminal (`mrstudy analyze` without
-//! `--format json`). Numbers are rounded for reading; the JSON carries full precision.
+//! `--format json`). Numbers are rounded for reading; the JSON carries full precision. Every
+//! number with a fixed count of decimals goes through [`fixed`], which never writes `-0.000`,
+//! `NaN` or `inf`.
 
 use std::fmt::Write;
 
-use crate::analysis::{Analysis, LrTest};
+use crate::analysis::{Analysis, GroupResult, LrTest};
 use crate::pvalue::PValue;
 
+/// `value` with `digits` decimals. A value that rounds to zero is written without a sign
+/// (`0.000`, never `-0.000`); a non-finite value (which the analysis never produces) as `—`.
+pub fn fixed(value: f64, digits: usize) -> String {
+    if !value.is_finite() {
+        return "—".to_string();
+    }
+    let text = format!("{value:.digits$}");
+    match text.strip_prefix('-') {
+        Some(unsigned) if unsigned.bytes().all(|b| b == b'0' || b == b'.') => unsigned.to_string(),
+        _ => text,
+    }
+}
+
 fn lr(test: &LrTest) -> String {
-    format!("χ² = {:.3}, df = {}, p = {}", test.chi2, test.df, test.p.display())
+    format!("χ² = {}, df = {}, p = {}", fixed(test.chi2, 3), test.df, test.p.display())
 }
 
 fn optional(value: Option<f64>, digits: usize) -> String {
-    value.map(|v| format!("{v:.digits$}")).unwrap_or_else(|| "—".to_string())
+    value.map(|v| fixed(v, digits)).unwrap_or_else(|| "—".to_string())
+}
+
+/// `n` and the noun, plural unless `n` is 1.
+fn counted(n: u64, noun: &str) -> String {
+    if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
+}
+
+fn interval([low, high]: [f64; 2]) -> String {
+    format!("[{}, {}]", fixed(low, 3), fixed(high, 3))
 }
 
 /// Renders the whole analysis, groups included.
@@ -21,10 +45,25 @@ pub fn render(analysis: &Analysis) -> String {
     if let Some(groups) = &analysis.groups {
         for (name, group) in groups {
             let _ = writeln!(out, "\n=== group: {name} ===");
-            render_into(&mut out, group, "");
+            match group {
+                GroupResult::Estimated(group) => render_into(&mut out, group, ""),
+                GroupResult::NotEstimable(group) => {
+                    let _ = writeln!(
+                        out,
+                        "not estimable ({} by {}): {}",
+                        counted(group.judgments, "judgment"),
+                        counted(group.participants as u64, "participant"),
+                        group.reason
+                    );
+                }
+            }
         }
         if let Some(test) = &analysis.group_test {
-            let _ = writeln!(out, "\nEqual effects in every group (likelihood ratio): {}", lr(test));
+            let _ = write!(out, "\nEqual effects in every group (likelihood ratio): {}", lr(test));
+            if !analysis.group_test_left_out.is_empty() {
+                let _ = write!(out, " (estimable groups only; left out: {})", analysis.group_test_left_out.join(", "));
+            }
+            out.push('\n');
         }
     }
     out
@@ -63,7 +102,7 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
             item.comparisons
         );
         if ci {
-            let text = item.ci.map(|[lo, hi]| format!("[{lo:.3}, {hi:.3}]")).unwrap_or_else(|| "—".into());
+            let text = item.ci.map(interval).unwrap_or_else(|| "—".into());
             let _ = write!(out, "  {text:>19}");
         }
         if fitted {
@@ -75,7 +114,7 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         out.push('\n');
     }
     let m = &analysis.item_model;
-    let _ = writeln!(out, "item model: log-likelihood {:.4}, deviance {:.4}, AIC {:.4}, residual df {}", m.log_likelihood, m.deviance, m.aic, m.df_residual);
+    let _ = writeln!(out, "item model: log-likelihood {}, deviance {}, AIC {}, residual df {}", fixed(m.log_likelihood, 4), fixed(m.deviance, 4), fixed(m.aic, 4), m.df_residual);
 
     if let (Some(covariates), Some(model)) = (&analysis.covariates, &analysis.covariate_model) {
         let _ = writeln!(out, "\nfactor model {} ({})", model.formula, model.summary.method.describe());
@@ -87,14 +126,14 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         }
         out.push('\n');
         for c in covariates {
-            let _ = write!(out, "{:<width$}  {:>9.4}  {:>7.4}  {:>8.3}  {:>10}", c.name, c.estimate, c.se, c.z, c.p.display());
-            if let Some([lo, hi]) = c.ci {
-                let _ = write!(out, "  {:>19}", format!("[{lo:.3}, {hi:.3}]"));
+            let _ = write!(out, "{:<width$}  {:>9}  {:>7}  {:>8}  {:>10}", c.name, fixed(c.estimate, 4), fixed(c.se, 4), fixed(c.z, 3), c.p.display());
+            if let Some(ci) = c.ci {
+                let _ = write!(out, "  {:>19}", interval(ci));
             }
             out.push('\n');
         }
         let s = &model.summary;
-        let _ = writeln!(out, "log-likelihood {:.4}, deviance {:.4}, AIC {:.4}, residual df {}", s.log_likelihood, s.deviance, s.aic, s.df_residual);
+        let _ = writeln!(out, "log-likelihood {}, deviance {}, AIC {}, residual df {}", fixed(s.log_likelihood, 4), fixed(s.deviance, 4), fixed(s.aic, 4), s.df_residual);
         if let Some(test) = &model.lr_vs_items {
             let _ = writeln!(out, "factor model against item model: {}", lr(test));
         }
@@ -103,9 +142,9 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
     let a = &analysis.agreement;
     match a.u {
         Some(u) => {
-            let _ = write!(out, "\ncoefficient of agreement u = {u:.4}");
+            let _ = write!(out, "\ncoefficient of agreement u = {}", fixed(u, 4));
             if let (Some(chi2), Some(df)) = (a.chi2, a.df) {
-                let _ = write!(out, ", χ² = {chi2:.3}, df = {df:.2}");
+                let _ = write!(out, ", χ² = {}, df = {}", fixed(chi2, 3), fixed(df, 2));
             }
             if let Some(p) = &a.p {
                 let method = match (a.method, a.simulations) {
@@ -126,7 +165,7 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         let zetas: Vec<f64> = analysis.consistence.iter().filter_map(|c| c.consistence.zeta).collect();
         if !zetas.is_empty() {
             let mean = zetas.iter().sum::<f64>() / zetas.len() as f64;
-            let _ = writeln!(out, "coefficient of consistence ζ: mean {mean:.3} over {} participants who compared every pair", zetas.len());
+            let _ = writeln!(out, "coefficient of consistence ζ: mean {} over {} participants who compared every pair", fixed(mean, 3), zetas.len());
         }
     }
     if let Some(screening) = &analysis.observers {

@@ -129,3 +129,92 @@ fn bad_input_is_one_sentence_with_non_zero_exit_and_no_output() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read /nonexistent/trials.csv"));
 }
+
+/// Issue 12: an export-like trials CSV with pilot and excluded participants and the columns
+/// `analyze` must ignore.
+fn export_with_pilots(dir: &Path) -> PathBuf {
+    let mut text = String::from("participant,left,right,chosen,status,completion_code,too_fast,PROLIFIC_PID,pilot,excluded\n");
+    let wins = |a: &str, b: &str, k: usize| if (a.len() + b.len() + k) % 3 == 0 { a.to_string() } else { b.to_string() };
+    let names = ["LQ", "GI", "HQ"];
+    for (participant, pilot, excluded) in [("p1", false, false), ("p2", false, false), ("p3", false, false), ("p4", false, false), ("pilot", true, false), ("gone", false, true)] {
+        for k in 0..6 {
+            for a in 0..3 {
+                for b in a + 1..3 {
+                    let chosen = wins(names[a], names[b], k + participant.len());
+                    text += &format!("{participant},{},{},{chosen},completed,XYZ,false,pid-{participant},{pilot},{excluded}\n", names[a], names[b]);
+                }
+            }
+        }
+    }
+    write(dir, "export.csv", &text)
+}
+
+#[test]
+fn analyze_leaves_out_pilots_and_excluded_by_default_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let trials = export_with_pilots(dir.path());
+    let trials = trials.to_str().unwrap();
+    let out = mrstudy(&["analyze", "--trials", trials, "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((json["participants"].as_u64(), json["judgments"].as_u64()), (Some(4), Some(72)));
+    assert_eq!(json["left_out"]["pilots"], 1);
+    assert_eq!(json["left_out"]["excluded"], 1);
+    assert_eq!(
+        json["warnings"][0],
+        "left out 2 participants and 36 judgments: 1 pilot participant with 18 judgments (pilot = true); 1 excluded participant with 18 judgments (excluded = true)"
+    );
+    let out = mrstudy(&["analyze", "--trials", trials]);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.starts_with("72 judgments by 4 participants"), "{table}");
+    assert!(table.contains("warning: left out 2 participants and 36 judgments"), "{table}");
+
+    let out = mrstudy(&["analyze", "--trials", trials, "--format", "json", "--include-pilots"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((json["participants"].as_u64(), json["left_out"]["pilots"].as_u64()), (Some(5), Some(0)));
+    let out = mrstudy(&["analyze", "--trials", trials, "--format", "json", "--include-pilots", "--include-excluded"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["participants"], 6);
+    assert!(json.get("left_out").is_none());
+    assert!(!json["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().starts_with("left out")));
+}
+
+#[test]
+fn analyze_refuses_a_pilot_value_other_than_true_or_false() {
+    let dir = tempfile::tempdir().unwrap();
+    let trials = write(dir.path(), "t.csv", "participant,left,right,chosen,pilot,excluded\np1,LQ,HQ,HQ,false,false\np2,LQ,HQ,LQ,no,false\n");
+    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty());
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains(&format!("{}: line 3, column `pilot`: `no` is neither `true` nor `false`", trials.display())), "{stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+}
+
+#[test]
+fn analyze_group_by_reports_a_group_it_cannot_estimate_and_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (trials, conditions) = thesis_like(dir.path());
+    let mut text = std::fs::read_to_string(&trials).unwrap();
+    text += "solo,LQ,HQ,HQ,diverse\nsolo,LQ,GI,GI,diverse\nsolo,GI,HQ,HQ,diverse\nsolo,LQ,CA,CA,diverse\n";
+    std::fs::write(&trials, text).unwrap();
+    let plot = dir.path().join("worth.svg");
+    let args = ["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--group-by", "gender"];
+    let out = mrstudy(&[&args[..], &["--format", "json", "--plot", plot.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(!text.contains("NaN") && !text.contains("null") && !text.contains("inf"));
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["groups"]["diverse"]["estimable"], false);
+    assert_eq!(json["groups"]["diverse"]["judgments"], 4);
+    assert!(json["groups"]["diverse"]["reason"].as_str().is_some_and(|r| !r.is_empty()));
+    assert!(json["groups"]["female"]["covariates"].is_array() && json["groups"]["male"]["covariates"].is_array());
+    assert!(json["group_test"]["p"].is_number());
+    assert_eq!(json["group_test_left_out"], serde_json::json!(["diverse"]));
+    assert!(std::fs::read_to_string(&plot).unwrap().contains(">female<"));
+    let out = mrstudy(&args);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("=== group: diverse ===\nnot estimable (4 judgments by 1 participant): "), "{table}");
+    assert!(table.contains("(estimable groups only; left out: diverse)"), "{table}");
+    assert!(!table.contains("-0.000"), "{table}");
+}

@@ -8,9 +8,7 @@
 use std::fmt::Write as _;
 
 use super::scale::{Axis, TickLabel};
-use super::svg::{
-    self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, OUTER, Px, Svg, TICK_SIZE, TITLE_SIZE,
-};
+use super::svg::{self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, OUTER, Px, Svg, TICK_SIZE};
 
 /// Width of the value axis, px.
 const PLOT_WIDTH: f64 = 460.0;
@@ -192,15 +190,11 @@ pub(super) fn render(spec: &Spec) -> String {
     } else {
         annotation_left + annotation_columns.iter().sum::<f64>()
     };
-    let width =
-        (content_right + OUTER + 8.0).max(svg::text_width(&spec.title, TITLE_SIZE) + 2.0 * OUTER);
+    let title = svg::Title::layout(&spec.title, content_right + OUTER + 8.0);
+    let width = title.width;
 
     // Vertical layout: title, legend, header band (annotation headers, top ticks), rows, axis.
-    let mut y = OUTER;
-    let title_baseline = y + TITLE_SIZE;
-    if !spec.title.is_empty() {
-        y += TITLE_SIZE + 14.0;
-    }
+    let mut y = OUTER + title.height();
     // A legend of nameless series would be swatches without words: leave it out.
     let names: Vec<&str> = if spec.series.iter().all(|s| s.name.is_empty()) {
         Vec::new()
@@ -227,13 +221,7 @@ pub(super) fn render(spec: &Spec) -> String {
     let dodge = |series_idx: usize| (series_idx as f64 - (n_series as f64 - 1.0) / 2.0) * DODGE;
 
     let mut svg = Svg::new(width, height, &spec.title);
-    if !spec.title.is_empty() {
-        svg.text(
-            (width / 2.0, title_baseline),
-            &spec.title,
-            &svg::title_attributes(),
-        );
-    }
+    title.draw(&mut svg, width / 2.0, OUTER);
     let legend_width = legend
         .places
         .iter()

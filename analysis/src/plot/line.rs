@@ -6,7 +6,6 @@ use super::forest::{draw_tick_label, tick_label_width};
 use super::scale::Axis;
 use super::svg::{
     self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, NOTE_SIZE, OUTER, Px, Svg, TICK_SIZE,
-    TITLE_SIZE,
 };
 
 const PLOT_WIDTH: f64 = 520.0;
@@ -71,15 +70,14 @@ pub(super) fn render(spec: &LinePlot) -> String {
         .major
         .last()
         .map_or(0.0, |tick| tick_label_width(&tick.label) / 2.0);
-    let width = (plot_right + last_x_tick_overhang.max(8.0) + OUTER)
-        .max(svg::text_width(&spec.title, TITLE_SIZE) + 2.0 * OUTER);
+    let title = svg::Title::layout(
+        &spec.title,
+        plot_right + last_x_tick_overhang.max(8.0) + OUTER,
+    );
+    let width = title.width;
 
     // Vertical layout: title, legend, plot, x tick labels, x label, note.
-    let mut y = OUTER;
-    let title_baseline = y + TITLE_SIZE;
-    if !spec.title.is_empty() {
-        y += TITLE_SIZE + 14.0;
-    }
+    let mut y = OUTER + title.height();
     // A legend of nameless series would be swatches without words: leave it out.
     let names: Vec<&str> = if series.iter().all(|(name, _)| name.is_empty()) {
         Vec::new()
@@ -108,13 +106,7 @@ pub(super) fn render(spec: &LinePlot) -> String {
     let y_of = |value: f64| plot_bottom - y_axis.fraction(value) * PLOT_HEIGHT;
 
     let mut svg = Svg::new(width, height, &spec.title);
-    if !spec.title.is_empty() {
-        svg.text(
-            (width / 2.0, title_baseline),
-            &spec.title,
-            &svg::title_attributes(),
-        );
-    }
+    title.draw(&mut svg, width / 2.0, OUTER);
     let legend_width = legend
         .places
         .iter()
