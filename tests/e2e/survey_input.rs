@@ -227,12 +227,19 @@ fn a_phone_is_refused_when_the_study_wants_a_desktop_and_counted_as_screened_out
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "1");
 
+    // A plain phone-sized window (no emulation) is refused the same way.
+    let narrow = Driver::start(390, 844);
+    narrow.go(&format!("{}/studies/shadows-demo", server.base));
+    narrow.wait_visible("stage-screen");
+    assert!(narrow.text("#screen-reason").contains("desktop or laptop computer"));
+    assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "2");
+
     // A desktop window of 1280×800 meets the requirements and shows the study.
     let desktop = Driver::start(1280, 800);
     desktop.go(&format!("{}/studies/shadows-demo", server.base));
     desktop.wait_visible("stage-welcome");
     desktop.screenshot(&screenshot_path("survey-welcome-desktop.png"));
-    assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "1");
+    assert_eq!(query(data_dir.path(), "SELECT COUNT(*) FROM screen_outs")[0][0], "2");
 }
 
 #[test]

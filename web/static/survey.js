@@ -59,7 +59,9 @@
     if (/iPhone|iPod|Android.*Mobile|Mobile.*Firefox|Windows Phone/i.test(ua)) return "phone";
     if (/iPad|Tablet|Android/i.test(ua) || (/Macintosh/.test(ua) && navigator.maxTouchPoints > 1)) return "tablet";
     if (coarseOnly) return shortSide < 600 ? "phone" : "tablet";
-    return shortSide < 500 ? "phone" : "desktop";
+    // A phone-sized portrait window (an emulator, a browser that hides its kind) counts as a phone.
+    if (shortSide < 500 || (window.innerWidth < 520 && window.innerHeight > window.innerWidth)) return "phone";
+    return "desktop";
   }
 
   function clientInfo() {
