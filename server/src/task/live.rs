@@ -333,19 +333,22 @@ fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Im
 }
 
 /// Frame-time measurement at start-up: renders `frames` frames (after one warm-up) of the
-/// study's scene under its most expensive condition and returns the median of render plus
-/// encode time in ms.
-pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<f64, String> {
-    let condition = if study.conditions.contains(&Condition::Gi) { Condition::Gi } else { *study.conditions.last().unwrap_or(&Condition::None) };
-    let mut state = SessionRenderState::default();
-    let mut times = Vec::new();
-    for index in 0..=frames {
-        let frame = renderer.frame(&study.slug, condition, 0, centre, state).await?;
-        if index > 0 {
-            times.push(frame.render_ms + frame.encode_ms);
+/// study's scene under each of its conditions and returns each condition's render plus encode
+/// times in ms, in the study's order.
+pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<Vec<(Condition, Vec<f64>)>, String> {
+    let mut measured = Vec::new();
+    for (index, &condition) in study.conditions.iter().enumerate() {
+        let mut state = SessionRenderState::default();
+        let mut times = Vec::new();
+        for frame_index in 0..=frames.max(1) {
+            // trial numbers past any schedule, one per condition, so each starts a fresh history
+            let frame = renderer.frame(&study.slug, condition, u32::MAX - index as u32, centre, state).await?;
+            if frame_index > 0 {
+                times.push(frame.render_ms + frame.encode_ms);
+            }
+            state = frame.state;
         }
-        state = frame.state;
+        measured.push((condition, times));
     }
-    times.sort_by(f64::total_cmp);
-    Ok(times.get(times.len() / 2).copied().unwrap_or(0.0))
+    Ok(measured)
 }
