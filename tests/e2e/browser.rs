@@ -18,7 +18,7 @@ const CHROMIUM: &str = "/usr/bin/chromium";
 const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 const WAIT: Duration = Duration::from_secs(20);
 
-struct Driver {
+pub(crate) struct Driver {
     child: Child,
     base: String,
     session: String,
@@ -35,7 +35,7 @@ impl Drop for Driver {
 }
 
 impl Driver {
-    fn start(width: u32, height: u32) -> Driver {
+    pub(crate) fn start(width: u32, height: u32) -> Driver {
         let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
         let child = Command::new(CHROMEDRIVER)
             .arg(format!("--port={port}"))
@@ -71,7 +71,7 @@ impl Driver {
         Driver { child, base, session, http, _profile: profile }
     }
 
-    fn command(&self, method: reqwest::Method, path: &str, body: Value) -> Value {
+    pub(crate) fn command(&self, method: reqwest::Method, path: &str, body: Value) -> Value {
         let url = format!("{}/session/{}{path}", self.base, self.session);
         let request = self.http.request(method, url);
         let request = if body.is_null() { request } else { request.json(&body) };
@@ -82,40 +82,40 @@ impl Driver {
         answer["value"].clone()
     }
 
-    fn go(&self, url: &str) {
+    pub(crate) fn go(&self, url: &str) {
         self.command(reqwest::Method::POST, "/url", json!({"url": url}));
     }
 
-    fn refresh(&self) {
+    pub(crate) fn refresh(&self) {
         self.command(reqwest::Method::POST, "/refresh", json!({}));
     }
 
-    fn script(&self, script: &str) -> Value {
+    pub(crate) fn script(&self, script: &str) -> Value {
         self.command(reqwest::Method::POST, "/execute/sync", json!({"script": script, "args": []}))
     }
 
-    fn element(&self, css: &str) -> String {
+    pub(crate) fn element(&self, css: &str) -> String {
         let found = self.command(reqwest::Method::POST, "/element", json!({"using": "css selector", "value": css}));
         found.as_object().unwrap().values().next().unwrap().as_str().unwrap().to_string()
     }
 
-    fn click(&self, css: &str) {
+    pub(crate) fn click(&self, css: &str) {
         let element = self.element(css);
         self.command(reqwest::Method::POST, &format!("/element/{element}/click"), json!({}));
     }
 
-    fn type_into(&self, css: &str, text: &str) {
+    pub(crate) fn type_into(&self, css: &str, text: &str) {
         let element = self.element(css);
         self.command(reqwest::Method::POST, &format!("/element/{element}/value"), json!({"text": text}));
     }
 
-    fn text(&self, css: &str) -> String {
+    pub(crate) fn text(&self, css: &str) -> String {
         let element = self.element(css);
         self.command(reqwest::Method::GET, &format!("/element/{element}/text"), Value::Null).as_str().unwrap().to_string()
     }
 
     /// Waits until the JavaScript expression is true.
-    fn wait_for(&self, expression: &str) {
+    pub(crate) fn wait_for(&self, expression: &str) {
         let deadline = Instant::now() + WAIT;
         loop {
             if self.script(&format!("return !!({expression});")) == json!(true) {
@@ -129,15 +129,20 @@ impl Driver {
         }
     }
 
-    fn wait_visible(&self, id: &str) {
+    pub(crate) fn wait_visible(&self, id: &str) {
         self.wait_for(&format!("document.getElementById('{id}') && !document.getElementById('{id}').hidden"));
     }
 
-    fn wait_trial(&self, trial: &str) {
+    pub(crate) fn wait_trial(&self, trial: &str) {
         self.wait_for(&format!("document.body.dataset.trial === '{trial}'"));
     }
 
-    fn screenshot(&self, path: &Path) {
+    /// A Chrome DevTools Protocol command through chromedriver (e.g. `Input.dispatchKeyEvent`).
+    pub(crate) fn cdp(&self, command: &str, params: Value) -> Value {
+        self.command(reqwest::Method::POST, "/goog/cdp/execute", json!({"cmd": command, "params": params}))
+    }
+
+    pub(crate) fn screenshot(&self, path: &Path) {
         let data = self.command(reqwest::Method::GET, "/screenshot", Value::Null);
         std::fs::write(path, base64_decode(data.as_str().unwrap())).unwrap();
         eprintln!("screenshot: {}", path.display());
@@ -167,7 +172,7 @@ fn base64_decode(text: &str) -> Vec<u8> {
     out
 }
 
-fn browser_available() -> bool {
+pub(crate) fn browser_available() -> bool {
     if Path::new(CHROMIUM).exists() && Path::new(CHROMEDRIVER).exists() {
         return true;
     }
@@ -178,7 +183,7 @@ fn browser_available() -> bool {
     panic!("the browser test needs {CHROMIUM} and {CHROMEDRIVER} (Debian packages chromium and chromium-driver; scripts/test.sh installs them), or MRSTUDY_SKIP_BROWSER_TESTS=1");
 }
 
-fn screenshot_path(name: &str) -> PathBuf {
+pub(crate) fn screenshot_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
 }
 
@@ -311,10 +316,12 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
     driver.go(&format!("{}/lab/lab", server.base));
     driver.type_into("#lab-label", "chromium");
     driver.click("#lab-start-button");
-    // three distance trials first
+    // three distance trials first, after their instructions
+    driver.wait_visible("lab-task");
+    driver.click("#lab-ack");
     for trial in 1..=3 {
         driver.wait_for(&format!("document.getElementById('lab-progress').textContent.includes('Trial {trial} of 6')"));
-        driver.wait_for("document.getElementById('lab-frame').dataset.shown");
+        driver.wait_for(&format!("document.getElementById('lab-frame').dataset.trial === '{trial}'"));
         if trial == 1 {
             driver.screenshot(&screenshot_path("lab-distance.png"));
         }
@@ -323,9 +330,12 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
         driver.wait_visible("lab-next");
         driver.click("#lab-next");
     }
+    // the placement task's instructions stay until acknowledged
+    driver.wait_visible("lab-task");
+    driver.click("#lab-ack");
     // placement: the first frame, then arrow keys
     driver.wait_for("document.getElementById('lab-progress').textContent.includes('Trial 4 of 6')");
-    driver.wait_for("document.getElementById('lab-frame').dataset.shown && !document.getElementById('lab-keys').hidden");
+    driver.wait_for("document.getElementById('lab-frame').dataset.trial === '4' && !document.getElementById('lab-keys').hidden");
     driver.wait_for("document.getElementById('lab-frame').complete");
     let before = driver.script("return document.getElementById('lab-frame').src;");
     let shown_before = driver.script("return Number(document.getElementById('lab-frame').dataset.shown);").as_u64().unwrap();

@@ -71,6 +71,7 @@
       const img = $("lab-frame");
       img.onload = () => {
         img.dataset.frame = String(meta.n);
+        img.dataset.trial = String(meta.trial);
         framesShown += 1;
         img.dataset.shown = String(framesShown);
         if (trial && trial.trial === meta.trial) send({ type: "shown", n: meta.n });

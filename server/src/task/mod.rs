@@ -188,7 +188,7 @@ pub struct LabStart {
 }
 
 /// Frames rendered per condition when the lab starts (after one warm-up frame each).
-pub const STARTUP_FRAMES: usize = 4;
+pub const STARTUP_FRAMES: usize = 12;
 
 /// Starts the renderer thread and prepares every task study (see the module doc). Never fails:
 /// what cannot be served is reported in `warnings`.

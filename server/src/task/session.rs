@@ -13,7 +13,8 @@
 //! participant with an empty code is refused at `start`.
 //!
 //! Pacing: with `pace = "equal"` every frame is held until the slowest condition's frame time
-//! (see [`super::timing`]) has passed since it was requested, so all conditions show the same lag.
+//! (see [`super::timing`]), fixed for the session when the participant starts or resumes, has
+//! passed since it was requested, so all conditions show the same lag.
 //!
 //! Rendering: every accepted key moves the virtual cube at once; the session keeps at most one
 //! frame job in flight on the renderer thread, and when keys arrive while it renders they are
@@ -70,6 +71,7 @@ pub async fn websocket(State(state): State<AppState>, Path(slug): Path<String>, 
             frame_number: 0,
             instructions_shown: None,
             acknowledged: None,
+            pace_ms: None,
         };
         session.run().await;
     }))
@@ -162,6 +164,9 @@ struct Session {
     instructions_shown: Option<(String, Instant)>,
     /// The task whose instructions were acknowledged (its first trial may start).
     acknowledged: Option<String>,
+    /// The frame time this session's frames are paced to (`pace = "equal"`), fixed when the
+    /// participant starts or resumes.
+    pace_ms: Option<f64>,
 }
 
 /// Why a message was refused: sent to the client, nothing changed.
@@ -306,6 +311,7 @@ impl Session {
             return Err(AppError::Internal("creating a participant wrote something else".into()).into());
         };
         self.participant = Some(Participant { id, label });
+        self.pace_ms = self.study.pace_ms();
         self.trials = trials;
         self.answered = 0;
         let message = self.session_message(Some(&token));
@@ -326,6 +332,7 @@ impl Session {
         self.trials = store::planned_trials(self.state.storage(), &id).await?;
         self.answered = row.answered as u32;
         self.participant = Some(Participant { id, label: row.label });
+        self.pace_ms = self.study.pace_ms();
         let message = self.session_message(None);
         let _ = self.send(message).await;
         Ok(())
@@ -499,7 +506,7 @@ impl Session {
         }
         let (reply, answer) = oneshot::channel();
         let requested_at = Instant::now();
-        let paced_ms = self.study.pace_ms();
+        let paced_ms = self.pace_ms;
         let release_at = requested_at + std::time::Duration::from_secs_f64(paced_ms.unwrap_or(0.0).max(0.0) / 1e3);
         active.paced_ms = paced_ms;
         self.lab
