@@ -295,6 +295,8 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     driver.click("#lab-ack");
     wait_frame(&driver, 1);
     driver.screenshot(&shot("lab-trial-1280x800.png"));
+    let hint_visible = driver.script("return document.getElementById('lab-keys').getBoundingClientRect().bottom <= window.innerHeight;");
+    assert_eq!(hint_visible, json!(true), "the frame and the key hint fit the window without scrolling");
 
     // held on trial 1: the first keydown answers it, the repeats do nothing more
     hold_enter(&driver, Duration::from_secs(1));
