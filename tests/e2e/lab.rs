@@ -179,6 +179,13 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
         .unwrap();
     assert!(page.contains("frames/s") && page.contains("Friedman") && page.contains("task distance, measure error_cm"), "{page}");
     assert!(page.contains("Targets are drawn within the camera's view"), "{page}");
+    // each condition's frame time, with its own verdict (not one "fast enough" for the study)
+    assert!(page.contains("id=\"lab-frame-times\""), "{page}");
+    for condition in ["none", "shadows", "gi"] {
+        assert!(page.contains(&format!("<tr><td>{condition}</td><td>")), "no frame-time row for {condition}: {page}");
+    }
+    let unequal = page.contains("id=\"lab-parity\"");
+    assert_eq!(unequal, page.contains("confounded with lag"), "unpaced unequal conditions are called a confound: {page}");
     let overview = client().get(format!("{}/admin", server.base)).bearer_auth(&server.admin_token).send().unwrap().text().unwrap();
     assert!(overview.contains("/admin/lab/lab") && overview.contains("Lab task studies"), "{overview}");
     let csv = export(data_dir.path(), "lab", "task");
