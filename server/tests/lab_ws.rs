@@ -458,7 +458,8 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
     json_of(&mut socket, "session").await;
     let (_c_socket, c, _) = join(&url, "C").await;
     let (_d_socket, d, _) = join(&url, "D").await;
-    let rows: Vec<(String, i64, i64, String, Option<String>, Option<String>)> =
+    type Row = (String, i64, i64, String, Option<String>, Option<String>);
+    let rows: Vec<Row> =
         sqlx::query_as("SELECT id, ordinal, slot, condition_order, abandoned_at, slot_taken_by FROM task_participants ORDER BY ordinal").fetch_all(&storage.read).await.unwrap();
     let ids: Vec<&str> = rows.iter().map(|row| row.0.as_str()).collect();
     assert_eq!(ids, vec![a.as_str(), b.as_str(), c.as_str(), d.as_str()]);
