@@ -1,8 +1,12 @@
 //! The live WebSocket session of a task study, driven by a WebSocket client over a real socket:
 //! a complete distance trial, a complete placement trial and a contact trial, bad input at
 //! every step (each answered with an error and changing nothing), resume with the token, the
-//! durable rows, and the task CSV read back by the analysis crate. Runs on the GPU (lavapipe
-//! where there is none) at 96×72; skips with a note when no adapter can be opened.
+//! durable rows, and the task CSV read back by the analysis crate; input hygiene (instructions
+//! acknowledged, answers before the first frame is shown or before `min_response_ms` refused
+//! with nothing stored, empty codes refused, resume after a dropped connection), counterbalancing
+//! slots of abandoned participants given to the next, and `pace = "equal"` frame-time parity.
+//! Runs on the GPU (lavapipe where there is none) at 96×72; skips with a note when no adapter
+//! can be opened.
 
 use std::time::Duration;
 
@@ -18,6 +22,7 @@ const STUDY: &str = r#"
 slug = "lab"
 title = "Lab"
 kind = "task"
+min_response_ms = 0
 [texts]
 welcome = "Hello."
 instructions = "Do the tasks."
@@ -71,8 +76,8 @@ async fn send(socket: &mut Socket, value: Value) {
     socket.send(Message::Text(value.to_string().into())).await.unwrap();
 }
 
-/// Reads frames until one includes `inputs` keys; returns (meta, jpeg) of that frame and how
-/// many frames came.
+/// Reads frames until one includes `inputs` keys, reporting each as shown; returns (meta, jpeg)
+/// of that frame and how many frames came.
 async fn frame_with_inputs(socket: &mut Socket, inputs: usize) -> (Value, Vec<u8>, usize) {
     let mut count = 0;
     loop {
@@ -83,6 +88,7 @@ async fn frame_with_inputs(socket: &mut Socket, inputs: usize) -> (Value, Vec<u8
         assert_eq!(number as u64, meta["n"].as_u64().unwrap());
         assert_eq!(&bytes[4..6], &[0xFF, 0xD8], "a JPEG");
         assert_eq!(meta["bytes"].as_u64().unwrap() as usize, bytes.len() - 4);
+        send(socket, json!({"type": "shown", "n": number})).await;
         if meta["inputs"].as_u64().unwrap() as usize == inputs {
             return (meta, bytes[4..].to_vec(), count);
         }
@@ -109,9 +115,13 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
         eprintln!("skipping: {warnings:?}");
         return;
     }
-    assert_eq!(info.len() + warnings.len(), 1, "one frame-rate line: {info:?} {warnings:?}");
-    eprintln!("{}", info.iter().chain(&warnings).next().unwrap());
-    assert!(info.iter().chain(&warnings).all(|line| line.contains("frames/s")));
+    let lines: Vec<&String> = info.iter().chain(&warnings).collect();
+    eprintln!("{lines:#?}");
+    assert!(lines.iter().all(|line| line.contains("frames/s")), "{lines:?}");
+    // one line per study, and one per condition when the conditions' frame times differ by > 20 %
+    let per_condition = lines.iter().filter(|line| line.contains("condition \"")).count();
+    assert!(lines.len() == 1 || (lines.len() == 3 && per_condition == 2), "{lines:?}");
+    assert_eq!(lines.len() == 3, lines[0].contains("confounded with lag"), "{lines:?}");
     // the photograph was cached in the data dir
     assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() == 1);
 
@@ -134,8 +144,12 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     assert_eq!(session["smoothing"], false);
     refused(&mut socket, json!({"type": "start", "label": "P02"}), "already runs a participant").await;
 
-    // trial 1: distance
+    // trial 1: distance, after its instructions are acknowledged
     send(&mut socket, json!({"type": "ready"})).await;
+    let instructions = json_of(&mut socket, "instructions").await;
+    assert_eq!((instructions["task"].as_str(), instructions["trial"].as_u64()), (Some("distance"), Some(1)));
+    refused(&mut socket, json!({"type": "ready"}), "waiting to be acknowledged").await;
+    send(&mut socket, json!({"type": "acknowledge"})).await;
     let trial = json_of(&mut socket, "trial").await;
     assert_eq!(trial["trial"], 1);
     assert_eq!(trial["kind"], "distance");
@@ -177,6 +191,8 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     send(&mut socket, json!({"type": "answer", "trial": 2, "cm": 10})).await;
     json_of(&mut socket, "saved").await;
     send(&mut socket, json!({"type": "ready"})).await;
+    json_of(&mut socket, "instructions").await;
+    send(&mut socket, json!({"type": "acknowledge"})).await;
     let trial = json_of(&mut socket, "trial").await;
     assert_eq!(trial["kind"], "placement");
     let (_, before, _) = frame_with_inputs(&mut socket, 0).await;
@@ -235,6 +251,10 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let mut saw = Vec::new();
     loop {
         match recv(&mut socket).await {
+            Incoming::Json(value) if value["type"] == "instructions" => {
+                saw.push("instructions");
+                send(&mut socket, json!({"type": "acknowledge"})).await;
+            }
             Incoming::Json(value) if value["type"] == "trial" => {
                 saw.push("trial");
                 break;
@@ -243,7 +263,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
             Incoming::Binary(_) => {}
         }
     }
-    assert!(saw.contains(&"saved"), "{saw:?}");
+    assert!(saw.contains(&"saved") && saw.contains(&"instructions"), "{saw:?}");
     for number in 5..=6 {
         if number == 6 {
             send(&mut socket, json!({"type": "ready"})).await;
@@ -279,3 +299,240 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let trials = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
     assert_eq!(trials.lines().count(), 7, "{trials}");
 }
+
+/// Serves `study` on a loopback socket: (WebSocket URL, storage, the served study), or None
+/// (with a note) when no GPU adapter opens.
+async fn serve(study: &str) -> Option<(String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir)> {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    std::fs::write(studies.path().join("lab.toml"), study).unwrap();
+    let Prepared { state, tasks, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
+    if state.lab().is_none() {
+        assert!(warnings.iter().any(|w| w.contains("GPU adapter")), "{warnings:?}");
+        eprintln!("skipping: {warnings:?}");
+        return None;
+    }
+    for line in info.iter().chain(&warnings) {
+        eprintln!("{line}");
+    }
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let storage = state.storage().clone();
+    let app_state = state.clone();
+    tokio::spawn(async move { axum::serve(listener, mrstudy_server::app(state)).await.unwrap() });
+    Some((format!("ws://{addr}/api/lab/lab/ws"), storage, app_state, data_dir))
+}
+
+async fn connect(url: &str) -> Socket {
+    tokio_tungstenite::connect_async(url).await.unwrap().0
+}
+
+/// The next frame's meta and number, without reporting it shown.
+async fn next_frame(socket: &mut Socket) -> (Value, u32) {
+    let meta = json_of(socket, "frame").await;
+    let Incoming::Binary(bytes) = recv(socket).await else { panic!("the frame's binary message must follow its meta") };
+    (meta, u32::from_be_bytes(bytes[..4].try_into().unwrap()))
+}
+
+const HYGIENE_STUDY: &str = r#"
+slug = "lab"
+title = "Lab"
+kind = "task"
+min_response_ms = 400
+[texts]
+welcome = "Hello."
+instructions = "Do the tasks."
+[design]
+conditions = ["none", "gi"]
+trials_per_condition = 1
+practice = 0
+seed = 9
+[render]
+size = [96, 72]
+photo_spp = 2
+vpls = 16
+shadow_map_size = 128
+env_lights = 4
+[[tasks]]
+kind = "placement"
+step_cm = 1
+"#;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_refused_and_nothing_is_stored() {
+    let Some((url, storage, _state, _data_dir)) = serve(HYGIENE_STUDY).await else { return };
+    let mut socket = connect(&url).await;
+    // an empty participant code is refused with one sentence, and nobody is stored
+    refused(&mut socket, json!({"type": "start", "label": ""}), "The participant code is empty").await;
+    refused(&mut socket, json!({"type": "start", "label": "   "}), "The participant code is empty").await;
+    let participants: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
+    assert_eq!(participants, 0);
+    send(&mut socket, json!({"type": "start", "label": "H1"})).await;
+    let session = json_of(&mut socket, "session").await;
+    assert_eq!(session["min_response_ms"], 400);
+    let participant = session["participant"].as_str().unwrap().to_string();
+    let token = session["token"].as_str().unwrap().to_string();
+
+    // the task's instructions stay until acknowledged, and not sooner than min_response_ms
+    send(&mut socket, json!({"type": "ready"})).await;
+    json_of(&mut socket, "instructions").await;
+    refused(&mut socket, json!({"type": "acknowledge"}), "sooner than the study's minimum of 400 ms").await;
+    refused(&mut socket, json!({"type": "answer", "trial": 1}), "Trial 1 has not started").await;
+    tokio::time::sleep(Duration::from_millis(450)).await;
+    send(&mut socket, json!({"type": "acknowledge"})).await;
+    json_of(&mut socket, "trial").await;
+    refused(&mut socket, json!({"type": "acknowledge"}), "no instructions to acknowledge").await;
+    // before the first frame was shown
+    refused(&mut socket, json!({"type": "answer", "trial": 1}), "has not been shown yet").await;
+    let (meta, number) = next_frame(&mut socket).await;
+    assert_eq!(meta["trial"], 1);
+    refused(&mut socket, json!({"type": "answer", "trial": 1}), "has not been shown yet").await;
+    refused(&mut socket, json!({"type": "shown", "n": number + 100}), "was not sent on this connection").await;
+    send(&mut socket, json!({"type": "shown", "n": number})).await;
+    // a burst of answers right after the frame appeared (a held Enter): every one refused
+    for _ in 0..5 {
+        send(&mut socket, json!({"type": "answer", "trial": 1})).await;
+    }
+    for _ in 0..5 {
+        let error = json_of(&mut socket, "error").await;
+        assert!(error["message"].as_str().unwrap().contains("sooner than the study's minimum of 400 ms"), "{error}");
+    }
+    let stored: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = ? AND answered_at IS NOT NULL").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    assert_eq!(stored, 0, "refused answers store nothing");
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    assert_eq!(answered, 0);
+    tokio::time::sleep(Duration::from_millis(450)).await;
+    send(&mut socket, json!({"type": "answer", "trial": 1})).await;
+    let saved = json_of(&mut socket, "saved").await;
+    assert_eq!(saved["frames_shown"], 1);
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    assert_eq!(row.get::<i64, _>("frames_shown"), 1);
+    assert!(row.get::<f64, _>("completion_ms") >= 400.0, "counted from the first frame shown");
+    assert!(row.get::<Option<String>, _>("shown_at").is_some());
+    assert!(row.get::<f64, _>("shown_frame_ms_mean") > 0.0);
+    assert!(row.get::<Option<f64>, _>("paced_ms").is_none(), "not paced");
+
+    // the tab closes during trial 2; a new connection resumes at trial 2, the next unanswered
+    send(&mut socket, json!({"type": "ready"})).await;
+    assert_eq!(json_of(&mut socket, "trial").await["trial"], 2, "not the task's first trial: no instructions");
+    next_frame(&mut socket).await;
+    drop(socket);
+    let mut socket = connect(&url).await;
+    send(&mut socket, json!({"type": "resume", "participant": participant, "token": token})).await;
+    let session = json_of(&mut socket, "session").await;
+    assert_eq!(session["answered"], 1);
+    send(&mut socket, json!({"type": "ready"})).await;
+    let trial = json_of(&mut socket, "trial").await;
+    assert_eq!(trial["trial"], 2);
+    frame_with_inputs(&mut socket, 0).await;
+    tokio::time::sleep(Duration::from_millis(450)).await;
+    send(&mut socket, json!({"type": "answer", "trial": 2})).await;
+    assert_eq!(json_of(&mut socket, "saved").await["completed"], true);
+    json_of(&mut socket, "done").await;
+    let rows: Vec<(i64, i64)> = sqlx::query_as("SELECT trial, frames_shown FROM task_trials WHERE participant = ? ORDER BY trial").bind(&participant).fetch_all(&storage.read).await.unwrap();
+    assert_eq!(rows, vec![(1, 1), (2, 1)]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_participant() {
+    // 0.005 minutes = 300 ms of inactivity
+    let study = HYGIENE_STUDY
+        .replace("min_response_ms = 400", "min_response_ms = 0\nabandon_after_minutes = 0.005")
+        .replace("conditions = [\"none\", \"gi\"]", "conditions = [\"none\", \"shadows\", \"gi\"]");
+    let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
+    async fn join(url: &str, label: &str) -> (Socket, String, String) {
+        let mut socket = connect(url).await;
+        send(&mut socket, json!({"type": "start", "label": label})).await;
+        let session = json_of(&mut socket, "session").await;
+        (socket, session["participant"].as_str().unwrap().to_string(), session["token"].as_str().unwrap().to_string())
+    }
+    let (socket_a, a, token_a) = join(&url, "A").await;
+    let (socket_b, b, token_b) = join(&url, "B").await;
+    drop(socket_a);
+    drop(socket_b);
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    // B comes back (its slot stays); A does not
+    let mut socket = connect(&url).await;
+    send(&mut socket, json!({"type": "resume", "participant": b, "token": token_b})).await;
+    json_of(&mut socket, "session").await;
+    let (_c_socket, c, _) = join(&url, "C").await;
+    let (_d_socket, d, _) = join(&url, "D").await;
+    type Row = (String, i64, i64, String, Option<String>, Option<String>);
+    let rows: Vec<Row> =
+        sqlx::query_as("SELECT id, ordinal, slot, condition_order, abandoned_at, slot_taken_by FROM task_participants ORDER BY ordinal").fetch_all(&storage.read).await.unwrap();
+    let ids: Vec<&str> = rows.iter().map(|row| row.0.as_str()).collect();
+    assert_eq!(ids, vec![a.as_str(), b.as_str(), c.as_str(), d.as_str()]);
+    let ordinals: Vec<i64> = rows.iter().map(|row| row.1).collect();
+    assert_eq!(ordinals, vec![0, 1, 2, 3], "ordinals stay unique");
+    let slots: Vec<i64> = rows.iter().map(|row| row.2).collect();
+    assert_eq!(slots, vec![0, 1, 0, 2], "C takes A's slot, D the next unused one");
+    assert_eq!(rows[2].3, rows[0].3, "C gets A's condition order");
+    assert_ne!(rows[3].3, rows[0].3);
+    assert!(rows[0].4.is_some() && rows[0].5.as_deref() == Some(c.as_str()), "A is abandoned, its slot taken by C: {:?}", rows[0]);
+    assert!(rows[1].4.is_none() && rows[2].4.is_none() && rows[3].4.is_none());
+    // A cannot come back into a slot that is now C's
+    let mut socket = connect(&url).await;
+    refused(&mut socket, json!({"type": "resume", "participant": a, "token": token_a}), "given to another participant").await;
+    // the admin report says so
+    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    let states: Vec<(i64, bool)> = report.participants.iter().map(|p| (p.slot, p.abandoned)).collect();
+    assert_eq!(states, vec![(0, true), (1, false), (0, false), (2, false)]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the_same_time() {
+    let study = HYGIENE_STUDY
+        .replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"")
+        .replace("trials_per_condition = 1", "trials_per_condition = 3");
+    let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
+    let startup: Vec<(String, f64)> = sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition").fetch_all(&storage.read).await.unwrap();
+    eprintln!("start-up frame times (render + encode, unpaced): {startup:?}");
+    assert_eq!(startup.len(), 2);
+    let mut socket = connect(&url).await;
+    send(&mut socket, json!({"type": "start", "label": "pace"})).await;
+    let session = json_of(&mut socket, "session").await;
+    assert_eq!(session["pace"], "equal");
+    let trials = session["trials"].as_u64().unwrap();
+    for number in 1..=trials {
+        send(&mut socket, json!({"type": "ready"})).await;
+        let mut message = recv(&mut socket).await;
+        if let Incoming::Json(value) = &message
+            && value["type"] == "instructions"
+        {
+            send(&mut socket, json!({"type": "acknowledge"})).await;
+            message = recv(&mut socket).await;
+        }
+        let Incoming::Json(trial) = message else { panic!("expected the trial") };
+        assert_eq!(trial["trial"], number);
+        frame_with_inputs(&mut socket, 0).await;
+        // keys one at a time, each waiting for its frame: every frame is a paced frame
+        for keys in 1..=4 {
+            send(&mut socket, json!({"type": "key", "key": "ArrowLeft"})).await;
+            frame_with_inputs(&mut socket, keys).await;
+        }
+        send(&mut socket, json!({"type": "answer", "trial": number})).await;
+        json_of(&mut socket, "saved").await;
+    }
+    json_of(&mut socket, "done").await;
+    let rows: Vec<(String, f64, f64, f64, i64)> =
+        sqlx::query_as("SELECT condition, AVG(shown_frame_ms_mean), AVG(frame_ms_mean), AVG(paced_ms), SUM(frames) FROM task_trials GROUP BY condition ORDER BY condition")
+            .fetch_all(&storage.read)
+            .await
+            .unwrap();
+    eprintln!("per condition: (condition, shown frame ms, render + encode ms, paced to ms, frames) {rows:?}");
+    assert_eq!(rows.len(), 2);
+    let shown: Vec<f64> = rows.iter().map(|row| row.1).collect();
+    let (slowest, fastest) = (shown.iter().copied().fold(0.0, f64::max), shown.iter().copied().fold(f64::INFINITY, f64::min));
+    assert!(slowest / fastest - 1.0 < PACE_PARITY, "shown frame times differ by {:.1} %: {rows:?}", (slowest / fastest - 1.0) * 100.0);
+    for row in &rows {
+        assert!(row.1 >= row.2, "a frame is never sent before it is rendered: {row:?}");
+        assert!(row.1 >= 0.95 * row.3, "every frame is held to about the pace: {row:?}");
+    }
+    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    assert!(report.pace_ms.is_some() && report.frame_times.len() == 2);
+}
+
+/// With pace = "equal", the largest relative difference allowed between the conditions' mean
+/// shown frame times.
+const PACE_PARITY: f64 = 0.10;

@@ -345,10 +345,12 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
     driver.go(&format!("{}/lab/lab", server.base));
     driver.type_into("#lab-label", "chromium");
     driver.click("#lab-start-button");
-    // three distance trials first
+    // three distance trials first, after their instructions
+    driver.wait_visible("lab-task");
+    driver.click("#lab-ack");
     for trial in 1..=3 {
         driver.wait_for(&format!("document.getElementById('lab-progress').textContent.includes('Trial {trial} of 6')"));
-        driver.wait_for("document.getElementById('lab-frame').dataset.shown");
+        driver.wait_for(&format!("document.getElementById('lab-frame').dataset.trial === '{trial}'"));
         if trial == 1 {
             driver.screenshot(&screenshot_path("lab-distance.png"));
         }
@@ -357,9 +359,12 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
         driver.wait_visible("lab-next");
         driver.click("#lab-next");
     }
+    // the placement task's instructions stay until acknowledged
+    driver.wait_visible("lab-task");
+    driver.click("#lab-ack");
     // placement: the first frame, then arrow keys
     driver.wait_for("document.getElementById('lab-progress').textContent.includes('Trial 4 of 6')");
-    driver.wait_for("document.getElementById('lab-frame').dataset.shown && !document.getElementById('lab-keys').hidden");
+    driver.wait_for("document.getElementById('lab-frame').dataset.trial === '4' && !document.getElementById('lab-keys').hidden");
     driver.wait_for("document.getElementById('lab-frame').complete");
     let before = driver.script("return document.getElementById('lab-frame').src;");
     let shown_before = driver.script("return Number(document.getElementById('lab-frame').dataset.shown);").as_u64().unwrap();

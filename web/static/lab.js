@@ -1,6 +1,12 @@
 // The lab task page: one WebSocket session (see studies/README.md, "The live WebSocket API").
 // Keys go to the server as they are pressed; frames come back as a JSON "frame" message followed
-// by a binary message (u32 frame number, big-endian, then the JPEG), shown in order.
+// by a binary message (u32 frame number, big-endian, then the JPEG), shown in order, and each
+// frame on screen is reported back with "shown" (the server refuses answers before that).
+//
+// Input hygiene: auto-repeated keys (a held key) are ignored everywhere, and a key that went down
+// before the current screen appeared does nothing on it, so a held Enter answers at most one
+// trial and never acknowledges instructions. The participant id and token are kept in
+// localStorage, so a closed tab resumes at the next unanswered trial. No timing is shown here.
 (function () {
   "use strict";
   const slug = document.body.dataset.slug;
@@ -10,6 +16,17 @@
   let trial = null;
   let expectFrame = null;
   let framesShown = 0;
+  let mode = "welcome"; // welcome, instructions, trial, next, done
+  let screenSince = 0; // performance.now() when the current screen appeared
+  let waiting = false; // a message was sent whose answer has not come yet
+  let resuming = false;
+
+  function setMode(next) {
+    mode = next;
+    screenSince = performance.now();
+    waiting = false;
+    document.body.dataset.mode = next;
+  }
 
   function send(message) {
     if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
@@ -17,6 +34,13 @@
 
   function showError(text) {
     $("lab-error").textContent = text || "";
+  }
+
+  function remember(value) {
+    try {
+      if (value) localStorage.setItem(storageKey, JSON.stringify(value));
+      else localStorage.removeItem(storageKey);
+    } catch (e) { /* storage unavailable: no resume */ }
   }
 
   function connect(first) {
@@ -29,11 +53,10 @@
         showFrame(event.data);
         return;
       }
-      const message = JSON.parse(event.data);
-      handle(message);
+      handle(JSON.parse(event.data));
     };
     socket.onclose = () => {
-      if (!$("lab-done").hidden) return;
+      if (mode === "done" || mode === "welcome") return;
       showError("The connection to the server was lost; reload the page to continue where you stopped.");
     };
   }
@@ -48,35 +71,63 @@
       const img = $("lab-frame");
       img.onload = () => {
         img.dataset.frame = String(meta.n);
+        img.dataset.trial = String(meta.trial);
         framesShown += 1;
         img.dataset.shown = String(framesShown);
+        if (trial && trial.trial === meta.trial) send({ type: "shown", n: meta.n });
       };
       img.src = reader.result;
     };
     reader.readAsDataURL(blob.slice(4, blob.size, "image/jpeg"));
-    $("lab-stats").textContent = "frame " + meta.n + ": " + meta.render_ms.toFixed(1) + " ms to render" +
-      (meta.latency_ms !== null ? ", " + meta.latency_ms.toFixed(1) + " ms after the key" : "");
+  }
+
+  function showScreen(which) {
+    $("lab-task").hidden = which !== "instructions";
+    $("lab-trial").hidden = which !== "trial" && which !== "next";
+    $("lab-next").hidden = which !== "next";
+  }
+
+  function paragraphs(element, text) {
+    element.textContent = "";
+    for (const part of String(text || "").split(/\n\s*\n/)) {
+      if (!part.trim()) continue;
+      const p = document.createElement("p");
+      p.textContent = part.trim();
+      element.appendChild(p);
+    }
   }
 
   function handle(message) {
     switch (message.type) {
       case "session":
-        if (message.token) {
-          try { sessionStorage.setItem(storageKey, JSON.stringify({ participant: message.participant, token: message.token })); } catch (e) { /* private mode */ }
-        }
+        resuming = false;
+        if (message.token) remember({ participant: message.participant, token: message.token });
         $("lab-welcome").hidden = true;
         $("lab-run").hidden = false;
         send({ type: "ready" });
         break;
-      case "trial":
-        trial = message;
+      case "instructions":
+        trial = null;
         showError("");
         $("lab-feedback").textContent = "";
-        $("lab-next").hidden = true;
+        $("lab-progress").textContent = "Before trial " + message.trial + " of " + message.of;
+        $("lab-task-title").textContent = "Instructions for the next task";
+        paragraphs($("lab-task-text"), message.instructions);
+        showScreen("instructions");
+        setMode("instructions");
+        $("lab-ack").focus();
+        break;
+      case "trial":
+        trial = message;
+        document.body.dataset.trial = String(message.trial);
+        showError("");
+        $("lab-feedback").textContent = "";
         $("lab-progress").textContent = (message.practice ? "Practice trial" : "Trial") + " " + message.trial + " of " + message.of;
-        $("lab-instructions").textContent = message.first_of_task || message.practice ? message.instructions : "";
+        paragraphs($("lab-instructions"), message.first_of_task || message.practice ? message.instructions : "");
         $("lab-distance").hidden = message.kind !== "distance";
         $("lab-keys").hidden = message.kind === "distance";
+        showScreen("trial");
+        setMode("trial");
         if (message.kind === "distance") {
           $("lab-cm").value = "";
           $("lab-cm").max = String(message.answer.max);
@@ -88,33 +139,88 @@
         break;
       case "saved":
         trial = null;
+        showError("");
         $("lab-distance").hidden = true;
         $("lab-keys").hidden = true;
-        if (message.practice) {
-          $("lab-feedback").textContent = "Practice: you were " + message.error_cm.toFixed(1) + " cm off.";
-        }
+        $("lab-feedback").textContent = message.practice ? "Practice: you were " + message.error_cm.toFixed(1) + " cm off." : "";
         if (!message.completed) {
-          $("lab-next").hidden = false;
+          showScreen("next");
+          setMode("next");
           $("lab-next").focus();
         }
         break;
       case "done":
-        try { sessionStorage.removeItem(storageKey); } catch (e) { /* ignore */ }
+        remember(null);
+        setMode("done");
+        $("lab-welcome").hidden = true;
         $("lab-run").hidden = true;
         $("lab-done").hidden = false;
         $("lab-thanks").textContent = message.thanks;
         socket.close();
         break;
       case "error":
+        waiting = false;
+        if (resuming) {
+          // the stored participant cannot be resumed: start afresh
+          resuming = false;
+          remember(null);
+          $("lab-start-error").textContent = message.message;
+          $("lab-start-button").disabled = false;
+          socket.close();
+          return;
+        }
+        if (mode === "welcome") {
+          $("lab-start-error").textContent = message.message;
+          $("lab-start-button").disabled = false;
+          socket.close();
+          return;
+        }
         showError(message.message);
         break;
     }
   }
 
+  // a key that went down before the current screen appeared, or that the system repeats while it
+  // is held, does nothing
+  function fresh(event) {
+    return !event.repeat && event.timeStamp >= screenSince;
+  }
+
+  window.addEventListener("keydown", (event) => {
+    if (event.repeat) {
+      event.preventDefault();
+      event.stopImmediatePropagation();
+    }
+  }, true);
+
+  function acknowledge() {
+    if (mode !== "instructions" || waiting) return;
+    waiting = true;
+    send({ type: "acknowledge" });
+  }
+
+  function next() {
+    if (mode !== "next" || waiting) return;
+    waiting = true;
+    send({ type: "ready" });
+  }
+
+  function answer(extra) {
+    if (mode !== "trial" || !trial || waiting) return;
+    waiting = true;
+    send(Object.assign({ type: "answer", trial: trial.trial }, extra || {}));
+  }
+
   $("lab-start").addEventListener("submit", (event) => {
     event.preventDefault();
+    const label = $("lab-label").value.trim();
+    if (label === "") {
+      $("lab-start-error").textContent = "The participant code is empty; type the code the experimenter gave you, then start.";
+      return;
+    }
+    $("lab-start-error").textContent = "";
     $("lab-start-button").disabled = true;
-    connect({ type: "start", label: $("lab-label").value });
+    connect({ type: "start", label: label });
   });
 
   $("lab-distance").addEventListener("submit", (event) => {
@@ -125,26 +231,43 @@
       showError("Type the distance in cm as a number.");
       return;
     }
-    send({ type: "answer", trial: trial.trial, cm: cm });
+    answer({ cm: cm });
   });
 
-  $("lab-next").addEventListener("click", () => send({ type: "ready" }));
+  // clicks: keyboard activation of a focused button is handled by the keydown handler below
+  $("lab-next").addEventListener("click", (event) => { if (event.detail !== 0) next(); });
+  $("lab-ack").addEventListener("click", (event) => { if (event.detail !== 0) acknowledge(); });
 
   document.addEventListener("keydown", (event) => {
-    if (!trial || trial.kind === "distance") return;
+    if (mode === "welcome" || mode === "done") return;
+    const activates = event.key === "Enter" || (event.key === " " && event.target && event.target.tagName === "BUTTON");
+    if (mode === "instructions" || mode === "next") {
+      if (!activates) return;
+      event.preventDefault();
+      if (!fresh(event)) return;
+      if (mode === "instructions") acknowledge(); else next();
+      return;
+    }
+    if (!trial) return;
+    if (trial.kind === "distance") {
+      if (event.key === "Enter" && !fresh(event)) event.preventDefault();
+      return; // the form submits
+    }
     if (trial.keys.indexOf(event.key) >= 0) {
       event.preventDefault();
-      send({ type: "key", key: event.key, t: performance.now() });
+      if (!event.repeat) send({ type: "key", key: event.key, t: performance.now() });
     } else if (event.key === "Enter") {
       event.preventDefault();
-      send({ type: "answer", trial: trial.trial });
+      if (fresh(event)) answer();
     }
   });
 
-  // a reload resumes the participant of this tab
+  // a reload or a reopened tab resumes this browser's participant
   let saved = null;
-  try { saved = JSON.parse(sessionStorage.getItem(storageKey) || "null"); } catch (e) { saved = null; }
+  try { saved = JSON.parse(localStorage.getItem(storageKey) || "null"); } catch (e) { saved = null; }
   if (saved && saved.participant && saved.token) {
+    resuming = true;
+    $("lab-start-button").disabled = true;
     connect({ type: "resume", participant: saved.participant, token: saved.token });
   }
 })();

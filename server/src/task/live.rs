@@ -332,20 +332,31 @@ fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Im
     Ok(Image::from_rgb8(photo.width, photo.height, &bytes))
 }
 
-/// Frame-time measurement at start-up: renders `frames` frames (after one warm-up) of the
-/// study's scene under its most expensive condition and returns the median of render plus
-/// encode time in ms.
-pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<f64, String> {
-    let condition = if study.conditions.contains(&Condition::Gi) { Condition::Gi } else { *study.conditions.last().unwrap_or(&Condition::None) };
-    let mut state = SessionRenderState::default();
-    let mut times = Vec::new();
-    for index in 0..=frames {
-        let frame = renderer.frame(&study.slug, condition, 0, centre, state).await?;
-        if index > 0 {
-            times.push(frame.render_ms + frame.encode_ms);
+/// Frame-time measurement at start-up: after one warm-up frame, renders `frames` frames of the
+/// study's scene under each of its conditions as a participant would see them — in two trials,
+/// each starting afresh, with the virtual cube moving 1 cm between frames (a moved cube costs
+/// the gi condition more than a still one) — and returns each condition's render plus encode
+/// times in ms, in the study's order.
+pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<Vec<(Condition, Vec<f64>)>, String> {
+    let mut measured = Vec::new();
+    for (index, &condition) in study.conditions.iter().enumerate() {
+        let mut state = SessionRenderState::default();
+        let mut times = Vec::new();
+        // trial numbers past any schedule, two per condition, so each starts a fresh history
+        let trials = [u32::MAX - 2 * index as u32, u32::MAX - 2 * index as u32 - 1];
+        for frame_index in 0..=frames.max(1) {
+            let trial = if frame_index <= frames / 2 { trials[0] } else { trials[1] };
+            let position = [centre[0] - 0.01 * frame_index as f64, centre[1], centre[2]];
+            let frame = renderer.frame(&study.slug, condition, trial, position, state).await?;
+            // a participant's frames come with pauses between them (keys, pacing), after which
+            // the renderer is slower than back to back (threads and caches gone cold)
+            tokio::time::sleep(std::time::Duration::from_secs_f64((frame.render_ms + frame.encode_ms).max(5.0) / 1e3)).await;
+            if frame_index > 0 {
+                times.push(frame.render_ms + frame.encode_ms);
+            }
+            state = frame.state;
         }
-        state = frame.state;
+        measured.push((condition, times));
     }
-    times.sort_by(f64::total_cmp);
-    Ok(times.get(times.len() / 2).copied().unwrap_or(0.0))
+    Ok(measured)
 }

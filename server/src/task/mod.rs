@@ -4,8 +4,10 @@
 //! ([`session`]), storage ([`store`]), and the export and admin page ([`results`]).
 //!
 //! `serve` starts the lab when the studies directory has task studies: [`start`] opens the GPU
-//! on the renderer thread, prepares each study's scene and photograph, measures the frame time,
-//! and says in one line per study whether the adapter is fast enough for interactive rates.
+//! on the renderer thread, prepares each study's scene and photograph, measures the frame time
+//! of every condition ([`timing`]), and says in one line per study whether every condition is
+//! fast enough for interactive rates and whether the conditions' frame times are equal; when
+//! they differ by more than 20 % it adds one line per condition with its frame time.
 //! Without a GPU adapter the task studies are not served and one warning line says why; the
 //! other studies are served as usual.
 
@@ -15,11 +17,12 @@ pub mod results;
 pub mod session;
 pub mod store;
 pub mod study;
+pub mod timing;
 pub mod williams;
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use askama::Template;
 use axum::Router;
@@ -32,7 +35,8 @@ use crate::error::AppError;
 use crate::storage::Storage;
 use live::{AdapterInfo, LabRenderer};
 use plan::Layout;
-use study::TaskStudy;
+use study::{Pace, TaskStudy};
+use timing::{FrameTimes, PARITY_TOLERANCE};
 
 /// A task study being served.
 pub struct LabStudy {
@@ -40,27 +44,128 @@ pub struct LabStudy {
     pub layout: Layout,
     /// Live frame size.
     pub size: [u32; 2],
-    /// Median frame time (render + encode, condition gi) measured at start-up, ms.
-    pub frame_ms: f64,
-    /// Whether that reaches the study's `render.min_fps`.
-    pub interactive: bool,
+    /// Frame times per condition: measured at start-up, then kept up to date by every live frame.
+    pub frame_times: Mutex<FrameTimes>,
+}
+
+/// One condition's frame time for the admin page.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ConditionRate {
+    pub condition: String,
+    pub startup_ms: f64,
+    pub current_ms: f64,
+    pub live_frames: u64,
+    pub live_mean_ms: Option<f64>,
+    /// Whether the current frame time reaches `render.min_fps`.
+    pub fast_enough: bool,
+    /// How much slower than the fastest condition, percent (0 for the fastest).
+    pub slower_than_fastest_pct: f64,
+}
+
+fn fps_text(ms: f64) -> String {
+    if ms > 1.0 { format!("≈{:.1} frames/s", 1000.0 / ms) } else { "over 1000 frames/s".into() }
 }
 
 impl LabStudy {
-    /// One sentence on the frame rate, for `serve`'s output and the admin page.
+    pub fn new(study: TaskStudy, layout: Layout, size: [u32; 2], frame_times: FrameTimes) -> LabStudy {
+        LabStudy { study: Arc::new(study), layout, size, frame_times: Mutex::new(frame_times) }
+    }
+
+    /// A copy of the current frame times.
+    pub fn frame_times(&self) -> FrameTimes {
+        self.frame_times.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).clone()
+    }
+
+    /// Records a live frame's time.
+    pub fn record_frame(&self, condition: mrstudy_renderer::gpu::Condition, ms: f64) {
+        self.frame_times.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).record(condition, ms);
+    }
+
+    /// The frame time every frame is held to (`pace = "equal"`), ms; None when not paced.
+    pub fn pace_ms(&self) -> Option<f64> {
+        (self.study.render.pace == Pace::Equal).then(|| self.frame_times().pace_ms())
+    }
+
+    fn budget_ms(&self) -> f64 {
+        1000.0 / self.study.render.min_fps
+    }
+
+    /// Each condition's frame time, start-up and current, for the admin page.
+    pub fn condition_rates(&self) -> Vec<ConditionRate> {
+        let summary = self.frame_times().summary();
+        let fastest = summary.iter().map(|c| c.current_ms).fold(f64::INFINITY, f64::min);
+        summary
+            .into_iter()
+            .map(|c| ConditionRate {
+                fast_enough: c.current_ms <= self.budget_ms(),
+                slower_than_fastest_pct: if fastest > 0.0 && fastest.is_finite() { (c.current_ms / fastest - 1.0) * 100.0 } else { 0.0 },
+                condition: c.condition,
+                startup_ms: c.startup_ms,
+                current_ms: c.current_ms,
+                live_frames: c.live_frames,
+                live_mean_ms: c.live_mean_ms,
+            })
+            .collect()
+    }
+
+    /// Whether every condition reaches `render.min_fps`.
+    pub fn interactive(&self) -> bool {
+        self.condition_rates().iter().all(|c| c.fast_enough)
+    }
+
+    /// Whether the conditions' frame times differ by more than 20 %.
+    pub fn unequal(&self) -> bool {
+        self.frame_times().unequal()
+    }
+
+    /// One sentence on the frame rates, for `serve`'s output and the admin page.
     pub fn rate_line(&self, adapter: &AdapterInfo) -> String {
-        let fps = if self.frame_ms > 0.0 { 1000.0 / self.frame_ms } else { f64::INFINITY };
-        if self.interactive {
-            format!(
-                "lab study \"{}\": adapter {} ({}) renders {}×{} frames in {:.1} ms (≈{:.0} frames/s), fast enough for interactive use (minimum {} frames/s)",
-                self.study.slug, adapter.adapter, adapter.kind, self.size[0], self.size[1], self.frame_ms, fps, self.study.render.min_fps
-            )
+        let rates = self.condition_rates();
+        let per_condition = rates.iter().map(|c| format!("{} {:.1} ms", c.condition, c.current_ms)).collect::<Vec<_>>().join(", ");
+        let slowest = rates.iter().map(|c| c.current_ms).fold(0.0, f64::max);
+        let slow: Vec<&str> = rates.iter().filter(|c| !c.fast_enough).map(|c| c.condition.as_str()).collect();
+        let speed = if slow.is_empty() {
+            format!("fast enough for interactive use in every condition (minimum {} frames/s)", self.study.render.min_fps)
         } else {
             format!(
-                "lab study \"{}\": adapter {} ({}) renders {}×{} frames in {:.1} ms (≈{:.1} frames/s), TOO SLOW for interactive rates (minimum {} frames/s); participants will see the cube lag behind their keys — use a GPU or a smaller render.size",
-                self.study.slug, adapter.adapter, adapter.kind, self.size[0], self.size[1], self.frame_ms, fps, self.study.render.min_fps
+                "TOO SLOW for interactive rates in condition {} (minimum {} frames/s); participants will see the cube lag behind their keys — use a GPU or a smaller render.size",
+                slow.join(", "),
+                self.study.render.min_fps
             )
+        };
+        let spread = self.frame_times().spread() * 100.0;
+        let parity = match (self.unequal(), self.pace_ms()) {
+            (false, None) => format!("the conditions' frame times are within {:.0} % of each other", PARITY_TOLERANCE * 100.0),
+            (false, Some(pace)) => format!("the conditions' frame times are within {:.0} % of each other, and pace = \"equal\" sends every frame at {pace:.1} ms", PARITY_TOLERANCE * 100.0),
+            (true, Some(pace)) => format!("the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms, so lag does not tell them apart"),
+            (true, None) => format!("the conditions differ by {spread:.0} % in frame time, so condition is confounded with lag — set pace = \"equal\" in the study file to send every condition's frames at the slowest's"),
+        };
+        format!(
+            "lab study \"{}\": adapter {} ({}) renders {}×{} frames in {per_condition} (slowest {}); {speed}; {parity}",
+            self.study.slug,
+            adapter.adapter,
+            adapter.kind,
+            self.size[0],
+            self.size[1],
+            fps_text(slowest)
+        )
+    }
+
+    /// When the conditions' frame times differ by more than 20 %: one line per condition with
+    /// its frame time; else none.
+    pub fn condition_lines(&self) -> Vec<String> {
+        if !self.unequal() {
+            return Vec::new();
         }
+        let rates = self.condition_rates();
+        let fastest = rates.iter().min_by(|a, b| a.current_ms.total_cmp(&b.current_ms)).map(|c| c.condition.clone()).unwrap_or_default();
+        rates
+            .iter()
+            .map(|c| {
+                let relative = if c.condition == fastest { "the fastest condition".to_string() } else { format!("{:.0} % slower than {fastest}", c.slower_than_fastest_pct) };
+                format!("lab study \"{}\", condition \"{}\": {:.1} ms a frame ({}), {relative}", self.study.slug, c.condition, c.current_ms, fps_text(c.current_ms))
+            })
+            .collect()
     }
 }
 
@@ -81,6 +186,9 @@ pub struct LabStart {
     /// Warning lines (no adapter, too slow, a study that could not be prepared).
     pub warnings: Vec<String>,
 }
+
+/// Frames rendered per condition when the lab starts (after one warm-up frame each).
+pub const STARTUP_FRAMES: usize = 12;
 
 /// Starts the renderer thread and prepares every task study (see the module doc). Never fails:
 /// what cannot be served is reported in `warnings`.
@@ -127,8 +235,8 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
             start.warnings.push(format!("study \"{}\": {reason}; not serving it", study.slug));
             continue;
         }
-        let frame_ms = match live::measure(&renderer, &study, centre, 4).await {
-            Ok(ms) => ms,
+        let measured = match live::measure(&renderer, &study, centre, STARTUP_FRAMES).await {
+            Ok(measured) => measured,
             Err(reason) => {
                 start.warnings.push(format!("study \"{}\": the renderer cannot make its frames ({reason}); not serving it", study.slug));
                 continue;
@@ -138,13 +246,18 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
             start.warnings.push(format!("study \"{}\": cannot record it in the database ({error}); not serving it", study.slug));
             continue;
         }
-        let interactive = frame_ms <= 1000.0 / study.render.min_fps;
-        let lab_study = LabStudy { study: Arc::new(study), layout, size, frame_ms, interactive };
-        let line = lab_study.rate_line(&adapter);
-        if interactive {
-            start.info.push(line);
+        let lab_study = LabStudy::new(study, layout, size, FrameTimes::new(measured));
+        let medians = lab_study.frame_times().current();
+        if let Err(error) = store::record_frame_times(storage, &lab_study.study.slug, &adapter.adapter, size, STARTUP_FRAMES, &medians).await {
+            start.warnings.push(format!("study \"{}\": cannot record its frame times in the database ({error})", lab_study.study.slug));
+        }
+        let mut lines = vec![lab_study.rate_line(&adapter)];
+        lines.extend(lab_study.condition_lines());
+        // unequal frame times are a warning unless frames are paced
+        if lab_study.interactive() && (!lab_study.unequal() || lab_study.pace_ms().is_some()) {
+            start.info.extend(lines);
         } else {
-            start.warnings.push(line);
+            start.warnings.extend(lines);
         }
         order.push(lab_study.study.slug.clone());
         served.insert(lab_study.study.slug.clone(), Arc::new(lab_study));
@@ -169,8 +282,6 @@ struct LabPage<'a> {
     title: &'a str,
     welcome: Vec<&'a str>,
     instructions: Vec<&'a str>,
-    interactive: bool,
-    rate_line: String,
 }
 
 fn paragraphs(text: &str) -> Vec<&str> {
@@ -185,8 +296,6 @@ async fn lab_page(State(state): State<AppState>, UrlPath(slug): UrlPath<String>,
         title: &study.study.title,
         welcome: paragraphs(&study.study.texts.welcome),
         instructions: paragraphs(&study.study.texts.instructions),
-        interactive: study.interactive,
-        rate_line: study.rate_line(&lab.adapter),
     };
     match page.render() {
         Ok(html) => Html(html).into_response(),

@@ -3,7 +3,7 @@
 //!
 //! Order: task by task in the study file's order; each task opens with its practice trials
 //! (conditions taken in the participant's order, cyclically; not analysed), then one block per
-//! condition in the participant's counterbalanced order (row `ordinal mod rows` of the Williams
+//! condition in the participant's counterbalanced order (row `slot mod rows` of the Williams
 //! design or Latin square, see [`super::williams`]), `trials_per_condition` trials each.
 //! Positions are drawn until the virtual cube lies wholly in the camera's view (the layout's
 //! `reach`, measured from the scene's camera at start-up; after [`MAX_DRAWS`] draws the last one
@@ -73,15 +73,15 @@ impl PlannedTaskTrial {
     }
 }
 
-/// The condition order (indices into the study's conditions) of the participant with this
-/// ordinal.
-pub fn condition_order(study: &TaskStudy, ordinal: u64) -> Vec<usize> {
+/// The condition order (indices into the study's conditions) of the participant in this
+/// counterbalancing slot (the participant's `slot`, see [`super::store`]).
+pub fn condition_order(study: &TaskStudy, slot: u64) -> Vec<usize> {
     let n = study.conditions.len();
     let design = match study.counterbalance {
         Counterbalance::Williams => williams::williams(n),
         Counterbalance::Latin => williams::latin(n),
     };
-    design[(ordinal % design.len() as u64) as usize].clone()
+    design[(slot % design.len() as u64) as usize].clone()
 }
 
 struct Stream(ChaCha8Rng);
@@ -115,10 +115,10 @@ impl Stream {
     }
 }
 
-/// The whole schedule of one participant.
-pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, ordinal: u64) -> Vec<PlannedTaskTrial> {
+/// The whole schedule of one participant (condition order from the counterbalancing `slot`).
+pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, slot: u64) -> Vec<PlannedTaskTrial> {
     let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
-    let order = condition_order(study, ordinal);
+    let order = condition_order(study, slot);
     let real = DVec3::from(layout.real_centre);
     let mut trials = Vec::with_capacity(study.trial_count());
     for task in &study.tasks {

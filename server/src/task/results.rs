@@ -11,9 +11,11 @@
 //! - **Task trials CSV** (`/api/admin/lab/{slug}/trials.csv`, `--format task-trials`): one row
 //!   per answered trial with every stored column (practice trials included, flagged).
 //!
-//! The admin page (`/admin/lab/{slug}`) shows the adapter and its measured frame rate (with a
-//! clear warning when it is too slow for interactive rates), progress per participant, frame
-//! times and latencies per condition, and per task and measure the Friedman test, Kendall's W and
+//! The admin page (`/admin/lab/{slug}`) shows the adapter and each condition's frame time, at
+//! start-up and now (each condition fast enough or too slow, and a warning when the conditions
+//! differ by more than 20 % without `pace = "equal"`), progress per participant (with the
+//! counterbalancing slot and who abandoned theirs), the stored frame times, frames shown and
+//! latencies per condition, and per task and measure the Friedman test, Kendall's W and
 //! the Holm-corrected Wilcoxon post hoc tests of `mrstudy_analysis::task`.
 
 use askama::Template;
@@ -129,19 +131,19 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
 }
 
 /// Columns of the task trials CSV, in order.
-pub const TRIAL_COLUMNS: [&str; 37] = [
-    "participant", "label", "ordinal", "trial", "task", "kind", "condition", "practice",
+pub const TRIAL_COLUMNS: [&str; 42] = [
+    "participant", "label", "ordinal", "slot", "trial", "task", "kind", "condition", "practice",
     "start_x", "start_y", "start_z", "target_x", "target_y", "target_z",
     "answer_cm", "final_x", "final_y", "final_z", "error_cm", "signed_error_cm", "error_x_cm", "error_y_cm", "error_z_cm",
-    "completion_ms", "keys", "key_log", "frames", "frame_ms_mean", "frame_ms_max", "latency_ms_mean", "latency_ms_p95",
-    "smoothing", "adapter", "started_at", "answered_at", "seed", "condition_order",
+    "completion_ms", "keys", "key_log", "frames", "frames_shown", "frame_ms_mean", "frame_ms_max", "shown_frame_ms_mean", "paced_ms",
+    "latency_ms_mean", "latency_ms_p95", "smoothing", "adapter", "started_at", "shown_at", "answered_at", "seed", "condition_order",
 ];
 
 /// The task trials CSV (see the module doc).
 pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
     definition(pool, slug).await?;
     let rows = sqlx::query(
-        "SELECT p.id AS participant, p.label, p.ordinal, p.seed, p.condition_order, t.* FROM task_trials t
+        "SELECT p.id AS participant, p.label, p.ordinal, p.slot, p.seed, p.condition_order, t.* FROM task_trials t
          JOIN task_participants p ON p.id = t.participant
          WHERE p.study = ? AND t.answered_at IS NOT NULL ORDER BY p.ordinal, t.trial",
     )
@@ -159,8 +161,8 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
                     log.and_then(|log| serde_json::from_str::<serde_json::Value>(&log).ok()).and_then(|v| v.as_array().map(Vec::len)).unwrap_or(0).to_string()
                 }
                 "seed" => (row.try_get::<i64, _>("seed")? as u64).to_string(),
-                "practice" | "smoothing" | "ordinal" | "trial" | "frames" => row.try_get::<Option<i64>, _>(column)?.map(|v| v.to_string()).unwrap_or_default(),
-                "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at" | "answered_at" | "condition_order" => {
+                "practice" | "smoothing" | "ordinal" | "slot" | "trial" | "frames" | "frames_shown" => row.try_get::<Option<i64>, _>(column)?.map(|v| v.to_string()).unwrap_or_default(),
+                "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at" | "shown_at" | "answered_at" | "condition_order" => {
                     row.try_get::<Option<String>, _>(column)?.unwrap_or_default()
                 }
                 _ => row.try_get::<Option<f64>, _>(column)?.map(|v| format!("{v}")).unwrap_or_default(),
@@ -196,9 +198,17 @@ pub struct LabReport {
     pub served: bool,
     pub adapter: Option<String>,
     pub adapter_kind: Option<String>,
-    pub frame_ms: Option<f64>,
     pub interactive: Option<bool>,
     pub rate: Option<String>,
+    /// Each condition's frame time (start-up and now) while the study is served.
+    pub frame_times: Vec<super::ConditionRate>,
+    /// Whether the conditions' frame times differ by more than 20 % now.
+    pub unequal: Option<bool>,
+    /// `none` or `equal`.
+    pub pace: String,
+    /// The frame time every frame is paced to now (pace = "equal"), ms.
+    pub pace_ms: Option<f64>,
+    pub min_response_ms: Option<u64>,
     /// How far targets may lie from the real cube and stay in view, cm: [−x, +x, −z (away), +z (towards the camera)].
     pub reach_cm: Option<[f64; 4]>,
     pub smoothing: bool,
@@ -214,10 +224,14 @@ pub struct ParticipantProgress {
     pub participant: String,
     pub label: String,
     pub ordinal: i64,
+    /// Counterbalancing slot (the row of the design the condition order comes from).
+    pub slot: i64,
     pub condition_order: String,
     pub answered: i64,
     pub trials: i64,
     pub completed: bool,
+    /// The slot was given to another participant after `abandon_after_minutes` without activity.
+    pub abandoned: bool,
 }
 
 /// Frame times and latencies of answered trials per condition.
@@ -228,6 +242,10 @@ pub struct RenderingRow {
     pub frames: i64,
     pub frame_ms_mean: Option<f64>,
     pub frame_ms_max: Option<f64>,
+    /// Frames the page reported shown.
+    pub frames_shown: i64,
+    /// Request → sent per frame, pacing included (the frame time participants saw), mean.
+    pub shown_frame_ms_mean: Option<f64>,
     pub latency_ms_mean: Option<f64>,
     pub latency_ms_p95_max: Option<f64>,
     pub smoothing_trials: i64,
@@ -240,7 +258,7 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         let study = lab.studies.get(slug).cloned()?;
         Some((lab, study))
     });
-    let participants = sqlx::query("SELECT id, label, ordinal, condition_order, answered, trials, completed_at FROM task_participants WHERE study = ? ORDER BY ordinal")
+    let participants = sqlx::query("SELECT id, label, ordinal, slot, condition_order, answered, trials, completed_at, abandoned_at FROM task_participants WHERE study = ? ORDER BY ordinal")
         .bind(slug)
         .fetch_all(pool)
         .await?
@@ -250,16 +268,19 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
                 participant: row.try_get("id")?,
                 label: row.try_get("label")?,
                 ordinal: row.try_get("ordinal")?,
+                slot: row.try_get::<Option<i64>, _>("slot")?.unwrap_or(0),
                 condition_order: row.try_get("condition_order")?,
                 answered: row.try_get("answered")?,
                 trials: row.try_get("trials")?,
                 completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
+                abandoned: row.try_get::<Option<String>, _>("abandoned_at")?.is_some(),
             })
         })
         .collect::<Result<Vec<_>, sqlx::Error>>()?;
     let rendering = sqlx::query(
         "SELECT t.condition, COUNT(*) AS n, SUM(t.frames) AS frames, SUM(t.frame_ms_mean * t.frames) / NULLIF(SUM(t.frames), 0) AS frame_ms_mean,
-                MAX(t.frame_ms_max) AS frame_ms_max, AVG(t.latency_ms_mean) AS latency_ms_mean, MAX(t.latency_ms_p95) AS latency_ms_p95_max,
+                MAX(t.frame_ms_max) AS frame_ms_max, SUM(t.frames_shown) AS frames_shown,
+                SUM(t.shown_frame_ms_mean * t.frames) / NULLIF(SUM(CASE WHEN t.shown_frame_ms_mean IS NULL THEN 0 ELSE t.frames END), 0) AS shown_frame_ms_mean, AVG(t.latency_ms_mean) AS latency_ms_mean, MAX(t.latency_ms_p95) AS latency_ms_p95_max,
                 SUM(t.smoothing) AS smoothing_trials
          FROM task_trials t JOIN task_participants p ON p.id = t.participant
          WHERE p.study = ? AND t.answered_at IS NOT NULL GROUP BY t.condition ORDER BY t.condition",
@@ -275,6 +296,8 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
             frames: row.try_get::<Option<i64>, _>("frames")?.unwrap_or(0),
             frame_ms_mean: row.try_get("frame_ms_mean")?,
             frame_ms_max: row.try_get("frame_ms_max")?,
+            frames_shown: row.try_get::<Option<i64>, _>("frames_shown")?.unwrap_or(0),
+            shown_frame_ms_mean: row.try_get("shown_frame_ms_mean")?,
             latency_ms_mean: row.try_get("latency_ms_mean")?,
             latency_ms_p95_max: row.try_get("latency_ms_p95_max")?,
             smoothing_trials: row.try_get::<Option<i64>, _>("smoothing_trials")?.unwrap_or(0),
@@ -296,9 +319,13 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         served: served.is_some(),
         adapter: served.as_ref().map(|(lab, _)| lab.adapter.adapter.clone()),
         adapter_kind: served.as_ref().map(|(lab, _)| lab.adapter.kind.clone()),
-        frame_ms: served.as_ref().map(|(_, study)| study.frame_ms),
-        interactive: served.as_ref().map(|(_, study)| study.interactive),
+        interactive: served.as_ref().map(|(_, study)| study.interactive()),
         rate: served.as_ref().map(|(lab, study)| study.rate_line(&lab.adapter)),
+        frame_times: served.as_ref().map(|(_, study)| study.condition_rates()).unwrap_or_default(),
+        unequal: served.as_ref().map(|(_, study)| study.unequal()),
+        pace: definition["render"]["pace"].as_str().unwrap_or("none").to_string(),
+        pace_ms: served.as_ref().and_then(|(_, study)| study.pace_ms()),
+        min_response_ms: definition["min_response_ms"].as_u64(),
         reach_cm: served.as_ref().map(|(_, study)| study.layout.reach.map(|r| (r * 1000.0).round() / 10.0)),
         // every live frame of a task study goes through `render_with_state` (live.rs)
         smoothing: served.is_some(),
@@ -386,6 +413,6 @@ pub fn overview(state: &AppState) -> Vec<(String, String, String, bool)> {
     lab.order
         .iter()
         .filter_map(|slug| lab.studies.get(slug))
-        .map(|study| (study.study.slug.clone(), study.study.title.clone(), study.rate_line(&lab.adapter), study.interactive))
+        .map(|study| (study.study.slug.clone(), study.study.title.clone(), study.rate_line(&lab.adapter), study.interactive() && (!study.unequal() || study.pace_ms().is_some())))
         .collect()
 }

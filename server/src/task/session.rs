@@ -1,9 +1,20 @@
 //! The live WebSocket session of a task study (`GET /api/lab/{slug}/ws`): one connection runs
 //! one participant's trials. The protocol is documented in `studies/README.md` ("The live
 //! WebSocket API"); in short, the client sends JSON text messages `start`, `resume`, `ready`,
-//! `key` and `answer`, and the server answers with `session`, `trial`, `frame` (a JSON text
-//! message followed by one binary message: the frame number as a big-endian u32, then the JPEG),
-//! `saved`, `done` and `error`.
+//! `acknowledge`, `key`, `shown` and `answer`, and the server answers with `session`,
+//! `instructions`, `trial`, `frame` (a JSON text message followed by one binary message: the
+//! frame number as a big-endian u32, then the JPEG), `saved`, `done` and `error`.
+//!
+//! Trustworthy responses: before a task's first trial the server sends its `instructions` and
+//! starts the trial only on `acknowledge`, sent no sooner than the study's `min_response_ms`
+//! after them. The page reports each frame it has put on screen with `shown`; an answer is
+//! refused (a sentence back, nothing stored) until the trial's first frame was shown and
+//! `min_response_ms` has passed since, so a held key cannot answer a burst of trials. A
+//! participant with an empty code is refused at `start`.
+//!
+//! Pacing: with `pace = "equal"` every frame is held until the slowest condition's frame time
+//! (see [`super::timing`]), fixed for the session when the participant starts or resumes, has
+//! passed since it was requested, so all conditions show the same lag.
 //!
 //! Rendering: every accepted key moves the virtual cube at once; the session keeps at most one
 //! frame job in flight on the renderer thread, and when keys arrive while it renders they are
@@ -46,7 +57,22 @@ pub async fn websocket(State(state): State<AppState>, Path(slug): Path<String>, 
         .cloned()
         .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\".")))?;
     Ok(upgrade.max_message_size(MAX_MESSAGE_BYTES).on_upgrade(move |socket| async move {
-        let mut session = Session { state, lab, study, socket, participant: None, trials: Vec::new(), answered: 0, active: None, pending: None, render_state: SessionRenderState::default(), frame_number: 0 };
+        let mut session = Session {
+            state,
+            lab,
+            study,
+            socket,
+            participant: None,
+            trials: Vec::new(),
+            answered: 0,
+            active: None,
+            pending: None,
+            render_state: SessionRenderState::default(),
+            frame_number: 0,
+            instructions_shown: None,
+            acknowledged: None,
+            pace_ms: None,
+        };
         session.run().await;
     }))
 }
@@ -63,6 +89,10 @@ enum ClientMessage {
         token: String,
     },
     Ready {},
+    Acknowledge {},
+    Shown {
+        n: u32,
+    },
     Key {
         key: String,
         #[serde(default)]
@@ -86,9 +116,19 @@ struct Active {
     position: DVec3,
     sent_at: Instant,
     first_frame: Option<(Instant, String)>,
+    /// The number of the trial's first frame.
+    first_frame_number: Option<u32>,
+    /// When the page reported the trial's first frame shown (server clock).
+    first_shown: Option<(Instant, String)>,
+    frames_shown: u32,
+    last_shown_number: u32,
     keys: Vec<Value>,
     frames: u32,
     frame_ms: Vec<f64>,
+    /// Per frame, its request → sent (pacing included), ms.
+    shown_frame_ms: Vec<f64>,
+    /// The frame time frames were paced to, ms.
+    paced_ms: Option<f64>,
     latencies: Vec<f64>,
     /// The oldest input not yet in a requested frame.
     unrendered_since: Option<Instant>,
@@ -101,6 +141,10 @@ struct Pending {
     /// Keys of the trial included in this frame.
     inputs: usize,
     input_at: Option<Instant>,
+    condition: mrstudy_renderer::gpu::Condition,
+    requested_at: Instant,
+    /// Not sent before this (pacing).
+    release_at: Instant,
     answer: oneshot::Receiver<Result<Frame, String>>,
 }
 
@@ -116,6 +160,13 @@ struct Session {
     pending: Option<Pending>,
     render_state: SessionRenderState,
     frame_number: u32,
+    /// The task whose instructions were sent and not yet acknowledged, and when.
+    instructions_shown: Option<(String, Instant)>,
+    /// The task whose instructions were acknowledged (its first trial may start).
+    acknowledged: Option<String>,
+    /// The frame time this session's frames are paced to (`pace = "equal"`), fixed when the
+    /// participant starts or resumes.
+    pace_ms: Option<f64>,
 }
 
 /// Why a message was refused: sent to the client, nothing changed.
@@ -143,7 +194,10 @@ impl Session {
         loop {
             let frame_ready = async {
                 match self.pending.as_mut() {
-                    Some(pending) => (&mut pending.answer).await,
+                    Some(pending) => {
+                        tokio::time::sleep_until(pending.release_at.into()).await;
+                        (&mut pending.answer).await
+                    }
                     None => std::future::pending().await,
                 }
             };
@@ -191,14 +245,16 @@ impl Session {
     async fn handle(&mut self, text: &str) -> Result<(), Refusal> {
         let value: Value = serde_json::from_str(text).map_err(|_| Refusal("The message is not valid JSON.".into()))?;
         let kind = value.get("type").and_then(Value::as_str).unwrap_or("").to_string();
-        if !["start", "resume", "ready", "key", "answer"].contains(&kind.as_str()) {
-            return Err(Refusal(format!("Unknown message type \"{kind}\"; expected start, resume, ready, key or answer.")));
+        if !["start", "resume", "ready", "acknowledge", "shown", "key", "answer"].contains(&kind.as_str()) {
+            return Err(Refusal(format!("Unknown message type \"{kind}\"; expected start, resume, ready, acknowledge, shown, key or answer.")));
         }
         let message: ClientMessage = serde_json::from_value(value).map_err(|error| Refusal(format!("The {kind} message does not have the expected fields: {error}.")))?;
         match message {
             ClientMessage::Start { label } => self.start(label).await,
             ClientMessage::Resume { participant, token } => self.resume(participant, token).await,
             ClientMessage::Ready {} => self.ready().await,
+            ClientMessage::Acknowledge {} => self.acknowledge().await,
+            ClientMessage::Shown { n } => self.shown(n),
             ClientMessage::Key { key, t } => self.key(key, t),
             ClientMessage::Answer { trial, cm } => self.answer(trial, cm).await,
         }
@@ -216,8 +272,8 @@ impl Session {
             "adapter": self.lab.adapter.adapter,
             "adapter_kind": self.lab.adapter.kind,
             "smoothing": self.render_state.smoothing,
-            "frame_ms": self.study.frame_ms,
-            "interactive": self.study.interactive,
+            "min_response_ms": self.study.study.min_response_ms,
+            "pace": self.study.study.render.pace.as_str(),
         })
     }
 
@@ -226,6 +282,9 @@ impl Session {
             return Err(Refusal("This connection already runs a participant; open a new connection for another.".into()));
         }
         let label = label.trim().to_string();
+        if label.is_empty() {
+            return Err(Refusal("The participant code is empty; type the code the experimenter gave you, then start.".into()));
+        }
         if label.chars().count() > 64 || label.chars().any(char::is_control) {
             return Err(Refusal("The participant label must be at most 64 characters without control characters.".into()));
         }
@@ -252,6 +311,7 @@ impl Session {
             return Err(AppError::Internal("creating a participant wrote something else".into()).into());
         };
         self.participant = Some(Participant { id, label });
+        self.pace_ms = self.study.pace_ms();
         self.trials = trials;
         self.answered = 0;
         let message = self.session_message(Some(&token));
@@ -268,9 +328,11 @@ impl Session {
         if row.study != self.study.study.slug || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256) {
             return Err(refused());
         }
+        self.state.storage().task_write(TaskWrite::Resume { participant: id.clone() }).await?;
         self.trials = store::planned_trials(self.state.storage(), &id).await?;
         self.answered = row.answered as u32;
         self.participant = Some(Participant { id, label: row.label });
+        self.pace_ms = self.study.pace_ms();
         let message = self.session_message(None);
         let _ = self.send(message).await;
         Ok(())
@@ -283,6 +345,9 @@ impl Session {
         if let Some(active) = &self.active {
             return Err(Refusal(format!("Trial {} is still running; answer it first.", active.planned.trial)));
         }
+        if let Some((task, _)) = &self.instructions_shown {
+            return Err(Refusal(format!("The instructions of the {task} task are waiting to be acknowledged; acknowledge them to start its first trial.")));
+        }
         if self.answered as usize >= self.trials.len() {
             let thanks = self.study.study.texts.thanks.clone();
             let _ = self.send(json!({"type": "done", "trials": self.trials.len(), "thanks": thanks})).await;
@@ -291,6 +356,20 @@ impl Session {
         let planned = self.trials[self.answered as usize].clone();
         let task = self.study.study.task(&planned.task).ok_or_else(|| AppError::Internal(format!("the schedule names task \"{}\", which the study file no longer has", planned.task)))?;
         let first_of_task = planned.trial == 1 || self.trials[planned.trial as usize - 2].task != planned.task;
+        if first_of_task && self.acknowledged.as_deref() != Some(planned.task.as_str()) {
+            // the task's instructions stay until acknowledged
+            self.instructions_shown = Some((planned.task.clone(), Instant::now()));
+            let message = json!({
+                "type": "instructions",
+                "task": planned.task,
+                "kind": task.kind.as_str(),
+                "trial": planned.trial,
+                "of": self.trials.len(),
+                "instructions": task.instructions,
+            });
+            let _ = self.send(message).await;
+            return Ok(());
+        }
         let answer = match task.kind {
             TaskKind::Distance => json!({"unit": "cm", "min": 0, "max": task.answer_max_cm}),
             _ => Value::Null,
@@ -317,15 +396,57 @@ impl Session {
             planned,
             sent_at: Instant::now(),
             first_frame: None,
+            first_frame_number: None,
+            first_shown: None,
+            frames_shown: 0,
+            last_shown_number: 0,
             keys: Vec::new(),
             frames: 0,
             frame_ms: Vec::new(),
+            shown_frame_ms: Vec::new(),
+            paced_ms: None,
             latencies: Vec::new(),
             unrendered_since: None,
             dirty: true,
         });
         let _ = self.send(message).await;
         self.request_frame()?;
+        Ok(())
+    }
+
+    /// The participant read the instructions: the task's first trial starts.
+    async fn acknowledge(&mut self) -> Result<(), Refusal> {
+        let Some((task, at)) = self.instructions_shown.clone() else {
+            return Err(Refusal("There are no instructions to acknowledge now.".into()));
+        };
+        let elapsed_ms = at.elapsed().as_secs_f64() * 1e3;
+        let minimum = self.study.study.min_response_ms;
+        if elapsed_ms < f64::from(minimum) {
+            return Err(Refusal(format!(
+                "The instructions were acknowledged {elapsed_ms:.0} ms after they appeared, sooner than the study's minimum of {minimum} ms; read them, then acknowledge again."
+            )));
+        }
+        self.instructions_shown = None;
+        self.acknowledged = Some(task);
+        self.ready().await
+    }
+
+    /// The page put frame `n` on screen.
+    fn shown(&mut self, n: u32) -> Result<(), Refusal> {
+        if n == 0 || n > self.frame_number {
+            return Err(Refusal(format!("Frame {n} was not sent on this connection; shown names a frame the server sent.")));
+        }
+        // a report that arrives after its trial ended changes nothing
+        let Some(active) = self.active.as_mut() else { return Ok(()) };
+        let Some(first) = active.first_frame_number else { return Ok(()) };
+        if n < first || n <= active.last_shown_number {
+            return Ok(());
+        }
+        active.last_shown_number = n;
+        active.frames_shown += 1;
+        if active.first_shown.is_none() {
+            active.first_shown = Some((Instant::now(), iso_now()));
+        }
         Ok(())
     }
 
@@ -384,6 +505,10 @@ impl Session {
             return Ok(());
         }
         let (reply, answer) = oneshot::channel();
+        let requested_at = Instant::now();
+        let paced_ms = self.pace_ms;
+        let release_at = requested_at + std::time::Duration::from_secs_f64(paced_ms.unwrap_or(0.0).max(0.0) / 1e3);
+        active.paced_ms = paced_ms;
         self.lab
             .renderer
             .submit(FrameJob {
@@ -396,12 +521,21 @@ impl Session {
             })
             .map_err(AppError::Internal)?;
         active.dirty = false;
-        self.pending = Some(Pending { trial: active.planned.trial, inputs: active.keys.len(), input_at: active.unrendered_since.take(), answer });
+        self.pending = Some(Pending {
+            trial: active.planned.trial,
+            inputs: active.keys.len(),
+            input_at: active.unrendered_since.take(),
+            condition: active.planned.condition,
+            requested_at,
+            release_at,
+            answer,
+        });
         Ok(())
     }
 
     async fn deliver(&mut self, pending: Pending, frame: Frame) -> Result<(), axum::Error> {
         self.render_state = frame.state.clone();
+        self.study.record_frame(pending.condition, frame.render_ms + frame.encode_ms);
         let Some(active) = self.active.as_mut().filter(|active| active.planned.trial == pending.trial) else {
             // the trial ended while this frame rendered: drop it, and render the next trial's
             // first frame if that trial started meanwhile
@@ -419,8 +553,10 @@ impl Session {
         if let Some(latency) = latency {
             active.latencies.push(latency);
         }
+        active.shown_frame_ms.push(now.duration_since(pending.requested_at).as_secs_f64() * 1e3);
         if active.first_frame.is_none() {
             active.first_frame = Some((now, iso_now()));
+            active.first_frame_number = Some(self.frame_number);
         }
         let trial = active.planned.trial;
         let meta = json!({
@@ -496,8 +632,19 @@ impl Session {
             _ => error_axes.length(),
         };
         let now = Instant::now();
-        let (started, started_at) = active.first_frame.clone().unwrap_or((active.sent_at, iso_now()));
-        let completion_ms = now.duration_since(started).as_secs_f64() * 1e3;
+        // a response counts only after the participant saw the trial, and not sooner than
+        // min_response_ms after its first frame appeared
+        let Some((shown, shown_at)) = active.first_shown.clone() else {
+            return Err(Refusal(format!("Trial {trial}'s picture has not been shown yet; wait for it, then answer.")));
+        };
+        let completion_ms = now.duration_since(shown).as_secs_f64() * 1e3;
+        let minimum = self.study.study.min_response_ms;
+        if completion_ms < f64::from(minimum) {
+            return Err(Refusal(format!(
+                "Trial {trial} was answered {completion_ms:.0} ms after its picture appeared, sooner than the study's minimum of {minimum} ms; look at the picture, then answer again."
+            )));
+        }
+        let started_at = active.first_frame.as_ref().map(|(_, at)| at.clone()).unwrap_or_else(|| shown_at.clone());
         let mut latencies = active.latencies.clone();
         latencies.sort_by(f64::total_cmp);
         let result = TrialResult {
@@ -513,6 +660,10 @@ impl Session {
             frames: active.frames,
             frame_ms_mean: mean(&active.frame_ms),
             frame_ms_max: active.frame_ms.iter().copied().reduce(f64::max),
+            frames_shown: active.frames_shown,
+            shown_frame_ms_mean: mean(&active.shown_frame_ms),
+            paced_ms: active.paced_ms,
+            shown_at,
             latency_ms_mean: mean(&latencies),
             latency_ms_p95: (!latencies.is_empty()).then(|| latencies[((latencies.len() as f64 * 0.95).ceil() as usize).clamp(1, latencies.len()) - 1]),
             smoothing: self.render_state.smoothing,
@@ -526,6 +677,7 @@ impl Session {
         };
         self.answered = answered;
         self.active = None;
+        self.acknowledged = None;
         let _ = self
             .send(json!({
                 "type": "saved",
@@ -540,6 +692,7 @@ impl Session {
                 "error_z_cm": round3(result.error_axes_cm[2]),
                 "completion_ms": round3(result.completion_ms),
                 "frames": result.frames,
+                "frames_shown": result.frames_shown,
                 "frame_ms_mean": result.frame_ms_mean.map(round3),
                 "latency_ms_mean": result.latency_ms_mean.map(round3),
             }))
@@ -562,20 +715,7 @@ fn round3(value: f64) -> f64 {
 
 /// Now as UTC ISO 8601 with milliseconds, as the database stores times.
 pub fn iso_now() -> String {
-    let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
-    let (secs, millis) = (since.as_secs() as i64, since.subsec_millis());
-    let (days, rest) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
-    // civil from days (Howard Hinnant's algorithm)
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + if month <= 2 { 1 } else { 0 };
-    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z", rest / 3600, rest % 3600 / 60, rest % 60)
+    store::iso(std::time::SystemTime::now())
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
-//! Storage of task studies (tables `task_participants` and `task_trials`, migration
-//! `20261122000002_task_trials.sql`): the writes that go through the server's one writer with
+//! Storage of task studies (tables `task_participants`, `task_trials` and `task_frame_times`,
+//! migrations `20261122000002_task_trials.sql` and `20261123000002_lab_hygiene.sql`): the writes that go through the server's one writer with
 //! group commit ([`crate::storage::Storage::task_write`]), and the reads of sessions, the admin
 //! page and the export.
 //!
@@ -7,6 +7,12 @@
 //! transaction. A trial's result is stored only if the trial exists, is the participant's next
 //! one and has no result yet; otherwise the write is refused with a sentence saying why and
 //! nothing changes.
+//!
+//! Counterbalancing slots: a participant's condition order is the row `slot` of the design.
+//! A new participant takes the lowest slot of a participant who has not finished and has been
+//! inactive (no start, resume or answer) for longer than the study's `abandon_after_minutes`;
+//! that participant is marked abandoned and can no longer resume or answer. Otherwise the new
+//! participant takes the next unused slot. `ordinal` stays unique, in order of joining.
 
 use std::sync::Arc;
 
@@ -28,6 +34,30 @@ pub struct NewTaskParticipant {
     pub random_seed: u64,
 }
 
+/// `at` as UTC ISO 8601 with milliseconds, as the database stores times.
+pub fn iso(at: std::time::SystemTime) -> String {
+    let since = at.duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let (secs, millis) = (since.as_secs() as i64, since.subsec_millis());
+    let (days, rest) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // civil from days (Howard Hinnant's algorithm)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + if month <= 2 { 1 } else { 0 };
+    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z", rest / 3600, rest % 3600 / 60, rest % 60)
+}
+
+/// The time before which a participant's last activity makes them abandoned.
+fn abandon_cutoff(minutes: f64) -> String {
+    let ago = std::time::Duration::try_from_secs_f64(minutes * 60.0).unwrap_or(std::time::Duration::ZERO);
+    iso(std::time::SystemTime::now().checked_sub(ago).unwrap_or(std::time::UNIX_EPOCH))
+}
+
 /// The result of one trial, as measured by the session.
 #[derive(Debug, Clone)]
 pub struct TrialResult {
@@ -45,6 +75,14 @@ pub struct TrialResult {
     pub frames: u32,
     pub frame_ms_mean: Option<f64>,
     pub frame_ms_max: Option<f64>,
+    /// Frames the page reported shown.
+    pub frames_shown: u32,
+    /// Per frame, request → sent (rendering, queueing, pacing), mean over the trial, ms.
+    pub shown_frame_ms_mean: Option<f64>,
+    /// The frame time frames were paced to (`pace = "equal"`), ms.
+    pub paced_ms: Option<f64>,
+    /// When the page reported the trial's first frame shown (UTC, ISO 8601 with ms).
+    pub shown_at: String,
     pub latency_ms_mean: Option<f64>,
     pub latency_ms_p95: Option<f64>,
     pub smoothing: bool,
@@ -56,12 +94,17 @@ pub struct TrialResult {
 pub enum TaskWrite {
     Participant(NewTaskParticipant),
     Result(TrialResult),
+    /// A participant resumes: refused when their slot was given away, else their last activity
+    /// is now.
+    Resume { participant: String },
 }
 
 #[derive(Debug)]
 pub enum TaskWritten {
-    Participant { ordinal: u64, trials: Vec<PlannedTaskTrial> },
+    /// `took_over`: the abandoned participant whose slot this one took.
+    Participant { ordinal: u64, slot: u64, took_over: Option<String>, trials: Vec<PlannedTaskTrial> },
     Result { answered: u32, completed: bool },
+    Resumed,
 }
 
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
@@ -69,6 +112,21 @@ pub(crate) async fn execute(connection: &mut SqliteConnection, write: &TaskWrite
     match write {
         TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
         TaskWrite::Result(result) => store_result(connection, result).await,
+        TaskWrite::Resume { participant } => resume(connection, participant).await,
+    }
+}
+
+const ABANDONED: &str = "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.";
+
+async fn resume(connection: &mut SqliteConnection, participant: &str) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+    let abandoned: Option<Option<String>> = sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?").bind(participant).fetch_optional(&mut *connection).await?;
+    match abandoned {
+        None => Ok(Err(AppError::NotFound(format!("There is no task participant \"{participant}\".")))),
+        Some(Some(_)) => Ok(Err(AppError::Conflict(ABANDONED.into()))),
+        Some(None) => {
+            sqlx::query(sqlx::AssertSqlSafe(format!("UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"))).bind(participant).execute(&mut *connection).await?;
+            Ok(Ok(TaskWritten::Resumed))
+        }
     }
 }
 
@@ -82,15 +140,39 @@ async fn insert_participant(connection: &mut SqliteConnection, participant: &New
         Some(study_seed) => crate::schedule::derived_seed(study_seed, ordinal as u64),
         None => participant.random_seed,
     };
-    let trials = plan::plan(study, &participant.layout, seed, ordinal as u64);
-    let order: Vec<&str> = plan::condition_order(study, ordinal as u64).into_iter().map(|index| study.conditions[index].name()).collect();
+    // the slot of the longest-abandoned participant, else the next unused one
+    let abandoned = sqlx::query(
+        "SELECT id, slot FROM task_participants WHERE study = ? AND completed_at IS NULL AND abandoned_at IS NULL
+             AND last_active_at < ? ORDER BY slot, ordinal LIMIT 1",
+    )
+    .bind(&study.slug)
+    .bind(abandon_cutoff(study.abandon_after_minutes))
+    .fetch_optional(&mut *connection)
+    .await?;
+    let (slot, took_over) = match abandoned {
+        Some(row) => (row.try_get::<i64, _>("slot")?, Some(row.try_get::<String, _>("id")?)),
+        None => {
+            let next: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(slot) + 1, 0) FROM task_participants WHERE study = ?").bind(&study.slug).fetch_one(&mut *connection).await?;
+            (next, None)
+        }
+    };
+    let trials = plan::plan(study, &participant.layout, seed, slot as u64);
+    let order: Vec<&str> = plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
+    if let Some(previous) = &took_over {
+        sqlx::query(sqlx::AssertSqlSafe(format!("UPDATE task_participants SET abandoned_at = {NOW}, slot_taken_by = ? WHERE id = ?")))
+            .bind(&participant.id)
+            .bind(previous)
+            .execute(&mut *connection)
+            .await?;
+    }
     sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO task_participants (id, study, ordinal, label, token_sha256, seed, schedule_version, file_sha256,
-             condition_order, trials, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW})"
+        "INSERT INTO task_participants (id, study, ordinal, slot, label, token_sha256, seed, schedule_version, file_sha256,
+             condition_order, trials, created_at, last_active_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, {NOW})"
     )))
     .bind(&participant.id)
     .bind(&study.slug)
     .bind(ordinal)
+    .bind(slot)
     .bind(&participant.label)
     .bind(&participant.token_sha256)
     .bind(seed as i64)
@@ -120,17 +202,20 @@ async fn insert_participant(connection: &mut SqliteConnection, participant: &New
         .execute(&mut *connection)
         .await?;
     }
-    Ok(TaskWritten::Participant { ordinal: ordinal as u64, trials })
+    Ok(TaskWritten::Participant { ordinal: ordinal as u64, slot: slot as u64, took_over, trials })
 }
 
 async fn store_result(connection: &mut SqliteConnection, result: &TrialResult) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
-    let row = sqlx::query("SELECT trials, answered FROM task_participants WHERE id = ?")
+    let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = ?")
         .bind(&result.participant)
         .fetch_optional(&mut *connection)
         .await?;
     let Some(row) = row else {
         return Ok(Err(AppError::NotFound(format!("There is no task participant \"{}\".", result.participant))));
     };
+    if row.try_get::<Option<String>, _>("abandoned_at")?.is_some() {
+        return Ok(Err(AppError::Conflict(ABANDONED.into())));
+    }
     let (trials, answered): (i64, i64) = (row.try_get("trials")?, row.try_get("answered")?);
     let trial = result.trial as i64;
     if trial < 1 || trial > trials {
@@ -146,7 +231,7 @@ async fn store_result(connection: &mut SqliteConnection, result: &TrialResult) -
         "UPDATE task_trials SET answer_cm = ?, final_x = ?, final_y = ?, final_z = ?, error_cm = ?, signed_error_cm = ?,
              error_x_cm = ?, error_y_cm = ?, error_z_cm = ?, completion_ms = ?, key_log = ?, frames = ?,
              frame_ms_mean = ?, frame_ms_max = ?, latency_ms_mean = ?, latency_ms_p95 = ?, smoothing = ?, adapter = ?,
-             started_at = ?, answered_at = {NOW}
+             started_at = ?, frames_shown = ?, shown_frame_ms_mean = ?, paced_ms = ?, shown_at = ?, answered_at = {NOW}
          WHERE participant = ? AND trial = ? AND answered_at IS NULL"
     )))
     .bind(result.answer_cm)
@@ -168,6 +253,10 @@ async fn store_result(connection: &mut SqliteConnection, result: &TrialResult) -
     .bind(result.smoothing as i64)
     .bind(&result.adapter)
     .bind(&result.started_at)
+    .bind(result.frames_shown as i64)
+    .bind(result.shown_frame_ms_mean)
+    .bind(result.paced_ms)
+    .bind(&result.shown_at)
     .bind(&result.participant)
     .bind(trial)
     .execute(&mut *connection)
@@ -176,7 +265,7 @@ async fn store_result(connection: &mut SqliteConnection, result: &TrialResult) -
         return Ok(Err(AppError::Conflict(format!("Trial {trial} is already answered."))));
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
-        "UPDATE task_participants SET answered = answered + 1,
+        "UPDATE task_participants SET answered = answered + 1, last_active_at = {NOW},
              completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END WHERE id = ?"
     )))
     .bind(&result.participant)
@@ -204,21 +293,42 @@ pub async fn upsert_study(storage: &Storage, study: &TaskStudy) -> Result<(), sq
     Ok(())
 }
 
+/// Records the frame time per condition measured at start-up (table `task_frame_times`).
+pub async fn record_frame_times(storage: &Storage, study: &str, adapter: &str, size: [u32; 2], frames: usize, medians: &[(mrstudy_renderer::gpu::Condition, f64)]) -> Result<(), sqlx::Error> {
+    let measured_at = iso(std::time::SystemTime::now());
+    for (condition, median_ms) in medians {
+        sqlx::query("INSERT OR REPLACE INTO task_frame_times (study, measured_at, adapter, condition, width, height, frames, median_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?)")
+            .bind(study)
+            .bind(&measured_at)
+            .bind(adapter)
+            .bind(condition.name())
+            .bind(size[0] as i64)
+            .bind(size[1] as i64)
+            .bind(frames as i64)
+            .bind(median_ms)
+            .execute(storage.write_pool())
+            .await?;
+    }
+    Ok(())
+}
+
 /// A stored task participant.
 #[derive(Debug, Clone)]
 pub struct TaskParticipantRow {
     pub id: String,
     pub study: String,
     pub ordinal: i64,
+    pub slot: i64,
     pub label: String,
     pub token_sha256: Vec<u8>,
     pub trials: i64,
     pub answered: i64,
     pub completed: bool,
+    pub abandoned: bool,
 }
 
 pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParticipantRow>, sqlx::Error> {
-    let row = sqlx::query("SELECT id, study, ordinal, label, token_sha256, trials, answered, completed_at FROM task_participants WHERE id = ?")
+    let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at FROM task_participants WHERE id = ?")
         .bind(id)
         .fetch_optional(&storage.read)
         .await?;
@@ -227,11 +337,13 @@ pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParti
             id: row.try_get("id")?,
             study: row.try_get("study")?,
             ordinal: row.try_get("ordinal")?,
+            slot: row.try_get::<Option<i64>, _>("slot")?.unwrap_or(0),
             label: row.try_get("label")?,
             token_sha256: row.try_get("token_sha256")?,
             trials: row.try_get("trials")?,
             answered: row.try_get("answered")?,
             completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
+            abandoned: row.try_get::<Option<String>, _>("abandoned_at")?.is_some(),
         })
     })
     .transpose()

@@ -113,6 +113,28 @@ pub struct LabRender {
     pub photo_spp: u32,
     /// Frames per second below which the adapter is reported as too slow for interactive use.
     pub min_fps: f64,
+    /// Frame pacing across conditions (`pace`, top level or under `[render]`).
+    pub pace: Pace,
+}
+
+/// Whether every condition's frames are paced to the same frame time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pace {
+    /// Each frame is sent as soon as it is rendered: a slower condition shows more lag.
+    None,
+    /// Every condition's frames are held until the slowest condition's frame time has passed
+    /// since they were requested, so conditions cannot be told apart by lag.
+    Equal,
+}
+
+impl Pace {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Pace::None => "none",
+            Pace::Equal => "equal",
+        }
+    }
 }
 
 /// The texts of the lab pages.
@@ -144,6 +166,12 @@ pub struct TaskStudy {
     pub seed: Option<u64>,
     pub tasks: Vec<TaskSpec>,
     pub render: LabRender,
+    /// Answers sooner than this after the trial's first frame was shown (and instructions
+    /// acknowledged sooner than this after they appeared) are refused, ms.
+    pub min_response_ms: u32,
+    /// A participant with no activity for this long who has not finished gives up their
+    /// counterbalancing slot to the next participant to join (minutes; fractions allowed).
+    pub abandon_after_minutes: f64,
     pub file: std::path::PathBuf,
     pub file_sha256: String,
 }
@@ -175,11 +203,25 @@ struct TaskStudyFile {
     design: DesignFile,
     #[serde(default)]
     render: RenderFile,
+    #[serde(default = "default_min_response_ms")]
+    min_response_ms: i64,
+    #[serde(default = "default_abandon_after_minutes")]
+    abandon_after_minutes: f64,
+    #[serde(default)]
+    pace: Option<Pace>,
     tasks: Vec<TaskFile>,
 }
 
 fn default_true() -> bool {
     true
+}
+
+fn default_min_response_ms() -> i64 {
+    300
+}
+
+fn default_abandon_after_minutes() -> f64 {
+    30.0
 }
 
 #[derive(Debug, Deserialize)]
@@ -241,11 +283,12 @@ struct RenderFile {
     env_lights: u32,
     photo_spp: u32,
     min_fps: f64,
+    pace: Option<Pace>,
 }
 
 impl Default for RenderFile {
     fn default() -> Self {
-        RenderFile { size: None, jpeg_quality: 80, vpls: 64, shadow_map_size: 256, env_lights: 8, photo_spp: 32, min_fps: 10.0 }
+        RenderFile { size: None, jpeg_quality: 80, vpls: 64, shadow_map_size: 256, env_lights: 8, photo_spp: 32, min_fps: 10.0, pace: None }
     }
 }
 
@@ -360,6 +403,20 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     if !(render.min_fps.is_finite() && render.min_fps > 0.0 && render.min_fps <= 240.0) {
         return Err(fail("render.min_fps", format!("expected a number of frames per second in (0, 240], found {}", render.min_fps)));
     }
+    let pace = match (raw.pace, render.pace) {
+        (Some(top), Some(under)) if top != under => {
+            return Err(fail("render.pace", format!("expected the same value as the top-level pace (\"{}\"), found \"{}\"; give pace once", top.as_str(), under.as_str())));
+        }
+        (Some(pace), _) | (None, Some(pace)) => pace,
+        (None, None) => Pace::None,
+    };
+    // participation
+    if !(0..=60_000).contains(&raw.min_response_ms) {
+        return Err(fail("min_response_ms", format!("expected 0 to 60000 ms, found {}", raw.min_response_ms)));
+    }
+    if !(raw.abandon_after_minutes.is_finite() && raw.abandon_after_minutes > 0.0 && raw.abandon_after_minutes <= 10_080.0) {
+        return Err(fail("abandon_after_minutes", format!("expected a number of minutes in (0, 10080], found {}", raw.abandon_after_minutes)));
+    }
     // tasks
     if raw.tasks.is_empty() {
         return Err(fail("tasks", "expected at least one [[tasks]] entry (distance, placement or contact)".into()));
@@ -463,7 +520,10 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
             env_lights: render.env_lights,
             photo_spp: render.photo_spp,
             min_fps: render.min_fps,
+            pace,
         },
+        min_response_ms: raw.min_response_ms as u32,
+        abandon_after_minutes: raw.abandon_after_minutes,
         file: file.to_path_buf(),
         file_sha256,
     };
@@ -517,6 +577,25 @@ kind = "placement"
         assert!(error.to_string().contains("juggling"), "{error}");
         let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nmax_cm = 80")).unwrap_err();
         assert_eq!(error.key, "tasks[1].min_cm");
+    }
+
+    #[test]
+    fn participation_and_pace_keys_have_defaults_and_name_the_key_when_bad() {
+        let study = load(MINIMAL).unwrap();
+        assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (300, 30.0, Pace::None));
+        let top = MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"equal\"\nmin_response_ms = 0\nabandon_after_minutes = 0.01");
+        let study = load(&top).unwrap();
+        assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (0, 0.01, Pace::Equal));
+        let under = MINIMAL.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"equal\"\n[[tasks]]\nkind = \"distance\"");
+        assert_eq!(load(&under).unwrap().render.pace, Pace::Equal);
+        let both = top.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"none\"\n[[tasks]]\nkind = \"distance\"");
+        assert_eq!(load(&both).unwrap_err().key, "render.pace");
+        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nmin_response_ms = -5")).unwrap_err();
+        assert_eq!(error.key, "min_response_ms");
+        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nabandon_after_minutes = 0")).unwrap_err();
+        assert_eq!(error.key, "abandon_after_minutes");
+        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"fast\"")).unwrap_err();
+        assert!(error.to_string().contains("fast"), "{error}");
     }
 
     #[test]
