@@ -104,6 +104,7 @@ async fn refused(socket: &mut Socket, message: Value, needle: &str) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
+    let _alone = RENDERING.lock().await;
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     std::fs::write(studies.path().join("lab.toml"), STUDY).unwrap();
@@ -302,6 +303,10 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
 
 /// Serves `study` on a loopback socket: (WebSocket URL, storage, the served study), or None
 /// (with a note) when no GPU adapter opens.
+/// The tests of this file render on the one (software) adapter; run one at a time so that the
+/// frame times one measures are not another's load (the pacing test compares them).
+static RENDERING: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 async fn serve(study: &str) -> Option<(String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir)> {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
@@ -361,6 +366,7 @@ step_cm = 1
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_refused_and_nothing_is_stored() {
+    let _alone = RENDERING.lock().await;
     let Some((url, storage, _state, _data_dir)) = serve(HYGIENE_STUDY).await else { return };
     let mut socket = connect(&url).await;
     // an empty participant code is refused with one sentence, and nobody is stored
@@ -436,6 +442,7 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_participant() {
+    let _alone = RENDERING.lock().await;
     // 0.005 minutes = 300 ms of inactivity
     let study = HYGIENE_STUDY
         .replace("min_response_ms = 400", "min_response_ms = 0\nabandon_after_minutes = 0.005")
@@ -482,6 +489,7 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the_same_time() {
+    let _alone = RENDERING.lock().await;
     let study = HYGIENE_STUDY
         .replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"")
         .replace("trials_per_condition = 1", "trials_per_condition = 3");
