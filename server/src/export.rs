@@ -493,3 +493,38 @@ pub async fn study_json(pool: &SqlitePool, slug: &str, include: Include) -> Resu
     }
     Ok(Export { content: json!({ "study": definition_json, "participants": out, "left_out": left_out }), left_out })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_cells_that_a_spreadsheet_would_run_get_a_leading_quote() {
+        for text in ["=HYPERLINK(\"x\")", "+1", "-2+3", "@SUM(A1)", "\tx", "\rx"] {
+            assert_eq!(text_cell(text), format!("'{text}"));
+        }
+        for text in ["LQ", "SH+CA", "a=b", "", "PPID-1"] {
+            assert_eq!(text_cell(text), text);
+        }
+        // Numbers stay numbers, even negative ones; text inside JSON is neutralised.
+        assert_eq!(value_cell(Some(&json!(-3))), "-3");
+        assert_eq!(value_cell(Some(&json!(2.5))), "2.5");
+        assert_eq!(value_cell(Some(&json!("-3"))), "'-3");
+        assert_eq!(value_cell(Some(&json!("=cmd|' /C calc'!A0"))), "'=cmd|' /C calc'!A0");
+        assert_eq!(value_cell(None), "");
+    }
+
+    #[test]
+    fn left_out_says_how_many_and_why_in_one_sentence() {
+        assert_eq!(LeftOut::default().sentence("hint"), None);
+        assert_eq!(
+            LeftOut { pilots: 2, excluded: 1 }.sentence("pass --include-pilots to keep them").unwrap(),
+            "Left out 2 pilot participants (joined through a preview link) and 1 excluded participant \
+             (excluded by the researcher); pass --include-pilots to keep them."
+        );
+        assert_eq!(
+            LeftOut { pilots: 0, excluded: 3 }.clause("h").unwrap(),
+            "left out 3 excluded participants (excluded by the researcher); h"
+        );
+    }
+}

@@ -583,3 +583,34 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     assert!(output.text.starts_with("study,participant,"));
     assert_eq!(output.left_out, None, "nobody left out");
 }
+
+/// `mrstudy export` (the library function behind it): a pilot is left out with one line saying
+/// so, and `--include-pilots` brings them back.
+#[test]
+fn export_leaves_out_pilots_unless_include_pilots() {
+    let work = tempfile::tempdir().unwrap();
+    let data = work.path().join("data");
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let (kept, pilot) = runtime.block_on(async {
+        let Prepared { state, admin_token, .. } = prepare(&data, &studies_dir(work.path())).await.unwrap();
+        let fixture = Fixture { app: app(state.clone()), state, admin_token, data: data.clone(), _work: tempfile::tempdir().unwrap() };
+        let (kept, kept_token) = fixture.join("PID-KEPT", "").await;
+        fixture.answer(&kept, &kept_token, 3, false, false).await;
+        let (pilot, pilot_token) = fixture.join("PID-PILOT", "").await;
+        fixture.answer(&pilot, &pilot_token, 3, false, false).await;
+        fixture.sql(&format!("UPDATE participants SET pilot = 1 WHERE id = '{pilot}'")).await;
+        (kept, pilot)
+    });
+    drop(runtime);
+    let csv = mrstudy_server::serve::ExportFormat::Csv;
+    let default = mrstudy_server::serve::export(&data, STUDY, csv, Default::default()).unwrap();
+    assert_eq!(
+        default.left_out.as_deref(),
+        Some("Left out 1 pilot participant (joined through a preview link); pass --include-pilots or --include-excluded to keep them.")
+    );
+    assert!(default.text.contains(&kept) && !default.text.contains(&pilot) && !default.text.contains("PID-PILOT"));
+    let include = mrstudy_server::export::Include { pilots: true, excluded: false };
+    let with_pilots = mrstudy_server::serve::export(&data, STUDY, csv, include).unwrap();
+    assert_eq!(with_pilots.left_out, None);
+    assert!(with_pilots.text.contains(&pilot) && with_pilots.text.contains("PID-PILOT"));
+}
