@@ -58,6 +58,12 @@ pub struct ExportArgs {
     /// Data directory that `mrstudy serve` used.
     #[arg(long, default_value = "./mrstudy-data")]
     data_dir: PathBuf,
+    /// Keep pilot participants (joined through an admin preview link); left out by default.
+    #[arg(long)]
+    include_pilots: bool,
+    /// Keep participants the researcher excluded; left out by default.
+    #[arg(long)]
+    include_excluded: bool,
 }
 
 pub fn run_export(args: ExportArgs) -> Result<()> {
@@ -68,10 +74,15 @@ pub fn run_export(args: ExportArgs) -> Result<()> {
         ExportFormat::Task => mrstudy_server::serve::ExportFormat::Task,
         ExportFormat::TaskTrials => mrstudy_server::serve::ExportFormat::TaskTrials,
     };
-    let text = match mrstudy_server::serve::export(&args.data_dir, &args.study, format) {
-        Ok(text) => text,
+    let include = mrstudy_server::export::Include { pilots: args.include_pilots, excluded: args.include_excluded };
+    let output = match mrstudy_server::serve::export(&args.data_dir, &args.study, format, include) {
+        Ok(output) => output,
         Err(message) => bail!("{message}"),
     };
+    if let Some(line) = &output.left_out {
+        eprintln!("{line}");
+    }
+    let text = output.text;
     match &args.out {
         Some(path) => std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?,
         None => {

@@ -2,6 +2,8 @@
 //! (`tests/e2e/*.rs`); each test gets its own temporary directory. (A crate root's `mod x;`
 //! looks for `tests/x.rs`, hence the `#[path]`s.)
 
+#[path = "e2e/admin.rs"]
+mod admin;
 #[path = "e2e/analyze.rs"]
 mod analyze;
 #[path = "e2e/browser.rs"]

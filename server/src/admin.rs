@@ -1,5 +1,9 @@
 //! The admin area: API and pages for the researcher — study list, progress and dropout, live
-//! analysis, export, open/close.
+//! analysis, export, open/close, and the participants (issue 12): their list with status and
+//! flags, exclude/include (kept, with the reason), deletion of every datum of one participant,
+//! and preview links whose participants are pilots. Pilot and excluded participants are left out
+//! of the analysis and the exports unless `?include_pilots=true` / `?include_excluded=true`,
+//! and the analysis says so in a warning.
 //!
 //! Authentication: the admin token as `Authorization: Bearer <token>`, or the `mrstudy_admin`
 //! cookie that `GET /admin/login?token=…` (the link `serve` prints) sets (HttpOnly,
@@ -9,15 +13,15 @@
 
 use askama::Template;
 use axum::Router;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, Query, RawQuery, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Redirect, Response};
-use axum::routing::{get, post};
+use axum::routing::{delete, get, post};
 use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use crate::error::{AppError, AppResult, Json};
-use crate::export::{self, ExportError};
+use crate::export::{self, ExportError, Include, LeftOut};
 use crate::participant::bearer;
 use crate::AppState;
 
@@ -34,6 +38,11 @@ pub fn router() -> Router<AppState> {
         .route("/api/admin/studies/{slug}/worth.svg", get(worth_svg))
         .route("/api/admin/studies/{slug}/open", post(open_study))
         .route("/api/admin/studies/{slug}/close", post(close_study))
+        .route("/api/admin/studies/{slug}/participants", get(list_participants))
+        .route("/api/admin/studies/{slug}/preview", post(create_preview))
+        .route("/api/admin/participants/{id}/exclude", post(exclude_participant))
+        .route("/api/admin/participants/{id}/include", post(include_participant))
+        .route("/api/admin/participants/{id}", delete(delete_participant))
         .route("/admin/login", get(login))
         .route("/admin", get(admin_page))
         .route("/admin/studies/{slug}", get(admin_study_page))
@@ -119,6 +128,12 @@ pub struct StudyStats {
     pub catch_responses: i64,
     pub catch_failures: i64,
     pub participants_failing_catch: i64,
+    /// Visitors refused by the study's screen requirements (not participants: they never started).
+    pub screened_out: i64,
+    /// Participants who joined through a preview link (counted in `started`).
+    pub pilots: i64,
+    /// Participants the researcher excluded (counted in `started`).
+    pub excluded: i64,
 }
 
 fn median(mut values: Vec<f64>) -> Option<f64> {
@@ -199,6 +214,16 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     .bind(slug)
     .fetch_one(pool)
     .await?;
+    let screened_out: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = ?")
+        .bind(slug)
+        .fetch_one(pool)
+        .await?;
+    let marked = sqlx::query(
+        "SELECT COALESCE(SUM(pilot), 0) AS pilots, COALESCE(SUM(excluded), 0) AS excluded FROM participants WHERE study = ?",
+    )
+    .bind(slug)
+    .fetch_one(pool)
+    .await?;
     Ok(StudyStats {
         slug: study.try_get("slug")?,
         title: study.try_get("title")?,
@@ -217,6 +242,9 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         catch_responses: catch.try_get("n")?,
         catch_failures: catch.try_get("failures")?,
         participants_failing_catch: catch.try_get("failing")?,
+        screened_out,
+        pilots: marked.try_get("pilots")?,
+        excluded: marked.try_get("excluded")?,
     })
 }
 
@@ -264,19 +292,72 @@ pub(crate) fn download(content_type: &'static str, file_name: String, body: Stri
     response
 }
 
-async fn export_csv(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
-    authorize(&state, &headers)?;
-    let csv = export::trials_csv(&state.storage().read, &slug).await?;
-    Ok(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv))
+/// `?include_pilots=true&include_excluded=true` (each `true` or `false`; other keys are ignored).
+fn include_from_query(query: Option<String>) -> AppResult<Include> {
+    let mut include = Include::default();
+    for pair in query.as_deref().unwrap_or_default().split('&').filter(|pair| !pair.is_empty()) {
+        let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+        let slot = match key {
+            "include_pilots" => &mut include.pilots,
+            "include_excluded" => &mut include.excluded,
+            _ => continue,
+        };
+        *slot = match value {
+            "true" | "1" => true,
+            "false" | "0" => false,
+            other => {
+                return Err(AppError::BadRequest(format!(
+                    "`{key}` must be true or false, found \"{}\".",
+                    other.chars().take(32).collect::<String>()
+                )));
+            }
+        };
+    }
+    Ok(include)
 }
 
-async fn export_json(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
+/// The header saying whom a download left out (pilot and excluded participants), if anyone.
+pub const LEFT_OUT_HEADER: &str = "x-mrstudy-left-out";
+
+const QUERY_HINT: &str = "add ?include_pilots=true or ?include_excluded=true to keep them";
+
+fn with_left_out(mut response: Response, left_out: LeftOut) -> Response {
+    if let Some(sentence) = left_out.sentence(QUERY_HINT)
+        && let Ok(value) = HeaderValue::from_str(&sentence)
+    {
+        response.headers_mut().insert(LEFT_OUT_HEADER, value);
+    }
+    response
+}
+
+async fn export_csv(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> AppResult<Response> {
     authorize(&state, &headers)?;
-    let json = export::study_json(&state.storage().read, &slug).await?;
-    Ok(download(
-        "application/json",
-        format!("{slug}.json"),
-        serde_json::to_string_pretty(&json).expect("JSON serialises"),
+    let include = include_from_query(query)?;
+    let csv = export::trials_csv(&state.storage().read, &slug, include).await?;
+    Ok(with_left_out(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv.content), csv.left_out))
+}
+
+async fn export_json(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> AppResult<Response> {
+    authorize(&state, &headers)?;
+    let include = include_from_query(query)?;
+    let json = export::study_json(&state.storage().read, &slug, include).await?;
+    Ok(with_left_out(
+        download(
+            "application/json",
+            format!("{slug}.json"),
+            serde_json::to_string_pretty(&json.content).expect("JSON serialises"),
+        ),
+        json.left_out,
     ))
 }
 
@@ -296,28 +377,52 @@ async fn conditions_csv(
 
 /// The live analysis of a study: the analysis crate run on the trials CSV and the study's
 /// conditions CSV — exactly what `mrstudy export` and `mrstudy analyze --conditions` give.
-pub async fn analysis_json(state: &AppState, slug: &str) -> AppResult<serde_json::Value> {
+/// Pilot and excluded participants are left out unless `include` keeps them; a warning says how
+/// many were left out and why.
+pub async fn analysis_json(state: &AppState, slug: &str, include: Include) -> AppResult<serde_json::Value> {
     let pool = &state.storage().read;
     let definition = export::definition(pool, slug).await?;
-    let trials = export::trials_csv(pool, slug).await?;
-    crate::analysis::run(&trials, &definition.conditions_csv())
+    let trials = export::trials_csv(pool, slug, include).await?;
+    let left_out = trials.left_out.sentence(QUERY_HINT);
+    let mut analysis = crate::analysis::run(&trials.content, &definition.conditions_csv()).map_err(|error| match (error, &left_out) {
+        (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
+            "{}; {}",
+            message.trim_end_matches('.'),
+            trials.left_out.clause(QUERY_HINT).unwrap_or_default()
+        )),
+        (error, _) => error,
+    })?;
+    if let Some(sentence) = left_out
+        && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
+    {
+        warnings.insert(0, serde_json::Value::String(sentence));
+    }
+    Ok(analysis)
 }
 
 async fn analysis(
     State(state): State<AppState>,
     Path(slug): Path<String>,
+    RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Json<serde_json::Value>> {
     authorize(&state, &headers)?;
-    Ok(Json(analysis_json(&state, &slug).await?))
+    let include = include_from_query(query)?;
+    Ok(Json(analysis_json(&state, &slug, include).await?))
 }
 
-async fn worth_svg(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
+async fn worth_svg(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> AppResult<Response> {
     authorize(&state, &headers)?;
+    let include = include_from_query(query)?;
     let pool = &state.storage().read;
     let definition = export::definition(pool, &slug).await?;
-    let trials = export::trials_csv(pool, &slug).await?;
-    let svg = crate::analysis::worth_svg(&trials, &definition.conditions_csv())?;
+    let trials = export::trials_csv(pool, &slug, include).await?;
+    let svg = crate::analysis::worth_svg(&trials.content, &definition.conditions_csv())?;
     let mut response = (StatusCode::OK, svg).into_response();
     let response_headers = response.headers_mut();
     response_headers.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/svg+xml"));
@@ -446,6 +551,8 @@ pub struct WorthRow {
 #[template(path = "admin_study.html")]
 struct AdminStudyPage {
     stats: StudyStats,
+    /// Every visitor: participants who started and visitors screened out (`stopped`).
+    visitors_bar: FunnelBar,
     funnel: Vec<FunnelBar>,
     funnel_width: f64,
     funnel_top: i64,
@@ -455,6 +562,7 @@ struct AdminStudyPage {
     worth: Vec<WorthRow>,
     estimates: Vec<EstimateRow>,
     warnings: Vec<String>,
+    participants: Vec<ParticipantLine>,
 }
 
 pub(crate) fn format_number(value: &serde_json::Value, digits: usize) -> String {
@@ -477,11 +585,24 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         }
         Err(error) => return error.into_response(),
     };
-    // Bars share about 640 px, each 4 to 40 px wide; the tallest is everyone who started.
-    let bar_count = stats.reached.len().max(1) as f64;
+    // Bars share about 640 px, each 4 to 40 px wide; the first (grey) bar is every visitor,
+    // those the screen requirements refused included, then one bar per number of trials answered.
+    let visitors = stats.started + stats.screened_out;
+    let bar_count = (stats.reached.len() + 1) as f64;
     let bar_width = (640.0 / bar_count).clamp(4.0, 40.0) - 2.0;
-    let max_reached = stats.reached.first().copied().unwrap_or(0).max(1) as f64;
+    let max_reached = visitors.max(1) as f64;
     let label_every = ((bar_count / 13.0).ceil() as usize).max(1);
+    let visitors_height = 120.0 * visitors as f64 / max_reached;
+    let visitors_bar = FunnelBar {
+        trial: 0,
+        reached: visitors,
+        stopped: stats.screened_out,
+        x: 50.0,
+        width: bar_width,
+        height: visitors_height,
+        y: 140.0 - visitors_height,
+        label: true,
+    };
     let funnel = stats
         .reached
         .iter()
@@ -492,7 +613,7 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
                 trial,
                 reached,
                 stopped: stats.stopped_after.get(trial).copied().unwrap_or(0),
-                x: 50.0 + trial as f64 * (bar_width + 2.0),
+                x: 50.0 + (trial + 1) as f64 * (bar_width + 2.0),
                 width: bar_width,
                 height,
                 y: 140.0 - height,
@@ -501,8 +622,9 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         })
         .collect();
     let funnel_width = 70.0 + bar_count * (bar_width + 2.0);
-    let funnel_top = stats.reached.first().copied().unwrap_or(0);
+    let funnel_top = visitors;
     let mut page = AdminStudyPage {
+        visitors_bar,
         funnel,
         funnel_width,
         funnel_top,
@@ -512,9 +634,15 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         worth: Vec::new(),
         estimates: Vec::new(),
         warnings: Vec::new(),
+        participants: Vec::new(),
         stats,
     };
-    match analysis_json(&state, &slug).await {
+    let analysis = analysis_json(&state, &slug, Include::default()).await;
+    page.participants = match participants(&state, &slug, analysis.as_ref().ok()).await {
+        Ok(entries) => entries.iter().map(ParticipantLine::from).collect(),
+        Err(error) => return error.into_response(),
+    };
+    match analysis {
         Ok(analysis) => {
             page.judgments = format_number(&analysis["judgments"], 0);
             page.agreement_u = analysis.get("agreement").map(|agreement| format_number(&agreement["u"], 3));
@@ -545,4 +673,310 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         Err(error) => page.analysis_error = Some(error.to_string()),
     }
     crate::pages::render(&page)
+}
+
+// ------------------------------------------------------------------------------------------
+// Participants (issue 12): the list with status and flags, exclude/include, delete, preview.
+
+/// A participant's progress: answered trials of their schedule.
+#[derive(Debug, Clone, Serialize)]
+pub struct Progress {
+    pub answered: i64,
+    pub trials: i64,
+}
+
+/// What the researcher should look at before trusting a participant's judgments.
+#[derive(Debug, Clone, Serialize)]
+pub struct Flags {
+    /// Responses faster than the study's `min_response_ms`.
+    pub too_fast: i64,
+    pub catch_answered: i64,
+    pub catch_failed: i64,
+    /// Flagged by the analysis's leave-one-out observer screening (choices unlikely under the
+    /// consensus of the others); absent when the participant was not screened (left out of the
+    /// analysis, no judgments, or screening not possible on the data so far).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub observer_flagged: Option<bool>,
+}
+
+/// One row of `GET /api/admin/studies/{slug}/participants`: a participant, or a visitor who was
+/// screened out (whose `participant` is the screen-out's id, deletable the same way).
+#[derive(Debug, Clone, Serialize)]
+pub struct ParticipantEntry {
+    pub participant: String,
+    /// `completed`, `started`, `abandoned` or `screened-out`.
+    pub status: &'static str,
+    pub progress: Progress,
+    pub external_ids: serde_json::Map<String, serde_json::Value>,
+    pub completion_code: Option<String>,
+    pub pilot: bool,
+    pub excluded: bool,
+    pub flags: Flags,
+    /// 0, 1, 2, … in joining order (absent for a screen-out).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ordinal: Option<i64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exclusion_reason: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub excluded_at: Option<String>,
+    /// The sentence a screened-out visitor was shown.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub screen_out_reason: Option<String>,
+    pub joined_at: String,
+    pub last_activity_at: String,
+}
+
+/// The participants of a study and then its screened-out visitors. `analysis` (the default
+/// analysis JSON, if it could be run) gives the observer-screening flags.
+pub async fn participants(state: &AppState, slug: &str, analysis: Option<&serde_json::Value>) -> AppResult<Vec<ParticipantEntry>> {
+    let pool = &state.storage().read;
+    let definition = export::definition(pool, slug).await?;
+    let mut screened = std::collections::HashMap::new();
+    if let Some(observers) = analysis.and_then(|analysis| analysis["observers"]["participants"].as_array()) {
+        for observer in observers {
+            if let (Some(name), Some(flagged)) = (observer["participant"].as_str(), observer["flagged"].as_bool()) {
+                screened.insert(name.to_string(), flagged);
+            }
+        }
+    }
+    let mut entries: Vec<ParticipantEntry> = export::participant_records(pool, slug, &definition)
+        .await?
+        .into_iter()
+        .map(|record| ParticipantEntry {
+            status: record.status,
+            progress: Progress { answered: record.answered, trials: record.trials },
+            external_ids: record.external_ids,
+            completion_code: Some(record.completion_code),
+            pilot: record.pilot,
+            excluded: record.excluded,
+            flags: Flags {
+                too_fast: record.too_fast,
+                catch_answered: record.catch_answered,
+                catch_failed: record.catch_failed,
+                observer_flagged: screened.get(&record.participant).copied(),
+            },
+            ordinal: Some(record.ordinal),
+            exclusion_reason: record.exclusion_reason,
+            excluded_at: record.excluded_at,
+            screen_out_reason: None,
+            joined_at: record.joined_at,
+            last_activity_at: record.last_activity_at,
+            participant: record.participant,
+        })
+        .collect();
+    let screen_outs = sqlx::query(
+        "SELECT id, reason, url_params, pilot, created_at FROM screen_outs WHERE study = ? ORDER BY created_at, id",
+    )
+    .bind(slug)
+    .fetch_all(pool)
+    .await?;
+    for row in screen_outs {
+        let created_at: String = row.try_get("created_at")?;
+        entries.push(ParticipantEntry {
+            participant: row.try_get("id")?,
+            status: "screened-out",
+            progress: Progress { answered: 0, trials: 0 },
+            external_ids: export::external_ids(&definition, &row.try_get::<String, _>("url_params")?),
+            completion_code: None,
+            pilot: row.try_get::<i64, _>("pilot")? == 1,
+            excluded: false,
+            flags: Flags { too_fast: 0, catch_answered: 0, catch_failed: 0, observer_flagged: None },
+            ordinal: None,
+            exclusion_reason: None,
+            excluded_at: None,
+            screen_out_reason: Some(row.try_get("reason")?),
+            joined_at: created_at.clone(),
+            last_activity_at: created_at,
+        });
+    }
+    Ok(entries)
+}
+
+async fn list_participants(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<Vec<ParticipantEntry>>> {
+    authorize(&state, &headers)?;
+    // The observer flags come from the default analysis; a study whose data cannot be analysed
+    // yet still lists its participants, without those flags.
+    let analysis = match analysis_json(&state, &slug, Include::default()).await {
+        Ok(analysis) => Some(analysis),
+        Err(AppError::Unprocessable(_)) => None,
+        Err(error) => return Err(error),
+    };
+    Ok(Json(participants(&state, &slug, analysis.as_ref()).await?))
+}
+
+#[derive(Deserialize)]
+struct ReasonBody {
+    reason: Option<String>,
+}
+
+/// Longest exclusion reason kept, in characters.
+pub const MAX_REASON_CHARS: usize = 500;
+
+/// The participant after an exclude or include.
+#[derive(Serialize)]
+struct ExclusionState {
+    participant: String,
+    excluded: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    exclusion_reason: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    excluded_at: Option<String>,
+}
+
+async fn set_excluded(state: &AppState, id: String, reason: Option<String>) -> AppResult<Json<ExclusionState>> {
+    let written = state
+        .storage()
+        .admin_write(crate::storage::AdminWrite::SetExcluded { participant: id.clone(), reason })
+        .await?;
+    match written {
+        crate::storage::AdminWritten::Excluded { excluded, reason, excluded_at, .. } => Ok(Json(ExclusionState {
+            participant: id,
+            excluded,
+            exclusion_reason: reason,
+            excluded_at,
+        })),
+        _ => Err(AppError::Internal("an exclusion had no exclusion outcome".into())),
+    }
+}
+
+async fn exclude_participant(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+    Json(body): Json<ReasonBody>,
+) -> AppResult<Json<ExclusionState>> {
+    authorize_change(&state, &headers)?;
+    let reason = body.reason.map(|reason| reason.trim().to_string()).unwrap_or_default();
+    if reason.is_empty() {
+        return Err(AppError::Unprocessable(
+            "Excluding a participant needs a reason: send {\"reason\": \"…\"}.".into(),
+        ));
+    }
+    if reason.chars().count() > MAX_REASON_CHARS {
+        return Err(AppError::Unprocessable(format!(
+            "The reason must be at most {MAX_REASON_CHARS} characters, found {}.",
+            reason.chars().count()
+        )));
+    }
+    set_excluded(&state, id, Some(reason)).await
+}
+
+/// Includes an excluded participant again; a body, if any, is not read.
+async fn include_participant(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<ExclusionState>> {
+    authorize_change(&state, &headers)?;
+    set_excluded(&state, id, None).await
+}
+
+async fn delete_participant(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<crate::storage::Deletion>> {
+    authorize_change(&state, &headers)?;
+    let deletion = state.storage().delete(&id).await?;
+    state.forget_credentials(&id);
+    Ok(Json(deletion))
+}
+
+#[derive(Serialize)]
+struct PreviewLink {
+    url: String,
+}
+
+/// A new preview link: a random 256-bit token, stored as its SHA-256 in `previews`; a participant
+/// who joins with it (`preview` in the join body) is a pilot.
+async fn create_preview(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<(StatusCode, Json<PreviewLink>)> {
+    authorize_change(&state, &headers)?;
+    let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = ?")
+        .bind(&slug)
+        .fetch_optional(&state.storage().read)
+        .await?;
+    match kind.as_deref() {
+        None => return Err(AppError::NotFound(format!("There is no study \"{slug}\"."))),
+        Some("task") => {
+            return Err(AppError::Unprocessable(format!(
+                "Study \"{slug}\" is a lab task study, which has no web preview; open it from the lab page."
+            )));
+        }
+        Some(_) => {}
+    }
+    let token = crate::random_hex(32);
+    state
+        .storage()
+        .admin_write(crate::storage::AdminWrite::Preview {
+            study: slug.clone(),
+            token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+        })
+        .await?;
+    Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/studies/{slug}?preview={token}") })))
+}
+
+/// One row of the page's participants table, as text.
+pub struct ParticipantLine {
+    pub id: String,
+    pub label: String,
+    pub status: &'static str,
+    pub progress: String,
+    pub external_ids: String,
+    pub completion_code: String,
+    pub flags: Vec<String>,
+    pub pilot: bool,
+    pub excluded: bool,
+    pub exclusion_reason: String,
+    pub screened_out: bool,
+}
+
+impl From<&ParticipantEntry> for ParticipantLine {
+    fn from(entry: &ParticipantEntry) -> Self {
+        let mut flags = Vec::new();
+        if entry.flags.too_fast > 0 {
+            flags.push(format!("{} too fast", entry.flags.too_fast));
+        }
+        if entry.flags.catch_failed > 0 {
+            flags.push(format!("catch failed {} of {}", entry.flags.catch_failed, entry.flags.catch_answered));
+        }
+        if entry.flags.observer_flagged == Some(true) {
+            flags.push("unlike the others (observer screening)".into());
+        }
+        if let Some(reason) = &entry.screen_out_reason {
+            flags.push(reason.clone());
+        }
+        ParticipantLine {
+            id: entry.participant.clone(),
+            label: match entry.ordinal {
+                Some(ordinal) => format!("#{ordinal}"),
+                None => "visitor".into(),
+            },
+            status: entry.status,
+            progress: if entry.screen_out_reason.is_some() {
+                "–".into()
+            } else {
+                format!("{}/{}", entry.progress.answered, entry.progress.trials)
+            },
+            external_ids: entry
+                .external_ids
+                .iter()
+                .map(|(name, value)| format!("{name}={}", value.as_str().map(str::to_string).unwrap_or_else(|| value.to_string())))
+                .collect::<Vec<_>>()
+                .join(", "),
+            completion_code: entry.completion_code.clone().unwrap_or_default(),
+            flags,
+            pilot: entry.pilot,
+            excluded: entry.excluded,
+            exclusion_reason: entry.exclusion_reason.clone().unwrap_or_default(),
+            screened_out: entry.screen_out_reason.is_some(),
+        }
+    }
 }

@@ -132,6 +132,11 @@ impl AppState {
         cache.insert(credentials.id.clone(), credentials);
     }
 
+    /// Drops a deleted participant's credentials from the cache.
+    pub(crate) fn forget_credentials(&self, id: &str) {
+        self.inner.credentials.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).remove(id);
+    }
+
     /// Whether `token` is the admin token (compared by hash, in constant time).
     pub fn is_admin_token(&self, token: &str) -> bool {
         constant_time_eq(&sha256(token.as_bytes()), &self.inner.admin_token_sha256)

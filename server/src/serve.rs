@@ -256,9 +256,17 @@ async fn shutdown_signal() {
     }
 }
 
+/// What `mrstudy export` produced: the text, and the one line to print on stderr saying whom it
+/// left out (pilot and excluded participants), if anyone.
+#[derive(Debug, Clone)]
+pub struct ExportOutput {
+    pub text: String,
+    pub left_out: Option<String>,
+}
+
 /// `mrstudy export`: the trials CSV, the JSON export or the conditions CSV of one study, read
-/// from `<data-dir>/mrstudy.db`.
-pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<String, String> {
+/// from `<data-dir>/mrstudy.db`; pilot and excluded participants only when `include` keeps them.
+pub fn export(data_dir: &Path, slug: &str, format: ExportFormat, include: crate::export::Include) -> Result<ExportOutput, String> {
     let database = data_dir.join("mrstudy.db");
     if !database.is_file() {
         return Err(format!("there is no database at {}; pass the --data-dir that mrstudy serve used", database.display()));
@@ -270,16 +278,33 @@ pub fn export(data_dir: &Path, slug: &str, format: ExportFormat) -> Result<Strin
     runtime.block_on(async {
         let storage = Storage::open(&database).await.map_err(|error| error.to_string())?;
         let pool = &storage.read;
-        let text = match format {
-            ExportFormat::Csv => crate::export::trials_csv(pool, slug).await,
-            ExportFormat::Json => crate::export::study_json(pool, slug)
+        let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = ?")
+            .bind(slug)
+            .fetch_optional(pool)
+            .await
+            .map_err(|error| format!("cannot read the database {}: {error}", database.display()))?;
+        if kind.as_deref() == Some("task")
+            && matches!(format, ExportFormat::Csv | ExportFormat::Json | ExportFormat::Conditions)
+        {
+            return Err(format!(
+                "study \"{slug}\" is a lab task study, which has no paired-comparison trials; export it with --format task (or --format task-trials)"
+            ));
+        }
+        const HINT: &str = "pass --include-pilots or --include-excluded to keep them";
+        let plain = |text: String| ExportOutput { text, left_out: None };
+        let output = match format {
+            ExportFormat::Csv => crate::export::trials_csv(pool, slug, include)
                 .await
-                .map(|json| serde_json::to_string_pretty(&json).expect("JSON serialises") + "\n"),
-            ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| definition.conditions_csv()),
-            ExportFormat::Task => return crate::task::results::task_csv(pool, slug).await.map_err(|error| error.to_string()),
-            ExportFormat::TaskTrials => return crate::task::results::trials_csv(pool, slug).await.map_err(|error| error.to_string()),
+                .map(|export| ExportOutput { text: export.content, left_out: export.left_out.sentence(HINT) }),
+            ExportFormat::Json => crate::export::study_json(pool, slug, include).await.map(|export| ExportOutput {
+                text: serde_json::to_string_pretty(&export.content).expect("JSON serialises") + "\n",
+                left_out: export.left_out.sentence(HINT),
+            }),
+            ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| plain(definition.conditions_csv())),
+            ExportFormat::Task => return crate::task::results::task_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
+            ExportFormat::TaskTrials => return crate::task::results::trials_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
         };
-        text.map_err(|error| error.to_string())
+        output.map_err(|error| error.to_string())
     })
 }
 

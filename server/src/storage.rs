@@ -141,6 +141,8 @@ enum Job {
     SetOpen(String, bool, oneshot::Sender<Result<(), AppError>>),
     /// A write of a lab task study (participant with schedule, or a trial's result).
     Task(Box<crate::task::store::TaskWrite>, oneshot::Sender<Result<crate::task::store::TaskWritten, AppError>>),
+    /// A researcher's change to participants' data (exclude, include, delete, preview link).
+    Admin(Box<AdminWrite>, oneshot::Sender<Result<AdminWritten, AppError>>),
 }
 
 impl Job {
@@ -152,6 +154,7 @@ impl Job {
             Job::SetOpen(_, _, reply) | Job::ScreenOut(_, _, reply) => drop(reply.send(Err(error()))),
             Job::Task(_, reply) => drop(reply.send(Err(error()))),
             Job::Shown { .. } => {}
+            Job::Admin(_, reply) => drop(reply.send(Err(error()))),
         }
     }
 }
@@ -169,6 +172,9 @@ impl Storage {
             .synchronous(SqliteSynchronous::Full)
             .foreign_keys(true)
             .busy_timeout(Duration::from_secs(10))
+            // A deleted participant's bytes are overwritten, not left in free pages (issue 12;
+            // `Storage::delete` then truncates the WAL, which still holds the old pages).
+            .pragma("secure_delete", "ON")
             // No checkpoint inside a participant's commit (it would stall that batch for the
             // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
             .pragma("wal_autocheckpoint", "0");
@@ -458,6 +464,7 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                 Some(Ok(Outcome::Done))
             }
             Job::Task(write, _) => Some(crate::task::store::execute(&mut transaction, write).await?.map(Outcome::Task)),
+            Job::Admin(write, _) => Some(execute_admin(&mut transaction, write).await?.map(Outcome::Admin)),
             Job::SetOpen(slug, open, _) => {
                 let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
                     .bind(*open as i64)
@@ -500,6 +507,12 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                     _ => Err(AppError::Internal("a task write had no task outcome".into())),
                 }));
             })),
+            (Job::Admin(_, reply), Some(outcome)) => replies.push(Box::new(move || {
+                let _ = reply.send(outcome.and_then(|outcome| match outcome {
+                    Outcome::Admin(written) => Ok(written),
+                    _ => Err(AppError::Internal("an admin write had no admin outcome".into())),
+                }));
+            })),
             _ => {}
         }
     }
@@ -511,6 +524,7 @@ enum Outcome {
     Joined(JoinOutcome),
     Task(crate::task::store::TaskWritten),
     Done,
+    Admin(AdminWritten),
 }
 
 async fn store_response(
@@ -724,4 +738,202 @@ async fn insert_participant(
         .await?;
     }
     Ok(JoinOutcome::Created)
+}
+
+// ------------------------------------------------------------------------------------------
+// The researcher's changes to participants' data (issue 12, "Trustworthy responses"): exclude
+// and include (kept, with reason and time), delete (every datum of the participant, leaving an
+// audit line without personal data), preview links. Each runs in the writer's group commit.
+
+/// A researcher's change to participants' data.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum AdminWrite {
+    /// Exclude the participant with this reason, or (`None`) include them again.
+    SetExcluded { participant: String, reason: Option<String> },
+    /// Delete a participant and all their data, or a screen-out row, by id.
+    Delete { id: String },
+    /// Store a new preview link's token hash.
+    Preview { study: String, token_sha256: Vec<u8> },
+}
+
+/// What an admin write did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum AdminWritten {
+    /// The participant is now excluded or included.
+    Excluded { study: String, ordinal: i64, excluded: bool, reason: Option<String>, excluded_at: Option<String> },
+    /// A participant (with `trials` schedule rows and `responses` responses) or a screen-out
+    /// row was deleted.
+    Deleted(Deletion),
+    PreviewStored,
+}
+
+/// A deletion, as the audit line records it (no personal data).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Deletion {
+    pub study: String,
+    /// `participant` or `screen-out`.
+    pub kind: &'static str,
+    /// The participant's ordinal within the study (absent for a screen-out).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ordinal: Option<i64>,
+    pub trials: i64,
+    pub responses: i64,
+}
+
+impl Storage {
+    /// Runs an admin write in the next group commit and answers after it is durable.
+    pub async fn admin_write(&self, write: AdminWrite) -> Result<AdminWritten, AppError> {
+        let (reply, answer) = oneshot::channel();
+        self.send(Job::Admin(Box::new(write), reply)).await?;
+        answer.await.map_err(|_| writer_gone())?
+    }
+
+    /// Deletes a participant (or a screen-out row), then rewrites the database and truncates the
+    /// WAL, so that none of their bytes remain in the database's files. `secure_delete` zeroes
+    /// the freed cells in the new page versions; `VACUUM` rewrites every page, which also drops
+    /// copies of keys that b-tree interior pages may keep after their row is gone (the
+    /// `WITHOUT ROWID` tables `trials` and `responses` keep whole rows there, the external-id
+    /// index the external id); the truncating checkpoint copies the new pages over the old ones
+    /// in the main file and empties the WAL, which still held the old versions. The writer's
+    /// connection runs the `VACUUM`, so participants' writes wait for it (deletions are rare).
+    pub async fn delete(&self, id: &str) -> Result<Deletion, AppError> {
+        let written = self.admin_write(AdminWrite::Delete { id: id.to_string() }).await?;
+        let AdminWritten::Deleted(deletion) = written else {
+            return Err(AppError::Internal("a deletion had no deletion outcome".into()));
+        };
+        sqlx::query("VACUUM").execute(&self.write).await?;
+        self.truncate_wal().await?;
+        Ok(deletion)
+    }
+
+    /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy.
+    pub async fn truncate_wal(&self) -> Result<(), AppError> {
+        for _ in 0..WAL_TRUNCATE_TRIES {
+            let row = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)").fetch_one(&self.read).await?;
+            let busy: i64 = row.try_get(0)?;
+            if busy == 0 {
+                return Ok(());
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        Err(AppError::Internal(format!(
+            "the WAL could not be truncated after {WAL_TRUNCATE_TRIES} tries (the database stayed busy)"
+        )))
+    }
+}
+
+/// How often [`Storage::truncate_wal`] tries before giving up (50 ms apart).
+const WAL_TRUNCATE_TRIES: usize = 200;
+
+async fn audit(connection: &mut SqliteConnection, action: &str, study: &str, detail: serde_json::Value) -> Result<(), sqlx::Error> {
+    sqlx::query(sqlx::AssertSqlSafe(format!(
+        "INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, ?, ?, ?)"
+    )))
+    .bind(action)
+    .bind(study)
+    .bind(detail.to_string())
+    .execute(&mut *connection)
+    .await?;
+    Ok(())
+}
+
+async fn execute_admin(
+    connection: &mut SqliteConnection,
+    write: &AdminWrite,
+) -> Result<Result<AdminWritten, AppError>, sqlx::Error> {
+    match write {
+        AdminWrite::SetExcluded { participant, reason } => {
+            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
+                .bind(participant)
+                .fetch_optional(&mut *connection)
+                .await?;
+            let Some(row) = row else {
+                return Ok(Err(no_participant(participant)));
+            };
+            let study: String = row.try_get("study")?;
+            let ordinal: i64 = row.try_get("ordinal")?;
+            let excluded_at: Option<String> = match reason {
+                Some(reason) => sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+                    "UPDATE participants SET excluded = 1, exclusion_reason = ?, excluded_at = {NOW}
+                     WHERE id = ? RETURNING excluded_at"
+                )))
+                .bind(reason)
+                .bind(participant)
+                .fetch_one(&mut *connection)
+                .await?,
+                None => {
+                    sqlx::query(
+                        "UPDATE participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = ?",
+                    )
+                    .bind(participant)
+                    .execute(&mut *connection)
+                    .await?;
+                    None
+                }
+            };
+            let action = if reason.is_some() { "exclude" } else { "include" };
+            audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
+            Ok(Ok(AdminWritten::Excluded { study, ordinal, excluded: reason.is_some(), reason: reason.clone(), excluded_at }))
+        }
+        AdminWrite::Delete { id } => {
+            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
+                .bind(id)
+                .fetch_optional(&mut *connection)
+                .await?;
+            if let Some(row) = row {
+                let study: String = row.try_get("study")?;
+                let ordinal: i64 = row.try_get("ordinal")?;
+                let responses = sqlx::query("DELETE FROM responses WHERE participant = ?")
+                    .bind(id)
+                    .execute(&mut *connection)
+                    .await?
+                    .rows_affected() as i64;
+                let trials = sqlx::query("DELETE FROM trials WHERE participant = ?")
+                    .bind(id)
+                    .execute(&mut *connection)
+                    .await?
+                    .rows_affected() as i64;
+                sqlx::query("DELETE FROM participants WHERE id = ?").bind(id).execute(&mut *connection).await?;
+                let deletion = Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
+                audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
+                return Ok(Ok(AdminWritten::Deleted(deletion)));
+            }
+            let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = ? RETURNING study")
+                .bind(id)
+                .fetch_optional(&mut *connection)
+                .await?;
+            let Some(study) = study else {
+                return Ok(Err(no_participant(id)));
+            };
+            let deletion = Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
+            audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
+            Ok(Ok(AdminWritten::Deleted(deletion)))
+        }
+        AdminWrite::Preview { study, token_sha256 } => {
+            let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = ?")
+                .bind(study)
+                .fetch_optional(&mut *connection)
+                .await?;
+            if known.is_none() {
+                return Ok(Err(AppError::NotFound(format!("There is no study \"{study}\"."))));
+            }
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, ?, {NOW})"
+            )))
+            .bind(token_sha256)
+            .bind(study)
+            .execute(&mut *connection)
+            .await?;
+            Ok(Ok(AdminWritten::PreviewStored))
+        }
+    }
+}
+
+fn no_participant(id: &str) -> AppError {
+    AppError::NotFound(format!(
+        "There is no participant \"{}\".",
+        id.chars().take(64).collect::<String>()
+    ))
 }

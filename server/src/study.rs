@@ -595,9 +595,12 @@ pub(crate) fn is_slug(name: &str) -> bool {
         && !name.starts_with('-')
 }
 
+/// Also scene names. The first character is no `+`, `-` or `.`, so that the name is never
+/// neutralised as a spreadsheet formula in the trials CSV (`export::text_cell`).
 fn is_condition_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
+        && name.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_')
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || "+-_.".contains(c))
@@ -696,6 +699,13 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                 format!("expected a URL parameter name (A-Z, a-z, 0-9, _, -), found \"{name}\""),
             ));
         }
+        // Each external id is a column of the trials CSV.
+        if RESERVED_COLUMNS.contains(&name.as_str()) || field_names.contains(name) {
+            return Err(fail(
+                &format!("url_params[{index}]"),
+                format!("expected a name that is not an export column or a demographic field, found \"{name}\""),
+            ));
+        }
     }
 
     // Factors and conditions.
@@ -730,7 +740,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
             return Err(fail(
                 &format!("{key}.name"),
                 format!(
-                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., found \"{}\"",
+                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
                     condition.name
                 ),
             ));
@@ -801,7 +811,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
             return Err(fail(
                 &format!("{key}.name"),
                 format!(
-                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., found \"{}\"",
+                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
                     scene.name
                 ),
             ));
@@ -1104,6 +1114,11 @@ pub const RESERVED_COLUMNS: &[&str] = &[
     "viewport",
     "device_pixel_ratio",
     "completed",
+    "status",
+    "completion_code",
+    "pilot",
+    "excluded",
+    "too_fast",
 ];
 
 /// Image extensions a stimulus file may have, with their content types.

@@ -1,5 +1,6 @@
-// Admin study page: open/close the study, optional auto-refresh. The admin cookie authenticates;
-// changes also send X-Requested-With, which the server requires of cookie-authenticated changes.
+// Admin study page: open/close the study, optional auto-refresh, preview links, and exclude /
+// include / delete of participants. The admin cookie authenticates; changes also send
+// X-Requested-With, which the server requires of cookie-authenticated changes.
 "use strict";
 
 (function () {
@@ -16,6 +17,70 @@
       else { toggle.disabled = false; alert("The change failed (" + response.status + ")."); }
     });
   }
+  // POSTs or DELETEs with the admin cookie; resolves to the JSON answer, throws its error sentence.
+  async function change(method, url, body) {
+    const headers = { "X-Requested-With": "mrstudy" };
+    if (body !== undefined) headers["Content-Type"] = "application/json";
+    const response = await fetch(url, {
+      method, headers, credentials: "same-origin", body: body === undefined ? undefined : JSON.stringify(body),
+    });
+    let answer = null;
+    try { answer = await response.json(); } catch (_) { answer = null; }
+    if (!response.ok) throw new Error((answer && answer.error) || ("The change failed (" + response.status + ")."));
+    return answer;
+  }
+  const problem = document.getElementById("participants-error");
+  const showProblem = (message) => { if (problem) { problem.textContent = message; problem.hidden = false; } else alert(message); };
+
+  const preview = document.getElementById("preview");
+  if (preview) {
+    preview.addEventListener("click", async () => {
+      preview.disabled = true;
+      try {
+        const answer = await change("POST", "/api/admin/studies/" + encodeURIComponent(slug) + "/preview");
+        const link = document.getElementById("preview-url");
+        link.href = answer.url;
+        link.textContent = new URL(answer.url, location.href).href;
+        document.getElementById("preview-link").hidden = false;
+        window.open(answer.url, "_blank", "noopener");
+      } catch (error) {
+        showProblem(error.message);
+      } finally {
+        preview.disabled = false;
+      }
+    });
+  }
+
+  document.querySelectorAll("tr[data-participant] button[data-action]").forEach((button) => {
+    button.addEventListener("click", async () => {
+      const row = button.closest("tr");
+      const id = row.dataset.participant;
+      const label = row.querySelector("td").textContent.trim();
+      const base = "/api/admin/participants/" + encodeURIComponent(id);
+      const action = button.dataset.action;
+      try {
+        if (action === "exclude") {
+          const reason = prompt("Why is " + label + " excluded? (kept with the exclusion)");
+          if (reason === null) return;
+          if (reason.trim() === "") { showProblem("Excluding a participant needs a reason."); return; }
+          button.disabled = true;
+          await change("POST", base + "/exclude", { reason: reason.trim() });
+        } else if (action === "include") {
+          button.disabled = true;
+          await change("POST", base + "/include");
+        } else if (action === "delete") {
+          if (!confirm("Delete every datum of " + label + " (responses, schedule, demographics, external ids)? This cannot be undone.")) return;
+          button.disabled = true;
+          await change("DELETE", base);
+        }
+        location.reload();
+      } catch (error) {
+        button.disabled = false;
+        showProblem(error.message);
+      }
+    });
+  });
+
   const refresh = document.getElementById("auto-refresh");
   if (refresh) {
     refresh.checked = sessionStorage.getItem("mrstudy:auto-refresh") === "1";
