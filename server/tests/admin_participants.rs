@@ -201,7 +201,8 @@ async fn participants_list_statuses_progress_external_ids_and_flags() {
         format!("UPDATE participants SET created_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE id = '{gone}'"),
         format!("UPDATE trials SET shown_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE participant = '{gone}' AND shown_at IS NOT NULL"),
         format!("UPDATE responses SET answered_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE participant = '{gone}'"),
-        format!("UPDATE responses SET too_fast = 1 WHERE participant = '{done}' AND trial IN (1, 2)"),
+        // (answered at once here, so the server flagged every response too fast: set exactly two)
+        format!("UPDATE responses SET too_fast = (participant = '{done}' AND trial IN (1, 2))"),
         "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
          VALUES ('5c0ee0005c0ee0005c0ee0005c0ee000', 'shadows-demo', 'The window is too small for the images.',
                  '{\"viewport\": [320, 480]}', '{\"PROLIFIC_PID\": \"PID-SMALL\"}', 0, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))"
