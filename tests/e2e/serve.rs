@@ -195,7 +195,7 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
     let from_cli = export(data_dir.path(), "shadows-demo", "csv");
     assert_eq!(over_http, from_cli);
     assert_eq!(from_cli.lines().count(), 7, "six judgments and the header:\n{from_cli}");
-    assert!(from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,completed,DEMO-7F3A,false,false,false,"), "{from_cli}");
+    assert!(from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,completed,DEMO-7F3A,false,false,true,"), "answered at once: too fast by the server's clock {from_cli}");
     assert!(from_cli.lines().nth(1).unwrap().contains(",male,44,"), "{from_cli}");
     assert_eq!(export(data_dir.path(), "shadows-demo", "conditions"), "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n");
     let json: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();

@@ -274,3 +274,110 @@ fn on_a_touch_screen_the_tapped_side_is_not_preselected_on_the_next_pair() {
     assert_eq!(state[2], json!("rgba(0, 0, 0, 0)"), "{state}");
     let _ = client();
 }
+
+#[test]
+fn the_researcher_previews_excludes_and_deletes_from_the_admin_page_in_chromium() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    // A participant through the API, answering every trial it was served.
+    let http = client();
+    let joined: Value = http
+        .post(format!("{}/api/studies/shadows-demo/participants", server.base))
+        .json(&json!({"demographics": super::serve::demographics(), "url_params": {"PROLIFIC_PID": "PID-ADMIN-PAGE"}}))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    for trial in 1..=7 {
+        http.get(format!("{}/api/participants/{id}/next", server.base)).bearer_auth(token).send().unwrap();
+        let stored = http
+            .post(format!("{}/api/participants/{id}/responses", server.base))
+            .bearer_auth(token)
+            .json(&json!({"trial": trial, "chosen": "left", "rt_ms": 900}))
+            .send()
+            .unwrap();
+        assert_eq!(stored.status(), 201);
+    }
+
+    let driver = Driver::start(1280, 800);
+    driver.go(&format!("{}/admin/login?token={}", server.base, server.admin_token));
+    driver.go(&format!("{}/admin/studies/shadows-demo", server.base));
+    driver.wait_visible("participants");
+    driver.click("#preview");
+    driver.wait_visible("preview-link");
+    let link = driver.script("return document.getElementById('preview-url').href;");
+    let link = link.as_str().unwrap().to_string();
+    assert!(link.contains("/studies/shadows-demo?preview="), "{link}");
+    // The page opened the link in a new tab; close it and go on in this one (a background tab
+    // runs no animation frames, so its trials would never start).
+    let this_window = driver.command(reqwest::Method::GET, "/window", Value::Null);
+    let handles = driver.command(reqwest::Method::GET, "/window/handles", Value::Null);
+    for handle in handles.as_array().unwrap().iter().filter(|handle| **handle != this_window) {
+        driver.command(reqwest::Method::POST, "/window", json!({"handle": handle}));
+        driver.command(reqwest::Method::DELETE, "/window", Value::Null);
+    }
+    driver.command(reqwest::Method::POST, "/window", json!({"handle": this_window}));
+
+    // The preview runs the study as a participant would, marked as a pilot.
+    driver.go(&link);
+    driver.wait_visible("preview-note");
+    enter(&driver, &server.base, &link[link.find('?').unwrap()..]);
+    driver.click("#start");
+    for trial in 1..=7 {
+        driver.wait_trial(&trial.to_string());
+        driver.click("#choose-left");
+    }
+    driver.wait_visible("stage-done");
+
+    let list = || -> Vec<Value> {
+        http.get(format!("{}/api/admin/studies/shadows-demo/participants", server.base))
+            .bearer_auth(&server.admin_token)
+            .send()
+            .unwrap()
+            .json::<Vec<Value>>()
+            .unwrap()
+    };
+    let participants = list();
+    assert_eq!(participants.len(), 2, "{participants:?}");
+    let pilot = participants.iter().find(|p| p["pilot"] == true).expect("the preview's participant is a pilot");
+    let pilot_id = pilot["participant"].as_str().unwrap().to_string();
+    assert_eq!(pilot["status"], "completed");
+
+    // Exclude the other participant from the page: the prompt asks for the reason.
+    driver.go(&format!("{}/admin/studies/shadows-demo", server.base));
+    driver.wait_visible("participants");
+    driver.screenshot(&screenshot_path("admin-participants-desktop.png"));
+    driver.click(&format!("tr[data-participant='{id}'] button[data-action='exclude']"));
+    driver.command(reqwest::Method::POST, "/alert/text", json!({"text": "fell asleep (observed)"}));
+    driver.command(reqwest::Method::POST, "/alert/accept", json!({}));
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while list().iter().find(|p| p["participant"] == id).map(|p| p["excluded"] == true) != Some(true) {
+        assert!(std::time::Instant::now() < deadline, "the exclusion did not arrive");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let excluded = list().into_iter().find(|p| p["participant"] == id).unwrap();
+    assert_eq!(excluded["exclusion_reason"], "fell asleep (observed)");
+
+    // Delete the pilot from the page, after confirming.
+    driver.wait_visible("participants");
+    driver.click(&format!("tr[data-participant='{pilot_id}'] button[data-action='delete']"));
+    driver.command(reqwest::Method::POST, "/alert/accept", json!({}));
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while list().iter().any(|p| p["participant"] == pilot_id.as_str()) {
+        assert!(std::time::Instant::now() < deadline, "the deletion did not arrive");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // With the only other participant excluded, the default export has no rows and says why.
+    let export = super::serve::export(data_dir.path(), "shadows-demo", "csv");
+    assert_eq!(export.lines().count(), 1, "only the header: {export}");
+
+    let phone = Driver::start(390, 844);
+    phone.go(&format!("{}/admin/login?token={}", server.base, server.admin_token));
+    phone.go(&format!("{}/admin/studies/shadows-demo", server.base));
+    phone.wait_visible("participants");
+    phone.screenshot(&screenshot_path("admin-participants-phone.png"));
+}
