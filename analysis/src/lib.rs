@@ -14,6 +14,7 @@
 
 pub mod agreement;
 pub mod analysis;
+pub mod bench;
 pub mod data;
 pub mod design;
 pub mod error;

@@ -6,6 +6,8 @@
 //! images, masks, timings and errors.
 //!
 //! Code map:
+//! - [`bench`]: the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
+//!   path tracer's convergence, ca and cm accuracy), each a typed report.
 //! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
 //!   [`builtin`] holds the built-in scenes (survey set, DIR test scenes, lab task scene).
 //! - [`geometry`], [`bvh`], [`mesh`]: primitives, a binned-SAH BVH, glTF/OBJ loading.
@@ -24,6 +26,7 @@
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
 //!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
+//! - [`surface`]: the G-buffer's per-pixel surface flag (nothing, real, virtual).
 //! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
 //!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
 //!   HSV and CIEDE2000.
@@ -31,6 +34,7 @@
 //!   shading pass writing L_rv and L_r, interleaved-sampling merge and temporal smoothing, the cm
 //!   passes, differential composition (WGSL beside the Rust that drives it).
 
+pub mod bench;
 pub mod builtin;
 pub mod bvh;
 pub mod ca;
@@ -50,6 +54,7 @@ pub mod reference;
 pub mod scene;
 pub mod sensor;
 pub mod stimulus;
+pub mod surface;
 
 pub use error::RenderError;
 pub use image::{Image, Mask};

@@ -8,6 +8,25 @@ use crate::image::{Image, Mask, quantize8};
 use crate::math::luminance;
 use serde::Serialize;
 
+/// The `prob` quantile of `sorted` (ascending) by linear interpolation between order
+/// statistics — R's `quantile(type = 7)`, the rule of `mrstudy_analysis::task::quantile_type7`;
+/// 0 for an empty slice.
+pub fn quantile(sorted: &[f64], prob: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let index = (sorted.len() - 1) as f64 * prob.clamp(0.0, 1.0);
+    let lo = index.floor();
+    let low_value = sorted[lo as usize];
+    let high_value = sorted[(index.ceil() as usize).min(sorted.len() - 1)];
+    if index > lo && high_value != low_value {
+        let h = index - lo;
+        (1.0 - h) * low_value + h * high_value
+    } else {
+        low_value
+    }
+}
+
 /// Errors of a test image against a reference.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct ImageErrors {

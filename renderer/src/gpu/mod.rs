@@ -186,7 +186,8 @@ pub struct GpuRender {
     pub l_r: Image,
     /// 1 where the camera sees a virtual object (from the G-buffer).
     pub virtual_mask: Mask,
-    /// Per pixel: 0 nothing modelled, 1 real surface, 2 virtual surface (from the G-buffer).
+    /// Per pixel, from the G-buffer: [`crate::surface::NOTHING`], [`crate::surface::REAL`]
+    /// or [`crate::surface::VIRTUAL`].
     pub flags: Vec<u32>,
     /// The VPLs the frame used.
     pub vpls: Vec<vpl::GpuVpl>,
