@@ -16,7 +16,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use mrstudy_renderer::ca::{ParamSource, estimate};
 use mrstudy_renderer::cm::{CmMethod, Composition};
-use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer};
+use mrstudy_renderer::gpu::{GiLevel, DirParams, DirRenderer};
 use mrstudy_renderer::image::save_by_extension;
 use mrstudy_renderer::metrics;
 use mrstudy_renderer::reference::{ReferenceParams, render_photo, render_reference};
@@ -196,7 +196,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 /// The factors asked for by `--condition` (the gi level alone) or `--factors`.
 fn factors_of(args: &RenderArgs) -> Result<Factors> {
     if let Some(name) = &args.condition {
-        let gi = Condition::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))?;
+        let gi = GiLevel::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))?;
         return Ok(Factors { gi, cm: false, ca: false });
     }
     let names = args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty());

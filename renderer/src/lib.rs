@@ -20,7 +20,7 @@
 //! - [`reference`]: the photograph, the ground-truth composite, HDR buffers and masks.
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`ca`]: the `ca` factor — Klein & Murray's camera chain on the virtual layers (CPU reference;
-//!   the GPU pass is [`gpu::artifacts`]) and single-image estimators of noise, blur and JPEG
+//!   the GPU pass is [`gpu::ca`]) and single-image estimators of noise, blur and JPEG
 //!   quality ([`ca::estimate`]).
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.

@@ -18,7 +18,7 @@ use super::{Observer, Plot, Report, Series, ground_truth, load_sized};
 use crate::ca::accuracy::{self, RegionStats, Regions};
 use crate::ca::{CaParams, ParamSource, estimate};
 use crate::error::Result;
-use crate::gpu::{Condition, DirParams, DirRenderer};
+use crate::gpu::{GiLevel, DirParams, DirRenderer};
 use crate::image::Mask;
 use crate::metrics;
 use crate::reference::ReferenceParams;
@@ -148,7 +148,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     ParamSource::Scene => CaParams::from_sensor(&scene.sensor),
                     ParamSource::Estimate => estimate::params_from_photo(&photo, &scene.sensor).0,
                 });
-                let params = DirParams { condition: Condition::Gi, camera_artifacts, ..DirParams::default() };
+                let params = DirParams { condition: GiLevel::Gi, camera_artifacts, ..DirParams::default() };
                 renderer.render(&scene, &photo, &params)?;
                 let frame = renderer.render(&scene, &photo, &params)?;
                 let stats = accuracy::measure(&frame.composite, &regions.virtual_inner, &regions.virtual_edges);

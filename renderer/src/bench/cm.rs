@@ -15,7 +15,7 @@ use super::{Observer, Plot, Report, Series, ground_truth, load_sized, pass_ms};
 use crate::builtin;
 use crate::cm::{CmMethod, CmParams, colour::ciede2000_display};
 use crate::error::{RenderError, Result};
-use crate::gpu::{Condition, DirParams, DirRenderer};
+use crate::gpu::{GiLevel, DirParams, DirRenderer};
 use crate::surface;
 use crate::metrics;
 use crate::reference::ReferenceParams;
@@ -110,7 +110,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let photo = sensor::apply(&reference.hdr_real, &scene.camera, &sensor);
                 let truth = sensor::apply(&reference.hdr_full, &scene.camera, &sensor);
                 for (mi, method) in CmMethod::ALL.iter().enumerate() {
-                    let params = DirParams { condition: Condition::Gi, vpls: VPLS, cm: CmParams { method: *method, ..CmParams::default() }, ..DirParams::default() };
+                    let params = DirParams { condition: GiLevel::Gi, vpls: VPLS, cm: CmParams { method: *method, ..CmParams::default() }, ..DirParams::default() };
                     if !warmed {
                         // the first frame of each method compiles its shaders on software adapters
                         renderer.render(&scene, &photo, &params)?;

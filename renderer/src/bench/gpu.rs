@@ -15,7 +15,7 @@ use serde::Serialize;
 use super::{Observer, Plot, Report, Series, ground_truth, load_sized, pass_ms};
 use crate::cm::{CmMethod, CmParams, CmReport};
 use crate::error::Result;
-use crate::gpu::{DirParams, DirRenderer, Condition, GpuRender, PassTime, bounce::BounceReport};
+use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender, PassTime, bounce::BounceReport};
 use crate::image::Image;
 use crate::metrics;
 use crate::pathtracer::{Accumulator, Subset, TraceParams, World};
@@ -57,7 +57,7 @@ pub struct PathTracerRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct ConditionRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub vpls: u32,
     pub ms: f64,
     /// Display RMSE and FLIP of the composite in the affected region.
@@ -87,7 +87,7 @@ pub struct ConditionRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct BouncesRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub vpls: u32,
     pub bounces: u32,
     pub bounce_candidates: u32,
@@ -106,7 +106,7 @@ pub struct BouncesRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct IsmRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub vpls: u32,
     pub ism_size: u32,
     pub ism_points: u32,
@@ -124,7 +124,7 @@ pub struct IsmRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct CmRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub cm: &'static str,
     pub vpls: u32,
     pub ms: f64,
@@ -143,7 +143,7 @@ pub struct CmRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct InterleaveRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub vpls: u32,
     pub interleave: u32,
     pub shading_ms: f64,
@@ -178,7 +178,7 @@ pub struct CaRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct ThesisRow {
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub vpls: u32,
     pub ism_size: u32,
     pub ism_points: u32,
@@ -241,8 +241,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let flip = metrics::flip(&reference.ground_truth, &frame.composite, Some(affected));
             Ok((frame, rmse, flip))
         };
-        let mut settings: Vec<(Condition, u32)> = vec![(Condition::None, 0), (Condition::Shadows, 0)];
-        settings.extend(vpl_counts.iter().map(|&n| (Condition::Gi, n)));
+        let mut settings: Vec<(GiLevel, u32)> = vec![(GiLevel::None, 0), (GiLevel::Shadows, 0)];
+        settings.extend(vpl_counts.iter().map(|&n| (GiLevel::Gi, n)));
         let mut points_rmse = Vec::new();
         let mut points_flip = Vec::new();
         for (gi, vpls) in settings {
@@ -264,7 +264,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 Bound::AtLeast => format!("linear RMSE {rmse_linear:.4}: the path tracer is not as close in {pt_ms:.0} ms, > {speedup:.2}×"),
             };
             line(name, gi.name(), &frame, rmse, flip, &format!("   {versus}"));
-            if gi == Condition::Gi {
+            if gi == GiLevel::Gi {
                 points_rmse.push((vpls as f64, rmse));
                 points_flip.push((vpls as f64, flip));
                 dir_points.push((ms, rmse_linear));
@@ -307,14 +307,14 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         // the multiple-bounce light source (5.2.7): bounces and candidates per slot
         let bounce_settings: &[(u32, u32, u32)] = if quick { &[(256, 1, 4096), (256, 3, 4096)] } else { &[(256, 1, 4096), (256, 2, 4096), (256, 3, 1024), (256, 3, 4096), (256, 3, 16384), (1024, 1, 4096), (1024, 3, 4096)] };
         for &(vpls, bounces, bounce_candidates) in bounce_settings {
-            let params = DirParams { condition: Condition::Gi, vpls, bounces, bounce_candidates, ..DirParams::default() };
+            let params = DirParams { condition: GiLevel::Gi, vpls, bounces, bounce_candidates, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let bounce_ms = pass_ms(&frame.report, |p| p.starts_with("bounce "));
             let found: Vec<String> = frame.report.bounces.iter().map(|b| format!("{}/{} found, {} VPLs", b.found, b.slots, b.vpls)).collect();
             line(name, "gi", &frame, rmse, flip, &format!("   bounces {bounces}, {bounce_candidates} candidates ({bounce_ms:.1} ms; {})", found.join("; ")));
             rows.push(GpuRow::Bounces(BouncesRow {
                 scene: name.clone(),
-                condition: Condition::Gi,
+                condition: GiLevel::Gi,
                 vpls,
                 bounces,
                 bounce_candidates,
@@ -334,7 +334,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         let mut ism_rmse = Vec::new();
         let mut ism_flip = Vec::new();
         for &ism_size in ism_sizes {
-            let params = DirParams { condition: Condition::Gi, vpls: 256, ism_size, ..DirParams::default() };
+            let params = DirParams { condition: GiLevel::Gi, vpls: 256, ism_size, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let ism_ms = pass_ms(&frame.report, |p| p.starts_with("ISMs"));
             line(name, "gi", &frame, rmse, flip, &format!("   ISM {}² ({:.1} ms)", ism_size, ism_ms));
@@ -342,7 +342,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             ism_flip.push((ism_size.max(1) as f64, flip));
             rows.push(GpuRow::Ism(IsmRow {
                 scene: name.clone(),
-                condition: Condition::Gi,
+                condition: GiLevel::Gi,
                 vpls: 256,
                 ism_size,
                 ism_points: params.ism_points,
@@ -368,14 +368,14 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         // the colour mappings at gi: the time of each cm pass and of the composition
         let cm_vpls = if quick { 64 } else { 256 };
         for method in CmMethod::ALL {
-            let params = DirParams { condition: Condition::Gi, vpls: cm_vpls, cm: CmParams { method, ..CmParams::default() }, ..DirParams::default() };
+            let params = DirParams { condition: GiLevel::Gi, vpls: cm_vpls, cm: CmParams { method, ..CmParams::default() }, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let cm_ms = pass_ms(&frame.report, |p| p.starts_with("cm "));
             let compose_ms = pass_ms(&frame.report, |p| p == "composition");
             line(name, "gi", &frame, rmse, flip, &format!("  cm {:<10} {:>8.2} ms (+ composition {:.2} ms)", method.name(), cm_ms, compose_ms));
             rows.push(GpuRow::Cm(CmRow {
                 scene: name.clone(),
-                condition: Condition::Gi,
+                condition: GiLevel::Gi,
                 cm: method.name(),
                 vpls: cm_vpls,
                 ms: frame.report.ms,
@@ -393,13 +393,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         // interleaved sampling at 256 VPLs: the tile split n (n × n classes, merge filter)
         let splits: &[u32] = if quick { &[1, 4] } else { &[1, 2, 4] };
         for &interleave in splits {
-            let params = DirParams { condition: Condition::Gi, vpls: 256, interleave, ..DirParams::default() };
+            let params = DirParams { condition: GiLevel::Gi, vpls: 256, interleave, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let shading_ms = pass_ms(&frame.report, |p| p.starts_with("shading") || p.starts_with("indirect light"));
             line(name, "gi", &frame, rmse, flip, &format!("   tiles {interleave}×{interleave} (shading + merge {shading_ms:.1} ms)"));
             rows.push(GpuRow::Interleave(InterleaveRow {
                 scene: name.clone(),
-                condition: Condition::Gi,
+                condition: GiLevel::Gi,
                 vpls: 256,
                 interleave,
                 shading_ms,
@@ -418,7 +418,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let photo = sensor::apply(&reference.hdr_real, &cam_scene.camera, &cam_scene.sensor);
             let truth = sensor::apply(&reference.hdr_full, &cam_scene.camera, &cam_scene.sensor);
             for ca in [false, true] {
-                let params = DirParams { condition: Condition::Gi, camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)), ..DirParams::default() };
+                let params = DirParams { condition: GiLevel::Gi, camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)), ..DirParams::default() };
                 renderer.render(&cam_scene, &photo, &params)?;
                 let frame = renderer.render(&cam_scene, &photo, &params)?;
                 let rmse = metrics::rmse(&truth, &frame.composite, Some(affected));
@@ -467,14 +467,14 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let scene = load_sized(&names[0], tw, th)?;
     let (_, photo, _) = render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
     for interleave in [1, 4] {
-        let params = DirParams { condition: Condition::Gi, vpls: 256, ism_size: 128, ism_points: 1024, interleave, ..DirParams::default() };
+        let params = DirParams { condition: GiLevel::Gi, vpls: 256, ism_size: 128, ism_points: 1024, interleave, ..DirParams::default() };
         renderer.render(&scene, &photo, &params)?;
         let frame = renderer.render(&scene, &photo, &params)?;
         let fps = 1000.0 / frame.report.ms.max(1e-9);
         observer.line(&format!("{:<18} {:<8} {:>6} {:>10.2}   thesis setting at {tw}x{th}, tiles {interleave}×{interleave}: {fps:.2} fps", names[0], "gi", 256, frame.report.ms));
         rows.push(GpuRow::Thesis(ThesisRow {
             scene: names[0].clone(),
-            condition: Condition::Gi,
+            condition: GiLevel::Gi,
             vpls: 256,
             ism_size: 128,
             ism_points: 1024,
