@@ -9,7 +9,7 @@
 //! - [`bench`]: the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
 //!   path tracer's convergence, ca and cm accuracy), each a typed report.
 //! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
-//!   [`builtin`] holds the built-in scenes (survey set, DIR test scenes, lab task scene).
+//!   [`scene::desc`] is the schema, [`builtin`] (`scene::builtin`) the built-in scenes (survey set, DIR test scenes, lab task scene).
 //! - [`geometry`], [`bvh`], [`mesh`]: primitives, a binned-SAH BVH, glTF/OBJ loading.
 //! - [`material`]: Lambert plus energy-conserving Blinn–Phong, textures, emission.
 //! - [`light`]: spot, point, area (emissive triangles) and environment lights (HDR/EXR maps,
@@ -35,7 +35,6 @@
 //!   passes, differential composition (WGSL beside the Rust that drives it).
 
 pub mod bench;
-pub mod builtin;
 pub mod bvh;
 pub mod ca;
 pub mod camera;
@@ -59,4 +58,4 @@ pub mod surface;
 pub use error::RenderError;
 pub use image::{Image, Mask};
 pub use reference::{ReferenceOutput, ReferenceParams, render_reference};
-pub use scene::{Scene, SceneDesc};
+pub use scene::{Scene, SceneDesc, builtin};
