@@ -166,6 +166,18 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
+    #[test]
+    fn quantile_matches_r_type_7() {
+        // R 4.2.2: quantile(c(1, 2, 4, 7, 11), .25) = 2; quantile(c(1, 2, 4, 7), c(.25, .75)) =
+        // 1.75, 4.75; quantile(1:20, .95) = 19.05 (the values of analysis's quantile_type7 test)
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.25), 2.0);
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0], 0.25), 1.75);
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0], 0.75), 4.75);
+        let twenty: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert!((quantile(&twenty, 0.95) - 19.05).abs() < 1e-12);
+        assert_eq!(quantile(&[], 0.95), 0.0);
+    }
+
     fn gradient() -> Image {
         let mut img = Image::new(32, 24);
         for y in 0..24 {
