@@ -93,8 +93,9 @@ pub fn run_export(args: ExportArgs) -> Result<()> {
     Ok(())
 }
 
-/// `bench server`: rows for `mrstudy bench`'s table and JSON.
-pub fn bench_server(quick: bool) -> Result<(String, Vec<Value>, Vec<(String, String)>)> {
+/// `bench server`: prints the table and returns the bench JSON (DESIGN.md) of the server's load
+/// generator.
+pub fn bench_server(quick: bool) -> Result<Value> {
     let durations = if quick { 3 } else { 10 };
     let concurrency: &[usize] = if quick { &[64] } else { &[16, 64, 256] };
     println!("{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}", "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors");
@@ -127,5 +128,5 @@ pub fn bench_server(quick: bool) -> Result<(String, Vec<Value>, Vec<(String, Str
             "durability": "sqlite WAL, synchronous=FULL, group commit",
         }));
     }
-    Ok(("none (server: HTTP/1.1 over loopback, sqlite on the local file system)".to_string(), rows, Vec::new()))
+    Ok(json!({ "adapter": "none (server: HTTP/1.1 over loopback, sqlite on the local file system)", "rows": rows }))
 }

@@ -7,13 +7,15 @@
 //!   designs), the coefficient of consistence;
 //! - per-group fits and tests, bootstrap over participants, observer screening;
 //! - Friedman tests, Kendall's W and Wilcoxon signed-rank post-hoc tests for lab tasks;
-//! - SVG worth plots.
+//! - SVG worth plots;
+//! - the benchmark behind `mrstudy bench analysis` ([`bench`]).
 //!
 //! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
 //! renderer. It parses text it is handed and returns typed results; callers print them.
 
 pub mod agreement;
 pub mod analysis;
+pub mod bench;
 pub mod data;
 pub mod design;
 pub mod error;

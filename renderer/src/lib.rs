@@ -6,8 +6,10 @@
 //! images, masks, timings and errors.
 //!
 //! Code map:
+//! - [`bench`]: the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
+//!   path tracer's convergence, ca and cm accuracy), each a typed report.
 //! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
-//!   [`builtin`] holds the built-in scenes (survey set, DIR test scenes, lab task scene).
+//!   [`scene::desc`] is the schema, [`builtin`] (`scene::builtin`) the built-in scenes (survey set, DIR test scenes, lab task scene).
 //! - [`geometry`], [`bvh`], [`mesh`]: primitives, a binned-SAH BVH, glTF/OBJ loading.
 //! - [`material`]: Lambert plus energy-conserving Blinn–Phong, textures, emission.
 //! - [`light`]: spot, point, area (emissive triangles) and environment lights (HDR/EXR maps,
@@ -18,12 +20,13 @@
 //! - [`reference`]: the photograph, the ground-truth composite, HDR buffers and masks.
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`ca`]: the `ca` factor — Klein & Murray's camera chain on the virtual layers (CPU reference;
-//!   the GPU pass is [`gpu::artifacts`]) and single-image estimators of noise, blur and JPEG
+//!   the GPU pass is [`gpu::ca`]) and single-image estimators of noise, blur and JPEG
 //!   quality ([`ca::estimate`]).
 //! - [`metrics`]: RMSE/PSNR (linear and display), SSIM and FLIP, over the image or a mask.
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
 //!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
+//! - [`surface`]: the G-buffer's per-pixel surface flag (nothing, real, virtual).
 //! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
 //!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
 //!   HSV and CIEDE2000.
@@ -31,7 +34,7 @@
 //!   shading pass writing L_rv and L_r, interleaved-sampling merge and temporal smoothing, the cm
 //!   passes, differential composition (WGSL beside the Rust that drives it).
 
-pub mod builtin;
+pub mod bench;
 pub mod bvh;
 pub mod ca;
 pub mod camera;
@@ -50,8 +53,9 @@ pub mod reference;
 pub mod scene;
 pub mod sensor;
 pub mod stimulus;
+pub mod surface;
 
 pub use error::RenderError;
 pub use image::{Image, Mask};
 pub use reference::{ReferenceOutput, ReferenceParams, render_reference};
-pub use scene::{Scene, SceneDesc};
+pub use scene::{Scene, SceneDesc, builtin};

@@ -1,4 +1,4 @@
-//! Small numeric helpers: a counter-based random number generator (deterministic per seed,
+//! Small numeric helpers: hashes (SplitMix64, PCG, the latter as in the shaders), a counter-based random number generator (deterministic per seed,
 //! pixel and sample, independent of thread scheduling), orthonormal frames, sampling routines.
 
 use glam::Vec3;
@@ -16,6 +16,14 @@ pub fn mix64(mut z: u64) -> u64 {
 #[inline]
 pub fn hash3(a: u64, b: u64, c: u64) -> u64 {
     mix64(mix64(mix64(a ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(b)).wrapping_add(c))
+}
+
+/// The PCG hash (O'Neill; the "pcg" of Jarzynski and Olano, JCGT 9(3), 2020), in u32 as in WGSL.
+#[inline]
+pub fn pcg_hash(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
 }
 
 /// A SplitMix64 stream. Cheap, statistically sound for Monte Carlo, and seeded by hashing

@@ -8,6 +8,25 @@ use crate::image::{Image, Mask, quantize8};
 use crate::math::luminance;
 use serde::Serialize;
 
+/// The `prob` quantile of `sorted` (ascending) by linear interpolation between order
+/// statistics — R's `quantile(type = 7)`, the rule of `mrstudy_analysis::task::quantile_type7`;
+/// 0 for an empty slice.
+pub fn quantile(sorted: &[f64], prob: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let index = (sorted.len() - 1) as f64 * prob.clamp(0.0, 1.0);
+    let lo = index.floor();
+    let low_value = sorted[lo as usize];
+    let high_value = sorted[(index.ceil() as usize).min(sorted.len() - 1)];
+    if index > lo && high_value != low_value {
+        let h = index - lo;
+        (1.0 - h) * low_value + h * high_value
+    } else {
+        low_value
+    }
+}
+
 /// Errors of a test image against a reference.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct ImageErrors {
@@ -146,6 +165,18 @@ pub fn quantized(img: &Image) -> Image {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    #[test]
+    fn quantile_matches_r_type_7() {
+        // R 4.2.2: quantile(c(1, 2, 4, 7, 11), .25) = 2; quantile(c(1, 2, 4, 7), c(.25, .75)) =
+        // 1.75, 4.75; quantile(1:20, .95) = 19.05 (the values of analysis's quantile_type7 test)
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.25), 2.0);
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0], 0.25), 1.75);
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0], 0.75), 4.75);
+        let twenty: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert!((quantile(&twenty, 0.95) - 19.05).abs() < 1e-12);
+        assert_eq!(quantile(&[], 0.95), 0.0);
+    }
 
     fn gradient() -> Image {
         let mut img = Image::new(32, 24);

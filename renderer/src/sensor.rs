@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 /// The tone response of the camera.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Response {
+pub enum ToneCurve {
     /// No encoding (the output stays linear, clipped to [0, 1]).
     Linear,
     /// The sRGB transfer curve, hard clip at 1.
@@ -34,7 +34,7 @@ pub enum Response {
 pub struct SensorParams {
     pub exposure_ev: f32,
     pub white_balance: [f32; 3],
-    pub response: Response,
+    pub response: ToneCurve,
     pub saturation: f32,
     pub contrast: f32,
     pub vignetting: f32,
@@ -57,7 +57,7 @@ impl SensorParams {
         SensorParams {
             exposure_ev: 0.0,
             white_balance: [1.0; 3],
-            response: Response::Srgb,
+            response: ToneCurve::Srgb,
             saturation: 1.0,
             contrast: 1.0,
             vignetting: 0.0,
@@ -78,7 +78,7 @@ impl SensorParams {
         SensorParams {
             exposure_ev: 0.0,
             white_balance: [1.08, 1.0, 0.86],
-            response: Response::Filmic,
+            response: ToneCurve::Filmic,
             saturation: 0.85,
             contrast: 1.1,
             vignetting: 0.35,
@@ -98,7 +98,7 @@ impl SensorParams {
         SensorParams {
             exposure_ev: 0.0,
             white_balance: [1.0, 1.0, 1.0],
-            response: Response::Srgb,
+            response: ToneCurve::Srgb,
             saturation: 1.15,
             contrast: 1.15,
             vignetting: 0.12,
@@ -132,7 +132,7 @@ pub struct SensorDesc {
     pub seed: Option<u64>,
     pub exposure_ev: Option<f32>,
     pub white_balance: Option<[f32; 3]>,
-    pub response: Option<Response>,
+    pub response: Option<ToneCurve>,
     pub saturation: Option<f32>,
     pub contrast: Option<f32>,
     pub vignetting: Option<f32>,
@@ -268,9 +268,9 @@ pub fn apply(radiance: &Image, camera: &Camera, p: &SensorParams) -> Image {
             c = (Vec3::splat(l) + (c - Vec3::splat(l)) * p.saturation).max(Vec3::ZERO);
         }
         c = match p.response {
-            Response::Linear => c.clamp(Vec3::ZERO, Vec3::ONE),
-            Response::Srgb => Vec3::new(srgb_encode(c.x), srgb_encode(c.y), srgb_encode(c.z)),
-            Response::Filmic => {
+            ToneCurve::Linear => c.clamp(Vec3::ZERO, Vec3::ONE),
+            ToneCurve::Srgb => Vec3::new(srgb_encode(c.x), srgb_encode(c.y), srgb_encode(c.z)),
+            ToneCurve::Filmic => {
                 let f = |x: f32| {
                     let x = x * 1.25;
                     srgb_encode(x * (1.0 + x / 16.0) / (1.0 + x))
@@ -524,7 +524,7 @@ mod tests {
         let img = Image::filled(128, 128, Vec3::splat(y));
         let cam = Camera::from_fov(128, 128, 50.0, Vec3::Z, Vec3::ZERO, Vec3::Y);
         let mut p = SensorParams::clean();
-        p.response = Response::Linear;
+        p.response = ToneCurve::Linear;
         p.noise = [0.01, 0.001];
         let out = apply(&img, &cam, &p);
         // quantisation adds 1/12 LSB²

@@ -17,7 +17,7 @@
 use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
 use crate::error::{RenderError, Result};
-use crate::gpu::{Condition, DirParams, DirRenderer, GpuRender};
+use crate::gpu::{GiLevel, DirParams, DirRenderer, GpuRender};
 use crate::image::Image;
 use crate::reference::{ReferenceParams, RenderStats, render_photo};
 use crate::scene::Scene;
@@ -31,7 +31,7 @@ pub const STIMULUS_VERSION: u32 = 4;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Factors {
     /// The gi factor's mode: none, shadows, or shadows and indirect light.
-    pub gi: Condition,
+    pub gi: GiLevel,
     /// Adaptive colour mapping on.
     pub cm: bool,
     /// Camera artifacts on.
@@ -60,9 +60,9 @@ impl Factors {
             }
         }
         let gi = match (gi, shadows) {
-            (true, _) => Condition::Gi,
-            (false, true) => Condition::Shadows,
-            (false, false) => Condition::None,
+            (true, _) => GiLevel::Gi,
+            (false, true) => GiLevel::Shadows,
+            (false, false) => GiLevel::None,
         };
         Ok(Factors { gi, cm, ca })
     }
@@ -71,9 +71,9 @@ impl Factors {
     pub fn label(&self) -> String {
         let mut parts = Vec::new();
         match self.gi {
-            Condition::Gi => parts.push("gi"),
-            Condition::Shadows => parts.push("shadows"),
-            Condition::None => {}
+            GiLevel::Gi => parts.push("gi"),
+            GiLevel::Shadows => parts.push("shadows"),
+            GiLevel::None => {}
         }
         if self.cm {
             parts.push("cm");
@@ -164,10 +164,10 @@ mod tests {
 
     #[test]
     fn factor_levels_map_to_the_three_gi_modes() {
-        assert_eq!(levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(), Factors { gi: Condition::None, cm: false, ca: false });
-        assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, Condition::Gi);
-        assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, Condition::Shadows);
-        assert_eq!(levels(&[("gi", 1.0), ("shadows", 1.0)]).unwrap().gi, Condition::Gi);
+        assert_eq!(levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(), Factors { gi: GiLevel::None, cm: false, ca: false });
+        assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, GiLevel::Gi);
+        assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Shadows);
+        assert_eq!(levels(&[("gi", 1.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Gi);
         assert_eq!(levels(&[("gi", 1.0), ("cm", 1.0), ("ca", 1.0)]).unwrap().label(), "gi+cm+ca");
         assert_eq!(levels(&[]).unwrap().label(), "none");
     }

@@ -58,7 +58,7 @@ fn grow(mask: &Mask, radius: i64, erode: bool) -> Mask {
 /// A mask of the ideal (pinhole) image carried into the camera's image by its distortion.
 pub fn warp_mask(mask: &Mask, camera: &Camera, s: &SensorParams) -> Mask {
     let mut p = SensorParams::clean();
-    p.response = sensor::Response::Linear;
+    p.response = sensor::ToneCurve::Linear;
     p.distortion = s.distortion;
     let warped = sensor::apply(&mask.to_image(), camera, &p);
     Mask { width: mask.width, height: mask.height, values: warped.pixels.iter().map(|c| if c.y > 0.5 { 1.0 } else { 0.0 }).collect() }

@@ -4,7 +4,7 @@
 //! (ITU T.81 Annex K.1/K.2, scaled as in libjpeg's `jpeg_quality_scaling`, the scaling the
 //! `image` crate's encoder uses), dequantisation, inverse DCT and back to RGB. Chroma is not
 //! subsampled (4:4:4). The DCT basis and the tables are built here once and handed to
-//! `artifacts.wgsl`, which sums in the same order; rounding is floor(x + 0.5) on both sides.
+//! `ca.wgsl`, which sums in the same order; rounding is floor(x + 0.5) on both sides.
 
 use crate::image::Image;
 use glam::Vec3;

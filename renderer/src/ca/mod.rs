@@ -3,7 +3,7 @@
 //! compositing", IEEE TVCG 16(3), 2010; thesis 6.4), in their order: lens distortion, lateral
 //! chromatic aberration, blur, Bayer masking with demosaicing, noise, sharpening, colour-space
 //! (JPEG-style) compression. This module holds the parameters, the CPU reference implementation
-//! and the hash random numbers the GPU pass ([`crate::gpu::artifacts`], `artifacts.wgsl`)
+//! and the hash random numbers the GPU pass ([`crate::gpu::ca`], `ca.wgsl`)
 //! reproduces to 1e-3; [`estimate`] measures noise, blur and JPEG quality on a photograph.
 //!
 //! **What is processed.** The photograph already carries the real camera's artifacts, so its
@@ -43,7 +43,8 @@ pub mod jpeg;
 use crate::camera::Camera;
 use crate::error::{RenderError, Result};
 use crate::image::{Image, Mask};
-use crate::sensor::{self, Response, SensorParams};
+use crate::math::pcg_hash;
+use crate::sensor::{self, SensorParams, ToneCurve};
 use glam::Vec3;
 use serde::Serialize;
 
@@ -173,9 +174,9 @@ impl CaParams {
 /// does not act on grey).
 pub fn display_curve(p: &SensorParams, y: f32) -> f32 {
     let c = match p.response {
-        Response::Linear => y.clamp(0.0, 1.0),
-        Response::Srgb => crate::image::srgb_encode(y),
-        Response::Filmic => {
+        ToneCurve::Linear => y.clamp(0.0, 1.0),
+        ToneCurve::Srgb => crate::image::srgb_encode(y),
+        ToneCurve::Filmic => {
             let x = y.max(0.0) * 1.25;
             crate::image::srgb_encode(x * (1.0 + x / 16.0) / (1.0 + x))
         }
@@ -230,16 +231,8 @@ pub fn lut_variance(lut: &[f32; NOISE_LUT], d: f32) -> f32 {
     lut[i] * (1.0 - f) + lut[i + 1] * f
 }
 
-/// The PCG hash (O'Neill; the "pcg" of Jarzynski and Olano, JCGT 9(3), 2020), in u32 as in WGSL.
-#[inline]
-pub fn pcg_hash(v: u32) -> u32 {
-    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
-    (word >> 22) ^ word
-}
-
 /// A standard normal deviate, a pure function of (seed, pixel, channel): Box–Muller on two
-/// hashed uniforms (24 bits each, the first kept away from 0). `artifacts.wgsl` has the same.
+/// hashed uniforms (24 bits each, the first kept away from 0). `ca.wgsl` has the same.
 #[inline]
 pub fn normal(seed: u32, pixel: u32, channel: u32) -> f32 {
     let key = pixel.wrapping_mul(8).wrapping_add(channel.wrapping_mul(2));
@@ -295,7 +288,7 @@ pub(crate) struct Layers {
 }
 
 /// Bilinear fetch of one channel at continuous pixel coordinates (pixel centres at +0.5),
-/// clamped to the edge; the same arithmetic as `sample` in artifacts.wgsl.
+/// clamped to the edge; the same arithmetic as `sample` in ca.wgsl.
 fn sample_channel(img: &Image, px: f32, py: f32, c: usize) -> f32 {
     let x = px - 0.5;
     let y = py - 0.5;

@@ -4,7 +4,7 @@
 
 use super::estimate;
 use super::*;
-use crate::gpu::artifacts::Artifacts;
+use crate::gpu::ca::Artifacts;
 use crate::gpu::context::GpuContext;
 use std::sync::OnceLock;
 
@@ -223,7 +223,7 @@ fn bad_parameters_and_sizes_are_refused_with_a_sentence() {
 fn scene_noise_table_is_the_response_of_the_clipped_noisy_sensor_value() {
     // linear response, away from the clip: σ²(d) = a·d + b exactly
     let mut s = SensorParams::clean();
-    s.response = Response::Linear;
+    s.response = ToneCurve::Linear;
     s.noise = [0.01, 0.001];
     let lut = display_noise_lut(&s);
     for (k, v) in lut.iter().enumerate().take(11).skip(6) {
@@ -232,7 +232,7 @@ fn scene_noise_table_is_the_response_of_the_clipped_noisy_sensor_value() {
     }
     // sRGB and the webcam (Filmic, contrast 1.1): Monte Carlo with numpy, 10^7 draws per entry,
     // renderer/tests/reference/ca_noise_lut.py
-    s.response = Response::Srgb;
+    s.response = ToneCurve::Srgb;
     let srgb = display_noise_lut(&s);
     let web = display_noise_lut(&SensorParams::webcam());
     for (k, reference_srgb, reference_web) in [(0usize, 0.0088437f32, 0.0029812f32), (2, 0.011602, 0.0060338), (8, 0.0040345, 0.001015), (14, 0.0023399, 6.69e-05)] {
@@ -263,7 +263,7 @@ fn noise_estimator_recovers_a_and_b_of_the_simulated_camera() {
     let (w, h) = (256u32, 192u32);
     let cam = Camera::from_fov(w, h, 50.0, Vec3::Z, Vec3::ZERO, Vec3::Y);
     let mut s = SensorParams::clean();
-    s.response = Response::Linear;
+    s.response = ToneCurve::Linear;
     s.noise = [0.004, 0.0002];
     let img = sensor::apply(&test_scene(w, h), &cam, &s);
     let est = estimate::noise(&img, None);
@@ -292,7 +292,7 @@ fn noise_estimator_on_uniform_saturated_hdr_and_nan_images() {
     let (w, h) = (128u32, 96u32);
     let cam = Camera::from_fov(w, h, 50.0, Vec3::Z, Vec3::ZERO, Vec3::Y);
     let mut s = SensorParams::clean();
-    s.response = Response::Linear;
+    s.response = ToneCurve::Linear;
     s.noise = [0.0, 0.0004];
     let mut radiance = Image::filled(w, h, Vec3::splat(0.5));
     for y in 0..h {
@@ -332,7 +332,7 @@ fn blur_estimator_recovers_the_defocus_radius() {
     }
     for (radius, noise) in [(0.0f32, 0.0f32), (1.0, 0.0), (2.0, 0.0), (3.0, 0.0), (2.0, 0.0002)] {
         let mut s = SensorParams::clean();
-        s.response = Response::Linear;
+        s.response = ToneCurve::Linear;
         s.defocus_px = radius;
         s.noise = [0.0, noise];
         let img = sensor::apply(&radiance, &cam, &s);

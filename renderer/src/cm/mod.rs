@@ -29,6 +29,7 @@ pub mod samples;
 pub mod statistics;
 
 use crate::math::luminance;
+use crate::surface;
 use colour::{gamma_decode, gamma_encode, srgb_encode3, tone_map};
 use glam::Vec3;
 use serde::Serialize;
@@ -242,16 +243,16 @@ pub struct CmOutput {
 /// Whether pixel `i` may enter the colour statistics: a real modelled surface, L_r not black,
 /// the camera not saturated.
 pub fn usable(input: &CmInput, i: usize, params: &CmParams) -> bool {
-    input.flags[i] == 1 && luminance(input.l_r[i]) > 1e-6 && input.photo[i].max_element() < params.saturated
+    input.flags[i] == surface::REAL && luminance(input.l_r[i]) > 1e-6 && input.photo[i].max_element() < params.saturated
 }
 
 /// Composition of one pixel: `photo` display-encoded, `m_rv`/`m_r` the mapped buffers.
 /// Real pixels whose differential is exactly zero keep the photograph bit for bit.
 pub fn compose(linear_domain: bool, composition: Composition, photo: Vec3, flag: u32, m_rv: Vec3, m_r: Vec3) -> Vec3 {
-    if flag == 0 || (flag == 1 && m_rv == m_r) {
+    if flag == surface::NOTHING || (flag == surface::REAL && m_rv == m_r) {
         return photo;
     }
-    let r_p = if flag == 1 { 1.0 } else { 0.0 };
+    let r_p = if flag == surface::REAL { 1.0 } else { 0.0 };
     let cam = if linear_domain { gamma_decode(photo) } else { photo } * r_p;
     let mut delta = m_rv - m_r;
     if composition == Composition::Scaled {

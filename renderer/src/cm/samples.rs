@@ -19,6 +19,7 @@
 
 use super::colour::{hsv, hue_distance, srgb_encode3, tone_map};
 use super::{CmInput, CmParams, CmState, Mapping, Regression, usable};
+use crate::surface;
 use glam::Vec3;
 
 /// The five non-identity channel permutations, GRB first (eq. 4.25).
@@ -28,7 +29,7 @@ pub const IDENTITY: [[f32; 4]; 3] = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0],
 
 /// Up to `n` virtual pixels, evenly spread over the virtual pixels in scan order.
 pub fn choose_samples(flags: &[u32], n: usize) -> Vec<usize> {
-    let virt: Vec<usize> = (0..flags.len()).filter(|&i| flags[i] == 2).collect();
+    let virt: Vec<usize> = (0..flags.len()).filter(|&i| flags[i] == surface::VIRTUAL).collect();
     let m = n.min(virt.len());
     (0..m).map(|k| virt[((2 * k + 1) * virt.len()) / (2 * m)]).collect()
 }

@@ -5,6 +5,7 @@
 use super::colour::*;
 use super::*;
 use crate::math::Rng;
+use crate::surface;
 use glam::Mat3;
 
 /// A frame of 8×8 patches of random colours on real surfaces (L_r up to `peak`), a virtual
@@ -153,7 +154,7 @@ fn saturated_camera_pixels_are_excluded() {
     let f = Frame::new(64, 48, 2.5, 6, |c| gamma_encode(c * gain));
     let input = f.input();
     let p = params(CmMethod::Statistics);
-    let clipped = (0..f.photo.len()).filter(|&i| f.flags[i] == 1 && f.photo[i].max_element() >= p.saturated).count();
+    let clipped = (0..f.photo.len()).filter(|&i| f.flags[i] == surface::REAL && f.photo[i].max_element() >= p.saturated).count();
     assert!(clipped > 100, "test needs clipped pixels ({clipped})");
     let sums = statistics::cpu_sums(&input, &p, 1.0);
     let real = f.flags.iter().filter(|g| **g == 1).count();
@@ -191,7 +192,7 @@ fn rohmer_falls_back_to_the_diagonal_approximation_for_grey_only_pairs() {
     let gains = Vec3::new(0.5, 0.45, 0.4);
     let mut f = Frame::new(64, 48, 1.0, 8, |c| c);
     for (i, c) in f.l_r.iter_mut().enumerate() {
-        if f.flags[i] == 1 {
+        if f.flags[i] == surface::REAL {
             *c = Vec3::splat(c.x);
         }
     }
@@ -252,7 +253,7 @@ fn samples_fit_a_known_affine_camera_and_smooth_across_frames() {
     let mut h = Frame::new(64, 48, 1.0, 9, |x| affine(x, c));
     // virtual objects of many hues, so that the matched pairs span the colour space
     for i in 0..h.l_rv.len() {
-        if h.flags[i] == 2 {
+        if h.flags[i] == surface::VIRTUAL {
             let mut rng = Rng::for_stream(99, i as u64 / 5, 0);
             h.l_rv[i] = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         }

@@ -29,7 +29,7 @@ use super::context::GpuContext;
 use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
 // the PCG hash of common.wgsl, written once in Rust
-use crate::ca::pcg_hash as hash;
+use crate::math::pcg_hash as hash;
 use crate::material::Material;
 use crate::math::luminance;
 use glam::{Vec2, Vec3};

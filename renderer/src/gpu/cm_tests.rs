@@ -9,7 +9,7 @@ use crate::scene::Role;
 use super::invariants::renderer;
 
 fn params(method: CmMethod, composition: Composition) -> DirParams {
-    DirParams { condition: Condition::Shadows, env_lights: 8, shadow_map_size: 256, cm: CmParams { method, min_pairs: 50, ..CmParams::default() }, composition, ..DirParams::default() }
+    DirParams { condition: GiLevel::Shadows, env_lights: 8, shadow_map_size: 256, cm: CmParams { method, min_pairs: 50, ..CmParams::default() }, composition, ..DirParams::default() }
 }
 
 /// A built-in scene at 96×72 and a photograph made from its own L_r through a known camera

@@ -107,7 +107,7 @@ pub(super) fn grey_photo(scene: &Scene) -> Image {
     Image::filled(scene.camera.width, scene.camera.height, Vec3::splat(0.5))
 }
 
-fn params(condition: Condition) -> DirParams {
+fn params(condition: GiLevel) -> DirParams {
     DirParams { condition, vpls: 64, shadow_map_size: 512, rsm_size: 32, ..DirParams::default() }
 }
 
@@ -146,12 +146,12 @@ fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
         for (i, p) in photo.pixels.iter_mut().enumerate() {
             *p = Vec3::new((i % 128) as f32 / 127.0, (i / 128) as f32 / 95.0, 0.25);
         }
-        for condition in [Condition::None, Condition::Shadows, Condition::Gi] {
+        for condition in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
             let out = r.render(&scene, &photo, &params(condition)).unwrap();
             let differing = out.composite.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a != b).count();
             assert_eq!(differing, 0, "{condition:?}: {differing} pixels differ from the photograph");
             assert_eq!(out.l_rv.pixels, out.l_r.pixels, "{condition:?}: L_rv and L_r must be identical");
-            if condition == Condition::Gi {
+            if condition == GiLevel::Gi {
                 assert!(out.report.vpls > 0, "gi made no VPLs");
             }
         }
@@ -165,14 +165,14 @@ fn the_environment_light_casts_virtual_shadows_only_when_shadows_are_on() {
     let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(128, 96);
     assert!(scene.spots.is_empty());
     let photo = grey_photo(&scene);
-    let darkened = |c: Condition| {
+    let darkened = |c: GiLevel| {
         let out = r.render(&scene, &photo, &params(c)).unwrap();
         assert!(out.report.passes.iter().any(|p| p.pass.starts_with("shadow maps environment")));
         let d = deltas(&out, &photo);
         (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && d[i] < -CHANGED).count()
     };
-    assert_eq!(darkened(Condition::None), 0);
-    assert!(darkened(Condition::Shadows) > 50);
+    assert_eq!(darkened(GiLevel::None), 0);
+    assert!(darkened(GiLevel::Shadows) > 50);
 }
 
 #[test]
@@ -181,7 +181,7 @@ fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
     let scene = scene_with(VIRTUAL_BOX);
     let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
     let allowed = dilate(&reference.affected_mask, MASK_DILATION);
-    let out = r.render(&scene, &reference.photo, &params(Condition::Shadows)).unwrap();
+    let out = r.render(&scene, &reference.photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &reference.photo);
     let mut darkened = 0;
     let mut outside = 0;
@@ -201,7 +201,7 @@ fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
     assert!(darkened > 30, "the virtual box casts no visible shadow ({darkened} darkened pixels)");
     assert_eq!(outside, 0, "{outside} pixels changed outside the path tracer's affected region");
     // gi off: the virtual box casts no shadow at all
-    let off = r.render(&scene, &reference.photo, &params(Condition::None)).unwrap();
+    let off = r.render(&scene, &reference.photo, &params(GiLevel::None)).unwrap();
     let d_off = deltas(&off, &reference.photo);
     let changed_real = (0..d_off.len()).filter(|&i| reference.virtual_mask.values[i] == 0.0 && d_off[i].abs() > CHANGED).count();
     assert!(changed_real < 10, "gi off changed {changed_real} real pixels");
@@ -213,20 +213,20 @@ fn the_double_shadow_case_adds_no_second_shadow() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(&format!("{REAL_BOX}{BEHIND}"));
     let photo = grey_photo(&scene);
-    let out = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let out = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &photo);
     let darkened_real = (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && d[i] < -CHANGED).count();
     assert!(darkened_real <= 3, "{darkened_real} real pixels darkened: a second shadow");
     // control: without the real box the same virtual box does cast a shadow
     let alone = scene_with(BEHIND);
-    let out = r.render(&alone, &photo, &params(Condition::Shadows)).unwrap();
+    let out = r.render(&alone, &photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &photo);
     assert!(d.iter().filter(|&&x| x < -CHANGED).count() > 20, "the control casts no shadow");
     // Figure 5.6: a virtual box between the light and the real box; where the real shadow
     // already is (L_r = 0 on a real surface), nothing may change
     let floating = "[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n";
     let scene = scene_with(&format!("{REAL_BOX}{floating}"));
-    let out = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let out = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &photo);
     let in_real_shadow: Vec<usize> = (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && out.l_r.pixels[i] == Vec3::ZERO).collect();
     assert!(in_real_shadow.len() > 50, "no real shadow in view");
@@ -250,9 +250,9 @@ material = "red"
     let scene = scene_with(wall);
     let photo = grey_photo(&scene);
     // the wall takes a small share of the spot's flux: enough VPLs to land some on it
-    let gi = r.render(&scene, &photo, &DirParams { vpls: 1024, rsm_size: 64, ..params(Condition::Gi) }).unwrap();
+    let gi = r.render(&scene, &photo, &DirParams { vpls: 1024, rsm_size: 64, ..params(GiLevel::Gi) }).unwrap();
     assert!(gi.vpls.iter().any(|v| v.position[3] == 0.0), "no VPL on the virtual wall");
-    let shadows = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let shadows = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     // on real pixels (L_r > 0), the red minus green of the change grows with gi
     let mut redder = 0.0f64;
     let mut n = 0;
@@ -275,7 +275,7 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
     let photo = grey_photo(&scene);
     // flags only: no VPL visibility (the ISM tests below cover it)
     // one bounce: the hand-placed VPLs alone (further bounces would spawn more from them)
-    let p = DirParams { ism_size: 0, bounces: 1, ..params(Condition::Gi) };
+    let p = DirParams { ism_size: 0, bounces: 1, ..params(GiLevel::Gi) };
     let vpl = |path: f32, ir: f32| GpuVpl { position: [0.2, 0.3, 0.2, path], normal: [0.0, -1.0, 0.0, ir], flux: [0.05, 0.05, 0.05, 0.0] };
     let none = r.render_frame(&scene, &photo, &p, Some(&[]), &mut LiveState::default(), false).unwrap();
     let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
@@ -318,7 +318,7 @@ fn vpl_light_at(r: &DirRenderer, scene: &Scene, p: &DirParams, at: Vec3) -> (f32
 fn imperfect_shadow_maps_shadow_a_vpl_by_the_virtual_cloud_in_l_rv_only() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(VIRTUAL_BOX);
-    let with_isms = params(Condition::Gi);
+    let with_isms = params(GiLevel::Gi);
     // the floor just in front of the virtual box: the box hides the VPL above it
     let shadowed = Vec3::new(0.0, 0.0, 0.1);
     let (rv, real) = vpl_light_at(r, &scene, &with_isms, shadowed);
@@ -339,7 +339,7 @@ fn imperfect_shadow_maps_shadow_a_vpl_by_the_real_cloud_in_both_solutions() {
     let Some(r) = renderer() else { return };
     let real_box = "[[objects]]\nname = \"real-box\"\nrole = \"real\"\nshape = \"box\"\nsize = [0.15, 0.15, 0.15]\ntranslate = [0.0, 0.075, 0.0]\nmaterial = \"white\"\n";
     let scene = scene_with(real_box);
-    let p = params(Condition::Gi);
+    let p = params(GiLevel::Gi);
     let (rv, real) = vpl_light_at(r, &scene, &p, Vec3::new(0.0, 0.0, 0.1));
     let (_, unshadowed) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..p.clone() }, Vec3::new(0.0, 0.0, 0.1));
     assert!(unshadowed > 1e-3);
@@ -359,10 +359,10 @@ fn interleaved_sampling_merged_keeps_the_indirect_light_of_every_vpl() {
     // the thesis's setting: 256 VPLs in 4×4 classes of 16
     // one bounce: the bounce VPLs of further bounces lie close to the surfaces they light, and
     // their per-pixel noise is not what this test is about
-    let full = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, ..params(Condition::Gi) }).unwrap();
-    let split = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, interleave: 4, ..params(Condition::Gi) }).unwrap();
+    let full = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, ..params(GiLevel::Gi) }).unwrap();
+    let split = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, interleave: 4, ..params(GiLevel::Gi) }).unwrap();
     assert!(split.report.passes.iter().any(|p| p.pass.contains("interleaved 4×4")) && split.report.passes.iter().any(|p| p.pass.contains("merge 4×4")), "{:?}", split.report.passes);
-    let none = r.render(&scene, &photo, &params(Condition::Shadows)).unwrap();
+    let none = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     // the indirect light (the red wall's bleeding, in L_rv): the same total within 6 % (16 VPLs
     // per class), and per pixel close where it is strong — not equal: the merge averages a 4×4
     // window, which blurs the steep fall-off at the wall's foot on this 128×96 image (without
@@ -385,7 +385,7 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     let Some(r) = renderer() else { return };
     let scene = red_wall_scene();
     let photo = grey_photo(&scene);
-    let p = params(Condition::Gi);
+    let p = params(GiLevel::Gi);
     let single = r.render(&scene, &photo, &p).unwrap();
     let mut state = LiveState::default();
     // the first frame has no history: exactly the single frame
@@ -448,11 +448,11 @@ fn gi_brings_every_built_in_scene_closer_to_the_ground_truth() {
             failures.push(format!("{name}: empty affected region"));
             continue;
         }
-        let flip = |condition: Condition| {
+        let flip = |condition: GiLevel| {
             let frame = r.render(&scene, &reference.photo, &DirParams { condition, vpls: 64, ..DirParams::default() }).unwrap();
             crate::metrics::flip(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask))
         };
-        let (none, gi) = (flip(Condition::None), flip(Condition::Gi));
+        let (none, gi) = (flip(GiLevel::None), flip(GiLevel::Gi));
         eprintln!("{name}: FLIP in the affected region, gi off {none:.4}, gi on {gi:.4}");
         let allowed = if name == "survey-1" { 0.01 } else { 0.0 };
         if gi >= none + allowed {
@@ -467,15 +467,15 @@ fn passes_follow_the_condition() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let photo = grey_photo(&scene);
-    let names = |c: Condition| r.render(&scene, &photo, &params(c)).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect::<Vec<_>>();
-    let none = names(Condition::None);
+    let names = |c: GiLevel| r.render(&scene, &photo, &params(c)).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect::<Vec<_>>();
+    let none = names(GiLevel::None);
     assert!(!none.iter().any(|p| p.contains("RSM") || p.contains("virtual")), "{none:?}");
-    let shadows = names(Condition::Shadows);
+    let shadows = names(GiLevel::Shadows);
     assert!(shadows.iter().any(|p| p.contains("virtual")) && !shadows.iter().any(|p| p.contains("RSM")), "{shadows:?}");
-    let gi = names(Condition::Gi);
+    let gi = names(GiLevel::Gi);
     assert!(gi.iter().any(|p| p.contains("RSM")) && gi.iter().any(|p| p.contains("VPL")), "{gi:?}");
     assert_eq!(gi.iter().filter(|p| p.starts_with("bounce ")).count(), 2, "two further bounces by default: {gi:?}");
-    let one: Vec<String> = r.render(&scene, &photo, &DirParams { bounces: 1, ..params(Condition::Gi) }).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect();
+    let one: Vec<String> = r.render(&scene, &photo, &DirParams { bounces: 1, ..params(GiLevel::Gi) }).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect();
     assert!(!one.iter().any(|p| p.starts_with("bounce ") || p.starts_with("VPL budget")), "no extra bounce when one is asked for: {one:?}");
     assert!(!shadows.iter().chain(&none).any(|p| p.starts_with("bounce ")), "no bounces without gi: {shadows:?}");
     assert!(gi.iter().any(|p| p.starts_with("ISMs")), "{gi:?}");
@@ -500,7 +500,7 @@ fn debug_dump() {
     ] {
         let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         let mut grid = vec![vec![reference.photo.clone(), reference.ground_truth.clone(), reference.affected_mask.to_image()]];
-        for c in [Condition::None, Condition::Shadows, Condition::Gi] {
+        for c in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
             let out = r.render(&scene, &reference.photo, &params(c)).unwrap();
             grid.push(vec![out.composite.clone(), out.l_rv.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(), out.l_r.map(|v| v / (Vec3::ONE + v)).linear_to_srgb()]);
             let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
@@ -542,7 +542,7 @@ fn multiple_bounces_bring_the_cornell_box_closer_to_the_ground_truth() {
         let scene = crate::scene::load(name).unwrap().with_size(160, 120);
         let reference = render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         let error = |bounces: u32| {
-            let frame = r.render(&scene, &reference.photo, &DirParams { condition: Condition::Gi, vpls: 1024, bounces, ..DirParams::default() }).unwrap();
+            let frame = r.render(&scene, &reference.photo, &DirParams { condition: GiLevel::Gi, vpls: 1024, bounces, ..DirParams::default() }).unwrap();
             let rmse = crate::metrics::rmse(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask));
             let flip = crate::metrics::flip(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask));
             (rmse, flip, frame.report.bounces)

@@ -28,7 +28,7 @@
 //! 7. **composition** ([`compose`]): L_final = L'_cam + τ(L_rv) − τ(L_r), or Debevec's scaled
 //!    form, where L'_cam is the photograph with virtual pixels masked out;
 //! 8. with the `ca` factor ([`DirParams::camera_artifacts`]), the camera-artifact chain on the
-//!    composite's virtual layers ([`artifacts`], see [`crate::ca`]).
+//!    composite's virtual layers ([`ca`], see [`crate::ca`]).
 //!
 //! Conditions: `none` lights virtual objects directly, with shadows from real blockers only
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
@@ -38,7 +38,7 @@
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
 
-pub mod artifacts;
+pub mod ca;
 pub mod bounce;
 pub mod cm;
 pub mod compose;
@@ -64,7 +64,7 @@ use std::time::Instant;
 /// The level of the `gi` factor, in the three modes of the preliminary study (thesis 6.3.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Condition {
+pub enum GiLevel {
     /// gi off: virtual objects lit directly; no shadows cast by them, no indirect light.
     None,
     /// Shadows of virtual objects, no indirect light.
@@ -74,20 +74,20 @@ pub enum Condition {
     Gi,
 }
 
-impl Condition {
-    pub fn parse(name: &str) -> Option<Condition> {
+impl GiLevel {
+    pub fn parse(name: &str) -> Option<GiLevel> {
         match name.trim().to_ascii_lowercase().as_str() {
-            "none" | "off" | "lq" => Some(Condition::None),
-            "shadows" => Some(Condition::Shadows),
-            "gi" => Some(Condition::Gi),
+            "none" | "off" | "lq" => Some(GiLevel::None),
+            "shadows" => Some(GiLevel::Shadows),
+            "gi" => Some(GiLevel::Gi),
             _ => None,
         }
     }
     pub fn name(self) -> &'static str {
         match self {
-            Condition::None => "none",
-            Condition::Shadows => "shadows",
-            Condition::Gi => "gi",
+            GiLevel::None => "none",
+            GiLevel::Shadows => "shadows",
+            GiLevel::Gi => "gi",
         }
     }
 }
@@ -95,7 +95,7 @@ impl Condition {
 /// The knobs of a GPU frame.
 #[derive(Clone, Debug, Serialize)]
 pub struct DirParams {
-    pub condition: Condition,
+    pub condition: GiLevel,
     /// VPL budget (gi only), split over the spot lights by flux.
     pub vpls: u32,
     /// Resolution of each shadow map (spot and environment lights).
@@ -127,7 +127,7 @@ pub struct DirParams {
     pub interleave: u32,
     /// The weights of temporal smoothing (5.11–5.14), used by [`DirRenderer::render_with_state`].
     pub temporal: indirect::TemporalParams,
-    /// The `ca` factor: the camera-artifact chain applied after the composite ([`artifacts`]);
+    /// The `ca` factor: the camera-artifact chain applied after the composite ([`ca`]);
     /// None: off.
     pub camera_artifacts: Option<crate::ca::CaParams>,
     /// Bounces of indirect light (gi only): 1 is the single bounce of the RSM VPLs; each further
@@ -148,7 +148,7 @@ pub const MAX_BOUNCES: u32 = 8;
 impl Default for DirParams {
     fn default() -> Self {
         DirParams {
-            condition: Condition::Gi,
+            condition: GiLevel::Gi,
             vpls: 256,
             shadow_map_size: 512,
             env_lights: 32,
@@ -186,7 +186,8 @@ pub struct GpuRender {
     pub l_r: Image,
     /// 1 where the camera sees a virtual object (from the G-buffer).
     pub virtual_mask: Mask,
-    /// Per pixel: 0 nothing modelled, 1 real surface, 2 virtual surface (from the G-buffer).
+    /// Per pixel, from the G-buffer: [`crate::surface::NOTHING`], [`crate::surface::REAL`]
+    /// or [`crate::surface::VIRTUAL`].
     pub flags: Vec<u32>,
     /// The VPLs the frame used.
     pub vpls: Vec<vpl::GpuVpl>,
@@ -197,7 +198,7 @@ pub struct GpuRender {
 pub struct GpuReport {
     pub adapter: String,
     pub scene: String,
-    pub condition: Condition,
+    pub condition: GiLevel,
     pub width: u32,
     pub height: u32,
     pub vpls: usize,
@@ -230,7 +231,7 @@ pub struct DirRenderer {
     cm: cm::CmPasses,
     compose: compose::Compose,
     indirect: indirect::IndirectPass,
-    artifacts: artifacts::Artifacts,
+    artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
 }
 
@@ -309,7 +310,7 @@ impl DirRenderer {
         let cm = cm::CmPasses::new(&ctx);
         let compose = compose::Compose::new(&ctx);
         let indirect = indirect::IndirectPass::new(&ctx);
-        let artifacts = artifacts::Artifacts::new(&ctx);
+        let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
         DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce }
     }
@@ -340,7 +341,7 @@ impl DirRenderer {
         let mesh = mesh::build(scene);
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
-        let virtual_maps = params.condition != Condition::None && has_virtual;
+        let virtual_maps = params.condition != GiLevel::None && has_virtual;
 
         // 1. shadow maps: layer 2i real-only, 2i+1 virtual-only
         let size = params.shadow_map_size.max(16);
@@ -423,7 +424,7 @@ impl DirRenderer {
         // 2. RSMs and VPLs (gi only)
         let mut vpls = Vec::new();
         let mut rsms = Vec::new();
-        if params.condition == Condition::Gi && n_lights > 0 && params.vpls > 0 {
+        if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
             let read_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
                 let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
@@ -471,7 +472,7 @@ impl DirRenderer {
         // primary lights and the bounces (the third distribution mode) — the thesis takes those
         // fluxes from the previous frame, a single stimulus frame measures them first
         let mut bounce_reports: Vec<bounce::BounceReport> = Vec::new();
-        if params.condition == Condition::Gi && params.bounces > 1 && !vpls.is_empty() {
+        if params.condition == GiLevel::Gi && params.bounces > 1 && !vpls.is_empty() {
             if let Some(bounce_scene) = bounce::BounceScene::new(ctx, &mesh) {
                 let budget = params.vpls.max(1);
                 let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
@@ -522,9 +523,9 @@ impl DirRenderer {
 
         // 4. shading
         let condition_code = match params.condition {
-            Condition::None => 0,
-            Condition::Shadows => 1,
-            Condition::Gi => 2,
+            GiLevel::None => 0,
+            GiLevel::Shadows => 1,
+            GiLevel::Gi => 2,
         };
         let shade_params = ShadeParams {
             camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
@@ -621,7 +622,7 @@ mod tests {
             ("indirect.wgsl", indirect::SHADER),
             ("cm.wgsl", cm::SHADER),
             ("compose.wgsl", compose::SHADER),
-            ("artifacts.wgsl", artifacts::SHADER),
+            ("ca.wgsl", ca::SHADER),
             ("bounce.wgsl", bounce::SHADER),
         ] {
             let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));

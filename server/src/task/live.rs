@@ -19,7 +19,7 @@ use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
 
-use mrstudy_renderer::gpu::{Condition, DirParams, DirRenderer, LiveState};
+use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel as Condition, LiveState};
 use mrstudy_renderer::image::Image;
 use mrstudy_renderer::reference::{ReferenceParams, render_photo};
 use mrstudy_renderer::scene::Scene;

@@ -12,7 +12,7 @@
 //! `rand`'s distributions, so a stored seed keeps reproducing its schedule.
 
 use glam::DVec3;
-use mrstudy_renderer::gpu::Condition;
+use mrstudy_renderer::gpu::GiLevel as Condition;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};

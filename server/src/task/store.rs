@@ -367,7 +367,7 @@ pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<
                 trial: row.try_get::<i64, _>("trial")? as u32,
                 task: row.try_get("task")?,
                 kind: serde_json::from_value(serde_json::Value::String(kind)).map_err(|_| decode("kind"))?,
-                condition: mrstudy_renderer::gpu::Condition::parse(&condition).ok_or_else(|| decode("condition"))?,
+                condition: mrstudy_renderer::gpu::GiLevel::parse(&condition).ok_or_else(|| decode("condition"))?,
                 practice: row.try_get::<i64, _>("practice")? == 1,
                 start: [row.try_get("start_x")?, row.try_get("start_y")?, row.try_get("start_z")?],
                 target: [row.try_get("target_x")?, row.try_get("target_y")?, row.try_get("target_z")?],

@@ -9,7 +9,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use mrstudy_renderer::gpu::Condition;
+use mrstudy_renderer::gpu::GiLevel as Condition;
 use serde::{Deserialize, Serialize};
 
 use crate::study::StudyError;

@@ -14,7 +14,7 @@
 //! Each scene is an ordinary [`SceneDesc`], so `mrstudy render --scene NAME --print-toml` (or
 //! [`SceneDesc::to_toml`]) shows it as a scene file.
 
-use crate::scene::{
+use super::desc::{
     CameraDesc, EnvironmentDesc, LightDesc, MaterialDesc, MaterialRef, ObjectDesc, PatternDesc, Rgb, Role, SceneDesc,
 };
 use crate::sensor::SensorDesc;

@@ -1,4 +1,4 @@
-//! The ca pass on the GPU (shader: `artifacts.wgsl`): Klein and Murray's camera chain applied to
+//! The ca pass on the GPU (shader: `ca.wgsl`): Klein and Murray's camera chain applied to
 //! a frame's virtual layers, as compute passes — layers, distortion with chromatic aberration,
 //! defocus disc, noise at the Bayer sites, demosaicing, sharpening, composition, JPEG-style
 //! compression. The arithmetic and its order are those of the CPU reference
@@ -14,9 +14,9 @@ use crate::image::{Image, Mask};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = include_str!("artifacts.wgsl");
+pub const SHADER: &str = include_str!("ca.wgsl");
 
-/// Matches `Params` in artifacts.wgsl.
+/// Matches `Params` in ca.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct ArtifactParams {
@@ -62,7 +62,7 @@ impl Artifacts {
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("artifacts"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("artifacts.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("ca.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
         let pipelines = STAGES
             .iter()
             .map(|entry| {
