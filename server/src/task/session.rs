@@ -141,7 +141,7 @@ struct Pending {
     /// Keys of the trial included in this frame.
     inputs: usize,
     input_at: Option<Instant>,
-    condition: mrstudy_renderer::gpu::Condition,
+    condition: mrstudy_renderer::gpu::GiLevel,
     requested_at: Instant,
     /// Not sent before this (pacing).
     release_at: Instant,

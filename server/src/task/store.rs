@@ -294,7 +294,7 @@ pub async fn upsert_study(storage: &Storage, study: &TaskStudy) -> Result<(), sq
 }
 
 /// Records the frame time per condition measured at start-up (table `task_frame_times`).
-pub async fn record_frame_times(storage: &Storage, study: &str, adapter: &str, size: [u32; 2], frames: usize, medians: &[(mrstudy_renderer::gpu::Condition, f64)]) -> Result<(), sqlx::Error> {
+pub async fn record_frame_times(storage: &Storage, study: &str, adapter: &str, size: [u32; 2], frames: usize, medians: &[(mrstudy_renderer::gpu::GiLevel, f64)]) -> Result<(), sqlx::Error> {
     let measured_at = iso(std::time::SystemTime::now());
     for (condition, median_ms) in medians {
         sqlx::query("INSERT OR REPLACE INTO task_frame_times (study, measured_at, adapter, condition, width, height, frames, median_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?)")

@@ -13,7 +13,7 @@
 
 use std::collections::VecDeque;
 
-use mrstudy_renderer::gpu::Condition;
+use mrstudy_renderer::gpu::GiLevel as Condition;
 
 /// Conditions whose frame times differ by more than this fraction are reported.
 pub const PARITY_TOLERANCE: f64 = 0.20;
