@@ -84,7 +84,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let trials_name = args.trials.display().to_string();
     if is_task_csv(&trials) {
         if args.conditions.is_some() || args.model.is_some() || args.plot.is_some() || args.effect_plot.is_some() {
-            bail!("{trials_name} is a task CSV (participant,condition,value): --conditions, --model and --plot apply to paired comparisons only");
+            bail!(
+                "{trials_name} is a task CSV (participant,condition,value): --conditions, --model and --plot apply to paired comparisons only"
+            );
         }
         let analysis = mrstudy_analysis::task::analyze_task_csv(&trials, &trials_name)?;
         match args.format {
@@ -112,14 +114,24 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         include_excluded: args.include_excluded,
         ..Options::default()
     };
-    let analysis = mrstudy_analysis::analysis::analyze_named(&trials, &trials_name, conditions.as_deref().map(|text| (text, conditions_name.as_str())), &options)?;
+    let analysis = mrstudy_analysis::analysis::analyze_named(
+        &trials,
+        &trials_name,
+        conditions.as_deref().map(|text| (text, conditions_name.as_str())),
+        &options,
+    )?;
     // Render everything before writing anything: no partial output on error.
     let text = match args.format {
         Format::Json => serde_json::to_string_pretty(&analysis)? + "\n",
         Format::Table => mrstudy_analysis::table::render(&analysis),
     };
     let effects = match &args.effect_plot {
-        Some(path) => Some((path, analysis.effect_plot().ok_or_else(|| anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns"))?)),
+        Some(path) => Some((
+            path,
+            analysis.effect_plot().ok_or_else(|| {
+                anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns")
+            })?,
+        )),
         None => None,
     };
     if let Some(path) = &args.plot {

@@ -78,28 +78,41 @@ impl Observer for Printer {
 /// The renderer's plot as an SVG file name and text.
 fn drawn(plot: &Plot) -> (String, String) {
     let series = plot.series.iter().map(|s| LineSeries { name: s.name.clone(), points: s.points.clone() }).collect();
-    let line = LinePlot { title: plot.title.clone(), x_label: plot.x_label.clone(), y_label: plot.y_label.clone(), x_log: plot.x_log, y_log: plot.y_log, series };
+    let line = LinePlot {
+        title: plot.title.clone(),
+        x_label: plot.x_label.clone(),
+        y_label: plot.y_label.clone(),
+        x_log: plot.x_log,
+        y_log: plot.y_log,
+        series,
+    };
     (plot.file.clone(), line_plot(&line))
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
     let printer = Printer::default();
     let scene = args.scene.as_deref();
-    let (document, plots): (Value, Vec<(String, String)>) = match args.target {
-        Target::Analysis => {
-            // one core, as the targets are stated for one core of the 2-core machine
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-            let report = pool.install(|| mrstudy_analysis::bench::run(args.quick, &|line| println!("{line}")))?;
-            (report.to_json(), report.plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect())
-        }
-        Target::Render if args.reference => bench::reference::run(scene, args.quick, &printer).map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
-        Target::Render if args.ca => bench::ca::run(scene, args.quick, &printer).map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
-        Target::Render if args.cm => bench::cm::run(scene, args.quick, &printer).map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
-        Target::Render => bench::gpu::run(scene, args.quick, &printer).map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
-        Target::Server => (crate::serve::bench_server(args.quick)?, Vec::new()),
-    };
+    let (document, plots): (Value, Vec<(String, String)>) =
+        match args.target {
+            Target::Analysis => {
+                // one core, as the targets are stated for one core of the 2-core machine
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+                let report = pool.install(|| mrstudy_analysis::bench::run(args.quick, &|line| println!("{line}")))?;
+                (report.to_json(), report.plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect())
+            }
+            Target::Render if args.reference => bench::reference::run(scene, args.quick, &printer)
+                .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
+            Target::Render if args.ca => bench::ca::run(scene, args.quick, &printer)
+                .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
+            Target::Render if args.cm => bench::cm::run(scene, args.quick, &printer)
+                .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
+            Target::Render => bench::gpu::run(scene, args.quick, &printer)
+                .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
+            Target::Server => (crate::serve::bench_server(args.quick)?, Vec::new()),
+        };
     if let Some(path) = &args.json {
-        std::fs::write(path, serde_json::to_string_pretty(&document)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(path, serde_json::to_string_pretty(&document)? + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(dir) = &args.plot_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -13,7 +13,11 @@ mod serve;
 mod stimuli;
 
 #[derive(Parser)]
-#[command(name = "mrstudy", version, about = "Perceptual studies of mixed-reality rendering: render stimuli, run studies, analyse judgments.")]
+#[command(
+    name = "mrstudy",
+    version,
+    about = "Perceptual studies of mixed-reality rendering: render stimuli, run studies, analyse judgments."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -16,7 +16,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use mrstudy_renderer::ca::{ParamSource, estimate};
 use mrstudy_renderer::cm::{CmMethod, Composition};
-use mrstudy_renderer::gpu::{GiLevel, DirParams, DirRenderer};
+use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel};
 use mrstudy_renderer::image::save_by_extension;
 use mrstudy_renderer::metrics;
 use mrstudy_renderer::reference::{ReferenceParams, render_photo, render_reference};
@@ -116,7 +116,8 @@ fn load_scene(name: &str, size: Option<&str>, camera: Option<&str>) -> Result<sc
     }
     if let Some(preset) = camera {
         let seed = scene.sensor.seed;
-        scene.sensor = SensorParams::preset(preset).with_context(|| format!("--camera `{preset}` is not one of webcam, phone, clean"))?;
+        scene.sensor = SensorParams::preset(preset)
+            .with_context(|| format!("--camera `{preset}` is not one of webcam, phone, clean"))?;
         scene.sensor.seed = seed;
     }
     Ok(scene)
@@ -124,7 +125,11 @@ fn load_scene(name: &str, size: Option<&str>, camera: Option<&str>) -> Result<sc
 
 pub fn progress_bar(total: u64, label: &str) -> ProgressBar {
     let bar = ProgressBar::new(total);
-    bar.set_style(ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} spp {elapsed_precise} (eta {eta})").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} spp {elapsed_precise} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
     bar.set_message(label.to_string());
     bar
 }
@@ -149,7 +154,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return render_condition(&args, name);
     }
     if !(args.reference || args.photo) {
-        bail!("say what to render: --condition gi|shadows|none (GPU), or --reference or --photo (CPU reference path tracer)");
+        bail!(
+            "say what to render: --condition gi|shadows|none (GPU), or --reference or --photo (CPU reference path tracer)"
+        );
     }
     let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
     if args.spp == 0 {
@@ -182,7 +189,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
             result.hdr_full.save_exr(&dir.join("full.exr"))?;
             result.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
             result.affected_mask.save_png(&dir.join("affected_mask.png"))?;
-            let errors = metrics::compare(&result.hdr_full, &result.hdr_real, &result.ground_truth, &result.photo, Some(&result.affected_mask));
+            let errors = metrics::compare(
+                &result.hdr_full,
+                &result.hdr_real,
+                &result.ground_truth,
+                &result.photo,
+                Some(&result.affected_mask),
+            );
             write_json(
                 &dir.join("report.json"),
                 &json!({ "scene": scene.name, "stats": result.stats, "photo_vs_ground_truth_in_affected_region": errors }),
@@ -200,15 +213,25 @@ fn factors_of(args: &RenderArgs) -> Result<Factors> {
         return Ok(Factors { gi, cm: false, ca: false });
     }
     let names = args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty());
-    Factors::from_levels(names.map(|name| (name, 1.0))).map_err(|e| anyhow!("--factors: {e}; name them as gi, cm, ca or shadows"))
+    Factors::from_levels(names.map(|name| (name, 1.0)))
+        .map_err(|e| anyhow!("--factors: {e}; name them as gi, cm, ca or shadows"))
 }
 
 /// `render --condition …`: the photograph by the path tracer, then the GPU frame over it.
 fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
     let factors = factors_of(args)?;
-    let cm_method = args.cm.as_deref().map(|name| CmMethod::parse(name).with_context(|| format!("--cm `{name}` is not one of off, statistics, samples, rohmer"))).transpose()?;
-    let composition = Composition::parse(&args.composition).with_context(|| format!("--composition `{}` is not one of additive, scaled", args.composition))?;
-    let ca_source = ParamSource::parse(&args.ca_params).with_context(|| format!("--ca-params `{}` is not one of scene, estimate", args.ca_params))?;
+    let cm_method = args
+        .cm
+        .as_deref()
+        .map(|name| {
+            CmMethod::parse(name)
+                .with_context(|| format!("--cm `{name}` is not one of off, statistics, samples, rohmer"))
+        })
+        .transpose()?;
+    let composition = Composition::parse(&args.composition)
+        .with_context(|| format!("--composition `{}` is not one of additive, scaled", args.composition))?;
+    let ca_source = ParamSource::parse(&args.ca_params)
+        .with_context(|| format!("--ca-params `{}` is not one of scene, estimate", args.ca_params))?;
     if args.reference || args.photo {
         bail!("--condition/--factors render on the GPU; leave out --reference and --photo");
     }
@@ -226,7 +249,14 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
     let (_, photo, photo_stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
     let settings = StimulusSettings { vpls: args.vpls, ..StimulusSettings::default() };
-    let mut dir_params = DirParams { ism_size: args.ism_size, ism_points: args.ism_points, bounces: args.bounces, bounce_candidates: args.bounce_candidates, composition, ..settings.params(&scene, &factors) };
+    let mut dir_params = DirParams {
+        ism_size: args.ism_size,
+        ism_points: args.ism_points,
+        bounces: args.bounces,
+        bounce_candidates: args.bounce_candidates,
+        composition,
+        ..settings.params(&scene, &factors)
+    };
     if let Some(method) = cm_method {
         dir_params.cm.method = method;
     }
@@ -243,7 +273,10 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
             e.noise.a,
             e.noise.b,
             e.noise.fit,
-            e.blur.radius_px.map(|r| format!("disc radius {r:.2} px ({} edges)", e.blur.edges)).unwrap_or_else(|| "not measurable (no isolated edges)".into()),
+            e.blur
+                .radius_px
+                .map(|r| format!("disc radius {r:.2} px ({} edges)", e.blur.edges))
+                .unwrap_or_else(|| "not measurable (no isolated edges)".into()),
             e.jpeg.quality.map(|q| q.to_string()).unwrap_or_else(|| "not detectable (none, or above about 95)".into())
         );
     }
@@ -256,7 +289,10 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
         frame.l_rv.save_exr(&dir.join("l_rv.exr"))?;
         frame.l_r.save_exr(&dir.join("l_r.exr"))?;
         frame.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
-        write_json(&dir.join("report.json"), &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates }))?;
+        write_json(
+            &dir.join("report.json"),
+            &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates }),
+        )?;
     }
     for pass in &frame.report.passes {
         eprintln!("  {:<40} {:>9.2} ms", pass.pass, pass.ms);
@@ -270,7 +306,11 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
         out.display(),
         factors.gi.name(),
         method.name(),
-        if factors.ca { format!(", ca from the {}", if ca_source == ParamSource::Scene { "scene's camera" } else { "photograph" }) } else { String::new() },
+        if factors.ca {
+            format!(", ca from the {}", if ca_source == ParamSource::Scene { "scene's camera" } else { "photograph" })
+        } else {
+            String::new()
+        },
         frame.report.vpls,
         photo_stats.seconds,
         frame.report.ms,
@@ -287,5 +327,6 @@ fn report(warnings: &[String], seconds: f64, samples_per_second: f64, out: &Path
 }
 
 fn write_json(path: &Path, value: &Value) -> Result<()> {
-    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n").with_context(|| format!("cannot write {}", path.display()))
+    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n")
+        .with_context(|| format!("cannot write {}", path.display()))
 }

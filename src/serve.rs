@@ -98,7 +98,10 @@ pub fn run_export(args: ExportArgs) -> Result<()> {
 pub fn bench_server(quick: bool) -> Result<Value> {
     let durations = if quick { 3 } else { 10 };
     let concurrency: &[usize] = if quick { &[64] } else { &[16, 64, 256] };
-    println!("{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}", "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors");
+    println!(
+        "{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}",
+        "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors"
+    );
     let mut rows = Vec::new();
     for &participants in concurrency {
         let report = mrstudy_server::bench::run(mrstudy_server::bench::BenchConfig {
@@ -108,8 +111,15 @@ pub fn bench_server(quick: bool) -> Result<Value> {
         .map_err(|message| anyhow::anyhow!("bench server failed: {message}"))?;
         println!(
             "{:>12} {:>8.1} {:>11.0} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.2} {:>7}",
-            report.participants, report.seconds, report.responses_per_s, report.response_p50_ms, report.response_p90_ms,
-            report.response_p99_ms, report.response_max_ms, report.next_p99_ms, report.errors
+            report.participants,
+            report.seconds,
+            report.responses_per_s,
+            report.response_p50_ms,
+            report.response_p90_ms,
+            report.response_p99_ms,
+            report.response_max_ms,
+            report.next_p99_ms,
+            report.errors
         );
         rows.push(json!({
             "bench": "server",

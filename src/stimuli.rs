@@ -31,9 +31,10 @@ pub fn progress_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
         let mut state = state.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         match step {
             Progress::Start { photos, stimuli } => {
-                let style = ProgressStyle::with_template("{msg:40} [{bar:30}] {pos}/{len} {elapsed_precise} (eta {eta})")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar())
-                    .progress_chars("=> ");
+                let style =
+                    ProgressStyle::with_template("{msg:40} [{bar:30}] {pos}/{len} {elapsed_precise} (eta {eta})")
+                        .unwrap_or_else(|_| ProgressStyle::default_bar())
+                        .progress_chars("=> ");
                 let photo = bars.add(ProgressBar::new(1).with_style(style.clone()));
                 let frames = bars.add(ProgressBar::new(*stimuli as u64).with_style(style));
                 frames.set_message(format!("{slug}: {stimuli} stimuli ({photos} photographs first)"));

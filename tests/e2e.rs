@@ -8,12 +8,12 @@ mod admin;
 mod analyze;
 #[path = "e2e/browser.rs"]
 mod browser;
+#[path = "e2e/lab.rs"]
+mod lab;
 #[path = "e2e/render.rs"]
 mod render;
 #[path = "e2e/render_gpu.rs"]
 mod render_gpu;
-#[path = "e2e/lab.rs"]
-mod lab;
 #[path = "e2e/serve.rs"]
 mod serve;
 #[path = "e2e/serve_durability.rs"]

@@ -25,11 +25,23 @@ fn main() {
                 b += 1;
             }
             let p = 1.0 / (1.0 + (lambda[b] - lambda[a]).exp());
-            Judgment { participant: (k / 65) as u32, left: a as u32, right: b as u32, left_chosen: next() < p, count: 1, group: 0 }
+            Judgment {
+                participant: (k / 65) as u32,
+                left: a as u32,
+                right: b as u32,
+                left_chosen: next() < p,
+                count: 1,
+                group: 0,
+            }
         })
         .collect();
     let names: Vec<String> = (0..t).map(|c| format!("C{c}")).collect();
-    let judgments = Judgments { conditions: names.clone(), participants: (0..n.div_ceil(65)).map(|p| format!("p{p}")).collect(), groups: vec![], rows };
+    let judgments = Judgments {
+        conditions: names.clone(),
+        participants: (0..n.div_ceil(65)).map(|p| format!("p{p}")).collect(),
+        groups: vec![],
+        rows,
+    };
     let table = ConditionTable { conditions: names, factors: vec!["gi".into(), "cm".into(), "ca".into()], levels };
     rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
         let start = Instant::now();

@@ -73,7 +73,6 @@
 //! Reference: Kendall, M. G. & Babington Smith, B. (1940). On the method of paired
 //! comparisons. *Biometrika* 31, 324–345. doi:10.1093/biomet/31.3-4.324.
 
-
 use rand::SeedableRng;
 use rand::distr::Distribution;
 use rand_chacha::ChaCha8Rng;
@@ -107,11 +106,7 @@ pub struct AgreementOptions {
 
 impl Default for AgreementOptions {
     fn default() -> Self {
-        AgreementOptions {
-            simulations: 10_000,
-            seed: 1940,
-            continuity_correction: true,
-        }
+        AgreementOptions { simulations: 10_000, seed: 1940, continuity_correction: true }
     }
 }
 
@@ -221,10 +216,7 @@ fn too_large(what: &str) -> AnalysisError {
 }
 
 /// Validates the tallies and merges them by unordered pair (ignoring pairs never judged).
-fn merge_pairs(
-    pairs: &[PairTally],
-    n_conditions: usize,
-) -> Result<Vec<((usize, usize), MergedPair)>> {
+fn merge_pairs(pairs: &[PairTally], n_conditions: usize) -> Result<Vec<((usize, usize), MergedPair)>> {
     // Validate and orient, then sort and add up tallies of the same pair (sorting is several
     // times faster than a tree map at a million pairs).
     let mut oriented: Vec<((usize, usize), u64, u64)> = Vec::with_capacity(pairs.len());
@@ -233,9 +225,7 @@ fn merge_pairs(
             if condition >= n_conditions {
                 return Err(AnalysisError::BadOption {
                     option: format!("pairs[{index}].{name}"),
-                    message: format!(
-                        "condition index {condition} is out of range for {n_conditions} conditions"
-                    ),
+                    message: format!("condition index {condition} is out of range for {n_conditions} conditions"),
                 });
             }
         }
@@ -245,15 +235,9 @@ fn merge_pairs(
                 message: format!("pairs a condition with itself (index {})", tally.i),
             });
         }
-        let (key, wins_low) = if tally.i < tally.j {
-            ((tally.i, tally.j), tally.wins_i)
-        } else {
-            ((tally.j, tally.i), tally.wins_j)
-        };
-        let n = tally
-            .wins_i
-            .checked_add(tally.wins_j)
-            .ok_or_else(|| too_large("a pair's judgments"))?;
+        let (key, wins_low) =
+            if tally.i < tally.j { ((tally.i, tally.j), tally.wins_i) } else { ((tally.j, tally.i), tally.wins_j) };
+        let n = tally.wins_i.checked_add(tally.wins_j).ok_or_else(|| too_large("a pair's judgments"))?;
         if n == 0 {
             continue;
         }
@@ -304,12 +288,8 @@ pub fn coefficient_of_agreement(
     let mut denominator: u128 = 0;
     let mut min_numerator: u128 = 0;
     for pair in merged.iter().map(|(_, pair)| pair) {
-        numerator = numerator
-            .checked_add(agreeing(pair.n, pair.a))
-            .ok_or_else(|| too_large("Σ C(a_ij, 2)"))?;
-        denominator = denominator
-            .checked_add(choose2(pair.n))
-            .ok_or_else(|| too_large("Σ C(n_ij, 2)"))?;
+        numerator = numerator.checked_add(agreeing(pair.n, pair.a)).ok_or_else(|| too_large("Σ C(a_ij, 2)"))?;
+        denominator = denominator.checked_add(choose2(pair.n)).ok_or_else(|| too_large("Σ C(n_ij, 2)"))?;
         // cannot overflow: each term is at most C(n, 2), and their sum (the denominator) fit
         min_numerator += agreeing(pair.n, pair.n / 2);
     }
@@ -329,8 +309,7 @@ pub fn coefficient_of_agreement(
     };
     if denominator == 0 {
         agreement.note = Some(if n_pairs == 0 {
-            "no pair of conditions was judged, so the coefficient of agreement is not defined"
-                .to_string()
+            "no pair of conditions was judged, so the coefficient of agreement is not defined".to_string()
         } else {
             "no pair of conditions was judged at least twice, so the coefficient of agreement is not defined"
                 .to_string()
@@ -345,12 +324,7 @@ pub fn coefficient_of_agreement(
     let n_max = merged.iter().map(|(_, pair)| pair).map(|p| p.n).max().unwrap_or(0);
     let balanced = n_pairs == all_pairs && n_min == n_max && n_min >= CHI2_MIN_JUDGMENTS_PER_PAIR;
     if balanced {
-        let (chi2, df) = kendall_chi2(
-            numerator,
-            n_min,
-            n_compared as u64,
-            options.continuity_correction,
-        );
+        let (chi2, df) = kendall_chi2(numerator, n_min, n_compared as u64, options.continuity_correction);
         agreement.chi2 = Some(chi2);
         agreement.df = Some(df);
         agreement.p = Some(PValue::chi2_upper(chi2, df));
@@ -384,12 +358,7 @@ pub fn coefficient_of_agreement(
         agreement.method = AgreementMethod::Chi2Generalised;
         return Ok(agreement);
     }
-    agreement.p = Some(simulated_p(
-        &counts,
-        numerator,
-        options.simulations,
-        options.seed,
-    ));
+    agreement.p = Some(simulated_p(&counts, numerator, options.simulations, options.seed));
     agreement.method = AgreementMethod::Simulation;
     agreement.simulations = Some(options.simulations);
     Ok(agreement)
@@ -406,12 +375,7 @@ fn kendall_chi2(sigma: u128, m: u64, t: u64, continuity_correction: bool) -> (f6
     let exact = || -> Option<i128> {
         let sigma_c = i128::try_from(sigma).ok()? - correction as i128;
         let first = 2i128.checked_mul(i128::from(m - 2))?.checked_mul(sigma_c)?;
-        let second = i128::try_from(
-            pairs
-                .checked_mul(judge_pairs)?
-                .checked_mul(u128::from(m - 3))?,
-        )
-        .ok()?;
+        let second = i128::try_from(pairs.checked_mul(judge_pairs)?.checked_mul(u128::from(m - 3))?).ok()?;
         first.checked_sub(second)
     };
     let mf = m as f64;
@@ -420,8 +384,7 @@ fn kendall_chi2(sigma: u128, m: u64, t: u64, continuity_correction: bool) -> (f6
         Some(bracket) => 2.0 * bracket as f64 / scale,
         None => {
             let sigma_c = sigma as f64 - correction as f64;
-            4.0 / (mf - 2.0)
-                * (sigma_c - 0.5 * pairs as f64 * judge_pairs as f64 * (mf - 3.0) / (mf - 2.0))
+            4.0 / (mf - 2.0) * (sigma_c - 0.5 * pairs as f64 * judge_pairs as f64 * (mf - 3.0) / (mf - 2.0))
         }
     };
     let df = pairs as f64 * mf * (mf - 1.0) / scale;
@@ -472,7 +435,9 @@ impl PairSampler {
             let mut cdf = Vec::with_capacity((high - low + 1) as usize);
             let mut total = 0.0;
             for a in low..=high {
-                let ln_pmf = ln_norm - statrs::function::gamma::ln_gamma(a as f64 + 1.0) - statrs::function::gamma::ln_gamma((n - a) as f64 + 1.0);
+                let ln_pmf = ln_norm
+                    - statrs::function::gamma::ln_gamma(a as f64 + 1.0)
+                    - statrs::function::gamma::ln_gamma((n - a) as f64 + 1.0);
                 total += ln_pmf.exp();
                 cdf.push(total);
             }
@@ -546,10 +511,7 @@ pub struct Consistence {
 /// conditions `0..n_conditions`. Every pair must have been judged; a pair judged several times
 /// counts by its majority. Errors only on an index out of range or a condition paired with
 /// itself.
-pub fn coefficient_of_consistence(
-    judgments: &[(usize, usize, bool)],
-    n_conditions: usize,
-) -> Result<Consistence> {
+pub fn coefficient_of_consistence(judgments: &[(usize, usize, bool)], n_conditions: usize) -> Result<Consistence> {
     let t = n_conditions;
     // wins[lower * t + higher] = (wins of the lower index, wins of the higher index)
     let mut wins = vec![(0u64, 0u64); t * t];
@@ -558,9 +520,7 @@ pub fn coefficient_of_consistence(
             if condition >= t {
                 return Err(AnalysisError::BadOption {
                     option: format!("judgments[{index}].{name}"),
-                    message: format!(
-                        "condition index {condition} is out of range for {t} conditions"
-                    ),
+                    message: format!("condition index {condition} is out of range for {t} conditions"),
                 });
             }
         }
@@ -588,12 +548,8 @@ pub fn coefficient_of_consistence(
         (t128.pow(3) - 4 * t128) / 24
     };
     let max_circular_triads = u64::try_from(max_triads).unwrap_or(u64::MAX);
-    let missing_reason = |reason: String| Consistence {
-        zeta: None,
-        circular_triads: None,
-        max_circular_triads,
-        reason: Some(reason),
-    };
+    let missing_reason =
+        |reason: String| Consistence { zeta: None, circular_triads: None, max_circular_triads, reason: Some(reason) };
     if t < 3 {
         return Ok(missing_reason(format!("{t} conditions form no triads")));
     }
@@ -622,11 +578,7 @@ pub fn coefficient_of_consistence(
         )));
     }
     if let Some(&(low, high, each)) = ties.first() {
-        let more = if ties.len() > 1 {
-            format!(" (and {} more pairs)", ties.len() - 1)
-        } else {
-            String::new()
-        };
+        let more = if ties.len() > 1 { format!(" (and {} more pairs)", ties.len() - 1) } else { String::new() };
         return Ok(missing_reason(format!(
             "chose each of conditions {low} and {high} {each} times, so the pair has no majority{more}"
         )));
@@ -675,24 +627,13 @@ mod tests {
             .as_array()
             .unwrap()
             .iter()
-            .map(|row| {
-                row.as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|x| x.as_u64().unwrap())
-                    .collect()
-            })
+            .map(|row| row.as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect())
             .collect();
         let t = rows.len();
         let mut tallies = Vec::new();
         for i in 0..t {
             for j in i + 1..t {
-                tallies.push(PairTally {
-                    i,
-                    j,
-                    wins_i: rows[i][j],
-                    wins_j: rows[j][i],
-                });
+                tallies.push(PairTally { i, j, wins_i: rows[i][j], wins_j: rows[j][i] });
             }
         }
         (tallies, t)
@@ -704,27 +645,14 @@ mod tests {
             .unwrap()
             .iter()
             .map(|p| {
-                let p: Vec<u64> = p
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|x| x.as_u64().unwrap())
-                    .collect();
-                PairTally {
-                    i: p[0] as usize,
-                    j: p[1] as usize,
-                    wins_i: p[2],
-                    wins_j: p[3],
-                }
+                let p: Vec<u64> = p.as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+                PairTally { i: p[0] as usize, j: p[1] as usize, wins_i: p[2], wins_j: p[3] }
             })
             .collect()
     }
 
     fn options(correct: bool) -> AgreementOptions {
-        AgreementOptions {
-            continuity_correction: correct,
-            ..AgreementOptions::default()
-        }
+        AgreementOptions { continuity_correction: correct, ..AgreementOptions::default() }
     }
 
     fn assert_close(actual: f64, expected: f64, tolerance: f64, what: &str) {
@@ -736,26 +664,12 @@ mod tests {
 
     fn check_balanced_against_r(case: &Value, corrected: bool) {
         let (tallies, t) = tallies_from_matrix(&case["matrix"]);
-        let r = &case[if corrected {
-            "corrected"
-        } else {
-            "uncorrected"
-        }];
+        let r = &case[if corrected { "corrected" } else { "uncorrected" }];
         let agreement = coefficient_of_agreement(&tallies, t, &options(corrected)).unwrap();
         assert_eq!(agreement.method, AgreementMethod::Chi2);
         assert_close(agreement.u.unwrap(), f(&r["u"]), TOL_R_STATISTIC, "u");
-        assert_close(
-            agreement.min_u.unwrap(),
-            f(&r["min_u"]),
-            TOL_R_STATISTIC,
-            "min_u",
-        );
-        assert_close(
-            agreement.chi2.unwrap(),
-            f(&r["chi2"]),
-            TOL_R_STATISTIC,
-            "chi2",
-        );
+        assert_close(agreement.min_u.unwrap(), f(&r["min_u"]), TOL_R_STATISTIC, "min_u");
+        assert_close(agreement.chi2.unwrap(), f(&r["chi2"]), TOL_R_STATISTIC, "chi2");
         assert_close(agreement.df.unwrap(), f(&r["df"]), TOL_R_STATISTIC, "df");
         let p = agreement.p.unwrap();
         assert_close(p.log10_p, f(&r["log10_p"]), TOL_R_LOG10_P, "log10 p");
@@ -784,15 +698,11 @@ mod tests {
             let (tallies, t) = tallies_from_matrix(&case["matrix"]);
             let agreement = coefficient_of_agreement(&tallies, t, &options(true)).unwrap();
             let published = &case["published"];
-            let four_digits = |x: f64, printed: f64| {
-                (x - printed).abs() <= 0.5 * 10f64.powf(printed.abs().log10().floor() - 3.0)
-            };
+            let four_digits =
+                |x: f64, printed: f64| (x - printed).abs() <= 0.5 * 10f64.powf(printed.abs().log10().floor() - 3.0);
             let two_decimals = |x: f64, printed: f64| (x - printed).abs() <= 0.005;
             assert!(four_digits(agreement.u.unwrap(), f(&published["u"])));
-            assert!(four_digits(
-                agreement.min_u.unwrap(),
-                f(&published["min_u"])
-            ));
+            assert!(four_digits(agreement.min_u.unwrap(), f(&published["min_u"])));
             assert!(two_decimals(agreement.chi2.unwrap(), f(&published["chi2"])));
             assert!(two_decimals(agreement.df.unwrap(), f(&published["df"])));
             assert!(four_digits(agreement.p.unwrap().p, f(&published["p"])));
@@ -806,30 +716,12 @@ mod tests {
         let tallies = tallies_from_pairs(&case["pairs"]);
         let agreement = coefficient_of_agreement(&tallies, 5, &options(true)).unwrap();
         // R's generalised numerator/denominator and its kendall_u on the same design agree.
-        assert_close(
-            f(&case["u"]),
-            f(&case["corrected"]["u"]),
-            1e-15,
-            "R generalised vs Kendall",
-        );
-        assert_close(
-            agreement.u.unwrap(),
-            f(&case["corrected"]["u"]),
-            TOL_R_STATISTIC,
-            "u",
-        );
+        assert_close(f(&case["u"]), f(&case["corrected"]["u"]), 1e-15, "R generalised vs Kendall");
+        assert_close(agreement.u.unwrap(), f(&case["corrected"]["u"]), TOL_R_STATISTIC, "u");
         // Kendall's formula written out for this design: m = 10, t = 5.
-        let sigma: u128 = tallies
-            .iter()
-            .map(|p| choose2(p.wins_i) + choose2(p.wins_j))
-            .sum();
+        let sigma: u128 = tallies.iter().map(|p| choose2(p.wins_i) + choose2(p.wins_j)).sum();
         let kendall = 2.0 * sigma as f64 / (45.0 * 10.0) - 1.0;
-        assert_close(
-            agreement.u.unwrap(),
-            kendall,
-            1e-15,
-            "u vs Kendall's formula",
-        );
+        assert_close(agreement.u.unwrap(), kendall, 1e-15, "u vs Kendall's formula");
         assert_close(agreement.min_u.unwrap(), -1.0 / 9.0, 1e-15, "min u");
     }
 
@@ -838,16 +730,10 @@ mod tests {
         let reference = reference();
         let case = &reference["anchored_exact"];
         let tallies = tallies_from_pairs(&case["pairs"]);
-        let agreement =
-            coefficient_of_agreement(&tallies, 5, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 5, &AgreementOptions::default()).unwrap();
         assert_eq!(agreement.method, AgreementMethod::Simulation);
         assert_close(agreement.u.unwrap(), f(&case["u"]), TOL_R_STATISTIC, "u");
-        assert_close(
-            agreement.min_u.unwrap(),
-            f(&case["min_u"]),
-            TOL_R_STATISTIC,
-            "min u",
-        );
+        assert_close(agreement.min_u.unwrap(), f(&case["min_u"]), TOL_R_STATISTIC, "min u");
         assert_eq!(agreement.pairs, 6);
         assert_eq!(agreement.conditions, 5);
         assert!(agreement.chi2.is_none() && agreement.df.is_none());
@@ -856,39 +742,11 @@ mod tests {
     #[test]
     fn tallies_of_one_pair_in_either_order_are_added() {
         let split = [
-            PairTally {
-                i: 0,
-                j: 1,
-                wins_i: 3,
-                wins_j: 1,
-            },
-            PairTally {
-                i: 1,
-                j: 0,
-                wins_i: 2,
-                wins_j: 4,
-            },
-            PairTally {
-                i: 0,
-                j: 2,
-                wins_i: 5,
-                wins_j: 0,
-            },
+            PairTally { i: 0, j: 1, wins_i: 3, wins_j: 1 },
+            PairTally { i: 1, j: 0, wins_i: 2, wins_j: 4 },
+            PairTally { i: 0, j: 2, wins_i: 5, wins_j: 0 },
         ];
-        let whole = [
-            PairTally {
-                i: 0,
-                j: 1,
-                wins_i: 7,
-                wins_j: 3,
-            },
-            PairTally {
-                i: 0,
-                j: 2,
-                wins_i: 5,
-                wins_j: 0,
-            },
-        ];
+        let whole = [PairTally { i: 0, j: 1, wins_i: 7, wins_j: 3 }, PairTally { i: 0, j: 2, wins_i: 5, wins_j: 0 }];
         let a = coefficient_of_agreement(&split, 3, &AgreementOptions::default()).unwrap();
         let b = coefficient_of_agreement(&whole, 3, &AgreementOptions::default()).unwrap();
         assert_eq!(a, b);
@@ -903,19 +761,12 @@ mod tests {
         let case = &reference["anchored_exact"];
         let tallies = tallies_from_pairs(&case["pairs"]);
         let simulations = 20_000;
-        let options = AgreementOptions {
-            simulations,
-            seed: 7,
-            continuity_correction: true,
-        };
+        let options = AgreementOptions { simulations, seed: 7, continuity_correction: true };
         let agreement = coefficient_of_agreement(&tallies, 5, &options).unwrap();
         let exact = f(&case["p_exact"]);
         let standard_error = (exact * (1.0 - exact) / simulations as f64).sqrt();
         let p = agreement.p.unwrap().p;
-        assert!(
-            (p - exact).abs() <= MC_STANDARD_ERRORS * standard_error,
-            "simulated {p} vs exact {exact}"
-        );
+        assert!((p - exact).abs() <= MC_STANDARD_ERRORS * standard_error, "simulated {p} vs exact {exact}");
         assert_eq!(agreement.simulations, Some(simulations));
     }
 
@@ -923,16 +774,9 @@ mod tests {
     fn simulated_p_is_reproducible_for_a_seed_whatever_the_thread_count() {
         let reference = reference();
         let tallies = tallies_from_pairs(&reference["anchored_exact"]["pairs"]);
-        let options = AgreementOptions {
-            simulations: 3000,
-            seed: 42,
-            continuity_correction: true,
-        };
+        let options = AgreementOptions { simulations: 3000, seed: 42, continuity_correction: true };
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| coefficient_of_agreement(&tallies, 5, &options).unwrap())
         };
         let one = run(1);
@@ -954,10 +798,7 @@ mod tests {
         let chi2_p = chi2.p.unwrap().p;
         assert_close(chi2_p, f(&case["corrected"]["p"]), 1e-10, "χ² p vs R");
         let exact = f(&case["p_exact"]);
-        assert!(
-            (chi2_p - exact).abs() <= 0.1 * exact,
-            "χ² {chi2_p} vs exact {exact}"
-        );
+        assert!((chi2_p - exact).abs() <= 0.1 * exact, "χ² {chi2_p} vs exact {exact}");
 
         let simulations = 20_000;
         let counts: Vec<u64> = tallies.iter().map(PairTally::n).collect();
@@ -976,12 +817,7 @@ mod tests {
         for i in 0..t {
             for j in i + 1..t {
                 let (wins_i, wins_j) = wins(i, j);
-                tallies.push(PairTally {
-                    i,
-                    j,
-                    wins_i,
-                    wins_j,
-                });
+                tallies.push(PairTally { i, j, wins_i, wins_j });
             }
         }
         tallies
@@ -990,28 +826,13 @@ mod tests {
     #[test]
     fn u_is_one_when_all_judges_agree() {
         let tallies = complete_design(6, |_, _| (9, 0));
-        let agreement =
-            coefficient_of_agreement(&tallies, 6, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 6, &AgreementOptions::default()).unwrap();
         assert_eq!(agreement.u, Some(1.0));
         assert_eq!(agreement.method, AgreementMethod::Chi2);
         assert!(agreement.p.unwrap().p < 1e-20);
         // Unbalanced, all agreeing: still exactly 1.
-        let anchored = [
-            PairTally {
-                i: 0,
-                j: 1,
-                wins_i: 5,
-                wins_j: 0,
-            },
-            PairTally {
-                i: 2,
-                j: 0,
-                wins_i: 0,
-                wins_j: 9,
-            },
-        ];
-        let agreement =
-            coefficient_of_agreement(&anchored, 3, &AgreementOptions::default()).unwrap();
+        let anchored = [PairTally { i: 0, j: 1, wins_i: 5, wins_j: 0 }, PairTally { i: 2, j: 0, wins_i: 0, wins_j: 9 }];
+        let agreement = coefficient_of_agreement(&anchored, 3, &AgreementOptions::default()).unwrap();
         assert_eq!(agreement.u, Some(1.0));
         assert_eq!(agreement.method, AgreementMethod::Simulation);
     }
@@ -1020,21 +841,18 @@ mod tests {
     fn u_reaches_its_minimum_when_judges_split_evenly() {
         // Even m: −1/(m − 1).
         let tallies = complete_design(5, |_, _| (5, 5));
-        let agreement =
-            coefficient_of_agreement(&tallies, 5, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 5, &AgreementOptions::default()).unwrap();
         assert_close(agreement.u.unwrap(), -1.0 / 9.0, 1e-15, "even m");
         assert_eq!(agreement.u, agreement.min_u);
         assert!(agreement.p.unwrap().p > 0.99);
         // Odd m: −1/m.
         let tallies = complete_design(4, |_, _| (4, 5));
-        let agreement =
-            coefficient_of_agreement(&tallies, 4, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 4, &AgreementOptions::default()).unwrap();
         assert_close(agreement.u.unwrap(), -1.0 / 9.0, 1e-15, "odd m");
         assert_eq!(agreement.u, agreement.min_u);
         // Corrected χ² of a tiny design cannot go below 0.
         let tallies = complete_design(2, |_, _| (2, 2));
-        let agreement =
-            coefficient_of_agreement(&tallies, 2, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 2, &AgreementOptions::default()).unwrap();
         assert_eq!(agreement.chi2, Some(0.0));
         assert_eq!(agreement.p.unwrap().p, 1.0);
     }
@@ -1047,8 +865,7 @@ mod tests {
         assert_eq!(agreement.u, Some(1.0));
         // Perfect agreement: χ² = 2·C(t,2)·C(m,2)·(m−1)/(m−2)² − 4c/(m−2).
         let mf = m as f64;
-        let expected = 2.0 * 3.0 * (mf * (mf - 1.0) / 2.0) * (mf - 1.0) / ((mf - 2.0) * (mf - 2.0))
-            - 4.0 / (mf - 2.0);
+        let expected = 2.0 * 3.0 * (mf * (mf - 1.0) / 2.0) * (mf - 1.0) / ((mf - 2.0) * (mf - 2.0)) - 4.0 / (mf - 2.0);
         assert_close(agreement.chi2.unwrap(), expected, 1e-12, "χ²");
         assert!(agreement.p.unwrap().p > 0.0 && agreement.p.unwrap().log10_p.is_finite());
 
@@ -1056,30 +873,15 @@ mod tests {
         let agreement = coefficient_of_agreement(&tallies, 4, &options(false)).unwrap();
         assert_close(agreement.u.unwrap(), -1.0 / (mf - 1.0), 1e-15, "even split");
         // The uncorrected χ² at the minimum is C(t,2)·m/(m−2)², computed exactly.
-        assert_close(
-            agreement.chi2.unwrap(),
-            6.0 * mf / ((mf - 2.0) * (mf - 2.0)),
-            1e-12,
-            "χ² at the minimum",
-        );
+        assert_close(agreement.chi2.unwrap(), 6.0 * mf / ((mf - 2.0) * (mf - 2.0)), 1e-12, "χ² at the minimum");
         let json = serde_json::to_string(&agreement).unwrap();
         assert!(!json.contains("NaN") && !json.contains("inf"));
 
         // Counts far above 1e9 still add up exactly.
-        let big = [PairTally {
-            i: 0,
-            j: 1,
-            wins_i: u64::MAX / 2,
-            wins_j: u64::MAX / 2,
-        }];
+        let big = [PairTally { i: 0, j: 1, wins_i: u64::MAX / 2, wins_j: u64::MAX / 2 }];
         let agreement = coefficient_of_agreement(&big, 2, &AgreementOptions::default()).unwrap();
         assert!(agreement.u.unwrap().abs() < 1e-15);
-        let overflow = [PairTally {
-            i: 0,
-            j: 1,
-            wins_i: u64::MAX,
-            wins_j: 1,
-        }];
+        let overflow = [PairTally { i: 0, j: 1, wins_i: u64::MAX, wins_j: 1 }];
         assert!(coefficient_of_agreement(&overflow, 2, &AgreementOptions::default()).is_err());
     }
 
@@ -1092,47 +894,24 @@ mod tests {
         let case = &reference["huge_anchored"];
         let tallies = tallies_from_pairs(&case["pairs"]);
         let simulations = 4000;
-        let options = AgreementOptions {
-            simulations,
-            seed: 5,
-            continuity_correction: true,
-        };
+        let options = AgreementOptions { simulations, seed: 5, continuity_correction: true };
         let agreement = coefficient_of_agreement(&tallies, 4, &options).unwrap();
         assert_eq!(agreement.method, AgreementMethod::Simulation);
         let limit = f(&case["p_limit"]);
         let standard_error = (limit * (1.0 - limit) / simulations as f64).sqrt();
         let p = agreement.p.unwrap().p;
-        assert!(
-            (p - limit).abs() <= MC_STANDARD_ERRORS * standard_error,
-            "simulated {p} vs limit {limit}"
-        );
+        assert!((p - limit).abs() <= MC_STANDARD_ERRORS * standard_error, "simulated {p} vs limit {limit}");
     }
 
     #[test]
     fn no_pair_judged_twice_leaves_u_undefined() {
         let tallies = [
-            PairTally {
-                i: 0,
-                j: 1,
-                wins_i: 1,
-                wins_j: 0,
-            },
-            PairTally {
-                i: 1,
-                j: 2,
-                wins_i: 0,
-                wins_j: 1,
-            },
-            PairTally {
-                i: 0,
-                j: 2,
-                wins_i: 0,
-                wins_j: 0,
-            },
+            PairTally { i: 0, j: 1, wins_i: 1, wins_j: 0 },
+            PairTally { i: 1, j: 2, wins_i: 0, wins_j: 1 },
+            PairTally { i: 0, j: 2, wins_i: 0, wins_j: 0 },
         ];
         for pairs in [&tallies[..], &[]] {
-            let agreement =
-                coefficient_of_agreement(pairs, 3, &AgreementOptions::default()).unwrap();
+            let agreement = coefficient_of_agreement(pairs, 3, &AgreementOptions::default()).unwrap();
             assert_eq!(agreement.method, AgreementMethod::Undefined);
             assert!(agreement.u.is_none() && agreement.p.is_none() && agreement.chi2.is_none());
             assert!(agreement.note.as_deref().unwrap().contains("not defined"));
@@ -1146,8 +925,7 @@ mod tests {
     #[test]
     fn json_has_the_keys_of_the_analysis_json() {
         let tallies = complete_design(4, |i, j| (6 + (i + j) as u64 % 3, 2 - (i + j) as u64 % 3));
-        let agreement =
-            coefficient_of_agreement(&tallies, 4, &AgreementOptions::default()).unwrap();
+        let agreement = coefficient_of_agreement(&tallies, 4, &AgreementOptions::default()).unwrap();
         let json = serde_json::to_value(&agreement).unwrap();
         for key in ["u", "chi2", "df", "p", "log10_p", "min_u"] {
             assert!(json[key].is_number(), "{key} in {json}");
@@ -1160,26 +938,12 @@ mod tests {
 
     #[test]
     fn malformed_tallies_are_errors() {
-        let out_of_range = [PairTally {
-            i: 0,
-            j: 3,
-            wins_i: 1,
-            wins_j: 1,
-        }];
-        let error =
-            coefficient_of_agreement(&out_of_range, 3, &AgreementOptions::default()).unwrap_err();
+        let out_of_range = [PairTally { i: 0, j: 3, wins_i: 1, wins_j: 1 }];
+        let error = coefficient_of_agreement(&out_of_range, 3, &AgreementOptions::default()).unwrap_err();
         assert!(error.to_string().contains("pairs[0].j"), "{error}");
-        let itself = [PairTally {
-            i: 1,
-            j: 1,
-            wins_i: 1,
-            wins_j: 1,
-        }];
+        let itself = [PairTally { i: 1, j: 1, wins_i: 1, wins_j: 1 }];
         assert!(coefficient_of_agreement(&itself, 3, &AgreementOptions::default()).is_err());
-        let no_simulations = AgreementOptions {
-            simulations: 0,
-            ..AgreementOptions::default()
-        };
+        let no_simulations = AgreementOptions { simulations: 0, ..AgreementOptions::default() };
         assert!(coefficient_of_agreement(&[], 3, &no_simulations).is_err());
     }
 
@@ -1193,21 +957,14 @@ mod tests {
     fn binomial_sampler_follows_the_binomial_distribution() {
         let draws = 50_000;
         for (n, seed) in [(7u64, 1u64), (60, 2), (5000, 3), (1_000_000_000, 4)] {
-            let sampler = Binomial::new(0.5, n)
-                .unwrap()
-                .sampler(BinomialAlgorithm::Automatic)
-                .unwrap();
+            let sampler = Binomial::new(0.5, n).unwrap().sampler(BinomialAlgorithm::Automatic).unwrap();
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let mut sample: Vec<u64> = (0..draws).map(|_| sampler.sample(&mut rng)).collect();
             sample.sort_unstable();
             let exact = Binomial::new(0.5, n).unwrap();
             let normal = Normal::new(n as f64 / 2.0, (n as f64 / 4.0).sqrt()).unwrap();
             let cdf = |k: u64| {
-                if n <= 5000 {
-                    exact.cdf(k)
-                } else {
-                    normal.cdf(k as f64 + 0.5)
-                }
+                if n <= 5000 { exact.cdf(k) } else { normal.cdf(k as f64 + 0.5) }
             };
             let mut largest: f64 = 0.0;
             let mut index = 0;
@@ -1219,14 +976,9 @@ mod tests {
                 }
                 let at = index as f64 / draws as f64;
                 let cdf_below = if k == 0 { 0.0 } else { cdf(k - 1) };
-                largest = largest
-                    .max((at - cdf(k)).abs())
-                    .max((below - cdf_below).abs());
+                largest = largest.max((at - cdf(k)).abs()).max((below - cdf_below).abs());
             }
-            assert!(
-                largest < 1.95 / (draws as f64).sqrt(),
-                "n = {n}: KS distance {largest}"
-            );
+            assert!(largest < 1.95 / (draws as f64).sqrt(), "n = {n}: KS distance {largest}");
         }
     }
 
@@ -1237,8 +989,8 @@ mod tests {
         for i in 0..t {
             for j in i + 1..t {
                 for k in j + 1..t {
-                    let cycle = (beats[i][j] && beats[j][k] && beats[k][i])
-                        || (beats[j][i] && beats[k][j] && beats[i][k]);
+                    let cycle =
+                        (beats[i][j] && beats[j][k] && beats[k][i]) || (beats[j][i] && beats[k][j] && beats[i][k]);
                     count += u64::from(cycle);
                 }
             }
@@ -1266,44 +1018,28 @@ mod tests {
                 .as_array()
                 .unwrap()
                 .iter()
-                .map(|j| {
-                    (
-                        j[0].as_u64().unwrap() as usize,
-                        j[1].as_u64().unwrap() as usize,
-                        j[2].as_bool().unwrap(),
-                    )
-                })
+                .map(|j| (j[0].as_u64().unwrap() as usize, j[1].as_u64().unwrap() as usize, j[2].as_bool().unwrap()))
                 .collect();
             let consistence = coefficient_of_consistence(&judgments, t).unwrap();
             let name = case["name"].as_str().unwrap();
-            assert_eq!(
-                consistence.circular_triads,
-                Some(case["circular_triads"].as_u64().unwrap()),
-                "{name}"
-            );
-            assert_eq!(
-                consistence.max_circular_triads,
-                case["max_circular_triads"].as_u64().unwrap(),
-                "{name}"
-            );
+            assert_eq!(consistence.circular_triads, Some(case["circular_triads"].as_u64().unwrap()), "{name}");
+            assert_eq!(consistence.max_circular_triads, case["max_circular_triads"].as_u64().unwrap(), "{name}");
             assert_close(consistence.zeta.unwrap(), f(&case["zeta"]), 1e-15, name);
         }
     }
 
     #[test]
     fn transitive_judge_has_zeta_one_and_regular_tournament_the_most_triads() {
-        let transitive: Vec<(usize, usize, bool)> = (0..6)
-            .flat_map(|i| (i + 1..6).map(move |j| (j, i, false)))
-            .collect();
+        let transitive: Vec<(usize, usize, bool)> =
+            (0..6).flat_map(|i| (i + 1..6).map(move |j| (j, i, false))).collect();
         let consistence = coefficient_of_consistence(&transitive, 6).unwrap();
         assert_eq!(consistence.zeta, Some(1.0));
         assert_eq!(consistence.circular_triads, Some(0));
         assert_eq!(consistence.max_circular_triads, 8);
 
         // t = 5, each condition beats the next two: every condition has 2 wins, d = 5 = max.
-        let regular: Vec<(usize, usize, bool)> = (0..5)
-            .flat_map(|i| [(i, (i + 1) % 5, true), (i, (i + 2) % 5, true)])
-            .collect();
+        let regular: Vec<(usize, usize, bool)> =
+            (0..5).flat_map(|i| [(i, (i + 1) % 5, true), (i, (i + 2) % 5, true)]).collect();
         let consistence = coefficient_of_consistence(&regular, 5).unwrap();
         assert_eq!(consistence.circular_triads, Some(5));
         assert_eq!(consistence.max_circular_triads, 5);
@@ -1324,10 +1060,7 @@ mod tests {
                     }
                 }
                 let consistence = coefficient_of_consistence(&judgments_of(&beats), t).unwrap();
-                assert_eq!(
-                    consistence.circular_triads,
-                    Some(circular_triads_by_enumeration(&beats))
-                );
+                assert_eq!(consistence.circular_triads, Some(circular_triads_by_enumeration(&beats)));
                 let zeta = consistence.zeta.unwrap();
                 assert!((0.0..=1.0).contains(&zeta));
             }
@@ -1337,23 +1070,11 @@ mod tests {
     #[test]
     fn repeated_judgments_count_by_majority_and_ties_give_no_zeta() {
         // 0 > 1 twice of three, 1 > 2, 0 > 2: transitive by majority.
-        let judgments = [
-            (0, 1, true),
-            (1, 0, true),
-            (0, 1, true),
-            (1, 2, true),
-            (2, 0, false),
-        ];
+        let judgments = [(0, 1, true), (1, 0, true), (0, 1, true), (1, 2, true), (2, 0, false)];
         let consistence = coefficient_of_consistence(&judgments, 3).unwrap();
         assert_eq!(consistence.zeta, Some(1.0));
         // 1 > 0 by majority (2 of 3), 0 > 2 and 2 > 1: one circular triad.
-        let judgments = [
-            (0, 1, false),
-            (1, 0, true),
-            (0, 1, true),
-            (2, 1, true),
-            (0, 2, true),
-        ];
+        let judgments = [(0, 1, false), (1, 0, true), (0, 1, true), (2, 1, true), (0, 2, true)];
         let consistence = coefficient_of_consistence(&judgments, 3).unwrap();
         assert_eq!(consistence.circular_triads, Some(1));
         assert_eq!(consistence.zeta, Some(0.0));
@@ -1361,13 +1082,7 @@ mod tests {
         let tie = [(0, 1, true), (0, 1, false), (1, 2, true), (0, 2, true)];
         let consistence = coefficient_of_consistence(&tie, 3).unwrap();
         assert!(consistence.zeta.is_none() && consistence.circular_triads.is_none());
-        assert!(
-            consistence
-                .reason
-                .as_deref()
-                .unwrap()
-                .contains("no majority")
-        );
+        assert!(consistence.reason.as_deref().unwrap().contains("no majority"));
         assert_eq!(consistence.max_circular_triads, 1);
         let json = serde_json::to_value(&consistence).unwrap();
         assert!(json.get("zeta").is_none() && json["reason"].is_string());
@@ -1377,13 +1092,7 @@ mod tests {
     fn judge_who_missed_a_pair_or_too_few_conditions_gets_no_zeta() {
         let consistence = coefficient_of_consistence(&[(0, 1, true), (1, 2, true)], 3).unwrap();
         assert!(consistence.zeta.is_none());
-        assert!(
-            consistence
-                .reason
-                .as_deref()
-                .unwrap()
-                .contains("2 of the 3 pairs")
-        );
+        assert!(consistence.reason.as_deref().unwrap().contains("2 of the 3 pairs"));
         let consistence = coefficient_of_consistence(&[(0, 1, true)], 2).unwrap();
         assert!(consistence.zeta.is_none() && consistence.reason.is_some());
         assert_eq!(consistence.max_circular_triads, 0);
@@ -1432,7 +1141,11 @@ mod generalised_tests {
         let simulated = simulated_p(&counts, observed, 40_000, 5).p;
         let (_, _, generalised) = generalised_chi2(merged.iter());
         assert!(simulated > 1e-3 && simulated < 0.5, "pick a design with a moderate p, got {simulated}");
-        assert!((generalised.p - simulated).abs() < 0.15 * simulated, "generalised {} vs simulated {simulated}", generalised.p);
+        assert!(
+            (generalised.p - simulated).abs() < 0.15 * simulated,
+            "generalised {} vs simulated {simulated}",
+            generalised.p
+        );
     }
 
     /// The tabulated sampler follows Binomial(n, ½): its empirical CDF stays within the
@@ -1451,7 +1164,14 @@ mod generalised_tests {
                 let ln_norm = statrs::function::gamma::ln_gamma(n as f64 + 1.0) - n as f64 * std::f64::consts::LN_2;
                 let sd = (n as f64).sqrt() / 2.0;
                 let start = ((n as f64 / 2.0 - 12.0 * sd).floor().max(0.0)) as u64;
-                (start..=a).map(|k| (ln_norm - statrs::function::gamma::ln_gamma(k as f64 + 1.0) - statrs::function::gamma::ln_gamma((n - k) as f64 + 1.0)).exp()).sum()
+                (start..=a)
+                    .map(|k| {
+                        (ln_norm
+                            - statrs::function::gamma::ln_gamma(k as f64 + 1.0)
+                            - statrs::function::gamma::ln_gamma((n - k) as f64 + 1.0))
+                        .exp()
+                    })
+                    .sum()
             };
             let bound = 1.95 / (draws as f64).sqrt(); // KS critical value at α = 0.001
             for q in [0.05, 0.25, 0.5, 0.75, 0.95] {

@@ -327,9 +327,18 @@ pub fn analyze(trials_csv: &str, conditions_csv: Option<&str>, options: &Options
 }
 
 /// As [`analyze`], with the sources' names used in error messages (e.g. file paths).
-pub fn analyze_named(trials_csv: &str, trials_name: &str, conditions: Option<(&str, &str)>, options: &Options) -> Result<Analysis> {
+pub fn analyze_named(
+    trials_csv: &str,
+    trials_name: &str,
+    conditions: Option<(&str, &str)>,
+    options: &Options,
+) -> Result<Analysis> {
     let table = conditions.map(|(text, name)| crate::data::parse_conditions(text, name)).transpose()?;
-    let trials_options = TrialsOptions { group_by: options.group_by.clone(), include_pilots: options.include_pilots, include_excluded: options.include_excluded };
+    let trials_options = TrialsOptions {
+        group_by: options.group_by.clone(),
+        include_pilots: options.include_pilots,
+        include_excluded: options.include_excluded,
+    };
     let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table.as_ref(), &trials_options)?;
     let mut analysis = analyze_judgments(&parsed.judgments, table.as_ref(), options)?;
     if !parsed.left_out.is_empty() {
@@ -342,12 +351,18 @@ pub fn analyze_named(trials_csv: &str, trials_name: &str, conditions: Option<(&s
 /// Analyses parsed judgments.
 pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, options: &Options) -> Result<Analysis> {
     if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
-        return Err(AnalysisError::BadOption { option: "tolerance".into(), message: format!("{} is not between 0 and 1", options.tolerance) });
+        return Err(AnalysisError::BadOption {
+            option: "tolerance".into(),
+            message: format!("{} is not between 0 and 1", options.tolerance),
+        });
     }
     let reference = match &options.reference {
         Some(name) => judgments.conditions.iter().position(|c| c == name).ok_or_else(|| AnalysisError::BadOption {
             option: "reference".into(),
-            message: format!("`{name}` is not a condition of the data (conditions: {})", judgments.conditions.join(", ")),
+            message: format!(
+                "`{name}` is not a condition of the data (conditions: {})",
+                judgments.conditions.join(", ")
+            ),
         })?,
         None => 0,
     };
@@ -358,7 +373,10 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         }
         _ => {
             if let Some(formula) = &options.model {
-                return Err(AnalysisError::BadModel { formula: formula.clone(), message: "a factor model needs a conditions file with factor columns".into() });
+                return Err(AnalysisError::BadModel {
+                    formula: formula.clone(),
+                    message: "a factor model needs a conditions file with factor columns".into(),
+                });
             }
             None
         }
@@ -394,7 +412,12 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                     left_out.push(name.clone());
                     groups.insert(
                         name.clone(),
-                        GroupResult::NotEstimable(NotEstimable { estimable: false, judgments: rows.map(|row| row.count).sum(), participants: participants.len(), reason }),
+                        GroupResult::NotEstimable(NotEstimable {
+                            estimable: false,
+                            judgments: rows.map(|row| row.count).sum(),
+                            participants: participants.len(),
+                            reason,
+                        }),
                     );
                 }
             }
@@ -414,13 +437,19 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
             let pooled = if left_out.is_empty() {
                 analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model)
             } else {
-                let pooled_options = Options { bootstrap: 0, screening: Screening::Off, agreement_simulations: 1, ..options.clone() };
-                restricted = analyze_subset(judgments, table, terms.as_ref(), reference, &pooled_options, |row| estimable[row.group as usize])?;
+                let pooled_options =
+                    Options { bootstrap: 0, screening: Screening::Off, agreement_simulations: 1, ..options.clone() };
+                restricted = analyze_subset(judgments, table, terms.as_ref(), reference, &pooled_options, |row| {
+                    estimable[row.group as usize]
+                })?;
                 restricted.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&restricted.item_model)
             };
             if pooled.method == Method::Ml {
                 // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
-                analysis.group_test = LrTest::new(2.0 * (grouped_ll - pooled.kernel_log_likelihood), grouped_parameters as i64 - pooled.parameters as i64);
+                analysis.group_test = LrTest::new(
+                    2.0 * (grouped_ll - pooled.kernel_log_likelihood),
+                    grouped_parameters as i64 - pooled.parameters as i64,
+                );
                 if !left_out.is_empty() {
                     analysis.warnings.push(format!(
                         "the test of equal effects across groups uses only the estimable groups; left out: {}",
@@ -459,7 +488,11 @@ impl ByParticipant {
         let mut cursor = offsets.clone();
         let mut entries = vec![(0, 0, false, 0); rows.len()];
         for row in rows {
-            let (i, j, i_won) = if row.left < row.right { (row.left, row.right, row.left_chosen) } else { (row.right, row.left, !row.left_chosen) };
+            let (i, j, i_won) = if row.left < row.right {
+                (row.left, row.right, row.left_chosen)
+            } else {
+                (row.right, row.left, !row.left_chosen)
+            };
             let slot = &mut cursor[row.participant as usize];
             entries[*slot] = (i as usize, j as usize, i_won, row.count);
             *slot += 1;
@@ -484,13 +517,19 @@ struct ItemFit {
     components: Vec<(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>)>,
 }
 
-fn fit_items(n_conditions: usize, pairs: &[PairTally], reference: usize, options: &Options) -> std::result::Result<ItemFit, FitFailure> {
+fn fit_items(
+    n_conditions: usize,
+    pairs: &[PairTally],
+    reference: usize,
+    options: &Options,
+) -> std::result::Result<ItemFit, FitFailure> {
     let fit_options = FitOptions { tolerance: options.tolerance, ..FitOptions::default() };
     let mut components = Vec::new();
     for members in design::components(n_conditions, pairs) {
         let component_reference = if members.contains(&reference) { reference } else { members[0] };
         let x = ModelMatrix::items(n_conditions, &members, component_reference);
-        let in_component: Vec<PairTally> = pairs.iter().filter(|p| members.binary_search(&p.i).is_ok()).copied().collect();
+        let in_component: Vec<PairTally> =
+            pairs.iter().filter(|p| members.binary_search(&p.i).is_ok()).copied().collect();
         let separated = design::separation(&members, &in_component);
         let fit = if separated.is_some() || options.always_firth {
             fit::fit_firth(&in_component, &x, fit_options)?
@@ -505,7 +544,9 @@ fn fit_items(n_conditions: usize, pairs: &[PairTally], reference: usize, options
 fn failure_message(what: &str, failure: FitFailure) -> AnalysisError {
     let message = match failure {
         FitFailure::Singular => format!("the {what} is not identifiable (singular information matrix)"),
-        FitFailure::Separation => format!("the {what} has no finite maximum-likelihood estimate (separation) and its bias-reduced fit failed"),
+        FitFailure::Separation => {
+            format!("the {what} has no finite maximum-likelihood estimate (separation) and its bias-reduced fit failed")
+        }
         FitFailure::NotConverged { iterations, last_change } => {
             format!("the {what} did not converge in {iterations} iterations (last change {last_change:.3e})")
         }
@@ -525,7 +566,8 @@ fn analyze_subset(
     let names = &judgments.conditions;
     let rows: Vec<&crate::data::Judgment> = judgments.rows.iter().filter(|row| keep(row)).collect();
     let tally_rows = rows.iter().map(|r| (r.left, r.right, r.left_chosen, r.count));
-    let pairs = if n_conditions <= 512 { design::tally_dense(n_conditions, tally_rows) } else { design::tally(tally_rows) };
+    let pairs =
+        if n_conditions <= 512 { design::tally_dense(n_conditions, tally_rows) } else { design::tally(tally_rows) };
     let mut warnings = Vec::new();
 
     let mut wins = vec![0u64; n_conditions];
@@ -543,14 +585,23 @@ fn analyze_subset(
     let mut reference = reference;
     if comparisons[reference] == 0 {
         let replacement = (0..n_conditions).find(|&c| comparisons[c] > 0).expect("at least one judgment");
-        warnings.push(format!("the reference `{}` was never compared; `{}` is the reference instead", names[reference], names[replacement]));
+        warnings.push(format!(
+            "the reference `{}` was never compared; `{}` is the reference instead",
+            names[reference], names[replacement]
+        ));
         reference = replacement;
     }
 
     let item_fit = fit_items(n_conditions, &pairs, reference, options).map_err(|f| failure_message("item model", f))?;
     let multiple = item_fit.components.len() > 1;
     if multiple {
-        let listed: Vec<String> = item_fit.components.iter().map(|(members, ..)| format!("{{{}}}", members.iter().map(|&m| names[m].as_str()).collect::<Vec<_>>().join(", "))).collect();
+        let listed: Vec<String> = item_fit
+            .components
+            .iter()
+            .map(|(members, ..)| {
+                format!("{{{}}}", members.iter().map(|&m| names[m].as_str()).collect::<Vec<_>>().join(", "))
+            })
+            .collect();
         warnings.push(format!(
             "the comparison graph is disconnected into {} components: {}; log-worth is relative to each component's reference and no difference across components is reported",
             item_fit.components.len(),
@@ -619,7 +670,10 @@ fn analyze_subset(
                 name: terms[*k].name.clone(),
                 reason: match why {
                     Dropped::Constant => "constant over the compared conditions".to_string(),
-                    Dropped::Collinear(with) => format!("collinear with {}", with.iter().map(|&w| terms[w].name.as_str()).collect::<Vec<_>>().join(", ")),
+                    Dropped::Collinear(with) => format!(
+                        "collinear with {}",
+                        with.iter().map(|&w| terms[w].name.as_str()).collect::<Vec<_>>().join(", ")
+                    ),
                 },
             })
             .collect();
@@ -645,7 +699,10 @@ fn analyze_subset(
             .map_err(|f| failure_message("factor model", f))?;
             let summary = ModelSummary::from_fits(&[&fit]);
             let lr_vs_items = if summary.method == Method::Ml && item_model.method == Method::Ml {
-                LrTest::new(2.0 * (item_model.log_likelihood - summary.log_likelihood), item_model.parameters as i64 - summary.parameters as i64)
+                LrTest::new(
+                    2.0 * (item_model.log_likelihood - summary.log_likelihood),
+                    item_model.parameters as i64 - summary.parameters as i64,
+                )
             } else {
                 None
             };
@@ -659,24 +716,42 @@ fn analyze_subset(
                         let estimate = fit.beta[column];
                         let se = fit.se(column);
                         let z = if se > 0.0 { estimate / se } else { 0.0 };
-                        Covariate { name: terms[k].name.clone(), estimate, se, z, p: PValue::normal_two_sided(z), ci: None }
+                        Covariate {
+                            name: terms[k].name.clone(),
+                            estimate,
+                            se,
+                            z,
+                            p: PValue::normal_two_sided(z),
+                            ci: None,
+                        }
                     })
                     .collect::<Vec<_>>(),
             );
             let reference_lambda = x.predict(reference, &fit.beta);
-            let fitted: Vec<Option<f64>> = (0..n_conditions).map(|c| (comparisons[c] > 0).then(|| x.predict(c, &fit.beta) - reference_lambda)).collect();
+            let fitted: Vec<Option<f64>> = (0..n_conditions)
+                .map(|c| (comparisons[c] > 0).then(|| x.predict(c, &fit.beta) - reference_lambda))
+                .collect();
             let max = fitted.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
             let total: f64 = fitted.iter().flatten().map(|l| (l - max).exp()).sum();
             for (item, lambda) in items.iter_mut().zip(&fitted) {
                 item.fitted_log_worth = *lambda;
                 item.fitted_worth = lambda.map(|l| (l - max).exp() / total);
             }
-            covariate_model = Some(CovariateModel { formula: formula.clone(), summary, lr_vs_items, dropped: dropped_terms });
+            covariate_model =
+                Some(CovariateModel { formula: formula.clone(), summary, lr_vs_items, dropped: dropped_terms });
             factor_fit = Some((fit, x));
         }
     }
 
-    let agreement = agreement::coefficient_of_agreement(&pairs, n_conditions, &AgreementOptions { simulations: options.agreement_simulations.max(1), seed: options.seed, ..AgreementOptions::default() })?;
+    let agreement = agreement::coefficient_of_agreement(
+        &pairs,
+        n_conditions,
+        &AgreementOptions {
+            simulations: options.agreement_simulations.max(1),
+            seed: options.seed,
+            ..AgreementOptions::default()
+        },
+    )?;
 
     // Per-participant judgments (for consistence, bootstrap and screening).
     let by_participant = ByParticipant::new(judgments.participants.len(), &rows);
@@ -692,7 +767,9 @@ fn analyze_subset(
         reference: names[reference].clone(),
         method: item_model.method,
         items,
-        components: multiple.then_some(components.clone()).or_else(|| components.iter().any(|c| !c.never_lost.is_empty()).then_some(components)),
+        components: multiple
+            .then_some(components.clone())
+            .or_else(|| components.iter().any(|c| !c.never_lost.is_empty()).then_some(components)),
         item_model,
         covariates,
         covariate_model,
@@ -720,24 +797,46 @@ fn analyze_subset(
     };
     if screen {
         if multiple || analysis.method != Method::Ml {
-            analysis.warnings.push("observer screening skipped: it needs a connected design with a maximum-likelihood item fit".into());
+            analysis.warnings.push(
+                "observer screening skipped: it needs a connected design with a maximum-likelihood item fit".into(),
+            );
         } else if active.len() < 3 {
             analysis.warnings.push("observer screening skipped: it needs at least three participants".into());
         } else {
-            analysis.observers = Some(screen_observers(&pairs, &item_fit.components[0], &by_participant, &active, &judgments.participants, options));
+            analysis.observers = Some(screen_observers(
+                &pairs,
+                &item_fit.components[0],
+                &by_participant,
+                &active,
+                &judgments.participants,
+                options,
+            ));
         }
     }
     if options.bootstrap > 0 {
         if active.len() < 2 {
             analysis.warnings.push("bootstrap skipped: it needs at least two participants".into());
         } else {
-            run_bootstrap(&mut analysis, &by_participant, &active, n_conditions, reference, factor_fit.as_ref().map(|(_, x)| x), options);
+            run_bootstrap(
+                &mut analysis,
+                &by_participant,
+                &active,
+                n_conditions,
+                reference,
+                factor_fit.as_ref().map(|(_, x)| x),
+                options,
+            );
         }
     }
     Ok(analysis)
 }
 
-fn consistence_per_participant(by_participant: &ByParticipant, active: &[usize], compared: &[usize], participant_names: &[String]) -> Vec<ParticipantConsistence> {
+fn consistence_per_participant(
+    by_participant: &ByParticipant,
+    active: &[usize],
+    compared: &[usize],
+    participant_names: &[String],
+) -> Vec<ParticipantConsistence> {
     let t = compared.len();
     if t < 3 {
         return Vec::new();
@@ -811,7 +910,13 @@ fn screen_observers(
     options: &Options,
 ) -> ObserverScreening {
     let (members, reference, full_fit, _) = component;
-    let n_conditions = by_participant.entries.iter().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0).max(members.iter().max().map_or(0, |m| m + 1));
+    let n_conditions = by_participant
+        .entries
+        .iter()
+        .map(|&(_, j, _, _)| j + 1)
+        .max()
+        .unwrap_or(0)
+        .max(members.iter().max().map_or(0, |m| m + 1));
     let x = ModelMatrix::items(n_conditions, members, *reference);
     let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(k, p)| ((p.i, p.j), k)).collect();
     let fit_options = FitOptions { tolerance: options.tolerance.max(1e-8), ..FitOptions::default() };
@@ -823,7 +928,9 @@ fn screen_observers(
             let beta = match fit::fit_ml(&others, &x, Some(&full_fit.beta), fit_options) {
                 Ok(fit) => fit.beta,
                 // The others alone separate: fall back to the bias-reduced consensus.
-                Err(_) => fit::fit_firth(&others, &x, fit_options).map(|f| f.beta).unwrap_or_else(|_| full_fit.beta.clone()),
+                Err(_) => {
+                    fit::fit_firth(&others, &x, fit_options).map(|f| f.beta).unwrap_or_else(|_| full_fit.beta.clone())
+                }
             };
             let (mut observed, mut mean, mut variance, mut n) = (0.0, 0.0, 0.0, 0u64);
             for &(i, j, i_won, count) in rows {
@@ -903,7 +1010,10 @@ fn run_bootstrap(
     let successful: Vec<&(Vec<f64>, Option<Vec<f64>>)> = replicates.iter().flatten().collect();
     let failed = replicates.len() - successful.len();
     if failed > 0 {
-        analysis.warnings.push(format!("bootstrap: {failed} of {} resamples had no finite fit (separation) and are left out of the intervals", replicates.len()));
+        analysis.warnings.push(format!(
+            "bootstrap: {failed} of {} resamples had no finite fit (separation) and are left out of the intervals",
+            replicates.len()
+        ));
     }
     if single_component {
         for (k, &m) in members.iter().enumerate() {
@@ -914,7 +1024,8 @@ fn run_bootstrap(
     }
     if let Some(covariates) = analysis.covariates.as_mut() {
         for (k, covariate) in covariates.iter_mut().enumerate() {
-            covariate.ci = percentile_interval(successful.iter().filter_map(|r| r.1.as_ref().map(|f| f[k])).collect(), LEVEL);
+            covariate.ci =
+                percentile_interval(successful.iter().filter_map(|r| r.1.as_ref().map(|f| f[k])).collect(), LEVEL);
         }
     }
     analysis.bootstrap = Some(Bootstrap { replicates: options.bootstrap, seed: options.seed, failed, level: LEVEL });

@@ -74,7 +74,8 @@ pub fn synthetic(n_conditions: usize, n_judgments: usize, seed: u64) -> (Judgmen
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let factors = ["gi", "cm", "ca"];
     let levels: Vec<Vec<f64>> = (0..n_conditions).map(|c| (0..3).map(|k| ((c >> k) & 1) as f64).collect()).collect();
-    let lambda: Vec<f64> = levels.iter().map(|x| 0.54 * x[0] - 0.44 * x[1] + 0.86 * x[2] + 0.3 * (rng.random::<f64>() - 0.5)).collect();
+    let lambda: Vec<f64> =
+        levels.iter().map(|x| 0.54 * x[0] - 0.44 * x[1] + 0.86 * x[2] + 0.3 * (rng.random::<f64>() - 0.5)).collect();
     let conditions: Vec<String> = (0..n_conditions).map(|c| format!("C{c:04}")).collect();
     let n_participants = n_judgments.div_ceil(65);
     let rows = (0..n_judgments)
@@ -85,10 +86,22 @@ pub fn synthetic(n_conditions: usize, n_judgments: usize, seed: u64) -> (Judgmen
                 right += 1;
             }
             let p_left = 1.0 / (1.0 + (lambda[right] - lambda[left]).exp());
-            Judgment { participant: (k / 65) as u32, left: left as u32, right: right as u32, left_chosen: rng.random::<f64>() < p_left, count: 1, group: 0 }
+            Judgment {
+                participant: (k / 65) as u32,
+                left: left as u32,
+                right: right as u32,
+                left_chosen: rng.random::<f64>() < p_left,
+                count: 1,
+                group: 0,
+            }
         })
         .collect();
-    let judgments = Judgments { conditions: conditions.clone(), participants: (0..n_participants).map(|p| format!("p{p}")).collect(), groups: Vec::new(), rows };
+    let judgments = Judgments {
+        conditions: conditions.clone(),
+        participants: (0..n_participants).map(|p| format!("p{p}")).collect(),
+        groups: Vec::new(),
+        rows,
+    };
     let table = ConditionTable { conditions, factors: factors.iter().map(|f| f.to_string()).collect(), levels };
     (judgments, table)
 }
@@ -112,23 +125,37 @@ fn time_ms<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn size_line(row: &SizeRow) -> String {
-    format!("{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}", row.bench, row.conditions, row.judgments, "1e-10", row.ms, "")
+    format!(
+        "{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}",
+        row.bench, row.conditions, row.judgments, "1e-10", row.ms, ""
+    )
 }
 
 /// Runs the benchmark (`quick`: smaller sizes only); `line` receives the table's lines.
 pub fn run(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
     let mut rows = Vec::new();
-    line(&format!("{:<12} {:>10} {:>12} {:>10} {:>12} {:>14}", "bench", "conditions", "judgments", "tolerance", "ms", "max |Δλ|"));
+    line(&format!(
+        "{:<12} {:>10} {:>12} {:>10} {:>12} {:>14}",
+        "bench", "conditions", "judgments", "tolerance", "ms", "max |Δλ|"
+    ));
 
     // Size: 1e3 … 1e7 judgments on 8 conditions.
-    let sizes: &[usize] = if quick { &[1_000, 10_000, 100_000] } else { &[1_000, 10_000, 100_000, 1_000_000, 10_000_000] };
+    let sizes: &[usize] =
+        if quick { &[1_000, 10_000, 100_000] } else { &[1_000, 10_000, 100_000, 1_000_000, 10_000_000] };
     let mut size_points = Vec::new();
     for &n in sizes {
         let (judgments, table) = synthetic(8, n, 1);
         let repeats = if n >= 1_000_000 { 3 } else { 7 };
         let (ms, analysis) = time_ms(repeats, || analyze_judgments(&judgments, Some(&table), &options(1e-10)));
         let analysis = analysis?;
-        let row = SizeRow { bench: "size", conditions: 8, judgments: n, ms, item_iterations: analysis.item_model.iterations, agreement_method: analysis.agreement.method };
+        let row = SizeRow {
+            bench: "size",
+            conditions: 8,
+            judgments: n,
+            ms,
+            item_iterations: analysis.item_model.iterations,
+            agreement_method: analysis.agreement.method,
+        };
         line(&size_line(&row));
         size_points.push((n as f64, ms));
         rows.push(AnalysisRow::Size(row));
@@ -140,9 +167,17 @@ pub fn run(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
     let mut condition_points = Vec::new();
     for &t in counts {
         let (judgments, table) = synthetic(t, n, 2);
-        let (ms, analysis) = time_ms(if t >= 1000 { 1 } else { 3 }, || analyze_judgments(&judgments, Some(&table), &options(1e-10)));
+        let (ms, analysis) =
+            time_ms(if t >= 1000 { 1 } else { 3 }, || analyze_judgments(&judgments, Some(&table), &options(1e-10)));
         let analysis = analysis?;
-        let row = SizeRow { bench: "conditions", conditions: t, judgments: n, ms, item_iterations: analysis.item_model.iterations, agreement_method: analysis.agreement.method };
+        let row = SizeRow {
+            bench: "conditions",
+            conditions: t,
+            judgments: n,
+            ms,
+            item_iterations: analysis.item_model.iterations,
+            agreement_method: analysis.agreement.method,
+        };
         line(&size_line(&row));
         condition_points.push((t as f64, ms));
         rows.push(AnalysisRow::Size(row));
@@ -158,27 +193,74 @@ pub fn run(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
         for tolerance in [1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12] {
             let (ms, analysis) = time_ms(3, || analyze_judgments(&judgments, Some(&table), &options(tolerance)));
             let analysis = analysis?;
-            let error = analysis.items.iter().zip(&reference.items).filter_map(|(a, b)| Some((a.log_worth? - b.log_worth?).abs())).fold(0.0, f64::max);
-            line(&format!("{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}", "tolerance", t, n, format!("{tolerance:.0e}"), ms, format!("{error:.2e}")));
+            let error = analysis
+                .items
+                .iter()
+                .zip(&reference.items)
+                .filter_map(|(a, b)| Some((a.log_worth? - b.log_worth?).abs()))
+                .fold(0.0, f64::max);
+            line(&format!(
+                "{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}",
+                "tolerance",
+                t,
+                n,
+                format!("{tolerance:.0e}"),
+                ms,
+                format!("{error:.2e}")
+            ));
             time_points.push((tolerance, ms));
             error_points.push((tolerance, error.max(1e-17)));
-            rows.push(AnalysisRow::Tolerance(ToleranceRow { bench: "tolerance", conditions: t, judgments: n, tolerance, ms, max_abs_error: error, item_iterations: analysis.item_model.iterations }));
+            rows.push(AnalysisRow::Tolerance(ToleranceRow {
+                bench: "tolerance",
+                conditions: t,
+                judgments: n,
+                tolerance,
+                ms,
+                max_abs_error: error,
+                item_iterations: analysis.item_model.iterations,
+            }));
         }
         tolerance_series.push((format!("{t} conditions"), time_points, error_points));
     }
 
-    let log_log = |title: String, x_label: &str, y_label: &str, series: Vec<LineSeries>| LinePlot { title, x_label: x_label.into(), y_label: y_label.into(), x_log: true, y_log: true, series };
+    let log_log = |title: String, x_label: &str, y_label: &str, series: Vec<LineSeries>| LinePlot {
+        title,
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        x_log: true,
+        y_log: true,
+        series,
+    };
     let whole = |points| vec![LineSeries { name: "item + factor fit, SEs, agreement".into(), points }];
     let plots = vec![
-        ("analysis-size.svg".to_string(), log_log("Full analysis time against judgments (8 conditions, one core)".into(), "judgments", "time (ms)", whole(size_points))),
-        ("analysis-conditions.svg".to_string(), log_log(format!("Full analysis time against conditions ({n} judgments, one core)"), "conditions", "time (ms)", whole(condition_points))),
+        (
+            "analysis-size.svg".to_string(),
+            log_log(
+                "Full analysis time against judgments (8 conditions, one core)".into(),
+                "judgments",
+                "time (ms)",
+                whole(size_points),
+            ),
+        ),
+        (
+            "analysis-conditions.svg".to_string(),
+            log_log(
+                format!("Full analysis time against conditions ({n} judgments, one core)"),
+                "conditions",
+                "time (ms)",
+                whole(condition_points),
+            ),
+        ),
         (
             "analysis-tolerance.svg".to_string(),
             log_log(
                 "Error of log-worth against convergence tolerance (reference: tolerance 1e-14)".into(),
                 "tolerance",
                 "max |Δλ|",
-                tolerance_series.iter().map(|(name, _, error)| LineSeries { name: name.clone(), points: error.clone() }).collect(),
+                tolerance_series
+                    .iter()
+                    .map(|(name, _, error)| LineSeries { name: name.clone(), points: error.clone() })
+                    .collect(),
             ),
         ),
         (
@@ -187,7 +269,10 @@ pub fn run(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
                 "Analysis time against convergence tolerance (1e6 judgments, one core)".into(),
                 "tolerance",
                 "time (ms)",
-                tolerance_series.iter().map(|(name, time, _)| LineSeries { name: name.clone(), points: time.clone() }).collect(),
+                tolerance_series
+                    .iter()
+                    .map(|(name, time, _)| LineSeries { name: name.clone(), points: time.clone() })
+                    .collect(),
             ),
         ),
     ];

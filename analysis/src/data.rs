@@ -91,13 +91,22 @@ impl LeftOut {
 
     /// One sentence for the warnings: how many went, and why.
     pub fn describe(&self) -> String {
-        let plural = |n: usize, one: &str, many: &str| if n == 1 { format!("{n} {one}") } else { format!("{n} {many}") };
+        let plural =
+            |n: usize, one: &str, many: &str| if n == 1 { format!("{n} {one}") } else { format!("{n} {many}") };
         let mut reasons = Vec::new();
         if self.pilots > 0 {
-            reasons.push(format!("{} with {} (pilot = true)", plural(self.pilots, "pilot participant", "pilot participants"), plural_u64(self.pilot_judgments)));
+            reasons.push(format!(
+                "{} with {} (pilot = true)",
+                plural(self.pilots, "pilot participant", "pilot participants"),
+                plural_u64(self.pilot_judgments)
+            ));
         }
         if self.excluded > 0 {
-            reasons.push(format!("{} with {} (excluded = true)", plural(self.excluded, "excluded participant", "excluded participants"), plural_u64(self.excluded_judgments)));
+            reasons.push(format!(
+                "{} with {} (excluded = true)",
+                plural(self.excluded, "excluded participant", "excluded participants"),
+                plural_u64(self.excluded_judgments)
+            ));
         }
         format!(
             "left out {} and {}: {}",
@@ -205,18 +214,24 @@ pub fn parse_conditions(text: &str, source_name: &str) -> Result<ConditionTable>
             });
         }
         if let Some(&first_line) = first_lines.get(&name) {
-            return Err(AnalysisError::DuplicateCondition { source_name: source_name.to_string(), line, condition: name, first_line });
+            return Err(AnalysisError::DuplicateCondition {
+                source_name: source_name.to_string(),
+                line,
+                condition: name,
+                first_line,
+            });
         }
         first_lines.insert(name.clone(), line);
         let mut levels = Vec::with_capacity(table.factors.len());
         for (k, factor) in table.factors.iter().enumerate() {
             let cell = record.get(k + 1).unwrap_or("").trim();
-            let value: f64 = cell.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| AnalysisError::BadValue {
-                source_name: source_name.to_string(),
-                line,
-                column: factor.clone(),
-                message: format!("the factor level `{cell}` is not a finite number"),
-            })?;
+            let value: f64 =
+                cell.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| AnalysisError::BadValue {
+                    source_name: source_name.to_string(),
+                    line,
+                    column: factor.clone(),
+                    message: format!("the factor level `{cell}` is not a finite number"),
+                })?;
             levels.push(value);
         }
         table.conditions.push(name);
@@ -232,7 +247,12 @@ pub fn parse_conditions(text: &str, source_name: &str) -> Result<ConditionTable>
 /// (and every condition of the trials must be in it); otherwise sorted by name. Pilot and
 /// excluded participants are left out (see [`parse_trials_with`] to keep them or to learn how
 /// many went).
-pub fn parse_trials(text: &str, source_name: &str, conditions: Option<&ConditionTable>, group_by: Option<&str>) -> Result<Judgments> {
+pub fn parse_trials(
+    text: &str,
+    source_name: &str,
+    conditions: Option<&ConditionTable>,
+    group_by: Option<&str>,
+) -> Result<Judgments> {
     let options = TrialsOptions { group_by: group_by.map(str::to_string), ..TrialsOptions::default() };
     Ok(parse_trials_with(text, source_name, conditions, &options)?.judgments)
 }
@@ -249,7 +269,12 @@ fn parse_flag(cell: &str) -> Option<bool> {
 }
 
 /// As [`parse_trials`], with options, returning also who was left out.
-pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&ConditionTable>, options: &TrialsOptions) -> Result<ParsedTrials> {
+pub fn parse_trials_with(
+    text: &str,
+    source_name: &str,
+    conditions: Option<&ConditionTable>,
+    options: &TrialsOptions,
+) -> Result<ParsedTrials> {
     let group_by = options.group_by.as_deref();
     let mut reader = reader(text);
     let headers = reader.headers().map_err(|e| csv_error(source_name, e))?.clone();
@@ -299,7 +324,11 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
                 return Ok(k);
             }
             if conditions.is_some() {
-                return Err(AnalysisError::UnknownCondition { source_name: source_name.to_string(), line, condition: name.to_string() });
+                return Err(AnalysisError::UnknownCondition {
+                    source_name: source_name.to_string(),
+                    line,
+                    condition: name.to_string(),
+                });
             }
             let k = condition_names.len() as u32;
             condition_index.insert(name.to_string(), k);
@@ -319,7 +348,11 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
         } else if chosen == right_name {
             false
         } else {
-            return Err(bad(line, "chosen", format!("`{chosen}` is neither the left (`{left_name}`) nor the right (`{right_name}`) condition")));
+            return Err(bad(
+                line,
+                "chosen",
+                format!("`{chosen}` is neither the left (`{left_name}`) nor the right (`{right_name}`) condition"),
+            ));
         };
         let participant_name = field(participant_column);
         if participant_name.is_empty() {
@@ -336,7 +369,8 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
         for (column, name, is_pilot) in [(pilot_column, "pilot", true), (excluded_column, "excluded", false)] {
             let Some(k) = column else { continue };
             let cell = field(k);
-            let flag = parse_flag(cell).ok_or_else(|| bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
+            let flag =
+                parse_flag(cell).ok_or_else(|| bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
             let mark = &mut marks[participant as usize];
             if is_pilot { mark.0 |= flag } else { mark.1 |= flag }
         }
@@ -344,7 +378,10 @@ pub fn parse_trials_with(text: &str, source_name: &str, conditions: Option<&Cond
             None => 1,
             Some(k) => {
                 let cell = field(k);
-                cell.parse::<u64>().ok().filter(|&c| c > 0).ok_or_else(|| bad(line, "count", format!("`{cell}` is not a positive whole number")))?
+                cell.parse::<u64>()
+                    .ok()
+                    .filter(|&c| c > 0)
+                    .ok_or_else(|| bad(line, "count", format!("`{cell}` is not a positive whole number")))?
             }
         };
         let group = match group_column {
@@ -465,7 +502,10 @@ mod tests {
         let text = "participant,left,right,chosen,rt_ms\np1,LQ,HQ,HQ,800\np1,GI,LQ,GI,700\n";
         let judgments = parse_trials(text, "t.csv", None, None).unwrap();
         assert_eq!(judgments.conditions, vec!["GI", "HQ", "LQ"]);
-        assert_eq!(judgments.rows[0], Judgment { participant: 0, left: 2, right: 1, left_chosen: false, count: 1, group: 0 });
+        assert_eq!(
+            judgments.rows[0],
+            Judgment { participant: 0, left: 2, right: 1, left_chosen: false, count: 1, group: 0 }
+        );
         assert_eq!(judgments.n_judgments(), 2);
     }
 
@@ -473,7 +513,10 @@ mod tests {
     fn chosen_must_be_left_or_right() {
         let text = "participant,left,right,chosen\np1,LQ,HQ,GI\n";
         let message = parse_trials(text, "t.csv", None, None).unwrap_err().to_string();
-        assert_eq!(message, "t.csv: line 2, column `chosen`: `GI` is neither the left (`LQ`) nor the right (`HQ`) condition");
+        assert_eq!(
+            message,
+            "t.csv: line 2, column `chosen`: `GI` is neither the left (`LQ`) nor the right (`HQ`) condition"
+        );
     }
 
     #[test]
@@ -492,7 +535,9 @@ mod tests {
     #[test]
     fn condition_missing_from_conditions_file() {
         let conditions = parse_conditions("condition,gi\nLQ,0\nGI,1\n", "c.csv").unwrap();
-        let message = parse_trials("participant,left,right,chosen\np,LQ,HQ,HQ\n", "t.csv", Some(&conditions), None).unwrap_err().to_string();
+        let message = parse_trials("participant,left,right,chosen\np,LQ,HQ,HQ\n", "t.csv", Some(&conditions), None)
+            .unwrap_err()
+            .to_string();
         assert_eq!(message, "t.csv: line 2: condition `HQ` is not in the conditions file");
     }
 
@@ -512,13 +557,16 @@ mod tests {
         let judgments = parse_trials(text, "t.csv", None, Some("gender")).unwrap();
         assert_eq!(judgments.n_judgments(), 1_000_000_003);
         assert_eq!(judgments.groups, vec!["f", "m"]);
-        let message = parse_trials("participant,left,right,chosen,count\np,A,B,A,0\n", "t.csv", None, None).unwrap_err().to_string();
+        let message = parse_trials("participant,left,right,chosen,count\np,A,B,A,0\n", "t.csv", None, None)
+            .unwrap_err()
+            .to_string();
         assert_eq!(message, "t.csv: line 2, column `count`: `0` is not a positive whole number");
     }
 
     #[test]
     fn self_comparison_and_empty_file() {
-        let message = parse_trials("participant,left,right,chosen\np,A,A,A\n", "t.csv", None, None).unwrap_err().to_string();
+        let message =
+            parse_trials("participant,left,right,chosen\np,A,A,A\n", "t.csv", None, None).unwrap_err().to_string();
         assert_eq!(message, "t.csv: line 2, column `right`: the trial compares condition `A` with itself");
         let message = parse_trials("participant,left,right,chosen\n", "t.csv", None, None).unwrap_err().to_string();
         assert_eq!(message, "t.csv: there are no trials in the file");

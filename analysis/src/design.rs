@@ -137,11 +137,16 @@ pub fn separation(members: &[usize], pairs: &[PairTally]) -> Option<Vec<Vec<usiz
         return None;
     }
     // Tarjan yields SCCs in reverse topological order of the condensation.
-    Some(sccs.into_iter().rev().map(|scc| {
-        let mut scc: Vec<usize> = scc.into_iter().map(|k| members[k]).collect();
-        scc.sort_unstable();
-        scc
-    }).collect())
+    Some(
+        sccs.into_iter()
+            .rev()
+            .map(|scc| {
+                let mut scc: Vec<usize> = scc.into_iter().map(|k| members[k]).collect();
+                scc.sort_unstable();
+                scc
+            })
+            .collect(),
+    )
 }
 
 /// Tarjan's strongly-connected-components algorithm, iterative (no recursion limit).
@@ -237,7 +242,9 @@ pub fn parse_formula(formula: &str, factors: &[String]) -> crate::Result<Vec<Ter
             let parts: Vec<usize> = raw.split('*').map(lookup).collect::<crate::Result<_>>()?;
             // All non-empty subsets, in order of size, as R expands a*b*c.
             let n = parts.len();
-            let mut subsets: Vec<Vec<usize>> = (1..(1u32 << n)).map(|mask| (0..n).filter(|&k| mask & (1 << k) != 0).map(|k| parts[k]).collect()).collect();
+            let mut subsets: Vec<Vec<usize>> = (1..(1u32 << n))
+                .map(|mask| (0..n).filter(|&k| mask & (1 << k) != 0).map(|k| parts[k]).collect())
+                .collect();
             subsets.sort_by_key(Vec::len);
             for subset in subsets {
                 push(subset, &mut terms);
@@ -267,7 +274,11 @@ pub enum Dropped {
 /// Chooses the identifiable terms: in formula order, a term is kept unless its pair
 /// differences (xᵢ − xⱼ over the compared pairs) are zero or a linear combination of the
 /// terms kept before it. Returns the kept term indices and the dropped ones with the reason.
-pub fn identifiable_terms(values: &[Vec<f64>], n_terms: usize, pairs: &[PairTally]) -> (Vec<usize>, Vec<(usize, Dropped)>) {
+pub fn identifiable_terms(
+    values: &[Vec<f64>],
+    n_terms: usize,
+    pairs: &[PairTally],
+) -> (Vec<usize>, Vec<(usize, Dropped)>) {
     // Gram matrix of the pair-difference columns, each compared pair counted once.
     let mut gram = vec![vec![0.0; n_terms]; n_terms];
     for pair in pairs.iter().filter(|pair| pair.n() > 0) {
@@ -291,7 +302,13 @@ pub fn identifiable_terms(values: &[Vec<f64>], n_terms: usize, pairs: &[PairTall
         let mut a: Vec<Vec<f64>> = kept.iter().map(|&r| kept.iter().map(|&c| gram[r][c]).collect()).collect();
         let mut c: Vec<f64> = kept.iter().map(|&r| gram[r][k]).collect();
         let solved = gauss_solve(&mut a, &mut c);
-        let residual = if m == 0 { own } else if solved { own - kept.iter().zip(&c).map(|(&r, ci)| ci * gram[r][k]).sum::<f64>() } else { own };
+        let residual = if m == 0 {
+            own
+        } else if solved {
+            own - kept.iter().zip(&c).map(|(&r, ci)| ci * gram[r][k]).sum::<f64>()
+        } else {
+            own
+        };
         if residual <= 1e-9 * own {
             let partners = kept.iter().zip(&c).filter(|(_, ci)| ci.abs() > 1e-8).map(|(&r, _)| r).collect();
             dropped.push((k, Dropped::Collinear(partners)));

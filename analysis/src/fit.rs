@@ -194,7 +194,12 @@ pub(crate) fn softplus(x: f64) -> f64 {
 }
 
 fn sigmoid(x: f64) -> f64 {
-    if x >= 0.0 { 1.0 / (1.0 + (-x).exp()) } else { let e = x.exp(); e / (1.0 + e) }
+    if x >= 0.0 {
+        1.0 / (1.0 + (-x).exp())
+    } else {
+        let e = x.exp();
+        e / (1.0 + e)
+    }
 }
 
 fn eta(observation: &Observation, beta: &[f64]) -> f64 {
@@ -299,7 +304,12 @@ fn finish(method: Method, observations: &[Observation], beta: Vec<f64>, iteratio
 
 /// Maximum-likelihood fit by Newton–Raphson with step halving, from `start` (or zeros).
 /// Fails with [`FitFailure::Separation`] when the estimate runs off to infinity.
-pub fn fit_ml(pairs: &[PairTally], x: &ModelMatrix, start: Option<&[f64]>, options: FitOptions) -> Result<Fit, FitFailure> {
+pub fn fit_ml(
+    pairs: &[PairTally],
+    x: &ModelMatrix,
+    start: Option<&[f64]>,
+    options: FitOptions,
+) -> Result<Fit, FitFailure> {
     let observations = observations(pairs, x);
     let p = x.n_params;
     let mut beta = start.map(<[f64]>::to_vec).unwrap_or_else(|| vec![0.0; p]);

@@ -116,17 +116,9 @@ pub fn worth_plot_with(
             let points = series
                 .points
                 .iter()
-                .map(|p| {
-                    (
-                        p.condition.clone(),
-                        Estimate::new(p.log_worth, p.low, p.high),
-                    )
-                })
+                .map(|p| (p.condition.clone(), Estimate::new(p.log_worth, p.low, p.high)))
                 .collect();
-            Labelled {
-                name: series.name.clone(),
-                points,
-            }
+            Labelled { name: series.name.clone(), points }
         })
         .collect();
     let (rows, series) = forest::assemble(conditions, labelled);
@@ -138,14 +130,7 @@ pub fn worth_plot_with(
         Some(reference) => format!("log-worth λ (logit scale, {reference} = 0)"),
         None => "log-worth λ (logit scale)".to_owned(),
     };
-    forest::render(&forest::Spec {
-        title: title.to_owned(),
-        rows,
-        series,
-        value_label,
-        symbol: "λ",
-        annotation,
-    })
+    forest::render(&forest::Spec { title: title.to_owned(), rows, series, value_label, symbol: "λ", annotation })
 }
 
 /// Factor estimates with 95 % intervals, one series per group, factors in the order of
@@ -155,15 +140,9 @@ pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> 
     let labelled = series
         .iter()
         .map(|series| {
-            let points = series
-                .points
-                .iter()
-                .map(|p| (p.factor.clone(), Estimate::new(p.estimate, p.low, p.high)))
-                .collect();
-            Labelled {
-                name: series.name.clone(),
-                points,
-            }
+            let points =
+                series.points.iter().map(|p| (p.factor.clone(), Estimate::new(p.estimate, p.low, p.high))).collect();
+            Labelled { name: series.name.clone(), points }
         })
         .collect();
     let (rows, series) = forest::assemble(factors, labelled);
@@ -185,25 +164,13 @@ pub fn line_plot(spec: &LinePlot) -> String {
 
 /// Worth π of each present estimate, normalised over the present ones, as table cells.
 fn worth_column(estimates: &[Option<Estimate>]) -> Vec<Option<String>> {
-    let max = estimates
-        .iter()
-        .flatten()
-        .map(|e| e.value)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let total: f64 = estimates
-        .iter()
-        .flatten()
-        .map(|e| (e.value - max).exp())
-        .sum();
+    let max = estimates.iter().flatten().map(|e| e.value).fold(f64::NEG_INFINITY, f64::max);
+    let total: f64 = estimates.iter().flatten().map(|e| (e.value - max).exp()).sum();
     estimates
         .iter()
         .map(|estimate| {
             let worth = (estimate.as_ref()?.value - max).exp() / total;
-            Some(if worth >= 0.0005 {
-                format!("{worth:.3}")
-            } else {
-                "<0.001".to_owned()
-            })
+            Some(if worth >= 0.0005 { format!("{worth:.3}") } else { "<0.001".to_owned() })
         })
         .collect()
 }
@@ -246,11 +213,7 @@ mod tests {
                     .enumerate()
                     .map(|(idx, (condition, &lw))| {
                         let half = 0.1 + 0.1 * ((idx + group_idx) % 5) as f64 / 4.0;
-                        point(
-                            condition,
-                            lw,
-                            (idx > 0).then_some(half + 0.03 * group_idx as f64),
-                        )
+                        point(condition, lw, (idx > 0).then_some(half + 0.03 * group_idx as f64))
                     })
                     .collect(),
             })
@@ -288,20 +251,8 @@ mod tests {
     }
 
     fn benchmark() -> LinePlot {
-        let cpu = [
-            (1.0, 0.21),
-            (4.0, 0.11),
-            (16.0, 0.052),
-            (64.0, 0.027),
-            (256.0, 0.013),
-            (1024.0, 0.0066),
-        ];
-        let gpu = [
-            (16.0, 0.081),
-            (64.0, 0.052),
-            (256.0, 0.038),
-            (1024.0, 0.033),
-        ];
+        let cpu = [(1.0, 0.21), (4.0, 0.11), (16.0, 0.052), (64.0, 0.027), (256.0, 0.013), (1024.0, 0.0066)];
+        let gpu = [(16.0, 0.081), (64.0, 0.052), (256.0, 0.038), (1024.0, 0.033)];
         LinePlot {
             title: "Render time against error".to_owned(),
             x_label: "time per frame (ms)".to_owned(),
@@ -315,18 +266,11 @@ mod tests {
                 },
                 LineSeries {
                     name: "GPU DIR (VPLs)".to_owned(),
-                    points: gpu
-                        .iter()
-                        .map(|&(vpls, e)| (1.2 + 0.05 * vpls, e))
-                        .collect(),
+                    points: gpu.iter().map(|&(vpls, e)| (1.2 + 0.05 * vpls, e)).collect(),
                 },
                 LineSeries {
                     name: "GPU DIR + colour mapping".to_owned(),
-                    points: gpu
-                        .iter()
-                        .map(|&(vpls, e)| (1.9 + 0.05 * vpls, e * 0.8))
-                        .chain([(60.0, 0.0)])
-                        .collect(),
+                    points: gpu.iter().map(|&(vpls, e)| (1.9 + 0.05 * vpls, e * 0.8)).chain([(60.0, 0.0)]).collect(),
                 },
             ],
         }
@@ -338,14 +282,10 @@ mod tests {
         for forbidden in ["NaN", "inf", "Inf"] {
             assert!(!svg.contains(forbidden), "SVG contains {forbidden}:\n{svg}");
         }
-        let document =
-            roxmltree::Document::parse(svg).unwrap_or_else(|e| panic!("not XML: {e}\n{svg}"));
+        let document = roxmltree::Document::parse(svg).unwrap_or_else(|e| panic!("not XML: {e}\n{svg}"));
         let root = document.root_element();
         assert_eq!(root.tag_name().name(), "svg");
-        assert_eq!(
-            root.tag_name().namespace(),
-            Some("http://www.w3.org/2000/svg")
-        );
+        assert_eq!(root.tag_name().namespace(), Some("http://www.w3.org/2000/svg"));
         for attribute in ["width", "height"] {
             let value: f64 = root.attribute(attribute).unwrap().parse().unwrap();
             assert!(value > 0.0 && value < 10_000.0, "{attribute} = {value}");
@@ -365,9 +305,7 @@ mod tests {
         let document = roxmltree::Document::parse(svg).unwrap();
         document
             .descendants()
-            .filter(|node| {
-                node.has_tag_name("title") && node.parent().is_some_and(|p| !p.has_tag_name("svg"))
-            })
+            .filter(|node| node.has_tag_name("title") && node.parent().is_some_and(|p| !p.has_tag_name("svg")))
             .map(|node| node.text().unwrap_or("").to_owned())
             .collect()
     }
@@ -377,17 +315,10 @@ mod tests {
     fn title_extents(svg: &str) -> (f64, Vec<(String, f64, f64)>) {
         let document = roxmltree::Document::parse(svg).unwrap();
         let root = document.root_element();
-        let view_box: Vec<f64> = root
-            .attribute("viewBox")
-            .unwrap()
-            .split(' ')
-            .map(|v| v.parse().unwrap())
-            .collect();
+        let view_box: Vec<f64> = root.attribute("viewBox").unwrap().split(' ').map(|v| v.parse().unwrap()).collect();
         let lines = root
             .descendants()
-            .filter(|node| {
-                node.has_tag_name("text") && node.attribute("font-weight") == Some("bold")
-            })
+            .filter(|node| node.has_tag_name("text") && node.attribute("font-weight") == Some("bold"))
             .map(|node| {
                 let text = node.text().unwrap_or("").to_owned();
                 let x: f64 = node.attribute("x").unwrap().parse().unwrap();
@@ -411,22 +342,12 @@ mod tests {
         let worths = thesis_like_worths();
         let (factors, effects) = thesis_like_effects();
         // The analysis' own title with the longest condition name of the thesis' design.
-        let worth_title =
-            "Worth of each condition (log scale, reference GI+CM+CA), 95\u{a0}% intervals";
+        let worth_title = "Worth of each condition (log scale, reference GI+CM+CA), 95\u{a0}% intervals";
         let figures = [
             (long, worth_plot(long, &conditions(), &worths)),
-            (
-                worth_title,
-                worth_plot(worth_title, &conditions(), &worths[..1]),
-            ),
+            (worth_title, worth_plot(worth_title, &conditions(), &worths[..1])),
             (long, effect_plot(long, &factors, &effects)),
-            (
-                long,
-                line_plot(&LinePlot {
-                    title: long.to_owned(),
-                    ..benchmark()
-                }),
-            ),
+            (long, line_plot(&LinePlot { title: long.to_owned(), ..benchmark() })),
             (long, worth_plot(long, &[], &[])),
         ];
         for (title, svg) in &figures {
@@ -445,29 +366,15 @@ mod tests {
         }
         // The no-break space holds "95 %" together.
         let (_, lines) = title_extents(&figures[0].1);
-        assert!(
-            lines
-                .iter()
-                .any(|(text, ..)| text.ends_with("95\u{a0}% intervals"))
-        );
+        assert!(lines.iter().any(|(text, ..)| text.ends_with("95\u{a0}% intervals")));
     }
 
     #[test]
     fn worth_plot_is_svg_with_every_condition_and_group() {
-        let svg = worth_plot(
-            "Web survey: all scenes",
-            &conditions(),
-            &thesis_like_worths(),
-        );
+        let svg = worth_plot("Web survey: all scenes", &conditions(), &thesis_like_worths());
         let texts = check(&svg);
-        for label in CONDITIONS
-            .iter()
-            .chain(&["all", "female", "male", "Web survey: all scenes"])
-        {
-            assert!(
-                texts.iter().any(|t| t == label),
-                "missing {label}: {texts:?}"
-            );
+        for label in CONDITIONS.iter().chain(&["all", "female", "male", "Web survey: all scenes"]) {
+            assert!(texts.iter().any(|t| t == label), "missing {label}: {texts:?}");
         }
         assert!(texts.iter().any(|t| t.starts_with("log-worth λ")));
         assert_eq!(tooltips(&svg).len(), 3 * CONDITIONS.len());
@@ -477,10 +384,7 @@ mod tests {
     fn worth_plot_keeps_the_given_condition_order() {
         let svg = worth_plot("", &conditions(), &thesis_like_worths());
         let texts = check(&svg);
-        let positions: Vec<usize> = CONDITIONS
-            .iter()
-            .map(|c| texts.iter().position(|t| t == c).unwrap())
-            .collect();
+        let positions: Vec<usize> = CONDITIONS.iter().map(|c| texts.iter().position(|t| t == c).unwrap()).collect();
         assert!(positions.windows(2).all(|w| w[0] < w[1]), "{positions:?}");
     }
 
@@ -489,19 +393,13 @@ mod tests {
         let names = vec!["<b>GI & CM</b>".to_owned(), "LQ".to_owned()];
         let series = vec![WorthSeries {
             name: "\"men\" & <women>".to_owned(),
-            points: vec![
-                point("<b>GI & CM</b>", 0.4, Some(0.1)),
-                point("LQ", 0.0, None),
-            ],
+            points: vec![point("<b>GI & CM</b>", 0.4, Some(0.1)), point("LQ", 0.0, None)],
         }];
         let svg = worth_plot("a < b & c > d", &names, &series);
         assert!(!svg.contains("<b>") && !svg.contains("& "));
         let texts = check(&svg);
         for label in ["<b>GI & CM</b>", "\"men\" & <women>", "a < b & c > d"] {
-            assert!(
-                texts.iter().any(|t| t == label),
-                "missing {label}: {texts:?}"
-            );
+            assert!(texts.iter().any(|t| t == label), "missing {label}: {texts:?}");
         }
     }
 
@@ -512,38 +410,13 @@ mod tests {
         let series = |low, high| {
             vec![WorthSeries {
                 name: "all".to_owned(),
-                points: vec![WorthPoint {
-                    condition: "LQ".to_owned(),
-                    log_worth: 0.3,
-                    low,
-                    high,
-                }],
+                points: vec![WorthPoint { condition: "LQ".to_owned(), log_worth: 0.3, low, high }],
             }]
         };
-        assert_eq!(
-            worth_plot("", &names, &series(None, None))
-                .matches(bar)
-                .count(),
-            0
-        );
-        assert_eq!(
-            worth_plot("", &names, &series(Some(0.1), Some(0.5)))
-                .matches(bar)
-                .count(),
-            3
-        );
-        assert_eq!(
-            worth_plot("", &names, &series(None, Some(0.5)))
-                .matches(bar)
-                .count(),
-            2
-        );
-        assert_eq!(
-            worth_plot("", &names, &series(Some(f64::NAN), Some(f64::INFINITY)))
-                .matches(bar)
-                .count(),
-            0
-        );
+        assert_eq!(worth_plot("", &names, &series(None, None)).matches(bar).count(), 0);
+        assert_eq!(worth_plot("", &names, &series(Some(0.1), Some(0.5))).matches(bar).count(), 3);
+        assert_eq!(worth_plot("", &names, &series(None, Some(0.5))).matches(bar).count(), 2);
+        assert_eq!(worth_plot("", &names, &series(Some(f64::NAN), Some(f64::INFINITY))).matches(bar).count(), 0);
         check(&worth_plot("", &names, &series(Some(f64::NAN), Some(0.5))));
     }
 
@@ -577,63 +450,30 @@ mod tests {
                 name: "all".to_owned(),
                 points: vec![point("LQ", 0.0, None), point("HQ", 3f64.ln(), Some(0.2))],
             },
-            WorthSeries {
-                name: "male".to_owned(),
-                points: vec![point("LQ", 0.0, None), point("GI", -20.0, None)],
-            },
+            WorthSeries { name: "male".to_owned(), points: vec![point("LQ", 0.0, None), point("GI", -20.0, None)] },
         ];
-        let options = WorthPlotOptions {
-            show_worth: true,
-            reference: Some("LQ".to_owned()),
-        };
+        let options = WorthPlotOptions { show_worth: true, reference: Some("LQ".to_owned()) };
         let svg = worth_plot_with("", &names, &series, &options);
         let texts = check(&svg);
-        for cell in [
-            "worth π",
-            "0.250",
-            "0.750",
-            "1.000",
-            "<0.001",
-            "–",
-            "log-worth λ (logit scale, LQ = 0)",
-        ] {
+        for cell in ["worth π", "0.250", "0.750", "1.000", "<0.001", "–", "log-worth λ (logit scale, LQ = 0)"] {
             assert!(texts.iter().any(|t| t == cell), "missing {cell}: {texts:?}");
         }
     }
 
     #[test]
     fn worth_plot_handles_many_long_conditions() {
-        let names: Vec<String> = (0..50)
-            .map(|i| format!("condition number {i} with a long name, really long"))
-            .collect();
+        let names: Vec<String> =
+            (0..50).map(|i| format!("condition number {i} with a long name, really long")).collect();
         let series: Vec<WorthSeries> = ["all", "female", "male"]
             .iter()
             .map(|group| WorthSeries {
                 name: (*group).to_owned(),
-                points: names
-                    .iter()
-                    .enumerate()
-                    .map(|(i, n)| point(n, (i as f64 * 0.37).sin(), Some(0.15)))
-                    .collect(),
+                points: names.iter().enumerate().map(|(i, n)| point(n, (i as f64 * 0.37).sin(), Some(0.15))).collect(),
             })
             .collect();
-        let svg = worth_plot_with(
-            "fifty",
-            &names,
-            &series,
-            &WorthPlotOptions {
-                show_worth: true,
-                reference: None,
-            },
-        );
+        let svg = worth_plot_with("fifty", &names, &series, &WorthPlotOptions { show_worth: true, reference: None });
         let texts = check(&svg);
-        assert!(
-            texts
-                .iter()
-                .filter(|t| t.starts_with("condition number") && t.ends_with('…'))
-                .count()
-                == 50
-        );
+        assert!(texts.iter().filter(|t| t.starts_with("condition number") && t.ends_with('…')).count() == 50);
         let tooltips = tooltips(&svg);
         assert!(tooltips.iter().any(|t| t == &names[49]));
         assert_eq!(tooltips.len(), 50 + 150);
@@ -641,10 +481,7 @@ mod tests {
 
     #[test]
     fn empty_inputs_give_a_no_data_figure() {
-        let no_points = vec![WorthSeries {
-            name: "all".to_owned(),
-            points: vec![point("LQ", f64::NAN, Some(1.0))],
-        }];
+        let no_points = vec![WorthSeries { name: "all".to_owned(), points: vec![point("LQ", f64::NAN, Some(1.0))] }];
         let figures = [
             worth_plot("nothing", &[], &[]),
             worth_plot("nothing", &conditions(), &[]),
@@ -653,10 +490,7 @@ mod tests {
             line_plot(&LinePlot::default()),
             line_plot(&LinePlot {
                 x_log: true,
-                series: vec![LineSeries {
-                    name: "s".to_owned(),
-                    points: vec![(0.0, 1.0), (f64::NAN, 2.0)],
-                }],
+                series: vec![LineSeries { name: "s".to_owned(), points: vec![(0.0, 1.0), (f64::NAN, 2.0)] }],
                 ..LinePlot::default()
             }),
         ];
@@ -671,19 +505,12 @@ mod tests {
         let (factors, series) = thesis_like_effects();
         let svg = effect_plot("Factor effects", &factors, &series);
         let texts = check(&svg);
-        for label in factors.iter().map(String::as_str).chain([
-            "all",
-            "female",
-            "male",
-            "effect on log-worth (logit scale)",
-        ]) {
+        for label in
+            factors.iter().map(String::as_str).chain(["all", "female", "male", "effect on log-worth (logit scale)"])
+        {
             assert!(texts.iter().any(|t| t == label), "missing {label}");
         }
-        assert!(
-            tooltips(&svg)
-                .iter()
-                .any(|t| t == "gi (all): β = 0.54, 95 % CI [0.43, 0.65]")
-        );
+        assert!(tooltips(&svg).iter().any(|t| t == "gi (all): β = 0.54, 95 % CI [0.43, 0.65]"));
     }
 
     #[test]
@@ -702,16 +529,9 @@ mod tests {
             "0.01",
             "0.1",
         ] {
-            assert!(
-                texts.iter().any(|t| t == label),
-                "missing {label}: {texts:?}"
-            );
+            assert!(texts.iter().any(|t| t == label), "missing {label}: {texts:?}");
         }
-        assert!(
-            texts
-                .iter()
-                .any(|t| t == "1 point not shown (not finite, or not positive on a log axis).")
-        );
+        assert!(texts.iter().any(|t| t == "1 point not shown (not finite, or not positive on a log axis)."));
         assert_eq!(svg.matches("<polyline").count(), 3);
     }
 
@@ -739,21 +559,14 @@ mod tests {
         };
         let svg = line_plot(&spec);
         let texts = check(&svg);
-        assert!(
-            texts
-                .iter()
-                .any(|t| t == "5 points not shown (not finite, or not positive on a log axis).")
-        );
+        assert!(texts.iter().any(|t| t == "5 points not shown (not finite, or not positive on a log axis)."));
         assert_eq!(tooltips(&svg).len(), 3);
     }
 
     #[test]
     fn line_plot_on_linear_axes_keeps_negative_values() {
         let spec = LinePlot {
-            series: vec![LineSeries {
-                name: "s".to_owned(),
-                points: vec![(-1.0, -5.0), (0.0, 0.0), (2.0, 1e-3)],
-            }],
+            series: vec![LineSeries { name: "s".to_owned(), points: vec![(-1.0, -5.0), (0.0, 0.0), (2.0, 1e-3)] }],
             ..LinePlot::default()
         };
         let svg = line_plot(&spec);
@@ -766,10 +579,7 @@ mod tests {
     fn line_plot_with_power_of_ten_ticks_is_well_formed() {
         let spec = LinePlot {
             y_log: true,
-            series: vec![LineSeries {
-                name: "s".to_owned(),
-                points: vec![(1.0, 1e-9), (2.0, 1e-6), (3.0, 1e-4)],
-            }],
+            series: vec![LineSeries { name: "s".to_owned(), points: vec![(1.0, 1e-9), (2.0, 1e-6), (3.0, 1e-4)] }],
             ..LinePlot::default()
         };
         let svg = line_plot(&spec);
@@ -786,10 +596,7 @@ mod tests {
             return;
         };
         let dir = std::path::PathBuf::from(dir);
-        let options = WorthPlotOptions {
-            show_worth: true,
-            reference: Some("LQ".to_owned()),
-        };
+        let options = WorthPlotOptions { show_worth: true, reference: Some("LQ".to_owned()) };
         let (factors, effects) = thesis_like_effects();
         let mut missing = thesis_like_worths();
         missing[2].points.retain(|p| p.condition != "CM+CA");
@@ -800,13 +607,7 @@ mod tests {
                 format!(
                     "scene {} · {}",
                     i / 8,
-                    [
-                        "LQ",
-                        "GI",
-                        "CM",
-                        "CA",
-                        "GI+CM+CA with adaptive colour mapping"
-                    ][i % 5]
+                    ["LQ", "GI", "CM", "CA", "GI+CM+CA with adaptive colour mapping"][i % 5]
                 )
             })
             .collect();
@@ -818,42 +619,21 @@ mod tests {
                 points: long
                     .iter()
                     .enumerate()
-                    .map(|(i, c)| {
-                        point(
-                            c,
-                            (i as f64 * 0.37 + g as f64 * 0.2).sin(),
-                            Some(0.12 + 0.02 * g as f64),
-                        )
-                    })
+                    .map(|(i, c)| point(c, (i as f64 * 0.37 + g as f64 * 0.2).sin(), Some(0.12 + 0.02 * g as f64)))
                     .collect(),
             })
             .collect();
         let figures = [
             (
                 "worth.svg",
-                worth_plot(
-                    "Preference for rendering modes (web survey)",
-                    &conditions(),
-                    &thesis_like_worths(),
-                ),
+                worth_plot("Preference for rendering modes (web survey)", &conditions(), &thesis_like_worths()),
             ),
             (
                 "worth-pi.svg",
-                worth_plot_with(
-                    "Preference for rendering modes (web survey)",
-                    &conditions(),
-                    &missing,
-                    &options,
-                ),
+                worth_plot_with("Preference for rendering modes (web survey)", &conditions(), &missing, &options),
             ),
-            (
-                "worth-long.svg",
-                worth_plot_with("Thirty long conditions", &long, &long_series, &options),
-            ),
-            (
-                "effect.svg",
-                effect_plot("Effects of the rendering factors", &factors, &effects),
-            ),
+            ("worth-long.svg", worth_plot_with("Thirty long conditions", &long, &long_series, &options)),
+            ("effect.svg", effect_plot("Effects of the rendering factors", &factors, &effects)),
             ("line.svg", line_plot(&benchmark())),
             ("empty.svg", worth_plot("Nothing yet", &[], &[])),
             (
@@ -862,10 +642,7 @@ mod tests {
                     "One group",
                     &conditions(),
                     &thesis_like_worths()[..1],
-                    &WorthPlotOptions {
-                        show_worth: true,
-                        reference: None,
-                    },
+                    &WorthPlotOptions { show_worth: true, reference: None },
                 ),
             ),
             (
@@ -877,15 +654,11 @@ mod tests {
                     series: vec![
                         LineSeries {
                             name: "1280×720".to_owned(),
-                            points: (1..=8)
-                                .map(|i| (128.0 * f64::from(i), 2.0 + 1.7 * f64::from(i)))
-                                .collect(),
+                            points: (1..=8).map(|i| (128.0 * f64::from(i), 2.0 + 1.7 * f64::from(i))).collect(),
                         },
                         LineSeries {
                             name: "1920×1080".to_owned(),
-                            points: (1..=8)
-                                .map(|i| (128.0 * f64::from(i), 3.1 + 3.9 * f64::from(i)))
-                                .collect(),
+                            points: (1..=8).map(|i| (128.0 * f64::from(i), 3.1 + 3.9 * f64::from(i))).collect(),
                         },
                     ],
                     ..LinePlot::default()

@@ -82,7 +82,11 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
     let width = analysis.items.iter().map(|i| i.condition.chars().count()).max().unwrap_or(9).max(9);
     let fitted = analysis.items.iter().any(|i| i.fitted_log_worth.is_some());
     let ci = analysis.items.iter().any(|i| i.ci.is_some());
-    let _ = write!(out, "\n{:<width$}  {:>9}  {:>7}  {:>7}  {:>9}  {:>11}", "condition", "log-worth", "se", "worth", "wins", "comparisons");
+    let _ = write!(
+        out,
+        "\n{:<width$}  {:>9}  {:>7}  {:>7}  {:>9}  {:>11}",
+        "condition", "log-worth", "se", "worth", "wins", "comparisons"
+    );
     if ci {
         let _ = write!(out, "  {:>19}", "bootstrap 95 %");
     }
@@ -114,7 +118,14 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         out.push('\n');
     }
     let m = &analysis.item_model;
-    let _ = writeln!(out, "item model: log-likelihood {}, deviance {}, AIC {}, residual df {}", fixed(m.log_likelihood, 4), fixed(m.deviance, 4), fixed(m.aic, 4), m.df_residual);
+    let _ = writeln!(
+        out,
+        "item model: log-likelihood {}, deviance {}, AIC {}, residual df {}",
+        fixed(m.log_likelihood, 4),
+        fixed(m.deviance, 4),
+        fixed(m.aic, 4),
+        m.df_residual
+    );
 
     if let (Some(covariates), Some(model)) = (&analysis.covariates, &analysis.covariate_model) {
         let _ = writeln!(out, "\nfactor model {} ({})", model.formula, model.summary.method.describe());
@@ -126,14 +137,29 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         }
         out.push('\n');
         for c in covariates {
-            let _ = write!(out, "{:<width$}  {:>9}  {:>7}  {:>8}  {:>10}", c.name, fixed(c.estimate, 4), fixed(c.se, 4), fixed(c.z, 3), c.p.display());
+            let _ = write!(
+                out,
+                "{:<width$}  {:>9}  {:>7}  {:>8}  {:>10}",
+                c.name,
+                fixed(c.estimate, 4),
+                fixed(c.se, 4),
+                fixed(c.z, 3),
+                c.p.display()
+            );
             if let Some(ci) = c.ci {
                 let _ = write!(out, "  {:>19}", interval(ci));
             }
             out.push('\n');
         }
         let s = &model.summary;
-        let _ = writeln!(out, "log-likelihood {}, deviance {}, AIC {}, residual df {}", fixed(s.log_likelihood, 4), fixed(s.deviance, 4), fixed(s.aic, 4), s.df_residual);
+        let _ = writeln!(
+            out,
+            "log-likelihood {}, deviance {}, AIC {}, residual df {}",
+            fixed(s.log_likelihood, 4),
+            fixed(s.deviance, 4),
+            fixed(s.aic, 4),
+            s.df_residual
+        );
         if let Some(test) = &model.lr_vs_items {
             let _ = writeln!(out, "factor model against item model: {}", lr(test));
         }
@@ -150,7 +176,9 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
                 let method = match (a.method, a.simulations) {
                     (crate::agreement::AgreementMethod::Simulation, Some(b)) => format!("Monte-Carlo, {b} simulations"),
                     (crate::agreement::AgreementMethod::Chi2, _) => "χ² approximation".to_string(),
-                    (crate::agreement::AgreementMethod::Chi2Generalised, _) => "generalised χ², three matched cumulants".to_string(),
+                    (crate::agreement::AgreementMethod::Chi2Generalised, _) => {
+                        "generalised χ², three matched cumulants".to_string()
+                    }
                     _ => "—".to_string(),
                 };
                 let _ = write!(out, ", p = {} ({method})", PValue::display(p));
@@ -158,25 +186,43 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
             out.push('\n');
         }
         None => {
-            let _ = writeln!(out, "\ncoefficient of agreement: not defined ({})", a.note.as_deref().unwrap_or("no pair judged twice"));
+            let _ = writeln!(
+                out,
+                "\ncoefficient of agreement: not defined ({})",
+                a.note.as_deref().unwrap_or("no pair judged twice")
+            );
         }
     }
     if !analysis.consistence.is_empty() {
         let zetas: Vec<f64> = analysis.consistence.iter().filter_map(|c| c.consistence.zeta).collect();
         if !zetas.is_empty() {
             let mean = zetas.iter().sum::<f64>() / zetas.len() as f64;
-            let _ = writeln!(out, "coefficient of consistence ζ: mean {} over {} participants who compared every pair", fixed(mean, 3), zetas.len());
+            let _ = writeln!(
+                out,
+                "coefficient of consistence ζ: mean {} over {} participants who compared every pair",
+                fixed(mean, 3),
+                zetas.len()
+            );
         }
     }
     if let Some(screening) = &analysis.observers {
         if screening.flagged.is_empty() {
             let _ = writeln!(out, "observer screening: no participant flagged (leave-one-out p < {})", screening.alpha);
         } else {
-            let _ = writeln!(out, "observer screening: flagged (leave-one-out p < {}), not dropped: {}", screening.alpha, screening.flagged.join(", "));
+            let _ = writeln!(
+                out,
+                "observer screening: flagged (leave-one-out p < {}), not dropped: {}",
+                screening.alpha,
+                screening.flagged.join(", ")
+            );
         }
     }
     if let Some(bootstrap) = &analysis.bootstrap {
-        let _ = writeln!(out, "bootstrap over participants: {} replicates, seed {}, {} failed", bootstrap.replicates, bootstrap.seed, bootstrap.failed);
+        let _ = writeln!(
+            out,
+            "bootstrap over participants: {} replicates, seed {}, {} failed",
+            bootstrap.replicates, bootstrap.seed, bootstrap.failed
+        );
     }
     for warning in &analysis.warnings {
         let _ = writeln!(out, "warning: {warning}");

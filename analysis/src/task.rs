@@ -75,11 +75,8 @@ impl TaskAnalysis {
         self.measures
             .iter()
             .flat_map(|measure| {
-                let prefix = if measure.group.is_empty() {
-                    String::new()
-                } else {
-                    format!("{}: ", measure.group.label())
-                };
+                let prefix =
+                    if measure.group.is_empty() { String::new() } else { format!("{}: ", measure.group.label()) };
                 measure.warnings.iter().map(move |warning| format!("{prefix}{warning}"))
             })
             .collect()
@@ -250,19 +247,10 @@ pub fn analyze_task_csv(text: &str, source_name: &str) -> Result<TaskAnalysis> {
 /// Analyses a long task CSV, once per distinct value of `measure_column` when it is given (it
 /// must exist), else once per distinct combination of the [`AUTO_GROUP_COLUMNS`] present, else
 /// once for the whole file.
-pub fn analyze_task_csv_by(
-    text: &str,
-    source_name: &str,
-    measure_column: Option<&str>,
-) -> Result<TaskAnalysis> {
+pub fn analyze_task_csv_by(text: &str, source_name: &str, measure_column: Option<&str>) -> Result<TaskAnalysis> {
     let parsed = parse_task_csv(text, source_name, measure_column)?;
     let measures = parsed.measures.iter().map(analyze_measure).collect();
-    Ok(TaskAnalysis {
-        source: source_name.to_string(),
-        rows: parsed.rows,
-        grouped_by: parsed.grouped_by,
-        measures,
-    })
+    Ok(TaskAnalysis { source: source_name.to_string(), rows: parsed.rows, grouped_by: parsed.grouped_by, measures })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -307,8 +295,7 @@ struct ParsedCsv {
 
 fn parse_task_csv(text: &str, source_name: &str, measure_column: Option<&str>) -> Result<ParsedCsv> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut reader =
-        csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).from_reader(text.as_bytes());
+    let mut reader = csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).from_reader(text.as_bytes());
     let header = reader.headers().map_err(|error| csv_error(source_name, &error))?.clone();
     if header.iter().all(str::is_empty) {
         return Err(AnalysisError::Empty(format!(
@@ -333,9 +320,7 @@ fn parse_task_csv(text: &str, source_name: &str, measure_column: Option<&str>) -
         Some(column) => {
             let column = column.trim();
             if column.is_empty()
-                || [PARTICIPANT_COLUMN, CONDITION_COLUMN, VALUE_COLUMN]
-                    .iter()
-                    .any(|c| column.eq_ignore_ascii_case(c))
+                || [PARTICIPANT_COLUMN, CONDITION_COLUMN, VALUE_COLUMN].iter().any(|c| column.eq_ignore_ascii_case(c))
             {
                 return Err(AnalysisError::BadOption {
                     option: "group-by".to_string(),
@@ -346,10 +331,7 @@ fn parse_task_csv(text: &str, source_name: &str, measure_column: Option<&str>) -
             }
             vec![header[require(column)?].to_string()]
         }
-        None => AUTO_GROUP_COLUMNS
-            .iter()
-            .filter_map(|name| find(name).map(|idx| header[idx].to_string()))
-            .collect(),
+        None => AUTO_GROUP_COLUMNS.iter().filter_map(|name| find(name).map(|idx| header[idx].to_string())).collect(),
     };
     let group_cols: Vec<usize> = grouped_by.iter().filter_map(|name| find(name)).collect();
 
@@ -371,8 +353,8 @@ fn parse_task_csv(text: &str, source_name: &str, measure_column: Option<&str>) -
         };
         let participant = text_cell(participant_col)?;
         let condition = text_cell(condition_col)?;
-        let value = parse_value(record.get(value_col).unwrap_or(""))
-            .map_err(|message| bad_value(value_col, message))?;
+        let value =
+            parse_value(record.get(value_col).unwrap_or("")).map_err(|message| bad_value(value_col, message))?;
         let group_values =
             group_cols.iter().map(|&col| text_cell(col).map(str::to_string)).collect::<Result<Vec<_>>>()?;
 
@@ -397,9 +379,7 @@ fn parse_task_csv(text: &str, source_name: &str, measure_column: Option<&str>) -
 /// A measured value: a finite number, or a sentence saying why the cell is not one.
 fn parse_value(cell: &str) -> std::result::Result<f64, String> {
     if cell.is_empty() {
-        return Err(
-            "is empty; every row needs a finite number (leave out rows without a measurement)".to_string()
-        );
+        return Err("is empty; every row needs a finite number (leave out rows without a measurement)".to_string());
     }
     match cell.parse::<f64>() {
         Ok(value) if value.is_finite() => Ok(value),
@@ -525,8 +505,7 @@ fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
 
     let friedman = match blocks.len() {
         0 => {
-            warnings
-                .push(format!("Friedman test omitted: no participant has all {n_conditions} conditions."));
+            warnings.push(format!("Friedman test omitted: no participant has all {n_conditions} conditions."));
             None
         }
         1 => {
@@ -555,8 +534,7 @@ fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
     let mut post_hoc = Vec::new();
     for idx_a in 0..n_conditions {
         for idx_b in idx_a + 1..n_conditions {
-            let (x, y): (Vec<f64>, Vec<f64>) =
-                table.iter().filter_map(|row| Some((row[idx_a]?, row[idx_b]?))).unzip();
+            let (x, y): (Vec<f64>, Vec<f64>) = table.iter().filter_map(|row| Some((row[idx_a]?, row[idx_b]?))).unzip();
             let (condition_a, condition_b) = (&data.conditions[idx_a], &data.conditions[idx_b]);
             let test = wilcoxon_signed_rank_paired(&x, &y);
             match &test {
@@ -579,9 +557,8 @@ fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
             });
         }
     }
-    let tested: Vec<usize> = (0..post_hoc.len())
-        .filter(|&idx| post_hoc[idx].test.as_ref().is_some_and(|test| test.p.is_some()))
-        .collect();
+    let tested: Vec<usize> =
+        (0..post_hoc.len()).filter(|&idx| post_hoc[idx].test.as_ref().is_some_and(|test| test.p.is_some())).collect();
     let raw: Vec<PValue> = tested.iter().filter_map(|&idx| post_hoc[idx].test.as_ref()?.p).collect();
     for (&idx, adjusted) in tested.iter().zip(holm_adjust(&raw)) {
         post_hoc[idx].p_holm = Some(adjusted);
@@ -648,8 +625,7 @@ fn sample_sd(values: &[f64], mean: f64) -> Option<f64> {
     let scale = values.iter().fold(0.0_f64, |acc, value| acc.max(value.abs()));
     let scaled: Vec<f64> = values.iter().map(|value| value / scale).collect();
     let scaled_mean = scaled.iter().sum::<f64>() / values.len() as f64;
-    let scaled_sd =
-        (scaled.iter().map(|value| (value - scaled_mean).powi(2)).sum::<f64>() / denominator).sqrt();
+    let scaled_sd = (scaled.iter().map(|value| (value - scaled_mean).powi(2)).sum::<f64>() / denominator).sqrt();
     Some(scaled_sd * scale).filter(|sd| sd.is_finite())
 }
 
@@ -786,13 +762,7 @@ pub fn wilcoxon_signed_rank_paired(x: &[f64], y: &[f64]) -> Option<WilcoxonTest>
 
     if n < WILCOXON_EXACT_BELOW && !ties && !zeros {
         let p = signed_rank_two_sided_exact(v.round() as usize, n);
-        return Some(WilcoxonTest {
-            n_nonzero: n,
-            v,
-            method: Some(WilcoxonMethod::Exact),
-            z: None,
-            p: Some(p),
-        });
+        return Some(WilcoxonTest { n_nonzero: n, v, method: Some(WilcoxonMethod::Exact), z: None, p: Some(p) });
     }
     let centred = v - nf * (nf + 1.0) / 4.0;
     let tie_term: f64 = tie_sizes.iter().map(|&t| (t as f64).powi(3) - t as f64).sum();
@@ -911,9 +881,7 @@ pub fn render_table(analysis: &TaskAnalysis) -> String {
                     format_number(condition.max),
                 ];
                 if with_ranks {
-                    row.push(
-                        condition.mean_rank.map_or_else(|| "–".to_string(), |rank| format!("{rank:.2}")),
-                    );
+                    row.push(condition.mean_rank.map_or_else(|| "–".to_string(), |rank| format!("{rank:.2}")));
                 }
                 row
             })
@@ -1102,8 +1070,7 @@ mod tests {
             let (x, y) = (numbers(&case["x"]), numbers(&case["y"]));
             let test = wilcoxon_signed_rank_paired(&x, &y).expect("a test");
             let what = format!("wilcox.test({x:?}, {y:?}, paired = TRUE)");
-            let method =
-                if case["method"] == "exact" { WilcoxonMethod::Exact } else { WilcoxonMethod::Normal };
+            let method = if case["method"] == "exact" { WilcoxonMethod::Exact } else { WilcoxonMethod::Normal };
             assert_eq!(method, expected_method, "{what}: the reference case is of the intended kind");
             assert_eq!(test.method, Some(method), "{what}: method");
             assert_eq!(test.n_nonzero as f64, number(&case["n_nonzero"]), "{what}: non-zero differences");
@@ -1169,32 +1136,16 @@ mod tests {
                 ]
             );
             assert_eq!(measure.participants as f64, number(&expected["participants"]), "{label}");
-            let excluded: Vec<&str> = expected["excluded_participants"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_str().unwrap())
-                .collect();
+            let excluded: Vec<&str> =
+                expected["excluded_participants"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
             assert_eq!(measure.excluded_participants, excluded, "{label}");
 
-            for (summary, expected) in
-                measure.conditions.iter().zip(expected["descriptives"].as_array().unwrap())
-            {
+            for (summary, expected) in measure.conditions.iter().zip(expected["descriptives"].as_array().unwrap()) {
                 let what = format!("{label}, {}", summary.condition);
                 assert_eq!(summary.condition, expected["condition"].as_str().unwrap());
                 assert_eq!(summary.n as f64, number(&expected["n"]), "{what}: n");
-                assert_close(
-                    summary.mean,
-                    number(&expected["mean"]),
-                    REL_TOL_STATISTIC,
-                    &format!("{what}: mean"),
-                );
-                assert_close(
-                    summary.sd.unwrap(),
-                    number(&expected["sd"]),
-                    REL_TOL_STATISTIC,
-                    &format!("{what}: sd"),
-                );
+                assert_close(summary.mean, number(&expected["mean"]), REL_TOL_STATISTIC, &format!("{what}: mean"));
+                assert_close(summary.sd.unwrap(), number(&expected["sd"]), REL_TOL_STATISTIC, &format!("{what}: sd"));
                 for (actual, key) in [
                     (summary.median, "median"),
                     (summary.q1, "q1"),
@@ -1202,34 +1153,17 @@ mod tests {
                     (summary.min, "min"),
                     (summary.max, "max"),
                 ] {
-                    assert_close(
-                        actual,
-                        number(&expected[key]),
-                        REL_TOL_STATISTIC,
-                        &format!("{what}: {key}"),
-                    );
+                    assert_close(actual, number(&expected[key]), REL_TOL_STATISTIC, &format!("{what}: {key}"));
                 }
             }
 
             let friedman = measure.friedman.as_ref().expect("a Friedman test");
             let expected_friedman = &expected["friedman"];
             assert_eq!(friedman.participants as f64, number(&expected_friedman["participants"]), "{label}");
-            assert_close(
-                friedman.statistic,
-                number(&expected_friedman["statistic"]),
-                REL_TOL_STATISTIC,
-                &label,
-            );
+            assert_close(friedman.statistic, number(&expected_friedman["statistic"]), REL_TOL_STATISTIC, &label);
             assert_close(friedman.p.p, number(&expected_friedman["p"]), REL_TOL_P, &label);
-            assert_close(
-                friedman.kendall_w,
-                number(&expected_friedman["kendall_w"]),
-                REL_TOL_STATISTIC,
-                &label,
-            );
-            for (summary, mean_rank) in
-                measure.conditions.iter().zip(numbers(&expected_friedman["mean_ranks"]))
-            {
+            assert_close(friedman.kendall_w, number(&expected_friedman["kendall_w"]), REL_TOL_STATISTIC, &label);
+            for (summary, mean_rank) in measure.conditions.iter().zip(numbers(&expected_friedman["mean_ranks"])) {
                 assert_close(summary.mean_rank.unwrap(), mean_rank, REL_TOL_STATISTIC, &label);
             }
 
@@ -1241,35 +1175,21 @@ mod tests {
                 assert_eq!(pair.condition_b, expected["condition_b"].as_str().unwrap());
                 assert_eq!(pair.n as f64, number(&expected["n"]), "{what}: n");
                 let test = pair.test.as_ref().unwrap();
-                let method = if expected["method"] == "exact" {
-                    WilcoxonMethod::Exact
-                } else {
-                    WilcoxonMethod::Normal
-                };
+                let method = if expected["method"] == "exact" { WilcoxonMethod::Exact } else { WilcoxonMethod::Normal };
                 assert_eq!(test.method, Some(method), "{what}: method");
                 assert_eq!(test.n_nonzero as f64, number(&expected["n_nonzero"]), "{what}");
                 assert_close(test.v, number(&expected["v"]), REL_TOL_STATISTIC, &format!("{what}: V"));
                 let tolerance = p_tolerance(method);
                 assert_close(test.p.unwrap().p, number(&expected["p"]), tolerance, &format!("{what}: p"));
-                assert_close(
-                    pair.p_holm.unwrap().p,
-                    number(&expected["p_holm"]),
-                    tolerance,
-                    &format!("{what}: Holm"),
-                );
+                assert_close(pair.p_holm.unwrap().p, number(&expected["p_holm"]), tolerance, &format!("{what}: Holm"));
             }
         }
         // The pipeline's handling is reported, not silent.
         let time = &analysis.measures[0];
-        assert_eq!(
-            time.averaged,
-            [AveragedCell { participant: "p03".into(), condition: "HQ".into(), values: 2 }]
-        );
+        assert_eq!(time.averaged, [AveragedCell { participant: "p03".into(), condition: "HQ".into(), values: 2 }]);
         assert!(time.warnings.iter().any(|w| w.contains("averaged") && w.contains("p03 HQ (2 values)")));
         assert!(
-            time.warnings
-                .iter()
-                .any(|w| w.contains("excluded from the Friedman test") && w.contains("p07 (no HQ)"))
+            time.warnings.iter().any(|w| w.contains("excluded from the Friedman test") && w.contains("p07 (no HQ)"))
         );
     }
 
@@ -1372,8 +1292,7 @@ mod tests {
             assert_eq!((line, column.as_str()), (3, "value"), "cell `{cell}`");
             assert!(message.contains(expected), "cell `{cell}`: {message}");
         }
-        let error =
-            analyze_task_csv("participant,condition,value\na,LQ,1\nb,GI,NaN\n", "bad.csv").unwrap_err();
+        let error = analyze_task_csv("participant,condition,value\na,LQ,1\nb,GI,NaN\n", "bad.csv").unwrap_err();
         assert_eq!(error.to_string(), "bad.csv: line 3, column `value`: `NaN` is not a finite number");
     }
 
@@ -1401,10 +1320,7 @@ mod tests {
             }
             other => panic!("expected MalformedCsv, got {other:?}"),
         }
-        assert!(matches!(
-            analyze_task_csv("participant,condition,value\n", "x.csv"),
-            Err(AnalysisError::Empty(_))
-        ));
+        assert!(matches!(analyze_task_csv("participant,condition,value\n", "x.csv"), Err(AnalysisError::Empty(_))));
         assert!(matches!(analyze_task_csv("", "x.csv"), Err(AnalysisError::Empty(_))));
     }
 
@@ -1423,10 +1339,7 @@ mod tests {
         let csv = "participant,condition,value\na,LQ,1\na,LQ,3\na,GI,5\nb,LQ,2\nb,GI,1\n";
         let measure = &analyze_task_csv(csv, "dup.csv").unwrap().measures[0];
         assert_eq!(measure.conditions[0].mean, 2.0); // a: (1 + 3) / 2 = 2, b: 2
-        assert_eq!(
-            measure.averaged,
-            [AveragedCell { participant: "a".into(), condition: "LQ".into(), values: 2 }]
-        );
+        assert_eq!(measure.averaged, [AveragedCell { participant: "a".into(), condition: "LQ".into(), values: 2 }]);
         assert!(measure.warnings.iter().any(|w| w.contains("a LQ (2 values)")));
     }
 
@@ -1439,9 +1352,7 @@ mod tests {
         assert_eq!(measure.friedman.as_ref().unwrap().participants, 2);
         let warning = measure.warnings.iter().find(|w| w.contains("excluded")).unwrap();
         assert!(
-            warning.contains("2 of 4 participants")
-                && warning.contains("c (no B)")
-                && warning.contains("d (no A, C)")
+            warning.contains("2 of 4 participants") && warning.contains("c (no B)") && warning.contains("d (no A, C)")
         );
         // Pairwise complete: A–C has a, b, c.
         assert_eq!(measure.post_hoc[1].n, 3);
@@ -1463,10 +1374,7 @@ mod tests {
             Err(AnalysisError::MissingColumn { column, .. }) => assert_eq!(column, "measure"),
             other => panic!("expected MissingColumn, got {other:?}"),
         }
-        assert!(matches!(
-            analyze_task_csv_by(csv, "blocks.csv", Some("value")),
-            Err(AnalysisError::BadOption { .. })
-        ));
+        assert!(matches!(analyze_task_csv_by(csv, "blocks.csv", Some("value")), Err(AnalysisError::BadOption { .. })));
     }
 
     #[test]

@@ -57,7 +57,11 @@ fn run(case: &Value, factors: &[&str], model: Option<&str>, firth: bool) -> Anal
 }
 
 fn close(what: &str, actual: f64, expected: f64) {
-    assert!((actual - expected).abs() <= TOLERANCE, "{what}: mrstudy {actual} vs R {expected} (|Δ| = {:.2e})", (actual - expected).abs());
+    assert!(
+        (actual - expected).abs() <= TOLERANCE,
+        "{what}: mrstudy {actual} vs R {expected} (|Δ| = {:.2e})",
+        (actual - expected).abs()
+    );
 }
 
 fn check_items(analysis: &Analysis, reference: &Value) {
@@ -90,7 +94,11 @@ fn check_covariates(analysis: &Analysis, reference: &Value) {
         if let Some(z) = reference.get("z") {
             close(&format!("z of {name}"), c.z, z[name].as_f64().unwrap());
             let p = z[name].as_f64().map(|_| reference["p"][name].as_f64().unwrap()).unwrap();
-            assert!((c.p.p - p).abs() <= TOLERANCE * p.max(1e-300) * 1e3 || (c.p.p - p).abs() < 1e-12, "p of {name}: {} vs {p}", c.p.p);
+            assert!(
+                (c.p.p - p).abs() <= TOLERANCE * p.max(1e-300) * 1e3 || (c.p.p - p).abs() < 1e-12,
+                "p of {name}: {} vs {p}",
+                c.p.p
+            );
         }
     }
     assert_eq!(covariates.len(), reference["coefficients"].as_object().unwrap().len());
@@ -140,7 +148,11 @@ fn anchored_factor_models_match_bradleyterry2() {
     check_covariates(&analysis, interaction);
     let model = analysis.covariate_model.as_ref().unwrap();
     check_summary("interaction model", &model.summary, interaction);
-    close("LR χ² (interaction)", model.lr_vs_items.as_ref().unwrap().chi2, interaction["lr_vs_items"]["chi2"].as_f64().unwrap());
+    close(
+        "LR χ² (interaction)",
+        model.lr_vs_items.as_ref().unwrap().chi2,
+        interaction["lr_vs_items"]["chi2"].as_f64().unwrap(),
+    );
 }
 
 #[test]
@@ -158,7 +170,11 @@ fn separation_gives_firth_estimate_matching_brglm() {
     let analysis = run(&case, &[], None, false);
     assert_eq!(analysis.method, mrstudy_analysis::fit::Method::Firth);
     check_items(&analysis, &case["models"]["item_br"]);
-    close("bias-reduced deviance", analysis.item_model.deviance, case["models"]["item_br"]["deviance"].as_f64().unwrap());
+    close(
+        "bias-reduced deviance",
+        analysis.item_model.deviance,
+        case["models"]["item_br"]["deviance"].as_f64().unwrap(),
+    );
     let components = analysis.components.as_ref().expect("separation is reported per component");
     assert_eq!(components[0].never_lost, vec!["A".to_string()]);
     assert!(analysis.warnings.iter().any(|w| w.contains("{A} never lost")), "{:?}", analysis.warnings);

@@ -25,7 +25,12 @@ fn json(analysis: &Analysis) -> String {
 
 #[test]
 fn disconnected_design_names_components_and_reports_no_cross_difference() {
-    let text = trials(&[("p1", "A", "B", "A", 7), ("p1", "A", "B", "B", 3), ("p2", "C", "D", "C", 4), ("p2", "C", "D", "D", 6)]);
+    let text = trials(&[
+        ("p1", "A", "B", "A", 7),
+        ("p1", "A", "B", "B", 3),
+        ("p2", "C", "D", "C", 4),
+        ("p2", "C", "D", "D", 6),
+    ]);
     let analysis = analyze(&text, None, &options()).unwrap();
     let components = analysis.components.as_ref().unwrap();
     assert_eq!(components.len(), 2);
@@ -37,7 +42,11 @@ fn disconnected_design_names_components_and_reports_no_cross_difference() {
     // Worth is normalised within each component.
     let sum_cd: f64 = analysis.items.iter().filter(|i| i.component == Some(1)).filter_map(|i| i.worth).sum();
     assert!((sum_cd - 1.0).abs() < 1e-12);
-    assert!(analysis.warnings.iter().any(|w| w.contains("disconnected into 2 components: {A, B}, {C, D}")), "{:?}", analysis.warnings);
+    assert!(
+        analysis.warnings.iter().any(|w| w.contains("disconnected into 2 components: {A, B}, {C, D}")),
+        "{:?}",
+        analysis.warnings
+    );
     json(&analysis);
 }
 
@@ -66,17 +75,35 @@ fn all_judgments_identical_is_separation_with_a_finite_bias_reduced_estimate() {
 
 #[test]
 fn single_participant_is_analysed_and_screening_says_why_it_is_skipped() {
-    let text = trials(&[("only", "A", "B", "A", 5), ("only", "A", "B", "B", 2), ("only", "B", "C", "B", 4), ("only", "B", "C", "C", 3), ("only", "A", "C", "C", 1), ("only", "A", "C", "A", 2)]);
-    let analysis = analyze(&text, None, &Options { screening: Screening::On, bootstrap: 50, ..Options::default() }).unwrap();
+    let text = trials(&[
+        ("only", "A", "B", "A", 5),
+        ("only", "A", "B", "B", 2),
+        ("only", "B", "C", "B", 4),
+        ("only", "B", "C", "C", 3),
+        ("only", "A", "C", "C", 1),
+        ("only", "A", "C", "A", 2),
+    ]);
+    let analysis =
+        analyze(&text, None, &Options { screening: Screening::On, bootstrap: 50, ..Options::default() }).unwrap();
     assert_eq!(analysis.participants, 1);
-    assert!(analysis.warnings.iter().any(|w| w.contains("observer screening skipped: it needs at least three participants")));
+    assert!(
+        analysis
+            .warnings
+            .iter()
+            .any(|w| w.contains("observer screening skipped: it needs at least three participants"))
+    );
     assert!(analysis.warnings.iter().any(|w| w.contains("bootstrap skipped")));
     json(&analysis);
 }
 
 #[test]
 fn billion_judgments_per_pair_keep_full_precision() {
-    let text = trials(&[("p", "A", "B", "A", 3_000_000_000), ("p", "A", "B", "B", 1_000_000_000), ("p", "B", "C", "B", 2_000_000_000), ("p", "B", "C", "C", 2_000_000_000)]);
+    let text = trials(&[
+        ("p", "A", "B", "A", 3_000_000_000),
+        ("p", "A", "B", "B", 1_000_000_000),
+        ("p", "B", "C", "B", 2_000_000_000),
+        ("p", "B", "C", "C", 2_000_000_000),
+    ]);
     let analysis = analyze(&text, None, &options()).unwrap();
     let b = analysis.items.iter().find(|i| i.condition == "B").unwrap();
     let c = analysis.items.iter().find(|i| i.condition == "C").unwrap();
@@ -119,7 +146,9 @@ fn constant_and_collinear_factors_are_dropped_with_named_warnings() {
     assert_eq!(dropped[0].reason, "constant over the compared conditions");
     assert_eq!(dropped[1].name, "cm2");
     assert_eq!(dropped[1].reason, "collinear with cm");
-    assert!(analysis.warnings.iter().any(|w| w == "factor model: `lamp` dropped, constant over the compared conditions"));
+    assert!(
+        analysis.warnings.iter().any(|w| w == "factor model: `lamp` dropped, constant over the compared conditions")
+    );
     json(&analysis);
 }
 
@@ -165,7 +194,10 @@ fn bootstrap_is_reproducible_for_a_seed() {
             rows.push((format!("p{p}"), names[x], names[y], chosen));
         }
     }
-    let text = format!("participant,left,right,chosen\n{}\n", rows.iter().map(|(p, a, b, c)| format!("{p},{a},{b},{c}")).collect::<Vec<_>>().join("\n"));
+    let text = format!(
+        "participant,left,right,chosen\n{}\n",
+        rows.iter().map(|(p, a, b, c)| format!("{p},{a},{b},{c}")).collect::<Vec<_>>().join("\n")
+    );
     let run = |seed| analyze(&text, None, &Options { bootstrap: 200, seed, ..options() }).unwrap();
     let (a, b, c) = (run(5), run(5), run(6));
     let ci = |x: &Analysis| x.items.iter().map(|i| i.ci).collect::<Vec<_>>();
@@ -187,7 +219,8 @@ fn observer_screening_flags_a_contrarian_and_drops_nobody() {
             for y in x + 1..4 {
                 for rep in 0..3 {
                     let consensus = if (p + x + y + rep) % 5 == 0 { names[y] } else { names[x] };
-                    let chosen = if p == 20 { if consensus == names[x] { names[y] } else { names[x] } } else { consensus };
+                    let chosen =
+                        if p == 20 { if consensus == names[x] { names[y] } else { names[x] } } else { consensus };
                     text += &format!("p{p},{},{},{chosen}\n", names[x], names[y]);
                 }
             }
@@ -204,11 +237,18 @@ fn observer_screening_flags_a_contrarian_and_drops_nobody() {
 fn consistence_uses_each_participants_majority_per_pair() {
     // p1 is transitive by majority (A > B > C, A > C) with large repeated counts; p2 is circular.
     let text = trials(&[
-        ("p1", "A", "B", "A", 5000), ("p1", "A", "B", "B", 1200),
-        ("p1", "B", "C", "B", 3), ("p1", "B", "C", "C", 1),
+        ("p1", "A", "B", "A", 5000),
+        ("p1", "A", "B", "B", 1200),
+        ("p1", "B", "C", "B", 3),
+        ("p1", "B", "C", "C", 1),
         ("p1", "A", "C", "A", 2),
-        ("p2", "A", "B", "A", 1), ("p2", "B", "C", "B", 1), ("p2", "A", "C", "C", 1),
-        ("p3", "A", "B", "A", 1), ("p3", "A", "B", "B", 1), ("p3", "B", "C", "B", 1), ("p3", "A", "C", "C", 1),
+        ("p2", "A", "B", "A", 1),
+        ("p2", "B", "C", "B", 1),
+        ("p2", "A", "C", "C", 1),
+        ("p3", "A", "B", "A", 1),
+        ("p3", "A", "B", "B", 1),
+        ("p3", "B", "C", "B", 1),
+        ("p3", "A", "C", "C", 1),
     ]);
     let analysis = analyze(&text, None, &options()).unwrap();
     let zeta = |name: &str| analysis.consistence.iter().find(|c| c.participant == name).unwrap().consistence.clone();

@@ -72,7 +72,10 @@ fn pilots_and_excluded_participants_are_left_out_by_default_and_counted() {
         assert_eq!(item.condition, expected.condition);
         assert_eq!(item.log_worth, expected.log_worth);
     }
-    assert_eq!(analysis.left_out, Some(LeftOut { pilots: 2, pilot_judgments: 12 + 2 + 6, excluded: 1, excluded_judgments: 6 }));
+    assert_eq!(
+        analysis.left_out,
+        Some(LeftOut { pilots: 2, pilot_judgments: 12 + 2 + 6, excluded: 1, excluded_judgments: 6 })
+    );
     assert_eq!(
         analysis.warnings[0],
         "left out 3 participants and 26 judgments: 2 pilot participants with 20 judgments (pilot = true); \
@@ -96,7 +99,8 @@ fn include_options_keep_pilots_and_excluded_participants() {
     let excluded = analyze(&full, None, &Options { include_excluded: true, ..options() }).unwrap();
     assert_eq!(excluded.participants, 7);
     assert_eq!(excluded.left_out.as_ref().map(|l| (l.pilots, l.excluded)), Some((2, 0)));
-    let everyone = analyze(&full, None, &Options { include_pilots: true, include_excluded: true, ..options() }).unwrap();
+    let everyone =
+        analyze(&full, None, &Options { include_pilots: true, include_excluded: true, ..options() }).unwrap();
     assert_eq!((everyone.participants, everyone.judgments), (9, 108 + 26));
     assert_eq!(everyone.left_out, None);
     assert!(!everyone.warnings.iter().any(|w| w.starts_with("left out")), "{:?}", everyone.warnings);
@@ -129,16 +133,31 @@ fn left_out_participants_leave_their_groups_and_participant_numbering() {
 #[test]
 fn flag_values_other_than_true_or_false_name_file_line_and_column() {
     let cases = [
-        ("participant,left,right,chosen,pilot\np,A,B,A,false\np,A,B,B,yes\n", "t.csv: line 3, column `pilot`: `yes` is neither `true` nor `false`"),
-        ("participant,left,right,chosen,excluded\np,A,B,A,\n", "t.csv: line 2, column `excluded`: `` is neither `true` nor `false`"),
-        ("participant,left,right,chosen,pilot,excluded\np,A,B,A,false,1\n", "t.csv: line 2, column `excluded`: `1` is neither `true` nor `false`"),
+        (
+            "participant,left,right,chosen,pilot\np,A,B,A,false\np,A,B,B,yes\n",
+            "t.csv: line 3, column `pilot`: `yes` is neither `true` nor `false`",
+        ),
+        (
+            "participant,left,right,chosen,excluded\np,A,B,A,\n",
+            "t.csv: line 2, column `excluded`: `` is neither `true` nor `false`",
+        ),
+        (
+            "participant,left,right,chosen,pilot,excluded\np,A,B,A,false,1\n",
+            "t.csv: line 2, column `excluded`: `1` is neither `true` nor `false`",
+        ),
     ];
     for (text, expected) in cases {
         let error = parse_trials_with(text, "t.csv", None, &TrialsOptions::default()).unwrap_err();
         assert_eq!(error.to_string(), expected);
     }
     // Spreadsheets write TRUE/FALSE.
-    let parsed = parse_trials_with("participant,left,right,chosen,pilot\np,A,B,A,FALSE\nq,A,B,B,True\n", "t.csv", None, &TrialsOptions::default()).unwrap();
+    let parsed = parse_trials_with(
+        "participant,left,right,chosen,pilot\np,A,B,A,FALSE\nq,A,B,B,True\n",
+        "t.csv",
+        None,
+        &TrialsOptions::default(),
+    )
+    .unwrap();
     assert_eq!(parsed.judgments.participants, ["p"]);
 }
 
@@ -180,8 +199,17 @@ fn a_group_that_cannot_be_estimated_is_reported_and_the_others_go_on() {
     let GroupResult::NotEstimable(solo) = &groups["solo"] else { panic!("solo was estimated") };
     assert_eq!((solo.estimable, solo.judgments, solo.participants), (false, 4, 1));
     assert!(!solo.reason.is_empty());
-    assert!(analysis.warnings.iter().any(|w| w.starts_with("group `solo` could not be estimated: ")), "{:?}", analysis.warnings);
-    assert!(analysis.warnings.iter().any(|w| w == "the test of equal effects across groups uses only the estimable groups; left out: `solo`"));
+    assert!(
+        analysis.warnings.iter().any(|w| w.starts_with("group `solo` could not be estimated: ")),
+        "{:?}",
+        analysis.warnings
+    );
+    assert!(
+        analysis
+            .warnings
+            .iter()
+            .any(|w| w == "the test of equal effects across groups uses only the estimable groups; left out: `solo`")
+    );
     assert_eq!(analysis.group_test_left_out, ["solo"]);
 
     // The test across groups equals the one on the estimable groups' judgments alone.

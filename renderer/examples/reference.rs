@@ -22,6 +22,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     r.photo.save_png(&out.join(format!("{name}-photo.png")))?;
     r.ground_truth.save_png(&out.join(format!("{name}-gt.png")))?;
     r.affected_mask.save_png(&out.join(format!("{name}-affected.png")))?;
-    println!("{name}: {:.1} s, {:.0} samples/s, fireflies {}/{}, coverage {:.3}, affected {:.3}", r.stats.seconds, r.stats.samples_per_second, r.stats.fireflies_photo, r.stats.fireflies_ground_truth, r.stats.virtual_coverage, r.stats.affected_fraction);
+    println!(
+        "{name}: {:.1} s, {:.0} samples/s, fireflies {}/{}, coverage {:.3}, affected {:.3}",
+        r.stats.seconds,
+        r.stats.samples_per_second,
+        r.stats.fireflies_photo,
+        r.stats.fireflies_ground_truth,
+        r.stats.virtual_coverage,
+        r.stats.affected_fraction
+    );
     Ok(())
 }

@@ -174,7 +174,13 @@ fn build_rec(
         return node_idx;
     }
     let extent = cb.max - cb.min;
-    let axis = if extent.x >= extent.y && extent.x >= extent.z { 0 } else if extent.y >= extent.z { 1 } else { 2 };
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
     let lo = cb.min[axis];
     let span = extent[axis];
     let mut mid;
@@ -270,7 +276,11 @@ mod tests {
             let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
             let d = sample_uniform_sphere(rng.next_f32(), rng.next_f32());
             let ray = Ray { origin: o, dir: d };
-            let brute = prims.iter().enumerate().filter_map(|(i, p)| p.intersect_t(&ray, 1e-4, f32::INFINITY).map(|h| (i, h.0))).min_by(|a, b| a.1.total_cmp(&b.1));
+            let brute = prims
+                .iter()
+                .enumerate()
+                .filter_map(|(i, p)| p.intersect_t(&ray, 1e-4, f32::INFINITY).map(|h| (i, h.0)))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
             let got = bvh.intersect(&ray, 1e-4, f32::INFINITY);
             match (brute, got) {
                 (None, None) => {}

@@ -30,7 +30,16 @@ impl Camera {
         let back = (position - look_at).normalize();
         let right = up.cross(back).normalize();
         let true_up = back.cross(right);
-        Camera { width, height, fx: k[0], fy: k[1], cx: k[2], cy: k[3], position, rotation: Mat3::from_cols(right, true_up, back) }
+        Camera {
+            width,
+            height,
+            fx: k[0],
+            fy: k[1],
+            cx: k[2],
+            cy: k[3],
+            position,
+            rotation: Mat3::from_cols(right, true_up, back),
+        }
     }
     /// The same camera at another resolution (intrinsics scaled with the image).
     pub fn resized(&self, width: u32, height: u32) -> Camera {

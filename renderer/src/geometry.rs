@@ -208,10 +208,7 @@ fn quad_tris(c: Vec3, u: Vec3, v: Vec3, uv_scale: Vec2) -> [Triangle; 2] {
     let t1 = Vec2::new(1.0, 0.0) * uv_scale;
     let t2 = Vec2::new(1.0, 1.0) * uv_scale;
     let t3 = Vec2::new(0.0, 1.0) * uv_scale;
-    [
-        Triangle { p: [p0, p1, p2], n: None, uv: [t0, t1, t2] },
-        Triangle { p: [p0, p2, p3], n: None, uv: [t0, t2, t3] },
-    ]
+    [Triangle { p: [p0, p1, p2], n: None, uv: [t0, t1, t2] }, Triangle { p: [p0, p2, p3], n: None, uv: [t0, t2, t3] }]
 }
 
 /// A unit quad in the XZ plane centred at the origin, facing +Y, scaled to `size` (x, z).
@@ -259,8 +256,16 @@ pub fn frustum(r0: f32, r1: f32, height: f32, segments: u32, caps: bool) -> Vec<
         let t1 = d1 * r1 + Vec3::Y * y1;
         let u0 = i as f32 / n as f32;
         let u1 = (i + 1) as f32 / n as f32;
-        out.push(Triangle { p: [b0, b1, t1], n: Some([n0, n1, n1]), uv: [Vec2::new(u0, 0.0), Vec2::new(u1, 0.0), Vec2::new(u1, 1.0)] });
-        out.push(Triangle { p: [b0, t1, t0], n: Some([n0, n1, n0]), uv: [Vec2::new(u0, 0.0), Vec2::new(u1, 1.0), Vec2::new(u0, 1.0)] });
+        out.push(Triangle {
+            p: [b0, b1, t1],
+            n: Some([n0, n1, n1]),
+            uv: [Vec2::new(u0, 0.0), Vec2::new(u1, 0.0), Vec2::new(u1, 1.0)],
+        });
+        out.push(Triangle {
+            p: [b0, t1, t0],
+            n: Some([n0, n1, n0]),
+            uv: [Vec2::new(u0, 0.0), Vec2::new(u1, 1.0), Vec2::new(u0, 1.0)],
+        });
         if caps {
             if r1 > 0.0 {
                 let c = Vec3::Y * y1;
@@ -283,8 +288,14 @@ pub fn tube(path: &[Vec3], radii: &[f32], segments: u32) -> Vec<Triangle> {
     let mut rings: Vec<Vec<(Vec3, Vec3)>> = Vec::with_capacity(m);
     let mut prev_side = Vec3::ZERO;
     for i in 0..m {
-        let tangent = if i == 0 { path[1] - path[0] } else if i == m - 1 { path[m - 1] - path[m - 2] } else { path[i + 1] - path[i - 1] }
-            .normalize();
+        let tangent = if i == 0 {
+            path[1] - path[0]
+        } else if i == m - 1 {
+            path[m - 1] - path[m - 2]
+        } else {
+            path[i + 1] - path[i - 1]
+        }
+        .normalize();
         let mut side = if i == 0 { tangent.any_orthonormal_vector() } else { prev_side };
         side = (side - tangent * side.dot(tangent)).normalize();
         prev_side = side;

@@ -86,7 +86,13 @@ impl Image {
         let mut neg = 0;
         for p in &self.pixels {
             for c in p.to_array() {
-                if c.is_nan() { nan += 1 } else if c.is_infinite() { inf += 1 } else if c < 0.0 { neg += 1 }
+                if c.is_nan() {
+                    nan += 1
+                } else if c.is_infinite() {
+                    inf += 1
+                } else if c < 0.0 {
+                    neg += 1
+                }
             }
         }
         (nan, inf, neg)
@@ -125,8 +131,15 @@ impl Image {
     /// A display-encoded image as the bytes of an 8-bit PNG file.
     pub fn encode_png(&self) -> Vec<u8> {
         let mut bytes = std::io::Cursor::new(Vec::new());
-        image::write_buffer_with_format(&mut bytes, &self.to_rgb8(), self.width, self.height, image::ExtendedColorType::Rgb8, image::ImageFormat::Png)
-            .expect("PNG encoding into memory of a buffer of the right size cannot fail");
+        image::write_buffer_with_format(
+            &mut bytes,
+            &self.to_rgb8(),
+            self.width,
+            self.height,
+            image::ExtendedColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .expect("PNG encoding into memory of a buffer of the right size cannot fail");
         bytes.into_inner()
     }
     /// Writes a linear image as 32-bit float EXR.
@@ -141,8 +154,11 @@ impl Image {
     /// 8/16-bit formats are returned as stored too (display-encoded): convert with
     /// [`Image::srgb_to_linear`] where linear values are needed.
     pub fn load(path: &Path, what: &'static str) -> Result<Image> {
-        let img = image::open(path)
-            .map_err(|e| RenderError::MissingFile { what, path: path.to_owned(), reason: e.to_string() })?;
+        let img = image::open(path).map_err(|e| RenderError::MissingFile {
+            what,
+            path: path.to_owned(),
+            reason: e.to_string(),
+        })?;
         let rgb = img.into_rgb32f();
         let (w, h) = rgb.dimensions();
         let pixels = rgb.pixels().map(|p| Vec3::new(p.0[0], p.0[1], p.0[2])).collect();
@@ -197,7 +213,10 @@ pub fn srgb_decode(c: f32) -> f32 {
 pub fn save_by_extension(path: &Path, linear: &Image, display: &Image) -> Result<()> {
     // the output's folder is made if missing (`--out renders/gi.png`)
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| RenderError::Write { path: path.to_owned(), reason: format!("cannot create its folder: {e}") })?;
+        std::fs::create_dir_all(parent).map_err(|e| RenderError::Write {
+            path: path.to_owned(),
+            reason: format!("cannot create its folder: {e}"),
+        })?;
     }
     if path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         linear.save_exr(path)

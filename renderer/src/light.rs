@@ -127,14 +127,21 @@ impl Environment {
 /// A procedural indoor "sky": a vertical gradient from `ground` through `horizon` to `zenith`,
 /// with a rectangular window of radiance `window` centred on `window_dir`, `window_size_deg`
 /// (width, height) wide. Returned as an equirectangular map of `width × width/2`.
-pub fn procedural_sky(width: u32, zenith: Vec3, horizon: Vec3, ground: Vec3, window: Option<(Vec3, [f32; 2], Vec3)>) -> Image {
+pub fn procedural_sky(
+    width: u32,
+    zenith: Vec3,
+    horizon: Vec3,
+    ground: Vec3,
+    window: Option<(Vec3, [f32; 2], Vec3)>,
+) -> Image {
     let height = width / 2;
     let env = Environment { map: Image::new(1, 1), rotation: 0.0, rows: Distribution1D::new(&[1.0]), cols: vec![] };
     let mut img = Image::new(width, height);
     for j in 0..height {
         for i in 0..width {
             let d = env.uv_to_dir((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32);
-            let mut c = if d.y >= 0.0 { horizon.lerp(zenith, d.y.powf(0.7)) } else { horizon.lerp(ground, (-d.y).powf(0.4)) };
+            let mut c =
+                if d.y >= 0.0 { horizon.lerp(zenith, d.y.powf(0.7)) } else { horizon.lerp(ground, (-d.y).powf(0.4)) };
             if let Some((wd, size, radiance)) = window {
                 let wd = wd.normalize();
                 let right = Vec3::Y.cross(-wd).normalize_or(Vec3::X);
@@ -221,7 +228,13 @@ mod tests {
 
     #[test]
     fn environment_pdf_integrates_to_one_and_matches_sampling() {
-        let sky = procedural_sky(64, Vec3::new(0.3, 0.4, 0.6), Vec3::splat(0.8), Vec3::splat(0.1), Some((Vec3::new(1.0, 0.5, -1.0), [30.0, 20.0], Vec3::splat(20.0))));
+        let sky = procedural_sky(
+            64,
+            Vec3::new(0.3, 0.4, 0.6),
+            Vec3::splat(0.8),
+            Vec3::splat(0.1),
+            Some((Vec3::new(1.0, 0.5, -1.0), [30.0, 20.0], Vec3::splat(20.0))),
+        );
         let env = Environment::new(sky, 30.0);
         let mut rng = Rng::new(1);
         // ∫ pdf dω over the sphere by uniform sampling

@@ -25,10 +25,22 @@ use std::sync::Arc;
 pub enum Texture {
     Image(Arc<Image>),
     /// Wood-like rings: two colours, ring frequency, seed-free (pure function of uv).
-    Wood { light: Vec3, dark: Vec3, rings: f32 },
-    Checker { a: Vec3, b: Vec3, squares: f32 },
+    Wood {
+        light: Vec3,
+        dark: Vec3,
+        rings: f32,
+    },
+    Checker {
+        a: Vec3,
+        b: Vec3,
+        squares: f32,
+    },
     /// Horizontal stripes (book covers, labels).
-    Stripes { a: Vec3, b: Vec3, count: f32 },
+    Stripes {
+        a: Vec3,
+        b: Vec3,
+        count: f32,
+    },
 }
 
 impl Texture {
@@ -53,7 +65,11 @@ impl Texture {
                 if i.rem_euclid(2) == 0 { *a } else { *b }
             }
             Texture::Stripes { a, b, count } => {
-                if ((uv.y * count).floor() as i64).rem_euclid(2) == 0 { *a } else { *b }
+                if ((uv.y * count).floor() as i64).rem_euclid(2) == 0 {
+                    *a
+                } else {
+                    *b
+                }
             }
         }
     }

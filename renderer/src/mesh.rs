@@ -40,8 +40,10 @@ fn load_gltf(path: &Path) -> std::result::Result<Vec<Triangle>, String> {
                     Some(p) => p.map(|p| m.transform_point3(Vec3::from_array(p))).collect(),
                     None => continue,
                 };
-                let nrm: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(|n| (nm * Vec3::from_array(n)).normalize_or_zero()).collect());
-                let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(|t| Vec2::new(t[0], 1.0 - t[1])).collect());
+                let nrm: Option<Vec<Vec3>> =
+                    reader.read_normals().map(|n| n.map(|n| (nm * Vec3::from_array(n)).normalize_or_zero()).collect());
+                let uvs: Option<Vec<Vec2>> =
+                    reader.read_tex_coords(0).map(|t| t.into_f32().map(|t| Vec2::new(t[0], 1.0 - t[1])).collect());
                 let idx: Vec<u32> = match reader.read_indices() {
                     Some(i) => i.into_u32().collect(),
                     None => (0..pos.len() as u32).collect(),
@@ -80,7 +82,11 @@ fn load_obj(path: &Path) -> std::result::Result<Vec<Triangle>, String> {
             out.push(Triangle {
                 p: i.map(p),
                 n: has_n.then(|| i.map(|k| Vec3::new(m.normals[3 * k], m.normals[3 * k + 1], m.normals[3 * k + 2]))),
-                uv: if has_uv { i.map(|k| Vec2::new(m.texcoords[2 * k], m.texcoords[2 * k + 1])) } else { [Vec2::ZERO; 3] },
+                uv: if has_uv {
+                    i.map(|k| Vec2::new(m.texcoords[2 * k], m.texcoords[2 * k + 1]))
+                } else {
+                    [Vec2::ZERO; 3]
+                },
             });
         }
     }

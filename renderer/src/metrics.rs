@@ -74,7 +74,11 @@ fn gaussian_blur(values: &[f64], w: usize, h: usize) -> Vec<f64> {
                 let mut s = 0.0;
                 for (k, kv) in kernel.iter().enumerate() {
                     let o = k as i64 - 5;
-                    let (sx, sy) = if horizontal { ((x as i64 + o).clamp(0, w as i64 - 1) as usize, y) } else { (x, (y as i64 + o).clamp(0, h as i64 - 1) as usize) };
+                    let (sx, sy) = if horizontal {
+                        ((x as i64 + o).clamp(0, w as i64 - 1) as usize, y)
+                    } else {
+                        (x, (y as i64 + o).clamp(0, h as i64 - 1) as usize)
+                    };
                     s += kv * src[sy * w + sx];
                 }
                 out[y * w + x] = s / ksum;
@@ -140,7 +144,13 @@ pub fn flip(reference: &Image, test: &Image, mask: Option<&Mask>) -> f64 {
 }
 
 /// Every metric at once. `*_linear` are radiance buffers, `*_display` camera outputs.
-pub fn compare(reference_linear: &Image, test_linear: &Image, reference_display: &Image, test_display: &Image, mask: Option<&Mask>) -> ImageErrors {
+pub fn compare(
+    reference_linear: &Image,
+    test_linear: &Image,
+    reference_display: &Image,
+    test_display: &Image,
+    mask: Option<&Mask>,
+) -> ImageErrors {
     let peak = reference_linear.pixels.iter().map(|p| luminance(*p) as f64).fold(1e-6, f64::max);
     let rl = rmse(reference_linear, test_linear, mask);
     let rd = rmse(reference_display, test_display, mask);

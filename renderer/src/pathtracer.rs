@@ -100,7 +100,12 @@ impl World {
                         let area = t.area();
                         if area > 0.0 {
                             emitter = emitters.len() as i32;
-                            emitters.push(Emitter { tri: t.clone(), normal: t.geometric_normal(), area, radiance: mat.emission });
+                            emitters.push(Emitter {
+                                tri: t.clone(),
+                                normal: t.geometric_normal(),
+                                area,
+                                radiance: mat.emission,
+                            });
                         }
                     }
                 }
@@ -211,7 +216,9 @@ impl World {
                         let cos = ns.dot(wi);
                         if intensity.max_element() > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
                             let f = bsdf.eval(wo, wi);
-                            if f.max_element() > 0.0 && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4)) {
+                            if f.max_element() > 0.0
+                                && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4))
+                            {
                                 l += beta * f * intensity * (cos / (dist2 * p_group));
                             }
                         }
@@ -230,7 +237,9 @@ impl World {
                         if cos_l > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
                             let pdf = p_group * pe / em.area * dist2 / cos_l;
                             let f = bsdf.eval(wo, wi);
-                            if f.max_element() > 0.0 && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4)) {
+                            if f.max_element() > 0.0
+                                && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4))
+                            {
                                 let w = power_heuristic(pdf, bsdf.pdf(wo, wi));
                                 l += beta * f * em.radiance * (cos * w / pdf);
                             }
@@ -242,7 +251,9 @@ impl World {
                             if cos > 0.0 && ng.dot(wi) > 0.0 && le.max_element() > 0.0 {
                                 let pdf = p_group * pdf_env;
                                 let f = bsdf.eval(wo, wi);
-                                if f.max_element() > 0.0 && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, f32::INFINITY) {
+                                if f.max_element() > 0.0
+                                    && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, f32::INFINITY)
+                                {
                                     let w = power_heuristic(pdf, bsdf.pdf(wo, wi));
                                     l += beta * f * le * (cos * w / pdf);
                                 }
@@ -293,7 +304,16 @@ pub struct Accumulator {
 impl Accumulator {
     pub fn new(width: u32, height: u32) -> Self {
         let n = (width * height) as usize;
-        Accumulator { width, height, spp: 0, sum: vec![DVec3::ZERO; n], virtual_hits: vec![0; n], max_sample: vec![0.0; n], sum_lum2: vec![0.0; n], invalid_samples: 0 }
+        Accumulator {
+            width,
+            height,
+            spp: 0,
+            sum: vec![DVec3::ZERO; n],
+            virtual_hits: vec![0; n],
+            max_sample: vec![0.0; n],
+            sum_lum2: vec![0.0; n],
+            invalid_samples: 0,
+        }
     }
 
     /// Adds samples `self.spp .. self.spp + n` to every pixel (rayon over rows).
@@ -349,7 +369,11 @@ impl Accumulator {
     /// The mean radiance per pixel.
     pub fn image(&self) -> Image {
         let inv = 1.0 / self.spp.max(1) as f64;
-        Image { width: self.width, height: self.height, pixels: self.sum.iter().map(|s| (*s * inv).as_vec3()).collect() }
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels: self.sum.iter().map(|s| (*s * inv).as_vec3()).collect(),
+        }
     }
 
     /// Standard error of each pixel's mean luminance, from the spread of its samples.

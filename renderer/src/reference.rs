@@ -33,7 +33,14 @@ pub struct ReferenceParams {
 
 impl Default for ReferenceParams {
     fn default() -> Self {
-        ReferenceParams { spp: 64, seed: 1, max_depth: 64, affected_threshold: 0.02, firefly_factor: 100.0, pass_spp: 4 }
+        ReferenceParams {
+            spp: 64,
+            seed: 1,
+            max_depth: 64,
+            affected_threshold: 0.02,
+            firefly_factor: 100.0,
+            pass_spp: 4,
+        }
     }
 }
 
@@ -71,7 +78,14 @@ pub struct ReferenceOutput {
     pub stats: RenderStats,
 }
 
-fn progressive(world: &World, scene: &Scene, params: &ReferenceParams, done: &mut u32, total: u32, progress: &(dyn Fn(u32, u32) + Sync)) -> Accumulator {
+fn progressive(
+    world: &World,
+    scene: &Scene,
+    params: &ReferenceParams,
+    done: &mut u32,
+    total: u32,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Accumulator {
     let tp = TraceParams { seed: params.seed, max_depth: params.max_depth };
     let mut acc = Accumulator::new(scene.camera.width, scene.camera.height);
     while acc.spp < params.spp {
@@ -85,7 +99,11 @@ fn progressive(world: &World, scene: &Scene, params: &ReferenceParams, done: &mu
 
 /// The photograph alone: (linear radiance, camera output, stats). A scene with a background
 /// photograph returns that photograph.
-pub fn render_photo(scene: &Scene, params: &ReferenceParams, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, Image, RenderStats)> {
+pub fn render_photo(
+    scene: &Scene,
+    params: &ReferenceParams,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<(Image, Image, RenderStats)> {
     let start = Instant::now();
     if let Some(bg) = &scene.background {
         let display = bg.linear_to_srgb();
@@ -98,17 +116,30 @@ pub fn render_photo(scene: &Scene, params: &ReferenceParams, progress: &(dyn Fn(
     let hdr = acc.image();
     let photo = sensor::apply(&hdr, &scene.camera, &scene.sensor);
     let secs = start.elapsed().as_secs_f64();
-    let stats = stats_for(scene, params, secs, acc.count_fireflies(params.firefly_factor), 0, acc.invalid_samples, 0.0, 0.0);
+    let stats =
+        stats_for(scene, params, secs, acc.count_fireflies(params.firefly_factor), 0, acc.invalid_samples, 0.0, 0.0);
     Ok((hdr, photo, stats))
 }
 
 #[allow(clippy::too_many_arguments)]
-fn stats_for(scene: &Scene, params: &ReferenceParams, secs: f64, ff_photo: usize, ff_gt: usize, invalid: u64, coverage: f32, affected: f32) -> RenderStats {
+fn stats_for(
+    scene: &Scene,
+    params: &ReferenceParams,
+    secs: f64,
+    ff_photo: usize,
+    ff_gt: usize,
+    invalid: u64,
+    coverage: f32,
+    affected: f32,
+) -> RenderStats {
     let renders = if ff_gt > 0 || coverage > 0.0 || affected > 0.0 { 2.0 } else { 1.0 };
     let samples = scene.camera.width as f64 * scene.camera.height as f64 * params.spp as f64 * renders;
     let mut warnings = scene.warnings.clone();
     if ff_photo + ff_gt > 0 {
-        warnings.push(format!("{} firefly pixels in the photograph and {} in the ground truth (counted, not clamped)", ff_photo, ff_gt));
+        warnings.push(format!(
+            "{} firefly pixels in the photograph and {} in the ground truth (counted, not clamped)",
+            ff_photo, ff_gt
+        ));
     }
     RenderStats {
         width: scene.camera.width,
@@ -126,7 +157,11 @@ fn stats_for(scene: &Scene, params: &ReferenceParams, secs: f64, ff_photo: usize
 }
 
 /// Renders the photograph, the ground-truth composite, their HDR buffers and the masks.
-pub fn render_reference(scene: &Scene, params: &ReferenceParams, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<ReferenceOutput> {
+pub fn render_reference(
+    scene: &Scene,
+    params: &ReferenceParams,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<ReferenceOutput> {
     if scene.background.is_some() {
         return Err(RenderError::Unsupported(format!(
             "scene `{}` uses a background photograph, so it has no synthesised ground truth; render it with --photo, or remove [background] to synthesise one",
@@ -146,7 +181,12 @@ pub fn render_reference(scene: &Scene, params: &ReferenceParams, progress: &(dyn
     let photo = sensor::apply(&hdr_real, &scene.camera, &scene.sensor);
     let ground_truth = sensor::apply(&hdr_full, &scene.camera, &scene.sensor);
     let virtual_mask = Mask { width: hdr_full.width, height: hdr_full.height, values: acc_full.virtual_coverage() };
-    let noise: Vec<f32> = acc_real.luminance_standard_error().iter().zip(acc_full.luminance_standard_error()).map(|(a, b)| a + b).collect();
+    let noise: Vec<f32> = acc_real
+        .luminance_standard_error()
+        .iter()
+        .zip(acc_full.luminance_standard_error())
+        .map(|(a, b)| a + b)
+        .collect();
     let affected_mask = affected_region(&hdr_real, &hdr_full, &virtual_mask, params.affected_threshold, &noise);
     let secs = start.elapsed().as_secs_f64();
     let mut stats = stats_for(

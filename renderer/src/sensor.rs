@@ -149,7 +149,8 @@ impl SensorDesc {
     /// Resolves to parameters, or (key, expectation) naming the bad value.
     pub fn resolve(&self) -> Result<SensorParams, (String, String)> {
         let name = self.preset.as_deref().unwrap_or("clean");
-        let mut p = SensorParams::preset(name).ok_or_else(|| ("preset".to_string(), format!("\"webcam\", \"phone\" or \"clean\", not \"{name}\"")))?;
+        let mut p = SensorParams::preset(name)
+            .ok_or_else(|| ("preset".to_string(), format!("\"webcam\", \"phone\" or \"clean\", not \"{name}\"")))?;
         macro_rules! set {
             ($f:ident) => {
                 if let Some(v) = self.$f {
@@ -337,7 +338,13 @@ pub fn demosaic_bilinear(raw: &[f32], w: u32, h: u32) -> Image {
             }
             let mut px = [0.0f32; 3];
             for c in 0..3 {
-                px[c] = if c == c0 { v0 } else if cnt[c] > 0 { sum[c] / cnt[c] as f32 } else { v0 };
+                px[c] = if c == c0 {
+                    v0
+                } else if cnt[c] > 0 {
+                    sum[c] / cnt[c] as f32
+                } else {
+                    v0
+                };
             }
             out.set(x as u32, y as u32, Vec3::from_array(px));
         }

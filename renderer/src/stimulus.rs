@@ -17,7 +17,7 @@
 use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
 use crate::error::{RenderError, Result};
-use crate::gpu::{GiLevel, DirParams, DirRenderer, GpuRender};
+use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
 use crate::image::Image;
 use crate::reference::{ReferenceParams, RenderStats, render_photo};
 use crate::scene::Scene;
@@ -49,14 +49,18 @@ impl Factors {
             } else if level == 1.0 {
                 true
             } else {
-                return Err(format!("factor `{name}` has level {level}; the renderer knows the levels 0 (off) and 1 (on)"));
+                return Err(format!(
+                    "factor `{name}` has level {level}; the renderer knows the levels 0 (off) and 1 (on)"
+                ));
             };
             match name {
                 "gi" => gi = on,
                 "shadows" => shadows = on,
                 "cm" => cm = on,
                 "ca" => ca = on,
-                other => return Err(format!("the renderer knows no factor `{other}` (it renders gi, shadows, cm and ca)")),
+                other => {
+                    return Err(format!("the renderer knows no factor `{other}` (it renders gi, shadows, cm and ca)"));
+                }
             }
         }
         let gi = match (gi, shadows) {
@@ -105,7 +109,11 @@ impl Default for StimulusSettings {
 impl StimulusSettings {
     /// The scene at the stimulus size.
     pub fn sized(&self, scene: Scene) -> Scene {
-        if scene.camera.width == self.width && scene.camera.height == self.height { scene } else { scene.with_size(self.width, self.height) }
+        if scene.camera.width == self.width && scene.camera.height == self.height {
+            scene
+        } else {
+            scene.with_size(self.width, self.height)
+        }
     }
 
     /// Text naming everything that decides the stimulus of `scene` (already sized) under
@@ -127,7 +135,9 @@ impl StimulusSettings {
     /// the scene's camera); `progress(done, total)` is called as samples complete.
     pub fn photo(&self, scene: &Scene, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, RenderStats)> {
         if self.spp == 0 {
-            return Err(RenderError::Unsupported("a stimulus needs at least 1 sample per pixel for its photograph".into()));
+            return Err(RenderError::Unsupported(
+                "a stimulus needs at least 1 sample per pixel for its photograph".into(),
+            ));
         }
         let params = ReferenceParams { spp: self.spp, seed: self.seed, ..ReferenceParams::default() };
         let (_, photo, stats) = render_photo(scene, &params, progress)?;
@@ -164,7 +174,10 @@ mod tests {
 
     #[test]
     fn factor_levels_map_to_the_three_gi_modes() {
-        assert_eq!(levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(), Factors { gi: GiLevel::None, cm: false, ca: false });
+        assert_eq!(
+            levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(),
+            Factors { gi: GiLevel::None, cm: false, ca: false }
+        );
         assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, GiLevel::Gi);
         assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Shadows);
         assert_eq!(levels(&[("gi", 1.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Gi);

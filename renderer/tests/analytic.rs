@@ -158,7 +158,8 @@ fn error_falls_as_one_over_sqrt_spp() {
     let xs: Vec<f64> = spps.iter().map(|&s| (s as f64).ln()).collect();
     let ys: Vec<f64> = rmses.iter().map(|r| r.ln()).collect();
     let (mx, my) = (xs.iter().sum::<f64>() / 3.0, ys.iter().sum::<f64>() / 3.0);
-    let slope = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    let slope = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
+        / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
     assert!((slope + 0.5).abs() < SLOPE_TOLERANCE, "slope {slope}, rmse {rmses:?}");
 }
 
@@ -338,14 +339,23 @@ fn bad_input_is_named_in_one_sentence() {
     check("[[objects]]\nname = \"a\"\nshape = \"box\"\nsize = [1, 1, 1]", &["objects[0].role", "expected"]);
     check("[[objects]]\nrole = \"real\"\nshape = \"sphere\"", &["objects[0].radius", "positive"]);
     check("[[objects]]\nrole = \"real\"\nshape = \"teapot\"", &["objects[0].shape", "teapot"]);
-    check("[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = { albedo = 0.8, specular = 0.5 }", &["objects[0].material.specular", "≤ 1"]);
-    check("[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = \"nope\"", &["objects[0].material", "nope"]);
+    check(
+        "[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = { albedo = 0.8, specular = 0.5 }",
+        &["objects[0].material.specular", "≤ 1"],
+    );
+    check(
+        "[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = \"nope\"",
+        &["objects[0].material", "nope"],
+    );
     check("[[objects]]\nrole = \"real\"\nshape = \"box\"\ncolour = 3", &["colour"]);
     check("[[lights]]\nkind = \"spot\"\nposition = [0, 1, 0]\nintensity = 1.0", &["lights[0].direction"]);
     // a missing mesh and a missing texture are named
     for (body, what) in [
         ("[[objects]]\nrole = \"real\"\nshape = \"mesh\"\npath = \"missing.glb\"", "missing.glb"),
-        ("[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = { texture = \"missing.png\" }", "missing.png"),
+        (
+            "[[objects]]\nrole = \"real\"\nshape = \"box\"\nsize = [1, 1, 1]\nmaterial = { texture = \"missing.png\" }",
+            "missing.png",
+        ),
     ] {
         let path = dir.join("bad.toml");
         std::fs::write(&path, format!("{base}\n{body}")).unwrap();
@@ -359,7 +369,11 @@ fn bad_input_is_named_in_one_sentence() {
 #[test]
 fn obj_and_gltf_meshes_load() {
     let dir = temp_dir("meshes");
-    std::fs::write(dir.join("quad.obj"), "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 3//1 2//1\nf 1//1 4//1 3//1\n").unwrap();
+    std::fs::write(
+        dir.join("quad.obj"),
+        "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 3//1 2//1\nf 1//1 4//1 3//1\n",
+    )
+    .unwrap();
     // a one-triangle glTF with its buffer beside it
     let positions: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
     let bytes: Vec<u8> = positions.iter().flat_map(|f| f.to_le_bytes()).collect();

@@ -20,10 +20,10 @@ use axum::routing::{delete, get, post};
 use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
+use crate::AppState;
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
 use crate::participant::bearer;
-use crate::AppState;
 
 pub const COOKIE: &str = "mrstudy_admin";
 
@@ -85,11 +85,7 @@ fn authorize(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
             }
         },
     };
-    if state.is_admin_token(token) {
-        Ok(via)
-    } else {
-        Err(AppError::Forbidden("The admin token is wrong.".into()))
-    }
+    if state.is_admin_token(token) { Ok(via) } else { Err(AppError::Forbidden("The admin token is wrong.".into())) }
 }
 
 fn authorize_change(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
@@ -142,11 +138,7 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
     }
     values.sort_by(f64::total_cmp);
     let middle = values.len() / 2;
-    Some(if values.len() % 2 == 1 {
-        values[middle]
-    } else {
-        (values[middle - 1] + values[middle]) / 2.0
-    })
+    Some(if values.len() % 2 == 1 { values[middle] } else { (values[middle - 1] + values[middle]) / 2.0 })
 }
 
 pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
@@ -159,10 +151,12 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     let served = state.study(slug);
     let trials = match served {
         Some(prepared) => prepared.study.trial_count() as i64,
-        None => sqlx::query_scalar("SELECT COALESCE(MAX(trials), 0) FROM participants WHERE study = ?")
-            .bind(slug)
-            .fetch_one(pool)
-            .await?,
+        None => {
+            sqlx::query_scalar("SELECT COALESCE(MAX(trials), 0) FROM participants WHERE study = ?")
+                .bind(slug)
+                .fetch_one(pool)
+                .await?
+        }
     };
     let counts = sqlx::query(
         "SELECT answered, trials, completed_at IS NOT NULL AS finished, COUNT(*) AS n
@@ -214,10 +208,8 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     .bind(slug)
     .fetch_one(pool)
     .await?;
-    let screened_out: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = ?")
-        .bind(slug)
-        .fetch_one(pool)
-        .await?;
+    let screened_out: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = ?").bind(slug).fetch_one(pool).await?;
     let marked = sqlx::query(
         "SELECT COALESCE(SUM(pilot), 0) AS pilots, COALESCE(SUM(excluded), 0) AS excluded FROM participants WHERE study = ?",
     )
@@ -368,11 +360,7 @@ async fn conditions_csv(
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
     let definition = export::definition(&state.storage().read, &slug).await?;
-    Ok(download(
-        "text/csv; charset=utf-8",
-        format!("{slug}-conditions.csv"),
-        definition.conditions_csv(),
-    ))
+    Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
 }
 
 /// The live analysis of a study: the analysis crate run on the trials CSV and the study's
@@ -384,14 +372,17 @@ pub async fn analysis_json(state: &AppState, slug: &str, include: Include) -> Ap
     let definition = export::definition(pool, slug).await?;
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
-    let mut analysis = crate::analysis::run(&trials.content, &definition.conditions_csv(), include).map_err(|error| match (error, &left_out) {
-        (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
-            "{}; {}",
-            message.trim_end_matches('.'),
-            trials.left_out.clause(QUERY_HINT).unwrap_or_default()
-        )),
-        (error, _) => error,
-    })?;
+    let mut analysis =
+        crate::analysis::run(&trials.content, &definition.conditions_csv(), include).map_err(|error| {
+            match (error, &left_out) {
+                (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
+                    "{}; {}",
+                    message.trim_end_matches('.'),
+                    trials.left_out.clause(QUERY_HINT).unwrap_or_default()
+                )),
+                (error, _) => error,
+            }
+        })?;
     if let Some(sentence) = left_out
         && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
     {
@@ -446,11 +437,19 @@ async fn set_open(state: AppState, slug: String, headers: HeaderMap, open: bool)
     Ok(Json(OpenState { slug, open }))
 }
 
-async fn open_study(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Json<OpenState>> {
+async fn open_study(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<OpenState>> {
     set_open(state, slug, headers, true).await
 }
 
-async fn close_study(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Json<OpenState>> {
+async fn close_study(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<OpenState>> {
     set_open(state, slug, headers, false).await
 }
 
@@ -466,27 +465,35 @@ async fn login(State(state): State<AppState>, Query(query): Query<LoginQuery>) -
     match query.token {
         Some(token) if state.is_admin_token(&token) => {
             let mut response = Redirect::to("/admin").into_response();
-            if let Ok(cookie) = HeaderValue::from_str(&format!(
-                "{COOKIE}={token}; HttpOnly; SameSite=Strict; Path=/; Max-Age=2592000"
-            )) {
+            if let Ok(cookie) =
+                HeaderValue::from_str(&format!("{COOKIE}={token}; HttpOnly; SameSite=Strict; Path=/; Max-Age=2592000"))
+            {
                 response.headers_mut().insert(header::SET_COOKIE, cookie);
             }
             response
         }
-        Some(_) => crate::pages::message_page(StatusCode::FORBIDDEN, "Wrong admin token", "The admin token in this link is wrong. Use the admin link that mrstudy serve printed."),
-        None => crate::pages::message_page(StatusCode::UNAUTHORIZED, "Admin token needed", "Open the admin link that mrstudy serve printed; it carries the admin token."),
+        Some(_) => crate::pages::message_page(
+            StatusCode::FORBIDDEN,
+            "Wrong admin token",
+            "The admin token in this link is wrong. Use the admin link that mrstudy serve printed.",
+        ),
+        None => crate::pages::message_page(
+            StatusCode::UNAUTHORIZED,
+            "Admin token needed",
+            "Open the admin link that mrstudy serve printed; it carries the admin token.",
+        ),
     }
 }
 
 fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
     authorize(state, headers).map(|_| ()).map_err(|error| {
         Box::new({
-        let status = error.status();
-        crate::pages::message_page(
-            status,
-            if status == StatusCode::UNAUTHORIZED { "Admin token needed" } else { "Wrong admin token" },
-            "Open the admin link that mrstudy serve printed; it carries the admin token.",
-        )
+            let status = error.status();
+            crate::pages::message_page(
+                status,
+                if status == StatusCode::UNAUTHORIZED { "Admin token needed" } else { "Wrong admin token" },
+                "Open the admin link that mrstudy serve printed; it carries the admin token.",
+            )
         })
     })
 }
@@ -728,7 +735,11 @@ pub struct ParticipantEntry {
 
 /// The participants of a study and then its screened-out visitors. `analysis` (the default
 /// analysis JSON, if it could be run) gives the observer-screening flags.
-pub async fn participants(state: &AppState, slug: &str, analysis: Option<&serde_json::Value>) -> AppResult<Vec<ParticipantEntry>> {
+pub async fn participants(
+    state: &AppState,
+    slug: &str,
+    analysis: Option<&serde_json::Value>,
+) -> AppResult<Vec<ParticipantEntry>> {
     let pool = &state.storage().read;
     let definition = export::definition(pool, slug).await?;
     let mut screened = std::collections::HashMap::new();
@@ -833,12 +844,9 @@ async fn set_excluded(state: &AppState, id: String, reason: Option<String>) -> A
         .admin_write(crate::storage::AdminWrite::SetExcluded { participant: id.clone(), reason })
         .await?;
     match written {
-        crate::storage::AdminWritten::Excluded { excluded, reason, excluded_at, .. } => Ok(Json(ExclusionState {
-            participant: id,
-            excluded,
-            exclusion_reason: reason,
-            excluded_at,
-        })),
+        crate::storage::AdminWritten::Excluded { excluded, reason, excluded_at, .. } => {
+            Ok(Json(ExclusionState { participant: id, excluded, exclusion_reason: reason, excluded_at }))
+        }
         _ => Err(AppError::Internal("an exclusion had no exclusion outcome".into())),
     }
 }
@@ -968,7 +976,9 @@ impl From<&ParticipantEntry> for ParticipantLine {
             external_ids: entry
                 .external_ids
                 .iter()
-                .map(|(name, value)| format!("{name}={}", value.as_str().map(str::to_string).unwrap_or_else(|| value.to_string())))
+                .map(|(name, value)| {
+                    format!("{name}={}", value.as_str().map(str::to_string).unwrap_or_else(|| value.to_string()))
+                })
                 .collect::<Vec<_>>()
                 .join(", "),
             completion_code: entry.completion_code.clone().unwrap_or_default(),

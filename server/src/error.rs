@@ -63,13 +63,11 @@ impl IntoResponse for AppError {
         } else {
             self.to_string()
         };
-        let mut response =
-            (status, axum::Json(serde_json::json!({ "error": message }))).into_response();
+        let mut response = (status, axum::Json(serde_json::json!({ "error": message }))).into_response();
         if status == StatusCode::UNAUTHORIZED {
-            response.headers_mut().insert(
-                axum::http::header::WWW_AUTHENTICATE,
-                axum::http::HeaderValue::from_static("Bearer"),
-            );
+            response
+                .headers_mut()
+                .insert(axum::http::header::WWW_AUTHENTICATE, axum::http::HeaderValue::from_static("Bearer"));
         }
         response
     }
@@ -82,12 +80,10 @@ impl From<JsonRejection> for AppError {
                 "The request body does not have the expected fields: {}.",
                 error.body_text().trim_start_matches("Failed to deserialize the JSON body into the target type: ")
             )),
-            JsonRejection::JsonSyntaxError(_) => {
-                AppError::BadRequest("The request body is not valid JSON.".into())
+            JsonRejection::JsonSyntaxError(_) => AppError::BadRequest("The request body is not valid JSON.".into()),
+            JsonRejection::MissingJsonContentType(_) => {
+                AppError::BadRequest("The request needs the header Content-Type: application/json.".into())
             }
-            JsonRejection::MissingJsonContentType(_) => AppError::BadRequest(
-                "The request needs the header Content-Type: application/json.".into(),
-            ),
             JsonRejection::BytesRejection(error) => {
                 if error.status() == StatusCode::PAYLOAD_TOO_LARGE {
                     AppError::PayloadTooLarge(format!(

@@ -95,15 +95,11 @@ pub enum ExportError {
 }
 
 pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<StoredDefinition, ExportError> {
-    let text: Option<String> = sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?")
-        .bind(slug)
-        .fetch_optional(pool)
-        .await?;
+    let text: Option<String> =
+        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
     let text = text.ok_or_else(|| ExportError::UnknownStudy(slug.to_string()))?;
-    serde_json::from_str(&text).map_err(|error| ExportError::Definition {
-        slug: slug.to_string(),
-        message: error.to_string(),
-    })
+    serde_json::from_str(&text)
+        .map_err(|error| ExportError::Definition { slug: slug.to_string(), message: error.to_string() })
 }
 
 fn value_text(value: Option<&Value>) -> String {
@@ -280,11 +276,7 @@ pub fn external_ids(definition: &StoredDefinition, url_params: &str) -> Map<Stri
 /// A text cell made safe for spreadsheets: one starting with `=`, `+`, `-`, `@`, TAB or CR
 /// (a formula to Excel, LibreOffice, Google Sheets) gets a leading `'`.
 pub fn text_cell(text: &str) -> String {
-    if text.starts_with(['=', '+', '-', '@', '\t', '\r']) {
-        format!("'{text}")
-    } else {
-        text.to_string()
-    }
+    if text.starts_with(['=', '+', '-', '@', '\t', '\r']) { format!("'{text}") } else { text.to_string() }
 }
 
 /// A JSON value as a CSV cell: numbers and booleans as they are, text neutralised.
@@ -320,15 +312,35 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
             kept.insert(record.participant.clone(), record);
         }
     }
-    let rows = sqlx::query(sqlx::AssertSqlSafe(format!("{TRIAL_ROWS} AND r.chosen IS NOT NULL AND t.catch_expected IS NULL ORDER BY p.ordinal, t.trial")))
-        .bind(slug)
-        .fetch_all(pool)
-        .await?;
+    let rows = sqlx::query(sqlx::AssertSqlSafe(format!(
+        "{TRIAL_ROWS} AND r.chosen IS NOT NULL AND t.catch_expected IS NULL ORDER BY p.ordinal, t.trial"
+    )))
+    .bind(slug)
+    .fetch_all(pool)
+    .await?;
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = [
-        "study", "participant", "trial", "left", "right", "chosen", "scene_left", "scene_right", "rt_ms",
-        "shown_at", "answered_at", "catch_answered", "catch_failed", "viewport", "device_pixel_ratio", "completed",
-        "status", "completion_code", "pilot", "excluded", "too_fast",
+        "study",
+        "participant",
+        "trial",
+        "left",
+        "right",
+        "chosen",
+        "scene_left",
+        "scene_right",
+        "rt_ms",
+        "shown_at",
+        "answered_at",
+        "catch_answered",
+        "catch_failed",
+        "viewport",
+        "device_pixel_ratio",
+        "completed",
+        "status",
+        "completion_code",
+        "pilot",
+        "excluded",
+        "too_fast",
     ]
     .iter()
     .map(|column| column.to_string())
@@ -352,7 +364,9 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
             serde_json::from_str(&row.try_get::<String, _>("client")?).unwrap_or_default();
         client.extend(response_client);
         let viewport = match client.get("viewport") {
-            Some(Value::Array(size)) if size.len() == 2 => text_cell(&format!("{}x{}", value_text(Some(&size[0])), value_text(Some(&size[1])))),
+            Some(Value::Array(size)) if size.len() == 2 => {
+                text_cell(&format!("{}x{}", value_text(Some(&size[0])), value_text(Some(&size[1]))))
+            }
             _ => String::new(),
         };
         let mut record_cells = vec![
@@ -394,15 +408,11 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
 /// schedule, with the response of each answered trial; pilot and excluded participants only
 /// when `include` keeps them.
 pub async fn study_json(pool: &SqlitePool, slug: &str, include: Include) -> Result<Export<Value>, ExportError> {
-    let definition_text: Option<String> = sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?")
-        .bind(slug)
-        .fetch_optional(pool)
-        .await?;
+    let definition_text: Option<String> =
+        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
     let definition_text = definition_text.ok_or_else(|| ExportError::UnknownStudy(slug.to_string()))?;
-    let definition_json: Value = serde_json::from_str(&definition_text).map_err(|error| ExportError::Definition {
-        slug: slug.to_string(),
-        message: error.to_string(),
-    })?;
+    let definition_json: Value = serde_json::from_str(&definition_text)
+        .map_err(|error| ExportError::Definition { slug: slug.to_string(), message: error.to_string() })?;
     let stored = definition(pool, slug).await?;
     let mut left_out = LeftOut::default();
     let mut kept: std::collections::HashMap<String, ParticipantRecord> = Default::default();

@@ -79,10 +79,7 @@ impl AppState {
         AppState {
             inner: Arc::new(StateInner {
                 storage,
-                studies: studies
-                    .into_iter()
-                    .map(|study| (study.study.slug.clone(), study))
-                    .collect(),
+                studies: studies.into_iter().map(|study| (study.study.slug.clone(), study)).collect(),
                 order,
                 admin_token_sha256: sha256(admin_token.as_bytes()),
                 stimuli_dir,
@@ -149,8 +146,7 @@ pub(crate) fn sha256(bytes: &[u8]) -> [u8; 32] {
 }
 
 pub(crate) fn constant_time_eq(first: &[u8], second: &[u8]) -> bool {
-    first.len() == second.len()
-        && first.iter().zip(second).fold(0u8, |acc, (a, b)| acc | (a ^ b)) == 0
+    first.len() == second.len() && first.iter().zip(second).fold(0u8, |acc, (a, b)| acc | (a ^ b)) == 0
 }
 
 /// `n` random bytes from the operating system, hex-encoded.
@@ -182,16 +178,11 @@ async fn security_headers(request: Request, next: Next) -> Response {
     let is_api = request.uri().path().starts_with("/api/");
     let mut response = next.run(request).await;
     let headers = response.headers_mut();
-    headers
-        .entry(header::CONTENT_SECURITY_POLICY)
-        .or_insert(HeaderValue::from_static(CONTENT_SECURITY_POLICY));
+    headers.entry(header::CONTENT_SECURITY_POLICY).or_insert(HeaderValue::from_static(CONTENT_SECURITY_POLICY));
     headers.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
     headers.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
     headers.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
-    headers.insert(
-        "cross-origin-opener-policy",
-        HeaderValue::from_static("same-origin"),
-    );
+    headers.insert("cross-origin-opener-policy", HeaderValue::from_static("same-origin"));
     if is_api || !headers.contains_key(header::CACHE_CONTROL) {
         headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     }

@@ -205,10 +205,7 @@ async fn stimulus(State(state): State<AppState>, Path(name): Path<String>) -> Re
             let mut response = bytes.into_response();
             let headers = response.headers_mut();
             headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-            headers.insert(
-                header::CACHE_CONTROL,
-                HeaderValue::from_static("public, max-age=31536000, immutable"),
-            );
+            headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("public, max-age=31536000, immutable"));
             response
         }
         Err(_) => AppError::NotFound("There is no such stimulus.".into()).into_response(),

@@ -153,10 +153,16 @@ pub(crate) fn screen_refusal(participation: &Participation, client: &Map<String,
         let landscape = width >= height;
         match orientation {
             Orientation::Landscape if !landscape => {
-                return Some("This study needs your screen in landscape orientation (wider than tall): please turn your device.".into());
+                return Some(
+                    "This study needs your screen in landscape orientation (wider than tall): please turn your device."
+                        .into(),
+                );
             }
             Orientation::Portrait if landscape => {
-                return Some("This study needs your screen in portrait orientation (taller than wide): please turn your device.".into());
+                return Some(
+                    "This study needs your screen in portrait orientation (taller than wide): please turn your device."
+                        .into(),
+                );
             }
             _ => {}
         }
@@ -196,10 +202,8 @@ async fn check_screen(
     Path(slug): Path<String>,
     Json(body): Json<ScreenBody>,
 ) -> AppResult<Response> {
-    let prepared = state
-        .study(&slug)
-        .ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?
-        .clone();
+    let prepared =
+        state.study(&slug).ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?.clone();
     let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
     let client = validate_client(body.client)?;
     let Some(reason) = screen_refusal(&prepared.study.participation, &client) else {
@@ -211,7 +215,8 @@ async fn check_screen(
     };
     let url_params = validate_url_params(&prepared.study, body.url_params)?;
     record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
-    Ok((StatusCode::CREATED, Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id) })).into_response())
+    Ok((StatusCode::CREATED, Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id) }))
+        .into_response())
 }
 
 async fn record_screen_out(
@@ -244,16 +249,12 @@ async fn create_participant(
     Path(slug): Path<String>,
     Json(body): Json<JoinBody>,
 ) -> AppResult<Response> {
-    let prepared = state
-        .study(&slug)
-        .ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?
-        .clone();
+    let prepared =
+        state.study(&slug).ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?.clone();
     let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
     // A preview runs the study as a participant would, also before the study is opened.
     if !pilot && !state.storage().is_open(&slug).await? {
-        return Err(AppError::Forbidden(format!(
-            "The study \"{slug}\" is closed and accepts no new participants."
-        )));
+        return Err(AppError::Forbidden(format!("The study \"{slug}\" is closed and accepts no new participants.")));
     }
     let demographics = validate_demographics(&prepared.study, body.demographics)?;
     let client = validate_client(body.client)?;
@@ -326,9 +327,9 @@ fn validate_demographics(study: &Study, mut given: Map<String, Value>) -> AppRes
                 )));
             }
             (Value::Number(number), FieldType::Integer)
-                if number.as_i64().is_some_and(|n| {
-                    field.min.is_none_or(|min| n >= min) && field.max.is_none_or(|max| n <= max)
-                }) =>
+                if number
+                    .as_i64()
+                    .is_some_and(|n| field.min.is_none_or(|min| n >= min) && field.max.is_none_or(|max| n <= max)) =>
             {
                 value
             }
@@ -508,9 +509,9 @@ async fn next_trial(
         }
         _ => return Err(forbidden(&id)),
     };
-    let prepared = state.study(&participant.study).ok_or_else(|| {
-        AppError::Gone(format!("The study \"{}\" is no longer served.", participant.study))
-    })?;
+    let prepared = state
+        .study(&participant.study)
+        .ok_or_else(|| AppError::Gone(format!("The study \"{}\" is no longer served.", participant.study)))?;
     if participant.answered >= participant.trials {
         return Ok(Json(Next::Done {
             done: true,
@@ -530,14 +531,8 @@ async fn next_trial(
         trial: trial.trial,
         total: participant.trials,
         question: prepared.study.question.clone(),
-        left: Image {
-            url: stimulus_url(&trial.left_stimulus),
-            alt: format!("Left image of trial {number}"),
-        },
-        right: Image {
-            url: stimulus_url(&trial.right_stimulus),
-            alt: format!("Right image of trial {number}"),
-        },
+        left: Image { url: stimulus_url(&trial.left_stimulus), alt: format!("Left image of trial {number}") },
+        right: Image { url: stimulus_url(&trial.right_stimulus), alt: format!("Right image of trial {number}") },
         preload: following
             .map(|following| vec![stimulus_url(&following.left_stimulus), stimulus_url(&following.right_stimulus)])
             .unwrap_or_default(),
@@ -609,7 +604,8 @@ async fn create_response(
         )));
     }
     let client = validate_client(body.client)?;
-    let min_response_ms = state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
+    let min_response_ms =
+        state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
     let outcome = state
         .storage()
         .store_response(NewResponse {

@@ -15,13 +15,17 @@ use crate::study::{IMAGE_TYPES, StimulusSource, Study};
 pub enum PrepareError {
     /// Stimuli of the study that must be rendered are not in the store yet (`serve` renders
     /// them at start-up; `mrstudy stimuli --study FILE` renders them ahead).
-    #[error("study \"{slug}\" ({file}) has {missing} stimuli still to render (scene configuration \"{scene}\" first); `mrstudy serve` renders them at start-up, `mrstudy stimuli --study {file}` ahead of it")]
+    #[error(
+        "study \"{slug}\" ({file}) has {missing} stimuli still to render (scene configuration \"{scene}\" first); `mrstudy serve` renders them at start-up, `mrstudy stimuli --study {file}` ahead of it"
+    )]
     NeedsRendering { slug: String, file: PathBuf, scene: String, missing: usize },
     /// The rendered stimuli could not be listed (a scene or condition the renderer refuses).
     #[error(transparent)]
     Stimuli(#[from] crate::stimuli::StimuliError),
     /// The study is a lab task study, which the web survey does not serve.
-    #[error("study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey")]
+    #[error(
+        "study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey"
+    )]
     TaskStudy { slug: String, file: PathBuf },
     #[error("cannot copy stimulus {path} into {store}: {source}")]
     Io { path: PathBuf, store: PathBuf, source: std::io::Error },
@@ -66,17 +70,26 @@ impl PreparedStudy {
             match &scene.source {
                 StimulusSource::Render(_) => {
                     let needed = rendered[scene_index].as_deref().unwrap_or_default();
-                    let names: Vec<Option<String>> = needed.iter().map(|needed| crate::stimuli::lookup(store, &needed.key)).collect();
+                    let names: Vec<Option<String>> =
+                        needed.iter().map(|needed| crate::stimuli::lookup(store, &needed.key)).collect();
                     if names.iter().any(Option::is_none) {
-                        let missing = rendered.iter().flatten().flatten().filter(|n| crate::stimuli::lookup(store, &n.key).is_none()).count();
-                        return Err(PrepareError::NeedsRendering { slug: study.slug.clone(), file: study.file.clone(), scene: scene.name.clone(), missing });
+                        let missing = rendered
+                            .iter()
+                            .flatten()
+                            .flatten()
+                            .filter(|n| crate::stimuli::lookup(store, &n.key).is_none())
+                            .count();
+                        return Err(PrepareError::NeedsRendering {
+                            slug: study.slug.clone(),
+                            file: study.file.clone(),
+                            scene: scene.name.clone(),
+                            missing,
+                        });
                     }
                     stimuli.push(names.into_iter().flatten().collect());
                 }
                 StimulusSource::Images(paths) => {
-                    stimuli.push(
-                        paths.iter().map(|path| store_image(path, store)).collect::<Result<Vec<_>, _>>()?,
-                    );
+                    stimuli.push(paths.iter().map(|path| store_image(path, store)).collect::<Result<Vec<_>, _>>()?);
                 }
             }
         }
@@ -131,11 +144,7 @@ impl PreparedStudy {
 fn store_image(path: &Path, store: &Path) -> Result<String, PrepareError> {
     let io_error = |source| PrepareError::Io { path: path.to_path_buf(), store: store.to_path_buf(), source };
     let bytes = std::fs::read(path).map_err(io_error)?;
-    let extension = path
-        .extension()
-        .and_then(|ext| ext.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
+    let extension = path.extension().and_then(|ext| ext.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
     let extension = if extension == "jpeg" { "jpg".to_string() } else { extension };
     crate::stimuli::store_bytes(&bytes, &extension, store).map_err(io_error)
 }
@@ -148,10 +157,7 @@ pub fn stimulus_content_type(name: &str) -> Option<&'static str> {
     if hash.len() != 64 || !hash.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
         return None;
     }
-    IMAGE_TYPES
-        .iter()
-        .find(|(ext, _)| *ext == extension && *ext != "jpeg")
-        .map(|(_, content_type)| *content_type)
+    IMAGE_TYPES.iter().find(|(ext, _)| *ext == extension && *ext != "jpeg").map(|(_, content_type)| *content_type)
 }
 
 /// Studies by slug.

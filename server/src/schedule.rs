@@ -103,11 +103,7 @@ pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
         for first_left in stream.balanced_sides(repetitions) {
             let (left, right) = if first_left { (first, second) } else { (second, first) };
             let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
-            trials.push(PlannedTrial {
-                kind: PlannedKind::Pair { left, right },
-                left_scene,
-                right_scene,
-            });
+            trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
         }
     }
     for (index, catch) in study.catch.iter().enumerate() {
@@ -183,10 +179,7 @@ mod tests {
             .map(|trial| match trial.kind {
                 PlannedKind::Pair { left, right } => format!(
                     "{}|{}|{}|{}",
-                    study.conditions[left].name,
-                    study.conditions[right].name,
-                    trial.left_scene,
-                    trial.right_scene
+                    study.conditions[left].name, study.conditions[right].name, trial.left_scene, trial.right_scene
                 ),
                 PlannedKind::Catch { .. } => "catch".into(),
             })

@@ -112,7 +112,11 @@ pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, Se
 }
 
 /// [`prepare`], telling `progress` how rendering missing stimuli goes.
-pub async fn prepare_with_progress(data_dir: &Path, studies_dir: &Path, progress: Option<&RenderProgress>) -> Result<Prepared, ServeError> {
+pub async fn prepare_with_progress(
+    data_dir: &Path,
+    studies_dir: &Path,
+    progress: Option<&RenderProgress>,
+) -> Result<Prepared, ServeError> {
     std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
     let storage = Storage::open(&data_dir.join("mrstudy.db")).await?;
     let admin_token = admin_token(data_dir)?;
@@ -144,7 +148,11 @@ pub async fn prepare_with_progress(data_dir: &Path, studies_dir: &Path, progress
         }
         match PreparedStudy::prepare(study, &stimuli_dir) {
             Ok(study) => prepared.push(Arc::new(study)),
-            Err(error @ (PrepareError::NeedsRendering { .. } | PrepareError::TaskStudy { .. } | PrepareError::Stimuli(_))) => {
+            Err(
+                error @ (PrepareError::NeedsRendering { .. }
+                | PrepareError::TaskStudy { .. }
+                | PrepareError::Stimuli(_)),
+            ) => {
                 skipped.push(format!("{error}; not serving it"));
             }
             Err(error) => return Err(ServeError::Prepare(error)),
@@ -179,10 +187,7 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 /// Runs `serve` to the end (Ctrl-C or SIGTERM): prints the warnings to stderr and the links to
 /// stdout once listening.
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(ServeError::Runtime)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
         let prepared = prepare_with_progress(&config.data_dir, &config.studies_dir, config.progress.as_ref()).await?;
         for line in &prepared.skipped {
@@ -194,9 +199,8 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         let listener = tokio::net::TcpListener::bind(&config.addr)
             .await
             .map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
-        let local: SocketAddr = listener
-            .local_addr()
-            .map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
+        let local: SocketAddr =
+            listener.local_addr().map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
         let base = format!("http://{local}");
         println!("mrstudy serving on {base} (data in {})", config.data_dir.display());
         for slug in &prepared.slugs {
@@ -266,10 +270,18 @@ pub struct ExportOutput {
 
 /// `mrstudy export`: the trials CSV, the JSON export or the conditions CSV of one study, read
 /// from `<data-dir>/mrstudy.db`; pilot and excluded participants only when `include` keeps them.
-pub fn export(data_dir: &Path, slug: &str, format: ExportFormat, include: crate::export::Include) -> Result<ExportOutput, String> {
+pub fn export(
+    data_dir: &Path,
+    slug: &str,
+    format: ExportFormat,
+    include: crate::export::Include,
+) -> Result<ExportOutput, String> {
     let database = data_dir.join("mrstudy.db");
     if !database.is_file() {
-        return Err(format!("there is no database at {}; pass the --data-dir that mrstudy serve used", database.display()));
+        return Err(format!(
+            "there is no database at {}; pass the --data-dir that mrstudy serve used",
+            database.display()
+        ));
     }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -11,9 +11,9 @@
 
 use std::path::{Path, PathBuf};
 
+use mrstudy_renderer::RenderError;
 use mrstudy_renderer::gpu::DirRenderer;
 use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
-use mrstudy_renderer::RenderError;
 
 use crate::study::{StimulusSource, Study, sha256_hex};
 
@@ -28,7 +28,9 @@ pub enum StimuliError {
     #[error("study \"{slug}\" ({file}): scene configuration \"{scene}\": {source}")]
     Render { slug: String, file: PathBuf, scene: String, source: RenderError },
     /// No GPU adapter could be opened (the stimuli need the GPU renderer).
-    #[error("study \"{slug}\" ({file}) needs its stimuli rendered on the GPU, and no adapter could be opened: {source}")]
+    #[error(
+        "study \"{slug}\" ({file}) needs its stimuli rendered on the GPU, and no adapter could be opened: {source}"
+    )]
     NoGpu { slug: String, file: PathBuf, source: RenderError },
     #[error("cannot write {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
@@ -91,7 +93,12 @@ pub fn condition_factors(study: &Study) -> Result<Vec<Factors>, StimuliError> {
 }
 
 /// The renderer's scene of a scene configuration, at the study's stimulus size.
-fn load_scene(study: &Study, scene_index: usize, render: &str, settings: &StimulusSettings) -> Result<mrstudy_renderer::Scene, StimuliError> {
+fn load_scene(
+    study: &Study,
+    scene_index: usize,
+    render: &str,
+    settings: &StimulusSettings,
+) -> Result<mrstudy_renderer::Scene, StimuliError> {
     let base = study.file.parent().unwrap_or(Path::new("."));
     let is_builtin = mrstudy_renderer::builtin::names().any(|name| name == render);
     let name = if is_builtin { render.to_string() } else { base.join(render).to_string_lossy().into_owned() };
@@ -148,12 +155,7 @@ pub fn needed(study: &Study) -> Result<Vec<Option<Vec<Needed>>>, StimuliError> {
 
 /// The stimuli of `study` not yet in `store`.
 pub fn missing(study: &Study, store: &Path) -> Result<Vec<Needed>, StimuliError> {
-    Ok(needed(study)?
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter(|needed| lookup(store, &needed.key).is_none())
-        .collect())
+    Ok(needed(study)?.into_iter().flatten().flatten().filter(|needed| lookup(store, &needed.key).is_none()).collect())
 }
 
 /// Writes `bytes` into the store as `<sha256>.<extension>` (if not there) and returns the name.
@@ -177,13 +179,22 @@ fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(),
 
 /// Renders the study's missing stimuli into `store`; with `copies`, also writes each rendered
 /// stimulus there as `<scene>__<condition>.png`. Returns how many were rendered.
-pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progress: &(dyn Fn(Progress) + Sync)) -> Result<usize, StimuliError> {
+pub fn render_missing(
+    study: &Study,
+    store: &Path,
+    copies: Option<&Path>,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<usize, StimuliError> {
     let missing = missing(study, store)?;
     if missing.is_empty() {
         return Ok(0);
     }
     let settings = settings(study);
-    let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu { slug: study.slug.clone(), file: study.file.clone(), source })?;
+    let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu {
+        slug: study.slug.clone(),
+        file: study.file.clone(),
+        source,
+    })?;
     let mut scenes: Vec<usize> = missing.iter().map(|needed| needed.scene_index).collect();
     scenes.dedup();
     progress(Progress::Start { photos: scenes.len(), stimuli: missing.len() });
@@ -198,7 +209,12 @@ pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progre
     for scene_index in scenes {
         let StimulusSource::Render(render) = &study.scenes[scene_index].source else { continue };
         let scene_name = study.scenes[scene_index].name.clone();
-        let render_error = |source| StimuliError::Render { slug: study.slug.clone(), file: study.file.clone(), scene: scene_name.clone(), source };
+        let render_error = |source| StimuliError::Render {
+            slug: study.slug.clone(),
+            file: study.file.clone(),
+            scene: scene_name.clone(),
+            source,
+        };
         let scene = load_scene(study, scene_index, render, &settings)?;
         let (photo, _) = settings
             .photo(&scene, &|done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total }))
@@ -213,7 +229,11 @@ pub fn render_missing(study: &Study, store: &Path, copies: Option<&Path>, progre
                 let copy = dir.join(format!("{}__{}.png", file_safe(&needed.scene), file_safe(&needed.condition)));
                 std::fs::write(&copy, &bytes).map_err(io(&copy))?;
             }
-            progress(Progress::Stimulus { scene: needed.scene.clone(), condition: needed.condition.clone(), ms: frame.report.ms });
+            progress(Progress::Stimulus {
+                scene: needed.scene.clone(),
+                condition: needed.condition.clone(),
+                ms: frame.report.ms,
+            });
         }
     }
     Ok(missing.len())
@@ -243,7 +263,8 @@ pub fn write_copies(study: &Study, store: &Path, dir: &Path) -> Result<usize, St
                         ),
                     })?;
                     let extension = Path::new(&name).extension().and_then(|e| e.to_str()).unwrap_or("png").to_string();
-                    let copy = dir.join(format!("{}__{}.{extension}", file_safe(&needed.scene), file_safe(&needed.condition)));
+                    let copy =
+                        dir.join(format!("{}__{}.{extension}", file_safe(&needed.scene), file_safe(&needed.condition)));
                     std::fs::copy(store.join(&name), &copy).map_err(io(&copy))?;
                     written += 1;
                 }
@@ -251,7 +272,8 @@ pub fn write_copies(study: &Study, store: &Path, dir: &Path) -> Result<usize, St
             (None, StimulusSource::Images(images)) => {
                 for (condition, image) in study.conditions.iter().zip(images) {
                     let extension = image.extension().and_then(|e| e.to_str()).unwrap_or("png").to_ascii_lowercase();
-                    let copy = dir.join(format!("{}__{}.{extension}", file_safe(&scene.name), file_safe(&condition.name)));
+                    let copy =
+                        dir.join(format!("{}__{}.{extension}", file_safe(&scene.name), file_safe(&condition.name)));
                     std::fs::copy(image, &copy).map_err(io(&copy))?;
                     written += 1;
                 }

@@ -37,10 +37,7 @@ pub enum OpenError {
     #[error("cannot open the database {path}: {source}")]
     Connect { path: String, source: sqlx::Error },
     #[error("cannot migrate the database {path}: {source}")]
-    Migrate {
-        path: String,
-        source: sqlx::migrate::MigrateError,
-    },
+    Migrate { path: String, source: sqlx::migrate::MigrateError },
 }
 
 /// The database: a read pool and the writer's queue.
@@ -134,7 +131,10 @@ pub struct ScreenOut {
 
 enum Job {
     Response(NewResponse, oneshot::Sender<Result<ResponseOutcome, AppError>>),
-    Shown { participant: String, trial: i64 },
+    Shown {
+        participant: String,
+        trial: i64,
+    },
     Participant(Box<NewParticipant>, oneshot::Sender<Result<JoinOutcome, AppError>>),
     /// Records (or updates) a screen-out; `None` withdraws the row with this id.
     ScreenOut(String, Option<Box<ScreenOut>>, oneshot::Sender<Result<(), AppError>>),
@@ -185,10 +185,7 @@ impl Storage {
             .connect_with(options.clone())
             .await
             .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?;
-        MIGRATOR
-            .run(&write)
-            .await
-            .map_err(|source| OpenError::Migrate { path: path_text.clone(), source })?;
+        MIGRATOR.run(&write).await.map_err(|source| OpenError::Migrate { path: path_text.clone(), source })?;
         let read = SqlitePoolOptions::new()
             .max_connections(4)
             .acquire_timeout(Duration::from_secs(60))
@@ -267,7 +264,10 @@ impl Storage {
     }
 
     /// Runs a task study write in the next group commit and answers after it is durable.
-    pub async fn task_write(&self, write: crate::task::store::TaskWrite) -> Result<crate::task::store::TaskWritten, AppError> {
+    pub async fn task_write(
+        &self,
+        write: crate::task::store::TaskWrite,
+    ) -> Result<crate::task::store::TaskWritten, AppError> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Task(Box::new(write), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
@@ -284,10 +284,8 @@ impl Storage {
 
     /// Whether the study is open, as stored.
     pub async fn is_open(&self, slug: &str) -> Result<bool, sqlx::Error> {
-        let open: Option<i64> = sqlx::query_scalar("SELECT open FROM studies WHERE slug = ?")
-            .bind(slug)
-            .fetch_optional(&self.read)
-            .await?;
+        let open: Option<i64> =
+            sqlx::query_scalar("SELECT open FROM studies WHERE slug = ?").bind(slug).fetch_optional(&self.read).await?;
         Ok(open == Some(1))
     }
 
@@ -355,13 +353,12 @@ impl Storage {
     }
 
     pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = ? AND trial = ?",
-        )
-        .bind(participant)
-        .bind(trial)
-        .fetch_optional(&self.read)
-        .await?;
+        let row =
+            sqlx::query("SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = ? AND trial = ?")
+                .bind(participant)
+                .bind(trial)
+                .fetch_optional(&self.read)
+                .await?;
         row.map(|row| {
             Ok(TrialRow {
                 trial: row.try_get("trial")?,
@@ -447,7 +444,9 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
     let mut outcomes: Vec<Option<Result<Outcome, AppError>>> = Vec::with_capacity(batch.len());
     for job in batch.iter() {
         let outcome = match job {
-            Job::Response(response, _) => Some(store_response(&mut transaction, response).await?.map(Outcome::Response)),
+            Job::Response(response, _) => {
+                Some(store_response(&mut transaction, response).await?.map(Outcome::Response))
+            }
             Job::Shown { participant, trial } => {
                 sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE trials SET shown_at = {NOW} WHERE participant = ? AND trial = ? AND shown_at IS NULL"
@@ -458,7 +457,9 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                 .await?;
                 None
             }
-            Job::Participant(participant, _) => Some(Ok(Outcome::Joined(insert_participant(&mut transaction, participant).await?))),
+            Job::Participant(participant, _) => {
+                Some(Ok(Outcome::Joined(insert_participant(&mut transaction, participant).await?)))
+            }
             Job::ScreenOut(id, screen_out, _) => {
                 write_screen_out(&mut transaction, id, screen_out.as_deref()).await?;
                 Some(Ok(Outcome::Done))
@@ -683,22 +684,16 @@ async fn insert_participant(
             return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
         }
     }
-    let ordinal: i64 = sqlx::query_scalar(
-        "SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?",
-    )
-    .bind(&study.slug)
-    .fetch_one(&mut *connection)
-    .await?;
+    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?")
+        .bind(&study.slug)
+        .fetch_one(&mut *connection)
+        .await?;
     let seed = match study.design.seed {
         Some(study_seed) => schedule::derived_seed(study_seed, ordinal as u64),
         None => participant.random_seed,
     };
     let trials = participant.study.schedule(seed);
-    let completion_code = study
-        .completion
-        .code
-        .clone()
-        .unwrap_or_else(|| participant.random_completion_code.clone());
+    let completion_code = study.completion.code.clone().unwrap_or_else(|| participant.random_completion_code.clone());
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO participants (id, study, ordinal, token_sha256, seed, schedule_version, file_sha256,
              demographics, client, url_params, trials, completion_code, created_at, pilot, external_key)
@@ -762,7 +757,13 @@ pub enum AdminWrite {
 #[non_exhaustive]
 pub enum AdminWritten {
     /// The participant is now excluded or included.
-    Excluded { study: String, ordinal: i64, excluded: bool, reason: Option<String>, excluded_at: Option<String> },
+    Excluded {
+        study: String,
+        ordinal: i64,
+        excluded: bool,
+        reason: Option<String>,
+        excluded_at: Option<String>,
+    },
     /// A participant (with `trials` schedule rows and `responses` responses) or a screen-out
     /// row was deleted.
     Deleted(Deletion),
@@ -827,15 +828,18 @@ impl Storage {
 /// How often [`Storage::truncate_wal`] tries before giving up (50 ms apart).
 const WAL_TRUNCATE_TRIES: usize = 200;
 
-async fn audit(connection: &mut SqliteConnection, action: &str, study: &str, detail: serde_json::Value) -> Result<(), sqlx::Error> {
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, ?, ?, ?)"
-    )))
-    .bind(action)
-    .bind(study)
-    .bind(detail.to_string())
-    .execute(&mut *connection)
-    .await?;
+async fn audit(
+    connection: &mut SqliteConnection,
+    action: &str,
+    study: &str,
+    detail: serde_json::Value,
+) -> Result<(), sqlx::Error> {
+    sqlx::query(sqlx::AssertSqlSafe(format!("INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, ?, ?, ?)")))
+        .bind(action)
+        .bind(study)
+        .bind(detail.to_string())
+        .execute(&mut *connection)
+        .await?;
     Ok(())
 }
 
@@ -855,14 +859,16 @@ async fn execute_admin(
             let study: String = row.try_get("study")?;
             let ordinal: i64 = row.try_get("ordinal")?;
             let excluded_at: Option<String> = match reason {
-                Some(reason) => sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
-                    "UPDATE participants SET excluded = 1, exclusion_reason = ?, excluded_at = {NOW}
+                Some(reason) => {
+                    sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+                        "UPDATE participants SET excluded = 1, exclusion_reason = ?, excluded_at = {NOW}
                      WHERE id = ? RETURNING excluded_at"
-                )))
-                .bind(reason)
-                .bind(participant)
-                .fetch_one(&mut *connection)
-                .await?,
+                    )))
+                    .bind(reason)
+                    .bind(participant)
+                    .fetch_one(&mut *connection)
+                    .await?
+                }
                 None => {
                     sqlx::query(
                         "UPDATE participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = ?",
@@ -875,7 +881,13 @@ async fn execute_admin(
             };
             let action = if reason.is_some() { "exclude" } else { "include" };
             audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
-            Ok(Ok(AdminWritten::Excluded { study, ordinal, excluded: reason.is_some(), reason: reason.clone(), excluded_at }))
+            Ok(Ok(AdminWritten::Excluded {
+                study,
+                ordinal,
+                excluded: reason.is_some(),
+                reason: reason.clone(),
+                excluded_at,
+            }))
         }
         AdminWrite::Delete { id } => {
             let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
@@ -896,7 +908,8 @@ async fn execute_admin(
                     .await?
                     .rows_affected() as i64;
                 sqlx::query("DELETE FROM participants WHERE id = ?").bind(id).execute(&mut *connection).await?;
-                let deletion = Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
+                let deletion =
+                    Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
                 audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
                 return Ok(Ok(AdminWritten::Deleted(deletion)));
             }
@@ -907,7 +920,8 @@ async fn execute_admin(
             let Some(study) = study else {
                 return Ok(Err(no_participant(id)));
             };
-            let deletion = Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
+            let deletion =
+                Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
             audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
             Ok(Ok(AdminWritten::Deleted(deletion)))
         }
@@ -932,8 +946,5 @@ async fn execute_admin(
 }
 
 fn no_participant(id: &str) -> AppError {
-    AppError::NotFound(format!(
-        "There is no participant \"{}\".",
-        id.chars().take(64).collect::<String>()
-    ))
+    AppError::NotFound(format!("There is no participant \"{}\".", id.chars().take(64).collect::<String>()))
 }

@@ -28,13 +28,7 @@ impl fmt::Display for StudyError {
         if self.key.is_empty() {
             write!(formatter, "{}: {}", self.file.display(), self.expected)
         } else {
-            write!(
-                formatter,
-                "{}: key `{}`: {}",
-                self.file.display(),
-                self.key,
-                self.expected
-            )
+            write!(formatter, "{}: key `{}`: {}", self.file.display(), self.key, self.expected)
         }
     }
 }
@@ -174,17 +168,10 @@ fn default_true() -> bool {
 }
 
 fn default_url_params() -> Vec<String> {
-    [
-        "PROLIFIC_PID",
-        "STUDY_ID",
-        "SESSION_ID",
-        "workerId",
-        "assignmentId",
-        "hitId",
-    ]
-    .iter()
-    .map(|name| name.to_string())
-    .collect()
+    ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "workerId", "assignmentId", "hitId"]
+        .iter()
+        .map(|name| name.to_string())
+        .collect()
 }
 
 #[derive(Debug, Deserialize)]
@@ -417,18 +404,12 @@ impl Study {
     /// Trials per participant: pairs × repetitions, plus the catch trials.
     pub fn trial_count(&self) -> usize {
         self.design.pairs.len() * self.design.repetitions as usize
-            + self
-                .catch
-                .iter()
-                .map(|catch| catch.repetitions as usize)
-                .sum::<usize>()
+            + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
     }
 
     /// Whether any stimulus must come from the renderer.
     pub fn needs_renderer(&self) -> bool {
-        self.scenes
-            .iter()
-            .any(|scene| matches!(scene.source, StimulusSource::Render(_)))
+        self.scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_)))
     }
 
     /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition.
@@ -460,11 +441,7 @@ pub(crate) fn conditions_csv<'a>(
 
 /// A number as CSV text: whole numbers without a decimal point.
 pub(crate) fn format_number(value: f64) -> String {
-    if value.fract() == 0.0 && value.abs() < 1e15 {
-        format!("{}", value as i64)
-    } else {
-        format!("{value}")
-    }
+    if value.fract() == 0.0 && value.abs() < 1e15 { format!("{}", value as i64) } else { format!("{value}") }
 }
 
 /// A study file of either kind.
@@ -589,9 +566,7 @@ fn is_identifier(name: &str) -> bool {
 pub(crate) fn is_slug(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
-        && name
-            .chars()
-            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+        && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
         && !name.starts_with('-')
 }
 
@@ -601,26 +576,14 @@ fn is_condition_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
         && name.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_')
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "+-_.".contains(c))
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || "+-_.".contains(c))
 }
 
 fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Result<Study, StudyError> {
-    let fail = |key: &str, expected: String| StudyError {
-        file: file.to_path_buf(),
-        key: key.to_string(),
-        expected,
-    };
+    let fail = |key: &str, expected: String| StudyError { file: file.to_path_buf(), key: key.to_string(), expected };
 
     if !is_slug(&raw.slug) {
-        return Err(fail(
-            "slug",
-            format!(
-                "expected 1 to 64 characters of a-z, 0-9 and '-', found \"{}\"",
-                raw.slug
-            ),
-        ));
+        return Err(fail("slug", format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{}\"", raw.slug)));
     }
     for (key, value) in [("title", &raw.title), ("question", &raw.question)] {
         if value.trim().is_empty() {
@@ -644,10 +607,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         if !is_identifier(&field.name) {
             return Err(fail(
                 &format!("{key}.name"),
-                format!(
-                    "expected a lower-case identifier (a-z, 0-9, _), found \"{}\"",
-                    field.name
-                ),
+                format!("expected a lower-case identifier (a-z, 0-9, _), found \"{}\"", field.name),
             ));
         }
         if RESERVED_COLUMNS.contains(&field.name.as_str()) {
@@ -671,19 +631,13 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         }
         match field.field_type {
             FieldType::Choice if field.options.len() < 2 => {
-                return Err(fail(
-                    &format!("{key}.options"),
-                    "expected at least two options for a choice".into(),
-                ));
+                return Err(fail(&format!("{key}.options"), "expected at least two options for a choice".into()));
             }
             FieldType::Integer => {
                 if let (Some(min), Some(max)) = (field.min, field.max)
                     && min > max
                 {
-                    return Err(fail(
-                        &format!("{key}.min"),
-                        format!("expected min ≤ max, found {min} > {max}"),
-                    ));
+                    return Err(fail(&format!("{key}.min"), format!("expected min ≤ max, found {min} > {max}")));
                 }
             }
             _ => {}
@@ -717,10 +671,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         if !is_identifier(&factor.name) || factor.name == "condition" {
             return Err(fail(
                 &format!("factors[{index}].name"),
-                format!(
-                    "expected a lower-case identifier other than \"condition\", found \"{}\"",
-                    factor.name
-                ),
+                format!("expected a lower-case identifier other than \"condition\", found \"{}\"", factor.name),
             ));
         }
         if !factor_names.insert(factor.name.clone()) {
@@ -767,10 +718,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
             match condition.levels.get(&factor.name) {
                 Some(level) if level.is_finite() => levels.push(*level),
                 Some(_) => {
-                    return Err(fail(
-                        &format!("{key}.levels.{}", factor.name),
-                        "expected a finite number".into(),
-                    ));
+                    return Err(fail(&format!("{key}.levels.{}", factor.name), "expected a finite number".into()));
                 }
                 None => {
                     return Err(fail(
@@ -780,24 +728,18 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                 }
             }
         }
-        conditions.push(Condition {
-            name: condition.name.clone(),
-            levels,
-        });
+        conditions.push(Condition { name: condition.name.clone(), levels });
     }
     let condition_index = |key: &str, name: &str| -> Result<usize, StudyError> {
-        conditions
-            .iter()
-            .position(|condition| condition.name == name)
-            .ok_or_else(|| {
-                fail(
-                    key,
-                    format!(
-                        "expected a condition defined in [[conditions]] ({}), found \"{name}\"",
-                        conditions.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
-                    ),
-                )
-            })
+        conditions.iter().position(|condition| condition.name == name).ok_or_else(|| {
+            fail(
+                key,
+                format!(
+                    "expected a condition defined in [[conditions]] ({}), found \"{name}\"",
+                    conditions.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
     };
 
     // Scenes and their stimuli.
@@ -854,12 +796,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                             format!("expected an image file for condition \"{}\"", condition.name),
                         ));
                     };
-                    paths.push(check_image(
-                        &fail,
-                        &format!("{key}.images.{}", condition.name),
-                        base,
-                        relative,
-                    )?);
+                    paths.push(check_image(&fail, &format!("{key}.images.{}", condition.name), base, relative)?);
                 }
                 StimulusSource::Images(paths)
             }
@@ -870,11 +807,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                 ));
             }
         };
-        scenes.push(Scene {
-            name: scene.name.clone(),
-            description: scene.description.clone(),
-            source,
-        });
+        scenes.push(Scene { name: scene.name.clone(), description: scene.description.clone(), source });
     }
     if let Some(render) = &raw.render
         && (render.size[0] == 0 || render.size[1] == 0 || render.size[0] > 8192 || render.size[1] > 8192)
@@ -894,7 +827,10 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         for (index, condition) in conditions.iter().enumerate() {
             let levels = raw.factors.iter().map(|factor| factor.name.as_str()).zip(condition.levels.iter().copied());
             if let Err(reason) = mrstudy_renderer::stimulus::Factors::from_levels(levels) {
-                return Err(fail(&format!("conditions[{index}].levels"), format!("levels the renderer can render: {reason}")));
+                return Err(fail(
+                    &format!("conditions[{index}].levels"),
+                    format!("levels the renderer can render: {reason}"),
+                ));
             }
         }
     }
@@ -944,10 +880,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         }
         "list" => {
             if design.list.is_empty() {
-                return Err(fail(
-                    "design.list",
-                    "expected a list of condition pairs for pairs = \"list\"".into(),
-                ));
+                return Err(fail("design.list", "expected a list of condition pairs for pairs = \"list\"".into()));
             }
             for (index, pair) in design.list.iter().enumerate() {
                 let key = format!("design.list[{index}]");
@@ -959,20 +892,14 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                 if first == second {
                     return Err(fail(&key, "expected two different conditions".into()));
                 }
-                if pairs
-                    .iter()
-                    .any(|&(a, b)| (a, b) == (first, second) || (a, b) == (second, first))
-                {
+                if pairs.iter().any(|&(a, b)| (a, b) == (first, second) || (a, b) == (second, first)) {
                     return Err(fail(&key, "expected each pair once".into()));
                 }
                 pairs.push((first, second));
             }
         }
         other => {
-            return Err(fail(
-                "design.pairs",
-                format!("expected \"all\", \"anchored\" or \"list\", found \"{other}\""),
-            ));
+            return Err(fail("design.pairs", format!("expected \"all\", \"anchored\" or \"list\", found \"{other}\"")));
         }
     }
     if design.pairs != "anchored" && !design.anchors.is_empty() {
@@ -982,19 +909,13 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         return Err(fail("design.list", "expected only with pairs = \"list\"".into()));
     }
     if design.repetitions == 0 || design.repetitions > 100 {
-        return Err(fail(
-            "design.repetitions",
-            format!("expected 1 to 100, found {}", design.repetitions),
-        ));
+        return Err(fail("design.repetitions", format!("expected 1 to 100, found {}", design.repetitions)));
     }
     let scene_draw = match design.scenes.as_str() {
         "different" => SceneDraw::Different,
         "same" => SceneDraw::Same,
         other => {
-            return Err(fail(
-                "design.scenes",
-                format!("expected \"different\" or \"same\", found \"{other}\""),
-            ));
+            return Err(fail("design.scenes", format!("expected \"different\" or \"same\", found \"{other}\"")));
         }
     };
     if scene_draw == SceneDraw::Different && scenes.len() < 2 {
@@ -1008,15 +929,11 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
     let mut catch = Vec::new();
     for (index, catch_file) in raw.catch.iter().enumerate() {
         let key = format!("catch[{index}]");
-        if !is_condition_name(&catch_file.name)
-            || catch.iter().any(|other: &CatchTrial| other.name == catch_file.name)
+        if !is_condition_name(&catch_file.name) || catch.iter().any(|other: &CatchTrial| other.name == catch_file.name)
         {
             return Err(fail(
                 &format!("{key}.name"),
-                format!(
-                    "expected a unique name of A-Z, a-z, 0-9 and + - _ ., found \"{}\"",
-                    catch_file.name
-                ),
+                format!("expected a unique name of A-Z, a-z, 0-9 and + - _ ., found \"{}\"", catch_file.name),
             ));
         }
         if catch_file.repetitions == 0 || catch_file.repetitions > 100 {
@@ -1033,8 +950,8 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         });
     }
 
-    let trial_total = pairs.len() * design.repetitions as usize
-        + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
+    let trial_total =
+        pairs.len() * design.repetitions as usize + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
     if trial_total > 1000 {
         return Err(fail(
             "design.repetitions",
@@ -1056,10 +973,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
     if let Some(redirect) = &raw.completion.redirect
         && !(redirect.starts_with("https://") || redirect.starts_with("http://"))
     {
-        return Err(fail(
-            "completion.redirect",
-            format!("expected an http:// or https:// URL, found \"{redirect}\""),
-        ));
+        return Err(fail("completion.redirect", format!("expected an http:// or https:// URL, found \"{redirect}\"")));
     }
 
     let participation = check_participation(&raw, &fail)?;
@@ -1122,15 +1036,14 @@ pub const RESERVED_COLUMNS: &[&str] = &[
 ];
 
 /// Image extensions a stimulus file may have, with their content types.
-pub const IMAGE_TYPES: &[(&str, &str)] = &[
-    ("png", "image/png"),
-    ("jpg", "image/jpeg"),
-    ("jpeg", "image/jpeg"),
-    ("webp", "image/webp"),
-];
+pub const IMAGE_TYPES: &[(&str, &str)] =
+    &[("png", "image/png"), ("jpg", "image/jpeg"), ("jpeg", "image/jpeg"), ("webp", "image/webp")];
 
 /// The participation keys: response-time floor, external ids, screen requirements.
-fn check_participation(raw: &StudyFile, fail: &dyn Fn(&str, String) -> StudyError) -> Result<Participation, StudyError> {
+fn check_participation(
+    raw: &StudyFile,
+    fail: &dyn Fn(&str, String) -> StudyError,
+) -> Result<Participation, StudyError> {
     if raw.min_response_ms > 60_000 {
         return Err(fail("min_response_ms", format!("expected at most 60000 ms, found {}", raw.min_response_ms)));
     }
@@ -1176,22 +1089,12 @@ fn check_image(
     relative: &str,
 ) -> Result<PathBuf, StudyError> {
     let path = base.join(relative);
-    let extension = path
-        .extension()
-        .and_then(|ext| ext.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
+    let extension = path.extension().and_then(|ext| ext.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
     if !IMAGE_TYPES.iter().any(|(ext, _)| *ext == extension) {
-        return Err(fail(
-            key,
-            format!("expected a .png, .jpg, .jpeg or .webp image file, found \"{relative}\""),
-        ));
+        return Err(fail(key, format!("expected a .png, .jpg, .jpeg or .webp image file, found \"{relative}\"")));
     }
     if !path.is_file() {
-        return Err(fail(
-            key,
-            format!("expected an existing image file, but {} does not exist", path.display()),
-        ));
+        return Err(fail(key, format!("expected an existing image file, but {} does not exist", path.display())));
     }
     Ok(path)
 }
@@ -1244,7 +1147,8 @@ scenes = "different"
     #[test]
     fn a_level_the_renderer_cannot_render_names_the_condition_and_factor() {
         let dir = tempfile::tempdir().unwrap();
-        let file = write_study(dir.path(), &MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 2, ca = 1 }"));
+        let file =
+            write_study(dir.path(), &MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 2, ca = 1 }"));
         let error = load_study(&file).unwrap_err();
         assert_eq!(error.key, "conditions[2].levels");
         assert!(error.expected.contains("`gi`") && error.expected.contains("level 2"), "{}", error.expected);
@@ -1299,10 +1203,8 @@ scenes = "different"
     #[test]
     fn missing_image_is_refused() {
         let dir = tempfile::tempdir().unwrap();
-        let body = MINIMAL.replace(
-            "render = \"survey-1\"",
-            "images = { LQ = \"lq.png\", GI = \"gi.png\", HQ = \"hq.png\" }",
-        );
+        let body =
+            MINIMAL.replace("render = \"survey-1\"", "images = { LQ = \"lq.png\", GI = \"gi.png\", HQ = \"hq.png\" }");
         let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
         assert_eq!(error.key, "scenes[0].images.LQ");
     }

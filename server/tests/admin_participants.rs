@@ -24,7 +24,9 @@ fn studies_dir(work: &Path) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
     std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
     let mut text = std::fs::read_to_string(repo.join("shadows-demo.toml")).unwrap();
-    text.push_str("\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n");
+    text.push_str(
+        "\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n",
+    );
     std::fs::write(dir.join("shadows-demo.toml"), text).unwrap();
     for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
         let path = entry.unwrap().path();
@@ -58,7 +60,8 @@ struct Answer {
 
 impl Answer {
     fn json(&self) -> Value {
-        serde_json::from_slice(&self.bytes).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
+        serde_json::from_slice(&self.bytes)
+            .unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
     }
     fn text(&self) -> String {
         String::from_utf8_lossy(&self.bytes).into_owned()
@@ -78,7 +81,9 @@ async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body
         request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
     }
     let request = match body {
-        Some(body) => request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap(),
+        Some(body) => {
+            request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap()
+        }
         None => request.body(Body::empty()).unwrap(),
     };
     let response = app.clone().oneshot(request).await.unwrap();
@@ -118,7 +123,8 @@ impl Fixture {
     /// when `flip` participants answer the other way.
     async fn answer(&self, id: &str, token: &str, count: usize, fail_catch: bool, flip: bool) {
         for _ in 0..count {
-            let next = call(&self.app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
+            let next =
+                call(&self.app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
             let trial = next["trial"].as_i64().unwrap_or_else(|| panic!("no next trial: {next}"));
             let row = sqlx::query_as::<_, (String, String, Option<String>)>(
                 "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = ? AND trial = ?",
@@ -130,7 +136,13 @@ impl Fixture {
             .unwrap();
             let chosen = match row {
                 (_, _, Some(expected)) => {
-                    if fail_catch { if expected == "left" { "right" } else { "left" } } else if expected == "left" { "left" } else { "right" }
+                    if fail_catch {
+                        if expected == "left" { "right" } else { "left" }
+                    } else if expected == "left" {
+                        "left"
+                    } else {
+                        "right"
+                    }
                 }
                 (left, right, None) => {
                     let score = |condition: &str| condition.contains("SH") as i32 * 2 - condition.contains("CA") as i32;
@@ -179,7 +191,10 @@ impl Fixture {
     }
 
     async fn audit(&self) -> Vec<(String, String, String)> {
-        sqlx::query_as("SELECT action, study, detail FROM audit ORDER BY id").fetch_all(&self.state.storage().read).await.unwrap()
+        sqlx::query_as("SELECT action, study, detail FROM audit ORDER BY id")
+            .fetch_all(&self.state.storage().read)
+            .await
+            .unwrap()
     }
 }
 
@@ -240,18 +255,35 @@ async fn participants_list_statuses_progress_external_ids_and_flags() {
     let csv = fixture.export_csv("").await.text();
     let mut reader = csv::Reader::from_reader(csv.as_bytes());
     let header: Vec<String> = reader.headers().unwrap().iter().map(str::to_string).collect();
-    let column = |name: &str| header.iter().position(|column| column == name).unwrap_or_else(|| panic!("no column {name}: {header:?}"));
+    let column = |name: &str| {
+        header.iter().position(|column| column == name).unwrap_or_else(|| panic!("no column {name}: {header:?}"))
+    };
     let mut too_fast_rows = 0;
     for record in reader.records() {
         let record = record.unwrap();
         let id = &record[column("participant")];
-        let expected_status = if id == done { "completed" } else if id == going { "started" } else { "abandoned" };
+        let expected_status = if id == done {
+            "completed"
+        } else if id == going {
+            "started"
+        } else {
+            "abandoned"
+        };
         assert_eq!(&record[column("status")], expected_status);
         assert_eq!(&record[column("completion_code")], "DEMO-7F3A");
         assert_eq!(&record[column("pilot")], "false");
         assert_eq!(&record[column("excluded")], "false");
         let pid = &record[column("PROLIFIC_PID")];
-        assert_eq!(pid, if id == done { "PID-DONE" } else if id == going { "PID-GOING" } else { "PID-GONE" });
+        assert_eq!(
+            pid,
+            if id == done {
+                "PID-DONE"
+            } else if id == going {
+                "PID-GOING"
+            } else {
+                "PID-GONE"
+            }
+        );
         too_fast_rows += (&record[column("too_fast")] == "true") as usize;
     }
     // Trials 1 and 2 of the finisher are flagged; the catch trial is no row of the CSV.
@@ -274,7 +306,11 @@ async fn participants_list_statuses_progress_external_ids_and_flags() {
     assert!(html.contains("abandoned") && html.contains("screened-out"));
     assert!(html.contains("2 too fast") && html.contains("catch failed 1 of 1"));
     assert!(html.contains("of whom 1 were screened out"));
-    assert!(html.contains(r#"data-action="exclude""#) && html.contains(r#"data-action="delete""#) && html.contains(r#"id="preview""#));
+    assert!(
+        html.contains(r#"data-action="exclude""#)
+            && html.contains(r#"data-action="delete""#)
+            && html.contains(r#"id="preview""#)
+    );
 }
 
 #[tokio::test]
@@ -289,9 +325,15 @@ async fn a_short_abandon_timeout_marks_idle_participants_abandoned() {
         .await;
     assert_eq!(entry(&fixture.participants().await, &idle)["status"], "started", "activity just now");
     for statement in [
-        format!("UPDATE participants SET created_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE id = '{idle}'"),
-        format!("UPDATE trials SET shown_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}' AND shown_at IS NOT NULL"),
-        format!("UPDATE responses SET answered_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}'"),
+        format!(
+            "UPDATE participants SET created_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE id = '{idle}'"
+        ),
+        format!(
+            "UPDATE trials SET shown_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}' AND shown_at IS NOT NULL"
+        ),
+        format!(
+            "UPDATE responses SET answered_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}'"
+        ),
     ] {
         fixture.sql(&statement).await;
     }
@@ -313,11 +355,18 @@ async fn excluding_changes_the_analysis_and_the_export_and_says_so_and_including
     assert_eq!(before["judgments"], 36);
     assert!(!before["warnings"].to_string().contains("Left out"), "{}", before["warnings"]);
     let list = fixture.participants().await;
-    assert!(list.iter().all(|entry| entry["flags"]["observer_flagged"].is_boolean()), "screened by the analysis: {list:?}");
+    assert!(
+        list.iter().all(|entry| entry["flags"]["observer_flagged"].is_boolean()),
+        "screened by the analysis: {list:?}"
+    );
 
     let excluded = &ids[1];
     let answer = fixture
-        .admin(Method::POST, &format!("/api/admin/participants/{excluded}/exclude"), Some(json!({"reason": "answered with one key throughout"})))
+        .admin(
+            Method::POST,
+            &format!("/api/admin/participants/{excluded}/exclude"),
+            Some(json!({"reason": "answered with one key throughout"})),
+        )
         .await;
     assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
     assert_eq!(answer.json()["excluded"], true);
@@ -336,12 +385,24 @@ async fn excluding_changes_the_analysis_and_the_export_and_says_so_and_including
     assert!(everyone.headers.get("x-mrstudy-left-out").is_none());
     let text = everyone.text();
     assert!(Fixture::csv_participants(&text).contains(excluded));
-    assert!(text.lines().any(|line| line.contains(excluded.as_str()) && line.contains(",false,true,")), "excluded flag in the row");
+    assert!(
+        text.lines().any(|line| line.contains(excluded.as_str()) && line.contains(",false,true,")),
+        "excluded flag in the row"
+    );
     let json = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json"), None).await.json();
     assert_eq!(json["participants"].as_array().unwrap().len(), 5);
     assert_eq!(json["left_out"], json!({"pilots": 0, "excluded": 1}));
-    let json = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json?include_excluded=true"), None).await.json();
-    let kept = json["participants"].as_array().unwrap().iter().find(|p| p["participant"] == excluded.as_str()).unwrap().clone();
+    let json = fixture
+        .admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json?include_excluded=true"), None)
+        .await
+        .json();
+    let kept = json["participants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["participant"] == excluded.as_str())
+        .unwrap()
+        .clone();
     assert_eq!(kept["excluded"], true);
     assert_eq!(kept["exclusion_reason"], "answered with one key throughout");
     assert_eq!(kept["external_ids"], json!({"PROLIFIC_PID": "PID-1"}));
@@ -390,16 +451,26 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
     let (gone, gone_token) = fixture.join("PPID-UNIQUE-4711", "my very own unique remark 9x7q").await;
     fixture.answer(&gone, &gone_token, 4, false, false).await;
     fixture
-        .admin(Method::POST, &format!("/api/admin/participants/{gone}/exclude"), Some(json!({"reason": "asked to be removed"})))
+        .admin(
+            Method::POST,
+            &format!("/api/admin/participants/{gone}/exclude"),
+            Some(json!({"reason": "asked to be removed"})),
+        )
         .await;
     // A checkpoint moves the rows into the main file too, so both copies must go.
     fixture.sql("PRAGMA wal_checkpoint(PASSIVE)").await;
     let before = database_bytes(&fixture.data);
-    assert!(contains(&before, "PPID-UNIQUE-4711") && contains(&before, "my very own unique remark 9x7q"), "stored before");
+    assert!(
+        contains(&before, "PPID-UNIQUE-4711") && contains(&before, "my very own unique remark 9x7q"),
+        "stored before"
+    );
 
     let answer = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{gone}"), None).await;
     assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
-    assert_eq!(answer.json(), json!({"study": STUDY, "kind": "participant", "ordinal": 1, "trials": 7, "responses": 4}));
+    assert_eq!(
+        answer.json(),
+        json!({"study": STUDY, "kind": "participant", "ordinal": 1, "trials": 7, "responses": 4})
+    );
 
     let after = database_bytes(&fixture.data);
     for needle in ["PPID-UNIQUE-4711", "my very own unique remark 9x7q", "asked to be removed", gone.as_str()] {
@@ -411,7 +482,13 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
     let list = fixture.participants().await;
     assert_eq!(list.len(), 1);
     assert_eq!(list[0]["participant"], keep.as_str());
-    let json = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json?include_excluded=true&include_pilots=true"), None).await;
+    let json = fixture
+        .admin(
+            Method::GET,
+            &format!("/api/admin/studies/{STUDY}/export.json?include_excluded=true&include_pilots=true"),
+            None,
+        )
+        .await;
     assert!(!json.text().contains("PPID-UNIQUE-4711"));
 
     // The audit line: study, ordinal and counts, no personal data.
@@ -423,7 +500,8 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
         json!({"study": STUDY, "kind": "participant", "ordinal": 1, "trials": 7, "responses": 4})
     );
     // The deleted participant's token no longer works, and the id is unknown.
-    let next = call(&fixture.app, Method::GET, &format!("/api/participants/{gone}/next"), Some(&gone_token), None).await;
+    let next =
+        call(&fixture.app, Method::GET, &format!("/api/participants/{gone}/next"), Some(&gone_token), None).await;
     assert!(next.status.is_client_error(), "{}", next.text());
     let again = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{gone}"), None).await;
     assert_eq!(again.status, StatusCode::NOT_FOUND);
@@ -484,7 +562,10 @@ async fn pilots_from_a_preview_link_never_reach_the_default_export_or_analysis()
     let analysis = fixture.analysis().await;
     assert_eq!(analysis["participants"], 4);
     assert!(analysis["warnings"][0].as_str().unwrap().contains("1 pilot participant"));
-    let included = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/analysis?include_pilots=true"), None).await.json();
+    let included = fixture
+        .admin(Method::GET, &format!("/api/admin/studies/{STUDY}/analysis?include_pilots=true"), None)
+        .await
+        .json();
     assert_eq!(included["participants"], 5);
     assert_eq!(entry(&fixture.participants().await, pilot)["pilot"], true);
     // Excluded as well as pilot: counted once, as a pilot.
@@ -493,7 +574,10 @@ async fn pilots_from_a_preview_link_never_reach_the_default_export_or_analysis()
         .await;
     let json = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json"), None).await.json();
     assert_eq!(json["left_out"], json!({"pilots": 1, "excluded": 0}));
-    let json = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json?include_pilots=true"), None).await.json();
+    let json = fixture
+        .admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.json?include_pilots=true"), None)
+        .await
+        .json();
     assert_eq!(json["left_out"], json!({"pilots": 0, "excluded": 1}));
 }
 
@@ -525,7 +609,8 @@ async fn bad_participant_management_requests_are_refused_with_one_sentence() {
         assert_eq!(answer.status, StatusCode::NOT_FOUND, "{path}");
         answer.error();
     }
-    let bad_query = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.csv?include_pilots=yes"), None).await;
+    let bad_query =
+        fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}/export.csv?include_pilots=yes"), None).await;
     assert_eq!(bad_query.status, StatusCode::BAD_REQUEST);
     assert!(bad_query.error().contains("include_pilots"));
     // Without the admin token, or by cookie without X-Requested-With: refused, nothing changed.
@@ -580,7 +665,9 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
         assert!(error.contains("task study") && error.contains("--format task"), "{error}");
         assert!(!error.contains('\n') && !error.contains("internal"), "{error}");
     }
-    let output = mrstudy_server::serve::export(&data, STUDY, mrstudy_server::serve::ExportFormat::Csv, Default::default()).unwrap();
+    let output =
+        mrstudy_server::serve::export(&data, STUDY, mrstudy_server::serve::ExportFormat::Csv, Default::default())
+            .unwrap();
     assert!(output.text.starts_with("study,participant,"));
     assert_eq!(output.left_out, None, "nobody left out");
 }
@@ -594,7 +681,13 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let (kept, pilot) = runtime.block_on(async {
         let Prepared { state, admin_token, .. } = prepare(&data, &studies_dir(work.path())).await.unwrap();
-        let fixture = Fixture { app: app(state.clone()), state, admin_token, data: data.clone(), _work: tempfile::tempdir().unwrap() };
+        let fixture = Fixture {
+            app: app(state.clone()),
+            state,
+            admin_token,
+            data: data.clone(),
+            _work: tempfile::tempdir().unwrap(),
+        };
         let (kept, kept_token) = fixture.join("PID-KEPT", "").await;
         fixture.answer(&kept, &kept_token, 3, false, false).await;
         let (pilot, pilot_token) = fixture.join("PID-PILOT", "").await;
@@ -607,7 +700,9 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     let default = mrstudy_server::serve::export(&data, STUDY, csv, Default::default()).unwrap();
     assert_eq!(
         default.left_out.as_deref(),
-        Some("Left out 1 pilot participant (joined through a preview link); pass --include-pilots or --include-excluded to keep them.")
+        Some(
+            "Left out 1 pilot participant (joined through a preview link); pass --include-pilots or --include-excluded to keep them."
+        )
     );
     assert!(default.text.contains(&kept) && !default.text.contains(&pilot) && !default.text.contains("PID-PILOT"));
     let include = mrstudy_server::export::Include { pilots: true, excluded: false };

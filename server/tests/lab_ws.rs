@@ -53,7 +53,11 @@ enum Incoming {
 
 async fn recv(socket: &mut Socket) -> Incoming {
     loop {
-        let message = tokio::time::timeout(Duration::from_secs(60), socket.next()).await.expect("a message within 60 s").expect("the socket is open").expect("no socket error");
+        let message = tokio::time::timeout(Duration::from_secs(60), socket.next())
+            .await
+            .expect("a message within 60 s")
+            .expect("the socket is open")
+            .expect("no socket error");
         match message {
             Message::Text(text) => return Incoming::Json(serde_json::from_str(text.as_str()).unwrap()),
             Message::Binary(bytes) => return Incoming::Binary(bytes.to_vec()),
@@ -82,7 +86,9 @@ async fn frame_with_inputs(socket: &mut Socket, inputs: usize) -> (Value, Vec<u8
     let mut count = 0;
     loop {
         let meta = json_of(socket, "frame").await;
-        let Incoming::Binary(bytes) = recv(socket).await else { panic!("the frame's binary message must follow its meta") };
+        let Incoming::Binary(bytes) = recv(socket).await else {
+            panic!("the frame's binary message must follow its meta")
+        };
         count += 1;
         let number = u32::from_be_bytes(bytes[..4].try_into().unwrap());
         assert_eq!(number as u64, meta["n"].as_u64().unwrap());
@@ -168,7 +174,11 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["answered"], 1);
     // durable before `saved`: the row is there, with the truth from the stored start
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     let start: [f64; 3] = [row.get("start_x"), row.get("start_y"), row.get("start_z")];
     let truth = ((start[0]).powi(2) + (start[2]).powi(2)).sqrt() * 100.0;
     assert!((start[1] - 0.025).abs() < 1e-6, "the virtual cube stands on the table");
@@ -181,7 +191,11 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     assert!(row.get::<f64, _>("completion_ms") > 0.0);
     // answering a finished trial changes nothing
     refused(&mut socket, json!({"type": "answer", "trial": 1, "cm": 20}), "already answered").await;
-    let again: f64 = sqlx::query_scalar("SELECT answer_cm FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let again: f64 = sqlx::query_scalar("SELECT answer_cm FROM task_trials WHERE participant = ? AND trial = 1")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     assert_eq!(again, 12.5);
 
     // trial 2: distance under the second condition; then trial 3: placement
@@ -200,7 +214,18 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     refused(&mut socket, json!({"type": "key", "key": "PageUp"}), "does not move the cube").await;
     refused(&mut socket, json!({"type": "key", "key": "ArrowLeft", "t": "soon"}), "expected fields").await;
     // ten keys in a burst: coalesced into fewer frames, the last showing all of them
-    let keys = ["ArrowLeft", "ArrowLeft", "ArrowLeft", "ArrowUp", "ArrowUp", "ArrowRight", "ArrowDown", "ArrowLeft", "ArrowLeft", "ArrowUp"];
+    let keys = [
+        "ArrowLeft",
+        "ArrowLeft",
+        "ArrowLeft",
+        "ArrowUp",
+        "ArrowUp",
+        "ArrowRight",
+        "ArrowDown",
+        "ArrowLeft",
+        "ArrowLeft",
+        "ArrowUp",
+    ];
     for (index, key) in keys.iter().enumerate() {
         send(&mut socket, json!({"type": "key", "key": key, "t": index as f64 * 5.0})).await;
     }
@@ -212,13 +237,20 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     send(&mut socket, json!({"type": "answer", "trial": 3})).await;
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["answered"], 3);
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 3").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 3")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     let start = [row.get::<f64, _>("start_x"), row.get::<f64, _>("start_z")];
     // 1 cm steps: x −1 −1 −1 +1 −1 −1 = −4 cm, z −1 −1 +1 −1 = −2 cm
     let final_position = [row.get::<f64, _>("final_x"), row.get::<f64, _>("final_z")];
     assert!((final_position[0] - (start[0] - 0.04)).abs() < 1e-9, "{final_position:?} from {start:?}");
     assert!((final_position[1] - (start[1] - 0.02)).abs() < 1e-9);
-    assert!((row.get::<f64, _>("error_x_cm") - final_position[0] * 100.0).abs() < 1e-6, "the target is the real cube at x = 0");
+    assert!(
+        (row.get::<f64, _>("error_x_cm") - final_position[0] * 100.0).abs() < 1e-6,
+        "the target is the real cube at x = 0"
+    );
     let total = (row.get::<f64, _>("error_x_cm").powi(2) + row.get::<f64, _>("error_z_cm").powi(2)).sqrt();
     assert!((row.get::<f64, _>("error_cm") - total).abs() < 1e-9);
     let log: Value = serde_json::from_str(&row.get::<String, _>("key_log")).unwrap();
@@ -233,7 +265,12 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     // a second connection resumes the participant with the token (a wrong token is refused)
     drop(socket);
     let (mut socket, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
-    refused(&mut socket, json!({"type": "resume", "participant": participant, "token": "0".repeat(64)}), "No participant").await;
+    refused(
+        &mut socket,
+        json!({"type": "resume", "participant": participant, "token": "0".repeat(64)}),
+        "No participant",
+    )
+    .await;
     send(&mut socket, json!({"type": "resume", "participant": participant, "token": token})).await;
     let session = json_of(&mut socket, "session").await;
     assert_eq!(session["answered"], 3);
@@ -279,14 +316,26 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
         send(&mut socket, json!({"type": "answer", "trial": number})).await;
         let saved = json_of(&mut socket, "saved").await;
         assert_eq!(saved["completed"], number == 6);
-        let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = ?").bind(&participant).bind(number).fetch_one(&storage.read).await.unwrap();
+        let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = ?")
+            .bind(&participant)
+            .bind(number)
+            .fetch_one(&storage.read)
+            .await
+            .unwrap();
         let height = row.get::<f64, _>("start_y") - 0.0025 - 0.025;
-        assert!((row.get::<f64, _>("signed_error_cm") - height * 100.0).abs() < 1e-6, "height left above the table after one 0.25 cm step down");
+        assert!(
+            (row.get::<f64, _>("signed_error_cm") - height * 100.0).abs() < 1e-6,
+            "height left above the table after one 0.25 cm step down"
+        );
         assert_eq!(row.get::<f64, _>("error_x_cm"), 0.0);
     }
     json_of(&mut socket, "done").await;
     refused(&mut socket, json!({"type": "answer", "trial": 6}), "already answered").await;
-    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     assert_eq!(answered, 6);
 
     // the task CSV is what the analysis reads
@@ -307,7 +356,9 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
 /// frame times one measures are not another's load (the pacing test compares them).
 static RENDERING: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
-async fn serve(study: &str) -> Option<(String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir)> {
+async fn serve(
+    study: &str,
+) -> Option<(String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir)> {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     std::fs::write(studies.path().join("lab.toml"), study).unwrap();
@@ -372,7 +423,8 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
     // an empty participant code is refused with one sentence, and nobody is stored
     refused(&mut socket, json!({"type": "start", "label": ""}), "The participant code is empty").await;
     refused(&mut socket, json!({"type": "start", "label": "   "}), "The participant code is empty").await;
-    let participants: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
+    let participants: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
     assert_eq!(participants, 0);
     send(&mut socket, json!({"type": "start", "label": "H1"})).await;
     let session = json_of(&mut socket, "session").await;
@@ -404,15 +456,28 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
         let error = json_of(&mut socket, "error").await;
         assert!(error["message"].as_str().unwrap().contains("sooner than the study's minimum of 400 ms"), "{error}");
     }
-    let stored: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = ? AND answered_at IS NOT NULL").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let stored: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = ? AND answered_at IS NOT NULL")
+            .bind(&participant)
+            .fetch_one(&storage.read)
+            .await
+            .unwrap();
     assert_eq!(stored, 0, "refused answers store nothing");
-    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     assert_eq!(answered, 0);
     tokio::time::sleep(Duration::from_millis(450)).await;
     send(&mut socket, json!({"type": "answer", "trial": 1})).await;
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["frames_shown"], 1);
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1").bind(&participant).fetch_one(&storage.read).await.unwrap();
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1")
+        .bind(&participant)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
     assert_eq!(row.get::<i64, _>("frames_shown"), 1);
     assert!(row.get::<f64, _>("completion_ms") >= 400.0, "counted from the first frame shown");
     assert!(row.get::<Option<String>, _>("shown_at").is_some());
@@ -436,7 +501,12 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
     send(&mut socket, json!({"type": "answer", "trial": 2})).await;
     assert_eq!(json_of(&mut socket, "saved").await["completed"], true);
     json_of(&mut socket, "done").await;
-    let rows: Vec<(i64, i64)> = sqlx::query_as("SELECT trial, frames_shown FROM task_trials WHERE participant = ? ORDER BY trial").bind(&participant).fetch_all(&storage.read).await.unwrap();
+    let rows: Vec<(i64, i64)> =
+        sqlx::query_as("SELECT trial, frames_shown FROM task_trials WHERE participant = ? ORDER BY trial")
+            .bind(&participant)
+            .fetch_all(&storage.read)
+            .await
+            .unwrap();
     assert_eq!(rows, vec![(1, 1), (2, 1)]);
 }
 
@@ -476,11 +546,16 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
     assert_eq!(slots, vec![0, 1, 0, 2], "C takes A's slot, D the next unused one");
     assert_eq!(rows[2].3, rows[0].3, "C gets A's condition order");
     assert_ne!(rows[3].3, rows[0].3);
-    assert!(rows[0].4.is_some() && rows[0].5.as_deref() == Some(c.as_str()), "A is abandoned, its slot taken by C: {:?}", rows[0]);
+    assert!(
+        rows[0].4.is_some() && rows[0].5.as_deref() == Some(c.as_str()),
+        "A is abandoned, its slot taken by C: {:?}",
+        rows[0]
+    );
     assert!(rows[1].4.is_none() && rows[2].4.is_none() && rows[3].4.is_none());
     // A cannot come back into a slot that is now C's
     let mut socket = connect(&url).await;
-    refused(&mut socket, json!({"type": "resume", "participant": a, "token": token_a}), "given to another participant").await;
+    refused(&mut socket, json!({"type": "resume", "participant": a, "token": token_a}), "given to another participant")
+        .await;
     // the admin report says so
     let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
     let states: Vec<(i64, bool)> = report.participants.iter().map(|p| (p.slot, p.abandoned)).collect();
@@ -494,7 +569,11 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
         .replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"")
         .replace("trials_per_condition = 1", "trials_per_condition = 3");
     let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
-    let startup: Vec<(String, f64)> = sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition").fetch_all(&storage.read).await.unwrap();
+    let startup: Vec<(String, f64)> =
+        sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition")
+            .fetch_all(&storage.read)
+            .await
+            .unwrap();
     eprintln!("start-up frame times (render + encode, unpaced): {startup:?}");
     assert_eq!(startup.len(), 2);
     let mut socket = connect(&url).await;
@@ -531,8 +610,13 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
     eprintln!("per condition: (condition, shown frame ms, render + encode ms, paced to ms, frames) {rows:?}");
     assert_eq!(rows.len(), 2);
     let shown: Vec<f64> = rows.iter().map(|row| row.1).collect();
-    let (slowest, fastest) = (shown.iter().copied().fold(0.0, f64::max), shown.iter().copied().fold(f64::INFINITY, f64::min));
-    assert!(slowest / fastest - 1.0 < PACE_PARITY, "shown frame times differ by {:.1} %: {rows:?}", (slowest / fastest - 1.0) * 100.0);
+    let (slowest, fastest) =
+        (shown.iter().copied().fold(0.0, f64::max), shown.iter().copied().fold(f64::INFINITY, f64::min));
+    assert!(
+        slowest / fastest - 1.0 < PACE_PARITY,
+        "shown frame times differ by {:.1} %: {rows:?}",
+        (slowest / fastest - 1.0) * 100.0
+    );
     for row in &rows {
         assert!(row.1 >= row.2, "a frame is never sent before it is rendered: {row:?}");
         assert!(row.1 >= 0.95 * row.3, "every frame is held to about the pace: {row:?}");

@@ -8,8 +8,8 @@ use axum::Router;
 use axum::body::Body;
 use axum::http::{HeaderMap, Method, Request, StatusCode, header};
 use http_body_util::BodyExt;
-use mrstudy_server::serve::{Prepared, prepare};
 use mrstudy_server::app;
+use mrstudy_server::serve::{Prepared, prepare};
 use serde_json::{Value, json};
 use tower::ServiceExt;
 
@@ -30,7 +30,11 @@ fn studies_dir(work: &Path) -> PathBuf {
         std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
     }
     let survey = std::fs::read_to_string(repo.join("web-survey.toml")).unwrap();
-    std::fs::write(dir.join("web-survey.toml"), survey.replacen("render = \"survey-1\"", "render = \"scenes/broken.toml\"", 1)).unwrap();
+    std::fs::write(
+        dir.join("web-survey.toml"),
+        survey.replacen("render = \"survey-1\"", "render = \"scenes/broken.toml\"", 1),
+    )
+    .unwrap();
     std::fs::create_dir_all(dir.join("scenes")).unwrap();
     std::fs::write(dir.join("scenes/broken.toml"), "this is not a scene file").unwrap();
     dir
@@ -58,7 +62,8 @@ struct Answer {
 
 impl Answer {
     fn json(&self) -> Value {
-        serde_json::from_slice(&self.bytes).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
+        serde_json::from_slice(&self.bytes)
+            .unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
     }
     fn text(&self) -> String {
         String::from_utf8_lossy(&self.bytes).into_owned()
@@ -86,10 +91,9 @@ async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body
         request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
     }
     let request = match body {
-        Some(body) => request
-            .header(header::CONTENT_TYPE, "application/json")
-            .body(Body::from(body.to_string()))
-            .unwrap(),
+        Some(body) => {
+            request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap()
+        }
         None => request.body(Body::empty()).unwrap(),
     };
     send(app, request).await
@@ -128,7 +132,8 @@ async fn answer_trial(app: &Router, id: &str, token: &str, trial: i64, chosen: &
 }
 
 async fn started(fixture: &Fixture) -> i64 {
-    let answer = call(&fixture.app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await;
+    let answer =
+        call(&fixture.app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await;
     assert_eq!(answer.status, StatusCode::OK);
     answer.json()["started"].as_i64().unwrap()
 }
@@ -144,7 +149,11 @@ async fn studies_lists_open_studies_and_skips_those_it_cannot_render() {
     );
     assert_eq!(fixture.skipped.len(), 1, "{:?}", fixture.skipped);
     assert!(fixture.skipped[0].contains("\"web-survey\""), "{:?}", fixture.skipped);
-    assert!(fixture.skipped[0].contains("scene configuration \"survey-1\"") && fixture.skipped[0].contains("broken.toml"), "{:?}", fixture.skipped);
+    assert!(
+        fixture.skipped[0].contains("scene configuration \"survey-1\"") && fixture.skipped[0].contains("broken.toml"),
+        "{:?}",
+        fixture.skipped
+    );
 }
 
 #[tokio::test]
@@ -167,14 +176,42 @@ async fn join_refuses_bad_input_without_changing_state() {
     let cases: Vec<(Value, StatusCode, &str)> = vec![
         (json!({}), StatusCode::UNPROCESSABLE_ENTITY, "demographics"),
         (json!({"demographics": {"gender": "female"}}), StatusCode::UNPROCESSABLE_ENTITY, "age"),
-        (json!({"demographics": {"gender": "robot", "age": 30, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "gender"),
-        (json!({"demographics": {"gender": "female", "age": 7, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "16 to 110"),
-        (json!({"demographics": {"gender": "female", "age": "30", "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "whole number"),
-        (json!({"demographics": {"gender": "female", "age": 30.5, "cg_experience": "none", "vision": "normal"}}), StatusCode::UNPROCESSABLE_ENTITY, "whole number"),
-        (json!({"demographics": {"gender": "female", "age": 30, "cg_experience": "none", "vision": "normal", "name": "Ann"}}), StatusCode::UNPROCESSABLE_ENTITY, "name"),
+        (
+            json!({"demographics": {"gender": "robot", "age": 30, "cg_experience": "none", "vision": "normal"}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "gender",
+        ),
+        (
+            json!({"demographics": {"gender": "female", "age": 7, "cg_experience": "none", "vision": "normal"}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "16 to 110",
+        ),
+        (
+            json!({"demographics": {"gender": "female", "age": "30", "cg_experience": "none", "vision": "normal"}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "whole number",
+        ),
+        (
+            json!({"demographics": {"gender": "female", "age": 30.5, "cg_experience": "none", "vision": "normal"}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "whole number",
+        ),
+        (
+            json!({"demographics": {"gender": "female", "age": 30, "cg_experience": "none", "vision": "normal", "name": "Ann"}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "name",
+        ),
         (json!({"demographics": demographics(), "extra": 1}), StatusCode::UNPROCESSABLE_ENTITY, "extra"),
-        (json!({"demographics": demographics(), "client": {"nested": {"a": 1}}}), StatusCode::UNPROCESSABLE_ENTITY, "client.nested"),
-        (json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": 5}}), StatusCode::UNPROCESSABLE_ENTITY, "PROLIFIC_PID"),
+        (
+            json!({"demographics": demographics(), "client": {"nested": {"a": 1}}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "client.nested",
+        ),
+        (
+            json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": 5}}),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "PROLIFIC_PID",
+        ),
         (json!({"demographics": []}), StatusCode::UNPROCESSABLE_ENTITY, "demographics"),
     ];
     for (body, status, mentions) in cases {
@@ -201,7 +238,9 @@ async fn join_refuses_bad_input_without_changing_state() {
     let answer = send(app, raw(&huge, Some("application/json"))).await;
     assert_eq!(answer.status, StatusCode::PAYLOAD_TOO_LARGE);
     answer.error();
-    let answer = call(app, Method::POST, "/api/studies/nope/participants", None, Some(json!({"demographics": demographics()}))).await;
+    let answer =
+        call(app, Method::POST, "/api/studies/nope/participants", None, Some(json!({"demographics": demographics()})))
+            .await;
     assert_eq!(answer.status, StatusCode::NOT_FOUND);
     answer.error();
     assert_eq!(started(&fixture).await, 0, "no refused request created a participant");
@@ -235,7 +274,10 @@ async fn next_needs_the_participants_own_token() {
     let next = answer.json();
     assert_eq!(next["trial"], 1);
     assert_eq!(next["total"], 7);
-    assert_eq!(next["question"], "Please click on the image where you think that the virtual objects fit better into the real world.");
+    assert_eq!(
+        next["question"],
+        "Please click on the image where you think that the virtual objects fit better into the real world."
+    );
     assert_eq!(next["preload"].as_array().unwrap().len(), 2);
     assert_eq!(answer.headers.get(header::CACHE_CONTROL).unwrap(), "no-store");
     // The stimuli are served, immutable, with their content type.
@@ -300,7 +342,8 @@ async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code()
 
     // The export has one row per answer, with the kept crowdsourcing parameters as external-id
     // columns (the study's url_params) and in the JSON export.
-    let csv = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None).await;
+    let csv =
+        call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None).await;
     assert_eq!(csv.status, StatusCode::OK);
     assert!(csv.headers.get(header::CONTENT_TYPE).unwrap().to_str().unwrap().starts_with("text/csv"));
     let text = csv.text();
@@ -312,11 +355,19 @@ async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code()
     assert_eq!(lines.len(), 7, "six judgments; the catch trial is not a row:\n{text}");
     assert!(!text.contains("catch:"));
     for line in &lines[1..] {
-        assert!(line.contains(",1,0,1280x800,2,1,") || line.contains(",1,1,1280x800,2,1,"), "catch columns, client, completed: {line}");
+        assert!(
+            line.contains(",1,0,1280x800,2,1,") || line.contains(",1,1,1280x800,2,1,"),
+            "catch columns, client, completed: {line}"
+        );
         // answered within milliseconds of being served: too fast by the server's clock
-        assert!(line.contains(",1,completed,DEMO-7F3A,false,false,true,abc123,,,,,,female,31,"), "status, code, flags, external ids: {line}");
+        assert!(
+            line.contains(",1,completed,DEMO-7F3A,false,false,true,abc123,,,,,,female,31,"),
+            "status, code, flags, external ids: {line}"
+        );
     }
-    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None)
+        .await
+        .json();
     let participant = &json["participants"][0];
     assert_eq!(participant["url_params"], json!({"PROLIFIC_PID": "abc123"}));
     assert_eq!(participant["client"]["devicePixelRatio"], 2);
@@ -340,7 +391,11 @@ async fn stimulus_and_static_paths_cannot_be_traversed() {
         "/static/style.css%00.js",
     ] {
         let answer = call(app, Method::GET, path, None, None).await;
-        assert!(answer.status == StatusCode::NOT_FOUND || answer.status == StatusCode::BAD_REQUEST, "{path}: {}", answer.status);
+        assert!(
+            answer.status == StatusCode::NOT_FOUND || answer.status == StatusCode::BAD_REQUEST,
+            "{path}: {}",
+            answer.status
+        );
         assert!(!answer.text().contains("SQLite"), "{path}");
     }
     let answer = call(app, Method::GET, "/static/survey.js", None, None).await;
@@ -353,7 +408,12 @@ async fn every_response_carries_the_security_headers() {
     let fixture = fixture().await;
     for path in ["/", "/studies/shadows-demo", "/api/studies", "/api/nope", "/nope", "/admin", "/static/style.css"] {
         let answer = call(&fixture.app, Method::GET, path, None, None).await;
-        let csp = answer.headers.get(header::CONTENT_SECURITY_POLICY).unwrap_or_else(|| panic!("{path}: no CSP")).to_str().unwrap();
+        let csp = answer
+            .headers
+            .get(header::CONTENT_SECURITY_POLICY)
+            .unwrap_or_else(|| panic!("{path}: no CSP"))
+            .to_str()
+            .unwrap();
         assert!(csp.contains("frame-ancestors 'none'"), "{path}: {csp}");
         assert!(csp.contains("script-src 'self'"), "{path}: {csp}");
         assert_eq!(answer.headers.get(header::X_CONTENT_TYPE_OPTIONS).unwrap(), "nosniff", "{path}");
@@ -410,7 +470,11 @@ async fn admin_api_and_pages_refuse_without_the_token() {
     }
     for page in ["/admin", "/admin/studies/shadows-demo", "/admin/login", "/admin/login?token=nope"] {
         let answer = call(app, Method::GET, page, None, None).await;
-        assert!(answer.status == StatusCode::UNAUTHORIZED || answer.status == StatusCode::FORBIDDEN, "{page}: {}", answer.status);
+        assert!(
+            answer.status == StatusCode::UNAUTHORIZED || answer.status == StatusCode::FORBIDDEN,
+            "{page}: {}",
+            answer.status
+        );
         assert!(!answer.text().contains("Started"), "{page}");
     }
     // With the token.
@@ -446,12 +510,23 @@ async fn admin_api_and_pages_refuse_without_the_token() {
     // A change by cookie needs X-Requested-With (no cross-site form can send it).
     let close = send(app, with_cookie(Method::POST, "/api/admin/studies/shadows-demo/close", None)).await;
     assert_eq!(close.status, StatusCode::FORBIDDEN);
-    let close = send(app, with_cookie(Method::POST, "/api/admin/studies/shadows-demo/close", Some(("x-requested-with", "mrstudy")))).await;
+    let close = send(
+        app,
+        with_cookie(Method::POST, "/api/admin/studies/shadows-demo/close", Some(("x-requested-with", "mrstudy"))),
+    )
+    .await;
     assert_eq!(close.status, StatusCode::OK);
     assert_eq!(close.json(), json!({"slug": "shadows-demo", "open": false}));
 
     // Closed: no new participants, not listed; reopened by bearer token.
-    let answer = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics()}))).await;
+    let answer = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics()})),
+    )
+    .await;
     assert_eq!(answer.status, StatusCode::FORBIDDEN);
     assert!(answer.error().contains("closed"));
     assert_eq!(call(app, Method::GET, "/api/studies", None, None).await.json(), json!([]));
@@ -468,14 +543,17 @@ async fn admin_stats_show_dropout_and_catch_failures() {
     let (dropout, dropout_token) = join(app).await;
     join(app).await; // joins and answers nothing
     for trial in 1..=7 {
-        let next = call(app, Method::GET, &format!("/api/participants/{finisher}/next"), Some(&finisher_token), None).await.json();
+        let next = call(app, Method::GET, &format!("/api/participants/{finisher}/next"), Some(&finisher_token), None)
+            .await
+            .json();
         assert_eq!(next["trial"], trial);
         answer_trial(app, &finisher, &finisher_token, trial, "left").await;
     }
     for trial in 1..=3 {
         answer_trial(app, &dropout, &dropout_token, trial, "right").await;
     }
-    let stats = call(app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await.json();
+    let stats =
+        call(app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await.json();
     assert_eq!(stats["started"], 3);
     assert_eq!(stats["finished"], 1);
     assert_eq!(stats["reached"], json!([3, 2, 2, 2, 1, 1, 1, 1]));
@@ -484,7 +562,9 @@ async fn admin_stats_show_dropout_and_catch_failures() {
     assert_eq!(stats["median_rt_ms"], 812.5);
     assert!((stats["completion_rate"].as_f64().unwrap() - 1.0 / 3.0).abs() < 1e-12);
     // Catch trials answered and failed, counted from the stored schedules.
-    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None)
+        .await
+        .json();
     let (mut catch_responses, mut failures, mut failing) = (0, 0, 0);
     for participant in json["participants"].as_array().unwrap() {
         let mut failed = false;
@@ -514,7 +594,9 @@ async fn schedules_are_stored_and_reproducible_from_the_stored_seed() {
     let app = &fixture.app;
     join(app).await;
     join(app).await;
-    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None).await.json();
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None)
+        .await
+        .json();
     let study = mrstudy_server::study::load_study(&repo_studies_dir().join("shadows-demo.toml")).unwrap();
     let data_dir = tempfile::tempdir().unwrap();
     let prepared = mrstudy_server::PreparedStudy::prepare(study, data_dir.path()).unwrap();
@@ -546,14 +628,18 @@ async fn live_analysis_runs_the_analysis_crate_on_the_export() {
     for participant in 0..6 {
         let (id, participant_token) = join(app).await;
         for trial in 1..=7 {
-            let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&participant_token), None).await.json();
+            let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(&participant_token), None)
+                .await
+                .json();
             let _ = next;
-            let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(token), None).await.json();
+            let json =
+                call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(token), None).await.json();
             let schedule = json["participants"][participant]["schedule"][trial as usize - 1].clone();
             let left = schedule["left"].as_str().unwrap();
             let right = schedule["right"].as_str().unwrap();
             let score = |condition: &str| condition.contains("SH") as i32 * 2 + condition.contains("CA") as i32;
-            let chosen = if (score(left) >= score(right)) != (trial == 3 && participant % 3 == 0) { "left" } else { "right" };
+            let chosen =
+                if (score(left) >= score(right)) != (trial == 3 && participant % 3 == 0) { "left" } else { "right" };
             assert_eq!(answer_trial(app, &id, &participant_token, trial, chosen).await.status, StatusCode::CREATED);
         }
     }
@@ -564,7 +650,8 @@ async fn live_analysis_runs_the_analysis_crate_on_the_export() {
     assert_eq!(analysis["judgments"], 36, "6 participants × 6 pairs; catch trials are not judgments");
     assert_eq!(analysis["conditions"], 4);
     assert_eq!(analysis["reference"], "LQ");
-    let covariates: Vec<&str> = analysis["covariates"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    let covariates: Vec<&str> =
+        analysis["covariates"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
     assert_eq!(covariates, ["shadow", "ca"]);
     assert!(analysis["agreement"]["u"].is_number());
     let svg = call(app, Method::GET, "/api/admin/studies/shadows-demo/worth.svg", Some(token), None).await;
@@ -600,7 +687,11 @@ async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
         "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
     );
     assert!(text.contains("redirect ="));
-    std::fs::write(studies.path().join("demo.toml"), text.replace("\"shadows-demo/", &format!("\"{}/", repo_studies_dir().join("shadows-demo").display()))).unwrap();
+    std::fs::write(
+        studies.path().join("demo.toml"),
+        text.replace("\"shadows-demo/", &format!("\"{}/", repo_studies_dir().join("shadows-demo").display())),
+    )
+    .unwrap();
     let data_dir = tempfile::tempdir().unwrap();
     let Prepared { state, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
     let app = app(state);
@@ -687,10 +778,8 @@ async fn a_too_fast_response_is_stored_and_flagged_by_the_client_or_the_server_c
     tokio::time::sleep(std::time::Duration::from_millis(400)).await;
     assert_eq!(post_response(app, &id, &token, 3, 812.0).await.status, StatusCode::CREATED);
     let db = database(&fixture).await;
-    let rows: Vec<(i64, i64, f64)> = sqlx::query_as("SELECT trial, too_fast, served_ms FROM responses ORDER BY trial")
-        .fetch_all(&db)
-        .await
-        .unwrap();
+    let rows: Vec<(i64, i64, f64)> =
+        sqlx::query_as("SELECT trial, too_fast, served_ms FROM responses ORDER BY trial").fetch_all(&db).await.unwrap();
     assert_eq!(rows.len(), 3, "too-fast responses are stored, never dropped");
     assert_eq!((rows[0].1, rows[1].1, rows[2].1), (1, 1, 0), "{rows:?}");
     assert!(rows[2].2 >= 380.0, "the server's time from serving to answer: {rows:?}");
@@ -700,7 +789,8 @@ async fn a_too_fast_response_is_stored_and_flagged_by_the_client_or_the_server_c
 async fn a_preview_link_makes_a_pilot_also_while_the_study_is_closed() {
     let fixture = fixture().await;
     let app = &fixture.app;
-    let closed = call(app, Method::POST, "/api/admin/studies/shadows-demo/close", Some(&fixture.admin_token), None).await;
+    let closed =
+        call(app, Method::POST, "/api/admin/studies/shadows-demo/close", Some(&fixture.admin_token), None).await;
     assert!(closed.status.is_success(), "{}", closed.text());
     // A preview token as the admin API stores it (SHA-256 of the token).
     let token = "preview-token-for-the-test-0123456789abcdef";
@@ -710,20 +800,31 @@ async fn a_preview_link_makes_a_pilot_also_while_the_study_is_closed() {
     };
     let path = fixture._data_dir.path().join("data/mrstudy.db");
     let writer = sqlx::SqlitePool::connect(&format!("sqlite://{}", path.display())).await.unwrap();
-    sqlx::query("INSERT INTO previews (token_sha256, study, created_at) VALUES (?, 'shadows-demo', '2026-11-23T00:00:00.000Z')")
-        .bind(&hash)
-        .execute(&writer)
-        .await
-        .unwrap();
+    sqlx::query(
+        "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, 'shadows-demo', '2026-11-23T00:00:00.000Z')",
+    )
+    .bind(&hash)
+    .execute(&writer)
+    .await
+    .unwrap();
     let body = |preview: &str| json!({"demographics": demographics(), "preview": preview});
-    let refused = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body("not-a-preview"))).await;
+    let refused =
+        call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body("not-a-preview"))).await;
     assert_eq!(refused.status, StatusCode::FORBIDDEN);
     assert!(refused.error().contains("preview link"));
-    let closed_join = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics()}))).await;
+    let closed_join = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics()})),
+    )
+    .await;
     assert_eq!(closed_join.status, StatusCode::FORBIDDEN, "closed to everybody else");
     let joined = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body(token))).await;
     assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
-    let pilots: Vec<(String, i64)> = sqlx::query_as("SELECT id, pilot FROM participants").fetch_all(&writer).await.unwrap();
+    let pilots: Vec<(String, i64)> =
+        sqlx::query_as("SELECT id, pilot FROM participants").fetch_all(&writer).await.unwrap();
     assert_eq!(pilots, vec![(joined.json()["participant"].as_str().unwrap().to_string(), 1)]);
 }
 
@@ -765,12 +866,20 @@ async fn one_run_per_external_id_a_second_join_resumes_the_first() {
 
 #[tokio::test]
 async fn screen_requirements_refuse_a_phone_and_a_small_window_and_count_the_screen_out() {
-    let fixture = fixture_with("devices = [\"desktop\"]\nmin_viewport = [1000, 700]\norientation = \"landscape\"").await;
+    let fixture =
+        fixture_with("devices = [\"desktop\"]\nmin_viewport = [1000, 700]\norientation = \"landscape\"").await;
     let app = &fixture.app;
     let db = database(&fixture).await;
-    let screen_outs = || async { sqlx::query_scalar::<_, i64>("SELECT COUNT(*) FROM screen_outs").fetch_one(&db).await.unwrap() };
+    let screen_outs =
+        || async { sqlx::query_scalar::<_, i64>("SELECT COUNT(*) FROM screen_outs").fetch_one(&db).await.unwrap() };
     let check = |client: Value, screen_out: Option<String>| {
-        call(app, Method::POST, "/api/studies/shadows-demo/screen", None, Some(json!({"client": client, "screen_out": screen_out})))
+        call(
+            app,
+            Method::POST,
+            "/api/studies/shadows-demo/screen",
+            None,
+            Some(json!({"client": client, "screen_out": screen_out})),
+        )
     };
     let phone = json!({"device": "phone", "viewport": [390, 844]});
     let answer = check(phone.clone(), None).await;
@@ -785,7 +894,11 @@ async fn screen_requirements_refuse_a_phone_and_a_small_window_and_count_the_scr
     assert_eq!(screen_outs().await, 1);
     // A small desktop window: the sentence names both sizes.
     let small = check(json!({"device": "desktop", "viewport": [800, 600]}), None).await.json();
-    assert!(small["reason"].as_str().unwrap().contains("1000 × 700") && small["reason"].as_str().unwrap().contains("800 × 600"), "{small}");
+    assert!(
+        small["reason"].as_str().unwrap().contains("1000 × 700")
+            && small["reason"].as_str().unwrap().contains("800 × 600"),
+        "{small}"
+    );
     let portrait = check(json!({"device": "desktop", "viewport": [1000, 1400]}), None).await.json();
     assert!(portrait["reason"].as_str().unwrap().contains("landscape"), "{portrait}");
     assert_eq!(screen_outs().await, 3);
@@ -793,7 +906,14 @@ async fn screen_requirements_refuse_a_phone_and_a_small_window_and_count_the_scr
     let fits = check(json!({"device": "desktop", "viewport": [1280, 800]}), None).await;
     assert_eq!((fits.status, fits.json()["meets"].clone()), (StatusCode::OK, json!(true)));
     // Joining from a phone is refused by the server too, and counted.
-    let refused = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!({"demographics": demographics(), "client": phone}))).await;
+    let refused = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics(), "client": phone})),
+    )
+    .await;
     assert_eq!(refused.status, StatusCode::UNPROCESSABLE_ENTITY);
     assert!(refused.error().contains("desktop"));
     assert_eq!(screen_outs().await, 4);

@@ -61,7 +61,10 @@ fn export_leaves_out_excluded_participants_and_says_so_and_deletion_leaves_no_tr
         ids.push(id);
     }
     let admin = |request: reqwest::blocking::RequestBuilder| request.bearer_auth(&server.admin_token).send().unwrap();
-    let excluded = admin(http.post(format!("{base}/api/admin/participants/{}/exclude", ids[0])).json(&json!({"reason": "straight-lined"})));
+    let excluded = admin(
+        http.post(format!("{base}/api/admin/participants/{}/exclude", ids[0]))
+            .json(&json!({"reason": "straight-lined"})),
+    );
     assert_eq!(excluded.status(), 200);
     let deleted = admin(http.delete(format!("{base}/api/admin/participants/{}", ids[3])));
     assert_eq!(deleted.status(), 200);

@@ -17,9 +17,17 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 
 /// A thesis-like anchored design: every condition against LQ and HQ, plus LQ–HQ.
 fn thesis_like(dir: &Path) -> (PathBuf, PathBuf) {
-    let conditions = "condition,gi,cm,ca\nLQ,0,0,0\nGI,1,0,0\nCM,0,1,0\nCA,0,0,1\nGI+CM,1,1,0\nGI+CA,1,0,1\nCM+CA,0,1,1\nHQ,1,1,1\n";
+    let conditions =
+        "condition,gi,cm,ca\nLQ,0,0,0\nGI,1,0,0\nCM,0,1,0\nCA,0,0,1\nGI+CM,1,1,0\nGI+CA,1,0,1\nCM+CA,0,1,1\nHQ,1,1,1\n";
     let lambda = |c: &str| -> f64 {
-        let x: Vec<f64> = conditions.lines().find(|l| l.starts_with(&format!("{c},"))).unwrap().split(',').skip(1).map(|v| v.parse().unwrap()).collect();
+        let x: Vec<f64> = conditions
+            .lines()
+            .find(|l| l.starts_with(&format!("{c},")))
+            .unwrap()
+            .split(',')
+            .skip(1)
+            .map(|v| v.parse().unwrap())
+            .collect();
         0.54 * x[0] - 0.44 * x[1] + 0.86 * x[2]
     };
     let names = ["LQ", "GI", "CM", "CA", "GI+CM", "GI+CA", "CM+CA", "HQ"];
@@ -51,7 +59,17 @@ fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
     let dir = tempfile::tempdir().unwrap();
     let (trials, conditions) = thesis_like(dir.path());
     let plot = dir.path().join("worth.svg");
-    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--group-by", "gender", "--plot", plot.to_str().unwrap()]);
+    let out = mrstudy(&[
+        "analyze",
+        "--trials",
+        trials.to_str().unwrap(),
+        "--conditions",
+        conditions.to_str().unwrap(),
+        "--group-by",
+        "gender",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8(out.stdout).unwrap();
     assert!(table.contains("2600 judgments by 40 participants on 8 conditions; reference LQ"), "{table}");
@@ -64,7 +82,15 @@ fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
         assert!(svg.contains(name), "plot lacks {name}");
     }
 
-    let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--format", "json"]);
+    let out = mrstudy(&[
+        "analyze",
+        "--trials",
+        trials.to_str().unwrap(),
+        "--conditions",
+        conditions.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(!text.contains("NaN") && !text.contains("null") && !text.contains("inf"));
@@ -103,15 +129,41 @@ fn bad_input_is_one_sentence_with_non_zero_exit_and_no_output() {
     let dir = tempfile::tempdir().unwrap();
     let plot = dir.path().join("never.svg");
     let cases = [
-        ("participant,left,right,chosen\np1,LQ,HQ,HQ\np2,LQ,HQ\n", None, "line 3: the row has 3 fields but the header has 4"),
-        ("participant,left,right,chosen\np1,LQ,HQ,GI\n", None, "line 2, column `chosen`: `GI` is neither the left (`LQ`) nor the right (`HQ`) condition"),
-        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,0\n"), "line 2: condition `HQ` is not in the conditions file"),
-        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,0\nHQ,1\nLQ,1\n"), "line 4: condition `LQ` is listed twice (first on line 2)"),
-        ("participant,left,right,chosen\np1,LQ,HQ,HQ\n", Some("condition,gi\nLQ,off\nHQ,1\n"), "line 2, column `gi`: the factor level `off` is not a finite number"),
+        (
+            "participant,left,right,chosen\np1,LQ,HQ,HQ\np2,LQ,HQ\n",
+            None,
+            "line 3: the row has 3 fields but the header has 4",
+        ),
+        (
+            "participant,left,right,chosen\np1,LQ,HQ,GI\n",
+            None,
+            "line 2, column `chosen`: `GI` is neither the left (`LQ`) nor the right (`HQ`) condition",
+        ),
+        (
+            "participant,left,right,chosen\np1,LQ,HQ,HQ\n",
+            Some("condition,gi\nLQ,0\n"),
+            "line 2: condition `HQ` is not in the conditions file",
+        ),
+        (
+            "participant,left,right,chosen\np1,LQ,HQ,HQ\n",
+            Some("condition,gi\nLQ,0\nHQ,1\nLQ,1\n"),
+            "line 4: condition `LQ` is listed twice (first on line 2)",
+        ),
+        (
+            "participant,left,right,chosen\np1,LQ,HQ,HQ\n",
+            Some("condition,gi\nLQ,off\nHQ,1\n"),
+            "line 2, column `gi`: the factor level `off` is not a finite number",
+        ),
     ];
     for (k, (trials, conditions, expected)) in cases.iter().enumerate() {
         let trials_path = write(dir.path(), &format!("t{k}.csv"), trials);
-        let mut args = vec!["analyze".to_string(), "--trials".into(), trials_path.to_str().unwrap().into(), "--plot".into(), plot.to_str().unwrap().into()];
+        let mut args = vec![
+            "analyze".to_string(),
+            "--trials".into(),
+            trials_path.to_str().unwrap().into(),
+            "--plot".into(),
+            plot.to_str().unwrap().into(),
+        ];
         if let Some(conditions) = conditions {
             let path = write(dir.path(), &format!("c{k}.csv"), conditions);
             args.extend(["--conditions".to_string(), path.to_str().unwrap().to_string()]);
@@ -133,15 +185,27 @@ fn bad_input_is_one_sentence_with_non_zero_exit_and_no_output() {
 /// Issue 12: an export-like trials CSV with pilot and excluded participants and the columns
 /// `analyze` must ignore.
 fn export_with_pilots(dir: &Path) -> PathBuf {
-    let mut text = String::from("participant,left,right,chosen,status,completion_code,too_fast,PROLIFIC_PID,pilot,excluded\n");
-    let wins = |a: &str, b: &str, k: usize| if (a.len() + b.len() + k) % 3 == 0 { a.to_string() } else { b.to_string() };
+    let mut text =
+        String::from("participant,left,right,chosen,status,completion_code,too_fast,PROLIFIC_PID,pilot,excluded\n");
+    let wins =
+        |a: &str, b: &str, k: usize| if (a.len() + b.len() + k) % 3 == 0 { a.to_string() } else { b.to_string() };
     let names = ["LQ", "GI", "HQ"];
-    for (participant, pilot, excluded) in [("p1", false, false), ("p2", false, false), ("p3", false, false), ("p4", false, false), ("pilot", true, false), ("gone", false, true)] {
+    for (participant, pilot, excluded) in [
+        ("p1", false, false),
+        ("p2", false, false),
+        ("p3", false, false),
+        ("p4", false, false),
+        ("pilot", true, false),
+        ("gone", false, true),
+    ] {
         for k in 0..6 {
             for a in 0..3 {
                 for b in a + 1..3 {
                     let chosen = wins(names[a], names[b], k + participant.len());
-                    text += &format!("{participant},{},{},{chosen},completed,XYZ,false,pid-{participant},{pilot},{excluded}\n", names[a], names[b]);
+                    text += &format!(
+                        "{participant},{},{},{chosen},completed,XYZ,false,pid-{participant},{pilot},{excluded}\n",
+                        names[a], names[b]
+                    );
                 }
             }
         }
@@ -182,12 +246,19 @@ fn analyze_leaves_out_pilots_and_excluded_by_default_and_says_so() {
 #[test]
 fn analyze_refuses_a_pilot_value_other_than_true_or_false() {
     let dir = tempfile::tempdir().unwrap();
-    let trials = write(dir.path(), "t.csv", "participant,left,right,chosen,pilot,excluded\np1,LQ,HQ,HQ,false,false\np2,LQ,HQ,LQ,no,false\n");
+    let trials = write(
+        dir.path(),
+        "t.csv",
+        "participant,left,right,chosen,pilot,excluded\np1,LQ,HQ,HQ,false,false\np2,LQ,HQ,LQ,no,false\n",
+    );
     let out = mrstudy(&["analyze", "--trials", trials.to_str().unwrap()]);
     assert!(!out.status.success());
     assert!(out.stdout.is_empty());
     let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.contains(&format!("{}: line 3, column `pilot`: `no` is neither `true` nor `false`", trials.display())), "{stderr}");
+    assert!(
+        stderr.contains(&format!("{}: line 3, column `pilot`: `no` is neither `true` nor `false`", trials.display())),
+        "{stderr}"
+    );
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
 }
 
@@ -199,7 +270,15 @@ fn analyze_group_by_reports_a_group_it_cannot_estimate_and_goes_on() {
     text += "solo,LQ,HQ,HQ,diverse\nsolo,LQ,GI,GI,diverse\nsolo,GI,HQ,HQ,diverse\nsolo,LQ,CA,CA,diverse\n";
     std::fs::write(&trials, text).unwrap();
     let plot = dir.path().join("worth.svg");
-    let args = ["analyze", "--trials", trials.to_str().unwrap(), "--conditions", conditions.to_str().unwrap(), "--group-by", "gender"];
+    let args = [
+        "analyze",
+        "--trials",
+        trials.to_str().unwrap(),
+        "--conditions",
+        conditions.to_str().unwrap(),
+        "--group-by",
+        "gender",
+    ];
     let out = mrstudy(&[&args[..], &["--format", "json", "--plot", plot.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();

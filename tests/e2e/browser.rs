@@ -121,7 +121,10 @@ impl Driver {
 
     pub(super) fn text(&self, css: &str) -> String {
         let element = self.element(css);
-        self.command(reqwest::Method::GET, &format!("/element/{element}/text"), Value::Null).as_str().unwrap().to_string()
+        self.command(reqwest::Method::GET, &format!("/element/{element}/text"), Value::Null)
+            .as_str()
+            .unwrap()
+            .to_string()
     }
 
     /// Waits until the JavaScript expression is true.
@@ -156,7 +159,8 @@ impl Driver {
     /// with a click count, touches).
     pub(super) fn cdp(&self, cmd: &str, params: Value) -> Value {
         let url = format!("{}/session/{}/goog/cdp/execute", self.base, self.session);
-        let answer: Value = self.http.post(url).json(&json!({"cmd": cmd, "params": params})).send().unwrap().json().unwrap();
+        let answer: Value =
+            self.http.post(url).json(&json!({"cmd": cmd, "params": params})).send().unwrap().json().unwrap();
         if answer["value"].get("error").is_some() {
             panic!("CDP {cmd}: {}", answer["value"]);
         }
@@ -209,7 +213,9 @@ pub(super) fn browser_available() -> bool {
         eprintln!("skipping the browser test: MRSTUDY_SKIP_BROWSER_TESTS=1 and no {CHROMIUM} / {CHROMEDRIVER}");
         return false;
     }
-    panic!("the browser test needs {CHROMIUM} and {CHROMEDRIVER} (Debian packages chromium and chromium-driver; scripts/test.sh installs them), or MRSTUDY_SKIP_BROWSER_TESTS=1");
+    panic!(
+        "the browser test needs {CHROMIUM} and {CHROMEDRIVER} (Debian packages chromium and chromium-driver; scripts/test.sh installs them), or MRSTUDY_SKIP_BROWSER_TESTS=1"
+    );
 }
 
 pub(super) fn screenshot_path(name: &str) -> PathBuf {
@@ -288,7 +294,10 @@ fn a_participant_consents_answers_reloads_resumes_and_finishes_in_chromium() {
     let participant = &participants[0];
     assert_eq!(participant["answered"], 7);
     assert_eq!(participant["url_params"]["PROLIFIC_PID"], "browser-test-pid");
-    assert_eq!(participant["demographics"], json!({"gender": "female", "age": 34, "cg_experience": "none", "vision": "normal"}));
+    assert_eq!(
+        participant["demographics"],
+        json!({"gender": "female", "age": 34, "cg_experience": "none", "vision": "normal"})
+    );
     assert!(participant["client"]["userAgent"].as_str().unwrap().contains("Chrome"));
     assert!(participant["client"]["devicePixelRatio"].as_f64().unwrap() > 0.0);
     assert_eq!(participant["client"]["viewport"].as_array().unwrap().len(), 2);
@@ -338,7 +347,9 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     // larger frames than the other lab tests, so the screenshot shows something
-    let study = super::lab::SMALL_STUDY.replace("size = [96, 72]", "size = [320, 240]").replace("photo_spp = 2", "photo_spp = 8");
+    let study = super::lab::SMALL_STUDY
+        .replace("size = [96, 72]", "size = [320, 240]")
+        .replace("photo_spp = 2", "photo_spp = 8");
     std::fs::write(studies.path().join("lab.toml"), study).unwrap();
     let Some(server) = super::lab::lab_server(data_dir.path(), studies.path()) else { return };
     let driver = Driver::start(1000, 900);
@@ -364,10 +375,13 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
     driver.click("#lab-ack");
     // placement: the first frame, then arrow keys
     driver.wait_for("document.getElementById('lab-progress').textContent.includes('Trial 4 of 6')");
-    driver.wait_for("document.getElementById('lab-frame').dataset.trial === '4' && !document.getElementById('lab-keys').hidden");
+    driver.wait_for(
+        "document.getElementById('lab-frame').dataset.trial === '4' && !document.getElementById('lab-keys').hidden",
+    );
     driver.wait_for("document.getElementById('lab-frame').complete");
     let before = driver.script("return document.getElementById('lab-frame').src;");
-    let shown_before = driver.script("return Number(document.getElementById('lab-frame').dataset.shown);").as_u64().unwrap();
+    let shown_before =
+        driver.script("return Number(document.getElementById('lab-frame').dataset.shown);").as_u64().unwrap();
     driver.screenshot(&screenshot_path("lab-placement-before.png"));
     for _ in 0..8 {
         driver.type_into("body", "\u{E012}"); // ArrowLeft

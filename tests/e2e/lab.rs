@@ -139,7 +139,14 @@ fn serve_without_a_gpu_adapter_warns_once_and_serves_the_rest() {
     let studies = tempfile::tempdir().unwrap();
     std::fs::copy(repo_studies_dir().join("lab-task.toml"), studies.path().join("lab-task.toml")).unwrap();
     copy_demo_study(studies.path());
-    let server = Server::try_start_with_env(data_dir.path(), "127.0.0.1:0", studies.path(), &[("MRSTUDY_ADAPTER", "no-such-kind")], Duration::from_secs(60)).unwrap();
+    let server = Server::try_start_with_env(
+        data_dir.path(),
+        "127.0.0.1:0",
+        studies.path(),
+        &[("MRSTUDY_ADAPTER", "no-such-kind")],
+        Duration::from_secs(60),
+    )
+    .unwrap();
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut lab_warnings = Vec::new();
     while Instant::now() < deadline && lab_warnings.is_empty() {
@@ -153,7 +160,12 @@ fn serve_without_a_gpu_adapter_warns_once_and_serves_the_rest() {
     lab_warnings.extend(server.stderr.try_iter().filter(|line| line.contains("lab-task")));
     assert_eq!(lab_warnings.len(), 1, "{lab_warnings:?}");
     let line = &lab_warnings[0];
-    assert!(line.starts_with("warning: task study \"lab-task\" not served") && line.contains("GPU adapter") && line.contains("no-such-kind"), "{line}");
+    assert!(
+        line.starts_with("warning: task study \"lab-task\" not served")
+            && line.contains("GPU adapter")
+            && line.contains("no-such-kind"),
+        "{line}"
+    );
     // the web survey is served, the lab page is not
     let http = client();
     assert_eq!(http.get(format!("{}/studies/shadows-demo", server.base)).send().unwrap().status(), 200);
@@ -177,7 +189,10 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
         .unwrap()
         .text()
         .unwrap();
-    assert!(page.contains("frames/s") && page.contains("Friedman") && page.contains("task distance, measure error_cm"), "{page}");
+    assert!(
+        page.contains("frames/s") && page.contains("Friedman") && page.contains("task distance, measure error_cm"),
+        "{page}"
+    );
     assert!(page.contains("Targets are drawn within the camera's view"), "{page}");
     // each condition's frame time, with its own verdict (not one "fast enough" for the study)
     assert!(page.contains("id=\"lab-frame-times\""), "{page}");
@@ -185,8 +200,13 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
         assert!(page.contains(&format!("<tr><td>{condition}</td><td>")), "no frame-time row for {condition}: {page}");
     }
     let unequal = page.contains("id=\"lab-parity\"");
-    assert_eq!(unequal, page.contains("confounded with lag"), "unpaced unequal conditions are called a confound: {page}");
-    let overview = client().get(format!("{}/admin", server.base)).bearer_auth(&server.admin_token).send().unwrap().text().unwrap();
+    assert_eq!(
+        unequal,
+        page.contains("confounded with lag"),
+        "unpaced unequal conditions are called a confound: {page}"
+    );
+    let overview =
+        client().get(format!("{}/admin", server.base)).bearer_auth(&server.admin_token).send().unwrap().text().unwrap();
     assert!(overview.contains("/admin/lab/lab") && overview.contains("Lab task studies"), "{overview}");
     let csv = export(data_dir.path(), "lab", "task");
     let rows: Vec<&str> = csv.lines().collect();
@@ -195,13 +215,19 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
     assert_eq!(rows.len() - 1, 3 * (5 + 4) * 3, "{csv}");
     let file = data_dir.path().join("task.csv");
     std::fs::write(&file, &csv).unwrap();
-    let output = std::process::Command::new(binary()).args(["analyze", "--trials"]).arg(&file).args(["--format", "json"]).output().unwrap();
+    let output = std::process::Command::new(binary())
+        .args(["analyze", "--trials"])
+        .arg(&file)
+        .args(["--format", "json"])
+        .output()
+        .unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let analysis: Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(analysis["grouped_by"], json!(["task", "measure"]));
     let measures = analysis["measures"].as_array().unwrap();
     assert_eq!(measures.len(), 9);
-    let distance_error = measures.iter().find(|m| m["group"] == json!({"task": "distance", "measure": "error_cm"})).unwrap();
+    let distance_error =
+        measures.iter().find(|m| m["group"] == json!({"task": "distance", "measure": "error_cm"})).unwrap();
     assert_eq!(distance_error["friedman"]["participants"], 3);
     assert_eq!(distance_error["friedman"]["conditions"], 3);
     let trials = export(data_dir.path(), "lab", "task-trials");
@@ -258,8 +284,20 @@ fn hold_enter(driver: &super::browser::Driver, duration: Duration) {
 }
 
 fn answered(server: &Server, label: &str) -> u64 {
-    let stored: Value = client().get(format!("{}/api/admin/lab/lab/analysis", server.base)).bearer_auth(&server.admin_token).send().unwrap().json().unwrap();
-    stored["participants"].as_array().unwrap().iter().find(|p| p["label"] == label).map(|p| p["answered"].as_u64().unwrap()).unwrap_or(0)
+    let stored: Value = client()
+        .get(format!("{}/api/admin/lab/lab/analysis", server.base))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    stored["participants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["label"] == label)
+        .map(|p| p["answered"].as_u64().unwrap())
+        .unwrap_or(0)
 }
 
 fn mode(driver: &super::browser::Driver) -> String {
@@ -291,7 +329,13 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     driver.wait_for("document.getElementById('lab-start-error').textContent.includes('participant code is empty')");
     driver.screenshot(&shot("lab-welcome-empty-code-1280x800.png"));
     assert_eq!(answered(&server, ""), 0);
-    let stored: Value = client().get(format!("{}/api/admin/lab/lab/analysis", server.base)).bearer_auth(&server.admin_token).send().unwrap().json().unwrap();
+    let stored: Value = client()
+        .get(format!("{}/api/admin/lab/lab/analysis", server.base))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
     assert_eq!(stored["participants"].as_array().unwrap().len(), 0);
 
     driver.type_into("#lab-label", "held");
@@ -302,7 +346,8 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     driver.click("#lab-ack");
     wait_frame(&driver, 1);
     driver.screenshot(&shot("lab-trial-1280x800.png"));
-    let hint_visible = driver.script("return document.getElementById('lab-keys').getBoundingClientRect().bottom <= window.innerHeight;");
+    let hint_visible = driver
+        .script("return document.getElementById('lab-keys').getBoundingClientRect().bottom <= window.innerHeight;");
     assert_eq!(hint_visible, json!(true), "the frame and the key hint fit the window without scrolling");
 
     // held on trial 1: the first keydown answers it, the repeats do nothing more

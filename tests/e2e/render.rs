@@ -46,14 +46,27 @@ fn render_reference_and_photo_write_png_exr_and_buffers() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(png_size(&png), (32, 24));
-    for f in ["photo.png", "ground_truth.png", "real.exr", "full.exr", "virtual_mask.png", "affected_mask.png", "report.json"] {
+    for f in [
+        "photo.png",
+        "ground_truth.png",
+        "real.exr",
+        "full.exr",
+        "virtual_mask.png",
+        "affected_mask.png",
+        "report.json",
+    ] {
         assert!(dir.join("buffers").join(f).exists(), "{f} missing");
     }
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
     assert!(report["stats"]["virtual_coverage"].as_f64().unwrap() > 0.0);
 
     let exr = dir.join("photo.exr");
-    let out = mrstudy().args(["render", "--scene", "lab-task", "--photo", "--spp", "1", "--size", "16x12", "--out"]).arg(&exr).output().unwrap();
+    let out = mrstudy()
+        .args(["render", "--scene", "lab-task", "--photo", "--spp", "1", "--size", "16x12", "--out"])
+        .arg(&exr)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bytes = std::fs::read(&exr).unwrap();
     assert_eq!(&bytes[..4], &[0x76, 0x2f, 0x31, 0x01], "not an OpenEXR file");

@@ -21,7 +21,20 @@ fn render_condition_gi_writes_the_composite_and_a_report_of_its_passes() {
     // the output's folder does not exist yet: render makes it
     let png = dir.join("new-folder").join("gi.png");
     let out = mrstudy()
-        .args(["render", "--scene", "dir-double-shadow", "--condition", "gi", "--size", "64x48", "--spp", "2", "--vpls", "32", "--out"])
+        .args([
+            "render",
+            "--scene",
+            "dir-double-shadow",
+            "--condition",
+            "gi",
+            "--size",
+            "64x48",
+            "--spp",
+            "2",
+            "--vpls",
+            "32",
+            "--out",
+        ])
         .arg(&png)
         .arg("--buffers")
         .arg(dir.join("buffers"))
@@ -34,7 +47,8 @@ fn render_condition_gi_writes_the_composite_and_a_report_of_its_passes() {
     }
     assert!(out.status.success(), "{stderr}");
     assert!(png.exists());
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
     let gpu = &report["gpu"];
     assert!(gpu["adapter"].as_str().is_some_and(|a| !a.is_empty()));
     assert_eq!(gpu["condition"], "gi");
@@ -49,7 +63,24 @@ fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
     let dir = temp_dir("gi-ca");
     let png = dir.join("gi-ca.png");
     let out = mrstudy()
-        .args(["render", "--scene", "dir-double-shadow", "--factors", "gi,ca", "--ca-params", "estimate", "--camera", "webcam", "--size", "64x48", "--spp", "2", "--vpls", "16", "--out"])
+        .args([
+            "render",
+            "--scene",
+            "dir-double-shadow",
+            "--factors",
+            "gi,ca",
+            "--ca-params",
+            "estimate",
+            "--camera",
+            "webcam",
+            "--size",
+            "64x48",
+            "--spp",
+            "2",
+            "--vpls",
+            "16",
+            "--out",
+        ])
         .arg(&png)
         .arg("--buffers")
         .arg(dir.join("buffers"))
@@ -62,13 +93,19 @@ fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
     }
     assert!(out.status.success(), "{stderr}");
     assert!(png.exists());
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
-    let passes: Vec<&str> = report["gpu"]["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let passes: Vec<&str> =
+        report["gpu"]["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
     assert!(passes.iter().any(|p| p.starts_with("camera artifacts")), "{passes:?}");
     assert_eq!(report["gpu"]["params"]["camera_artifacts"]["source"], "estimate");
     assert!(report["ca_estimates"]["noise"]["sigma"].as_f64().is_some_and(|s| s.is_finite()), "{report}");
     assert!(stderr.contains("ca estimates"), "{stderr}");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "ca", "--ca-params", "guess", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    let out = mrstudy()
+        .args(["render", "--scene", "survey-1", "--factors", "ca", "--ca-params", "guess", "--size", "32x24", "--out"])
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--ca-params `guess`"));
 }
@@ -76,11 +113,19 @@ fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
 #[test]
 fn render_refuses_unknown_factors_and_conditions() {
     let dir = temp_dir("unknown");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--factors", "gi,bloom", "--size", "32x24", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    let out = mrstudy()
+        .args(["render", "--scene", "survey-1", "--factors", "gi,bloom", "--size", "32x24", "--out"])
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("`bloom`") && stderr.contains("gi, cm"), "{stderr}");
-    let out = mrstudy().args(["render", "--scene", "survey-1", "--condition", "HQ", "--out"]).arg(dir.join("x.png")).output().unwrap();
+    let out = mrstudy()
+        .args(["render", "--scene", "survey-1", "--condition", "HQ", "--out"])
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("gi, shadows, none"));
 }
@@ -89,7 +134,13 @@ fn render_refuses_unknown_factors_and_conditions() {
 fn bench_render_sweeps_vpls_and_names_the_adapter() {
     let dir = temp_dir("bench");
     let json = dir.join("bench.json");
-    let out = mrstudy().args(["bench", "render", "--quick", "--json"]).arg(&json).arg("--plot-dir").arg(&dir).output().unwrap();
+    let out = mrstudy()
+        .args(["bench", "render", "--quick", "--json"])
+        .arg(&json)
+        .arg("--plot-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     if !out.status.success() && stderr.contains("could be opened") {
         eprintln!("skipping: no GPU adapter ({stderr})");
@@ -105,7 +156,12 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
         assert!(row["ms"].as_f64().unwrap() > 0.0, "{row}");
         if row["condition"] == "path tracer" {
             // the path tracer's own curve: linear RMSE and FLIP through the camera per spp
-            assert!(row["spp"].as_u64().is_some() && row["rmse_linear"].as_f64().unwrap().is_finite() && row["flip_camera"].as_f64().unwrap().is_finite(), "{row}");
+            assert!(
+                row["spp"].as_u64().is_some()
+                    && row["rmse_linear"].as_f64().unwrap().is_finite()
+                    && row["flip_camera"].as_f64().unwrap().is_finite(),
+                "{row}"
+            );
         } else if row["setting"] == "thesis" {
             // the thesis's setting at full size is timed only: no reference at that size
             assert!(row["fps"].as_f64().is_some_and(|f| f > 0.0) && row["rmse"].is_null(), "{row}");
@@ -120,17 +176,32 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
     // its error, and the ratio
     assert!(rows.iter().filter(|r| r["condition"] == "path tracer").count() >= 5, "{rows:?}");
     let compared: Vec<&serde_json::Value> = rows.iter().filter(|r| r["speedup_over_path_tracer"].is_number()).collect();
-    assert!(compared.len() >= 3 && compared.iter().all(|r| r["speedup_over_path_tracer"].as_f64().unwrap() > 0.0 && r["path_tracer_bound"].is_string()), "{compared:?}");
+    assert!(
+        compared.len() >= 3
+            && compared
+                .iter()
+                .all(|r| r["speedup_over_path_tracer"].as_f64().unwrap() > 0.0 && r["path_tracer_bound"].is_string()),
+        "{compared:?}"
+    );
     assert!(dir.join("render_gpu_vs_path_tracer_dir-lamp-box.svg").exists());
     // the multiple-bounce sweep reports its bounces
-    assert!(rows.iter().any(|r| r["bounces"] == 3 && r["bounce_report"].as_array().is_some_and(|b| b.len() == 2)), "{rows:?}");
+    assert!(
+        rows.iter().any(|r| r["bounces"] == 3 && r["bounce_report"].as_array().is_some_and(|b| b.len() == 2)),
+        "{rows:?}"
+    );
 }
 
 #[test]
 fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
     let dir = temp_dir("bench-ca");
     let json = dir.join("ca.json");
-    let out = mrstudy().args(["bench", "render", "--ca", "--quick", "--json"]).arg(&json).arg("--plot-dir").arg(&dir).output().unwrap();
+    let out = mrstudy()
+        .args(["bench", "render", "--ca", "--quick", "--json"])
+        .arg(&json)
+        .arg("--plot-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     if !out.status.success() && stderr.contains("could be opened") {
         eprintln!("skipping: no GPU adapter ({stderr})");
@@ -151,7 +222,9 @@ fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
         }
     }
     // ca on adds noise to the noise-free GPU rendering of the virtual objects
-    let sigma = |ca: &str| rows.iter().find(|r| r["layer"] == "gpu" && r["ca"] == ca && r["camera"] == "webcam").unwrap()["virtual"]["noise_sigma"].as_f64().unwrap();
+    let sigma = |ca: &str| {
+        rows.iter().find(|r| r["layer"] == "gpu" && r["ca"] == ca && r["camera"] == "webcam").unwrap()["virtual"]["noise_sigma"].as_f64().unwrap()
+    };
     assert!(sigma("scene") > sigma("off"), "{rows:?}");
     assert!(dir.join("render_ca_noise.svg").exists() && dir.join("render_ca_blur_layer.svg").exists());
 }
@@ -161,7 +234,20 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
     let dir = temp_dir("cm");
     let png = dir.join("gicm.png");
     let out = mrstudy()
-        .args(["render", "--scene", "dir-lamp-box", "--factors", "gi,cm", "--size", "48x36", "--spp", "2", "--vpls", "16", "--out"])
+        .args([
+            "render",
+            "--scene",
+            "dir-lamp-box",
+            "--factors",
+            "gi,cm",
+            "--size",
+            "48x36",
+            "--spp",
+            "2",
+            "--vpls",
+            "16",
+            "--out",
+        ])
         .arg(&png)
         .arg("--buffers")
         .arg(dir.join("buffers"))
@@ -173,7 +259,8 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
         return;
     }
     assert!(out.status.success(), "{stderr}");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
     let gpu = &report["gpu"];
     assert_eq!(gpu["cm"]["method"], "statistics");
     assert_eq!(gpu["cm"]["mapping"]["kind"], "statistics");
@@ -181,12 +268,31 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
     assert!(passes.contains(&"cm statistics: reduction") && passes.contains(&"composition"), "{passes:?}");
     // any method by name, Debevec's composition; bad names are refused with the choices
     let out = mrstudy()
-        .args(["render", "--scene", "dir-lamp-box", "--condition", "shadows", "--cm", "rohmer", "--composition", "scaled", "--size", "48x36", "--spp", "2", "--out"])
+        .args([
+            "render",
+            "--scene",
+            "dir-lamp-box",
+            "--condition",
+            "shadows",
+            "--cm",
+            "rohmer",
+            "--composition",
+            "scaled",
+            "--size",
+            "48x36",
+            "--spp",
+            "2",
+            "--out",
+        ])
         .arg(dir.join("r.png"))
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let out = mrstudy().args(["render", "--scene", "dir-lamp-box", "--cm", "magic", "--size", "48x36", "--out"]).arg(dir.join("m.png")).output().unwrap();
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-lamp-box", "--cm", "magic", "--size", "48x36", "--out"])
+        .arg(dir.join("m.png"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("off, statistics, samples, rohmer"));
 }

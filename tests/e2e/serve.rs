@@ -63,7 +63,13 @@ impl Server {
     }
 
     /// [`Server::try_start`] with extra environment variables, waiting at most `wait`.
-    pub fn try_start_with_env(data_dir: &Path, addr: &str, studies: &Path, env: &[(&str, &str)], wait: Duration) -> Result<Server, String> {
+    pub fn try_start_with_env(
+        data_dir: &Path,
+        addr: &str,
+        studies: &Path,
+        env: &[(&str, &str)],
+        wait: Duration,
+    ) -> Result<Server, String> {
         let mut child = Command::new(binary())
             .envs(env.iter().copied())
             .args(["serve", "--addr", addr, "--data-dir"])
@@ -100,7 +106,13 @@ impl Server {
                     }
                     if let Some(link) = line.strip_prefix("admin link: ") {
                         let admin_token = link.split("token=").nth(1).unwrap_or_default().to_string();
-                        return Ok(Server { child, base: base.expect("base before admin link"), admin_token, stderr: stderr_receiver, stdout: stdout_receiver });
+                        return Ok(Server {
+                            child,
+                            base: base.expect("base before admin link"),
+                            admin_token,
+                            stderr: stderr_receiver,
+                            stdout: stdout_receiver,
+                        });
                     }
                 }
                 Err(_) => {
@@ -168,7 +180,13 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
     for trial in 1..=7 {
         // Asking twice (a reload) gives the same trial.
         for _ in 0..2 {
-            let next: Value = http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap().json().unwrap();
+            let next: Value = http
+                .get(format!("{base}/api/participants/{id}/next"))
+                .bearer_auth(token)
+                .send()
+                .unwrap()
+                .json()
+                .unwrap();
             assert_eq!(next["trial"], trial, "{next}");
             let image = http.get(format!("{base}{}", next["left"]["url"].as_str().unwrap())).send().unwrap();
             assert_eq!(image.status(), 200);
@@ -181,7 +199,8 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
             .unwrap();
         assert_eq!(stored.status(), 201);
     }
-    let done: Value = http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap().json().unwrap();
+    let done: Value =
+        http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(token).send().unwrap().json().unwrap();
     assert_eq!(done, json!({"done": true, "completion_code": "DEMO-7F3A"}));
 
     // The admin CSV over HTTP and `mrstudy export` agree.
@@ -195,9 +214,15 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
     let from_cli = export(data_dir.path(), "shadows-demo", "csv");
     assert_eq!(over_http, from_cli);
     assert_eq!(from_cli.lines().count(), 7, "six judgments and the header:\n{from_cli}");
-    assert!(from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,completed,DEMO-7F3A,false,false,true,"), "answered at once: too fast by the server's clock {from_cli}");
+    assert!(
+        from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,completed,DEMO-7F3A,false,false,true,"),
+        "answered at once: too fast by the server's clock {from_cli}"
+    );
     assert!(from_cli.lines().nth(1).unwrap().contains(",male,44,"), "{from_cli}");
-    assert_eq!(export(data_dir.path(), "shadows-demo", "conditions"), "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n");
+    assert_eq!(
+        export(data_dir.path(), "shadows-demo", "conditions"),
+        "condition,shadow,ca\nLQ,0,0\nSH,1,0\nCA,0,1\nSH+CA,1,1\n"
+    );
     let json: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();
     assert_eq!(json["participants"][0]["answered"], 7);
 
@@ -366,7 +391,14 @@ fn serve_skips_a_rendered_study_it_cannot_render_with_one_warning() {
     write_rendered_study(studies.path());
     copy_demo_study(studies.path());
     // GL llvmpipe cannot render the float targets the renderer needs: no adapter here
-    let server = Server::try_start_with_env(data_dir.path(), "127.0.0.1:0", studies.path(), &[("MRSTUDY_ADAPTER", "gl")], Duration::from_secs(60)).unwrap();
+    let server = Server::try_start_with_env(
+        data_dir.path(),
+        "127.0.0.1:0",
+        studies.path(),
+        &[("MRSTUDY_ADAPTER", "gl")],
+        Duration::from_secs(60),
+    )
+    .unwrap();
     std::thread::sleep(Duration::from_millis(200));
     let warnings: Vec<String> = server.stderr.try_iter().collect();
     let about: Vec<&String> = warnings.iter().filter(|line| line.contains("rendered-mini")).collect();
@@ -383,7 +415,10 @@ fn a_study_with_a_factor_the_renderer_lacks_is_refused_at_load() {
     let studies = tempfile::tempdir().unwrap();
     write_rendered_study(studies.path());
     let path = studies.path().join("rendered-mini.toml");
-    let text = std::fs::read_to_string(&path).unwrap().replace("name = \"gi\"", "name = \"bloom\"").replace("gi = ", "bloom = ");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("name = \"gi\"", "name = \"bloom\"")
+        .replace("gi = ", "bloom = ");
     std::fs::write(&path, text).unwrap();
     let output = Command::new(binary())
         .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
@@ -395,7 +430,10 @@ fn a_study_with_a_factor_the_renderer_lacks_is_refused_at_load() {
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("rendered-mini.toml") && stderr.contains("conditions[0].levels") && stderr.contains("`bloom`"), "{stderr}");
+    assert!(
+        stderr.contains("rendered-mini.toml") && stderr.contains("conditions[0].levels") && stderr.contains("`bloom`"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -414,13 +452,17 @@ fn serve_refuses_an_invalid_study_file_naming_file_and_key() {
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("broken.toml") && stderr.contains("design.repetitions") && stderr.contains("expected 1 to 100"), "{stderr}");
+    assert!(
+        stderr.contains("broken.toml") && stderr.contains("design.repetitions") && stderr.contains("expected 1 to 100"),
+        "{stderr}"
+    );
 }
 
 #[test]
 fn export_of_an_unknown_study_or_missing_database_is_one_clear_error() {
     let data_dir = tempfile::tempdir().unwrap();
-    let output = Command::new(binary()).args(["export", "--study", "nope", "--data-dir"]).arg(data_dir.path()).output().unwrap();
+    let output =
+        Command::new(binary()).args(["export", "--study", "nope", "--data-dir"]).arg(data_dir.path()).output().unwrap();
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("no database"), "{stderr}");

@@ -89,7 +89,8 @@ fn acknowledged_responses_survive_repeated_sigkill() {
     for (participant, trial, chosen) in &acknowledged {
         let key = (participant.clone(), *trial);
         assert!(seen.insert(key.clone()), "acknowledged twice by the test itself: {key:?}");
-        let stored = answers.get(&key).unwrap_or_else(|| panic!("acknowledged response {key:?} is missing after {kills} kills"));
+        let stored =
+            answers.get(&key).unwrap_or_else(|| panic!("acknowledged response {key:?} is missing after {kills} kills"));
         assert_eq!(stored, &vec![chosen.clone()], "{key:?}");
         // Judgments are rows of the trials CSV; catch trials are not (they flag the participant).
         let expected_rows = if catch_trials.contains(&key) { None } else { Some(&1) };
@@ -104,7 +105,12 @@ fn acknowledged_responses_survive_repeated_sigkill() {
 
 /// One simulated participant after another: join, answer every trial, retrying through the
 /// restarts. Returns how many responses were acknowledged.
-fn participant_loop(index: usize, base: &str, stop: &AtomicBool, acknowledged: &Mutex<Vec<(String, i64, String)>>) -> usize {
+fn participant_loop(
+    index: usize,
+    base: &str,
+    stop: &AtomicBool,
+    acknowledged: &Mutex<Vec<(String, i64, String)>>,
+) -> usize {
     let http = reqwest::blocking::Client::builder().timeout(Duration::from_secs(5)).build().unwrap();
     let mut count = 0;
     let mut choice = index as u64 + 1;

@@ -65,7 +65,10 @@ fn enter(driver: &Driver, base: &str, query: &str) {
 
 fn mouse_click(driver: &Driver, (x, y): (f64, f64), count: u32) {
     for kind in ["mousePressed", "mouseReleased"] {
-        driver.cdp("Input.dispatchMouseEvent", json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": count}));
+        driver.cdp(
+            "Input.dispatchMouseEvent",
+            json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": count}),
+        );
     }
 }
 

@@ -93,13 +93,7 @@ pub(super) fn assemble(order: &[String], series: Vec<Labelled>) -> (Vec<String>,
     }
     let row_indices: Vec<Vec<usize>> = series
         .iter()
-        .map(|labelled| {
-            labelled
-                .points
-                .iter()
-                .map(|(label, _)| row_of(&mut rows, label))
-                .collect()
-        })
+        .map(|labelled| labelled.points.iter().map(|(label, _)| row_of(&mut rows, label)).collect())
         .collect();
     let series = series
         .into_iter()
@@ -113,10 +107,7 @@ pub(super) fn assemble(order: &[String], series: Vec<Labelled>) -> (Vec<String>,
                     estimates[row_idx] = estimate;
                 }
             }
-            Series {
-                name: labelled.name,
-                estimates,
-            }
+            Series { name: labelled.name, estimates }
         })
         .collect();
     (rows, series)
@@ -125,21 +116,13 @@ pub(super) fn assemble(order: &[String], series: Vec<Labelled>) -> (Vec<String>,
 /// `value` with two decimals and a proper minus sign, for tooltips.
 pub(super) fn format_value(value: f64) -> String {
     let text = format!("{value:.2}");
-    let text = if text == "-0.00" {
-        "0.00".to_owned()
-    } else {
-        text
-    };
+    let text = if text == "-0.00" { "0.00".to_owned() } else { text };
     text.replace('-', "−")
 }
 
 pub(super) fn render(spec: &Spec) -> String {
     let mut values = vec![0.0];
-    for estimate in spec
-        .series
-        .iter()
-        .flat_map(|s| s.estimates.iter().flatten())
-    {
+    for estimate in spec.series.iter().flat_map(|s| s.estimates.iter().flatten()) {
         values.push(estimate.value);
         values.extend(estimate.low);
         values.extend(estimate.high);
@@ -153,11 +136,7 @@ pub(super) fn render(spec: &Spec) -> String {
     let row_height = (DODGE * n_series as f64 + 14.0).max(24.0);
 
     // Horizontal layout: row labels | plot | annotation columns.
-    let label_width = spec
-        .rows
-        .iter()
-        .map(|row| svg::text_width(&svg::shorten(row), LABEL_SIZE))
-        .fold(0.0, f64::max);
+    let label_width = spec.rows.iter().map(|row| svg::text_width(&svg::shorten(row), LABEL_SIZE)).fold(0.0, f64::max);
     let plot_left = OUTER + label_width + 14.0;
     let plot_right = plot_left + PLOT_WIDTH;
     let annotation_columns: Vec<f64> = match &spec.annotation {
@@ -167,20 +146,11 @@ pub(super) fn render(spec: &Spec) -> String {
             .iter()
             .zip(&spec.series)
             .map(|(cells, series)| {
-                let widest_cell = cells
-                    .iter()
-                    .flatten()
-                    .map(|cell| svg::text_width(cell, TICK_SIZE))
-                    .fold(0.0, f64::max);
-                let name_width = if n_series > 1 {
-                    svg::text_width(&svg::shorten(&series.name), TICK_SIZE)
-                } else {
-                    0.0
-                };
-                widest_cell
-                    .max(name_width)
-                    .max(svg::text_width(&annotation.header, TICK_SIZE) / n_series as f64)
-                    + 14.0
+                let widest_cell =
+                    cells.iter().flatten().map(|cell| svg::text_width(cell, TICK_SIZE)).fold(0.0, f64::max);
+                let name_width =
+                    if n_series > 1 { svg::text_width(&svg::shorten(&series.name), TICK_SIZE) } else { 0.0 };
+                widest_cell.max(name_width).max(svg::text_width(&annotation.header, TICK_SIZE) / n_series as f64) + 14.0
             })
             .collect(),
     };
@@ -228,11 +198,7 @@ pub(super) fn render(spec: &Spec) -> String {
         .zip(&names)
         .map(|(&(dx, _), name)| dx + 30.0 + svg::text_width(&svg::shorten(name), LABEL_SIZE))
         .fold(0.0, f64::max);
-    let legend_left = if legend.n_lines == 1 {
-        (width - legend_width) / 2.0
-    } else {
-        OUTER
-    };
+    let legend_left = if legend.n_lines == 1 { (width - legend_width) / 2.0 } else { OUTER };
     svg::draw_legend(&mut svg, &names, &legend, (legend_left, legend_top));
 
     // Alternate row bands, across labels, plot and annotation.
@@ -256,12 +222,7 @@ pub(super) fn render(spec: &Spec) -> String {
             svg.line((x, plot_top), (x, plot_bottom), GRID, 1.0);
         }
         svg.line((x, plot_bottom), (x, plot_bottom + 5.0), AXIS, 1.0);
-        tick_label(
-            &mut svg,
-            x,
-            plot_bottom + 5.0 + TICK_SIZE + 2.0,
-            &tick.label,
-        );
+        tick_label(&mut svg, x, plot_bottom + 5.0 + TICK_SIZE + 2.0, &tick.label);
         if top_ticks {
             tick_label(&mut svg, x, plot_top - 6.0, &tick.label);
         }
@@ -272,25 +233,12 @@ pub(super) fn render(spec: &Spec) -> String {
         (zero, plot_bottom),
         &format!(r#"stroke="{MUTED}" stroke-width="1.2" stroke-dasharray="5 3""#),
     );
-    svg.line(
-        (plot_left, plot_bottom),
-        (plot_right, plot_bottom),
-        AXIS,
-        1.0,
-    );
-    svg.text(
-        ((plot_left + plot_right) / 2.0, height - OUTER - 2.0),
-        &spec.value_label,
-        r#"text-anchor="middle""#,
-    );
+    svg.line((plot_left, plot_bottom), (plot_right, plot_bottom), AXIS, 1.0);
+    svg.text(((plot_left + plot_right) / 2.0, height - OUTER - 2.0), &spec.value_label, r#"text-anchor="middle""#);
 
     // Row labels.
     for (row_idx, row) in spec.rows.iter().enumerate() {
-        svg.label(
-            (plot_left - 10.0, row_centre(row_idx) + 0.35 * LABEL_SIZE),
-            row,
-            r#"text-anchor="end""#,
-        );
+        svg.label((plot_left - 10.0, row_centre(row_idx) + 0.35 * LABEL_SIZE), row, r#"text-anchor="end""#);
     }
 
     // Intervals first, then all markers over them.
@@ -302,18 +250,11 @@ pub(super) fn render(spec: &Spec) -> String {
                 continue;
             }
             let y = row_centre(row_idx) + dodge(series_idx);
-            let (left, right) = (
-                estimate.low.unwrap_or(estimate.value),
-                estimate.high.unwrap_or(estimate.value),
-            );
+            let (left, right) = (estimate.low.unwrap_or(estimate.value), estimate.high.unwrap_or(estimate.value));
             let stroke = format!(r#"stroke="{}" stroke-width="1.6""#, style.colour);
             svg.line_with((x_of(left), y), (x_of(right), y), &stroke);
             for bound in [estimate.low, estimate.high].into_iter().flatten() {
-                svg.line_with(
-                    (x_of(bound), y - CAP / 2.0),
-                    (x_of(bound), y + CAP / 2.0),
-                    &stroke,
-                );
+                svg.line_with((x_of(bound), y - CAP / 2.0), (x_of(bound), y + CAP / 2.0), &stroke);
             }
         }
     }
@@ -323,12 +264,7 @@ pub(super) fn render(spec: &Spec) -> String {
             let Some(estimate) = estimate else { continue };
             let y = row_centre(row_idx) + dodge(series_idx);
             let tooltip = tooltip(&spec.rows[row_idx], &series.name, spec.symbol, estimate);
-            svg.marker(
-                (x_of(estimate.value), y),
-                style,
-                MARKER_SIZE,
-                Some(&tooltip),
-            );
+            svg.marker((x_of(estimate.value), y), style, MARKER_SIZE, Some(&tooltip));
         }
     }
 
@@ -337,33 +273,21 @@ pub(super) fn render(spec: &Spec) -> String {
         let attributes = format!(r#"text-anchor="middle" font-size="{}""#, Px(TICK_SIZE));
         let table_centre = (annotation_left + content_right) / 2.0;
         let header_baseline = plot_top - 8.0 - if n_series > 1 { header_line } else { 0.0 };
-        svg.text(
-            (table_centre, header_baseline),
-            &annotation.header,
-            &format!(r#"{attributes} font-weight="bold""#),
-        );
+        svg.text((table_centre, header_baseline), &annotation.header, &format!(r#"{attributes} font-weight="bold""#));
         let mut column_left = annotation_left;
-        for (series_idx, (cells, column_width)) in
-            annotation.cells.iter().zip(&annotation_columns).enumerate()
-        {
+        for (series_idx, (cells, column_width)) in annotation.cells.iter().zip(&annotation_columns).enumerate() {
             let centre = column_left + column_width / 2.0;
             if n_series > 1 {
                 let colour = svg::style(series_idx).colour;
                 let name = spec.series.get(series_idx).map_or("", |s| s.name.as_str());
-                svg.label(
-                    (centre, plot_top - 8.0),
-                    name,
-                    &format!(r#"{attributes} fill="{colour}""#),
-                );
+                svg.label((centre, plot_top - 8.0), name, &format!(r#"{attributes} fill="{colour}""#));
             }
             for (row_idx, cell) in cells.iter().enumerate().take(n_rows) {
                 let y = row_centre(row_idx) + 0.35 * TICK_SIZE;
                 match cell {
-                    Some(cell) => svg.text(
-                        (centre, y),
-                        cell,
-                        &format!(r#"{attributes} font-variant-numeric="tabular-nums""#),
-                    ),
+                    Some(cell) => {
+                        svg.text((centre, y), cell, &format!(r#"{attributes} font-variant-numeric="tabular-nums""#))
+                    }
                     None => svg.text((centre, y), "–", &format!(r#"{attributes} fill="{MUTED}""#)),
                 }
             }
@@ -374,18 +298,10 @@ pub(super) fn render(spec: &Spec) -> String {
 }
 
 fn tooltip(row: &str, series: &str, symbol: &str, estimate: &Estimate) -> String {
-    let mut tooltip = format!(
-        "{row} ({series}): {symbol} = {}",
-        format_value(estimate.value)
-    );
+    let mut tooltip = format!("{row} ({series}): {symbol} = {}", format_value(estimate.value));
     match (estimate.low, estimate.high) {
         (Some(low), Some(high)) => {
-            let _ = write!(
-                tooltip,
-                ", 95 % CI [{}, {}]",
-                format_value(low),
-                format_value(high)
-            );
+            let _ = write!(tooltip, ", 95 % CI [{}, {}]", format_value(low), format_value(high));
         }
         (Some(low), None) => {
             let _ = write!(tooltip, ", 95 % CI from {}", format_value(low));
@@ -399,28 +315,13 @@ fn tooltip(row: &str, series: &str, symbol: &str, estimate: &Estimate) -> String
 }
 
 /// Draws a tick label at baseline `(x, y)`; a power of ten gets a raised, smaller exponent.
-pub(super) fn draw_tick_label(
-    svg: &mut Svg,
-    (x, y): (f64, f64),
-    label: &TickLabel,
-    attributes: &str,
-) {
+pub(super) fn draw_tick_label(svg: &mut Svg, (x, y): (f64, f64), label: &TickLabel, attributes: &str) {
     match label {
         TickLabel::Plain(text) => {
-            svg.text(
-                (x, y),
-                text,
-                &format!(
-                    r#"{attributes} font-size="{}" fill="{MUTED}""#,
-                    Px(TICK_SIZE)
-                ),
-            );
+            svg.text((x, y), text, &format!(r#"{attributes} font-size="{}" fill="{MUTED}""#, Px(TICK_SIZE)));
         }
         TickLabel::Power { mantissa, exponent } => {
-            let mantissa = mantissa
-                .as_ref()
-                .map(|m| format!("{}×", svg::escape(m)))
-                .unwrap_or_default();
+            let mantissa = mantissa.as_ref().map(|m| format!("{}×", svg::escape(m))).unwrap_or_default();
             let exponent = exponent.to_string().replace('-', "−");
             svg.raw(&format!(
                 r#"<text x="{}" y="{}" {attributes} font-size="{}" fill="{MUTED}">{mantissa}10<tspan dy="{}" font-size="{}">{exponent}</tspan></text>
@@ -440,10 +341,7 @@ pub(super) fn tick_label_width(label: &TickLabel) -> f64 {
     match label {
         TickLabel::Plain(text) => svg::text_width(text, TICK_SIZE),
         TickLabel::Power { mantissa, exponent } => {
-            let mantissa = mantissa
-                .as_ref()
-                .map(|m| format!("{m}×"))
-                .unwrap_or_default();
+            let mantissa = mantissa.as_ref().map(|m| format!("{m}×")).unwrap_or_default();
             svg::text_width(&format!("{mantissa}10"), TICK_SIZE)
                 + svg::text_width(&exponent.to_string(), 0.75 * TICK_SIZE)
         }
@@ -471,33 +369,16 @@ mod tests {
     fn assemble_keeps_the_given_order_and_appends_unknown_rows() {
         let order = vec!["LQ".to_owned(), "GI".to_owned(), "LQ".to_owned()];
         let series = vec![
-            Labelled {
-                name: "all".to_owned(),
-                points: vec![point("GI", 1.0), point("XX", 2.0), point("GI", 9.0)],
-            },
-            Labelled {
-                name: "male".to_owned(),
-                points: vec![point("LQ", 0.0)],
-            },
+            Labelled { name: "all".to_owned(), points: vec![point("GI", 1.0), point("XX", 2.0), point("GI", 9.0)] },
+            Labelled { name: "male".to_owned(), points: vec![point("LQ", 0.0)] },
         ];
         let (rows, series) = assemble(&order, series);
         assert_eq!(rows, ["LQ", "GI", "XX"]);
         assert_eq!(
-            series[0]
-                .estimates
-                .iter()
-                .map(|e| e.map(|e| e.value))
-                .collect::<Vec<_>>(),
+            series[0].estimates.iter().map(|e| e.map(|e| e.value)).collect::<Vec<_>>(),
             [None, Some(1.0), Some(2.0)]
         );
-        assert_eq!(
-            series[1]
-                .estimates
-                .iter()
-                .map(|e| e.map(|e| e.value))
-                .collect::<Vec<_>>(),
-            [Some(0.0), None, None]
-        );
+        assert_eq!(series[1].estimates.iter().map(|e| e.map(|e| e.value)).collect::<Vec<_>>(), [Some(0.0), None, None]);
     }
 
     #[test]

@@ -11,10 +11,7 @@ pub(super) const PADDING: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq)]
 pub(super) enum TickLabel {
     Plain(String),
-    Power {
-        mantissa: Option<String>,
-        exponent: i32,
-    },
+    Power { mantissa: Option<String>, exponent: i32 },
 }
 
 #[cfg(test)]
@@ -24,10 +21,7 @@ impl TickLabel {
         match self {
             TickLabel::Plain(text) => text.clone(),
             TickLabel::Power { mantissa, exponent } => {
-                let mantissa = mantissa
-                    .as_ref()
-                    .map(|m| format!("{m}×"))
-                    .unwrap_or_default();
+                let mantissa = mantissa.as_ref().map(|m| format!("{m}×")).unwrap_or_default();
                 format!("{mantissa}10{}", superscript(*exponent))
             }
         }
@@ -68,53 +62,29 @@ impl Axis {
         let (step, values) = linear_ticks(lo, hi, target);
         let major = values
             .into_iter()
-            .map(|value| Tick {
-                value,
-                label: TickLabel::Plain(format_linear(value, step)),
-            })
+            .map(|value| Tick { value, label: TickLabel::Plain(format_linear(value, step)) })
             .collect();
-        Axis {
-            log: false,
-            lo,
-            hi,
-            major,
-            minor: Vec::new(),
-        }
+        Axis { log: false, lo, hi, major, minor: Vec::new() }
     }
 
     /// A log10 axis covering the finite positive `values` (others are ignored), with about
     /// `target` labelled ticks: decades when the range spans three or more of them, else
     /// 1-2-5 multiples, else linear steps.
     pub fn log(values: &[f64], target: usize) -> Axis {
-        let logs = values
-            .iter()
-            .filter(|v| v.is_finite() && **v > 0.0)
-            .map(|v| v.log10());
+        let logs = values.iter().filter(|v| v.is_finite() && **v > 0.0).map(|v| v.log10());
         let (lo, hi) = finite_range(logs).unwrap_or((0.0, 1.0));
-        let (lo, hi) = if hi - lo < 1e-9 {
-            (lo - 0.5, hi + 0.5)
-        } else {
-            (lo, hi)
-        };
+        let (lo, hi) = if hi - lo < 1e-9 { (lo - 0.5, hi + 0.5) } else { (lo, hi) };
         let (lo, hi) = pad((lo, hi));
         let (major, minor) = log_ticks(lo, hi, target);
-        Axis {
-            log: true,
-            lo,
-            hi,
-            major,
-            minor,
-        }
+        Axis { log: true, lo, hi, major, minor }
     }
 }
 
 fn finite_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
-    values
-        .filter(|v| v.is_finite())
-        .fold(None, |range, v| match range {
-            None => Some((v, v)),
-            Some((lo, hi)) => Some((f64::min(lo, v), f64::max(hi, v))),
-        })
+    values.filter(|v| v.is_finite()).fold(None, |range, v| match range {
+        None => Some((v, v)),
+        Some((lo, hi)) => Some((f64::min(lo, v), f64::max(hi, v))),
+    })
 }
 
 /// A range of (nearly) zero width around its value: ±10 % of the value, or ±1 around 0.
@@ -140,10 +110,7 @@ fn pad((lo, hi): (f64, f64)) -> (f64, f64) {
 pub(super) fn linear_ticks(lo: f64, hi: f64, target: usize) -> (f64, Vec<f64>) {
     let raw = (hi - lo) / target.max(1) as f64;
     if !(raw.is_finite() && raw > 0.0) {
-        return (
-            f64::NAN,
-            vec![lo, hi].into_iter().filter(|v| v.is_finite()).collect(),
-        );
+        return (f64::NAN, vec![lo, hi].into_iter().filter(|v| v.is_finite()).collect());
     }
     let exponent = raw.log10().floor() as i32;
     let mut best: Option<(f64, f64)> = None;
@@ -165,9 +132,7 @@ pub(super) fn linear_ticks(lo: f64, hi: f64, target: usize) -> (f64, Vec<f64>) {
         return (f64::NAN, vec![lo, hi]);
     };
     let (first, last) = tick_index_range(lo, hi, step).unwrap_or((0, -1));
-    let ticks = (first..=last)
-        .map(|index| if index == 0 { 0.0 } else { index as f64 * step })
-        .collect();
+    let ticks = (first..=last).map(|index| if index == 0 { 0.0 } else { index as f64 * step }).collect();
     (step, ticks)
 }
 
@@ -230,17 +195,11 @@ fn log_ticks(lo: f64, hi: f64, target: usize) -> (Vec<Tick>, Vec<f64>) {
     if n_decades >= 3 {
         let decade_step = if n_decades as usize > target + 1 {
             let (step, _) = linear_ticks(lo, hi, target);
-            if step.is_finite() {
-                step.max(1.0).round() as i32
-            } else {
-                1
-            }
+            if step.is_finite() { step.max(1.0).round() as i32 } else { 1 }
         } else {
             1
         };
-        let labelled: Vec<i32> = (first_decade..=last_decade)
-            .filter(|k| k.rem_euclid(decade_step) == 0)
-            .collect();
+        let labelled: Vec<i32> = (first_decade..=last_decade).filter(|k| k.rem_euclid(decade_step) == 0).collect();
         let plain = labelled.iter().all(|k| (-3..=4).contains(k));
         let major = labelled
             .iter()
@@ -249,10 +208,7 @@ fn log_ticks(lo: f64, hi: f64, target: usize) -> (Vec<Tick>, Vec<f64>) {
                 label: if plain {
                     TickLabel::Plain(format_linear(pow10(k), pow10(k)))
                 } else {
-                    TickLabel::Power {
-                        mantissa: None,
-                        exponent: k,
-                    }
+                    TickLabel::Power { mantissa: None, exponent: k }
                 },
             })
             .collect();
@@ -262,21 +218,15 @@ fn log_ticks(lo: f64, hi: f64, target: usize) -> (Vec<Tick>, Vec<f64>) {
                 .filter(|v| inside(*v))
                 .collect()
         } else {
-            (first_decade..=last_decade)
-                .filter(|k| k.rem_euclid(decade_step) != 0)
-                .map(pow10)
-                .collect()
+            (first_decade..=last_decade).filter(|k| k.rem_euclid(decade_step) != 0).map(pow10).collect()
         };
         return (major, minor);
     }
 
     let multiples = |mantissas: &'static [i32]| {
-        (first_decade - 1..=last_decade)
-            .flat_map(move |k| mantissas.iter().map(move |&m| (m, k, multiple(m, k))))
+        (first_decade - 1..=last_decade).flat_map(move |k| mantissas.iter().map(move |&m| (m, k, multiple(m, k))))
     };
-    let one_two_five: Vec<(i32, i32, f64)> = multiples(&[1, 2, 5])
-        .filter(|(_, _, v)| inside(*v))
-        .collect();
+    let one_two_five: Vec<(i32, i32, f64)> = multiples(&[1, 2, 5]).filter(|(_, _, v)| inside(*v)).collect();
     if one_two_five.len() >= 3 {
         let plain = one_two_five.iter().all(|(_, k, _)| (-3..=4).contains(k));
         let major = one_two_five
@@ -286,22 +236,13 @@ fn log_ticks(lo: f64, hi: f64, target: usize) -> (Vec<Tick>, Vec<f64>) {
                 label: if plain {
                     TickLabel::Plain(format_linear(value, pow10(k)))
                 } else if m == 1 {
-                    TickLabel::Power {
-                        mantissa: None,
-                        exponent: k,
-                    }
+                    TickLabel::Power { mantissa: None, exponent: k }
                 } else {
-                    TickLabel::Power {
-                        mantissa: Some(m.to_string()),
-                        exponent: k,
-                    }
+                    TickLabel::Power { mantissa: Some(m.to_string()), exponent: k }
                 },
             })
             .collect();
-        let minor = multiples(&[3, 4, 6, 7, 8, 9])
-            .map(|(_, _, v)| v)
-            .filter(|v| inside(*v))
-            .collect();
+        let minor = multiples(&[3, 4, 6, 7, 8, 9]).map(|(_, _, v)| v).filter(|v| inside(*v)).collect();
         return (major, minor);
     }
 
@@ -310,30 +251,19 @@ fn log_ticks(lo: f64, hi: f64, target: usize) -> (Vec<Tick>, Vec<f64>) {
     let major = values
         .into_iter()
         .filter(|v| *v > 0.0)
-        .map(|value| Tick {
-            value,
-            label: TickLabel::Plain(format_linear(value, step)),
-        })
+        .map(|value| Tick { value, label: TickLabel::Plain(format_linear(value, step)) })
         .collect();
     (major, Vec::new())
 }
 
 /// 10ᵏ, correctly rounded for |k| ≤ 22 (so `pow10(-3) == 0.001`).
 fn pow10(k: i32) -> f64 {
-    if k >= 0 {
-        10f64.powi(k)
-    } else {
-        1.0 / 10f64.powi(-k)
-    }
+    if k >= 0 { 10f64.powi(k) } else { 1.0 / 10f64.powi(-k) }
 }
 
 /// m × 10ᵏ, correctly rounded for |k| ≤ 22 (so `multiple(5, -3) == 0.005`).
 fn multiple(m: i32, k: i32) -> f64 {
-    if k >= 0 {
-        f64::from(m) * 10f64.powi(k)
-    } else {
-        f64::from(m) / 10f64.powi(-k)
-    }
+    if k >= 0 { f64::from(m) * 10f64.powi(k) } else { f64::from(m) / 10f64.powi(-k) }
 }
 
 /// `exponent` in Unicode superscript digits: −3 → `⁻³`.
@@ -367,10 +297,7 @@ mod tests {
     fn assert_close(actual: &[f64], expected: &[f64]) {
         assert_eq!(actual.len(), expected.len(), "{actual:?} vs {expected:?}");
         for (a, e) in actual.iter().zip(expected) {
-            assert!(
-                (a - e).abs() <= TOLERANCE * e.abs().max(1.0),
-                "{actual:?} vs {expected:?}"
-            );
+            assert!((a - e).abs() <= TOLERANCE * e.abs().max(1.0), "{actual:?} vs {expected:?}");
         }
     }
 
@@ -444,40 +371,22 @@ mod tests {
         let axis = Axis::log(&[0.001, 0.5, 200.0], 6);
         assert_eq!(labels(&axis), ["0.001", "0.01", "0.1", "1", "10", "100"]);
         assert!(axis.minor.contains(&0.002) && axis.minor.contains(&90.0));
-        assert!(
-            axis.minor
-                .iter()
-                .all(|v| axis.fraction(*v) >= 0.0 && axis.fraction(*v) <= 1.0)
-        );
+        assert!(axis.minor.iter().all(|v| axis.fraction(*v) >= 0.0 && axis.fraction(*v) <= 1.0));
     }
 
     #[test]
     fn log_axis_far_from_one_uses_powers_of_ten() {
         let axis = Axis::log(&[1e-7, 1e-3], 6);
         assert_eq!(labels(&axis), ["10⁻⁷", "10⁻⁶", "10⁻⁵", "10⁻⁴", "10⁻³"]);
-        assert_eq!(
-            axis.major[0].label,
-            TickLabel::Power {
-                mantissa: None,
-                exponent: -7
-            }
-        );
+        assert_eq!(axis.major[0].label, TickLabel::Power { mantissa: None, exponent: -7 });
     }
 
     #[test]
     fn log_axis_over_very_many_decades_thins_them() {
         let axis = Axis::log(&[1e-12, 1e12], 6);
-        let exponents: Vec<i32> = axis
-            .major
-            .iter()
-            .map(|tick| tick.value.log10().round() as i32)
-            .collect();
+        let exponents: Vec<i32> = axis.major.iter().map(|tick| tick.value.log10().round() as i32).collect();
         assert!(exponents.len() <= 8, "{exponents:?}");
-        assert!(
-            exponents
-                .windows(2)
-                .all(|w| w[1] - w[0] == exponents[1] - exponents[0])
-        );
+        assert!(exponents.windows(2).all(|w| w[1] - w[0] == exponents[1] - exponents[0]));
         assert!(exponents.contains(&0));
     }
 

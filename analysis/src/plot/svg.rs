@@ -26,17 +26,14 @@ pub(super) const LEGEND_LINE: f64 = 20.0;
 /// stays in a tooltip).
 pub(super) const MAX_LABEL_CHARS: usize = 40;
 
-const FONT_FAMILY: &str =
-    "'Helvetica Neue', Helvetica, Arial, 'DejaVu Sans', 'Liberation Sans', sans-serif";
+const FONT_FAMILY: &str = "'Helvetica Neue', Helvetica, Arial, 'DejaVu Sans', 'Liberation Sans', sans-serif";
 pub(super) const TEXT: &str = "#222222";
 pub(super) const MUTED: &str = "#555555";
 pub(super) const GRID: &str = "#dddddd";
 pub(super) const AXIS: &str = "#333333";
 
 /// Okabe & Ito's colour-blind-safe palette (yellow left out: too faint on white).
-const COLOURS: [&str; 7] = [
-    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000",
-];
+const COLOURS: [&str; 7] = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"];
 
 /// Marker shapes, cycled independently of the colours so that series stay distinct in
 /// greyscale print.
@@ -50,14 +47,8 @@ pub(super) enum Shape {
     Cross,
 }
 
-const SHAPES: [Shape; 6] = [
-    Shape::Circle,
-    Shape::Square,
-    Shape::TriangleUp,
-    Shape::Diamond,
-    Shape::TriangleDown,
-    Shape::Cross,
-];
+const SHAPES: [Shape; 6] =
+    [Shape::Circle, Shape::Square, Shape::TriangleUp, Shape::Diamond, Shape::TriangleDown, Shape::Cross];
 
 /// Colour and marker of the series at `series_idx`.
 #[derive(Debug, Clone, Copy)]
@@ -67,10 +58,7 @@ pub(super) struct Style {
 }
 
 pub(super) fn style(series_idx: usize) -> Style {
-    Style {
-        colour: COLOURS[series_idx % COLOURS.len()],
-        shape: SHAPES[series_idx % SHAPES.len()],
-    }
+    Style { colour: COLOURS[series_idx % COLOURS.len()], shape: SHAPES[series_idx % SHAPES.len()] }
 }
 
 /// A coordinate or length, written with at most two decimals and no trailing zeros; a
@@ -80,11 +68,7 @@ pub(super) struct Px(pub f64);
 
 impl fmt::Display for Px {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let value = if self.0.is_finite() {
-            (self.0 * 100.0).round() / 100.0
-        } else {
-            0.0
-        };
+        let value = if self.0.is_finite() { (self.0 * 100.0).round() / 100.0 } else { 0.0 };
         if value == 0.0 {
             return f.write_str("0");
         }
@@ -105,9 +89,7 @@ pub(super) fn escape(text: &str) -> String {
             '"' => escaped.push_str("&quot;"),
             '\'' => escaped.push_str("&apos;"),
             '\t' | '\n' | '\r' => escaped.push(' '),
-            '\u{20}'..='\u{D7FF}' | '\u{E000}'..='\u{FFFD}' | '\u{10000}'..='\u{10FFFF}' => {
-                escaped.push(c)
-            }
+            '\u{20}'..='\u{D7FF}' | '\u{E000}'..='\u{FFFD}' | '\u{10000}'..='\u{10FFFF}' => escaped.push(c),
             _ => escaped.push('\u{FFFD}'),
         }
     }
@@ -155,10 +137,7 @@ pub(super) fn title_width(text: &str) -> f64 {
 /// lines for an empty title.
 pub(super) fn wrap_title(title: &str, max_width: f64) -> Vec<String> {
     let mut lines: Vec<String> = Vec::new();
-    for word in title
-        .split([' ', '\t', '\n', '\r'])
-        .filter(|word| !word.is_empty())
-    {
+    for word in title.split([' ', '\t', '\n', '\r']).filter(|word| !word.is_empty()) {
         match lines.last_mut() {
             Some(line) if title_width(&format!("{line} {word}")) <= max_width => {
                 line.push(' ');
@@ -180,14 +159,8 @@ pub(super) struct Title {
 impl Title {
     pub fn layout(title: &str, content_width: f64) -> Title {
         let lines = wrap_title(title, (content_width - 2.0 * OUTER).max(MIN_TITLE_WRAP));
-        let widest = lines
-            .iter()
-            .map(|line| title_width(line))
-            .fold(0.0, f64::max);
-        Title {
-            lines,
-            width: content_width.max(widest + 2.0 * OUTER),
-        }
+        let widest = lines.iter().map(|line| title_width(line)).fold(0.0, f64::max);
+        Title { lines, width: content_width.max(widest + 2.0 * OUTER) }
     }
 
     /// Vertical space the title takes above the next element, px (0 without a title).
@@ -201,11 +174,7 @@ impl Title {
     /// Draws the lines centred on `centre_x`, the first baseline at `top + TITLE_SIZE`.
     pub fn draw(&self, svg: &mut Svg, centre_x: f64, top: f64) {
         for (line_idx, line) in self.lines.iter().enumerate() {
-            svg.text(
-                (centre_x, top + TITLE_SIZE + line_idx as f64 * TITLE_LINE),
-                line,
-                &title_attributes(),
-            );
+            svg.text((centre_x, top + TITLE_SIZE + line_idx as f64 * TITLE_LINE), line, &title_attributes());
         }
     }
 }
@@ -227,10 +196,7 @@ impl Svg {
             size = Px(LABEL_SIZE),
         );
         let _ = writeln!(out, "<title>{}</title>", escape(title));
-        let _ = writeln!(
-            out,
-            r##"<rect width="{width}" height="{height}" fill="#ffffff"/>"##
-        );
+        let _ = writeln!(out, r##"<rect width="{width}" height="{height}" fill="#ffffff"/>"##);
         Svg { out }
     }
 
@@ -240,11 +206,7 @@ impl Svg {
     }
 
     pub fn line(&mut self, (x1, y1): (f64, f64), (x2, y2): (f64, f64), stroke: &str, width: f64) {
-        self.line_with(
-            (x1, y1),
-            (x2, y2),
-            &format!(r#"stroke="{stroke}" stroke-width="{}""#, Px(width)),
-        );
+        self.line_with((x1, y1), (x2, y2), &format!(r#"stroke="{stroke}" stroke-width="{}""#, Px(width)));
     }
 
     /// A line with arbitrary (already escaped) presentation attributes.
@@ -273,13 +235,7 @@ impl Svg {
     /// Text at baseline `(x, y)`; `content` is escaped here. `attributes` (already escaped)
     /// set anchor, size, colour and the like.
     pub fn text(&mut self, (x, y): (f64, f64), content: &str, attributes: &str) {
-        let _ = writeln!(
-            self.out,
-            r#"<text x="{}" y="{}" {attributes}>{}</text>"#,
-            Px(x),
-            Px(y),
-            escape(content)
-        );
+        let _ = writeln!(self.out, r#"<text x="{}" y="{}" {attributes}>{}</text>"#, Px(x), Px(y), escape(content));
     }
 
     /// A label shortened to [`MAX_LABEL_CHARS`]; when shortened, the full text is kept as a
@@ -307,12 +263,7 @@ impl Svg {
         let filled = format!(r##"fill="{colour}" stroke="#ffffff" stroke-width="0.8""##);
         let shape = match style.shape {
             Shape::Circle => {
-                format!(
-                    r#"<circle cx="{}" cy="{}" r="{}" {filled}"#,
-                    Px(x),
-                    Px(y),
-                    Px(r)
-                )
+                format!(r#"<circle cx="{}" cy="{}" r="{}" {filled}"#, Px(x), Px(y), Px(r))
             }
             Shape::Square => {
                 let side = size * 0.88;
@@ -326,11 +277,7 @@ impl Svg {
             }
             Shape::TriangleUp | Shape::TriangleDown => {
                 let r = r * 1.2;
-                let sign = if style.shape == Shape::TriangleUp {
-                    1.0
-                } else {
-                    -1.0
-                };
+                let sign = if style.shape == Shape::TriangleUp { 1.0 } else { -1.0 };
                 let (top, bottom) = (y - sign * r, y + sign * r * 0.6);
                 let half = r * 0.95;
                 format!(
@@ -374,12 +321,7 @@ impl Svg {
         };
         match tooltip {
             Some(tooltip) => {
-                let _ = writeln!(
-                    self.out,
-                    "{shape}><title>{}</title></{}>",
-                    escape(tooltip),
-                    tag(&shape)
-                );
+                let _ = writeln!(self.out, "{shape}><title>{}</title></{}>", escape(tooltip), tag(&shape));
             }
             None => {
                 let _ = writeln!(self.out, "{shape}/>");
@@ -395,11 +337,7 @@ impl Svg {
 
 /// The element name at the start of `markup` (`<circle …` → `circle`).
 fn tag(markup: &str) -> &str {
-    markup
-        .trim_start_matches('<')
-        .split(' ')
-        .next()
-        .unwrap_or("g")
+    markup.trim_start_matches('<').split(' ').next().unwrap_or("g")
 }
 
 /// Where each legend entry goes: its x offset from the legend's left edge and its line.
@@ -424,19 +362,11 @@ pub(super) fn legend_layout(names: &[&str], max_width: f64) -> LegendLayout {
         places.push((x, line));
         x += width + 20.0;
     }
-    LegendLayout {
-        places,
-        n_lines: if names.is_empty() { 0 } else { line + 1 },
-    }
+    LegendLayout { places, n_lines: if names.is_empty() { 0 } else { line + 1 } }
 }
 
 /// Draws the legend laid out by [`legend_layout`] with its first line centred on `y`.
-pub(super) fn draw_legend(
-    svg: &mut Svg,
-    names: &[&str],
-    layout: &LegendLayout,
-    (x0, y): (f64, f64),
-) {
+pub(super) fn draw_legend(svg: &mut Svg, names: &[&str], layout: &LegendLayout, (x0, y): (f64, f64)) {
     for (series_idx, (name, &(dx, line))) in names.iter().zip(&layout.places).enumerate() {
         let style = style(series_idx);
         let (x, y) = (x0 + dx, y + line as f64 * LEGEND_LINE);
@@ -456,19 +386,13 @@ pub(super) fn no_data(title_text: &str) -> String {
     svg.text(
         (width / 2.0, (height + OUTER + title.height()) / 2.0 + 8.0),
         "no data",
-        &format!(
-            r#"text-anchor="middle" font-size="{}" fill="{MUTED}""#,
-            Px(LABEL_SIZE + 2.0)
-        ),
+        &format!(r#"text-anchor="middle" font-size="{}" fill="{MUTED}""#, Px(LABEL_SIZE + 2.0)),
     );
     svg.finish()
 }
 
 pub(super) fn title_attributes() -> String {
-    format!(
-        r#"text-anchor="middle" font-size="{}" font-weight="bold""#,
-        Px(TITLE_SIZE)
-    )
+    format!(r#"text-anchor="middle" font-size="{}" font-weight="bold""#, Px(TITLE_SIZE))
 }
 
 #[cfg(test)]

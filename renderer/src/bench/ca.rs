@@ -18,7 +18,7 @@ use super::{Observer, Plot, Report, Series, ground_truth, load_sized};
 use crate::ca::accuracy::{self, RegionStats, Regions};
 use crate::ca::{CaParams, ParamSource, estimate};
 use crate::error::Result;
-use crate::gpu::{GiLevel, DirParams, DirRenderer};
+use crate::gpu::{DirParams, DirRenderer, GiLevel};
 use crate::image::Mask;
 use crate::metrics;
 use crate::reference::ReferenceParams;
@@ -107,7 +107,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let adapter = renderer.ctx.adapter_name();
     observer.note(&format!("adapter: {adapter}"));
     let mut rows = Vec::new();
-    let modes: [(&'static str, Option<ParamSource>); 3] = [("off", None), ("scene", Some(ParamSource::Scene)), ("estimate", Some(ParamSource::Estimate))];
+    let modes: [(&'static str, Option<ParamSource>); 3] =
+        [("off", None), ("scene", Some(ParamSource::Scene)), ("estimate", Some(ParamSource::Estimate))];
     let mut noise_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
     let mut blur_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
     let mut layer_series: Vec<Vec<(f64, f64)>> = vec![Vec::new(); modes.len() + 1];
@@ -117,7 +118,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     // σ_virt: noise on the frame's virtual objects above the ca-off frame's floor; σ_gt: the
     // camera's noise on the same pixels of the ground truth (above its noise-free floor);
     // σ_real: the photograph's untouched pixels; r: blur as a disc radius (px)
-    observer.line(&format!("{:<18} {:<7} {:<9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>7} {:>9} {:>9}", "scene", "camera", "ca", "σ_virt", "σ_gt", "σ_real", "r_virt", "r_gt", "r_real", "ca ms", "rmse(aff)"));
+    observer.line(&format!(
+        "{:<18} {:<7} {:<9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>7} {:>9} {:>9}",
+        "scene", "camera", "ca", "σ_virt", "σ_gt", "σ_real", "r_virt", "r_gt", "r_real", "ca ms", "rmse(aff)"
+    ));
     for name in &names {
         let base = load_sized(name, w, h)?;
         observer.note(&format!("{name} at {w}x{h}: reference at {ref_spp} spp …"));
@@ -194,7 +198,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     camera_noise_sigma: camera_sigma,
                     ground_truth_noise_floor: floor,
                     frame_noise_floor: frame_floor,
-                    noise_ratio_to_ground_truth: if camera_sigma > 0.0 { Some(virtual_sigma / camera_sigma) } else { None },
+                    noise_ratio_to_ground_truth: if camera_sigma > 0.0 {
+                        Some(virtual_sigma / camera_sigma)
+                    } else {
+                        None
+                    },
                     blur_difference_to_ground_truth_px: blur_difference,
                     ca_ms,
                     ms: frame.report.ms,
@@ -217,7 +225,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             clean.jpeg_quality = None;
             clean.vignetting = 0.0;
             let clean_full = sensor::apply(&reference.hdr_full, &scene.camera, &clean);
-            let coverage = Mask { width: w, height: h, values: reference.virtual_mask.values.iter().map(|v| if *v > 0.5 { 1.0 } else { 0.0 }).collect() };
+            let coverage = Mask {
+                width: w,
+                height: h,
+                values: reference.virtual_mask.values.iter().map(|v| if *v > 0.5 { 1.0 } else { 0.0 }).collect(),
+            };
             let mut layer = photo.clone();
             for (i, px) in layer.pixels.iter_mut().enumerate() {
                 if coverage.values[i] > 0.0 {
@@ -229,7 +241,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let out = match source {
                     None => layer.clone(),
                     Some(s) => {
-                        let p = if *s == ParamSource::Scene { CaParams::from_sensor(&scene.sensor) } else { estimate::params_from_photo(&photo, &scene.sensor).0 };
+                        let p = if *s == ParamSource::Scene {
+                            CaParams::from_sensor(&scene.sensor)
+                        } else {
+                            estimate::params_from_photo(&photo, &scene.sensor).0
+                        };
                         let start = Instant::now();
                         let out = crate::ca::apply_cpu(&layer, &photo, &coverage, &scene.camera, &p)?.0;
                         cpu_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -298,8 +314,20 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         series,
     };
     let plots = vec![
-        plot("render_ca_noise.svg", format!("ca: noise σ on the virtual objects ({w}x{h}, {adapter})"), "camera noise σ above the noise-free floor (Immerkær, display)", true, series(&noise_series)),
-        plot("render_ca_blur.svg", format!("ca: blur on the virtual objects' edges ({w}x{h}, {adapter})"), "equivalent disc radius (px)", false, series(&blur_series)),
+        plot(
+            "render_ca_noise.svg",
+            format!("ca: noise σ on the virtual objects ({w}x{h}, {adapter})"),
+            "camera noise σ above the noise-free floor (Immerkær, display)",
+            true,
+            series(&noise_series),
+        ),
+        plot(
+            "render_ca_blur.svg",
+            format!("ca: blur on the virtual objects' edges ({w}x{h}, {adapter})"),
+            "equivalent disc radius (px)",
+            false,
+            series(&blur_series),
+        ),
         plot(
             "render_ca_noise_layer.svg",
             format!("ca chain alone on the path-traced virtual layer: noise σ ({w}x{h}, CPU reference)"),
@@ -307,7 +335,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             true,
             series(&layer_series),
         ),
-        plot("render_ca_blur_layer.svg", format!("ca chain alone on the path-traced virtual layer: blur ({w}x{h}, CPU reference)"), "equivalent disc radius (px)", false, series(&layer_blur_series)),
+        plot(
+            "render_ca_blur_layer.svg",
+            format!("ca chain alone on the path-traced virtual layer: blur ({w}x{h}, CPU reference)"),
+            "equivalent disc radius (px)",
+            false,
+            series(&layer_blur_series),
+        ),
     ];
     Ok(Report { adapter, rows, plots })
 }

@@ -15,11 +15,11 @@ use super::{Observer, Plot, Report, Series, ground_truth, load_sized, pass_ms};
 use crate::builtin;
 use crate::cm::{CmMethod, CmParams, colour::ciede2000_display};
 use crate::error::{RenderError, Result};
-use crate::gpu::{GiLevel, DirParams, DirRenderer};
-use crate::surface;
+use crate::gpu::{DirParams, DirRenderer, GiLevel};
 use crate::metrics;
 use crate::reference::ReferenceParams;
 use crate::sensor::{self, SensorParams};
+use crate::surface;
 
 /// The camera settings of the benchmark: Figure 4.16's rows (normal; contrast up and down;
 /// saturation up and down) and exposure changes, each relative to the preset.
@@ -94,14 +94,18 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let mut warmed = false;
     // (preset, setting, method) → per-scene (mean, p95)
     let mut summary: BTreeMap<(usize, usize, usize), Vec<(f64, f64)>> = BTreeMap::new();
-    observer.line(&format!("{:<18} {:<7} {:<12} {:<11} {:>8} {:>8} {:>7} {:>8}", "scene", "camera", "setting", "cm", "dE mean", "dE p95", "pixels", "cm ms"));
+    observer.line(&format!(
+        "{:<18} {:<7} {:<12} {:<11} {:>8} {:>8} {:>7} {:>8}",
+        "scene", "camera", "setting", "cm", "dE mean", "dE p95", "pixels", "cm ms"
+    ));
     for name in &names {
         let scene = load_sized(name, w, h)?;
         observer.note(&format!("{name} at {w}x{h}: reference at {spp} spp …"));
         let reference = ground_truth(&scene, ReferenceParams { spp, ..ReferenceParams::default() }, observer)?;
         for (pi, preset) in presets.iter().enumerate() {
             for (si, (setting, alter)) in CM_SETTINGS.iter().enumerate() {
-                let mut sensor = SensorParams::preset(preset).ok_or_else(|| RenderError::Unsupported(format!("no camera preset `{preset}`")))?;
+                let mut sensor = SensorParams::preset(preset)
+                    .ok_or_else(|| RenderError::Unsupported(format!("no camera preset `{preset}`")))?;
                 sensor.seed = scene.sensor.seed;
                 sensor.distortion = [0.0; 5];
                 sensor.chromatic_aberration = 0.0;
@@ -110,7 +114,12 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let photo = sensor::apply(&reference.hdr_real, &scene.camera, &sensor);
                 let truth = sensor::apply(&reference.hdr_full, &scene.camera, &sensor);
                 for (mi, method) in CmMethod::ALL.iter().enumerate() {
-                    let params = DirParams { condition: GiLevel::Gi, vpls: VPLS, cm: CmParams { method: *method, ..CmParams::default() }, ..DirParams::default() };
+                    let params = DirParams {
+                        condition: GiLevel::Gi,
+                        vpls: VPLS,
+                        cm: CmParams { method: *method, ..CmParams::default() },
+                        ..DirParams::default()
+                    };
                     if !warmed {
                         // the first frame of each method compiles its shaders on software adapters
                         renderer.render(&scene, &photo, &params)?;
@@ -125,7 +134,17 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     let mean = if pixels == 0 { 0.0 } else { errors.iter().sum::<f64>() / pixels as f64 };
                     let p95 = metrics::quantile(&errors, 0.95);
                     let cm_ms = pass_ms(&frame.report, |p| p.starts_with("cm "));
-                    observer.line(&format!("{:<18} {:<7} {:<12} {:<11} {:>8.2} {:>8.2} {:>7} {:>8.2}", name, preset, setting, method.name(), mean, p95, pixels, cm_ms));
+                    observer.line(&format!(
+                        "{:<18} {:<7} {:<12} {:<11} {:>8.2} {:>8.2} {:>7} {:>8.2}",
+                        name,
+                        preset,
+                        setting,
+                        method.name(),
+                        mean,
+                        p95,
+                        pixels,
+                        cm_ms
+                    ));
                     rows.push(CmAccuracyRow::Frame(FrameRow {
                         scene: name.clone(),
                         camera: preset.to_string(),
@@ -170,14 +189,24 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let (mean, p95) = (v.iter().map(|x| x.0).sum::<f64>() / n, v.iter().map(|x| x.1).sum::<f64>() / n);
                 line += &format!(" {:>7.2} ({:>6.2})", mean, p95);
                 series[mi].push(((si + 1) as f64, mean));
-                rows.push(CmAccuracyRow::Mean(MeanRow { scene: "mean over scenes", scenes: v.len(), camera: preset.to_string(), setting, cm: method.name(), de2000_mean: mean, de2000_p95: p95 }));
+                rows.push(CmAccuracyRow::Mean(MeanRow {
+                    scene: "mean over scenes",
+                    scenes: v.len(),
+                    camera: preset.to_string(),
+                    setting,
+                    cm: method.name(),
+                    de2000_mean: mean,
+                    de2000_p95: p95,
+                }));
             }
             observer.line(&line);
         }
         plots.push(Plot {
             file: format!("render_cm_{preset}.svg"),
             title: format!("cm accuracy, camera {preset} ({w}x{h}, mean over {} scenes, {adapter})", names.len()),
-            x_label: "setting: 1 normal, 2 contrast+, 3 contrast-, 4 saturation+, 5 saturation-, 6 exposure+1, 7 exposure-1".into(),
+            x_label:
+                "setting: 1 normal, 2 contrast+, 3 contrast-, 4 saturation+, 5 saturation-, 6 exposure+1, 7 exposure-1"
+                    .into(),
             y_label: "CIEDE2000 on virtual pixels (mean)".into(),
             x_log: false,
             y_log: false,

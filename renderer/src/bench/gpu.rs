@@ -13,6 +13,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::{Observer, Plot, Report, Series, ground_truth, load_sized, pass_ms};
+use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams, CmReport};
 use crate::error::Result;
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender, PassTime, bounce::BounceReport};
@@ -22,7 +23,6 @@ use crate::pathtracer::{Accumulator, Subset, TraceParams, World};
 use crate::reference::{ReferenceOutput, ReferenceParams, render_photo};
 use crate::scene::Scene;
 use crate::sensor::{self, SensorParams};
-use crate::ca::CaParams;
 
 /// One row of `bench render`, by what it varies.
 #[derive(Clone, Debug, Serialize)]
@@ -206,9 +206,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     observer.note(&format!("adapter: {adapter}"));
     let mut rows = Vec::new();
     let mut plots = Vec::new();
-    observer.line(&format!("{:<18} {:<8} {:>6} {:>10} {:>10} {:>8}", "scene", "cond", "vpls", "ms", "rmse(aff)", "flip"));
+    observer
+        .line(&format!("{:<18} {:<8} {:>6} {:>10} {:>10} {:>8}", "scene", "cond", "vpls", "ms", "rmse(aff)", "flip"));
     let line = |name: &str, condition: &str, frame: &GpuRender, rmse: f64, flip: f64, rest: &str| {
-        observer.line(&format!("{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}{rest}", name, condition, frame.report.vpls, frame.report.ms, rmse, flip));
+        observer.line(&format!(
+            "{:<18} {:<8} {:>6} {:>10.2} {:>10.5} {:>8.4}{rest}",
+            name, condition, frame.report.vpls, frame.report.ms, rmse, flip
+        ));
     };
     for name in &names {
         let scene = load_sized(name, w, h)?;
@@ -253,15 +257,25 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             // and its FLIP through the true camera, and the path tracer's time to the same RMSE
             let linear = dir_linear_composite(&frame, &reference.hdr_real);
             let rmse_linear = metrics::rmse(&reference.hdr_full, &linear, Some(affected));
-            let flip_camera = metrics::flip(&reference.ground_truth, &sensor::apply(&linear, &scene.camera, &scene.sensor), Some(affected));
+            let flip_camera = metrics::flip(
+                &reference.ground_truth,
+                &sensor::apply(&linear, &scene.camera, &scene.sensor),
+                Some(affected),
+            );
             let (pt_ms, bound) = path_tracer_time_to(&pt_curve, rmse_linear, |p| p.rmse);
             let (pt_ms_flip, bound_flip) = path_tracer_time_to(&pt_curve, flip_camera, |p| p.flip);
             let speedup = pt_ms / ms.max(1e-9);
             let speedup_flip = pt_ms_flip / ms.max(1e-9);
             let versus = match bound {
-                Bound::Exact => format!("linear RMSE {rmse_linear:.4}: the path tracer needs {pt_ms:.0} ms, {speedup:.2}×"),
-                Bound::AtMost => format!("linear RMSE {rmse_linear:.4}: the path tracer at 1 spp ({pt_ms:.0} ms) is as close, ≤ {speedup:.2}×"),
-                Bound::AtLeast => format!("linear RMSE {rmse_linear:.4}: the path tracer is not as close in {pt_ms:.0} ms, > {speedup:.2}×"),
+                Bound::Exact => {
+                    format!("linear RMSE {rmse_linear:.4}: the path tracer needs {pt_ms:.0} ms, {speedup:.2}×")
+                }
+                Bound::AtMost => format!(
+                    "linear RMSE {rmse_linear:.4}: the path tracer at 1 spp ({pt_ms:.0} ms) is as close, ≤ {speedup:.2}×"
+                ),
+                Bound::AtLeast => format!(
+                    "linear RMSE {rmse_linear:.4}: the path tracer is not as close in {pt_ms:.0} ms, > {speedup:.2}×"
+                ),
             };
             line(name, gi.name(), &frame, rmse, flip, &format!("   {versus}"));
             if gi == GiLevel::Gi {
@@ -297,21 +311,54 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         }
         plots.push(Plot {
             file: format!("render_gpu_vs_path_tracer_{name}.svg"),
-            title: format!("DIR gi (16–1024 VPLs) vs the path tracer (1–{} spp), {name}, {w}x{h}", pt_curve.last().map_or(0, |p| p.spp)),
+            title: format!(
+                "DIR gi (16–1024 VPLs) vs the path tracer (1–{} spp), {name}, {w}x{h}",
+                pt_curve.last().map_or(0, |p| p.spp)
+            ),
             x_label: "time (ms)".into(),
             y_label: "RMSE of radiance in the affected region".into(),
             x_log: true,
             y_log: true,
-            series: vec![Series::new("path tracer", pt_curve.iter().map(|p| (p.ms, p.rmse)).collect()), Series::new("DIR gi", dir_points)],
+            series: vec![
+                Series::new("path tracer", pt_curve.iter().map(|p| (p.ms, p.rmse)).collect()),
+                Series::new("DIR gi", dir_points),
+            ],
         });
         // the multiple-bounce light source (5.2.7): bounces and candidates per slot
-        let bounce_settings: &[(u32, u32, u32)] = if quick { &[(256, 1, 4096), (256, 3, 4096)] } else { &[(256, 1, 4096), (256, 2, 4096), (256, 3, 1024), (256, 3, 4096), (256, 3, 16384), (1024, 1, 4096), (1024, 3, 4096)] };
+        let bounce_settings: &[(u32, u32, u32)] = if quick {
+            &[(256, 1, 4096), (256, 3, 4096)]
+        } else {
+            &[
+                (256, 1, 4096),
+                (256, 2, 4096),
+                (256, 3, 1024),
+                (256, 3, 4096),
+                (256, 3, 16384),
+                (1024, 1, 4096),
+                (1024, 3, 4096),
+            ]
+        };
         for &(vpls, bounces, bounce_candidates) in bounce_settings {
             let params = DirParams { condition: GiLevel::Gi, vpls, bounces, bounce_candidates, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let bounce_ms = pass_ms(&frame.report, |p| p.starts_with("bounce "));
-            let found: Vec<String> = frame.report.bounces.iter().map(|b| format!("{}/{} found, {} VPLs", b.found, b.slots, b.vpls)).collect();
-            line(name, "gi", &frame, rmse, flip, &format!("   bounces {bounces}, {bounce_candidates} candidates ({bounce_ms:.1} ms; {})", found.join("; ")));
+            let found: Vec<String> = frame
+                .report
+                .bounces
+                .iter()
+                .map(|b| format!("{}/{} found, {} VPLs", b.found, b.slots, b.vpls))
+                .collect();
+            line(
+                name,
+                "gi",
+                &frame,
+                rmse,
+                flip,
+                &format!(
+                    "   bounces {bounces}, {bounce_candidates} candidates ({bounce_ms:.1} ms; {})",
+                    found.join("; ")
+                ),
+            );
             rows.push(GpuRow::Bounces(BouncesRow {
                 scene: name.clone(),
                 condition: GiLevel::Gi,
@@ -368,11 +415,23 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         // the colour mappings at gi: the time of each cm pass and of the composition
         let cm_vpls = if quick { 64 } else { 256 };
         for method in CmMethod::ALL {
-            let params = DirParams { condition: GiLevel::Gi, vpls: cm_vpls, cm: CmParams { method, ..CmParams::default() }, ..DirParams::default() };
+            let params = DirParams {
+                condition: GiLevel::Gi,
+                vpls: cm_vpls,
+                cm: CmParams { method, ..CmParams::default() },
+                ..DirParams::default()
+            };
             let (frame, rmse, flip) = measure(&params)?;
             let cm_ms = pass_ms(&frame.report, |p| p.starts_with("cm "));
             let compose_ms = pass_ms(&frame.report, |p| p == "composition");
-            line(name, "gi", &frame, rmse, flip, &format!("  cm {:<10} {:>8.2} ms (+ composition {:.2} ms)", method.name(), cm_ms, compose_ms));
+            line(
+                name,
+                "gi",
+                &frame,
+                rmse,
+                flip,
+                &format!("  cm {:<10} {:>8.2} ms (+ composition {:.2} ms)", method.name(), cm_ms, compose_ms),
+            );
             rows.push(GpuRow::Cm(CmRow {
                 scene: name.clone(),
                 condition: GiLevel::Gi,
@@ -396,7 +455,14 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let params = DirParams { condition: GiLevel::Gi, vpls: 256, interleave, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
             let shading_ms = pass_ms(&frame.report, |p| p.starts_with("shading") || p.starts_with("indirect light"));
-            line(name, "gi", &frame, rmse, flip, &format!("   tiles {interleave}×{interleave} (shading + merge {shading_ms:.1} ms)"));
+            line(
+                name,
+                "gi",
+                &frame,
+                rmse,
+                flip,
+                &format!("   tiles {interleave}×{interleave} (shading + merge {shading_ms:.1} ms)"),
+            );
             rows.push(GpuRow::Interleave(InterleaveRow {
                 scene: name.clone(),
                 condition: GiLevel::Gi,
@@ -418,7 +484,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let photo = sensor::apply(&reference.hdr_real, &cam_scene.camera, &cam_scene.sensor);
             let truth = sensor::apply(&reference.hdr_full, &cam_scene.camera, &cam_scene.sensor);
             for ca in [false, true] {
-                let params = DirParams { condition: GiLevel::Gi, camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)), ..DirParams::default() };
+                let params = DirParams {
+                    condition: GiLevel::Gi,
+                    camera_artifacts: ca.then(|| CaParams::from_sensor(&cam_scene.sensor)),
+                    ..DirParams::default()
+                };
                 renderer.render(&cam_scene, &photo, &params)?;
                 let frame = renderer.render(&cam_scene, &photo, &params)?;
                 let rmse = metrics::rmse(&truth, &frame.composite, Some(affected));
@@ -467,11 +537,21 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let scene = load_sized(&names[0], tw, th)?;
     let (_, photo, _) = render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
     for interleave in [1, 4] {
-        let params = DirParams { condition: GiLevel::Gi, vpls: 256, ism_size: 128, ism_points: 1024, interleave, ..DirParams::default() };
+        let params = DirParams {
+            condition: GiLevel::Gi,
+            vpls: 256,
+            ism_size: 128,
+            ism_points: 1024,
+            interleave,
+            ..DirParams::default()
+        };
         renderer.render(&scene, &photo, &params)?;
         let frame = renderer.render(&scene, &photo, &params)?;
         let fps = 1000.0 / frame.report.ms.max(1e-9);
-        observer.line(&format!("{:<18} {:<8} {:>6} {:>10.2}   thesis setting at {tw}x{th}, tiles {interleave}×{interleave}: {fps:.2} fps", names[0], "gi", 256, frame.report.ms));
+        observer.line(&format!(
+            "{:<18} {:<8} {:>6} {:>10.2}   thesis setting at {tw}x{th}, tiles {interleave}×{interleave}: {fps:.2} fps",
+            names[0], "gi", 256, frame.report.ms
+        ));
         rows.push(GpuRow::Thesis(ThesisRow {
             scene: names[0].clone(),
             condition: GiLevel::Gi,
@@ -494,7 +574,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
 pub(super) fn with_preset(scene: &Scene, preset: &str) -> Result<Scene> {
     let mut scene = scene.clone();
     let seed = scene.sensor.seed;
-    scene.sensor = SensorParams::preset(preset).ok_or_else(|| crate::error::RenderError::Unsupported(format!("no camera preset `{preset}`")))?;
+    scene.sensor = SensorParams::preset(preset)
+        .ok_or_else(|| crate::error::RenderError::Unsupported(format!("no camera preset `{preset}`")))?;
     scene.sensor.seed = seed;
     Ok(scene)
 }
@@ -592,7 +673,10 @@ mod tests {
 
     #[test]
     fn the_path_tracers_time_to_an_error_is_interpolated_or_bounded() {
-        let curve: Vec<PtPoint> = [(1, 10.0, 0.8), (2, 20.0, 0.6), (4, 40.0, 0.4)].iter().map(|&(spp, ms, flip)| PtPoint { spp, ms, rmse: 0.0, flip }).collect();
+        let curve: Vec<PtPoint> = [(1, 10.0, 0.8), (2, 20.0, 0.6), (4, 40.0, 0.4)]
+            .iter()
+            .map(|&(spp, ms, flip)| PtPoint { spp, ms, rmse: 0.0, flip })
+            .collect();
         let (ms, bound) = path_tracer_time_to(&curve, 0.5, |p| p.flip);
         // halfway between 0.6 and 0.4: halfway in log time between 20 and 40 ms
         assert!(matches!(bound, Bound::Exact) && (ms - 800f64.sqrt()).abs() < 1e-9, "{ms}");
@@ -605,7 +689,8 @@ mod tests {
 
     #[test]
     fn bounds_serialise_by_their_old_names() {
-        let names: Vec<String> = [Bound::Exact, Bound::AtMost, Bound::AtLeast].iter().map(|b| serde_json::to_string(b).unwrap()).collect();
-        assert_eq!(names, ["\"interpolated\"", "\"at most\"", "\"at least\"" ]);
+        let names: Vec<String> =
+            [Bound::Exact, Bound::AtMost, Bound::AtLeast].iter().map(|b| serde_json::to_string(b).unwrap()).collect();
+        assert_eq!(names, ["\"interpolated\"", "\"at most\"", "\"at least\""]);
     }
 }

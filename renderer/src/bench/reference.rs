@@ -43,7 +43,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let adapter = format!("cpu reference path tracer ({threads} threads)");
     observer.note(&format!("{name} at {w}x{h}: reference at {ref_spp} spp (seed 1000) …"));
     let total = 2 * ref_spp;
-    let reference = render_reference(&scene, &ReferenceParams { spp: ref_spp, seed: 1000, pass_spp: 16, ..ReferenceParams::default() }, &|d, _| observer.progress("reference", d, total))?;
+    let reference = render_reference(
+        &scene,
+        &ReferenceParams { spp: ref_spp, seed: 1000, pass_spp: 16, ..ReferenceParams::default() },
+        &|d, _| observer.progress("reference", d, total),
+    )?;
     observer.progress("reference", total, total);
     let affected = &reference.affected_mask;
     let world = World::new(&scene, Subset::All);
@@ -52,7 +56,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let mut rows = Vec::new();
     let mut points_rmse = Vec::new();
     let mut points_flip = Vec::new();
-    observer.line(&format!("{:<10} {:>6} {:>10} {:>14} {:>12} {:>12} {:>8}", "scene", "spp", "ms", "samples/s", "rmse(aff)", "rmse(all)", "flip"));
+    observer.line(&format!(
+        "{:<10} {:>6} {:>10} {:>14} {:>12} {:>12} {:>8}",
+        "scene", "spp", "ms", "samples/s", "rmse(aff)", "rmse(all)", "flip"
+    ));
     let start = Instant::now();
     let mut spp = 1u32;
     while spp <= max_spp {
@@ -64,7 +71,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         let rmse_all = metrics::rmse(&reference.hdr_full, &img, None);
         let flip = metrics::flip(&reference.ground_truth, &display, Some(affected));
         let sps = (w * h) as f64 * spp as f64 / (ms / 1e3);
-        observer.line(&format!("{:<10} {:>6} {:>10.1} {:>14.0} {:>12.5} {:>12.5} {:>8.4}", name, spp, ms, sps, rmse_aff, rmse_all, flip));
+        observer.line(&format!(
+            "{:<10} {:>6} {:>10.1} {:>14.0} {:>12.5} {:>12.5} {:>8.4}",
+            name, spp, ms, sps, rmse_aff, rmse_all, flip
+        ));
         rows.push(ReferenceRow {
             scene: name.to_string(),
             condition: "reference",
@@ -83,7 +93,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         spp *= 2;
     }
     // the 1/√t guide through the first point
-    let guide: Vec<(f64, f64)> = points_rmse.first().map(|&(t0, e0)| points_rmse.iter().map(|&(t, _)| (t, e0 * (t0 / t).sqrt())).collect()).unwrap_or_default();
+    let guide: Vec<(f64, f64)> = points_rmse
+        .first()
+        .map(|&(t0, e0)| points_rmse.iter().map(|&(t, _)| (t, e0 * (t0 / t).sqrt())).collect())
+        .unwrap_or_default();
     let plot = Plot {
         file: "render_reference.svg".into(),
         title: format!("Reference path tracer: error against time ({name}, {w}x{h}, {adapter})"),
@@ -91,7 +104,11 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         y_label: "error in the affected region".into(),
         x_log: true,
         y_log: true,
-        series: vec![Series::new("RMSE (linear)", points_rmse), Series::new("1/sqrt(t)", guide), Series::new("FLIP", points_flip)],
+        series: vec![
+            Series::new("RMSE (linear)", points_rmse),
+            Series::new("1/sqrt(t)", guide),
+            Series::new("FLIP", points_flip),
+        ],
     };
     Ok(Report { adapter, rows, plots: vec![plot] })
 }

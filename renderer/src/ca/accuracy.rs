@@ -44,7 +44,8 @@ fn grow(mask: &Mask, radius: i64, erode: bool) -> Mask {
             for dy in -radius..=radius {
                 for dx in -radius..=radius {
                     let (xx, yy) = (x + dx, y + dy);
-                    let v = if xx < 0 || yy < 0 || xx >= w || yy >= h { 0.0 } else { mask.values[(yy * w + xx) as usize] };
+                    let v =
+                        if xx < 0 || yy < 0 || xx >= w || yy >= h { 0.0 } else { mask.values[(yy * w + xx) as usize] };
                     any |= v > 0.5;
                     all &= v > 0.5;
                 }
@@ -61,7 +62,11 @@ pub fn warp_mask(mask: &Mask, camera: &Camera, s: &SensorParams) -> Mask {
     p.response = sensor::ToneCurve::Linear;
     p.distortion = s.distortion;
     let warped = sensor::apply(&mask.to_image(), camera, &p);
-    Mask { width: mask.width, height: mask.height, values: warped.pixels.iter().map(|c| if c.y > 0.5 { 1.0 } else { 0.0 }).collect() }
+    Mask {
+        width: mask.width,
+        height: mask.height,
+        values: warped.pixels.iter().map(|c| if c.y > 0.5 { 1.0 } else { 0.0 }).collect(),
+    }
 }
 
 impl Regions {
@@ -91,5 +96,11 @@ pub fn measure(img: &Image, noise_region: &Mask, blur_region: &Mask) -> RegionSt
         }
     }
     let mean = if count > 0 { (sum / count as f64) as f32 } else { 0.0 };
-    RegionStats { mean, noise_sigma: n.sigma, noise_samples: n.samples, blur_radius_px: b.radius_px, blur_edges: b.edges }
+    RegionStats {
+        mean,
+        noise_sigma: n.sigma,
+        noise_samples: n.samples,
+        blur_radius_px: b.radius_px,
+        blur_edges: b.edges,
+    }
 }

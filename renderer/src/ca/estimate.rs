@@ -117,7 +117,10 @@ pub fn noise(img: &Image, region: Option<&Mask>) -> NoiseEstimate {
                     if clipped {
                         continue;
                     }
-                    let lap = vals[0] - 2.0 * vals[1] + vals[2] - 2.0 * vals[3] + 4.0 * vals[4] - 2.0 * vals[5] + vals[6] - 2.0 * vals[7] + vals[8];
+                    let lap = vals[0] - 2.0 * vals[1] + vals[2] - 2.0 * vals[3] + 4.0 * vals[4] - 2.0 * vals[5]
+                        + vals[6]
+                        - 2.0 * vals[7]
+                        + vals[8];
                     let sx = (vals[2] + 2.0 * vals[5] + vals[8]) - (vals[0] + 2.0 * vals[3] + vals[6]);
                     let sy = (vals[6] + 2.0 * vals[7] + vals[8]) - (vals[0] + 2.0 * vals[1] + vals[2]);
                     let mean = vals.iter().sum::<f32>() / 9.0;
@@ -139,7 +142,10 @@ pub fn noise(img: &Image, region: Option<&Mask>) -> NoiseEstimate {
     if samples.is_empty() {
         return none;
     }
-    let immerkaer = |rs: &[(f32, f32, f32)]| -> f32 { (std::f64::consts::FRAC_PI_2.sqrt() * rs.iter().map(|s| s.1 as f64).sum::<f64>() / (6.0 * rs.len() as f64)) as f32 };
+    let immerkaer = |rs: &[(f32, f32, f32)]| -> f32 {
+        (std::f64::consts::FRAC_PI_2.sqrt() * rs.iter().map(|s| s.1 as f64).sum::<f64>() / (6.0 * rs.len() as f64))
+            as f32
+    };
     let sigma = immerkaer(&samples);
     // intensity bins
     let mut bins: Vec<Vec<(f32, f32, f32)>> = vec![Vec::new(); 16];
@@ -151,7 +157,8 @@ pub fn noise(img: &Image, region: Option<&Mask>) -> NoiseEstimate {
         .filter(|b| b.len() >= 64)
         .map(|b| (b.iter().map(|s| s.0).sum::<f32>() / b.len() as f32, immerkaer(b), b.len()))
         .collect();
-    let spread = usable.iter().map(|b| b.0).fold(f32::NEG_INFINITY, f32::max) - usable.iter().map(|b| b.0).fold(f32::INFINITY, f32::min);
+    let spread = usable.iter().map(|b| b.0).fold(f32::NEG_INFINITY, f32::max)
+        - usable.iter().map(|b| b.0).fold(f32::INFINITY, f32::min);
     let (a, b, fit) = if usable.len() >= 2 && spread >= 0.1 {
         let (mut sw, mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         for &(m, s, n) in &usable {
@@ -163,7 +170,8 @@ pub fn noise(img: &Image, region: Option<&Mask>) -> NoiseEstimate {
             sxy += wgt * x * y;
         }
         let det = sw * sxx - sx * sx;
-        let (mut a, mut b) = if det > 1e-12 { ((sw * sxy - sx * sy) / det, (sxx * sy - sx * sxy) / det) } else { (0.0, sy / sw) };
+        let (mut a, mut b) =
+            if det > 1e-12 { ((sw * sxy - sx * sy) / det, (sxx * sy - sx * sxy) / det) } else { (0.0, sy / sw) };
         if a < 0.0 {
             a = 0.0;
             b = sy / sw;
@@ -207,8 +215,10 @@ fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
     let mut dir = vec![(0.0f32, 0.0f32); w * h];
     for y in 1..h - 1 {
         for x in 1..w - 1 {
-            let sx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1)) - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
-            let sy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1)) - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
+            let sx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
+                - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
+            let sy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
+                - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
             let m = (sx * sx + sy * sy).sqrt() / 8.0;
             mag[y * w + x] = m;
             if m > 0.0 {
@@ -247,10 +257,12 @@ fn edge_widths(img: &Image, region: Option<&Mask>) -> (Option<f32>, usize) {
             }) {
                 continue;
             }
-            let profile: Vec<f32> = (0..n_steps).map(|k| {
-                let t = -REACH + k as f32 * STEP;
-                sample_gray(&g, w, h, cx + nx * t, cy + ny * t)
-            }).collect();
+            let profile: Vec<f32> = (0..n_steps)
+                .map(|k| {
+                    let t = -REACH + k as f32 * STEP;
+                    sample_gray(&g, w, h, cx + nx * t, cy + ny * t)
+                })
+                .collect();
             // plateaus: the outer 2 px on each side
             let plateau = (2.0 / STEP) as usize;
             let stats = |s: &[f32]| {
@@ -371,7 +383,8 @@ pub fn jpeg_quality(img: &Image) -> JpegEstimate {
     let mut steps = Vec::new();
     let residual = |cs: &[f32], q: f32| -> Option<f32> {
         let used: Vec<f32> = cs.iter().copied().filter(|c| c.abs() >= 0.5 * q).collect();
-        (used.len() >= 20).then(|| used.iter().map(|c| (c / q - (c / q).round()).powi(2)).sum::<f32>() / used.len() as f32)
+        (used.len() >= 20)
+            .then(|| used.iter().map(|c| (c / q - (c / q).round()).powi(2)).sum::<f32>() / used.len() as f32)
     };
     for cs in &coefs {
         // the k = 1 cluster at ±q is the most populated non-zero one (coefficients fall off
@@ -479,7 +492,9 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
         let mut measured_at = |scale: f32| -> f32 {
             probe.noise_variance = [v_mid * scale; NOISE_LUT];
             // measured on 8-bit values, as the photograph was
-            super::apply_cpu(&field, &field, &mask, &camera, &probe).map(|(out, _)| noise(&quantised(&out), None).sigma.powi(2)).unwrap_or(0.0)
+            super::apply_cpu(&field, &field, &mask, &camera, &probe)
+                .map(|(out, _)| noise(&quantised(&out), None).sigma.powi(2))
+                .unwrap_or(0.0)
         };
         // log-bisection of the scale s with measured(s) = v_mid, s in [1e-2, 1e4]
         let (mut lo, mut hi) = (-2.0f32, 4.0f32);
@@ -503,7 +518,9 @@ pub fn params_from_photo(photo: &Image, scene: &SensorParams) -> (CaParams, Esti
         let mask = Mask { width: edge.width, height: edge.height, values: vec![1.0; edge.pixels.len()] };
         let width_at = |r: f32, probe: &mut CaParams| {
             probe.defocus_px = r;
-            super::apply_cpu(&edge, &edge, &mask, &camera, probe).ok().and_then(|(out, _)| edge_widths(&quantised(&out), None).0)
+            super::apply_cpu(&edge, &edge, &mask, &camera, probe)
+                .ok()
+                .and_then(|(out, _)| edge_widths(&quantised(&out), None).0)
         };
         let (mut lo, mut hi) = (0.0f32, 6.0f32);
         if width_at(0.0, &mut probe).is_some_and(|w0| w0 < target) {

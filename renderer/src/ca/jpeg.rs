@@ -11,13 +11,15 @@ use glam::Vec3;
 
 /// ITU T.81 Table K.1 (luminance), natural (row-major) order.
 pub const STD_LUMA: [u8; 64] = [
-    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56, 14, 17, 22, 29, 51, 87, 80, 62, 18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92, 49, 64, 78,
-    87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99,
+    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56, 14, 17, 22, 29, 51,
+    87, 80, 62, 18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92, 49, 64, 78, 87, 103, 121, 120, 101,
+    72, 92, 95, 98, 112, 100, 103, 99,
 ];
 /// ITU T.81 Table K.2 (chrominance), natural order.
 pub const STD_CHROMA: [u8; 64] = [
-    17, 18, 24, 47, 99, 99, 99, 99, 18, 21, 26, 66, 99, 99, 99, 99, 24, 26, 56, 99, 99, 99, 99, 99, 47, 66, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99,
-    99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99,
+    17, 18, 24, 47, 99, 99, 99, 99, 18, 21, 26, 66, 99, 99, 99, 99, 24, 26, 56, 99, 99, 99, 99, 99, 47, 66, 99, 99, 99,
+    99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99,
+    99, 99, 99, 99, 99, 99,
 ];
 
 /// A table scaled to `quality` (1–100) as libjpeg does: s = 5000/q below 50, else 200 − 2q;
@@ -113,7 +115,8 @@ fn idct8x8(coef: &[f32; 64], basis: &[f32; 64]) -> [f32; 64] {
 /// [0, 1].
 pub fn compress(img: &Image, quality: u8) -> Image {
     let basis = dct_basis();
-    let tables = [scaled_table(&STD_LUMA, quality), scaled_table(&STD_CHROMA, quality), scaled_table(&STD_CHROMA, quality)];
+    let tables =
+        [scaled_table(&STD_LUMA, quality), scaled_table(&STD_CHROMA, quality), scaled_table(&STD_CHROMA, quality)];
     let (w, h) = (img.width as i64, img.height as i64);
     let mut out = Image::new(img.width, img.height);
     for by in (0..h).step_by(8) {

@@ -151,7 +151,10 @@ impl CaParams {
 
     /// One sentence naming the first unusable value, if any.
     pub fn check(&self) -> std::result::Result<(), String> {
-        if self.distortion.iter().any(|k| !k.is_finite()) || !self.chromatic_aberration.is_finite() || self.chromatic_aberration.abs() >= 0.5 {
+        if self.distortion.iter().any(|k| !k.is_finite())
+            || !self.chromatic_aberration.is_finite()
+            || self.chromatic_aberration.abs() >= 0.5
+        {
             return Err("ca: distortion and chromatic aberration must be finite (|aberration| < 0.5)".into());
         }
         if !(self.defocus_px >= 0.0 && self.defocus_px <= 32.0) {
@@ -391,7 +394,13 @@ fn demosaic(raw: &[f32], w: u32, h: u32) -> Image {
             }
             let mut px = [0.0f32; 3];
             for c in 0..3 {
-                px[c] = if c == c0 { v0 } else if cnt[c] > 0.0 { sum[c] / cnt[c] } else { v0 };
+                px[c] = if c == c0 {
+                    v0
+                } else if cnt[c] > 0.0 {
+                    sum[c] / cnt[c]
+                } else {
+                    v0
+                };
             }
             out.set(x as u32, y as u32, Vec3::from_array(px));
         }
@@ -427,10 +436,21 @@ pub(crate) fn weight(m: Vec3) -> f32 {
 /// The CPU reference of the ca chain: the frame's `composite`, the `photograph` under it and the
 /// virtual `mask` (coverage in [0, 1]) → the composite with camera artifacts (display-encoded,
 /// [0, 1]). See the module header for what is processed and why.
-pub fn apply_cpu(composite: &Image, photo: &Image, mask: &Mask, camera: &Camera, p: &CaParams) -> Result<(Image, CaReport)> {
+pub fn apply_cpu(
+    composite: &Image,
+    photo: &Image,
+    mask: &Mask,
+    camera: &Camera,
+    p: &CaParams,
+) -> Result<(Image, CaReport)> {
     let (w, h) = (composite.width, composite.height);
     if photo.width != w || photo.height != h {
-        return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width: photo.width, b_height: photo.height });
+        return Err(RenderError::SizeMismatch {
+            a_width: w,
+            a_height: h,
+            b_width: photo.width,
+            b_height: photo.height,
+        });
     }
     if mask.width != w || mask.height != h {
         return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width: mask.width, b_height: mask.height });

@@ -131,7 +131,8 @@ fn cpu_and_gpu_agree_to_1e_3() {
     let (gpu, _) = a.run(ctx, &composite, &photo, &mask, &camera(), &p).unwrap();
     let off = cpu.pixels.iter().zip(&gpu.pixels).filter(|(c, g)| (**c - **g).abs().max_element() > 1e-3).count();
     assert!(off as f32 <= 0.005 * cpu.pixels.len() as f32, "{off} pixels differ by more than 1e-3");
-    let mean: f32 = cpu.pixels.iter().zip(&gpu.pixels).map(|(c, g)| (*c - *g).abs().max_element()).sum::<f32>() / cpu.pixels.len() as f32;
+    let mean: f32 = cpu.pixels.iter().zip(&gpu.pixels).map(|(c, g)| (*c - *g).abs().max_element()).sum::<f32>()
+        / cpu.pixels.len() as f32;
     assert!(mean < 1e-4, "mean |cpu − gpu| = {mean}");
 }
 
@@ -164,7 +165,11 @@ fn virtual_pixels_get_the_full_noise_and_differential_ones_only_what_is_missing(
     }
     let (out, _) = apply_cpu(&composite, &photo, &mask, &cam, &p).unwrap();
     let var = |x0: u32, x1: u32| {
-        let vals: Vec<f64> = (0..h).flat_map(|y| (x0..x1).map(move |x| (y, x))).flat_map(|(y, x)| out.get(x, y).to_array()).map(|v| v as f64).collect();
+        let vals: Vec<f64> = (0..h)
+            .flat_map(|y| (x0..x1).map(move |x| (y, x)))
+            .flat_map(|(y, x)| out.get(x, y).to_array())
+            .map(|v| v as f64)
+            .collect();
         let m = vals.iter().sum::<f64>() / vals.len() as f64;
         vals.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (vals.len() - 1) as f64
     };
@@ -216,7 +221,10 @@ fn bad_parameters_and_sizes_are_refused_with_a_sentence() {
     let e = apply_cpu(&composite, &photo, &mask, &camera(), &p).unwrap_err().to_string();
     assert!(e.contains("defocus"), "{e}");
     let small = Image::new(4, 4);
-    assert!(matches!(apply_cpu(&composite, &small, &mask, &camera(), &CaParams::off()), Err(RenderError::SizeMismatch { .. })));
+    assert!(matches!(
+        apply_cpu(&composite, &small, &mask, &camera(), &CaParams::off()),
+        Err(RenderError::SizeMismatch { .. })
+    ));
 }
 
 #[test]
@@ -235,7 +243,12 @@ fn scene_noise_table_is_the_response_of_the_clipped_noisy_sensor_value() {
     s.response = ToneCurve::Srgb;
     let srgb = display_noise_lut(&s);
     let web = display_noise_lut(&SensorParams::webcam());
-    for (k, reference_srgb, reference_web) in [(0usize, 0.0088437f32, 0.0029812f32), (2, 0.011602, 0.0060338), (8, 0.0040345, 0.001015), (14, 0.0023399, 6.69e-05)] {
+    for (k, reference_srgb, reference_web) in [
+        (0usize, 0.0088437f32, 0.0029812f32),
+        (2, 0.011602, 0.0060338),
+        (8, 0.0040345, 0.001015),
+        (14, 0.0023399, 6.69e-05),
+    ] {
         assert!((srgb[k] / reference_srgb - 1.0).abs() < 0.01, "sRGB {k}: {} against {reference_srgb}", srgb[k]);
         assert!((web[k] / reference_web - 1.0).abs() < 0.01, "webcam {k}: {} against {reference_web}", web[k]);
     }
@@ -353,7 +366,9 @@ fn jpeg_estimator_recovers_the_quality() {
     let mut radiance = Image::new(w, h);
     for y in 0..h {
         for x in 0..w {
-            let v = 0.3 + 0.15 * ((x as f32 * 0.37).sin() + (y as f32 * 0.23).cos()) + 0.1 * (((x * 7 + y * 13) % 17) as f32 / 17.0);
+            let v = 0.3
+                + 0.15 * ((x as f32 * 0.37).sin() + (y as f32 * 0.23).cos())
+                + 0.1 * (((x * 7 + y * 13) % 17) as f32 / 17.0);
             radiance.set(x, y, Vec3::new(v, v * 0.8, v * 0.6));
         }
     }
@@ -386,11 +401,21 @@ fn camera_and_clean(preset: &str) -> (Image, Image, SensorParams, Camera) {
                     let py = y as f32 + (sy as f32 + 0.5) / 4.0;
                     let disc = (px - 60.0).powi(2) + (py - 70.0).powi(2) < 34.0 * 34.0;
                     let square = (px - 140.0).abs() < 28.0 && (py - 72.0).abs() < 28.0;
-                    s += if disc { 1.0 } else if square { 0.5 } else { 0.0 };
+                    s += if disc {
+                        1.0
+                    } else if square {
+                        0.5
+                    } else {
+                        0.0
+                    };
                 }
             }
             let shade = 0.1 + 0.3 * x as f32 / w as f32 + 0.1 * y as f32 / h as f32;
-            radiance.set(x, y, Vec3::new(shade + 0.35 * s / 16.0, shade * 0.9 + 0.3 * s / 16.0, shade * 0.8 + 0.2 * s / 16.0));
+            radiance.set(
+                x,
+                y,
+                Vec3::new(shade + 0.35 * s / 16.0, shade * 0.9 + 0.3 * s / 16.0, shade * 0.8 + 0.2 * s / 16.0),
+            );
         }
     }
     let s = SensorParams::preset(preset).unwrap();
@@ -433,11 +458,19 @@ fn the_chain_on_a_clean_image_reproduces_the_cameras_noise_and_blur() {
             let out = estimate::quantised(&out);
             let n = estimate::noise(&out, None).sigma;
             let b = estimate::blur(&out, None).radius_px.unwrap();
-            eprintln!("{preset} {name}: noise {n:.5} (camera {target_noise:.5}), blur {b:.2} (camera {target_blur:.2}); params defocus {:.2} noise(0.5) {:.2e} jpeg {:?}", p.defocus_px, lut_variance(&p.noise_variance, 0.5), p.jpeg_quality);
+            eprintln!(
+                "{preset} {name}: noise {n:.5} (camera {target_noise:.5}), blur {b:.2} (camera {target_blur:.2}); params defocus {:.2} noise(0.5) {:.2e} jpeg {:?}",
+                p.defocus_px,
+                lut_variance(&p.noise_variance, 0.5),
+                p.jpeg_quality
+            );
             // measured when written: webcam scene 0.00203/0.00208, estimate 0.00180; phone scene
             // 0.00273/0.00334 (saturation, which amplifies chroma noise, is not simulated),
             // estimate 0.00364; blur within 0.12 px
-            assert!((n / target_noise - 1.0).abs() < 0.25, "{preset} {name}: noise {n} against the camera's {target_noise}");
+            assert!(
+                (n / target_noise - 1.0).abs() < 0.25,
+                "{preset} {name}: noise {n} against the camera's {target_noise}"
+            );
             assert!((b - target_blur).abs() < 0.3, "{preset} {name}: blur {b} against the camera's {target_blur}");
         }
     }

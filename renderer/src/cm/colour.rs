@@ -13,11 +13,8 @@ pub use crate::image::{srgb_decode, srgb_encode};
 /// Linear sRGB → XYZ with illuminant E by XYZ scaling: colour-science 0.4.7,
 /// `RGB_to_XYZ(rgb, "sRGB", illuminant=E, chromatic_adaptation_transform="XYZ Scaling")`,
 /// columns are the images of pure red, green and blue (printed by `cm_colour.py`).
-pub const RGB_TO_XYZ_E: [[f32; 3]; 3] = [
-    [0.433_897_03, 0.376_240_5, 0.189_908_86],
-    [0.2126, 0.7152, 0.0722],
-    [0.017_721_742, 0.109_452_41, 0.872_772_8],
-];
+pub const RGB_TO_XYZ_E: [[f32; 3]; 3] =
+    [[0.433_897_03, 0.376_240_5, 0.189_908_86], [0.2126, 0.7152, 0.0722], [0.017_721_742, 0.109_452_41, 0.872_772_8]];
 /// Its inverse (numpy.linalg.inv of the matrix above).
 #[allow(clippy::excessive_precision)]
 pub const XYZ_E_TO_RGB: [[f32; 3]; 3] = [
@@ -27,7 +24,11 @@ pub const XYZ_E_TO_RGB: [[f32; 3]; 3] = [
 ];
 
 fn mat_vec(m: &[[f32; 3]; 3], v: Vec3) -> Vec3 {
-    Vec3::new(m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z, m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z)
+    Vec3::new(
+        m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
+        m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+        m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z,
+    )
 }
 
 /// The simplified Reinhard operator per channel, x·e / (1 + x·e) with negative input clamped
@@ -159,7 +160,9 @@ pub fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
     } else {
         (h1p + h2p - 360.0) / 2.0
     };
-    let t = 1.0 - 0.17 * (h_bar - 30.0).to_radians().cos() + 0.24 * (2.0 * h_bar).to_radians().cos() + 0.32 * (3.0 * h_bar + 6.0).to_radians().cos()
+    let t = 1.0 - 0.17 * (h_bar - 30.0).to_radians().cos()
+        + 0.24 * (2.0 * h_bar).to_radians().cos()
+        + 0.32 * (3.0 * h_bar + 6.0).to_radians().cos()
         - 0.20 * (4.0 * h_bar - 63.0).to_radians().cos();
     let d_theta = 30.0 * (-((h_bar - 275.0) / 25.0).powi(2)).exp();
     let c_bar_p7 = c_bar_p.powi(7);
@@ -200,7 +203,11 @@ mod tests {
             let d = ciede2000(arr(&pair["lab1"]), arr(&pair["lab2"]));
             let published = pair["published"].as_f64().unwrap();
             assert!((d - published).abs() < 1e-4, "Sharma pair {}: {d} against {published}", i + 1);
-            assert!((ciede2000(arr(&pair["lab2"]), arr(&pair["lab1"])) - published).abs() < 1e-4, "pair {} is not symmetric", i + 1);
+            assert!(
+                (ciede2000(arr(&pair["lab2"]), arr(&pair["lab1"])) - published).abs() < 1e-4,
+                "pair {} is not symmetric",
+                i + 1
+            );
         }
         for pair in r["random"].as_array().unwrap() {
             let d = ciede2000(arr(&pair["lab1"]), arr(&pair["lab2"]));

@@ -190,7 +190,8 @@ impl Mapping {
             Mapping::Off => srgb_encode3(tone_map(x, exposure)),
             Mapping::Statistics { mean_source, mean_target, ratio } => {
                 let lab = colour::linear_to_lab(tone_map(x, exposure));
-                let t = (lab - Vec3::from_array(*mean_source)) * Vec3::from_array(*ratio) + Vec3::from_array(*mean_target);
+                let t =
+                    (lab - Vec3::from_array(*mean_source)) * Vec3::from_array(*ratio) + Vec3::from_array(*mean_target);
                 srgb_encode3(colour::lab_to_linear(t).max(Vec3::ZERO))
             }
             Mapping::Affine { rows } => {
@@ -265,14 +266,22 @@ pub fn compose(linear_domain: bool, composition: Composition, photo: Vec3, flag:
 
 /// The whole colour mapping and composition of one frame on the CPU: estimate the mapping
 /// (updating `state`), map both buffers, compose.
-pub fn cpu_frame(input: &CmInput, params: &CmParams, exposure: f32, composition: Composition, state: &mut CmState) -> CmOutput {
+pub fn cpu_frame(
+    input: &CmInput,
+    params: &CmParams,
+    exposure: f32,
+    composition: Composition,
+    state: &mut CmState,
+) -> CmOutput {
     let (mapping, pairs, fallback) = match params.method {
         CmMethod::Off => (Mapping::Off, 0, None),
         CmMethod::Statistics => {
             let sums = statistics::cpu_sums(input, params, exposure);
             statistics::solve(&sums)
         }
-        CmMethod::Samples => samples::estimate(input, params, exposure, state, &|colours| samples::cpu_matches(input, params, exposure, colours)),
+        CmMethod::Samples => samples::estimate(input, params, exposure, state, &|colours| {
+            samples::cpu_matches(input, params, exposure, colours)
+        }),
         CmMethod::Rohmer => {
             let approx = rohmer::cpu_sums(input, params, exposure, None);
             let a = rohmer::approximation(&approx, params);
@@ -285,7 +294,9 @@ pub fn cpu_frame(input: &CmInput, params: &CmParams, exposure: f32, composition:
     let mapped_rv: Vec<Vec3> = input.l_rv.iter().map(|&x| mapping.apply(x, exposure)).collect();
     let mapped_r: Vec<Vec3> = input.l_r.iter().map(|&x| mapping.apply(x, exposure)).collect();
     let linear = mapping.linear_domain();
-    let composite = (0..input.photo.len()).map(|i| compose(linear, composition, input.photo[i], input.flags[i], mapped_rv[i], mapped_r[i])).collect();
+    let composite = (0..input.photo.len())
+        .map(|i| compose(linear, composition, input.photo[i], input.flags[i], mapped_rv[i], mapped_r[i]))
+        .collect();
     CmOutput { mapped_rv, mapped_r, composite, report: CmReport { method: params.method, mapping, pairs, fallback } }
 }
 

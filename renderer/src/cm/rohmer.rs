@@ -83,7 +83,9 @@ pub fn filter1(input: &CmInput, i: usize, params: &CmParams, exposure: f32) -> O
         return None;
     }
     let gradient = |f: &dyn Fn(usize) -> Vec3| (((f(r) - f(l)).abs() + (f(d) - f(u)).abs()) * 0.5).max_element();
-    if gradient(&|j| input.photo[j]) > params.gradient || gradient(&|j| srgb_encode3(tone_map(input.l_r[j], exposure))) > params.gradient {
+    if gradient(&|j| input.photo[j]) > params.gradient
+        || gradient(&|j| srgb_encode3(tone_map(input.l_r[j], exposure))) > params.gradient
+    {
         return None;
     }
     let d_hs = hs_distance(gamma_decode(cam), input.l_r[i]);
@@ -99,7 +101,13 @@ pub fn contribution_approx(input: &CmInput, i: usize, params: &CmParams, exposur
 }
 
 /// The contribution of pixel `i` to eq. 2, after filter 2 with `previous` (c_{t−1}).
-pub fn contribution_fit(input: &CmInput, i: usize, params: &CmParams, exposure: f32, previous: &Mat3) -> Option<[f32; KF]> {
+pub fn contribution_fit(
+    input: &CmInput,
+    i: usize,
+    params: &CmParams,
+    exposure: f32,
+    previous: &Mat3,
+) -> Option<[f32; KF]> {
     let d = filter1(input, i, params, exposure)?;
     let (u, r) = (gamma_decode(input.photo[i]), input.l_r[i]);
     if hsv_distance(*previous * u, r) > params.hsv_fine {
@@ -144,7 +152,8 @@ pub fn approximation(sums: &[f64], _params: &CmParams) -> (Mat3, Option<String>)
 type M3 = [[f64; 3]; 3];
 
 fn det(m: &M3) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
 #[allow(clippy::needless_range_loop)]
@@ -182,7 +191,10 @@ fn frobenius(m: &M3) -> f64 {
 pub fn fit_matrix(fit: &[f64], a: &Mat3, params: &CmParams) -> (Mat3, Option<String>) {
     let n = fit[0] as usize;
     if n < params.min_pairs.max(9) {
-        return (*a, Some(format!("{n} filtered pairs, fewer than {}: diagonal approximation A_t", params.min_pairs.max(9))));
+        return (
+            *a,
+            Some(format!("{n} filtered pairs, fewer than {}: diagonal approximation A_t", params.min_pairs.max(9))),
+        );
     }
     let mut g: M3 = [[0.0; 3]; 3];
     let mut b: M3 = [[0.0; 3]; 3];
@@ -211,9 +223,14 @@ pub fn fit_matrix(fit: &[f64], a: &Mat3, params: &CmParams) -> (Mat3, Option<Str
     };
     let x = mul(&lhs_inv, &rhs);
     let c: M3 = [[x[0][0], x[1][0], x[2][0]], [x[0][1], x[1][1], x[2][1]], [x[0][2], x[1][2], x[2][2]]];
-    let ok = det(&c) > 0.0 && inverse(&c).is_some_and(|ci| frobenius(&c) * frobenius(&ci) < 1e4) && c.iter().flatten().all(|v| v.is_finite());
+    let ok = det(&c) > 0.0
+        && inverse(&c).is_some_and(|ci| frobenius(&c) * frobenius(&ci) < 1e4)
+        && c.iter().flatten().all(|v| v.is_finite());
     if !ok {
-        return (*a, Some("C_t is not safely invertible (det ≤ 0 or condition > 10⁴): diagonal approximation A_t".into()));
+        return (
+            *a,
+            Some("C_t is not safely invertible (det ≤ 0 or condition > 10⁴): diagonal approximation A_t".into()),
+        );
     }
     (from_rows(c.map(|r| r.map(|v| v as f32))), None)
 }

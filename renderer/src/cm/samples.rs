@@ -42,7 +42,10 @@ pub fn match_score(a: Vec3, b: Vec3) -> f32 {
 
 /// For each sample colour (already tone-mapped), the best-matching usable real pixel.
 pub fn cpu_matches(input: &CmInput, params: &CmParams, exposure: f32, colours: &[Vec3]) -> Vec<Option<usize>> {
-    let candidates: Vec<(usize, Vec3)> = (0..input.photo.len()).filter(|&i| usable(input, i, params)).map(|i| (i, tone_map(input.l_r[i], exposure))).collect();
+    let candidates: Vec<(usize, Vec3)> = (0..input.photo.len())
+        .filter(|&i| usable(input, i, params))
+        .map(|i| (i, tone_map(input.l_r[i], exposure)))
+        .collect();
     colours
         .iter()
         .map(|&a| {
@@ -120,7 +123,8 @@ pub fn regress(pairs: &[(Vec3, Vec3)], mode: Regression) -> Option<[[f32; 4]; 3]
                 *row = [a[0] as f32, a[1] as f32, a[2] as f32, 0.0];
             }
             Regression::Affine => {
-                let x: Vec<Vec<f64>> = pairs.iter().map(|(r, _)| vec![1.0, r.x as f64, r.y as f64, r.z as f64]).collect();
+                let x: Vec<Vec<f64>> =
+                    pairs.iter().map(|(r, _)| vec![1.0, r.x as f64, r.y as f64, r.z as f64]).collect();
                 let a = least_squares(&x, &y)?;
                 *row = [a[1] as f32, a[2] as f32, a[3] as f32, a[0] as f32];
             }
@@ -146,17 +150,30 @@ pub fn fit(pairs: &[(Vec3, Vec3)], mode: Regression) -> ([[f32; 4]; 3], Option<S
         return (rows, None);
     }
     if let Some(rows) = (mode != Regression::PerChannel).then(|| regress(pairs, Regression::PerChannel)).flatten() {
-        return (rows, Some(format!("{} pairs: too few or singular for the {mode:?} polynomial; per-channel polynomial used", pairs.len())));
+        return (
+            rows,
+            Some(format!(
+                "{} pairs: too few or singular for the {mode:?} polynomial; per-channel polynomial used",
+                pairs.len()
+            )),
+        );
     }
     (IDENTITY, Some(format!("{} pairs: too few or singular for any polynomial; identity (cm off)", pairs.len())))
 }
 
 /// The whole estimate; `matcher` returns the best real pixel per sample colour (CPU or GPU).
-pub fn estimate(input: &CmInput, params: &CmParams, exposure: f32, state: &mut CmState, matcher: &dyn Fn(&[Vec3]) -> Vec<Option<usize>>) -> (Mapping, usize, Option<String>) {
+pub fn estimate(
+    input: &CmInput,
+    params: &CmParams,
+    exposure: f32,
+    state: &mut CmState,
+    matcher: &dyn Fn(&[Vec3]) -> Vec<Option<usize>>,
+) -> (Mapping, usize, Option<String>) {
     let chosen = choose_samples(input.flags, params.samples);
     let colours: Vec<Vec3> = chosen.iter().map(|&i| tone_map(input.l_rv[i], exposure)).collect();
     let matches = if colours.is_empty() { Vec::new() } else { matcher(&colours) };
-    let pairs: Vec<(Vec3, Vec3)> = matches.iter().flatten().map(|&i| (srgb_encode3(tone_map(input.l_r[i], exposure)), input.photo[i])).collect();
+    let pairs: Vec<(Vec3, Vec3)> =
+        matches.iter().flatten().map(|&i| (srgb_encode3(tone_map(input.l_r[i], exposure)), input.photo[i])).collect();
     let pairs = with_swaps(&pairs);
     let (mut rows, mut fallback) = if chosen.is_empty() {
         (IDENTITY, Some("no virtual pixel to sample: identity (cm off)".to_string()))

@@ -34,7 +34,11 @@ pub fn cpu_sums(input: &CmInput, params: &CmParams, exposure: f32) -> [f64; K] {
 pub fn solve(sums: &[f64; K]) -> (Mapping, usize, Option<String>) {
     let n = sums[0];
     if n < 1.0 {
-        return (Mapping::Off, 0, Some("no usable real pixel (all virtual, unmodelled, black or saturated): no statistics, cm off".into()));
+        return (
+            Mapping::Off,
+            0,
+            Some("no usable real pixel (all virtual, unmodelled, black or saturated): no statistics, cm off".into()),
+        );
     }
     let mut mean_source = [0f32; 3];
     let mut mean_target = [0f32; 3];
@@ -55,6 +59,8 @@ pub fn solve(sums: &[f64; K]) -> (Mapping, usize, Option<String>) {
             (st / ss) as f32
         };
     }
-    let fallback = (!flat.is_empty()).then(|| format!("zero variance in TM(L_r) for Lab channel(s) {}: ratio 1 there (mean shift only)", flat.join(", ")));
+    let fallback = (!flat.is_empty()).then(|| {
+        format!("zero variance in TM(L_r) for Lab channel(s) {}: ratio 1 there (mean shift only)", flat.join(", "))
+    });
     (Mapping::Statistics { mean_source, mean_target, ratio }, n as usize, fallback)
 }

@@ -22,11 +22,13 @@ pub(crate) struct Frame {
 impl Frame {
     pub fn new(width: u32, height: u32, peak: f32, seed: u64, camera: impl Fn(Vec3) -> Vec3) -> Frame {
         let n = (width * height) as usize;
-        let (mut l_rv, mut l_r, mut flags, mut photo) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+        let (mut l_rv, mut l_r, mut flags, mut photo) =
+            (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
         for y in 0..height {
             for x in 0..width {
                 let mut rng = Rng::for_stream(seed, ((y / 8) * 1000 + x / 8) as u64, 0);
-                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * peak * 0.9 + Vec3::splat(0.05 * peak);
+                let c =
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * peak * 0.9 + Vec3::splat(0.05 * peak);
                 let virt = x >= width / 3 && x < 2 * width / 3 && y >= height / 3 && y < 2 * height / 3;
                 // the virtual object is a red-ish shaded block; L_rv on real pixels adds a shadow
                 let shade = 0.3 + 0.7 * (x as f32 / width as f32);
@@ -46,7 +48,14 @@ impl Frame {
         Frame { width, height, l_rv, l_r, flags, photo }
     }
     pub fn input(&self) -> CmInput<'_> {
-        CmInput { width: self.width, height: self.height, l_rv: &self.l_rv, l_r: &self.l_r, flags: &self.flags, photo: &self.photo }
+        CmInput {
+            width: self.width,
+            height: self.height,
+            l_rv: &self.l_rv,
+            l_r: &self.l_r,
+            flags: &self.flags,
+            photo: &self.photo,
+        }
     }
 }
 
@@ -94,7 +103,8 @@ fn statistics_transfers_a_known_lab_shift_and_scale() {
     // camera = the Lab transfer of TM(L_r) with known ratio and means: the estimate recovers it
     let (ratio, shift) = (Vec3::new(1.2, 0.8, 1.1), Vec3::new(-3.0, 4.0, -6.0));
     let f0 = Frame::new(64, 48, 1.0, 3, |c| c);
-    let labs: Vec<Vec3> = f0.l_r.iter().zip(&f0.flags).filter(|(_, g)| **g == 1).map(|(c, _)| linear_to_lab(tone_map(*c, 1.0))).collect();
+    let labs: Vec<Vec3> =
+        f0.l_r.iter().zip(&f0.flags).filter(|(_, g)| **g == 1).map(|(c, _)| linear_to_lab(tone_map(*c, 1.0))).collect();
     let mean = labs.iter().copied().sum::<Vec3>() / labs.len() as f32;
     let f = Frame::new(64, 48, 1.0, 3, |c| {
         let lab = (linear_to_lab(tone_map(c, 1.0)) - mean) * ratio + mean + shift;
@@ -102,7 +112,9 @@ fn statistics_transfers_a_known_lab_shift_and_scale() {
     });
     let out = cpu_frame(&f.input(), &params(CmMethod::Statistics), 1.0, Composition::Additive, &mut CmState::default());
     all_finite(&out);
-    let Mapping::Statistics { mean_source, mean_target, ratio: r } = out.report.mapping else { panic!("{:?}", out.report) };
+    let Mapping::Statistics { mean_source, mean_target, ratio: r } = out.report.mapping else {
+        panic!("{:?}", out.report)
+    };
     for c in 0..3 {
         assert!((r[c] - ratio[c]).abs() < 0.03, "ratio {r:?} against {ratio}");
         assert!((mean_target[c] - mean_source[c] - shift[c]).abs() < 0.3, "means {mean_source:?} {mean_target:?}");
@@ -154,7 +166,8 @@ fn saturated_camera_pixels_are_excluded() {
     let f = Frame::new(64, 48, 2.5, 6, |c| gamma_encode(c * gain));
     let input = f.input();
     let p = params(CmMethod::Statistics);
-    let clipped = (0..f.photo.len()).filter(|&i| f.flags[i] == surface::REAL && f.photo[i].max_element() >= p.saturated).count();
+    let clipped =
+        (0..f.photo.len()).filter(|&i| f.flags[i] == surface::REAL && f.photo[i].max_element() >= p.saturated).count();
     assert!(clipped > 100, "test needs clipped pixels ({clipped})");
     let sums = statistics::cpu_sums(&input, &p, 1.0);
     let real = f.flags.iter().filter(|g| **g == 1).count();
@@ -222,7 +235,11 @@ fn samples_fit_a_known_affine_camera_and_smooth_across_frames() {
     let a = [[0.9, 0.05, 0.0, 0.03], [0.02, 0.8, 0.05, 0.05], [0.0, 0.1, 0.7, 0.02]];
     let affine = |c: Vec3, a: [[f32; 4]; 3]| {
         let d = srgb_encode3(tone_map(c, 1.0));
-        Vec3::new(a[0][0] * d.x + a[0][1] * d.y + a[0][2] * d.z + a[0][3], a[1][0] * d.x + a[1][1] * d.y + a[1][2] * d.z + a[1][3], a[2][0] * d.x + a[2][1] * d.y + a[2][2] * d.z + a[2][3])
+        Vec3::new(
+            a[0][0] * d.x + a[0][1] * d.y + a[0][2] * d.z + a[0][3],
+            a[1][0] * d.x + a[1][1] * d.y + a[1][2] * d.z + a[1][3],
+            a[2][0] * d.x + a[2][1] * d.y + a[2][2] * d.z + a[2][3],
+        )
     };
     let f = Frame::new(64, 48, 1.0, 9, |c| affine(c, a));
     let mut state = CmState::default();

@@ -29,9 +29,9 @@ use super::context::GpuContext;
 use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
 // the PCG hash of common.wgsl, written once in Rust
-use crate::math::pcg_hash as hash;
 use crate::material::Material;
 use crate::math::luminance;
+use crate::math::pcg_hash as hash;
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 use wgpu::util::DeviceExt;
@@ -144,11 +144,7 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
     let mut start = 0;
     while start < linked.len() {
         let source = linked[start].0;
-        let end = start
-            + linked[start..]
-                .iter()
-                .take_while(|(s, _)| *s == source)
-                .count();
+        let end = start + linked[start..].iter().take_while(|(s, _)| *s == source).count();
         let m = (end - start) as u32;
         let n = Vec3::from_slice(&sources[source].normal[..3]).normalize_or(Vec3::Y);
         let (t, b) = n.any_orthonormal_pair();
@@ -158,14 +154,8 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
             let u1 = ((l as f32 + 0.5) / m as f32 + rot1).fract();
             let u2 = (super::radical_inverse(l) + rot2).fract();
             let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
-            let direction =
-                (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt())
-                    .normalize();
-            out.push(SlotSource {
-                source,
-                p: linked[start].1,
-                direction,
-            });
+            let direction = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalize();
+            out.push(SlotSource { source, p: linked[start].1, direction });
         }
         start = end;
     }
@@ -174,22 +164,18 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
 
 impl Bounce {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("bounce.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-            });
-        let pipeline = ctx
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("bounce"),
-                layout: None,
-                module: &module,
-                entry_point: Some("cs_nearest"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("bounce.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("bounce"),
+            layout: None,
+            module: &module,
+            entry_point: Some("cs_nearest"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
         Bounce { pipeline }
     }
 
@@ -256,18 +242,8 @@ impl Bounce {
         // a minimum distance of a millimetre per metre of scene keeps the source's own surface out
         let min_distance = (1e-3 * scene_radius).max(1e-5);
         let uniform = BounceUniform {
-            counts: [
-                search.candidates.max(1),
-                n,
-                scene.real_triangles,
-                scene.triangles,
-            ],
-            cone: [
-                search.cone_degrees.clamp(0.01, 90.0).to_radians().cos(),
-                min_distance,
-                0.01,
-                0.0,
-            ],
+            counts: [search.candidates.max(1), n, scene.real_triangles, scene.triangles],
+            cone: [search.cone_degrees.clamp(0.01, 90.0).to_radians().cos(), min_distance, 0.01, 0.0],
         };
         let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("bounce params"),
@@ -289,26 +265,11 @@ impl Bounce {
             label: Some("bounce"),
             layout: &self.pipeline.get_bind_group_layout(0),
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniform_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: scene.positions.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: scene.cdf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: slot_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: hits.as_entire_binding(),
-                },
+                wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: scene.positions.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: scene.cdf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: slot_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: hits.as_entire_binding() },
             ],
         });
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -374,20 +335,14 @@ fn spawn_from_hits(
         let ir = source.normal[3] > 0.5;
         let scale = (1.0 / (s.p * slots)) as f32;
         let flux_in = Vec3::from_slice(&source.flux[..3]) * scale;
-        let make =
-            |(position, normal, albedo, _): (Vec3, Vec3, Vec3, bool), path: bool, ir: bool| {
-                let flux = albedo * flux_in;
-                (luminance(flux) > 0.0 && flux.is_finite()).then_some(GpuVpl {
-                    position: [
-                        position.x,
-                        position.y,
-                        position.z,
-                        if path { 1.0 } else { 0.0 },
-                    ],
-                    normal: [normal.x, normal.y, normal.z, if ir { 1.0 } else { 0.0 }],
-                    flux: [flux.x, flux.y, flux.z, 0.0],
-                })
-            };
+        let make = |(position, normal, albedo, _): (Vec3, Vec3, Vec3, bool), path: bool, ir: bool| {
+            let flux = albedo * flux_in;
+            (luminance(flux) > 0.0 && flux.is_finite()).then_some(GpuVpl {
+                position: [position.x, position.y, position.z, if path { 1.0 } else { 0.0 }],
+                normal: [normal.x, normal.y, normal.z, if ir { 1.0 } else { 0.0 }],
+                flux: [flux.x, flux.y, flux.z, 0.0],
+            })
+        };
         let any = surface_point(mesh, materials, &hits[8 * j..8 * j + 4], origin);
         let real = surface_point(mesh, materials, &hits[8 * j + 4..8 * j + 8], origin);
         if ir {
@@ -433,38 +388,18 @@ mod tests {
         assert_eq!((count(0), count(1), count(2)), (1000, 3000, 0));
         // a cosine lobe around the normal: E[cos θ] = 2/3, E[cos² θ] = 1/2, nothing below
         for (i, n) in [(0, Vec3::Y), (1, Vec3::X)] {
-            let cos: Vec<f64> = linked
-                .iter()
-                .filter(|s| s.source == i)
-                .map(|s| s.direction.dot(n) as f64)
-                .collect();
+            let cos: Vec<f64> = linked.iter().filter(|s| s.source == i).map(|s| s.direction.dot(n) as f64).collect();
             assert!(cos.iter().all(|c| *c >= 0.0));
             let mean = cos.iter().sum::<f64>() / cos.len() as f64;
             let mean2 = cos.iter().map(|c| c * c).sum::<f64>() / cos.len() as f64;
-            assert!(
-                (mean - 2.0 / 3.0).abs() < 0.01 && (mean2 - 0.5).abs() < 0.01,
-                "{mean} {mean2}"
-            );
+            assert!((mean - 2.0 / 3.0).abs() < 0.01 && (mean2 - 0.5).abs() < 0.01, "{mean} {mean2}");
             // and spread around it: the mean tangential component vanishes
-            let mean_dir: Vec3 = linked
-                .iter()
-                .filter(|s| s.source == i)
-                .map(|s| s.direction)
-                .sum::<Vec3>()
-                / cos.len() as f32;
-            assert!(
-                (mean_dir - n * mean_dir.dot(n)).length() < 0.02,
-                "{mean_dir}"
-            );
+            let mean_dir: Vec3 =
+                linked.iter().filter(|s| s.source == i).map(|s| s.direction).sum::<Vec3>() / cos.len() as f32;
+            assert!((mean_dir - n * mean_dir.dot(n)).length() < 0.02, "{mean_dir}");
         }
-        assert!(
-            link_slots(&[vpl(0.0, Vec3::Y)], 16, 1).is_empty(),
-            "no flux, no slots"
-        );
-        assert!(
-            link_slots(&[vpl(f32::NAN, Vec3::Y)], 16, 1).is_empty(),
-            "NaN flux is no flux"
-        );
+        assert!(link_slots(&[vpl(0.0, Vec3::Y)], 16, 1).is_empty(), "no flux, no slots");
+        assert!(link_slots(&[vpl(f32::NAN, Vec3::Y)], 16, 1).is_empty(), "NaN flux is no flux");
     }
 }
 
@@ -486,11 +421,7 @@ mod gpu_tests {
     }
 
     fn search(candidates: u32) -> BounceSearch {
-        BounceSearch {
-            candidates,
-            cone_degrees: 5.0,
-            seed: 3,
-        }
+        BounceSearch { candidates, cone_degrees: 5.0, seed: 3 }
     }
 
     /// Inside the closed box every direction hits a wall at a distance known in closed form; the
@@ -513,13 +444,7 @@ mod gpu_tests {
                 direction: [s.direction.x, s.direction.y, s.direction.z, 0.0],
             })
             .collect();
-        let hits = r.bounce.nearest(
-            &r.ctx,
-            &bounce_scene,
-            &slots,
-            &search(16384),
-            mesh.bounds_radius,
-        );
+        let hits = r.bounce.nearest(&r.ctx, &bounce_scene, &slots, &search(16384), mesh.bounds_radius);
         let mut errors = Vec::new();
         for (j, s) in linked.iter().enumerate() {
             let d = s.direction;
@@ -533,9 +458,7 @@ mod gpu_tests {
                     f32::INFINITY
                 }
             };
-            let ray = t(origin.x, d.x, -0.3, 0.3)
-                .min(t(origin.y, d.y, 0.0, 0.6))
-                .min(t(origin.z, d.z, -0.3, 0.3));
+            let ray = t(origin.x, d.x, -0.3, 0.3).min(t(origin.y, d.y, 0.0, 0.6)).min(t(origin.z, d.z, -0.3, 0.3));
             let found = hits[8 * j];
             if found >= 0.0 {
                 errors.push(((found - ray) / ray).abs());
@@ -543,10 +466,7 @@ mod gpu_tests {
                     (hits[8 * j + 1] as u32) >= mesh.real_count / 3,
                     "slot {j}: the box is virtual, the hit is not"
                 );
-                assert!(
-                    hits[8 * j + 4] < 0.0 || hits[8 * j + 4] > found,
-                    "the real hit (floor) lies beyond the box"
-                );
+                assert!(hits[8 * j + 4] < 0.0 || hits[8 * j + 4] > found, "the real hit (floor) lies beyond the box");
             }
         }
         let found = errors.len() as f64 / linked.len() as f64;
@@ -584,15 +504,8 @@ mod gpu_tests {
         let flux = super::super::vpl::luminance_flux(&vpls);
         eprintln!("found {found} of 512, flux {flux:.4} of 1.6");
         assert!(found as f64 / 512.0 > 0.95 && real_only == 0);
-        assert!(
-            (flux / (0.8 * 2.0 * found as f64 / 512.0) - 1.0).abs() < 0.02,
-            "{flux}"
-        );
-        assert!(
-            vpls.iter()
-                .all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0),
-            "a virtual path stays virtual"
-        );
+        assert!((flux / (0.8 * 2.0 * found as f64 / 512.0) - 1.0).abs() < 0.02, "{flux}");
+        assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0), "a virtual path stays virtual");
         // every new VPL faces into the room (towards its source)
         assert!(vpls.iter().all(|v| {
             let p = Vec3::from_slice(&v.position[..3]);
@@ -647,16 +560,9 @@ mod gpu_tests {
         }
         let continuations = vpls.iter().filter(|v| v.normal[3] == 1.0).count();
         assert_eq!(continuations, real_only as usize);
-        assert!(
-            real_only as f64 > 0.9 * on_blocker as f64,
-            "{real_only} {on_blocker}"
-        );
+        assert!(real_only as f64 > 0.9 * on_blocker as f64, "{real_only} {on_blocker}");
         // the red blocker reflects red; the white ceiling white
-        assert!(
-            vpls.iter()
-                .filter(|v| v.position[3] == 0.0)
-                .all(|v| v.flux[0] > 10.0 * v.flux[1])
-        );
+        assert!(vpls.iter().filter(|v| v.position[3] == 0.0).all(|v| v.flux[0] > 10.0 * v.flux[1]));
         // an ir = 1 source (a real surface behind a virtual one) only reaches real surfaces
         let (vpls, _, _) = r.bounce.spawn(
             &r.ctx,
@@ -669,10 +575,7 @@ mod gpu_tests {
             mesh.bounds_radius,
         );
         assert!(
-            !vpls.is_empty()
-                && vpls
-                    .iter()
-                    .all(|v| v.position[3] == 1.0 && v.normal[3] == 1.0 && y(v) > 0.9),
+            !vpls.is_empty() && vpls.iter().all(|v| v.position[3] == 1.0 && v.normal[3] == 1.0 && y(v) > 0.9),
             "{vpls:?}"
         );
     }

@@ -28,7 +28,8 @@ struct ArtifactParams {
     noise: [[f32; 4]; 5],
 }
 
-const STAGES: [&str; 8] = ["cs_layers", "cs_warp", "cs_blur", "cs_noise", "cs_demosaic", "cs_sharpen", "cs_compose", "cs_jpeg"];
+const STAGES: [&str; 8] =
+    ["cs_layers", "cs_warp", "cs_blur", "cs_noise", "cs_demosaic", "cs_sharpen", "cs_compose", "cs_jpeg"];
 
 /// The compiled stages of the ca pass.
 pub struct Artifacts {
@@ -42,7 +43,11 @@ impl Artifacts {
         let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -51,7 +56,11 @@ impl Artifacts {
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
                     visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
                     count: None,
                 },
                 storage(1, true),
@@ -61,8 +70,15 @@ impl Artifacts {
                 storage(5, true),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("artifacts"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("ca.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("artifacts"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("ca.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipelines = STAGES
             .iter()
             .map(|entry| {
@@ -81,13 +97,31 @@ impl Artifacts {
 
     /// Runs the chain on the GPU: the frame's `composite` over `photo` with virtual coverage
     /// `mask` → the composite with camera artifacts, and the report.
-    pub fn run(&self, ctx: &GpuContext, composite: &Image, photo: &Image, mask: &Mask, camera: &Camera, p: &CaParams) -> Result<(Image, CaReport)> {
+    pub fn run(
+        &self,
+        ctx: &GpuContext,
+        composite: &Image,
+        photo: &Image,
+        mask: &Mask,
+        camera: &Camera,
+        p: &CaParams,
+    ) -> Result<(Image, CaReport)> {
         let (w, h) = (composite.width, composite.height);
         if photo.width != w || photo.height != h {
-            return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width: photo.width, b_height: photo.height });
+            return Err(RenderError::SizeMismatch {
+                a_width: w,
+                a_height: h,
+                b_width: photo.width,
+                b_height: photo.height,
+            });
         }
         if mask.width != w || mask.height != h {
-            return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width: mask.width, b_height: mask.height });
+            return Err(RenderError::SizeMismatch {
+                a_width: w,
+                a_height: h,
+                b_width: mask.width,
+                b_height: mask.height,
+            });
         }
         p.check().map_err(RenderError::Unsupported)?;
         let (mut comp, mut photo, mut mask) = (composite.clone(), photo.clone(), mask.clone());
@@ -113,7 +147,12 @@ impl Artifacts {
             counts: [taps.len() as u32, 0, 0, 0],
             intr: [camera.fx, camera.fy, camera.cx, camera.cy],
             k: [p.distortion[0], p.distortion[1], p.distortion[2], p.distortion[3]],
-            k2: [p.distortion[4], p.chromatic_aberration, crate::sensor::distortion_zoom(camera, p.distortion, p.chromatic_aberration), p.sharpen],
+            k2: [
+                p.distortion[4],
+                p.chromatic_aberration,
+                crate::sensor::distortion_zoom(camera, p.distortion, p.chromatic_aberration),
+                p.sharpen,
+            ],
             noise,
         };
         let mut tables: Vec<f32> = ca::jpeg::dct_basis().to_vec();
@@ -124,14 +163,33 @@ impl Artifacts {
             tables.extend([dx as f32, dy as f32, wt]);
         }
 
-        let texels = |img: &Image, alpha: Option<&[f32]>| -> Vec<[f32; 4]> { img.pixels.iter().enumerate().map(|(i, q)| [q.x, q.y, q.z, alpha.map_or(0.0, |a| a[i])]).collect() };
-        let init = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::STORAGE });
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("artifact params"), contents: bytemuck::bytes_of(&params), usage: wgpu::BufferUsages::UNIFORM });
+        let texels = |img: &Image, alpha: Option<&[f32]>| -> Vec<[f32; 4]> {
+            img.pixels.iter().enumerate().map(|(i, q)| [q.x, q.y, q.z, alpha.map_or(0.0, |a| a[i])]).collect()
+        };
+        let init = |label: &str, bytes: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("artifact params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let comp_buf = init("ca composite", bytemuck::cast_slice(&texels(&comp, None)));
         let photo_buf = init("ca photo", bytemuck::cast_slice(&texels(&photo, Some(&mask.values))));
         let tables_buf = init("ca tables", bytemuck::cast_slice(&tables));
         let dummy = init("ca dummy", &[0u8; 16]);
-        let scratch = |label: &str, images: u64| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: images * n * 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
+        let scratch = |label: &str, images: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: images * n * 16,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
         let (la, lb) = (scratch("ca layers a", 3), scratch("ca layers b", 3));
         let (pa, pb) = (scratch("ca images a", 2), scratch("ca images b", 2));
         let (oa, ob) = (scratch("ca out a", 1), scratch("ca out b", 1));
@@ -151,7 +209,8 @@ impl Artifacts {
                     wgpu::BindGroupEntry { binding: 5, resource: tables_buf.as_entire_binding() },
                 ],
             });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(STAGES[k]), timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(STAGES[k]), timestamp_writes: None });
             pass.set_pipeline(&self.pipelines[k]);
             pass.set_bind_group(0, &bind_group, &[]);
             pass.dispatch_workgroups(groups.0, groups.1, 1);
@@ -186,9 +245,10 @@ impl Artifacts {
         ctx.queue.submit([encoder.finish()]);
         let data = ctx.read_f32(out);
         let pixels: Vec<Vec3> = data.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
-        let processed = (0..n as usize)
-            .filter(|&i| pixels[i] != photo.pixels[i] || mask.values[i] > 0.0)
-            .count();
-        Ok((Image { width: w, height: h, pixels }, CaReport { invalid_inputs, processed_fraction: processed as f32 / n.max(1) as f32 }))
+        let processed = (0..n as usize).filter(|&i| pixels[i] != photo.pixels[i] || mask.values[i] > 0.0).count();
+        Ok((
+            Image { width: w, height: h, pixels },
+            CaReport { invalid_inputs, processed_fraction: processed as f32 / n.max(1) as f32 },
+        ))
     }
 }

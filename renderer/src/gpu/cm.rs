@@ -75,7 +75,10 @@ pub struct CmBuffers<'a> {
 
 impl CmPasses {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("cm.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cm.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipeline = |entry: &str| {
             ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
@@ -89,10 +92,23 @@ impl CmPasses {
         CmPasses { reduce: pipeline("cs_reduce"), matcher: pipeline("cs_match"), map: pipeline("cs_map") }
     }
 
-    fn dispatch(&self, ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, entries: &[(u32, &wgpu::Buffer)], groups: (u32, u32)) {
+    fn dispatch(
+        &self,
+        ctx: &GpuContext,
+        pipeline: &wgpu::ComputePipeline,
+        entries: &[(u32, &wgpu::Buffer)],
+        groups: (u32, u32),
+    ) {
         let layout = pipeline.get_bind_group_layout(0);
-        let entries: Vec<wgpu::BindGroupEntry> = entries.iter().map(|(binding, buffer)| wgpu::BindGroupEntry { binding: *binding, resource: buffer.as_entire_binding() }).collect();
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("cm"), layout: &layout, entries: &entries });
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: *binding, resource: buffer.as_entire_binding() })
+            .collect();
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cm"),
+            layout: &layout,
+            entries: &entries,
+        });
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -104,11 +120,20 @@ impl CmPasses {
     }
 
     fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> wgpu::Buffer {
-        ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("cm params"), contents: bytemuck::bytes_of(uniform), usage: wgpu::BufferUsages::UNIFORM })
+        ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("cm params"),
+            contents: bytemuck::bytes_of(uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
     }
 
     fn output(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: bytes.max(16), usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
     }
 
     /// One reduction (mode 0 statistics, 1 Rohmer approximation, 2 Rohmer fit): the sums of
@@ -118,7 +143,12 @@ impl CmPasses {
         let groups = pixels.div_ceil(GROUP).clamp(1, MAX_GROUPS);
         let partials = Self::output(ctx, "cm partials", groups as u64 * K as u64 * 4);
         let uni = Self::uniform_buffer(ctx, uniform);
-        self.dispatch(ctx, &self.reduce, &[(0, &uni), (1, buffers.solutions), (2, buffers.photo), (3, &partials)], (groups, 1));
+        self.dispatch(
+            ctx,
+            &self.reduce,
+            &[(0, &uni), (1, buffers.solutions), (2, buffers.photo), (3, &partials)],
+            (groups, 1),
+        );
         let values = ctx.read_f32(&partials);
         let mut sums = [0f64; K];
         for chunk in values.chunks_exact(K) {
@@ -130,17 +160,32 @@ impl CmPasses {
     }
 
     /// For each tone-mapped sample colour, the best-matching usable real pixel.
-    pub fn matches(&self, ctx: &GpuContext, buffers: &CmBuffers, uniform: &CmUniform, colours: &[Vec3]) -> Vec<Option<usize>> {
+    pub fn matches(
+        &self,
+        ctx: &GpuContext,
+        buffers: &CmBuffers,
+        uniform: &CmUniform,
+        colours: &[Vec3],
+    ) -> Vec<Option<usize>> {
         if colours.is_empty() {
             return Vec::new();
         }
         let pixels = buffers.width * buffers.height;
         let groups = pixels.div_ceil(GROUP).clamp(1, 64);
         let texels: Vec<[f32; 4]> = colours.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
-        let colour_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("cm colours"), contents: bytemuck::cast_slice(&texels), usage: wgpu::BufferUsages::STORAGE });
+        let colour_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("cm colours"),
+            contents: bytemuck::cast_slice(&texels),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let out = Self::output(ctx, "cm matches", groups as u64 * colours.len() as u64 * 8);
         let uni = Self::uniform_buffer(ctx, uniform);
-        self.dispatch(ctx, &self.matcher, &[(0, &uni), (1, buffers.solutions), (2, buffers.photo), (4, &colour_buffer), (5, &out)], (groups, colours.len() as u32));
+        self.dispatch(
+            ctx,
+            &self.matcher,
+            &[(0, &uni), (1, buffers.solutions), (2, buffers.photo), (4, &colour_buffer), (5, &out)],
+            (groups, colours.len() as u32),
+        );
         let words: Vec<u32> = bytemuck::cast_slice(&ctx.read_f32(&out)).to_vec();
         (0..colours.len())
             .map(|j| {
@@ -173,7 +218,16 @@ impl CmPasses {
     /// The whole colour mapping of a frame: estimate (updating `state`), then map. `photo` is
     /// the photograph on the CPU (the sample-based method reads its pairs from it).
     #[allow(clippy::too_many_arguments)]
-    pub fn run(&self, ctx: &GpuContext, passes: &mut Vec<PassTime>, buffers: &CmBuffers, photo: &[Vec3], params: &CmParams, exposure: f32, state: &mut CmState) -> (wgpu::Buffer, CmReport) {
+    pub fn run(
+        &self,
+        ctx: &GpuContext,
+        passes: &mut Vec<PassTime>,
+        buffers: &CmBuffers,
+        photo: &[Vec3],
+        params: &CmParams,
+        exposure: f32,
+        state: &mut CmState,
+    ) -> (wgpu::Buffer, CmReport) {
         let (w, h) = (buffers.width, buffers.height);
         let base = |mode: u32, m: [[f32; 4]; 3]| CmUniform::new(params, exposure, w, h, mode, m);
         let name = params.method.name();
@@ -185,7 +239,9 @@ impl CmPasses {
             }),
             CmMethod::Samples => {
                 // the samples and their pairs are picked on the CPU from the read-back buffers
-                let (solutions, input_photo) = timed(ctx, passes, format!("cm {name}: read back L_rv, L_r"), || (ctx.read_f32(buffers.solutions), photo.to_vec()));
+                let (solutions, input_photo) = timed(ctx, passes, format!("cm {name}: read back L_rv, L_r"), || {
+                    (ctx.read_f32(buffers.solutions), photo.to_vec())
+                });
                 let n = (w * h) as usize;
                 let texel = |k: usize| Vec3::new(solutions[4 * k], solutions[4 * k + 1], solutions[4 * k + 2]);
                 let l_rv: Vec<Vec3> = (0..n).map(texel).collect();
@@ -194,21 +250,31 @@ impl CmPasses {
                 let input = CmInput { width: w, height: h, l_rv: &l_rv, l_r: &l_r, flags: &flags, photo: &input_photo };
                 let uniform = base(0, [[0.0; 4]; 3]);
                 let start = Instant::now();
-                let out = samples::estimate(&input, params, exposure, state, &|colours| self.matches(ctx, buffers, &uniform, colours));
-                passes.push(PassTime { pass: format!("cm {name}: matching (GPU) and regression"), ms: start.elapsed().as_secs_f64() * 1e3 });
+                let out = samples::estimate(&input, params, exposure, state, &|colours| {
+                    self.matches(ctx, buffers, &uniform, colours)
+                });
+                passes.push(PassTime {
+                    pass: format!("cm {name}: matching (GPU) and regression"),
+                    ms: start.elapsed().as_secs_f64() * 1e3,
+                });
                 out
             }
             CmMethod::Rohmer => {
-                let approx = timed(ctx, passes, format!("cm {name}: approximation reduction"), || self.reduce(ctx, buffers, &base(1, [[0.0; 4]; 3])));
+                let approx = timed(ctx, passes, format!("cm {name}: approximation reduction"), || {
+                    self.reduce(ctx, buffers, &base(1, [[0.0; 4]; 3]))
+                });
                 let (a, _) = rohmer::approximation(&approx, params);
                 let previous = state.rohmer.map(rohmer::from_rows).unwrap_or(a);
-                let fit = timed(ctx, passes, format!("cm {name}: eq. 2 reduction"), || self.reduce(ctx, buffers, &base(2, rows3(&previous))));
+                let fit = timed(ctx, passes, format!("cm {name}: eq. 2 reduction"), || {
+                    self.reduce(ctx, buffers, &base(2, rows3(&previous)))
+                });
                 rohmer::solve(&approx[..rohmer::KA], &fit[..rohmer::KF], params, state)
             }
         };
         state.frames += 1;
         let (code, rows) = mapping_rows(&mapping);
-        let mapped = timed(ctx, passes, format!("cm {name}: map L_rv, L_r"), || self.map(ctx, buffers, &base(code, rows)));
+        let mapped =
+            timed(ctx, passes, format!("cm {name}: map L_rv, L_r"), || self.map(ctx, buffers, &base(code, rows)));
         (mapped, CmReport { method: params.method, mapping, pairs, fallback })
     }
 }

@@ -2,14 +2,21 @@
 //! GPU's own L_rv, L_r and flags, at 96×72 on lavapipe: every method, both compositions,
 //! composites agreeing to 10⁻³; the passes in the frame report; no differential, no change.
 
+use super::invariants::renderer;
 use super::*;
 use crate::cm::colour::gamma_encode;
 use crate::cm::{CmInput, CmMethod, cpu_frame};
 use crate::scene::Role;
-use super::invariants::renderer;
 
 fn params(method: CmMethod, composition: Composition) -> DirParams {
-    DirParams { condition: GiLevel::Shadows, env_lights: 8, shadow_map_size: 256, cm: CmParams { method, min_pairs: 50, ..CmParams::default() }, composition, ..DirParams::default() }
+    DirParams {
+        condition: GiLevel::Shadows,
+        env_lights: 8,
+        shadow_map_size: 256,
+        cm: CmParams { method, min_pairs: 50, ..CmParams::default() },
+        composition,
+        ..DirParams::default()
+    }
 }
 
 /// A built-in scene at 96×72 and a photograph made from its own L_r through a known camera
@@ -17,7 +24,9 @@ fn params(method: CmMethod, composition: Composition) -> DirParams {
 /// saturated pixels.
 fn scene_and_photo(r: &DirRenderer) -> (Scene, Image) {
     let scene = colourful_scene();
-    let first = r.render(&scene, &Image::filled(96, 72, Vec3::splat(0.5)), &params(CmMethod::Off, Composition::Additive)).unwrap();
+    let first = r
+        .render(&scene, &Image::filled(96, 72, Vec3::splat(0.5)), &params(CmMethod::Off, Composition::Additive))
+        .unwrap();
     let m = glam::Mat3::from_cols_array_2d(&[[0.7, 0.05, 0.02], [0.06, 0.65, 0.05], [0.02, 0.04, 0.55]]);
     let mut photo = Image::new(96, 72);
     for i in 0..photo.pixels.len() {
@@ -96,14 +105,40 @@ fn every_cm_method_on_the_gpu_agrees_with_the_cpu_reference() {
         for composition in [Composition::Additive, Composition::Scaled] {
             let p = params(method, composition);
             let gpu = r.render(&scene, &photo, &p).unwrap();
-            let input = CmInput { width: 96, height: 72, l_rv: &gpu.l_rv.pixels, l_r: &gpu.l_r.pixels, flags: &gpu.flags, photo: &photo.pixels };
+            let input = CmInput {
+                width: 96,
+                height: 72,
+                l_rv: &gpu.l_rv.pixels,
+                l_r: &gpu.l_r.pixels,
+                flags: &gpu.flags,
+                photo: &photo.pixels,
+            };
             let cpu = cpu_frame(&input, &p.cm, p.exposure, composition, &mut CmState::default());
-            assert_eq!(cpu.report.fallback.is_some(), gpu.report.cm.fallback.is_some(), "{method:?}: CPU {:?} GPU {:?}", cpu.report, gpu.report.cm);
-            let worst = cpu.composite.iter().zip(&gpu.composite.pixels).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f32::max);
-            assert!(worst <= 1e-3, "{method:?} {composition:?}: CPU and GPU composites differ by {worst} ({:?} / {:?})", cpu.report.mapping, gpu.report.cm.mapping);
+            assert_eq!(
+                cpu.report.fallback.is_some(),
+                gpu.report.cm.fallback.is_some(),
+                "{method:?}: CPU {:?} GPU {:?}",
+                cpu.report,
+                gpu.report.cm
+            );
+            let worst = cpu
+                .composite
+                .iter()
+                .zip(&gpu.composite.pixels)
+                .map(|(a, b)| (*a - *b).abs().max_element())
+                .fold(0.0, f32::max);
+            assert!(
+                worst <= 1e-3,
+                "{method:?} {composition:?}: CPU and GPU composites differ by {worst} ({:?} / {:?})",
+                cpu.report.mapping,
+                gpu.report.cm.mapping
+            );
             assert!(gpu.composite.pixels.iter().all(|v| v.is_finite()));
             let names: Vec<&str> = gpu.report.passes.iter().map(|p| p.pass.as_str()).collect();
-            assert!(names.contains(&"composition") && names.iter().any(|n| n.starts_with(&format!("cm {}", method.name()))), "{names:?}");
+            assert!(
+                names.contains(&"composition") && names.iter().any(|n| n.starts_with(&format!("cm {}", method.name()))),
+                "{names:?}"
+            );
             if method != CmMethod::Off {
                 assert!(gpu.report.cm.pairs > 0, "{method:?}: {:?}", gpu.report.cm);
             }
@@ -120,7 +155,12 @@ fn rohmer_on_the_gpu_recovers_the_known_camera_matrix() {
     let want = [[2.1, 0.18, 0.06], [0.15, 1.95, 0.12], [0.06, 0.15, 1.65]];
     for k in 0..3 {
         for j in 0..3 {
-            assert!((rows[k][j] - want[k][j]).abs() < 0.1, "C⁻¹ = {rows:?} against {want:?} ({:?}, {} pairs)", gpu.report.cm.fallback, gpu.report.cm.pairs);
+            assert!(
+                (rows[k][j] - want[k][j]).abs() < 0.1,
+                "C⁻¹ = {rows:?} against {want:?} ({:?}, {} pairs)",
+                gpu.report.cm.fallback,
+                gpu.report.cm.pairs
+            );
         }
     }
 }

@@ -15,7 +15,10 @@ pub struct Compose {
 
 impl Compose {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("compose.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("compose.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("compose"),
             layout: None,
@@ -30,10 +33,23 @@ impl Compose {
     /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
     /// composite buffer (one vec4 per pixel, display-encoded).
     #[allow(clippy::too_many_arguments)]
-    pub fn run(&self, ctx: &GpuContext, width: u32, height: u32, linear_domain: bool, composition: Composition, mapped: &wgpu::Buffer, photo: &wgpu::Buffer) -> wgpu::Buffer {
+    pub fn run(
+        &self,
+        ctx: &GpuContext,
+        width: u32,
+        height: u32,
+        linear_domain: bool,
+        composition: Composition,
+        mapped: &wgpu::Buffer,
+        photo: &wgpu::Buffer,
+    ) -> wgpu::Buffer {
         let device = &ctx.device;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("compose params"), contents: bytemuck::cast_slice(&size), usage: wgpu::BufferUsages::UNIFORM });
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("compose params"),
+            contents: bytemuck::cast_slice(&size),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let composite = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("composite"),
             size: width as u64 * height as u64 * 16,

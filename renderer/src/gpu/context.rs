@@ -59,7 +59,9 @@ impl GpuContext {
     /// Opens the adapter chosen by `MRSTUDY_ADAPTER`, or the best one available.
     pub fn new() -> Result<GpuContext> {
         let forced = match std::env::var("MRSTUDY_ADAPTER") {
-            Ok(v) if !v.trim().is_empty() => Some(AdapterKind::parse(&v).ok_or_else(|| RenderError::Unsupported(format!("MRSTUDY_ADAPTER is `{v}`; expected hardware, software or gl")))?),
+            Ok(v) if !v.trim().is_empty() => Some(AdapterKind::parse(&v).ok_or_else(|| {
+                RenderError::Unsupported(format!("MRSTUDY_ADAPTER is `{v}`; expected hardware, software or gl"))
+            })?),
             _ => None,
         };
         GpuContext::with_kind(forced)
@@ -74,14 +76,29 @@ impl GpuContext {
         // Vulkan first; the GL backend is probed only when Vulkan has nothing of a wanted kind
         // (probing GL without a display prints EGL complaints on headless machines)
         let mut adapters = enumerate(wgpu::Backends::VULKAN);
-        let pick = |adapters: &[wgpu::Adapter]| order.iter().find_map(|kind| adapters.iter().find(|a| AdapterKind::of(&a.get_info()) == *kind && renders_float_targets(a)).map(|a| (a.clone(), *kind)));
+        let pick = |adapters: &[wgpu::Adapter]| {
+            order.iter().find_map(|kind| {
+                adapters
+                    .iter()
+                    .find(|a| AdapterKind::of(&a.get_info()) == *kind && renders_float_targets(a))
+                    .map(|a| (a.clone(), *kind))
+            })
+        };
         let mut chosen = pick(&adapters);
         if chosen.is_none() {
             adapters.extend(enumerate(wgpu::Backends::GL));
             chosen = pick(&adapters);
         }
-        let found: Vec<String> =
-            adapters.iter().map(|a| if renders_float_targets(a) { describe(&a.get_info()) } else { format!("{} without 32-bit float render targets", describe(&a.get_info())) }).collect();
+        let found: Vec<String> = adapters
+            .iter()
+            .map(|a| {
+                if renders_float_targets(a) {
+                    describe(&a.get_info())
+                } else {
+                    format!("{} without 32-bit float render targets", describe(&a.get_info()))
+                }
+            })
+            .collect();
         let Some((adapter, kind)) = chosen else {
             let wanted = forced.map(|k| format!("{k} adapter")).unwrap_or_else(|| "GPU adapter".into());
             let seen = if found.is_empty() { "none".to_string() } else { found.join("; ") };
@@ -153,7 +170,10 @@ impl GpuContext {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_buffer(
             texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo { buffer: &staging, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) } },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) },
+            },
             wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
         );
         self.queue.submit([encoder.finish()]);
@@ -168,7 +188,9 @@ impl GpuContext {
 
 /// The G-buffer and shadow maps render to `Rgba32Float` and `R32Float` (GL ES often cannot).
 fn renders_float_targets(adapter: &wgpu::Adapter) -> bool {
-    [wgpu::TextureFormat::Rgba32Float, wgpu::TextureFormat::R32Float].iter().all(|f| adapter.get_texture_format_features(*f).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT))
+    [wgpu::TextureFormat::Rgba32Float, wgpu::TextureFormat::R32Float].iter().all(|f| {
+        adapter.get_texture_format_features(*f).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+    })
 }
 
 fn enumerate(backends: wgpu::Backends) -> Vec<wgpu::Adapter> {

@@ -80,7 +80,10 @@ pub struct IndirectInputs<'a> {
 
 impl IndirectPass {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("indirect.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("indirect.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("indirect"),
             layout: None,
@@ -95,7 +98,12 @@ impl IndirectPass {
     /// Runs the pass; with `temporal`, smooths against `state` (if it is of this size) and
     /// leaves this frame in it. Returns the frame's mean confidence-carrying buffer's owner
     /// state only through `state`.
-    pub fn run(&self, ctx: &GpuContext, inputs: &IndirectInputs, temporal: Option<(&TemporalParams, &mut Option<TemporalState>)>) {
+    pub fn run(
+        &self,
+        ctx: &GpuContext,
+        inputs: &IndirectInputs,
+        temporal: Option<(&TemporalParams, &mut Option<TemporalState>)>,
+    ) {
         let device = &ctx.device;
         let pixels = (inputs.width * inputs.height) as u64;
         let buffer = |label: &str| {
@@ -107,7 +115,9 @@ impl IndirectPass {
             })
         };
         let (weights, history) = match &temporal {
-            Some((weights, state)) => ((*weights).clone(), state.as_ref().filter(|s| s.width == inputs.width && s.height == inputs.height)),
+            Some((weights, state)) => {
+                ((*weights).clone(), state.as_ref().filter(|s| s.width == inputs.width && s.height == inputs.height))
+            }
             None => (TemporalParams::default(), None),
         };
         let placeholder;
@@ -127,7 +137,11 @@ impl IndirectPass {
             camera: [inputs.camera.x, inputs.camera.y, inputs.camera.z, 0.0],
             prev_view_proj: prev_view_proj.to_cols_array_2d(),
         };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("indirect params"), contents: bytemuck::bytes_of(&uniform), usage: wgpu::BufferUsages::UNIFORM });
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("indirect params"),
+            contents: bytemuck::bytes_of(&uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let gp = inputs.gbuffer.position.create_view(&Default::default());
         let gn = inputs.gbuffer.normal.create_view(&Default::default());
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -155,7 +169,14 @@ impl IndirectPass {
         ctx.queue.submit([encoder.finish()]);
         if let Some((_, state)) = temporal {
             let frames = state.as_ref().map_or(0, |s| s.frames) + 1;
-            *state = Some(TemporalState { width: inputs.width, height: inputs.height, view_proj: inputs.view_proj, indirect: next_indirect, surface: next_surface, frames });
+            *state = Some(TemporalState {
+                width: inputs.width,
+                height: inputs.height,
+                view_proj: inputs.view_proj,
+                indirect: next_indirect,
+                surface: next_surface,
+                frames,
+            });
         }
     }
 }

@@ -131,7 +131,13 @@ fn dilate(mask: &Mask, radius: i64) -> Mask {
 
 /// Per pixel: composite − photo, as luminance-free mean of the channels.
 fn deltas(render: &GpuRender, photo: &Image) -> Vec<f32> {
-    render.composite.pixels.iter().zip(&photo.pixels).map(|(c, p)| ((*c - *p).x + (*c - *p).y + (*c - *p).z) / 3.0).collect()
+    render
+        .composite
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .map(|(c, p)| ((*c - *p).x + (*c - *p).y + (*c - *p).z) / 3.0)
+        .collect()
 }
 
 #[test]
@@ -179,7 +185,8 @@ fn the_environment_light_casts_virtual_shadows_only_when_shadows_are_on() {
 fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(VIRTUAL_BOX);
-    let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+    let reference =
+        render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
     let allowed = dilate(&reference.affected_mask, MASK_DILATION);
     let out = r.render(&scene, &reference.photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &reference.photo);
@@ -203,7 +210,8 @@ fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
     // gi off: the virtual box casts no shadow at all
     let off = r.render(&scene, &reference.photo, &params(GiLevel::None)).unwrap();
     let d_off = deltas(&off, &reference.photo);
-    let changed_real = (0..d_off.len()).filter(|&i| reference.virtual_mask.values[i] == 0.0 && d_off[i].abs() > CHANGED).count();
+    let changed_real =
+        (0..d_off.len()).filter(|&i| reference.virtual_mask.values[i] == 0.0 && d_off[i].abs() > CHANGED).count();
     assert!(changed_real < 10, "gi off changed {changed_real} real pixels");
 }
 
@@ -228,11 +236,15 @@ fn the_double_shadow_case_adds_no_second_shadow() {
     let scene = scene_with(&format!("{REAL_BOX}{floating}"));
     let out = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &photo);
-    let in_real_shadow: Vec<usize> = (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && out.l_r.pixels[i] == Vec3::ZERO).collect();
+    let in_real_shadow: Vec<usize> =
+        (0..d.len()).filter(|&i| out.virtual_mask.values[i] == 0.0 && out.l_r.pixels[i] == Vec3::ZERO).collect();
     assert!(in_real_shadow.len() > 50, "no real shadow in view");
     let changed = in_real_shadow.iter().filter(|&&i| d[i].abs() > CHANGED).count();
     assert_eq!(changed, 0, "{changed} pixels of the real shadow changed: a double shadow");
-    assert!(d.iter().zip(&out.virtual_mask.values).filter(|(x, m)| **m == 0.0 && **x < -CHANGED).count() > 20, "the floating box casts no shadow of its own");
+    assert!(
+        d.iter().zip(&out.virtual_mask.values).filter(|(x, m)| **m == 0.0 && **x < -CHANGED).count() > 20,
+        "the floating box casts no shadow of its own"
+    );
 }
 
 #[test]
@@ -276,12 +288,17 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
     // flags only: no VPL visibility (the ISM tests below cover it)
     // one bounce: the hand-placed VPLs alone (further bounces would spawn more from them)
     let p = DirParams { ism_size: 0, bounces: 1, ..params(GiLevel::Gi) };
-    let vpl = |path: f32, ir: f32| GpuVpl { position: [0.2, 0.3, 0.2, path], normal: [0.0, -1.0, 0.0, ir], flux: [0.05, 0.05, 0.05, 0.0] };
+    let vpl = |path: f32, ir: f32| GpuVpl {
+        position: [0.2, 0.3, 0.2, path],
+        normal: [0.0, -1.0, 0.0, ir],
+        flux: [0.05, 0.05, 0.05, 0.0],
+    };
     let none = r.render_frame(&scene, &photo, &p, Some(&[]), &mut LiveState::default(), false).unwrap();
     let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
     let (rv0, r0) = (sum(&none.l_rv), sum(&none.l_r));
     // a VPL on a virtual object (path flag 0): L_rv only
-    let on_virtual = r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)]), &mut LiveState::default(), false).unwrap();
+    let on_virtual =
+        r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)]), &mut LiveState::default(), false).unwrap();
     assert!(sum(&on_virtual.l_rv) > rv0 * 1.01);
     assert_eq!(on_virtual.l_r.pixels, none.l_r.pixels);
     // a real VPL of a real light (path flag 1): both solutions, equally on real pixels
@@ -326,12 +343,18 @@ fn imperfect_shadow_maps_shadow_a_vpl_by_the_virtual_cloud_in_l_rv_only() {
     assert!(rv < 0.2 * real, "the virtual box shadows it in L_rv: ΔL_rv {rv}, ΔL_r {real}");
     // without ISMs the VPL is unshadowed: both solutions gain the same
     let (rv0, real0) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..with_isms.clone() }, shadowed);
-    assert!((rv0 - real0).abs() < 1e-4 * real0.max(1e-3) + 1e-6 && (real0 - real).abs() < 0.05 * real, "{rv0} {real0} {real}");
+    assert!(
+        (rv0 - real0).abs() < 1e-4 * real0.max(1e-3) + 1e-6 && (real0 - real).abs() < 0.05 * real,
+        "{rv0} {real0} {real}"
+    );
     // open floor away from the box: no false self-shadowing by the floor's own splats
     let open = Vec3::new(0.25, 0.0, 0.2);
     let (rv, real) = vpl_light_at(r, &scene, &with_isms, open);
     let (_, unshadowed) = vpl_light_at(r, &scene, &DirParams { ism_size: 0, ..with_isms.clone() }, open);
-    assert!((rv - unshadowed).abs() < 0.02 * unshadowed && (real - unshadowed).abs() < 0.02 * unshadowed, "{rv} {real} {unshadowed}");
+    assert!(
+        (rv - unshadowed).abs() < 0.02 * unshadowed && (real - unshadowed).abs() < 0.02 * unshadowed,
+        "{rv} {real} {unshadowed}"
+    );
 }
 
 #[test]
@@ -348,7 +371,9 @@ fn imperfect_shadow_maps_shadow_a_vpl_by_the_real_cloud_in_both_solutions() {
 }
 
 fn red_wall_scene() -> Scene {
-    scene_with("[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n")
+    scene_with(
+        "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n",
+    )
 }
 
 #[test]
@@ -360,23 +385,37 @@ fn interleaved_sampling_merged_keeps_the_indirect_light_of_every_vpl() {
     // one bounce: the bounce VPLs of further bounces lie close to the surfaces they light, and
     // their per-pixel noise is not what this test is about
     let full = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, ..params(GiLevel::Gi) }).unwrap();
-    let split = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, interleave: 4, ..params(GiLevel::Gi) }).unwrap();
-    assert!(split.report.passes.iter().any(|p| p.pass.contains("interleaved 4×4")) && split.report.passes.iter().any(|p| p.pass.contains("merge 4×4")), "{:?}", split.report.passes);
+    let split =
+        r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, interleave: 4, ..params(GiLevel::Gi) }).unwrap();
+    assert!(
+        split.report.passes.iter().any(|p| p.pass.contains("interleaved 4×4"))
+            && split.report.passes.iter().any(|p| p.pass.contains("merge 4×4")),
+        "{:?}",
+        split.report.passes
+    );
     let none = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     // the indirect light (the red wall's bleeding, in L_rv): the same total within 6 % (16 VPLs
     // per class), and per pixel close where it is strong — not equal: the merge averages a 4×4
     // window, which blurs the steep fall-off at the wall's foot on this 128×96 image (without
     // the ×16 scaling the error would be 94 %)
-    let indirect = |g: &GpuRender| -> Vec<f32> { g.l_rv.pixels.iter().zip(&none.l_rv.pixels).map(|(a, b)| (*a - *b).element_sum()).collect() };
+    let indirect = |g: &GpuRender| -> Vec<f32> {
+        g.l_rv.pixels.iter().zip(&none.l_rv.pixels).map(|(a, b)| (*a - *b).element_sum()).collect()
+    };
     let (a, b) = (indirect(&full), indirect(&split));
     let (sa, sb): (f32, f32) = (a.iter().sum(), b.iter().sum());
-    assert!(sa > 0.0 && ((sb - sa) / sa).abs() < 0.06, "total indirect {sa} (all VPLs per pixel) vs {sb} (interleaved 4×4)");
+    assert!(
+        sa > 0.0 && ((sb - sa) / sa).abs() < 0.06,
+        "total indirect {sa} (all VPLs per pixel) vs {sb} (interleaved 4×4)"
+    );
     let strong: Vec<usize> = (0..a.len()).filter(|&i| a[i] > 0.25 * a.iter().cloned().fold(0.0, f32::max)).collect();
     assert!(!strong.is_empty());
     let mut errors: Vec<f32> = strong.iter().map(|&i| ((b[i] - a[i]) / a[i]).abs()).collect();
     errors.sort_by(f32::total_cmp);
     let (median, p90) = (errors[errors.len() / 2], errors[errors.len() * 9 / 10]);
-    eprintln!("interleaved 4×4 against all VPLs per pixel: relative error median {median:.3}, 90th percentile {p90:.3} over {} pixels", errors.len());
+    eprintln!(
+        "interleaved 4×4 against all VPLs per pixel: relative error median {median:.3}, 90th percentile {p90:.3} over {} pixels",
+        errors.len()
+    );
     assert!(median < 0.15 && p90 < 0.45, "median {median}, 90th percentile {p90}");
 }
 
@@ -411,7 +450,11 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     let smoothed = r.render_with_state(&scene, &photo, &DirParams { vpls: 8, ..p.clone() }, &mut state).unwrap();
     let (mut closer, mut n) = (0, 0);
     for &i in &lit {
-        let (old, new, got) = (single.l_rv.pixels[i].element_sum(), few.l_rv.pixels[i].element_sum(), smoothed.l_rv.pixels[i].element_sum());
+        let (old, new, got) = (
+            single.l_rv.pixels[i].element_sum(),
+            few.l_rv.pixels[i].element_sum(),
+            smoothed.l_rv.pixels[i].element_sum(),
+        );
         if (old - new).abs() > 1e-3 {
             n += 1;
             closer += ((got - old).abs() < (new - old).abs() && (got - new).abs() <= (old - new).abs() + 1e-5) as usize;
@@ -419,12 +462,19 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     }
     assert!(n > 0 && closer as f32 > 0.95 * n as f32, "{closer} of {n} pixels between the frames");
     // the wall moves: where another surface is seen now, nothing is reused
-    let moved = scene_with("[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [0.05, 0.125, 0.0]\nmaterial = \"red\"\n");
+    let moved = scene_with(
+        "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [0.05, 0.125, 0.0]\nmaterial = \"red\"\n",
+    );
     let after = r.render_with_state(&moved, &photo, &p, &mut state).unwrap();
     let c = confidence(&state);
-    let changed: Vec<usize> = (0..c.len()).filter(|&i| after.flags[i] != smoothed.flags[i] && after.flags[i] != 0).collect();
+    let changed: Vec<usize> =
+        (0..c.len()).filter(|&i| after.flags[i] != smoothed.flags[i] && after.flags[i] != 0).collect();
     assert!(!changed.is_empty());
-    assert!(changed.iter().all(|&i| c[i] == 0.0), "confidence where the surface changed: {:?}", changed.iter().map(|&i| c[i]).filter(|c| *c > 0.0).collect::<Vec<_>>());
+    assert!(
+        changed.iter().all(|&i| c[i] == 0.0),
+        "confidence where the surface changed: {:?}",
+        changed.iter().map(|&i| c[i]).filter(|c| *c > 0.0).collect::<Vec<_>>()
+    );
 }
 
 /// Against the reference, on every built-in scene: the `gi` composite is closer to the
@@ -443,13 +493,15 @@ fn gi_brings_every_built_in_scene_closer_to_the_ground_truth() {
     let mut failures = Vec::new();
     for name in crate::builtin::names() {
         let scene = crate::scene::load(name).unwrap().with_size(96, 72);
-        let reference = render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+        let reference =
+            render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         if reference.affected_mask.coverage() == 0.0 {
             failures.push(format!("{name}: empty affected region"));
             continue;
         }
         let flip = |condition: GiLevel| {
-            let frame = r.render(&scene, &reference.photo, &DirParams { condition, vpls: 64, ..DirParams::default() }).unwrap();
+            let frame =
+                r.render(&scene, &reference.photo, &DirParams { condition, vpls: 64, ..DirParams::default() }).unwrap();
             crate::metrics::flip(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask))
         };
         let (none, gi) = (flip(GiLevel::None), flip(GiLevel::Gi));
@@ -467,7 +519,9 @@ fn passes_follow_the_condition() {
     let Some(r) = renderer() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let photo = grey_photo(&scene);
-    let names = |c: GiLevel| r.render(&scene, &photo, &params(c)).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect::<Vec<_>>();
+    let names = |c: GiLevel| {
+        r.render(&scene, &photo, &params(c)).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect::<Vec<_>>()
+    };
     let none = names(GiLevel::None);
     assert!(!none.iter().any(|p| p.contains("RSM") || p.contains("virtual")), "{none:?}");
     let shadows = names(GiLevel::Shadows);
@@ -475,8 +529,18 @@ fn passes_follow_the_condition() {
     let gi = names(GiLevel::Gi);
     assert!(gi.iter().any(|p| p.contains("RSM")) && gi.iter().any(|p| p.contains("VPL")), "{gi:?}");
     assert_eq!(gi.iter().filter(|p| p.starts_with("bounce ")).count(), 2, "two further bounces by default: {gi:?}");
-    let one: Vec<String> = r.render(&scene, &photo, &DirParams { bounces: 1, ..params(GiLevel::Gi) }).unwrap().report.passes.iter().map(|p| p.pass.clone()).collect();
-    assert!(!one.iter().any(|p| p.starts_with("bounce ") || p.starts_with("VPL budget")), "no extra bounce when one is asked for: {one:?}");
+    let one: Vec<String> = r
+        .render(&scene, &photo, &DirParams { bounces: 1, ..params(GiLevel::Gi) })
+        .unwrap()
+        .report
+        .passes
+        .iter()
+        .map(|p| p.pass.clone())
+        .collect();
+    assert!(
+        !one.iter().any(|p| p.starts_with("bounce ") || p.starts_with("VPL budget")),
+        "no extra bounce when one is asked for: {one:?}"
+    );
     assert!(!shadows.iter().chain(&none).any(|p| p.starts_with("bounce ")), "no bounces without gi: {shadows:?}");
     assert!(gi.iter().any(|p| p.starts_with("ISMs")), "{gi:?}");
     assert!(!shadows.iter().chain(&none).any(|p| p.starts_with("ISMs")), "no ISMs without VPLs: {shadows:?}");
@@ -495,14 +559,22 @@ fn debug_dump() {
         ("double", scene_with(&format!("{REAL_BOX}{BEHIND}"))),
         (
             "floating",
-            scene_with(&format!("{REAL_BOX}[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n")),
+            scene_with(&format!(
+                "{REAL_BOX}[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n"
+            )),
         ),
     ] {
-        let reference = render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
-        let mut grid = vec![vec![reference.photo.clone(), reference.ground_truth.clone(), reference.affected_mask.to_image()]];
+        let reference =
+            render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+        let mut grid =
+            vec![vec![reference.photo.clone(), reference.ground_truth.clone(), reference.affected_mask.to_image()]];
         for c in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
             let out = r.render(&scene, &reference.photo, &params(c)).unwrap();
-            grid.push(vec![out.composite.clone(), out.l_rv.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(), out.l_r.map(|v| v / (Vec3::ONE + v)).linear_to_srgb()]);
+            grid.push(vec![
+                out.composite.clone(),
+                out.l_rv.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(),
+                out.l_r.map(|v| v / (Vec3::ONE + v)).linear_to_srgb(),
+            ]);
             let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
             eprintln!(
                 "{name} {:?}: sums {:.3} {:.3} {} vpls {:?}",
@@ -540,18 +612,31 @@ fn multiple_bounces_bring_the_cornell_box_closer_to_the_ground_truth() {
     let mut failures = Vec::new();
     for name in ["dir-lamp-cornell", "survey-1"] {
         let scene = crate::scene::load(name).unwrap().with_size(160, 120);
-        let reference = render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
+        let reference =
+            render_reference(&scene, &ReferenceParams { spp: 64, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         let error = |bounces: u32| {
-            let frame = r.render(&scene, &reference.photo, &DirParams { condition: GiLevel::Gi, vpls: 1024, bounces, ..DirParams::default() }).unwrap();
+            let frame = r
+                .render(
+                    &scene,
+                    &reference.photo,
+                    &DirParams { condition: GiLevel::Gi, vpls: 1024, bounces, ..DirParams::default() },
+                )
+                .unwrap();
             let rmse = crate::metrics::rmse(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask));
             let flip = crate::metrics::flip(&reference.ground_truth, &frame.composite, Some(&reference.affected_mask));
             (rmse, flip, frame.report.bounces)
         };
         let (one, three) = (error(1), error(3));
-        eprintln!("{name}: one bounce RMSE {:.4} FLIP {:.4}; three bounces RMSE {:.4} FLIP {:.4} ({:?})", one.0, one.1, three.0, three.1, three.2);
+        eprintln!(
+            "{name}: one bounce RMSE {:.4} FLIP {:.4}; three bounces RMSE {:.4} FLIP {:.4} ({:?})",
+            one.0, one.1, three.0, three.1, three.2
+        );
         assert!(one.2.is_empty() && three.2.len() == 2, "one bounce runs no multiple-bounce source, three run two");
         if three.0 >= one.0 || three.1 >= one.1 {
-            failures.push(format!("{name}: three bounces ({:.4}, {:.4}) not closer than one ({:.4}, {:.4})", three.0, three.1, one.0, one.1));
+            failures.push(format!(
+                "{name}: three bounces ({:.4}, {:.4}) not closer than one ({:.4}, {:.4})",
+                three.0, three.1, one.0, one.1
+            ));
         }
     }
     assert!(failures.is_empty(), "{failures:?}");

@@ -63,12 +63,24 @@ pub fn area_cdf(positions: &[[f32; 4]], triangles: std::ops::Range<usize>) -> Op
 
 impl Ism {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("ism.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("ism.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipeline = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("ism splats"),
             layout: None,
-            vertex: wgpu::VertexState { module: &module, entry_point: Some("vs_splat"), compilation_options: Default::default(), buffers: &[] },
-            primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_splat"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
                 depth_write_enabled: Some(true),
@@ -77,7 +89,12 @@ impl Ism {
                 bias: Default::default(),
             }),
             multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState { module: &module, entry_point: Some("fs_splat"), compilation_options: Default::default(), targets: &[] }),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_splat"),
+                compilation_options: Default::default(),
+                targets: &[],
+            }),
             multiview_mask: None,
             cache: None,
         });
@@ -85,7 +102,15 @@ impl Ism {
     }
 
     /// Renders both atlases for `vpls`. `max_distance` bounds every VPL-to-surface distance.
-    pub fn render(&self, ctx: &GpuContext, mesh: &GpuMesh, vpls: &[GpuVpl], points_per_vpl: u32, tile_size: u32, max_distance: f32) -> IsmAtlas {
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        mesh: &GpuMesh,
+        vpls: &[GpuVpl],
+        points_per_vpl: u32,
+        tile_size: u32,
+        max_distance: f32,
+    ) -> IsmAtlas {
         let device = &ctx.device;
         let n_vpls = vpls.len().max(1) as u32;
         let max_texture = device.limits().max_texture_dimension_2d;
@@ -117,14 +142,23 @@ impl Ism {
         });
         let vpl_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("ism vpls"),
-            contents: bytemuck::cast_slice(if vpls.is_empty() { &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..] } else { vpls }),
+            contents: bytemuck::cast_slice(if vpls.is_empty() {
+                &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..]
+            } else {
+                vpls
+            }),
             usage: wgpu::BufferUsages::STORAGE,
         });
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
         let mut points = [0u32; 2];
         let mut encoder = device.create_command_encoder(&Default::default());
         for (layer, range) in subsets.iter().enumerate() {
-            let view = texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2), base_array_layer: layer as u32, array_layer_count: Some(1), ..Default::default() });
+            let view = texture.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer as u32,
+                array_layer_count: Some(1),
+                ..Default::default()
+            });
             let cdf = area_cdf(&positions, range.clone());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("ism"),
@@ -148,8 +182,16 @@ impl Ism {
                 subset: [range.start as u32, range.len() as u32, vpls.len() as u32, 0],
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
             };
-            let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("ism params"), contents: bytemuck::bytes_of(&uniform), usage: wgpu::BufferUsages::UNIFORM });
-            let cdf_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("ism cdf"), contents: bytemuck::cast_slice(&cdf), usage: wgpu::BufferUsages::STORAGE });
+            let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ism params"),
+                contents: bytemuck::bytes_of(&uniform),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let cdf_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ism cdf"),
+                contents: bytemuck::cast_slice(&cdf),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("ism"),
                 layout: &self.pipeline.get_bind_group_layout(0),

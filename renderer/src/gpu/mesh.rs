@@ -74,7 +74,13 @@ fn push_triangle(out: &mut Vec<GpuVertex>, tri: &Triangle, material: u32, role: 
     let ng = tri.geometric_normal();
     for k in 0..3 {
         let n = tri.n.map(|n| n[k]).unwrap_or(ng);
-        out.push(GpuVertex { position: tri.p[k].to_array(), normal: n.to_array(), uv: tri.uv[k].to_array(), material, role });
+        out.push(GpuVertex {
+            position: tri.p[k].to_array(),
+            normal: n.to_array(),
+            uv: tri.uv[k].to_array(),
+            material,
+            role,
+        });
     }
 }
 
@@ -144,5 +150,12 @@ pub fn build(scene: &Scene) -> GpuMesh {
     let virtual_bounds = bounding_sphere(&virt);
     real.extend(virt);
     let (bounds_centre, bounds_radius) = bounding_sphere(&real).unwrap_or((Vec3::ZERO, 1.0));
-    GpuMesh { virtual_bounds, vertices: real, real_count, materials: scene.materials.iter().map(gpu_material).collect(), bounds_centre, bounds_radius }
+    GpuMesh {
+        virtual_bounds,
+        vertices: real,
+        real_count,
+        materials: scene.materials.iter().map(gpu_material).collect(),
+        bounds_centre,
+        bounds_radius,
+    }
 }

@@ -38,8 +38,8 @@
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
 
-pub mod ca;
 pub mod bounce;
+pub mod ca;
 pub mod cm;
 pub mod compose;
 pub mod context;
@@ -257,7 +257,13 @@ fn spot_view(position: Vec3, direction: Vec3, cos_outer: f32, centre: Vec3, radi
     let far = (position - centre).length() + radius * 1.5;
     let near = (far * 1e-4).max(1e-4);
     let f = 1.0 / half.tan();
-    let projection = Mat4::from_cols_array_2d(&[[f, 0.0, 0.0, 0.0], [0.0, f, 0.0, 0.0], [0.0, 0.0, far / (near - far), near * far / (near - far)], [0.0, 0.0, -1.0, 0.0]]).transpose();
+    let projection = Mat4::from_cols_array_2d(&[
+        [f, 0.0, 0.0, 0.0],
+        [0.0, f, 0.0, 0.0],
+        [0.0, 0.0, far / (near - far), near * far / (near - far)],
+        [0.0, 0.0, -1.0, 0.0],
+    ])
+    .transpose();
     (projection * look_at(position, direction, up), half.tan())
 }
 
@@ -273,7 +279,13 @@ fn directional_view(forward: Vec3, centre: Vec3, radius: f32, depth: f32) -> (Ma
     let up = if forward.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y };
     let eye = centre - forward * depth;
     let (near, far) = (0.0, 2.0 * depth);
-    let projection = Mat4::from_cols_array_2d(&[[1.0 / radius, 0.0, 0.0, 0.0], [0.0, 1.0 / radius, 0.0, 0.0], [0.0, 0.0, -1.0 / (far - near), -near / (far - near)], [0.0, 0.0, 0.0, 1.0]]).transpose();
+    let projection = Mat4::from_cols_array_2d(&[
+        [1.0 / radius, 0.0, 0.0, 0.0],
+        [0.0, 1.0 / radius, 0.0, 0.0],
+        [0.0, 0.0, -1.0 / (far - near), -near / (far - near)],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
+    .transpose();
     (projection * look_at(eye, forward, up), eye)
 }
 
@@ -282,7 +294,13 @@ fn look_at(eye: Vec3, direction: Vec3, up: Vec3) -> Mat4 {
     let f = direction.normalize();
     let s = f.cross(up).normalize();
     let u = s.cross(f);
-    Mat4::from_cols_array_2d(&[[s.x, s.y, s.z, -s.dot(eye)], [u.x, u.y, u.z, -u.dot(eye)], [-f.x, -f.y, -f.z, f.dot(eye)], [0.0, 0.0, 0.0, 1.0]]).transpose()
+    Mat4::from_cols_array_2d(&[
+        [s.x, s.y, s.z, -s.dot(eye)],
+        [u.x, u.y, u.z, -u.dot(eye)],
+        [-f.x, -f.y, -f.z, f.dot(eye)],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
+    .transpose()
 }
 
 fn timed<T>(ctx: &GpuContext, passes: &mut Vec<PassTime>, name: String, f: impl FnOnce() -> T) -> T {
@@ -325,17 +343,36 @@ impl DirRenderer {
     /// [`DirRenderer::render`] for live use: `state` carries the colour mapping's smoothing
     /// (sample-based, eq. 4.27), Rohmer's previous C_t and the indirect light of the previous
     /// frame for temporal smoothing (5.11–5.15, weights `params.temporal`) from frame to frame.
-    pub fn render_with_state(&self, scene: &Scene, photo: &Image, params: &DirParams, state: &mut LiveState) -> Result<GpuRender> {
+    pub fn render_with_state(
+        &self,
+        scene: &Scene,
+        photo: &Image,
+        params: &DirParams,
+        state: &mut LiveState,
+    ) -> Result<GpuRender> {
         self.render_frame(scene, photo, params, None, state, true)
     }
 
     /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7),
     /// and temporal smoothing against `state` when `temporal`.
-    fn render_frame(&self, scene: &Scene, photo: &Image, params: &DirParams, given_vpls: Option<&[vpl::GpuVpl]>, state: &mut LiveState, temporal: bool) -> Result<GpuRender> {
+    fn render_frame(
+        &self,
+        scene: &Scene,
+        photo: &Image,
+        params: &DirParams,
+        given_vpls: Option<&[vpl::GpuVpl]>,
+        state: &mut LiveState,
+        temporal: bool,
+    ) -> Result<GpuRender> {
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         if photo.width != width || photo.height != height {
-            return Err(RenderError::SizeMismatch { a_width: width, a_height: height, b_width: photo.width, b_height: photo.height });
+            return Err(RenderError::SizeMismatch {
+                a_width: width,
+                a_height: height,
+                b_width: photo.width,
+                b_height: photo.height,
+            });
         }
         let mut passes = Vec::new();
         let mesh = mesh::build(scene);
@@ -370,17 +407,27 @@ impl DirRenderer {
             view_formats: &[],
         });
         let layer_view = |layer: u32| {
-            shadow_maps.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2), base_array_layer: layer, array_layer_count: Some(1), ..Default::default() })
+            shadow_maps.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            })
         };
         let mut lights = Vec::new();
         let mut spot_views = Vec::new();
         for (i, spot) in scene.spots.iter().enumerate() {
-            let (matrix, tan_half) = spot_view(spot.position, spot.direction, spot.cos_outer, mesh.bounds_centre, mesh.bounds_radius);
+            let (matrix, tan_half) =
+                spot_view(spot.position, spot.direction, spot.cos_outer, mesh.bounds_centre, mesh.bounds_radius);
             let view = ViewUniform::perspective(matrix, spot.position, spot.direction);
             let layer = 2 * i as u32;
-            timed(ctx, &mut passes, format!("shadow map {} real", spot.name), || self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size));
+            timed(ctx, &mut passes, format!("shadow map {} real", spot.name), || {
+                self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size)
+            });
             if virtual_maps {
-                timed(ctx, &mut passes, format!("shadow map {} virtual", spot.name), || self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size));
+                timed(ctx, &mut passes, format!("shadow map {} virtual", spot.name), || {
+                    self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size)
+                });
             }
             lights.push(GpuLight {
                 view_proj: matrix.to_cols_array_2d(),
@@ -401,24 +448,33 @@ impl DirRenderer {
         if !env_dirs.is_empty() {
             let (centre, radius, depth) = (env_centre, env_radius, env_depth);
             let first = lights.len() as u32;
-            timed(ctx, &mut passes, format!("shadow maps environment ({} directions{})", env_dirs.len(), if virtual_maps { ", real and virtual" } else { ", real" }), || {
-                for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
-                    let (matrix, eye) = directional_view(*forward, centre, radius, depth);
-                    let view = ViewUniform::orthographic(matrix, eye, *forward);
-                    let layer = 2 * (first + k as u32);
-                    self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size);
-                    if virtual_maps {
-                        self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size);
+            timed(
+                ctx,
+                &mut passes,
+                format!(
+                    "shadow maps environment ({} directions{})",
+                    env_dirs.len(),
+                    if virtual_maps { ", real and virtual" } else { ", real" }
+                ),
+                || {
+                    for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
+                        let (matrix, eye) = directional_view(*forward, centre, radius, depth);
+                        let view = ViewUniform::orthographic(matrix, eye, *forward);
+                        let layer = 2 * (first + k as u32);
+                        self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size);
+                        if virtual_maps {
+                            self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size);
+                        }
+                        lights.push(GpuLight {
+                            view_proj: matrix.to_cols_array_2d(),
+                            position: [eye.x, eye.y, eye.z, 1.0],
+                            direction: [forward.x, forward.y, forward.z, 0.0],
+                            intensity: [irradiance.x, irradiance.y, irradiance.z, 0.0],
+                            info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
+                        });
                     }
-                    lights.push(GpuLight {
-                        view_proj: matrix.to_cols_array_2d(),
-                        position: [eye.x, eye.y, eye.z, 1.0],
-                        direction: [forward.x, forward.y, forward.z, 0.0],
-                        intensity: [irradiance.x, irradiance.y, irradiance.z, 0.0],
-                        info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
-                    });
-                }
-            });
+                },
+            );
         }
 
         // 2. RSMs and VPLs (gi only)
@@ -430,7 +486,9 @@ impl DirRenderer {
                 let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
                 let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
-                timed(ctx, passes, format!("RSM {name} {label}"), || self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets));
+                timed(ctx, passes, format!("RSM {name} {label}"), || {
+                    self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets)
+                });
                 let position = ctx.read_texture_rgba32(&targets.position);
                 let normal = ctx.read_texture_rgba32(&targets.normal);
                 let albedo = ctx.read_texture_rgba32(&targets.albedo);
@@ -439,12 +497,19 @@ impl DirRenderer {
             };
             let read_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
                 let real = read_rsm(passes, view, name, Subset::Real);
-                let virt = if has_virtual { read_rsm(passes, view, name, Subset::Virtual) } else { vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()] };
+                let virt = if has_virtual {
+                    read_rsm(passes, view, name, Subset::Virtual)
+                } else {
+                    vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()]
+                };
                 (real, virt)
             };
             for (spot, (view, tan_half)) in scene.spots.iter().zip(&spot_views) {
                 let (real, virt) = read_pair(&mut passes, view, &spot.name);
-                rsms.push((vpl::RsmLight::Spot(spot), vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt }));
+                rsms.push((
+                    vpl::RsmLight::Spot(spot),
+                    vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt },
+                ));
             }
             // the environment's light bounces too: orthographic RSMs along a subset of its
             // directions (evenly spread over the importance-sampled ones), each standing for
@@ -455,7 +520,10 @@ impl DirRenderer {
                 let (matrix, eye) = directional_view(forward, env_centre, env_radius, env_depth);
                 let view = ViewUniform::orthographic(matrix, eye, forward);
                 let (real, virt) = read_pair(&mut passes, &view, &format!("environment {}", j + 1));
-                let light = vpl::RsmLight::Directional { irradiance: irradiance * (env_dirs.len() as f32 / k as f32), texel_area: (2.0 * env_radius / rsm_size as f32).powi(2) };
+                let light = vpl::RsmLight::Directional {
+                    irradiance: irradiance * (env_dirs.len() as f32 / k as f32),
+                    texel_area: (2.0 * env_radius / rsm_size as f32).powi(2),
+                };
                 rsms.push((light, vpl::RsmTexels { size: rsm_size, tan_half_fov: 0.0, real, virt }));
             }
             let start = Instant::now();
@@ -478,10 +546,35 @@ impl DirRenderer {
                 let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
                 let mut sources = vpls.clone();
                 for b in 2..=params.bounces.min(MAX_BOUNCES) {
-                    let search = bounce::BounceSearch { candidates: params.bounce_candidates, cone_degrees: params.bounce_cone_degrees, seed: b.wrapping_mul(0x9e37_79b9) };
-                    let label = format!("bounce {b} ({budget} slots, {} candidates each, cone {}°)", search.candidates, search.cone_degrees);
-                    let (next, found, real_only) = timed(ctx, &mut passes, label, || self.bounce.spawn(ctx, &bounce_scene, &mesh, &scene.materials, &sources, budget, &search, mesh.bounds_radius));
-                    bounce_reports.push(bounce::BounceReport { bounce: b, slots: budget, found, real_only, flux: vpl::luminance_flux(&next) as f32, vpls: 0 });
+                    let search = bounce::BounceSearch {
+                        candidates: params.bounce_candidates,
+                        cone_degrees: params.bounce_cone_degrees,
+                        seed: b.wrapping_mul(0x9e37_79b9),
+                    };
+                    let label = format!(
+                        "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
+                        search.candidates, search.cone_degrees
+                    );
+                    let (next, found, real_only) = timed(ctx, &mut passes, label, || {
+                        self.bounce.spawn(
+                            ctx,
+                            &bounce_scene,
+                            &mesh,
+                            &scene.materials,
+                            &sources,
+                            budget,
+                            &search,
+                            mesh.bounds_radius,
+                        )
+                    });
+                    bounce_reports.push(bounce::BounceReport {
+                        bounce: b,
+                        slots: budget,
+                        found,
+                        real_only,
+                        flux: vpl::luminance_flux(&next) as f32,
+                        vpls: 0,
+                    });
                     if next.is_empty() {
                         break;
                     }
@@ -500,16 +593,27 @@ impl DirRenderer {
                     bounce_reports[k].vpls = drawn.len();
                     vpls.extend(drawn);
                 }
-                passes.push(PassTime { pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()), ms: start.elapsed().as_secs_f64() * 1e3 });
+                passes.push(PassTime {
+                    pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
+                    ms: start.elapsed().as_secs_f64() * 1e3,
+                });
             }
         }
 
         // 2b. imperfect shadow maps: VPL visibility from the real and the virtual point clouds
         let ism_atlas = if !vpls.is_empty() && params.ism_size > 0 && params.ism_points > 0 {
             let max_distance = 2.0 * mesh.bounds_radius * 1.01;
-            Some(timed(ctx, &mut passes, format!("ISMs ({} VPLs, {}² each, {} points per cloud)", vpls.len(), params.ism_size, params.ism_points), || {
-                self.ism.render(ctx, &mesh, &vpls, params.ism_points, params.ism_size, max_distance)
-            }))
+            Some(timed(
+                ctx,
+                &mut passes,
+                format!(
+                    "ISMs ({} VPLs, {}² each, {} points per cloud)",
+                    vpls.len(),
+                    params.ism_size,
+                    params.ism_points
+                ),
+                || self.ism.render(ctx, &mesh, &vpls, params.ism_points, params.ism_size, max_distance),
+            ))
         } else {
             None
         };
@@ -518,7 +622,8 @@ impl DirRenderer {
         let gbuffer = SurfaceTargets::new(ctx, width, height, "g-buffer");
         let far = (scene.camera.position - mesh.bounds_centre).length() + 2.0 * mesh.bounds_radius;
         let camera_view_proj = camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far);
-        let camera_view = ViewUniform::perspective(camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
+        let camera_view =
+            ViewUniform::perspective(camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
         timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
 
         // 4. shading
@@ -530,7 +635,12 @@ impl DirRenderer {
         let shade_params = ShadeParams {
             camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
             size: [width, height, n_lights, vpls.len() as u32],
-            mode: [if virtual_maps { condition_code } else { 0 }, size, ism_atlas.as_ref().map_or(0, |a| a.tile_size), ism_atlas.as_ref().map_or(1, |a| a.tiles_per_row)],
+            mode: [
+                if virtual_maps { condition_code } else { 0 },
+                size,
+                ism_atlas.as_ref().map_or(0, |a| a.tile_size),
+                ism_atlas.as_ref().map_or(1, |a| a.tiles_per_row),
+            ],
             tone: [
                 params.interleave.max(1) as f32,
                 params.vpl_clamp_distance * params.vpl_clamp_distance,
@@ -538,8 +648,23 @@ impl DirRenderer {
                 0.0,
             ],
         };
-        let shading_label = if params.interleave > 1 && !vpls.is_empty() { format!("shading (VPLs interleaved {0}×{0})", params.interleave) } else { "shading".to_string() };
-        let output = timed(ctx, &mut passes, shading_label, || self.shade.run(ctx, &shade_params, &gbuffer, &shadow_maps, &lights, &vpls, &buffers, ism_atlas.as_ref().map(|a| &a.texture)));
+        let shading_label = if params.interleave > 1 && !vpls.is_empty() {
+            format!("shading (VPLs interleaved {0}×{0})", params.interleave)
+        } else {
+            "shading".to_string()
+        };
+        let output = timed(ctx, &mut passes, shading_label, || {
+            self.shade.run(
+                ctx,
+                &shade_params,
+                &gbuffer,
+                &shadow_maps,
+                &lights,
+                &vpls,
+                &buffers,
+                ism_atlas.as_ref().map(|a| &a.texture),
+            )
+        });
 
         // 4b. the indirect light: merge of the interleaved classes, temporal smoothing, sum
         if let Some(raw) = &output.indirect {
@@ -560,32 +685,60 @@ impl DirRenderer {
                 steps.push(format!("merge {split}×{split}"));
             }
             if temporal {
-                steps.push(if state.temporal.is_some() { "temporal smoothing".to_string() } else { "temporal smoothing (first frame)".to_string() });
+                steps.push(if state.temporal.is_some() {
+                    "temporal smoothing".to_string()
+                } else {
+                    "temporal smoothing (first frame)".to_string()
+                });
             }
             steps.push("sum".into());
             let label = format!("indirect light ({})", steps.join(", "));
-            timed(ctx, &mut passes, label, || self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, &mut state.temporal))));
+            timed(ctx, &mut passes, label, || {
+                self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, &mut state.temporal)))
+            });
         }
 
         // 5. colour mapping of both buffers (the cm factor)
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
         let photo_buffer = timed(ctx, &mut passes, "upload photograph".into(), || {
             use wgpu::util::DeviceExt;
-            ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("photo"), contents: bytemuck::cast_slice(&photo_texels), usage: wgpu::BufferUsages::STORAGE })
+            ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("photo"),
+                contents: bytemuck::cast_slice(&photo_texels),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
         });
         let cm_buffers = cm::CmBuffers { width, height, solutions: &output.solutions, photo: &photo_buffer };
-        let (mapped, cm_report) = self.cm.run(ctx, &mut passes, &cm_buffers, &photo.pixels, &params.cm, params.exposure, &mut state.cm);
+        let (mapped, cm_report) =
+            self.cm.run(ctx, &mut passes, &cm_buffers, &photo.pixels, &params.cm, params.exposure, &mut state.cm);
 
         // 6. composition
-        let composite = timed(ctx, &mut passes, "composition".into(), || self.compose.run(ctx, width, height, cm_report.mapping.linear_domain(), params.composition, &mapped, &photo_buffer));
-        let (composite, solutions) = timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
+        let composite = timed(ctx, &mut passes, "composition".into(), || {
+            self.compose.run(
+                ctx,
+                width,
+                height,
+                cm_report.mapping.linear_domain(),
+                params.composition,
+                &mapped,
+                &photo_buffer,
+            )
+        });
+        let (composite, solutions) =
+            timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
         let half = solutions.len() / 2;
         let mut composite = to_image(width, height, &composite);
-        let virtual_mask = Mask { width, height, values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect() };
+        let virtual_mask = Mask {
+            width,
+            height,
+            values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect(),
+        };
         // 5. camera artifacts (the ca factor) on the virtual layers of the composite
         let mut ca_report = None;
         if let Some(ca) = &params.camera_artifacts {
-            let (out, report) = timed(ctx, &mut passes, "camera artifacts (ca)".into(), || self.artifacts.run(ctx, &composite, photo, &virtual_mask, &scene.camera, ca))?;
+            let (out, report) = timed(ctx, &mut passes, "camera artifacts (ca)".into(), || {
+                self.artifacts.run(ctx, &composite, photo, &virtual_mask, &scene.camera, ca)
+            })?;
             composite = out;
             ca_report = Some(report);
         }
@@ -597,7 +750,20 @@ impl DirRenderer {
             virtual_mask,
             flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
             vpls: vpls.clone(),
-            report: GpuReport { adapter: ctx.adapter_name(), scene: scene.name.clone(), condition: params.condition, width, height, vpls: vpls.len(), params: params.clone(), passes, ms, cm: cm_report, camera_artifacts: ca_report, bounces: bounce_reports },
+            report: GpuReport {
+                adapter: ctx.adapter_name(),
+                scene: scene.name.clone(),
+                condition: params.condition,
+                width,
+                height,
+                vpls: vpls.len(),
+                params: params.clone(),
+                passes,
+                ms,
+                cm: cm_report,
+                camera_artifacts: ca_report,
+                bounces: bounce_reports,
+            },
         })
     }
 }
@@ -625,15 +791,24 @@ mod tests {
             ("ca.wgsl", ca::SHADER),
             ("bounce.wgsl", bounce::SHADER),
         ] {
-            let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-            let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
+            let module =
+                naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+            let mut validator =
+                naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
         }
     }
 
     #[test]
     fn camera_matrix_projects_like_the_cpu_camera() {
-        let camera = crate::camera::Camera::from_k(128, 96, [100.0, 110.0, 60.0, 50.0], Vec3::new(0.2, 0.5, 1.0), Vec3::ZERO, Vec3::Y);
+        let camera = crate::camera::Camera::from_k(
+            128,
+            96,
+            [100.0, 110.0, 60.0, 50.0],
+            Vec3::new(0.2, 0.5, 1.0),
+            Vec3::ZERO,
+            Vec3::Y,
+        );
         let m = camera_matrix(&camera, 0.01, 10.0);
         for p in [Vec3::new(0.1, 0.0, 0.0), Vec3::new(-0.2, 0.1, 0.3)] {
             let (u, v) = camera.project(p).unwrap();

@@ -24,10 +24,18 @@ pub struct ViewUniform {
 
 impl ViewUniform {
     pub fn perspective(view_proj: Mat4, eye: Vec3, forward: Vec3) -> Self {
-        ViewUniform { view_proj: view_proj.to_cols_array_2d(), eye: [eye.x, eye.y, eye.z, 0.0], forward: [forward.x, forward.y, forward.z, 0.0] }
+        ViewUniform {
+            view_proj: view_proj.to_cols_array_2d(),
+            eye: [eye.x, eye.y, eye.z, 0.0],
+            forward: [forward.x, forward.y, forward.z, 0.0],
+        }
     }
     pub fn orthographic(view_proj: Mat4, origin: Vec3, forward: Vec3) -> Self {
-        ViewUniform { view_proj: view_proj.to_cols_array_2d(), eye: [origin.x, origin.y, origin.z, 1.0], forward: [forward.x, forward.y, forward.z, 0.0] }
+        ViewUniform {
+            view_proj: view_proj.to_cols_array_2d(),
+            eye: [origin.x, origin.y, origin.z, 1.0],
+            forward: [forward.x, forward.y, forward.z, 0.0],
+        }
     }
 }
 
@@ -58,8 +66,16 @@ impl SceneBuffers {
             materials.push(bytemuck::Zeroable::zeroed());
         }
         SceneBuffers {
-            vertices: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("vertices"), contents: bytemuck::cast_slice(&vertices), usage: wgpu::BufferUsages::VERTEX }),
-            materials: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("materials"), contents: bytemuck::cast_slice(&materials), usage: wgpu::BufferUsages::STORAGE }),
+            vertices: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vertices"),
+                contents: bytemuck::cast_slice(&vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            materials: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("materials"),
+                contents: bytemuck::cast_slice(&materials),
+                usage: wgpu::BufferUsages::STORAGE,
+            }),
             real_count: mesh.real_count,
             total_count: mesh.vertices.len() as u32,
         }
@@ -88,7 +104,13 @@ impl SurfaceTargets {
     }
 }
 
-pub fn texture_2d(ctx: &GpuContext, width: u32, height: u32, format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
+pub fn texture_2d(
+    ctx: &GpuContext,
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+    label: &str,
+) -> wgpu::Texture {
     ctx.device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
@@ -96,7 +118,9 @@ pub fn texture_2d(ctx: &GpuContext, width: u32, height: u32, format: wgpu::Textu
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
         view_formats: &[],
     })
 }
@@ -112,16 +136,31 @@ pub const SHADER: &str = include_str!("raster.wgsl");
 
 impl Raster {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("raster.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32, 4 => Uint32];
-        let layout = wgpu::VertexBufferLayout { array_stride: std::mem::size_of::<GpuVertex>() as u64, step_mode: wgpu::VertexStepMode::Vertex, attributes: &attributes };
-        let surface = Some(wgpu::ColorTargetState { format: SURFACE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let distance = Some(wgpu::ColorTargetState { format: DISTANCE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("raster.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32, 4 => Uint32];
+        let layout = wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        };
+        let surface =
+            Some(wgpu::ColorTargetState { format: SURFACE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let distance =
+            Some(wgpu::ColorTargetState { format: DISTANCE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let pipeline = |label: &str, entry: &str, targets: &[Option<wgpu::ColorTargetState>]| {
             ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: None,
-                vertex: wgpu::VertexState { module: &module, entry_point: Some("vs_main"), compilation_options: Default::default(), buffers: &[Some(layout.clone())] },
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(layout.clone())],
+                },
                 primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
@@ -131,7 +170,12 @@ impl Raster {
                     bias: Default::default(),
                 }),
                 multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState { module: &module, entry_point: Some(entry), compilation_options: Default::default(), targets }),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
                 multiview_mask: None,
                 cache: None,
             })
@@ -143,8 +187,18 @@ impl Raster {
         }
     }
 
-    fn bind_group(&self, ctx: &GpuContext, pipeline: &wgpu::RenderPipeline, scene: &SceneBuffers, view: &ViewUniform) -> wgpu::BindGroup {
-        let uniform = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("view"), contents: bytemuck::bytes_of(view), usage: wgpu::BufferUsages::UNIFORM });
+    fn bind_group(
+        &self,
+        ctx: &GpuContext,
+        pipeline: &wgpu::RenderPipeline,
+        scene: &SceneBuffers,
+        view: &ViewUniform,
+    ) -> wgpu::BindGroup {
+        let uniform = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("view"),
+            contents: bytemuck::bytes_of(view),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let layout = pipeline.get_bind_group_layout(0);
         // fs_shadow does not read the materials, so its derived layout has no binding 1
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
@@ -170,7 +224,16 @@ impl Raster {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn draw(&self, ctx: &GpuContext, pipeline: &wgpu::RenderPipeline, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, size: (u32, u32), targets: &[(&wgpu::TextureView, f64)]) {
+    fn draw(
+        &self,
+        ctx: &GpuContext,
+        pipeline: &wgpu::RenderPipeline,
+        scene: &SceneBuffers,
+        view: &ViewUniform,
+        subset: Subset,
+        size: (u32, u32),
+        targets: &[(&wgpu::TextureView, f64)],
+    ) {
         let bind_group = self.bind_group(ctx, pipeline, scene, view);
         let depth = Self::depth(ctx, size.0, size.1);
         let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
@@ -180,7 +243,10 @@ impl Raster {
                     view,
                     depth_slice: None,
                     resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color { r: *clear, g: *clear, b: *clear, a: *clear }), store: wgpu::StoreOp::Store },
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: *clear, g: *clear, b: *clear, a: *clear }),
+                        store: wgpu::StoreOp::Store,
+                    },
                 })
             })
             .collect();
@@ -213,19 +279,51 @@ impl Raster {
     pub fn gbuffer(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, targets: &SurfaceTargets) {
         let size = (targets.position.width(), targets.position.height());
         let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        self.draw(ctx, &self.gbuffer, scene, view, Subset::All, size, &[(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)]);
+        self.draw(
+            ctx,
+            &self.gbuffer,
+            scene,
+            view,
+            Subset::All,
+            size,
+            &[(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)],
+        );
     }
 
     /// A shadow map of `subset` into `distance` (a layer view); empty texels hold 1e30.
-    pub fn shadow_map(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, distance: &wgpu::TextureView, size: u32) {
+    pub fn shadow_map(
+        &self,
+        ctx: &GpuContext,
+        scene: &SceneBuffers,
+        view: &ViewUniform,
+        subset: Subset,
+        distance: &wgpu::TextureView,
+        size: u32,
+    ) {
         self.draw(ctx, &self.shadow, scene, view, subset, (size, size), &[(distance, 1e30)]);
     }
 
     /// A reflective shadow map: distance plus the surfaces the light sees (its own resolution,
     /// separate from the shadow map used for visibility).
-    pub fn rsm(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, subset: Subset, distance: &wgpu::TextureView, targets: &SurfaceTargets) {
+    pub fn rsm(
+        &self,
+        ctx: &GpuContext,
+        scene: &SceneBuffers,
+        view: &ViewUniform,
+        subset: Subset,
+        distance: &wgpu::TextureView,
+        targets: &SurfaceTargets,
+    ) {
         let size = (targets.position.width(), targets.position.height());
         let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        self.draw(ctx, &self.rsm, scene, view, subset, size, &[(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)]);
+        self.draw(
+            ctx,
+            &self.rsm,
+            scene,
+            view,
+            subset,
+            size,
+            &[(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)],
+        );
     }
 }

@@ -46,7 +46,10 @@ pub struct ShadeOutput {
 
 impl Shade {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shade.wgsl"), source: wgpu::ShaderSource::Wgsl(SHADER.into()) });
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("shade.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
         let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("shade"),
             layout: None,
@@ -71,21 +74,43 @@ impl Shade {
         ism: Option<&wgpu::Texture>,
     ) -> ShadeOutput {
         let device = &ctx.device;
-        let storage = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::STORAGE });
+        let storage = |label: &str, bytes: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
         let zero_light: GpuLight = bytemuck::Zeroable::zeroed();
         let zero_vpl: GpuVpl = bytemuck::Zeroable::zeroed();
-        let lights_buffer = storage("lights", bytemuck::cast_slice(if lights.is_empty() { std::slice::from_ref(&zero_light) } else { lights }));
-        let vpls_buffer = storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
+        let lights_buffer = storage(
+            "lights",
+            bytemuck::cast_slice(if lights.is_empty() { std::slice::from_ref(&zero_light) } else { lights }),
+        );
+        let vpls_buffer =
+            storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
         let pixels = (params.size[0] * params.size[1]) as u64;
         let output = |label: &str, texels: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: texels * 16, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: texels * 16,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
         };
         let solutions = output("solutions", 2 * pixels);
         let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("shade params"), contents: bytemuck::bytes_of(params), usage: wgpu::BufferUsages::UNIFORM });
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shade params"),
+            contents: bytemuck::bytes_of(params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (gp, gn, ga) = (view(&gbuffer.position), view(&gbuffer.normal), view(&gbuffer.albedo));
-        let shadow_view = shadow_maps.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
+        let shadow_view = shadow_maps.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
         // without ISMs the shader reads none (tile size 0), but the binding must exist
         let placeholder;
         let ism = match ism {
@@ -104,7 +129,10 @@ impl Shade {
                 &placeholder
             }
         };
-        let ism_view = ism.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
+        let ism_view = ism.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
         let layout = self.pipeline.get_bind_group_layout(0);
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),

@@ -70,7 +70,14 @@ struct Candidate {
     weight: f32,
 }
 
-fn candidate(light: &RsmLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, path_flag: f32, ir: f32) -> Option<Candidate> {
+fn candidate(
+    light: &RsmLight,
+    rsm: &RsmTexels,
+    idx: usize,
+    texel: &RsmTexel,
+    path_flag: f32,
+    ir: f32,
+) -> Option<Candidate> {
     let (position, normal, albedo, _) = texel;
     let p = Vec3::new(position[0], position[1], position[2]);
     let light = match light {
@@ -83,7 +90,14 @@ fn candidate(light: &RsmLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, pa
             if weight <= 0.0 || !weight.is_finite() {
                 return None;
             }
-            return Some(Candidate { vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] }, weight });
+            return Some(Candidate {
+                vpl: GpuVpl {
+                    position: [p.x, p.y, p.z, path_flag],
+                    normal: [normal[0], normal[1], normal[2], ir],
+                    flux: [flux.x, flux.y, flux.z, 0.0],
+                },
+                weight,
+            });
         }
     };
     let to_surface = p - light.position;
@@ -103,7 +117,14 @@ fn candidate(light: &RsmLight, rsm: &RsmTexels, idx: usize, texel: &RsmTexel, pa
     if weight <= 0.0 || !weight.is_finite() {
         return None;
     }
-    Some(Candidate { vpl: GpuVpl { position: [p.x, p.y, p.z, path_flag], normal: [normal[0], normal[1], normal[2], ir], flux: [flux.x, flux.y, flux.z, 0.0] }, weight })
+    Some(Candidate {
+        vpl: GpuVpl {
+            position: [p.x, p.y, p.z, path_flag],
+            normal: [normal[0], normal[1], normal[2], ir],
+            flux: [flux.x, flux.y, flux.z, 0.0],
+        },
+        weight,
+    })
 }
 
 /// Draws `count` VPLs from the RSMs of the given lights (spot lights and environment
@@ -119,7 +140,8 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
             let has_virt = virt.0[3] > 0.5;
             let virtual_in_front = has_virt && (!has_real || virt.3 < real.3);
             let found = if virtual_in_front {
-                let shadowed_real = if has_real && light.real() { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
+                let shadowed_real =
+                    if has_real && light.real() { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
                 [candidate(light, rsm, idx, virt, 0.0, 0.0), shadowed_real]
             } else if has_real {
                 [candidate(light, rsm, idx, real, r_pl, 0.0), None]
@@ -203,7 +225,11 @@ pub fn split_budget(budget: u32, fluxes: &[f64]) -> Vec<u32> {
     let mut left = budget - counts.iter().sum::<u32>();
     // first, every source with flux and no VPL yet; then the largest remainders
     let mut order: Vec<usize> = (0..exact.len()).filter(|&i| valid[i] > 0.0).collect();
-    order.sort_by(|&a, &b| (counts[a] > 0).cmp(&(counts[b] > 0)).then((exact[b] - exact[b].floor()).total_cmp(&(exact[a] - exact[a].floor()))));
+    order.sort_by(|&a, &b| {
+        (counts[a] > 0)
+            .cmp(&(counts[b] > 0))
+            .then((exact[b] - exact[b].floor()).total_cmp(&(exact[a] - exact[a].floor())))
+    });
     for i in order {
         if left == 0 {
             break;
@@ -219,7 +245,15 @@ mod tests {
     use super::*;
 
     fn spot(real: bool) -> SpotLight {
-        SpotLight { name: "s".into(), position: Vec3::new(0.0, 1.0, 0.0), direction: Vec3::NEG_Y, cos_inner: 0.5, cos_outer: 0.4, intensity: Vec3::ONE, real }
+        SpotLight {
+            name: "s".into(),
+            position: Vec3::new(0.0, 1.0, 0.0),
+            direction: Vec3::NEG_Y,
+            cos_inner: 0.5,
+            cos_outer: 0.4,
+            intensity: Vec3::ONE,
+            real,
+        }
     }
 
     fn texel(y: f32, flag: f32, albedo: f32) -> RsmTexel {
@@ -231,7 +265,12 @@ mod tests {
     #[test]
     fn flux_is_conserved_and_flags_follow_section_5_2_3() {
         // one texel: a real floor with a virtual box in front, under a real light
-        let rsm = RsmTexels { size: 1, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5)], virt: vec![texel(0.5, 2.0, 0.8)] };
+        let rsm = RsmTexels {
+            size: 1,
+            tan_half_fov: 0.1,
+            real: vec![texel(0.0, 1.0, 0.5)],
+            virt: vec![texel(0.5, 2.0, 0.8)],
+        };
         let light = spot(true);
         let vpls = create(&[(RsmLight::Spot(&light), rsm)], 64);
         assert_eq!(vpls.len(), 64);
@@ -249,7 +288,12 @@ mod tests {
     #[test]
     fn an_environment_direction_reflects_albedo_times_irradiance_times_texel_area() {
         // two texels: a real floor, and a virtual box in front of the real floor
-        let rsm = RsmTexels { size: 2, tan_half_fov: 0.0, real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY], virt: vec![EMPTY, texel(0.5, 2.0, 0.8), EMPTY, EMPTY] };
+        let rsm = RsmTexels {
+            size: 2,
+            tan_half_fov: 0.0,
+            real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY],
+            virt: vec![EMPTY, texel(0.5, 2.0, 0.8), EMPTY, EMPTY],
+        };
         let light = RsmLight::Directional { irradiance: Vec3::splat(2.0), texel_area: 0.01 };
         let vpls = create(&[(light, rsm)], 300);
         assert_eq!(vpls.len(), 300);
@@ -280,7 +324,12 @@ mod tests {
 
     #[test]
     fn virtual_light_gives_no_vpl_behind_virtual_surfaces_and_no_real_path_flag() {
-        let rsm = RsmTexels { size: 2, tan_half_fov: 0.1, real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY], virt: vec![texel(0.5, 2.0, 0.8), EMPTY, EMPTY, EMPTY] };
+        let rsm = RsmTexels {
+            size: 2,
+            tan_half_fov: 0.1,
+            real: vec![texel(0.0, 1.0, 0.5), texel(0.0, 1.0, 0.5), EMPTY, EMPTY],
+            virt: vec![texel(0.5, 2.0, 0.8), EMPTY, EMPTY, EMPTY],
+        };
         let light = spot(false);
         let vpls = create(&[(RsmLight::Spot(&light), rsm)], 16);
         assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0));

@@ -29,7 +29,10 @@ pub const SCENES: [(&str, &str); 11] = [
     ("survey-5", "survey: high view; Cornell box and blue lamp (and its light) virtual"),
     ("survey-6", "survey: far right; white box and book virtual; red lamp real"),
     ("dir-env-shadow", "DIR Fig. 5.12: a virtual Cornell box shadows a real white box under environment light"),
-    ("dir-lamp-cornell", "DIR Fig. 5.13: a real pocket lamp lights the virtual Cornell box, which bleeds red onto the real desk and box"),
+    (
+        "dir-lamp-cornell",
+        "DIR Fig. 5.13: a real pocket lamp lights the virtual Cornell box, which bleeds red onto the real desk and box",
+    ),
     ("dir-lamp-box", "DIR Fig. 5.14: the real pocket lamp lights the real box, which lights the virtual Cornell box"),
     ("dir-double-shadow", "DIR Figs. 5.15-5.17: a real spot, a real box, and a virtual box in the real box's shadow"),
     ("lab-task", "lab task (Sec. 6.3): a table, a real green cube and a virtual green cube"),
@@ -60,7 +63,12 @@ fn rgb(r: f32, g: f32, b: f32) -> Rgb {
 }
 
 fn mat(albedo: Rgb, specular: f32, exponent: f32) -> MaterialDesc {
-    MaterialDesc { albedo: Some(albedo), specular: (specular > 0.0).then_some(Rgb::Grey(specular)), exponent: Some(exponent), ..Default::default() }
+    MaterialDesc {
+        albedo: Some(albedo),
+        specular: (specular > 0.0).then_some(Rgb::Grey(specular)),
+        exponent: Some(exponent),
+        ..Default::default()
+    }
 }
 
 fn obj(name: &str, role: Role, shape: &str, material: &str, translate: [f32; 3]) -> ObjectDesc {
@@ -88,7 +96,12 @@ fn common_materials() -> BTreeMap<String, MaterialDesc> {
         "wood".into(),
         MaterialDesc {
             albedo: Some(Rgb::Grey(0.95)),
-            pattern: Some(PatternDesc { kind: "wood".into(), a: rgb(0.55, 0.36, 0.2), b: rgb(0.32, 0.18, 0.08), scale: 9.0 }),
+            pattern: Some(PatternDesc {
+                kind: "wood".into(),
+                a: rgb(0.55, 0.36, 0.2),
+                b: rgb(0.32, 0.18, 0.08),
+                scale: 9.0,
+            }),
             specular: Some(Rgb::Grey(0.04)),
             exponent: Some(30.0),
             ..Default::default()
@@ -105,12 +118,20 @@ fn common_materials() -> BTreeMap<String, MaterialDesc> {
     m.insert("lamp-red".into(), mat(rgb(0.62, 0.05, 0.04), 0.25, 60.0));
     m.insert("lamp-blue".into(), mat(rgb(0.05, 0.12, 0.55), 0.25, 60.0));
     m.insert("metal".into(), mat(rgb(0.25, 0.25, 0.25), 0.5, 80.0));
-    m.insert("bulb".into(), MaterialDesc { albedo: Some(Rgb::Grey(0.8)), emission: Some(rgb(8.0, 7.0, 5.5)), ..Default::default() });
+    m.insert(
+        "bulb".into(),
+        MaterialDesc { albedo: Some(Rgb::Grey(0.8)), emission: Some(rgb(8.0, 7.0, 5.5)), ..Default::default() },
+    );
     m.insert(
         "book".into(),
         MaterialDesc {
             albedo: Some(Rgb::Grey(0.95)),
-            pattern: Some(PatternDesc { kind: "stripes".into(), a: rgb(0.1, 0.18, 0.35), b: rgb(0.7, 0.62, 0.3), scale: 5.0 }),
+            pattern: Some(PatternDesc {
+                kind: "stripes".into(),
+                a: rgb(0.1, 0.18, 0.35),
+                b: rgb(0.7, 0.62, 0.3),
+                scale: 5.0,
+            }),
             specular: Some(Rgb::Grey(0.05)),
             exponent: Some(20.0),
             ..Default::default()
@@ -162,15 +183,24 @@ fn table_lamp(objects: &mut Vec<ObjectDesc>, lights: &mut Vec<LightDesc>, colour
     let [x, z] = at;
     let shade = if colour == "red" { "lamp-red" } else { "lamp-blue" };
     let name = format!("{colour}-lamp");
-    objects.push(ObjectDesc { radius: Some(0.05), height: Some(0.015), ..obj(&format!("{name}-base"), role, "cylinder", shade, [x, 0.0075, z]) });
-    objects.push(ObjectDesc { radius: Some(0.006), height: Some(0.22), ..obj(&format!("{name}-stem"), role, "cylinder", "metal", [x, 0.125, z]) });
+    objects.push(ObjectDesc {
+        radius: Some(0.05),
+        height: Some(0.015),
+        ..obj(&format!("{name}-base"), role, "cylinder", shade, [x, 0.0075, z])
+    });
+    objects.push(ObjectDesc {
+        radius: Some(0.006),
+        height: Some(0.22),
+        ..obj(&format!("{name}-stem"), role, "cylinder", "metal", [x, 0.125, z])
+    });
     objects.push(ObjectDesc {
         radius: Some(0.075),
         radius_top: Some(0.03),
         height: Some(0.08),
         ..obj(&format!("{name}-shade"), role, "cone", shade, [x, 0.245, z])
     });
-    objects.push(ObjectDesc { radius: Some(0.014), ..obj(&format!("{name}-bulb"), role, "sphere", "bulb", [x, 0.25, z]) });
+    objects
+        .push(ObjectDesc { radius: Some(0.014), ..obj(&format!("{name}-bulb"), role, "sphere", "bulb", [x, 0.25, z]) });
     lights.push(LightDesc {
         name: format!("{name}-light"),
         kind: "spot".into(),
@@ -220,10 +250,12 @@ fn banana(objects: &mut Vec<ObjectDesc>, role: Role, at: [f32; 2], yaw: f32) {
             [0.1 * a.sin(), 0.018 + 0.05 * (1.0 - a.cos()), 0.0]
         })
         .collect();
-    let radii: Vec<f32> = (0..n).map(|i| {
-        let t = i as f32 / (n - 1) as f32;
-        0.004 + 0.014 * (std::f32::consts::PI * t).sin().max(0.0).powf(0.6)
-    }).collect();
+    let radii: Vec<f32> = (0..n)
+        .map(|i| {
+            let t = i as f32 / (n - 1) as f32;
+            0.004 + 0.014 * (std::f32::consts::PI * t).sin().max(0.0).powf(0.6)
+        })
+        .collect();
     objects.push(ObjectDesc {
         points: Some(points),
         radii: Some(radii),
@@ -235,7 +267,11 @@ fn banana(objects: &mut Vec<ObjectDesc>, role: Role, at: [f32; 2], yaw: f32) {
 
 fn camera_at(azimuth_deg: f32, elevation_deg: f32, distance: f32, centre: [f32; 3], preset: &str) -> CameraDesc {
     let (a, e) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
-    let position = [centre[0] + distance * e.cos() * a.sin(), centre[1] + distance * e.sin(), centre[2] + distance * e.cos() * a.cos()];
+    let position = [
+        centre[0] + distance * e.cos() * a.sin(),
+        centre[1] + distance * e.sin(),
+        centre[2] + distance * e.cos() * a.cos(),
+    ];
     CameraDesc {
         width: 640,
         height: 480,
@@ -253,7 +289,8 @@ use Role::{Real, Virtual};
 fn survey(config: u32) -> SceneDesc {
     let centre = [0.0, 0.06, 0.0];
     // (azimuth, elevation) per configuration: all within 30° of the frontal view, 51 cm away
-    let (az, el) = [(0.0, 30.0), (-20.0, 26.0), (22.0, 34.0), (-30.0, 22.0), (8.0, 40.0), (30.0, 28.0)][(config - 1) as usize];
+    let (az, el) =
+        [(0.0, 30.0), (-20.0, 26.0), (22.0, 34.0), (-30.0, 22.0), (8.0, 40.0), (30.0, 28.0)][(config - 1) as usize];
     let mut objects = Vec::new();
     let mut lights = Vec::new();
     table_and_wall(&mut objects);
@@ -277,14 +314,24 @@ fn survey(config: u32) -> SceneDesc {
         5 => [-0.08, -0.15],
         _ => [0.14, -0.2],
     };
-    cornell_box(&mut objects, role(&[1, 2, 5]), cb_at, 0.14, [-10.0, 15.0, -5.0, 20.0, 0.0, -20.0][(config - 1) as usize]);
-    let banana_at = [[-0.08, 0.08], [0.05, 0.06], [0.02, 0.05], [0.14, 0.04], [0.1, 0.06], [-0.05, 0.1]][(config - 1) as usize];
+    cornell_box(
+        &mut objects,
+        role(&[1, 2, 5]),
+        cb_at,
+        0.14,
+        [-10.0, 15.0, -5.0, 20.0, 0.0, -20.0][(config - 1) as usize],
+    );
+    let banana_at =
+        [[-0.08, 0.08], [0.05, 0.06], [0.02, 0.05], [0.14, 0.04], [0.1, 0.06], [-0.05, 0.1]][(config - 1) as usize];
     banana(&mut objects, role(&[1, 3]), banana_at, [20.0, -30.0, 60.0, 10.0, -50.0, 35.0][(config - 1) as usize]);
-    let wb = [[0.16, 0.06], [-0.17, 0.02], [-0.1, -0.02], [0.22, -0.1], [0.2, 0.06], [-0.03, -0.06]][(config - 1) as usize];
+    let wb =
+        [[0.16, 0.06], [-0.17, 0.02], [-0.1, -0.02], [0.22, -0.1], [0.2, 0.06], [-0.03, -0.06]][(config - 1) as usize];
     objects.push(boxed("white-box", role(&[3, 6]), "white", [0.08, 0.08, 0.08], wb, 15.0 * config as f32));
-    let bb = [[-0.2, 0.02], [0.24, 0.04], [0.22, 0.0], [-0.06, 0.08], [-0.2, 0.05], [0.18, 0.08]][(config - 1) as usize];
+    let bb =
+        [[-0.2, 0.02], [0.24, 0.04], [0.22, 0.0], [-0.06, 0.08], [-0.2, 0.05], [0.18, 0.08]][(config - 1) as usize];
     objects.push(boxed("blue-box", role(&[4]), "blue-box", [0.05, 0.1, 0.05], bb, -25.0 + 10.0 * config as f32));
-    let bk = [[0.02, 0.14], [-0.05, 0.15], [-0.2, 0.12], [-0.15, 0.0], [0.0, 0.14], [0.05, 0.12]][(config - 1) as usize];
+    let bk =
+        [[0.02, 0.14], [-0.05, 0.15], [-0.2, 0.12], [-0.15, 0.0], [0.0, 0.14], [0.05, 0.12]][(config - 1) as usize];
     objects.push(boxed("book", role(&[4, 6]), "book", [0.12, 0.025, 0.17], bk, 70.0 + 17.0 * config as f32));
     SceneDesc {
         name: String::new(),
@@ -310,7 +357,8 @@ fn dir_scene(case: DirCase) -> SceneDesc {
     let mut lights = Vec::new();
     let mut materials = common_materials();
     materials.insert("desk".into(), mat(rgb(0.42, 0.4, 0.37), 0.05, 15.0));
-    objects.push(ObjectDesc { size: Some(vec![1.4, 0.04, 0.9]), ..obj("desk", Real, "box", "desk", [0.0, -0.02, 0.0]) });
+    objects
+        .push(ObjectDesc { size: Some(vec![1.4, 0.04, 0.9]), ..obj("desk", Real, "box", "desk", [0.0, -0.02, 0.0]) });
     // the captured environment (Figure 5.12: a fish-eye capture of an office): a brighter sky
     let env = EnvironmentDesc {
         kind: "sky".into(),
@@ -356,7 +404,9 @@ fn dir_scene(case: DirCase) -> SceneDesc {
             objects.push(boxed("white-box", Real, "white", [0.09, 0.09, 0.09], [0.12, 0.02], -20.0));
             centre = [0.02, 0.06, 0.0];
             match case {
-                DirCase::LampCornell => pocket_lamp(&mut objects, &mut lights, [-0.05, 0.09, 0.35], [-0.08, 0.06, -0.05]),
+                DirCase::LampCornell => {
+                    pocket_lamp(&mut objects, &mut lights, [-0.05, 0.09, 0.35], [-0.08, 0.06, -0.05])
+                }
                 DirCase::LampBox => pocket_lamp(&mut objects, &mut lights, [0.3, 0.1, 0.3], [0.12, 0.05, 0.02]),
                 _ => {}
             }
@@ -388,7 +438,10 @@ fn dir_scene(case: DirCase) -> SceneDesc {
         materials,
         objects,
         lights,
-        environment: Some(EnvironmentDesc { intensity: Some(if matches!(case, DirCase::EnvShadow) { 1.0 } else { 0.5 }), ..env }),
+        environment: Some(EnvironmentDesc {
+            intensity: Some(if matches!(case, DirCase::EnvShadow) { 1.0 } else { 0.5 }),
+            ..env
+        }),
         background: None,
     }
 }
@@ -398,7 +451,10 @@ fn lab_task() -> SceneDesc {
     let mut lights = Vec::new();
     let mut materials = common_materials();
     materials.insert("table-plate".into(), mat(rgb(0.6, 0.6, 0.58), 0.02, 10.0));
-    objects.push(ObjectDesc { size: Some(vec![1.2, 0.02, 0.8]), ..obj("table", Real, "box", "table-plate", [0.0, -0.01, 0.0]) });
+    objects.push(ObjectDesc {
+        size: Some(vec![1.2, 0.02, 0.8]),
+        ..obj("table", Real, "box", "table-plate", [0.0, -0.01, 0.0])
+    });
     objects.push(boxed("real-cube", Real, "green-box", [0.05, 0.05, 0.05], [0.0, 0.0], 0.0));
     objects.push(boxed("virtual-cube", Virtual, "green-box", [0.05, 0.05, 0.05], [0.16, -0.1], 30.0));
     let env = room_lighting(&mut lights);

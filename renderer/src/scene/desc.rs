@@ -192,7 +192,8 @@ impl SceneDesc {
         toml::to_string_pretty(self).unwrap_or_default()
     }
     pub fn from_toml(text: &str, file: &str) -> Result<SceneDesc> {
-        toml::from_str(text).map_err(|e| RenderError::Parse { file: file.to_string(), message: one_line(&e.to_string()) })
+        toml::from_str(text)
+            .map_err(|e| RenderError::Parse { file: file.to_string(), message: one_line(&e.to_string()) })
     }
 }
 
@@ -203,4 +204,3 @@ fn one_line(s: &str) -> String {
     let msg = lines.last().copied().unwrap_or("");
     if head == msg { head.to_string() } else { format!("{head} {}", msg.trim_start_matches('|').trim()) }
 }
-

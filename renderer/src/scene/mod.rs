@@ -84,14 +84,21 @@ impl Ctx<'_> {
 }
 
 fn finite3(ctx: &Ctx, key: &str, v: [f32; 3]) -> Result<Vec3> {
-    if v.iter().all(|c| c.is_finite()) { Ok(Vec3::from_array(v)) } else { Err(ctx.invalid(key, "three finite numbers")) }
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(Vec3::from_array(v))
+    } else {
+        Err(ctx.invalid(key, "three finite numbers"))
+    }
 }
 
 impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| RenderError::MissingFile { what: "scene file", path: path.to_owned(), reason: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| RenderError::MissingFile {
+            what: "scene file",
+            path: path.to_owned(),
+            reason: e.to_string(),
+        })?;
         let desc = SceneDesc::from_toml(&text, &file)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Scene::from_desc(desc, base, &file)
@@ -102,7 +109,11 @@ impl Scene {
     pub fn from_desc(desc: SceneDesc, base: &Path, file: &str) -> Result<Scene> {
         let mut ctx = Ctx { base, file, warnings: Vec::new() };
         let camera = resolve_camera(&ctx, &desc.camera)?;
-        let sensor = desc.camera.sensor.resolve().map_err(|(key, expected)| ctx.invalid(format!("camera.sensor.{key}"), expected))?;
+        let sensor = desc
+            .camera
+            .sensor
+            .resolve()
+            .map_err(|(key, expected)| ctx.invalid(format!("camera.sensor.{key}"), expected))?;
 
         let mut materials = Vec::new();
         let mut material_index = BTreeMap::new();
@@ -121,7 +132,8 @@ impl Scene {
                     if role == Role::Virtual {
                         return Err(ctx.invalid(format!("{key}.proxy"), "a proxy only on a real object"));
                     }
-                    let (pp, pm, _) = resolve_object(&mut ctx, p, &format!("{key}.proxy"), &mut materials, &material_index)?;
+                    let (pp, pm, _) =
+                        resolve_object(&mut ctx, p, &format!("{key}.proxy"), &mut materials, &material_index)?;
                     Some((pp, pm))
                 }
                 None => None,
@@ -146,7 +158,11 @@ impl Scene {
                     (None, Some(t)) => Vec3::from_array(t) - position,
                     (None, None) => return Err(ctx.invalid(format!("{key}.direction"), "a direction or a target")),
                 };
-                if d.length_squared() > 0.0 && d.is_finite() { Ok(d.normalize()) } else { Err(ctx.invalid(format!("{key}.direction"), "a non-zero direction")) }
+                if d.length_squared() > 0.0 && d.is_finite() {
+                    Ok(d.normalize())
+                } else {
+                    Err(ctx.invalid(format!("{key}.direction"), "a non-zero direction"))
+                }
             };
             match l.kind.as_str() {
                 "spot" => {
@@ -178,7 +194,8 @@ impl Scene {
                     let size = l.size.ok_or_else(|| ctx.invalid(format!("{key}.size"), "[width, height] in metres"))?;
                     let n = direction()?;
                     if size[0] <= 0.0 || size[1] <= 0.0 {
-                        ctx.warnings.push(format!("{file}: {key} (`{name}`) has zero area and emits nothing; it was skipped"));
+                        ctx.warnings
+                            .push(format!("{file}: {key} (`{name}`) has zero area and emits nothing; it was skipped"));
                         continue;
                     }
                     let frame = crate::math::Frame::from_normal(n);
@@ -201,7 +218,11 @@ impl Scene {
                         closed: false,
                     });
                 }
-                other => return Err(ctx.invalid(format!("{key}.kind"), format!("\"spot\", \"point\" or \"area\", not \"{other}\""))),
+                other => {
+                    return Err(
+                        ctx.invalid(format!("{key}.kind"), format!("\"spot\", \"point\" or \"area\", not \"{other}\""))
+                    );
+                }
             }
         }
 
@@ -233,7 +254,9 @@ impl Scene {
             desc,
         };
         if let Some(inside) = scene.object_containing_camera() {
-            scene.warnings.push(format!("the camera is inside object `{inside}`; its view is blocked by that object's inner faces"));
+            scene.warnings.push(format!(
+                "the camera is inside object `{inside}`; its view is blocked by that object's inner faces"
+            ));
         }
         Ok(scene)
     }
@@ -248,7 +271,12 @@ impl Scene {
                 let mut count = 0;
                 // count crossings along the ray
                 loop {
-                    let next = o.prims.iter().filter_map(|p| p.intersect_t(&ray, t_min, f32::INFINITY)).map(|h| h.0).fold(f32::INFINITY, f32::min);
+                    let next = o
+                        .prims
+                        .iter()
+                        .filter_map(|p| p.intersect_t(&ray, t_min, f32::INFINITY))
+                        .map(|h| h.0)
+                        .fold(f32::INFINITY, f32::min);
                     if !next.is_finite() || count > 64 {
                         break;
                     }
@@ -349,7 +377,9 @@ fn resolve_material(ctx: &Ctx, name: &str, m: &MaterialDesc, key: &str) -> Resul
         return Err(ctx.invalid(format!("{key}.albedo"), "values in [0, 1]"));
     }
     if specular.min_element() < 0.0 || (albedo + specular).max_element() > 1.0 + 1e-6 {
-        return Err(ctx.invalid(format!("{key}.specular"), "albedo + specular ≤ 1 in every channel (energy conservation)"));
+        return Err(
+            ctx.invalid(format!("{key}.specular"), "albedo + specular ≤ 1 in every channel (energy conservation)")
+        );
     }
     if !(exponent >= 0.0 && exponent.is_finite()) {
         return Err(ctx.invalid(format!("{key}.exponent"), "a finite number ≥ 0"));
@@ -358,7 +388,9 @@ fn resolve_material(ctx: &Ctx, name: &str, m: &MaterialDesc, key: &str) -> Resul
         return Err(ctx.invalid(format!("{key}.emission"), "finite values ≥ 0"));
     }
     let texture = match (&m.texture, &m.pattern) {
-        (Some(_), Some(_)) => return Err(ctx.invalid(format!("{key}.pattern"), "either a texture or a pattern, not both")),
+        (Some(_), Some(_)) => {
+            return Err(ctx.invalid(format!("{key}.pattern"), "either a texture or a pattern, not both"));
+        }
         (Some(t), None) => {
             let p = ctx.path(t);
             let img = Image::load(&p, "texture")?;
@@ -371,7 +403,12 @@ fn resolve_material(ctx: &Ctx, name: &str, m: &MaterialDesc, key: &str) -> Resul
                 "wood" => Texture::Wood { light: a, dark: b, rings: p.scale },
                 "checker" => Texture::Checker { a, b, squares: p.scale },
                 "stripes" => Texture::Stripes { a, b, count: p.scale },
-                other => return Err(ctx.invalid(format!("{key}.pattern.kind"), format!("\"wood\", \"checker\" or \"stripes\", not \"{other}\""))),
+                other => {
+                    return Err(ctx.invalid(
+                        format!("{key}.pattern.kind"),
+                        format!("\"wood\", \"checker\" or \"stripes\", not \"{other}\""),
+                    ));
+                }
             })
         }
         (None, None) => None,
@@ -387,9 +424,9 @@ fn resolve_object(
     material_index: &BTreeMap<String, usize>,
 ) -> Result<(Vec<Primitive>, usize, bool)> {
     let material = match &o.material {
-        Some(MaterialRef::Named(n)) => *material_index
-            .get(n)
-            .ok_or_else(|| ctx.invalid(format!("{key}.material"), format!("the name of a material in [materials]; `{n}` is not one")))?,
+        Some(MaterialRef::Named(n)) => *material_index.get(n).ok_or_else(|| {
+            ctx.invalid(format!("{key}.material"), format!("the name of a material in [materials]; `{n}` is not one"))
+        })?,
         Some(MaterialRef::Inline(m)) => {
             let mat = resolve_material(ctx, &format!("{}-material", o.name), m, &format!("{key}.material"))?;
             materials.push(mat);
@@ -438,7 +475,16 @@ fn resolve_object(
             let s = size_n(2)?;
             (geometry::quad(Vec2::new(s[0], s[1]), uv_scale), false)
         }
-        "cylinder" => (geometry::frustum(positive(o.radius, "radius")?, positive(o.radius, "radius")?, positive(o.height, "height")?, segments, true), true),
+        "cylinder" => (
+            geometry::frustum(
+                positive(o.radius, "radius")?,
+                positive(o.radius, "radius")?,
+                positive(o.height, "height")?,
+                segments,
+                true,
+            ),
+            true,
+        ),
         "cone" => {
             let r0 = positive(o.radius, "radius")?;
             let r1 = o.radius_top.unwrap_or(0.0);
@@ -452,13 +498,19 @@ fn resolve_object(
             let pts = o.points.clone().unwrap_or_default();
             let radii = o.radii.clone().unwrap_or_default();
             if pts.len() < 2 || radii.len() != pts.len() || radii.iter().any(|r| !(*r > 0.0)) {
-                return Err(ctx.invalid(format!("{key}.points"), "at least two points and one positive radius per point (`radii`)"));
+                return Err(ctx.invalid(
+                    format!("{key}.points"),
+                    "at least two points and one positive radius per point (`radii`)",
+                ));
             }
             let pts: Vec<Vec3> = pts.into_iter().map(Vec3::from_array).collect();
             (geometry::tube(&pts, &radii, segments.min(64)), true)
         }
         "mesh" => {
-            let p = o.path.as_ref().ok_or_else(|| ctx.invalid(format!("{key}.path"), "the path of a .gltf, .glb or .obj file"))?;
+            let p = o
+                .path
+                .as_ref()
+                .ok_or_else(|| ctx.invalid(format!("{key}.path"), "the path of a .gltf, .glb or .obj file"))?;
             let full = ctx.path(p);
             (mesh::load(&full)?, false)
         }
@@ -471,7 +523,8 @@ fn resolve_object(
     };
     let (world, degenerate) = geometry::transform_triangles(tris, &m);
     if degenerate > 0 {
-        ctx.warnings.push(format!("{}: {key} (`{}`): dropped {degenerate} degenerate (zero-area) triangles", ctx.file, o.name));
+        ctx.warnings
+            .push(format!("{}: {key} (`{}`): dropped {degenerate} degenerate (zero-area) triangles", ctx.file, o.name));
     }
     if world.is_empty() {
         return Err(ctx.invalid(format!("{key}.shape"), "geometry with at least one non-degenerate triangle"));
@@ -501,7 +554,10 @@ fn resolve_environment(ctx: &mut Ctx, e: &EnvironmentDesc) -> Result<Environment
             }),
         ),
         "map" => {
-            let p = e.path.as_ref().ok_or_else(|| ctx.invalid("environment.path", "an .hdr or .exr file for kind \"map\""))?;
+            let p = e
+                .path
+                .as_ref()
+                .ok_or_else(|| ctx.invalid("environment.path", "an .hdr or .exr file for kind \"map\""))?;
             let full = ctx.path(p);
             if !Image::is_hdr_path(&full) {
                 return Err(ctx.invalid("environment.path", "an .hdr or .exr file (linear radiance)"));
@@ -516,10 +572,16 @@ fn resolve_environment(ctx: &mut Ctx, e: &EnvironmentDesc) -> Result<Environment
                     }
                     light::fisheye_to_equirect(&img, e.fov_deg.unwrap_or(180.0), 512)
                 }
-                other => return Err(ctx.invalid("environment.mapping", format!("\"equirect\" or \"fisheye\", not \"{other}\""))),
+                other => {
+                    return Err(
+                        ctx.invalid("environment.mapping", format!("\"equirect\" or \"fisheye\", not \"{other}\""))
+                    );
+                }
             }
         }
-        other => return Err(ctx.invalid("environment.kind", format!("\"map\", \"sky\" or \"uniform\", not \"{other}\""))),
+        other => {
+            return Err(ctx.invalid("environment.kind", format!("\"map\", \"sky\" or \"uniform\", not \"{other}\"")));
+        }
     };
     let source = e.path.clone().unwrap_or_else(|| e.kind.clone());
     if let Some(w) = light::repair_environment(&mut map, &source) {

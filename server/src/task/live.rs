@@ -64,7 +64,11 @@ pub struct SessionRenderState {
 
 impl std::fmt::Debug for SessionRenderState {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SessionRenderState").field("frames", &self.frames).field("smoothing", &self.smoothing).field("last", &self.last).finish_non_exhaustive()
+        f.debug_struct("SessionRenderState")
+            .field("frames", &self.frames)
+            .field("smoothing", &self.smoothing)
+            .field("last", &self.last)
+            .finish_non_exhaustive()
     }
 }
 
@@ -157,7 +161,14 @@ impl LabRenderer {
     }
 
     /// Renders one frame and waits for it.
-    pub async fn frame(&self, study: &str, condition: Condition, trial: u32, centre: [f64; 3], state: SessionRenderState) -> Result<Frame, String> {
+    pub async fn frame(
+        &self,
+        study: &str,
+        condition: Condition,
+        trial: u32,
+        centre: [f64; 3],
+        state: SessionRenderState,
+    ) -> Result<Frame, String> {
         let (reply, answer) = oneshot::channel();
         self.submit(FrameJob { study: study.to_string(), condition, trial, centre, state, reply })?;
         answer.await.map_err(|_| "the renderer thread stopped during a frame".to_string())?
@@ -206,7 +217,11 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
     let encode_ms = encode_start.elapsed().as_secs_f64() * 1e3;
     state.frames += 1;
     state.last = Some((job.trial, job.condition));
-    state.smoothing = render.report.passes.iter().any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
+    state.smoothing = render
+        .report
+        .passes
+        .iter()
+        .any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
     Ok(Frame { jpeg, width: render.composite.width, height: render.composite.height, render_ms, encode_ms, state })
 }
 
@@ -226,33 +241,57 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
     let mut desc = match mrstudy_renderer::builtin::get(&study.scene) {
         Some(desc) => desc,
         None => {
-            let text = std::fs::read_to_string(&study.scene).map_err(|error| context(&format!("cannot read scene file {}: {error}", study.scene)))?;
-            mrstudy_renderer::scene::SceneDesc::from_toml(&text, &study.scene).map_err(|error| context(&error.to_string()))?
+            let text = std::fs::read_to_string(&study.scene)
+                .map_err(|error| context(&format!("cannot read scene file {}: {error}", study.scene)))?;
+            mrstudy_renderer::scene::SceneDesc::from_toml(&text, &study.scene)
+                .map_err(|error| context(&error.to_string()))?
         }
     };
     let real_rotation = desc.objects.iter().find(|o| o.name == study.real_object).map(|o| o.rotate_deg);
     let Some(real_rotation) = real_rotation else {
-        return Err(context(&format!("scene \"{}\" has no object named \"{}\" (scene.real_object)", study.scene, study.real_object)));
+        return Err(context(&format!(
+            "scene \"{}\" has no object named \"{}\" (scene.real_object)",
+            study.scene, study.real_object
+        )));
     };
     let Some(virtual_desc) = desc.objects.iter_mut().find(|o| o.name == study.virtual_object) else {
-        return Err(context(&format!("scene \"{}\" has no object named \"{}\" (scene.virtual_object)", study.scene, study.virtual_object)));
+        return Err(context(&format!(
+            "scene \"{}\" has no object named \"{}\" (scene.virtual_object)",
+            study.scene, study.virtual_object
+        )));
     };
     virtual_desc.rotate_deg = real_rotation;
     let [width, height] = study.render.size.unwrap_or(if software { SOFTWARE_SIZE } else { HARDWARE_SIZE });
     let base = Path::new(&study.scene).parent().unwrap_or(Path::new("."));
-    let scene = Scene::from_desc(desc, base, &study.scene).map_err(|error| context(&error.to_string()))?.with_size(width, height);
-    let real = scene.objects.iter().find(|o| o.name == study.real_object).ok_or_else(|| context("the real object vanished"))?;
+    let scene = Scene::from_desc(desc, base, &study.scene)
+        .map_err(|error| context(&error.to_string()))?
+        .with_size(width, height);
+    let real = scene
+        .objects
+        .iter()
+        .find(|o| o.name == study.real_object)
+        .ok_or_else(|| context("the real object vanished"))?;
     if real.role != mrstudy_renderer::scene::Role::Real {
         return Err(context(&format!("object \"{}\" is not real (scene.real_object)", study.real_object)));
     }
-    let virtual_object = scene.objects.iter().find(|o| o.name == study.virtual_object).ok_or_else(|| context("the virtual object vanished"))?;
+    let virtual_object = scene
+        .objects
+        .iter()
+        .find(|o| o.name == study.virtual_object)
+        .ok_or_else(|| context("the virtual object vanished"))?;
     if virtual_object.role != mrstudy_renderer::scene::Role::Virtual {
         return Err(context(&format!("object \"{}\" is not virtual (scene.virtual_object)", study.virtual_object)));
     }
-    let real_centre = scene.object_centre(&study.real_object).ok_or_else(|| context("the real object has no geometry"))?;
-    let base_centre = scene.object_centre(&study.virtual_object).ok_or_else(|| context("the virtual object has no geometry"))?;
+    let real_centre =
+        scene.object_centre(&study.real_object).ok_or_else(|| context("the real object has no geometry"))?;
+    let base_centre =
+        scene.object_centre(&study.virtual_object).ok_or_else(|| context("the virtual object has no geometry"))?;
     let half = f64::from(real_centre.y);
-    let layout = Layout { real_centre: real_centre.as_dvec3().to_array(), half_height: half, reach: reach(&scene.camera, real_centre.as_dvec3(), half) };
+    let layout = Layout {
+        real_centre: real_centre.as_dvec3().to_array(),
+        half_height: half,
+        reach: reach(&scene.camera, real_centre.as_dvec3(), half),
+    };
     let photo = cached_photo(&scene, study, cache_dir)?;
     Ok(LabScene {
         slug: study.slug.clone(),
@@ -293,7 +332,9 @@ fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64
             [-1.0, 1.0].iter().all(|&sz: &f64| {
                 [-half, half + 0.10].iter().all(|&dy| {
                     let corner = (centre + glam::DVec3::new(sx * half, dy, sz * half)).as_vec3();
-                    camera.project(corner).is_some_and(|(px, py)| px >= mx && px <= width - mx && py >= my && py <= height - my)
+                    camera
+                        .project(corner)
+                        .is_some_and(|(px, py)| px >= mx && px <= width - mx && py >= my && py <= height - my)
                 })
             })
         })
@@ -313,8 +354,17 @@ fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64
 /// The photograph of the real scene at the live size, from `cache_dir` when it is there (named
 /// by a hash of the scene description, size and samples), else path-traced and stored.
 fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Image, String> {
-    let key = crate::study::sha256_hex(format!("{}\n{}x{}\n{}", scene.desc.to_toml(), scene.camera.width, scene.camera.height, study.render.photo_spp).as_bytes());
-    let path = cache_dir.join(format!("photo-{}-{}x{}-{}.png", study.slug, scene.camera.width, scene.camera.height, &key[..16]));
+    let key = crate::study::sha256_hex(
+        format!("{}\n{}x{}\n{}", scene.desc.to_toml(), scene.camera.width, scene.camera.height, study.render.photo_spp)
+            .as_bytes(),
+    );
+    let path = cache_dir.join(format!(
+        "photo-{}-{}x{}-{}.png",
+        study.slug,
+        scene.camera.width,
+        scene.camera.height,
+        &key[..16]
+    ));
     if let Ok(image) = image::open(&path) {
         let rgb = image.into_rgb8();
         if rgb.width() == scene.camera.width && rgb.height() == scene.camera.height {
@@ -322,7 +372,8 @@ fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Im
         }
     }
     let params = ReferenceParams { spp: study.render.photo_spp, ..ReferenceParams::default() };
-    let (_, photo, _) = render_photo(scene, &params, &|_, _| {}).map_err(|error| format!("study \"{}\": cannot render the photograph: {error}", study.slug))?;
+    let (_, photo, _) = render_photo(scene, &params, &|_, _| {})
+        .map_err(|error| format!("study \"{}\": cannot render the photograph: {error}", study.slug))?;
     let bytes = photo.to_rgb8();
     std::fs::create_dir_all(cache_dir).map_err(|error| format!("cannot create {}: {error}", cache_dir.display()))?;
     let temporary = cache_dir.join(format!(".{}.partial.png", key));
@@ -337,7 +388,12 @@ fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Im
 /// each starting afresh, with the virtual cube moving 1 cm between frames (a moved cube costs
 /// the gi condition more than a still one) — and returns each condition's render plus encode
 /// times in ms, in the study's order.
-pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3], frames: usize) -> Result<Vec<(Condition, Vec<f64>)>, String> {
+pub async fn measure(
+    renderer: &LabRenderer,
+    study: &TaskStudy,
+    centre: [f64; 3],
+    frames: usize,
+) -> Result<Vec<(Condition, Vec<f64>)>, String> {
     let mut measured = Vec::new();
     for (index, &condition) in study.conditions.iter().enumerate() {
         let mut state = SessionRenderState::default();
@@ -350,7 +406,8 @@ pub async fn measure(renderer: &LabRenderer, study: &TaskStudy, centre: [f64; 3]
             let frame = renderer.frame(&study.slug, condition, trial, position, state).await?;
             // a participant's frames come with pauses between them (keys, pacing), after which
             // the renderer is slower than back to back (threads and caches gone cold)
-            tokio::time::sleep(std::time::Duration::from_secs_f64((frame.render_ms + frame.encode_ms).max(5.0) / 1e3)).await;
+            tokio::time::sleep(std::time::Duration::from_secs_f64((frame.render_ms + frame.encode_ms).max(5.0) / 1e3))
+                .await;
             if frame_index > 0 {
                 times.push(frame.render_ms + frame.encode_ms);
             }

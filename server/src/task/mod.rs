@@ -98,7 +98,11 @@ impl LabStudy {
             .into_iter()
             .map(|c| ConditionRate {
                 fast_enough: c.current_ms <= self.budget_ms(),
-                slower_than_fastest_pct: if fastest > 0.0 && fastest.is_finite() { (c.current_ms / fastest - 1.0) * 100.0 } else { 0.0 },
+                slower_than_fastest_pct: if fastest > 0.0 && fastest.is_finite() {
+                    (c.current_ms / fastest - 1.0) * 100.0
+                } else {
+                    0.0
+                },
                 condition: c.condition,
                 startup_ms: c.startup_ms,
                 current_ms: c.current_ms,
@@ -121,11 +125,15 @@ impl LabStudy {
     /// One sentence on the frame rates, for `serve`'s output and the admin page.
     pub fn rate_line(&self, adapter: &AdapterInfo) -> String {
         let rates = self.condition_rates();
-        let per_condition = rates.iter().map(|c| format!("{} {:.1} ms", c.condition, c.current_ms)).collect::<Vec<_>>().join(", ");
+        let per_condition =
+            rates.iter().map(|c| format!("{} {:.1} ms", c.condition, c.current_ms)).collect::<Vec<_>>().join(", ");
         let slowest = rates.iter().map(|c| c.current_ms).fold(0.0, f64::max);
         let slow: Vec<&str> = rates.iter().filter(|c| !c.fast_enough).map(|c| c.condition.as_str()).collect();
         let speed = if slow.is_empty() {
-            format!("fast enough for interactive use in every condition (minimum {} frames/s)", self.study.render.min_fps)
+            format!(
+                "fast enough for interactive use in every condition (minimum {} frames/s)",
+                self.study.render.min_fps
+            )
         } else {
             format!(
                 "TOO SLOW for interactive rates in condition {} (minimum {} frames/s); participants will see the cube lag behind their keys — use a GPU or a smaller render.size",
@@ -135,10 +143,19 @@ impl LabStudy {
         };
         let spread = self.frame_times().spread() * 100.0;
         let parity = match (self.unequal(), self.pace_ms()) {
-            (false, None) => format!("the conditions' frame times are within {:.0} % of each other", PARITY_TOLERANCE * 100.0),
-            (false, Some(pace)) => format!("the conditions' frame times are within {:.0} % of each other, and pace = \"equal\" sends every frame at {pace:.1} ms", PARITY_TOLERANCE * 100.0),
-            (true, Some(pace)) => format!("the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms, so lag does not tell them apart"),
-            (true, None) => format!("the conditions differ by {spread:.0} % in frame time, so condition is confounded with lag — set pace = \"equal\" in the study file to send every condition's frames at the slowest's"),
+            (false, None) => {
+                format!("the conditions' frame times are within {:.0} % of each other", PARITY_TOLERANCE * 100.0)
+            }
+            (false, Some(pace)) => format!(
+                "the conditions' frame times are within {:.0} % of each other, and pace = \"equal\" sends every frame at {pace:.1} ms",
+                PARITY_TOLERANCE * 100.0
+            ),
+            (true, Some(pace)) => format!(
+                "the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms, so lag does not tell them apart"
+            ),
+            (true, None) => format!(
+                "the conditions differ by {spread:.0} % in frame time, so condition is confounded with lag — set pace = \"equal\" in the study file to send every condition's frames at the slowest's"
+            ),
         };
         format!(
             "lab study \"{}\": adapter {} ({}) renders {}×{} frames in {per_condition} (slowest {}); {speed}; {parity}",
@@ -158,12 +175,26 @@ impl LabStudy {
             return Vec::new();
         }
         let rates = self.condition_rates();
-        let fastest = rates.iter().min_by(|a, b| a.current_ms.total_cmp(&b.current_ms)).map(|c| c.condition.clone()).unwrap_or_default();
+        let fastest = rates
+            .iter()
+            .min_by(|a, b| a.current_ms.total_cmp(&b.current_ms))
+            .map(|c| c.condition.clone())
+            .unwrap_or_default();
         rates
             .iter()
             .map(|c| {
-                let relative = if c.condition == fastest { "the fastest condition".to_string() } else { format!("{:.0} % slower than {fastest}", c.slower_than_fastest_pct) };
-                format!("lab study \"{}\", condition \"{}\": {:.1} ms a frame ({}), {relative}", self.study.slug, c.condition, c.current_ms, fps_text(c.current_ms))
+                let relative = if c.condition == fastest {
+                    "the fastest condition".to_string()
+                } else {
+                    format!("{:.0} % slower than {fastest}", c.slower_than_fastest_pct)
+                };
+                format!(
+                    "lab study \"{}\", condition \"{}\": {:.1} ms a frame ({}), {relative}",
+                    self.study.slug,
+                    c.condition,
+                    c.current_ms,
+                    fps_text(c.current_ms)
+                )
             })
             .collect()
     }
@@ -205,7 +236,9 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
             return start;
         }
         Err(error) => {
-            start.warnings.push(format!("task study {names} not served: the renderer thread failed to start ({error})"));
+            start
+                .warnings
+                .push(format!("task study {names} not served: the renderer thread failed to start ({error})"));
             return start;
         }
     };
@@ -216,7 +249,10 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
     for study in studies {
         let software = adapter.is_software();
         let cache_dir = cache.clone();
-        let prepared = tokio::task::spawn_blocking(move || live::prepare_scene(&study, software, &cache_dir).map(|scene| (study, scene))).await;
+        let prepared = tokio::task::spawn_blocking(move || {
+            live::prepare_scene(&study, software, &cache_dir).map(|scene| (study, scene))
+        })
+        .await;
         let (study, scene) = match prepared {
             Ok(Ok(prepared)) => prepared,
             Ok(Err(reason)) => {
@@ -238,18 +274,29 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
         let measured = match live::measure(&renderer, &study, centre, STARTUP_FRAMES).await {
             Ok(measured) => measured,
             Err(reason) => {
-                start.warnings.push(format!("study \"{}\": the renderer cannot make its frames ({reason}); not serving it", study.slug));
+                start.warnings.push(format!(
+                    "study \"{}\": the renderer cannot make its frames ({reason}); not serving it",
+                    study.slug
+                ));
                 continue;
             }
         };
         if let Err(error) = store::upsert_study(storage, &study).await {
-            start.warnings.push(format!("study \"{}\": cannot record it in the database ({error}); not serving it", study.slug));
+            start
+                .warnings
+                .push(format!("study \"{}\": cannot record it in the database ({error}); not serving it", study.slug));
             continue;
         }
         let lab_study = LabStudy::new(study, layout, size, FrameTimes::new(measured));
         let medians = lab_study.frame_times().current();
-        if let Err(error) = store::record_frame_times(storage, &lab_study.study.slug, &adapter.adapter, size, STARTUP_FRAMES, &medians).await {
-            start.warnings.push(format!("study \"{}\": cannot record its frame times in the database ({error})", lab_study.study.slug));
+        if let Err(error) =
+            store::record_frame_times(storage, &lab_study.study.slug, &adapter.adapter, size, STARTUP_FRAMES, &medians)
+                .await
+        {
+            start.warnings.push(format!(
+                "study \"{}\": cannot record its frame times in the database ({error})",
+                lab_study.study.slug
+            ));
         }
         let mut lines = vec![lab_study.rate_line(&adapter)];
         lines.extend(lab_study.condition_lines());

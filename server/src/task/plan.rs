@@ -43,7 +43,11 @@ impl Layout {
     /// The nearest centre within reach (x and z clamped).
     pub fn clamp(&self, centre: DVec3) -> DVec3 {
         let r = self.real_centre;
-        DVec3::new(centre.x.clamp(r[0] - self.reach[0], r[0] + self.reach[1]), centre.y, centre.z.clamp(r[2] - self.reach[2], r[2] + self.reach[3]))
+        DVec3::new(
+            centre.x.clamp(r[0] - self.reach[0], r[0] + self.reach[1]),
+            centre.y,
+            centre.z.clamp(r[2] - self.reach[2], r[2] + self.reach[3]),
+        )
     }
 }
 
@@ -122,9 +126,11 @@ pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, slot: u64) -> Vec<Pla
     let real = DVec3::from(layout.real_centre);
     let mut trials = Vec::with_capacity(study.trial_count());
     for task in &study.tasks {
-        let mut conditions: Vec<(Condition, bool)> = (0..study.practice as usize).map(|k| (study.conditions[order[k % order.len()]], true)).collect();
+        let mut conditions: Vec<(Condition, bool)> =
+            (0..study.practice as usize).map(|k| (study.conditions[order[k % order.len()]], true)).collect();
         for &index in &order {
-            conditions.extend(std::iter::repeat_n((study.conditions[index], false), study.trials_per_condition as usize));
+            conditions
+                .extend(std::iter::repeat_n((study.conditions[index], false), study.trials_per_condition as usize));
         }
         for (condition, practice) in conditions {
             // positions are drawn until the cube is wholly in view (rejection sampling)
@@ -149,7 +155,13 @@ pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, slot: u64) -> Vec<Pla
                 }
                 if draw >= MAX_DRAWS {
                     let start = layout.clamp(start);
-                    let target = if task.kind == TaskKind::Contact { DVec3::new(start.x, target.y, start.z) } else if task.kind == TaskKind::Distance { start } else { target };
+                    let target = if task.kind == TaskKind::Contact {
+                        DVec3::new(start.x, target.y, start.z)
+                    } else if task.kind == TaskKind::Distance {
+                        start
+                    } else {
+                        target
+                    };
                     break (start, target);
                 }
             };
@@ -222,8 +234,19 @@ kind = "contact"
         // ordinal 4 of the six-row design for three conditions: [0, 2, 1]
         let order = condition_order(&study, 4);
         assert_eq!(order, vec![0, 2, 1]);
-        let counted: Vec<Condition> = first.iter().filter(|t| t.task == "distance" && !t.practice).map(|t| t.condition).collect();
-        assert_eq!(counted, vec![Condition::None, Condition::None, Condition::Gi, Condition::Gi, Condition::Shadows, Condition::Shadows]);
+        let counted: Vec<Condition> =
+            first.iter().filter(|t| t.task == "distance" && !t.practice).map(|t| t.condition).collect();
+        assert_eq!(
+            counted,
+            vec![
+                Condition::None,
+                Condition::None,
+                Condition::Gi,
+                Condition::Gi,
+                Condition::Shadows,
+                Condition::Shadows
+            ]
+        );
         assert!(first[0].practice && first[0].task == "distance");
         for (index, trial) in first.iter().enumerate() {
             assert_eq!(trial.trial as usize, index + 1);

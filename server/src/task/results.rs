@@ -41,14 +41,16 @@ pub fn router() -> Router<AppState> {
 
 /// The stored definition of a task study.
 pub async fn definition(pool: &SqlitePool, slug: &str) -> AppResult<serde_json::Value> {
-    let row = sqlx::query("SELECT kind, definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
+    let row =
+        sqlx::query("SELECT kind, definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
     let Some(row) = row else { return Err(AppError::NotFound(format!("There is no study \"{slug}\"."))) };
     let kind: String = row.try_get("kind")?;
     if kind != "task" {
         return Err(AppError::NotFound(format!("Study \"{slug}\" is a {kind} study, not a task study.")));
     }
     let text: String = row.try_get("definition")?;
-    serde_json::from_str(&text).map_err(|error| AppError::Internal(format!("the stored definition of \"{slug}\" is not JSON: {error}")))
+    serde_json::from_str(&text)
+        .map_err(|error| AppError::Internal(format!("the stored definition of \"{slug}\" is not JSON: {error}")))
 }
 
 fn measures(kind: TaskKind) -> Vec<&'static str> {
@@ -69,8 +71,14 @@ fn measures(kind: TaskKind) -> Vec<&'static str> {
 /// The task CSV (see the module doc).
 pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
     let definition = definition(pool, slug).await?;
-    let condition_order: Vec<String> = definition["conditions"].as_array().map(|list| list.iter().filter_map(|c| c.as_str().map(str::to_string)).collect()).unwrap_or_default();
-    let task_order: Vec<String> = definition["tasks"].as_array().map(|list| list.iter().filter_map(|t| t["name"].as_str().map(str::to_string)).collect()).unwrap_or_default();
+    let condition_order: Vec<String> = definition["conditions"]
+        .as_array()
+        .map(|list| list.iter().filter_map(|c| c.as_str().map(str::to_string)).collect())
+        .unwrap_or_default();
+    let task_order: Vec<String> = definition["tasks"]
+        .as_array()
+        .map(|list| list.iter().filter_map(|t| t["name"].as_str().map(str::to_string)).collect())
+        .unwrap_or_default();
     let rows = sqlx::query(
         "SELECT p.id, p.label, p.ordinal, t.task, t.kind, t.condition, COUNT(*) AS n,
                 AVG(t.completion_ms) / 1000.0 AS time_s, AVG(t.error_cm) AS error_cm,
@@ -96,15 +104,27 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
     let mut cells = Vec::new();
     for row in &rows {
         let kind_text: String = row.try_get("kind")?;
-        let kind: TaskKind = serde_json::from_value(serde_json::Value::String(kind_text.clone())).map_err(|_| AppError::Internal(format!("unknown task kind {kind_text} in the database")))?;
+        let kind: TaskKind = serde_json::from_value(serde_json::Value::String(kind_text.clone()))
+            .map_err(|_| AppError::Internal(format!("unknown task kind {kind_text} in the database")))?;
         let mut values = Vec::new();
         for measure in measures(kind) {
             values.push((measure, row.try_get::<Option<f64>, _>(measure)?));
         }
-        cells.push(Cell { id: row.try_get("id")?, label: row.try_get("label")?, ordinal: row.try_get("ordinal")?, task: row.try_get("task")?, kind, condition: row.try_get("condition")?, n: row.try_get("n")?, values });
+        cells.push(Cell {
+            id: row.try_get("id")?,
+            label: row.try_get("label")?,
+            ordinal: row.try_get("ordinal")?,
+            task: row.try_get("task")?,
+            kind,
+            condition: row.try_get("condition")?,
+            n: row.try_get("n")?,
+            values,
+        });
     }
     let position = |list: &[String], name: &str| list.iter().position(|item| item == name).unwrap_or(usize::MAX);
-    cells.sort_by_key(|cell| (position(&task_order, &cell.task), cell.ordinal, position(&condition_order, &cell.condition)));
+    cells.sort_by_key(|cell| {
+        (position(&task_order, &cell.task), cell.ordinal, position(&condition_order, &cell.condition))
+    });
     let mut writer = csv::Writer::from_writer(Vec::new());
     writer.write_record(["participant", "task", "measure", "condition", "value", "trials", "label"]).expect("memory");
     // group by task, then measure, so each measure's rows are together
@@ -122,7 +142,15 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
                     continue;
                 }
                 writer
-                    .write_record([cell.id.as_str(), task, measure, &cell.condition, &format!("{value}"), &cell.n.to_string(), &cell.label])
+                    .write_record([
+                        cell.id.as_str(),
+                        task,
+                        measure,
+                        &cell.condition,
+                        &format!("{value}"),
+                        &cell.n.to_string(),
+                        &cell.label,
+                    ])
                     .expect("memory");
             }
         }
@@ -132,11 +160,48 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
 
 /// Columns of the task trials CSV, in order.
 pub const TRIAL_COLUMNS: [&str; 42] = [
-    "participant", "label", "ordinal", "slot", "trial", "task", "kind", "condition", "practice",
-    "start_x", "start_y", "start_z", "target_x", "target_y", "target_z",
-    "answer_cm", "final_x", "final_y", "final_z", "error_cm", "signed_error_cm", "error_x_cm", "error_y_cm", "error_z_cm",
-    "completion_ms", "keys", "key_log", "frames", "frames_shown", "frame_ms_mean", "frame_ms_max", "shown_frame_ms_mean", "paced_ms",
-    "latency_ms_mean", "latency_ms_p95", "smoothing", "adapter", "started_at", "shown_at", "answered_at", "seed", "condition_order",
+    "participant",
+    "label",
+    "ordinal",
+    "slot",
+    "trial",
+    "task",
+    "kind",
+    "condition",
+    "practice",
+    "start_x",
+    "start_y",
+    "start_z",
+    "target_x",
+    "target_y",
+    "target_z",
+    "answer_cm",
+    "final_x",
+    "final_y",
+    "final_z",
+    "error_cm",
+    "signed_error_cm",
+    "error_x_cm",
+    "error_y_cm",
+    "error_z_cm",
+    "completion_ms",
+    "keys",
+    "key_log",
+    "frames",
+    "frames_shown",
+    "frame_ms_mean",
+    "frame_ms_max",
+    "shown_frame_ms_mean",
+    "paced_ms",
+    "latency_ms_mean",
+    "latency_ms_p95",
+    "smoothing",
+    "adapter",
+    "started_at",
+    "shown_at",
+    "answered_at",
+    "seed",
+    "condition_order",
 ];
 
 /// The task trials CSV (see the module doc).
@@ -158,11 +223,17 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
             let text = match column {
                 "keys" => {
                     let log: Option<String> = row.try_get("key_log")?;
-                    log.and_then(|log| serde_json::from_str::<serde_json::Value>(&log).ok()).and_then(|v| v.as_array().map(Vec::len)).unwrap_or(0).to_string()
+                    log.and_then(|log| serde_json::from_str::<serde_json::Value>(&log).ok())
+                        .and_then(|v| v.as_array().map(Vec::len))
+                        .unwrap_or(0)
+                        .to_string()
                 }
                 "seed" => (row.try_get::<i64, _>("seed")? as u64).to_string(),
-                "practice" | "smoothing" | "ordinal" | "slot" | "trial" | "frames" | "frames_shown" => row.try_get::<Option<i64>, _>(column)?.map(|v| v.to_string()).unwrap_or_default(),
-                "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at" | "shown_at" | "answered_at" | "condition_order" => {
+                "practice" | "smoothing" | "ordinal" | "slot" | "trial" | "frames" | "frames_shown" => {
+                    row.try_get::<Option<i64>, _>(column)?.map(|v| v.to_string()).unwrap_or_default()
+                }
+                "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at"
+                | "shown_at" | "answered_at" | "condition_order" => {
                     row.try_get::<Option<String>, _>(column)?.unwrap_or_default()
                 }
                 _ => row.try_get::<Option<f64>, _>(column)?.map(|v| format!("{v}")).unwrap_or_default(),
@@ -178,13 +249,21 @@ fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
     crate::admin::authorize_admin(state, headers)
 }
 
-async fn task_csv_download(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
+async fn task_csv_download(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Response> {
     admin(&state, &headers)?;
     let csv = task_csv(&state.storage().read, &slug).await?;
     Ok(crate::admin::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
 
-async fn trials_csv_download(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Response> {
+async fn trials_csv_download(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Response> {
     admin(&state, &headers)?;
     let csv = trials_csv(&state.storage().read, &slug).await?;
     Ok(crate::admin::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
@@ -336,7 +415,11 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
     })
 }
 
-async fn analysis_json(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> AppResult<Json<LabReport>> {
+async fn analysis_json(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<LabReport>> {
     admin(&state, &headers)?;
     Ok(Json(report(&state, &slug).await?))
 }
@@ -369,22 +452,39 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
         .map(|measure| MeasureView {
             label: measure.group.label(),
             participants: measure.participants,
-            conditions: measure.conditions.iter().map(|c| (c.condition.clone(), c.n, fmt(c.mean), fmt(c.median))).collect(),
+            conditions: measure
+                .conditions
+                .iter()
+                .map(|c| (c.condition.clone(), c.n, fmt(c.mean), fmt(c.median)))
+                .collect(),
             friedman: measure.friedman.as_ref().map(|f| {
-                format!("χ²({}) = {}, p = {}, Kendall's W = {}, n = {}", f.df, fmt(f.statistic), f.p.display(), fmt(f.kendall_w), f.participants)
+                format!(
+                    "χ²({}) = {}, p = {}, Kendall's W = {}, n = {}",
+                    f.df,
+                    fmt(f.statistic),
+                    f.p.display(),
+                    fmt(f.kendall_w),
+                    f.participants
+                )
             }),
             posthoc: measure
                 .post_hoc
                 .iter()
                 .map(|pair| {
                     let (v, p) = match &pair.test {
-                        Some(test) => (format!("V = {}", test.v), test.p.as_ref().map(|p| p.display()).unwrap_or_else(|| "–".into())),
+                        Some(test) => (
+                            format!("V = {}", test.v),
+                            test.p.as_ref().map(|p| p.display()).unwrap_or_else(|| "–".into()),
+                        ),
                         None => ("–".into(), "–".into()),
                     };
                     (
                         format!("{} – {}", pair.condition_a, pair.condition_b),
                         format!("{v}, n = {}", pair.n),
-                        format!("p = {p}, Holm p = {}", pair.p_holm.as_ref().map(|p| p.display()).unwrap_or_else(|| "–".into())),
+                        format!(
+                            "p = {p}, Holm p = {}",
+                            pair.p_holm.as_ref().map(|p| p.display()).unwrap_or_else(|| "–".into())
+                        ),
                     )
                 })
                 .collect(),
@@ -395,14 +495,20 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
 
 async fn admin_lab_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
     if let Err(error) = admin(&state, &headers) {
-        return crate::pages::message_page(error.status(), "Admin token needed", "Open the admin link that mrstudy serve printed; it carries the admin token.");
+        return crate::pages::message_page(
+            error.status(),
+            "Admin token needed",
+            "Open the admin link that mrstudy serve printed; it carries the admin token.",
+        );
     }
     match report(&state, &slug).await {
         Ok(report) => {
             let measures = report.analysis.as_ref().map(measure_views).unwrap_or_default();
             crate::pages::render(&AdminLabPage { report, measures })
         }
-        Err(AppError::NotFound(message)) => crate::pages::message_page(StatusCode::NOT_FOUND, "No such task study", &message),
+        Err(AppError::NotFound(message)) => {
+            crate::pages::message_page(StatusCode::NOT_FOUND, "No such task study", &message)
+        }
         Err(error) => error.into_response(),
     }
 }
@@ -413,6 +519,13 @@ pub fn overview(state: &AppState) -> Vec<(String, String, String, bool)> {
     lab.order
         .iter()
         .filter_map(|slug| lab.studies.get(slug))
-        .map(|study| (study.study.slug.clone(), study.study.title.clone(), study.rate_line(&lab.adapter), study.interactive() && (!study.unequal() || study.pace_ms().is_some())))
+        .map(|study| {
+            (
+                study.study.slug.clone(),
+                study.study.title.clone(),
+                study.rate_line(&lab.adapter),
+                study.interactive() && (!study.unequal() || study.pace_ms().is_some()),
+            )
+        })
         .collect()
 }

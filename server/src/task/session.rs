@@ -49,8 +49,14 @@ pub const MAX_MESSAGE_BYTES: usize = 4096;
 /// Keys kept in one trial's key log; further keys are refused.
 pub const MAX_KEYS_PER_TRIAL: usize = 5000;
 
-pub async fn websocket(State(state): State<AppState>, Path(slug): Path<String>, upgrade: WebSocketUpgrade) -> Result<Response, AppError> {
-    let lab = state.lab().ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\" (no lab studies are served).")))?;
+pub async fn websocket(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    upgrade: WebSocketUpgrade,
+) -> Result<Response, AppError> {
+    let lab = state
+        .lab()
+        .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\" (no lab studies are served).")))?;
     let study = lab
         .studies
         .get(&slug)
@@ -246,9 +252,12 @@ impl Session {
         let value: Value = serde_json::from_str(text).map_err(|_| Refusal("The message is not valid JSON.".into()))?;
         let kind = value.get("type").and_then(Value::as_str).unwrap_or("").to_string();
         if !["start", "resume", "ready", "acknowledge", "shown", "key", "answer"].contains(&kind.as_str()) {
-            return Err(Refusal(format!("Unknown message type \"{kind}\"; expected start, resume, ready, acknowledge, shown, key or answer.")));
+            return Err(Refusal(format!(
+                "Unknown message type \"{kind}\"; expected start, resume, ready, acknowledge, shown, key or answer."
+            )));
         }
-        let message: ClientMessage = serde_json::from_value(value).map_err(|error| Refusal(format!("The {kind} message does not have the expected fields: {error}.")))?;
+        let message: ClientMessage = serde_json::from_value(value)
+            .map_err(|error| Refusal(format!("The {kind} message does not have the expected fields: {error}.")))?;
         match message {
             ClientMessage::Start { label } => self.start(label).await,
             ClientMessage::Resume { participant, token } => self.resume(participant, token).await,
@@ -279,14 +288,20 @@ impl Session {
 
     async fn start(&mut self, label: String) -> Result<(), Refusal> {
         if self.participant.is_some() {
-            return Err(Refusal("This connection already runs a participant; open a new connection for another.".into()));
+            return Err(Refusal(
+                "This connection already runs a participant; open a new connection for another.".into(),
+            ));
         }
         let label = label.trim().to_string();
         if label.is_empty() {
-            return Err(Refusal("The participant code is empty; type the code the experimenter gave you, then start.".into()));
+            return Err(Refusal(
+                "The participant code is empty; type the code the experimenter gave you, then start.".into(),
+            ));
         }
         if label.chars().count() > 64 || label.chars().any(char::is_control) {
-            return Err(Refusal("The participant label must be at most 64 characters without control characters.".into()));
+            return Err(Refusal(
+                "The participant label must be at most 64 characters without control characters.".into(),
+            ));
         }
         if !self.state.storage().is_open(&self.study.study.slug).await? {
             return Err(Refusal(format!("Study \"{}\" is closed; the admin page can open it.", self.study.study.slug)));
@@ -321,11 +336,15 @@ impl Session {
 
     async fn resume(&mut self, id: String, token: String) -> Result<(), Refusal> {
         if self.participant.is_some() {
-            return Err(Refusal("This connection already runs a participant; open a new connection for another.".into()));
+            return Err(Refusal(
+                "This connection already runs a participant; open a new connection for another.".into(),
+            ));
         }
         let refused = || Refusal("No participant of this study has that id and token.".into());
         let row = store::participant(self.state.storage(), &id).await?.ok_or_else(refused)?;
-        if row.study != self.study.study.slug || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256) {
+        if row.study != self.study.study.slug
+            || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256)
+        {
             return Err(refused());
         }
         self.state.storage().task_write(TaskWrite::Resume { participant: id.clone() }).await?;
@@ -346,7 +365,9 @@ impl Session {
             return Err(Refusal(format!("Trial {} is still running; answer it first.", active.planned.trial)));
         }
         if let Some((task, _)) = &self.instructions_shown {
-            return Err(Refusal(format!("The instructions of the {task} task are waiting to be acknowledged; acknowledge them to start its first trial.")));
+            return Err(Refusal(format!(
+                "The instructions of the {task} task are waiting to be acknowledged; acknowledge them to start its first trial."
+            )));
         }
         if self.answered as usize >= self.trials.len() {
             let thanks = self.study.study.texts.thanks.clone();
@@ -354,7 +375,12 @@ impl Session {
             return Ok(());
         }
         let planned = self.trials[self.answered as usize].clone();
-        let task = self.study.study.task(&planned.task).ok_or_else(|| AppError::Internal(format!("the schedule names task \"{}\", which the study file no longer has", planned.task)))?;
+        let task = self.study.study.task(&planned.task).ok_or_else(|| {
+            AppError::Internal(format!(
+                "the schedule names task \"{}\", which the study file no longer has",
+                planned.task
+            ))
+        })?;
         let first_of_task = planned.trial == 1 || self.trials[planned.trial as usize - 2].task != planned.task;
         if first_of_task && self.acknowledged.as_deref() != Some(planned.task.as_str()) {
             // the task's instructions stay until acknowledged
@@ -434,7 +460,9 @@ impl Session {
     /// The page put frame `n` on screen.
     fn shown(&mut self, n: u32) -> Result<(), Refusal> {
         if n == 0 || n > self.frame_number {
-            return Err(Refusal(format!("Frame {n} was not sent on this connection; shown names a frame the server sent.")));
+            return Err(Refusal(format!(
+                "Frame {n} was not sent on this connection; shown names a frame the server sent."
+            )));
         }
         // a report that arrives after its trial ended changes nothing
         let Some(active) = self.active.as_mut() else { return Ok(()) };
@@ -482,7 +510,8 @@ impl Session {
         // the cube stays in view (x, z within the layout's reach) and at most 2 cm into the table
         let layout = self.study.layout;
         let moved = layout.clamp(active.position + delta);
-        active.position = DVec3::new(moved.x, moved.y.clamp(layout.half_height - 0.02, layout.half_height + 0.30), moved.z);
+        active.position =
+            DVec3::new(moved.x, moved.y.clamp(layout.half_height - 0.02, layout.half_height + 0.30), moved.z);
         let now = Instant::now();
         active.keys.push(json!({
             "key": key,
@@ -610,7 +639,10 @@ impl Session {
                     return Err(Refusal("The distance task needs the answer in cm: {\"type\": \"answer\", \"trial\": N, \"cm\": number}.".into()));
                 };
                 if !cm.is_finite() || cm < 0.0 || cm > task.answer_max_cm {
-                    return Err(Refusal(format!("The distance must be between 0 and {} cm, not {cm}.", task.answer_max_cm)));
+                    return Err(Refusal(format!(
+                        "The distance must be between 0 and {} cm, not {cm}.",
+                        task.answer_max_cm
+                    )));
                 }
                 let offset = start - real;
                 let truth = offset.length() * 100.0;
@@ -620,7 +652,10 @@ impl Session {
             }
             TaskKind::Placement | TaskKind::Contact => {
                 if cm.is_some() {
-                    return Err(Refusal(format!("The {} task is answered by confirming the cube's position, without cm.", task.kind.as_str())));
+                    return Err(Refusal(format!(
+                        "The {} task is answered by confirming the cube's position, without cm.",
+                        task.kind.as_str()
+                    )));
                 }
                 let error = (active.position - target) * 100.0;
                 let signed = (task.kind == TaskKind::Contact).then_some(error.y);
@@ -665,7 +700,8 @@ impl Session {
             paced_ms: active.paced_ms,
             shown_at,
             latency_ms_mean: mean(&latencies),
-            latency_ms_p95: (!latencies.is_empty()).then(|| latencies[((latencies.len() as f64 * 0.95).ceil() as usize).clamp(1, latencies.len()) - 1]),
+            latency_ms_p95: (!latencies.is_empty())
+                .then(|| latencies[((latencies.len() as f64 * 0.95).ceil() as usize).clamp(1, latencies.len()) - 1]),
             smoothing: self.render_state.smoothing,
             adapter: self.lab.adapter.adapter.clone(),
             started_at,

@@ -96,19 +96,32 @@ pub enum TaskWrite {
     Result(TrialResult),
     /// A participant resumes: refused when their slot was given away, else their last activity
     /// is now.
-    Resume { participant: String },
+    Resume {
+        participant: String,
+    },
 }
 
 #[derive(Debug)]
 pub enum TaskWritten {
     /// `took_over`: the abandoned participant whose slot this one took.
-    Participant { ordinal: u64, slot: u64, took_over: Option<String>, trials: Vec<PlannedTaskTrial> },
-    Result { answered: u32, completed: bool },
+    Participant {
+        ordinal: u64,
+        slot: u64,
+        took_over: Option<String>,
+        trials: Vec<PlannedTaskTrial>,
+    },
+    Result {
+        answered: u32,
+        completed: bool,
+    },
     Resumed,
 }
 
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
-pub(crate) async fn execute(connection: &mut SqliteConnection, write: &TaskWrite) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+pub(crate) async fn execute(
+    connection: &mut SqliteConnection,
+    write: &TaskWrite,
+) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
     match write {
         TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
         TaskWrite::Result(result) => store_result(connection, result).await,
@@ -118,24 +131,40 @@ pub(crate) async fn execute(connection: &mut SqliteConnection, write: &TaskWrite
 
 const ABANDONED: &str = "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.";
 
-async fn resume(connection: &mut SqliteConnection, participant: &str) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
-    let abandoned: Option<Option<String>> = sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?").bind(participant).fetch_optional(&mut *connection).await?;
+async fn resume(
+    connection: &mut SqliteConnection,
+    participant: &str,
+) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+    let abandoned: Option<Option<String>> =
+        sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?")
+            .bind(participant)
+            .fetch_optional(&mut *connection)
+            .await?;
     match abandoned {
         None => Ok(Err(AppError::NotFound(format!("There is no task participant \"{participant}\".")))),
         Some(Some(_)) => Ok(Err(AppError::Conflict(ABANDONED.into()))),
         Some(None) => {
-            sqlx::query(sqlx::AssertSqlSafe(format!("UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"))).bind(participant).execute(&mut *connection).await?;
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"
+            )))
+            .bind(participant)
+            .execute(&mut *connection)
+            .await?;
             Ok(Ok(TaskWritten::Resumed))
         }
     }
 }
 
-async fn insert_participant(connection: &mut SqliteConnection, participant: &NewTaskParticipant) -> Result<TaskWritten, sqlx::Error> {
+async fn insert_participant(
+    connection: &mut SqliteConnection,
+    participant: &NewTaskParticipant,
+) -> Result<TaskWritten, sqlx::Error> {
     let study = &participant.study;
-    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM task_participants WHERE study = ?")
-        .bind(&study.slug)
-        .fetch_one(&mut *connection)
-        .await?;
+    let ordinal: i64 =
+        sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM task_participants WHERE study = ?")
+            .bind(&study.slug)
+            .fetch_one(&mut *connection)
+            .await?;
     let seed = match study.seed {
         Some(study_seed) => crate::schedule::derived_seed(study_seed, ordinal as u64),
         None => participant.random_seed,
@@ -152,18 +181,25 @@ async fn insert_participant(connection: &mut SqliteConnection, participant: &New
     let (slot, took_over) = match abandoned {
         Some(row) => (row.try_get::<i64, _>("slot")?, Some(row.try_get::<String, _>("id")?)),
         None => {
-            let next: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(slot) + 1, 0) FROM task_participants WHERE study = ?").bind(&study.slug).fetch_one(&mut *connection).await?;
+            let next: i64 =
+                sqlx::query_scalar("SELECT COALESCE(MAX(slot) + 1, 0) FROM task_participants WHERE study = ?")
+                    .bind(&study.slug)
+                    .fetch_one(&mut *connection)
+                    .await?;
             (next, None)
         }
     };
     let trials = plan::plan(study, &participant.layout, seed, slot as u64);
-    let order: Vec<&str> = plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
+    let order: Vec<&str> =
+        plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
     if let Some(previous) = &took_over {
-        sqlx::query(sqlx::AssertSqlSafe(format!("UPDATE task_participants SET abandoned_at = {NOW}, slot_taken_by = ? WHERE id = ?")))
-            .bind(&participant.id)
-            .bind(previous)
-            .execute(&mut *connection)
-            .await?;
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "UPDATE task_participants SET abandoned_at = {NOW}, slot_taken_by = ? WHERE id = ?"
+        )))
+        .bind(&participant.id)
+        .bind(previous)
+        .execute(&mut *connection)
+        .await?;
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO task_participants (id, study, ordinal, slot, label, token_sha256, seed, schedule_version, file_sha256,
@@ -205,7 +241,10 @@ async fn insert_participant(connection: &mut SqliteConnection, participant: &New
     Ok(TaskWritten::Participant { ordinal: ordinal as u64, slot: slot as u64, took_over, trials })
 }
 
-async fn store_result(connection: &mut SqliteConnection, result: &TrialResult) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+async fn store_result(
+    connection: &mut SqliteConnection,
+    result: &TrialResult,
+) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
     let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = ?")
         .bind(&result.participant)
         .fetch_optional(&mut *connection)
@@ -294,7 +333,14 @@ pub async fn upsert_study(storage: &Storage, study: &TaskStudy) -> Result<(), sq
 }
 
 /// Records the frame time per condition measured at start-up (table `task_frame_times`).
-pub async fn record_frame_times(storage: &Storage, study: &str, adapter: &str, size: [u32; 2], frames: usize, medians: &[(mrstudy_renderer::gpu::GiLevel, f64)]) -> Result<(), sqlx::Error> {
+pub async fn record_frame_times(
+    storage: &Storage,
+    study: &str,
+    adapter: &str,
+    size: [u32; 2],
+    frames: usize,
+    medians: &[(mrstudy_renderer::gpu::GiLevel, f64)],
+) -> Result<(), sqlx::Error> {
     let measured_at = iso(std::time::SystemTime::now());
     for (condition, median_ms) in medians {
         sqlx::query("INSERT OR REPLACE INTO task_frame_times (study, measured_at, adapter, condition, width, height, frames, median_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?)")

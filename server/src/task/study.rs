@@ -288,7 +288,16 @@ struct RenderFile {
 
 impl Default for RenderFile {
     fn default() -> Self {
-        RenderFile { size: None, jpeg_quality: 80, vpls: 64, shadow_map_size: 256, env_lights: 8, photo_spp: 32, min_fps: 10.0, pace: None }
+        RenderFile {
+            size: None,
+            jpeg_quality: 80,
+            vpls: 64,
+            shadow_map_size: 256,
+            env_lights: 8,
+            photo_spp: 32,
+            min_fps: 10.0,
+            pace: None,
+        }
     }
 }
 
@@ -318,9 +327,15 @@ struct TaskFile {
 
 fn default_instructions(kind: TaskKind) -> &'static str {
     match kind {
-        TaskKind::Distance => "A virtual green cube appears somewhere on the table; the real green cube stands in the middle. Type the distance between the two cubes (centre to centre) in centimetres and press Enter.",
-        TaskKind::Placement => "Move the virtual green cube onto the real green cube with the arrow keys (left/right, up = away from you, down = towards you). Press Enter when it sits exactly where the real cube is.",
-        TaskKind::Contact => "The virtual green cube floats above the table. Lower or raise it with the up and down arrow keys until it rests exactly on the table, then press Enter.",
+        TaskKind::Distance => {
+            "A virtual green cube appears somewhere on the table; the real green cube stands in the middle. Type the distance between the two cubes (centre to centre) in centimetres and press Enter."
+        }
+        TaskKind::Placement => {
+            "Move the virtual green cube onto the real green cube with the arrow keys (left/right, up = away from you, down = towards you). Press Enter when it sits exactly where the real cube is."
+        }
+        TaskKind::Contact => {
+            "The virtual green cube floats above the table. Lower or raise it with the up and down arrow keys until it rests exactly on the table, then press Enter."
+        }
     }
 }
 
@@ -328,11 +343,14 @@ fn default_instructions(kind: TaskKind) -> &'static str {
 /// scene file).
 pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Result<TaskStudy, StudyError> {
     let fail = |key: &str, expected: String| StudyError { file: file.to_path_buf(), key: key.to_string(), expected };
-    let raw: TaskStudyFile = toml::from_str(text).map_err(|error| fail("", crate::study::one_line(&error.to_string())))?;
+    let raw: TaskStudyFile =
+        toml::from_str(text).map_err(|error| fail("", crate::study::one_line(&error.to_string())))?;
     if !crate::study::is_slug(&raw.slug) {
         return Err(fail("slug", format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{}\"", raw.slug)));
     }
-    for (key, value) in [("title", &raw.title), ("texts.welcome", &raw.texts.welcome), ("texts.instructions", &raw.texts.instructions)] {
+    for (key, value) in
+        [("title", &raw.title), ("texts.welcome", &raw.texts.welcome), ("texts.instructions", &raw.texts.instructions)]
+    {
         if value.trim().is_empty() {
             return Err(fail(key, "expected a non-empty text".into()));
         }
@@ -354,7 +372,9 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
             ),
         ));
     };
-    for (key, value) in [("scene.real_object", &raw.scene.real_object), ("scene.virtual_object", &raw.scene.virtual_object)] {
+    for (key, value) in
+        [("scene.real_object", &raw.scene.real_object), ("scene.virtual_object", &raw.scene.virtual_object)]
+    {
         if value.trim().is_empty() {
             return Err(fail(key, "expected the name of an object of the scene".into()));
         }
@@ -366,14 +386,22 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     }
     let mut conditions = Vec::new();
     for (index, name) in design.conditions.iter().enumerate() {
-        let condition = Condition::parse(name).ok_or_else(|| fail(&format!("design.conditions[{index}]"), format!("expected one of none, shadows, gi, found \"{name}\"")))?;
+        let condition = Condition::parse(name).ok_or_else(|| {
+            fail(&format!("design.conditions[{index}]"), format!("expected one of none, shadows, gi, found \"{name}\""))
+        })?;
         if conditions.contains(&condition) {
-            return Err(fail(&format!("design.conditions[{index}]"), format!("expected each condition once, \"{}\" appears twice", condition.name())));
+            return Err(fail(
+                &format!("design.conditions[{index}]"),
+                format!("expected each condition once, \"{}\" appears twice", condition.name()),
+            ));
         }
         conditions.push(condition);
     }
     if !(1..=50).contains(&design.trials_per_condition) {
-        return Err(fail("design.trials_per_condition", format!("expected 1 to 50, found {}", design.trials_per_condition)));
+        return Err(fail(
+            "design.trials_per_condition",
+            format!("expected 1 to 50, found {}", design.trials_per_condition),
+        ));
     }
     if design.practice > 20 {
         return Err(fail("design.practice", format!("expected 0 to 20, found {}", design.practice)));
@@ -383,7 +411,10 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     if let Some([width, height]) = render.size
         && !(16..=1920).contains(&width) | !(16..=1440).contains(&height)
     {
-        return Err(fail("render.size", format!("expected [width, height] within 16×16 to 1920×1440, found [{width}, {height}]")));
+        return Err(fail(
+            "render.size",
+            format!("expected [width, height] within 16×16 to 1920×1440, found [{width}, {height}]"),
+        ));
     }
     if !(1..=100).contains(&render.jpeg_quality) {
         return Err(fail("render.jpeg_quality", format!("expected 1 to 100, found {}", render.jpeg_quality)));
@@ -401,11 +432,21 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         return Err(fail("render.photo_spp", format!("expected 1 to 4096, found {}", render.photo_spp)));
     }
     if !(render.min_fps.is_finite() && render.min_fps > 0.0 && render.min_fps <= 240.0) {
-        return Err(fail("render.min_fps", format!("expected a number of frames per second in (0, 240], found {}", render.min_fps)));
+        return Err(fail(
+            "render.min_fps",
+            format!("expected a number of frames per second in (0, 240], found {}", render.min_fps),
+        ));
     }
     let pace = match (raw.pace, render.pace) {
         (Some(top), Some(under)) if top != under => {
-            return Err(fail("render.pace", format!("expected the same value as the top-level pace (\"{}\"), found \"{}\"; give pace once", top.as_str(), under.as_str())));
+            return Err(fail(
+                "render.pace",
+                format!(
+                    "expected the same value as the top-level pace (\"{}\"), found \"{}\"; give pace once",
+                    top.as_str(),
+                    under.as_str()
+                ),
+            ));
         }
         (Some(pace), _) | (None, Some(pace)) => pace,
         (None, None) => Pace::None,
@@ -414,8 +455,14 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     if !(0..=60_000).contains(&raw.min_response_ms) {
         return Err(fail("min_response_ms", format!("expected 0 to 60000 ms, found {}", raw.min_response_ms)));
     }
-    if !(raw.abandon_after_minutes.is_finite() && raw.abandon_after_minutes > 0.0 && raw.abandon_after_minutes <= 10_080.0) {
-        return Err(fail("abandon_after_minutes", format!("expected a number of minutes in (0, 10080], found {}", raw.abandon_after_minutes)));
+    if !(raw.abandon_after_minutes.is_finite()
+        && raw.abandon_after_minutes > 0.0
+        && raw.abandon_after_minutes <= 10_080.0)
+    {
+        return Err(fail(
+            "abandon_after_minutes",
+            format!("expected a number of minutes in (0, 10080], found {}", raw.abandon_after_minutes),
+        ));
     }
     // tasks
     if raw.tasks.is_empty() {
@@ -427,10 +474,16 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         let key = format!("tasks[{index}]");
         let name = task.name.clone().unwrap_or_else(|| task.kind.as_str().to_string());
         if !crate::study::is_slug(&name) {
-            return Err(fail(&format!("{key}.name"), format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{name}\"")));
+            return Err(fail(
+                &format!("{key}.name"),
+                format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{name}\""),
+            ));
         }
         if !names.insert(name.clone()) {
-            return Err(fail(&format!("{key}.name"), format!("expected a unique task name, \"{name}\" appears twice (give each task a `name`)")));
+            return Err(fail(
+                &format!("{key}.name"),
+                format!("expected a unique task name, \"{name}\" appears twice (give each task a `name`)"),
+            ));
         }
         let not_for = |field: &str, present: bool| -> Result<(), StudyError> {
             if present {
@@ -447,7 +500,12 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         let min_cm = task.min_cm.unwrap_or(min_default);
         let max_cm = task.max_cm.unwrap_or(max_default);
         if !(min_cm.is_finite() && max_cm.is_finite() && 0.0 <= min_cm && min_cm <= max_cm && max_cm <= 30.0) {
-            return Err(fail(&format!("{key}.min_cm"), format!("expected 0 ≤ min_cm ≤ max_cm ≤ 30 (the cube must stay on the table), found {min_cm} and {max_cm}")));
+            return Err(fail(
+                &format!("{key}.min_cm"),
+                format!(
+                    "expected 0 ≤ min_cm ≤ max_cm ≤ 30 (the cube must stay on the table), found {min_cm} and {max_cm}"
+                ),
+            ));
         }
         match task.kind {
             TaskKind::Distance => {
@@ -456,7 +514,10 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
                 not_for("max_height_cm", task.max_height_cm.is_some())?;
                 if min_cm < 6.0 {
                     // the cubes are 5 cm wide: closer centres would intersect
-                    return Err(fail(&format!("{key}.min_cm"), format!("expected at least 6 (the cubes are 5 cm wide), found {min_cm}")));
+                    return Err(fail(
+                        &format!("{key}.min_cm"),
+                        format!("expected at least 6 (the cubes are 5 cm wide), found {min_cm}"),
+                    ));
                 }
             }
             TaskKind::Placement | TaskKind::Contact => {
@@ -474,12 +535,23 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         }
         let answer_max_cm = task.answer_max_cm.unwrap_or(200.0);
         if !(answer_max_cm.is_finite() && (max_cm..=10_000.0).contains(&answer_max_cm)) {
-            return Err(fail(&format!("{key}.answer_max_cm"), format!("expected max_cm to 10000, found {answer_max_cm}")));
+            return Err(fail(
+                &format!("{key}.answer_max_cm"),
+                format!("expected max_cm to 10000, found {answer_max_cm}"),
+            ));
         }
         let min_height_cm = task.min_height_cm.unwrap_or(1.0);
         let max_height_cm = task.max_height_cm.unwrap_or(8.0);
-        if !(min_height_cm.is_finite() && max_height_cm.is_finite() && 0.0 < min_height_cm && min_height_cm <= max_height_cm && max_height_cm <= 30.0) {
-            return Err(fail(&format!("{key}.min_height_cm"), format!("expected 0 < min_height_cm ≤ max_height_cm ≤ 30, found {min_height_cm} and {max_height_cm}")));
+        if !(min_height_cm.is_finite()
+            && max_height_cm.is_finite()
+            && 0.0 < min_height_cm
+            && min_height_cm <= max_height_cm
+            && max_height_cm <= 30.0)
+        {
+            return Err(fail(
+                &format!("{key}.min_height_cm"),
+                format!("expected 0 < min_height_cm ≤ max_height_cm ≤ 30, found {min_height_cm} and {max_height_cm}"),
+            ));
         }
         let instructions = task.instructions.clone().unwrap_or_else(|| default_instructions(task.kind).to_string());
         if instructions.trim().is_empty() {
@@ -528,7 +600,10 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         file_sha256,
     };
     if study.trial_count() > 1000 {
-        return Err(fail("design", format!("expected at most 1000 trials per participant, found {}", study.trial_count())));
+        return Err(fail(
+            "design",
+            format!("expected at most 1000 trials per participant, found {}", study.trial_count()),
+        ));
     }
     Ok(study)
 }
@@ -566,10 +641,13 @@ kind = "placement"
 
     #[test]
     fn bad_values_name_the_key() {
-        let error = load(&MINIMAL.replace("[[tasks]]\nkind = \"placement\"", "[design]\nconditions = [\"none\", \"HQ\"]")).unwrap_err();
+        let error =
+            load(&MINIMAL.replace("[[tasks]]\nkind = \"placement\"", "[design]\nconditions = [\"none\", \"HQ\"]"))
+                .unwrap_err();
         assert_eq!(error.key, "design.conditions[1]");
         assert!(error.expected.contains("none, shadows, gi"), "{error}");
-        let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nanswer_max_cm = 50")).unwrap_err();
+        let error =
+            load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nanswer_max_cm = 50")).unwrap_err();
         assert_eq!(error.key, "tasks[1].answer_max_cm");
         let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"distance\"")).unwrap_err();
         assert_eq!(error.key, "tasks[1].name");
@@ -583,16 +661,22 @@ kind = "placement"
     fn participation_and_pace_keys_have_defaults_and_name_the_key_when_bad() {
         let study = load(MINIMAL).unwrap();
         assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (300, 30.0, Pace::None));
-        let top = MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"equal\"\nmin_response_ms = 0\nabandon_after_minutes = 0.01");
+        let top = MINIMAL.replace(
+            "kind = \"task\"",
+            "kind = \"task\"\npace = \"equal\"\nmin_response_ms = 0\nabandon_after_minutes = 0.01",
+        );
         let study = load(&top).unwrap();
         assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (0, 0.01, Pace::Equal));
-        let under = MINIMAL.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"equal\"\n[[tasks]]\nkind = \"distance\"");
+        let under = MINIMAL
+            .replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"equal\"\n[[tasks]]\nkind = \"distance\"");
         assert_eq!(load(&under).unwrap().render.pace, Pace::Equal);
-        let both = top.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"none\"\n[[tasks]]\nkind = \"distance\"");
+        let both =
+            top.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"none\"\n[[tasks]]\nkind = \"distance\"");
         assert_eq!(load(&both).unwrap_err().key, "render.pace");
         let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nmin_response_ms = -5")).unwrap_err();
         assert_eq!(error.key, "min_response_ms");
-        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nabandon_after_minutes = 0")).unwrap_err();
+        let error =
+            load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nabandon_after_minutes = 0")).unwrap_err();
         assert_eq!(error.key, "abandon_after_minutes");
         let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"fast\"")).unwrap_err();
         assert!(error.to_string().contains("fast"), "{error}");
@@ -610,7 +694,10 @@ kind = "placement"
             })
             .expect("studies/lab-task.toml is a task study");
         assert_eq!(task.slug, "lab-task");
-        assert_eq!(task.tasks.iter().map(|t| t.kind).collect::<Vec<_>>(), vec![TaskKind::Distance, TaskKind::Placement, TaskKind::Contact]);
+        assert_eq!(
+            task.tasks.iter().map(|t| t.kind).collect::<Vec<_>>(),
+            vec![TaskKind::Distance, TaskKind::Placement, TaskKind::Contact]
+        );
         assert_eq!(task.trial_count(), 30);
         let error = crate::study::load_study(&dir.join("lab-task.toml")).unwrap_err();
         assert_eq!(error.key, "kind");

@@ -70,7 +70,13 @@ impl FrameTimes {
     pub fn new(startup: Vec<(Condition, Vec<f64>)>) -> FrameTimes {
         let conditions = startup
             .into_iter()
-            .map(|(condition, times)| ConditionTimes { condition, recent: times.iter().copied().collect(), startup: times, frames: 0, sum_ms: 0.0 })
+            .map(|(condition, times)| ConditionTimes {
+                condition,
+                recent: times.iter().copied().collect(),
+                startup: times,
+                frames: 0,
+                sum_ms: 0.0,
+            })
             .collect();
         FrameTimes { conditions }
     }
@@ -133,7 +139,10 @@ mod tests {
 
     #[test]
     fn spread_pace_and_window_follow_the_live_frames() {
-        let mut times = FrameTimes::new(vec![(Condition::None, vec![50.0, 60.0, 55.0]), (Condition::Gi, vec![190.0, 200.0, 210.0])]);
+        let mut times = FrameTimes::new(vec![
+            (Condition::None, vec![50.0, 60.0, 55.0]),
+            (Condition::Gi, vec![190.0, 200.0, 210.0]),
+        ]);
         assert_eq!(times.current(), vec![(Condition::None, 55.0), (Condition::Gi, 200.0)]);
         assert!((times.spread() - (200.0 / 55.0 - 1.0)).abs() < 1e-12);
         assert!(times.unequal());

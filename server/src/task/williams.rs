@@ -88,7 +88,10 @@ mod tests {
     #[test]
     fn the_three_condition_design_is_the_textbook_one() {
         // Williams (1949) for three treatments: ABC, BCA, CAB and their mirrors.
-        assert_eq!(williams(3), vec![vec![0, 1, 2], vec![1, 2, 0], vec![2, 0, 1], vec![2, 1, 0], vec![0, 2, 1], vec![1, 0, 2]]);
+        assert_eq!(
+            williams(3),
+            vec![vec![0, 1, 2], vec![1, 2, 0], vec![2, 0, 1], vec![2, 1, 0], vec![0, 2, 1], vec![1, 0, 2]]
+        );
         assert_eq!(williams(4)[0], vec![0, 1, 3, 2]);
         assert!(williams(0).is_empty());
         assert_eq!(williams(1), vec![vec![0]]);
