@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test of the workspace on a fresh machine: installs the system packages the tests
-# need (when run as root on Debian), then `cargo test` over the whole workspace.
+# need (when run as root on Debian), checks the house style (rustfmt, clippy with -D warnings,
+# rustdoc with -D warnings), then `cargo test` over the whole workspace.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -26,5 +27,20 @@ if ((${#need[@]})); then
     exit 1
   fi
 fi
+
+# The house style (rustfmt.toml, [workspace.lints] in Cargo.toml). rustfmt and clippy come
+# with the Rust toolchain's default profile; where a toolchain lacks them, rustup adds them.
+for component in rustfmt clippy; do
+  tool=$([[ $component == rustfmt ]] && echo fmt || echo clippy)
+  if ! cargo "$tool" --version >/dev/null 2>&1; then
+    rustup component add "$component" >/dev/null 2>&1 || { echo "cannot install the toolchain component $component: the style check needs it" >&2; exit 1; }
+  fi
+done
+echo "style: cargo fmt --check" >&2
+cargo fmt --all --check
+echo "style: cargo clippy --workspace --all-targets -- -D warnings" >&2
+cargo clippy --workspace --all-targets --locked -- -D warnings
+echo "style: cargo doc --no-deps (warnings are errors)" >&2
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
 cargo test --workspace --locked "$@"

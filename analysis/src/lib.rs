@@ -8,7 +8,7 @@
 //! - per-group fits and tests, bootstrap over participants, observer screening;
 //! - Friedman tests, Kendall's W and Wilcoxon signed-rank post-hoc tests for lab tasks;
 //! - SVG worth plots;
-//! - the benchmark behind `mrstudy bench analysis` ([`bench`]).
+//! - the benchmark behind `mrstudy bench analysis` ([`bench`](mod@bench)).
 //!
 //! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
 //! renderer. It parses text it is handed and returns typed results; callers print them.

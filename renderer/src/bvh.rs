@@ -66,9 +66,7 @@ impl<P: Clone> Bvh<P> {
         let mut stack = [0u32; 64];
         let mut sp = 0usize;
         let mut idx = 0u32;
-        if self.nodes[0].bounds.hit(ray.origin, inv, t_max).is_none() {
-            return None;
-        }
+        self.nodes[0].bounds.hit(ray.origin, inv, t_max)?;
         loop {
             let node = &self.nodes[idx as usize];
             if node.count > 0 {

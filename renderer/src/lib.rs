@@ -6,7 +6,7 @@
 //! images, masks, timings and errors.
 //!
 //! Code map:
-//! - [`bench`]: the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
+//! - [`bench`](mod@bench): the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
 //!   path tracer's convergence, ca and cm accuracy), each a typed report.
 //! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
 //!   [`scene::desc`] is the schema, [`builtin`] (`scene::builtin`) the built-in scenes (survey set, DIR test scenes, lab task scene).
@@ -17,7 +17,7 @@
 //! - [`camera`]: pinhole intrinsics (field of view or K) and pose.
 //! - [`pathtracer`]: the unbiased CPU reference path tracer (NEE + MIS, rayon, progressive,
 //!   deterministic per seed).
-//! - [`reference`]: the photograph, the ground-truth composite, HDR buffers and masks.
+//! - [`reference`](mod@reference): the photograph, the ground-truth composite, HDR buffers and masks.
 //! - [`sensor`]: the simulated camera (exposure … JPEG) with presets `webcam`, `phone`, `clean`.
 //! - [`ca`]: the `ca` factor — Klein & Murray's camera chain on the virtual layers (CPU reference;
 //!   the GPU pass is [`gpu::ca`]) and single-image estimators of noise, blur and JPEG

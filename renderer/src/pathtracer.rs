@@ -95,18 +95,18 @@ impl World {
             let mat = &scene.materials[o.material];
             for p in &o.prims {
                 let mut emitter = -1;
-                if mat.is_emissive() {
-                    if let Primitive::Triangle(t) = p {
-                        let area = t.area();
-                        if area > 0.0 {
-                            emitter = emitters.len() as i32;
-                            emitters.push(Emitter {
-                                tri: t.clone(),
-                                normal: t.geometric_normal(),
-                                area,
-                                radiance: mat.emission,
-                            });
-                        }
+                if mat.is_emissive()
+                    && let Primitive::Triangle(t) = p
+                {
+                    let area = t.area();
+                    if area > 0.0 {
+                        emitter = emitters.len() as i32;
+                        emitters.push(Emitter {
+                            tri: t.clone(),
+                            normal: t.geometric_normal(),
+                            area,
+                            radiance: mat.emission,
+                        });
                     }
                 }
                 prims.push(p.clone());

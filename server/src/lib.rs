@@ -10,7 +10,7 @@
 //! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
 //! the HTML pages built on them; [`task`] the lab task studies (live renderer, WebSocket
 //! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
-//! everything from a data directory; [`bench`] measures the API under load. [`app`] builds the
+//! everything from a data directory; [`bench`](mod@bench) measures the API under load. [`app`] builds the
 //! router apart from any socket, so tests drive it with `oneshot`.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by

@@ -1,6 +1,6 @@
 //! Study files (`studies/*.toml`): parsing and validation.
 //!
-//! A study file is read into [`StudyFile`] (the raw TOML shape, unknown keys refused) and then
+//! A study file is read into `StudyFile` (the raw TOML shape, unknown keys refused) and then
 //! checked and resolved into a [`Study`]: condition names are unique, every condition gives a
 //! level for every factor, every scene configuration has a stimulus for every condition, the
 //! design names only defined conditions, and image files exist. Every refusal is a

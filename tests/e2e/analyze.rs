@@ -187,8 +187,9 @@ fn bad_input_is_one_sentence_with_non_zero_exit_and_no_output() {
 fn export_with_pilots(dir: &Path) -> PathBuf {
     let mut text =
         String::from("participant,left,right,chosen,status,completion_code,too_fast,PROLIFIC_PID,pilot,excluded\n");
-    let wins =
-        |a: &str, b: &str, k: usize| if (a.len() + b.len() + k) % 3 == 0 { a.to_string() } else { b.to_string() };
+    let wins = |a: &str, b: &str, k: usize| {
+        if (a.len() + b.len() + k).is_multiple_of(3) { a.to_string() } else { b.to_string() }
+    };
     let names = ["LQ", "GI", "HQ"];
     for (participant, pilot, excluded) in [
         ("p1", false, false),

@@ -1,6 +1,6 @@
 //! The renderer's benchmarks, behind `mrstudy bench render`: the GPU renderer's frame time and
 //! error against the path-traced ground truth ([`gpu`]), the reference path tracer's
-//! convergence ([`reference`]), and the accuracy of the `ca` ([`ca`]) and `cm` ([`cm`]) factors.
+//! convergence ([`reference`](mod@reference)), and the accuracy of the `ca` ([`ca`]) and `cm` ([`cm`]) factors.
 //!
 //! Each returns a typed [`Report`]: the adapter, one typed row per measurement (serialised as
 //! the rows of DESIGN.md's bench JSON, `{"adapter": "...", "rows": [...]}`, by

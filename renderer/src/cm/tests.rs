@@ -147,7 +147,7 @@ fn a_uniform_proxy_has_zero_variance_and_falls_back_to_a_mean_shift() {
 #[test]
 fn a_mask_that_empties_the_image_falls_back_for_every_method() {
     // every pixel virtual: n = n_zero
-    let mut f = Frame::new(32, 24, 1.0, 5, |c| srgb_encode3(c));
+    let mut f = Frame::new(32, 24, 1.0, 5, srgb_encode3);
     f.flags.iter_mut().for_each(|g| *g = 2);
     f.l_r.iter_mut().for_each(|c| *c = Vec3::ZERO);
     for method in [CmMethod::Statistics, CmMethod::Samples, CmMethod::Rohmer] {
@@ -298,7 +298,7 @@ fn samples_with_fewer_pairs_than_unknowns_fall_back() {
     assert!(why.unwrap().contains("per-channel"));
     assert!((rows[0][0] - 0.5).abs() < 1e-5 && (rows[0][3] - 0.2).abs() < 1e-5, "{rows:?}");
     // one virtual pixel in a frame: one pair plus its swap, below the affine's four unknowns
-    let mut f = Frame::new(32, 24, 1.0, 10, |c| srgb_encode3(c));
+    let mut f = Frame::new(32, 24, 1.0, 10, srgb_encode3);
     let first_virtual = f.flags.iter().position(|g| *g == 2).unwrap();
     for (i, g) in f.flags.iter_mut().enumerate() {
         if *g == 2 && i != first_virtual {

@@ -357,11 +357,12 @@ fn spawn_from_hits(
         found += 1;
         let hit_real = hit.3;
         out.extend(make(hit, path_real && hit_real, false));
-        if path_real && !hit_real {
-            if let Some(behind) = real {
-                real_only += 1;
-                out.extend(make(behind, true, true));
-            }
+        if path_real
+            && !hit_real
+            && let Some(behind) = real
+        {
+            real_only += 1;
+            out.extend(make(behind, true, true));
         }
     }
     (out, found, real_only)

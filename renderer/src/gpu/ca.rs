@@ -128,11 +128,11 @@ impl Artifacts {
         let invalid_inputs = ca::sanitize(&mut comp, &mut photo, &mut mask);
         let n = (w * h) as u64;
         let device = &ctx.device;
-        let limit = device.limits().max_storage_buffer_binding_size as u64;
+        let limit = device.limits().max_storage_buffer_binding_size;
         if 3 * n * 16 > limit {
             return Err(RenderError::Unsupported(format!(
                 "the ca pass needs {} MiB storage buffers for {w}x{h} and this adapter allows {} MiB; render smaller or use the CPU reference (ca::apply_cpu)",
-                3 * n * 16 >> 20,
+                (3 * n * 16) >> 20,
                 limit >> 20
             )));
         }

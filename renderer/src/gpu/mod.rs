@@ -388,10 +388,11 @@ impl DirRenderer {
         if let Some(env) = scene.environment.as_ref().filter(|_| params.env_lights > 0) {
             let n = params.env_lights;
             for k in 0..n {
-                if let Some((dir, radiance, pdf)) = env.sample((k as f32 + 0.5) / n as f32, radical_inverse(k)) {
-                    if pdf > 0.0 && radiance.max_element() > 0.0 {
-                        env_dirs.push((-dir, radiance / (n as f32 * pdf)));
-                    }
+                if let Some((dir, radiance, pdf)) = env.sample((k as f32 + 0.5) / n as f32, radical_inverse(k))
+                    && pdf > 0.0
+                    && radiance.max_element() > 0.0
+                {
+                    env_dirs.push((-dir, radiance / (n as f32 * pdf)));
                 }
             }
         }
@@ -540,64 +541,66 @@ impl DirRenderer {
         // primary lights and the bounces (the third distribution mode) — the thesis takes those
         // fluxes from the previous frame, a single stimulus frame measures them first
         let mut bounce_reports: Vec<bounce::BounceReport> = Vec::new();
-        if params.condition == GiLevel::Gi && params.bounces > 1 && !vpls.is_empty() {
-            if let Some(bounce_scene) = bounce::BounceScene::new(ctx, &mesh) {
-                let budget = params.vpls.max(1);
-                let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
-                let mut sources = vpls.clone();
-                for b in 2..=params.bounces.min(MAX_BOUNCES) {
-                    let search = bounce::BounceSearch {
-                        candidates: params.bounce_candidates,
-                        cone_degrees: params.bounce_cone_degrees,
-                        seed: b.wrapping_mul(0x9e37_79b9),
-                    };
-                    let label = format!(
-                        "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
-                        search.candidates, search.cone_degrees
-                    );
-                    let (next, found, real_only) = timed(ctx, &mut passes, label, || {
-                        self.bounce.spawn(
-                            ctx,
-                            &bounce_scene,
-                            &mesh,
-                            &scene.materials,
-                            &sources,
-                            budget,
-                            &search,
-                            mesh.bounds_radius,
-                        )
-                    });
-                    bounce_reports.push(bounce::BounceReport {
-                        bounce: b,
-                        slots: budget,
-                        found,
-                        real_only,
-                        flux: vpl::luminance_flux(&next) as f32,
-                        vpls: 0,
-                    });
-                    if next.is_empty() {
-                        break;
-                    }
-                    pilots.push(next.clone());
-                    sources = next;
-                }
-                let start = Instant::now();
-                let mut fluxes = vec![vpl::luminance_flux(&vpls)];
-                fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
-                let counts = vpl::split_budget(budget, &fluxes);
-                if given_vpls.is_none() {
-                    vpls = vpl::create(&rsms, counts[0]);
-                }
-                for (k, pilot) in pilots.iter().enumerate() {
-                    let drawn = vpl::resample(pilot, counts[k + 1]);
-                    bounce_reports[k].vpls = drawn.len();
-                    vpls.extend(drawn);
-                }
-                passes.push(PassTime {
-                    pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
-                    ms: start.elapsed().as_secs_f64() * 1e3,
+        if params.condition == GiLevel::Gi
+            && params.bounces > 1
+            && !vpls.is_empty()
+            && let Some(bounce_scene) = bounce::BounceScene::new(ctx, &mesh)
+        {
+            let budget = params.vpls.max(1);
+            let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
+            let mut sources = vpls.clone();
+            for b in 2..=params.bounces.min(MAX_BOUNCES) {
+                let search = bounce::BounceSearch {
+                    candidates: params.bounce_candidates,
+                    cone_degrees: params.bounce_cone_degrees,
+                    seed: b.wrapping_mul(0x9e37_79b9),
+                };
+                let label = format!(
+                    "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
+                    search.candidates, search.cone_degrees
+                );
+                let (next, found, real_only) = timed(ctx, &mut passes, label, || {
+                    self.bounce.spawn(
+                        ctx,
+                        &bounce_scene,
+                        &mesh,
+                        &scene.materials,
+                        &sources,
+                        budget,
+                        &search,
+                        mesh.bounds_radius,
+                    )
                 });
+                bounce_reports.push(bounce::BounceReport {
+                    bounce: b,
+                    slots: budget,
+                    found,
+                    real_only,
+                    flux: vpl::luminance_flux(&next) as f32,
+                    vpls: 0,
+                });
+                if next.is_empty() {
+                    break;
+                }
+                pilots.push(next.clone());
+                sources = next;
             }
+            let start = Instant::now();
+            let mut fluxes = vec![vpl::luminance_flux(&vpls)];
+            fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
+            let counts = vpl::split_budget(budget, &fluxes);
+            if given_vpls.is_none() {
+                vpls = vpl::create(&rsms, counts[0]);
+            }
+            for (k, pilot) in pilots.iter().enumerate() {
+                let drawn = vpl::resample(pilot, counts[k + 1]);
+                bounce_reports[k].vpls = drawn.len();
+                vpls.extend(drawn);
+            }
+            passes.push(PassTime {
+                pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
+                ms: start.elapsed().as_secs_f64() * 1e3,
+            });
         }
 
         // 2b. imperfect shadow maps: VPL visibility from the real and the virtual point clouds
@@ -778,24 +781,42 @@ mod cm_tests;
 mod tests {
     use super::*;
 
-    /// Every WGSL file of the GPU renderer, parsed and validated by naga (no GPU needed).
+    /// Every WGSL file of the GPU renderer, found by walking `src/gpu/` (no list to forget),
+    /// parsed and validated by naga as the renderer compiles it: with `common.wgsl` in front
+    /// where the Rust beside it puts it there. A shader no Rust file includes is an error.
     #[test]
     fn every_shader_parses_and_validates_with_naga() {
-        for (name, source) in [
-            ("raster.wgsl", raster::SHADER),
-            ("shade.wgsl", shade::SHADER),
-            ("ism.wgsl", ism::SHADER),
-            ("indirect.wgsl", indirect::SHADER),
-            ("cm.wgsl", cm::SHADER),
-            ("compose.wgsl", compose::SHADER),
-            ("ca.wgsl", ca::SHADER),
-            ("bounce.wgsl", bounce::SHADER),
-        ] {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu");
+        let rust: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|entry| entry.unwrap().path())
+            .filter(|path| path.extension().is_some_and(|extension| extension == "rs"))
+            .map(|path| std::fs::read_to_string(path).unwrap())
+            .collect();
+        let common = std::fs::read_to_string(dir.join("common.wgsl")).unwrap();
+        let mut validated = Vec::new();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|extension| extension != "wgsl") {
+                continue;
+            }
+            let name = path.file_name().unwrap().to_string_lossy().to_string();
+            let own = std::fs::read_to_string(&path).unwrap();
+            let include = format!("include_str!(\"{name}\")");
+            let lines: Vec<&str> = rust.iter().flat_map(|text| text.lines()).filter(|line| line.contains(&include)).collect();
+            assert!(!lines.is_empty(), "{name} is included by no Rust file in src/gpu");
+            let with_common = lines.iter().any(|line| line.contains("include_str!(\"common.wgsl\")")) && name != "common.wgsl";
+            let source = if with_common { format!("{common}{own}") } else { own };
             let module =
-                naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+                naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
             let mut validator =
                 naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
-            validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+            validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
+            validated.push(name);
+        }
+        validated.sort();
+        for expected in ["bounce.wgsl", "ca.wgsl", "cm.wgsl", "compose.wgsl", "indirect.wgsl", "ism.wgsl", "raster.wgsl", "shade.wgsl"] {
+            assert!(validated.iter().any(|name| name == expected), "{expected} not found: {validated:?}");
         }
     }
 
