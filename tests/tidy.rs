@@ -58,7 +58,11 @@ fn every_crate_and_module_is_in_the_code_map() {
     for path in sources() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
         // A folder module is named by its folder; crate roots and test files by their crate.
-        let name = if stem == "mod" { path.parent().unwrap().file_name().unwrap().to_string_lossy().to_string() } else { stem };
+        let name = if stem == "mod" {
+            path.parent().unwrap().file_name().unwrap().to_string_lossy().to_string()
+        } else {
+            stem
+        };
         if ["lib", "main", "tests"].contains(&name.as_str()) {
             continue;
         }

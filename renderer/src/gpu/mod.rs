@@ -803,19 +803,30 @@ mod tests {
             let name = path.file_name().unwrap().to_string_lossy().to_string();
             let own = std::fs::read_to_string(&path).unwrap();
             let include = format!("include_str!(\"{name}\")");
-            let lines: Vec<&str> = rust.iter().flat_map(|text| text.lines()).filter(|line| line.contains(&include)).collect();
+            let lines: Vec<&str> =
+                rust.iter().flat_map(|text| text.lines()).filter(|line| line.contains(&include)).collect();
             assert!(!lines.is_empty(), "{name} is included by no Rust file in src/gpu");
-            let with_common = lines.iter().any(|line| line.contains("include_str!(\"common.wgsl\")")) && name != "common.wgsl";
+            let with_common =
+                lines.iter().any(|line| line.contains("include_str!(\"common.wgsl\")")) && name != "common.wgsl";
             let source = if with_common { format!("{common}{own}") } else { own };
-            let module =
-                naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
+            let module = naga::front::wgsl::parse_str(&source)
+                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
             let mut validator =
                 naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
             validator.validate(&module).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
             validated.push(name);
         }
         validated.sort();
-        for expected in ["bounce.wgsl", "ca.wgsl", "cm.wgsl", "compose.wgsl", "indirect.wgsl", "ism.wgsl", "raster.wgsl", "shade.wgsl"] {
+        for expected in [
+            "bounce.wgsl",
+            "ca.wgsl",
+            "cm.wgsl",
+            "compose.wgsl",
+            "indirect.wgsl",
+            "ism.wgsl",
+            "raster.wgsl",
+            "shade.wgsl",
+        ] {
             assert!(validated.iter().any(|name| name == expected), "{expected} not found: {validated:?}");
         }
     }
