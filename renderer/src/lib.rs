@@ -54,6 +54,8 @@ pub mod scene;
 pub mod sensor;
 pub mod stimulus;
 pub mod surface;
+#[cfg(test)]
+pub(crate) mod test_support;
 
 pub use error::RenderError;
 pub use image::{Image, Mask};

@@ -6,7 +6,7 @@ use super::estimate;
 use super::*;
 use crate::gpu::ca::Artifacts;
 use crate::gpu::context::GpuContext;
-use std::sync::OnceLock;
+use crate::test_support::{assert_images_match, renderer_or_skip};
 
 const W: u32 = 96;
 const H: u32 = 72;
@@ -46,20 +46,9 @@ fn frame() -> (Image, Image, Mask) {
     (composite, photo, mask)
 }
 
-fn gpu() -> Option<&'static (GpuContext, Artifacts)> {
-    static GPU: OnceLock<Option<(GpuContext, Artifacts)>> = OnceLock::new();
-    GPU.get_or_init(|| match GpuContext::new() {
-        Ok(ctx) => {
-            eprintln!("ca GPU tests on {}", ctx.adapter_name());
-            let a = Artifacts::new(&ctx);
-            Some((ctx, a))
-        }
-        Err(e) => {
-            eprintln!("skipping GPU test: {e}");
-            None
-        }
-    })
-    .as_ref()
+/// The shared GPU renderer's context and ca pass, or `None` after saying why the test skips.
+fn gpu() -> Option<(&'static GpuContext, &'static Artifacts)> {
+    renderer_or_skip().map(|renderer| (&renderer.ctx, &renderer.artifacts))
 }
 
 fn max_diff(a: &Image, b: &Image) -> f32 {
@@ -106,7 +95,7 @@ fn empty_mask_and_no_differential_leave_the_photograph_exactly() {
     assert_eq!(report.processed_fraction, 0.0);
     if let Some((ctx, a)) = gpu() {
         let (out, report) = a.run(ctx, &photo, &photo, &mask, &camera(), &p).unwrap();
-        assert_eq!(out, photo, "GPU");
+        assert_images_match("ca-gpu-without-virtual-objects", &out, &photo, 0.0, 0.0);
         assert_eq!(report.processed_fraction, 0.0);
     }
 }
@@ -121,16 +110,14 @@ fn cpu_and_gpu_agree_to_1e_3() {
     p.jpeg_quality = None;
     let (cpu, _) = apply_cpu(&composite, &photo, &mask, &camera(), &p).unwrap();
     let (gpu, _) = a.run(ctx, &composite, &photo, &mask, &camera(), &p).unwrap();
-    let d = max_diff(&cpu, &gpu);
-    assert!(d <= 1e-3, "max |cpu − gpu| = {d}");
+    assert_images_match("ca-gpu-against-cpu", &gpu, &cpu, 1e-3, 0.0);
     assert!(max_diff(&cpu, &photo) > 0.05, "the chain changed nothing");
     // with the JPEG-style stage: a quantisation decision on a coefficient that lies on a
     // rounding boundary may flip between the two; all but 0.5 % of pixels within 1e-3
     p.jpeg_quality = Some(60);
     let (cpu, _) = apply_cpu(&composite, &photo, &mask, &camera(), &p).unwrap();
     let (gpu, _) = a.run(ctx, &composite, &photo, &mask, &camera(), &p).unwrap();
-    let off = cpu.pixels.iter().zip(&gpu.pixels).filter(|(c, g)| (**c - **g).abs().max_element() > 1e-3).count();
-    assert!(off as f32 <= 0.005 * cpu.pixels.len() as f32, "{off} pixels differ by more than 1e-3");
+    assert_images_match("ca-gpu-against-cpu-jpeg", &gpu, &cpu, 1e-3, 0.005);
     let mean: f32 = cpu.pixels.iter().zip(&gpu.pixels).map(|(c, g)| (*c - *g).abs().max_element()).sum::<f32>()
         / cpu.pixels.len() as f32;
     assert!(mean < 1e-4, "mean |cpu − gpu| = {mean}");
@@ -510,11 +497,9 @@ fn cpu_and_gpu_agree_at_an_odd_size_with_every_stage() {
     p.jpeg_quality = None;
     let (cpu, _) = apply_cpu(&composite, &photo, &mask, &cam, &p).unwrap();
     let (gpu, _) = a.run(ctx, &composite, &photo, &mask, &cam, &p).unwrap();
-    let d = max_diff(&cpu, &gpu);
-    assert!(d <= 1e-3, "max |cpu − gpu| = {d}");
+    assert_images_match("ca-gpu-against-cpu-odd-size", &gpu, &cpu, 1e-3, 0.0);
     p.jpeg_quality = Some(35);
     let (cpu, _) = apply_cpu(&composite, &photo, &mask, &cam, &p).unwrap();
     let (gpu, _) = a.run(ctx, &composite, &photo, &mask, &cam, &p).unwrap();
-    let off = cpu.pixels.iter().zip(&gpu.pixels).filter(|(c, g)| (**c - **g).abs().max_element() > 1e-3).count();
-    assert!(off as f32 <= 0.005 * cpu.pixels.len() as f32, "{off} pixels differ by more than 1e-3");
+    assert_images_match("ca-gpu-against-cpu-odd-size-jpeg", &gpu, &cpu, 1e-3, 0.005);
 }

@@ -2,11 +2,11 @@
 //! GPU's own L_rv, L_r and flags, at 96×72 on lavapipe: every method, both compositions,
 //! composites agreeing to 10⁻³; the passes in the frame report; no differential, no change.
 
-use super::invariants::renderer;
 use super::*;
 use crate::cm::colour::gamma_encode;
 use crate::cm::{CmInput, CmMethod, cpu_frame};
 use crate::scene::Role;
+use crate::test_support::{TestScene, assert_images_match, renderer_or_skip};
 
 fn params(method: CmMethod, composition: Composition) -> DirParams {
     DirParams {
@@ -40,31 +40,16 @@ fn scene_and_photo(r: &DirRenderer) -> (Scene, Image) {
 
 /// A warm floor, a red and a blue real box, a green-white virtual box, a spot light.
 fn colourful_scene() -> Scene {
-    let text = r#"
-name = "cm-test"
-[camera]
-width = 96
-height = 72
-fov_y_deg = 50
-position = [0.0, 0.7, 0.9]
-look_at = [0.0, 0.0, 0.0]
-[camera.sensor]
-preset = "clean"
-[materials.floor]
-albedo = [0.6, 0.5, 0.3]
-[materials.red]
-albedo = [0.8, 0.1, 0.08]
-[materials.blue]
-albedo = [0.1, 0.2, 0.7]
-[materials.mint]
-albedo = [0.5, 0.8, 0.6]
-[[objects]]
-name = "floor"
-role = "real"
-shape = "plane"
-size = [3.0, 3.0]
-material = "floor"
-[[objects]]
+    TestScene::new("cm-test")
+        .size(96, 72)
+        .materials(&[
+            ("floor", "[0.6, 0.5, 0.3]"),
+            ("red", "[0.8, 0.1, 0.08]"),
+            ("blue", "[0.1, 0.2, 0.7]"),
+            ("mint", "[0.5, 0.8, 0.6]"),
+        ])
+        .objects(
+            r#"[[objects]]
 name = "red-box"
 role = "real"
 shape = "box"
@@ -85,21 +70,15 @@ shape = "box"
 size = [0.15, 0.15, 0.15]
 translate = [0.0, 0.075, 0.1]
 material = "mint"
-[[lights]]
-kind = "spot"
-position = [0.35, 0.9, 0.35]
-target = [0.0, 0.0, 0.0]
-inner_deg = 50
-outer_deg = 60
-intensity = 1.0
-"#;
-    let desc = crate::scene::SceneDesc::from_toml(text, "cm-test.toml").unwrap();
-    Scene::from_desc(desc, std::path::Path::new("."), "cm-test.toml").unwrap()
+"#,
+        )
+        .spot_cone(50, 60)
+        .build()
 }
 
 #[test]
 fn every_cm_method_on_the_gpu_agrees_with_the_cpu_reference() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let (scene, photo) = scene_and_photo(r);
     for method in CmMethod::ALL {
         for composition in [Composition::Additive, Composition::Scaled] {
@@ -121,17 +100,17 @@ fn every_cm_method_on_the_gpu_agrees_with_the_cpu_reference() {
                 cpu.report,
                 gpu.report.cm
             );
-            let worst = cpu
-                .composite
-                .iter()
-                .zip(&gpu.composite.pixels)
-                .map(|(a, b)| (*a - *b).abs().max_element())
-                .fold(0.0, f32::max);
-            assert!(
-                worst <= 1e-3,
-                "{method:?} {composition:?}: CPU and GPU composites differ by {worst} ({:?} / {:?})",
-                cpu.report.mapping,
-                gpu.report.cm.mapping
+            let cpu_composite = Image { width: 96, height: 72, pixels: cpu.composite.clone() };
+            eprintln!(
+                "{method:?} {composition:?}: mapping CPU {:?} GPU {:?}",
+                cpu.report.mapping, gpu.report.cm.mapping
+            );
+            assert_images_match(
+                &format!("cm-{}-{composition:?}-gpu-against-cpu", method.name()),
+                &gpu.composite,
+                &cpu_composite,
+                1e-3,
+                0.0,
             );
             assert!(gpu.composite.pixels.iter().all(|v| v.is_finite()));
             let names: Vec<&str> = gpu.report.passes.iter().map(|p| p.pass.as_str()).collect();
@@ -148,7 +127,7 @@ fn every_cm_method_on_the_gpu_agrees_with_the_cpu_reference() {
 
 #[test]
 fn rohmer_on_the_gpu_recovers_the_known_camera_matrix() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let (scene, photo) = scene_and_photo(r);
     let gpu = r.render(&scene, &photo, &params(CmMethod::Rohmer, Composition::Additive)).unwrap();
     let crate::cm::Mapping::Linear { rows } = gpu.report.cm.mapping else { panic!("{:?}", gpu.report.cm) };
@@ -167,20 +146,21 @@ fn rohmer_on_the_gpu_recovers_the_known_camera_matrix() {
 
 #[test]
 fn without_virtual_objects_every_method_leaves_the_photograph_exact() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let (mut scene, photo) = scene_and_photo(r);
     scene.objects.retain(|o| o.role == Role::Real);
     for method in CmMethod::ALL {
         for composition in [Composition::Additive, Composition::Scaled] {
             let out = r.render(&scene, &photo, &params(method, composition)).unwrap();
-            assert_eq!(out.composite.pixels, photo.pixels, "{method:?} {composition:?}");
+            let name = format!("cm-{}-{composition:?}-without-virtual-objects", method.name());
+            assert_images_match(&name, &out.composite, &photo, 0.0, 0.0);
         }
     }
 }
 
 #[test]
 fn the_sample_state_carries_across_frames_on_the_gpu() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let (scene, photo) = scene_and_photo(r);
     let p = params(CmMethod::Samples, Composition::Additive);
     let mut state = LiveState::default();

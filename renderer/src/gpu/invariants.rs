@@ -7,71 +7,13 @@
 use super::vpl::GpuVpl;
 use super::*;
 use crate::reference::{ReferenceParams, render_reference};
-use crate::scene::{Role, SceneDesc};
-use std::path::Path;
-use std::sync::OnceLock;
+use crate::scene::Role;
+use crate::test_support::{assert_images_match, box_object, grey_photo, renderer_or_skip, scene_with};
 
 /// A GPU-darkened or -brightened pixel changes by more than this (display units).
 const CHANGED: f32 = 1.0 / 255.0;
 /// Pixels the path tracer's affected region is grown by, for edge and bias differences.
 const MASK_DILATION: i64 = 2;
-
-/// The GPU tests' one renderer (one device, shaders compiled once per test binary); None, with
-/// the reason printed, when no adapter opens.
-pub(super) fn renderer() -> Option<&'static DirRenderer> {
-    static RENDERER: OnceLock<Option<DirRenderer>> = OnceLock::new();
-    RENDERER
-        .get_or_init(|| match DirRenderer::new() {
-            Ok(r) => {
-                eprintln!("GPU tests on {}", r.ctx.adapter_name());
-                Some(r)
-            }
-            Err(e) => {
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        })
-        .as_ref()
-}
-
-/// A floor, a real spot light from above and the side, and optional extra objects.
-pub(super) fn scene_with(objects: &str) -> Scene {
-    let text = format!(
-        r#"
-name = "gpu-test"
-[camera]
-width = 128
-height = 96
-fov_y_deg = 50
-position = [0.0, 0.7, 0.9]
-look_at = [0.0, 0.0, 0.0]
-[camera.sensor]
-preset = "clean"
-[materials.floor]
-albedo = 0.6
-[materials.white]
-albedo = 0.8
-[materials.red]
-albedo = [0.8, 0.05, 0.05]
-[[objects]]
-name = "floor"
-role = "real"
-shape = "plane"
-size = [3.0, 3.0]
-material = "floor"
-{objects}
-[[lights]]
-kind = "spot"
-position = [0.35, 0.9, 0.35]
-target = [0.0, 0.0, 0.0]
-inner_deg = 35
-outer_deg = 45
-intensity = 1.0
-"#
-    );
-    let desc = SceneDesc::from_toml(&text, "gpu-test.toml").unwrap();
-    Scene::from_desc(desc, Path::new("."), "gpu-test.toml").unwrap()
-}
 
 const VIRTUAL_BOX: &str = r#"
 [[objects]]
@@ -102,10 +44,6 @@ size = [0.06, 0.06, 0.06]
 translate = [-0.04, 0.03, -0.04]
 material = "white"
 "#;
-
-pub(super) fn grey_photo(scene: &Scene) -> Image {
-    Image::filled(scene.camera.width, scene.camera.height, Vec3::splat(0.5))
-}
 
 fn params(condition: GiLevel) -> DirParams {
     DirParams { condition, vpls: 64, shadow_map_size: 512, rsm_size: 32, ..DirParams::default() }
@@ -142,7 +80,7 @@ fn deltas(render: &GpuRender, photo: &Image) -> Vec<f32> {
 
 #[test]
 fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     // a photograph unlike any rendering: a gradient, so that any change shows
     // the test scene (a spot) and a built-in one lit by an environment map and a spot
     let builtin = crate::scene::load("dir-lamp-box").unwrap().with_size(128, 96);
@@ -154,8 +92,7 @@ fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
         }
         for condition in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
             let out = r.render(&scene, &photo, &params(condition)).unwrap();
-            let differing = out.composite.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a != b).count();
-            assert_eq!(differing, 0, "{condition:?}: {differing} pixels differ from the photograph");
+            assert_images_match(&format!("{}-{condition:?}-composite", scene.name), &out.composite, &photo, 0.0, 0.0);
             assert_eq!(out.l_rv.pixels, out.l_r.pixels, "{condition:?}: L_rv and L_r must be identical");
             if condition == GiLevel::Gi {
                 assert!(out.report.vpls > 0, "gi made no VPLs");
@@ -166,7 +103,7 @@ fn a_scene_without_virtual_objects_gives_the_photograph_exactly() {
 
 #[test]
 fn the_environment_light_casts_virtual_shadows_only_when_shadows_are_on() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     // DIR Figure 5.12: a virtual Cornell box on a real desk under environment light only
     let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(128, 96);
     assert!(scene.spots.is_empty());
@@ -183,7 +120,7 @@ fn the_environment_light_casts_virtual_shadows_only_when_shadows_are_on() {
 
 #[test]
 fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let reference =
         render_reference(&scene, &ReferenceParams { spp: 16, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
@@ -218,7 +155,7 @@ fn a_virtual_occluder_darkens_only_its_shadow_region_of_the_path_tracer() {
 #[test]
 fn the_double_shadow_case_adds_no_second_shadow() {
     // real spot, a real box, and a virtual box in the real box's shadow (thesis Figures 5.15/5.16)
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = scene_with(&format!("{REAL_BOX}{BEHIND}"));
     let photo = grey_photo(&scene);
     let out = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
@@ -232,7 +169,7 @@ fn the_double_shadow_case_adds_no_second_shadow() {
     assert!(d.iter().filter(|&&x| x < -CHANGED).count() > 20, "the control casts no shadow");
     // Figure 5.6: a virtual box between the light and the real box; where the real shadow
     // already is (L_r = 0 on a real surface), nothing may change
-    let floating = "[[objects]]\nname = \"floating\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\ntranslate = [0.2, 0.55, 0.2]\nmaterial = \"white\"\n";
+    let floating = &box_object("floating", "virtual", [0.1, 0.1, 0.1], [0.2, 0.55, 0.2], "white");
     let scene = scene_with(&format!("{REAL_BOX}{floating}"));
     let out = r.render(&scene, &photo, &params(GiLevel::Shadows)).unwrap();
     let d = deltas(&out, &photo);
@@ -249,7 +186,7 @@ fn the_double_shadow_case_adds_no_second_shadow() {
 
 #[test]
 fn a_red_virtual_wall_adds_red_to_the_real_floor_beside_it() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let wall = r#"
 [[objects]]
 name = "red-wall"
@@ -282,7 +219,7 @@ material = "red"
 /// The VPL rows of eqs. 5.6–5.7, with one VPL given by hand above the floor.
 #[test]
 fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let photo = grey_photo(&scene);
     // flags only: no VPL visibility (the ISM tests below cover it)
@@ -333,7 +270,7 @@ fn vpl_light_at(r: &DirRenderer, scene: &Scene, p: &DirParams, at: Vec3) -> (f32
 
 #[test]
 fn imperfect_shadow_maps_shadow_a_vpl_by_the_virtual_cloud_in_l_rv_only() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let with_isms = params(GiLevel::Gi);
     // the floor just in front of the virtual box: the box hides the VPL above it
@@ -359,8 +296,8 @@ fn imperfect_shadow_maps_shadow_a_vpl_by_the_virtual_cloud_in_l_rv_only() {
 
 #[test]
 fn imperfect_shadow_maps_shadow_a_vpl_by_the_real_cloud_in_both_solutions() {
-    let Some(r) = renderer() else { return };
-    let real_box = "[[objects]]\nname = \"real-box\"\nrole = \"real\"\nshape = \"box\"\nsize = [0.15, 0.15, 0.15]\ntranslate = [0.0, 0.075, 0.0]\nmaterial = \"white\"\n";
+    let Some(r) = renderer_or_skip() else { return };
+    let real_box = &box_object("real-box", "real", [0.15, 0.15, 0.15], [0.0, 0.075, 0.0], "white");
     let scene = scene_with(real_box);
     let p = params(GiLevel::Gi);
     let (rv, real) = vpl_light_at(r, &scene, &p, Vec3::new(0.0, 0.0, 0.1));
@@ -371,14 +308,12 @@ fn imperfect_shadow_maps_shadow_a_vpl_by_the_real_cloud_in_both_solutions() {
 }
 
 fn red_wall_scene() -> Scene {
-    scene_with(
-        "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n",
-    )
+    scene_with(&box_object("red-wall", "virtual", [0.02, 0.25, 0.4], [-0.12, 0.125, 0.0], "red"))
 }
 
 #[test]
 fn interleaved_sampling_merged_keeps_the_indirect_light_of_every_vpl() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = red_wall_scene();
     let photo = grey_photo(&scene);
     // the thesis's setting: 256 VPLs in 4×4 classes of 16
@@ -421,7 +356,7 @@ fn interleaved_sampling_merged_keeps_the_indirect_light_of_every_vpl() {
 
 #[test]
 fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = red_wall_scene();
     let photo = grey_photo(&scene);
     let p = params(GiLevel::Gi);
@@ -462,9 +397,7 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     }
     assert!(n > 0 && closer as f32 > 0.95 * n as f32, "{closer} of {n} pixels between the frames");
     // the wall moves: where another surface is seen now, nothing is reused
-    let moved = scene_with(
-        "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [0.05, 0.125, 0.0]\nmaterial = \"red\"\n",
-    );
+    let moved = scene_with(&box_object("red-wall", "virtual", [0.02, 0.25, 0.4], [0.05, 0.125, 0.0], "red"));
     let after = r.render_with_state(&moved, &photo, &p, &mut state).unwrap();
     let c = confidence(&state);
     let changed: Vec<usize> =
@@ -489,7 +422,7 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
 /// VPLs) gi lost on survey-1 and survey-3 by 0.045 and 0.026.
 #[test]
 fn gi_brings_every_built_in_scene_closer_to_the_ground_truth() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let mut failures = Vec::new();
     for name in crate::builtin::names() {
         let scene = crate::scene::load(name).unwrap().with_size(96, 72);
@@ -516,7 +449,7 @@ fn gi_brings_every_built_in_scene_closer_to_the_ground_truth() {
 
 #[test]
 fn passes_follow_the_condition() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let scene = scene_with(VIRTUAL_BOX);
     let photo = grey_photo(&scene);
     let names = |c: GiLevel| {
@@ -549,10 +482,10 @@ fn passes_follow_the_condition() {
 #[test]
 #[ignore = "debugging aid: writes contact sheets to $TMPDIR/gpu-debug"]
 fn debug_dump() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let dir = &std::env::temp_dir().join("gpu-debug");
     std::fs::create_dir_all(dir).unwrap();
-    let wall = "[[objects]]\nname = \"red-wall\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.02, 0.25, 0.4]\ntranslate = [-0.12, 0.125, 0.0]\nmaterial = \"red\"\n";
+    let wall = &box_object("red-wall", "virtual", [0.02, 0.25, 0.4], [-0.12, 0.125, 0.0], "red");
     for (name, scene) in [
         ("box", scene_with(VIRTUAL_BOX)),
         ("wall", scene_with(wall)),
@@ -608,7 +541,7 @@ fn debug_dump() {
 /// gain is smaller than the noise of their placement on survey-1.
 #[test]
 fn multiple_bounces_bring_the_cornell_box_closer_to_the_ground_truth() {
-    let Some(r) = renderer() else { return };
+    let Some(r) = renderer_or_skip() else { return };
     let mut failures = Vec::new();
     for name in ["dir-lamp-cornell", "survey-1"] {
         let scene = crate::scene::load(name).unwrap().with_size(160, 120);
