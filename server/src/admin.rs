@@ -433,7 +433,7 @@ struct OpenState {
 
 async fn set_open(state: AppState, slug: String, headers: HeaderMap, open: bool) -> AppResult<Json<OpenState>> {
     authorize_change(&state, &headers)?;
-    state.storage().set_open(&slug, open).await?;
+    state.storage().set_open(&slug, open).await??;
     Ok(Json(OpenState { slug, open }))
 }
 
@@ -827,6 +827,20 @@ struct ReasonBody {
 /// Longest exclusion reason kept, in characters.
 pub const MAX_REASON_CHARS: usize = 500;
 
+/// A refused admin write, as the researcher reads it.
+impl From<crate::storage::AdminRefused> for AppError {
+    fn from(refused: crate::storage::AdminRefused) -> Self {
+        match refused {
+            crate::storage::AdminRefused::UnknownParticipant { id } => {
+                AppError::NotFound(format!("There is no participant \"{}\".", id.chars().take(64).collect::<String>()))
+            }
+            crate::storage::AdminRefused::UnknownStudy { slug } => {
+                AppError::NotFound(format!("There is no study \"{slug}\"."))
+            }
+        }
+    }
+}
+
 /// The participant after an exclude or include.
 #[derive(Serialize)]
 struct ExclusionState {
@@ -842,7 +856,7 @@ async fn set_excluded(state: &AppState, id: String, reason: Option<String>) -> A
     let written = state
         .storage()
         .admin_write(crate::storage::AdminWrite::SetExcluded { participant: id.clone(), reason })
-        .await?;
+        .await??;
     match written {
         crate::storage::AdminWritten::Excluded { excluded, reason, excluded_at, .. } => {
             Ok(Json(ExclusionState { participant: id, excluded, exclusion_reason: reason, excluded_at }))
@@ -889,7 +903,7 @@ async fn delete_participant(
     headers: HeaderMap,
 ) -> AppResult<Json<crate::storage::Deletion>> {
     authorize_change(&state, &headers)?;
-    let deletion = state.storage().delete(&id).await?;
+    let deletion = state.storage().delete(&id).await??;
     state.forget_credentials(&id);
     Ok(Json(deletion))
 }
@@ -927,7 +941,7 @@ async fn create_preview(
             study: slug.clone(),
             token_sha256: crate::sha256(token.as_bytes()).to_vec(),
         })
-        .await?;
+        .await??;
     Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/studies/{slug}?preview={token}") })))
 }
 

@@ -15,7 +15,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, ScreenOut, Side};
+use crate::storage::{
+    JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, ResponseRefused, ScreenOut, Side,
+};
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::{AppState, constant_time_eq, random_hex, sha256};
 
@@ -241,7 +243,29 @@ async fn record_screen_out(
                 pilot,
             }),
         )
-        .await
+        .await?;
+    Ok(())
+}
+
+/// A refused response, as the participant reads it.
+impl From<ResponseRefused> for AppError {
+    fn from(refused: ResponseRefused) -> Self {
+        match refused {
+            ResponseRefused::NeverServed { trial, next } => AppError::Conflict(format!(
+                "Trial {trial} was never served to this participant, so it cannot be answered (the next trial is {next}; get it from …/next first)."
+            )),
+            ResponseRefused::AlreadyAnswered { trial, chosen } => AppError::Conflict(format!(
+                "Trial {trial} was already answered with \"{chosen}\"; an answer cannot be changed."
+            )),
+            ResponseRefused::UnknownParticipant => AppError::NotFound("There is no such participant.".into()),
+            ResponseRefused::OutOfRange { trial, trials } => {
+                AppError::Unprocessable(format!("`trial` must be between 1 and {trials}, found {trial}."))
+            }
+            ResponseRefused::NotYet { trial, next } => {
+                AppError::Conflict(format!("Trial {trial} cannot be answered yet: the next trial is {next}."))
+            }
+        }
+    }
 }
 
 async fn create_participant(
@@ -616,7 +640,7 @@ async fn create_response(
             client: Value::Object(client).to_string(),
             min_response_ms,
         })
-        .await?;
+        .await??;
     let status = match outcome {
         ResponseOutcome::Created => StatusCode::CREATED,
         ResponseOutcome::Repeated => StatusCode::OK,

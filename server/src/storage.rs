@@ -18,7 +18,6 @@ use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, S
 use sqlx::{Row, SqliteConnection, SqlitePool};
 use tokio::sync::{mpsc, oneshot};
 
-use crate::error::AppError;
 use crate::prepared::PreparedStudy;
 use crate::schedule;
 
@@ -39,6 +38,26 @@ pub enum OpenError {
     #[error("cannot migrate the database {path}: {source}")]
     Migrate { path: String, source: sqlx::migrate::MigrateError },
 }
+
+/// A failure of the database itself. What a write refuses (a trial not yet served, an unknown
+/// participant, …) is not an error of storage: each write returns it as its own outcome.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StorageError {
+    #[error("database error: {0}")]
+    Database(#[from] sqlx::Error),
+    #[error("the database writer has stopped")]
+    WriterStopped,
+    /// The batch this write was part of was rolled back.
+    #[error("the database write failed")]
+    WriteFailed,
+    #[error("the WAL could not be truncated after {tries} tries (the database stayed busy)")]
+    WalBusy { tries: usize },
+}
+
+/// A write's outcome: done (`Ok(Ok(_))`), refused with nothing written (`Ok(Err(_))`), or the
+/// database failed.
+pub type Written<T, R> = Result<Result<T, R>, StorageError>;
 
 /// The database: a read pool and the writer's queue.
 #[derive(Clone)]
@@ -85,6 +104,46 @@ pub enum ResponseOutcome {
     Repeated,
 }
 
+/// Why a response was refused; nothing was stored.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ResponseRefused {
+    /// The trial was never served to the participant; `next` is their next trial.
+    NeverServed {
+        trial: i64,
+        next: i64,
+    },
+    /// The trial was already answered with another choice.
+    AlreadyAnswered {
+        trial: i64,
+        chosen: String,
+    },
+    UnknownParticipant,
+    /// The trial is not in the participant's schedule of `trials` trials.
+    OutOfRange {
+        trial: i64,
+        trials: i64,
+    },
+    /// The trial is later than the participant's next trial, `next`.
+    NotYet {
+        trial: i64,
+        next: i64,
+    },
+}
+
+/// Why an admin write was refused; nothing was written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum AdminRefused {
+    /// No participant (or screen-out) has this id.
+    UnknownParticipant {
+        id: String,
+    },
+    UnknownStudy {
+        slug: String,
+    },
+}
+
 /// A participant to create, with the parts that do not depend on the seed.
 #[derive(Debug)]
 pub struct NewParticipant {
@@ -129,29 +188,36 @@ pub struct ScreenOut {
     pub pilot: bool,
 }
 
+type Reply<T> = oneshot::Sender<Result<T, StorageError>>;
+
 enum Job {
-    Response(NewResponse, oneshot::Sender<Result<ResponseOutcome, AppError>>),
+    Response(NewResponse, Reply<Result<ResponseOutcome, ResponseRefused>>),
     Shown {
         participant: String,
         trial: i64,
     },
-    Participant(Box<NewParticipant>, oneshot::Sender<Result<JoinOutcome, AppError>>),
+    Participant(Box<NewParticipant>, Reply<JoinOutcome>),
     /// Records (or updates) a screen-out; `None` withdraws the row with this id.
-    ScreenOut(String, Option<Box<ScreenOut>>, oneshot::Sender<Result<(), AppError>>),
-    SetOpen(String, bool, oneshot::Sender<Result<(), AppError>>),
+    ScreenOut(String, Option<Box<ScreenOut>>, Reply<()>),
+    SetOpen(String, bool, Reply<Result<(), AdminRefused>>),
     /// A write of a lab task study (participant with schedule, or a trial's result).
-    Task(Box<crate::task::store::TaskWrite>, oneshot::Sender<Result<crate::task::store::TaskWritten, AppError>>),
+    Task(
+        Box<crate::task::store::TaskWrite>,
+        Reply<Result<crate::task::store::TaskWritten, crate::task::store::TaskRefused>>,
+    ),
     /// A researcher's change to participants' data (exclude, include, delete, preview link).
-    Admin(Box<AdminWrite>, oneshot::Sender<Result<AdminWritten, AppError>>),
+    Admin(Box<AdminWrite>, Reply<Result<AdminWritten, AdminRefused>>),
 }
 
 impl Job {
-    fn fail(self, message: &str) {
-        let error = || AppError::Internal(message.to_string());
+    /// Answers the job with [`StorageError::WriteFailed`]: its batch was rolled back.
+    fn fail(self) {
+        let error = || StorageError::WriteFailed;
         match self {
             Job::Response(_, reply) => drop(reply.send(Err(error()))),
             Job::Participant(_, reply) => drop(reply.send(Err(error()))),
-            Job::SetOpen(_, _, reply) | Job::ScreenOut(_, _, reply) => drop(reply.send(Err(error()))),
+            Job::ScreenOut(_, _, reply) => drop(reply.send(Err(error()))),
+            Job::SetOpen(_, _, reply) => drop(reply.send(Err(error()))),
             Job::Task(_, reply) => drop(reply.send(Err(error()))),
             Job::Shown { .. } => {}
             Job::Admin(_, reply) => drop(reply.send(Err(error()))),
@@ -220,20 +286,20 @@ impl Storage {
         Ok(())
     }
 
-    pub async fn store_response(&self, response: NewResponse) -> Result<ResponseOutcome, AppError> {
+    pub async fn store_response(&self, response: NewResponse) -> Written<ResponseOutcome, ResponseRefused> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Response(response, reply)).await?;
         answer.await.map_err(|_| writer_gone())?
     }
 
-    pub async fn create_participant(&self, participant: NewParticipant) -> Result<JoinOutcome, AppError> {
+    pub async fn create_participant(&self, participant: NewParticipant) -> Result<JoinOutcome, StorageError> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Participant(Box::new(participant), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
     }
 
     /// Records a screen-out (`Some`), or withdraws the one with `id` (`None`); durable on return.
-    pub async fn screen_out(&self, id: &str, screen_out: Option<ScreenOut>) -> Result<(), AppError> {
+    pub async fn screen_out(&self, id: &str, screen_out: Option<ScreenOut>) -> Result<(), StorageError> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::ScreenOut(id.to_string(), screen_out.map(Box::new), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
@@ -249,7 +315,7 @@ impl Storage {
         Ok(found.is_some())
     }
 
-    pub async fn set_open(&self, slug: &str, open: bool) -> Result<(), AppError> {
+    pub async fn set_open(&self, slug: &str, open: bool) -> Written<(), AdminRefused> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::SetOpen(slug.to_string(), open, reply)).await?;
         answer.await.map_err(|_| writer_gone())?
@@ -259,7 +325,7 @@ impl Storage {
     /// writer's queue, not for the commit: the queue is first in, first out, so the record is
     /// committed no later than any response to the trial, which can only be sent after the
     /// trial was served (a response to a trial never served is refused).
-    pub async fn mark_shown(&self, participant: &str, trial: i64) -> Result<(), AppError> {
+    pub async fn mark_shown(&self, participant: &str, trial: i64) -> Result<(), StorageError> {
         self.send(Job::Shown { participant: participant.to_string(), trial }).await
     }
 
@@ -267,7 +333,7 @@ impl Storage {
     pub async fn task_write(
         &self,
         write: crate::task::store::TaskWrite,
-    ) -> Result<crate::task::store::TaskWritten, AppError> {
+    ) -> Written<crate::task::store::TaskWritten, crate::task::store::TaskRefused> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Task(Box::new(write), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
@@ -278,7 +344,7 @@ impl Storage {
         &self.write
     }
 
-    async fn send(&self, job: Job) -> Result<(), AppError> {
+    async fn send(&self, job: Job) -> Result<(), StorageError> {
         self.jobs.send(job).await.map_err(|_| writer_gone())
     }
 
@@ -370,8 +436,8 @@ impl Storage {
     }
 }
 
-fn writer_gone() -> AppError {
-    AppError::Internal("the database writer has stopped".into())
+fn writer_gone() -> StorageError {
+    StorageError::WriterStopped
 }
 
 #[derive(Debug, Clone)]
@@ -412,7 +478,7 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Job>) {
             Err(error) => {
                 eprintln!("error: a database write of {} jobs failed and was rolled back: {error}", batch.len());
                 for job in batch.drain(..) {
-                    job.fail("the database write failed");
+                    job.fail();
                 }
             }
         }
@@ -435,18 +501,16 @@ async fn checkpointer(pool: SqlitePool) {
 /// How often the WAL is checkpointed.
 pub const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(1);
 
-type Reply = Box<dyn FnOnce() + Send>;
+type Answer = Box<dyn FnOnce() + Send>;
 
 /// Runs the jobs in one transaction; returns the replies to send after the commit. On a
 /// database error the transaction is rolled back and the jobs stay in `batch`.
-async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>, sqlx::Error> {
+async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Answer>, sqlx::Error> {
     let mut transaction = pool.begin().await?;
-    let mut outcomes: Vec<Option<Result<Outcome, AppError>>> = Vec::with_capacity(batch.len());
+    let mut outcomes: Vec<Option<Outcome>> = Vec::with_capacity(batch.len());
     for job in batch.iter() {
         let outcome = match job {
-            Job::Response(response, _) => {
-                Some(store_response(&mut transaction, response).await?.map(Outcome::Response))
-            }
+            Job::Response(response, _) => Some(Outcome::Response(store_response(&mut transaction, response).await?)),
             Job::Shown { participant, trial } => {
                 sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE trials SET shown_at = {NOW} WHERE participant = ? AND trial = ? AND shown_at IS NULL"
@@ -458,80 +522,71 @@ async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>
                 None
             }
             Job::Participant(participant, _) => {
-                Some(Ok(Outcome::Joined(insert_participant(&mut transaction, participant).await?)))
+                Some(Outcome::Joined(insert_participant(&mut transaction, participant).await?))
             }
             Job::ScreenOut(id, screen_out, _) => {
                 write_screen_out(&mut transaction, id, screen_out.as_deref()).await?;
-                Some(Ok(Outcome::Done))
+                Some(Outcome::Done)
             }
-            Job::Task(write, _) => Some(crate::task::store::execute(&mut transaction, write).await?.map(Outcome::Task)),
-            Job::Admin(write, _) => Some(execute_admin(&mut transaction, write).await?.map(Outcome::Admin)),
+            Job::Task(write, _) => Some(Outcome::Task(crate::task::store::execute(&mut transaction, write).await?)),
+            Job::Admin(write, _) => Some(Outcome::Admin(execute_admin(&mut transaction, write).await?)),
             Job::SetOpen(slug, open, _) => {
                 let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
                     .bind(*open as i64)
                     .bind(slug)
                     .execute(&mut *transaction)
                     .await?;
-                Some(if result.rows_affected() == 1 {
-                    Ok(Outcome::Done)
+                Some(Outcome::Opened(if result.rows_affected() == 1 {
+                    Ok(())
                 } else {
-                    Err(AppError::NotFound(format!("There is no study \"{slug}\".")))
-                })
+                    Err(AdminRefused::UnknownStudy { slug: slug.clone() })
+                }))
             }
         };
         outcomes.push(outcome);
     }
     transaction.commit().await?;
-    let mut replies: Vec<Reply> = Vec::with_capacity(batch.len());
+    let mut answers: Vec<Answer> = Vec::with_capacity(batch.len());
     for (job, outcome) in batch.drain(..).zip(outcomes) {
+        // Each job's outcome is the variant its job produced (see the match above).
         match (job, outcome) {
-            (Job::Response(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.map(|outcome| match outcome {
-                    Outcome::Response(outcome) => outcome,
-                    _ => ResponseOutcome::Created,
-                }));
-            })),
-            (Job::Participant(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Joined(joined) => Ok(joined),
-                    _ => Err(AppError::Internal("a join had no join outcome".into())),
-                }));
-            })),
-            (Job::SetOpen(_, _, reply), Some(outcome)) | (Job::ScreenOut(_, _, reply), Some(outcome)) => {
-                replies.push(Box::new(move || {
-                    let _ = reply.send(outcome.map(|_| ()));
-                }))
+            (Job::Response(_, reply), Some(Outcome::Response(outcome))) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(outcome)))))
             }
-            (Job::Task(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Task(written) => Ok(written),
-                    _ => Err(AppError::Internal("a task write had no task outcome".into())),
-                }));
-            })),
-            (Job::Admin(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Admin(written) => Ok(written),
-                    _ => Err(AppError::Internal("an admin write had no admin outcome".into())),
-                }));
-            })),
+            (Job::Participant(_, reply), Some(Outcome::Joined(joined))) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(joined)))))
+            }
+            (Job::ScreenOut(_, _, reply), Some(Outcome::Done)) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(())))))
+            }
+            (Job::SetOpen(_, _, reply), Some(Outcome::Opened(opened))) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(opened)))))
+            }
+            (Job::Task(_, reply), Some(Outcome::Task(written))) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(written)))))
+            }
+            (Job::Admin(_, reply), Some(Outcome::Admin(written))) => {
+                answers.push(Box::new(move || drop(reply.send(Ok(written)))))
+            }
             _ => {}
         }
     }
-    Ok(replies)
+    Ok(answers)
 }
 
 enum Outcome {
-    Response(ResponseOutcome),
+    Response(Result<ResponseOutcome, ResponseRefused>),
     Joined(JoinOutcome),
-    Task(crate::task::store::TaskWritten),
+    Task(Result<crate::task::store::TaskWritten, crate::task::store::TaskRefused>),
     Done,
-    Admin(AdminWritten),
+    Opened(Result<(), AdminRefused>),
+    Admin(Result<AdminWritten, AdminRefused>),
 }
 
 async fn store_response(
     connection: &mut SqliteConnection,
     response: &NewResponse,
-) -> Result<Result<ResponseOutcome, AppError>, sqlx::Error> {
+) -> Result<Result<ResponseOutcome, ResponseRefused>, sqlx::Error> {
     // Only a trial that was served can be answered; the server's own time since serving it
     // (first serving, so a reload never shortens it) is stored beside the client's.
     let served = sqlx::query(
@@ -550,11 +605,7 @@ async fn store_response(
                 .bind(&response.participant)
                 .fetch_one(&mut *connection)
                 .await?;
-            return Ok(Err(AppError::Conflict(format!(
-                "Trial {} was never served to this participant, so it cannot be answered (the next trial is {}; get it from …/next first).",
-                response.trial,
-                answered + 1
-            ))));
+            return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
         }
         served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
     }
@@ -600,10 +651,7 @@ async fn store_response(
         return Ok(if existing == response.chosen.as_str() {
             Ok(ResponseOutcome::Repeated)
         } else {
-            Err(AppError::Conflict(format!(
-                "Trial {} was already answered with \"{existing}\"; an answer cannot be changed.",
-                response.trial
-            )))
+            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen: existing })
         });
     }
     let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
@@ -611,21 +659,14 @@ async fn store_response(
         .fetch_optional(&mut *connection)
         .await?;
     let Some(progress) = progress else {
-        return Ok(Err(AppError::NotFound("There is no such participant.".into())));
+        return Ok(Err(ResponseRefused::UnknownParticipant));
     };
     let answered: i64 = progress.try_get("answered")?;
     let trials: i64 = progress.try_get("trials")?;
     if response.trial < 1 || response.trial > trials {
-        return Ok(Err(AppError::Unprocessable(format!(
-            "`trial` must be between 1 and {trials}, found {}.",
-            response.trial
-        ))));
+        return Ok(Err(ResponseRefused::OutOfRange { trial: response.trial, trials }));
     }
-    Ok(Err(AppError::Conflict(format!(
-        "Trial {} cannot be answered yet: the next trial is {}.",
-        response.trial,
-        answered + 1
-    ))))
+    Ok(Err(ResponseRefused::NotYet { trial: response.trial, next: answered + 1 }))
 }
 
 async fn write_screen_out(
@@ -785,7 +826,7 @@ pub struct Deletion {
 
 impl Storage {
     /// Runs an admin write in the next group commit and answers after it is durable.
-    pub async fn admin_write(&self, write: AdminWrite) -> Result<AdminWritten, AppError> {
+    pub async fn admin_write(&self, write: AdminWrite) -> Written<AdminWritten, AdminRefused> {
         let (reply, answer) = oneshot::channel();
         self.send(Job::Admin(Box::new(write), reply)).await?;
         answer.await.map_err(|_| writer_gone())?
@@ -799,18 +840,19 @@ impl Storage {
     /// index the external id); the truncating checkpoint copies the new pages over the old ones
     /// in the main file and empties the WAL, which still held the old versions. The writer's
     /// connection runs the `VACUUM`, so participants' writes wait for it (deletions are rare).
-    pub async fn delete(&self, id: &str) -> Result<Deletion, AppError> {
-        let written = self.admin_write(AdminWrite::Delete { id: id.to_string() }).await?;
-        let AdminWritten::Deleted(deletion) = written else {
-            return Err(AppError::Internal("a deletion had no deletion outcome".into()));
+    pub async fn delete(&self, id: &str) -> Written<Deletion, AdminRefused> {
+        let deletion = match self.admin_write(AdminWrite::Delete { id: id.to_string() }).await? {
+            Ok(AdminWritten::Deleted(deletion)) => deletion,
+            Ok(_) => unreachable!("a deletion's outcome is a deletion"),
+            Err(refused) => return Ok(Err(refused)),
         };
         sqlx::query("VACUUM").execute(&self.write).await?;
         self.truncate_wal().await?;
-        Ok(deletion)
+        Ok(Ok(deletion))
     }
 
     /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy.
-    pub async fn truncate_wal(&self) -> Result<(), AppError> {
+    pub async fn truncate_wal(&self) -> Result<(), StorageError> {
         for _ in 0..WAL_TRUNCATE_TRIES {
             let row = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)").fetch_one(&self.read).await?;
             let busy: i64 = row.try_get(0)?;
@@ -819,9 +861,7 @@ impl Storage {
             }
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
-        Err(AppError::Internal(format!(
-            "the WAL could not be truncated after {WAL_TRUNCATE_TRIES} tries (the database stayed busy)"
-        )))
+        Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
     }
 }
 
@@ -846,7 +886,7 @@ async fn audit(
 async fn execute_admin(
     connection: &mut SqliteConnection,
     write: &AdminWrite,
-) -> Result<Result<AdminWritten, AppError>, sqlx::Error> {
+) -> Result<Result<AdminWritten, AdminRefused>, sqlx::Error> {
     match write {
         AdminWrite::SetExcluded { participant, reason } => {
             let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
@@ -854,7 +894,7 @@ async fn execute_admin(
                 .fetch_optional(&mut *connection)
                 .await?;
             let Some(row) = row else {
-                return Ok(Err(no_participant(participant)));
+                return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
             };
             let study: String = row.try_get("study")?;
             let ordinal: i64 = row.try_get("ordinal")?;
@@ -918,7 +958,7 @@ async fn execute_admin(
                 .fetch_optional(&mut *connection)
                 .await?;
             let Some(study) = study else {
-                return Ok(Err(no_participant(id)));
+                return Ok(Err(AdminRefused::UnknownParticipant { id: id.clone() }));
             };
             let deletion =
                 Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
@@ -931,7 +971,7 @@ async fn execute_admin(
                 .fetch_optional(&mut *connection)
                 .await?;
             if known.is_none() {
-                return Ok(Err(AppError::NotFound(format!("There is no study \"{study}\"."))));
+                return Ok(Err(AdminRefused::UnknownStudy { slug: study.clone() }));
             }
             sqlx::query(sqlx::AssertSqlSafe(format!(
                 "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, ?, {NOW})"
@@ -943,8 +983,4 @@ async fn execute_admin(
             Ok(Ok(AdminWritten::PreviewStored))
         }
     }
-}
-
-fn no_participant(id: &str) -> AppError {
-    AppError::NotFound(format!("There is no participant \"{}\".", id.chars().take(64).collect::<String>()))
 }

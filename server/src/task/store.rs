@@ -20,7 +20,6 @@ use sqlx::{Row, SqliteConnection};
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
 use super::study::TaskStudy;
-use crate::error::AppError;
 use crate::storage::{NOW, Storage};
 
 /// A participant to create.
@@ -117,11 +116,35 @@ pub enum TaskWritten {
     Resumed,
 }
 
+/// Why a task write was refused; nothing was written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum TaskRefused {
+    UnknownParticipant {
+        id: String,
+    },
+    /// The participant's slot in the counterbalancing was given to another participant.
+    Abandoned,
+    /// The trial is not in the participant's schedule of `trials` trials.
+    NoTrial {
+        trial: i64,
+        trials: i64,
+    },
+    AlreadyAnswered {
+        trial: i64,
+    },
+    /// The trial is not the participant's next trial, `next`.
+    NotNext {
+        trial: i64,
+        next: i64,
+    },
+}
+
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
 pub(crate) async fn execute(
     connection: &mut SqliteConnection,
     write: &TaskWrite,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     match write {
         TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
         TaskWrite::Result(result) => store_result(connection, result).await,
@@ -129,20 +152,18 @@ pub(crate) async fn execute(
     }
 }
 
-const ABANDONED: &str = "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.";
-
 async fn resume(
     connection: &mut SqliteConnection,
     participant: &str,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     let abandoned: Option<Option<String>> =
         sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?")
             .bind(participant)
             .fetch_optional(&mut *connection)
             .await?;
     match abandoned {
-        None => Ok(Err(AppError::NotFound(format!("There is no task participant \"{participant}\".")))),
-        Some(Some(_)) => Ok(Err(AppError::Conflict(ABANDONED.into()))),
+        None => Ok(Err(TaskRefused::UnknownParticipant { id: participant.to_string() })),
+        Some(Some(_)) => Ok(Err(TaskRefused::Abandoned)),
         Some(None) => {
             sqlx::query(sqlx::AssertSqlSafe(format!(
                 "UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"
@@ -244,27 +265,27 @@ async fn insert_participant(
 async fn store_result(
     connection: &mut SqliteConnection,
     result: &TrialResult,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = ?")
         .bind(&result.participant)
         .fetch_optional(&mut *connection)
         .await?;
     let Some(row) = row else {
-        return Ok(Err(AppError::NotFound(format!("There is no task participant \"{}\".", result.participant))));
+        return Ok(Err(TaskRefused::UnknownParticipant { id: result.participant.clone() }));
     };
     if row.try_get::<Option<String>, _>("abandoned_at")?.is_some() {
-        return Ok(Err(AppError::Conflict(ABANDONED.into())));
+        return Ok(Err(TaskRefused::Abandoned));
     }
     let (trials, answered): (i64, i64) = (row.try_get("trials")?, row.try_get("answered")?);
     let trial = result.trial as i64;
     if trial < 1 || trial > trials {
-        return Ok(Err(AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))));
+        return Ok(Err(TaskRefused::NoTrial { trial, trials }));
     }
     if trial <= answered {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is already answered."))));
+        return Ok(Err(TaskRefused::AlreadyAnswered { trial }));
     }
     if trial != answered + 1 {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is not the next trial; trial {} is.", answered + 1))));
+        return Ok(Err(TaskRefused::NotNext { trial, next: answered + 1 }));
     }
     let updated = sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE task_trials SET answer_cm = ?, final_x = ?, final_y = ?, final_z = ?, error_cm = ?, signed_error_cm = ?,
@@ -301,7 +322,7 @@ async fn store_result(
     .execute(&mut *connection)
     .await?;
     if updated.rows_affected() != 1 {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is already answered."))));
+        return Ok(Err(TaskRefused::AlreadyAnswered { trial }));
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE task_participants SET answered = answered + 1, last_active_at = {NOW},
