@@ -21,11 +21,9 @@ use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use crate::AppState;
+use crate::auth::{COOKIE, authorize_admin_change as authorize_change, authorize_admin_via as authorize};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
-use crate::participant::bearer;
-
-pub const COOKIE: &str = "mrstudy_admin";
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -46,57 +44,6 @@ pub fn router() -> Router<AppState> {
         .route("/admin/login", get(login))
         .route("/admin", get(admin_page))
         .route("/admin/studies/{slug}", get(admin_study_page))
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Via {
-    Header,
-    Cookie,
-}
-
-fn cookie_token(headers: &HeaderMap) -> Option<&str> {
-    headers
-        .get_all(header::COOKIE)
-        .iter()
-        .filter_map(|value| value.to_str().ok())
-        .flat_map(|value| value.split(';'))
-        .filter_map(|pair| pair.trim().split_once('='))
-        .find(|(name, _)| *name == COOKIE)
-        .map(|(_, value)| value)
-}
-
-/// Checks the admin token (header or cookie), for read-only admin calls of other modules.
-pub(crate) fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    authorize(state, headers).map(|_| ())
-}
-
-fn authorize(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
-    let (token, via) = match bearer(headers) {
-        Ok(token) => (token, Via::Header),
-        Err(error) => match cookie_token(headers) {
-            Some(token) => (token, Via::Cookie),
-            None => {
-                return Err(match error {
-                    AppError::Unauthorized(_) => AppError::Unauthorized(
-                        "This call needs the admin token: Authorization: Bearer <admin token>.".into(),
-                    ),
-                    other => other,
-                });
-            }
-        },
-    };
-    if state.is_admin_token(token) { Ok(via) } else { Err(AppError::Forbidden("The admin token is wrong.".into())) }
-}
-
-fn authorize_change(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    if authorize(state, headers)? == Via::Cookie
-        && headers.get("x-requested-with").and_then(|value| value.to_str().ok()) != Some("mrstudy")
-    {
-        return Err(AppError::Forbidden(
-            "A change made with the admin cookie needs the header X-Requested-With: mrstudy.".into(),
-        ));
-    }
-    Ok(())
 }
 
 /// Progress of one study.
@@ -939,7 +886,7 @@ async fn create_preview(
         .storage()
         .admin_write(crate::storage::AdminWrite::Preview {
             study: slug.clone(),
-            token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+            token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
         })
         .await??;
     Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/studies/{slug}?preview={token}") })))

@@ -8,18 +8,18 @@
 
 use axum::Router;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
+use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{
-    JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, ResponseRefused, ScreenOut, Side,
-};
+use crate::storage::{JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ScreenOut};
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
-use crate::{AppState, constant_time_eq, random_hex, sha256};
+use crate::trial::{ResponseOutcome, ResponseRefused, Side};
+use crate::{AppState, random_hex};
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -434,17 +434,6 @@ fn validate_url_params(study: &Study, params: Map<String, Value>) -> AppResult<M
         }
     }
     Ok(kept)
-}
-
-/// The bearer token of a request: 401 if there is none.
-pub(crate) fn bearer(headers: &HeaderMap) -> AppResult<&str> {
-    headers
-        .get(header::AUTHORIZATION)
-        .and_then(|value| value.to_str().ok())
-        .and_then(|value| value.strip_prefix("Bearer "))
-        .map(str::trim)
-        .filter(|token| !token.is_empty())
-        .ok_or_else(|| AppError::Unauthorized("This call needs the header Authorization: Bearer <token>.".into()))
 }
 
 /// The participant `id`, if the request carries its token; 401 without a token, 403 with a

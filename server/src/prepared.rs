@@ -6,8 +6,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::schedule::{self, PlannedKind};
-use crate::storage::Side;
 use crate::study::{IMAGE_TYPES, StimulusSource, Study};
+use crate::trial::Side;
 
 /// Why a study could not be made ready.
 #[derive(Debug, thiserror::Error)]

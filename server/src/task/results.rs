@@ -246,7 +246,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
 }
 
 fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    crate::admin::authorize_admin(state, headers)
+    crate::auth::authorize_admin(state, headers)
 }
 
 async fn task_csv_download(

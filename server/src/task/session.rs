@@ -351,7 +351,7 @@ impl Session {
                 layout: self.study.layout,
                 id: id.clone(),
                 label: label.clone(),
-                token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+                token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
                 random_seed: u64::from_le_bytes(seed_bytes),
             }))
             .await??;
@@ -376,7 +376,7 @@ impl Session {
         let refused = || Refusal("No participant of this study has that id and token.".into());
         let row = store::participant(self.state.storage(), &id).await?.ok_or_else(refused)?;
         if row.study != self.study.study.slug
-            || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256)
+            || !crate::auth::constant_time_eq(&crate::auth::sha256(token.as_bytes()), &row.token_sha256)
         {
             return Err(refused());
         }
