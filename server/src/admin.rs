@@ -24,6 +24,7 @@ use crate::AppState;
 use crate::auth::{COOKIE, authorize_admin_change as authorize_change, authorize_admin_via as authorize};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
+use crate::pages::download;
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -219,16 +220,6 @@ impl From<ExportError> for AppError {
             other => AppError::Internal(other.to_string()),
         }
     }
-}
-
-pub(crate) fn download(content_type: &'static str, file_name: String, body: String) -> Response {
-    let mut response = (StatusCode::OK, body).into_response();
-    let headers = response.headers_mut();
-    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-    if let Ok(value) = HeaderValue::from_str(&format!("attachment; filename=\"{file_name}\"")) {
-        headers.insert(header::CONTENT_DISPOSITION, value);
-    }
-    response
 }
 
 /// `?include_pilots=true&include_excluded=true` (each `true` or `false`; other keys are ignored).

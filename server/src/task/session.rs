@@ -346,7 +346,7 @@ impl Session {
         let written = self
             .state
             .storage()
-            .task_write(TaskWrite::Participant(NewTaskParticipant {
+            .write(TaskWrite::Participant(NewTaskParticipant {
                 study: self.study.study.clone(),
                 layout: self.study.layout,
                 id: id.clone(),
@@ -380,7 +380,7 @@ impl Session {
         {
             return Err(refused());
         }
-        self.state.storage().task_write(TaskWrite::Resume { participant: id.clone() }).await??;
+        self.state.storage().write(TaskWrite::Resume { participant: id.clone() }).await??;
         self.trials = store::planned_trials(self.state.storage(), &id).await?;
         self.answered = row.answered as u32;
         self.participant = Some(Participant { id, label: row.label });
@@ -740,7 +740,7 @@ impl Session {
             started_at,
         };
         let practice = active.planned.practice;
-        let written = self.state.storage().task_write(TaskWrite::Result(result.clone())).await??;
+        let written = self.state.storage().write(TaskWrite::Result(result.clone())).await??;
         let TaskWritten::Result { answered, completed } = written else {
             return Err(AppError::Internal("storing a result wrote something else".into()).into());
         };

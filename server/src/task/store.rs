@@ -1,6 +1,6 @@
 //! Storage of task studies (tables `task_participants`, `task_trials` and `task_frame_times`,
 //! migrations `20261122000002_task_trials.sql` and `20261123000002_lab_hygiene.sql`): the writes that go through the server's one writer with
-//! group commit ([`crate::storage::Storage::task_write`]), and the reads of sessions, the admin
+//! group commit ([`Storage::write`]), and the reads of sessions, the admin
 //! page and the export.
 //!
 //! A participant is stored with its seed, its condition order and every planned trial in one
@@ -20,7 +20,7 @@ use sqlx::{Row, SqliteConnection};
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
 use super::study::TaskStudy;
-use crate::storage::{NOW, Storage};
+use crate::storage::{NOW, Storage, StudyRecord, WriteJob};
 
 /// A participant to create.
 pub struct NewTaskParticipant {
@@ -140,8 +140,19 @@ pub enum TaskRefused {
     },
 }
 
+impl WriteJob for TaskWrite {
+    type Outcome = Result<TaskWritten, TaskRefused>;
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        execute(connection, self)
+    }
+}
+
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
-pub(crate) async fn execute(
+async fn execute(
     connection: &mut SqliteConnection,
     write: &TaskWrite,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
@@ -336,21 +347,16 @@ async fn store_result(
 
 /// Records or refreshes a task study at start-up (a known study keeps its open/closed state).
 pub async fn upsert_study(storage: &Storage, study: &TaskStudy) -> Result<(), sqlx::Error> {
-    let definition = serde_json::to_string(study).expect("study serialises");
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
-         VALUES (?, ?, 'task', ?, ?, ?, {NOW}, {NOW})
-         ON CONFLICT (slug) DO UPDATE SET title = excluded.title, kind = excluded.kind,
-             definition = excluded.definition, file_sha256 = excluded.file_sha256, loaded_at = excluded.loaded_at"
-    )))
-    .bind(&study.slug)
-    .bind(&study.title)
-    .bind(study.open as i64)
-    .bind(definition)
-    .bind(&study.file_sha256)
-    .execute(storage.write_pool())
-    .await?;
-    Ok(())
+    storage
+        .upsert_study(&StudyRecord {
+            slug: &study.slug,
+            title: &study.title,
+            kind: "task",
+            open: study.open,
+            definition: serde_json::to_string(study).expect("study serialises"),
+            file_sha256: &study.file_sha256,
+        })
+        .await
 }
 
 /// Records the frame time per condition measured at start-up (table `task_frame_times`).

@@ -6,6 +6,8 @@
 //! id answers 403, a missing token 401. Every body is validated before anything is written, and
 //! a refused request changes nothing.
 
+pub mod store;
+
 use axum::Router;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
@@ -16,10 +18,11 @@ use serde_json::{Map, Value};
 
 use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ScreenOut};
+use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::trial::{ResponseOutcome, ResponseRefused, Side};
 use crate::{AppState, random_hex};
+use store::{JoinOutcome, NewParticipant, NewResponse, ScreenOut, ScreenOutWrite, Shown};
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -232,9 +235,9 @@ async fn record_screen_out(
 ) -> AppResult<()> {
     state
         .storage()
-        .screen_out(
-            id,
-            Some(ScreenOut {
+        .write(ScreenOutWrite {
+            id: id.to_string(),
+            screen_out: Some(ScreenOut {
                 id: id.to_string(),
                 study: slug.to_string(),
                 reason: reason.to_string(),
@@ -242,7 +245,7 @@ async fn record_screen_out(
                 url_params: Value::Object(url_params.clone()).to_string(),
                 pilot,
             }),
-        )
+        })
         .await?;
     Ok(())
 }
@@ -306,7 +309,7 @@ async fn create_participant(
     let token_sha256 = sha256(token.as_bytes()).to_vec();
     let outcome = state
         .storage()
-        .create_participant(NewParticipant {
+        .write(NewParticipant {
             study: prepared,
             id: id.clone(),
             token_sha256: token_sha256.clone(),
@@ -539,7 +542,7 @@ async fn next_trial(
         .filter(|trial| trial.trial == number)
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
-    state.storage().mark_shown(&participant.id, number).await?;
+    state.storage().submit(Shown { participant: participant.id.clone(), trial: number }).await?;
     Ok(Json(Next::Trial {
         trial: trial.trial,
         total: participant.trials,
@@ -621,7 +624,7 @@ async fn create_response(
         state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
     let outcome = state
         .storage()
-        .store_response(NewResponse {
+        .write(NewResponse {
             participant: participant.id,
             trial: body.trial,
             chosen: body.chosen,
