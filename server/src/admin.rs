@@ -21,11 +21,10 @@ use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use crate::AppState;
+use crate::auth::{COOKIE, authorize_admin_change as authorize_change, authorize_admin_via as authorize};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
-use crate::participant::bearer;
-
-pub const COOKIE: &str = "mrstudy_admin";
+use crate::pages::download;
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -46,57 +45,6 @@ pub fn router() -> Router<AppState> {
         .route("/admin/login", get(login))
         .route("/admin", get(admin_page))
         .route("/admin/studies/{slug}", get(admin_study_page))
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Via {
-    Header,
-    Cookie,
-}
-
-fn cookie_token(headers: &HeaderMap) -> Option<&str> {
-    headers
-        .get_all(header::COOKIE)
-        .iter()
-        .filter_map(|value| value.to_str().ok())
-        .flat_map(|value| value.split(';'))
-        .filter_map(|pair| pair.trim().split_once('='))
-        .find(|(name, _)| *name == COOKIE)
-        .map(|(_, value)| value)
-}
-
-/// Checks the admin token (header or cookie), for read-only admin calls of other modules.
-pub(crate) fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    authorize(state, headers).map(|_| ())
-}
-
-fn authorize(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
-    let (token, via) = match bearer(headers) {
-        Ok(token) => (token, Via::Header),
-        Err(error) => match cookie_token(headers) {
-            Some(token) => (token, Via::Cookie),
-            None => {
-                return Err(match error {
-                    AppError::Unauthorized(_) => AppError::Unauthorized(
-                        "This call needs the admin token: Authorization: Bearer <admin token>.".into(),
-                    ),
-                    other => other,
-                });
-            }
-        },
-    };
-    if state.is_admin_token(token) { Ok(via) } else { Err(AppError::Forbidden("The admin token is wrong.".into())) }
-}
-
-fn authorize_change(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    if authorize(state, headers)? == Via::Cookie
-        && headers.get("x-requested-with").and_then(|value| value.to_str().ok()) != Some("mrstudy")
-    {
-        return Err(AppError::Forbidden(
-            "A change made with the admin cookie needs the header X-Requested-With: mrstudy.".into(),
-        ));
-    }
-    Ok(())
 }
 
 /// Progress of one study.
@@ -274,16 +222,6 @@ impl From<ExportError> for AppError {
     }
 }
 
-pub(crate) fn download(content_type: &'static str, file_name: String, body: String) -> Response {
-    let mut response = (StatusCode::OK, body).into_response();
-    let headers = response.headers_mut();
-    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-    if let Ok(value) = HeaderValue::from_str(&format!("attachment; filename=\"{file_name}\"")) {
-        headers.insert(header::CONTENT_DISPOSITION, value);
-    }
-    response
-}
-
 /// `?include_pilots=true&include_excluded=true` (each `true` or `false`; other keys are ignored).
 fn include_from_query(query: Option<String>) -> AppResult<Include> {
     let mut include = Include::default();
@@ -433,7 +371,7 @@ struct OpenState {
 
 async fn set_open(state: AppState, slug: String, headers: HeaderMap, open: bool) -> AppResult<Json<OpenState>> {
     authorize_change(&state, &headers)?;
-    state.storage().set_open(&slug, open).await?;
+    state.storage().set_open(&slug, open).await??;
     Ok(Json(OpenState { slug, open }))
 }
 
@@ -827,6 +765,20 @@ struct ReasonBody {
 /// Longest exclusion reason kept, in characters.
 pub const MAX_REASON_CHARS: usize = 500;
 
+/// A refused admin write, as the researcher reads it.
+impl From<crate::storage::AdminRefused> for AppError {
+    fn from(refused: crate::storage::AdminRefused) -> Self {
+        match refused {
+            crate::storage::AdminRefused::UnknownParticipant { id } => {
+                AppError::NotFound(format!("There is no participant \"{}\".", id.chars().take(64).collect::<String>()))
+            }
+            crate::storage::AdminRefused::UnknownStudy { slug } => {
+                AppError::NotFound(format!("There is no study \"{slug}\"."))
+            }
+        }
+    }
+}
+
 /// The participant after an exclude or include.
 #[derive(Serialize)]
 struct ExclusionState {
@@ -842,7 +794,7 @@ async fn set_excluded(state: &AppState, id: String, reason: Option<String>) -> A
     let written = state
         .storage()
         .admin_write(crate::storage::AdminWrite::SetExcluded { participant: id.clone(), reason })
-        .await?;
+        .await??;
     match written {
         crate::storage::AdminWritten::Excluded { excluded, reason, excluded_at, .. } => {
             Ok(Json(ExclusionState { participant: id, excluded, exclusion_reason: reason, excluded_at }))
@@ -889,7 +841,7 @@ async fn delete_participant(
     headers: HeaderMap,
 ) -> AppResult<Json<crate::storage::Deletion>> {
     authorize_change(&state, &headers)?;
-    let deletion = state.storage().delete(&id).await?;
+    let deletion = state.storage().delete(&id).await??;
     state.forget_credentials(&id);
     Ok(Json(deletion))
 }
@@ -925,9 +877,9 @@ async fn create_preview(
         .storage()
         .admin_write(crate::storage::AdminWrite::Preview {
             study: slug.clone(),
-            token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+            token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
         })
-        .await?;
+        .await??;
     Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/studies/{slug}?preview={token}") })))
 }
 

@@ -73,6 +73,16 @@ impl IntoResponse for AppError {
     }
 }
 
+/// A failure of the database is the server's (500); its cause is logged.
+impl From<crate::storage::StorageError> for AppError {
+    fn from(error: crate::storage::StorageError) -> Self {
+        match error {
+            crate::storage::StorageError::Database(error) => AppError::Database(error),
+            other => AppError::Internal(other.to_string()),
+        }
+    }
+}
+
 impl From<JsonRejection> for AppError {
     fn from(rejection: JsonRejection) -> Self {
         match rejection {

@@ -20,6 +20,7 @@
 
 pub mod admin;
 pub mod analysis;
+pub mod auth;
 pub mod bench;
 pub mod error;
 pub mod export;
@@ -31,7 +32,9 @@ pub mod serve;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
+pub mod study_file;
 pub mod task;
+pub mod trial;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -81,7 +84,7 @@ impl AppState {
                 storage,
                 studies: studies.into_iter().map(|study| (study.study.slug.clone(), study)).collect(),
                 order,
-                admin_token_sha256: sha256(admin_token.as_bytes()),
+                admin_token_sha256: auth::sha256(admin_token.as_bytes()),
                 stimuli_dir,
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
@@ -136,17 +139,8 @@ impl AppState {
 
     /// Whether `token` is the admin token (compared by hash, in constant time).
     pub fn is_admin_token(&self, token: &str) -> bool {
-        constant_time_eq(&sha256(token.as_bytes()), &self.inner.admin_token_sha256)
+        auth::constant_time_eq(&auth::sha256(token.as_bytes()), &self.inner.admin_token_sha256)
     }
-}
-
-pub(crate) fn sha256(bytes: &[u8]) -> [u8; 32] {
-    use sha2::Digest;
-    sha2::Sha256::digest(bytes).into()
-}
-
-pub(crate) fn constant_time_eq(first: &[u8], second: &[u8]) -> bool {
-    first.len() == second.len() && first.iter().zip(second).fold(0u8, |acc, (a, b)| acc | (a ^ b)) == 0
 }
 
 /// `n` random bytes from the operating system, hex-encoded.

@@ -211,3 +211,14 @@ async fn stimulus(State(state): State<AppState>, Path(name): Path<String>) -> Re
         Err(_) => AppError::NotFound("There is no such stimulus.".into()).into_response(),
     }
 }
+
+/// A file to download: `body` with its content type, saved as `file_name`.
+pub(crate) fn download(content_type: &'static str, file_name: String, body: String) -> Response {
+    let mut response = (StatusCode::OK, body).into_response();
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    if let Ok(value) = HeaderValue::from_str(&format!("attachment; filename=\"{file_name}\"")) {
+        headers.insert(header::CONTENT_DISPOSITION, value);
+    }
+    response
+}

@@ -6,8 +6,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::schedule::{self, PlannedKind};
-use crate::storage::Side;
 use crate::study::{IMAGE_TYPES, StimulusSource, Study};
+use crate::trial::Side;
 
 /// Why a study could not be made ready.
 #[derive(Debug, thiserror::Error)]
@@ -59,6 +59,18 @@ pub fn catch_label(name: &str, better: bool) -> String {
 }
 
 impl PreparedStudy {
+    /// The study as the `studies` table records it.
+    pub fn record(&self) -> crate::storage::StudyRecord<'_> {
+        crate::storage::StudyRecord {
+            slug: &self.study.slug,
+            title: &self.study.title,
+            kind: self.study.kind.as_str(),
+            open: self.study.open,
+            definition: serde_json::to_string(&self.study).expect("study serialises"),
+            file_sha256: &self.study.file_sha256,
+        }
+    }
+
     /// Copies the study's image files into `store` (named by content hash).
     pub fn prepare(study: Study, store: &Path) -> Result<PreparedStudy, PrepareError> {
         if study.kind == crate::study::StudyKind::Task {

@@ -160,7 +160,7 @@ pub async fn prepare_with_progress(
     }
     for study in &prepared {
         storage
-            .upsert_study(study)
+            .upsert_study(&study.record())
             .await
             .map_err(|source| ServeError::RecordStudy { slug: study.study.slug.clone(), source })?;
     }

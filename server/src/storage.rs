@@ -11,16 +11,11 @@
 
 use std::path::Path;
 use std::str::FromStr;
-use std::sync::Arc;
 use std::time::Duration;
 
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{Row, SqliteConnection, SqlitePool};
 use tokio::sync::{mpsc, oneshot};
-
-use crate::error::AppError;
-use crate::prepared::PreparedStudy;
-use crate::schedule;
 
 /// Most jobs committed together in one transaction.
 pub const MAX_BATCH: usize = 512;
@@ -40,121 +35,108 @@ pub enum OpenError {
     Migrate { path: String, source: sqlx::migrate::MigrateError },
 }
 
+/// A failure of the database itself. What a write refuses (a trial not yet served, an unknown
+/// participant, …) is not an error of storage: each write returns it as its own outcome.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StorageError {
+    #[error("database error: {0}")]
+    Database(#[from] sqlx::Error),
+    #[error("the database writer has stopped")]
+    WriterStopped,
+    /// The batch this write was part of was rolled back.
+    #[error("the database write failed")]
+    WriteFailed,
+    #[error("the WAL could not be truncated after {tries} tries (the database stayed busy)")]
+    WalBusy { tries: usize },
+}
+
+/// A write's outcome: done (`Ok(Ok(_))`), refused with nothing written (`Ok(Err(_))`), or the
+/// database failed.
+pub type Written<T, R> = Result<Result<T, R>, StorageError>;
+
+/// A study as the `studies` table records it.
+#[derive(Debug)]
+pub struct StudyRecord<'a> {
+    pub slug: &'a str,
+    pub title: &'a str,
+    /// `paired-comparison` or `task`.
+    pub kind: &'a str,
+    /// Whether a study new to the database starts open.
+    pub open: bool,
+    /// The study as JSON.
+    pub definition: String,
+    pub file_sha256: &'a str,
+}
+
 /// The database: a read pool and the writer's queue.
 #[derive(Clone)]
 pub struct Storage {
     pub read: SqlitePool,
     write: SqlitePool,
-    jobs: mpsc::Sender<Job>,
+    jobs: mpsc::Sender<Box<dyn Queued>>,
 }
 
-/// A new response as received.
-#[derive(Debug, Clone)]
-pub struct NewResponse {
-    pub participant: String,
-    pub trial: i64,
-    pub chosen: Side,
-    pub rt_ms: f64,
-    pub client: String,
-    /// The study's `min_response_ms`: a faster response is stored flagged `too_fast`.
-    pub min_response_ms: u32,
+/// Why an admin write was refused; nothing was written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum AdminRefused {
+    /// No participant (or screen-out) has this id.
+    UnknownParticipant {
+        id: String,
+    },
+    UnknownStudy {
+        slug: String,
+    },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Left,
-    Right,
+/// A write that runs in the writer's group commit. The area that owns the tables writes the
+/// job; storage only runs it inside the batch's transaction and answers with its outcome after
+/// the commit. A refusal is part of the outcome (nothing written, the transaction goes on); a
+/// database error rolls back the whole batch.
+pub trait WriteJob: Send + Sync + 'static {
+    type Outcome: Send + 'static;
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send;
 }
 
-impl Side {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Side::Left => "left",
-            Side::Right => "right",
+/// A job in the writer's queue, its type erased.
+trait Queued: Send {
+    fn run<'a>(&'a mut self, connection: &'a mut SqliteConnection) -> BoxFuture<'a, Result<(), sqlx::Error>>;
+    /// Sends the outcome, after the commit.
+    fn answer(self: Box<Self>);
+    /// Answers with [`StorageError::WriteFailed`]: the batch was rolled back.
+    fn fail(self: Box<Self>);
+}
+
+type BoxFuture<'a, T> = std::pin::Pin<Box<dyn std::future::Future<Output = T> + Send + 'a>>;
+
+struct Pending<J: WriteJob> {
+    job: J,
+    outcome: Option<J::Outcome>,
+    /// `None` when the caller does not wait for the commit.
+    reply: Option<oneshot::Sender<Result<J::Outcome, StorageError>>>,
+}
+
+impl<J: WriteJob> Queued for Pending<J> {
+    fn run<'a>(&'a mut self, connection: &'a mut SqliteConnection) -> BoxFuture<'a, Result<(), sqlx::Error>> {
+        Box::pin(async move {
+            self.outcome = Some(self.job.run(connection).await?);
+            Ok(())
+        })
+    }
+
+    fn answer(self: Box<Self>) {
+        if let (Some(reply), Some(outcome)) = (self.reply, self.outcome) {
+            let _ = reply.send(Ok(outcome));
         }
     }
-}
 
-/// What storing a response did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ResponseOutcome {
-    /// Stored now (`201`).
-    Created,
-    /// The same answer was already stored (`200`).
-    Repeated,
-}
-
-/// A participant to create, with the parts that do not depend on the seed.
-#[derive(Debug)]
-pub struct NewParticipant {
-    pub study: Arc<PreparedStudy>,
-    pub id: String,
-    pub token_sha256: Vec<u8>,
-    /// A random seed, used when the study has no study seed.
-    pub random_seed: u64,
-    pub demographics: String,
-    pub client: String,
-    pub url_params: String,
-    /// Used when the study has no fixed completion code.
-    pub random_completion_code: String,
-    /// Joined through an admin preview link.
-    pub pilot: bool,
-    /// The external id when the study keeps one run per external id: a participant already
-    /// stored with it is resumed (given this token) instead of created.
-    pub external_key: Option<String>,
-    /// A screen-out of this visitor to withdraw (they now meet the requirements and joined).
-    pub withdraw_screen_out: Option<String>,
-}
-
-/// What joining did.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum JoinOutcome {
-    /// A new participant with the given id.
-    Created,
-    /// The study keeps one run per external id and this one had joined before: that
-    /// participant (`id`) now answers to the new token.
-    Resumed { id: String, trials: i64 },
-}
-
-/// A visitor who does not meet the study's screen requirements.
-#[derive(Debug, Clone)]
-pub struct ScreenOut {
-    /// Random id; an existing row with this id (the same visitor checking again) is updated.
-    pub id: String,
-    pub study: String,
-    pub reason: String,
-    pub client: String,
-    pub url_params: String,
-    pub pilot: bool,
-}
-
-enum Job {
-    Response(NewResponse, oneshot::Sender<Result<ResponseOutcome, AppError>>),
-    Shown {
-        participant: String,
-        trial: i64,
-    },
-    Participant(Box<NewParticipant>, oneshot::Sender<Result<JoinOutcome, AppError>>),
-    /// Records (or updates) a screen-out; `None` withdraws the row with this id.
-    ScreenOut(String, Option<Box<ScreenOut>>, oneshot::Sender<Result<(), AppError>>),
-    SetOpen(String, bool, oneshot::Sender<Result<(), AppError>>),
-    /// A write of a lab task study (participant with schedule, or a trial's result).
-    Task(Box<crate::task::store::TaskWrite>, oneshot::Sender<Result<crate::task::store::TaskWritten, AppError>>),
-    /// A researcher's change to participants' data (exclude, include, delete, preview link).
-    Admin(Box<AdminWrite>, oneshot::Sender<Result<AdminWritten, AppError>>),
-}
-
-impl Job {
-    fn fail(self, message: &str) {
-        let error = || AppError::Internal(message.to_string());
-        match self {
-            Job::Response(_, reply) => drop(reply.send(Err(error()))),
-            Job::Participant(_, reply) => drop(reply.send(Err(error()))),
-            Job::SetOpen(_, _, reply) | Job::ScreenOut(_, _, reply) => drop(reply.send(Err(error()))),
-            Job::Task(_, reply) => drop(reply.send(Err(error()))),
-            Job::Shown { .. } => {}
-            Job::Admin(_, reply) => drop(reply.send(Err(error()))),
+    fn fail(self: Box<Self>) {
+        if let Some(reply) = self.reply {
+            let _ = reply.send(Err(StorageError::WriteFailed));
         }
     }
 }
@@ -200,8 +182,7 @@ impl Storage {
 
     /// Records or refreshes a study at start-up; a new study starts open or closed as its file
     /// says, a known one keeps the state the admin gave it.
-    pub async fn upsert_study(&self, study: &PreparedStudy) -> Result<(), sqlx::Error> {
-        let definition = serde_json::to_string(&study.study).expect("study serialises");
+    pub async fn upsert_study(&self, study: &StudyRecord<'_>) -> Result<(), sqlx::Error> {
         sqlx::query(sqlx::AssertSqlSafe(format!(
             "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
              VALUES (?, ?, ?, ?, ?, ?, {NOW}, {NOW})
@@ -209,34 +190,28 @@ impl Storage {
                  definition = excluded.definition, file_sha256 = excluded.file_sha256,
                  loaded_at = excluded.loaded_at"
         )))
-        .bind(&study.study.slug)
-        .bind(&study.study.title)
-        .bind(study.study.kind.as_str())
-        .bind(study.study.open as i64)
-        .bind(definition)
-        .bind(&study.study.file_sha256)
+        .bind(study.slug)
+        .bind(study.title)
+        .bind(study.kind)
+        .bind(study.open as i64)
+        .bind(&study.definition)
+        .bind(study.file_sha256)
         .execute(&self.write)
         .await?;
         Ok(())
     }
 
-    pub async fn store_response(&self, response: NewResponse) -> Result<ResponseOutcome, AppError> {
+    /// Runs `job` in the next group commit and answers with its outcome after it is durable.
+    pub async fn write<J: WriteJob>(&self, job: J) -> Result<J::Outcome, StorageError> {
         let (reply, answer) = oneshot::channel();
-        self.send(Job::Response(response, reply)).await?;
+        self.send(Box::new(Pending { job, outcome: None, reply: Some(reply) })).await?;
         answer.await.map_err(|_| writer_gone())?
     }
 
-    pub async fn create_participant(&self, participant: NewParticipant) -> Result<JoinOutcome, AppError> {
-        let (reply, answer) = oneshot::channel();
-        self.send(Job::Participant(Box::new(participant), reply)).await?;
-        answer.await.map_err(|_| writer_gone())?
-    }
-
-    /// Records a screen-out (`Some`), or withdraws the one with `id` (`None`); durable on return.
-    pub async fn screen_out(&self, id: &str, screen_out: Option<ScreenOut>) -> Result<(), AppError> {
-        let (reply, answer) = oneshot::channel();
-        self.send(Job::ScreenOut(id.to_string(), screen_out.map(Box::new), reply)).await?;
-        answer.await.map_err(|_| writer_gone())?
+    /// Queues `job` without waiting for its commit: the queue is first in, first out, so it is
+    /// committed no later than any job queued after it.
+    pub async fn submit<J: WriteJob>(&self, job: J) -> Result<(), StorageError> {
+        self.send(Box::new(Pending { job, outcome: None, reply: None })).await
     }
 
     /// Whether `token_sha256` is a preview link of the study.
@@ -249,28 +224,8 @@ impl Storage {
         Ok(found.is_some())
     }
 
-    pub async fn set_open(&self, slug: &str, open: bool) -> Result<(), AppError> {
-        let (reply, answer) = oneshot::channel();
-        self.send(Job::SetOpen(slug.to_string(), open, reply)).await?;
-        answer.await.map_err(|_| writer_gone())?
-    }
-
-    /// Records that a trial was served, if it had not been. It waits for a place in the
-    /// writer's queue, not for the commit: the queue is first in, first out, so the record is
-    /// committed no later than any response to the trial, which can only be sent after the
-    /// trial was served (a response to a trial never served is refused).
-    pub async fn mark_shown(&self, participant: &str, trial: i64) -> Result<(), AppError> {
-        self.send(Job::Shown { participant: participant.to_string(), trial }).await
-    }
-
-    /// Runs a task study write in the next group commit and answers after it is durable.
-    pub async fn task_write(
-        &self,
-        write: crate::task::store::TaskWrite,
-    ) -> Result<crate::task::store::TaskWritten, AppError> {
-        let (reply, answer) = oneshot::channel();
-        self.send(Job::Task(Box::new(write), reply)).await?;
-        answer.await.map_err(|_| writer_gone())?
+    pub async fn set_open(&self, slug: &str, open: bool) -> Written<(), AdminRefused> {
+        self.write(SetOpen { slug: slug.to_string(), open }).await
     }
 
     /// The write connection, for start-up writes before participants arrive.
@@ -278,7 +233,7 @@ impl Storage {
         &self.write
     }
 
-    async fn send(&self, job: Job) -> Result<(), AppError> {
+    async fn send(&self, job: Box<dyn Queued>) -> Result<(), StorageError> {
         self.jobs.send(job).await.map_err(|_| writer_gone())
     }
 
@@ -370,8 +325,8 @@ impl Storage {
     }
 }
 
-fn writer_gone() -> AppError {
-    AppError::Internal("the database writer has stopped".into())
+fn writer_gone() -> StorageError {
+    StorageError::WriterStopped
 }
 
 #[derive(Debug, Clone)]
@@ -393,8 +348,8 @@ pub struct TrialRow {
     pub right_stimulus: String,
 }
 
-async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Job>) {
-    let mut batch: Vec<Job> = Vec::with_capacity(MAX_BATCH);
+async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>) {
+    let mut batch: Vec<Box<dyn Queued>> = Vec::with_capacity(MAX_BATCH);
     while let Some(first) = receiver.recv().await {
         batch.push(first);
         while batch.len() < MAX_BATCH {
@@ -404,15 +359,15 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Job>) {
             }
         }
         match run_batch(&pool, &mut batch).await {
-            Ok(replies) => {
-                for reply in replies {
-                    reply();
+            Ok(()) => {
+                for job in batch.drain(..) {
+                    job.answer();
                 }
             }
             Err(error) => {
                 eprintln!("error: a database write of {} jobs failed and was rolled back: {error}", batch.len());
                 for job in batch.drain(..) {
-                    job.fail("the database write failed");
+                    job.fail();
                 }
             }
         }
@@ -435,304 +390,37 @@ async fn checkpointer(pool: SqlitePool) {
 /// How often the WAL is checkpointed.
 pub const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(1);
 
-type Reply = Box<dyn FnOnce() + Send>;
-
-/// Runs the jobs in one transaction; returns the replies to send after the commit. On a
-/// database error the transaction is rolled back and the jobs stay in `batch`.
-async fn run_batch(pool: &SqlitePool, batch: &mut Vec<Job>) -> Result<Vec<Reply>, sqlx::Error> {
+/// Runs the jobs in one transaction and commits. On a database error the transaction is rolled
+/// back and the jobs stay in `batch` to be failed.
+async fn run_batch(pool: &SqlitePool, batch: &mut [Box<dyn Queued>]) -> Result<(), sqlx::Error> {
     let mut transaction = pool.begin().await?;
-    let mut outcomes: Vec<Option<Result<Outcome, AppError>>> = Vec::with_capacity(batch.len());
-    for job in batch.iter() {
-        let outcome = match job {
-            Job::Response(response, _) => {
-                Some(store_response(&mut transaction, response).await?.map(Outcome::Response))
-            }
-            Job::Shown { participant, trial } => {
-                sqlx::query(sqlx::AssertSqlSafe(format!(
-                    "UPDATE trials SET shown_at = {NOW} WHERE participant = ? AND trial = ? AND shown_at IS NULL"
-                )))
-                .bind(participant)
-                .bind(trial)
-                .execute(&mut *transaction)
-                .await?;
-                None
-            }
-            Job::Participant(participant, _) => {
-                Some(Ok(Outcome::Joined(insert_participant(&mut transaction, participant).await?)))
-            }
-            Job::ScreenOut(id, screen_out, _) => {
-                write_screen_out(&mut transaction, id, screen_out.as_deref()).await?;
-                Some(Ok(Outcome::Done))
-            }
-            Job::Task(write, _) => Some(crate::task::store::execute(&mut transaction, write).await?.map(Outcome::Task)),
-            Job::Admin(write, _) => Some(execute_admin(&mut transaction, write).await?.map(Outcome::Admin)),
-            Job::SetOpen(slug, open, _) => {
-                let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
-                    .bind(*open as i64)
-                    .bind(slug)
-                    .execute(&mut *transaction)
-                    .await?;
-                Some(if result.rows_affected() == 1 {
-                    Ok(Outcome::Done)
-                } else {
-                    Err(AppError::NotFound(format!("There is no study \"{slug}\".")))
-                })
-            }
-        };
-        outcomes.push(outcome);
+    for job in batch.iter_mut() {
+        job.run(&mut transaction).await?;
     }
-    transaction.commit().await?;
-    let mut replies: Vec<Reply> = Vec::with_capacity(batch.len());
-    for (job, outcome) in batch.drain(..).zip(outcomes) {
-        match (job, outcome) {
-            (Job::Response(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.map(|outcome| match outcome {
-                    Outcome::Response(outcome) => outcome,
-                    _ => ResponseOutcome::Created,
-                }));
-            })),
-            (Job::Participant(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Joined(joined) => Ok(joined),
-                    _ => Err(AppError::Internal("a join had no join outcome".into())),
-                }));
-            })),
-            (Job::SetOpen(_, _, reply), Some(outcome)) | (Job::ScreenOut(_, _, reply), Some(outcome)) => {
-                replies.push(Box::new(move || {
-                    let _ = reply.send(outcome.map(|_| ()));
-                }))
-            }
-            (Job::Task(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Task(written) => Ok(written),
-                    _ => Err(AppError::Internal("a task write had no task outcome".into())),
-                }));
-            })),
-            (Job::Admin(_, reply), Some(outcome)) => replies.push(Box::new(move || {
-                let _ = reply.send(outcome.and_then(|outcome| match outcome {
-                    Outcome::Admin(written) => Ok(written),
-                    _ => Err(AppError::Internal("an admin write had no admin outcome".into())),
-                }));
-            })),
-            _ => {}
-        }
-    }
-    Ok(replies)
+    transaction.commit().await
 }
 
-enum Outcome {
-    Response(ResponseOutcome),
-    Joined(JoinOutcome),
-    Task(crate::task::store::TaskWritten),
-    Done,
-    Admin(AdminWritten),
+/// Opens or closes a study (the admin's open/close).
+struct SetOpen {
+    slug: String,
+    open: bool,
 }
 
-async fn store_response(
-    connection: &mut SqliteConnection,
-    response: &NewResponse,
-) -> Result<Result<ResponseOutcome, AppError>, sqlx::Error> {
-    // Only a trial that was served can be answered; the server's own time since serving it
-    // (first serving, so a reload never shortens it) is stored beside the client's.
-    let served = sqlx::query(
-        "SELECT shown_at IS NOT NULL AS served,
-                (julianday('now') - julianday(shown_at)) * 86400000.0 AS served_ms
-         FROM trials WHERE participant = ? AND trial = ?",
-    )
-    .bind(&response.participant)
-    .bind(response.trial)
-    .fetch_optional(&mut *connection)
-    .await?;
-    let mut served_ms: Option<f64> = None;
-    if let Some(served) = &served {
-        if !served.try_get::<bool, _>("served")? {
-            let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
-                .bind(&response.participant)
-                .fetch_one(&mut *connection)
-                .await?;
-            return Ok(Err(AppError::Conflict(format!(
-                "Trial {} was never served to this participant, so it cannot be answered (the next trial is {}; get it from …/next first).",
-                response.trial,
-                answered + 1
-            ))));
-        }
-        served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
-    }
-    let floor = f64::from(response.min_response_ms);
-    let too_fast = response.rt_ms < floor || served_ms.is_some_and(|ms| ms < floor);
-    // The usual case in two statements: advance the participant's progress if this is the next
-    // trial, then insert the response. Responses are answered in order, so `answered` is the
-    // number of stored responses and trial `answered + 1` has none yet.
-    let advanced = sqlx::query(sqlx::AssertSqlSafe(format!(
-        "UPDATE participants SET answered = answered + 1,
-             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END
-         WHERE id = ? AND answered = ? AND ? <= trials"
-    )))
-    .bind(&response.participant)
-    .bind(response.trial - 1)
-    .bind(response.trial)
-    .execute(&mut *connection)
-    .await?;
-    if advanced.rows_affected() == 1 {
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms)
-             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?)"
-        )))
-        .bind(&response.participant)
-        .bind(response.trial)
-        .bind(response.chosen.as_str())
-        .bind(response.rt_ms)
-        .bind(&response.client)
-        .bind(too_fast as i64)
-        .bind(served_ms)
-        .execute(&mut *connection)
-        .await?;
-        return Ok(Ok(ResponseOutcome::Created));
-    }
-    // Not the next trial: a repeat, a changed answer, or out of order.
-    let existing: Option<String> =
-        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = ? AND trial = ?")
-            .bind(&response.participant)
-            .bind(response.trial)
-            .fetch_optional(&mut *connection)
+impl WriteJob for SetOpen {
+    type Outcome = Result<(), AdminRefused>;
+
+    async fn run(&self, connection: &mut SqliteConnection) -> Result<Self::Outcome, sqlx::Error> {
+        let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
+            .bind(self.open as i64)
+            .bind(&self.slug)
+            .execute(&mut *connection)
             .await?;
-    if let Some(existing) = existing {
-        return Ok(if existing == response.chosen.as_str() {
-            Ok(ResponseOutcome::Repeated)
+        Ok(if result.rows_affected() == 1 {
+            Ok(())
         } else {
-            Err(AppError::Conflict(format!(
-                "Trial {} was already answered with \"{existing}\"; an answer cannot be changed.",
-                response.trial
-            )))
-        });
+            Err(AdminRefused::UnknownStudy { slug: self.slug.clone() })
+        })
     }
-    let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
-        .bind(&response.participant)
-        .fetch_optional(&mut *connection)
-        .await?;
-    let Some(progress) = progress else {
-        return Ok(Err(AppError::NotFound("There is no such participant.".into())));
-    };
-    let answered: i64 = progress.try_get("answered")?;
-    let trials: i64 = progress.try_get("trials")?;
-    if response.trial < 1 || response.trial > trials {
-        return Ok(Err(AppError::Unprocessable(format!(
-            "`trial` must be between 1 and {trials}, found {}.",
-            response.trial
-        ))));
-    }
-    Ok(Err(AppError::Conflict(format!(
-        "Trial {} cannot be answered yet: the next trial is {}.",
-        response.trial,
-        answered + 1
-    ))))
-}
-
-async fn write_screen_out(
-    connection: &mut SqliteConnection,
-    id: &str,
-    screen_out: Option<&ScreenOut>,
-) -> Result<(), sqlx::Error> {
-    match screen_out {
-        None => {
-            sqlx::query("DELETE FROM screen_outs WHERE id = ?").bind(id).execute(&mut *connection).await?;
-        }
-        Some(screen_out) => {
-            sqlx::query(sqlx::AssertSqlSafe(format!(
-                "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
-                 VALUES (?, ?, ?, ?, ?, ?, {NOW})
-                 ON CONFLICT (id) DO UPDATE SET reason = excluded.reason, client = excluded.client"
-            )))
-            .bind(id)
-            .bind(&screen_out.study)
-            .bind(&screen_out.reason)
-            .bind(&screen_out.client)
-            .bind(&screen_out.url_params)
-            .bind(screen_out.pilot as i64)
-            .execute(&mut *connection)
-            .await?;
-        }
-    }
-    Ok(())
-}
-
-async fn insert_participant(
-    connection: &mut SqliteConnection,
-    participant: &NewParticipant,
-) -> Result<JoinOutcome, sqlx::Error> {
-    let study = &participant.study.study;
-    if let Some(withdraw) = &participant.withdraw_screen_out {
-        sqlx::query("DELETE FROM screen_outs WHERE id = ? AND study = ?")
-            .bind(withdraw)
-            .bind(&study.slug)
-            .execute(&mut *connection)
-            .await?;
-    }
-    if let Some(external_key) = &participant.external_key {
-        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = ? AND external_key = ?")
-            .bind(&study.slug)
-            .bind(external_key)
-            .fetch_optional(&mut *connection)
-            .await?;
-        if let Some(existing) = existing {
-            let id: String = existing.try_get("id")?;
-            sqlx::query("UPDATE participants SET token_sha256 = ? WHERE id = ?")
-                .bind(&participant.token_sha256)
-                .bind(&id)
-                .execute(&mut *connection)
-                .await?;
-            return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
-        }
-    }
-    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?")
-        .bind(&study.slug)
-        .fetch_one(&mut *connection)
-        .await?;
-    let seed = match study.design.seed {
-        Some(study_seed) => schedule::derived_seed(study_seed, ordinal as u64),
-        None => participant.random_seed,
-    };
-    let trials = participant.study.schedule(seed);
-    let completion_code = study.completion.code.clone().unwrap_or_else(|| participant.random_completion_code.clone());
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO participants (id, study, ordinal, token_sha256, seed, schedule_version, file_sha256,
-             demographics, client, url_params, trials, completion_code, created_at, pilot, external_key)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, ?, ?)"
-    )))
-    .bind(&participant.id)
-    .bind(&study.slug)
-    .bind(ordinal)
-    .bind(&participant.token_sha256)
-    .bind(seed as i64)
-    .bind(schedule::SCHEDULE_VERSION)
-    .bind(&study.file_sha256)
-    .bind(&participant.demographics)
-    .bind(&participant.client)
-    .bind(&participant.url_params)
-    .bind(trials.len() as i64)
-    .bind(completion_code)
-    .bind(participant.pilot as i64)
-    .bind(&participant.external_key)
-    .execute(&mut *connection)
-    .await?;
-    for (index, trial) in trials.iter().enumerate() {
-        sqlx::query(
-            "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
-                 left_stimulus, right_stimulus, catch_expected) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        )
-        .bind(&participant.id)
-        .bind(index as i64 + 1)
-        .bind(&trial.left_condition)
-        .bind(&trial.right_condition)
-        .bind(&trial.left_scene)
-        .bind(&trial.right_scene)
-        .bind(&trial.left_stimulus)
-        .bind(&trial.right_stimulus)
-        .bind(trial.catch_expected.map(Side::as_str))
-        .execute(&mut *connection)
-        .await?;
-    }
-    Ok(JoinOutcome::Created)
 }
 
 // ------------------------------------------------------------------------------------------
@@ -785,10 +473,8 @@ pub struct Deletion {
 
 impl Storage {
     /// Runs an admin write in the next group commit and answers after it is durable.
-    pub async fn admin_write(&self, write: AdminWrite) -> Result<AdminWritten, AppError> {
-        let (reply, answer) = oneshot::channel();
-        self.send(Job::Admin(Box::new(write), reply)).await?;
-        answer.await.map_err(|_| writer_gone())?
+    pub async fn admin_write(&self, write: AdminWrite) -> Written<AdminWritten, AdminRefused> {
+        self.write(write).await
     }
 
     /// Deletes a participant (or a screen-out row), then rewrites the database and truncates the
@@ -799,18 +485,18 @@ impl Storage {
     /// index the external id); the truncating checkpoint copies the new pages over the old ones
     /// in the main file and empties the WAL, which still held the old versions. The writer's
     /// connection runs the `VACUUM`, so participants' writes wait for it (deletions are rare).
-    pub async fn delete(&self, id: &str) -> Result<Deletion, AppError> {
-        let written = self.admin_write(AdminWrite::Delete { id: id.to_string() }).await?;
-        let AdminWritten::Deleted(deletion) = written else {
-            return Err(AppError::Internal("a deletion had no deletion outcome".into()));
+    pub async fn delete(&self, id: &str) -> Written<Deletion, AdminRefused> {
+        let deletion = match self.write(Delete { id: id.to_string() }).await? {
+            Ok(deletion) => deletion,
+            Err(refused) => return Ok(Err(refused)),
         };
         sqlx::query("VACUUM").execute(&self.write).await?;
         self.truncate_wal().await?;
-        Ok(deletion)
+        Ok(Ok(deletion))
     }
 
     /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy.
-    pub async fn truncate_wal(&self) -> Result<(), AppError> {
+    pub async fn truncate_wal(&self) -> Result<(), StorageError> {
         for _ in 0..WAL_TRUNCATE_TRIES {
             let row = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)").fetch_one(&self.read).await?;
             let busy: i64 = row.try_get(0)?;
@@ -819,9 +505,7 @@ impl Storage {
             }
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
-        Err(AppError::Internal(format!(
-            "the WAL could not be truncated after {WAL_TRUNCATE_TRIES} tries (the database stayed busy)"
-        )))
+        Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
     }
 }
 
@@ -843,10 +527,21 @@ async fn audit(
     Ok(())
 }
 
+impl WriteJob for AdminWrite {
+    type Outcome = Result<AdminWritten, AdminRefused>;
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        execute_admin(connection, self)
+    }
+}
+
 async fn execute_admin(
     connection: &mut SqliteConnection,
     write: &AdminWrite,
-) -> Result<Result<AdminWritten, AppError>, sqlx::Error> {
+) -> Result<Result<AdminWritten, AdminRefused>, sqlx::Error> {
     match write {
         AdminWrite::SetExcluded { participant, reason } => {
             let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
@@ -854,7 +549,7 @@ async fn execute_admin(
                 .fetch_optional(&mut *connection)
                 .await?;
             let Some(row) = row else {
-                return Ok(Err(no_participant(participant)));
+                return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
             };
             let study: String = row.try_get("study")?;
             let ordinal: i64 = row.try_get("ordinal")?;
@@ -889,49 +584,14 @@ async fn execute_admin(
                 excluded_at,
             }))
         }
-        AdminWrite::Delete { id } => {
-            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
-                .bind(id)
-                .fetch_optional(&mut *connection)
-                .await?;
-            if let Some(row) = row {
-                let study: String = row.try_get("study")?;
-                let ordinal: i64 = row.try_get("ordinal")?;
-                let responses = sqlx::query("DELETE FROM responses WHERE participant = ?")
-                    .bind(id)
-                    .execute(&mut *connection)
-                    .await?
-                    .rows_affected() as i64;
-                let trials = sqlx::query("DELETE FROM trials WHERE participant = ?")
-                    .bind(id)
-                    .execute(&mut *connection)
-                    .await?
-                    .rows_affected() as i64;
-                sqlx::query("DELETE FROM participants WHERE id = ?").bind(id).execute(&mut *connection).await?;
-                let deletion =
-                    Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
-                audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
-                return Ok(Ok(AdminWritten::Deleted(deletion)));
-            }
-            let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = ? RETURNING study")
-                .bind(id)
-                .fetch_optional(&mut *connection)
-                .await?;
-            let Some(study) = study else {
-                return Ok(Err(no_participant(id)));
-            };
-            let deletion =
-                Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
-            audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
-            Ok(Ok(AdminWritten::Deleted(deletion)))
-        }
+        AdminWrite::Delete { id } => Ok(delete_rows(connection, id).await?.map(AdminWritten::Deleted)),
         AdminWrite::Preview { study, token_sha256 } => {
             let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = ?")
                 .bind(study)
                 .fetch_optional(&mut *connection)
                 .await?;
             if known.is_none() {
-                return Ok(Err(AppError::NotFound(format!("There is no study \"{study}\"."))));
+                return Ok(Err(AdminRefused::UnknownStudy { slug: study.clone() }));
             }
             sqlx::query(sqlx::AssertSqlSafe(format!(
                 "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, ?, {NOW})"
@@ -945,6 +605,55 @@ async fn execute_admin(
     }
 }
 
-fn no_participant(id: &str) -> AppError {
-    AppError::NotFound(format!("There is no participant \"{}\".", id.chars().take(64).collect::<String>()))
+/// Deletes a participant and all their data, or a screen-out row, by id, with an audit line.
+async fn delete_rows(
+    connection: &mut SqliteConnection,
+    id: &str,
+) -> Result<Result<Deletion, AdminRefused>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    if let Some(row) = row {
+        let study: String = row.try_get("study")?;
+        let ordinal: i64 = row.try_get("ordinal")?;
+        let responses = sqlx::query("DELETE FROM responses WHERE participant = ?")
+            .bind(id)
+            .execute(&mut *connection)
+            .await?
+            .rows_affected() as i64;
+        let trials = sqlx::query("DELETE FROM trials WHERE participant = ?")
+            .bind(id)
+            .execute(&mut *connection)
+            .await?
+            .rows_affected() as i64;
+        sqlx::query("DELETE FROM participants WHERE id = ?").bind(id).execute(&mut *connection).await?;
+        let deletion =
+            Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
+        audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
+        return Ok(Ok(deletion));
+    }
+    let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = ? RETURNING study")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(study) = study else {
+        return Ok(Err(AdminRefused::UnknownParticipant { id: id.to_string() }));
+    };
+    let deletion = Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
+    audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
+    Ok(Ok(deletion))
+}
+
+/// [`AdminWrite::Delete`] with the deletion as its outcome, for [`Storage::delete`].
+struct Delete {
+    id: String,
+}
+
+impl WriteJob for Delete {
+    type Outcome = Result<Deletion, AdminRefused>;
+
+    async fn run(&self, connection: &mut SqliteConnection) -> Result<Self::Outcome, sqlx::Error> {
+        delete_rows(connection, &self.id).await
+    }
 }

@@ -8,32 +8,12 @@
 //! sentence. The schema is documented for researchers in `studies/README.md`.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-/// Why a study file was refused: the file, the key (a dotted path such as `design.pairs`) and
-/// what was expected there.
-#[derive(Debug, Clone, PartialEq, Eq)]
-#[non_exhaustive]
-pub struct StudyError {
-    pub file: PathBuf,
-    pub key: String,
-    pub expected: String,
-}
-
-impl fmt::Display for StudyError {
-    fn fmt(&self, formatter: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.key.is_empty() {
-            write!(formatter, "{}: {}", self.file.display(), self.expected)
-        } else {
-            write!(formatter, "{}: key `{}`: {}", self.file.display(), self.key, self.expected)
-        }
-    }
-}
-
-impl std::error::Error for StudyError {}
+pub use crate::study_file::StudyError;
+pub(crate) use crate::study_file::{is_slug, one_line, sha256_hex};
 
 /// What kind of study a file describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -542,32 +522,11 @@ pub fn load_studies(dir: &Path) -> Result<Vec<LoadedStudy>, StudyError> {
     Ok(studies)
 }
 
-pub(crate) fn one_line(message: &str) -> String {
-    let lines: Vec<&str> = message
-        .lines()
-        .map(str::trim)
-        .filter(|line| !line.is_empty() && !line.chars().all(|c| c == '|' || c == '^' || c == ' '))
-        .collect();
-    lines.join(" ")
-}
-
-pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    hex::encode(sha2::Sha256::digest(bytes))
-}
-
 fn is_identifier(name: &str) -> bool {
     let mut chars = name.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_lowercase())
         && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
         && name.len() <= 64
-}
-
-pub(crate) fn is_slug(name: &str) -> bool {
-    !name.is_empty()
-        && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
-        && !name.starts_with('-')
 }
 
 /// Also scene names. The first character is no `+`, `-` or `.`, so that the name is never

@@ -246,7 +246,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
 }
 
 fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    crate::admin::authorize_admin(state, headers)
+    crate::auth::authorize_admin(state, headers)
 }
 
 async fn task_csv_download(
@@ -256,7 +256,7 @@ async fn task_csv_download(
 ) -> AppResult<Response> {
     admin(&state, &headers)?;
     let csv = task_csv(&state.storage().read, &slug).await?;
-    Ok(crate::admin::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
+    Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
 
 async fn trials_csv_download(
@@ -266,7 +266,7 @@ async fn trials_csv_download(
 ) -> AppResult<Response> {
     admin(&state, &headers)?;
     let csv = trials_csv(&state.storage().read, &slug).await?;
-    Ok(crate::admin::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
+    Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
 }
 
 /// Progress, renderer and analysis of a task study.

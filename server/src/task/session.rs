@@ -38,7 +38,7 @@ use tokio::sync::oneshot;
 
 use super::live::{Frame, FrameJob, SessionRenderState};
 use super::plan::PlannedTaskTrial;
-use super::store::{self, NewTaskParticipant, TaskWrite, TaskWritten, TrialResult};
+use super::store::{self, NewTaskParticipant, TaskRefused, TaskWrite, TaskWritten, TrialResult};
 use super::study::TaskKind;
 use super::{Lab, LabStudy};
 use crate::AppState;
@@ -189,6 +189,39 @@ impl From<AppError> for Refusal {
     }
 }
 
+impl From<crate::storage::StorageError> for Refusal {
+    fn from(error: crate::storage::StorageError) -> Self {
+        AppError::from(error).into()
+    }
+}
+
+impl From<TaskRefused> for Refusal {
+    fn from(refused: TaskRefused) -> Self {
+        AppError::from(refused).into()
+    }
+}
+
+/// A refused task write, as the experimenter reads it.
+impl From<TaskRefused> for AppError {
+    fn from(refused: TaskRefused) -> Self {
+        match refused {
+            TaskRefused::UnknownParticipant { id } => {
+                AppError::NotFound(format!("There is no task participant \"{id}\"."))
+            }
+            TaskRefused::Abandoned => AppError::Conflict(
+                "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.".into(),
+            ),
+            TaskRefused::NoTrial { trial, trials } => {
+                AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))
+            }
+            TaskRefused::AlreadyAnswered { trial } => AppError::Conflict(format!("Trial {trial} is already answered.")),
+            TaskRefused::NotNext { trial, next } => {
+                AppError::Conflict(format!("Trial {trial} is not the next trial; trial {next} is."))
+            }
+        }
+    }
+}
+
 impl From<sqlx::Error> for Refusal {
     fn from(error: sqlx::Error) -> Self {
         AppError::Database(error).into()
@@ -313,15 +346,15 @@ impl Session {
         let written = self
             .state
             .storage()
-            .task_write(TaskWrite::Participant(NewTaskParticipant {
+            .write(TaskWrite::Participant(NewTaskParticipant {
                 study: self.study.study.clone(),
                 layout: self.study.layout,
                 id: id.clone(),
                 label: label.clone(),
-                token_sha256: crate::sha256(token.as_bytes()).to_vec(),
+                token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
                 random_seed: u64::from_le_bytes(seed_bytes),
             }))
-            .await?;
+            .await??;
         let TaskWritten::Participant { trials, .. } = written else {
             return Err(AppError::Internal("creating a participant wrote something else".into()).into());
         };
@@ -343,11 +376,11 @@ impl Session {
         let refused = || Refusal("No participant of this study has that id and token.".into());
         let row = store::participant(self.state.storage(), &id).await?.ok_or_else(refused)?;
         if row.study != self.study.study.slug
-            || !crate::constant_time_eq(&crate::sha256(token.as_bytes()), &row.token_sha256)
+            || !crate::auth::constant_time_eq(&crate::auth::sha256(token.as_bytes()), &row.token_sha256)
         {
             return Err(refused());
         }
-        self.state.storage().task_write(TaskWrite::Resume { participant: id.clone() }).await?;
+        self.state.storage().write(TaskWrite::Resume { participant: id.clone() }).await??;
         self.trials = store::planned_trials(self.state.storage(), &id).await?;
         self.answered = row.answered as u32;
         self.participant = Some(Participant { id, label: row.label });
@@ -707,7 +740,7 @@ impl Session {
             started_at,
         };
         let practice = active.planned.practice;
-        let written = self.state.storage().task_write(TaskWrite::Result(result.clone())).await?;
+        let written = self.state.storage().write(TaskWrite::Result(result.clone())).await??;
         let TaskWritten::Result { answered, completed } = written else {
             return Err(AppError::Internal("storing a result wrote something else".into()).into());
         };

@@ -1,6 +1,6 @@
 //! Storage of task studies (tables `task_participants`, `task_trials` and `task_frame_times`,
 //! migrations `20261122000002_task_trials.sql` and `20261123000002_lab_hygiene.sql`): the writes that go through the server's one writer with
-//! group commit ([`crate::storage::Storage::task_write`]), and the reads of sessions, the admin
+//! group commit ([`Storage::write`]), and the reads of sessions, the admin
 //! page and the export.
 //!
 //! A participant is stored with its seed, its condition order and every planned trial in one
@@ -20,8 +20,7 @@ use sqlx::{Row, SqliteConnection};
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
 use super::study::TaskStudy;
-use crate::error::AppError;
-use crate::storage::{NOW, Storage};
+use crate::storage::{NOW, Storage, StudyRecord, WriteJob};
 
 /// A participant to create.
 pub struct NewTaskParticipant {
@@ -117,11 +116,46 @@ pub enum TaskWritten {
     Resumed,
 }
 
+/// Why a task write was refused; nothing was written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum TaskRefused {
+    UnknownParticipant {
+        id: String,
+    },
+    /// The participant's slot in the counterbalancing was given to another participant.
+    Abandoned,
+    /// The trial is not in the participant's schedule of `trials` trials.
+    NoTrial {
+        trial: i64,
+        trials: i64,
+    },
+    AlreadyAnswered {
+        trial: i64,
+    },
+    /// The trial is not the participant's next trial, `next`.
+    NotNext {
+        trial: i64,
+        next: i64,
+    },
+}
+
+impl WriteJob for TaskWrite {
+    type Outcome = Result<TaskWritten, TaskRefused>;
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        execute(connection, self)
+    }
+}
+
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
-pub(crate) async fn execute(
+async fn execute(
     connection: &mut SqliteConnection,
     write: &TaskWrite,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     match write {
         TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
         TaskWrite::Result(result) => store_result(connection, result).await,
@@ -129,20 +163,18 @@ pub(crate) async fn execute(
     }
 }
 
-const ABANDONED: &str = "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.";
-
 async fn resume(
     connection: &mut SqliteConnection,
     participant: &str,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     let abandoned: Option<Option<String>> =
         sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?")
             .bind(participant)
             .fetch_optional(&mut *connection)
             .await?;
     match abandoned {
-        None => Ok(Err(AppError::NotFound(format!("There is no task participant \"{participant}\".")))),
-        Some(Some(_)) => Ok(Err(AppError::Conflict(ABANDONED.into()))),
+        None => Ok(Err(TaskRefused::UnknownParticipant { id: participant.to_string() })),
+        Some(Some(_)) => Ok(Err(TaskRefused::Abandoned)),
         Some(None) => {
             sqlx::query(sqlx::AssertSqlSafe(format!(
                 "UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"
@@ -244,27 +276,27 @@ async fn insert_participant(
 async fn store_result(
     connection: &mut SqliteConnection,
     result: &TrialResult,
-) -> Result<Result<TaskWritten, AppError>, sqlx::Error> {
+) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = ?")
         .bind(&result.participant)
         .fetch_optional(&mut *connection)
         .await?;
     let Some(row) = row else {
-        return Ok(Err(AppError::NotFound(format!("There is no task participant \"{}\".", result.participant))));
+        return Ok(Err(TaskRefused::UnknownParticipant { id: result.participant.clone() }));
     };
     if row.try_get::<Option<String>, _>("abandoned_at")?.is_some() {
-        return Ok(Err(AppError::Conflict(ABANDONED.into())));
+        return Ok(Err(TaskRefused::Abandoned));
     }
     let (trials, answered): (i64, i64) = (row.try_get("trials")?, row.try_get("answered")?);
     let trial = result.trial as i64;
     if trial < 1 || trial > trials {
-        return Ok(Err(AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))));
+        return Ok(Err(TaskRefused::NoTrial { trial, trials }));
     }
     if trial <= answered {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is already answered."))));
+        return Ok(Err(TaskRefused::AlreadyAnswered { trial }));
     }
     if trial != answered + 1 {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is not the next trial; trial {} is.", answered + 1))));
+        return Ok(Err(TaskRefused::NotNext { trial, next: answered + 1 }));
     }
     let updated = sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE task_trials SET answer_cm = ?, final_x = ?, final_y = ?, final_z = ?, error_cm = ?, signed_error_cm = ?,
@@ -301,7 +333,7 @@ async fn store_result(
     .execute(&mut *connection)
     .await?;
     if updated.rows_affected() != 1 {
-        return Ok(Err(AppError::Conflict(format!("Trial {trial} is already answered."))));
+        return Ok(Err(TaskRefused::AlreadyAnswered { trial }));
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE task_participants SET answered = answered + 1, last_active_at = {NOW},
@@ -315,21 +347,16 @@ async fn store_result(
 
 /// Records or refreshes a task study at start-up (a known study keeps its open/closed state).
 pub async fn upsert_study(storage: &Storage, study: &TaskStudy) -> Result<(), sqlx::Error> {
-    let definition = serde_json::to_string(study).expect("study serialises");
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
-         VALUES (?, ?, 'task', ?, ?, ?, {NOW}, {NOW})
-         ON CONFLICT (slug) DO UPDATE SET title = excluded.title, kind = excluded.kind,
-             definition = excluded.definition, file_sha256 = excluded.file_sha256, loaded_at = excluded.loaded_at"
-    )))
-    .bind(&study.slug)
-    .bind(&study.title)
-    .bind(study.open as i64)
-    .bind(definition)
-    .bind(&study.file_sha256)
-    .execute(storage.write_pool())
-    .await?;
-    Ok(())
+    storage
+        .upsert_study(&StudyRecord {
+            slug: &study.slug,
+            title: &study.title,
+            kind: "task",
+            open: study.open,
+            definition: serde_json::to_string(study).expect("study serialises"),
+            file_sha256: &study.file_sha256,
+        })
+        .await
 }
 
 /// Records the frame time per condition measured at start-up (table `task_frame_times`).

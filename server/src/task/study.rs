@@ -12,7 +12,7 @@ use std::path::Path;
 use mrstudy_renderer::gpu::GiLevel as Condition;
 use serde::{Deserialize, Serialize};
 
-use crate::study::StudyError;
+use crate::study_file::{StudyError, is_slug, one_line};
 
 /// How condition orders are counterbalanced across participants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -343,9 +343,8 @@ fn default_instructions(kind: TaskKind) -> &'static str {
 /// scene file).
 pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Result<TaskStudy, StudyError> {
     let fail = |key: &str, expected: String| StudyError { file: file.to_path_buf(), key: key.to_string(), expected };
-    let raw: TaskStudyFile =
-        toml::from_str(text).map_err(|error| fail("", crate::study::one_line(&error.to_string())))?;
-    if !crate::study::is_slug(&raw.slug) {
+    let raw: TaskStudyFile = toml::from_str(text).map_err(|error| fail("", one_line(&error.to_string())))?;
+    if !is_slug(&raw.slug) {
         return Err(fail("slug", format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{}\"", raw.slug)));
     }
     for (key, value) in
@@ -473,7 +472,7 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     for (index, task) in raw.tasks.iter().enumerate() {
         let key = format!("tasks[{index}]");
         let name = task.name.clone().unwrap_or_else(|| task.kind.as_str().to_string());
-        if !crate::study::is_slug(&name) {
+        if !is_slug(&name) {
             return Err(fail(
                 &format!("{key}.name"),
                 format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{name}\""),

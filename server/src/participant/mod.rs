@@ -6,18 +6,23 @@
 //! id answers 403, a missing token 401. Every body is validated before anything is written, and
 //! a refused request changes nothing.
 
+pub mod store;
+
 use axum::Router;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
+use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{JoinOutcome, NewParticipant, NewResponse, ParticipantRow, ResponseOutcome, ScreenOut, Side};
+use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
-use crate::{AppState, constant_time_eq, random_hex, sha256};
+use crate::trial::{ResponseOutcome, ResponseRefused, Side};
+use crate::{AppState, random_hex};
+use store::{JoinOutcome, NewParticipant, NewResponse, ScreenOut, ScreenOutWrite, Shown};
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -230,9 +235,9 @@ async fn record_screen_out(
 ) -> AppResult<()> {
     state
         .storage()
-        .screen_out(
-            id,
-            Some(ScreenOut {
+        .write(ScreenOutWrite {
+            id: id.to_string(),
+            screen_out: Some(ScreenOut {
                 id: id.to_string(),
                 study: slug.to_string(),
                 reason: reason.to_string(),
@@ -240,8 +245,30 @@ async fn record_screen_out(
                 url_params: Value::Object(url_params.clone()).to_string(),
                 pilot,
             }),
-        )
-        .await
+        })
+        .await?;
+    Ok(())
+}
+
+/// A refused response, as the participant reads it.
+impl From<ResponseRefused> for AppError {
+    fn from(refused: ResponseRefused) -> Self {
+        match refused {
+            ResponseRefused::NeverServed { trial, next } => AppError::Conflict(format!(
+                "Trial {trial} was never served to this participant, so it cannot be answered (the next trial is {next}; get it from …/next first)."
+            )),
+            ResponseRefused::AlreadyAnswered { trial, chosen } => AppError::Conflict(format!(
+                "Trial {trial} was already answered with \"{chosen}\"; an answer cannot be changed."
+            )),
+            ResponseRefused::UnknownParticipant => AppError::NotFound("There is no such participant.".into()),
+            ResponseRefused::OutOfRange { trial, trials } => {
+                AppError::Unprocessable(format!("`trial` must be between 1 and {trials}, found {trial}."))
+            }
+            ResponseRefused::NotYet { trial, next } => {
+                AppError::Conflict(format!("Trial {trial} cannot be answered yet: the next trial is {next}."))
+            }
+        }
+    }
 }
 
 async fn create_participant(
@@ -282,7 +309,7 @@ async fn create_participant(
     let token_sha256 = sha256(token.as_bytes()).to_vec();
     let outcome = state
         .storage()
-        .create_participant(NewParticipant {
+        .write(NewParticipant {
             study: prepared,
             id: id.clone(),
             token_sha256: token_sha256.clone(),
@@ -412,17 +439,6 @@ fn validate_url_params(study: &Study, params: Map<String, Value>) -> AppResult<M
     Ok(kept)
 }
 
-/// The bearer token of a request: 401 if there is none.
-pub(crate) fn bearer(headers: &HeaderMap) -> AppResult<&str> {
-    headers
-        .get(header::AUTHORIZATION)
-        .and_then(|value| value.to_str().ok())
-        .and_then(|value| value.strip_prefix("Bearer "))
-        .map(str::trim)
-        .filter(|token| !token.is_empty())
-        .ok_or_else(|| AppError::Unauthorized("This call needs the header Authorization: Bearer <token>.".into()))
-}
-
 /// The participant `id`, if the request carries its token; 401 without a token, 403 with a
 /// token that is not this participant's (whether or not `id` exists).
 /// What a response needs to know of its participant; it never changes after joining, so it is
@@ -526,7 +542,7 @@ async fn next_trial(
         .filter(|trial| trial.trial == number)
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
-    state.storage().mark_shown(&participant.id, number).await?;
+    state.storage().submit(Shown { participant: participant.id.clone(), trial: number }).await?;
     Ok(Json(Next::Trial {
         trial: trial.trial,
         total: participant.trials,
@@ -608,7 +624,7 @@ async fn create_response(
         state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
     let outcome = state
         .storage()
-        .store_response(NewResponse {
+        .write(NewResponse {
             participant: participant.id,
             trial: body.trial,
             chosen: body.chosen,
@@ -616,7 +632,7 @@ async fn create_response(
             client: Value::Object(client).to_string(),
             min_response_ms,
         })
-        .await?;
+        .await??;
     let status = match outcome {
         ResponseOutcome::Created => StatusCode::CREATED,
         ResponseOutcome::Repeated => StatusCode::OK,

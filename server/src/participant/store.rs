@@ -1,0 +1,328 @@
+//! Storage of paired-comparison participants (tables `participants`, `trials`, `responses` and
+//! `screen_outs`): the writes that go through the server's one writer with group commit
+//! ([`Storage::write`]). A participant is stored with its whole schedule in one transaction; a
+//! response only to a served trial that is the participant's next one (a repeat of the same
+//! answer is reported, a different one refused).
+
+use std::sync::Arc;
+
+use sqlx::{Row, SqliteConnection};
+
+use crate::prepared::PreparedStudy;
+use crate::schedule;
+#[cfg(doc)]
+use crate::storage::Storage;
+use crate::storage::{NOW, WriteJob};
+use crate::trial::{ResponseOutcome, ResponseRefused, Side};
+
+/// A new response as received.
+#[derive(Debug, Clone)]
+pub struct NewResponse {
+    pub participant: String,
+    pub trial: i64,
+    pub chosen: Side,
+    pub rt_ms: f64,
+    pub client: String,
+    /// The study's `min_response_ms`: a faster response is stored flagged `too_fast`.
+    pub min_response_ms: u32,
+}
+
+/// A participant to create, with the parts that do not depend on the seed.
+#[derive(Debug)]
+pub struct NewParticipant {
+    pub study: Arc<PreparedStudy>,
+    pub id: String,
+    pub token_sha256: Vec<u8>,
+    /// A random seed, used when the study has no study seed.
+    pub random_seed: u64,
+    pub demographics: String,
+    pub client: String,
+    pub url_params: String,
+    /// Used when the study has no fixed completion code.
+    pub random_completion_code: String,
+    /// Joined through an admin preview link.
+    pub pilot: bool,
+    /// The external id when the study keeps one run per external id: a participant already
+    /// stored with it is resumed (given this token) instead of created.
+    pub external_key: Option<String>,
+    /// A screen-out of this visitor to withdraw (they now meet the requirements and joined).
+    pub withdraw_screen_out: Option<String>,
+}
+
+/// What joining did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum JoinOutcome {
+    /// A new participant with the given id.
+    Created,
+    /// The study keeps one run per external id and this one had joined before: that
+    /// participant (`id`) now answers to the new token.
+    Resumed { id: String, trials: i64 },
+}
+
+/// A visitor who does not meet the study's screen requirements.
+#[derive(Debug, Clone)]
+pub struct ScreenOut {
+    /// Random id; an existing row with this id (the same visitor checking again) is updated.
+    pub id: String,
+    pub study: String,
+    pub reason: String,
+    pub client: String,
+    pub url_params: String,
+    pub pilot: bool,
+}
+
+impl WriteJob for NewResponse {
+    type Outcome = Result<ResponseOutcome, ResponseRefused>;
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        store_response(connection, self)
+    }
+}
+
+impl WriteJob for NewParticipant {
+    type Outcome = JoinOutcome;
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        insert_participant(connection, self)
+    }
+}
+
+/// Records (or updates) the screen-out `screen_out`, or with `None` withdraws the one with `id`.
+pub struct ScreenOutWrite {
+    pub id: String,
+    pub screen_out: Option<ScreenOut>,
+}
+
+impl WriteJob for ScreenOutWrite {
+    type Outcome = ();
+
+    fn run(
+        &self,
+        connection: &mut SqliteConnection,
+    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
+        write_screen_out(connection, &self.id, self.screen_out.as_ref())
+    }
+}
+
+/// Records that a trial was served, if it had not been. It is [`Storage::submit`]ted, not
+/// awaited: the queue is first in, first out, so the record is committed no later than any
+/// response to the trial, which can only be sent after the trial was served (a response to a
+/// trial never served is refused).
+pub struct Shown {
+    pub participant: String,
+    pub trial: i64,
+}
+
+impl WriteJob for Shown {
+    type Outcome = ();
+
+    async fn run(&self, connection: &mut SqliteConnection) -> Result<(), sqlx::Error> {
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "UPDATE trials SET shown_at = {NOW} WHERE participant = ? AND trial = ? AND shown_at IS NULL"
+        )))
+        .bind(&self.participant)
+        .bind(self.trial)
+        .execute(&mut *connection)
+        .await?;
+        Ok(())
+    }
+}
+
+async fn store_response(
+    connection: &mut SqliteConnection,
+    response: &NewResponse,
+) -> Result<Result<ResponseOutcome, ResponseRefused>, sqlx::Error> {
+    // Only a trial that was served can be answered; the server's own time since serving it
+    // (first serving, so a reload never shortens it) is stored beside the client's.
+    let served = sqlx::query(
+        "SELECT shown_at IS NOT NULL AS served,
+                (julianday('now') - julianday(shown_at)) * 86400000.0 AS served_ms
+         FROM trials WHERE participant = ? AND trial = ?",
+    )
+    .bind(&response.participant)
+    .bind(response.trial)
+    .fetch_optional(&mut *connection)
+    .await?;
+    let mut served_ms: Option<f64> = None;
+    if let Some(served) = &served {
+        if !served.try_get::<bool, _>("served")? {
+            let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
+                .bind(&response.participant)
+                .fetch_one(&mut *connection)
+                .await?;
+            return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
+        }
+        served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
+    }
+    let floor = f64::from(response.min_response_ms);
+    let too_fast = response.rt_ms < floor || served_ms.is_some_and(|ms| ms < floor);
+    // The usual case in two statements: advance the participant's progress if this is the next
+    // trial, then insert the response. Responses are answered in order, so `answered` is the
+    // number of stored responses and trial `answered + 1` has none yet.
+    let advanced = sqlx::query(sqlx::AssertSqlSafe(format!(
+        "UPDATE participants SET answered = answered + 1,
+             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END
+         WHERE id = ? AND answered = ? AND ? <= trials"
+    )))
+    .bind(&response.participant)
+    .bind(response.trial - 1)
+    .bind(response.trial)
+    .execute(&mut *connection)
+    .await?;
+    if advanced.rows_affected() == 1 {
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms)
+             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?)"
+        )))
+        .bind(&response.participant)
+        .bind(response.trial)
+        .bind(response.chosen.as_str())
+        .bind(response.rt_ms)
+        .bind(&response.client)
+        .bind(too_fast as i64)
+        .bind(served_ms)
+        .execute(&mut *connection)
+        .await?;
+        return Ok(Ok(ResponseOutcome::Created));
+    }
+    // Not the next trial: a repeat, a changed answer, or out of order.
+    let existing: Option<String> =
+        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = ? AND trial = ?")
+            .bind(&response.participant)
+            .bind(response.trial)
+            .fetch_optional(&mut *connection)
+            .await?;
+    if let Some(existing) = existing {
+        return Ok(if existing == response.chosen.as_str() {
+            Ok(ResponseOutcome::Repeated)
+        } else {
+            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen: existing })
+        });
+    }
+    let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
+        .bind(&response.participant)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(progress) = progress else {
+        return Ok(Err(ResponseRefused::UnknownParticipant));
+    };
+    let answered: i64 = progress.try_get("answered")?;
+    let trials: i64 = progress.try_get("trials")?;
+    if response.trial < 1 || response.trial > trials {
+        return Ok(Err(ResponseRefused::OutOfRange { trial: response.trial, trials }));
+    }
+    Ok(Err(ResponseRefused::NotYet { trial: response.trial, next: answered + 1 }))
+}
+
+async fn write_screen_out(
+    connection: &mut SqliteConnection,
+    id: &str,
+    screen_out: Option<&ScreenOut>,
+) -> Result<(), sqlx::Error> {
+    match screen_out {
+        None => {
+            sqlx::query("DELETE FROM screen_outs WHERE id = ?").bind(id).execute(&mut *connection).await?;
+        }
+        Some(screen_out) => {
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
+                 VALUES (?, ?, ?, ?, ?, ?, {NOW})
+                 ON CONFLICT (id) DO UPDATE SET reason = excluded.reason, client = excluded.client"
+            )))
+            .bind(id)
+            .bind(&screen_out.study)
+            .bind(&screen_out.reason)
+            .bind(&screen_out.client)
+            .bind(&screen_out.url_params)
+            .bind(screen_out.pilot as i64)
+            .execute(&mut *connection)
+            .await?;
+        }
+    }
+    Ok(())
+}
+
+async fn insert_participant(
+    connection: &mut SqliteConnection,
+    participant: &NewParticipant,
+) -> Result<JoinOutcome, sqlx::Error> {
+    let study = &participant.study.study;
+    if let Some(withdraw) = &participant.withdraw_screen_out {
+        sqlx::query("DELETE FROM screen_outs WHERE id = ? AND study = ?")
+            .bind(withdraw)
+            .bind(&study.slug)
+            .execute(&mut *connection)
+            .await?;
+    }
+    if let Some(external_key) = &participant.external_key {
+        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = ? AND external_key = ?")
+            .bind(&study.slug)
+            .bind(external_key)
+            .fetch_optional(&mut *connection)
+            .await?;
+        if let Some(existing) = existing {
+            let id: String = existing.try_get("id")?;
+            sqlx::query("UPDATE participants SET token_sha256 = ? WHERE id = ?")
+                .bind(&participant.token_sha256)
+                .bind(&id)
+                .execute(&mut *connection)
+                .await?;
+            return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
+        }
+    }
+    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?")
+        .bind(&study.slug)
+        .fetch_one(&mut *connection)
+        .await?;
+    let seed = match study.design.seed {
+        Some(study_seed) => schedule::derived_seed(study_seed, ordinal as u64),
+        None => participant.random_seed,
+    };
+    let trials = participant.study.schedule(seed);
+    let completion_code = study.completion.code.clone().unwrap_or_else(|| participant.random_completion_code.clone());
+    sqlx::query(sqlx::AssertSqlSafe(format!(
+        "INSERT INTO participants (id, study, ordinal, token_sha256, seed, schedule_version, file_sha256,
+             demographics, client, url_params, trials, completion_code, created_at, pilot, external_key)
+         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, ?, ?)"
+    )))
+    .bind(&participant.id)
+    .bind(&study.slug)
+    .bind(ordinal)
+    .bind(&participant.token_sha256)
+    .bind(seed as i64)
+    .bind(schedule::SCHEDULE_VERSION)
+    .bind(&study.file_sha256)
+    .bind(&participant.demographics)
+    .bind(&participant.client)
+    .bind(&participant.url_params)
+    .bind(trials.len() as i64)
+    .bind(completion_code)
+    .bind(participant.pilot as i64)
+    .bind(&participant.external_key)
+    .execute(&mut *connection)
+    .await?;
+    for (index, trial) in trials.iter().enumerate() {
+        sqlx::query(
+            "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
+                 left_stimulus, right_stimulus, catch_expected) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(&participant.id)
+        .bind(index as i64 + 1)
+        .bind(&trial.left_condition)
+        .bind(&trial.right_condition)
+        .bind(&trial.left_scene)
+        .bind(&trial.right_scene)
+        .bind(&trial.left_stimulus)
+        .bind(&trial.right_stimulus)
+        .bind(trial.catch_expected.map(Side::as_str))
+        .execute(&mut *connection)
+        .await?;
+    }
+    Ok(JoinOutcome::Created)
+}

@@ -1,0 +1,55 @@
+//! Trial concepts shared by the schedule, storage and the participant API: the two sides of a
+//! paired-comparison trial, and what answering a trial did or why it was refused.
+
+/// A side of a paired-comparison trial: where a stimulus is shown, and what a response chose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+impl Side {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Side::Left => "left",
+            Side::Right => "right",
+        }
+    }
+}
+
+/// What storing a response did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResponseOutcome {
+    /// Stored now (`201`).
+    Created,
+    /// The same answer was already stored (`200`).
+    Repeated,
+}
+
+/// Why a response was refused; nothing was stored.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ResponseRefused {
+    /// The trial was never served to the participant; `next` is their next trial.
+    NeverServed {
+        trial: i64,
+        next: i64,
+    },
+    /// The trial was already answered with another choice.
+    AlreadyAnswered {
+        trial: i64,
+        chosen: String,
+    },
+    UnknownParticipant,
+    /// The trial is not in the participant's schedule of `trials` trials.
+    OutOfRange {
+        trial: i64,
+        trials: i64,
+    },
+    /// The trial is later than the participant's next trial, `next`.
+    NotYet {
+        trial: i64,
+        next: i64,
+    },
+}
