@@ -568,6 +568,14 @@ impl Session {
         }
         let (reply, answer) = oneshot::channel();
         let requested_at = Instant::now();
+        // The session's pace only rises: when live frames turn out slower than the start-up
+        // measurement said (or the machine slows down), every later frame of every condition
+        // is held to the new pace.
+        if let (Some(pace), Some(now)) = (self.pace_ms, self.study.pace_ms())
+            && now > pace
+        {
+            self.pace_ms = Some(now);
+        }
         let paced_ms = self.pace_ms;
         let release_at = requested_at + std::time::Duration::from_secs_f64(paced_ms.unwrap_or(0.0).max(0.0) / 1e3);
         active.paced_ms = paced_ms;
