@@ -142,16 +142,30 @@ impl LabStudy {
             )
         };
         let spread = self.frame_times().spread() * 100.0;
+        // Paced frames come no faster than the pace: say so when that is below the minimum.
+        let paced_speed = |pace: f64| {
+            let fps = 1000.0 / pace.max(1e-3);
+            if fps < self.study.render.min_fps {
+                format!(
+                    " (≈{fps:.1} frames/s in every condition, below the minimum of {} frames/s: use a GPU or a smaller render.size)",
+                    self.study.render.min_fps
+                )
+            } else {
+                format!(" (≈{fps:.1} frames/s in every condition)")
+            }
+        };
         let parity = match (self.unequal(), self.pace_ms()) {
             (false, None) => {
                 format!("the conditions' frame times are within {:.0} % of each other", PARITY_TOLERANCE * 100.0)
             }
             (false, Some(pace)) => format!(
-                "the conditions' frame times are within {:.0} % of each other, and pace = \"equal\" sends every frame at {pace:.1} ms",
-                PARITY_TOLERANCE * 100.0
+                "the conditions' frame times are within {:.0} % of each other, and pace = \"equal\" sends every frame at {pace:.1} ms{}",
+                PARITY_TOLERANCE * 100.0,
+                paced_speed(pace)
             ),
             (true, Some(pace)) => format!(
-                "the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms, so lag does not tell them apart"
+                "the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms{}, so lag does not tell them apart",
+                paced_speed(pace)
             ),
             (true, None) => format!(
                 "the conditions differ by {spread:.0} % in frame time, so condition is confounded with lag — set pace = \"equal\" in the study file to send every condition's frames at the slowest's"
