@@ -319,32 +319,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
     .fetch_all(pool)
     .await?;
     let mut writer = csv::Writer::from_writer(Vec::new());
-    let mut header: Vec<String> = [
-        "study",
-        "participant",
-        "trial",
-        "left",
-        "right",
-        "chosen",
-        "scene_left",
-        "scene_right",
-        "rt_ms",
-        "shown_at",
-        "answered_at",
-        "catch_answered",
-        "catch_failed",
-        "viewport",
-        "device_pixel_ratio",
-        "completed",
-        "status",
-        "completion_code",
-        "pilot",
-        "excluded",
-        "too_fast",
-    ]
-    .iter()
-    .map(|column| column.to_string())
-    .collect();
+    let mut header: Vec<String> = crate::study::TRIALS_CSV_COLUMNS.iter().map(|column| column.to_string()).collect();
     header.extend(definition.url_params.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");

@@ -569,12 +569,12 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
                 format!("expected a lower-case identifier (a-z, 0-9, _), found \"{}\"", field.name),
             ));
         }
-        if RESERVED_COLUMNS.contains(&field.name.as_str()) {
+        if TRIALS_CSV_COLUMNS.contains(&field.name.as_str()) {
             return Err(fail(
                 &format!("{key}.name"),
                 format!(
                     "expected a name that is not an export column ({}), found \"{}\"",
-                    RESERVED_COLUMNS.join(", "),
+                    TRIALS_CSV_COLUMNS.join(", "),
                     field.name
                 ),
             ));
@@ -613,7 +613,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
             ));
         }
         // Each external id is a column of the trials CSV.
-        if RESERVED_COLUMNS.contains(&name.as_str()) || field_names.contains(name) {
+        if TRIALS_CSV_COLUMNS.contains(&name.as_str()) || field_names.contains(name) {
             return Err(fail(
                 &format!("url_params[{index}]"),
                 format!("expected a name that is not an export column or a demographic field, found \"{name}\""),
@@ -969,8 +969,9 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
     })
 }
 
-/// Export columns a demographic field may not shadow.
-pub const RESERVED_COLUMNS: &[&str] = &[
+/// The trials CSV's own columns, in order (DESIGN.md); the external ids and the demographic
+/// fields follow them, so neither may be named like one. `export` writes this header.
+pub const TRIALS_CSV_COLUMNS: &[&str] = &[
     "study",
     "participant",
     "trial",
