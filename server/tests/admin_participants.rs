@@ -9,29 +9,25 @@ use std::path::{Path, PathBuf};
 
 use axum::Router;
 use axum::body::Body;
-use axum::http::{HeaderMap, Method, Request, StatusCode, header};
-use http_body_util::BodyExt;
+use axum::http::{Method, Request, StatusCode, header};
 use mrstudy_server::serve::{Prepared, prepare};
 use mrstudy_server::{AppState, app};
 use serde_json::{Value, json};
-use tower::ServiceExt;
+
+mod support;
+use support::{Answer, call, copy_demo_study, send};
 
 const STUDY: &str = "shadows-demo";
 
 /// The demo study with a free-text demographic field `comment` appended.
 fn studies_dir(work: &Path) -> PathBuf {
     let dir = work.join("studies");
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
-    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
-    let mut text = std::fs::read_to_string(repo.join("shadows-demo.toml")).unwrap();
+    copy_demo_study(&dir);
+    let mut text = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
     text.push_str(
         "\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n",
     );
     std::fs::write(dir.join("shadows-demo.toml"), text).unwrap();
-    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
-    }
     dir
 }
 
@@ -50,47 +46,6 @@ async fn fixture() -> Fixture {
     let Prepared { state, admin_token, skipped, .. } = prepare(&data, &studies).await.unwrap();
     assert!(skipped.is_empty(), "{skipped:?}");
     Fixture { app: app(state.clone()), state, admin_token, data, _work: work }
-}
-
-struct Answer {
-    status: StatusCode,
-    headers: HeaderMap,
-    bytes: Vec<u8>,
-}
-
-impl Answer {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.bytes)
-            .unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
-    }
-    fn text(&self) -> String {
-        String::from_utf8_lossy(&self.bytes).into_owned()
-    }
-    /// The sentence of a `{"error": "…"}` body.
-    fn error(&self) -> String {
-        let json = self.json();
-        let message = json["error"].as_str().unwrap_or_else(|| panic!("no error field: {json}")).to_string();
-        assert!(!message.is_empty());
-        message
-    }
-}
-
-async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body: Option<Value>) -> Answer {
-    let mut request = Request::builder().method(method).uri(uri);
-    if let Some(token) = token {
-        request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
-    }
-    let request = match body {
-        Some(body) => {
-            request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap()
-        }
-        None => request.body(Body::empty()).unwrap(),
-    };
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let headers = response.headers().clone();
-    let bytes = response.into_body().collect().await.unwrap().to_bytes().to_vec();
-    Answer { status, headers, bytes }
 }
 
 impl Fixture {
@@ -632,8 +587,8 @@ async fn bad_participant_management_requests_are_refused_with_one_sentence() {
                 .header(header::CONTENT_TYPE, "application/json")
                 .body(Body::from(json!({"reason": "r"}).to_string()))
                 .unwrap();
-            let response = fixture.app.clone().oneshot(request).await.unwrap();
-            assert_eq!(response.status(), StatusCode::FORBIDDEN, "{path}");
+            let answer = send(&fixture.app, request).await;
+            assert_eq!(answer.status, StatusCode::FORBIDDEN, "{path}");
         }
     }
     let list = fixture.participants().await;

@@ -6,30 +6,21 @@ use std::path::{Path, PathBuf};
 
 use axum::Router;
 use axum::body::Body;
-use axum::http::{HeaderMap, Method, Request, StatusCode, header};
-use http_body_util::BodyExt;
+use axum::http::{Method, Request, StatusCode, header};
 use mrstudy_server::app;
 use mrstudy_server::serve::{Prepared, prepare};
 use serde_json::{Value, json};
-use tower::ServiceExt;
 
-fn repo_studies_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies")
-}
+mod support;
+use support::{Answer, call, copy_demo_study, repo_studies_dir, send};
 
 /// The demo study and the thesis survey, whose first scene is a scene file that does not parse:
 /// `serve` skips the survey (its stimuli cannot be rendered) without opening the GPU, where the
 /// repository's survey would have its 48 stimuli rendered by `prepare`.
 fn studies_dir(work: &Path) -> PathBuf {
     let dir = work.join("studies");
-    let repo = repo_studies_dir();
-    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
-    std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
-    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
-    }
-    let survey = std::fs::read_to_string(repo.join("web-survey.toml")).unwrap();
+    copy_demo_study(&dir);
+    let survey = std::fs::read_to_string(repo_studies_dir().join("web-survey.toml")).unwrap();
     std::fs::write(
         dir.join("web-survey.toml"),
         survey.replacen("render = \"survey-1\"", "render = \"scenes/broken.toml\"", 1),
@@ -52,51 +43,6 @@ async fn fixture() -> Fixture {
     let studies = studies_dir(data_dir.path());
     let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
     Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
-}
-
-struct Answer {
-    status: StatusCode,
-    headers: HeaderMap,
-    bytes: Vec<u8>,
-}
-
-impl Answer {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.bytes)
-            .unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
-    }
-    fn text(&self) -> String {
-        String::from_utf8_lossy(&self.bytes).into_owned()
-    }
-    /// A JSON error of the shape {"error": "one sentence"}.
-    fn error(&self) -> String {
-        let json = self.json();
-        let message = json["error"].as_str().unwrap_or_else(|| panic!("no error field: {json}")).to_string();
-        assert!(!message.is_empty());
-        message
-    }
-}
-
-async fn send(app: &Router, request: Request<Body>) -> Answer {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let headers = response.headers().clone();
-    let bytes = response.into_body().collect().await.unwrap().to_bytes().to_vec();
-    Answer { status, headers, bytes }
-}
-
-async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body: Option<Value>) -> Answer {
-    let mut request = Request::builder().method(method).uri(uri);
-    if let Some(token) = token {
-        request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
-    }
-    let request = match body {
-        Some(body) => {
-            request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap()
-        }
-        None => request.body(Body::empty()).unwrap(),
-    };
-    send(app, request).await
 }
 
 fn demographics() -> Value {

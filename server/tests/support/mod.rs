@@ -1,0 +1,76 @@
+//! What the router-level test binaries share: the demo study copied into a test's studies
+//! folder, and requests through `app(state)` with `oneshot` with their answers read back.
+// Each test binary includes this module and uses a different part of it.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use axum::Router;
+use axum::body::Body;
+use axum::http::{HeaderMap, Method, Request, StatusCode, header};
+use http_body_util::BodyExt;
+use serde_json::Value;
+use tower::ServiceExt;
+
+/// The repository's `studies/` folder.
+pub fn repo_studies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies")
+}
+
+/// Copies the demo study (its file and its images) into `dir`.
+pub fn copy_demo_study(dir: &Path) {
+    let repo = repo_studies_dir();
+    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
+    std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
+    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
+    }
+}
+
+/// An answer of the router: status, headers and body.
+pub struct Answer {
+    pub status: StatusCode,
+    pub headers: HeaderMap,
+    pub bytes: Vec<u8>,
+}
+
+impl Answer {
+    pub fn json(&self) -> Value {
+        serde_json::from_slice(&self.bytes)
+            .unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(&self.bytes)))
+    }
+    pub fn text(&self) -> String {
+        String::from_utf8_lossy(&self.bytes).into_owned()
+    }
+    /// The sentence of a `{"error": "…"}` body (never empty).
+    pub fn error(&self) -> String {
+        let json = self.json();
+        let message = json["error"].as_str().unwrap_or_else(|| panic!("no error field: {json}")).to_string();
+        assert!(!message.is_empty());
+        message
+    }
+}
+
+pub async fn send(app: &Router, request: Request<Body>) -> Answer {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let headers = response.headers().clone();
+    let bytes = response.into_body().collect().await.unwrap().to_bytes().to_vec();
+    Answer { status, headers, bytes }
+}
+
+/// A request with an optional bearer token and JSON body.
+pub async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, body: Option<Value>) -> Answer {
+    let mut request = Request::builder().method(method).uri(uri);
+    if let Some(token) = token {
+        request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
+    }
+    let request = match body {
+        Some(body) => {
+            request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())).unwrap()
+        }
+        None => request.body(Body::empty()).unwrap(),
+    };
+    send(app, request).await
+}
