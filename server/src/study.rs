@@ -96,11 +96,12 @@ pub enum Device {
 }
 
 impl Device {
-    pub fn as_str(self) -> &'static str {
+    /// The device as a participant reads it ("a desktop or laptop computer").
+    pub fn described(self) -> &'static str {
         match self {
-            Device::Desktop => "desktop",
-            Device::Tablet => "tablet",
-            Device::Phone => "phone",
+            Device::Desktop => "a desktop or laptop computer",
+            Device::Tablet => "a tablet",
+            Device::Phone => "a phone",
         }
     }
 }

@@ -97,12 +97,7 @@ async fn pilot(state: &AppState, slug: &str, preview: Option<&str>) -> AppResult
 
 /// The device a page reported in `client.device`, if any.
 fn reported_device(client: &Map<String, Value>) -> Option<Device> {
-    match client.get("device").and_then(Value::as_str)? {
-        "desktop" => Some(Device::Desktop),
-        "tablet" => Some(Device::Tablet),
-        "phone" => Some(Device::Phone),
-        _ => None,
-    }
+    serde_json::from_value(client.get("device")?.clone()).ok()
 }
 
 /// The viewport a page reported in `client.viewport` (`[width, height]` in CSS pixels).
@@ -121,15 +116,7 @@ pub(crate) fn screen_refusal(participation: &Participation, client: &Map<String,
         && let Some(device) = reported_device(client)
         && !participation.devices.contains(&device)
     {
-        let allowed: Vec<&str> = participation
-            .devices
-            .iter()
-            .map(|device| match device {
-                Device::Desktop => "a desktop or laptop computer",
-                Device::Tablet => "a tablet",
-                Device::Phone => "a phone",
-            })
-            .collect();
+        let allowed: Vec<&str> = participation.devices.iter().map(|device| device.described()).collect();
         let allowed = match allowed.as_slice() {
             [one] => one.to_string(),
             [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
@@ -137,11 +124,7 @@ pub(crate) fn screen_refusal(participation: &Participation, client: &Map<String,
         };
         return Some(format!(
             "This study can only be done on {allowed}, not on {}: please open the link there.",
-            match device {
-                Device::Desktop => "a desktop or laptop computer",
-                Device::Tablet => "a tablet",
-                Device::Phone => "a phone",
-            }
+            device.described()
         ));
     }
     let viewport = reported_viewport(client);
