@@ -66,7 +66,7 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     let store = args.data_dir.join("stimuli");
     let progress = progress_bars();
     let slug = study.slug.clone();
-    let rendered = stimuli::render_missing(&study, &store, None, &|step| progress(&slug, &step))
+    let rendered = stimuli::render_missing(&study, &store, &|step| progress(&slug, &step))
         .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
     if let Some(out) = &args.out {
         let written = stimuli::write_copies(&study, &store, out)

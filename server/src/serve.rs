@@ -141,7 +141,7 @@ pub async fn prepare_with_progress(
                     progress(&slug, &step);
                 }
             };
-            if let Err(error) = crate::stimuli::render_missing(&study, &stimuli_dir, None, &report) {
+            if let Err(error) = crate::stimuli::render_missing(&study, &stimuli_dir, &report) {
                 skipped.push(format!("{error}; not serving it"));
                 continue;
             }

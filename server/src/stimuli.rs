@@ -177,12 +177,11 @@ fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(),
     std::fs::rename(temporary, target)
 }
 
-/// Renders the study's missing stimuli into `store`; with `copies`, also writes each rendered
-/// stimulus there as `<scene>__<condition>.png`. Returns how many were rendered.
+/// Renders the study's missing stimuli into `store` and returns how many were rendered
+/// ([`write_copies`] writes named copies of every stimulus afterwards).
 pub fn render_missing(
     study: &Study,
     store: &Path,
-    copies: Option<&Path>,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<usize, StimuliError> {
     let missing = missing(study, store)?;
@@ -203,9 +202,6 @@ pub fn render_missing(
         move |source| StimuliError::Io { path, source }
     };
     std::fs::create_dir_all(store.join("rendered")).map_err(io(&store.join("rendered")))?;
-    if let Some(dir) = copies {
-        std::fs::create_dir_all(dir).map_err(io(dir))?;
-    }
     for scene_index in scenes {
         let StimulusSource::Render(render) = &study.scenes[scene_index].source else { continue };
         let scene_name = study.scenes[scene_index].name.clone();
@@ -225,10 +221,6 @@ pub fn render_missing(
             let name = store_bytes(&bytes, "png", store).map_err(io(store))?;
             let entry = index_path(store, &needed.key);
             write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes()).map_err(io(&entry))?;
-            if let Some(dir) = copies {
-                let copy = dir.join(format!("{}__{}.png", file_safe(&needed.scene), file_safe(&needed.condition)));
-                std::fs::write(&copy, &bytes).map_err(io(&copy))?;
-            }
             progress(Progress::Stimulus {
                 scene: needed.scene.clone(),
                 condition: needed.condition.clone(),
