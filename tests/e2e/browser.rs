@@ -218,6 +218,19 @@ pub(super) fn browser_available() -> bool {
     );
 }
 
+/// Consents and answers the demo study's demographics with `gender` and `age`, then presses
+/// Continue (the caller checks what follows).
+pub(super) fn consent_and_demographics(driver: &Driver, gender: &str, age: &str) {
+    driver.click("#consent");
+    driver.click("#consent-continue");
+    driver.wait_visible("stage-demographics");
+    driver.click(&format!("#field-gender option[value='{gender}']"));
+    driver.type_into("#field-age", age);
+    driver.click("#field-cg_experience option[value='none']");
+    driver.click("#field-vision option[value='normal']");
+    driver.click("#demographics-continue");
+}
+
 pub(super) fn screenshot_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
 }
@@ -318,13 +331,7 @@ fn the_trial_page_fits_a_phone_screen() {
     driver.go(&format!("{}/studies/shadows-demo", server.base));
     driver.wait_visible("stage-welcome");
     driver.screenshot(&screenshot_path("browser-welcome-phone.png"));
-    driver.click("#consent");
-    driver.click("#consent-continue");
-    driver.click("#field-gender option[value='male']");
-    driver.type_into("#field-age", "25");
-    driver.click("#field-cg_experience option[value='none']");
-    driver.click("#field-vision option[value='normal']");
-    driver.click("#demographics-continue");
+    consent_and_demographics(&driver, "male", "25");
     driver.wait_visible("stage-instructions");
     driver.click("#start");
     driver.wait_trial("1");

@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-use super::browser::{Driver, browser_available, screenshot_path};
+use super::browser::{Driver, browser_available, consent_and_demographics, screenshot_path};
 use super::serve::{Server, client, copy_demo_study};
 
 /// The demo study with extra top-level keys, in its own studies folder.
@@ -52,14 +52,7 @@ fn answered(data_dir: &Path) -> i64 {
 fn enter(driver: &Driver, base: &str, query: &str) {
     driver.go(&format!("{base}/studies/shadows-demo{query}"));
     driver.wait_visible("stage-welcome");
-    driver.click("#consent");
-    driver.click("#consent-continue");
-    driver.wait_visible("stage-demographics");
-    driver.click("#field-gender option[value='female']");
-    driver.type_into("#field-age", "34");
-    driver.click("#field-cg_experience option[value='none']");
-    driver.click("#field-vision option[value='normal']");
-    driver.click("#demographics-continue");
+    consent_and_demographics(driver, "female", "34");
     driver.wait_visible("stage-instructions");
 }
 
@@ -169,13 +162,7 @@ fn a_reload_on_the_instructions_shows_them_again_and_an_age_out_of_range_is_name
     let driver = Driver::start(1280, 800);
     driver.go(&format!("{}/studies/shadows-demo", server.base));
     driver.wait_visible("stage-welcome");
-    driver.click("#consent");
-    driver.click("#consent-continue");
-    driver.click("#field-gender option[value='female']");
-    driver.type_into("#field-age", "12");
-    driver.click("#field-cg_experience option[value='none']");
-    driver.click("#field-vision option[value='normal']");
-    driver.click("#demographics-continue");
+    consent_and_demographics(&driver, "female", "12");
     driver.wait_for("!document.getElementById('demographics-error').hidden");
     let message = driver.text("#demographics-error");
     assert_eq!(message, "Age in years: please enter a whole number from 16 to 110.");
