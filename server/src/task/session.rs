@@ -568,11 +568,12 @@ impl Session {
         }
         let (reply, answer) = oneshot::channel();
         let requested_at = Instant::now();
-        // The session's pace only rises: when live frames turn out slower than the start-up
-        // measurement said (or the machine slows down), every later frame of every condition
-        // is held to the new pace.
+        // The session's pace only rises, and only when frames come late: when the slowest
+        // condition's recent frames (p90, without the headroom) no longer fit in the pace, every
+        // later frame of every condition is held to the new pace. A pace that still fits is
+        // kept, so that conditions shown before and after stay alike.
         if let (Some(pace), Some(now)) = (self.pace_ms, self.study.pace_ms())
-            && now > pace
+            && now / super::timing::PACE_HEADROOM > pace
         {
             self.pace_ms = Some(now);
         }

@@ -8,7 +8,8 @@
 //! requested: [`PACE_HEADROOM`] times the [`PACE_QUANTILE`] of the slowest condition's recent
 //! frame times, so that almost every frame of every condition reaches the participant after the
 //! same time. A session takes its pace when the participant starts or resumes (see
-//! [`super::session`]) and only ever raises it, when live frames turn out slower, so all
+//! [`super::session`]) and raises it only when frames come late (the slowest condition's
+//! recent p90 above the pace), so all
 //! conditions of one participant are paced alike even when the machine's load changes.
 
 use std::collections::VecDeque;
