@@ -66,14 +66,15 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     let store = args.data_dir.join("stimuli");
     let progress = progress_bars();
     let slug = study.slug.clone();
-    let rendered = stimuli::render_missing(&study, &store, &|step| progress(&slug, &step))
+    let plan = stimuli::StimulusPlan::of(&study)?;
+    let rendered = stimuli::render_missing(&study, &plan, &store, &|step| progress(&slug, &step))
         .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
     if let Some(out) = &args.out {
-        let written = stimuli::write_copies(&study, &store, out)
+        let written = stimuli::write_copies(&study, &plan, &store, out)
             .with_context(|| format!("cannot write the stimuli of {} into {}", args.study.display(), out.display()))?;
         eprintln!("wrote {written} stimuli into {}", out.display());
     }
-    let total: usize = stimuli::needed(&study)?.into_iter().flatten().map(|scene| scene.len()).sum();
+    let total = plan.stimuli().count();
     eprintln!(
         "study \"{}\": rendered {rendered} stimuli, {} were already in {} ({total} rendered stimuli in all)",
         study.slug,

@@ -28,59 +28,7 @@ use serde::Deserialize;
 use serde_json::{Map, Value, json};
 use sqlx::{Row, SqlitePool};
 
-/// The parts of a stored study definition the export needs.
-#[derive(Debug, Deserialize)]
-pub struct StoredDefinition {
-    pub slug: String,
-    pub title: String,
-    pub factors: Vec<StoredName>,
-    pub conditions: Vec<StoredCondition>,
-    pub demographics: Vec<StoredName>,
-    /// The URL parameters kept as external ids (absent in definitions stored before them).
-    #[serde(default)]
-    pub url_params: Vec<String>,
-    #[serde(default)]
-    pub participation: StoredParticipation,
-}
-
-/// The participation keys the export and the admin need.
-#[derive(Debug, Deserialize)]
-pub struct StoredParticipation {
-    /// An unfinished participant with no activity for this long counts as abandoned.
-    #[serde(default = "default_abandon_after_minutes")]
-    pub abandon_after_minutes: u32,
-}
-
-impl Default for StoredParticipation {
-    fn default() -> Self {
-        StoredParticipation { abandon_after_minutes: default_abandon_after_minutes() }
-    }
-}
-
-fn default_abandon_after_minutes() -> u32 {
-    30
-}
-
-#[derive(Debug, Deserialize)]
-pub struct StoredName {
-    pub name: String,
-}
-
-#[derive(Debug, Deserialize)]
-pub struct StoredCondition {
-    pub name: String,
-    pub levels: Vec<f64>,
-}
-
-impl StoredDefinition {
-    /// The conditions CSV of DESIGN.md.
-    pub fn conditions_csv(&self) -> String {
-        crate::study::conditions_csv(
-            self.factors.iter().map(|factor| factor.name.as_str()),
-            self.conditions.iter().map(|condition| (condition.name.as_str(), condition.levels.as_slice())),
-        )
-    }
-}
+use crate::study::Study;
 
 /// Export failures.
 #[derive(Debug, thiserror::Error)]
@@ -94,7 +42,9 @@ pub enum ExportError {
     Definition { slug: String, message: String },
 }
 
-pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<StoredDefinition, ExportError> {
+/// The study as stored with its participants (the one schema of [`Study`]; a task study's
+/// definition does not read as one and says so).
+pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<Study, ExportError> {
     let text: Option<String> =
         sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
     let text = text.ok_or_else(|| ExportError::UnknownStudy(slug.to_string()))?;
@@ -206,7 +156,7 @@ pub struct ParticipantRecord {
 pub async fn participant_records(
     pool: &SqlitePool,
     slug: &str,
-    definition: &StoredDefinition,
+    definition: &Study,
 ) -> Result<Vec<ParticipantRecord>, ExportError> {
     let rows = sqlx::query(
         "SELECT *, (julianday('now') - julianday(last_activity)) * 1440.0 AS idle_minutes FROM (
@@ -264,7 +214,7 @@ pub async fn participant_records(
 }
 
 /// The study's external ids out of a stored `url_params` JSON object, in the study's order.
-pub fn external_ids(definition: &StoredDefinition, url_params: &str) -> Map<String, Value> {
+pub fn external_ids(definition: &Study, url_params: &str) -> Map<String, Value> {
     let stored: Map<String, Value> = serde_json::from_str(url_params).unwrap_or_default();
     definition
         .url_params

@@ -32,7 +32,6 @@ pub mod serve;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
-pub mod study_file;
 pub mod task;
 pub mod trial;
 

@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::schedule::{self, PlannedKind};
+use crate::stimuli::StimulusPlan;
 use crate::study::{IMAGE_TYPES, StimulusSource, Study};
 use crate::trial::Side;
 
@@ -71,36 +72,40 @@ impl PreparedStudy {
         }
     }
 
-    /// Copies the study's image files into `store` (named by content hash).
-    pub fn prepare(study: Study, store: &Path) -> Result<PreparedStudy, PrepareError> {
+    /// Finds the study's rendered stimuli in `store` by its `plan` and copies its image files
+    /// there (named by content hash).
+    pub fn prepare(study: Study, plan: &StimulusPlan, store: &Path) -> Result<PreparedStudy, PrepareError> {
         if study.kind == crate::study::StudyKind::Task {
             return Err(PrepareError::TaskStudy { slug: study.slug, file: study.file });
         }
-        let rendered = if study.needs_renderer() { crate::stimuli::needed(&study)? } else { Vec::new() };
+        let missing = plan.missing(store);
+        if let Some(first) = missing.first() {
+            return Err(PrepareError::NeedsRendering {
+                slug: study.slug.clone(),
+                file: study.file.clone(),
+                scene: first.scene.clone(),
+                missing: missing.len(),
+            });
+        }
         let mut stimuli = Vec::new();
-        for (scene_index, scene) in study.scenes.iter().enumerate() {
-            match &scene.source {
-                StimulusSource::Render(_) => {
-                    let needed = rendered[scene_index].as_deref().unwrap_or_default();
-                    let names: Vec<Option<String>> =
-                        needed.iter().map(|needed| crate::stimuli::lookup(store, &needed.key)).collect();
-                    if names.iter().any(Option::is_none) {
-                        let missing = rendered
-                            .iter()
-                            .flatten()
-                            .flatten()
-                            .filter(|n| crate::stimuli::lookup(store, &n.key).is_none())
-                            .count();
+        for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
+            match (&scene.source, planned) {
+                (StimulusSource::Render(_), planned) => {
+                    let names: Option<Vec<String>> = planned.as_ref().and_then(|planned| {
+                        planned.stimuli.iter().map(|stimulus| crate::stimuli::lookup(store, &stimulus.key)).collect()
+                    });
+                    let Some(names) = names else {
+                        // not in this study's plan, or gone from the store since it was checked
                         return Err(PrepareError::NeedsRendering {
                             slug: study.slug.clone(),
                             file: study.file.clone(),
                             scene: scene.name.clone(),
-                            missing,
+                            missing: study.conditions.len(),
                         });
-                    }
-                    stimuli.push(names.into_iter().flatten().collect());
+                    };
+                    stimuli.push(names);
                 }
-                StimulusSource::Images(paths) => {
+                (StimulusSource::Images(paths), _) => {
                     stimuli.push(paths.iter().map(|path| store_image(path, store)).collect::<Result<Vec<_>, _>>()?);
                 }
             }

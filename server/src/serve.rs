@@ -19,8 +19,8 @@ use std::sync::Arc;
 
 use crate::prepared::{PrepareError, PreparedStudy};
 use crate::storage::{OpenError, Storage};
+use crate::study::TaskStudy;
 use crate::study::{LoadedStudy, StudyError, load_studies};
-use crate::task::study::TaskStudy;
 use crate::{AppState, app};
 
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
@@ -133,6 +133,13 @@ pub async fn prepare_with_progress(
                 continue;
             }
         };
+        let plan = match crate::stimuli::StimulusPlan::of(&study) {
+            Ok(plan) => plan,
+            Err(error) => {
+                skipped.push(format!("{error}; not serving it"));
+                continue;
+            }
+        };
         if study.needs_renderer() {
             // start-up work: rendering blocks this task, nothing is being served yet
             let slug = study.slug.clone();
@@ -141,12 +148,12 @@ pub async fn prepare_with_progress(
                     progress(&slug, &step);
                 }
             };
-            if let Err(error) = crate::stimuli::render_missing(&study, &stimuli_dir, &report) {
+            if let Err(error) = crate::stimuli::render_missing(&study, &plan, &stimuli_dir, &report) {
                 skipped.push(format!("{error}; not serving it"));
                 continue;
             }
         }
-        match PreparedStudy::prepare(study, &stimuli_dir) {
+        match PreparedStudy::prepare(study, &plan, &stimuli_dir) {
             Ok(study) => prepared.push(Arc::new(study)),
             Err(
                 error @ (PrepareError::NeedsRendering { .. }

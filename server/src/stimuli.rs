@@ -38,7 +38,7 @@ pub enum StimuliError {
 
 /// One stimulus a study needs from the renderer.
 #[derive(Debug, Clone)]
-pub struct Needed {
+pub struct PlannedStimulus {
     pub scene_index: usize,
     pub condition_index: usize,
     /// Scene configuration and condition names, for messages and file names.
@@ -47,6 +47,75 @@ pub struct Needed {
     pub factors: Factors,
     /// SHA-256 of the fingerprint: the index entry's name.
     pub key: String,
+}
+
+/// One scene configuration's part of a [`StimulusPlan`]: the renderer's scene, loaded once at
+/// the study's stimulus size, and a stimulus per condition.
+#[derive(Debug, Clone)]
+pub struct PlannedScene {
+    pub scene: mrstudy_renderer::Scene,
+    pub stimuli: Vec<PlannedStimulus>,
+}
+
+/// Every stimulus a study needs from the renderer, with its cache key: made once per study (each
+/// scene file loaded once) and used to render what is missing ([`render_missing`]), to find the
+/// stimuli to serve ([`crate::PreparedStudy::prepare`]) and to write copies ([`write_copies`]).
+#[derive(Debug, Clone)]
+pub struct StimulusPlan {
+    pub settings: StimulusSettings,
+    /// `[scene configuration]`; `None` where the scene configuration has image files.
+    pub scenes: Vec<Option<PlannedScene>>,
+}
+
+impl StimulusPlan {
+    /// The plan of `study`: its render settings, each rendered scene configuration's scene and
+    /// one stimulus per condition, keyed by the renderer's fingerprint.
+    pub fn of(study: &Study) -> Result<StimulusPlan, StimuliError> {
+        let settings = settings(study);
+        let mut scenes = Vec::new();
+        for (scene_index, scene) in study.scenes.iter().enumerate() {
+            let StimulusSource::Render(render) = &scene.source else {
+                scenes.push(None);
+                continue;
+            };
+            let loaded = mrstudy_renderer::scene::load(render).map_err(|source| StimuliError::Render {
+                slug: study.slug.clone(),
+                file: study.file.clone(),
+                scene: scene.name.clone(),
+                source,
+            })?;
+            let loaded = settings.sized(loaded);
+            let mut stimuli = Vec::new();
+            for (condition_index, condition) in study.conditions.iter().enumerate() {
+                let factors = condition.factors.clone().map_err(|reason| StimuliError::Factors {
+                    slug: study.slug.clone(),
+                    file: study.file.clone(),
+                    condition: condition.name.clone(),
+                    reason,
+                })?;
+                stimuli.push(PlannedStimulus {
+                    scene_index,
+                    condition_index,
+                    scene: scene.name.clone(),
+                    condition: condition.name.clone(),
+                    factors,
+                    key: sha256_hex(settings.fingerprint(&loaded, &factors).as_bytes()),
+                });
+            }
+            scenes.push(Some(PlannedScene { scene: loaded, stimuli }));
+        }
+        Ok(StimulusPlan { settings, scenes })
+    }
+
+    /// Every planned stimulus, scene configuration by scene configuration.
+    pub fn stimuli(&self) -> impl Iterator<Item = &PlannedStimulus> {
+        self.scenes.iter().flatten().flat_map(|scene| &scene.stimuli)
+    }
+
+    /// The planned stimuli not yet in `store`.
+    pub fn missing(&self, store: &Path) -> Vec<&PlannedStimulus> {
+        self.stimuli().filter(|stimulus| lookup(store, &stimulus.key).is_none()).collect()
+    }
 }
 
 /// What the progress callback is told.
@@ -75,42 +144,6 @@ pub fn settings(study: &Study) -> StimulusSettings {
     }
 }
 
-/// The factors of each condition, or the first condition the renderer cannot render.
-pub fn condition_factors(study: &Study) -> Result<Vec<Factors>, StimuliError> {
-    study
-        .conditions
-        .iter()
-        .map(|condition| {
-            let levels = study.factors.iter().map(|factor| factor.name.as_str()).zip(condition.levels.iter().copied());
-            Factors::from_levels(levels).map_err(|reason| StimuliError::Factors {
-                slug: study.slug.clone(),
-                file: study.file.clone(),
-                condition: condition.name.clone(),
-                reason,
-            })
-        })
-        .collect()
-}
-
-/// The renderer's scene of a scene configuration, at the study's stimulus size.
-fn load_scene(
-    study: &Study,
-    scene_index: usize,
-    render: &str,
-    settings: &StimulusSettings,
-) -> Result<mrstudy_renderer::Scene, StimuliError> {
-    let base = study.file.parent().unwrap_or(Path::new("."));
-    let is_builtin = mrstudy_renderer::builtin::names().any(|name| name == render);
-    let name = if is_builtin { render.to_string() } else { base.join(render).to_string_lossy().into_owned() };
-    let scene = mrstudy_renderer::scene::load(&name).map_err(|source| StimuliError::Render {
-        slug: study.slug.clone(),
-        file: study.file.clone(),
-        scene: study.scenes[scene_index].name.clone(),
-        source,
-    })?;
-    Ok(settings.sized(scene))
-}
-
 fn index_path(store: &Path, key: &str) -> PathBuf {
     store.join("rendered").join(key)
 }
@@ -120,42 +153,6 @@ pub fn lookup(store: &Path, key: &str) -> Option<String> {
     let name = std::fs::read_to_string(index_path(store, key)).ok()?;
     let name = name.trim().to_string();
     store.join(&name).is_file().then_some(name)
-}
-
-/// Every stimulus the study needs from the renderer, with its cache key, `[scene][condition]`
-/// (`None` where the scene configuration has image files).
-pub fn needed(study: &Study) -> Result<Vec<Option<Vec<Needed>>>, StimuliError> {
-    let settings = settings(study);
-    let factors = condition_factors(study)?;
-    let mut out = Vec::new();
-    for (scene_index, scene) in study.scenes.iter().enumerate() {
-        let StimulusSource::Render(render) = &scene.source else {
-            out.push(None);
-            continue;
-        };
-        let loaded = load_scene(study, scene_index, render, &settings)?;
-        out.push(Some(
-            study
-                .conditions
-                .iter()
-                .enumerate()
-                .map(|(condition_index, condition)| Needed {
-                    scene_index,
-                    condition_index,
-                    scene: scene.name.clone(),
-                    condition: condition.name.clone(),
-                    factors: factors[condition_index],
-                    key: sha256_hex(settings.fingerprint(&loaded, &factors[condition_index]).as_bytes()),
-                })
-                .collect(),
-        ));
-    }
-    Ok(out)
-}
-
-/// The stimuli of `study` not yet in `store`.
-pub fn missing(study: &Study, store: &Path) -> Result<Vec<Needed>, StimuliError> {
-    Ok(needed(study)?.into_iter().flatten().flatten().filter(|needed| lookup(store, &needed.key).is_none()).collect())
 }
 
 /// Writes `bytes` into the store as `<sha256>.<extension>` (if not there) and returns the name.
@@ -177,24 +174,24 @@ fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(),
     std::fs::rename(temporary, target)
 }
 
-/// Renders the study's missing stimuli into `store` and returns how many were rendered
-/// ([`write_copies`] writes named copies of every stimulus afterwards).
+/// Renders the study's missing stimuli (by its `plan`) into `store` and returns how many were
+/// rendered ([`write_copies`] writes named copies of every stimulus afterwards).
 pub fn render_missing(
     study: &Study,
+    plan: &StimulusPlan,
     store: &Path,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<usize, StimuliError> {
-    let missing = missing(study, store)?;
+    let missing = plan.missing(store);
     if missing.is_empty() {
         return Ok(0);
     }
-    let settings = settings(study);
     let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu {
         slug: study.slug.clone(),
         file: study.file.clone(),
         source,
     })?;
-    let mut scenes: Vec<usize> = missing.iter().map(|needed| needed.scene_index).collect();
+    let mut scenes: Vec<usize> = missing.iter().map(|stimulus| stimulus.scene_index).collect();
     scenes.dedup();
     progress(Progress::Start { photos: scenes.len(), stimuli: missing.len() });
     let io = |path: &Path| {
@@ -203,7 +200,7 @@ pub fn render_missing(
     };
     std::fs::create_dir_all(store.join("rendered")).map_err(io(&store.join("rendered")))?;
     for scene_index in scenes {
-        let StimulusSource::Render(render) = &study.scenes[scene_index].source else { continue };
+        let Some(planned) = &plan.scenes[scene_index] else { continue };
         let scene_name = study.scenes[scene_index].name.clone();
         let render_error = |source| StimuliError::Render {
             slug: study.slug.clone(),
@@ -211,19 +208,20 @@ pub fn render_missing(
             scene: scene_name.clone(),
             source,
         };
-        let scene = load_scene(study, scene_index, render, &settings)?;
-        let (photo, _) = settings
-            .photo(&scene, &|done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total }))
+        let (photo, _) = plan
+            .settings
+            .photo(&planned.scene, &|done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total }))
             .map_err(render_error)?;
-        for needed in missing.iter().filter(|needed| needed.scene_index == scene_index) {
-            let frame = settings.render(&renderer, &scene, &photo, &needed.factors).map_err(render_error)?;
+        for stimulus in missing.iter().filter(|stimulus| stimulus.scene_index == scene_index) {
+            let frame =
+                plan.settings.render(&renderer, &planned.scene, &photo, &stimulus.factors).map_err(render_error)?;
             let bytes = frame.composite.encode_png();
             let name = store_bytes(&bytes, "png", store).map_err(io(store))?;
-            let entry = index_path(store, &needed.key);
+            let entry = index_path(store, &stimulus.key);
             write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes()).map_err(io(&entry))?;
             progress(Progress::Stimulus {
-                scene: needed.scene.clone(),
-                condition: needed.condition.clone(),
+                scene: stimulus.scene.clone(),
+                condition: stimulus.condition.clone(),
                 ms: frame.report.ms,
             });
         }
@@ -235,28 +233,30 @@ pub fn render_missing(
 /// rendered ones from the store (whether rendered now or before) and the image files of scene
 /// configurations that have them. Returns how many were written; a rendered stimulus missing
 /// from the store is an error naming it (render it first).
-pub fn write_copies(study: &Study, store: &Path, dir: &Path) -> Result<usize, StimuliError> {
+pub fn write_copies(study: &Study, plan: &StimulusPlan, store: &Path, dir: &Path) -> Result<usize, StimuliError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| StimuliError::Io { path, source }
     };
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut written = 0;
-    for (scene_index, needed) in needed(study)?.into_iter().enumerate() {
-        let scene = &study.scenes[scene_index];
-        match (needed, &scene.source) {
-            (Some(needed), _) => {
-                for needed in needed {
-                    let name = lookup(store, &needed.key).ok_or_else(|| StimuliError::Io {
-                        path: store.join("rendered").join(&needed.key),
+    for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
+        match (planned, &scene.source) {
+            (Some(planned), _) => {
+                for stimulus in &planned.stimuli {
+                    let name = lookup(store, &stimulus.key).ok_or_else(|| StimuliError::Io {
+                        path: store.join("rendered").join(&stimulus.key),
                         source: std::io::Error::new(
                             std::io::ErrorKind::NotFound,
-                            format!("the stimulus {} / {} is not in the store", needed.scene, needed.condition),
+                            format!("the stimulus {} / {} is not in the store", stimulus.scene, stimulus.condition),
                         ),
                     })?;
                     let extension = Path::new(&name).extension().and_then(|e| e.to_str()).unwrap_or("png").to_string();
-                    let copy =
-                        dir.join(format!("{}__{}.{extension}", file_safe(&needed.scene), file_safe(&needed.condition)));
+                    let copy = dir.join(format!(
+                        "{}__{}.{extension}",
+                        file_safe(&stimulus.scene),
+                        file_safe(&stimulus.condition)
+                    ));
                     std::fs::copy(store.join(&name), &copy).map_err(io(&copy))?;
                     written += 1;
                 }

@@ -545,7 +545,8 @@ async fn schedules_are_stored_and_reproducible_from_the_stored_seed() {
         .json();
     let study = mrstudy_server::study::load_study(&repo_studies_dir().join("shadows-demo.toml")).unwrap();
     let data_dir = tempfile::tempdir().unwrap();
-    let prepared = mrstudy_server::PreparedStudy::prepare(study, data_dir.path()).unwrap();
+    let plan = mrstudy_server::stimuli::StimulusPlan::of(&study).unwrap();
+    let prepared = mrstudy_server::PreparedStudy::prepare(study, &plan, data_dir.path()).unwrap();
     for participant in json["participants"].as_array().unwrap() {
         let seed: u64 = participant["seed"].as_str().unwrap().parse().unwrap();
         let replayed = prepared.schedule(seed);

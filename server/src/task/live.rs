@@ -26,7 +26,7 @@ use mrstudy_renderer::scene::Scene;
 use tokio::sync::oneshot;
 
 use super::plan::Layout;
-use super::study::TaskStudy;
+use crate::study::task::TaskStudy;
 
 /// Default live resolution on a software adapter (lavapipe, llvmpipe).
 pub const SOFTWARE_SIZE: [u32; 2] = [160, 120];

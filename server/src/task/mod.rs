@@ -1,5 +1,5 @@
 //! Lab task studies (`kind = "task"`, the thesis's Section 6.3 study in a browser): study files
-//! ([`study`]), counterbalanced condition orders ([`williams`]), per-participant schedules
+//! (`crate::study::task`), counterbalanced condition orders ([`williams`]), per-participant schedules
 //! ([`plan`]), the live renderer thread ([`live`]), the WebSocket session that runs trials
 //! ([`session`]), storage ([`store`]), and the export and admin page ([`results`]).
 //!
@@ -16,7 +16,6 @@ pub mod plan;
 pub mod results;
 pub mod session;
 pub mod store;
-pub mod study;
 pub mod timing;
 pub mod williams;
 
@@ -33,9 +32,9 @@ use axum::routing::get;
 use crate::AppState;
 use crate::error::AppError;
 use crate::storage::Storage;
+use crate::study::task::{Pace, TaskStudy};
 use live::{AdapterInfo, LabRenderer};
 use plan::Layout;
-use study::{Pace, TaskStudy};
 use timing::{FrameTimes, PARITY_TOLERANCE};
 
 /// A task study being served.

@@ -17,8 +17,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::study::{Counterbalance, Directions, TaskKind, TaskStudy};
 use super::williams;
+use crate::study::task::{Counterbalance, Directions, TaskKind, TaskStudy};
 
 /// Version of the task scheduling algorithm, stored with each participant.
 pub const TASK_SCHEDULE_VERSION: i64 = 1;
@@ -202,7 +202,7 @@ kind = "placement"
 [[tasks]]
 kind = "contact"
 "#;
-        super::super::study::parse(text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
+        crate::study::task::parse(text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
     }
 
     const LAYOUT: Layout = Layout { real_centre: [0.0, 0.025, 0.0], half_height: 0.025, reach: [0.3; 4] };

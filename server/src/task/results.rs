@@ -27,9 +27,9 @@ use axum::routing::get;
 use mrstudy_analysis::task::{TaskAnalysis, analyze_task_csv};
 use sqlx::{Row, SqlitePool};
 
-use super::study::TaskKind;
 use crate::AppState;
 use crate::error::{AppError, AppResult, Json};
+use crate::study::task::TaskKind;
 
 pub fn router() -> Router<AppState> {
     Router::new()

@@ -39,10 +39,10 @@ use tokio::sync::oneshot;
 use super::live::{Frame, FrameJob, SessionRenderState};
 use super::plan::PlannedTaskTrial;
 use super::store::{self, NewTaskParticipant, TaskRefused, TaskWrite, TaskWritten, TrialResult};
-use super::study::TaskKind;
 use super::{Lab, LabStudy};
 use crate::AppState;
 use crate::error::AppError;
+use crate::study::task::TaskKind;
 
 /// Largest text message accepted from a client, in bytes.
 pub const MAX_MESSAGE_BYTES: usize = 4096;

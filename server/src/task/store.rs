@@ -19,8 +19,8 @@ use std::sync::Arc;
 use sqlx::{Row, SqliteConnection};
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
-use super::study::TaskStudy;
 use crate::storage::{NOW, Storage, StudyRecord, WriteJob};
+use crate::study::task::TaskStudy;
 
 /// A participant to create.
 pub struct NewTaskParticipant {

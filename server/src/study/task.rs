@@ -12,7 +12,8 @@ use std::path::Path;
 use mrstudy_renderer::gpu::GiLevel as Condition;
 use serde::{Deserialize, Serialize};
 
-use crate::study_file::{StudyError, is_slug, one_line};
+use super::checks::{Fail, check_min_response_ms, check_slug, check_texts, resolve_scene};
+use super::{StudyError, one_line};
 
 /// How condition orders are counterbalanced across participants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -342,54 +343,40 @@ fn default_instructions(kind: TaskKind) -> &'static str {
 /// Reads and checks a task study from its text (`file` names it in errors, `base` resolves a
 /// scene file).
 pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Result<TaskStudy, StudyError> {
-    let fail = |key: &str, expected: String| StudyError { file: file.to_path_buf(), key: key.to_string(), expected };
-    let raw: TaskStudyFile = toml::from_str(text).map_err(|error| fail("", one_line(&error.to_string())))?;
-    if !is_slug(&raw.slug) {
-        return Err(fail("slug", format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{}\"", raw.slug)));
-    }
-    for (key, value) in
-        [("title", &raw.title), ("texts.welcome", &raw.texts.welcome), ("texts.instructions", &raw.texts.instructions)]
-    {
-        if value.trim().is_empty() {
-            return Err(fail(key, "expected a non-empty text".into()));
-        }
-    }
-    // scene
-    let scene = raw.scene.name.trim().to_string();
-    let is_builtin = mrstudy_renderer::builtin::names().any(|name| name == scene);
-    let scene = if is_builtin {
-        scene
-    } else if !scene.is_empty() && base.join(&scene).is_file() {
-        base.join(&scene).display().to_string()
-    } else {
-        return Err(fail(
-            "scene.name",
-            format!(
-                "expected a built-in scene of the renderer ({}) or an existing scene file, found \"{}\"",
-                mrstudy_renderer::builtin::names().collect::<Vec<_>>().join(", "),
-                raw.scene.name
-            ),
-        ));
-    };
+    let fail = Fail(file);
+    let raw: TaskStudyFile = toml::from_str(text).map_err(|error| fail.at("", one_line(&error.to_string())))?;
+    check_slug(fail, "slug", &raw.slug)?;
+    check_texts(
+        fail,
+        &[
+            ("title", &raw.title),
+            ("texts.welcome", &raw.texts.welcome),
+            ("texts.instructions", &raw.texts.instructions),
+        ],
+    )?;
+    let scene = resolve_scene(fail, "scene.name", base, &raw.scene.name)?;
     for (key, value) in
         [("scene.real_object", &raw.scene.real_object), ("scene.virtual_object", &raw.scene.virtual_object)]
     {
         if value.trim().is_empty() {
-            return Err(fail(key, "expected the name of an object of the scene".into()));
+            return Err(fail.at(key, "expected the name of an object of the scene"));
         }
     }
     // design
     let design = &raw.design;
     if design.conditions.len() < 2 {
-        return Err(fail("design.conditions", "expected at least two rendering conditions (none, shadows, gi)".into()));
+        return Err(fail.at("design.conditions", "expected at least two rendering conditions (none, shadows, gi)"));
     }
     let mut conditions = Vec::new();
     for (index, name) in design.conditions.iter().enumerate() {
         let condition = Condition::parse(name).ok_or_else(|| {
-            fail(&format!("design.conditions[{index}]"), format!("expected one of none, shadows, gi, found \"{name}\""))
+            fail.at(
+                &format!("design.conditions[{index}]"),
+                format!("expected one of none, shadows, gi, found \"{name}\""),
+            )
         })?;
         if conditions.contains(&condition) {
-            return Err(fail(
+            return Err(fail.at(
                 &format!("design.conditions[{index}]"),
                 format!("expected each condition once, \"{}\" appears twice", condition.name()),
             ));
@@ -397,48 +384,47 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         conditions.push(condition);
     }
     if !(1..=50).contains(&design.trials_per_condition) {
-        return Err(fail(
-            "design.trials_per_condition",
-            format!("expected 1 to 50, found {}", design.trials_per_condition),
-        ));
+        return Err(
+            fail.at("design.trials_per_condition", format!("expected 1 to 50, found {}", design.trials_per_condition))
+        );
     }
     if design.practice > 20 {
-        return Err(fail("design.practice", format!("expected 0 to 20, found {}", design.practice)));
+        return Err(fail.at("design.practice", format!("expected 0 to 20, found {}", design.practice)));
     }
     // render
     let render = &raw.render;
     if let Some([width, height]) = render.size
         && !(16..=1920).contains(&width) | !(16..=1440).contains(&height)
     {
-        return Err(fail(
+        return Err(fail.at(
             "render.size",
             format!("expected [width, height] within 16×16 to 1920×1440, found [{width}, {height}]"),
         ));
     }
     if !(1..=100).contains(&render.jpeg_quality) {
-        return Err(fail("render.jpeg_quality", format!("expected 1 to 100, found {}", render.jpeg_quality)));
+        return Err(fail.at("render.jpeg_quality", format!("expected 1 to 100, found {}", render.jpeg_quality)));
     }
     if !(1..=4096).contains(&render.vpls) {
-        return Err(fail("render.vpls", format!("expected 1 to 4096, found {}", render.vpls)));
+        return Err(fail.at("render.vpls", format!("expected 1 to 4096, found {}", render.vpls)));
     }
     if !(16..=4096).contains(&render.shadow_map_size) {
-        return Err(fail("render.shadow_map_size", format!("expected 16 to 4096, found {}", render.shadow_map_size)));
+        return Err(fail.at("render.shadow_map_size", format!("expected 16 to 4096, found {}", render.shadow_map_size)));
     }
     if render.env_lights > 256 {
-        return Err(fail("render.env_lights", format!("expected 0 to 256, found {}", render.env_lights)));
+        return Err(fail.at("render.env_lights", format!("expected 0 to 256, found {}", render.env_lights)));
     }
     if !(1..=4096).contains(&render.photo_spp) {
-        return Err(fail("render.photo_spp", format!("expected 1 to 4096, found {}", render.photo_spp)));
+        return Err(fail.at("render.photo_spp", format!("expected 1 to 4096, found {}", render.photo_spp)));
     }
     if !(render.min_fps.is_finite() && render.min_fps > 0.0 && render.min_fps <= 240.0) {
-        return Err(fail(
+        return Err(fail.at(
             "render.min_fps",
             format!("expected a number of frames per second in (0, 240], found {}", render.min_fps),
         ));
     }
     let pace = match (raw.pace, render.pace) {
         (Some(top), Some(under)) if top != under => {
-            return Err(fail(
+            return Err(fail.at(
                 "render.pace",
                 format!(
                     "expected the same value as the top-level pace (\"{}\"), found \"{}\"; give pace once",
@@ -451,42 +437,35 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         (None, None) => Pace::None,
     };
     // participation
-    if !(0..=60_000).contains(&raw.min_response_ms) {
-        return Err(fail("min_response_ms", format!("expected 0 to 60000 ms, found {}", raw.min_response_ms)));
-    }
+    let min_response_ms = check_min_response_ms(fail, raw.min_response_ms)?;
     if !(raw.abandon_after_minutes.is_finite()
         && raw.abandon_after_minutes > 0.0
         && raw.abandon_after_minutes <= 10_080.0)
     {
-        return Err(fail(
+        return Err(fail.at(
             "abandon_after_minutes",
             format!("expected a number of minutes in (0, 10080], found {}", raw.abandon_after_minutes),
         ));
     }
     // tasks
     if raw.tasks.is_empty() {
-        return Err(fail("tasks", "expected at least one [[tasks]] entry (distance, placement or contact)".into()));
+        return Err(fail.at("tasks", "expected at least one [[tasks]] entry (distance, placement or contact)"));
     }
     let mut names = BTreeSet::new();
     let mut tasks = Vec::new();
     for (index, task) in raw.tasks.iter().enumerate() {
         let key = format!("tasks[{index}]");
         let name = task.name.clone().unwrap_or_else(|| task.kind.as_str().to_string());
-        if !is_slug(&name) {
-            return Err(fail(
-                &format!("{key}.name"),
-                format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{name}\""),
-            ));
-        }
+        check_slug(fail, &format!("{key}.name"), &name)?;
         if !names.insert(name.clone()) {
-            return Err(fail(
+            return Err(fail.at(
                 &format!("{key}.name"),
                 format!("expected a unique task name, \"{name}\" appears twice (give each task a `name`)"),
             ));
         }
         let not_for = |field: &str, present: bool| -> Result<(), StudyError> {
             if present {
-                Err(fail(&format!("{key}.{field}"), format!("is not a parameter of a {} task", task.kind.as_str())))
+                Err(fail.at(&format!("{key}.{field}"), format!("is not a parameter of a {} task", task.kind.as_str())))
             } else {
                 Ok(())
             }
@@ -499,7 +478,7 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         let min_cm = task.min_cm.unwrap_or(min_default);
         let max_cm = task.max_cm.unwrap_or(max_default);
         if !(min_cm.is_finite() && max_cm.is_finite() && 0.0 <= min_cm && min_cm <= max_cm && max_cm <= 30.0) {
-            return Err(fail(
+            return Err(fail.at(
                 &format!("{key}.min_cm"),
                 format!(
                     "expected 0 ≤ min_cm ≤ max_cm ≤ 30 (the cube must stay on the table), found {min_cm} and {max_cm}"
@@ -513,7 +492,7 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
                 not_for("max_height_cm", task.max_height_cm.is_some())?;
                 if min_cm < 6.0 {
                     // the cubes are 5 cm wide: closer centres would intersect
-                    return Err(fail(
+                    return Err(fail.at(
                         &format!("{key}.min_cm"),
                         format!("expected at least 6 (the cubes are 5 cm wide), found {min_cm}"),
                     ));
@@ -530,14 +509,13 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         }
         let step_cm = task.step_cm.unwrap_or(if task.kind == TaskKind::Contact { 0.25 } else { 0.5 });
         if !(step_cm.is_finite() && (0.05..=5.0).contains(&step_cm)) {
-            return Err(fail(&format!("{key}.step_cm"), format!("expected 0.05 to 5, found {step_cm}")));
+            return Err(fail.at(&format!("{key}.step_cm"), format!("expected 0.05 to 5, found {step_cm}")));
         }
         let answer_max_cm = task.answer_max_cm.unwrap_or(200.0);
         if !(answer_max_cm.is_finite() && (max_cm..=10_000.0).contains(&answer_max_cm)) {
-            return Err(fail(
-                &format!("{key}.answer_max_cm"),
-                format!("expected max_cm to 10000, found {answer_max_cm}"),
-            ));
+            return Err(
+                fail.at(&format!("{key}.answer_max_cm"), format!("expected max_cm to 10000, found {answer_max_cm}"))
+            );
         }
         let min_height_cm = task.min_height_cm.unwrap_or(1.0);
         let max_height_cm = task.max_height_cm.unwrap_or(8.0);
@@ -547,14 +525,14 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
             && min_height_cm <= max_height_cm
             && max_height_cm <= 30.0)
         {
-            return Err(fail(
+            return Err(fail.at(
                 &format!("{key}.min_height_cm"),
                 format!("expected 0 < min_height_cm ≤ max_height_cm ≤ 30, found {min_height_cm} and {max_height_cm}"),
             ));
         }
         let instructions = task.instructions.clone().unwrap_or_else(|| default_instructions(task.kind).to_string());
         if instructions.trim().is_empty() {
-            return Err(fail(&format!("{key}.instructions"), "expected a non-empty text".into()));
+            return Err(fail.at(&format!("{key}.instructions"), "expected a non-empty text"));
         }
         tasks.push(TaskSpec {
             name,
@@ -593,112 +571,18 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
             min_fps: render.min_fps,
             pace,
         },
-        min_response_ms: raw.min_response_ms as u32,
+        min_response_ms,
         abandon_after_minutes: raw.abandon_after_minutes,
         file: file.to_path_buf(),
         file_sha256,
     };
     if study.trial_count() > 1000 {
-        return Err(fail(
-            "design",
-            format!("expected at most 1000 trials per participant, found {}", study.trial_count()),
-        ));
+        return Err(
+            fail.at("design", format!("expected at most 1000 trials per participant, found {}", study.trial_count()))
+        );
     }
     Ok(study)
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    pub(crate) const MINIMAL: &str = r#"
-slug = "lab"
-title = "Lab"
-kind = "task"
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[[tasks]]
-kind = "distance"
-[[tasks]]
-kind = "placement"
-"#;
-
-    fn load(text: &str) -> Result<TaskStudy, StudyError> {
-        parse(text, Path::new("studies/lab.toml"), Path::new("studies"), "00".into())
-    }
-
-    #[test]
-    fn defaults_are_the_thesis_design() {
-        let study = load(MINIMAL).unwrap();
-        assert_eq!(study.conditions, vec![Condition::None, Condition::Shadows, Condition::Gi]);
-        assert_eq!(study.counterbalance, Counterbalance::Williams);
-        assert_eq!(study.scene, "lab-task");
-        assert_eq!(study.tasks.len(), 2);
-        assert_eq!(study.trial_count(), 2 * (1 + 3 * 3));
-    }
-
-    #[test]
-    fn bad_values_name_the_key() {
-        let error =
-            load(&MINIMAL.replace("[[tasks]]\nkind = \"placement\"", "[design]\nconditions = [\"none\", \"HQ\"]"))
-                .unwrap_err();
-        assert_eq!(error.key, "design.conditions[1]");
-        assert!(error.expected.contains("none, shadows, gi"), "{error}");
-        let error =
-            load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nanswer_max_cm = 50")).unwrap_err();
-        assert_eq!(error.key, "tasks[1].answer_max_cm");
-        let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"distance\"")).unwrap_err();
-        assert_eq!(error.key, "tasks[1].name");
-        let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"juggling\"")).unwrap_err();
-        assert!(error.to_string().contains("juggling"), "{error}");
-        let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nmax_cm = 80")).unwrap_err();
-        assert_eq!(error.key, "tasks[1].min_cm");
-    }
-
-    #[test]
-    fn participation_and_pace_keys_have_defaults_and_name_the_key_when_bad() {
-        let study = load(MINIMAL).unwrap();
-        assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (300, 30.0, Pace::None));
-        let top = MINIMAL.replace(
-            "kind = \"task\"",
-            "kind = \"task\"\npace = \"equal\"\nmin_response_ms = 0\nabandon_after_minutes = 0.01",
-        );
-        let study = load(&top).unwrap();
-        assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (0, 0.01, Pace::Equal));
-        let under = MINIMAL
-            .replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"equal\"\n[[tasks]]\nkind = \"distance\"");
-        assert_eq!(load(&under).unwrap().render.pace, Pace::Equal);
-        let both =
-            top.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"none\"\n[[tasks]]\nkind = \"distance\"");
-        assert_eq!(load(&both).unwrap_err().key, "render.pace");
-        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nmin_response_ms = -5")).unwrap_err();
-        assert_eq!(error.key, "min_response_ms");
-        let error =
-            load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nabandon_after_minutes = 0")).unwrap_err();
-        assert_eq!(error.key, "abandon_after_minutes");
-        let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"fast\"")).unwrap_err();
-        assert!(error.to_string().contains("fast"), "{error}");
-    }
-
-    #[test]
-    fn the_shipped_lab_study_loads_as_a_task_study() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
-        let studies = crate::study::load_studies(&dir).unwrap();
-        let task = studies
-            .iter()
-            .find_map(|study| match study {
-                crate::study::LoadedStudy::Task(task) => Some(task),
-                _ => None,
-            })
-            .expect("studies/lab-task.toml is a task study");
-        assert_eq!(task.slug, "lab-task");
-        assert_eq!(
-            task.tasks.iter().map(|t| t.kind).collect::<Vec<_>>(),
-            vec![TaskKind::Distance, TaskKind::Placement, TaskKind::Contact]
-        );
-        assert_eq!(task.trial_count(), 30);
-        let error = crate::study::load_study(&dir.join("lab-task.toml")).unwrap_err();
-        assert_eq!(error.key, "kind");
-    }
-}
+mod tests;

@@ -1,0 +1,106 @@
+//! The checks both kinds of study file share: the refusal maker ([`Fail`]), the name rules
+//! (slug, identifier, condition name), non-empty texts, the reference to a scene for the
+//! renderer, image files and the response-time floor.
+
+use std::path::{Path, PathBuf};
+
+use super::StudyError;
+
+/// Makes the refusals of one study file: `fail.at(key, expected)` names the file, the key (a
+/// dotted path such as `design.pairs`) and what was expected there.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Fail<'a>(pub &'a Path);
+
+impl Fail<'_> {
+    pub(crate) fn at(self, key: &str, expected: impl Into<String>) -> StudyError {
+        StudyError { file: self.0.to_path_buf(), key: key.to_string(), expected: expected.into() }
+    }
+}
+
+/// A study slug: lower-case letters, digits and `-`, not first, at most 64 characters.
+pub(crate) fn is_slug(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 64
+        && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+        && !name.starts_with('-')
+}
+
+/// Refuses `name` at `key` unless it is a slug.
+pub(crate) fn check_slug(fail: Fail, key: &str, name: &str) -> Result<(), StudyError> {
+    if is_slug(name) {
+        Ok(())
+    } else {
+        Err(fail.at(key, format!("expected 1 to 64 characters of a-z, 0-9 and '-', found \"{name}\"")))
+    }
+}
+
+/// A factor or demographic field name: a lower-case identifier of at most 64 characters.
+pub(crate) fn is_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    matches!(chars.next(), Some(c) if c.is_ascii_lowercase())
+        && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+        && name.len() <= 64
+}
+
+/// A condition (also scene configuration and catch trial) name. The first character is no `+`,
+/// `-` or `.`, so that the name is never neutralised as a spreadsheet formula in the trials CSV
+/// (`export::text_cell`).
+pub(crate) fn is_condition_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 64
+        && name.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || "+-_.".contains(c))
+}
+
+/// Refuses the first `(key, text)` whose text is blank.
+pub(crate) fn check_texts(fail: Fail, texts: &[(&str, &str)]) -> Result<(), StudyError> {
+    match texts.iter().find(|(_, text)| text.trim().is_empty()) {
+        Some((key, _)) => Err(fail.at(key, "expected a non-empty text")),
+        None => Ok(()),
+    }
+}
+
+/// Resolves a reference to a scene for the renderer: a built-in scene name stays as it is, a
+/// scene file is joined to the study file's folder `base` and must exist.
+pub(crate) fn resolve_scene(fail: Fail, key: &str, base: &Path, name: &str) -> Result<String, StudyError> {
+    let name = name.trim();
+    if mrstudy_renderer::builtin::names().any(|builtin| builtin == name) {
+        return Ok(name.to_string());
+    }
+    if !name.is_empty() && base.join(name).is_file() {
+        return Ok(base.join(name).display().to_string());
+    }
+    Err(fail.at(
+        key,
+        format!(
+            "expected a built-in scene of the renderer ({}) or an existing scene file, found \"{name}\"",
+            mrstudy_renderer::builtin::names().collect::<Vec<_>>().join(", ")
+        ),
+    ))
+}
+
+/// Image extensions a stimulus file may have, with their content types.
+pub const IMAGE_TYPES: &[(&str, &str)] =
+    &[("png", "image/png"), ("jpg", "image/jpeg"), ("jpeg", "image/jpeg"), ("webp", "image/webp")];
+
+/// An image file of the study, relative to its folder `base`: a known extension, and existing.
+pub(crate) fn check_image(fail: Fail, key: &str, base: &Path, relative: &str) -> Result<PathBuf, StudyError> {
+    let path = base.join(relative);
+    let extension = path.extension().and_then(|ext| ext.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    if !IMAGE_TYPES.iter().any(|(ext, _)| *ext == extension) {
+        return Err(fail.at(key, format!("expected a .png, .jpg, .jpeg or .webp image file, found \"{relative}\"")));
+    }
+    if !path.is_file() {
+        return Err(fail.at(key, format!("expected an existing image file, but {} does not exist", path.display())));
+    }
+    Ok(path)
+}
+
+/// The response-time floor `min_response_ms`: 0 to 60 000 ms.
+pub(crate) fn check_min_response_ms(fail: Fail, value: i64) -> Result<u32, StudyError> {
+    if (0..=60_000).contains(&value) {
+        Ok(value as u32)
+    } else {
+        Err(fail.at("min_response_ms", format!("expected 0 to 60000 ms, found {value}")))
+    }
+}

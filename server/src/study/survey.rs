@@ -1,0 +1,954 @@
+//! Web-survey study files (`kind = "paired-comparison"`): the raw TOML shape (`StudyFile`,
+//! unknown keys refused) and its checks, one named function per part of the file, resolving it
+//! into a [`Study`]: condition names are unique, every condition gives a level for every factor
+//! and carries the renderer's [`Factors`] for them, every scene configuration has a stimulus for
+//! every condition, the design names only defined conditions, and image files exist.
+//!
+//! [`Study`] is also the schema of the definition stored in the database: serialised when the
+//! study is recorded, read back by the export and the admin pages. Keys added after the first
+//! stored definitions have serde defaults, so older databases still read.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use mrstudy_renderer::stimulus::Factors;
+use serde::{Deserialize, Serialize};
+
+use super::StudyError;
+use super::checks::{
+    Fail, check_image, check_min_response_ms, check_slug, check_texts, is_condition_name, is_identifier, resolve_scene,
+};
+
+/// What kind of study a file describes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StudyKind {
+    /// Forced-choice paired comparisons on the web.
+    PairedComparison,
+    /// Timed task trials in the lab against the live renderer (not served by the web survey).
+    Task,
+}
+
+impl StudyKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StudyKind::PairedComparison => "paired-comparison",
+            StudyKind::Task => "task",
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The raw file shape.
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct StudyFile {
+    slug: String,
+    title: String,
+    kind: StudyKind,
+    question: String,
+    #[serde(default = "default_true")]
+    open: bool,
+    texts: TextsFile,
+    #[serde(default)]
+    demographics: Vec<DemographicField>,
+    #[serde(default = "default_url_params")]
+    url_params: Vec<String>,
+    factors: Vec<Factor>,
+    conditions: Vec<ConditionFile>,
+    #[serde(default)]
+    render: Option<RenderDefaults>,
+    scenes: Vec<SceneFile>,
+    design: DesignFile,
+    #[serde(default)]
+    catch: Vec<CatchFile>,
+    #[serde(default)]
+    completion: Completion,
+    #[serde(default = "default_min_response_ms")]
+    min_response_ms: i64,
+    #[serde(default)]
+    unique_external_id: bool,
+    #[serde(default)]
+    min_viewport: Option<[u32; 2]>,
+    #[serde(default)]
+    devices: Option<Vec<Device>>,
+    #[serde(default)]
+    orientation: Option<Orientation>,
+    #[serde(default)]
+    display: Display,
+    #[serde(default = "default_abandon_after_minutes")]
+    abandon_after_minutes: u32,
+}
+
+fn default_min_response_ms() -> i64 {
+    300
+}
+
+fn default_abandon_after_minutes() -> u32 {
+    30
+}
+
+/// A kind of device a participant may use (`devices = ["desktop"]`); told apart on the client by
+/// its pointer and screen (see `web/static/survey.js`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    Desktop,
+    Tablet,
+    Phone,
+}
+
+impl Device {
+    /// The device as a participant reads it ("a desktop or laptop computer").
+    pub fn described(self) -> &'static str {
+        match self {
+            Device::Desktop => "a desktop or laptop computer",
+            Device::Tablet => "a tablet",
+            Device::Phone => "a phone",
+        }
+    }
+}
+
+/// The screen orientation a study requires.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orientation {
+    Landscape,
+    Portrait,
+}
+
+/// How stimuli are scaled on screen: `native` never enlarges them beyond one image pixel per
+/// CSS pixel (they may shrink to fit); `fit` scales them to the space available.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Display {
+    #[default]
+    Native,
+    Fit,
+}
+
+/// Who may take part and how answers are checked: the response-time floor, one run per
+/// external id, the screen requirements, and when an unfinished participant counts as abandoned.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Participation {
+    /// Responses faster than this (client response time or server time since serving the trial)
+    /// are stored and flagged `too_fast`; the page accepts no answer before it.
+    pub min_response_ms: u32,
+    /// One run per value of the study's first URL parameter that is present (e.g.
+    /// `PROLIFIC_PID`): a second join with the same value resumes the first run.
+    pub unique_external_id: bool,
+    /// Smallest viewport in CSS pixels, `[width, height]`.
+    pub min_viewport: Option<[u32; 2]>,
+    /// Devices allowed (all when empty).
+    pub devices: Vec<Device>,
+    pub orientation: Option<Orientation>,
+    pub display: Display,
+    /// An unfinished participant with no activity for this long counts as abandoned.
+    pub abandon_after_minutes: u32,
+}
+
+impl Default for Participation {
+    /// The defaults of a study file that gives none of the keys.
+    fn default() -> Self {
+        Participation {
+            min_response_ms: default_min_response_ms() as u32,
+            unique_external_id: false,
+            min_viewport: None,
+            devices: Vec::new(),
+            orientation: None,
+            display: Display::Native,
+            abandon_after_minutes: default_abandon_after_minutes(),
+        }
+    }
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_url_params() -> Vec<String> {
+    ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "workerId", "assignmentId", "hitId"]
+        .iter()
+        .map(|name| name.to_string())
+        .collect()
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TextsFile {
+    welcome: String,
+    consent: String,
+    instructions: String,
+    #[serde(default = "default_thanks")]
+    thanks: String,
+}
+
+fn default_thanks() -> String {
+    "Thank you for taking part.".to_string()
+}
+
+/// The texts shown on the participant pages; blank lines separate paragraphs.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Texts {
+    pub welcome: String,
+    pub consent: String,
+    pub instructions: String,
+    pub thanks: String,
+}
+
+/// One demographic question on the entry screen.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DemographicField {
+    /// Column name in the export, `[a-z][a-z0-9_]*`.
+    pub name: String,
+    /// The question as shown.
+    pub label: String,
+    /// `choice`, `integer` or `text`.
+    #[serde(rename = "type")]
+    pub field_type: FieldType,
+    /// For `choice`: the options, shown in this order.
+    #[serde(default)]
+    pub options: Vec<String>,
+    /// For `integer`: the inclusive bounds.
+    #[serde(default)]
+    pub min: Option<i64>,
+    #[serde(default)]
+    pub max: Option<i64>,
+    #[serde(default = "default_true")]
+    pub required: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FieldType {
+    Choice,
+    Integer,
+    Text,
+}
+
+/// A rendering feature that the study switches on or off.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Factor {
+    pub name: String,
+    #[serde(default)]
+    pub label: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConditionFile {
+    name: String,
+    levels: BTreeMap<String, f64>,
+}
+
+/// One combination of factor levels.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Condition {
+    pub name: String,
+    /// One level per factor, in the order of [`Study::factors`].
+    pub levels: Vec<f64>,
+    /// The levels as the renderer renders them, or why it cannot (a study whose stimuli are all
+    /// image files may use levels the renderer has not). Not stored: a definition read back from
+    /// the database has none.
+    #[serde(skip, default = "unresolved")]
+    pub factors: Result<Factors, String>,
+}
+
+fn unresolved() -> Result<Factors, String> {
+    Err("the condition was read back from the database, not resolved from a study file".into())
+}
+
+/// Defaults for scene configurations rendered by the renderer.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDefaults {
+    /// Stimulus size in pixels, `[width, height]`.
+    pub size: [u32; 2],
+    /// Samples per pixel for path-traced parts, if the renderer needs them.
+    #[serde(default)]
+    pub spp: Option<u32>,
+    /// Seed of the path-traced photograph (and its camera noise).
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// VPL budget of the gi factor.
+    #[serde(default)]
+    pub vpls: Option<u32>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    /// Rendered: a scene file (relative to the study file) or a built-in scene name.
+    #[serde(default)]
+    render: Option<String>,
+    /// Image files: condition name → image path relative to the study file.
+    #[serde(default)]
+    images: Option<BTreeMap<String, String>>,
+}
+
+/// Where the stimuli of one scene configuration come from.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StimulusSource {
+    /// One image file per condition, index-aligned with [`Study::conditions`].
+    Images(Vec<PathBuf>),
+    /// A scene for the renderer: a built-in scene name, or a scene file's path (joined to the
+    /// study file's folder).
+    Render(String),
+}
+
+/// One scene configuration: an arrangement of real and virtual objects with one camera pose.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Scene {
+    pub name: String,
+    pub description: String,
+    pub source: StimulusSource,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DesignFile {
+    pairs: String,
+    #[serde(default)]
+    anchors: Vec<String>,
+    #[serde(default)]
+    list: Vec<Vec<String>>,
+    repetitions: u32,
+    scenes: String,
+    #[serde(default)]
+    seed: Option<u64>,
+}
+
+/// How scene configurations are drawn for the two sides of a trial.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SceneDraw {
+    /// Two different scene configurations, so the images are never directly comparable.
+    Different,
+    /// The same scene configuration on both sides.
+    Same,
+}
+
+/// The design: condition pairs (indices into [`Study::conditions`]), repetitions, scene draw.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Design {
+    /// `all`, `anchored` or `list`, as written in the file.
+    pub pairs_rule: String,
+    pub pairs: Vec<(usize, usize)>,
+    pub repetitions: u32,
+    pub scenes: SceneDraw,
+    /// Study seed: when set, participant seeds are derived from it and the participant's
+    /// ordinal, so a whole run of the study can be reproduced; when absent they are random.
+    /// Either way each participant's seed is stored.
+    pub seed: Option<u64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CatchFile {
+    name: String,
+    better: String,
+    worse: String,
+    #[serde(default = "default_one")]
+    repetitions: u32,
+}
+
+fn default_one() -> u32 {
+    1
+}
+
+/// A catch trial: a pair of images with a known answer (`better` should be chosen).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CatchTrial {
+    pub name: String,
+    pub better: PathBuf,
+    pub worse: PathBuf,
+    pub repetitions: u32,
+}
+
+/// The completion page: a fixed code (as crowdsourcing sites want), or a random code per
+/// participant when absent, and an optional redirect URL. In `redirect`, `{code}` is replaced
+/// by the completion code and `{NAME}` by the kept URL parameter `NAME`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Completion {
+    #[serde(default)]
+    pub code: Option<String>,
+    #[serde(default)]
+    pub redirect: Option<String>,
+}
+
+/// A checked study definition, resolved once from its file (and the schema of the definition
+/// stored in the database).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Study {
+    pub slug: String,
+    pub title: String,
+    pub kind: StudyKind,
+    pub question: String,
+    /// Whether the study accepts participants when it is first loaded (the admin can change it).
+    pub open: bool,
+    pub texts: Texts,
+    #[serde(default)]
+    pub demographics: Vec<DemographicField>,
+    #[serde(default)]
+    pub url_params: Vec<String>,
+    pub factors: Vec<Factor>,
+    pub conditions: Vec<Condition>,
+    pub render: Option<RenderDefaults>,
+    pub scenes: Vec<Scene>,
+    pub design: Design,
+    #[serde(default)]
+    pub catch: Vec<CatchTrial>,
+    #[serde(default)]
+    pub completion: Completion,
+    #[serde(default)]
+    pub participation: Participation,
+    /// The file it was read from.
+    pub file: PathBuf,
+    /// SHA-256 of the file's bytes, hex; stored with each participant.
+    pub file_sha256: String,
+}
+
+impl Study {
+    /// Trials per participant: pairs × repetitions, plus the catch trials.
+    pub fn trial_count(&self) -> usize {
+        self.design.pairs.len() * self.design.repetitions as usize
+            + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
+    }
+
+    /// Whether any stimulus must come from the renderer.
+    pub fn needs_renderer(&self) -> bool {
+        self.scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_)))
+    }
+
+    /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition.
+    pub fn conditions_csv(&self) -> String {
+        let mut writer = csv::Writer::from_writer(Vec::new());
+        let mut header = vec!["condition".to_string()];
+        header.extend(self.factors.iter().map(|factor| factor.name.clone()));
+        writer.write_record(&header).expect("writing to memory");
+        for condition in &self.conditions {
+            let mut row = vec![condition.name.clone()];
+            row.extend(condition.levels.iter().map(|level| format_number(*level)));
+            writer.write_record(&row).expect("writing to memory");
+        }
+        String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8")
+    }
+}
+
+/// A number as CSV text: whole numbers without a decimal point.
+pub(crate) fn format_number(value: f64) -> String {
+    if value.fract() == 0.0 && value.abs() < 1e15 { format!("{}", value as i64) } else { format!("{value}") }
+}
+
+/// Checks the raw file and resolves it into a [`Study`], part by part.
+pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Result<Study, StudyError> {
+    let fail = Fail(file);
+    check_slug(fail, "slug", &raw.slug)?;
+    check_texts(
+        fail,
+        &[
+            ("title", &raw.title),
+            ("question", &raw.question),
+            ("texts.welcome", &raw.texts.welcome),
+            ("texts.consent", &raw.texts.consent),
+            ("texts.instructions", &raw.texts.instructions),
+        ],
+    )?;
+    let field_names = check_demographics(fail, &raw.demographics)?;
+    check_url_params(fail, &raw.url_params, &field_names)?;
+    let conditions = check_conditions(fail, &raw.factors, &raw.conditions)?;
+    let scenes = check_scenes(fail, base, &raw.scenes, &conditions)?;
+    check_render(fail, raw.render.as_ref())?;
+    if scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_))) {
+        // Rendered stimuli: every condition's factor levels must be ones the renderer renders.
+        if let Some(index) = conditions.iter().position(|condition| condition.factors.is_err()) {
+            let reason = conditions[index].factors.as_ref().err().cloned().unwrap_or_default();
+            return Err(
+                fail.at(&format!("conditions[{index}].levels"), format!("levels the renderer can render: {reason}"))
+            );
+        }
+    }
+    let design = check_design(fail, &raw.design, &conditions, scenes.len())?;
+    let catch = check_catch(fail, base, &raw.catch)?;
+    let trial_total =
+        design.pairs.len() * design.repetitions as usize + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
+    if trial_total > 1000 {
+        return Err(fail.at(
+            "design.repetitions",
+            format!("expected at most 1000 trials per participant, the design gives {trial_total}"),
+        ));
+    }
+    check_completion(fail, &raw.completion)?;
+    let participation = check_participation(fail, &raw)?;
+    Ok(Study {
+        slug: raw.slug,
+        title: raw.title,
+        kind: raw.kind,
+        question: raw.question,
+        open: raw.open,
+        texts: Texts {
+            welcome: raw.texts.welcome,
+            consent: raw.texts.consent,
+            instructions: raw.texts.instructions,
+            thanks: raw.texts.thanks,
+        },
+        demographics: raw.demographics,
+        url_params: raw.url_params,
+        factors: raw.factors,
+        conditions,
+        render: raw.render,
+        scenes,
+        design,
+        catch,
+        completion: raw.completion,
+        participation,
+        file: file.to_path_buf(),
+        file_sha256,
+    })
+}
+
+/// The demographic questions: identifiers, unique, not export columns; returns their names.
+fn check_demographics(fail: Fail, fields: &[DemographicField]) -> Result<BTreeSet<String>, StudyError> {
+    let mut field_names = BTreeSet::new();
+    for (index, field) in fields.iter().enumerate() {
+        let key = format!("demographics[{index}]");
+        if !is_identifier(&field.name) {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!("expected a lower-case identifier (a-z, 0-9, _), found \"{}\"", field.name),
+            ));
+        }
+        if TRIALS_CSV_COLUMNS.contains(&field.name.as_str()) {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!(
+                    "expected a name that is not an export column ({}), found \"{}\"",
+                    TRIALS_CSV_COLUMNS.join(", "),
+                    field.name
+                ),
+            ));
+        }
+        if !field_names.insert(field.name.clone()) {
+            return Err(
+                fail.at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", field.name))
+            );
+        }
+        if field.label.trim().is_empty() {
+            return Err(fail.at(&format!("{key}.label"), "expected a non-empty text"));
+        }
+        match field.field_type {
+            FieldType::Choice if field.options.len() < 2 => {
+                return Err(fail.at(&format!("{key}.options"), "expected at least two options for a choice"));
+            }
+            FieldType::Integer => {
+                if let (Some(min), Some(max)) = (field.min, field.max)
+                    && min > max
+                {
+                    return Err(fail.at(&format!("{key}.min"), format!("expected min ≤ max, found {min} > {max}")));
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(field_names)
+}
+
+/// The URL parameters kept as external ids: each becomes a column of the trials CSV.
+fn check_url_params(fail: Fail, url_params: &[String], field_names: &BTreeSet<String>) -> Result<(), StudyError> {
+    for (index, name) in url_params.iter().enumerate() {
+        if name.is_empty()
+            || name.len() > 64
+            || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(fail.at(
+                &format!("url_params[{index}]"),
+                format!("expected a URL parameter name (A-Z, a-z, 0-9, _, -), found \"{name}\""),
+            ));
+        }
+        if TRIALS_CSV_COLUMNS.contains(&name.as_str()) || field_names.contains(name) {
+            return Err(fail.at(
+                &format!("url_params[{index}]"),
+                format!("expected a name that is not an export column or a demographic field, found \"{name}\""),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Factors and conditions: unique names, one finite level per factor, each condition resolved
+/// into the renderer's [`Factors`] (or why it cannot be).
+fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Result<Vec<Condition>, StudyError> {
+    if factors.is_empty() {
+        return Err(fail.at("factors", "expected at least one factor"));
+    }
+    let mut factor_names = BTreeSet::new();
+    for (index, factor) in factors.iter().enumerate() {
+        if !is_identifier(&factor.name) || factor.name == "condition" {
+            return Err(fail.at(
+                &format!("factors[{index}].name"),
+                format!("expected a lower-case identifier other than \"condition\", found \"{}\"", factor.name),
+            ));
+        }
+        if !factor_names.insert(factor.name.clone()) {
+            return Err(fail.at(
+                &format!("factors[{index}].name"),
+                format!("expected a unique name, \"{}\" appears twice", factor.name),
+            ));
+        }
+    }
+    if raw.len() < 2 {
+        return Err(fail.at("conditions", "expected at least two conditions"));
+    }
+    let mut conditions: Vec<Condition> = Vec::new();
+    for (index, condition) in raw.iter().enumerate() {
+        let key = format!("conditions[{index}]");
+        if !is_condition_name(&condition.name) {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!(
+                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
+                    condition.name
+                ),
+            ));
+        }
+        if conditions.iter().any(|other| other.name == condition.name) {
+            return Err(fail
+                .at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", condition.name)));
+        }
+        if let Some(level_name) = condition.levels.keys().find(|name| !factor_names.contains(*name)) {
+            return Err(fail.at(
+                &format!("{key}.levels.{level_name}"),
+                format!(
+                    "expected one of the factors ({}), found \"{level_name}\"",
+                    factors.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        }
+        let mut levels = Vec::new();
+        for factor in factors {
+            match condition.levels.get(&factor.name) {
+                Some(level) if level.is_finite() => levels.push(*level),
+                Some(_) => {
+                    return Err(fail.at(&format!("{key}.levels.{}", factor.name), "expected a finite number"));
+                }
+                None => {
+                    return Err(
+                        fail.at(&format!("{key}.levels"), format!("expected a level for factor \"{}\"", factor.name))
+                    );
+                }
+            }
+        }
+        let resolved =
+            Factors::from_levels(factors.iter().map(|factor| factor.name.as_str()).zip(levels.iter().copied()));
+        conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved });
+    }
+    Ok(conditions)
+}
+
+/// The index of the condition called `name`, or a refusal at `key` listing the conditions.
+fn condition_index(fail: Fail, conditions: &[Condition], key: &str, name: &str) -> Result<usize, StudyError> {
+    conditions.iter().position(|condition| condition.name == name).ok_or_else(|| {
+        fail.at(
+            key,
+            format!(
+                "expected a condition defined in [[conditions]] ({}), found \"{name}\"",
+                conditions.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+        )
+    })
+}
+
+/// Scene configurations and where their stimuli come from: a scene for the renderer (built-in
+/// or a file next to the study), or one image file per condition.
+fn check_scenes(
+    fail: Fail,
+    base: &Path,
+    raw: &[SceneFile],
+    conditions: &[Condition],
+) -> Result<Vec<Scene>, StudyError> {
+    if raw.is_empty() {
+        return Err(fail.at("scenes", "expected at least one scene configuration"));
+    }
+    let mut scenes: Vec<Scene> = Vec::new();
+    for (index, scene) in raw.iter().enumerate() {
+        let key = format!("scenes[{index}]");
+        if !is_condition_name(&scene.name) {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!(
+                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
+                    scene.name
+                ),
+            ));
+        }
+        if scenes.iter().any(|other| other.name == scene.name) {
+            return Err(
+                fail.at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", scene.name))
+            );
+        }
+        let source = match (&scene.render, &scene.images) {
+            (Some(render), None) => {
+                StimulusSource::Render(resolve_scene(fail, &format!("{key}.render"), base, render)?)
+            }
+            (None, Some(images)) => {
+                for condition_name in images.keys() {
+                    condition_index(fail, conditions, &format!("{key}.images.{condition_name}"), condition_name)?;
+                }
+                let mut paths = Vec::new();
+                for condition in conditions {
+                    let Some(relative) = images.get(&condition.name) else {
+                        return Err(fail.at(
+                            &format!("{key}.images"),
+                            format!("expected an image file for condition \"{}\"", condition.name),
+                        ));
+                    };
+                    paths.push(check_image(fail, &format!("{key}.images.{}", condition.name), base, relative)?);
+                }
+                StimulusSource::Images(paths)
+            }
+            _ => {
+                return Err(fail.at(
+                    &key,
+                    "expected exactly one of `render` (a scene for the renderer) or `images` (one image file per condition)",
+                ));
+            }
+        };
+        scenes.push(Scene { name: scene.name.clone(), description: scene.description.clone(), source });
+    }
+    Ok(scenes)
+}
+
+/// The `[render]` table: stimulus size, samples per pixel, VPL budget.
+fn check_render(fail: Fail, render: Option<&RenderDefaults>) -> Result<(), StudyError> {
+    let Some(render) = render else { return Ok(()) };
+    if render.size[0] == 0 || render.size[1] == 0 || render.size[0] > 8192 || render.size[1] > 8192 {
+        return Err(fail.at("render.size", "expected [width, height], each 1 to 8192"));
+    }
+    if render.spp.is_some_and(|spp| spp == 0 || spp > 65_536) {
+        return Err(fail.at("render.spp", "expected samples per pixel from 1 to 65536"));
+    }
+    if render.vpls.is_some_and(|vpls| vpls > 65_536) {
+        return Err(fail.at("render.vpls", "expected a VPL budget from 0 to 65536"));
+    }
+    Ok(())
+}
+
+/// The `[design]` table: the condition pairs by its rule, repetitions and the scene draw.
+fn check_design(
+    fail: Fail,
+    design: &DesignFile,
+    conditions: &[Condition],
+    scene_count: usize,
+) -> Result<Design, StudyError> {
+    let pairs = match design.pairs.as_str() {
+        "all" => all_pairs(conditions.len()),
+        "anchored" => anchored_pairs(fail, &design.anchors, conditions)?,
+        "list" => listed_pairs(fail, &design.list, conditions)?,
+        other => {
+            return Err(
+                fail.at("design.pairs", format!("expected \"all\", \"anchored\" or \"list\", found \"{other}\""))
+            );
+        }
+    };
+    if design.pairs != "anchored" && !design.anchors.is_empty() {
+        return Err(fail.at("design.anchors", "expected only with pairs = \"anchored\""));
+    }
+    if design.pairs != "list" && !design.list.is_empty() {
+        return Err(fail.at("design.list", "expected only with pairs = \"list\""));
+    }
+    if design.repetitions == 0 || design.repetitions > 100 {
+        return Err(fail.at("design.repetitions", format!("expected 1 to 100, found {}", design.repetitions)));
+    }
+    let scenes = match design.scenes.as_str() {
+        "different" => SceneDraw::Different,
+        "same" => SceneDraw::Same,
+        other => {
+            return Err(fail.at("design.scenes", format!("expected \"different\" or \"same\", found \"{other}\"")));
+        }
+    };
+    if scenes == SceneDraw::Different && scene_count < 2 {
+        return Err(fail.at("design.scenes", "expected at least two scene configurations for scenes = \"different\""));
+    }
+    Ok(Design { pairs_rule: design.pairs.clone(), pairs, repetitions: design.repetitions, scenes, seed: design.seed })
+}
+
+/// `pairs = "all"`: every pair of conditions.
+fn all_pairs(count: usize) -> Vec<(usize, usize)> {
+    (0..count).flat_map(|first| (first + 1..count).map(move |second| (first, second))).collect()
+}
+
+/// `pairs = "anchored"`: every anchor with every other anchor, then every other condition with
+/// each anchor.
+fn anchored_pairs(fail: Fail, names: &[String], conditions: &[Condition]) -> Result<Vec<(usize, usize)>, StudyError> {
+    if names.is_empty() {
+        return Err(fail.at("design.anchors", "expected at least one anchor condition for pairs = \"anchored\""));
+    }
+    let mut anchors = Vec::new();
+    for (index, name) in names.iter().enumerate() {
+        let anchor = condition_index(fail, conditions, &format!("design.anchors[{index}]"), name)?;
+        if anchors.contains(&anchor) {
+            return Err(fail.at(
+                &format!("design.anchors[{index}]"),
+                format!("expected each anchor once, \"{name}\" appears twice"),
+            ));
+        }
+        anchors.push(anchor);
+    }
+    let mut pairs = Vec::new();
+    for (position, &first) in anchors.iter().enumerate() {
+        for &second in &anchors[position + 1..] {
+            pairs.push((first, second));
+        }
+    }
+    for &anchor in &anchors {
+        for other in (0..conditions.len()).filter(|other| !anchors.contains(other)) {
+            pairs.push((anchor, other));
+        }
+    }
+    Ok(pairs)
+}
+
+/// `pairs = "list"`: the pairs listed, each once.
+fn listed_pairs(fail: Fail, list: &[Vec<String>], conditions: &[Condition]) -> Result<Vec<(usize, usize)>, StudyError> {
+    if list.is_empty() {
+        return Err(fail.at("design.list", "expected a list of condition pairs for pairs = \"list\""));
+    }
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for (index, pair) in list.iter().enumerate() {
+        let key = format!("design.list[{index}]");
+        if pair.len() != 2 {
+            return Err(fail.at(&key, "expected a pair of two condition names"));
+        }
+        let first = condition_index(fail, conditions, &key, &pair[0])?;
+        let second = condition_index(fail, conditions, &key, &pair[1])?;
+        if first == second {
+            return Err(fail.at(&key, "expected two different conditions"));
+        }
+        if pairs.iter().any(|&(a, b)| (a, b) == (first, second) || (a, b) == (second, first)) {
+            return Err(fail.at(&key, "expected each pair once"));
+        }
+        pairs.push((first, second));
+    }
+    Ok(pairs)
+}
+
+/// Catch trials: unique names, repetitions, and their two image files.
+fn check_catch(fail: Fail, base: &Path, raw: &[CatchFile]) -> Result<Vec<CatchTrial>, StudyError> {
+    let mut catch: Vec<CatchTrial> = Vec::new();
+    for (index, catch_file) in raw.iter().enumerate() {
+        let key = format!("catch[{index}]");
+        if !is_condition_name(&catch_file.name) || catch.iter().any(|other| other.name == catch_file.name) {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!("expected a unique name of A-Z, a-z, 0-9 and + - _ ., found \"{}\"", catch_file.name),
+            ));
+        }
+        if catch_file.repetitions == 0 || catch_file.repetitions > 100 {
+            return Err(
+                fail.at(&format!("{key}.repetitions"), format!("expected 1 to 100, found {}", catch_file.repetitions))
+            );
+        }
+        catch.push(CatchTrial {
+            name: catch_file.name.clone(),
+            better: check_image(fail, &format!("{key}.better"), base, &catch_file.better)?,
+            worse: check_image(fail, &format!("{key}.worse"), base, &catch_file.worse)?,
+            repetitions: catch_file.repetitions,
+        });
+    }
+    Ok(catch)
+}
+
+/// The completion page: a fixed code's characters, an http(s) redirect.
+fn check_completion(fail: Fail, completion: &Completion) -> Result<(), StudyError> {
+    if let Some(code) = &completion.code
+        && (code.is_empty()
+            || code.len() > 64
+            || !code.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_'))
+    {
+        return Err(fail.at(
+            "completion.code",
+            format!("expected 1 to 64 characters of A-Z, a-z, 0-9, - and _, found \"{code}\""),
+        ));
+    }
+    if let Some(redirect) = &completion.redirect
+        && !(redirect.starts_with("https://") || redirect.starts_with("http://"))
+    {
+        return Err(
+            fail.at("completion.redirect", format!("expected an http:// or https:// URL, found \"{redirect}\""))
+        );
+    }
+    Ok(())
+}
+
+/// The trials CSV's own columns, in order (DESIGN.md); the external ids and the demographic
+/// fields follow them, so neither may be named like one. `export` writes this header.
+pub const TRIALS_CSV_COLUMNS: &[&str] = &[
+    "study",
+    "participant",
+    "trial",
+    "left",
+    "right",
+    "chosen",
+    "scene_left",
+    "scene_right",
+    "rt_ms",
+    "shown_at",
+    "answered_at",
+    "catch_answered",
+    "catch_failed",
+    "viewport",
+    "device_pixel_ratio",
+    "completed",
+    "status",
+    "completion_code",
+    "pilot",
+    "excluded",
+    "too_fast",
+];
+
+/// The participation keys: response-time floor, external ids, screen requirements.
+fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, StudyError> {
+    let min_response_ms = check_min_response_ms(fail, raw.min_response_ms)?;
+    if let Some([width, height]) = raw.min_viewport
+        && (width == 0 || height == 0 || width > 10_000 || height > 10_000)
+    {
+        return Err(fail.at(
+            "min_viewport",
+            format!("expected [width, height] in CSS pixels from 1 to 10000, found [{width}, {height}]"),
+        ));
+    }
+    if raw.unique_external_id && raw.url_params.is_empty() {
+        return Err(fail.at(
+            "unique_external_id",
+            "expected `url_params` to name the external id (e.g. \"PROLIFIC_PID\"), found none",
+        ));
+    }
+    if raw.abandon_after_minutes == 0 {
+        return Err(fail.at("abandon_after_minutes", "expected at least 1 minute, found 0"));
+    }
+    let devices = match &raw.devices {
+        Some(devices) if devices.is_empty() => {
+            return Err(fail.at("devices", "expected at least one of \"desktop\", \"tablet\", \"phone\""));
+        }
+        Some(devices) => devices.clone(),
+        None => Vec::new(),
+    };
+    Ok(Participation {
+        min_response_ms,
+        unique_external_id: raw.unique_external_id,
+        min_viewport: raw.min_viewport,
+        devices,
+        orientation: raw.orientation,
+        display: raw.display,
+        abandon_after_minutes: raw.abandon_after_minutes,
+    })
+}

@@ -1,0 +1,91 @@
+//! Tests of task study files: defaults, refusals naming the key, the shipped lab study.
+
+use super::*;
+
+pub(crate) const MINIMAL: &str = r#"
+slug = "lab"
+title = "Lab"
+kind = "task"
+[texts]
+welcome = "Hello."
+instructions = "Do the tasks."
+[[tasks]]
+kind = "distance"
+[[tasks]]
+kind = "placement"
+"#;
+
+fn load(text: &str) -> Result<TaskStudy, StudyError> {
+    parse(text, Path::new("studies/lab.toml"), Path::new("studies"), "00".into())
+}
+
+#[test]
+fn defaults_are_the_thesis_design() {
+    let study = load(MINIMAL).unwrap();
+    assert_eq!(study.conditions, vec![Condition::None, Condition::Shadows, Condition::Gi]);
+    assert_eq!(study.counterbalance, Counterbalance::Williams);
+    assert_eq!(study.scene, "lab-task");
+    assert_eq!(study.tasks.len(), 2);
+    assert_eq!(study.trial_count(), 2 * (1 + 3 * 3));
+}
+
+#[test]
+fn bad_values_name_the_key() {
+    let error = load(&MINIMAL.replace("[[tasks]]\nkind = \"placement\"", "[design]\nconditions = [\"none\", \"HQ\"]"))
+        .unwrap_err();
+    assert_eq!(error.key, "design.conditions[1]");
+    assert!(error.expected.contains("none, shadows, gi"), "{error}");
+    let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nanswer_max_cm = 50")).unwrap_err();
+    assert_eq!(error.key, "tasks[1].answer_max_cm");
+    let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"distance\"")).unwrap_err();
+    assert_eq!(error.key, "tasks[1].name");
+    let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"juggling\"")).unwrap_err();
+    assert!(error.to_string().contains("juggling"), "{error}");
+    let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nmax_cm = 80")).unwrap_err();
+    assert_eq!(error.key, "tasks[1].min_cm");
+}
+
+#[test]
+fn participation_and_pace_keys_have_defaults_and_name_the_key_when_bad() {
+    let study = load(MINIMAL).unwrap();
+    assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (300, 30.0, Pace::None));
+    let top = MINIMAL.replace(
+        "kind = \"task\"",
+        "kind = \"task\"\npace = \"equal\"\nmin_response_ms = 0\nabandon_after_minutes = 0.01",
+    );
+    let study = load(&top).unwrap();
+    assert_eq!((study.min_response_ms, study.abandon_after_minutes, study.render.pace), (0, 0.01, Pace::Equal));
+    let under =
+        MINIMAL.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"equal\"\n[[tasks]]\nkind = \"distance\"");
+    assert_eq!(load(&under).unwrap().render.pace, Pace::Equal);
+    let both =
+        top.replace("[[tasks]]\nkind = \"distance\"", "[render]\npace = \"none\"\n[[tasks]]\nkind = \"distance\"");
+    assert_eq!(load(&both).unwrap_err().key, "render.pace");
+    let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nmin_response_ms = -5")).unwrap_err();
+    assert_eq!(error.key, "min_response_ms");
+    let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\nabandon_after_minutes = 0")).unwrap_err();
+    assert_eq!(error.key, "abandon_after_minutes");
+    let error = load(&MINIMAL.replace("kind = \"task\"", "kind = \"task\"\npace = \"fast\"")).unwrap_err();
+    assert!(error.to_string().contains("fast"), "{error}");
+}
+
+#[test]
+fn the_shipped_lab_study_loads_as_a_task_study() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
+    let studies = crate::study::load_studies(&dir).unwrap();
+    let task = studies
+        .iter()
+        .find_map(|study| match study {
+            crate::study::LoadedStudy::Task(task) => Some(task),
+            _ => None,
+        })
+        .expect("studies/lab-task.toml is a task study");
+    assert_eq!(task.slug, "lab-task");
+    assert_eq!(
+        task.tasks.iter().map(|t| t.kind).collect::<Vec<_>>(),
+        vec![TaskKind::Distance, TaskKind::Placement, TaskKind::Contact]
+    );
+    assert_eq!(task.trial_count(), 30);
+    let error = crate::study::load_study(&dir.join("lab-task.toml")).unwrap_err();
+    assert_eq!(error.key, "kind");
+}
