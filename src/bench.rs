@@ -108,7 +108,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
             Target::Render => bench::gpu::run(scene, args.quick, &printer)
                 .map(|r| (r.to_json(), r.plots.iter().map(drawn).collect()))?,
-            Target::Server => (crate::serve::bench_server(args.quick)?, Vec::new()),
+            Target::Server => mrstudy_loadgen::bench(args.quick, &|line| println!("{line}"))
+                .map(|r| (r.to_json(), Vec::new()))
+                .map_err(|message| anyhow::anyhow!("bench server failed: {message}"))?,
         };
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&document)? + "\n")

@@ -2,11 +2,9 @@
 //! around `mrstudy-server`, which does the work.
 
 use std::path::PathBuf;
-use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use serde_json::{Value, json};
 
 #[derive(Args)]
 pub struct ServeArgs {
@@ -91,52 +89,4 @@ pub fn run_export(args: ExportArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// `bench server`: prints the table and returns the bench JSON (DESIGN.md) of the server's load
-/// generator.
-pub fn bench_server(quick: bool) -> Result<Value> {
-    let durations = if quick { 3 } else { 10 };
-    let concurrency: &[usize] = if quick { &[64] } else { &[16, 64, 256] };
-    println!(
-        "{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}",
-        "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors"
-    );
-    let mut rows = Vec::new();
-    for &participants in concurrency {
-        let report = mrstudy_server::bench::run(mrstudy_server::bench::BenchConfig {
-            participants,
-            duration: Duration::from_secs(durations),
-        })
-        .map_err(|message| anyhow::anyhow!("bench server failed: {message}"))?;
-        println!(
-            "{:>12} {:>8.1} {:>11.0} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.2} {:>7}",
-            report.participants,
-            report.seconds,
-            report.responses_per_s,
-            report.response_p50_ms,
-            report.response_p90_ms,
-            report.response_p99_ms,
-            report.response_max_ms,
-            report.next_p99_ms,
-            report.errors
-        );
-        rows.push(json!({
-            "bench": "server",
-            "participants": report.participants,
-            "ms": report.response_p50_ms,
-            "responses_per_s": report.responses_per_s,
-            "responses": report.responses,
-            "seconds": report.seconds,
-            "response_p50_ms": report.response_p50_ms,
-            "response_p90_ms": report.response_p90_ms,
-            "response_p99_ms": report.response_p99_ms,
-            "response_max_ms": report.response_max_ms,
-            "next_p50_ms": report.next_p50_ms,
-            "next_p99_ms": report.next_p99_ms,
-            "errors": report.errors,
-            "durability": "sqlite WAL, synchronous=FULL, group commit",
-        }));
-    }
-    Ok(json!({ "adapter": "none (server: HTTP/1.1 over loopback, sqlite on the local file system)", "rows": rows }))
 }

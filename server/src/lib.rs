@@ -1,6 +1,6 @@
 //! `mrstudy-server`: the study server — study files, trial scheduling, sqlite storage through
-//! sqlx, the participant pages, the admin API and pages, export, and the `serve` and
-//! `bench server` entry points the CLI calls.
+//! sqlx, the participant pages, the admin API and pages, export, and the `serve` entry point
+//! the CLI calls (its load generator, `mrstudy bench server`, is the `mrstudy-loadgen` crate).
 //!
 //! Invariant: only this crate and the CLI touch the network and the database.
 //!
@@ -10,8 +10,8 @@
 //! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
 //! the HTML pages built on them; [`task`] the lab task studies (live renderer, WebSocket
 //! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
-//! everything from a data directory; [`bench`](mod@bench) measures the API under load. [`app`] builds the
-//! router apart from any socket, so tests drive it with `oneshot`.
+//! everything from a data directory. [`app`] builds the router apart from any socket, so tests
+//! drive it with `oneshot`.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
 //! the path tracer, frame by the GPU renderer) into the store, only those that are missing.
@@ -21,7 +21,6 @@
 pub mod admin;
 pub mod analysis;
 pub mod auth;
-pub mod bench;
 pub mod error;
 pub mod export;
 pub mod pages;

@@ -1,6 +1,11 @@
-//! `mrstudy bench server`: drives the API from loopback with many concurrent simulated
-//! participants and measures responses per second and response latency, with the durable
-//! writes of a real server (WAL, `synchronous = FULL`, group commit).
+//! `mrstudy-loadgen`, the load generator behind `mrstudy bench server`: drives the API of
+//! `mrstudy-server` from loopback with many concurrent simulated participants and measures
+//! responses per second and response latency, with the durable writes of a real server (WAL,
+//! `synchronous = FULL`, group commit). [`run`] measures one concurrency, [`bench`] the table
+//! of DESIGN.md's bench (a typed [`Report`], its JSON by [`Report::to_json`]).
+//!
+//! A crate of its own so that its HTTP client and temporary directories are not dependencies
+//! of the server.
 //!
 //! The server runs in this process on its own tokio runtime (two worker threads) on a fresh
 //! data directory under `$TMPDIR`, serving a synthetic study shaped like the thesis survey
@@ -17,7 +22,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use serde_json::json;
 
-use crate::serve::prepare;
+use mrstudy_server::serve::prepare;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -34,10 +39,14 @@ impl Default for BenchConfig {
     }
 }
 
-/// The measurements.
+/// The measurements at one concurrency: a row of the bench JSON.
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
+    /// Always `server`.
+    pub bench: &'static str,
     pub participants: usize,
+    /// The row's headline time: the median latency of `POST …/responses`, in ms.
+    pub ms: f64,
     pub seconds: f64,
     pub responses: u64,
     pub responses_per_s: f64,
@@ -53,6 +62,50 @@ pub struct BenchReport {
     pub errors: u64,
     /// Where the database was (its file system decides what an fsync costs).
     pub data_dir: String,
+    pub durability: &'static str,
+}
+
+/// `mrstudy bench server`: the rows (one per concurrency) and the adapter line of the bench JSON.
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub adapter: String,
+    pub rows: Vec<BenchReport>,
+}
+
+impl Report {
+    /// DESIGN.md's bench JSON: `{ "adapter": …, "rows": [...] }`.
+    pub fn to_json(&self) -> serde_json::Value {
+        json!({ "adapter": self.adapter, "rows": self.rows })
+    }
+}
+
+/// The benchmark: 16, 64 and 256 participants for 10 s each (`quick`: 64 for 3 s); table lines
+/// go to `line` as the rows are measured.
+pub fn bench(quick: bool, line: &dyn Fn(&str)) -> Result<Report, String> {
+    let seconds = if quick { 3 } else { 10 };
+    let concurrency: &[usize] = if quick { &[64] } else { &[16, 64, 256] };
+    line(&format!(
+        "{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}",
+        "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors"
+    ));
+    let mut rows = Vec::new();
+    for &participants in concurrency {
+        let row = run(BenchConfig { participants, duration: Duration::from_secs(seconds) })?;
+        line(&format!(
+            "{:>12} {:>8.1} {:>11.0} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.2} {:>7}",
+            row.participants,
+            row.seconds,
+            row.responses_per_s,
+            row.response_p50_ms,
+            row.response_p90_ms,
+            row.response_p99_ms,
+            row.response_max_ms,
+            row.next_p99_ms,
+            row.errors
+        ));
+        rows.push(row);
+    }
+    Ok(Report { adapter: "none (server: HTTP/1.1 over loopback, sqlite on the local file system)".into(), rows })
 }
 
 /// A 1×1 PNG.
@@ -136,7 +189,7 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(|error| error.to_string())?;
         let address = listener.local_addr().map_err(|error| error.to_string())?;
         tokio::spawn(async move {
-            let _ = axum::serve(listener, crate::app(prepared.state)).await;
+            let _ = axum::serve(listener, mrstudy_server::app(prepared.state)).await;
         });
         Ok::<_, String>(address)
     })?;
@@ -188,7 +241,9 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
     let mut next_ms = tally.next_ms;
     next_ms.sort_by(f64::total_cmp);
     Ok(BenchReport {
+        bench: "server",
         participants: config.participants,
+        ms: percentile(&response_ms, 0.50),
         seconds,
         responses: response_ms.len() as u64,
         responses_per_s: response_ms.len() as f64 / seconds,
@@ -201,6 +256,7 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         joins: tally.joins,
         errors: tally.errors,
         data_dir: data_dir.display().to_string(),
+        durability: "sqlite WAL, synchronous=FULL, group commit",
     })
 }
 
