@@ -13,13 +13,6 @@ pub enum Format {
     Json,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum ScreeningArg {
-    Auto,
-    On,
-    Off,
-}
-
 #[derive(Args)]
 pub struct AnalyzeArgs {
     /// Trials CSV (`participant,left,right,chosen`, as `mrstudy export` writes) or a task CSV (`participant,condition,value`).
@@ -52,8 +45,8 @@ pub struct AnalyzeArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
-    #[arg(long, value_enum, default_value = "auto")]
-    screen: ScreeningArg,
+    #[arg(long, default_value = "auto", value_parser = crate::choice(Screening::parse, "auto, on, off"))]
+    screen: Screening,
     /// Use Firth's bias-reduced estimate for every model, not only under separation.
     #[arg(long)]
     firth: bool,
@@ -104,11 +97,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         tolerance: args.tolerance,
         bootstrap: args.bootstrap,
         seed: args.seed,
-        screening: match args.screen {
-            ScreeningArg::Auto => Screening::Auto,
-            ScreeningArg::On => Screening::On,
-            ScreeningArg::Off => Screening::Off,
-        },
+        screening: args.screen,
         always_firth: args.firth,
         include_pilots: args.include_pilots,
         include_excluded: args.include_excluded,

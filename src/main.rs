@@ -39,6 +39,14 @@ enum Command {
     Export(serve::ExportArgs),
 }
 
+/// A clap value parser from a library's `parse` (the names it accepts are listed on refusal).
+fn choice<T: Clone + Send + Sync + 'static>(
+    parse: fn(&str) -> Option<T>,
+    names: &'static str,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |text| parse(text).ok_or_else(|| format!("`{text}` is not one of {names}"))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {

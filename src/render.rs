@@ -14,16 +14,15 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use mrstudy_renderer::ca::{ParamSource, estimate};
+use mrstudy_renderer::ca::ParamSource;
 use mrstudy_renderer::cm::{CmMethod, Composition};
-use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel};
+use mrstudy_renderer::gpu::{DirRenderer, GiLevel};
 use mrstudy_renderer::image::save_by_extension;
-use mrstudy_renderer::metrics;
-use mrstudy_renderer::reference::{ReferenceParams, render_photo, render_reference};
+use mrstudy_renderer::reference::{ReferenceParams, render_photo, render_reference, write_photo_buffers};
 use mrstudy_renderer::sensor::SensorParams;
-use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
+use mrstudy_renderer::stimulus::{ConditionRender, Factors, RenderKnobs, render_condition};
 use mrstudy_renderer::{builtin, scene};
-use serde_json::{Value, json};
+use serde_json::json;
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -40,23 +39,23 @@ pub struct RenderArgs {
     #[arg(long)]
     photo: bool,
     /// A condition by name, on the GPU: `gi` (shadows and indirect light), `shadows`, or `none`.
-    #[arg(long, conflicts_with = "factors")]
-    condition: Option<String>,
+    #[arg(long, conflicts_with = "factors", value_parser = crate::choice(GiLevel::parse, "gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))]
+    condition: Option<GiLevel>,
     /// Factors to switch on, on the GPU: `gi` (indirect light and shadows), `cm` (the
     /// statistics-based colour mapping), `ca` (camera artifacts).
-    #[arg(long)]
-    factors: Option<String>,
+    #[arg(long, value_parser = Factors::parse_list)]
+    factors: Option<Factors>,
     /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
     /// `estimate` (noise, blur and JPEG quality measured on the photograph).
-    #[arg(long, default_value = "scene")]
-    ca_params: String,
+    #[arg(long, default_value = "scene", value_parser = crate::choice(ParamSource::parse, "scene, estimate"))]
+    ca_params: ParamSource,
     /// GPU: the colour mapping of the GI buffers: off (Reinhard), statistics, samples or rohmer
     /// (overrides what --factors implies).
-    #[arg(long)]
-    cm: Option<String>,
+    #[arg(long, value_parser = crate::choice(CmMethod::parse, "off, statistics, samples, rohmer"))]
+    cm: Option<CmMethod>,
     /// GPU: the composition: additive (default) or scaled (Debevec: α = L'_cam / τ(L_r)).
-    #[arg(long, default_value = "additive")]
-    composition: String,
+    #[arg(long, default_value = "additive", value_parser = crate::choice(Composition::parse, "additive, scaled"))]
+    composition: Composition,
     /// GPU: the VPL budget of the `gi` condition.
     #[arg(long, default_value_t = 256)]
     vpls: u32,
@@ -151,7 +150,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     if args.condition.is_some() || args.factors.is_some() || args.cm.is_some() {
-        return render_condition(&args, name);
+        return run_condition(&args, name);
     }
     if !(args.reference || args.photo) {
         bail!(
@@ -170,10 +169,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bar.finish_and_clear();
         save_by_extension(out, &hdr, &photo)?;
         if let Some(dir) = &args.buffers {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-            photo.save_png(&dir.join("photo.png"))?;
-            hdr.save_exr(&dir.join("real.exr"))?;
-            write_json(&dir.join("report.json"), &json!({ "scene": scene.name, "stats": stats }))?;
+            write_photo_buffers(dir, &scene.name, &hdr, &photo, &stats)?;
         }
         report(&stats.warnings, stats.seconds, stats.samples_per_second, out);
     } else {
@@ -182,56 +178,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bar.finish_and_clear();
         save_by_extension(out, &result.hdr_full, &result.ground_truth)?;
         if let Some(dir) = &args.buffers {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-            result.photo.save_png(&dir.join("photo.png"))?;
-            result.ground_truth.save_png(&dir.join("ground_truth.png"))?;
-            result.hdr_real.save_exr(&dir.join("real.exr"))?;
-            result.hdr_full.save_exr(&dir.join("full.exr"))?;
-            result.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
-            result.affected_mask.save_png(&dir.join("affected_mask.png"))?;
-            let errors = metrics::compare(
-                &result.hdr_full,
-                &result.hdr_real,
-                &result.ground_truth,
-                &result.photo,
-                Some(&result.affected_mask),
-            );
-            write_json(
-                &dir.join("report.json"),
-                &json!({ "scene": scene.name, "stats": result.stats, "photo_vs_ground_truth_in_affected_region": errors }),
-            )?;
+            result.write_buffers(dir, &scene.name)?;
         }
         report(&result.stats.warnings, result.stats.seconds, result.stats.samples_per_second, out);
     }
     Ok(())
 }
 
-/// The factors asked for by `--condition` (the gi level alone) or `--factors`.
-fn factors_of(args: &RenderArgs) -> Result<Factors> {
-    if let Some(name) = &args.condition {
-        let gi = GiLevel::parse(name).with_context(|| format!("--condition `{name}` is not one of gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))?;
-        return Ok(Factors { gi, cm: false, ca: false });
-    }
-    let names = args.factors.as_deref().unwrap_or("").split(',').map(str::trim).filter(|f| !f.is_empty());
-    Factors::from_levels(names.map(|name| (name, 1.0)))
-        .map_err(|e| anyhow!("--factors: {e}; name them as gi, cm, ca or shadows"))
-}
-
 /// `render --condition …`: the photograph by the path tracer, then the GPU frame over it.
-fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
-    let factors = factors_of(args)?;
-    let cm_method = args
-        .cm
-        .as_deref()
-        .map(|name| {
-            CmMethod::parse(name)
-                .with_context(|| format!("--cm `{name}` is not one of off, statistics, samples, rohmer"))
-        })
-        .transpose()?;
-    let composition = Composition::parse(&args.composition)
-        .with_context(|| format!("--composition `{}` is not one of additive, scaled", args.composition))?;
-    let ca_source = ParamSource::parse(&args.ca_params)
-        .with_context(|| format!("--ca-params `{}` is not one of scene, estimate", args.ca_params))?;
+fn run_condition(args: &RenderArgs, name: &str) -> Result<()> {
+    // `--condition` is the gi level alone; `--cm` alone renders every factor off
+    let factors = match args.condition {
+        Some(gi) => Factors { gi, cm: false, ca: false },
+        None => args.factors.map_or_else(|| Factors::parse_list(""), Ok).map_err(|e| anyhow!("--factors: {e}"))?,
+    };
     if args.reference || args.photo {
         bail!("--condition/--factors render on the GPU; leave out --reference and --photo");
     }
@@ -248,56 +208,30 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
     let bar = progress_bar(args.spp as u64, &label);
     let (_, photo, photo_stats) = render_photo(&scene, &params, &|done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
-    let settings = StimulusSettings { vpls: args.vpls, ..StimulusSettings::default() };
-    let mut dir_params = DirParams {
+    let knobs = RenderKnobs {
+        vpls: args.vpls,
         ism_size: args.ism_size,
         ism_points: args.ism_points,
         bounces: args.bounces,
         bounce_candidates: args.bounce_candidates,
-        composition,
-        ..settings.params(&scene, &factors)
+        composition: args.composition,
+        cm: args.cm,
+        ca_source: args.ca_params,
     };
-    if let Some(method) = cm_method {
-        dir_params.cm.method = method;
+    let ConditionRender { frame, params, ca_estimates } =
+        render_condition(&renderer, &scene, &photo, &factors, &knobs)?;
+    if let Some(estimates) = &ca_estimates {
+        eprintln!("ca estimates from the photograph: {estimates}");
     }
-    let mut ca_estimates = None;
-    if factors.ca && ca_source == ParamSource::Estimate {
-        let (params, estimates) = estimate::params_from_photo(&photo, &scene.sensor);
-        dir_params.camera_artifacts = Some(params);
-        ca_estimates = Some(estimates);
-    }
-    if let Some(e) = &ca_estimates {
-        eprintln!(
-            "ca estimates from the photograph: noise σ {:.4} (σ² = {:.2e}·d + {:.2e}, {}), blur {}, JPEG quality {}",
-            e.noise.sigma,
-            e.noise.a,
-            e.noise.b,
-            e.noise.fit,
-            e.blur
-                .radius_px
-                .map(|r| format!("disc radius {r:.2} px ({} edges)", e.blur.edges))
-                .unwrap_or_else(|| "not measurable (no isolated edges)".into()),
-            e.jpeg.quality.map(|q| q.to_string()).unwrap_or_else(|| "not detectable (none, or above about 95)".into())
-        );
-    }
-    let frame = renderer.render(&scene, &photo, &dir_params)?;
     save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = &args.buffers {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        photo.save_png(&dir.join("photo.png"))?;
-        frame.composite.save_png(&dir.join("composite.png"))?;
-        frame.l_rv.save_exr(&dir.join("l_rv.exr"))?;
-        frame.l_r.save_exr(&dir.join("l_r.exr"))?;
-        frame.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
-        write_json(
-            &dir.join("report.json"),
-            &json!({ "gpu": frame.report, "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates }),
-        )?;
+        let extra = json!({ "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates });
+        frame.write_buffers(dir, &photo, extra)?;
     }
     for pass in &frame.report.passes {
         eprintln!("  {:<40} {:>9.2} ms", pass.pass, pass.ms);
     }
-    let method = dir_params.cm.method;
+    let method = params.cm.method;
     if let Some(why) = &frame.report.cm.fallback {
         eprintln!("warning: colour mapping {}: {why}", method.name());
     }
@@ -307,7 +241,10 @@ fn render_condition(args: &RenderArgs, name: &str) -> Result<()> {
         factors.gi.name(),
         method.name(),
         if factors.ca {
-            format!(", ca from the {}", if ca_source == ParamSource::Scene { "scene's camera" } else { "photograph" })
+            format!(
+                ", ca from the {}",
+                if args.ca_params == ParamSource::Scene { "scene's camera" } else { "photograph" }
+            )
         } else {
             String::new()
         },
@@ -324,9 +261,4 @@ fn report(warnings: &[String], seconds: f64, samples_per_second: f64, out: &Path
         eprintln!("warning: {w}");
     }
     eprintln!("wrote {} in {:.1} s ({:.0} samples/s)", out.display(), seconds, samples_per_second);
-}
-
-fn write_json(path: &Path, value: &Value) -> Result<()> {
-    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -1,10 +1,11 @@
-//! `mrstudy serve`, `mrstudy export` and `mrstudy bench server`: argument parsing and printing
+//! `mrstudy serve` and `mrstudy export`: argument parsing and printing
 //! around `mrstudy-server`, which does the work.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
+use mrstudy_server::serve::ExportFormat;
 
 #[derive(Args)]
 pub struct ServeArgs {
@@ -29,26 +30,14 @@ pub fn run_serve(args: ServeArgs) -> Result<()> {
     Ok(())
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum ExportFormat {
-    /// The trials CSV (DESIGN.md): one row per answered trial.
-    Csv,
-    /// Every participant with demographics, client, URL parameters and the whole schedule.
-    Json,
-    /// The conditions CSV (DESIGN.md) of the study, for `mrstudy analyze --conditions`.
-    Conditions,
-    /// Task study: the long CSV participant,task,measure,condition,value,… for `mrstudy analyze`.
-    Task,
-    /// Task study: one row per answered trial with every stored column.
-    TaskTrials,
-}
-
 #[derive(Args)]
 pub struct ExportArgs {
     /// The study's slug.
     #[arg(long)]
     study: String,
-    #[arg(long, value_enum, default_value = "csv")]
+    /// csv (the trials CSV of DESIGN.md), json (every participant with the whole schedule),
+    /// conditions (the conditions CSV), task (a task study's long CSV), task-trials.
+    #[arg(long, default_value = "csv", value_parser = crate::choice(ExportFormat::parse, ExportFormat::NAMES))]
     format: ExportFormat,
     /// Write here instead of stdout.
     #[arg(long)]
@@ -65,15 +54,8 @@ pub struct ExportArgs {
 }
 
 pub fn run_export(args: ExportArgs) -> Result<()> {
-    let format = match args.format {
-        ExportFormat::Csv => mrstudy_server::serve::ExportFormat::Csv,
-        ExportFormat::Json => mrstudy_server::serve::ExportFormat::Json,
-        ExportFormat::Conditions => mrstudy_server::serve::ExportFormat::Conditions,
-        ExportFormat::Task => mrstudy_server::serve::ExportFormat::Task,
-        ExportFormat::TaskTrials => mrstudy_server::serve::ExportFormat::TaskTrials,
-    };
     let include = mrstudy_server::export::Include { pilots: args.include_pilots, excluded: args.include_excluded };
-    let output = match mrstudy_server::serve::export(&args.data_dir, &args.study, format, include) {
+    let output = match mrstudy_server::serve::export(&args.data_dir, &args.study, args.format, include) {
         Ok(output) => output,
         Err(message) => bail!("{message}"),
     };

@@ -37,6 +37,17 @@ pub enum Screening {
     Off,
 }
 
+impl Screening {
+    pub fn parse(name: &str) -> Option<Screening> {
+        match name {
+            "auto" => Some(Screening::Auto),
+            "on" => Some(Screening::On),
+            "off" => Some(Screening::Off),
+            _ => None,
+        }
+    }
+}
+
 /// Screening refits the item model once per participant; above this many conditions `Auto`
 /// skips it (and says so).
 pub const SCREENING_AUTO_LIMIT: usize = 200;

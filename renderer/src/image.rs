@@ -224,3 +224,15 @@ pub fn save_by_extension(path: &Path, linear: &Image, display: &Image) -> Result
         display.save_png(path)
     }
 }
+
+/// Makes the buffers folder `dir` (and its parents) if missing.
+pub fn create_buffers_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| RenderError::Write { path: dir.to_owned(), reason: e.to_string() })
+}
+
+/// Writes `value` as pretty JSON (with a final newline) to `path`: the `report.json` of a
+/// buffers folder.
+pub fn save_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).expect("JSON values serialise") + "\n";
+    std::fs::write(path, text).map_err(|e| RenderError::Write { path: path.to_owned(), reason: e.to_string() })
+}

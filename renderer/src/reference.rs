@@ -78,6 +78,47 @@ pub struct ReferenceOutput {
     pub stats: RenderStats,
 }
 
+impl ReferenceOutput {
+    /// Writes every buffer into `dir`: photo.png, ground_truth.png, real.exr, full.exr,
+    /// virtual_mask.png, affected_mask.png, and report.json with the stats and the photograph's
+    /// error against the ground truth in the affected region.
+    pub fn write_buffers(&self, dir: &std::path::Path, scene: &str) -> Result<()> {
+        crate::image::create_buffers_dir(dir)?;
+        self.photo.save_png(&dir.join("photo.png"))?;
+        self.ground_truth.save_png(&dir.join("ground_truth.png"))?;
+        self.hdr_real.save_exr(&dir.join("real.exr"))?;
+        self.hdr_full.save_exr(&dir.join("full.exr"))?;
+        self.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
+        self.affected_mask.save_png(&dir.join("affected_mask.png"))?;
+        let errors = crate::metrics::compare(
+            &self.hdr_full,
+            &self.hdr_real,
+            &self.ground_truth,
+            &self.photo,
+            Some(&self.affected_mask),
+        );
+        crate::image::save_json(
+            &dir.join("report.json"),
+            &serde_json::json!({ "scene": scene, "stats": self.stats, "photo_vs_ground_truth_in_affected_region": errors }),
+        )
+    }
+}
+
+/// Writes the buffers of a photograph ([`render_photo`]) into `dir`: photo.png, real.exr and
+/// report.json with the stats.
+pub fn write_photo_buffers(
+    dir: &std::path::Path,
+    scene: &str,
+    hdr: &Image,
+    photo: &Image,
+    stats: &RenderStats,
+) -> Result<()> {
+    crate::image::create_buffers_dir(dir)?;
+    photo.save_png(&dir.join("photo.png"))?;
+    hdr.save_exr(&dir.join("real.exr"))?;
+    crate::image::save_json(&dir.join("report.json"), &serde_json::json!({ "scene": scene, "stats": stats }))
+}
+
 fn progressive(
     world: &World,
     scene: &Scene,

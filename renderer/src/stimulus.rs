@@ -39,6 +39,13 @@ pub struct Factors {
 }
 
 impl Factors {
+    /// The factors named in a comma-separated list (`gi,cm`) switched on, the others off.
+    pub fn parse_list(text: &str) -> std::result::Result<Factors, String> {
+        let names = text.split(',').map(str::trim).filter(|name| !name.is_empty());
+        Factors::from_levels(names.map(|name| (name, 1.0)))
+            .map_err(|reason| format!("{reason}; name them as gi, cm, ca or shadows"))
+    }
+
     /// Factors from `(name, level)` pairs, as a study's condition lists them. Factors not named
     /// are off.
     pub fn from_levels<'a>(levels: impl IntoIterator<Item = (&'a str, f64)>) -> std::result::Result<Factors, String> {
@@ -162,6 +169,60 @@ impl StimulusSettings {
     pub fn render(&self, renderer: &DirRenderer, scene: &Scene, photo: &Image, factors: &Factors) -> Result<GpuRender> {
         renderer.render(scene, photo, &self.params(scene, factors))
     }
+}
+
+/// What a render of one condition outside a study may change from a stimulus's parameters
+/// (`mrstudy render --condition/--factors` and its GPU knobs).
+#[derive(Clone, Debug)]
+pub struct RenderKnobs {
+    pub vpls: u32,
+    pub ism_size: u32,
+    pub ism_points: u32,
+    pub bounces: u32,
+    pub bounce_candidates: u32,
+    pub composition: crate::cm::Composition,
+    /// A colour mapping other than the one the `cm` factor implies.
+    pub cm: Option<CmMethod>,
+    /// Where the `ca` factor's camera comes from: the scene's, or estimated on the photograph.
+    pub ca_source: crate::ca::ParamSource,
+}
+
+/// One condition rendered over a photograph, with the parameters it was rendered by and, when
+/// the `ca` parameters were estimated on the photograph, the estimates.
+pub struct ConditionRender {
+    pub frame: GpuRender,
+    pub params: DirParams,
+    pub ca_estimates: Option<crate::ca::estimate::Estimates>,
+}
+
+/// Renders `factors` over `photo` with a stimulus's parameters changed by `knobs`.
+pub fn render_condition(
+    renderer: &DirRenderer,
+    scene: &Scene,
+    photo: &Image,
+    factors: &Factors,
+    knobs: &RenderKnobs,
+) -> Result<ConditionRender> {
+    let settings = StimulusSettings { vpls: knobs.vpls, ..StimulusSettings::default() };
+    let mut params = DirParams {
+        ism_size: knobs.ism_size,
+        ism_points: knobs.ism_points,
+        bounces: knobs.bounces,
+        bounce_candidates: knobs.bounce_candidates,
+        composition: knobs.composition,
+        ..settings.params(scene, factors)
+    };
+    if let Some(method) = knobs.cm {
+        params.cm.method = method;
+    }
+    let mut ca_estimates = None;
+    if factors.ca && knobs.ca_source == crate::ca::ParamSource::Estimate {
+        let (ca, estimates) = crate::ca::estimate::params_from_photo(photo, &scene.sensor);
+        params.camera_artifacts = Some(ca);
+        ca_estimates = Some(estimates);
+    }
+    let frame = renderer.render(scene, photo, &params)?;
+    Ok(ConditionRender { frame, params, ca_estimates })
 }
 
 #[cfg(test)]

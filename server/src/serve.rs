@@ -341,3 +341,19 @@ pub enum ExportFormat {
     /// A task study's trials, one row per answered trial.
     TaskTrials,
 }
+
+impl ExportFormat {
+    /// The names `mrstudy export --format` accepts.
+    pub const NAMES: &str = "csv, json, conditions, task, task-trials";
+
+    pub fn parse(name: &str) -> Option<ExportFormat> {
+        match name {
+            "csv" => Some(ExportFormat::Csv),
+            "json" => Some(ExportFormat::Json),
+            "conditions" => Some(ExportFormat::Conditions),
+            "task" => Some(ExportFormat::Task),
+            "task-trials" => Some(ExportFormat::TaskTrials),
+            _ => None,
+        }
+    }
+}

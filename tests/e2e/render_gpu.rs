@@ -107,7 +107,8 @@ fn render_factors_gi_ca_estimates_the_camera_and_times_the_pass() {
         .output()
         .unwrap();
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--ca-params `guess`"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--ca-params") && stderr.contains("`guess` is not one of scene, estimate"), "{stderr}");
 }
 
 #[test]

@@ -78,6 +78,26 @@ pub struct Estimates {
     pub jpeg: JpegEstimate,
 }
 
+impl std::fmt::Display for Estimates {
+    /// One line: noise σ and its fit, blur radius, JPEG quality (each or why it is missing).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let noise = &self.noise;
+        let blur = match self.blur.radius_px {
+            Some(radius) => format!("disc radius {radius:.2} px ({} edges)", self.blur.edges),
+            None => "not measurable (no isolated edges)".into(),
+        };
+        let jpeg = match self.jpeg.quality {
+            Some(quality) => quality.to_string(),
+            None => "not detectable (none, or above about 95)".into(),
+        };
+        write!(
+            f,
+            "noise σ {:.4} (σ² = {:.2e}·d + {:.2e}, {}), blur {blur}, JPEG quality {jpeg}",
+            noise.sigma, noise.a, noise.b, noise.fit
+        )
+    }
+}
+
 #[inline]
 fn inside(region: Option<&Mask>, i: usize) -> bool {
     region.is_none_or(|m| m.values[i] > 0.5)

@@ -194,6 +194,25 @@ pub struct GpuRender {
     pub report: GpuReport,
 }
 
+impl GpuRender {
+    /// Writes the frame's buffers into `dir`: photo.png (the `photo` it was composed over),
+    /// composite.png, l_rv.exr, l_r.exr, virtual_mask.png, and report.json with the report and
+    /// the fields of `extra` (an object).
+    pub fn write_buffers(&self, dir: &std::path::Path, photo: &Image, extra: serde_json::Value) -> Result<()> {
+        crate::image::create_buffers_dir(dir)?;
+        photo.save_png(&dir.join("photo.png"))?;
+        self.composite.save_png(&dir.join("composite.png"))?;
+        self.l_rv.save_exr(&dir.join("l_rv.exr"))?;
+        self.l_r.save_exr(&dir.join("l_r.exr"))?;
+        self.virtual_mask.save_png(&dir.join("virtual_mask.png"))?;
+        let mut report = serde_json::json!({ "gpu": self.report });
+        if let (Some(report), serde_json::Value::Object(extra)) = (report.as_object_mut(), extra) {
+            report.extend(extra);
+        }
+        crate::image::save_json(&dir.join("report.json"), &report)
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct GpuReport {
     pub adapter: String,
