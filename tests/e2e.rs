@@ -10,6 +10,8 @@ mod analyze;
 mod browser;
 #[path = "e2e/lab.rs"]
 mod lab;
+#[path = "../server/tests/support/lab_study.rs"]
+mod lab_study;
 #[path = "e2e/render.rs"]
 mod render;
 #[path = "e2e/render_gpu.rs"]
@@ -18,5 +20,7 @@ mod render_gpu;
 mod serve;
 #[path = "e2e/serve_durability.rs"]
 mod serve_durability;
+#[path = "e2e/support.rs"]
+mod support;
 #[path = "e2e/survey_input.rs"]
 mod survey_input;

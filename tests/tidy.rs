@@ -99,3 +99,59 @@ fn every_crate_and_module_is_in_the_code_map() {
     }
     assert!(missing.is_empty(), "ARCHITECTURE.md's code map does not name these modules: {missing:?}");
 }
+
+/// Files declared only for tests (`#[cfg(test)] mod x;` in their parent), by path.
+fn test_only(path: &Path) -> bool {
+    let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+    if stem == "tests" || stem == "test_support" {
+        return true;
+    }
+    let parent = path.parent().unwrap();
+    let declared_in = [parent.join("mod.rs"), parent.join("lib.rs"), parent.with_extension("rs")];
+    declared_in.iter().filter_map(|file| std::fs::read_to_string(file).ok()).any(|text| {
+        text.contains(&format!("#[cfg(test)]\nmod {stem};")) || text.contains(&format!("#[cfg(test)]\npub mod {stem};"))
+    })
+}
+
+#[test]
+fn no_crate_has_an_import_cycle_between_its_top_level_modules() {
+    for (member, krate) in crates() {
+        let src = root().join(&member).join("src");
+        // top-level module → the top-level modules its code names as `crate::x`
+        let mut uses: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> = Default::default();
+        for path in sources().into_iter().filter(|path| path.starts_with(&src) && !test_only(path)) {
+            let relative = path.strip_prefix(&src).unwrap().to_string_lossy().to_string();
+            let top = relative.split('/').next().unwrap().trim_end_matches(".rs").to_string();
+            if top == "lib" || top == "main" {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            let code = text.split("#[cfg(test)]\nmod tests {").next().unwrap();
+            let entry = uses.entry(top.clone()).or_default();
+            for line in code.lines().filter(|line| !line.trim_start().starts_with("//")) {
+                for (index, _) in line.match_indices("crate::") {
+                    let name: String =
+                        line[index + 7..].chars().take_while(|c| c.is_ascii_lowercase() || *c == '_').collect();
+                    if !name.is_empty() && name != top {
+                        entry.insert(name);
+                    }
+                }
+            }
+        }
+        // a cycle exists iff some module reaches itself
+        for start in uses.keys() {
+            let mut seen = std::collections::BTreeSet::new();
+            let mut stack: Vec<(String, Vec<String>)> = vec![(start.clone(), vec![start.clone()])];
+            while let Some((module, trail)) = stack.pop() {
+                for next in uses.get(&module).into_iter().flatten() {
+                    if next == start {
+                        panic!("{krate} has an import cycle: {} → {start}", trail.join(" → "));
+                    }
+                    if seen.insert(next.clone()) {
+                        stack.push((next.clone(), [trail.clone(), vec![next.clone()]].concat()));
+                    }
+                }
+            }
+        }
+    }
+}

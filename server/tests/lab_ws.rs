@@ -16,35 +16,20 @@ use serde_json::{Value, json};
 use sqlx::Row;
 use tokio_tungstenite::tungstenite::Message;
 
+#[path = "support/lab_study.rs"]
+mod lab_study;
+use lab_study::LabStudy;
+
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
-const STUDY: &str = r#"
-slug = "lab"
-title = "Lab"
-kind = "task"
-min_response_ms = 0
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[design]
-conditions = ["none", "gi"]
-trials_per_condition = 1
-practice = 0
-seed = 5
-[render]
-size = [96, 72]
-photo_spp = 2
-vpls = 16
-shadow_map_size = 128
-env_lights = 4
-[[tasks]]
-kind = "distance"
-[[tasks]]
-kind = "placement"
-step_cm = 1
-[[tasks]]
-kind = "contact"
-"#;
+/// The WebSocket tests' lab study: conditions none and gi, seed 5, all three tasks.
+fn study() -> String {
+    LabStudy {
+        tasks: &["kind = \"distance\"", "kind = \"placement\"\nstep_cm = 1", "kind = \"contact\""],
+        ..LabStudy::default()
+    }
+    .toml()
+}
 
 enum Incoming {
     Json(Value),
@@ -113,7 +98,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let _alone = RENDERING.lock().await;
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
-    std::fs::write(studies.path().join("lab.toml"), STUDY).unwrap();
+    std::fs::write(studies.path().join("lab.toml"), study()).unwrap();
     let Prepared { state, tasks, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
     assert_eq!(tasks.len(), 1);
     let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
@@ -391,34 +376,21 @@ async fn next_frame(socket: &mut Socket) -> (Value, u32) {
     (meta, u32::from_be_bytes(bytes[..4].try_into().unwrap()))
 }
 
-const HYGIENE_STUDY: &str = r#"
-slug = "lab"
-title = "Lab"
-kind = "task"
-min_response_ms = 400
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[design]
-conditions = ["none", "gi"]
-trials_per_condition = 1
-practice = 0
-seed = 9
-[render]
-size = [96, 72]
-photo_spp = 2
-vpls = 16
-shadow_map_size = 128
-env_lights = 4
-[[tasks]]
-kind = "placement"
-step_cm = 1
-"#;
+/// A lab study with the default-like `min_response_ms` (400 ms) and one placement task.
+fn hygiene_study() -> String {
+    LabStudy {
+        seed: 9,
+        min_response_ms: Some(400),
+        tasks: &["kind = \"placement\"\nstep_cm = 1"],
+        ..LabStudy::default()
+    }
+    .toml()
+}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_refused_and_nothing_is_stored() {
     let _alone = RENDERING.lock().await;
-    let Some((url, storage, _state, _data_dir)) = serve(HYGIENE_STUDY).await else { return };
+    let Some((url, storage, _state, _data_dir)) = serve(&hygiene_study()).await else { return };
     let mut socket = connect(&url).await;
     // an empty participant code is refused with one sentence, and nobody is stored
     refused(&mut socket, json!({"type": "start", "label": ""}), "The participant code is empty").await;
@@ -514,7 +486,7 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
 async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_participant() {
     let _alone = RENDERING.lock().await;
     // 0.005 minutes = 300 ms of inactivity
-    let study = HYGIENE_STUDY
+    let study = hygiene_study()
         .replace("min_response_ms = 400", "min_response_ms = 0\nabandon_after_minutes = 0.005")
         .replace("conditions = [\"none\", \"gi\"]", "conditions = [\"none\", \"shadows\", \"gi\"]");
     let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
@@ -565,7 +537,7 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the_same_time() {
     let _alone = RENDERING.lock().await;
-    let study = HYGIENE_STUDY
+    let study = hygiene_study()
         .replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"")
         .replace("trials_per_condition = 1", "trials_per_condition = 3");
     let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };

@@ -9,7 +9,7 @@ use std::process::Command;
 
 use serde_json::{Value, json};
 
-use super::serve::{Server, binary, client, demographics};
+use super::support::{Server, binary, client, demographics};
 
 /// `mrstudy export` with extra flags: (stdout, stderr).
 fn export_with(data_dir: &Path, flags: &[&str]) -> (String, String) {

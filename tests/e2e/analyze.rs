@@ -3,10 +3,10 @@
 //! nothing.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 fn mrstudy(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrstudy")).args(args).output().expect("run mrstudy")
+    super::support::mrstudy().args(args).output().expect("run mrstudy")
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {

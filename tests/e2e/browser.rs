@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-use super::serve::{Server, client};
+use super::support::{Server, client};
 
 const CHROMIUM: &str = "/usr/bin/chromium";
 const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
@@ -354,7 +354,7 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     // larger frames than the other lab tests, so the screenshot shows something
-    let study = super::lab::SMALL_STUDY
+    let study = super::lab::small_study()
         .replace("size = [96, 72]", "size = [320, 240]")
         .replace("photo_spp = 2", "photo_spp = 8");
     std::fs::write(studies.path().join("lab.toml"), study).unwrap();
@@ -411,7 +411,7 @@ fn arrow_keys_move_the_virtual_cube_in_the_live_lab_page_in_chromium() {
         .unwrap();
     assert_eq!(stored["participants"][0]["answered"], 4, "{stored}");
     assert_eq!(stored["participants"][0]["label"], "chromium");
-    let trials = super::serve::export(data_dir.path(), "lab", "task-trials");
+    let trials = super::support::export(data_dir.path(), "lab", "task-trials");
     let placement = trials.lines().nth(4).unwrap();
     assert!(placement.contains("ArrowLeft") && placement.contains("ArrowUp"), "{placement}");
 }

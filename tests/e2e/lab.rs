@@ -15,34 +15,13 @@ use serde_json::{Value, json};
 use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
-use super::serve::{Server, binary, client, copy_demo_study, export, repo_studies_dir};
+use super::lab_study::LabStudy;
+use super::support::{Server, binary, client, copy_demo_study, export, repo_studies_dir};
 
 /// A small, fast task study: 96×72 frames, one trial per condition, no practice.
-pub const SMALL_STUDY: &str = r#"
-slug = "lab"
-title = "Cubes"
-kind = "task"
-min_response_ms = 0
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[design]
-conditions = ["none", "shadows", "gi"]
-trials_per_condition = 1
-practice = 0
-seed = 11
-[render]
-size = [96, 72]
-photo_spp = 2
-vpls = 16
-shadow_map_size = 128
-env_lights = 4
-[[tasks]]
-kind = "distance"
-[[tasks]]
-kind = "placement"
-step_cm = 1
-"#;
+pub fn small_study() -> String {
+    LabStudy { title: "Cubes", conditions: &["none", "shadows", "gi"], seed: 11, ..LabStudy::default() }.toml()
+}
 
 /// Starts `mrstudy serve` on `studies` and waits until the lab has started: Some(server) with
 /// its `lab link:`, or None (with a note) when no GPU adapter could be opened.
@@ -176,7 +155,7 @@ fn serve_without_a_gpu_adapter_warns_once_and_serves_the_rest() {
 fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_export() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
-    std::fs::write(studies.path().join("lab.toml"), SMALL_STUDY).unwrap();
+    std::fs::write(studies.path().join("lab.toml"), small_study()).unwrap();
     let Some(server) = lab_server(data_dir.path(), studies.path()) else { return };
     for (index, label) in ["A", "B", "C"].iter().enumerate() {
         run_participant(&server.base, label, 0.5 + index as f64);
@@ -236,29 +215,20 @@ fn three_participants_run_the_lab_study_and_mrstudy_analyze_reads_the_task_expor
 
 /// Two tasks of two trials each (so the second task's instructions come between), default
 /// `min_response_ms` (300 ms), frames large enough to look at.
-const HELD_KEY_STUDY: &str = r#"
-slug = "lab"
-title = "Cubes"
-kind = "task"
-[texts]
-welcome = "Hello. You will see a table with a real and a virtual cube."
-instructions = "There are two short tasks."
-[design]
-conditions = ["none", "gi"]
-trials_per_condition = 1
-practice = 0
-seed = 3
-[render]
-size = [160, 120]
-photo_spp = 4
-vpls = 16
-shadow_map_size = 128
-env_lights = 4
-[[tasks]]
-kind = "placement"
-[[tasks]]
-kind = "contact"
-"#;
+fn held_key_study() -> String {
+    LabStudy {
+        title: "Cubes",
+        welcome: "Hello. You will see a table with a real and a virtual cube.",
+        instructions: "There are two short tasks.",
+        seed: 3,
+        min_response_ms: None,
+        size: [160, 120],
+        photo_spp: 4,
+        tasks: &["kind = \"placement\"", "kind = \"contact\""],
+        ..LabStudy::default()
+    }
+    .toml()
+}
 
 /// One Enter key event through the DevTools protocol; `repeat` marks an auto-repeated keydown.
 fn enter(driver: &super::browser::Driver, kind: &str, repeat: bool) {
@@ -317,7 +287,7 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     }
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
-    std::fs::write(studies.path().join("lab.toml"), HELD_KEY_STUDY).unwrap();
+    std::fs::write(studies.path().join("lab.toml"), held_key_study()).unwrap();
     let Some(server) = lab_server(data_dir.path(), studies.path()) else { return };
     let shot = super::browser::screenshot_path;
     let driver = super::browser::Driver::start(1280, 800);
@@ -393,7 +363,7 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     assert_eq!(answered(&server, "held"), 4);
 
     // every stored trial had its frame shown, and took at least min_response_ms
-    let trials = super::serve::export(data_dir.path(), "lab", "task-trials");
+    let trials = super::support::export(data_dir.path(), "lab", "task-trials");
     let mut records = parse_csv(&trials);
     let header = records.remove(0);
     let column = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));

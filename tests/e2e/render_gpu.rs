@@ -2,17 +2,11 @@
 //! tiny images, few samples for the photograph.
 
 use std::path::PathBuf;
-use std::process::Command;
 
-fn mrstudy() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_mrstudy"))
-}
+use super::support::mrstudy;
 
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("mrstudy-e2e-render-gpu-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    super::support::temp_dir("render-gpu", name)
 }
 
 #[test]

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-use super::serve::{Server, demographics, export};
+use super::support::{Server, demographics, export};
 
 /// Total time of the kill-and-restart phase.
 const KILL_PHASE: Duration = Duration::from_secs(20);

@@ -10,7 +10,7 @@ use std::time::Duration;
 use serde_json::{Value, json};
 
 use super::browser::{Driver, browser_available, consent_and_demographics, screenshot_path};
-use super::serve::{Server, client, copy_demo_study};
+use super::support::{Server, client, copy_demo_study};
 
 /// The demo study with extra top-level keys, in its own studies folder.
 fn demo_with(dir: &Path, extra: &str) {
@@ -276,7 +276,9 @@ fn the_researcher_previews_excludes_and_deletes_from_the_admin_page_in_chromium(
     let http = client();
     let joined: Value = http
         .post(format!("{}/api/studies/shadows-demo/participants", server.base))
-        .json(&json!({"demographics": super::serve::demographics(), "url_params": {"PROLIFIC_PID": "PID-ADMIN-PAGE"}}))
+        .json(
+            &json!({"demographics": super::support::demographics(), "url_params": {"PROLIFIC_PID": "PID-ADMIN-PAGE"}}),
+        )
         .send()
         .unwrap()
         .json()
@@ -362,7 +364,7 @@ fn the_researcher_previews_excludes_and_deletes_from_the_admin_page_in_chromium(
         std::thread::sleep(Duration::from_millis(100));
     }
     // With the only other participant excluded, the default export has no rows and says why.
-    let export = super::serve::export(data_dir.path(), "shadows-demo", "csv");
+    let export = super::support::export(data_dir.path(), "shadows-demo", "csv");
     assert_eq!(export.lines().count(), 1, "only the header: {export}");
 
     let phone = Driver::start(390, 844);

@@ -1,0 +1,171 @@
+//! What the end-to-end tests share: the binary (`mrstudy()`, `binary()`), a fresh temporary
+//! folder per test (`temp_dir`), the repository's studies and a copy of the demo study, a
+//! `mrstudy serve` on a real socket (`Server`), an HTTP client, demographics that pass the demo
+//! study's form, and `mrstudy export`.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+/// The binary under test, as a command to add arguments to.
+pub fn mrstudy() -> Command {
+    Command::new(binary())
+}
+
+/// A fresh, empty folder `mrstudy-e2e-<area>-<name>-<pid>` under the system's temporary folder.
+pub fn temp_dir(area: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mrstudy-e2e-{area}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+pub fn binary() -> &'static str {
+    env!("CARGO_BIN_EXE_mrstudy")
+}
+
+/// The repository's `studies/` folder.
+pub fn repo_studies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")
+}
+
+/// A studies folder holding only the demo study (copied once per test process): the repository's
+/// folder also holds the thesis survey, whose 48 stimuli `serve` would render at start-up.
+pub fn studies_dir() -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("mrstudy-e2e-demo-studies-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        copy_demo_study(&dir);
+        dir
+    })
+    .clone()
+}
+
+/// Copies the demo study (its file and its images) from the repository into `dir`.
+pub fn copy_demo_study(dir: &Path) {
+    let repo = repo_studies_dir();
+    std::fs::create_dir_all(dir.join("shadows-demo")).unwrap();
+    std::fs::copy(repo.join("shadows-demo.toml"), dir.join("shadows-demo.toml")).unwrap();
+    for entry in std::fs::read_dir(repo.join("shadows-demo")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
+    }
+}
+
+/// A running `mrstudy serve`.
+pub struct Server {
+    pub child: Child,
+    pub base: String,
+    pub admin_token: String,
+    pub stderr: mpsc::Receiver<String>,
+    /// stdout lines after the admin link (e.g. the lab's lines, printed once it has started).
+    pub stdout: mpsc::Receiver<String>,
+}
+
+impl Server {
+    /// Starts `mrstudy serve` and waits for its links (at most 60 s).
+    pub fn start(data_dir: &Path, addr: &str) -> Server {
+        Server::try_start(data_dir, addr, &studies_dir()).unwrap_or_else(|error| panic!("{error}"))
+    }
+
+    pub fn try_start(data_dir: &Path, addr: &str, studies: &Path) -> Result<Server, String> {
+        Server::try_start_with_env(data_dir, addr, studies, &[], Duration::from_secs(60))
+    }
+
+    /// [`Server::try_start`] with extra environment variables, waiting at most `wait`.
+    pub fn try_start_with_env(
+        data_dir: &Path,
+        addr: &str,
+        studies: &Path,
+        env: &[(&str, &str)],
+        wait: Duration,
+    ) -> Result<Server, String> {
+        let mut child = Command::new(binary())
+            .envs(env.iter().copied())
+            .args(["serve", "--addr", addr, "--data-dir"])
+            .arg(data_dir)
+            .arg("--studies")
+            .arg(studies)
+            .env_remove("MRSTUDY_ADMIN_TOKEN")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|error| format!("cannot start {}: {error}", binary()))?;
+        let (stdout_lines, stdout_receiver) = mpsc::channel();
+        let stdout = child.stdout.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let _ = stdout_lines.send(line);
+            }
+        });
+        let (stderr_lines, stderr_receiver) = mpsc::channel();
+        let stderr = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                let _ = stderr_lines.send(line);
+            }
+        });
+        let deadline = Instant::now() + wait;
+        let mut base = None;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match stdout_receiver.recv_timeout(left) {
+                Ok(line) => {
+                    if let Some(rest) = line.strip_prefix("mrstudy serving on ") {
+                        base = rest.split_whitespace().next().map(str::to_string);
+                    }
+                    if let Some(link) = line.strip_prefix("admin link: ") {
+                        let admin_token = link.split("token=").nth(1).unwrap_or_default().to_string();
+                        return Ok(Server {
+                            child,
+                            base: base.expect("base before admin link"),
+                            admin_token,
+                            stderr: stderr_receiver,
+                            stdout: stdout_receiver,
+                        });
+                    }
+                }
+                Err(_) => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    let errors: Vec<String> = stderr_receiver.try_iter().collect();
+                    return Err(format!("mrstudy serve did not print its links: {}", errors.join(" | ")));
+                }
+            }
+        }
+    }
+
+    pub fn kill(&mut self) {
+        let _ = self.child.kill(); // SIGKILL on Unix
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+pub fn client() -> reqwest::blocking::Client {
+    reqwest::blocking::Client::builder().timeout(Duration::from_secs(20)).build().unwrap()
+}
+
+pub fn demographics() -> Value {
+    json!({"gender": "male", "age": 44, "cg_experience": "some (hobby, courses)", "vision": "corrected to normal (glasses, lenses)"})
+}
+
+pub fn export(data_dir: &Path, study: &str, format: &str) -> String {
+    let output = Command::new(binary())
+        .args(["export", "--study", study, "--format", format, "--data-dir"])
+        .arg(data_dir)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "export failed: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).unwrap()
+}
