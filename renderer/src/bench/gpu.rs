@@ -403,15 +403,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 passes: frame.report.passes,
             }));
         }
-        plots.push(Plot {
-            file: format!("render_gpu_ism_{name}.svg"),
-            title: format!("DIR gi, 256 VPLs: error against ISM size ({name}, {w}x{h}, {adapter}; 1 = no ISMs)"),
-            x_label: "ISM size (texels per side)".into(),
-            y_label: "error in the affected region (display)".into(),
-            x_log: true,
-            y_log: false,
-            series: vec![Series::new("RMSE", ism_rmse), Series::new("FLIP", ism_flip)],
-        });
+        plots.push(error_plot(
+            format!("render_gpu_ism_{name}.svg"),
+            format!("DIR gi, 256 VPLs: error against ISM size ({name}, {w}x{h}, {adapter}; 1 = no ISMs)"),
+            "ISM size (texels per side)",
+            ism_rmse,
+            ism_flip,
+        ));
         // the colour mappings at gi: the time of each cm pass and of the composition
         let cm_vpls = if quick { 64 } else { 256 };
         for method in CmMethod::ALL {
@@ -521,15 +519,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 }));
             }
         }
-        plots.push(Plot {
-            file: format!("render_gpu_{name}.svg"),
-            title: format!("DIR gi: error against VPL count ({name}, {w}x{h}, {adapter})"),
-            x_label: "VPLs".into(),
-            y_label: "error in the affected region (display)".into(),
-            x_log: true,
-            y_log: false,
-            series: vec![Series::new("RMSE", points_rmse), Series::new("FLIP", points_flip)],
-        });
+        plots.push(error_plot(
+            format!("render_gpu_{name}.svg"),
+            format!("DIR gi: error against VPL count ({name}, {w}x{h}, {adapter})"),
+            "VPLs",
+            points_rmse,
+            points_flip,
+        ));
     }
     // the thesis's setting at its resolution: 256 VPLs, 128² ISMs of 1024 points, 4×4 tiles,
     // 1024×768 — frame time only (a path-traced reference at this size is beyond this bench)
@@ -692,5 +688,19 @@ mod tests {
         let names: Vec<String> =
             [Bound::Exact, Bound::AtMost, Bound::AtLeast].iter().map(|b| serde_json::to_string(b).unwrap()).collect();
         assert_eq!(names, ["\"interpolated\"", "\"at most\"", "\"at least\""]);
+    }
+}
+
+/// A plot of RMSE and FLIP in the affected region (display-encoded) against a knob on a log
+/// axis.
+fn error_plot(file: String, title: String, x_label: &str, rmse: Vec<(f64, f64)>, flip: Vec<(f64, f64)>) -> Plot {
+    Plot {
+        file,
+        title,
+        x_label: x_label.into(),
+        y_label: "error in the affected region (display)".into(),
+        x_log: true,
+        y_log: false,
+        series: vec![Series::new("RMSE", rmse), Series::new("FLIP", flip)],
     }
 }

@@ -433,6 +433,26 @@ pub(crate) fn weight(m: Vec3) -> f32 {
     ((m.x + m.y + m.z) * (1.0 / 3.0)).clamp(0.0, 1.0)
 }
 
+/// The inputs of the chain (CPU or GPU) checked and made usable: sizes that match, parameters in
+/// range, and copies with invalid values repaired by [`sanitize`] (whose count is returned last).
+pub(crate) fn checked_inputs(
+    composite: &Image,
+    photo: &Image,
+    mask: &Mask,
+    p: &CaParams,
+) -> Result<(Image, Image, Mask, usize)> {
+    let (w, h) = (composite.width, composite.height);
+    for (b_width, b_height) in [(photo.width, photo.height), (mask.width, mask.height)] {
+        if (b_width, b_height) != (w, h) {
+            return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width, b_height });
+        }
+    }
+    p.check().map_err(RenderError::Unsupported)?;
+    let (mut comp, mut photo, mut mask) = (composite.clone(), photo.clone(), mask.clone());
+    let invalid_inputs = sanitize(&mut comp, &mut photo, &mut mask);
+    Ok((comp, photo, mask, invalid_inputs))
+}
+
 /// The CPU reference of the ca chain: the frame's `composite`, the `photograph` under it and the
 /// virtual `mask` (coverage in [0, 1]) → the composite with camera artifacts (display-encoded,
 /// [0, 1]). See the module header for what is processed and why.
@@ -444,20 +464,7 @@ pub fn apply_cpu(
     p: &CaParams,
 ) -> Result<(Image, CaReport)> {
     let (w, h) = (composite.width, composite.height);
-    if photo.width != w || photo.height != h {
-        return Err(RenderError::SizeMismatch {
-            a_width: w,
-            a_height: h,
-            b_width: photo.width,
-            b_height: photo.height,
-        });
-    }
-    if mask.width != w || mask.height != h {
-        return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width: mask.width, b_height: mask.height });
-    }
-    p.check().map_err(RenderError::Unsupported)?;
-    let (mut comp, mut photo, mut mask) = (composite.clone(), photo.clone(), mask.clone());
-    let invalid_inputs = sanitize(&mut comp, &mut photo, &mut mask);
+    let (comp, photo, mask, invalid_inputs) = checked_inputs(composite, photo, mask, p)?;
 
     // optics
     let mut l = make_layers(&comp, &photo, &mask);

@@ -107,25 +107,7 @@ impl Artifacts {
         p: &CaParams,
     ) -> Result<(Image, CaReport)> {
         let (w, h) = (composite.width, composite.height);
-        if photo.width != w || photo.height != h {
-            return Err(RenderError::SizeMismatch {
-                a_width: w,
-                a_height: h,
-                b_width: photo.width,
-                b_height: photo.height,
-            });
-        }
-        if mask.width != w || mask.height != h {
-            return Err(RenderError::SizeMismatch {
-                a_width: w,
-                a_height: h,
-                b_width: mask.width,
-                b_height: mask.height,
-            });
-        }
-        p.check().map_err(RenderError::Unsupported)?;
-        let (mut comp, mut photo, mut mask) = (composite.clone(), photo.clone(), mask.clone());
-        let invalid_inputs = ca::sanitize(&mut comp, &mut photo, &mut mask);
+        let (comp, photo, mask, invalid_inputs) = ca::checked_inputs(composite, photo, mask, p)?;
         let n = (w * h) as u64;
         let device = &ctx.device;
         let limit = device.limits().max_storage_buffer_binding_size;
