@@ -391,7 +391,8 @@ fn kendall_chi2(sigma: u128, m: u64, t: u64, continuity_correction: bool) -> (f6
     (chi2.max(0.0), df)
 }
 
-/// Monte-Carlo p-value `(1 + #{S_sim ≥ observed}) / (1 + B)` of the agreement numerator
+/// Monte-Carlo p-value `(1 + #{S_sim ≥ observed}) / (1 + B)` (a bound `p < 1/B` where no
+/// simulation reached the observed value) of the agreement numerator
 /// `S = Σ_pairs [C(a,2) + C(n−a,2)]`, `a ~ Binomial(n, ½)` for each of `counts`.
 fn simulated_p(counts: &[u64], observed: u128, simulations: usize, seed: u64) -> PValue {
     let samplers: Vec<(u64, PairSampler)> = counts.iter().map(|&n| (n, PairSampler::new(n))).collect();
@@ -408,8 +409,7 @@ fn simulated_p(counts: &[u64], observed: u128, simulations: usize, seed: u64) ->
             usize::from(sum >= observed)
         })
         .sum();
-    let p = (1.0 + at_least as f64) / (1.0 + simulations as f64);
-    PValue::from_ln(p.ln())
+    PValue::monte_carlo(at_least, simulations)
 }
 
 /// Draws `a ~ Binomial(n, ½)`. For `TABLE_MIN_N ≤ n ≤ TABLE_MAX_N` by inversion of the exact
@@ -418,7 +418,14 @@ fn simulated_p(counts: &[u64], observed: u128, simulations: usize, seed: u64) ->
 /// draw; otherwise statrs' exact BINV/BTPE sampler.
 enum PairSampler {
     Exact(BinomialSampler),
-    Table { low: u64, cdf: Vec<f64> },
+    /// `guide[k]` is the first index whose `cdf` reaches `k / guide.len()` (Chen & Asau's
+    /// guide table): the search for `u` starts there and is a step or two, with the same result
+    /// as a binary search over the whole table.
+    Table {
+        low: u64,
+        cdf: Vec<f64>,
+        guide: Vec<u32>,
+    },
 }
 
 const TABLE_MIN_N: u64 = 200;
@@ -444,7 +451,11 @@ impl PairSampler {
             for value in &mut cdf {
                 *value /= total;
             }
-            PairSampler::Table { low, cdf }
+            let buckets = cdf.len();
+            let guide = (0..buckets)
+                .map(|k| cdf.partition_point(|&c| c < k as f64 / buckets as f64).min(cdf.len() - 1) as u32)
+                .collect();
+            PairSampler::Table { low, cdf, guide }
         } else {
             let binomial = Binomial::new(0.5, n).expect("p = 1/2 is a valid probability");
             PairSampler::Exact(binomial.sampler(BinomialAlgorithm::Automatic).expect("automatic never fails"))
@@ -454,9 +465,14 @@ impl PairSampler {
     fn sample(&self, rng: &mut ChaCha8Rng) -> u64 {
         match self {
             PairSampler::Exact(sampler) => sampler.sample(rng),
-            PairSampler::Table { low, cdf } => {
+            PairSampler::Table { low, cdf, guide } => {
                 let uniform: f64 = rand::RngExt::random(rng);
-                low + cdf.partition_point(|&c| c < uniform).min(cdf.len() - 1) as u64
+                let bucket = ((uniform * guide.len() as f64) as usize).min(guide.len() - 1);
+                let mut index = guide[bucket] as usize;
+                while index < cdf.len() - 1 && cdf[index] < uniform {
+                    index += 1;
+                }
+                low + index as u64
             }
         }
     }

@@ -14,12 +14,13 @@
 //!    across the estimable groups;
 //! 6. optionally a bootstrap over participants and observer screening.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
+use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 use crate::agreement::{self, Agreement, AgreementOptions};
 use crate::data::{ConditionTable, Judgments, LeftOut, TrialsOptions};
@@ -121,7 +122,7 @@ pub struct Item {
     pub fitted_log_worth: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fitted_worth: Option<f64>,
-    /// Bootstrap percentile interval of `log_worth` (95 %).
+    /// Bootstrap interval of `log_worth` (95 %; percentile, widened for few participants).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci: Option<[f64; 2]>,
 }
@@ -200,7 +201,7 @@ pub struct Covariate {
     pub z: f64,
     #[serde(flatten)]
     pub p: PValue,
-    /// Bootstrap percentile interval (95 %).
+    /// Bootstrap interval (95 %; percentile, widened for few participants).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci: Option<[f64; 2]>,
 }
@@ -248,7 +249,8 @@ pub struct Observer {
     pub judgments: u64,
     /// Mean log-likelihood per judgment under the leave-one-out fit.
     pub mean_log_likelihood: f64,
-    /// Standardised log-likelihood: (observed − expected) / sd under the leave-one-out fit.
+    /// Standardised log-likelihood: (observed − expected) / sd under the leave-one-out fit
+    /// (descriptive; `p` comes from the exact or saddlepoint null distribution).
     pub z: f64,
     #[serde(flatten)]
     pub p: PValue,
@@ -903,15 +905,87 @@ fn consistence_per_participant(
         .collect()
 }
 
-fn subtract(pairs: &[PairTally], index: &HashMap<(usize, usize), usize>, rows: &[ParticipantRow]) -> Vec<PairTally> {
-    let mut out = pairs.to_vec();
-    for &(i, j, i_won, count) in rows {
-        let pair = &mut out[index[&(i, j)]];
-        if i_won { pair.wins_i -= count } else { pair.wins_j -= count }
+/// Score and (dense, q×q, lower triangle) information of the item model at `beta` over `pairs`;
+/// `column[c]` is condition `c`'s parameter (`None` for the reference).
+fn item_score_information(
+    pairs: impl Iterator<Item = (usize, usize, f64, f64)>,
+    column: &[Option<usize>],
+    beta: &[f64],
+    score: &mut [f64],
+    information: &mut [f64],
+) {
+    let q = score.len();
+    let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
+    for (i, j, wins_i, n) in pairs {
+        let pi = 1.0 / (1.0 + (lambda(j) - lambda(i)).exp());
+        let residual = wins_i - n * pi;
+        let weight = n * pi * (1.0 - pi);
+        let (a, b) = (column[i], column[j]);
+        if let Some(a) = a {
+            score[a] += residual;
+            information[a * q + a] += weight;
+        }
+        if let Some(b) = b {
+            score[b] -= residual;
+            information[b * q + b] += weight;
+        }
+        if let (Some(a), Some(b)) = (a, b) {
+            information[a.max(b) * q + a.min(b)] -= weight;
+        }
     }
-    out
 }
 
+/// Solves `A x = b` for a symmetric positive-definite `A` given by its lower triangle (row-major
+/// q×q), in place (`A` becomes its Cholesky factor, `b` the solution). False if not positive
+/// definite.
+fn cholesky_solve(a: &mut [f64], b: &mut [f64]) -> bool {
+    let q = b.len();
+    for j in 0..q {
+        let mut diagonal = a[j * q + j];
+        for k in 0..j {
+            diagonal -= a[j * q + k] * a[j * q + k];
+        }
+        if !(diagonal > 0.0) {
+            return false;
+        }
+        let diagonal = diagonal.sqrt();
+        a[j * q + j] = diagonal;
+        for i in j + 1..q {
+            let mut value = a[i * q + j];
+            for k in 0..j {
+                value -= a[i * q + k] * a[j * q + k];
+            }
+            a[i * q + j] = value / diagonal;
+        }
+    }
+    for i in 0..q {
+        let mut value = b[i];
+        for k in 0..i {
+            value -= a[i * q + k] * b[k];
+        }
+        b[i] = value / a[i * q + i];
+    }
+    for i in (0..q).rev() {
+        let mut value = b[i];
+        for k in i + 1..q {
+            value -= a[k * q + i] * b[k];
+        }
+        b[i] = value / a[i * q + i];
+    }
+    true
+}
+
+/// The item model's parameters above which the leave-one-out fit takes one step with the whole
+/// data's information instead of refactorising the others' (q³ per participant).
+const SCREENING_EXACT_STEP_PARAMETERS: usize = 48;
+
+/// Observer screening. Per participant, the consensus is the item model fitted to everybody
+/// else: Newton steps from the whole data's estimate on the others' score and information
+/// (the whole data's minus the participant's, so a step costs the participant's pairs, not the
+/// data's; from the full estimate the first step is already within O(δ²) of the refit, and
+/// further steps are taken while they move a parameter by more than 1e-3, where the pairs
+/// are few). Then the participant's log-likelihood under that consensus is tested against its
+/// exact or saddlepoint null distribution ([`crate::screening`]).
 fn screen_observers(
     pairs: &[PairTally],
     component: &(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>),
@@ -927,57 +1001,167 @@ fn screen_observers(
         .map(|&(_, j, _, _)| j + 1)
         .max()
         .unwrap_or(0)
-        .max(members.iter().max().map_or(0, |m| m + 1));
+        .max(members.iter().max().map_or(0, |m| m + 1))
+        .max(pairs.iter().map(|p| p.i.max(p.j) + 1).max().unwrap_or(0));
     let x = ModelMatrix::items(n_conditions, members, *reference);
-    let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(k, p)| ((p.i, p.j), k)).collect();
-    let fit_options = FitOptions { tolerance: options.tolerance.max(1e-8), ..FitOptions::default() };
-    let observers: Vec<Observer> = active
-        .par_iter()
-        .map(|&p| {
-            let rows = &by_participant[p];
-            let others = subtract(pairs, &index, rows);
-            let beta = match fit::fit_ml(&others, &x, Some(&full_fit.beta), fit_options) {
-                Ok(fit) => fit.beta,
-                // The others alone separate: fall back to the bias-reduced consensus.
-                Err(_) => {
-                    fit::fit_firth(&others, &x, fit_options).map(|f| f.beta).unwrap_or_else(|_| full_fit.beta.clone())
-                }
-            };
-            let (mut observed, mut mean, mut variance, mut n) = (0.0, 0.0, 0.0, 0u64);
-            for &(i, j, i_won, count) in rows {
-                let eta = x.predict(i, &beta) - x.predict(j, &beta);
-                let ln_pi = -fit::softplus(-eta);
-                let ln_1_pi = -fit::softplus(eta);
-                let pi = ln_pi.exp();
-                let c = count as f64;
-                observed += c * if i_won { ln_pi } else { ln_1_pi };
-                mean += c * (pi * ln_pi + (1.0 - pi) * ln_1_pi);
-                variance += c * pi * (1.0 - pi) * (ln_pi - ln_1_pi).powi(2);
-                n += count;
-            }
-            let z = if variance > 0.0 { (observed - mean) / variance.sqrt() } else { 0.0 };
-            let p_value = PValue::normal_lower(z);
-            Observer {
-                participant: participant_names[p].clone(),
-                judgments: n,
-                mean_log_likelihood: observed / n.max(1) as f64,
-                z,
-                p: p_value,
-                flagged: p_value.p < options.screening_alpha,
-            }
-        })
-        .collect();
+    let column: Vec<Option<usize>> = x.rows.iter().map(|row| row.first().map(|&(c, _)| c)).collect();
+    let q = x.n_params;
+    let as_f64 = |p: &PairTally| (p.i, p.j, p.wins_i as f64, p.n() as f64);
+    let (mut full_score, mut full_information) = (vec![0.0; q], vec![0.0; q * q]);
+    item_score_information(pairs.iter().map(as_f64), &column, &full_fit.beta, &mut full_score, &mut full_information);
+    let exact_step = q <= SCREENING_EXACT_STEP_PARAMETERS;
+    let more_steps = pairs.len() <= 4096 && exact_step;
+    let dense = n_conditions <= 64;
+
+    struct Scratch {
+        grid: Vec<(u64, u64)>,
+        touched: Vec<usize>,
+        own: Vec<(usize, usize, u64, u64)>,
+        terms: Vec<crate::screening::PairTerm>,
+        score: Vec<f64>,
+        information: Vec<f64>,
+    }
+    let observers: Vec<Observer> =
+        active
+            .par_iter()
+            .map_init(
+                || Scratch {
+                    grid: vec![(0, 0); if dense { n_conditions * n_conditions } else { 0 }],
+                    touched: Vec::new(),
+                    own: Vec::new(),
+                    terms: Vec::new(),
+                    score: vec![0.0; q],
+                    information: vec![0.0; q * q],
+                },
+                |scratch, &p| {
+                    let rows = &by_participant[p];
+                    // The participant's own tallies per pair (i < j).
+                    scratch.own.clear();
+                    if dense {
+                        scratch.touched.clear();
+                        for &(i, j, i_won, count) in rows {
+                            let cell = i * n_conditions + j;
+                            if scratch.grid[cell] == (0, 0) {
+                                scratch.touched.push(cell);
+                            }
+                            if i_won { scratch.grid[cell].0 += count } else { scratch.grid[cell].1 += count }
+                        }
+                        for &cell in &scratch.touched {
+                            let (wins_i, wins_j) = std::mem::take(&mut scratch.grid[cell]);
+                            scratch.own.push((cell / n_conditions, cell % n_conditions, wins_i, wins_j));
+                        }
+                    } else {
+                        scratch.own.extend(rows.iter().map(
+                            |&(i, j, i_won, c)| {
+                                if i_won { (i, j, c, 0) } else { (i, j, 0, c) }
+                            },
+                        ));
+                        scratch.own.sort_unstable_by_key(|&(i, j, _, _)| (i, j));
+                        scratch.own.dedup_by(|next, kept| {
+                            let same = (next.0, next.1) == (kept.0, kept.1);
+                            if same {
+                                kept.2 += next.2;
+                                kept.3 += next.3;
+                            }
+                            same
+                        });
+                    }
+                    let own = &scratch.own;
+                    let own_f64 = || own.iter().map(|&(i, j, wi, wj)| (i, j, wi as f64, (wi + wj) as f64));
+                    // Leave-one-out consensus by Newton steps on the others' likelihood.
+                    let mut beta = full_fit.beta.clone();
+                    for step in 0..10 {
+                        let (score, information) = (&mut scratch.score, &mut scratch.information);
+                        score.fill(0.0);
+                        information.fill(0.0);
+                        item_score_information(own_f64(), &column, &beta, score, information);
+                        if step == 0 {
+                            for (s, f) in score.iter_mut().zip(&full_score) {
+                                *s = f - *s;
+                            }
+                            for (a, f) in information.iter_mut().zip(&full_information) {
+                                *a = f - *a;
+                            }
+                        } else {
+                            let (mut s_all, mut i_all) = (vec![0.0; q], vec![0.0; q * q]);
+                            item_score_information(pairs.iter().map(as_f64), &column, &beta, &mut s_all, &mut i_all);
+                            for (s, f) in score.iter_mut().zip(&s_all) {
+                                *s = f - *s;
+                            }
+                            for (a, f) in information.iter_mut().zip(&i_all) {
+                                *a = f - *a;
+                            }
+                        }
+                        let solved = if exact_step {
+                            cholesky_solve(information, score)
+                        } else {
+                            let step: Vec<f64> =
+                                (0..q).map(|a| (0..q).map(|b| full_fit.covariance[(a, b)] * score[b]).sum()).collect();
+                            score.copy_from_slice(&step);
+                            true
+                        };
+                        // The others alone may not identify the consensus (separation, a condition
+                        // only this participant compared): then the whole data's estimate is used.
+                        if !solved || score.iter().any(|s| !s.is_finite()) {
+                            if step == 0 {
+                                beta.clone_from(&full_fit.beta);
+                            }
+                            break;
+                        }
+                        let largest = score.iter().fold(0.0f64, |m, s| m.max(s.abs()));
+                        if largest > 5.0 {
+                            break;
+                        }
+                        for (b, s) in beta.iter_mut().zip(score.iter()) {
+                            *b += s;
+                        }
+                        // From the whole data's estimate a step below 1e-3 leaves the next at O(1e-6).
+                        if !more_steps || largest < 1e-3 {
+                            break;
+                        }
+                    }
+                    let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
+                    scratch.terms.clear();
+                    scratch.terms.extend(scratch.own.iter().map(|&(i, j, wins_i, wins_j)| {
+                        crate::screening::PairTerm { eta: lambda(i) - lambda(j), n: wins_i + wins_j, wins: wins_i }
+                    }));
+                    let test = crate::screening::log_likelihood_test(&scratch.terms);
+                    let n: u64 = scratch.own.iter().map(|&(_, _, wi, wj)| wi + wj).sum();
+                    let z = if test.variance > 0.0 { (test.observed - test.mean) / test.variance.sqrt() } else { 0.0 };
+                    Observer {
+                        participant: participant_names[p].clone(),
+                        judgments: n,
+                        mean_log_likelihood: test.observed / n.max(1) as f64,
+                        z,
+                        p: test.p,
+                        flagged: test.p.p < options.screening_alpha,
+                    }
+                },
+            )
+            .collect();
     let flagged = observers.iter().filter(|o| o.flagged).map(|o| o.participant.clone()).collect();
     ObserverScreening { alpha: options.screening_alpha, participants: observers, flagged }
 }
 
-fn percentile_interval(mut values: Vec<f64>, level: f64) -> Option<[f64; 2]> {
-    if values.len() < 2 {
+/// The bootstrap interval at `level` for an estimate from `n_participants` participants: the
+/// percentile interval with its ends' distances from `estimate` widened by
+/// `c = √(n/(n−1)) · t_{n−1} / z`. A bootstrap over n participants estimates the variance with
+/// the factor (n−1)/n and, from few participants, with the spread of a variance on n−1 degrees of
+/// freedom; uncorrected, the percentile intervals of 30-participant studies covered the true
+/// log-worths 93 % of the time instead of 95 % (c = 1.061 there; 1.0003 for 10 000 participants).
+fn bootstrap_interval(mut values: Vec<f64>, level: f64, estimate: f64, n_participants: usize) -> Option<[f64; 2]> {
+    if values.len() < 2 || n_participants < 2 {
         return None;
     }
     values.sort_by(f64::total_cmp);
     let alpha = (1.0 - level) / 2.0;
-    Some([crate::task::quantile_type7(&values, alpha), crate::task::quantile_type7(&values, 1.0 - alpha)])
+    let n = n_participants as f64;
+    let z = Normal::standard().inverse_cdf(1.0 - alpha);
+    let t = StudentsT::new(0.0, 1.0, n - 1.0).map_or(z, |t| t.inverse_cdf(1.0 - alpha));
+    let widen = (n / (n - 1.0)).sqrt() * t / z;
+    let low = crate::task::quantile_type7(&values, alpha);
+    let high = crate::task::quantile_type7(&values, 1.0 - alpha);
+    Some([estimate - widen * (estimate - low), estimate + widen * (high - estimate)])
 }
 
 fn run_bootstrap(
@@ -1028,15 +1212,17 @@ fn run_bootstrap(
     }
     if single_component {
         for (k, &m) in members.iter().enumerate() {
-            analysis.items[m].ci = percentile_interval(successful.iter().map(|r| r.0[k]).collect(), LEVEL);
+            let estimate = analysis.items[m].log_worth.unwrap_or(0.0);
+            analysis.items[m].ci =
+                bootstrap_interval(successful.iter().map(|r| r.0[k]).collect(), LEVEL, estimate, active.len());
         }
     } else {
         analysis.warnings.push("bootstrap: no intervals for log-worth across a disconnected design".into());
     }
     if let Some(covariates) = analysis.covariates.as_mut() {
         for (k, covariate) in covariates.iter_mut().enumerate() {
-            covariate.ci =
-                percentile_interval(successful.iter().filter_map(|r| r.1.as_ref().map(|f| f[k])).collect(), LEVEL);
+            let values = successful.iter().filter_map(|r| r.1.as_ref().map(|f| f[k])).collect();
+            covariate.ci = bootstrap_interval(values, LEVEL, covariate.estimate, active.len());
         }
     }
     analysis.bootstrap = Some(Bootstrap { replicates: options.bootstrap, seed: options.seed, failed, level: LEVEL });

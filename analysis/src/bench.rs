@@ -2,9 +2,12 @@
 //! paired-comparison analysis against the number of judgments and of conditions, and time and
 //! error of the log-worth against the convergence tolerance, on synthetic studies
 //! ([`synthetic`]). Returns a typed [`Report`] (DESIGN.md's bench JSON by [`Report::to_json`]);
-//! table lines go to a callback as the rows are measured. The targets are stated for one core:
+//! table lines go to a callback as the rows are measured. The `end_to_end` row times what
+//! `mrstudy analyze` does with a trials CSV of 10⁶ judgments ([`synthetic_csv`]: 8 conditions,
+//! factors, two groups), parsing included. The targets are stated for one core:
 //! the caller runs it on a one-thread rayon pool.
 
+use std::fmt::Write as _;
 use std::time::Instant;
 
 use rand::{RngExt, SeedableRng};
@@ -12,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use crate::agreement::AgreementMethod;
-use crate::analysis::{Options, Screening, analyze_judgments};
+use crate::analysis::{Options, Screening, analyze, analyze_judgments};
 use crate::data::{ConditionTable, Judgment, Judgments};
 use crate::error::Result;
 use crate::plot::{LinePlot, LineSeries};
@@ -23,6 +26,24 @@ use crate::plot::{LinePlot, LineSeries};
 pub enum AnalysisRow {
     Size(SizeRow),
     Tolerance(ToleranceRow),
+    EndToEnd(EndToEndRow),
+}
+
+/// `mrstudy analyze` as the command runs it, from the CSV text to the analysis: parsing, item
+/// and factor models, agreement, observer screening and the per-group analyses, with defaults.
+#[derive(Clone, Debug, Serialize)]
+pub struct EndToEndRow {
+    /// Always `end_to_end`.
+    pub bench: &'static str,
+    pub conditions: usize,
+    pub judgments: usize,
+    /// Groups of `--group-by`.
+    pub groups: usize,
+    /// Median wall time of the whole.
+    pub ms: f64,
+    /// Median wall time of parsing the trials and conditions CSV alone.
+    pub parse_ms: f64,
+    pub participants: usize,
 }
 
 /// The whole analysis at the default tolerance (1e-10) on one study size.
@@ -106,6 +127,35 @@ pub fn synthetic(n_conditions: usize, n_judgments: usize, seed: u64) -> (Judgmen
     (judgments, table)
 }
 
+/// Condition names of the 2×2×2 factorial, indexed by the bits (gi, cm, ca) of the index.
+const FACTORIAL_NAMES: [&str; 8] = ["LQ", "GI", "CM", "GI+CM", "CA", "GI+CA", "CM+CA", "HQ"];
+
+/// A synthetic study of [`synthetic`] with 8 conditions as the text `mrstudy analyze` reads: an
+/// export-like trials CSV (`participant,trial,left,right,chosen,rt_ms,pilot,excluded,gender`,
+/// two groups) and its conditions CSV (`condition,gi,cm,ca`).
+pub fn synthetic_csv(n_judgments: usize, seed: u64) -> (String, String) {
+    let (judgments, table) = synthetic(8, n_judgments, seed);
+    let mut trials = String::with_capacity(n_judgments * 48);
+    trials.push_str("participant,trial,left,right,chosen,rt_ms,pilot,excluded,gender\n");
+    for (k, row) in judgments.rows.iter().enumerate() {
+        let (left, right) = (FACTORIAL_NAMES[row.left as usize], FACTORIAL_NAMES[row.right as usize]);
+        let chosen = if row.left_chosen { left } else { right };
+        let gender = if row.participant % 3 == 0 { "female" } else { "male" };
+        let _ = writeln!(
+            trials,
+            "{},{},{left},{right},{chosen},{},false,false,{gender}",
+            judgments.participants[row.participant as usize],
+            k % 65 + 1,
+            700 + (k * 7919) % 1500
+        );
+    }
+    let mut conditions = String::from("condition,gi,cm,ca\n");
+    for (name, levels) in FACTORIAL_NAMES.iter().zip(&table.levels) {
+        let _ = writeln!(conditions, "{name},{},{},{}", levels[0], levels[1], levels[2]);
+    }
+    (trials, conditions)
+}
+
 fn options(tolerance: f64) -> Options {
     Options { tolerance, screening: Screening::Off, bootstrap: 0, ..Options::default() }
 }
@@ -160,6 +210,37 @@ pub fn run(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
         size_points.push((n as f64, ms));
         rows.push(AnalysisRow::Size(row));
     }
+
+    // End to end: the trials CSV text of 1e6 judgments (8 conditions, factors, two groups).
+    let n = if quick { 100_000 } else { 1_000_000 };
+    let (trials, conditions) = synthetic_csv(n, 4);
+    let end_to_end_options = Options { group_by: Some("gender".into()), ..Options::default() };
+    let (parse_ms, _) = time_ms(5, || {
+        let table = crate::data::parse_conditions(&conditions, "conditions CSV")?;
+        let options = crate::data::TrialsOptions { group_by: Some("gender".into()), ..Default::default() };
+        crate::data::parse_trials_with(&trials, "trials CSV", Some(&table), &options)
+    });
+    let (ms, analysis) = time_ms(5, || analyze(&trials, Some(&conditions), &end_to_end_options));
+    let analysis = analysis?;
+    let row = EndToEndRow {
+        bench: "end_to_end",
+        conditions: 8,
+        judgments: n,
+        groups: analysis.groups.as_ref().map_or(0, |g| g.len()),
+        ms,
+        parse_ms,
+        participants: analysis.participants,
+    };
+    line(&format!(
+        "{:<12} {:>10} {:>12} {:>10} {:>12.2} {:>14}",
+        row.bench,
+        row.conditions,
+        row.judgments,
+        "1e-10",
+        row.ms,
+        format!("parse {parse_ms:.1}")
+    ));
+    rows.push(AnalysisRow::EndToEnd(row));
 
     // Conditions: 10 … 2000 with 1e6 judgments.
     let counts: &[usize] = if quick { &[10, 100, 500] } else { &[10, 50, 100, 500, 1000, 2000] };
@@ -290,5 +371,19 @@ mod tests {
         assert_eq!(judgments.participants.len(), 16);
         assert_eq!(table.levels[5], [1.0, 0.0, 1.0]);
         assert!(judgments.rows.iter().all(|j| j.left != j.right && j.left < 8 && j.right < 8));
+    }
+
+    #[test]
+    fn synthetic_csv_is_read_back_as_the_synthetic_study() {
+        let (judgments, _) = synthetic(8, 650, 9);
+        let (trials, conditions) = synthetic_csv(650, 9);
+        let table = crate::data::parse_conditions(&conditions, "c").unwrap();
+        let options = crate::data::TrialsOptions { group_by: Some("gender".into()), ..Default::default() };
+        let parsed = crate::data::parse_trials_with(&trials, "t", Some(&table), &options).unwrap().judgments;
+        assert_eq!(parsed.groups, ["female", "male"]);
+        for (read, made) in parsed.rows.iter().zip(&judgments.rows) {
+            assert_eq!((read.left, read.right, read.left_chosen), (made.left, made.right, made.left_chosen));
+        }
+        assert_eq!(table.levels, synthetic(8, 1, 9).1.levels);
     }
 }

@@ -268,6 +268,285 @@ fn parse_flag(cell: &str) -> Option<bool> {
     }
 }
 
+/// Where the columns the analysis reads are in the trials CSV.
+#[derive(Clone, Copy)]
+struct Columns<'a> {
+    participant: usize,
+    left: usize,
+    right: usize,
+    chosen: usize,
+    count: Option<usize>,
+    group: Option<usize>,
+    group_name: &'a str,
+    pilot: Option<usize>,
+    excluded: Option<usize>,
+}
+
+/// FNV-1a: the names hashed here are short and come from the analyst's own file.
+#[derive(Default)]
+struct Fnv(u64);
+
+impl std::hash::Hasher for Fnv {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        let mut hash = if self.0 == 0 { 0xcbf2_9ce4_8422_2325 } else { self.0 };
+        for &byte in bytes {
+            hash = (hash ^ u64::from(byte)).wrapping_mul(0x100_0000_01b3);
+        }
+        self.0 = hash;
+    }
+}
+
+type FnvMap<V> = HashMap<String, V, std::hash::BuildHasherDefault<Fnv>>;
+
+/// The trials CSV's rows turned into judgments: condition, participant and group names interned
+/// (the last participant and group remembered, as a file lists a participant's rows together).
+struct RowReader<'a> {
+    source_name: &'a str,
+    conditions: Option<&'a ConditionTable>,
+    columns: Columns<'a>,
+    condition_index: FnvMap<u32>,
+    condition_names: Vec<String>,
+    /// [`short_key`] of each condition name, in index order.
+    short_keys: Vec<(u64, usize)>,
+    participant_index: FnvMap<u32>,
+    group_index: FnvMap<u32>,
+    last_participant: Option<(String, u32)>,
+    last_group: Option<(String, u32)>,
+    /// Per participant (by index): marked pilot, marked excluded, in any of their rows.
+    marks: Vec<(bool, bool)>,
+    judgments: Judgments,
+}
+
+impl<'a> RowReader<'a> {
+    fn new(source_name: &'a str, conditions: Option<&'a ConditionTable>, columns: Columns<'a>) -> RowReader<'a> {
+        let mut condition_index = FnvMap::default();
+        let mut condition_names = Vec::new();
+        if let Some(table) = conditions {
+            for (k, name) in table.conditions.iter().enumerate() {
+                condition_index.insert(name.clone(), k as u32);
+            }
+            condition_names = table.conditions.clone();
+        }
+        RowReader {
+            source_name,
+            conditions,
+            columns,
+            condition_index,
+            short_keys: condition_names.iter().map(|name| short_key(name)).collect(),
+            condition_names,
+            participant_index: FnvMap::default(),
+            group_index: FnvMap::default(),
+            last_participant: None,
+            last_group: None,
+            marks: Vec::new(),
+            judgments: Judgments::default(),
+        }
+    }
+
+    fn bad(&self, line: u64, column: &str, message: String) -> AnalysisError {
+        AnalysisError::BadValue { source_name: self.source_name.to_string(), line, column: column.to_string(), message }
+    }
+
+    /// The index of a known condition. A study has a handful of conditions with short names:
+    /// comparing a name's first eight bytes and length, as one integer, with each beats hashing.
+    fn find_condition(&self, name: &str) -> Option<u32> {
+        if self.condition_names.len() <= 16 && name.len() <= 8 {
+            let key = short_key(name);
+            return self.short_keys.iter().position(|&k| k == key).map(|k| k as u32);
+        }
+        self.condition_index.get(name).copied()
+    }
+
+    fn condition(&mut self, line: u64, column: &str, name: &str) -> Result<u32> {
+        if name.is_empty() {
+            return Err(self.bad(line, column, "the condition name is empty".to_string()));
+        }
+        if let Some(k) = self.find_condition(name) {
+            return Ok(k);
+        }
+        if self.conditions.is_some() {
+            return Err(AnalysisError::UnknownCondition {
+                source_name: self.source_name.to_string(),
+                line,
+                condition: name.to_string(),
+            });
+        }
+        let k = self.condition_names.len() as u32;
+        self.condition_index.insert(name.to_string(), k);
+        self.condition_names.push(name.to_string());
+        self.short_keys.push(short_key(name));
+        Ok(k)
+    }
+
+    /// One record; `field(k)` is its k-th field, trimmed.
+    fn row<'f>(&mut self, line: u64, field: impl Fn(usize) -> &'f str) -> Result<()> {
+        let columns = self.columns;
+        let left_name = field(columns.left);
+        let right_name = field(columns.right);
+        let left = self.condition(line, "left", left_name)?;
+        let right = self.condition(line, "right", right_name)?;
+        if left == right {
+            return Err(self.bad(line, "right", format!("the trial compares condition `{left_name}` with itself")));
+        }
+        let chosen = field(columns.chosen);
+        let chosen_index = self.find_condition(chosen);
+        let left_chosen = if chosen_index == Some(left) {
+            true
+        } else if chosen_index == Some(right) {
+            false
+        } else {
+            return Err(self.bad(
+                line,
+                "chosen",
+                format!("`{chosen}` is neither the left (`{left_name}`) nor the right (`{right_name}`) condition"),
+            ));
+        };
+        let participant_name = field(columns.participant);
+        if participant_name.is_empty() {
+            return Err(self.bad(line, "participant", "the participant is empty".to_string()));
+        }
+        let participant = match &self.last_participant {
+            Some((name, index)) if name == participant_name => *index,
+            _ => {
+                let next = self.participant_index.len() as u32;
+                let participants = &mut self.judgments.participants;
+                let index = *self.participant_index.entry(participant_name.to_string()).or_insert_with(|| {
+                    participants.push(participant_name.to_string());
+                    next
+                });
+                self.last_participant = Some((participant_name.to_string(), index));
+                index
+            }
+        };
+        if self.marks.len() <= participant as usize {
+            self.marks.push((false, false));
+        }
+        for (column, name, is_pilot) in [(columns.pilot, "pilot", true), (columns.excluded, "excluded", false)] {
+            let Some(k) = column else { continue };
+            let cell = field(k);
+            let flag = parse_flag(cell)
+                .ok_or_else(|| self.bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
+            let mark = &mut self.marks[participant as usize];
+            if is_pilot { mark.0 |= flag } else { mark.1 |= flag }
+        }
+        let count = match columns.count {
+            None => 1,
+            Some(k) => {
+                let cell = field(k);
+                cell.parse::<u64>()
+                    .ok()
+                    .filter(|&c| c > 0)
+                    .ok_or_else(|| self.bad(line, "count", format!("`{cell}` is not a positive whole number")))?
+            }
+        };
+        let group = match columns.group {
+            None => 0,
+            Some(k) => {
+                let value = field(k);
+                if value.is_empty() {
+                    return Err(self.bad(line, columns.group_name, "the group value is empty".to_string()));
+                }
+                match &self.last_group {
+                    Some((name, index)) if name == value => *index,
+                    _ => {
+                        let next = self.group_index.len() as u32;
+                        let groups = &mut self.judgments.groups;
+                        let index = *self.group_index.entry(value.to_string()).or_insert_with(|| {
+                            groups.push(value.to_string());
+                            next
+                        });
+                        self.last_group = Some((value.to_string(), index));
+                        index
+                    }
+                }
+            }
+        };
+        self.judgments.rows.push(Judgment { participant, left, right, left_chosen, count, group });
+        Ok(())
+    }
+}
+
+/// Reads the records of `data` (the text after the header, whose first line is `first_line`)
+/// by splitting at `\n` and `,` (found by `memchr`'s vectorised search): the whole reading
+/// where the file has no quote and no `\r` but before a `\n`. Returns `Ok(false)` where it
+/// meets a quote or another `\r` (the caller then reads the file with the csv crate instead).
+/// Empty lines are skipped (and not counted in line numbers) and rows of the wrong length
+/// refused, all as the csv crate does.
+fn read_unquoted(data: &str, first_line: u64, n_columns: usize, rows: &mut RowReader) -> Result<bool> {
+    let bytes = data.as_bytes();
+    if bytes.contains(&b'"') {
+        return Ok(false);
+    }
+    // Room for every row, from the length of the first.
+    let first_length = data.find('\n').unwrap_or(data.len()) + 1;
+    rows.judgments.rows.reserve(data.len() / first_length.max(8) + 1);
+    let mut fields: Vec<&str> = Vec::with_capacity(n_columns);
+    let mut line_number = first_line;
+    let (mut line_start, mut field_start) = (0, 0);
+    for at in memchr::memchr3_iter(b',', b'\n', b'\r', bytes) {
+        match bytes[at] {
+            b',' => {
+                fields.push(&data[field_start..at]);
+                field_start = at + 1;
+            }
+            b'\r' => {
+                if bytes.get(at + 1) != Some(&b'\n') {
+                    return Ok(false);
+                }
+            }
+            _ => {
+                let end = if at > field_start && bytes[at - 1] == b'\r' { at - 1 } else { at };
+                // Empty lines are skipped and, as the csv crate counts, not counted.
+                if end > line_start {
+                    fields.push(&data[field_start..end]);
+                    record(rows, &fields, line_number, n_columns)?;
+                    line_number += 1;
+                }
+                fields.clear();
+                line_start = at + 1;
+                field_start = at + 1;
+            }
+        }
+    }
+    if line_start < bytes.len() {
+        fields.push(&data[field_start..]);
+        record(rows, &fields, line_number, n_columns)?;
+    }
+    Ok(true)
+}
+
+/// One record of [`read_unquoted`].
+fn record(rows: &mut RowReader, fields: &[&str], line: u64, n_columns: usize) -> Result<()> {
+    if fields.len() != n_columns {
+        return Err(AnalysisError::MalformedCsv {
+            source_name: rows.source_name.to_string(),
+            line,
+            message: format!("the row has {} fields but the header has {n_columns}", fields.len()),
+        });
+    }
+    rows.row(line, |k| trim(fields[k]))
+}
+
+/// A name's first eight bytes as an integer, with its length: equal for two names of up to eight
+/// bytes exactly when the names are equal.
+fn short_key(name: &str) -> (u64, usize) {
+    let key = name.as_bytes().iter().take(8).enumerate().fold(0u64, |key, (k, &byte)| key | u64::from(byte) << (8 * k));
+    (key, name.len())
+}
+
+/// `str::trim`, without decoding where the field starts and ends with a printable ASCII byte
+/// (none of which is white space).
+fn trim(field: &str) -> &str {
+    match field.as_bytes() {
+        [first, .., last] if (b'!'..=b'~').contains(first) && (b'!'..=b'~').contains(last) => field,
+        [only] if (b'!'..=b'~').contains(only) => field,
+        _ => field.trim(),
+    }
+}
+
 /// As [`parse_trials`], with options, returning also who was left out.
 pub fn parse_trials_with(
     text: &str,
@@ -286,120 +565,36 @@ pub fn parse_trials_with(
     let group_column = group_by.map(|column| header_index(source_name, &headers, column)).transpose()?;
     let pilot_column = headers.iter().position(|h| h.trim() == "pilot");
     let excluded_column = headers.iter().position(|h| h.trim() == "excluded");
-    // Per participant (by index): marked pilot, marked excluded, in any of their rows.
-    let mut marks: Vec<(bool, bool)> = Vec::new();
-
-    let mut condition_index: HashMap<String, u32> = HashMap::new();
-    let mut condition_names: Vec<String> = Vec::new();
-    if let Some(table) = conditions {
-        for (k, name) in table.conditions.iter().enumerate() {
-            condition_index.insert(name.clone(), k as u32);
-        }
-        condition_names = table.conditions.clone();
-    }
-    let mut participant_index: HashMap<String, u32> = HashMap::new();
-    let mut group_index: HashMap<String, u32> = HashMap::new();
-    let mut judgments = Judgments::default();
-    let bad = |line: u64, column: &str, message: String| AnalysisError::BadValue {
-        source_name: source_name.to_string(),
-        line,
-        column: column.to_string(),
-        message,
+    let columns = Columns {
+        participant: participant_column,
+        left: left_column,
+        right: right_column,
+        chosen: chosen_column,
+        count: count_column,
+        group: group_column,
+        group_name: group_by.unwrap_or_default(),
+        pilot: pilot_column,
+        excluded: excluded_column,
     };
-
-    let mut record = csv::StringRecord::new();
-    loop {
-        match reader.read_record(&mut record) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(source_name, e)),
-        }
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
-        let field = |k: usize| record.get(k).unwrap_or("").trim();
-        let mut condition = |column: &str, name: &str| -> Result<u32> {
-            if name.is_empty() {
-                return Err(bad(line, column, "the condition name is empty".to_string()));
+    let n_columns = headers.len();
+    let data_start = reader.position().clone();
+    let mut rows = RowReader::new(source_name, conditions, columns);
+    // The fast path reads the common file (no quotes, `\n` or `\r\n` line ends) by splitting
+    // bytes; a file it cannot read that way is read again, from the start, by the csv crate.
+    if !read_unquoted(&text[data_start.byte() as usize..], data_start.line(), n_columns, &mut rows)? {
+        rows = RowReader::new(source_name, conditions, columns);
+        let mut record = csv::StringRecord::new();
+        loop {
+            match reader.read_record(&mut record) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_error(source_name, e)),
             }
-            if let Some(&k) = condition_index.get(name) {
-                return Ok(k);
-            }
-            if conditions.is_some() {
-                return Err(AnalysisError::UnknownCondition {
-                    source_name: source_name.to_string(),
-                    line,
-                    condition: name.to_string(),
-                });
-            }
-            let k = condition_names.len() as u32;
-            condition_index.insert(name.to_string(), k);
-            condition_names.push(name.to_string());
-            Ok(k)
-        };
-        let left_name = field(left_column);
-        let right_name = field(right_column);
-        let left = condition("left", left_name)?;
-        let right = condition("right", right_name)?;
-        if left == right {
-            return Err(bad(line, "right", format!("the trial compares condition `{left_name}` with itself")));
+            let line = record.position().map(|p| p.line()).unwrap_or(0);
+            rows.row(line, |k| record.get(k).unwrap_or("").trim())?;
         }
-        let chosen = field(chosen_column);
-        let left_chosen = if chosen == left_name {
-            true
-        } else if chosen == right_name {
-            false
-        } else {
-            return Err(bad(
-                line,
-                "chosen",
-                format!("`{chosen}` is neither the left (`{left_name}`) nor the right (`{right_name}`) condition"),
-            ));
-        };
-        let participant_name = field(participant_column);
-        if participant_name.is_empty() {
-            return Err(bad(line, "participant", "the participant is empty".to_string()));
-        }
-        let next = participant_index.len() as u32;
-        let participant = *participant_index.entry(participant_name.to_string()).or_insert_with(|| {
-            judgments.participants.push(participant_name.to_string());
-            next
-        });
-        if marks.len() <= participant as usize {
-            marks.push((false, false));
-        }
-        for (column, name, is_pilot) in [(pilot_column, "pilot", true), (excluded_column, "excluded", false)] {
-            let Some(k) = column else { continue };
-            let cell = field(k);
-            let flag =
-                parse_flag(cell).ok_or_else(|| bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
-            let mark = &mut marks[participant as usize];
-            if is_pilot { mark.0 |= flag } else { mark.1 |= flag }
-        }
-        let count = match count_column {
-            None => 1,
-            Some(k) => {
-                let cell = field(k);
-                cell.parse::<u64>()
-                    .ok()
-                    .filter(|&c| c > 0)
-                    .ok_or_else(|| bad(line, "count", format!("`{cell}` is not a positive whole number")))?
-            }
-        };
-        let group = match group_column {
-            None => 0,
-            Some(k) => {
-                let value = field(k);
-                if value.is_empty() {
-                    return Err(bad(line, group_by.unwrap_or_default(), "the group value is empty".to_string()));
-                }
-                let next = group_index.len() as u32;
-                *group_index.entry(value.to_string()).or_insert_with(|| {
-                    judgments.groups.push(value.to_string());
-                    next
-                })
-            }
-        };
-        judgments.rows.push(Judgment { participant, left, right, left_chosen, count, group });
     }
+    let RowReader { mut judgments, marks, mut condition_names, .. } = rows;
     if judgments.rows.is_empty() {
         return Err(AnalysisError::Empty(format!("{source_name}: there are no trials in the file")));
     }
@@ -570,5 +765,35 @@ mod tests {
         assert_eq!(message, "t.csv: line 2, column `right`: the trial compares condition `A` with itself");
         let message = parse_trials("participant,left,right,chosen\n", "t.csv", None, None).unwrap_err().to_string();
         assert_eq!(message, "t.csv: there are no trials in the file");
+    }
+
+    /// The byte-splitting fast path and the csv crate (which reads any file with a quote) agree
+    /// on line ends, empty lines, white space, a missing last newline and the line of an error.
+    #[test]
+    fn fast_path_reads_as_the_csv_crate_does() {
+        let quoted = |text: &str| text.replacen("p1,", "\"p1\",", 1);
+        let texts = [
+            "participant,left,right,chosen\r\np1,A,B,A\r\n\r\np2, B ,A,A\r\n",
+            "participant,left,right,chosen,gender\n\np1,A,B,A,f\np1,Long name,B,B,f\n\np2,B,Long name,Long name,m",
+            "participant,left,right,chosen\np1,A,B,A\n\n\np2,A,B\n",
+            "participant,left,right,chosen\np1,A,B,A\np2,A,\u{a0}B,B\n",
+            "participant,left,right,chosen\np1,A,B,A\rp2,A,B,B\n",
+        ];
+        for text in texts {
+            let group = text.contains("gender").then_some("gender");
+            let fast = parse_trials(text, "t.csv", None, group);
+            let reference = parse_trials(&quoted(text), "t.csv", None, group);
+            match (fast, reference) {
+                (Ok(fast), Ok(reference)) => {
+                    assert_eq!(fast.rows, reference.rows, "{text:?}");
+                    assert_eq!((fast.conditions, fast.participants), (reference.conditions, reference.participants));
+                    assert_eq!(fast.groups, reference.groups);
+                }
+                (Err(fast), Err(reference)) => assert_eq!(fast.to_string(), reference.to_string()),
+                (fast, reference) => panic!("{text:?}: {fast:?} against {reference:?}"),
+            }
+        }
+        let error = parse_trials(texts[2], "t.csv", None, None).unwrap_err().to_string();
+        assert_eq!(error, "t.csv: line 3: the row has 3 fields but the header has 4", "the csv crate's count");
     }
 }

@@ -23,6 +23,7 @@ pub mod figures;
 pub mod fit;
 pub mod plot;
 pub mod pvalue;
+pub mod screening;
 pub mod table;
 pub mod task;
 

@@ -22,7 +22,7 @@ pub fn fixed(value: f64, digits: usize) -> String {
 }
 
 fn lr(test: &LrTest) -> String {
-    format!("χ² = {}, df = {}, p = {}", fixed(test.chi2, 3), test.df, test.p.display())
+    format!("χ² = {}, df = {}, {}", fixed(test.chi2, 3), test.df, test.p.equation())
 }
 
 fn optional(value: Option<f64>, digits: usize) -> String {
@@ -181,7 +181,7 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
                     }
                     _ => "—".to_string(),
                 };
-                let _ = write!(out, ", p = {} ({method})", PValue::display(p));
+                let _ = write!(out, ", {} ({method})", PValue::equation(p));
             }
             out.push('\n');
         }

@@ -499,6 +499,24 @@ fn judge_who_missed_a_pair_or_too_few_conditions_gets_no_zeta() {
     assert!(coefficient_of_consistence(&[(2, 2, true)], 3).is_err());
 }
 
+/// Where no simulated numerator reaches the observed one, the Monte-Carlo p-value is reported as
+/// the bound `p < 1/B` (`p_bound` in JSON), not as the number 1/(B+1).
+#[test]
+fn simulated_p_beyond_every_simulation_is_a_bound() {
+    let pairs = [
+        PairTally { i: 0, j: 1, wins_i: 10, wins_j: 0 },
+        PairTally { i: 0, j: 2, wins_i: 12, wins_j: 0 },
+        PairTally { i: 1, j: 2, wins_i: 8, wins_j: 0 },
+    ];
+    let options = AgreementOptions { simulations: 1000, seed: 3, continuity_correction: true };
+    let agreement = coefficient_of_agreement(&pairs, 3, &options).unwrap();
+    assert_eq!(agreement.method, AgreementMethod::Simulation);
+    let p = agreement.p.unwrap();
+    assert_eq!((p.bound, p.display()), (Some(1e-3), "< 1e-3".to_string()));
+    let json = serde_json::to_value(&agreement).unwrap();
+    assert_eq!(json["p_bound"], 1e-3);
+}
+
 /// The generalised u and χ² of unbalanced designs.
 mod generalised {
     use super::*;

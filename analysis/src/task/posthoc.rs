@@ -70,7 +70,7 @@ fn signed_rank_two_sided_exact(v: usize, n: usize) -> PValue {
     // Exact in binary: the count is below 2⁶³ and the division is by a power of two. The smallest
     // possible p, 2/2⁴⁹, is far above `P_FLOOR`, so the value is stored as is.
     let p = (2.0 * tail as f64 / 2.0_f64.powi(n as i32)).min(1.0);
-    PValue { p, log10_p: p.log10() }
+    PValue::new(p)
 }
 
 /// Holm's step-down adjustment, as R's `p.adjust(p, method = "holm")`: with the m p-values in
@@ -81,7 +81,7 @@ pub fn holm_adjust(p_values: &[PValue]) -> Vec<PValue> {
     let m = p_values.len();
     let mut order: Vec<usize> = (0..m).collect();
     order.sort_by(|&i, &j| compare(&p_values[i].log10_p, &p_values[j].log10_p));
-    let mut adjusted = vec![PValue { p: 1.0, log10_p: 0.0 }; m];
+    let mut adjusted = vec![PValue::new(1.0); m];
     // The running maximum of (m − j + 1)·p₍ⱼ₎, compared in log space: (ln of it, p₍ⱼ₎, factor).
     let mut running_max: Option<(f64, PValue, f64)> = None;
     for (position, &idx) in order.iter().enumerate() {
@@ -103,6 +103,6 @@ fn scale_p(p: PValue, factor: f64) -> PValue {
         PValue::from_ln(p.log10_p * std::f64::consts::LN_10 + factor.ln())
     } else {
         let scaled = (factor * p.p).min(1.0);
-        PValue { p: scaled, log10_p: scaled.log10() }
+        PValue::new(scaled)
     }
 }

@@ -55,10 +55,10 @@ pub fn render_table(analysis: &TaskAnalysis) -> String {
         if let Some(friedman) = &measure.friedman {
             let _ = writeln!(
                 out,
-                "Friedman χ²({}) = {}, p = {}, n = {}, Kendall's W = {:.3}",
+                "Friedman χ²({}) = {}, {}, n = {}, Kendall's W = {:.3}",
                 friedman.df,
                 format_number(friedman.statistic),
-                friedman.p.display(),
+                friedman.p.equation(),
                 friedman.participants,
                 friedman.kendall_w
             );

@@ -116,7 +116,7 @@ fn holm_matches_r_4_2_2_p_adjust() {
 
 #[test]
 fn holm_keeps_tiny_p_exact() {
-    let tiny = PValue { p: crate::pvalue::P_FLOOR, log10_p: -400.0 };
+    let tiny = PValue::from_ln(-400.0 * std::f64::consts::LN_10);
     let adjusted = holm_adjust(&[tiny, PValue::from_ln(0.5_f64.ln())]);
     assert!((adjusted[0].log10_p - (-400.0 + 2.0_f64.log10())).abs() < 1e-9);
     assert_eq!(adjusted[1].p, 0.5);
