@@ -663,6 +663,20 @@ pub fn path_tracer_time_to(curve: &[PtPoint], error: f64, metric: impl Fn(&PtPoi
     (curve.last().map_or(0.0, |p| p.ms), Bound::AtLeast)
 }
 
+/// A plot of RMSE and FLIP in the affected region (display-encoded) against a knob on a log
+/// axis.
+fn error_plot(file: String, title: String, x_label: &str, rmse: Vec<(f64, f64)>, flip: Vec<(f64, f64)>) -> Plot {
+    Plot {
+        file,
+        title,
+        x_label: x_label.into(),
+        y_label: "error in the affected region (display)".into(),
+        x_log: true,
+        y_log: false,
+        series: vec![Series::new("RMSE", rmse), Series::new("FLIP", flip)],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -688,19 +702,5 @@ mod tests {
         let names: Vec<String> =
             [Bound::Exact, Bound::AtMost, Bound::AtLeast].iter().map(|b| serde_json::to_string(b).unwrap()).collect();
         assert_eq!(names, ["\"interpolated\"", "\"at most\"", "\"at least\""]);
-    }
-}
-
-/// A plot of RMSE and FLIP in the affected region (display-encoded) against a knob on a log
-/// axis.
-fn error_plot(file: String, title: String, x_label: &str, rmse: Vec<(f64, f64)>, flip: Vec<(f64, f64)>) -> Plot {
-    Plot {
-        file,
-        title,
-        x_label: x_label.into(),
-        y_label: "error in the affected region (display)".into(),
-        x_log: true,
-        y_log: false,
-        series: vec![Series::new("RMSE", rmse), Series::new("FLIP", flip)],
     }
 }
