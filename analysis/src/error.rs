@@ -31,6 +31,9 @@ pub enum AnalysisError {
     /// An option value is out of range.
     #[error("{option}: {message}")]
     BadOption { option: String, message: String },
+    /// Active pair selection refused its input or lost its posterior.
+    #[error(transparent)]
+    Active(#[from] crate::active::ActiveError),
 }
 
 pub type Result<T, E = AnalysisError> = std::result::Result<T, E>;

@@ -8,11 +8,14 @@
 //! - per-group fits and tests, bootstrap over participants, observer screening;
 //! - Friedman tests, Kendall's W and Wilcoxon signed-rank post-hoc tests for lab tasks;
 //! - SVG worth plots;
+//! - active pair selection: a Bayesian Bradley–Terry / Thurstone posterior updated one
+//!   judgment at a time and the pairs of largest expected information gain ([`active`]);
 //! - the benchmark behind `mrstudy bench analysis` ([`bench`](mod@bench)).
 //!
 //! Invariant: this crate does no IO of its own and knows nothing of HTTP, the database or the
 //! renderer. It parses text it is handed and returns typed results; callers print them.
 
+pub mod active;
 pub mod agreement;
 pub mod analysis;
 pub mod bench;

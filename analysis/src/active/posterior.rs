@@ -1,0 +1,449 @@
+//! The Gaussian posterior of active selection: mean and full covariance of θ (log-worths or
+//! factor effects), updated by assumed-density filtering one judgment at a time (O(p²)), the
+//! comparison graph's components (union–find), the state's id, the EIG of a pair, and the
+//! greedy batch of pairs for one participant.
+
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::Rng;
+use serde::Serialize;
+
+use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES};
+use super::{ActiveError, Link, Result, Target};
+
+/// Names a posterior state: the judgments it absorbed and a 64-bit fingerprint of their
+/// sequence. Equal ids mean the same log (up to 2⁻⁶⁴ odds), hence the same state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub struct StateId {
+    pub judgments: u64,
+    pub fingerprint: u64,
+}
+
+impl std::fmt::Display for StateId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}-{:016x}", self.judgments, self.fingerprint)
+    }
+}
+
+/// SplitMix64's finaliser: the fingerprint's mixing step.
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// How one judgment is absorbed. [`Update::Adf`] is the one used; the other is kept for the
+/// benchmark's comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Update {
+    /// Assumed-density filtering: match mean and variance of the tilted projection.
+    Adf,
+    /// Online Laplace (extended Kalman): one Newton step of the new term at the current mean.
+    OnlineLaplace,
+}
+
+/// The posterior N(mean, covariance) over θ, with what active selection needs besides.
+#[derive(Debug, Clone)]
+pub struct Posterior {
+    link: Link,
+    prior_sd: f64,
+    n_conditions: usize,
+    /// `design[condition]` for the factor target; `None` for the log-worths (X = I).
+    design: Option<Vec<Vec<f64>>>,
+    mean: Vec<f64>,
+    /// Row-major p × p, kept exactly symmetric (every update adds a symmetric product).
+    covariance: Vec<f64>,
+    judgments: u64,
+    fingerprint: u64,
+    /// Union–find over the conditions, by the judged pairs.
+    parent: Vec<usize>,
+    components: usize,
+    /// ρ_max of the choice's score EIG(ρ·m, v); see [`Posterior::with_mean_weight`].
+    mean_weight: f64,
+    eig_rule: Rule,
+    update_rule: Rule,
+}
+
+/// Union–find root with path halving.
+fn find(parent: &mut [usize], mut x: usize) -> usize {
+    while parent[x] != x {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    x
+}
+
+/// Joins the components of a and b; true if they were apart.
+fn union(parent: &mut [usize], a: usize, b: usize) -> bool {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra == rb {
+        return false;
+    }
+    parent[ra.max(rb)] = ra.min(rb);
+    true
+}
+
+impl Posterior {
+    /// The prior N(0, prior_sd²·I) for `target`, with likelihood `link`.
+    pub fn new(target: &Target, link: Link, prior_sd: f64) -> Result<Posterior> {
+        target.check()?;
+        if !(prior_sd > 0.0 && prior_sd.is_finite()) {
+            return Err(ActiveError::BadOption {
+                option: "prior_sd",
+                message: format!("the prior standard deviation must be positive and finite, got {prior_sd}"),
+            });
+        }
+        let n_conditions = target.conditions();
+        let design = match target {
+            Target::Worths { .. } => None,
+            Target::Factors { design } => Some(design.clone()),
+        };
+        let p = design.as_ref().map_or(n_conditions, |d| d[0].len());
+        let mut covariance = vec![0.0; p * p];
+        for a in 0..p {
+            covariance[a * p + a] = prior_sd * prior_sd;
+        }
+        Ok(Posterior {
+            link,
+            prior_sd,
+            n_conditions,
+            design,
+            mean: vec![0.0; p],
+            covariance,
+            judgments: 0,
+            fingerprint: 0,
+            parent: (0..n_conditions).collect(),
+            components: n_conditions,
+            mean_weight: super::DEFAULT_MEAN_WEIGHT,
+            eig_rule: Rule::gauss_hermite(EIG_NODES),
+            update_rule: Rule::gauss_hermite(UPDATE_NODES),
+        })
+    }
+
+    /// Sets ρ_max, the largest weight of the posterior mean difference in the score of a pair:
+    /// the batch scores EIG(ρ·m, v) with ρ rising linearly from 0 to ρ_max over the first
+    /// [`super::MEAN_WEIGHT_RAMP`] judgments per condition. ρ = 1 is the plain EIG
+    /// ([`Posterior::eig`]); ρ = 0 scores by the variance of the difference alone. Default
+    /// [`super::DEFAULT_MEAN_WEIGHT`] (the module doc says why).
+    pub fn with_mean_weight(mut self, mean_weight: f64) -> Result<Posterior> {
+        if !(0.0..=1.0).contains(&mean_weight) {
+            return Err(ActiveError::BadOption {
+                option: "mean_weight",
+                message: format!("the weight of the mean difference must be within 0 and 1, got {mean_weight}"),
+            });
+        }
+        self.mean_weight = mean_weight;
+        Ok(self)
+    }
+
+    /// The largest ρ, reached after [`super::MEAN_WEIGHT_RAMP`] judgments per condition.
+    pub fn mean_weight(&self) -> f64 {
+        self.mean_weight
+    }
+
+    /// ρ now: ρ_max · min(1, judgments / (ramp · conditions)).
+    pub fn effective_mean_weight(&self) -> f64 {
+        let ramp = super::MEAN_WEIGHT_RAMP * self.n_conditions as f64;
+        self.mean_weight * (self.judgments as f64 / ramp).min(1.0)
+    }
+
+    pub fn link(&self) -> Link {
+        self.link
+    }
+
+    pub fn prior_sd(&self) -> f64 {
+        self.prior_sd
+    }
+
+    pub fn conditions(&self) -> usize {
+        self.n_conditions
+    }
+
+    /// Number of parameters p (conditions, or factors).
+    pub fn parameters(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Posterior mean of θ.
+    pub fn mean(&self) -> &[f64] {
+        &self.mean
+    }
+
+    /// Posterior covariance of θ, row-major p × p.
+    pub fn covariance(&self) -> &[f64] {
+        &self.covariance
+    }
+
+    /// The covariance, writable, to break the posterior on purpose in tests.
+    #[cfg(test)]
+    pub(super) fn covariance_for_tests(&mut self) -> &mut [f64] {
+        &mut self.covariance
+    }
+
+    /// Judgments absorbed so far.
+    pub fn judgments(&self) -> u64 {
+        self.judgments
+    }
+
+    /// The state's id, for the server's log of which state chose a trial.
+    pub fn state_id(&self) -> StateId {
+        StateId { judgments: self.judgments, fingerprint: self.fingerprint }
+    }
+
+    /// Whether the judged pairs connect every condition.
+    pub fn connected(&self) -> bool {
+        self.components == 1
+    }
+
+    /// Posterior mean log-worth of every condition (X·mean for the factor target).
+    pub fn log_worths(&self) -> Vec<f64> {
+        match &self.design {
+            None => self.mean.clone(),
+            Some(design) => design.iter().map(|row| dot(row, &self.mean)).collect(),
+        }
+    }
+
+    fn check_condition(&self, condition: usize) -> Result<()> {
+        if condition >= self.n_conditions {
+            return Err(ActiveError::UnknownCondition { condition, conditions: self.n_conditions });
+        }
+        Ok(())
+    }
+
+    fn degenerate(&self, message: String) -> ActiveError {
+        ActiveError::Degenerate { judgments: self.judgments, message }
+    }
+
+    /// The direction a = x_w − x_l of a judgment in θ-space (dense, length p).
+    fn direction(&self, winner: usize, loser: usize) -> Vec<f64> {
+        match &self.design {
+            None => {
+                let mut a = vec![0.0; self.n_conditions];
+                a[winner] = 1.0;
+                a[loser] = -1.0;
+                a
+            }
+            Some(design) => design[winner].iter().zip(&design[loser]).map(|(w, l)| w - l).collect(),
+        }
+    }
+
+    /// Σ·a and aᵀθ for the direction of (winner, loser); O(2p) for log-worths, O(p²) for factors.
+    fn project(&self, winner: usize, loser: usize) -> (Vec<f64>, f64) {
+        let p = self.mean.len();
+        match &self.design {
+            None => {
+                let (w, l) = (winner * p, loser * p);
+                let u = (0..p).map(|k| self.covariance[w + k] - self.covariance[l + k]).collect();
+                (u, self.mean[winner] - self.mean[loser])
+            }
+            Some(_) => {
+                let a = self.direction(winner, loser);
+                let u = (0..p).map(|r| dot(&self.covariance[r * p..(r + 1) * p], &a)).collect();
+                (u, dot(&a, &self.mean))
+            }
+        }
+    }
+
+    /// Absorbs one judgment, `winner` chosen over `loser`, by ADF. O(p²).
+    pub fn update(&mut self, winner: usize, loser: usize) -> Result<()> {
+        self.update_by(Update::Adf, winner, loser)
+    }
+
+    /// Absorbs one judgment by the given method (the benchmark compares them).
+    pub fn update_by(&mut self, method: Update, winner: usize, loser: usize) -> Result<()> {
+        self.check_condition(winner)?;
+        self.check_condition(loser)?;
+        if winner == loser {
+            return Err(ActiveError::SameCondition { condition: winner });
+        }
+        let (u, m) = self.project(winner, loser);
+        let a_u = match &self.design {
+            None => u[winner] - u[loser],
+            Some(_) => dot(&self.direction(winner, loser), &u),
+        };
+        let v = a_u;
+        if !(v > 0.0 && v.is_finite() && m.is_finite()) {
+            return Err(self.degenerate(format!("variance {v:e} and mean {m:e} of the judged difference")));
+        }
+        // New mean and variance of d, as the rank-one update's two coefficients.
+        let (mean_shift, variance_drop) = match method {
+            Update::Adf => {
+                let (z, new_m, new_v) = self.link.tilted(m, v, &self.update_rule);
+                if !(z > 0.0 && new_m.is_finite() && new_v > 0.0 && new_v <= v) {
+                    return Err(self.degenerate(format!("ADF moments Z = {z:e}, m = {new_m:e}, v = {new_v:e}")));
+                }
+                ((new_m - m) / v, (v - new_v) / (v * v))
+            }
+            Update::OnlineLaplace => {
+                let (g, h) = self.link.log_derivatives(m);
+                let shrink = h / (1.0 + h * v);
+                // Σ′a = Σa·(1 − h·v/(1 + h·v)); the mean moves by Σ′a·g.
+                (g * (1.0 - shrink * v), shrink)
+            }
+        };
+        let p = self.mean.len();
+        for r in 0..p {
+            self.mean[r] += u[r] * mean_shift;
+            let ur = u[r] * variance_drop;
+            let row = &mut self.covariance[r * p..(r + 1) * p];
+            for (entry, &uc) in row.iter_mut().zip(&u) {
+                *entry -= ur * uc;
+            }
+        }
+        self.judgments += 1;
+        self.fingerprint = mix(self.fingerprint ^ mix(((winner as u64) << 32) | loser as u64));
+        if union(&mut self.parent, winner, loser) {
+            self.components -= 1;
+        }
+        Ok(())
+    }
+
+    /// The log-worths' mean and covariance (n and n × n row-major): θ itself, or X·θ.
+    fn worth_moments(&self) -> (Vec<f64>, Vec<f64>) {
+        match &self.design {
+            None => (self.mean.clone(), self.covariance.clone()),
+            Some(design) => {
+                let n = self.n_conditions;
+                let p = self.mean.len();
+                // X·Σ (n × p), then (X·Σ)·Xᵀ.
+                let x_sigma: Vec<Vec<f64>> = design
+                    .iter()
+                    .map(|row| (0..p).map(|c| (0..p).map(|r| row[r] * self.covariance[r * p + c]).sum()).collect())
+                    .collect();
+                let mut c = vec![0.0; n * n];
+                for i in 0..n {
+                    for j in 0..n {
+                        c[i * n + j] = dot(&x_sigma[i], &design[j]);
+                    }
+                }
+                (self.log_worths(), c)
+            }
+        }
+    }
+
+    /// Expected information gain (nats) about θ of one judgment of the pair (i, j).
+    pub fn eig(&self, i: usize, j: usize) -> f64 {
+        let (u, m) = self.project(i, j);
+        let v = match &self.design {
+            None => u[i] - u[j],
+            Some(_) => dot(&self.direction(i, j), &u),
+        };
+        self.link.eig(m, v, &self.eig_rule)
+    }
+
+    /// A batch of `trials` pairs for one participant, each `(i, j)` with i < j, best first:
+    /// greedily the pair of largest score EIG(ρ·m, v) (ρ: [`Posterior::effective_mean_weight`]), then a fantasy update (the outcome-averaged ADF
+    /// covariance, mean unchanged), then the next. No pair follows itself (nor `previous`, the
+    /// participant's last pair); until the judged pairs and the batch so far connect every
+    /// condition, only pairs joining two components are candidates. Ties (relative 1e-12) are
+    /// broken by `rng`. O(trials · n²) EIG evaluations plus, for factors, O(n²·p) once.
+    pub fn best_pairs(
+        &self,
+        trials: usize,
+        previous: Option<(usize, usize)>,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Vec<(usize, usize)>> {
+        if trials == 0 {
+            return Err(ActiveError::NoTrials);
+        }
+        if let Some((a, b)) = previous {
+            self.check_condition(a)?;
+            self.check_condition(b)?;
+        }
+        let n = self.n_conditions;
+        let p = self.mean.len();
+        let (worth_mean, worth_cov) = self.worth_moments();
+        // Variance of every pair's difference, in the order (0,1), (0,2), …, (n−2, n−1).
+        let mut pair_variance = Vec::with_capacity(n * (n - 1) / 2);
+        for i in 0..n {
+            for j in i + 1..n {
+                let v = worth_cov[i * n + i] + worth_cov[j * n + j] - 2.0 * worth_cov[i * n + j];
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(self.degenerate(format!("variance {v:e} of the pair ({i}, {j})")));
+                }
+                pair_variance.push(v);
+            }
+        }
+        if let Some(k) = worth_mean.iter().position(|m| !m.is_finite()) {
+            return Err(self.degenerate(format!("mean {} of condition {k}", worth_mean[k])));
+        }
+        let mean_weight = self.effective_mean_weight();
+        let mut parent = self.parent.clone();
+        let mut components = self.components;
+        let mut last = previous.map(|(a, b)| (a.min(b), a.max(b)));
+        // The fantasy updates so far: Σ_now = Σ − Σₗ cₗ·uₗ·uₗᵀ (θ-space).
+        let mut fantasies: Vec<(Vec<f64>, f64)> = Vec::new();
+        let mut batch = Vec::with_capacity(trials);
+        for _ in 0..trials {
+            let mut best: Option<(usize, usize)> = None;
+            let mut best_score = f64::NEG_INFINITY;
+            let mut ties = 0u64;
+            let mut index = 0;
+            for i in 0..n {
+                for j in i + 1..n {
+                    let v = pair_variance[index];
+                    index += 1;
+                    if last == Some((i, j)) || (components > 1 && find(&mut parent, i) == find(&mut parent, j)) {
+                        continue;
+                    }
+                    let score = self.link.eig(mean_weight * (worth_mean[i] - worth_mean[j]), v, &self.eig_rule);
+                    if score > best_score * (1.0 + 1e-12) + 1e-300 {
+                        best = Some((i, j));
+                        best_score = score;
+                        ties = 1;
+                    } else if score >= best_score * (1.0 - 1e-12) {
+                        ties += 1;
+                        if rng.next_u64().is_multiple_of(ties) {
+                            best = Some((i, j));
+                        }
+                    }
+                }
+            }
+            let (i, j) = best.expect("at least 3 conditions leave a pair besides the last one");
+            batch.push((i, j));
+            last = Some((i, j));
+            if union(&mut parent, i, j) {
+                components -= 1;
+            }
+            if batch.len() == trials {
+                break;
+            }
+            // Fantasy update along a = x_i − x_j.
+            let a = self.direction(i, j);
+            let mut u: Vec<f64> = (0..p).map(|r| dot(&self.covariance[r * p..(r + 1) * p], &a)).collect();
+            for (previous_u, c) in &fantasies {
+                let along = c * dot(previous_u, &a);
+                for (uk, pk) in u.iter_mut().zip(previous_u) {
+                    *uk -= along * pk;
+                }
+            }
+            let v = dot(&a, &u);
+            let m = worth_mean[i] - worth_mean[j];
+            let (z, _, v_won) = self.link.tilted(m, v, &self.update_rule);
+            let (_, _, v_lost) = self.link.tilted(-m, v, &self.update_rule);
+            let expected_v = z * v_won + (1.0 - z) * v_lost;
+            let c = (v - expected_v) / (v * v);
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(self.degenerate(format!("fantasy update of the pair ({i}, {j}) with variance {v:e}")));
+            }
+            let worth_u: Vec<f64> = match &self.design {
+                None => u.clone(),
+                Some(design) => design.iter().map(|row| dot(row, &u)).collect(),
+            };
+            let mut index = 0;
+            for i in 0..n {
+                for j in i + 1..n {
+                    let along = worth_u[i] - worth_u[j];
+                    pair_variance[index] = (pair_variance[index] - c * along * along).max(f64::MIN_POSITIVE);
+                    index += 1;
+                }
+            }
+            fantasies.push((u, c));
+        }
+        Ok(batch)
+    }
+}
+
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
