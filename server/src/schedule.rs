@@ -12,11 +12,16 @@
 //!   `scenes = "different"` (so the two images are never directly comparable), one for `same`;
 //! - catch trials are balanced left/right the same way;
 //! - the order of all trials is a uniform random permutation.
+//!
+//! An active design (`pairs = "active"`) plans its warm-up and catch trials this way at join;
+//! the rest come in batches from [`active_batch`], chosen from every judgment so far.
 
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
 use crate::study::{SceneDraw, Study};
+
+pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 
 /// Version of the scheduling algorithm, stored with each participant.
 pub const SCHEDULE_VERSION: i64 = 1;
@@ -117,6 +122,63 @@ pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
     }
     stream.shuffle(&mut trials);
     trials
+}
+
+/// A fresh posterior for the study's active design (`None` for a fixed design).
+pub fn active_posterior(study: &Study) -> Option<Result<Posterior, ActiveError>> {
+    let active = study.design.active.as_ref()?;
+    let target = crate::study::active_target(active, &study.conditions);
+    Some(Posterior::new(&target, mrstudy_analysis::active::Link::Logit, active.prior_sd))
+}
+
+/// What one participant has been shown so far, as an active batch needs it: the last pair
+/// (never repeated back to back), the left − right count of each condition, and how many
+/// batches were chosen for them before.
+#[derive(Debug, Clone)]
+pub struct ActiveHistory {
+    pub previous: Option<(usize, usize)>,
+    pub sides: SideBalance,
+    pub batches: u64,
+}
+
+impl ActiveHistory {
+    /// The history of a participant shown `pairs` (left, right) so far, of which `batches`
+    /// batches were chosen actively.
+    pub fn of(conditions: usize, pairs: &[(usize, usize)], batches: u64) -> ActiveHistory {
+        let mut sides = SideBalance::new(conditions);
+        for &(left, right) in pairs {
+            sides.record(left, right);
+        }
+        let previous = pairs.last().map(|&(left, right)| (left.min(right), left.max(right)));
+        ActiveHistory { previous, sides, batches }
+    }
+}
+
+/// The next `count` trials of a participant of an active design, chosen by `posterior` (every
+/// judgment so far): pairs by [`Posterior::best_pairs`] with ties broken by the stream of
+/// (participant seed, posterior state, batch number), sides balanced per participant, scene
+/// configurations drawn by the study's rule from a stream of (participant seed, batch number).
+/// The server and `mrstudy simulate` both schedule through here; the same posterior state,
+/// seed and history give the same trials.
+pub fn active_batch(
+    study: &Study,
+    posterior: &Posterior,
+    seed: u64,
+    history: &mut ActiveHistory,
+    count: usize,
+) -> Result<Vec<PlannedTrial>, ActiveError> {
+    let mut ties = mrstudy_analysis::active::tie_stream(seed, posterior.state_id(), history.batches);
+    let pairs = posterior.best_pairs(count, history.previous, &mut ties)?;
+    let mut stream = Stream(ChaCha8Rng::seed_from_u64(derived_seed(seed, history.batches + 1)));
+    history.batches += 1;
+    let mut trials = Vec::with_capacity(pairs.len());
+    for pair in pairs {
+        let (left, right) = history.sides.assign(pair, &mut ties);
+        let (left_scene, right_scene) = stream.scenes(study.design.scenes, study.scenes.len());
+        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+        history.previous = Some(pair);
+    }
+    Ok(trials)
 }
 
 /// The seed of participant number `ordinal` (0-based) of a study with a study seed: a

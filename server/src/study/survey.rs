@@ -320,10 +320,46 @@ struct DesignFile {
     anchors: Vec<String>,
     #[serde(default)]
     list: Vec<Vec<String>>,
-    repetitions: u32,
+    /// Required for fixed designs; for `pairs = "active"` it repeats the warm-up (default 1).
+    #[serde(default)]
+    repetitions: Option<u32>,
     scenes: String,
     #[serde(default)]
     seed: Option<u64>,
+    // `pairs = "active"` only:
+    #[serde(default)]
+    trials: Option<u32>,
+    #[serde(default)]
+    batch: Option<u32>,
+    #[serde(default)]
+    target: Option<String>,
+    #[serde(default)]
+    warmup: Option<String>,
+    #[serde(default)]
+    prior_sd: Option<f64>,
+}
+
+/// What an active design learns about: every condition's log-worth, or the factor effects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActiveTarget {
+    Worths,
+    Factors,
+}
+
+/// `pairs = "active"`: after an optional warm-up of a fixed design ([`Design::pairs`] ×
+/// [`Design::repetitions`], empty without one), each participant's trials are chosen `batch`
+/// at a time by the expected information gain about the target, from every judgment so far
+/// (`mrstudy_analysis::active`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ActiveDesign {
+    /// Trials chosen by the posterior per participant (after the warm-up).
+    pub trials: u32,
+    /// Trials chosen at a time for one participant.
+    pub batch: u32,
+    pub target: ActiveTarget,
+    /// Prior standard deviation of each log-worth or factor effect (logit scale).
+    pub prior_sd: f64,
 }
 
 /// How scene configurations are drawn for the two sides of a trial.
@@ -339,8 +375,9 @@ pub enum SceneDraw {
 /// The design: condition pairs (indices into [`Study::conditions`]), repetitions, scene draw.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Design {
-    /// `all`, `anchored` or `list`, as written in the file.
+    /// `all`, `anchored`, `list` or `active`, as written in the file.
     pub pairs_rule: String,
+    /// The fixed design's pairs; for `active`, those of its warm-up (`warmup`, none by default).
     pub pairs: Vec<(usize, usize)>,
     pub repetitions: u32,
     pub scenes: SceneDraw,
@@ -348,6 +385,9 @@ pub struct Design {
     /// ordinal, so a whole run of the study can be reproduced; when absent they are random.
     /// Either way each participant's seed is stored.
     pub seed: Option<u64>,
+    /// Set for `pairs = "active"`.
+    #[serde(default)]
+    pub active: Option<ActiveDesign>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -418,9 +458,11 @@ pub struct Study {
 }
 
 impl Study {
-    /// Trials per participant: pairs × repetitions, plus the catch trials.
+    /// Trials per participant: pairs × repetitions (for an active design: its warm-up and its
+    /// actively chosen trials), plus the catch trials.
     pub fn trial_count(&self) -> usize {
         self.design.pairs.len() * self.design.repetitions as usize
+            + self.design.active.as_ref().map_or(0, |active| active.trials as usize)
             + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
     }
 
@@ -480,7 +522,9 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
     let design = check_design(fail, &raw.design, &conditions, scenes.len())?;
     let catch = check_catch(fail, base, &raw.catch)?;
     let trial_total =
-        design.pairs.len() * design.repetitions as usize + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
+        design.pairs.len() * design.repetitions as usize
+            + design.active.as_ref().map_or(0, |active| active.trials as usize)
+            + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
     if trial_total > 1000 {
         return Err(fail.at(
             "design.repetitions",
@@ -742,31 +786,45 @@ fn check_render(fail: Fail, render: Option<&RenderDefaults>) -> Result<(), Study
     Ok(())
 }
 
-/// The `[design]` table: the condition pairs by its rule, repetitions and the scene draw.
+/// The `[design]` table: the condition pairs by its rule, repetitions and the scene draw; for
+/// `pairs = "active"` its keys and the warm-up's pairs.
 fn check_design(
     fail: Fail,
     design: &DesignFile,
     conditions: &[Condition],
     scene_count: usize,
 ) -> Result<Design, StudyError> {
-    let pairs = match design.pairs.as_str() {
+    let active = design.pairs == "active";
+    let rule = if active { design.warmup.as_deref().unwrap_or("none") } else { design.pairs.as_str() };
+    let rule_key = if active { "design.warmup" } else { "design.pairs" };
+    let pairs = match rule {
         "all" => all_pairs(conditions.len()),
         "anchored" => anchored_pairs(fail, &design.anchors, conditions)?,
         "list" => listed_pairs(fail, &design.list, conditions)?,
+        "none" if active => Vec::new(),
+        other if active => {
+            return Err(fail.at(rule_key, format!("expected \"none\", \"all\", \"anchored\" or \"list\", found \"{other}\"")));
+        }
         other => {
-            return Err(
-                fail.at("design.pairs", format!("expected \"all\", \"anchored\" or \"list\", found \"{other}\""))
-            );
+            return Err(fail.at(
+                rule_key,
+                format!("expected \"all\", \"anchored\", \"list\" or \"active\", found \"{other}\""),
+            ));
         }
     };
-    if design.pairs != "anchored" && !design.anchors.is_empty() {
-        return Err(fail.at("design.anchors", "expected only with pairs = \"anchored\""));
+    if rule != "anchored" && !design.anchors.is_empty() {
+        return Err(fail.at("design.anchors", format!("expected only with {} = \"anchored\"", &rule_key[7..])));
     }
-    if design.pairs != "list" && !design.list.is_empty() {
-        return Err(fail.at("design.list", "expected only with pairs = \"list\""));
+    if rule != "list" && !design.list.is_empty() {
+        return Err(fail.at("design.list", format!("expected only with {} = \"list\"", &rule_key[7..])));
     }
-    if design.repetitions == 0 || design.repetitions > 100 {
-        return Err(fail.at("design.repetitions", format!("expected 1 to 100, found {}", design.repetitions)));
+    let repetitions = match (design.repetitions, active) {
+        (Some(repetitions), _) => repetitions,
+        (None, true) => 1,
+        (None, false) => return Err(fail.at("design.repetitions", "expected the number of times each pair is shown")),
+    };
+    if repetitions == 0 || repetitions > 100 {
+        return Err(fail.at("design.repetitions", format!("expected 1 to 100, found {repetitions}")));
     }
     let scenes = match design.scenes.as_str() {
         "different" => SceneDraw::Different,
@@ -778,7 +836,61 @@ fn check_design(
     if scenes == SceneDraw::Different && scene_count < 2 {
         return Err(fail.at("design.scenes", "expected at least two scene configurations for scenes = \"different\""));
     }
-    Ok(Design { pairs_rule: design.pairs.clone(), pairs, repetitions: design.repetitions, scenes, seed: design.seed })
+    let active = if active { Some(check_active(fail, design, conditions)?) } else { None };
+    if active.is_none() {
+        for (key, given) in [
+            ("design.trials", design.trials.is_some()),
+            ("design.batch", design.batch.is_some()),
+            ("design.target", design.target.is_some()),
+            ("design.warmup", design.warmup.is_some()),
+            ("design.prior_sd", design.prior_sd.is_some()),
+        ] {
+            if given {
+                return Err(fail.at(key, "expected only with pairs = \"active\""));
+            }
+        }
+    }
+    Ok(Design { pairs_rule: design.pairs.clone(), pairs, repetitions, scenes, seed: design.seed, active })
+}
+
+/// The keys of `pairs = "active"`: trials, batch, target (checked against the conditions by
+/// the posterior's own rules), prior.
+fn check_active(fail: Fail, design: &DesignFile, conditions: &[Condition]) -> Result<ActiveDesign, StudyError> {
+    let trials = design.trials.ok_or_else(|| {
+        fail.at("design.trials", "expected the number of actively chosen trials per participant (1 to 1000)")
+    })?;
+    if !(1..=1000).contains(&trials) {
+        return Err(fail.at("design.trials", format!("expected 1 to 1000, found {trials}")));
+    }
+    let batch = design.batch.unwrap_or(5);
+    if !(1..=100).contains(&batch) {
+        return Err(fail.at("design.batch", format!("expected 1 to 100, found {batch}")));
+    }
+    let target = match design.target.as_deref().unwrap_or("worths") {
+        "worths" => ActiveTarget::Worths,
+        "factors" => ActiveTarget::Factors,
+        other => return Err(fail.at("design.target", format!("expected \"worths\" or \"factors\", found \"{other}\""))),
+    };
+    let prior_sd = design.prior_sd.unwrap_or(mrstudy_analysis::active::DEFAULT_PRIOR_SD);
+    if !(prior_sd.is_finite() && (0.05..=10.0).contains(&prior_sd)) {
+        return Err(fail.at("design.prior_sd", format!("expected a number from 0.05 to 10, found {prior_sd}")));
+    }
+    let active = ActiveDesign { trials, batch, target, prior_sd };
+    active_target(&active, conditions)
+        .check()
+        .map_err(|error| fail.at("design.target", format!("an active design this posterior can learn: {error}")))?;
+    Ok(active)
+}
+
+/// The posterior's target of an active design: the log-worths of the conditions, or the
+/// effects of the study's factors (each condition's levels as the design matrix's row).
+pub fn active_target(active: &ActiveDesign, conditions: &[Condition]) -> mrstudy_analysis::active::Target {
+    match active.target {
+        ActiveTarget::Worths => mrstudy_analysis::active::Target::Worths { conditions: conditions.len() },
+        ActiveTarget::Factors => mrstudy_analysis::active::Target::Factors {
+            design: conditions.iter().map(|condition| condition.levels.clone()).collect(),
+        },
+    }
 }
 
 /// `pairs = "all"`: every pair of conditions.
