@@ -496,6 +496,10 @@ pub struct WorthRow {
 #[template(path = "admin_study.html")]
 struct AdminStudyPage {
     stats: StudyStats,
+    /// An active design: how many judgments its posterior has absorbed, and why it fell back to
+    /// the fixed design if it did.
+    active_note: Option<String>,
+    active_warning: Option<String>,
     /// Every visitor: participants who started and visitors screened out (`stopped`).
     visitors_bar: FunnelBar,
     funnel: Vec<FunnelBar>,
@@ -581,7 +585,17 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         warnings: Vec::new(),
         participants: Vec::new(),
         stats,
+        active_note: None,
+        active_warning: None,
     };
+    if let Some(active) = state.active(&slug) {
+        let active = active.lock().await;
+        page.active_note = Some(format!(
+            "Active design: each participant's trials are chosen by expected information gain from every judgment so far ({} absorbed when a batch was last chosen).",
+            active.judgments()
+        ));
+        page.active_warning = active.failure.clone();
+    }
     let analysis = analysis_json(&state, &slug, Include::default()).await;
     page.participants = match participants(&state, &slug, analysis.as_ref().ok()).await {
         Ok(entries) => entries.iter().map(ParticipantLine::from).collect(),

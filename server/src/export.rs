@@ -22,7 +22,8 @@
 //! (whose `left`/`right`/`chosen` hold condition names only, as the analysis expects); each row
 //! flags its participant instead: `catch_answered` and `catch_failed` count the participant's
 //! answered and failed catch trials, so screening is one filter. The JSON export holds every
-//! trial, catch trials included, with `catch_expected` and the response.
+//! trial, catch trials included, with `catch_expected`, `chosen_by` (which posterior state chose
+//! an actively chosen trial, `null` for planned ones) and the response.
 
 use serde::Deserialize;
 use serde_json::{Map, Value, json};
@@ -244,7 +245,7 @@ fn true_false(value: bool) -> String {
 
 const TRIAL_ROWS: &str = "
     SELECT p.id AS participant, p.demographics, p.completed_at, p.client AS participant_client, t.trial, t.left_condition, t.right_condition,
-           t.left_scene, t.right_scene, t.left_stimulus, t.right_stimulus, t.catch_expected, t.shown_at,
+           t.left_scene, t.right_scene, t.left_stimulus, t.right_stimulus, t.catch_expected, t.shown_at, t.chosen_by,
            r.chosen, r.rt_ms, r.answered_at, r.client, r.too_fast, r.served_ms
     FROM participants p
     JOIN trials t ON t.participant = p.id
@@ -389,6 +390,7 @@ pub async fn study_json(pool: &SqlitePool, slug: &str, include: Include) -> Resu
             "right_stimulus": row.try_get::<String, _>("right_stimulus")?,
             "catch_expected": row.try_get::<Option<String>, _>("catch_expected")?,
             "shown_at": row.try_get::<Option<String>, _>("shown_at")?,
+            "chosen_by": row.try_get::<Option<String>, _>("chosen_by")?,
             "response": response,
         }));
     }

@@ -67,6 +67,8 @@ struct StateInner {
     credentials: std::sync::Mutex<std::collections::HashMap<String, participant::Credentials>>,
     /// The lab (task studies and the live renderer), once started (see [`task::start`]).
     lab: std::sync::OnceLock<Arc<task::Lab>>,
+    /// The shared posterior of each study with an active design.
+    active: participant::active::ActiveStudies,
 }
 
 impl AppState {
@@ -77,6 +79,7 @@ impl AppState {
         stimuli_dir: PathBuf,
     ) -> AppState {
         let order = studies.iter().map(|study| study.study.slug.clone()).collect();
+        let active = participant::active::active_studies(studies.iter().map(|study| study.as_ref()));
         AppState {
             inner: Arc::new(StateInner {
                 storage,
@@ -86,6 +89,7 @@ impl AppState {
                 stimuli_dir,
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
+                active,
             }),
         }
     }
@@ -96,6 +100,11 @@ impl AppState {
 
     pub fn study(&self, slug: &str) -> Option<&Arc<PreparedStudy>> {
         self.inner.studies.get(slug)
+    }
+
+    /// The shared state of a study with an active design.
+    pub fn active(&self, slug: &str) -> Option<&tokio::sync::Mutex<participant::active::ActiveState>> {
+        self.inner.active.get(slug)
     }
 
     /// The served studies in load order.

@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use crate::schedule::{self, PlannedKind};
+use crate::schedule::{self, PlannedKind, PlannedTrial};
 use crate::stimuli::StimulusPlan;
 use crate::study::{IMAGE_TYPES, StimulusSource, Study};
 use crate::trial::Side;
@@ -118,43 +118,46 @@ impl PreparedStudy {
         Ok(PreparedStudy { study, stimuli, catch_stimuli })
     }
 
-    /// The schedule of the participant with this seed.
+    /// The schedule of the participant with this seed (for an active design: the trials
+    /// planned at join, its warm-up and catch trials).
     pub fn schedule(&self, seed: u64) -> Vec<ScheduledTrial> {
+        schedule::plan(&self.study, seed).iter().map(|planned| self.scheduled(planned)).collect()
+    }
+
+    /// A planned trial with its condition, scene and stimulus names.
+    pub fn scheduled(&self, planned: &PlannedTrial) -> ScheduledTrial {
         let study = &self.study;
-        schedule::plan(study, seed)
-            .into_iter()
-            .map(|planned| match planned.kind {
-                PlannedKind::Pair { left, right } => ScheduledTrial {
-                    left_condition: study.conditions[left].name.clone(),
-                    right_condition: study.conditions[right].name.clone(),
-                    left_scene: study.scenes[planned.left_scene].name.clone(),
-                    right_scene: study.scenes[planned.right_scene].name.clone(),
-                    left_stimulus: self.stimuli[planned.left_scene][left].clone(),
-                    right_stimulus: self.stimuli[planned.right_scene][right].clone(),
-                    catch_expected: None,
-                },
-                PlannedKind::Catch { index, better_left } => {
-                    let catch = &study.catch[index];
-                    let (better, worse) = &self.catch_stimuli[index];
-                    let better_label = catch_label(&catch.name, true);
-                    let worse_label = catch_label(&catch.name, false);
-                    let (left_condition, right_condition, left_stimulus, right_stimulus) = if better_left {
-                        (better_label, worse_label, better.clone(), worse.clone())
-                    } else {
-                        (worse_label, better_label, worse.clone(), better.clone())
-                    };
-                    ScheduledTrial {
-                        left_condition,
-                        right_condition,
-                        left_scene: catch.name.clone(),
-                        right_scene: catch.name.clone(),
-                        left_stimulus,
-                        right_stimulus,
-                        catch_expected: Some(if better_left { Side::Left } else { Side::Right }),
-                    }
+        match planned.kind {
+            PlannedKind::Pair { left, right } => ScheduledTrial {
+                left_condition: study.conditions[left].name.clone(),
+                right_condition: study.conditions[right].name.clone(),
+                left_scene: study.scenes[planned.left_scene].name.clone(),
+                right_scene: study.scenes[planned.right_scene].name.clone(),
+                left_stimulus: self.stimuli[planned.left_scene][left].clone(),
+                right_stimulus: self.stimuli[planned.right_scene][right].clone(),
+                catch_expected: None,
+            },
+            PlannedKind::Catch { index, better_left } => {
+                let catch = &study.catch[index];
+                let (better, worse) = &self.catch_stimuli[index];
+                let better_label = catch_label(&catch.name, true);
+                let worse_label = catch_label(&catch.name, false);
+                let (left_condition, right_condition, left_stimulus, right_stimulus) = if better_left {
+                    (better_label, worse_label, better.clone(), worse.clone())
+                } else {
+                    (worse_label, better_label, worse.clone(), better.clone())
+                };
+                ScheduledTrial {
+                    left_condition,
+                    right_condition,
+                    left_scene: catch.name.clone(),
+                    right_scene: catch.name.clone(),
+                    left_stimulus,
+                    right_stimulus,
+                    catch_expected: Some(if better_left { Side::Left } else { Side::Right }),
                 }
-            })
-            .collect()
+            }
+        }
     }
 }
 

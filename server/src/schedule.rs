@@ -181,6 +181,37 @@ pub fn active_batch(
     Ok(trials)
 }
 
+/// The next `count` trials of an active design's participant when its posterior cannot be
+/// used: pairs drawn uniformly from the fixed part of the design (its warm-up's pairs, or every
+/// pair without one), never the previous pair back to back, sides balanced as in
+/// [`active_batch`], scenes by the study's rule.
+pub fn fallback_batch(study: &Study, seed: u64, history: &mut ActiveHistory, count: usize) -> Vec<PlannedTrial> {
+    let n = study.conditions.len();
+    let pairs: Vec<(usize, usize)> = if study.design.pairs.is_empty() {
+        (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect()
+    } else {
+        study.design.pairs.iter().map(|&(a, b)| (a.min(b), a.max(b))).collect()
+    };
+    let key = derived_seed(seed ^ 0xFA11_BAC4, history.batches + 1);
+    let mut stream = Stream(ChaCha8Rng::seed_from_u64(key));
+    let mut sides = ChaCha8Rng::seed_from_u64(derived_seed(key, 1));
+    history.batches += 1;
+    let mut trials = Vec::with_capacity(count);
+    for _ in 0..count {
+        let mut pair = pairs[stream.below(pairs.len())];
+        if pairs.len() > 1 {
+            while Some(pair) == history.previous {
+                pair = pairs[stream.below(pairs.len())];
+            }
+        }
+        let (left, right) = history.sides.assign(pair, &mut sides);
+        let (left_scene, right_scene) = stream.scenes(study.design.scenes, study.scenes.len());
+        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+        history.previous = Some(pair);
+    }
+    trials
+}
+
 /// The seed of participant number `ordinal` (0-based) of a study with a study seed: a
 /// SplitMix64 step of their combination, so consecutive participants get unrelated streams.
 pub fn derived_seed(study_seed: u64, ordinal: u64) -> u64 {

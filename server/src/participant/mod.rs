@@ -6,6 +6,7 @@
 //! id answers 403, a missing token 401. Every body is validated before anything is written, and
 //! a refused request changes nothing.
 
+pub mod active;
 pub mod store;
 
 use axum::Router;
@@ -519,6 +520,13 @@ async fn next_trial(
         }));
     }
     let number = participant.answered + 1;
+    let mut trials = trials;
+    if trials.first().is_none_or(|trial| trial.trial != number) && prepared.study.design.active.is_some() {
+        // an active design: the next batch is chosen now, from every judgment so far
+        active::extend(&state, prepared, &participant.id).await?;
+        trials =
+            state.storage().participant_with_next(&participant.id).await?.map(|(_, trials)| trials).unwrap_or_default();
+    }
     let mut trials = trials.into_iter();
     let trial = trials
         .next()

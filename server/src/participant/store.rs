@@ -149,17 +149,29 @@ async fn store_response(
     .bind(response.trial)
     .fetch_optional(&mut *connection)
     .await?;
-    let mut served_ms: Option<f64> = None;
-    if let Some(served) = &served {
-        if !served.try_get::<bool, _>("served")? {
-            let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
-                .bind(&response.participant)
-                .fetch_one(&mut *connection)
-                .await?;
-            return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
+    let Some(served) = &served else {
+        // No such trial: out of range, or (active designs) not chosen yet, so never served.
+        let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
+            .bind(&response.participant)
+            .fetch_optional(&mut *connection)
+            .await?;
+        let Some(progress) = progress else {
+            return Ok(Err(ResponseRefused::UnknownParticipant));
+        };
+        let (answered, trials): (i64, i64) = (progress.try_get("answered")?, progress.try_get("trials")?);
+        if response.trial < 1 || response.trial > trials {
+            return Ok(Err(ResponseRefused::OutOfRange { trial: response.trial, trials }));
         }
-        served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
+        return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
+    };
+    if !served.try_get::<bool, _>("served")? {
+        let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
+            .bind(&response.participant)
+            .fetch_one(&mut *connection)
+            .await?;
+        return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
     }
+    let served_ms = served.try_get::<Option<f64>, _>("served_ms")?.map(|ms| ms.max(0.0));
     let floor = f64::from(response.min_response_ms);
     let too_fast = response.rt_ms < floor || served_ms.is_some_and(|ms| ms < floor);
     // The usual case in two statements: advance the participant's progress if this is the next
@@ -177,8 +189,8 @@ async fn store_response(
     .await?;
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms)
-             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?)"
+            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq)
+             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses))"
         )))
         .bind(&response.participant)
         .bind(response.trial)
@@ -301,7 +313,7 @@ async fn insert_participant(
     .bind(&participant.demographics)
     .bind(&participant.client)
     .bind(&participant.url_params)
-    .bind(trials.len() as i64)
+    .bind(study.trial_count() as i64)
     .bind(completion_code)
     .bind(participant.pilot as i64)
     .bind(&participant.external_key)

@@ -21,9 +21,9 @@ mod tests;
 pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
 pub use survey::{
-    ActiveDesign, ActiveTarget, active_target,
-    CatchTrial, Completion, Condition, DemographicField, Design, Device, Display, Factor, FieldType, Orientation,
-    Participation, RenderDefaults, Scene, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts,
+    ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, Device, Display, Factor,
+    FieldType, Orientation, Participation, RenderDefaults, Scene, SceneDraw, StimulusSource, Study, StudyKind,
+    TRIALS_CSV_COLUMNS, Texts, active_target,
 };
 pub use task::TaskStudy;
 

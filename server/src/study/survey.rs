@@ -521,10 +521,9 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
     }
     let design = check_design(fail, &raw.design, &conditions, scenes.len())?;
     let catch = check_catch(fail, base, &raw.catch)?;
-    let trial_total =
-        design.pairs.len() * design.repetitions as usize
-            + design.active.as_ref().map_or(0, |active| active.trials as usize)
-            + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
+    let trial_total = design.pairs.len() * design.repetitions as usize
+        + design.active.as_ref().map_or(0, |active| active.trials as usize)
+        + catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
     if trial_total > 1000 {
         return Err(fail.at(
             "design.repetitions",
@@ -803,13 +802,14 @@ fn check_design(
         "list" => listed_pairs(fail, &design.list, conditions)?,
         "none" if active => Vec::new(),
         other if active => {
-            return Err(fail.at(rule_key, format!("expected \"none\", \"all\", \"anchored\" or \"list\", found \"{other}\"")));
+            return Err(
+                fail.at(rule_key, format!("expected \"none\", \"all\", \"anchored\" or \"list\", found \"{other}\""))
+            );
         }
         other => {
-            return Err(fail.at(
-                rule_key,
-                format!("expected \"all\", \"anchored\", \"list\" or \"active\", found \"{other}\""),
-            ));
+            return Err(
+                fail.at(rule_key, format!("expected \"all\", \"anchored\", \"list\" or \"active\", found \"{other}\""))
+            );
         }
     };
     if rule != "anchored" && !design.anchors.is_empty() {

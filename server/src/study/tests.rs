@@ -108,3 +108,60 @@ fn missing_image_is_refused() {
     let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
     assert_eq!(error.key, "scenes[0].images.LQ");
 }
+
+fn active(design: &str) -> Result<Study, StudyError> {
+    let dir = tempfile::tempdir().unwrap();
+    let body = MINIMAL.replace(
+        "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\nscenes = \"different\"\n",
+        &format!("[design]\n{design}\nscenes = \"different\"\n"),
+    );
+    load_study(&write_study(dir.path(), &body))
+}
+
+#[test]
+fn an_active_design_counts_its_warm_up_and_chosen_trials_and_names_each_bad_key() {
+    let study = active("pairs = \"active\"\ntrials = 12").unwrap();
+    let design = study.design.active.as_ref().unwrap();
+    assert_eq!((design.trials, design.batch, design.target), (12, 5, ActiveTarget::Worths));
+    assert!(study.design.pairs.is_empty());
+    assert_eq!(study.trial_count(), 12);
+    let study =
+        active("pairs = \"active\"\ntrials = 6\nwarmup = \"anchored\"\nanchors = [\"LQ\"]\nrepetitions = 2").unwrap();
+    assert_eq!(study.design.pairs, vec![(0, 1), (0, 2)]);
+    assert_eq!(study.trial_count(), 2 * 2 + 6);
+    for (design, key, says) in [
+        ("pairs = \"active\"", "design.trials", "actively chosen trials"),
+        ("pairs = \"active\"\ntrials = 0", "design.trials", "1 to 1000"),
+        ("pairs = \"active\"\ntrials = 5\nbatch = 0", "design.batch", "1 to 100"),
+        ("pairs = \"active\"\ntrials = 5\ntarget = \"ranks\"", "design.target", "\"ranks\""),
+        ("pairs = \"active\"\ntrials = 5\nwarmup = \"some\"", "design.warmup", "\"some\""),
+        ("pairs = \"active\"\ntrials = 5\nprior_sd = 0", "design.prior_sd", "0.05 to 10"),
+        ("pairs = \"all\"\nrepetitions = 1\ntrials = 5", "design.trials", "only with pairs = \"active\""),
+        ("pairs = \"all\"", "design.repetitions", "number of times"),
+        ("pairs = \"sometimes\"\nrepetitions = 1", "design.pairs", "\"active\""),
+    ] {
+        let error = active(design).unwrap_err();
+        assert_eq!(error.key, key, "{design}: {error}");
+        assert!(error.expected.contains(says), "{design}: {error}");
+    }
+}
+
+#[test]
+fn an_active_design_the_posterior_cannot_learn_is_refused_naming_the_target() {
+    // two conditions only
+    let dir = tempfile::tempdir().unwrap();
+    let body = MINIMAL.replace("[[conditions]]\nname = \"HQ\"\nlevels = { gi = 1, ca = 1 }\n", "").replace(
+        "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\n",
+        "[design]\npairs = \"active\"\ntrials = 4\n",
+    );
+    let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
+    assert_eq!(error.key, "design.target", "{error}");
+    // factor effects when one factor never varies over the conditions (ca is 0 in all but HQ:
+    // drop HQ's ca so it is constant)
+    let body = MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 1, ca = 0 }").replace(
+        "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\n",
+        "[design]\npairs = \"active\"\ntrials = 4\ntarget = \"factors\"\n",
+    );
+    let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
+    assert_eq!(error.key, "design.target", "{error}");
+}

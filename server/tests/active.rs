@@ -1,0 +1,292 @@
+//! Active designs in the web survey (`pairs = "active"`), through `app(state)` with `oneshot` on
+//! a real sqlite database: participants interleaved get every trial they are owed, no pair twice
+//! in a row, sides balanced; each stored batch replays from the database (the first N judgments
+//! in commit order, the participant's history, their seed) to the same trials; many
+//! participants asking at once each get valid trials, and two requests of one participant get
+//! the same trial.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use axum::Router;
+use axum::http::{Method, StatusCode};
+use mrstudy_server::schedule::{self, ActiveHistory, PlannedKind};
+use mrstudy_server::serve::{Prepared, prepare};
+use mrstudy_server::{AppState, app};
+use serde_json::json;
+use sqlx::Row;
+
+mod support;
+use support::{call, copy_demo_study};
+
+const STUDY: &str = "shadows-demo";
+
+/// The demo study (four conditions, six scene configurations, a catch trial) with an active
+/// design of `trials` trials in batches of `batch` after the warm-up that the TOML lines
+/// `warmup` give.
+async fn fixture(work: &Path, target: &str, warmup: &str, trials: u32, batch: u32) -> (Router, AppState) {
+    let studies = work.join("studies");
+    copy_demo_study(&studies);
+    let file = studies.join("shadows-demo.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let design = format!(
+        "[design]\npairs = \"active\"\ntrials = {trials}\nbatch = {batch}\ntarget = \"{target}\"\n{warmup}\nscenes = \"different\"\n"
+    );
+    let text = text.replace("[design]\npairs = \"all\"\nrepetitions = 1\nscenes = \"different\"\n", &design);
+    assert!(text.contains("pairs = \"active\""), "the demo study's design changed; update this fixture");
+    std::fs::write(&file, text).unwrap();
+    let Prepared { state, skipped, .. } = prepare(&work.join("data"), &studies).await.unwrap();
+    assert!(skipped.is_empty(), "{skipped:?}");
+    (app(state.clone()), state)
+}
+
+async fn join(app: &Router) -> (String, String, i64) {
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/studies/{STUDY}/participants"),
+        None,
+        Some(json!({
+            "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"},
+            "client": {"viewport": [1280, 800], "devicePixelRatio": 1},
+        })),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let json = answer.json();
+    (
+        json["participant"].as_str().unwrap().into(),
+        json["token"].as_str().unwrap().into(),
+        json["trials"].as_i64().unwrap(),
+    )
+}
+
+/// Serves and answers one trial (the shadow preferred, camera artifacts disliked; the catch
+/// trial as expected); returns false when the participant is done.
+async fn answer_one(app: &Router, state: &AppState, id: &str, token: &str) -> bool {
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    assert_eq!(next.status, StatusCode::OK, "{}", next.text());
+    let next = next.json();
+    if next["done"] == true {
+        return false;
+    }
+    let trial = next["trial"].as_i64().unwrap();
+    let row = sqlx::query(
+        "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = ? AND trial = ?",
+    )
+    .bind(id)
+    .bind(trial)
+    .fetch_one(&state.storage().read)
+    .await
+    .unwrap();
+    let (left, right): (String, String) = (row.get("left_condition"), row.get("right_condition"));
+    let chosen = match row.get::<Option<String>, _>("catch_expected") {
+        Some(expected) => expected,
+        None => {
+            let score = |condition: &str| condition.contains("SH") as i32 * 2 - condition.contains("CA") as i32;
+            (if score(&left) >= score(&right) { "left" } else { "right" }).to_string()
+        }
+    };
+    let stored = call(
+        app,
+        Method::POST,
+        &format!("/api/participants/{id}/responses"),
+        Some(token),
+        Some(json!({"trial": trial, "chosen": chosen, "rt_ms": 900.0, "client": {"viewport": [1280, 800]}})),
+    )
+    .await;
+    assert_eq!(stored.status, StatusCode::CREATED, "{}", stored.text());
+    true
+}
+
+/// Every stored batch is what `schedule::active_batch` gives for the posterior after the
+/// first N judgments (commit order), the participant's seed and history.
+async fn assert_batches_replay(state: &AppState) -> usize {
+    let pool = &state.storage().read;
+    let prepared = state.study(STUDY).unwrap();
+    let study = &prepared.study;
+    let index = |name: &str| study.conditions.iter().position(|c| c.name == name);
+    let judgments: Vec<(usize, usize)> = sqlx::query(
+        "SELECT t.left_condition, t.right_condition, r.chosen FROM responses r
+         JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
+         WHERE t.catch_expected IS NULL ORDER BY r.seq",
+    )
+    .fetch_all(pool)
+    .await
+    .unwrap()
+    .iter()
+    .map(|row| {
+        let (left, right) = (index(row.get("left_condition")).unwrap(), index(row.get("right_condition")).unwrap());
+        if row.get::<String, _>("chosen") == "left" { (left, right) } else { (right, left) }
+    })
+    .collect();
+    let participants = sqlx::query("SELECT id, seed FROM participants").fetch_all(pool).await.unwrap();
+    let mut replayed = 0;
+    for participant in participants {
+        let (id, seed): (String, i64) = (participant.get("id"), participant.get("seed"));
+        let rows = sqlx::query(
+            "SELECT left_condition, right_condition, left_scene, right_scene, catch_expected, chosen_by, active_batch
+             FROM trials WHERE participant = ? ORDER BY trial",
+        )
+        .bind(&id)
+        .fetch_all(pool)
+        .await
+        .unwrap();
+        let mut batches: BTreeMap<i64, Vec<&sqlx::sqlite::SqliteRow>> = BTreeMap::new();
+        for row in &rows {
+            if let Some(batch) = row.get::<Option<i64>, _>("active_batch") {
+                batches.entry(batch).or_default().push(row);
+            }
+        }
+        for (batch, trials) in batches {
+            let chosen_by: String = trials[0].get("chosen_by");
+            let absorbed: usize = chosen_by.split('-').next().unwrap().parse().unwrap();
+            let mut posterior = schedule::active_posterior(study).unwrap().unwrap();
+            for &(winner, loser) in &judgments[..absorbed] {
+                posterior.update(winner, loser).unwrap();
+            }
+            assert_eq!(posterior.state_id().to_string(), chosen_by, "the state that chose batch {batch} of {id}");
+            // the participant's pairs before this batch
+            let before: Vec<(usize, usize)> = rows
+                .iter()
+                .take_while(|row| row.get::<Option<i64>, _>("active_batch").is_none_or(|b| b < batch))
+                .filter(|row| row.get::<Option<String>, _>("catch_expected").is_none())
+                .map(|row| (index(row.get("left_condition")).unwrap(), index(row.get("right_condition")).unwrap()))
+                .collect();
+            let mut history = ActiveHistory::of(study.conditions.len(), &before, batch as u64);
+            let planned = schedule::active_batch(study, &posterior, seed as u64, &mut history, trials.len()).unwrap();
+            for (planned, stored) in planned.iter().zip(&trials) {
+                let PlannedKind::Pair { left, right } = planned.kind else { panic!("an active trial is a pair") };
+                assert_eq!(study.conditions[left].name, stored.get::<String, _>("left_condition"));
+                assert_eq!(study.conditions[right].name, stored.get::<String, _>("right_condition"));
+                assert_eq!(study.scenes[planned.left_scene].name, stored.get::<String, _>("left_scene"));
+                assert_eq!(study.scenes[planned.right_scene].name, stored.get::<String, _>("right_scene"));
+                replayed += 1;
+            }
+        }
+    }
+    replayed
+}
+
+#[tokio::test]
+async fn interleaved_participants_get_every_trial_and_every_batch_replays_from_the_database() {
+    let work = tempfile::tempdir().unwrap();
+    let (app, state) = fixture(work.path(), "factors", "warmup = \"anchored\"\nanchors = [\"LQ\"]", 10, 3).await;
+    let mut participants = Vec::new();
+    for _ in 0..3 {
+        participants.push(join(&app).await);
+    }
+    // warm-up: the anchor with each of the 3 others, 1 catch trial, then 10 chosen trials
+    assert!(participants.iter().all(|p| p.2 == 3 + 1 + 10), "{participants:?}");
+    let mut running = vec![true; participants.len()];
+    while running.iter().any(|&r| r) {
+        for (index, (id, token, _)) in participants.iter().enumerate() {
+            if running[index] {
+                running[index] = answer_one(&app, &state, id, token).await;
+            }
+        }
+    }
+    let pool = &state.storage().read;
+    for (id, _, trials) in &participants {
+        let row = sqlx::query("SELECT answered, completed_at IS NOT NULL AS done FROM participants WHERE id = ?")
+            .bind(id)
+            .fetch_one(pool)
+            .await
+            .unwrap();
+        assert_eq!(row.get::<i64, _>("answered"), *trials);
+        assert!(row.get::<bool, _>("done"));
+        let pairs = sqlx::query("SELECT left_condition, right_condition FROM trials WHERE participant = ? AND active_batch IS NOT NULL ORDER BY trial")
+            .bind(id)
+            .fetch_all(pool)
+            .await
+            .unwrap();
+        assert_eq!(pairs.len(), 10);
+        let unordered = |row: &sqlx::sqlite::SqliteRow| {
+            let (a, b): (String, String) = (row.get("left_condition"), row.get("right_condition"));
+            if a < b { (a, b) } else { (b, a) }
+        };
+        for window in pairs.windows(2) {
+            assert_ne!(unordered(&window[0]), unordered(&window[1]), "a pair twice in a row for {id}");
+        }
+    }
+    let replayed = assert_batches_replay(&state).await;
+    assert_eq!(replayed, 30);
+    // the admin page says the design is active and has absorbed judgments
+    let judgments = state.active(STUDY).unwrap().lock().await.judgments();
+    assert!(judgments > 0 && state.active(STUDY).unwrap().lock().await.failure.is_none());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn many_participants_at_once_get_valid_trials_and_one_participant_asking_twice_gets_one_trial() {
+    let work = tempfile::tempdir().unwrap();
+    let (app, state) = fixture(work.path(), "worths", "warmup = \"none\"", 6, 2).await;
+    let mut joined = Vec::new();
+    for _ in 0..12 {
+        joined.push(join(&app).await);
+    }
+    // without a warm-up the only trial planned at join is the catch trial; once it is answered,
+    // every participant's next trial is chosen at once, two requests each
+    for (id, token, _) in &joined {
+        assert!(answer_one(&app, &state, id, token).await);
+    }
+    let mut tasks = Vec::new();
+    for (id, token, _) in &joined {
+        for _ in 0..2 {
+            let (app, id, token) = (app.clone(), id.clone(), token.clone());
+            tasks.push(tokio::spawn(async move {
+                call(&app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await
+            }));
+        }
+    }
+    let mut firsts: BTreeMap<String, Vec<serde_json::Value>> = BTreeMap::new();
+    for (task, (id, _, _)) in tasks.into_iter().zip(joined.iter().flat_map(|p| [p.clone(), p.clone()])) {
+        let answer = task.await.unwrap();
+        assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        firsts.entry(id).or_default().push(answer.json());
+    }
+    for (id, answers) in &firsts {
+        assert_eq!(answers[0]["trial"], 2, "{id}");
+        assert_eq!(answers[0]["left"], answers[1]["left"], "two requests of {id} got different trials");
+    }
+    let pool = &state.storage().read;
+    let batches: i64 = sqlx::query_scalar(
+        "SELECT COUNT(DISTINCT participant || ':' || active_batch) FROM trials WHERE active_batch IS NOT NULL",
+    )
+    .fetch_one(pool)
+    .await
+    .unwrap();
+    assert_eq!(batches, 12, "one batch per participant");
+    for (id, token, _) in &joined {
+        while answer_one(&app, &state, id, token).await {}
+    }
+    assert_eq!(assert_batches_replay(&state).await, 12 * 6);
+    let sides =
+        sqlx::query("SELECT participant, left_condition, right_condition FROM trials").fetch_all(pool).await.unwrap();
+    // per participant, no condition is on one side more than 3 times more often than the other
+    let mut balance: BTreeMap<(String, String), i64> = BTreeMap::new();
+    for row in &sides {
+        let participant: String = row.get("participant");
+        *balance.entry((participant.clone(), row.get("left_condition"))).or_default() += 1;
+        *balance.entry((participant, row.get("right_condition"))).or_default() -= 1;
+    }
+    assert!(balance.values().all(|b| b.abs() <= 3), "{balance:?}");
+}
+
+#[tokio::test]
+async fn a_response_to_a_trial_not_chosen_yet_is_refused_and_nothing_is_stored() {
+    let work = tempfile::tempdir().unwrap();
+    let (app, state) = fixture(work.path(), "worths", "warmup = \"none\"", 4, 2).await;
+    let (id, token, _) = join(&app).await;
+    let answer = call(
+        &app,
+        Method::POST,
+        &format!("/api/participants/{id}/responses"),
+        Some(&token),
+        Some(json!({"trial": 2, "chosen": "left", "rt_ms": 900.0, "client": {}})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CONFLICT, "{}", answer.text());
+    let stored: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM responses").fetch_one(&state.storage().read).await.unwrap();
+    assert_eq!(stored, 0);
+}
