@@ -89,7 +89,6 @@ mod tests;
 
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
-use thiserror::Error;
 
 use crate::data::ConditionTable;
 
@@ -105,37 +104,7 @@ pub const DEFAULT_MEAN_WEIGHT: f64 = 0.5;
 /// Judgments per condition over which ρ rises from 0 to its largest value.
 pub const MEAN_WEIGHT_RAMP: f64 = 20.0;
 
-/// Why active selection could not answer. Bad input names the value; `Degenerate` is the
-/// signal to fall back to a fixed design.
-#[derive(Debug, Clone, PartialEq, Error)]
-#[non_exhaustive]
-pub enum ActiveError {
-    /// Fewer than three conditions: there is at most one pair, nothing to choose.
-    #[error("active pair selection needs at least 3 conditions, got {conditions}")]
-    TooFewConditions { conditions: usize },
-    /// A batch of zero trials was asked for.
-    #[error("a batch of 0 trials was asked for; ask for at least one trial")]
-    NoTrials,
-    /// A judgment or pair names a condition index out of range.
-    #[error("condition {condition} does not exist (the study has conditions 0 to {})", .conditions - 1)]
-    UnknownCondition { condition: usize, conditions: usize },
-    /// A judgment compares a condition with itself.
-    #[error("a judgment compares condition {condition} with itself")]
-    SameCondition { condition: usize },
-    /// A factor named for the factor target is not a column of the conditions table.
-    #[error("`{factor}` is not a factor of the conditions (factors: {factors})")]
-    UnknownFactor { factor: String, factors: String },
-    /// The condition × factor design matrix cannot be used.
-    #[error("the factor design cannot be used: {message}")]
-    BadDesign { message: String },
-    /// An option is out of range.
-    #[error("{option}: {message}")]
-    BadOption { option: &'static str, message: String },
-    /// The posterior is no longer usable (non-finite, or a variance not positive): fall back
-    /// to the fixed design and warn.
-    #[error("the active-selection posterior after {judgments} judgments is unusable ({message}); use the fixed design")]
-    Degenerate { judgments: u64, message: String },
-}
+pub use crate::error::ActiveError;
 
 pub type Result<T, E = ActiveError> = std::result::Result<T, E>;
 
