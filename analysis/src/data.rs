@@ -356,7 +356,7 @@ impl<'a> RowReader<'a> {
 
     /// The index of a known condition: a name of up to eight bytes by [`ShortNames`] (one
     /// multiplication and one comparison, where a table could be built), any other by hashing.
-    #[inline]
+    #[inline(always)]
     fn find_condition(&self, name: Field) -> Option<u32> {
         if name.is_short() && self.short_names.complete {
             return self.short_names.find(name);
@@ -396,8 +396,7 @@ impl<'a> RowReader<'a> {
         names: &mut Vec<String>,
     ) -> u32 {
         if let Some((last_name, last_word, last_index)) = last
-            && name.text.len() == last_name.len()
-            && if name.is_short() { name.word == *last_word } else { name.text == last_name }
+            && name.same(Field { text: last_name, word: *last_word })
         {
             return *last_index;
         }
@@ -436,11 +435,12 @@ impl<'a> RowReader<'a> {
                 format!("the trial compares condition `{}` with itself", left_name.text),
             ));
         }
+        // Condition names are distinct, so `chosen` is the left condition exactly when it has its
+        // name: compared directly, without a lookup.
         let chosen = field(columns.chosen);
-        let chosen_index = self.find_condition(chosen);
-        let left_chosen = if chosen_index == Some(left) {
+        let left_chosen = if chosen.same(left_name) {
             true
-        } else if chosen_index == Some(right) {
+        } else if chosen.same(right_name) {
             false
         } else {
             return Err(self.bad(
@@ -538,6 +538,13 @@ impl<'f> Field<'f> {
     fn is_short(&self) -> bool {
         self.text.len() <= 8
     }
+
+    /// Whether the two fields have the same text.
+    #[inline]
+    fn same(&self, other: Field) -> bool {
+        self.text.len() == other.text.len()
+            && if self.is_short() { self.word == other.word } else { self.text == other.text }
+    }
 }
 
 /// Reads the records of `data` (the text after the header, whose first line is `first_line`)
@@ -549,13 +556,19 @@ impl<'f> Field<'f> {
 /// numbers) and rows of the wrong length refused, all as the csv crate does.
 fn read_unquoted(data: &str, first_line: u64, n_columns: usize, rows: &mut RowReader) -> Result<bool> {
     let bytes = data.as_bytes();
-    if memchr::memchr(b'"', bytes).is_some() {
-        return Ok(false);
-    }
-    let crlf = memchr::memchr(b'\r', bytes).is_some();
-    if crlf && !memchr::memchr_iter(b'\r', bytes).all(|at| bytes.get(at + 1) == Some(&b'\n')) {
-        return Ok(false);
-    }
+    // One search for either; where a `\r` comes first, the rest is checked more closely.
+    let crlf = match memchr::memchr2(b'"', b'\r', bytes) {
+        None => false,
+        Some(at) if bytes[at] == b'"' => return Ok(false),
+        Some(at) => {
+            if memchr::memchr(b'"', &bytes[at..]).is_some()
+                || !memchr::memchr_iter(b'\r', &bytes[at..]).all(|k| bytes.get(at + k + 1) == Some(&b'\n'))
+            {
+                return Ok(false);
+            }
+            true
+        }
+    };
     // Room for every row, from the length of the first.
     let first_length = memchr::memchr(b'\n', bytes).unwrap_or(bytes.len()) + 1;
     rows.judgments.rows.reserve(bytes.len() / first_length.max(8) + 1);

@@ -196,10 +196,12 @@ struct Builder {
     n_conditions: usize,
     dense: bool,
     tallies: ParticipantTallies,
-    /// Dense: `grid[i * t + j]` of the current participant (i < j), and the cells touched in
-    /// order. Sparse: the current participant's rows as pairs, with their order of arrival.
-    grid: Vec<(u64, u64)>,
+    /// Dense: `grid[i * t + j]` of the current participant (i < j: wins of i, wins of j), and
+    /// the cells touched, in order, in `touched[..n_touched]`. Sparse: the current
+    /// participant's rows as pairs, with their order of arrival.
+    grid: Vec<[u64; 2]>,
     touched: Vec<usize>,
+    n_touched: usize,
     scratch: Vec<(PairTally, usize)>,
 }
 
@@ -214,8 +216,9 @@ impl Builder {
                 pairs: Vec::new(),
                 present: vec![false; n_participants],
             },
-            grid: vec![(0, 0); if dense { n_conditions * n_conditions } else { 0 }],
-            touched: Vec::new(),
+            grid: vec![[0, 0]; if dense { n_conditions * n_conditions } else { 0 }],
+            touched: vec![0; if dense { n_conditions * n_conditions } else { 0 }],
+            n_touched: 0,
             scratch: Vec::new(),
         }
     }
@@ -240,18 +243,15 @@ impl Builder {
             if row.count == 0 {
                 continue;
             }
-            let (i, j, i_won) = if row.left < row.right {
-                (row.left as usize, row.right as usize, row.left_chosen)
-            } else {
-                (row.right as usize, row.left as usize, !row.left_chosen)
-            };
+            // Without branches on the data (they would be mispredicted half the time).
+            let (i, j) = (row.left.min(row.right) as usize, row.left.max(row.right) as usize);
+            let i_won = row.left_chosen ^ (row.left > row.right);
             if dense {
                 let cell = i * t + j;
                 let tally = &mut self.grid[cell];
-                if *tally == (0, 0) {
-                    self.touched.push(cell);
-                }
-                if i_won { tally.0 += row.count } else { tally.1 += row.count }
+                self.touched[self.n_touched] = cell;
+                self.n_touched += usize::from(*tally == [0, 0]);
+                tally[usize::from(!i_won)] += row.count;
             } else {
                 let (wins_i, wins_j) = if i_won { (row.count, 0) } else { (0, row.count) };
                 let order = self.scratch.len();
@@ -268,11 +268,11 @@ impl Builder {
     fn flush(&mut self, participant: usize) {
         let t = self.n_conditions;
         let start = self.tallies.pairs.len();
-        for &cell in &self.touched {
-            let (wins_i, wins_j) = std::mem::take(&mut self.grid[cell]);
+        for &cell in &self.touched[..self.n_touched] {
+            let [wins_i, wins_j] = std::mem::take(&mut self.grid[cell]);
             self.tallies.pairs.push(PairTally { i: cell / t, j: cell % t, wins_i, wins_j });
         }
-        self.touched.clear();
+        self.n_touched = 0;
         if !self.scratch.is_empty() {
             // Stable: within a pair the first row stays first, and keeps its order of arrival.
             self.scratch.sort_by_key(|(pair, _)| (pair.i, pair.j));
