@@ -600,15 +600,23 @@ pub fn coefficient_of_consistence(judgments: &[(usize, usize, bool)], n_conditio
         )));
     }
 
+    Ok(consistence_of_scores(&score))
+}
+
+/// ζ of a judge whose majorities over every pair of `score.len() ≥ 3` conditions (no ties)
+/// preferred condition `i` to `score[i]` others.
+pub(crate) fn consistence_of_scores(score: &[u64]) -> Consistence {
+    let t128 = score.len() as u128;
+    let max_triads = if t128 % 2 == 1 { (t128.pow(3) - t128) / 24 } else { (t128.pow(3) - 4 * t128) / 24 };
     let triads = t128 * (t128 - 1) * (t128 - 2) / 6;
     let transitive: u128 = score.iter().map(|&s| choose2(s)).sum();
     let circular = triads - transitive;
-    Ok(Consistence {
+    Consistence {
         zeta: Some(1.0 - circular as f64 / max_triads as f64),
         circular_triads: Some(u64::try_from(circular).unwrap_or(u64::MAX)),
-        max_circular_triads,
+        max_circular_triads: u64::try_from(max_triads).unwrap_or(u64::MAX),
         reason: None,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 use crate::agreement::{self, Agreement, AgreementOptions};
 use crate::data::{ConditionTable, Judgments, LeftOut, TrialsOptions};
-use crate::design::{self, Dropped, PairTally, Term};
+use crate::design::{self, Dropped, PairTally, ParticipantTallies, Term};
 use crate::fit::{self, Fit, FitFailure, FitOptions, Method, ModelMatrix};
 use crate::pvalue::PValue;
 use crate::{AnalysisError, Result};
@@ -395,9 +395,34 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         }
     };
 
-    let mut analysis = analyze_subset(judgments, table, terms.as_ref(), reference, options, |_| true)?;
+    let n_participants = judgments.participants.len();
+    let n_conditions = judgments.conditions.len();
+    let tallies = ParticipantTallies::new(n_participants, n_conditions, judgments.rows.iter());
+    let everyone = tallies.present();
+    let mut analysis = analyze_subset(judgments, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
 
     if !judgments.groups.is_empty() {
+        // Where every participant's judgments are in one group (a column such as gender), a
+        // group's tallies are its participants' in the whole data's; otherwise each group's
+        // are tallied from its rows.
+        let mut group_of = vec![u32::MAX; n_participants];
+        let mixed = judgments.rows.iter().any(|row| {
+            let group = &mut group_of[row.participant as usize];
+            if *group == u32::MAX {
+                *group = row.group;
+            }
+            *group != row.group
+        });
+        let subset = |in_group: &dyn Fn(u32) -> bool| -> (Option<ParticipantTallies>, Vec<usize>) {
+            if mixed {
+                let rows = judgments.rows.iter().filter(|row| in_group(row.group));
+                let own = ParticipantTallies::new(n_participants, n_conditions, rows);
+                let active = own.present();
+                (Some(own), active)
+            } else {
+                (None, everyone.iter().copied().filter(|&p| in_group(group_of[p])).collect())
+            }
+        };
         let mut groups = BTreeMap::new();
         let mut grouped_ll = 0.0;
         let mut grouped_parameters = 0usize;
@@ -405,8 +430,9 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         let mut estimable = vec![false; judgments.groups.len()];
         let mut left_out = Vec::new();
         for (g, name) in judgments.groups.iter().enumerate() {
-            let in_group = |row: &crate::data::Judgment| row.group == g as u32;
-            match analyze_subset(judgments, table, terms.as_ref(), reference, options, in_group) {
+            let (own, active) = subset(&|group| group == g as u32);
+            let group_tallies = own.as_ref().unwrap_or(&tallies);
+            match analyze_subset(judgments, table, terms.as_ref(), reference, options, group_tallies, &active) {
                 Ok(sub) => {
                     let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
                     valid &= model.method == Method::Ml;
@@ -416,10 +442,7 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                     groups.insert(name.clone(), GroupResult::Estimated(Box::new(sub)));
                 }
                 Err(error) => {
-                    let rows = judgments.rows.iter().filter(|row| in_group(row));
-                    let mut participants: Vec<u32> = rows.clone().map(|row| row.participant).collect();
-                    participants.sort_unstable();
-                    participants.dedup();
+                    let group_judgments = active.iter().flat_map(|&p| group_tallies.of(p)).map(|pair| pair.n()).sum();
                     let reason = error.to_string();
                     analysis.warnings.push(format!("group `{name}` could not be estimated: {reason}"));
                     left_out.push(name.clone());
@@ -427,8 +450,8 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                         name.clone(),
                         GroupResult::NotEstimable(NotEstimable {
                             estimable: false,
-                            judgments: rows.map(|row| row.count).sum(),
-                            participants: participants.len(),
+                            judgments: group_judgments,
+                            participants: active.len(),
                             reason,
                         }),
                     );
@@ -452,9 +475,17 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
             } else {
                 let pooled_options =
                     Options { bootstrap: 0, screening: Screening::Off, agreement_simulations: 1, ..options.clone() };
-                restricted = analyze_subset(judgments, table, terms.as_ref(), reference, &pooled_options, |row| {
-                    estimable[row.group as usize]
-                })?;
+                let (own, active) = subset(&|group| estimable[group as usize]);
+                let pooled_tallies = own.as_ref().unwrap_or(&tallies);
+                restricted = analyze_subset(
+                    judgments,
+                    table,
+                    terms.as_ref(),
+                    reference,
+                    &pooled_options,
+                    pooled_tallies,
+                    &active,
+                )?;
                 restricted.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&restricted.item_model)
             };
             if pooled.method == Method::Ml {
@@ -477,52 +508,6 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         analysis.groups = Some(groups);
     }
     Ok(analysis)
-}
-
-/// Per-participant judgments as (i, j, i won, count), i < j.
-type ParticipantRow = (usize, usize, bool, u64);
-
-/// Every participant's judgments, contiguous per participant (built by a counting sort: two
-/// passes, no per-participant allocation).
-struct ByParticipant {
-    offsets: Vec<usize>,
-    entries: Vec<ParticipantRow>,
-}
-
-impl ByParticipant {
-    fn new(n_participants: usize, rows: &[&crate::data::Judgment]) -> ByParticipant {
-        let mut offsets = vec![0usize; n_participants + 1];
-        for row in rows {
-            offsets[row.participant as usize + 1] += 1;
-        }
-        for p in 0..n_participants {
-            offsets[p + 1] += offsets[p];
-        }
-        let mut cursor = offsets.clone();
-        let mut entries = vec![(0, 0, false, 0); rows.len()];
-        for row in rows {
-            let (i, j, i_won) = if row.left < row.right {
-                (row.left, row.right, row.left_chosen)
-            } else {
-                (row.right, row.left, !row.left_chosen)
-            };
-            let slot = &mut cursor[row.participant as usize];
-            entries[*slot] = (i as usize, j as usize, i_won, row.count);
-            *slot += 1;
-        }
-        ByParticipant { offsets, entries }
-    }
-
-    fn len(&self) -> usize {
-        self.offsets.len() - 1
-    }
-}
-
-impl std::ops::Index<usize> for ByParticipant {
-    type Output = [ParticipantRow];
-    fn index(&self, participant: usize) -> &[ParticipantRow] {
-        &self.entries[self.offsets[participant]..self.offsets[participant + 1]]
-    }
 }
 
 struct ItemFit {
@@ -573,14 +558,12 @@ fn analyze_subset(
     terms: Option<&(String, Vec<Term>)>,
     reference: usize,
     options: &Options,
-    keep: impl Fn(&crate::data::Judgment) -> bool + Sync,
+    tallies: &ParticipantTallies,
+    active: &[usize],
 ) -> Result<Analysis> {
     let n_conditions = judgments.conditions.len();
     let names = &judgments.conditions;
-    let rows: Vec<&crate::data::Judgment> = judgments.rows.iter().filter(|row| keep(row)).collect();
-    let tally_rows = rows.iter().map(|r| (r.left, r.right, r.left_chosen, r.count));
-    let pairs =
-        if n_conditions <= 512 { design::tally_dense(n_conditions, tally_rows) } else { design::tally(tally_rows) };
+    let pairs = tallies.pooled(n_conditions, active);
     let mut warnings = Vec::new();
 
     let mut wins = vec![0u64; n_conditions];
@@ -766,15 +749,11 @@ fn analyze_subset(
         },
     )?;
 
-    // Per-participant judgments (for consistence, bootstrap and screening).
-    let by_participant = ByParticipant::new(judgments.participants.len(), &rows);
-    let active: Vec<usize> = (0..by_participant.len()).filter(|&p| !by_participant[p].is_empty()).collect();
-
     let compared: Vec<usize> = (0..n_conditions).filter(|&c| comparisons[c] > 0).collect();
-    let consistence = consistence_per_participant(&by_participant, &active, &compared, &judgments.participants);
+    let consistence = consistence_per_participant(tallies, active, &compared, &judgments.participants);
 
     let mut analysis = Analysis {
-        judgments: rows.iter().map(|r| r.count).sum(),
+        judgments: pairs.iter().map(|pair| pair.n()).sum(),
         participants: active.len(),
         conditions: n_conditions,
         reference: names[reference].clone(),
@@ -819,8 +798,8 @@ fn analyze_subset(
             analysis.observers = Some(screen_observers(
                 &pairs,
                 &item_fit.components[0],
-                &by_participant,
-                &active,
+                tallies,
+                active,
                 &judgments.participants,
                 options,
             ));
@@ -832,8 +811,8 @@ fn analyze_subset(
         } else {
             run_bootstrap(
                 &mut analysis,
-                &by_participant,
-                &active,
+                tallies,
+                active,
                 n_conditions,
                 reference,
                 factor_fit.as_ref().map(|(_, x)| x),
@@ -845,7 +824,7 @@ fn analyze_subset(
 }
 
 fn consistence_per_participant(
-    by_participant: &ByParticipant,
+    tallies: &ParticipantTallies,
     active: &[usize],
     compared: &[usize],
     participant_names: &[String],
@@ -855,51 +834,46 @@ fn consistence_per_participant(
         return Vec::new();
     }
     let n_pairs = t * (t - 1) / 2;
-    // A participant who compared every pair made at least n_pairs judgments; with thousands of
-    // conditions nobody does, and the grid below would not fit.
-    if active.iter().all(|&p| by_participant[p].len() < n_pairs) {
-        return Vec::new();
-    }
-    let mut local = vec![usize::MAX; by_participant.entries.iter().map(|&(_, j, _, _)| j + 1).max().unwrap_or(0)];
+    let mut local = vec![usize::MAX; compared.last().map_or(0, |&c| c + 1)];
     for (k, &c) in compared.iter().enumerate() {
         local[c] = k;
     }
-    let mut grid = vec![(0u64, 0u64); t * t];
-    let mut touched: Vec<usize> = Vec::new();
+    let mut score = vec![0u64; t];
     active
         .iter()
         .filter_map(|&p| {
-            let rows = &by_participant[p];
-            if rows.len() < n_pairs {
+            // A participant's pairs are distinct and among the compared conditions: as many as
+            // there are pairs means every pair. One judgment per pair by majority.
+            let pairs = tallies.of(p);
+            if pairs.len() != n_pairs {
                 return None;
             }
-            // This participant's tallies per pair (in a t×t grid reused across participants),
-            // then one judgment per pair by majority; a tie is passed on as one judgment each
-            // way, which leaves the participant without ζ.
-            touched.clear();
-            for &(i, j, won, count) in rows {
-                let cell = local[i] * t + local[j];
-                if grid[cell] == (0, 0) {
-                    touched.push(cell);
-                }
-                if won { grid[cell].0 += count } else { grid[cell].1 += count }
-            }
-            let complete = touched.len() == n_pairs;
-            let mut expanded = Vec::with_capacity(if complete { n_pairs } else { 0 });
-            for &cell in touched.iter() {
-                let (wins, losses) = std::mem::take(&mut grid[cell]);
-                let (a, b) = (cell / t, cell % t);
-                if complete && wins >= losses {
-                    expanded.push((a, b, true));
-                }
-                if complete && losses >= wins {
-                    expanded.push((a, b, false));
+            score.fill(0);
+            let mut tie = false;
+            for pair in pairs {
+                match pair.wins_i.cmp(&pair.wins_j) {
+                    std::cmp::Ordering::Greater => score[local[pair.i]] += 1,
+                    std::cmp::Ordering::Less => score[local[pair.j]] += 1,
+                    std::cmp::Ordering::Equal => tie = true,
                 }
             }
-            if !complete {
-                return None;
-            }
-            let consistence = agreement::coefficient_of_consistence(&expanded, t).ok()?;
+            let consistence = if tie {
+                // A tie is passed on as one judgment each way, which leaves the participant
+                // without ζ (and [`agreement::coefficient_of_consistence`] says why).
+                let mut expanded = Vec::with_capacity(n_pairs + 1);
+                for pair in pairs {
+                    let (a, b) = (local[pair.i], local[pair.j]);
+                    if pair.wins_i >= pair.wins_j {
+                        expanded.push((a, b, true));
+                    }
+                    if pair.wins_j >= pair.wins_i {
+                        expanded.push((a, b, false));
+                    }
+                }
+                agreement::coefficient_of_consistence(&expanded, t).ok()?
+            } else {
+                agreement::consistence_of_scores(&score)
+            };
             Some(ParticipantConsistence { participant: participant_names[p].clone(), consistence })
         })
         .collect()
@@ -989,20 +963,15 @@ const SCREENING_EXACT_STEP_PARAMETERS: usize = 48;
 fn screen_observers(
     pairs: &[PairTally],
     component: &(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>),
-    by_participant: &ByParticipant,
+    tallies: &ParticipantTallies,
     active: &[usize],
     participant_names: &[String],
     options: &Options,
 ) -> ObserverScreening {
     let (members, reference, full_fit, _) = component;
-    let n_conditions = by_participant
-        .entries
-        .iter()
-        .map(|&(_, j, _, _)| j + 1)
-        .max()
-        .unwrap_or(0)
-        .max(members.iter().max().map_or(0, |m| m + 1))
-        .max(pairs.iter().map(|p| p.i.max(p.j) + 1).max().unwrap_or(0));
+    // `pairs` are the active participants' pairs pooled: every condition they compared.
+    let n_conditions =
+        members.iter().max().map_or(0, |m| m + 1).max(pairs.iter().map(|p| p.i.max(p.j) + 1).max().unwrap_or(0));
     let x = ModelMatrix::items(n_conditions, members, *reference);
     let column: Vec<Option<usize>> = x.rows.iter().map(|row| row.first().map(|&(c, _)| c)).collect();
     let q = x.n_params;
@@ -1014,131 +983,100 @@ fn screen_observers(
     let dense = n_conditions <= 64;
 
     struct Scratch {
-        grid: Vec<(u64, u64)>,
-        touched: Vec<usize>,
-        own: Vec<(usize, usize, u64, u64)>,
+        sorted: Vec<PairTally>,
         terms: Vec<crate::screening::PairTerm>,
         score: Vec<f64>,
         information: Vec<f64>,
     }
-    let observers: Vec<Observer> =
-        active
-            .par_iter()
-            .map_init(
-                || Scratch {
-                    grid: vec![(0, 0); if dense { n_conditions * n_conditions } else { 0 }],
-                    touched: Vec::new(),
-                    own: Vec::new(),
-                    terms: Vec::new(),
-                    score: vec![0.0; q],
-                    information: vec![0.0; q * q],
-                },
-                |scratch, &p| {
-                    let rows = &by_participant[p];
-                    // The participant's own tallies per pair (i < j).
-                    scratch.own.clear();
-                    if dense {
-                        scratch.touched.clear();
-                        for &(i, j, i_won, count) in rows {
-                            let cell = i * n_conditions + j;
-                            if scratch.grid[cell] == (0, 0) {
-                                scratch.touched.push(cell);
-                            }
-                            if i_won { scratch.grid[cell].0 += count } else { scratch.grid[cell].1 += count }
+    let observers: Vec<Observer> = active
+        .par_iter()
+        .map_init(
+            || Scratch { sorted: Vec::new(), terms: Vec::new(), score: vec![0.0; q], information: vec![0.0; q * q] },
+            |scratch, &p| {
+                // The participant's own tallies per pair (i < j): in the order of their first
+                // judgment for few conditions, else sorted by pair.
+                let own = if dense {
+                    tallies.of(p)
+                } else {
+                    scratch.sorted.clear();
+                    scratch.sorted.extend_from_slice(tallies.of(p));
+                    scratch.sorted.sort_unstable_by_key(|pair| (pair.i, pair.j));
+                    &scratch.sorted
+                };
+                let own_f64 = || own.iter().map(as_f64);
+                // Leave-one-out consensus by Newton steps on the others' likelihood.
+                let mut beta = full_fit.beta.clone();
+                for step in 0..10 {
+                    let (score, information) = (&mut scratch.score, &mut scratch.information);
+                    score.fill(0.0);
+                    information.fill(0.0);
+                    item_score_information(own_f64(), &column, &beta, score, information);
+                    if step == 0 {
+                        for (s, f) in score.iter_mut().zip(&full_score) {
+                            *s = f - *s;
                         }
-                        for &cell in &scratch.touched {
-                            let (wins_i, wins_j) = std::mem::take(&mut scratch.grid[cell]);
-                            scratch.own.push((cell / n_conditions, cell % n_conditions, wins_i, wins_j));
+                        for (a, f) in information.iter_mut().zip(&full_information) {
+                            *a = f - *a;
                         }
                     } else {
-                        scratch.own.extend(rows.iter().map(
-                            |&(i, j, i_won, c)| {
-                                if i_won { (i, j, c, 0) } else { (i, j, 0, c) }
-                            },
-                        ));
-                        scratch.own.sort_unstable_by_key(|&(i, j, _, _)| (i, j));
-                        scratch.own.dedup_by(|next, kept| {
-                            let same = (next.0, next.1) == (kept.0, kept.1);
-                            if same {
-                                kept.2 += next.2;
-                                kept.3 += next.3;
-                            }
-                            same
-                        });
+                        let (mut s_all, mut i_all) = (vec![0.0; q], vec![0.0; q * q]);
+                        item_score_information(pairs.iter().map(as_f64), &column, &beta, &mut s_all, &mut i_all);
+                        for (s, f) in score.iter_mut().zip(&s_all) {
+                            *s = f - *s;
+                        }
+                        for (a, f) in information.iter_mut().zip(&i_all) {
+                            *a = f - *a;
+                        }
                     }
-                    let own = &scratch.own;
-                    let own_f64 = || own.iter().map(|&(i, j, wi, wj)| (i, j, wi as f64, (wi + wj) as f64));
-                    // Leave-one-out consensus by Newton steps on the others' likelihood.
-                    let mut beta = full_fit.beta.clone();
-                    for step in 0..10 {
-                        let (score, information) = (&mut scratch.score, &mut scratch.information);
-                        score.fill(0.0);
-                        information.fill(0.0);
-                        item_score_information(own_f64(), &column, &beta, score, information);
+                    let solved = if exact_step {
+                        cholesky_solve(information, score)
+                    } else {
+                        let step: Vec<f64> =
+                            (0..q).map(|a| (0..q).map(|b| full_fit.covariance[(a, b)] * score[b]).sum()).collect();
+                        score.copy_from_slice(&step);
+                        true
+                    };
+                    // The others alone may not identify the consensus (separation, a condition
+                    // only this participant compared): then the whole data's estimate is used.
+                    if !solved || score.iter().any(|s| !s.is_finite()) {
                         if step == 0 {
-                            for (s, f) in score.iter_mut().zip(&full_score) {
-                                *s = f - *s;
-                            }
-                            for (a, f) in information.iter_mut().zip(&full_information) {
-                                *a = f - *a;
-                            }
-                        } else {
-                            let (mut s_all, mut i_all) = (vec![0.0; q], vec![0.0; q * q]);
-                            item_score_information(pairs.iter().map(as_f64), &column, &beta, &mut s_all, &mut i_all);
-                            for (s, f) in score.iter_mut().zip(&s_all) {
-                                *s = f - *s;
-                            }
-                            for (a, f) in information.iter_mut().zip(&i_all) {
-                                *a = f - *a;
-                            }
+                            beta.clone_from(&full_fit.beta);
                         }
-                        let solved = if exact_step {
-                            cholesky_solve(information, score)
-                        } else {
-                            let step: Vec<f64> =
-                                (0..q).map(|a| (0..q).map(|b| full_fit.covariance[(a, b)] * score[b]).sum()).collect();
-                            score.copy_from_slice(&step);
-                            true
-                        };
-                        // The others alone may not identify the consensus (separation, a condition
-                        // only this participant compared): then the whole data's estimate is used.
-                        if !solved || score.iter().any(|s| !s.is_finite()) {
-                            if step == 0 {
-                                beta.clone_from(&full_fit.beta);
-                            }
-                            break;
-                        }
-                        let largest = score.iter().fold(0.0f64, |m, s| m.max(s.abs()));
-                        if largest > 5.0 {
-                            break;
-                        }
-                        for (b, s) in beta.iter_mut().zip(score.iter()) {
-                            *b += s;
-                        }
-                        // From the whole data's estimate a step below 1e-3 leaves the next at O(1e-6).
-                        if !more_steps || largest < 1e-3 {
-                            break;
-                        }
+                        break;
                     }
-                    let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
-                    scratch.terms.clear();
-                    scratch.terms.extend(scratch.own.iter().map(|&(i, j, wins_i, wins_j)| {
-                        crate::screening::PairTerm { eta: lambda(i) - lambda(j), n: wins_i + wins_j, wins: wins_i }
-                    }));
-                    let test = crate::screening::log_likelihood_test(&scratch.terms);
-                    let n: u64 = scratch.own.iter().map(|&(_, _, wi, wj)| wi + wj).sum();
-                    let z = if test.variance > 0.0 { (test.observed - test.mean) / test.variance.sqrt() } else { 0.0 };
-                    Observer {
-                        participant: participant_names[p].clone(),
-                        judgments: n,
-                        mean_log_likelihood: test.observed / n.max(1) as f64,
-                        z,
-                        p: test.p,
-                        flagged: test.p.p < options.screening_alpha,
+                    let largest = score.iter().fold(0.0f64, |m, s| m.max(s.abs()));
+                    if largest > 5.0 {
+                        break;
                     }
-                },
-            )
-            .collect();
+                    for (b, s) in beta.iter_mut().zip(score.iter()) {
+                        *b += s;
+                    }
+                    // From the whole data's estimate a step below 1e-3 leaves the next at O(1e-6).
+                    if !more_steps || largest < 1e-3 {
+                        break;
+                    }
+                }
+                let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
+                scratch.terms.clear();
+                scratch.terms.extend(own.iter().map(|pair| crate::screening::PairTerm {
+                    eta: lambda(pair.i) - lambda(pair.j),
+                    n: pair.n(),
+                    wins: pair.wins_i,
+                }));
+                let test = crate::screening::log_likelihood_test(&scratch.terms);
+                let n: u64 = own.iter().map(|pair| pair.n()).sum();
+                let z = if test.variance > 0.0 { (test.observed - test.mean) / test.variance.sqrt() } else { 0.0 };
+                Observer {
+                    participant: participant_names[p].clone(),
+                    judgments: n,
+                    mean_log_likelihood: test.observed / n.max(1) as f64,
+                    z,
+                    p: test.p,
+                    flagged: test.p.p < options.screening_alpha,
+                }
+            },
+        )
+        .collect();
     let flagged = observers.iter().filter(|o| o.flagged).map(|o| o.participant.clone()).collect();
     ObserverScreening { alpha: options.screening_alpha, participants: observers, flagged }
 }
@@ -1166,7 +1104,7 @@ fn bootstrap_interval(mut values: Vec<f64>, level: f64, estimate: f64, n_partici
 
 fn run_bootstrap(
     analysis: &mut Analysis,
-    by_participant: &ByParticipant,
+    tallies: &ParticipantTallies,
     active: &[usize],
     n_conditions: usize,
     reference: usize,
@@ -1185,7 +1123,7 @@ fn run_bootstrap(
             rng.set_stream(b as u64 + 1);
             let rows = (0..active.len()).flat_map(|_| {
                 let p = active[rng.random_range(0..active.len())];
-                by_participant[p].iter().map(|&(i, j, won, count)| (i as u32, j as u32, won, count))
+                tallies.rows_of(p)
             });
             let rows: Vec<_> = rows.collect();
             let pairs = if n_conditions <= 512 { design::tally_dense(n_conditions, rows) } else { design::tally(rows) };

@@ -258,13 +258,16 @@ pub fn parse_trials(
 }
 
 /// A `true`/`false` cell (ASCII case ignored, as spreadsheets write `TRUE`).
-fn parse_flag(cell: &str) -> Option<bool> {
-    if cell.eq_ignore_ascii_case("true") {
-        Some(true)
-    } else if cell.eq_ignore_ascii_case("false") {
-        Some(false)
-    } else {
-        None
+#[inline]
+fn parse_flag(cell: Field) -> Option<bool> {
+    const FALSE: u64 = u64::from_le_bytes(*b"false\0\0\0");
+    const TRUE: u64 = u64::from_le_bytes(*b"true\0\0\0\0");
+    match (cell.text.len(), cell.word) {
+        (5, FALSE) => Some(false),
+        (4, TRUE) => Some(true),
+        _ if cell.text.eq_ignore_ascii_case("true") => Some(true),
+        _ if cell.text.eq_ignore_ascii_case("false") => Some(false),
+        _ => None,
     }
 }
 
@@ -309,12 +312,13 @@ struct RowReader<'a> {
     columns: Columns<'a>,
     condition_index: FnvMap<u32>,
     condition_names: Vec<String>,
-    /// [`short_key`] of each condition name, in index order.
-    short_keys: Vec<(u64, usize)>,
+    /// The condition names of up to eight bytes, for [`RowReader::find_condition`].
+    short_names: ShortNames,
     participant_index: FnvMap<u32>,
     group_index: FnvMap<u32>,
-    last_participant: Option<(String, u32)>,
-    last_group: Option<(String, u32)>,
+    /// The last participant and group seen: name, [`short_word`] (where short), index.
+    last_participant: Option<(String, u64, u32)>,
+    last_group: Option<(String, u64, u32)>,
     /// Per participant (by index): marked pilot, marked excluded, in any of their rows.
     marks: Vec<(bool, bool)>,
     judgments: Judgments,
@@ -335,7 +339,7 @@ impl<'a> RowReader<'a> {
             conditions,
             columns,
             condition_index,
-            short_keys: condition_names.iter().map(|name| short_key(name)).collect(),
+            short_names: ShortNames::new(&condition_names),
             condition_names,
             participant_index: FnvMap::default(),
             group_index: FnvMap::default(),
@@ -350,77 +354,114 @@ impl<'a> RowReader<'a> {
         AnalysisError::BadValue { source_name: self.source_name.to_string(), line, column: column.to_string(), message }
     }
 
-    /// The index of a known condition. A study has a handful of conditions with short names:
-    /// comparing a name's first eight bytes and length, as one integer, with each beats hashing.
-    fn find_condition(&self, name: &str) -> Option<u32> {
-        if self.condition_names.len() <= 16 && name.len() <= 8 {
-            let key = short_key(name);
-            return self.short_keys.iter().position(|&k| k == key).map(|k| k as u32);
+    /// The index of a known condition: a name of up to eight bytes by [`ShortNames`] (one
+    /// multiplication and one comparison, where a table could be built), any other by hashing.
+    #[inline(always)]
+    fn find_condition(&self, name: Field) -> Option<u32> {
+        if name.is_short() && self.short_names.complete {
+            return self.short_names.find(name);
         }
-        self.condition_index.get(name).copied()
+        self.condition_index.get(name.text).copied()
     }
 
-    fn condition(&mut self, line: u64, column: &str, name: &str) -> Result<u32> {
-        if name.is_empty() {
-            return Err(self.bad(line, column, "the condition name is empty".to_string()));
-        }
+    fn condition(&mut self, line: u64, column: &str, name: Field) -> Result<u32> {
         if let Some(k) = self.find_condition(name) {
             return Ok(k);
+        }
+        if name.text.is_empty() {
+            return Err(self.bad(line, column, "the condition name is empty".to_string()));
         }
         if self.conditions.is_some() {
             return Err(AnalysisError::UnknownCondition {
                 source_name: self.source_name.to_string(),
                 line,
-                condition: name.to_string(),
+                condition: name.text.to_string(),
             });
         }
         let k = self.condition_names.len() as u32;
-        self.condition_index.insert(name.to_string(), k);
-        self.condition_names.push(name.to_string());
-        self.short_keys.push(short_key(name));
+        self.condition_index.insert(name.text.to_string(), k);
+        self.condition_names.push(name.text.to_string());
+        self.short_names = ShortNames::new(&self.condition_names);
         Ok(k)
     }
 
+    /// The index of a participant or group `name`: `last` where it is the last one seen (rows
+    /// are grouped by participant in exports), else interned by hashing in `index` and `names`
+    /// and remembered as the last one.
+    #[inline]
+    fn intern(
+        name: Field,
+        last: &mut Option<(String, u64, u32)>,
+        index: &mut FnvMap<u32>,
+        names: &mut Vec<String>,
+    ) -> u32 {
+        if let Some((last_name, last_word, last_index)) = last
+            && name.same(Field { text: last_name, word: *last_word })
+        {
+            return *last_index;
+        }
+        let k = match index.get(name.text) {
+            Some(&k) => k,
+            None => {
+                let k = names.len() as u32;
+                index.insert(name.text.to_string(), k);
+                names.push(name.text.to_string());
+                k
+            }
+        };
+        match last {
+            Some((last_name, last_word, last_index)) => {
+                last_name.clear();
+                last_name.push_str(name.text);
+                (*last_word, *last_index) = (name.word, k);
+            }
+            None => *last = Some((name.text.to_string(), name.word, k)),
+        }
+        k
+    }
+
     /// One record; `field(k)` is its k-th field, trimmed.
-    fn row<'f>(&mut self, line: u64, field: impl Fn(usize) -> &'f str) -> Result<()> {
+    #[inline]
+    fn row<'f>(&mut self, line: u64, field: impl Fn(usize) -> Field<'f>) -> Result<()> {
         let columns = self.columns;
         let left_name = field(columns.left);
         let right_name = field(columns.right);
         let left = self.condition(line, "left", left_name)?;
         let right = self.condition(line, "right", right_name)?;
         if left == right {
-            return Err(self.bad(line, "right", format!("the trial compares condition `{left_name}` with itself")));
+            return Err(self.bad(
+                line,
+                "right",
+                format!("the trial compares condition `{}` with itself", left_name.text),
+            ));
         }
+        // Condition names are distinct, so `chosen` is the left condition exactly when it has its
+        // name: compared directly, without a lookup.
         let chosen = field(columns.chosen);
-        let chosen_index = self.find_condition(chosen);
-        let left_chosen = if chosen_index == Some(left) {
+        let left_chosen = if chosen.same(left_name) {
             true
-        } else if chosen_index == Some(right) {
+        } else if chosen.same(right_name) {
             false
         } else {
             return Err(self.bad(
                 line,
                 "chosen",
-                format!("`{chosen}` is neither the left (`{left_name}`) nor the right (`{right_name}`) condition"),
+                format!(
+                    "`{}` is neither the left (`{}`) nor the right (`{}`) condition",
+                    chosen.text, left_name.text, right_name.text
+                ),
             ));
         };
         let participant_name = field(columns.participant);
-        if participant_name.is_empty() {
+        if participant_name.text.is_empty() {
             return Err(self.bad(line, "participant", "the participant is empty".to_string()));
         }
-        let participant = match &self.last_participant {
-            Some((name, index)) if name == participant_name => *index,
-            _ => {
-                let next = self.participant_index.len() as u32;
-                let participants = &mut self.judgments.participants;
-                let index = *self.participant_index.entry(participant_name.to_string()).or_insert_with(|| {
-                    participants.push(participant_name.to_string());
-                    next
-                });
-                self.last_participant = Some((participant_name.to_string(), index));
-                index
-            }
-        };
+        let participant = Self::intern(
+            participant_name,
+            &mut self.last_participant,
+            &mut self.participant_index,
+            &mut self.judgments.participants,
+        );
         if self.marks.len() <= participant as usize {
             self.marks.push((false, false));
         }
@@ -428,14 +469,14 @@ impl<'a> RowReader<'a> {
             let Some(k) = column else { continue };
             let cell = field(k);
             let flag = parse_flag(cell)
-                .ok_or_else(|| self.bad(line, name, format!("`{cell}` is neither `true` nor `false`")))?;
+                .ok_or_else(|| self.bad(line, name, format!("`{}` is neither `true` nor `false`", cell.text)))?;
             let mark = &mut self.marks[participant as usize];
             if is_pilot { mark.0 |= flag } else { mark.1 |= flag }
         }
         let count = match columns.count {
             None => 1,
             Some(k) => {
-                let cell = field(k);
+                let cell = field(k).text;
                 cell.parse::<u64>()
                     .ok()
                     .filter(|&c| c > 0)
@@ -446,22 +487,10 @@ impl<'a> RowReader<'a> {
             None => 0,
             Some(k) => {
                 let value = field(k);
-                if value.is_empty() {
+                if value.text.is_empty() {
                     return Err(self.bad(line, columns.group_name, "the group value is empty".to_string()));
                 }
-                match &self.last_group {
-                    Some((name, index)) if name == value => *index,
-                    _ => {
-                        let next = self.group_index.len() as u32;
-                        let groups = &mut self.judgments.groups;
-                        let index = *self.group_index.entry(value.to_string()).or_insert_with(|| {
-                            groups.push(value.to_string());
-                            next
-                        });
-                        self.last_group = Some((value.to_string(), index));
-                        index
-                    }
-                }
+                Self::intern(value, &mut self.last_group, &mut self.group_index, &mut self.judgments.groups)
             }
         };
         self.judgments.rows.push(Judgment { participant, left, right, left_chosen, count, group });
@@ -469,81 +498,298 @@ impl<'a> RowReader<'a> {
     }
 }
 
+/// A field of a record, trimmed, with its bytes as one integer where it has at most eight
+/// (for comparisons without a loop or a call).
+#[derive(Clone, Copy)]
+struct Field<'f> {
+    text: &'f str,
+    /// [`short_word`] of `text` where it has at most eight bytes, else 0.
+    word: u64,
+}
+
+impl<'f> Field<'f> {
+    fn new(text: &'f str) -> Field<'f> {
+        let word = if text.len() <= 8 { short_word(text.as_bytes()) } else { 0 };
+        Field { text, word }
+    }
+
+    /// Field `data[start..end]`, trimmed. Where it has at most eight bytes, its word is read
+    /// as one load of the eight bytes at `start` (masked to its length) when the text goes on
+    /// that far.
+    #[inline]
+    fn at(data: &'f str, start: usize, end: usize) -> Field<'f> {
+        let bytes = data.as_bytes();
+        let printable = |byte: u8| (b'!'..=b'~').contains(&byte);
+        if !(end > start && printable(bytes[start]) && printable(bytes[end - 1])) {
+            return Field::new(data[start..end].trim());
+        }
+        let length = end - start;
+        let word = match bytes.get(start..start + 8) {
+            Some(eight) if length <= 8 => {
+                u64::from_le_bytes(eight.try_into().expect("eight bytes")) & (u64::MAX >> (64 - 8 * length))
+            }
+            _ if length <= 8 => short_word(&bytes[start..end]),
+            _ => 0,
+        };
+        Field { text: &data[start..end], word }
+    }
+
+    #[inline]
+    fn is_short(&self) -> bool {
+        self.text.len() <= 8
+    }
+
+    /// Whether the two fields have the same text.
+    #[inline]
+    fn same(&self, other: Field) -> bool {
+        self.text.len() == other.text.len()
+            && if self.is_short() { self.word == other.word } else { self.text == other.text }
+    }
+}
+
 /// Reads the records of `data` (the text after the header, whose first line is `first_line`)
-/// by splitting at `\n` and `,` (found by `memchr`'s vectorised search): the whole reading
-/// where the file has no quote and no `\r` but before a `\n`. Returns `Ok(false)` where it
-/// meets a quote or another `\r` (the caller then reads the file with the csv crate instead).
-/// Empty lines are skipped (and not counted in line numbers) and rows of the wrong length
-/// refused, all as the csv crate does.
+/// in one pass over its bytes: the separators (`,` and `\n`) are found eight bytes at a time
+/// ([`Separators`]), each field is a slice of `data` (validated as UTF-8 once, as a whole), and
+/// only the columns the analysis reads are looked at. The whole reading where the file has no
+/// quote and no `\r` but before a `\n`; returns `Ok(false)` where it has (the caller then reads
+/// the file with the csv crate instead). Empty lines are skipped (and not counted in line
+/// numbers) and rows of the wrong length refused, all as the csv crate does.
 fn read_unquoted(data: &str, first_line: u64, n_columns: usize, rows: &mut RowReader) -> Result<bool> {
     let bytes = data.as_bytes();
-    if bytes.contains(&b'"') {
-        return Ok(false);
-    }
+    // One search for either; where a `\r` comes first, the rest is checked more closely.
+    let crlf = match memchr::memchr2(b'"', b'\r', bytes) {
+        None => false,
+        Some(at) if bytes[at] == b'"' => return Ok(false),
+        Some(at) => {
+            if memchr::memchr(b'"', &bytes[at..]).is_some()
+                || !memchr::memchr_iter(b'\r', &bytes[at..]).all(|k| bytes.get(at + k + 1) == Some(&b'\n'))
+            {
+                return Ok(false);
+            }
+            true
+        }
+    };
     // Room for every row, from the length of the first.
-    let first_length = data.find('\n').unwrap_or(data.len()) + 1;
-    rows.judgments.rows.reserve(data.len() / first_length.max(8) + 1);
-    let mut fields: Vec<&str> = Vec::with_capacity(n_columns);
+    let first_length = memchr::memchr(b'\n', bytes).unwrap_or(bytes.len()) + 1;
+    rows.judgments.rows.reserve(bytes.len() / first_length.max(8) + 1);
+    // starts[k]: where field k of the line begins; field k ends one byte before starts[k + 1].
+    let mut starts = vec![0usize; n_columns + 1];
     let mut line_number = first_line;
-    let (mut line_start, mut field_start) = (0, 0);
-    for at in memchr::memchr3_iter(b',', b'\n', b'\r', bytes) {
-        match bytes[at] {
-            b',' => {
-                fields.push(&data[field_start..at]);
-                field_start = at + 1;
+    let mut line_end = |line_start: usize, end: usize, n_fields: usize, starts: &mut [usize]| -> Result<()> {
+        // Empty lines are skipped and, as the csv crate counts, not counted.
+        if end > line_start {
+            if n_fields != n_columns {
+                return Err(AnalysisError::MalformedCsv {
+                    source_name: rows.source_name.to_string(),
+                    line: line_number,
+                    message: format!("the row has {n_fields} fields but the header has {n_columns}"),
+                });
             }
-            b'\r' => {
-                if bytes.get(at + 1) != Some(&b'\n') {
-                    return Ok(false);
+            starts[0] = line_start;
+            starts[n_columns] = end + 1;
+            rows.row(line_number, |k| Field::at(data, starts[k], starts[k + 1] - 1))?;
+            line_number += 1;
+        }
+        Ok(())
+    };
+    let mut separators = Separators::new(bytes);
+    let mut line_start = 0;
+    loop {
+        // A line as expected has n_columns − 1 commas, then a `\n` (or the end of the text):
+        // the loop over them ends where the count says, with few mispredicted branches.
+        let mut n_fields = 1;
+        let mut next = separators.next();
+        while n_fields < n_columns {
+            match next {
+                Some((at, false)) => {
+                    starts[n_fields] = at + 1;
+                    n_fields += 1;
+                    next = separators.next();
                 }
-            }
-            _ => {
-                let end = if at > field_start && bytes[at - 1] == b'\r' { at - 1 } else { at };
-                // Empty lines are skipped and, as the csv crate counts, not counted.
-                if end > line_start {
-                    fields.push(&data[field_start..end]);
-                    record(rows, &fields, line_number, n_columns)?;
-                    line_number += 1;
-                }
-                fields.clear();
-                line_start = at + 1;
-                field_start = at + 1;
+                _ => break,
             }
         }
-    }
-    if line_start < bytes.len() {
-        fields.push(&data[field_start..]);
-        record(rows, &fields, line_number, n_columns)?;
+        // Fields beyond the header's, counted for the error.
+        while let Some((_, false)) = next {
+            n_fields += 1;
+            next = separators.next();
+        }
+        let end = match next {
+            Some((at, _)) => at,
+            None if line_start < bytes.len() => bytes.len(),
+            None => break,
+        };
+        let content_end = if crlf && end > line_start && bytes[end - 1] == b'\r' { end - 1 } else { end };
+        line_end(line_start, content_end, n_fields, &mut starts)?;
+        if next.is_none() {
+            break;
+        }
+        line_start = end + 1;
     }
     Ok(true)
 }
 
-/// One record of [`read_unquoted`].
-fn record(rows: &mut RowReader, fields: &[&str], line: u64, n_columns: usize) -> Result<()> {
-    if fields.len() != n_columns {
-        return Err(AnalysisError::MalformedCsv {
-            source_name: rows.source_name.to_string(),
-            line,
-            message: format!("the row has {} fields but the header has {n_columns}", fields.len()),
-        });
+/// The positions of `,` and `\n` in a text, in order, each with whether it is a `\n`. Sixty-four
+/// bytes at a time become two bit masks (eight bytes tested at once as one integer: a byte
+/// equal to the separator becomes zero after an exclusive or, and zero bytes are found exactly
+/// by Mycroft's test; a multiplication gathers their high bits), so the cost is a few
+/// operations per eight bytes and a bit scan per separator.
+struct Separators<'a> {
+    bytes: &'a [u8],
+    /// Where the current block starts.
+    base: usize,
+    /// Bit k: byte `base + k` is a `,` or `\n` (found, not yet returned).
+    separators: u64,
+    /// Bit k: byte `base + k` is a `\n`.
+    newlines: u64,
+}
+
+impl<'a> Separators<'a> {
+    const BLOCK: usize = 64;
+
+    fn new(bytes: &'a [u8]) -> Separators<'a> {
+        let mut separators = Separators { bytes, base: 0, separators: 0, newlines: 0 };
+        separators.load();
+        separators
     }
-    rows.row(line, |k| trim(fields[k]))
+
+    /// The high bit of every byte of `word` that equals `byte`.
+    #[inline]
+    fn equal(word: u64, byte: u8) -> u64 {
+        const LOW: u64 = 0x7f7f_7f7f_7f7f_7f7f;
+        let x = word ^ (0x0101_0101_0101_0101 * u64::from(byte));
+        !(((x & LOW) + LOW) | x | LOW)
+    }
+
+    /// Byte k's high bit (of a mask with only high bits set) as bit k.
+    #[inline]
+    fn gather(high_bits: u64) -> u64 {
+        (high_bits >> 7).wrapping_mul(0x0102_0408_1020_4080) >> 56
+    }
+
+    #[inline]
+    fn load(&mut self) {
+        let (mut separators, mut newlines) = (0, 0);
+        match self.bytes.get(self.base..self.base + Self::BLOCK) {
+            Some(block) => {
+                for (k, chunk) in block.chunks_exact(8).enumerate() {
+                    let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
+                    let newline = Self::equal(word, b'\n');
+                    newlines |= Self::gather(newline) << (8 * k);
+                    separators |= Self::gather(newline | Self::equal(word, b',')) << (8 * k);
+                }
+            }
+            None => {
+                for (k, &byte) in self.bytes[self.base.min(self.bytes.len())..].iter().enumerate() {
+                    newlines |= u64::from(byte == b'\n') << k;
+                    separators |= u64::from(byte == b'\n' || byte == b',') << k;
+                }
+            }
+        }
+        (self.separators, self.newlines) = (separators, newlines);
+    }
 }
 
-/// A name's first eight bytes as an integer, with its length: equal for two names of up to eight
-/// bytes exactly when the names are equal.
-fn short_key(name: &str) -> (u64, usize) {
-    let key = name.as_bytes().iter().take(8).enumerate().fold(0u64, |key, (k, &byte)| key | u64::from(byte) << (8 * k));
-    (key, name.len())
+impl Iterator for Separators<'_> {
+    type Item = (usize, bool);
+
+    #[inline]
+    fn next(&mut self) -> Option<(usize, bool)> {
+        while self.separators == 0 {
+            self.base += Self::BLOCK;
+            if self.base >= self.bytes.len() {
+                return None;
+            }
+            self.load();
+        }
+        let bit = self.separators.trailing_zeros();
+        self.separators &= self.separators - 1;
+        Some((self.base + bit as usize, self.newlines >> bit & 1 == 1))
+    }
 }
 
-/// `str::trim`, without decoding where the field starts and ends with a printable ASCII byte
-/// (none of which is white space).
-fn trim(field: &str) -> &str {
-    match field.as_bytes() {
-        [first, .., last] if (b'!'..=b'~').contains(first) && (b'!'..=b'~').contains(last) => field,
-        [only] if (b'!'..=b'~').contains(only) => field,
-        _ => field.trim(),
+/// A name of up to eight bytes as an integer (little-endian, zero-padded). With the length, it
+/// tells any two such names apart.
+/// Built from two overlapping loads (no copy through memory, which would stall the load after it).
+#[inline]
+fn short_word(name: &[u8]) -> u64 {
+    let length = name.len();
+    debug_assert!(length <= 8);
+    if length >= 4 {
+        let low = u32::from_le_bytes(name[..4].try_into().expect("four bytes"));
+        let high = u32::from_le_bytes(name[length - 4..length].try_into().expect("four bytes"));
+        u64::from(low) | u64::from(high) << (8 * (length - 4))
+    } else if length > 0 {
+        let byte = |k: usize| u64::from(name[k]) << (8 * k);
+        byte(0) | byte(length / 2) | byte(length - 1)
+    } else {
+        0
+    }
+}
+
+/// A perfect hash of the condition names of up to eight bytes: slot
+/// `((word + length) · multiplier) >> shift` of a table four times as long as the names holds
+/// the name's word, length and index, and no two names share a slot (a multiplier is searched
+/// for when the table is built: a few tries for a study's handful of conditions). `complete` is
+/// false where there are more than [`ShortNames::MAX_NAMES`] short names or no multiplier was
+/// found; then every name goes through the hash map.
+struct ShortNames {
+    multiplier: u64,
+    shift: u32,
+    /// `(word, length, index)`; an empty slot has length `u32::MAX`.
+    slots: Vec<(u64, u32, u32)>,
+    complete: bool,
+}
+
+impl ShortNames {
+    /// Odd constants (SplitMix64 outputs) tried in turn as the multiplier.
+    const TRIES: usize = 64;
+    const MAX_NAMES: usize = 32;
+
+    fn new(names: &[String]) -> ShortNames {
+        let short: Vec<(u64, u32, u32)> = names
+            .iter()
+            .enumerate()
+            .filter(|(_, name)| name.len() <= 8)
+            .map(|(k, name)| (short_word(name.as_bytes()), name.len() as u32, k as u32))
+            .collect();
+        let bits = (4 * short.len()).next_power_of_two().max(4).trailing_zeros();
+        let shift = 64 - bits;
+        if short.len() > Self::MAX_NAMES {
+            return ShortNames { multiplier: 1, shift, slots: Vec::new(), complete: false };
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..Self::TRIES {
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            let multiplier = (z ^ (z >> 31)) | 1;
+            let mut slots = vec![(0, u32::MAX, 0); 1 << bits];
+            let placed = short.iter().all(|&(word, length, index)| {
+                let slot = &mut slots[Self::slot(word, length, multiplier, shift)];
+                let free = slot.1 == u32::MAX;
+                *slot = (word, length, index);
+                free
+            });
+            if placed {
+                return ShortNames { multiplier, shift, slots, complete: true };
+            }
+        }
+        ShortNames { multiplier: 1, shift, slots: Vec::new(), complete: false }
+    }
+
+    #[inline]
+    fn slot(word: u64, length: u32, multiplier: u64, shift: u32) -> usize {
+        (word.wrapping_add(u64::from(length)).wrapping_mul(multiplier) >> shift) as usize
+    }
+
+    /// The index of a name of up to eight bytes, if it is a known condition.
+    #[inline]
+    fn find(&self, name: Field) -> Option<u32> {
+        let (word, length) = (name.word, name.text.len() as u32);
+        let (slot_word, slot_length, index) = self.slots[Self::slot(word, length, self.multiplier, self.shift)];
+        (slot_word == word && slot_length == length).then_some(index)
     }
 }
 
@@ -591,7 +837,7 @@ pub fn parse_trials_with(
                 Err(e) => return Err(csv_error(source_name, e)),
             }
             let line = record.position().map(|p| p.line()).unwrap_or(0);
-            rows.row(line, |k| record.get(k).unwrap_or("").trim())?;
+            rows.row(line, |k| Field::new(record.get(k).unwrap_or("").trim()))?;
         }
     }
     let RowReader { mut judgments, marks, mut condition_names, .. } = rows;
@@ -767,6 +1013,42 @@ mod tests {
         assert_eq!(message, "t.csv: there are no trials in the file");
     }
 
+    /// The separators found a block at a time are those a byte-by-byte scan finds, for every
+    /// byte value and text length (blocks and their tails).
+    #[test]
+    fn separators_are_those_a_byte_scan_finds() {
+        let bytes: Vec<u8> = (0..300u32)
+            .map(|k| [b',', b'\n', b'a', 0x80 | b',', 0x80 | b'\n', (k * 37) as u8][k as usize % 6])
+            .collect();
+        for length in 0..bytes.len() {
+            let text = &bytes[..length];
+            let found: Vec<(usize, bool)> = Separators::new(text).collect();
+            let expected: Vec<(usize, bool)> = text
+                .iter()
+                .enumerate()
+                .filter(|&(_, &b)| b == b',' || b == b'\n')
+                .map(|(k, &b)| (k, b == b'\n'))
+                .collect();
+            assert_eq!(found, expected, "length {length}");
+        }
+    }
+
+    #[test]
+    fn short_names_find_every_condition_and_nothing_else() {
+        let names: Vec<String> =
+            ["LQ", "GI", "CM", "GI+CM", "CA", "GI+CA", "CM+CA", "HQ", "", "A\0"].map(String::from).to_vec();
+        let table = ShortNames::new(&names);
+        assert!(table.complete);
+        for (k, name) in names.iter().enumerate() {
+            assert_eq!(table.find(Field::new(name)), Some(k as u32), "{name:?}");
+        }
+        for other in ["A", "HQ ", "GI+C", "CM+CA+", "lq"] {
+            assert_eq!(table.find(Field::new(other)), None, "{other:?}");
+        }
+        let many: Vec<String> = (0..40).map(|k| format!("C{k}")).collect();
+        assert!(!ShortNames::new(&many).complete, "more than MAX_NAMES go through the hash map");
+    }
+
     /// The byte-splitting fast path and the csv crate (which reads any file with a quote) agree
     /// on line ends, empty lines, white space, a missing last newline and the line of an error.
     #[test]
@@ -778,6 +1060,13 @@ mod tests {
             "participant,left,right,chosen\np1,A,B,A\n\n\np2,A,B\n",
             "participant,left,right,chosen\np1,A,B,A\np2,A,\u{a0}B,B\n",
             "participant,left,right,chosen\np1,A,B,A\rp2,A,B,B\n",
+            // Long lines and names across the 64-byte blocks, flags in any case, a name that is
+            // not ASCII, short fields at the very end of the text (no last newline).
+            "participant,left,right,chosen,pilot,excluded,gender\np1,Condition number one,B,B,FALSE,false,f\n\
+             a participant with a long name,B,Condition number one,Condition number one,false,False,m\n\
+             φ,A,B,A,false,false,f\np1,B,A,A,false,false,\u{3a3}\np2,B,A,A,false,TRUE,f",
+            "participant,left,right,chosen,pilot,excluded\np1,A,B,A,false,maybe\n",
+            "participant,left,right,chosen\np1,A,B,A,extra\n",
         ];
         for text in texts {
             let group = text.contains("gender").then_some("gender");
@@ -793,6 +1082,10 @@ mod tests {
                 (fast, reference) => panic!("{text:?}: {fast:?} against {reference:?}"),
             }
         }
+        let options = TrialsOptions { include_excluded: true, ..TrialsOptions::default() };
+        let kept = parse_trials_with(texts[5], "t.csv", None, &options).unwrap().judgments;
+        assert_eq!(kept.participants, ["p1", "a participant with a long name", "φ", "p2"]);
+        assert_eq!(kept.conditions, ["A", "B", "Condition number one"]);
         let error = parse_trials(texts[2], "t.csv", None, None).unwrap_err().to_string();
         assert_eq!(error, "t.csv: line 3: the row has 3 fields but the header has 4", "the csv crate's count");
     }

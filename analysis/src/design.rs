@@ -78,6 +78,223 @@ where
     pairs
 }
 
+/// Every participant's judgments as tallies per pair (`i < j`), contiguous per participant,
+/// each participant's pairs in the order of their first judgment. Built once from the
+/// judgments, it is what everything per participant reads (consistence, observer screening,
+/// the bootstrap, the pooled tallies of a set of participants): a few dozen pairs per
+/// participant instead of every judgment, in one flat array.
+#[derive(Debug, Clone, Default)]
+pub struct ParticipantTallies {
+    /// `pairs[spans[p].0..spans[p].1]` are participant `p`'s.
+    spans: Vec<(usize, usize)>,
+    pairs: Vec<PairTally>,
+    /// Whether participant `p` has any judgment (row) at all.
+    present: Vec<bool>,
+}
+
+/// Up to this many conditions a participant's pairs are summed in a dense t×t table.
+const DENSE_PARTICIPANT_CONDITIONS: usize = 64;
+/// Up to this many conditions pooled tallies are summed in a dense t×t table.
+const DENSE_POOLED_CONDITIONS: usize = 512;
+
+impl ParticipantTallies {
+    /// The tallies of `rows` (participant and condition indices below `n_participants` and
+    /// `n_conditions`). One pass where each participant's rows are contiguous (as exports list
+    /// them); otherwise the rows are first put in participant order by a stable counting sort.
+    pub fn new<'a, I>(n_participants: usize, n_conditions: usize, rows: I) -> ParticipantTallies
+    where
+        I: Iterator<Item = &'a crate::data::Judgment> + Clone,
+    {
+        let mut builder = Builder::new(n_participants, n_conditions);
+        if builder.add_runs(rows.clone()) {
+            return builder.finish();
+        }
+        let mut offsets = vec![0usize; n_participants + 1];
+        for row in rows.clone() {
+            offsets[row.participant as usize + 1] += 1;
+        }
+        for p in 0..n_participants {
+            offsets[p + 1] += offsets[p];
+        }
+        let mut sorted: Vec<Option<&crate::data::Judgment>> = vec![None; offsets[n_participants]];
+        for row in rows {
+            let slot = &mut offsets[row.participant as usize];
+            sorted[*slot] = Some(row);
+            *slot += 1;
+        }
+        let mut builder = Builder::new(n_participants, n_conditions);
+        let contiguous = builder.add_runs(sorted.into_iter().flatten());
+        debug_assert!(contiguous, "sorted by participant");
+        builder.finish()
+    }
+
+    /// Participant `p`'s pairs.
+    #[inline]
+    pub fn of(&self, participant: usize) -> &[PairTally] {
+        let (start, end) = self.spans[participant];
+        &self.pairs[start..end]
+    }
+
+    /// Whether participant `p` made any judgment (has any row).
+    pub fn is_present(&self, participant: usize) -> bool {
+        self.present[participant]
+    }
+
+    /// The participants with any judgment, in index order.
+    pub fn present(&self) -> Vec<usize> {
+        (0..self.present.len()).filter(|&p| self.present[p]).collect()
+    }
+
+    /// The tallies of `participants` together, as [`tally`] or [`tally_dense`] give them for
+    /// their judgments: one per pair judged, sorted by `(i, j)`.
+    pub fn pooled(&self, n_conditions: usize, participants: &[usize]) -> Vec<PairTally> {
+        let t = n_conditions;
+        let pairs_of = || participants.iter().flat_map(|&p| self.of(p));
+        if t <= DENSE_POOLED_CONDITIONS {
+            let mut wins = vec![0u64; t * t];
+            for pair in pairs_of() {
+                wins[pair.i * t + pair.j] += pair.wins_i;
+                wins[pair.j * t + pair.i] += pair.wins_j;
+            }
+            let mut pairs = Vec::new();
+            for i in 0..t {
+                for j in i + 1..t {
+                    let (wins_i, wins_j) = (wins[i * t + j], wins[j * t + i]);
+                    if wins_i + wins_j > 0 {
+                        pairs.push(PairTally { i, j, wins_i, wins_j });
+                    }
+                }
+            }
+            pairs
+        } else {
+            let mut keyed: Vec<PairTally> = pairs_of().copied().collect();
+            keyed.sort_unstable_by_key(|pair| (pair.i, pair.j));
+            keyed.dedup_by(|next, kept| {
+                let same = (next.i, next.j) == (kept.i, kept.j);
+                if same {
+                    kept.wins_i += next.wins_i;
+                    kept.wins_j += next.wins_j;
+                }
+                same
+            });
+            keyed
+        }
+    }
+
+    /// Participant `p`'s pairs as rows `(i, j, i won, count)` for [`tally`] and [`tally_dense`]
+    /// (one per direction that has judgments).
+    pub fn rows_of(&self, participant: usize) -> impl Iterator<Item = (u32, u32, bool, u64)> + '_ {
+        self.of(participant).iter().flat_map(|pair| {
+            let (i, j) = (pair.i as u32, pair.j as u32);
+            [(i, j, true, pair.wins_i), (i, j, false, pair.wins_j)].into_iter().filter(|row| row.3 > 0)
+        })
+    }
+}
+
+/// Builds [`ParticipantTallies`] from runs of one participant's rows.
+struct Builder {
+    n_conditions: usize,
+    dense: bool,
+    tallies: ParticipantTallies,
+    /// Dense: `grid[i * t + j]` of the current participant (i < j: wins of i, wins of j), and
+    /// the cells touched, in order, in `touched[..n_touched]`. Sparse: the current
+    /// participant's rows as pairs, with their order of arrival.
+    grid: Vec<[u64; 2]>,
+    touched: Vec<usize>,
+    n_touched: usize,
+    scratch: Vec<(PairTally, usize)>,
+}
+
+impl Builder {
+    fn new(n_participants: usize, n_conditions: usize) -> Builder {
+        let dense = n_conditions <= DENSE_PARTICIPANT_CONDITIONS;
+        Builder {
+            n_conditions,
+            dense,
+            tallies: ParticipantTallies {
+                spans: vec![(0, 0); n_participants],
+                pairs: Vec::new(),
+                present: vec![false; n_participants],
+            },
+            grid: vec![[0, 0]; if dense { n_conditions * n_conditions } else { 0 }],
+            touched: vec![0; if dense { n_conditions * n_conditions } else { 0 }],
+            n_touched: 0,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Adds `rows` run by run; false (and nothing sure) where a participant comes back after
+    /// another's rows.
+    fn add_runs<'a>(&mut self, rows: impl Iterator<Item = &'a crate::data::Judgment>) -> bool {
+        let (t, dense) = (self.n_conditions, self.dense);
+        let mut current: Option<usize> = None;
+        for row in rows {
+            let p = row.participant as usize;
+            if current != Some(p) {
+                if let Some(previous) = current {
+                    self.flush(previous);
+                }
+                if self.tallies.present[p] {
+                    return false;
+                }
+                self.tallies.present[p] = true;
+                current = Some(p);
+            }
+            if row.count == 0 {
+                continue;
+            }
+            // Without branches on the data (they would be mispredicted half the time).
+            let (i, j) = (row.left.min(row.right) as usize, row.left.max(row.right) as usize);
+            let i_won = row.left_chosen ^ (row.left > row.right);
+            if dense {
+                let cell = i * t + j;
+                let tally = &mut self.grid[cell];
+                self.touched[self.n_touched] = cell;
+                self.n_touched += usize::from(*tally == [0, 0]);
+                tally[usize::from(!i_won)] += row.count;
+            } else {
+                let (wins_i, wins_j) = if i_won { (row.count, 0) } else { (0, row.count) };
+                let order = self.scratch.len();
+                self.scratch.push((PairTally { i, j, wins_i, wins_j }, order));
+            }
+        }
+        if let Some(previous) = current {
+            self.flush(previous);
+        }
+        true
+    }
+
+    /// Ends participant `p`'s run: their pairs, in the order of first judgment, to the tallies.
+    fn flush(&mut self, participant: usize) {
+        let t = self.n_conditions;
+        let start = self.tallies.pairs.len();
+        for &cell in &self.touched[..self.n_touched] {
+            let [wins_i, wins_j] = std::mem::take(&mut self.grid[cell]);
+            self.tallies.pairs.push(PairTally { i: cell / t, j: cell % t, wins_i, wins_j });
+        }
+        self.n_touched = 0;
+        if !self.scratch.is_empty() {
+            // Stable: within a pair the first row stays first, and keeps its order of arrival.
+            self.scratch.sort_by_key(|(pair, _)| (pair.i, pair.j));
+            self.scratch.dedup_by(|next, kept| {
+                let same = (next.0.i, next.0.j) == (kept.0.i, kept.0.j);
+                if same {
+                    kept.0.wins_i += next.0.wins_i;
+                    kept.0.wins_j += next.0.wins_j;
+                }
+                same
+            });
+            self.scratch.sort_unstable_by_key(|&(_, order)| order);
+            self.tallies.pairs.extend(self.scratch.drain(..).map(|(pair, _)| pair));
+        }
+        self.tallies.spans[participant] = (start, self.tallies.pairs.len());
+    }
+
+    fn finish(self) -> ParticipantTallies {
+        self.tallies
+    }
+}
+
 /// Connected components of the comparison graph over the conditions that were compared at
 /// least once. Each component lists its conditions in increasing index order; components are
 /// ordered by their smallest condition. Conditions never compared belong to no component.
@@ -351,6 +568,65 @@ mod tests {
 
     fn t(i: usize, j: usize, wins_i: u64, wins_j: u64) -> PairTally {
         PairTally { i, j, wins_i, wins_j }
+    }
+
+    /// Per-participant tallies: the same whether each participant's rows are contiguous or
+    /// not, whether summed densely or by sorting, each participant's pairs in the order of
+    /// their first judgment; pooled, as [`tally`] gives them.
+    #[test]
+    fn participant_tallies_agree_however_built() {
+        use crate::data::Judgment;
+        let mut state = 7u64;
+        let mut next = |below: u64| {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 33) % below
+        };
+        let mut rows = Vec::new();
+        for participant in 0..5u32 {
+            for _ in 0..20 + next(20) {
+                let left = next(6) as u32;
+                let right = (left + 1 + next(5) as u32) % 6;
+                let (left_chosen, count) = (next(2) == 0, 1 + next(3));
+                rows.push(Judgment { participant, left, right, left_chosen, count, group: 0 });
+            }
+        }
+        let contiguous = ParticipantTallies::new(5, 6, rows.iter());
+        let sparse = ParticipantTallies::new(5, 100, rows.iter());
+        // Participants interleaved: rows k and k + 1 of different participants swapped.
+        let mut interleaved = rows.clone();
+        for k in (0..interleaved.len() - 1).step_by(3) {
+            interleaved.swap(k, k + 1);
+        }
+        let sorted = |rows: &[Judgment]| {
+            let mut sorted = rows.to_vec();
+            sorted.sort_by_key(|row| row.participant);
+            sorted
+        };
+        let expected = ParticipantTallies::new(5, 6, sorted(&interleaved).iter());
+        let from_interleaved = ParticipantTallies::new(5, 6, interleaved.iter());
+        for p in 0..5 {
+            assert_eq!(contiguous.of(p), sparse.of(p));
+            assert_eq!(from_interleaved.of(p), expected.of(p));
+            let first = contiguous.of(p)[0];
+            let first_row = rows.iter().find(|row| row.participant == p as u32).unwrap();
+            assert_eq!(
+                (first.i, first.j),
+                (first_row.left.min(first_row.right) as usize, first_row.left.max(first_row.right) as usize)
+            );
+        }
+        let everyone = contiguous.present();
+        assert_eq!(everyone, [0, 1, 2, 3, 4]);
+        let all = tally(rows.iter().map(|row| (row.left, row.right, row.left_chosen, row.count)));
+        assert_eq!(contiguous.pooled(6, &everyone), all);
+        assert_eq!(contiguous.pooled(600, &everyone), all);
+        assert_eq!(from_interleaved.pooled(6, &everyone), all);
+        let two = tally(
+            rows.iter()
+                .filter(|row| [1, 3].contains(&row.participant))
+                .map(|row| (row.left, row.right, row.left_chosen, row.count)),
+        );
+        assert_eq!(contiguous.pooled(6, &[1, 3]), two);
+        assert_eq!(tally(contiguous.rows_of(1).chain(contiguous.rows_of(3))), two);
     }
 
     #[test]

@@ -190,7 +190,9 @@ fn observations(pairs: &[PairTally], x: &ModelMatrix) -> Vec<Observation> {
 
 /// ln(1 + eˣ) without overflow.
 pub(crate) fn softplus(x: f64) -> f64 {
-    if x > 0.0 { x + (-x).exp().ln_1p() } else { x.exp().ln_1p() }
+    // ln(1 + e^x) = max(x, 0) + ln(1 + e^(−|x|)); both sides' arithmetic, joined by a select.
+    let tail = (-x.abs()).exp().ln_1p();
+    if x > 0.0 { x + tail } else { tail }
 }
 
 fn sigmoid(x: f64) -> f64 {
