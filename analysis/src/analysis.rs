@@ -347,13 +347,24 @@ pub fn analyze_named(
     options: &Options,
 ) -> Result<Analysis> {
     let table = conditions.map(|(text, name)| crate::data::parse_conditions(text, name)).transpose()?;
+    analyze_with_table(trials_csv, trials_name, table.as_ref(), options)
+}
+
+/// As [`analyze_named`], with the conditions as a table already (a caller that holds the study's
+/// conditions need not write them as CSV to have them parsed again).
+pub fn analyze_with_table(
+    trials_csv: &str,
+    trials_name: &str,
+    table: Option<&ConditionTable>,
+    options: &Options,
+) -> Result<Analysis> {
     let trials_options = TrialsOptions {
         group_by: options.group_by.clone(),
         include_pilots: options.include_pilots,
         include_excluded: options.include_excluded,
     };
-    let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table.as_ref(), &trials_options)?;
-    let mut analysis = analyze_judgments(&parsed.judgments, table.as_ref(), options)?;
+    let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
+    let mut analysis = analyze_judgments(&parsed.judgments, table, options)?;
     if !parsed.left_out.is_empty() {
         analysis.warnings.insert(0, parsed.left_out.describe());
         analysis.left_out = Some(parsed.left_out);

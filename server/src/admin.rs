@@ -311,15 +311,13 @@ pub async fn analysis_json(state: &AppState, slug: &str, include: Include) -> Ap
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
     let mut analysis =
-        crate::analysis::run(&trials.content, &definition.conditions_csv(), include).map_err(|error| {
-            match (error, &left_out) {
-                (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
-                    "{}; {}",
-                    message.trim_end_matches('.'),
-                    trials.left_out.clause(QUERY_HINT).unwrap_or_default()
-                )),
-                (error, _) => error,
-            }
+        crate::analysis::run(&trials.content, &definition, include).map_err(|error| match (error, &left_out) {
+            (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
+                "{}; {}",
+                message.trim_end_matches('.'),
+                trials.left_out.clause(QUERY_HINT).unwrap_or_default()
+            )),
+            (error, _) => error,
         })?;
     if let Some(sentence) = left_out
         && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
@@ -351,7 +349,7 @@ async fn worth_svg(
     let pool = &state.storage().read;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
-    let svg = crate::analysis::worth_svg(&trials.content, &definition.conditions_csv(), include)?;
+    let svg = crate::analysis::worth_svg(&trials.content, &definition, include)?;
     let mut response = (StatusCode::OK, svg).into_response();
     let response_headers = response.headers_mut();
     response_headers.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/svg+xml"));
