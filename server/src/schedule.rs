@@ -255,6 +255,31 @@ mod tests {
     }
 
     #[test]
+    fn the_fallback_of_an_active_design_draws_its_fixed_pairs_without_back_to_back_repeats() {
+        let study = thesis_study(); // its 13 anchored pairs stand in for an active design's warm-up
+        let mut history = ActiveHistory::of(study.conditions.len(), &[], 0);
+        let mut trials = Vec::new();
+        for _ in 0..20 {
+            trials.extend(fallback_batch(&study, 99, &mut history, 5));
+        }
+        assert_eq!((trials.len(), history.batches), (100, 20));
+        let pairs: Vec<(usize, usize)> = trials
+            .iter()
+            .map(|trial| match trial.kind {
+                PlannedKind::Pair { left, right } => (left.min(right), left.max(right)),
+                PlannedKind::Catch { .. } => panic!("the fallback draws pairs only"),
+            })
+            .collect();
+        assert!(pairs.iter().all(|pair| study.design.pairs.iter().any(|&(a, b)| (a.min(b), a.max(b)) == *pair)));
+        assert!(pairs.windows(2).all(|window| window[0] != window[1]), "a pair twice in a row");
+        assert!(history.sides.left_minus_right.iter().all(|count| count.abs() <= 3), "{:?}", history.sides);
+        // the same seed and history give the same trials
+        let mut again = ActiveHistory::of(study.conditions.len(), &[], 0);
+        let first: Vec<PlannedTrial> = (0..20).flat_map(|_| fallback_batch(&study, 99, &mut again, 5)).collect();
+        assert_eq!(first, trials);
+    }
+
+    #[test]
     fn same_seed_same_schedule_other_seed_other_order() {
         let study = thesis_study();
         assert_eq!(plan(&study, 7), plan(&study, 7));
