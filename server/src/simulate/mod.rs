@@ -29,7 +29,7 @@
 //!
 //! **Reproducible.** Run r of design d at n participants has the seed
 //! `derived_seed(derived_seed(derived_seed(seed, d), n), r)` (d: 0 study, 1 all, 2 anchored,
-//! 3 active); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
+//! 3 active, 4 active-worths); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
 //! answers come from a ChaCha8 stream of `derived_seed(participant seed, 1)`. Runs go in
 //! parallel (rayon) and are collected in order, so the report does not depend on the thread
 //! count.
@@ -38,7 +38,7 @@
 //! reference condition), `truth` (`log_worths`: `[{condition, log_worth}]`, `effects`:
 //! `[{factor, effect}]`), `settings` (`observer_sd`, `lapse`, `dropout`, `runs`, `seed`,
 //! `bootstrap`, `alpha`), and `rows`, one per design × participant count: `design` (`study`,
-//! `all`, `anchored`, `active`), `pairs` (the design's rule: `all`, `anchored`, `list`,
+//! `all`, `anchored`, `active`, `active-worths`), `pairs` (the design's rule: `all`, `anchored`, `list`,
 //! `active`), `participants`, `runs`, `failed` (runs whose analysis failed) and `failure` (the
 //! first failure's sentence), `judgments_per_participant` and `trials` (participants × that
 //! mean: judgments per study), and, each `{mean, mcse}` and absent when no run gave it,
@@ -263,7 +263,7 @@ fn projected_effects(study: &Study, worths: &[f64]) -> Option<Vec<f64>> {
 
 /// A design to simulate, each built from the study by changing only its `design`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum DesignChoice {
     /// The study file's own design.
     Study,
@@ -272,8 +272,12 @@ pub enum DesignChoice {
     /// The study's anchors if it has them, else the first and last condition; the study's repetitions.
     Anchored,
     /// `pairs = "active"` at the study's fixed design's pair trials per participant, batch 5,
-    /// target factors when the study has a factor that varies, else worths.
+    /// target factors when the study has a factor that varies, else worths. (On a 2³ factorial
+    /// the factor target picks almost only complementary pairs, LQ–HQ, GI–CM+CA, …, whose
+    /// item model the analysis then cannot fit: see `active-worths`.)
     Active,
+    /// As `active`, with target worths whatever the factors (`active-worths`).
+    ActiveWorths,
 }
 
 impl DesignChoice {
@@ -283,6 +287,7 @@ impl DesignChoice {
             "all" => DesignChoice::All,
             "anchored" => DesignChoice::Anchored,
             "active" => DesignChoice::Active,
+            "active-worths" => DesignChoice::ActiveWorths,
             _ => return None,
         })
     }
@@ -293,6 +298,7 @@ impl DesignChoice {
             DesignChoice::All => "all",
             DesignChoice::Anchored => "anchored",
             DesignChoice::Active => "active",
+            DesignChoice::ActiveWorths => "active-worths",
         }
     }
 
@@ -331,8 +337,8 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
             variant.design.pairs_rule = "anchored".into();
             variant.design.active = None;
         }
-        DesignChoice::Active => {
-            if study.design.active.is_none() {
+        DesignChoice::Active | DesignChoice::ActiveWorths => {
+            if study.design.active.is_none() || choice == DesignChoice::ActiveWorths {
                 if n < 3 {
                     return Err(SimulateError::TooFewConditions { conditions: n });
                 }
@@ -342,7 +348,11 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                 let mut active = ActiveDesign {
                     trials: pair_trials(study) as u32,
                     batch: ACTIVE_BATCH,
-                    target: if varying { ActiveTarget::Factors } else { ActiveTarget::Worths },
+                    target: if varying && choice == DesignChoice::Active {
+                        ActiveTarget::Factors
+                    } else {
+                        ActiveTarget::Worths
+                    },
                     prior_sd: DEFAULT_PRIOR_SD,
                 };
                 if active_target(&active, &study.conditions).check().is_err() {
@@ -620,7 +630,9 @@ fn collect_judgments(
 fn score(analysis: &Analysis, config: &Config, outcome: &mut RunOutcome) {
     let truth = &config.truth;
     let reference = truth.log_worths[0].log_worth;
-    if analysis.components.is_none() {
+    // Disconnected: log-worths are relative to each component's reference (`component` set).
+    // Under separation alone the analysis reports Firth's estimates, which count.
+    if analysis.items.iter().all(|item| item.component.is_none()) {
         let mut squares = Vec::new();
         let mut covered = 0usize;
         for (item, true_worth) in analysis.items.iter().zip(&truth.log_worths).skip(1) {

@@ -211,3 +211,28 @@ fn every_run_failing_is_said_not_printed_as_nan() {
     assert!(!table.contains("NaN") && !table.contains("inf"), "{table}");
     assert!(table.contains('—'), "{table}");
 }
+
+#[test]
+fn the_twenty_condition_example_loads_with_its_true_log_worths() {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies/examples");
+    let study = load_study(&examples.join("twenty-conditions.toml")).unwrap();
+    let worths = std::fs::read_to_string(examples.join("twenty-conditions-worths.csv")).unwrap();
+    let truth = truth_from_worths_csv(&study, &worths, "twenty-conditions-worths.csv").unwrap();
+    assert_eq!(truth.log_worths.len(), 20);
+    assert!(truth.effects.is_empty(), "a constant factor has no effect to project on");
+    let config = Config {
+        truth,
+        designs: vec![DesignChoice::Study, DesignChoice::Active],
+        participants: vec![4],
+        observer_sd: 0.3,
+        lapse: 0.02,
+        dropout: 0.0,
+        runs: 2,
+        seed: 1,
+        bootstrap: 0,
+    };
+    let report = simulate(&study, &config, &quiet).unwrap();
+    assert_eq!(report.rows[0].judgments_per_participant.mean, 37.0);
+    assert_eq!(report.rows[1].judgments_per_participant.mean, 37.0, "active at equal trials");
+    assert!(report.rows.iter().all(|row| row.rmse_log_worth.is_some() && row.power.is_empty()));
+}
