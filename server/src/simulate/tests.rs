@@ -139,7 +139,7 @@ fn dropout_shortens_participation_and_catch_trials_are_not_judgments() {
     assert_eq!(full.rows[0].judgments_per_participant.mean, 10.0);
     let dropping = simulate(&study, &Config { dropout: 0.2, ..base }, &quiet).unwrap();
     let mean = dropping.rows[0].judgments_per_participant.mean;
-    assert!(mean < 7.0 && mean >= 1.0, "with dropout 0.2 after each trial: {mean}");
+    assert!((1.0..7.0).contains(&mean), "with dropout 0.2 after each trial: {mean}");
 }
 
 #[test]
