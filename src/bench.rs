@@ -1,6 +1,7 @@
-//! `mrstudy bench`: runs a benchmark of `mrstudy_renderer::bench`, `mrstudy_analysis::bench` or
-//! the server's load generator, prints its table as it goes and, with `--json FILE`, writes
-//! `{"adapter": ..., "rows": [...]}` (DESIGN.md); `--plot-dir DIR` draws its curves as SVG.
+//! `mrstudy bench`: runs a benchmark of `mrstudy_renderer::bench`, `mrstudy_analysis::bench`
+//! (`bench active`: `mrstudy_analysis::active::bench`) or the server's load generator, prints
+//! its table as it goes and, with `--json FILE`, writes `{"adapter": ..., "rows": [...]}`
+//! (DESIGN.md); `--plot-dir DIR` draws its curves as SVG.
 
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -14,6 +15,8 @@ use serde_json::Value;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Target {
+    /// Active pair selection: choice time against conditions × judgments, posterior updates against the refit.
+    Active,
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
     /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on.
@@ -98,6 +101,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 // one core, as the targets are stated for one core of the 2-core machine
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
                 let report = pool.install(|| mrstudy_analysis::bench::run(args.quick, &|line| println!("{line}")))?;
+                (report.to_json(), report.plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect())
+            }
+            Target::Active => {
+                let report = mrstudy_analysis::active::bench::run(args.quick, &|line| println!("{line}"))?;
                 (report.to_json(), report.plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect())
             }
             Target::Render if args.reference => bench::reference::run(scene, args.quick, &printer)

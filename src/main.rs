@@ -10,6 +10,7 @@ mod analyze;
 mod bench;
 mod render;
 mod serve;
+mod simulate;
 mod stimuli;
 
 #[derive(Parser)]
@@ -37,6 +38,10 @@ enum Command {
     Stimuli(stimuli::StimuliArgs),
     /// Write a study's trials CSV (or JSON, or conditions CSV) from the database.
     Export(serve::ExportArgs),
+    /// Simulate a study (its real scheduler and analysis, simulated observers): RMSE, coverage and power per design and participant count.
+    Simulate(simulate::SimulateArgs),
+    /// The participants a study needs per factor for a target power, by simulation.
+    Power(simulate::PowerArgs),
 }
 
 /// A clap value parser from a library's `parse` (the names it accepts are listed on refusal).
@@ -56,6 +61,8 @@ fn main() -> ExitCode {
         Command::Serve(args) => serve::run_serve(args),
         Command::Export(args) => serve::run_export(args),
         Command::Stimuli(args) => stimuli::run(args),
+        Command::Simulate(args) => simulate::run_simulate(args),
+        Command::Power(args) => simulate::run_power(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -20,6 +20,8 @@ mod render_gpu;
 mod serve;
 #[path = "e2e/serve_durability.rs"]
 mod serve_durability;
+#[path = "e2e/simulate.rs"]
+mod simulate;
 #[path = "e2e/support.rs"]
 mod support;
 #[path = "e2e/survey_input.rs"]

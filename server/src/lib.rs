@@ -10,7 +10,8 @@
 //! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
 //! the HTML pages built on them; [`task`] the lab task studies (live renderer, WebSocket
 //! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
-//! everything from a data directory. [`app`] builds the router apart from any socket, so tests
+//! everything from a data directory; [`simulate`] plans a study by running its scheduler and
+//! analysis on simulated observers. [`app`] builds the router apart from any socket, so tests
 //! drive it with `oneshot`.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
@@ -28,6 +29,7 @@ pub mod participant;
 pub mod prepared;
 pub mod schedule;
 pub mod serve;
+pub mod simulate;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
