@@ -328,10 +328,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
         }
         DesignChoice::Anchored => {
             if study.design.pairs_rule != "anchored" {
-                let (first, last) = (0, n - 1);
-                let mut pairs = vec![(first, last)];
-                pairs.extend((1..last).flat_map(|c| [(first, c), (c, last)]));
-                variant.design.pairs = pairs;
+                variant.design.pairs = anchored_pairs(study);
                 variant.design.repetitions = repetitions;
             }
             variant.design.pairs_rule = "anchored".into();
@@ -359,7 +356,13 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                     active.target = ActiveTarget::Worths;
                 }
                 active_target(&active, &study.conditions).check().map_err(SimulateError::Active)?;
+                // The factor target needs a warm-up that connects the conditions (a study file
+                // without one is refused): the anchored pairs once, within the same trials.
                 variant.design.pairs = Vec::new();
+                if active.target == ActiveTarget::Factors {
+                    variant.design.pairs = anchored_pairs(study);
+                    active.trials = (active.trials as usize).saturating_sub(variant.design.pairs.len()).max(1) as u32;
+                }
                 variant.design.pairs_rule = "active".into();
                 variant.design.repetitions = 1;
                 variant.design.active = Some(active);
@@ -367,6 +370,17 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
         }
     }
     Ok(variant)
+}
+
+/// The study's anchored pairs, or with another design the first and last condition as anchors.
+fn anchored_pairs(study: &Study) -> Vec<(usize, usize)> {
+    if study.design.pairs_rule == "anchored" {
+        return study.design.pairs.clone();
+    }
+    let (first, last) = (0, study.conditions.len() - 1);
+    let mut pairs = vec![(first, last)];
+    pairs.extend((1..last).flat_map(|c| [(first, c), (c, last)]));
+    pairs
 }
 
 /// What to simulate.

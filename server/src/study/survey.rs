@@ -836,7 +836,7 @@ fn check_design(
     if scenes == SceneDraw::Different && scene_count < 2 {
         return Err(fail.at("design.scenes", "expected at least two scene configurations for scenes = \"different\""));
     }
-    let active = if active { Some(check_active(fail, design, conditions)?) } else { None };
+    let active = if active { Some(check_active(fail, design, &pairs, conditions)?) } else { None };
     if active.is_none() {
         for (key, given) in [
             ("design.trials", design.trials.is_some()),
@@ -855,7 +855,12 @@ fn check_design(
 
 /// The keys of `pairs = "active"`: trials, batch, target (checked against the conditions by
 /// the posterior's own rules), prior.
-fn check_active(fail: Fail, design: &DesignFile, conditions: &[Condition]) -> Result<ActiveDesign, StudyError> {
+fn check_active(
+    fail: Fail,
+    design: &DesignFile,
+    warmup: &[(usize, usize)],
+    conditions: &[Condition],
+) -> Result<ActiveDesign, StudyError> {
     let trials = design.trials.ok_or_else(|| {
         fail.at("design.trials", "expected the number of actively chosen trials per participant (1 to 1000)")
     })?;
@@ -875,11 +880,40 @@ fn check_active(fail: Fail, design: &DesignFile, conditions: &[Condition]) -> Re
     if !(prior_sd.is_finite() && (0.05..=10.0).contains(&prior_sd)) {
         return Err(fail.at("design.prior_sd", format!("expected a number from 0.05 to 10, found {prior_sd}")));
     }
+    if target == ActiveTarget::Factors && !connects(warmup, conditions.len()) {
+        return Err(fail.at(
+            "design.warmup",
+            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"factors\": \
+             pairs chosen for the factor effects alone leave the per-condition model of the analysis without a fit \
+             (every simulated study of the thesis design failed; `mrstudy simulate`)",
+        ));
+    }
     let active = ActiveDesign { trials, batch, target, prior_sd };
     active_target(&active, conditions)
         .check()
         .map_err(|error| fail.at("design.target", format!("an active design this posterior can learn: {error}")))?;
     Ok(active)
+}
+
+/// Whether `pairs` connect all `count` conditions (union–find).
+fn connects(pairs: &[(usize, usize)], count: usize) -> bool {
+    let mut parent: Vec<usize> = (0..count).collect();
+    fn root(parent: &mut [usize], mut node: usize) -> usize {
+        while parent[node] != node {
+            parent[node] = parent[parent[node]];
+            node = parent[node];
+        }
+        node
+    }
+    let mut groups = count;
+    for &(a, b) in pairs {
+        let (a, b) = (root(&mut parent, a), root(&mut parent, b));
+        if a != b {
+            parent[a] = b;
+            groups -= 1;
+        }
+    }
+    groups <= 1
 }
 
 /// The posterior's target of an active design: the log-worths of the conditions, or the

@@ -160,8 +160,18 @@ fn an_active_design_the_posterior_cannot_learn_is_refused_naming_the_target() {
     // drop HQ's ca so it is constant)
     let body = MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 1, ca = 0 }").replace(
         "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\n",
-        "[design]\npairs = \"active\"\ntrials = 4\ntarget = \"factors\"\n",
+        "[design]\npairs = \"active\"\ntrials = 4\ntarget = \"factors\"\nwarmup = \"all\"\n",
     );
     let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
     assert_eq!(error.key, "design.target", "{error}");
+    // factor effects without a warm-up that connects the conditions
+    for warmup in ["", "warmup = \"list\"\nlist = [[\"LQ\", \"GI\"]]\n"] {
+        let body = MINIMAL.replace(
+            "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\n",
+            &format!("[design]\npairs = \"active\"\ntrials = 4\ntarget = \"factors\"\n{warmup}"),
+        );
+        let error = load_study(&write_study(dir.path(), &body)).unwrap_err();
+        assert_eq!(error.key, "design.warmup", "{error}");
+        assert!(error.expected.contains("connects every condition"), "{error}");
+    }
 }
