@@ -1,6 +1,7 @@
 //! Planning a study by simulation (`mrstudy simulate`, `mrstudy power`): the study's **real**
-//! scheduler ([`schedule::plan`] for fixed designs; for `pairs = "active"` the planned warm-up and
-//! catch trials, then [`schedule::active_batch`] batches from one [`Posterior`] per run that
+//! scheduler ([`plan`] for fixed designs; for `pairs = "active"` the
+//! planned warm-up and catch trials, then [`active_batch`]
+//! batches from one [`Posterior`] per run that
 //! absorbs every simulated judgment in order, participants one after another) against simulated
 //! observers, and the **real** analysis ([`analyze_judgments`] with the study's conditions and
 //! factors as its `ConditionTable`).

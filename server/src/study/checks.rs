@@ -1,4 +1,4 @@
-//! The checks both kinds of study file share: the refusal maker ([`Fail`]), the name rules
+//! The checks both kinds of study file share: the refusal maker (`Fail`), the name rules
 //! (slug, identifier, condition name), non-empty texts, the reference to a scene for the
 //! renderer, image files and the response-time floor.
 
