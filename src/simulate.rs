@@ -70,8 +70,8 @@ pub struct PowerArgs {
     /// Participant counts to simulate.
     #[arg(long, value_delimiter = ',', default_value = "10,20,40,80,160", value_parser = clap::value_parser!(u32).range(1..))]
     participants: Vec<u32>,
-    /// The power to reach.
-    #[arg(long, default_value_t = 0.8)]
+    /// The power to reach (DESIGN.md's `--target`; `--target-power` is the same).
+    #[arg(long = "target", visible_alias = "target-power", default_value_t = 0.8)]
     target_power: f64,
 }
 
@@ -129,7 +129,7 @@ pub fn run_simulate(args: SimulateArgs) -> Result<()> {
 pub fn run_power(args: PowerArgs) -> Result<()> {
     anyhow::ensure!(
         args.target_power > 0.0 && args.target_power < 1.0,
-        "--target-power must be between 0 and 1, found {}",
+        "--target must be between 0 and 1, found {}",
         args.target_power
     );
     let report = run_simulation(&args.study, &args.participants)?;
