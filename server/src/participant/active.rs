@@ -21,12 +21,12 @@ use std::collections::HashMap;
 use sqlx::{Row, SqliteConnection};
 use tokio::sync::Mutex;
 
+use super::store::insert_trial;
 use crate::AppState;
 use crate::error::{AppError, AppResult};
 use crate::prepared::{PreparedStudy, ScheduledTrial};
 use crate::schedule::{self, ActiveHistory, Posterior};
 use crate::storage::WriteJob;
-use crate::trial::Side;
 
 /// One active study's shared state.
 #[derive(Debug)]
@@ -210,24 +210,8 @@ impl WriteJob for ActiveBatch {
             return Ok(());
         }
         for (offset, trial) in self.trials.iter().enumerate() {
-            sqlx::query(
-                "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
-                     left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch)
-                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            )
-            .bind(&self.participant)
-            .bind(self.first + offset as i64)
-            .bind(&trial.left_condition)
-            .bind(&trial.right_condition)
-            .bind(&trial.left_scene)
-            .bind(&trial.right_scene)
-            .bind(&trial.left_stimulus)
-            .bind(&trial.right_stimulus)
-            .bind(trial.catch_expected.map(Side::as_str))
-            .bind(&self.chosen_by)
-            .bind(self.batch)
-            .execute(&mut *connection)
-            .await?;
+            let number = self.first + offset as i64;
+            insert_trial(connection, &self.participant, number, trial, Some((&self.chosen_by, self.batch))).await?;
         }
         Ok(())
     }

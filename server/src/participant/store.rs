@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use sqlx::{Row, SqliteConnection};
 
-use crate::prepared::PreparedStudy;
+use crate::prepared::{PreparedStudy, ScheduledTrial};
 use crate::schedule;
 #[cfg(doc)]
 use crate::storage::Storage;
@@ -134,6 +134,15 @@ impl WriteJob for Shown {
     }
 }
 
+/// A participant's answered and planned trials, if the participant exists.
+async fn progress(connection: &mut SqliteConnection, participant: &str) -> Result<Option<(i64, i64)>, sqlx::Error> {
+    let row = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
+        .bind(participant)
+        .fetch_optional(&mut *connection)
+        .await?;
+    row.map(|row| Ok((row.try_get("answered")?, row.try_get("trials")?))).transpose()
+}
+
 async fn store_response(
     connection: &mut SqliteConnection,
     response: &NewResponse,
@@ -151,14 +160,9 @@ async fn store_response(
     .await?;
     let Some(served) = &served else {
         // No such trial: out of range, or (active designs) not chosen yet, so never served.
-        let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
-            .bind(&response.participant)
-            .fetch_optional(&mut *connection)
-            .await?;
-        let Some(progress) = progress else {
+        let Some((answered, trials)) = progress(connection, &response.participant).await? else {
             return Ok(Err(ResponseRefused::UnknownParticipant));
         };
-        let (answered, trials): (i64, i64) = (progress.try_get("answered")?, progress.try_get("trials")?);
         if response.trial < 1 || response.trial > trials {
             return Ok(Err(ResponseRefused::OutOfRange { trial: response.trial, trials }));
         }
@@ -217,15 +221,9 @@ async fn store_response(
             Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen: existing })
         });
     }
-    let progress = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
-        .bind(&response.participant)
-        .fetch_optional(&mut *connection)
-        .await?;
-    let Some(progress) = progress else {
+    let Some((answered, trials)) = progress(connection, &response.participant).await? else {
         return Ok(Err(ResponseRefused::UnknownParticipant));
     };
-    let answered: i64 = progress.try_get("answered")?;
-    let trials: i64 = progress.try_get("trials")?;
     if response.trial < 1 || response.trial > trials {
         return Ok(Err(ResponseRefused::OutOfRange { trial: response.trial, trials }));
     }
@@ -257,6 +255,36 @@ async fn write_screen_out(
             .await?;
         }
     }
+    Ok(())
+}
+
+/// Stores trial number `number` of a participant's schedule; `chosen` is the posterior state and
+/// batch number of an actively chosen trial (`None` for a trial planned at join).
+pub(crate) async fn insert_trial(
+    connection: &mut SqliteConnection,
+    participant: &str,
+    number: i64,
+    trial: &ScheduledTrial,
+    chosen: Option<(&str, i64)>,
+) -> Result<(), sqlx::Error> {
+    sqlx::query(
+        "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
+             left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch)
+         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    )
+    .bind(participant)
+    .bind(number)
+    .bind(&trial.left_condition)
+    .bind(&trial.right_condition)
+    .bind(&trial.left_scene)
+    .bind(&trial.right_scene)
+    .bind(&trial.left_stimulus)
+    .bind(&trial.right_stimulus)
+    .bind(trial.catch_expected.map(Side::as_str))
+    .bind(chosen.map(|(state, _)| state))
+    .bind(chosen.map(|(_, batch)| batch))
+    .execute(&mut *connection)
+    .await?;
     Ok(())
 }
 
@@ -320,21 +348,7 @@ async fn insert_participant(
     .execute(&mut *connection)
     .await?;
     for (index, trial) in trials.iter().enumerate() {
-        sqlx::query(
-            "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
-                 left_stimulus, right_stimulus, catch_expected) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        )
-        .bind(&participant.id)
-        .bind(index as i64 + 1)
-        .bind(&trial.left_condition)
-        .bind(&trial.right_condition)
-        .bind(&trial.left_scene)
-        .bind(&trial.right_scene)
-        .bind(&trial.left_stimulus)
-        .bind(&trial.right_stimulus)
-        .bind(trial.catch_expected.map(Side::as_str))
-        .execute(&mut *connection)
-        .await?;
+        insert_trial(connection, &participant.id, index as i64 + 1, trial, None).await?;
     }
     Ok(JoinOutcome::Created)
 }
