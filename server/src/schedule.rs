@@ -188,7 +188,7 @@ pub fn active_batch(
 pub fn fallback_batch(study: &Study, seed: u64, history: &mut ActiveHistory, count: usize) -> Vec<PlannedTrial> {
     let n = study.conditions.len();
     let pairs: Vec<(usize, usize)> = if study.design.pairs.is_empty() {
-        (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect()
+        crate::study::survey::all_pairs(n)
     } else {
         study.design.pairs.iter().map(|&(a, b)| (a.min(b), a.max(b))).collect()
     };

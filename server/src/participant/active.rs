@@ -78,7 +78,7 @@ async fn absorb(state: &AppState, prepared: &PreparedStudy, active: &mut ActiveS
     .fetch_all(&state.storage().read)
     .await
     .map_err(|error| AppError::Internal(format!("cannot read the judgments: {error}")))?;
-    let index = |name: &str| prepared.study.conditions.iter().position(|condition| condition.name == name);
+    let index = |name: &str| prepared.study.condition_index(name);
     for row in rows {
         let seq: i64 = row.try_get("seq").map_err(internal)?;
         active.absorbed_seq = seq;
@@ -134,7 +134,7 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     if existing > answered || existing >= total {
         return Ok(()); // chosen already (another request), or nothing left to choose
     }
-    let index = |name: &str| study.conditions.iter().position(|condition| condition.name == name);
+    let index = |name: &str| study.condition_index(name);
     let mut pairs = Vec::new();
     let mut batches = 0u64;
     for row in &rows {

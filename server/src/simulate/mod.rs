@@ -322,7 +322,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
     match choice {
         DesignChoice::Study => {}
         DesignChoice::All => {
-            variant.design.pairs = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect();
+            variant.design.pairs = crate::study::survey::all_pairs(n);
             variant.design.pairs_rule = "all".into();
             variant.design.repetitions = repetitions;
             variant.design.active = None;
@@ -736,11 +736,7 @@ fn run_once(
 
 /// The conditions table of the study for the analysis (none without factors).
 fn condition_table(study: &Study) -> Option<ConditionTable> {
-    (!study.factors.is_empty()).then(|| ConditionTable {
-        conditions: study.conditions.iter().map(|condition| condition.name.clone()).collect(),
-        factors: study.factors.iter().map(|factor| factor.name.clone()).collect(),
-        levels: study.conditions.iter().map(|condition| condition.levels.clone()).collect(),
-    })
+    (!study.factors.is_empty()).then(|| crate::analysis::condition_table(study))
 }
 
 /// Runs the simulation; `progress(done, total)` is called after each run, from any thread.

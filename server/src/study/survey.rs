@@ -466,6 +466,11 @@ impl Study {
             + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
     }
 
+    /// The index of the condition called `name`.
+    pub fn condition_index(&self, name: &str) -> Option<usize> {
+        self.conditions.iter().position(|condition| condition.name == name)
+    }
+
     /// Whether any stimulus must come from the renderer.
     pub fn needs_renderer(&self) -> bool {
         self.scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_)))
@@ -927,8 +932,8 @@ pub fn active_target(active: &ActiveDesign, conditions: &[Condition]) -> mrstudy
     }
 }
 
-/// `pairs = "all"`: every pair of conditions.
-fn all_pairs(count: usize) -> Vec<(usize, usize)> {
+/// `pairs = "all"`: every pair of `count` conditions, `(i, j)` with i < j.
+pub fn all_pairs(count: usize) -> Vec<(usize, usize)> {
     (0..count).flat_map(|first| (first + 1..count).map(move |second| (first, second))).collect()
 }
 
