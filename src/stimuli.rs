@@ -21,6 +21,10 @@ pub struct StimuliArgs {
     /// rendered before, or an image file of the study).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write each stimulus's errors against its ground truth here (DESIGN.md's stimulus metrics
+    /// CSV: `stimulus,scene,condition,metric,region,value`).
+    #[arg(long)]
+    metrics: Option<PathBuf>,
 }
 
 /// Progress bars for rendering: one for the photograph being path-traced, one for the stimuli.
@@ -69,6 +73,14 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     let plan = stimuli::StimulusPlan::of(&study)?;
     let rendered = stimuli::render_missing(&study, &plan, &store, &|step| progress(&slug, &step))
         .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
+    if let Some(path) = &args.metrics {
+        let (csv, notes) = stimuli::metrics_csv(&study, &plan, &store)?;
+        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+        for note in notes {
+            eprintln!("note: {note}");
+        }
+        eprintln!("wrote the stimulus metrics to {}", path.display());
+    }
     if let Some(out) = &args.out {
         let written = stimuli::write_copies(&study, &plan, &store, out)
             .with_context(|| format!("cannot write the stimuli of {} into {}", args.study.display(), out.display()))?;
@@ -76,10 +88,13 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     }
     let total = plan.stimuli().count();
     eprintln!(
-        "study \"{}\": rendered {rendered} stimuli, {} were already in {} ({total} rendered stimuli in all)",
+        "study \"{}\": rendered {} stimuli, {} were already in {} ({total} rendered stimuli in all); {} ground truths and {} stimulus records made",
         study.slug,
-        total - rendered,
-        store.display()
+        rendered.stimuli,
+        total - rendered.stimuli,
+        store.display(),
+        rendered.ground_truths,
+        rendered.records
     );
     Ok(())
 }

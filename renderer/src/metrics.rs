@@ -3,6 +3,10 @@
 //! display-encoded values (peak 1); SSIM (Wang et al. 2004: 11×11 Gaussian window, σ = 1.5,
 //! K1 = 0.01, K2 = 0.03, on display luminance); and FLIP (LDR-FLIP of Andersson et al. 2020
 //! through the `nv-flip` crate, NVIDIA's reference implementation, at 67 pixels per degree).
+//!
+//! [`stimulus_errors`] measures a stimulus against its ground-truth composite the way DESIGN.md's
+//! stimulus metrics CSV reports it: every metric in the whole image, the affected region and on
+//! the virtual objects, from one FLIP, SSIM and CIEDE2000 map each.
 
 use crate::image::{Image, Mask, quantize8};
 use crate::math::luminance;
@@ -166,6 +170,89 @@ pub fn compare(
     }
 }
 
+/// The metrics of the stimulus metrics CSV (DESIGN.md), in its order; `render_ms` is written
+/// beside them by the caller that timed the render.
+pub const STIMULUS_METRICS: [&str; 7] =
+    ["flip_mean", "flip_p95", "rmse_linear", "rmse_display", "ssim", "ciede2000_mean", "ciede2000_p95"];
+
+/// The regions of the stimulus metrics CSV: the whole image, the affected region (where the
+/// virtual objects change the real scene, or cover it) and the virtual objects' mask.
+pub const STIMULUS_REGIONS: [&str; 3] = ["image", "affected", "virtual"];
+
+/// One value of the stimulus metrics CSV.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct MetricValue {
+    pub metric: String,
+    pub region: String,
+    pub value: f64,
+}
+
+/// A stimulus's errors against its ground truth, per region, and the regions that had no
+/// pixel (an empty mask: no value is made up for them).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct StimulusErrors {
+    pub values: Vec<MetricValue>,
+    /// Regions left out, each with why (e.g. "affected: the mask is empty").
+    pub skipped: Vec<String>,
+}
+
+/// Every metric of [`STIMULUS_METRICS`] of `stimulus` against `ground_truth` (both
+/// display-encoded, as a participant sees them) in each region of [`STIMULUS_REGIONS`]:
+/// FLIP (mean and 95th percentile, R's type 7), RMSE on the linear values the display
+/// encoding stands for and on the display values, mean SSIM, CIEDE2000 (mean and 95th
+/// percentile). A region whose mask selects no pixel is skipped and said so.
+pub fn stimulus_errors(ground_truth: &Image, stimulus: &Image, affected: &Mask, virtual_mask: &Mask) -> StimulusErrors {
+    let n = ground_truth.pixels.len();
+    assert_eq!(n, stimulus.pixels.len(), "a stimulus and its ground truth have the same size");
+    let flip = flip_map(ground_truth, stimulus).values;
+    let ssim = ssim_map(ground_truth, stimulus);
+    let (gt_linear, stimulus_linear) = (ground_truth.srgb_to_linear(), stimulus.srgb_to_linear());
+    let squared = |a: &Image, b: &Image| -> Vec<f64> {
+        a.pixels.iter().zip(&b.pixels).map(|(p, q)| (*p - *q).as_dvec3().length_squared()).collect()
+    };
+    let squared_linear = squared(&gt_linear, &stimulus_linear);
+    let squared_display = squared(ground_truth, stimulus);
+    let delta_e: Vec<f64> = ground_truth
+        .pixels
+        .iter()
+        .zip(&stimulus.pixels)
+        .map(|(a, b)| crate::cm::colour::ciede2000_display(*a, *b))
+        .collect();
+    let mut errors = StimulusErrors::default();
+    for region in STIMULUS_REGIONS {
+        let mask = match region {
+            "affected" => Some(affected),
+            "virtual" => Some(virtual_mask),
+            _ => None,
+        };
+        let pixels: Vec<usize> = (0..n).filter(|&i| selected(mask, i)).collect();
+        if pixels.is_empty() {
+            errors.skipped.push(format!("{region}: the mask is empty"));
+            continue;
+        }
+        let mean = |values: &[f64]| pixels.iter().map(|&i| values[i]).sum::<f64>() / pixels.len() as f64;
+        let p95 = |values: &[f64]| {
+            let mut picked: Vec<f64> = pixels.iter().map(|&i| values[i]).collect();
+            picked.sort_by(f64::total_cmp);
+            quantile(&picked, 0.95)
+        };
+        let flip: Vec<f64> = flip.iter().map(|&v| v as f64).collect();
+        let values = [
+            mean(&flip),
+            p95(&flip),
+            (mean(&squared_linear) / 3.0).sqrt(),
+            (mean(&squared_display) / 3.0).sqrt(),
+            mean(&ssim),
+            mean(&delta_e),
+            p95(&delta_e),
+        ];
+        for (metric, value) in STIMULUS_METRICS.iter().zip(values) {
+            errors.values.push(MetricValue { metric: metric.to_string(), region: region.to_string(), value });
+        }
+    }
+    errors
+}
+
 /// 8-bit round trip, for comparing what a viewer sees.
 pub fn quantized(img: &Image) -> Image {
     img.map(|p| glam::Vec3::new(quantize8(p.x) as f32, quantize8(p.y) as f32, quantize8(p.z) as f32) / 255.0)
@@ -232,5 +319,59 @@ mod tests {
         assert!(rmse(&a, &b, Some(&m)) > 0.0);
         let empty = Mask::new(32, 24);
         assert_eq!(rmse(&a, &b, Some(&empty)), 0.0);
+    }
+
+    fn value(errors: &StimulusErrors, metric: &str, region: &str) -> f64 {
+        errors.values.iter().find(|v| v.metric == metric && v.region == region).unwrap().value
+    }
+
+    #[test]
+    fn a_stimulus_equal_to_its_ground_truth_has_zero_error_everywhere() {
+        let a = gradient();
+        let mut affected = Mask::new(32, 24);
+        affected.values[..200].fill(1.0);
+        let mut virtual_mask = Mask::new(32, 24);
+        virtual_mask.values[50..80].fill(1.0);
+        let errors = stimulus_errors(&a, &a, &affected, &virtual_mask);
+        assert!(errors.skipped.is_empty());
+        assert_eq!(errors.values.len(), STIMULUS_METRICS.len() * STIMULUS_REGIONS.len());
+        for v in &errors.values {
+            let expected = if v.metric == "ssim" { 1.0 } else { 0.0 };
+            assert!((v.value - expected).abs() < 1e-6, "{} {}: {}", v.metric, v.region, v.value);
+        }
+    }
+
+    #[test]
+    fn stimulus_errors_are_taken_per_region_and_empty_regions_are_said() {
+        // the stimulus differs from the ground truth only inside the virtual mask: errors there,
+        // none outside; the whole image's error is diluted; the empty affected mask is skipped
+        let gt = gradient();
+        let mut stimulus = gt.clone();
+        let mut virtual_mask = Mask::new(32, 24);
+        for y in 8..16 {
+            for x in 8..16 {
+                stimulus.set(x, y, Vec3::new(0.9, 0.1, 0.1));
+                virtual_mask.values[(y * 32 + x) as usize] = 1.0;
+            }
+        }
+        let errors = stimulus_errors(&gt, &stimulus, &Mask::new(32, 24), &virtual_mask);
+        assert_eq!(errors.skipped, vec!["affected: the mask is empty".to_string()]);
+        assert!(errors.values.iter().all(|v| v.region != "affected" && v.value.is_finite()));
+        for metric in ["rmse_display", "rmse_linear", "ciede2000_mean", "flip_mean"] {
+            let inside = value(&errors, metric, "virtual");
+            let whole = value(&errors, metric, "image");
+            assert!(inside > 0.0 && whole > 0.0 && whole < inside, "{metric}: {whole} vs {inside}");
+        }
+        // the RMSE of the region, by hand: mean over the 64 pixels of the squared difference
+        let mut sum = 0.0f64;
+        for y in 8..16 {
+            for x in 8..16 {
+                sum += (gt.get(x, y) - stimulus.get(x, y)).as_dvec3().length_squared();
+            }
+        }
+        assert!((value(&errors, "rmse_display", "virtual") - (sum / 192.0).sqrt()).abs() < 1e-9);
+        // 64 of 768 pixels changed: the image's p95 of CIEDE2000 is in the changed pixels' range
+        assert!(value(&errors, "ciede2000_p95", "image") > 0.0);
+        assert!(value(&errors, "ssim", "virtual") < 0.9);
     }
 }

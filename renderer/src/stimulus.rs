@@ -19,7 +19,7 @@ use crate::cm::{CmMethod, CmParams};
 use crate::error::{RenderError, Result};
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
 use crate::image::Image;
-use crate::reference::{ReferenceParams, RenderStats, render_photo};
+use crate::reference::{ReferenceOutput, ReferenceParams, RenderStats, render_photo};
 use crate::scene::Scene;
 use serde::Serialize;
 
@@ -97,7 +97,7 @@ impl Factors {
 }
 
 /// How stimuli are rendered: size, the path tracer's samples and seed, the VPL budget.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct StimulusSettings {
     pub width: u32,
     pub height: u32,
@@ -136,6 +136,35 @@ impl StimulusSettings {
             factors.label(),
             scene.desc.to_toml()
         )
+    }
+
+    /// Text naming everything that decides the ground-truth composite of `scene` (already
+    /// sized): the path tracer's settings and the scene, no factors (one ground truth is shared
+    /// by every condition of a scene configuration). Hash it for a cache key.
+    pub fn ground_truth_fingerprint(&self, scene: &Scene) -> String {
+        format!(
+            "mrstudy ground truth v{STIMULUS_VERSION}\nsize {}x{}\nspp {}\nseed {}\n{}",
+            self.width,
+            self.height,
+            self.spp,
+            self.seed,
+            scene.desc.to_toml()
+        )
+    }
+
+    /// The photograph and the ground-truth composite of `scene` in one reference render (the
+    /// same path-tracing random numbers and sensor noise; the photograph is the one
+    /// [`StimulusSettings::photo`] makes), with the HDR buffers and the masks the stimulus
+    /// metrics are taken in. A scene with a background photograph has no ground truth: an
+    /// error saying so.
+    pub fn reference(&self, scene: &Scene, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<ReferenceOutput> {
+        if self.spp == 0 {
+            return Err(RenderError::Unsupported(
+                "a stimulus needs at least 1 sample per pixel for its photograph".into(),
+            ));
+        }
+        let params = ReferenceParams { spp: self.spp, seed: self.seed, ..ReferenceParams::default() };
+        crate::reference::render_reference(scene, &params, progress)
     }
 
     /// The photograph of the scene's real part, display-encoded (the CPU path tracer through
@@ -269,5 +298,18 @@ mod tests {
         assert_ne!(base, StimulusSettings { seed: 2, ..settings.clone() }.fingerprint(&scene, &gi));
         let other = StimulusSettings { width: 32, height: 24, ..settings.clone() };
         assert_ne!(base, other.fingerprint(&other.sized(crate::scene::load("dir-lamp-box").unwrap()), &gi));
+    }
+
+    #[test]
+    fn the_reference_render_makes_the_same_photograph_as_photo() {
+        // stimuli rendered over `photo` before ground truths existed stay valid: the reference
+        // render's photograph is the same image, bit for bit
+        let settings = StimulusSettings { width: 32, height: 24, spp: 2, ..StimulusSettings::default() };
+        let scene = settings.sized(crate::scene::load("dir-lamp-box").unwrap());
+        let (photo, _) = settings.photo(&scene, &|_, _| {}).unwrap();
+        let reference = settings.reference(&scene, &|_, _| {}).unwrap();
+        assert_eq!(photo.pixels, reference.photo.pixels);
+        assert_ne!(reference.photo.pixels, reference.ground_truth.pixels);
+        assert!(settings.ground_truth_fingerprint(&scene).starts_with("mrstudy ground truth"));
     }
 }

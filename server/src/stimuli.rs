@@ -8,12 +8,22 @@
 //! [`mrstudy_renderer::stimulus`]). Entries are written after their image, each by a rename, so
 //! an interrupted run leaves no entry pointing at a partial file; the next start renders what is
 //! still missing.
+//!
+//! Beside each image the store keeps its ground truth: a scene configuration the path tracer
+//! synthesises (no background photograph) gets its ground-truth composite rendered once, in the
+//! same reference render as the photograph the stimuli are composed over, stored like a stimulus
+//! (`rendered/<ground-truth key>`), and every stimulus of it a [`StimulusRecord`] — its errors
+//! against that ground truth per region, its render time and settings — stored as
+//! `<sha256>.json` under the entry `rendered/<key>.metrics`. [`metrics_csv`] writes them as
+//! DESIGN.md's stimulus metrics CSV.
 
 use std::path::{Path, PathBuf};
 
-use mrstudy_renderer::RenderError;
 use mrstudy_renderer::gpu::DirRenderer;
+use mrstudy_renderer::metrics::{StimulusErrors, quantized, stimulus_errors};
 use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
+use mrstudy_renderer::{Image, RenderError};
+use serde::{Deserialize, Serialize};
 
 use crate::study::{StimulusSource, Study, sha256_hex};
 
@@ -34,6 +44,9 @@ pub enum StimuliError {
     NoGpu { slug: String, file: PathBuf, source: RenderError },
     #[error("cannot write {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
+    /// A stored stimulus or record could not be read back.
+    #[error("the stimulus store entry {path} cannot be read: {reason}")]
+    Store { path: PathBuf, reason: String },
 }
 
 /// One stimulus a study needs from the renderer.
@@ -49,12 +62,58 @@ pub struct PlannedStimulus {
     pub key: String,
 }
 
+impl PlannedStimulus {
+    /// The name of the index entry of the stimulus's [`StimulusRecord`].
+    pub fn record_key(&self) -> String {
+        format!("{}.metrics", self.key)
+    }
+}
+
 /// One scene configuration's part of a [`StimulusPlan`]: the renderer's scene, loaded once at
-/// the study's stimulus size, and a stimulus per condition.
+/// the study's stimulus size, the key of its ground truth and a stimulus per condition.
 #[derive(Debug, Clone)]
 pub struct PlannedScene {
     pub scene: mrstudy_renderer::Scene,
+    /// SHA-256 of the ground truth's fingerprint; `None` for a scene with a background
+    /// photograph, which has no ground truth.
+    pub ground_truth_key: Option<String>,
     pub stimuli: Vec<PlannedStimulus>,
+}
+
+impl PlannedScene {
+    /// True when something of the scene configuration is not in `store`: a stimulus, its
+    /// ground truth, or a stimulus's record.
+    fn incomplete(&self, store: &Path) -> bool {
+        match &self.ground_truth_key {
+            Some(key) => {
+                lookup(store, key).is_none()
+                    || self.stimuli.iter().any(|s| lookup(store, &s.key).is_none() || lookup_record(store, s).is_none())
+            }
+            None => self.stimuli.iter().any(|s| lookup(store, &s.key).is_none()),
+        }
+    }
+}
+
+/// What the store keeps about a rendered stimulus beside its image: its errors against the
+/// ground truth of its scene configuration, the render's time and settings. Names of scene
+/// configurations and conditions are not in it (the store is shared by studies); the study's
+/// plan adds them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StimulusRecord {
+    /// The stimulus's file name in the store.
+    pub stimulus: String,
+    /// The ground truth's file name in the store.
+    pub ground_truth: String,
+    /// The factors switched on (`gi+cm`, `none`, …).
+    pub factors: String,
+    pub settings: StimulusSettings,
+    /// The GPU frame's time (the frame this record was made with).
+    pub render_ms: f64,
+    pub adapter: String,
+    /// The reference render of the photograph and the ground truth, shared by the scene
+    /// configuration's stimuli.
+    pub reference_seconds: f64,
+    pub errors: StimulusErrors,
 }
 
 /// Every stimulus a study needs from the renderer, with its cache key: made once per study (each
@@ -85,6 +144,8 @@ impl StimulusPlan {
                 source,
             })?;
             let loaded = settings.sized(loaded);
+            let ground_truth_key =
+                loaded.background.is_none().then(|| sha256_hex(settings.ground_truth_fingerprint(&loaded).as_bytes()));
             let mut stimuli = Vec::new();
             for (condition_index, condition) in study.conditions.iter().enumerate() {
                 let factors = condition.factors.clone().map_err(|reason| StimuliError::Factors {
@@ -102,7 +163,7 @@ impl StimulusPlan {
                     key: sha256_hex(settings.fingerprint(&loaded, &factors).as_bytes()),
                 });
             }
-            scenes.push(Some(PlannedScene { scene: loaded, stimuli }));
+            scenes.push(Some(PlannedScene { scene: loaded, ground_truth_key, stimuli }));
         }
         Ok(StimulusPlan { settings, scenes })
     }
@@ -112,18 +173,43 @@ impl StimulusPlan {
         self.scenes.iter().flatten().flat_map(|scene| &scene.stimuli)
     }
 
-    /// The planned stimuli not yet in `store`.
+    /// The planned stimuli not yet in `store` (their images: what serving needs).
     pub fn missing(&self, store: &Path) -> Vec<&PlannedStimulus> {
         self.stimuli().filter(|stimulus| lookup(store, &stimulus.key).is_none()).collect()
     }
+
+    /// The scene configurations (indices) with something not yet in `store`: a stimulus, its
+    /// ground truth or a stimulus's record ([`render_missing`] makes them).
+    pub fn incomplete(&self, store: &Path) -> Vec<usize> {
+        self.scenes
+            .iter()
+            .enumerate()
+            .filter(|(_, planned)| planned.as_ref().is_some_and(|planned| planned.incomplete(store)))
+            .map(|(index, _)| index)
+            .collect()
+    }
+}
+
+/// What [`render_missing`] made.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Rendered {
+    /// Stimulus images rendered and stored.
+    pub stimuli: usize,
+    /// Ground-truth composites rendered and stored.
+    pub ground_truths: usize,
+    /// Stimulus records (errors against the ground truth) made, for new stimuli and for
+    /// stimuli stored before records existed.
+    pub records: usize,
 }
 
 /// What the progress callback is told.
 #[derive(Debug, Clone)]
 pub enum Progress {
-    /// Rendering starts: `photos` photographs and `stimuli` GPU frames to make.
+    /// Rendering starts: `photos` reference renders (each the photograph and, where the scene
+    /// is synthesised, its ground truth) and `stimuli` GPU frames to make.
     Start { photos: usize, stimuli: usize },
-    /// A photograph's samples: `done` of `total` samples per pixel.
+    /// A reference render's samples: `done` of `total` samples per pixel (the photograph's, then
+    /// the ground truth's).
     Photo { scene: String, done: u32, total: u32 },
     /// A stimulus was rendered and stored.
     Stimulus { scene: String, condition: String, ms: f64 },
@@ -174,26 +260,42 @@ fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(),
     std::fs::rename(temporary, target)
 }
 
-/// Renders the study's missing stimuli (by its `plan`) into `store` and returns how many were
-/// rendered ([`write_copies`] writes named copies of every stimulus afterwards).
+/// The stored record of `stimulus`, if it is in the store.
+pub fn lookup_record(store: &Path, stimulus: &PlannedStimulus) -> Option<StimulusRecord> {
+    let name = lookup(store, &stimulus.record_key())?;
+    serde_json::from_slice(&std::fs::read(store.join(name)).ok()?).ok()
+}
+
+fn write_entry(store: &Path, key: &str, name: &str) -> Result<(), StimuliError> {
+    let entry = index_path(store, key);
+    write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes())
+        .map_err(|source| StimuliError::Io { path: entry, source })
+}
+
+/// Renders what the study's `plan` needs and `store` lacks: for each incomplete scene
+/// configuration one reference render (the photograph, and the ground truth where the scene is
+/// synthesised), then each missing stimulus on the GPU over the photograph, and each stimulus's
+/// [`StimulusRecord`] (a stimulus stored before records existed is rendered again for its
+/// time, and measured as stored). [`write_copies`] writes named copies of every stimulus
+/// afterwards.
 pub fn render_missing(
     study: &Study,
     plan: &StimulusPlan,
     store: &Path,
     progress: &(dyn Fn(Progress) + Sync),
-) -> Result<usize, StimuliError> {
-    let missing = plan.missing(store);
-    if missing.is_empty() {
-        return Ok(0);
+) -> Result<Rendered, StimuliError> {
+    let scenes = plan.incomplete(store);
+    let mut rendered = Rendered::default();
+    if scenes.is_empty() {
+        return Ok(rendered);
     }
     let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu {
         slug: study.slug.clone(),
         file: study.file.clone(),
         source,
     })?;
-    let mut scenes: Vec<usize> = missing.iter().map(|stimulus| stimulus.scene_index).collect();
-    scenes.dedup();
-    progress(Progress::Start { photos: scenes.len(), stimuli: missing.len() });
+    let frames: usize = scenes.iter().filter_map(|&index| plan.scenes[index].as_ref()).map(|p| p.stimuli.len()).sum();
+    progress(Progress::Start { photos: scenes.len(), stimuli: frames });
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| StimuliError::Io { path, source }
@@ -208,17 +310,68 @@ pub fn render_missing(
             scene: scene_name.clone(),
             source,
         };
-        let (photo, _) = plan
-            .settings
-            .photo(&planned.scene, &|done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total }))
-            .map_err(render_error)?;
-        for stimulus in missing.iter().filter(|stimulus| stimulus.scene_index == scene_index) {
+        let report = |done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total });
+        // the photograph, and the ground truth with its masks where the scene is synthesised
+        let (photo, reference) = match &planned.ground_truth_key {
+            Some(key) => {
+                let reference = plan.settings.reference(&planned.scene, &report).map_err(render_error)?;
+                let shown = quantized(&reference.ground_truth);
+                let name = match lookup(store, key) {
+                    Some(name) => name,
+                    None => {
+                        let name = store_bytes(&shown.encode_png(), "png", store).map_err(io(store))?;
+                        write_entry(store, key, &name)?;
+                        rendered.ground_truths += 1;
+                        name
+                    }
+                };
+                (reference.photo.clone(), Some((reference, shown, name)))
+            }
+            None => (plan.settings.photo(&planned.scene, &report).map_err(render_error)?.0, None),
+        };
+        for stimulus in &planned.stimuli {
+            let stored = lookup(store, &stimulus.key);
+            let needs_record = reference.is_some() && lookup_record(store, stimulus).is_none();
+            if stored.is_some() && !needs_record {
+                progress(Progress::Stimulus {
+                    scene: stimulus.scene.clone(),
+                    condition: stimulus.condition.clone(),
+                    ms: 0.0,
+                });
+                continue;
+            }
             let frame =
                 plan.settings.render(&renderer, &planned.scene, &photo, &stimulus.factors).map_err(render_error)?;
-            let bytes = frame.composite.encode_png();
-            let name = store_bytes(&bytes, "png", store).map_err(io(store))?;
-            let entry = index_path(store, &stimulus.key);
-            write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes()).map_err(io(&entry))?;
+            let (name, shown) = match stored {
+                Some(name) => {
+                    let path = store.join(&name);
+                    let image = Image::load(&path, "stimulus")
+                        .map_err(|error| StimuliError::Store { path, reason: error.to_string() })?;
+                    (name, image)
+                }
+                None => {
+                    let name = store_bytes(&frame.composite.encode_png(), "png", store).map_err(io(store))?;
+                    write_entry(store, &stimulus.key, &name)?;
+                    rendered.stimuli += 1;
+                    (name, quantized(&frame.composite))
+                }
+            };
+            if let Some((reference, ground_truth, ground_truth_name)) = &reference {
+                let record = StimulusRecord {
+                    stimulus: name,
+                    ground_truth: ground_truth_name.clone(),
+                    factors: stimulus.factors.label(),
+                    settings: plan.settings.clone(),
+                    render_ms: frame.report.ms,
+                    adapter: frame.report.adapter.clone(),
+                    reference_seconds: reference.stats.seconds,
+                    errors: stimulus_errors(ground_truth, &shown, &reference.affected_mask, &reference.virtual_mask),
+                };
+                let bytes = serde_json::to_vec_pretty(&record).expect("a stimulus record serialises");
+                let record_name = store_bytes(&bytes, "json", store).map_err(io(store))?;
+                write_entry(store, &stimulus.record_key(), &record_name)?;
+                rendered.records += 1;
+            }
             progress(Progress::Stimulus {
                 scene: stimulus.scene.clone(),
                 condition: stimulus.condition.clone(),
@@ -226,7 +379,62 @@ pub fn render_missing(
             });
         }
     }
-    Ok(missing.len())
+    Ok(rendered)
+}
+
+/// The study's stimulus metrics CSV (DESIGN.md): `stimulus,scene,condition,metric,region,value`,
+/// one row per stimulus, metric and region, `render_ms` in region `image`; and one sentence per
+/// scene configuration that has no ground truth (image files, or a background photograph).
+/// A rendered stimulus without its record in `store` is an error naming it (render it first).
+pub fn metrics_csv(study: &Study, plan: &StimulusPlan, store: &Path) -> Result<(String, Vec<String>), StimuliError> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let csv_error = |error: csv::Error| StimuliError::Store { path: store.to_path_buf(), reason: error.to_string() };
+    writer.write_record(["stimulus", "scene", "condition", "metric", "region", "value"]).map_err(csv_error)?;
+    let mut notes = Vec::new();
+    for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
+        let Some(planned) = planned.as_ref().filter(|planned| planned.ground_truth_key.is_some()) else {
+            notes.push(match scene.source {
+                StimulusSource::Images(_) => format!(
+                    "scene configuration \"{}\" shows image files: no ground truth exists for its stimuli",
+                    scene.name
+                ),
+                StimulusSource::Render(_) => format!(
+                    "scene configuration \"{}\" has a background photograph: no ground truth exists for its stimuli",
+                    scene.name
+                ),
+            });
+            continue;
+        };
+        for stimulus in &planned.stimuli {
+            let record = lookup_record(store, stimulus).ok_or_else(|| StimuliError::Store {
+                path: index_path(store, &stimulus.record_key()),
+                reason: format!(
+                    "the errors of the stimulus {} / {} are not in the store (run `mrstudy stimuli --study {}` first)",
+                    stimulus.scene,
+                    stimulus.condition,
+                    study.file.display()
+                ),
+            })?;
+            let mut row = |metric: &str, region: &str, value: f64| {
+                writer.write_record([
+                    record.stimulus.as_str(),
+                    stimulus.scene.as_str(),
+                    stimulus.condition.as_str(),
+                    metric,
+                    region,
+                    &format!("{value}"),
+                ])
+            };
+            for value in &record.errors.values {
+                row(&value.metric, &value.region, value.value).map_err(csv_error)?;
+            }
+            row("render_ms", "image", record.render_ms).map_err(csv_error)?;
+        }
+    }
+    let bytes = writer
+        .into_inner()
+        .map_err(|error| StimuliError::Store { path: store.to_path_buf(), reason: error.to_string() })?;
+    Ok((String::from_utf8(bytes).expect("the CSV is UTF-8"), notes))
 }
 
 /// Writes every stimulus of the study into `dir` as `<scene>__<condition>.<extension>`: the

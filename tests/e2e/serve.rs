@@ -159,10 +159,12 @@ fn serve_renders_missing_stimuli_on_first_start_and_reuses_them_after() {
     }
     assert_eq!(listed[0]["slug"], "rendered-mini", "{listed} {warnings:?}");
 
-    // two stimuli rendered, indexed, and shown to a participant as 48×36 PNGs
+    // two stimuli rendered, indexed, and shown to a participant as 48×36 PNGs; beside them the
+    // scene configuration's ground truth and each stimulus's record of its errors
     let index = data_dir.path().join("stimuli/rendered");
     let entries: Vec<PathBuf> = std::fs::read_dir(&index).unwrap().map(|e| e.unwrap().path()).collect();
-    assert_eq!(entries.len(), 2, "{entries:?}");
+    assert_eq!(entries.len(), 5, "{entries:?}");
+    assert_eq!(entries.iter().filter(|e| e.extension().is_some_and(|x| x == "metrics")).count(), 2);
     let joined: Value = http
         .post(format!("{}/api/studies/rendered-mini/participants", server.base))
         .json(&json!({"demographics": {}}))
@@ -211,6 +213,8 @@ fn stimuli_renders_a_study_once_and_writes_named_copies() {
             .arg(data_dir.path())
             .arg("--out")
             .arg(data_dir.path().join("named"))
+            .arg("--metrics")
+            .arg(data_dir.path().join("stimuli.csv"))
             .output()
             .unwrap()
     };
@@ -222,10 +226,36 @@ fn stimuli_renders_a_study_once_and_writes_named_copies() {
     }
     assert!(first.status.success(), "{stderr}");
     assert!(stderr.contains("rendered 2 stimuli, 0 were already"), "{stderr}");
+    assert!(stderr.contains("1 ground truths and 2 stimulus records made"), "{stderr}");
     for name in ["box__LQ.png", "box__GI.png"] {
         let bytes = std::fs::read(data_dir.path().join("named").join(name)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG", "{name}");
     }
+    let metrics = std::fs::read_to_string(data_dir.path().join("stimuli.csv")).unwrap();
+    let check_metrics = |metrics: &str| {
+        let mut lines = metrics.lines();
+        assert_eq!(lines.next(), Some("stimulus,scene,condition,metric,region,value"));
+        let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
+        for condition in ["LQ", "GI"] {
+            let of: Vec<&Vec<&str>> = rows.iter().filter(|row| row[2] == condition).collect();
+            // 7 metrics in the image and in the affected region (never empty: the virtual objects
+            // are in it) and on the virtual objects when they are seen, and the render time
+            assert!(of.len() == 7 * 3 + 1 || of.len() == 7 * 2 + 1, "{condition}: {}", of.len());
+            assert!(of.iter().all(|row| row[0].len() == 68 && row[0].ends_with(".png") && row[1] == "box"));
+            for row in &of {
+                let value: f64 = row[5].parse().unwrap();
+                assert!(value.is_finite() && value >= 0.0, "{row:?}");
+            }
+            assert!(of.iter().any(|row| row[3] == "render_ms" && row[4] == "image"));
+        }
+        let value = |condition: &str, metric: &str| -> f64 {
+            rows.iter().find(|r| r[2] == condition && r[3] == metric && r[4] == "affected").unwrap()[5].parse().unwrap()
+        };
+        // LQ has no shadows or indirect light: further from the ground truth where the objects
+        // change the scene than GI
+        assert!(value("LQ", "rmse_linear") > value("GI", "rmse_linear"), "{metrics}");
+    };
+    check_metrics(&metrics);
     // A second run renders nothing and still writes every stimulus (they were already stored).
     std::fs::remove_dir_all(data_dir.path().join("named")).unwrap();
     let second = run();
@@ -236,6 +266,19 @@ fn stimuli_renders_a_study_once_and_writes_named_copies() {
         let bytes = std::fs::read(data_dir.path().join("named").join(name)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG", "{name}");
     }
+    assert_eq!(std::fs::read_to_string(data_dir.path().join("stimuli.csv")).unwrap(), metrics);
+    // A store from before stimulus records existed: the records are made, the images kept.
+    for entry in std::fs::read_dir(data_dir.path().join("stimuli/rendered")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|x| x == "metrics") {
+            std::fs::remove_file(path).unwrap();
+        }
+    }
+    let third = run();
+    let stderr = String::from_utf8_lossy(&third.stderr);
+    assert!(third.status.success() && stderr.contains("rendered 0 stimuli, 2 were already"), "{stderr}");
+    assert!(stderr.contains("0 ground truths and 2 stimulus records made"), "{stderr}");
+    check_metrics(&std::fs::read_to_string(data_dir.path().join("stimuli.csv")).unwrap());
 }
 
 #[test]
