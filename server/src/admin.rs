@@ -33,6 +33,7 @@ pub fn router() -> Router<AppState> {
         .route("/api/admin/studies/{slug}/export.csv", get(export_csv))
         .route("/api/admin/studies/{slug}/export.json", get(export_json))
         .route("/api/admin/studies/{slug}/conditions.csv", get(conditions_csv))
+        .route("/api/admin/studies/{slug}/stimuli.csv", get(stimuli_csv))
         .route("/api/admin/studies/{slug}/analysis", get(analysis))
         .route("/api/admin/studies/{slug}/worth.svg", get(worth_svg))
         .route("/api/admin/studies/{slug}/open", post(open_study))
@@ -56,6 +57,8 @@ pub struct StudyStats {
     pub open: bool,
     /// Whether this server serves the study now (it may be in the database only).
     pub served: bool,
+    /// Whether its stimuli have errors against a ground truth (`stimuli.csv`).
+    pub has_stimulus_metrics: bool,
     pub trials: i64,
     pub started: i64,
     pub finished: i64,
@@ -170,6 +173,7 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         kind: study.try_get("kind")?,
         open: study.try_get::<i64, _>("open")? == 1,
         served: served.is_some(),
+        has_stimulus_metrics: served.is_some_and(|study| study.metrics_csv.is_some()),
         trials,
         started,
         finished,
@@ -299,6 +303,30 @@ async fn conditions_csv(
     authorize(&state, &headers)?;
     let definition = export::definition(&state.storage().read, &slug).await?;
     Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
+}
+
+/// The study's stimulus metrics CSV (DESIGN.md): each rendered stimulus's errors against the
+/// ground truth of its scene configuration. 404 with the reason when the study has none.
+async fn stimuli_csv(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Response> {
+    authorize(&state, &headers)?;
+    let study = state.study(&slug).ok_or_else(|| {
+        AppError::NotFound(format!("study \"{slug}\" is not served by this server, so its stimuli are not known here"))
+    })?;
+    match &study.metrics_csv {
+        Some(csv) => Ok(download("text/csv; charset=utf-8", format!("{slug}-stimuli.csv"), csv.clone())),
+        None => Err(AppError::NotFound(format!(
+            "study \"{slug}\" has no stimulus metrics: {}",
+            if study.metrics_notes.is_empty() {
+                "it has no rendered stimuli".to_string()
+            } else {
+                study.metrics_notes.join("; ")
+            }
+        ))),
+    }
 }
 
 /// The live analysis of a study: the analysis crate run on the trials CSV and the study's

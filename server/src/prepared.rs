@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use crate::schedule::{self, PlannedKind, PlannedTrial};
 use crate::stimuli::StimulusPlan;
-use crate::study::{IMAGE_TYPES, StimulusSource, Study};
+use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
 use crate::trial::Side;
 
 /// Why a study could not be made ready.
@@ -40,6 +40,13 @@ pub struct PreparedStudy {
     pub stimuli: Vec<Vec<String>>,
     /// `[catch trial]` → (better, worse) stimulus file names.
     pub catch_stimuli: Vec<(String, String)>,
+    /// `[scene]` → the ground truth's file name, for a detection design (empty otherwise).
+    pub ground_truths: Vec<String>,
+    /// The stimulus metrics CSV (DESIGN.md) of the rendered stimuli, `None` when no stimulus
+    /// has a ground truth; and why a scene configuration has none (or the records could not be
+    /// read).
+    pub metrics_csv: Option<String>,
+    pub metrics_notes: Vec<String>,
 }
 
 /// One trial of a participant's schedule, as stored.
@@ -115,7 +122,29 @@ impl PreparedStudy {
             .iter()
             .map(|catch| Ok((store_image(&catch.better, store)?, store_image(&catch.worse, store)?)))
             .collect::<Result<Vec<_>, PrepareError>>()?;
-        Ok(PreparedStudy { study, stimuli, catch_stimuli })
+        let mut ground_truths = Vec::new();
+        if study.design.reference.is_some() {
+            for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
+                let name = planned
+                    .as_ref()
+                    .and_then(|planned| planned.ground_truth_key.as_ref())
+                    .and_then(|key| crate::stimuli::lookup(store, key));
+                let Some(name) = name else {
+                    return Err(PrepareError::NeedsRendering {
+                        slug: study.slug.clone(),
+                        file: study.file.clone(),
+                        scene: scene.name.clone(),
+                        missing: 1,
+                    });
+                };
+                ground_truths.push(name);
+            }
+        }
+        let (metrics_csv, metrics_notes) = match crate::stimuli::metrics_csv(&study, plan, store) {
+            Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
+            Err(error) => (None, vec![error.to_string()]),
+        };
+        Ok(PreparedStudy { study, stimuli, catch_stimuli, ground_truths, metrics_csv, metrics_notes })
     }
 
     /// The schedule of the participant with this seed (for an active design: the trials
@@ -128,15 +157,24 @@ impl PreparedStudy {
     pub fn scheduled(&self, planned: &PlannedTrial) -> ScheduledTrial {
         let study = &self.study;
         match planned.kind {
-            PlannedKind::Pair { left, right } => ScheduledTrial {
-                left_condition: study.conditions[left].name.clone(),
-                right_condition: study.conditions[right].name.clone(),
-                left_scene: study.scenes[planned.left_scene].name.clone(),
-                right_scene: study.scenes[planned.right_scene].name.clone(),
-                left_stimulus: self.stimuli[planned.left_scene][left].clone(),
-                right_stimulus: self.stimuli[planned.right_scene][right].clone(),
-                catch_expected: None,
-            },
+            PlannedKind::Pair { left, right } => {
+                // a detection design's index past the conditions is the scene's ground truth
+                let side = |condition: usize, scene: usize| match study.conditions.get(condition) {
+                    Some(condition_of) => (condition_of.name.clone(), self.stimuli[scene][condition].clone()),
+                    None => (GROUND_TRUTH.to_string(), self.ground_truths[scene].clone()),
+                };
+                let (left_condition, left_stimulus) = side(left, planned.left_scene);
+                let (right_condition, right_stimulus) = side(right, planned.right_scene);
+                ScheduledTrial {
+                    left_condition,
+                    right_condition,
+                    left_scene: study.scenes[planned.left_scene].name.clone(),
+                    right_scene: study.scenes[planned.right_scene].name.clone(),
+                    left_stimulus,
+                    right_stimulus,
+                    catch_expected: None,
+                }
+            }
             PlannedKind::Catch { index, better_left } => {
                 let catch = &study.catch[index];
                 let (better, worse) = &self.catch_stimuli[index];

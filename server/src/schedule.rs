@@ -104,7 +104,20 @@ pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
     let scene_count = study.scenes.len();
     let repetitions = study.design.repetitions as usize;
     let mut trials = Vec::with_capacity(study.trial_count());
-    for &(first, second) in &study.design.pairs {
+    if study.design.reference.is_some() {
+        // detection: the ground truth on the left in half of all the participant's trials (the
+        // odd one to a random side), not only within each condition's repetitions
+        let count = study.design.pairs.len() * repetitions;
+        let mut sides = stream.balanced_sides(count).into_iter();
+        for &(condition, truth) in &study.design.pairs {
+            for truth_left in sides.by_ref().take(repetitions) {
+                let (left, right) = if truth_left { (truth, condition) } else { (condition, truth) };
+                let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
+                trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+            }
+        }
+    }
+    for &(first, second) in study.design.pairs.iter().filter(|_| study.design.reference.is_none()) {
         for first_left in stream.balanced_sides(repetitions) {
             let (left, right) = if first_left { (first, second) } else { (second, first) };
             let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
@@ -231,6 +244,28 @@ mod tests {
     fn thesis_study() -> Study {
         let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies/web-survey.toml");
         load_study(&file).unwrap()
+    }
+
+    #[test]
+    fn a_detection_design_shows_each_condition_beside_its_own_scenes_ground_truth_sides_balanced() {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies/real-or-rendered.toml");
+        let study = load_study(&file).unwrap();
+        let truth = study.conditions.len();
+        for seed in 0..50 {
+            let trials = plan(&study, seed);
+            assert_eq!(trials.len(), 24);
+            let mut shown = vec![0; truth];
+            let mut truth_left = 0;
+            for trial in &trials {
+                let PlannedKind::Pair { left, right } = trial.kind else { panic!() };
+                assert_eq!(trial.left_scene, trial.right_scene);
+                assert!((left == truth) != (right == truth), "{left} {right}");
+                truth_left += usize::from(left == truth);
+                shown[left.min(right)] += 1;
+            }
+            assert_eq!(truth_left, 12, "the ground truth left in half of the trials");
+            assert!(shown.iter().all(|&count| count == 3), "{shown:?}");
+        }
     }
 
     #[test]

@@ -144,6 +144,16 @@ impl StimulusPlan {
                 source,
             })?;
             let loaded = settings.sized(loaded);
+            if study.design.reference.is_some() && loaded.background.is_some() {
+                return Err(StimuliError::Render {
+                    slug: study.slug.clone(),
+                    file: study.file.clone(),
+                    scene: scene.name.clone(),
+                    source: RenderError::Unsupported(format!(
+                        "the scene `{render}` has a background photograph, so it has no ground truth for reference = \"ground-truth\""
+                    )),
+                });
+            }
             let ground_truth_key =
                 loaded.background.is_none().then(|| sha256_hex(settings.ground_truth_fingerprint(&loaded).as_bytes()));
             let mut stimuli = Vec::new();

@@ -428,3 +428,88 @@ fn exported_csv_fed_to_analyze_reproduces_the_live_analysis() {
     let offline: Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(offline, live, "mrstudy analyze on the export equals the admin page's live analysis");
 }
+
+/// `rendered-mini` as a detection design: each condition beside the ground truth, twice.
+fn write_detection_study(dir: &Path) {
+    write_rendered_study(dir);
+    let study = std::fs::read_to_string(dir.join("rendered-mini.toml")).unwrap();
+    let study = study
+        .replace("slug = \"rendered-mini\"", "slug = \"real-mini\"")
+        .replace("pairs = \"all\"\nrepetitions = 1", "reference = \"ground-truth\"\nrepetitions = 2");
+    std::fs::remove_file(dir.join("rendered-mini.toml")).unwrap();
+    std::fs::write(dir.join("real-mini.toml"), study).unwrap();
+}
+
+#[test]
+fn a_detection_study_shows_the_ground_truth_beside_each_condition_and_exports_it_by_name() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_detection_study(studies.path());
+    let started = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path());
+    if !gpu_available(&started) {
+        return;
+    }
+    let server = started.unwrap();
+    let http = client();
+    let listed: Value = http.get(format!("{}/api/studies", server.base)).send().unwrap().json().unwrap();
+    if listed.as_array().unwrap().is_empty() {
+        eprintln!("skipping: the study was not served (no GPU adapter?)");
+        return;
+    }
+    assert_eq!(listed[0]["slug"], "real-mini");
+    assert_eq!(listed[0]["trials"], 4);
+    let joined: Value = http
+        .post(format!("{}/api/studies/real-mini/participants", server.base))
+        .json(&json!({"demographics": {}}))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    let mut urls = std::collections::HashMap::new();
+    for _ in 0..4 {
+        let next: Value = http
+            .get(format!("{}/api/participants/{id}/next", server.base))
+            .bearer_auth(token)
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        let trial = next["trial"].as_i64().unwrap();
+        let (left, right) = (next["left"]["url"].as_str().unwrap(), next["right"]["url"].as_str().unwrap());
+        assert_ne!(left, right);
+        for url in [left, right] {
+            *urls.entry(url.to_string()).or_insert(0) += 1;
+        }
+        let posted = http
+            .post(format!("{}/api/participants/{id}/responses", server.base))
+            .bearer_auth(token)
+            .json(&json!({"trial": trial, "chosen": "left", "rt_ms": 1500}))
+            .send()
+            .unwrap();
+        assert_eq!(posted.status(), 201);
+    }
+    // the ground truth in every trial, each of the two stimuli in two
+    let mut counts: Vec<i32> = urls.values().copied().collect();
+    counts.sort();
+    assert_eq!(counts, vec![2, 2, 4], "{urls:?}");
+    let csv = export(data_dir.path(), "real-mini", "csv");
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|c| *c == name).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|line| line.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4);
+    let truth_left = rows.iter().filter(|row| row[column("left")] == "ground-truth").count();
+    assert_eq!(truth_left, 2, "sides balanced:\n{csv}");
+    assert!(rows.iter().all(|row| (row[column("left")] == "ground-truth") != (row[column("right")] == "ground-truth")));
+    assert!(rows.iter().all(|row| row[column("chosen")] == row[column("left")]));
+    // the stimulus metrics download
+    let metrics = http
+        .get(format!("{}/api/admin/studies/real-mini/stimuli.csv", server.base))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap();
+    assert_eq!(metrics.status(), 200);
+    let metrics = metrics.text().unwrap();
+    assert!(metrics.starts_with("stimulus,scene,condition,metric,region,value\n"), "{metrics}");
+    assert!(metrics.contains(",box,GI,flip_mean,affected,"), "{metrics}");
+}

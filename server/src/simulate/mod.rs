@@ -100,6 +100,11 @@ pub enum SimulateError {
     TooFewConditions { conditions: usize },
     #[error("the active design cannot be used on this study: {0}")]
     Active(ActiveError),
+    /// A detection design ("real or rendered?") is not a paired comparison of conditions.
+    #[error(
+        "study \"{slug}\" is a detection design (reference = \"ground-truth\"); simulate models paired comparisons of conditions only"
+    )]
+    Detection { slug: String },
 }
 
 /// The true log-worth of every condition (study order) and the true factor effects.
@@ -741,6 +746,9 @@ fn condition_table(study: &Study) -> Option<ConditionTable> {
 
 /// Runs the simulation; `progress(done, total)` is called after each run, from any thread.
 pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + Sync)) -> Result<Report, SimulateError> {
+    if study.design.reference.is_some() {
+        return Err(SimulateError::Detection { slug: study.slug.clone() });
+    }
     config.check(study)?;
     let variants: Vec<(DesignChoice, Study)> = config
         .designs

@@ -21,9 +21,9 @@ mod tests;
 pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
 pub use survey::{
-    ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, Device, Display, Factor,
-    FieldType, Orientation, Participation, RenderDefaults, Scene, SceneDraw, StimulusSource, Study, StudyKind,
-    TRIALS_CSV_COLUMNS, Texts, active_target,
+    ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, DesignReference, Device,
+    Display, Factor, FieldType, GROUND_TRUTH, Orientation, Participation, RenderDefaults, Scene, SceneDraw,
+    StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
 };
 pub use task::TaskStudy;
 

@@ -315,7 +315,12 @@ pub struct Scene {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct DesignFile {
-    pairs: String,
+    /// Required unless `reference` is given.
+    #[serde(default)]
+    pairs: Option<String>,
+    /// `"ground-truth"`: the detection design ("real or rendered?").
+    #[serde(default)]
+    reference: Option<String>,
     #[serde(default)]
     anchors: Vec<String>,
     #[serde(default)]
@@ -372,12 +377,27 @@ pub enum SceneDraw {
     Same,
 }
 
+/// The condition name of the ground-truth composite in a detection design's trials (and in
+/// the export's `left`/`right`/`chosen` columns); no condition may take it.
+pub const GROUND_TRUTH: &str = "ground-truth";
+
+/// What a design pairs each condition with when it is not another condition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DesignReference {
+    /// The path-traced ground-truth composite of the same scene configuration ("real or
+    /// rendered?"): each trial shows a condition's stimulus beside it.
+    GroundTruth,
+}
+
 /// The design: condition pairs (indices into [`Study::conditions`]), repetitions, scene draw.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Design {
-    /// `all`, `anchored`, `list` or `active`, as written in the file.
+    /// `all`, `anchored`, `list`, `active`, or `ground-truth` for a detection design.
     pub pairs_rule: String,
     /// The fixed design's pairs; for `active`, those of its warm-up (`warmup`, none by default).
+    /// In a detection design each condition is paired with the index `conditions.len()`, which
+    /// stands for the scene configuration's ground truth ([`GROUND_TRUTH`]).
     pub pairs: Vec<(usize, usize)>,
     pub repetitions: u32,
     pub scenes: SceneDraw,
@@ -388,6 +408,9 @@ pub struct Design {
     /// Set for `pairs = "active"`.
     #[serde(default)]
     pub active: Option<ActiveDesign>,
+    /// Set for `reference = "ground-truth"`.
+    #[serde(default)]
+    pub reference: Option<DesignReference>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -524,7 +547,7 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
             );
         }
     }
-    let design = check_design(fail, &raw.design, &conditions, scenes.len())?;
+    let design = check_design(fail, &raw.design, &conditions, &scenes)?;
     let catch = check_catch(fail, base, &raw.catch)?;
     let trial_total = design.pairs.len() * design.repetitions as usize
         + design.active.as_ref().map_or(0, |active| active.trials as usize)
@@ -672,6 +695,14 @@ fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Re
             return Err(fail
                 .at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", condition.name)));
         }
+        if condition.name == GROUND_TRUTH {
+            return Err(fail.at(
+                &format!("{key}.name"),
+                format!(
+                    "expected a name other than \"{GROUND_TRUTH}\" (it names the ground truth in detection designs)"
+                ),
+            ));
+        }
         if let Some(level_name) = condition.levels.keys().find(|name| !factor_names.contains(*name)) {
             return Err(fail.at(
                 &format!("{key}.levels.{level_name}"),
@@ -796,10 +827,20 @@ fn check_design(
     fail: Fail,
     design: &DesignFile,
     conditions: &[Condition],
-    scene_count: usize,
+    scenes: &[Scene],
 ) -> Result<Design, StudyError> {
-    let active = design.pairs == "active";
-    let rule = if active { design.warmup.as_deref().unwrap_or("none") } else { design.pairs.as_str() };
+    let scene_count = scenes.len();
+    if let Some(reference) = &design.reference {
+        return check_detection(fail, design, reference, conditions, scenes);
+    }
+    let Some(pairs_rule) = &design.pairs else {
+        return Err(fail.at(
+            "design.pairs",
+            "expected \"all\", \"anchored\", \"list\" or \"active\" (or reference = \"ground-truth\" for a detection design)",
+        ));
+    };
+    let active = pairs_rule == "active";
+    let rule = if active { design.warmup.as_deref().unwrap_or("none") } else { pairs_rule.as_str() };
     let rule_key = if active { "design.warmup" } else { "design.pairs" };
     let pairs = match rule {
         "all" => all_pairs(conditions.len()),
@@ -855,7 +896,83 @@ fn check_design(
             }
         }
     }
-    Ok(Design { pairs_rule: design.pairs.clone(), pairs, repetitions, scenes, seed: design.seed, active })
+    Ok(Design {
+        pairs_rule: pairs_rule.clone(),
+        pairs,
+        repetitions,
+        scenes,
+        seed: design.seed,
+        active,
+        reference: None,
+    })
+}
+
+/// `reference = "ground-truth"`: every condition against the ground truth of the same scene
+/// configuration, `repetitions` times; every scene configuration must be one the renderer
+/// synthesises (its ground truth exists), scenes drawn "same".
+fn check_detection(
+    fail: Fail,
+    design: &DesignFile,
+    reference: &str,
+    conditions: &[Condition],
+    scenes: &[Scene],
+) -> Result<Design, StudyError> {
+    if reference != GROUND_TRUTH {
+        return Err(fail.at("design.reference", format!("expected \"{GROUND_TRUTH}\", found \"{reference}\"")));
+    }
+    for (key, given) in [
+        ("design.pairs", design.pairs.is_some()),
+        ("design.anchors", !design.anchors.is_empty()),
+        ("design.list", !design.list.is_empty()),
+        ("design.trials", design.trials.is_some()),
+        ("design.batch", design.batch.is_some()),
+        ("design.target", design.target.is_some()),
+        ("design.warmup", design.warmup.is_some()),
+        ("design.prior_sd", design.prior_sd.is_some()),
+    ] {
+        if given {
+            return Err(fail.at(
+                key,
+                "expected no pairing rule with reference = \"ground-truth\" (every condition is paired with the ground truth)",
+            ));
+        }
+    }
+    if design.scenes != "same" {
+        return Err(fail.at(
+            "design.scenes",
+            format!(
+                "expected \"same\" with reference = \"ground-truth\" (a stimulus is shown beside the ground truth of its own scene configuration), found \"{}\"",
+                design.scenes
+            ),
+        ));
+    }
+    if let Some((index, scene)) =
+        scenes.iter().enumerate().find(|(_, scene)| !matches!(scene.source, StimulusSource::Render(_)))
+    {
+        return Err(fail.at(
+            &format!("scenes[{index}]"),
+            format!(
+                "expected `render` with reference = \"ground-truth\": scene configuration \"{}\" shows image files, which have no ground truth",
+                scene.name
+            ),
+        ));
+    }
+    let repetitions = design
+        .repetitions
+        .ok_or_else(|| fail.at("design.repetitions", "expected the number of times each condition is shown"))?;
+    if repetitions == 0 || repetitions > 100 {
+        return Err(fail.at("design.repetitions", format!("expected 1 to 100, found {repetitions}")));
+    }
+    let truth = conditions.len();
+    Ok(Design {
+        pairs_rule: GROUND_TRUTH.into(),
+        pairs: (0..truth).map(|condition| (condition, truth)).collect(),
+        repetitions,
+        scenes: SceneDraw::Same,
+        seed: design.seed,
+        active: None,
+        reference: Some(DesignReference::GroundTruth),
+    })
 }
 
 /// The keys of `pairs = "active"`: trials, batch, target (checked against the conditions by

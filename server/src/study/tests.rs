@@ -175,3 +175,59 @@ fn an_active_design_the_posterior_cannot_learn_is_refused_naming_the_target() {
         assert!(error.expected.contains("connects every condition"), "{error}");
     }
 }
+
+fn detection(design: &str) -> Result<Study, StudyError> {
+    let dir = tempfile::tempdir().unwrap();
+    let body = MINIMAL.replace(
+        "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\nscenes = \"different\"\n",
+        &format!("[design]\n{design}\n"),
+    );
+    load_study(&write_study(dir.path(), &body))
+}
+
+#[test]
+fn a_detection_design_pairs_every_condition_with_the_ground_truth_and_names_each_bad_key() {
+    let study = detection("reference = \"ground-truth\"\nrepetitions = 2\nscenes = \"same\"").unwrap();
+    assert_eq!(study.design.reference, Some(DesignReference::GroundTruth));
+    assert_eq!(study.design.pairs, vec![(0, 3), (1, 3), (2, 3)]);
+    assert_eq!(study.trial_count(), 6);
+    let refused = |design: &str, key: &str, words: &str| {
+        let error = detection(design).unwrap_err();
+        assert_eq!(error.key, key, "{error}");
+        assert!(error.expected.contains(words), "{error}");
+    };
+    refused("reference = \"ground-truth\"\nrepetitions = 2\nscenes = \"different\"", "design.scenes", "\"same\"");
+    refused("reference = \"photo\"\nrepetitions = 2\nscenes = \"same\"", "design.reference", "\"ground-truth\"");
+    refused(
+        "reference = \"ground-truth\"\npairs = \"all\"\nrepetitions = 2\nscenes = \"same\"",
+        "design.pairs",
+        "no pairing rule",
+    );
+    refused("reference = \"ground-truth\"\nscenes = \"same\"", "design.repetitions", "number of times");
+    refused("repetitions = 2\nscenes = \"same\"", "design.pairs", "reference = \"ground-truth\"");
+    // image files have no ground truth
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["lq.png", "gi.png", "hq.png"] {
+        std::fs::write(dir.path().join(name), b"not looked at before the design").unwrap();
+    }
+    let body = MINIMAL
+        .replace("render = \"survey-1\"", "images = { LQ = \"lq.png\", GI = \"gi.png\", HQ = \"hq.png\" }")
+        .replace(
+            "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\nscenes = \"different\"\n",
+            "[design]\nreference = \"ground-truth\"\nrepetitions = 1\nscenes = \"same\"\n",
+        );
+    if let Err(error) = load_study(&write_study(dir.path(), &body)) {
+        assert!(error.key.starts_with("scenes[0]"), "{error}");
+    } else {
+        panic!("a detection design over image files was accepted");
+    }
+}
+
+#[test]
+fn no_condition_may_be_named_ground_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write_study(dir.path(), &MINIMAL.replace("name = \"GI\"", "name = \"ground-truth\""));
+    let error = load_study(&file).unwrap_err();
+    assert_eq!(error.key, "conditions[1].name");
+    assert!(error.expected.contains("ground truth"), "{error}");
+}
