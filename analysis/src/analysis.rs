@@ -362,6 +362,7 @@ pub fn analyze_with_table(
         group_by: options.group_by.clone(),
         include_pilots: options.include_pilots,
         include_excluded: options.include_excluded,
+        ..TrialsOptions::default()
     };
     let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
     let mut analysis = analyze_judgments(&parsed.judgments, table, options)?;
@@ -521,12 +522,12 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
     Ok(analysis)
 }
 
-struct ItemFit {
+pub(crate) struct ItemFit {
     /// Per component: members, reference, fit, separation SCCs.
-    components: Vec<(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>)>,
+    pub(crate) components: Vec<(Vec<usize>, usize, Fit, Option<Vec<Vec<usize>>>)>,
 }
 
-fn fit_items(
+pub(crate) fn fit_items(
     n_conditions: usize,
     pairs: &[PairTally],
     reference: usize,
@@ -550,7 +551,7 @@ fn fit_items(
     Ok(ItemFit { components })
 }
 
-fn failure_message(what: &str, failure: FitFailure) -> AnalysisError {
+pub(crate) fn failure_message(what: &str, failure: FitFailure) -> AnalysisError {
     let message = match failure {
         FitFailure::Singular => format!("the {what} is not identifiable (singular information matrix)"),
         FitFailure::Separation => {

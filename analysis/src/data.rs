@@ -13,11 +13,24 @@
 //! and [`LeftOut`] says how many participants and judgments went and why. A file without these
 //! columns is read as it is. Any other value in them is an error naming line and column.
 //!
+//! Scenes: asked for by [`TrialsOptions::scenes`], the columns `scene_left` and `scene_right`
+//! (the scene configuration of each side, as `mrstudy export` writes them) are read per row
+//! into [`TrialScenes`], beside the judgments; a file without them is read as it is.
+//!
+//! The reserved condition [`GROUND_TRUTH`] (the path-traced composite a detection study
+//! shows beside a rendered condition) is accepted where [`TrialsOptions::allow_ground_truth`]
+//! says so even when a conditions file does not list it; it then comes after the file's
+//! conditions.
+//!
 //! Conditions CSV: `condition,<factor>,<factor>,…`, one row per condition, numeric levels.
 
 use std::collections::HashMap;
 
 use crate::error::{AnalysisError, Result};
+
+/// The reserved condition name of the ground truth: the path-traced composite of a scene
+/// configuration, shown beside a rendered condition in a detection study ("which is real?").
+pub const GROUND_TRUTH: &str = "ground-truth";
 
 /// One row of the trials CSV after validation (conditions and participant as indices).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,6 +62,49 @@ impl Judgments {
     pub fn n_judgments(&self) -> u64 {
         self.rows.iter().map(|row| row.count).sum()
     }
+
+    /// Some of this data set's rows as a data set of their own: participants and groups without
+    /// rows among them are left out and the rest renumbered in order of first appearance;
+    /// conditions keep their order, except those `keep_condition` refuses (by index), which no
+    /// row in `rows` may name.
+    pub fn subset(
+        &self,
+        rows: impl IntoIterator<Item = Judgment>,
+        keep_condition: impl Fn(usize) -> bool,
+    ) -> Judgments {
+        let mut condition_map = vec![u32::MAX; self.conditions.len()];
+        let mut conditions = Vec::new();
+        for (c, name) in self.conditions.iter().enumerate() {
+            if keep_condition(c) {
+                condition_map[c] = conditions.len() as u32;
+                conditions.push(name.clone());
+            }
+        }
+        let mut participant_map = vec![u32::MAX; self.participants.len()];
+        let mut group_map = vec![u32::MAX; self.groups.len()];
+        let mut subset = Judgments { conditions, ..Judgments::default() };
+        for mut row in rows {
+            let p = row.participant as usize;
+            if participant_map[p] == u32::MAX {
+                participant_map[p] = subset.participants.len() as u32;
+                subset.participants.push(self.participants[p].clone());
+            }
+            row.participant = participant_map[p];
+            if !self.groups.is_empty() {
+                let g = row.group as usize;
+                if group_map[g] == u32::MAX {
+                    group_map[g] = subset.groups.len() as u32;
+                    subset.groups.push(self.groups[g].clone());
+                }
+                row.group = group_map[g];
+            }
+            row.left = condition_map[row.left as usize];
+            row.right = condition_map[row.right as usize];
+            debug_assert!(row.left != u32::MAX && row.right != u32::MAX, "a row names a condition left out");
+            subset.rows.push(row);
+        }
+        subset
+    }
 }
 
 /// How to read a trials CSV. `Default` is the documented default: no grouping, pilot and
@@ -61,6 +117,27 @@ pub struct TrialsOptions {
     pub include_pilots: bool,
     /// Keep participants marked `excluded = true`.
     pub include_excluded: bool,
+    /// Read `scene_left` and `scene_right` per row into [`ParsedTrials::scenes`] (where the file
+    /// has both columns).
+    pub scenes: bool,
+    /// Accept the reserved condition [`GROUND_TRUTH`] even where the conditions file does not
+    /// list it (it is then indexed after the file's conditions).
+    pub allow_ground_truth: bool,
+}
+
+/// The scene configuration of each side of each judgment, from the columns `scene_left` and
+/// `scene_right`: `rows[k]` belongs to `Judgments::rows[k]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TrialScenes {
+    /// Scene names in order of first appearance; indices into this list are used in `rows`.
+    pub names: Vec<String>,
+    /// `[left, right]` scene of each judgment; [`TrialScenes::EMPTY`] where the cell is empty.
+    pub rows: Vec<[u32; 2]>,
+}
+
+impl TrialScenes {
+    /// The index that stands for an empty scene cell.
+    pub const EMPTY: u32 = u32::MAX;
 }
 
 /// Participants left out of an analysis and why. Each participant is counted once: as a pilot
@@ -126,6 +203,9 @@ fn plural_u64(judgments: u64) -> String {
 pub struct ParsedTrials {
     pub judgments: Judgments,
     pub left_out: LeftOut,
+    /// Each judgment's scenes, where [`TrialsOptions::scenes`] asked for them and the file has
+    /// the columns `scene_left` and `scene_right`.
+    pub scenes: Option<TrialScenes>,
 }
 
 /// Factor levels per condition, from a conditions CSV.
@@ -143,7 +223,7 @@ impl ConditionTable {
     }
 }
 
-fn csv_error(source_name: &str, error: csv::Error) -> AnalysisError {
+pub(crate) fn csv_error(source_name: &str, error: csv::Error) -> AnalysisError {
     let line = error.position().map(|p| p.line()).unwrap_or(0);
     let message = match error.kind() {
         csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
@@ -155,7 +235,7 @@ fn csv_error(source_name: &str, error: csv::Error) -> AnalysisError {
     AnalysisError::MalformedCsv { source_name: source_name.to_string(), line, message }
 }
 
-fn header_index(source_name: &str, headers: &csv::StringRecord, column: &str) -> Result<usize> {
+pub(crate) fn header_index(source_name: &str, headers: &csv::StringRecord, column: &str) -> Result<usize> {
     headers.iter().position(|h| h.trim() == column).ok_or_else(|| AnalysisError::MissingColumn {
         source_name: source_name.to_string(),
         column: column.to_string(),
@@ -163,7 +243,7 @@ fn header_index(source_name: &str, headers: &csv::StringRecord, column: &str) ->
     })
 }
 
-fn reader(text: &str) -> csv::Reader<&[u8]> {
+pub(crate) fn reader(text: &str) -> csv::Reader<&[u8]> {
     csv::ReaderBuilder::new().has_headers(true).flexible(false).from_reader(text.as_bytes())
 }
 
@@ -283,6 +363,8 @@ struct Columns<'a> {
     group_name: &'a str,
     pilot: Option<usize>,
     excluded: Option<usize>,
+    /// `scene_left`, `scene_right`, where asked for and present.
+    scenes: Option<(usize, usize)>,
 }
 
 /// FNV-1a: the names hashed here are short and come from the analyst's own file.
@@ -322,10 +404,19 @@ struct RowReader<'a> {
     /// Per participant (by index): marked pilot, marked excluded, in any of their rows.
     marks: Vec<(bool, bool)>,
     judgments: Judgments,
+    /// Whether [`GROUND_TRUTH`] is accepted when the conditions file lacks it.
+    allow_ground_truth: bool,
+    scene_index: FnvMap<u32>,
+    scenes: TrialScenes,
 }
 
 impl<'a> RowReader<'a> {
-    fn new(source_name: &'a str, conditions: Option<&'a ConditionTable>, columns: Columns<'a>) -> RowReader<'a> {
+    fn new(
+        source_name: &'a str,
+        conditions: Option<&'a ConditionTable>,
+        columns: Columns<'a>,
+        allow_ground_truth: bool,
+    ) -> RowReader<'a> {
         let mut condition_index = FnvMap::default();
         let mut condition_names = Vec::new();
         if let Some(table) = conditions {
@@ -347,6 +438,9 @@ impl<'a> RowReader<'a> {
             last_group: None,
             marks: Vec::new(),
             judgments: Judgments::default(),
+            allow_ground_truth,
+            scene_index: FnvMap::default(),
+            scenes: TrialScenes::default(),
         }
     }
 
@@ -371,7 +465,7 @@ impl<'a> RowReader<'a> {
         if name.text.is_empty() {
             return Err(self.bad(line, column, "the condition name is empty".to_string()));
         }
-        if self.conditions.is_some() {
+        if self.conditions.is_some() && !(self.allow_ground_truth && name.text == GROUND_TRUTH) {
             return Err(AnalysisError::UnknownCondition {
                 source_name: self.source_name.to_string(),
                 line,
@@ -493,6 +587,23 @@ impl<'a> RowReader<'a> {
                 Self::intern(value, &mut self.last_group, &mut self.group_index, &mut self.judgments.groups)
             }
         };
+        if let Some((left_column, right_column)) = columns.scenes {
+            let mut scene = |k: usize| {
+                let name = field(k).text;
+                if name.is_empty() {
+                    return TrialScenes::EMPTY;
+                }
+                if let Some(&index) = self.scene_index.get(name) {
+                    return index;
+                }
+                let index = self.scenes.names.len() as u32;
+                self.scene_index.insert(name.to_string(), index);
+                self.scenes.names.push(name.to_string());
+                index
+            };
+            let pair = [scene(left_column), scene(right_column)];
+            self.scenes.rows.push(pair);
+        }
         self.judgments.rows.push(Judgment { participant, left, right, left_chosen, count, group });
         Ok(())
     }
@@ -811,6 +922,13 @@ pub fn parse_trials_with(
     let group_column = group_by.map(|column| header_index(source_name, &headers, column)).transpose()?;
     let pilot_column = headers.iter().position(|h| h.trim() == "pilot");
     let excluded_column = headers.iter().position(|h| h.trim() == "excluded");
+    let scene_columns = match (
+        headers.iter().position(|h| h.trim() == "scene_left"),
+        headers.iter().position(|h| h.trim() == "scene_right"),
+    ) {
+        (Some(left), Some(right)) if options.scenes => Some((left, right)),
+        _ => None,
+    };
     let columns = Columns {
         participant: participant_column,
         left: left_column,
@@ -821,14 +939,15 @@ pub fn parse_trials_with(
         group_name: group_by.unwrap_or_default(),
         pilot: pilot_column,
         excluded: excluded_column,
+        scenes: scene_columns,
     };
     let n_columns = headers.len();
     let data_start = reader.position().clone();
-    let mut rows = RowReader::new(source_name, conditions, columns);
+    let mut rows = RowReader::new(source_name, conditions, columns, options.allow_ground_truth);
     // The fast path reads the common file (no quotes, `\n` or `\r\n` line ends) by splitting
     // bytes; a file it cannot read that way is read again, from the start, by the csv crate.
     if !read_unquoted(&text[data_start.byte() as usize..], data_start.line(), n_columns, &mut rows)? {
-        rows = RowReader::new(source_name, conditions, columns);
+        rows = RowReader::new(source_name, conditions, columns, options.allow_ground_truth);
         let mut record = csv::StringRecord::new();
         loop {
             match reader.read_record(&mut record) {
@@ -840,7 +959,8 @@ pub fn parse_trials_with(
             rows.row(line, |k| Field::new(record.get(k).unwrap_or("").trim()))?;
         }
     }
-    let RowReader { mut judgments, marks, mut condition_names, .. } = rows;
+    let RowReader { mut judgments, marks, mut condition_names, scenes, .. } = rows;
+    let mut scenes = scene_columns.map(|_| scenes);
     if judgments.rows.is_empty() {
         return Err(AnalysisError::Empty(format!("{source_name}: there are no trials in the file")));
     }
@@ -874,11 +994,17 @@ pub fn parse_trials_with(
     }
     if !left_out.is_empty() {
         let all_rows = std::mem::take(&mut judgments.rows);
-        for row in all_rows {
+        let all_scenes = scenes.as_mut().map(|scenes| std::mem::take(&mut scenes.rows));
+        for (k, row) in all_rows.into_iter().enumerate() {
             match reason[row.participant as usize] {
                 Some(Reason::Pilot) => left_out.pilot_judgments += row.count,
                 Some(Reason::Excluded) => left_out.excluded_judgments += row.count,
-                None => judgments.rows.push(row),
+                None => {
+                    judgments.rows.push(row);
+                    if let (Some(kept), Some(all)) = (scenes.as_mut(), all_scenes.as_ref()) {
+                        kept.rows.push(all[k]);
+                    }
+                }
             }
         }
         if judgments.rows.is_empty() {
@@ -931,7 +1057,7 @@ pub fn parse_trials_with(
         condition_names = order.iter().map(|&old| condition_names[old].clone()).collect();
     }
     judgments.conditions = condition_names;
-    Ok(ParsedTrials { judgments, left_out })
+    Ok(ParsedTrials { judgments, left_out, scenes })
 }
 
 #[cfg(test)]
@@ -1011,6 +1137,38 @@ mod tests {
         assert_eq!(message, "t.csv: line 2, column `right`: the trial compares condition `A` with itself");
         let message = parse_trials("participant,left,right,chosen\n", "t.csv", None, None).unwrap_err().to_string();
         assert_eq!(message, "t.csv: there are no trials in the file");
+    }
+
+    #[test]
+    fn scenes_are_read_per_row_and_follow_the_rows_left_out() {
+        let text = "participant,left,right,chosen,scene_left,scene_right,pilot,excluded\n\
+                    p1,A,B,A,s1,s2,false,false\np2,B,A,A,s3,s1,true,false\np3,A,B,B,s2,,false,false\n";
+        let options = TrialsOptions { scenes: true, ..TrialsOptions::default() };
+        for text in [text.to_string(), text.replacen("p1,", "\"p1\",", 1)] {
+            let parsed = parse_trials_with(&text, "t.csv", None, &options).unwrap();
+            let scenes = parsed.scenes.unwrap();
+            assert_eq!(scenes.names, ["s1", "s2", "s3"]);
+            assert_eq!(scenes.rows, [[0, 1], [1, TrialScenes::EMPTY]], "the pilot's row goes with the pilot");
+            assert_eq!(parsed.judgments.rows.len(), 2);
+        }
+        let without = parse_trials_with(text, "t.csv", None, &TrialsOptions::default()).unwrap();
+        assert!(without.scenes.is_none(), "only when asked for");
+        let no_columns =
+            parse_trials_with("participant,left,right,chosen\np,A,B,A\n", "t.csv", None, &options).unwrap();
+        assert!(no_columns.scenes.is_none());
+    }
+
+    #[test]
+    fn ground_truth_is_accepted_beyond_a_conditions_file_only_when_allowed() {
+        let conditions = parse_conditions("condition,gi\nLQ,0\nGI,1\n", "c.csv").unwrap();
+        let text = "participant,left,right,chosen\np,LQ,GI,GI\np,ground-truth,LQ,LQ\n";
+        let message = parse_trials(text, "t.csv", Some(&conditions), None).unwrap_err().to_string();
+        assert_eq!(message, "t.csv: line 3: condition `ground-truth` is not in the conditions file");
+        let options = TrialsOptions { allow_ground_truth: true, ..TrialsOptions::default() };
+        let judgments = parse_trials_with(text, "t.csv", Some(&conditions), &options).unwrap().judgments;
+        assert_eq!(judgments.conditions, ["LQ", "GI", "ground-truth"]);
+        let subset = judgments.subset(judgments.rows[..1].iter().copied(), |c| c < 2);
+        assert_eq!((subset.conditions.len(), subset.participants.len(), subset.rows[0].left), (2, 1, 0));
     }
 
     /// The separators found a block at a time are those a byte-by-byte scan finds, for every

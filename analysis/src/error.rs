@@ -21,6 +21,9 @@ pub enum AnalysisError {
     /// A condition appears twice in a conditions file.
     #[error("{source_name}: line {line}: condition `{condition}` is listed twice (first on line {first_line})")]
     DuplicateCondition { source_name: String, line: u64, condition: String, first_line: u64 },
+    /// A row repeats what an earlier row of the same file gave (e.g. a metric of a stimulus).
+    #[error("{source_name}: line {line}: {what} is listed twice (first on line {first_line})")]
+    DuplicateRow { source_name: String, line: u64, what: String, first_line: u64 },
     /// A condition of the trials is not in the conditions file.
     #[error("{source_name}: line {line}: condition `{condition}` is not in the conditions file")]
     UnknownCondition { source_name: String, line: u64, condition: String },

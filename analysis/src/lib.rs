@@ -7,7 +7,11 @@
 //!   designs), the coefficient of consistence;
 //! - per-group fits and tests, bootstrap over participants, observer screening;
 //! - Friedman tests, Kendall's W and Wilcoxon signed-rank post-hoc tests for lab tasks;
-//! - SVG worth plots;
+//! - detection of renderings against the ground truth ("real or rendered?": rates, exact
+//!   binomial tests, d′, power; [`detection`]) and which image error predicts preference
+//!   (rank correlations of stimulus metrics with perceived worth; [`stimulus_metrics`]), both
+//!   gathered with the preference analysis in [`report`];
+//! - SVG worth plots and scatter plots;
 //! - active pair selection: a Bayesian Bradley–Terry / Thurstone posterior updated one
 //!   judgment at a time and the pairs of largest expected information gain ([`active`]);
 //! - the benchmark behind `mrstudy bench analysis` ([`bench`](mod@bench)).
@@ -21,12 +25,15 @@ pub mod analysis;
 pub mod bench;
 pub mod data;
 pub mod design;
+pub mod detection;
 pub mod error;
 pub mod figures;
 pub mod fit;
 pub mod plot;
 pub mod pvalue;
+pub mod report;
 pub mod screening;
+pub mod stimulus_metrics;
 pub mod table;
 pub mod task;
 

@@ -5,7 +5,9 @@
 //!   π beside it (the thesis' Figures 6.14(a) and 6.16(a));
 //! - [`effect_plot`]: factor estimates (`gi`, `cm`, `ca`, interactions) with 95 % intervals
 //!   per group (Figure 6.14(b));
-//! - [`line_plot`]: benchmark series of (x, y) points on linear or log10 axes.
+//! - [`line_plot`]: benchmark series of (x, y) points on linear or log10 axes;
+//! - [`scatter`]: labelled (x, y) points, optionally coloured by group (an image metric of
+//!   each stimulus or condition against its perceived log-worth).
 //!
 //! Worth and effect plots put one row per condition or factor, in the order given, and the
 //! logit scale horizontally with a dashed zero line; the groups' points are dodged within a
@@ -27,6 +29,7 @@
 mod forest;
 mod line;
 mod scale;
+mod scatter;
 mod svg;
 
 use forest::{Annotation, Estimate, Labelled};
@@ -95,6 +98,28 @@ pub struct LineSeries {
     pub points: Vec<(f64, f64)>,
 }
 
+/// A scatter plot: labelled points on linear axes, with an optional note under the plot.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScatterPlot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    /// Points that are not finite are skipped and counted in a note.
+    pub points: Vec<ScatterPoint>,
+    /// A line of text (wrapped) under the plot.
+    pub note: Option<String>,
+}
+
+/// One point of a [`ScatterPlot`]: its label is drawn beside it; points of the same `group`
+/// share a colour and marker, named in a legend.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScatterPoint {
+    pub x: f64,
+    pub y: f64,
+    pub label: String,
+    pub group: Option<String>,
+}
+
 /// Log-worth per condition with 95 % intervals, one series per group, conditions in the
 /// order of `conditions` (conditions only the series name follow, in order of appearance).
 #[must_use]
@@ -160,6 +185,12 @@ pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> 
 #[must_use]
 pub fn line_plot(spec: &LinePlot) -> String {
     line::render(spec)
+}
+
+/// Labelled points on linear axes (see [`ScatterPlot`]).
+#[must_use]
+pub fn scatter(spec: &ScatterPlot) -> String {
+    scatter::render(spec)
 }
 
 /// Worth π of each present estimate, normalised over the present ones, as table cells.

@@ -228,3 +228,159 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         let _ = writeln!(out, "warning: {warning}");
     }
 }
+
+/// Renders everything `mrstudy analyze` reports: the preference analysis (as [`render`]), then
+/// the detection and the stimulus-metrics sections where present.
+pub fn render_report(report: &crate::report::Report) -> String {
+    let mut out = report.preference.as_ref().map(render).unwrap_or_default();
+    if let Some(detection) = &report.detection {
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        render_detection(&mut out, detection);
+    }
+    if let Some(metrics) = &report.metrics {
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        render_metrics(&mut out, metrics);
+    }
+    out
+}
+
+fn render_detection(out: &mut String, detection: &crate::detection::Detection) {
+    let _ = writeln!(
+        out,
+        "detection (real or rendered?): {} by {}; rate = share of trials in which `{}` was chosen as real, chance {}",
+        counted(detection.judgments, "judgment"),
+        counted(detection.participants as u64, "participant"),
+        crate::detection::GROUND_TRUTH,
+        detection.chance
+    );
+    let width = detection.conditions.iter().map(|c| c.condition.chars().count()).max().unwrap_or(9).max(9);
+    let level = format!("{} % interval", fixed(100.0 * detection.level, 0));
+    let _ = writeln!(
+        out,
+        "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}  {:>7}  {:>6}  {:>5}  verdict",
+        "condition", "trials", "correct", "rate", level, "p", "d′", "se", "power"
+    );
+    for c in &detection.conditions {
+        let _ = writeln!(
+            out,
+            "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}  {:>7}  {:>6}  {:>5}  {}",
+            c.condition,
+            c.trials,
+            c.correct,
+            fixed(c.rate, 3),
+            interval(c.ci),
+            c.p.display(),
+            fixed(c.d_prime, 3),
+            fixed(c.d_prime_se, 3),
+            fixed(c.power, 3),
+            c.verdict.describe(c.power)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "interval: Clopper–Pearson; p: exact two-sided binomial test against {} (R's binom.test); d′ = √2·Φ⁻¹(rate) (2AFC); \
+         power: of that test at α = {} with the condition's trials against a true rate of {}; \
+         indistinguishable = not significant with power ≥ {}",
+        detection.chance, detection.alpha, detection.alternative_rate, detection.target_power
+    );
+    for c in &detection.conditions {
+        for note in &c.notes {
+            let _ = writeln!(out, "note: {}: {note}", c.condition);
+        }
+    }
+    for warning in &detection.warnings {
+        let _ = writeln!(out, "warning: {warning}");
+    }
+}
+
+fn render_metrics(out: &mut String, metrics: &crate::stimulus_metrics::StimulusAnalysis) {
+    let items = metrics.items.iter().filter(|i| i.log_worth.is_some()).count();
+    let _ = writeln!(out, "image metrics against perceived preference, {}", metrics.level_reason);
+    if let Some(averaging) = &metrics.averaging {
+        let _ = writeln!(out, "averaging: {averaging}");
+    }
+    let _ = write!(
+        out,
+        "{} fitted by {} from {} by {}; reference {}",
+        counted(items as u64, "item"),
+        metrics.method.describe(),
+        counted(metrics.judgments, "judgment"),
+        counted(metrics.participants as u64, "participant"),
+        metrics.reference
+    );
+    if let Some(bootstrap) = &metrics.bootstrap {
+        let _ = write!(
+            out,
+            "; intervals: {} % {} bootstrap over participants, {} replicates, seed {}, {} failed",
+            fixed(100.0 * bootstrap.level, 0),
+            bootstrap.method,
+            bootstrap.replicates,
+            bootstrap.seed,
+            bootstrap.failed
+        );
+    }
+    out.push('\n');
+    if !metrics.correlations.is_empty() {
+        let _ = writeln!(
+            out,
+            "{:>4}  {:<14}  {:<8}  {:>5}  {:>9}  {:>16}  {:>9}  {:>16}  {:>9}",
+            "rank", "metric", "region", "items", "ρ", "interval", "τb", "interval", "agreement"
+        );
+        for c in &metrics.correlations {
+            let ci = |ci: Option<[f64; 2]>| ci.map(interval).unwrap_or_else(|| "—".to_string());
+            let _ = writeln!(
+                out,
+                "{:>4}  {:<14}  {:<8}  {:>5}  {:>9}  {:>16}  {:>9}  {:>16}  {:>9}",
+                c.rank,
+                c.metric.name(),
+                c.region.name(),
+                c.items,
+                fixed(c.spearman_rho, 3),
+                ci(c.spearman_ci),
+                fixed(c.kendall_tau_b, 3),
+                ci(c.kendall_ci),
+                fixed(c.agreement, 3)
+            );
+        }
+    }
+    match &metrics.best {
+        Some(best) => {
+            let _ = writeln!(
+                out,
+                "best predictor of preference: {} ({} region), agreement {}",
+                best.metric.name(),
+                best.region.name(),
+                fixed(best.agreement, 3)
+            );
+        }
+        None => {
+            let _ = writeln!(out, "no metric could be set beside the preference (see below)");
+        }
+    }
+    let _ = writeln!(out, "ranked by {}", metrics.ranked_by);
+    if metrics.bootstrap.is_some() && !metrics.correlations.is_empty() {
+        let _ = writeln!(
+            out,
+            "intervals: of the correlation with the worths themselves; noise in the estimated worths pulls ρ and τb towards 0, so an interval may lie beyond them"
+        );
+    }
+    // Grouped by reason, in order of first appearance.
+    let mut reasons: Vec<(&str, Vec<String>)> = Vec::new();
+    for not in &metrics.not_computed {
+        let name = format!("{} ({})", not.metric.name(), not.region.name());
+        match reasons.iter_mut().find(|(reason, _)| *reason == not.reason) {
+            Some((_, names)) => names.push(name),
+            None => reasons.push((&not.reason, vec![name])),
+        }
+    }
+    for (reason, names) in reasons {
+        let _ = writeln!(out, "not computed: {}: {reason}", names.join(", "));
+    }
+    for warning in &metrics.warnings {
+        let _ = writeln!(out, "warning: {warning}");
+    }
+}
