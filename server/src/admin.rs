@@ -36,6 +36,7 @@ pub fn router() -> Router<AppState> {
         .route("/api/admin/studies/{slug}/stimuli.csv", get(stimuli_csv))
         .route("/api/admin/studies/{slug}/analysis", get(analysis))
         .route("/api/admin/studies/{slug}/worth.svg", get(worth_svg))
+        .route("/api/admin/studies/{slug}/metric.svg", get(metric_svg))
         .route("/api/admin/studies/{slug}/open", post(open_study))
         .route("/api/admin/studies/{slug}/close", post(close_study))
         .route("/api/admin/studies/{slug}/participants", get(list_participants))
@@ -338,15 +339,17 @@ pub async fn analysis_json(state: &AppState, slug: &str, include: Include) -> Ap
     let definition = export::definition(pool, slug).await?;
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
-    let mut analysis =
-        crate::analysis::run(&trials.content, &definition, include).map_err(|error| match (error, &left_out) {
+    let stimuli_csv = state.study(slug).and_then(|study| study.metrics_csv.clone());
+    let mut analysis = crate::analysis::run(&trials.content, &definition, include, stimuli_csv.as_deref()).map_err(
+        |error| match (error, &left_out) {
             (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
                 "{}; {}",
                 message.trim_end_matches('.'),
                 trials.left_out.clause(QUERY_HINT).unwrap_or_default()
             )),
             (error, _) => error,
-        })?;
+        },
+    )?;
     if let Some(sentence) = left_out
         && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
     {
@@ -377,7 +380,28 @@ async fn worth_svg(
     let pool = &state.storage().read;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
-    let svg = crate::analysis::worth_svg(&trials.content, &definition, include)?;
+    Ok(svg_response(crate::analysis::worth_svg(&trials.content, &definition, include)?))
+}
+
+/// The scatter plot of the image metric that predicts preference best.
+async fn metric_svg(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    RawQuery(query): RawQuery,
+    headers: HeaderMap,
+) -> AppResult<Response> {
+    authorize(&state, &headers)?;
+    let include = include_from_query(query)?;
+    let stimuli_csv = state.study(&slug).and_then(|study| study.metrics_csv.clone()).ok_or_else(|| {
+        AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
+    })?;
+    let pool = &state.storage().read;
+    let definition = export::definition(pool, &slug).await?;
+    let trials = export::trials_csv(pool, &slug, include).await?;
+    Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, &definition, include, &stimuli_csv)?))
+}
+
+fn svg_response(svg: String) -> Response {
     let mut response = (StatusCode::OK, svg).into_response();
     let response_headers = response.headers_mut();
     response_headers.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/svg+xml"));
@@ -386,7 +410,7 @@ async fn worth_svg(
         header::CONTENT_SECURITY_POLICY,
         HeaderValue::from_static("default-src 'none'; style-src 'unsafe-inline'; frame-ancestors 'none'"),
     );
-    Ok(response)
+    response
 }
 
 #[derive(Serialize)]
@@ -538,6 +562,34 @@ struct AdminStudyPage {
     estimates: Vec<EstimateRow>,
     warnings: Vec<String>,
     participants: Vec<ParticipantLine>,
+    /// A preference analysis exists (not only detection trials).
+    has_preference: bool,
+    /// Detection trials ("real or rendered?"): one row per condition.
+    detection: Vec<DetectionRow>,
+    detection_note: Option<String>,
+    /// The image metrics against the preference, best predictor first.
+    metric_rows: Vec<MetricRow>,
+    metrics_note: Option<String>,
+}
+
+/// One condition of the detection analysis.
+pub struct DetectionRow {
+    pub condition: String,
+    pub trials: String,
+    pub rate: String,
+    pub ci: String,
+    pub p: String,
+    pub d_prime: String,
+    pub verdict: String,
+}
+
+/// One metric × region set beside the preference.
+pub struct MetricRow {
+    pub rank: String,
+    pub metric: String,
+    pub region: String,
+    pub spearman: String,
+    pub kendall: String,
 }
 
 pub(crate) fn format_number(value: &serde_json::Value, digits: usize) -> String {
@@ -613,6 +665,11 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         stats,
         active_note: None,
         active_warning: None,
+        has_preference: false,
+        detection: Vec::new(),
+        detection_note: None,
+        metric_rows: Vec::new(),
+        metrics_note: None,
     };
     if let Some(active) = state.active(&slug) {
         let active = active.lock().await;
@@ -629,6 +686,77 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
     };
     match analysis {
         Ok(analysis) => {
+            page.has_preference = analysis.get("items").is_some();
+            if let Some(detection) = analysis.get("detection") {
+                page.detection_note = Some(format!(
+                    "{} detection trials: how often the ground truth was taken for real (chance {}); exact binomial test at α = {}, power against a true rate of {}.",
+                    format_number(&detection["judgments"], 0),
+                    format_number(&detection["chance"], 2),
+                    format_number(&detection["alpha"], 2),
+                    format_number(&detection["alternative_rate"], 2)
+                ));
+                for rate in detection["conditions"].as_array().into_iter().flatten() {
+                    let verdict = rate["verdict"].as_str().unwrap_or_default();
+                    page.detection.push(DetectionRow {
+                        condition: rate["condition"].as_str().unwrap_or_default().to_string(),
+                        trials: format!(
+                            "{} of {}",
+                            format_number(&rate["correct"], 0),
+                            format_number(&rate["trials"], 0)
+                        ),
+                        rate: format_number(&rate["rate"], 3),
+                        ci: format!("[{}, {}]", format_number(&rate["ci"][0], 3), format_number(&rate["ci"][1], 3)),
+                        p: format_number(&rate["p"], 3),
+                        d_prime: format!(
+                            "{} ± {}",
+                            format_number(&rate["d_prime"], 2),
+                            format_number(&rate["d_prime_se"], 2)
+                        ),
+                        verdict: if verdict == "inconclusive" {
+                            format!("inconclusive (power {})", format_number(&rate["power"], 2))
+                        } else {
+                            verdict.to_string()
+                        },
+                    });
+                }
+                for warning in detection["warnings"].as_array().into_iter().flatten() {
+                    page.warnings.extend(warning.as_str().map(str::to_string));
+                }
+            }
+            if let Some(metrics) = analysis.get("metrics") {
+                let best = &metrics["best"];
+                page.metrics_note = Some(format!(
+                    "{} {}",
+                    metrics["level_reason"].as_str().unwrap_or_default(),
+                    match best.get("metric") {
+                        Some(metric) => format!(
+                            "Best predictor of preference: {} in the {} region.",
+                            metric.as_str().unwrap_or_default(),
+                            best["region"].as_str().unwrap_or_default()
+                        ),
+                        None => "No metric could be set beside the preference yet.".to_string(),
+                    }
+                ));
+                let interval = |ci: &serde_json::Value| match ci.as_array() {
+                    Some(ci) if ci.len() == 2 => {
+                        format!(" [{}, {}]", format_number(&ci[0], 2), format_number(&ci[1], 2))
+                    }
+                    _ => String::new(),
+                };
+                for row in metrics["correlations"].as_array().into_iter().flatten() {
+                    page.metric_rows.push(MetricRow {
+                        rank: format_number(&row["rank"], 0),
+                        metric: row["metric"].as_str().unwrap_or_default().to_string(),
+                        region: row["region"].as_str().unwrap_or_default().to_string(),
+                        spearman: format!(
+                            "{}{}",
+                            format_number(&row["spearman_rho"], 2),
+                            interval(&row["spearman_ci"])
+                        ),
+                        kendall: format!("{}{}", format_number(&row["kendall_tau_b"], 2), interval(&row["kendall_ci"])),
+                    });
+                }
+            }
             page.judgments = format_number(&analysis["judgments"], 0);
             page.agreement_u = analysis.get("agreement").map(|agreement| format_number(&agreement["u"], 3));
             for item in analysis["items"].as_array().into_iter().flatten() {
@@ -648,12 +776,13 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
                     p: format_number(&covariate["p"], 3),
                 });
             }
-            page.warnings = analysis["warnings"]
-                .as_array()
-                .into_iter()
-                .flatten()
-                .filter_map(|warning| warning.as_str().map(str::to_string))
-                .collect();
+            page.warnings.extend(
+                analysis["warnings"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .filter_map(|warning| warning.as_str().map(str::to_string)),
+            );
         }
         Err(error) => page.analysis_error = Some(error.to_string()),
     }

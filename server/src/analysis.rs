@@ -3,8 +3,10 @@
 //! and page, with the same options as `mrstudy analyze`'s defaults, so the live analysis equals
 //! `mrstudy export` fed to `mrstudy analyze --conditions`.
 
-use mrstudy_analysis::analysis::{Analysis, Options, analyze_with_table};
+use mrstudy_analysis::analysis::Options;
 use mrstudy_analysis::data::ConditionTable;
+use mrstudy_analysis::report::{Report, analyze_with_table};
+use mrstudy_analysis::stimulus_metrics::parse_stimulus_metrics;
 
 use crate::error::AppError;
 use crate::export::Include;
@@ -20,22 +22,56 @@ pub fn condition_table(study: &Study) -> ConditionTable {
 }
 
 /// The analysis crate leaves pilot and excluded rows out by itself unless told to keep them;
-/// the export already left out what `include` does not keep, so the two agree.
-fn analysis(trials_csv: &str, study: &Study, include: Include) -> Result<Analysis, AppError> {
+/// the export already left out what `include` does not keep, so the two agree. Detection trials
+/// (one side the ground truth) are analysed apart; with the study's stimulus metrics CSV the
+/// preference is set beside the stimuli's errors against the ground truth.
+fn report(trials_csv: &str, study: &Study, include: Include, stimuli_csv: Option<&str>) -> Result<Report, AppError> {
     let options = Options { include_pilots: include.pilots, include_excluded: include.excluded, ..Options::default() };
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), &options).map_err(|error| {
-        // No judgments yet, or a design the models cannot fit: the researcher sees why.
-        AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
-    })
+    let metrics = stimuli_csv
+        .map(|text| parse_stimulus_metrics(text, "stimulus metrics CSV"))
+        .transpose()
+        .map_err(|error| AppError::Internal(format!("the study's stimulus metrics cannot be read: {error}")))?;
+    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), metrics.as_ref(), &options).map_err(
+        |error| {
+            // No judgments yet, or a design the models cannot fit: the researcher sees why.
+            AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
+        },
+    )
 }
 
-/// The Analysis JSON of DESIGN.md.
-pub fn run(trials_csv: &str, study: &Study, include: Include) -> Result<serde_json::Value, AppError> {
-    let analysis = analysis(trials_csv, study, include)?;
-    serde_json::to_value(&analysis).map_err(|error| AppError::Internal(format!("analysis JSON: {error}")))
+/// The Analysis JSON of DESIGN.md, with its `detection` and `metrics` sections where they apply.
+pub fn run(
+    trials_csv: &str,
+    study: &Study,
+    include: Include,
+    stimuli_csv: Option<&str>,
+) -> Result<serde_json::Value, AppError> {
+    let report = report(trials_csv, study, include, stimuli_csv)?;
+    serde_json::to_value(&report).map_err(|error| AppError::Internal(format!("analysis JSON: {error}")))
 }
 
 /// The worth plot as SVG, drawn as `mrstudy analyze --plot` draws it.
 pub fn worth_svg(trials_csv: &str, study: &Study, include: Include) -> Result<String, AppError> {
-    Ok(analysis(trials_csv, study, include)?.worth_plot())
+    match report(trials_csv, study, include, None)?.preference {
+        Some(analysis) => Ok(analysis.worth_plot()),
+        None => Err(AppError::Unprocessable(
+            "The study has only detection trials (each condition beside the ground truth): there is no worth plot."
+                .into(),
+        )),
+    }
+}
+
+/// The scatter plot of the metric that predicts preference best (worth against error), drawn
+/// as `mrstudy analyze --stimuli … --plot-dir` draws it.
+pub fn best_metric_svg(
+    trials_csv: &str,
+    study: &Study,
+    include: Include,
+    stimuli_csv: &str,
+) -> Result<String, AppError> {
+    let report = report(trials_csv, study, include, Some(stimuli_csv))?;
+    let plot = report.metrics.as_ref().and_then(|metrics| metrics.scatter_plots().into_iter().next());
+    plot.map(|(_, svg)| svg).ok_or_else(|| {
+        AppError::Unprocessable("No image metric could be set beside the preference on the data so far.".into())
+    })
 }

@@ -512,4 +512,21 @@ fn a_detection_study_shows_the_ground_truth_beside_each_condition_and_exports_it
     let metrics = metrics.text().unwrap();
     assert!(metrics.starts_with("stimulus,scene,condition,metric,region,value\n"), "{metrics}");
     assert!(metrics.contains(",box,GI,flip_mean,affected,"), "{metrics}");
+    // the live analysis: detection rates per condition, no preference analysis
+    let analysis: Value = http
+        .get(format!("{}/api/admin/studies/real-mini/analysis", server.base))
+        .bearer_auth(&server.admin_token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let rates = analysis["detection"]["conditions"].as_array().unwrap();
+    assert_eq!(rates.len(), 2, "{analysis}");
+    assert!(rates.iter().all(|rate| rate["trials"] == 2), "{analysis}");
+    assert!(analysis.get("items").is_none(), "{analysis}");
+    let page =
+        http.get(format!("{}/admin/studies/real-mini", server.base)).bearer_auth(&server.admin_token).send().unwrap();
+    assert_eq!(page.status(), 200);
+    let page = page.text().unwrap();
+    assert!(page.contains("Real or rendered?") && page.contains("Detection of each condition"), "{page}");
 }
