@@ -1,5 +1,7 @@
-//! `mrstudy analyze`: reads a trials CSV (paired comparisons) or a task CSV (lab tasks), runs the
-//! analysis crate and prints a table or the Analysis JSON, and optionally writes a worth plot.
+//! `mrstudy analyze`: reads a trials CSV (paired comparisons, detection trials against the
+//! ground truth, or both) or a task CSV (lab tasks), and optionally a stimulus metrics CSV; runs
+//! the analysis crate and prints a table or the Analysis JSON, and optionally writes the worth,
+//! factor-effect and metric scatter plots.
 
 use std::path::PathBuf;
 
@@ -21,6 +23,9 @@ pub struct AnalyzeArgs {
     /// Conditions CSV (`condition,<factor>,…`) for the factor model.
     #[arg(long)]
     conditions: Option<PathBuf>,
+    /// Stimulus metrics CSV (`stimulus,scene,condition,metric,region,value`, as `mrstudy stimuli --metrics` writes): which image error predicts preference.
+    #[arg(long)]
+    stimuli: Option<PathBuf>,
     /// Fit everything per value of this column (e.g. `gender`) and test whether effects differ.
     #[arg(long)]
     group_by: Option<String>,
@@ -38,7 +43,10 @@ pub struct AnalyzeArgs {
     /// Write the factor-effect plot (SVG) here.
     #[arg(long)]
     effect_plot: Option<PathBuf>,
-    /// Bootstrap replicates over participants for intervals (0: none).
+    /// With --stimuli: write one scatter plot per metric × region (`metric-<metric>-<region>.svg`) into this folder.
+    #[arg(long)]
+    plot_dir: Option<PathBuf>,
+    /// Bootstrap replicates over participants for intervals (0: none; with --stimuli the metric correlations use 1000 unless given).
     #[arg(long, default_value_t = 0)]
     bootstrap: usize,
     /// Seed for the bootstrap and the agreement simulation.
@@ -76,9 +84,15 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let trials = read(&args.trials)?;
     let trials_name = args.trials.display().to_string();
     if is_task_csv(&trials) {
-        if args.conditions.is_some() || args.model.is_some() || args.plot.is_some() || args.effect_plot.is_some() {
+        if args.conditions.is_some()
+            || args.model.is_some()
+            || args.plot.is_some()
+            || args.effect_plot.is_some()
+            || args.stimuli.is_some()
+            || args.plot_dir.is_some()
+        {
             bail!(
-                "{trials_name} is a task CSV (participant,condition,value): --conditions, --model and --plot apply to paired comparisons only"
+                "{trials_name} is a task CSV (participant,condition,value): --conditions, --model, --stimuli and the plots apply to paired comparisons only"
             );
         }
         let analysis = mrstudy_analysis::task::analyze_task_csv(&trials, &trials_name)?;
@@ -88,7 +102,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         }
         return Ok(());
     }
+    if args.plot_dir.is_some() && args.stimuli.is_none() {
+        bail!("--plot-dir holds the metric scatter plots: give --stimuli with a stimulus metrics CSV");
+    }
     let conditions = args.conditions.as_ref().map(read).transpose()?;
+    let stimuli = args.stimuli.as_ref().map(read).transpose()?;
+    let stimuli_name = args.stimuli.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
     let conditions_name = args.conditions.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
     let options = Options {
         reference: args.reference,
@@ -103,31 +122,46 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         include_excluded: args.include_excluded,
         ..Options::default()
     };
-    let analysis = mrstudy_analysis::analysis::analyze_named(
+    let report = mrstudy_analysis::report::analyze_named(
         &trials,
         &trials_name,
         conditions.as_deref().map(|text| (text, conditions_name.as_str())),
+        stimuli.as_deref().map(|text| (text, stimuli_name.as_str())),
         &options,
     )?;
     // Render everything before writing anything: no partial output on error.
     let text = match args.format {
-        Format::Json => serde_json::to_string_pretty(&analysis)? + "\n",
-        Format::Table => mrstudy_analysis::table::render(&analysis),
+        Format::Json => serde_json::to_string_pretty(&report)? + "\n",
+        Format::Table => mrstudy_analysis::table::render_report(&report),
     };
-    let effects = match &args.effect_plot {
-        Some(path) => Some((
-            path,
-            analysis.effect_plot().ok_or_else(|| {
-                anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns")
-            })?,
-        )),
-        None => None,
+    let preference = || {
+        report.preference.as_ref().ok_or_else(|| {
+            anyhow::anyhow!(
+                "{trials_name} has only detection trials (one side `ground-truth`): there is no worth or effect to plot"
+            )
+        })
     };
+    let mut files: Vec<(PathBuf, String)> = Vec::new();
     if let Some(path) = &args.plot {
-        std::fs::write(path, analysis.worth_plot()).with_context(|| format!("cannot write {}", path.display()))?;
+        files.push((path.clone(), preference()?.worth_plot()));
     }
-    if let Some((path, svg)) = effects {
-        std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+    if let Some(path) = &args.effect_plot {
+        let svg = preference()?.effect_plot().ok_or_else(|| {
+            anyhow::anyhow!("--effect-plot needs a factor model: give --conditions with factor columns")
+        })?;
+        files.push((path.clone(), svg));
+    }
+    if let Some(folder) = &args.plot_dir {
+        let metrics = report.metrics.as_ref().ok_or_else(|| {
+            anyhow::anyhow!(
+                "{trials_name} has no preference trials to set the stimulus metrics beside: no scatter plots"
+            )
+        })?;
+        std::fs::create_dir_all(folder).with_context(|| format!("cannot create {}", folder.display()))?;
+        files.extend(metrics.scatter_plots().into_iter().map(|(name, svg)| (folder.join(name), svg)));
+    }
+    for (path, svg) in files {
+        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     }
     print!("{text}");
     Ok(())

@@ -365,7 +365,7 @@ fn render_metrics(out: &mut String, metrics: &crate::stimulus_metrics::StimulusA
     if metrics.bootstrap.is_some() && !metrics.correlations.is_empty() {
         let _ = writeln!(
             out,
-            "intervals: of the correlation with the worths themselves; noise in the estimated worths pulls ρ and τb towards 0, so an interval may lie beyond them"
+            "intervals: over participants, the stimuli held fixed; of the correlation with the worths themselves: noise in the estimated worths pulls ρ and τb towards 0, so an interval may lie beyond them"
         );
     }
     // Grouped by reason, in order of first appearance.
