@@ -27,6 +27,7 @@
 //! ellipsis and keep their full text as a tooltip, as does every point.
 
 mod forest;
+mod frame;
 mod line;
 mod scale;
 mod scatter;

@@ -2,16 +2,15 @@
 //! axes, for benchmarks (time against error and the like).
 
 use super::LinePlot;
-use super::forest::{draw_tick_label, tick_label_width};
-use super::scale::Axis;
-use super::svg::{self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, MUTED, NOTE_SIZE, OUTER, Px, Svg, TICK_SIZE};
+use super::frame::{self, Area, TICK_LENGTH};
+use super::scale::{Axis, compact};
+use super::svg::{self, AXIS, LABEL_SIZE, LEGEND_LINE, MUTED, NOTE_SIZE, OUTER, Px, Svg, TICK_SIZE};
 
 const PLOT_WIDTH: f64 = 520.0;
 const PLOT_HEIGHT: f64 = 340.0;
 const TARGET_X_TICKS: usize = 7;
 const TARGET_Y_TICKS: usize = 6;
 const MARKER_SIZE: f64 = 8.0;
-const TICK_LENGTH: f64 = 5.0;
 const MINOR_GRID: &str = "#f1f1f1";
 
 pub(super) fn render(spec: &LinePlot) -> String {
@@ -36,12 +35,8 @@ pub(super) fn render(spec: &LinePlot) -> String {
     let y_axis = axis(&ys, spec.y_log, TARGET_Y_TICKS);
 
     // Horizontal layout: y label | y tick labels | plot.
-    let y_tick_width = y_axis.major.iter().map(|tick| tick_label_width(&tick.label)).fold(0.0, f64::max);
-    let y_label_band = if spec.y_label.is_empty() { 0.0 } else { LABEL_SIZE + 10.0 };
-    let plot_left = OUTER + y_label_band + y_tick_width + TICK_LENGTH + 6.0;
-    let plot_right = plot_left + PLOT_WIDTH;
-    let last_x_tick_overhang = x_axis.major.last().map_or(0.0, |tick| tick_label_width(&tick.label) / 2.0);
-    let title = svg::Title::layout(&spec.title, plot_right + last_x_tick_overhang.max(8.0) + OUTER);
+    let frame::Columns { left: plot_left, right: plot_right, title } =
+        frame::columns(&spec.title, &spec.y_label, &x_axis, &y_axis, PLOT_WIDTH);
     let width = title.width;
 
     // Vertical layout: title, legend, plot, x tick labels, x label, note.
@@ -75,14 +70,8 @@ pub(super) fn render(spec: &LinePlot) -> String {
 
     let mut svg = Svg::new(width, height, &spec.title);
     title.draw(&mut svg, width / 2.0, OUTER);
-    let legend_width = legend
-        .places
-        .iter()
-        .zip(&names)
-        .map(|(&(dx, _), name)| dx + 30.0 + svg::text_width(&svg::shorten(name), LABEL_SIZE))
-        .fold(0.0, f64::max);
-    let legend_left = if legend.n_lines == 1 { (plot_left + plot_right - legend_width) / 2.0 } else { OUTER };
-    svg::draw_legend(&mut svg, &names, &legend, (legend_left.max(OUTER), legend_top));
+    frame::draw_legend(&mut svg, &names, &legend, (plot_left, plot_right), legend_top);
+    let area = Area { left: plot_left, top: plot_top, right: plot_right, bottom: plot_bottom };
 
     // Grid: minor lines faint, major lines light; then the frame and ticks.
     for &value in &x_axis.minor {
@@ -93,23 +82,7 @@ pub(super) fn render(spec: &LinePlot) -> String {
         let y = y_of(value);
         svg.line((plot_left, y), (plot_right, y), MINOR_GRID, 1.0);
     }
-    for tick in &x_axis.major {
-        let x = x_of(tick.value);
-        svg.line((x, plot_top), (x, plot_bottom), GRID, 1.0);
-        svg.line((x, plot_bottom), (x, plot_bottom + TICK_LENGTH), AXIS, 1.0);
-        draw_tick_label(&mut svg, (x, x_tick_baseline), &tick.label, r#"text-anchor="middle""#);
-    }
-    for tick in &y_axis.major {
-        let y = y_of(tick.value);
-        svg.line((plot_left, y), (plot_right, y), GRID, 1.0);
-        svg.line((plot_left - TICK_LENGTH, y), (plot_left, y), AXIS, 1.0);
-        draw_tick_label(
-            &mut svg,
-            (plot_left - TICK_LENGTH - 4.0, y + 0.35 * TICK_SIZE),
-            &tick.label,
-            r#"text-anchor="end""#,
-        );
-    }
+    frame::draw_major_ticks(&mut svg, (&x_axis, &y_axis), area, (&x_of, &y_of), x_tick_baseline);
     for &value in &x_axis.minor {
         let x = x_of(value);
         svg.line((x, plot_bottom), (x, plot_bottom + TICK_LENGTH * 0.6), AXIS, 0.8);
@@ -118,19 +91,7 @@ pub(super) fn render(spec: &LinePlot) -> String {
         let y = y_of(value);
         svg.line((plot_left - TICK_LENGTH * 0.6, y), (plot_left, y), AXIS, 0.8);
     }
-    svg.rect(plot_left, plot_top, PLOT_WIDTH, PLOT_HEIGHT, &format!(r#"fill="none" stroke="{AXIS}" stroke-width="1""#));
-
-    if !spec.x_label.is_empty() {
-        svg.text(((plot_left + plot_right) / 2.0, x_label_baseline), &spec.x_label, r#"text-anchor="middle""#);
-    }
-    if !spec.y_label.is_empty() {
-        let (x, y) = (OUTER + LABEL_SIZE, (plot_top + plot_bottom) / 2.0);
-        svg.text(
-            (x, y),
-            &spec.y_label,
-            &format!(r#"text-anchor="middle" transform="rotate(-90 {} {})""#, Px(x), Px(y)),
-        );
-    }
+    frame::draw_frame_and_labels(&mut svg, area, (&spec.x_label, &spec.y_label), x_label_baseline);
 
     // Series: lines, then markers with tooltips.
     for (series_idx, (_, points)) in series.iter().enumerate() {
@@ -173,34 +134,4 @@ pub(super) fn render(spec: &LinePlot) -> String {
 
 fn axis_name<'a>(label: &'a str, fallback: &'a str) -> &'a str {
     if label.is_empty() { fallback } else { label }
-}
-
-/// A data value in a tooltip: four significant digits, no trailing zeros.
-fn compact(value: f64) -> String {
-    if value == 0.0 || !value.is_finite() {
-        return "0".to_owned();
-    }
-    let magnitude = value.abs().log10().floor();
-    let text = if !(-4.0..6.0).contains(&magnitude) {
-        format!("{value:.3e}")
-    } else {
-        let decimals = (3.0 - magnitude).max(0.0) as usize;
-        let text = format!("{value:.decimals$}");
-        if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.').to_owned() } else { text }
-    };
-    text.replace('-', "−")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tooltip_numbers_are_compact() {
-        assert_eq!(compact(12.5), "12.5");
-        assert_eq!(compact(0.0012341), "0.001234");
-        assert_eq!(compact(-3.0), "−3");
-        assert_eq!(compact(1.5e9), "1.500e9");
-        assert_eq!(compact(f64::NAN), "0");
-    }
 }

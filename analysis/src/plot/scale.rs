@@ -14,6 +14,23 @@ pub(super) enum TickLabel {
     Power { mantissa: Option<String>, exponent: i32 },
 }
 
+/// A data value in a tooltip (line and scatter plots): four significant digits, no trailing
+/// zeros, a true minus sign.
+pub(crate) fn compact(value: f64) -> String {
+    if value == 0.0 || !value.is_finite() {
+        return "0".to_owned();
+    }
+    let magnitude = value.abs().log10().floor();
+    let text = if !(-4.0..6.0).contains(&magnitude) {
+        format!("{value:.3e}")
+    } else {
+        let decimals = (3.0 - magnitude).max(0.0) as usize;
+        let text = format!("{value:.decimals$}");
+        if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.').to_owned() } else { text }
+    };
+    text.replace('-', "−")
+}
+
 #[cfg(test)]
 impl TickLabel {
     /// The label as one line of text (for width estimates and tests): `2×10⁻⁵`.
@@ -416,5 +433,14 @@ mod tests {
     fn superscripts() {
         assert_eq!(superscript(-12), "⁻¹²");
         assert_eq!(superscript(9), "⁹");
+    }
+
+    #[test]
+    fn tooltip_numbers_are_compact() {
+        assert_eq!(compact(12.5), "12.5");
+        assert_eq!(compact(0.0012341), "0.001234");
+        assert_eq!(compact(-3.0), "−3");
+        assert_eq!(compact(1.5e9), "1.500e9");
+        assert_eq!(compact(f64::NAN), "0");
     }
 }
