@@ -330,26 +330,44 @@ async fn stimuli_csv(
     }
 }
 
+/// Whether the live analysis sets the study's stimulus metrics beside the preference.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Metrics {
+    Set,
+    Skip,
+}
+
 /// The live analysis of a study: the analysis crate run on the trials CSV and the study's
 /// conditions CSV — exactly what `mrstudy export` and `mrstudy analyze --conditions` give.
 /// Pilot and excluded participants are left out unless `include` keeps them; a warning says how
 /// many were left out and why.
-pub async fn analysis_json(state: &AppState, slug: &str, include: Include) -> AppResult<serde_json::Value> {
+///
+/// With `Metrics::Set`, a served study's stimulus metrics are set beside the preference (the
+/// `metrics` section, a bootstrap of its own); `Metrics::Skip` leaves that work out where only
+/// the rest is read (the participants list's observer flags).
+pub async fn analysis_json(
+    state: &AppState,
+    slug: &str,
+    include: Include,
+    metrics: Metrics,
+) -> AppResult<serde_json::Value> {
     let pool = &state.storage().read;
     let definition = export::definition(pool, slug).await?;
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
-    let stimuli_csv = state.study(slug).and_then(|study| study.metrics_csv.clone());
-    let mut analysis = crate::analysis::run(&trials.content, &definition, include, stimuli_csv.as_deref()).map_err(
-        |error| match (error, &left_out) {
-            (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
-                "{}; {}",
-                message.trim_end_matches('.'),
-                trials.left_out.clause(QUERY_HINT).unwrap_or_default()
-            )),
-            (error, _) => error,
-        },
-    )?;
+    let served = state.study(slug);
+    let stimuli = served.and_then(|study| study.stimulus_metrics.as_ref()).filter(|_| metrics == Metrics::Set);
+    let mut analysis =
+        crate::analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
+            match (error, &left_out) {
+                (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
+                    "{}; {}",
+                    message.trim_end_matches('.'),
+                    trials.left_out.clause(QUERY_HINT).unwrap_or_default()
+                )),
+                (error, _) => error,
+            }
+        })?;
     if let Some(sentence) = left_out
         && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
     {
@@ -366,7 +384,7 @@ async fn analysis(
 ) -> AppResult<Json<serde_json::Value>> {
     authorize(&state, &headers)?;
     let include = include_from_query(query)?;
-    Ok(Json(analysis_json(&state, &slug, include).await?))
+    Ok(Json(analysis_json(&state, &slug, include, Metrics::Set).await?))
 }
 
 async fn worth_svg(
@@ -392,13 +410,12 @@ async fn metric_svg(
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
     let include = include_from_query(query)?;
-    let stimuli_csv = state.study(&slug).and_then(|study| study.metrics_csv.clone()).ok_or_else(|| {
+    let served = state.study(&slug);
+    let stimuli = served.as_ref().and_then(|study| study.stimulus_metrics.as_ref()).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
     })?;
-    let pool = &state.storage().read;
-    let definition = export::definition(pool, &slug).await?;
-    let trials = export::trials_csv(pool, &slug, include).await?;
-    Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, &definition, include, &stimuli_csv)?))
+    let trials = export::trials_csv(&state.storage().read, &slug, include).await?;
+    Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, include, stimuli)?))
 }
 
 fn svg_response(svg: String) -> Response {
@@ -679,7 +696,7 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
         ));
         page.active_warning = active.failure.clone();
     }
-    let analysis = analysis_json(&state, &slug, Include::default()).await;
+    let analysis = analysis_json(&state, &slug, Include::default(), Metrics::Set).await;
     page.participants = match participants(&state, &slug, analysis.as_ref().ok()).await {
         Ok(entries) => entries.iter().map(ParticipantLine::from).collect(),
         Err(error) => return error.into_response(),
@@ -726,8 +743,8 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
             if let Some(metrics) = analysis.get("metrics") {
                 let best = &metrics["best"];
                 page.metrics_note = Some(format!(
-                    "{} {}",
-                    metrics["level_reason"].as_str().unwrap_or_default(),
+                    "{}. {}",
+                    metrics["level_reason"].as_str().unwrap_or_default().trim_end_matches('.'),
                     match best.get("metric") {
                         Some(metric) => format!(
                             "Best predictor of preference: {} in the {} region.",
@@ -918,7 +935,7 @@ async fn list_participants(
     authorize(&state, &headers)?;
     // The observer flags come from the default analysis; a study whose data cannot be analysed
     // yet still lists its participants, without those flags.
-    let analysis = match analysis_json(&state, &slug, Include::default()).await {
+    let analysis = match analysis_json(&state, &slug, Include::default(), Metrics::Skip).await {
         Ok(analysis) => Some(analysis),
         Err(AppError::Unprocessable(_)) => None,
         Err(error) => return Err(error),

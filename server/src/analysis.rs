@@ -3,10 +3,11 @@
 //! and page, with the same options as `mrstudy analyze`'s defaults, so the live analysis equals
 //! `mrstudy export` fed to `mrstudy analyze --conditions`.
 
+use mrstudy_analysis::AnalysisError;
 use mrstudy_analysis::analysis::Options;
 use mrstudy_analysis::data::ConditionTable;
 use mrstudy_analysis::report::{Report, analyze_with_table};
-use mrstudy_analysis::stimulus_metrics::parse_stimulus_metrics;
+use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, StimulusOptions, analyze_stimuli};
 
 use crate::error::AppError;
 use crate::export::Include;
@@ -25,18 +26,23 @@ pub fn condition_table(study: &Study) -> ConditionTable {
 /// the export already left out what `include` does not keep, so the two agree. Detection trials
 /// (one side the ground truth) are analysed apart; with the study's stimulus metrics CSV the
 /// preference is set beside the stimuli's errors against the ground truth.
-fn report(trials_csv: &str, study: &Study, include: Include, stimuli_csv: Option<&str>) -> Result<Report, AppError> {
-    let options = Options { include_pilots: include.pilots, include_excluded: include.excluded, ..Options::default() };
-    let metrics = stimuli_csv
-        .map(|text| parse_stimulus_metrics(text, "stimulus metrics CSV"))
-        .transpose()
-        .map_err(|error| AppError::Internal(format!("the study's stimulus metrics cannot be read: {error}")))?;
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), metrics.as_ref(), &options).map_err(
-        |error| {
-            // No judgments yet, or a design the models cannot fit: the researcher sees why.
-            AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
-        },
-    )
+fn report(
+    trials_csv: &str,
+    study: &Study,
+    include: Include,
+    stimuli: Option<&StimulusMetrics>,
+) -> Result<Report, AppError> {
+    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include))
+        .map_err(cannot_run)
+}
+
+fn options(include: Include) -> Options {
+    Options { include_pilots: include.pilots, include_excluded: include.excluded, ..Options::default() }
+}
+
+/// No judgments yet, or a design the models cannot fit: the researcher sees why.
+fn cannot_run(error: AnalysisError) -> AppError {
+    AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
 }
 
 /// The Analysis JSON of DESIGN.md, with its `detection` and `metrics` sections where they apply.
@@ -44,9 +50,9 @@ pub fn run(
     trials_csv: &str,
     study: &Study,
     include: Include,
-    stimuli_csv: Option<&str>,
+    stimuli: Option<&StimulusMetrics>,
 ) -> Result<serde_json::Value, AppError> {
-    let report = report(trials_csv, study, include, stimuli_csv)?;
+    let report = report(trials_csv, study, include, stimuli)?;
     serde_json::to_value(&report).map_err(|error| AppError::Internal(format!("analysis JSON: {error}")))
 }
 
@@ -62,16 +68,13 @@ pub fn worth_svg(trials_csv: &str, study: &Study, include: Include) -> Result<St
 }
 
 /// The scatter plot of the metric that predicts preference best (worth against error), drawn
-/// as `mrstudy analyze --stimuli … --plot-dir` draws it.
-pub fn best_metric_svg(
-    trials_csv: &str,
-    study: &Study,
-    include: Include,
-    stimuli_csv: &str,
-) -> Result<String, AppError> {
-    let report = report(trials_csv, study, include, Some(stimuli_csv))?;
-    let plot = report.metrics.as_ref().and_then(|metrics| metrics.scatter_plots().into_iter().next());
-    plot.map(|(_, svg)| svg).ok_or_else(|| {
+/// as `mrstudy analyze --stimuli … --plot-dir` draws it: the stimulus-metrics analysis alone,
+/// not the whole report.
+pub fn best_metric_svg(trials_csv: &str, include: Include, stimuli: &StimulusMetrics) -> Result<String, AppError> {
+    let metrics =
+        analyze_stimuli(trials_csv, "trials CSV", stimuli, &StimulusOptions::from_analysis(&options(include)))
+            .map_err(cannot_run)?;
+    metrics.scatter_plots().into_iter().next().map(|(_, svg)| svg).ok_or_else(|| {
         AppError::Unprocessable("No image metric could be set beside the preference on the data so far.".into())
     })
 }

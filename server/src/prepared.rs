@@ -5,6 +5,8 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
+
 use crate::schedule::{self, PlannedKind, PlannedTrial};
 use crate::stimuli::StimulusPlan;
 use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
@@ -47,6 +49,8 @@ pub struct PreparedStudy {
     /// read).
     pub metrics_csv: Option<String>,
     pub metrics_notes: Vec<String>,
+    /// `metrics_csv` as the analysis reads it, parsed once here rather than per admin request.
+    pub stimulus_metrics: Option<StimulusMetrics>,
 }
 
 /// One trial of a participant's schedule, as stored.
@@ -140,11 +144,21 @@ impl PreparedStudy {
                 ground_truths.push(name);
             }
         }
-        let (metrics_csv, metrics_notes) = match crate::stimuli::metrics_csv(&study, plan, store) {
+        let (mut metrics_csv, mut metrics_notes) = match crate::stimuli::metrics_csv(&study, plan, store) {
             Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
             Err(error) => (None, vec![error.to_string()]),
         };
-        Ok(PreparedStudy { study, stimuli, catch_stimuli, ground_truths, metrics_csv, metrics_notes })
+        let stimulus_metrics =
+            match metrics_csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
+                Some(Ok(metrics)) => Some(metrics),
+                Some(Err(error)) => {
+                    metrics_csv = None;
+                    metrics_notes.push(format!("the stimulus metrics cannot be read: {error}"));
+                    None
+                }
+                None => None,
+            };
+        Ok(PreparedStudy { study, stimuli, catch_stimuli, ground_truths, metrics_csv, metrics_notes, stimulus_metrics })
     }
 
     /// The schedule of the participant with this seed (for an active design: the trials

@@ -15,6 +15,8 @@ const TARGET_Y_TICKS: usize = 6;
 const MARKER_SIZE: f64 = 8.0;
 /// Font size of the point labels.
 const POINT_LABEL_SIZE: f64 = 10.0;
+/// Share of the plot's width a note line is wrapped to (room for wider fallback fonts).
+const NOTE_WIDTH_SHARE: f64 = 0.85;
 /// Gap between a marker and its label.
 const LABEL_GAP: f64 = 5.0;
 
@@ -130,7 +132,9 @@ pub(super) fn render(spec: &ScatterPlot) -> String {
         notes.push(format!("{n_skipped} {} not shown (not finite).", if n_skipped == 1 { "point" } else { "points" }));
     }
     if let Some(note) = &spec.note {
-        notes.extend(wrap(note, width - 2.0 * OUTER, NOTE_SIZE));
+        // Widths are estimated for Helvetica/Arial; where the viewer falls back to DejaVu Sans
+        // (about an eighth wider) a line wrapped to the full width runs off the edge.
+        notes.extend(wrap(note, (width - 2.0 * OUTER) * NOTE_WIDTH_SHARE, NOTE_SIZE));
     }
     let note_first_baseline = y + NOTE_SIZE + 10.0;
     if !notes.is_empty() {
