@@ -52,6 +52,28 @@ pub(crate) fn is_condition_name(name: &str) -> bool {
         && name.chars().all(|c| c.is_ascii_alphanumeric() || "+-_.".contains(c))
 }
 
+/// Refuses `name` at `<key>.name` unless it is a condition name ([`is_condition_name`]) not
+/// among the `earlier` names of its list.
+pub(crate) fn check_name<'a>(
+    fail: Fail,
+    key: &str,
+    name: &str,
+    mut earlier: impl Iterator<Item = &'a str>,
+) -> Result<(), StudyError> {
+    if !is_condition_name(name) {
+        return Err(fail.at(
+            &format!("{key}.name"),
+            format!(
+                "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{name}\""
+            ),
+        ));
+    }
+    if earlier.any(|other| other == name) {
+        return Err(fail.at(&format!("{key}.name"), format!("expected a unique name, \"{name}\" appears twice")));
+    }
+    Ok(())
+}
+
 /// Refuses the first `(key, text)` whose text is blank.
 pub(crate) fn check_texts(fail: Fail, texts: &[(&str, &str)]) -> Result<(), StudyError> {
     match texts.iter().find(|(_, text)| text.trim().is_empty()) {

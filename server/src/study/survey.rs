@@ -16,7 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use super::StudyError;
 use super::checks::{
-    Fail, check_image, check_min_response_ms, check_slug, check_texts, is_condition_name, is_identifier, resolve_scene,
+    Fail, check_image, check_min_response_ms, check_name, check_slug, check_texts, is_condition_name, is_identifier,
+    resolve_scene,
 };
 
 /// What kind of study a file describes.
@@ -682,19 +683,7 @@ fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Re
     let mut conditions: Vec<Condition> = Vec::new();
     for (index, condition) in raw.iter().enumerate() {
         let key = format!("conditions[{index}]");
-        if !is_condition_name(&condition.name) {
-            return Err(fail.at(
-                &format!("{key}.name"),
-                format!(
-                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
-                    condition.name
-                ),
-            ));
-        }
-        if conditions.iter().any(|other| other.name == condition.name) {
-            return Err(fail
-                .at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", condition.name)));
-        }
+        check_name(fail, &key, &condition.name, conditions.iter().map(|other| other.name.as_str()))?;
         if condition.name == GROUND_TRUTH {
             return Err(fail.at(
                 &format!("{key}.name"),
@@ -760,20 +749,7 @@ fn check_scenes(
     let mut scenes: Vec<Scene> = Vec::new();
     for (index, scene) in raw.iter().enumerate() {
         let key = format!("scenes[{index}]");
-        if !is_condition_name(&scene.name) {
-            return Err(fail.at(
-                &format!("{key}.name"),
-                format!(
-                    "expected 1 to 64 characters of A-Z, a-z, 0-9 and + - _ ., starting with a letter, digit or _, found \"{}\"",
-                    scene.name
-                ),
-            ));
-        }
-        if scenes.iter().any(|other| other.name == scene.name) {
-            return Err(
-                fail.at(&format!("{key}.name"), format!("expected a unique name, \"{}\" appears twice", scene.name))
-            );
-        }
+        check_name(fail, &key, &scene.name, scenes.iter().map(|other| other.name.as_str()))?;
         let source = match (&scene.render, &scene.images) {
             (Some(render), None) => {
                 StimulusSource::Render(resolve_scene(fail, &format!("{key}.render"), base, render)?)
