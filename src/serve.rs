@@ -2,10 +2,12 @@
 //! around `mrstudy-server`, which does the work.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use mrstudy_server::serve::ExportFormat;
+use mrstudy_server::limits::Limits;
+use mrstudy_server::serve::{Connections, ExportFormat};
 
 #[derive(Args)]
 pub struct ServeArgs {
@@ -18,14 +20,51 @@ pub struct ServeArgs {
     /// Directory of study files (*.toml).
     #[arg(long, default_value = "./studies")]
     studies: PathBuf,
+    /// Behind a TLS-terminating reverse proxy: the client address is the last X-Forwarded-For
+    /// address, and the admin cookie is Secure.
+    #[arg(long)]
+    behind_tls: bool,
+    /// Joins per client address per minute (bursts of twice that); 0: no limit.
+    #[arg(long, default_value_t = Limits::default().joins_per_minute)]
+    join_limit: u32,
+    /// Responses per client address per minute (bursts of twice that); 0: no limit.
+    #[arg(long, default_value_t = Limits::default().responses_per_minute)]
+    response_limit: u32,
+    /// Wrong admin tokens per client address per 15 minutes before it is refused (429); 0: no limit.
+    #[arg(long, default_value_t = Limits::default().admin_failures)]
+    admin_failure_limit: u32,
+    /// Seconds a connection may take to send a request's headers (also how long an idle
+    /// keep-alive connection is kept).
+    #[arg(long, default_value_t = Connections::default().header_timeout.as_secs())]
+    header_timeout: u64,
+    /// Seconds a request may take to send its body after the headers.
+    #[arg(long, default_value_t = Connections::default().body_timeout.as_secs())]
+    body_timeout: u64,
+    /// Connections served at once; more wait in the listen queue.
+    #[arg(long, default_value_t = Connections::default().max_connections)]
+    max_connections: usize,
 }
 
 pub fn run_serve(args: ServeArgs) -> Result<()> {
+    if args.header_timeout == 0 || args.body_timeout == 0 {
+        bail!("--header-timeout and --body-timeout must be at least 1 second");
+    }
     mrstudy_server::serve::run(mrstudy_server::serve::ServeConfig {
         addr: args.addr,
         data_dir: args.data_dir,
         studies_dir: args.studies,
         progress: Some(crate::stimuli::progress_bars()),
+        limits: Limits {
+            joins_per_minute: args.join_limit,
+            responses_per_minute: args.response_limit,
+            admin_failures: args.admin_failure_limit,
+            behind_tls: args.behind_tls,
+        },
+        connections: Connections {
+            header_timeout: Duration::from_secs(args.header_timeout),
+            body_timeout: Duration::from_secs(args.body_timeout),
+            max_connections: args.max_connections,
+        },
     })?;
     Ok(())
 }

@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use crate::AppState;
-use crate::auth::{COOKIE, authorize_admin_change as authorize_change, authorize_admin_via as authorize};
+use crate::auth::{authorize_admin_change as authorize_change, authorize_admin_via as authorize};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
 use crate::pages::download;
@@ -45,6 +45,7 @@ pub fn router() -> Router<AppState> {
         .route("/api/admin/participants/{id}/include", post(include_participant))
         .route("/api/admin/participants/{id}", delete(delete_participant))
         .route("/admin/login", get(login))
+        .route("/admin/logout", post(logout))
         .route("/admin", get(admin_page))
         .route("/admin/studies/{slug}", get(admin_study_page))
 }
@@ -94,7 +95,7 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
 }
 
 pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
-    let pool = &state.storage().read;
+    let pool = &state.storage().admin;
     let study = sqlx::query("SELECT slug, title, kind, open, definition FROM studies WHERE slug = ?")
         .bind(slug)
         .fetch_optional(pool)
@@ -195,7 +196,7 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
 
 async fn all_slugs(state: &AppState) -> AppResult<Vec<String>> {
     Ok(sqlx::query_scalar("SELECT slug FROM studies WHERE kind <> 'task' ORDER BY first_loaded_at, slug")
-        .fetch_all(&state.storage().read)
+        .fetch_all(&state.storage().admin)
         .await?)
 }
 
@@ -273,7 +274,7 @@ async fn export_csv(
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
     let include = include_from_query(query)?;
-    let csv = export::trials_csv(&state.storage().read, &slug, include).await?;
+    let csv = export::trials_csv(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv.content), csv.left_out))
 }
 
@@ -285,7 +286,7 @@ async fn export_json(
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
     let include = include_from_query(query)?;
-    let json = export::study_json(&state.storage().read, &slug, include).await?;
+    let json = export::study_json(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(
         download(
             "application/json",
@@ -302,7 +303,7 @@ async fn conditions_csv(
     headers: HeaderMap,
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
-    let definition = export::definition(&state.storage().read, &slug).await?;
+    let definition = export::definition(&state.storage().admin, &slug).await?;
     Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
 }
 
@@ -351,7 +352,7 @@ pub async fn analysis_json(
     include: Include,
     metrics: Metrics,
 ) -> AppResult<serde_json::Value> {
-    let pool = &state.storage().read;
+    let pool = &state.storage().admin;
     let definition = export::definition(pool, slug).await?;
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
@@ -395,7 +396,7 @@ async fn worth_svg(
 ) -> AppResult<Response> {
     authorize(&state, &headers)?;
     let include = include_from_query(query)?;
-    let pool = &state.storage().read;
+    let pool = &state.storage().admin;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
     Ok(svg_response(crate::analysis::worth_svg(&trials.content, &definition, include)?))
@@ -414,7 +415,7 @@ async fn metric_svg(
     let stimuli = served.as_ref().and_then(|study| study.stimulus_metrics.as_ref()).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
     })?;
-    let trials = export::trials_csv(&state.storage().read, &slug, include).await?;
+    let trials = export::trials_csv(&state.storage().admin, &slug, include).await?;
     Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, include, stimuli)?))
 }
 
@@ -461,6 +462,24 @@ async fn close_study(
 // ------------------------------------------------------------------------------------------
 // Pages.
 
+/// Ends the admin session of the cookie and clears the cookie. A cross-site form cannot send
+/// the SameSite=Strict cookie, so this needs no `X-Requested-With`.
+async fn logout(State(state): State<AppState>, headers: HeaderMap) -> Response {
+    if let Some(id) = crate::auth::session_cookie(&headers) {
+        state.sessions().end(id);
+    }
+    let mut response = crate::pages::message_page(
+        StatusCode::OK,
+        "Logged out",
+        "The admin session has ended. Open the admin link that mrstudy serve printed to log in again.",
+    );
+    let cookie = crate::auth::session_set_cookie(None, state.limits().behind_tls);
+    if let Ok(cookie) = HeaderValue::from_str(&cookie) {
+        response.headers_mut().insert(header::SET_COOKIE, cookie);
+    }
+    response
+}
+
 #[derive(Deserialize)]
 struct LoginQuery {
     token: Option<String>,
@@ -470,9 +489,9 @@ async fn login(State(state): State<AppState>, Query(query): Query<LoginQuery>) -
     match query.token {
         Some(token) if state.is_admin_token(&token) => {
             let mut response = Redirect::to("/admin").into_response();
-            if let Ok(cookie) =
-                HeaderValue::from_str(&format!("{COOKIE}={token}; HttpOnly; SameSite=Strict; Path=/; Max-Age=2592000"))
-            {
+            let session = state.sessions().start();
+            let cookie = crate::auth::session_set_cookie(Some(&session), state.limits().behind_tls);
+            if let Ok(cookie) = HeaderValue::from_str(&cookie) {
                 response.headers_mut().insert(header::SET_COOKIE, cookie);
             }
             response
@@ -864,7 +883,7 @@ pub async fn participants(
     slug: &str,
     analysis: Option<&serde_json::Value>,
 ) -> AppResult<Vec<ParticipantEntry>> {
-    let pool = &state.storage().read;
+    let pool = &state.storage().admin;
     let definition = export::definition(pool, slug).await?;
     let mut screened = std::collections::HashMap::new();
     if let Some(observers) = analysis.and_then(|analysis| analysis["observers"]["participants"].as_array()) {
@@ -1047,7 +1066,7 @@ async fn create_preview(
     authorize_change(&state, &headers)?;
     let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = ?")
         .bind(&slug)
-        .fetch_optional(&state.storage().read)
+        .fetch_optional(&state.storage().admin)
         .await?;
     match kind.as_deref() {
         None => return Err(AppError::NotFound(format!("There is no study \"{slug}\"."))),

@@ -5,8 +5,8 @@
 //! with their cause and shown as a plain sentence. Every error body is
 //! `{"error": "one clear sentence"}`.
 
-use axum::extract::FromRequest;
-use axum::extract::rejection::JsonRejection;
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Request};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
@@ -30,6 +30,10 @@ pub enum AppError {
     #[error("{0}")]
     PayloadTooLarge(String),
     #[error("{0}")]
+    UnsupportedMediaType(String),
+    #[error("{0}")]
+    TooManyRequests(String),
+    #[error("{0}")]
     Unavailable(String),
     #[error("database error: {0}")]
     Database(#[from] sqlx::Error),
@@ -48,6 +52,8 @@ impl AppError {
             AppError::Conflict(_) => StatusCode::CONFLICT,
             AppError::Gone(_) => StatusCode::GONE,
             AppError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            AppError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            AppError::TooManyRequests(_) => StatusCode::TOO_MANY_REQUESTS,
             AppError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
             AppError::Database(_) | AppError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -83,36 +89,88 @@ impl From<crate::storage::StorageError> for AppError {
     }
 }
 
-impl From<JsonRejection> for AppError {
-    fn from(rejection: JsonRejection) -> Self {
-        match rejection {
-            JsonRejection::JsonDataError(error) => AppError::Unprocessable(format!(
-                "The request body does not have the expected fields: {}.",
-                error.body_text().trim_start_matches("Failed to deserialize the JSON body into the target type: ")
-            )),
-            JsonRejection::JsonSyntaxError(_) => AppError::BadRequest("The request body is not valid JSON.".into()),
-            JsonRejection::MissingJsonContentType(_) => {
-                AppError::BadRequest("The request needs the header Content-Type: application/json.".into())
-            }
-            JsonRejection::BytesRejection(error) => {
-                if error.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                    AppError::PayloadTooLarge(format!(
-                        "The request body is larger than the limit of {} bytes.",
-                        crate::BODY_LIMIT_BYTES
-                    ))
-                } else {
-                    AppError::BadRequest("The request body could not be read.".into())
-                }
-            }
-            other => AppError::BadRequest(format!("The request body was refused: {other}.")),
+/// The JSON body of a request, as `T`: strictly a JSON object (serde would also take an array
+/// for a struct, `[1, "left", 500]`), sent as `Content-Type: application/json` (else 415),
+/// at most [`crate::BODY_LIMIT_BYTES`] (else 413). A body that is not JSON is a 400; one that
+/// is JSON but lacks or mistypes a field is a 422 naming the field, without the server's
+/// internal type names.
+pub struct Json<T>(pub T);
+
+impl<T: serde::de::DeserializeOwned, S: Send + Sync> FromRequest<S> for Json<T> {
+    type Rejection = AppError;
+
+    async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
+        if !json_content_type(request.headers()) {
+            return Err(AppError::UnsupportedMediaType(
+                "The request needs the header Content-Type: application/json.".into(),
+            ));
         }
+        let bytes = Bytes::from_request(request, state).await.map_err(|rejection| {
+            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                AppError::PayloadTooLarge(format!(
+                    "The request body is larger than the limit of {} bytes.",
+                    crate::BODY_LIMIT_BYTES
+                ))
+            } else {
+                AppError::BadRequest("The request body could not be read.".into())
+            }
+        })?;
+        let value: serde_json::Value = serde_json::from_slice(&bytes).map_err(|error| {
+            AppError::BadRequest(format!(
+                "The request body is not valid JSON ({}).",
+                plain_serde_error(&error.to_string())
+            ))
+        })?;
+        if !value.is_object() {
+            return Err(AppError::Unprocessable("The request body must be a JSON object.".into()));
+        }
+        serde_path_to_error::deserialize(value).map(Json).map_err(|error| {
+            let path = error.path().to_string();
+            let message = plain_serde_error(&error.into_inner().to_string());
+            AppError::Unprocessable(if path == "." {
+                format!("The request body does not have the expected fields: {message}.")
+            } else {
+                format!("The request body does not have the expected fields: {path}: {message}.")
+            })
+        })
     }
 }
 
-/// `axum::Json`, with rejections turned into [`AppError`] so they are JSON too.
-#[derive(FromRequest)]
-#[from_request(via(axum::Json), rejection(AppError))]
-pub struct Json<T>(pub T);
+/// Whether the request says its body is JSON (`application/json`, parameters allowed).
+fn json_content_type(headers: &axum::http::HeaderMap) -> bool {
+    headers
+        .get(axum::http::header::CONTENT_TYPE)
+        .and_then(|value| value.to_str().ok())
+        .and_then(|value| value.split(';').next())
+        .is_some_and(|mime| mime.trim().eq_ignore_ascii_case("application/json"))
+}
+
+/// serde's message without the server's type names (`struct JoinBody`, `enum Chosen`) and
+/// without the position suffix of a value that has no position.
+pub(crate) fn plain_serde_error(message: &str) -> String {
+    let mut words: Vec<String> = Vec::new();
+    let mut rest = message.split(' ').peekable();
+    while let Some(word) = rest.next() {
+        match word {
+            "struct" | "enum" | "map" if rest.peek().is_some_and(|next| next.starts_with(char::is_uppercase)) => {
+                let name = rest.next().unwrap_or_default();
+                let tail: String = name.chars().skip_while(|c| c.is_alphanumeric() || *c == '_').collect();
+                words.push(if word == "enum" { "one of the allowed values".into() } else { "an object".into() });
+                if !tail.is_empty() {
+                    let last = words.pop().unwrap_or_default();
+                    words.push(last + &tail);
+                }
+            }
+            "tuple" if rest.peek() == Some(&"struct") => {
+                rest.next();
+                rest.next();
+                words.push("a value".into());
+            }
+            _ => words.push(word.to_string()),
+        }
+    }
+    words.join(" ").trim_end_matches('.').to_string()
+}
 
 impl<T: serde::Serialize> IntoResponse for Json<T> {
     fn into_response(self) -> Response {

@@ -24,6 +24,7 @@ pub mod analysis;
 pub mod auth;
 pub mod error;
 pub mod export;
+pub mod limits;
 pub mod pages;
 pub mod participant;
 pub mod prepared;
@@ -71,6 +72,11 @@ struct StateInner {
     lab: std::sync::OnceLock<Arc<task::Lab>>,
     /// The shared posterior of each study with an active design.
     active: participant::active::ActiveStudies,
+    /// Admin sessions (login with the admin token, logout).
+    sessions: auth::Sessions,
+    /// What one client address may do, and how much it has done.
+    limits: limits::Limits,
+    buckets: limits::Buckets,
 }
 
 impl AppState {
@@ -92,8 +98,29 @@ impl AppState {
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
                 active,
+                sessions: Default::default(),
+                limits: limits::Limits::default(),
+                buckets: Default::default(),
             }),
         }
+    }
+
+    /// This state with other limits per client; only before it is shared (it panics after).
+    pub fn with_limits(mut self, limits: limits::Limits) -> AppState {
+        Arc::get_mut(&mut self.inner).expect("limits are set before the state is shared").limits = limits;
+        self
+    }
+
+    pub fn limits(&self) -> limits::Limits {
+        self.inner.limits
+    }
+
+    pub(crate) fn buckets(&self) -> &limits::Buckets {
+        &self.inner.buckets
+    }
+
+    pub(crate) fn sessions(&self) -> &auth::Sessions {
+        &self.inner.sessions
     }
 
     pub fn storage(&self) -> &Storage {
@@ -152,6 +179,37 @@ impl AppState {
     }
 }
 
+/// An `/api/` error that did not come from [`AppError`] (axum's own 405, 413, 408, a 404 of a
+/// route that does not exist) gets the API's body too: `{"error": sentence}`.
+fn api_error_as_json(response: Response, method: &axum::http::Method) -> Response {
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|value| value.to_str().ok())
+        .is_some_and(|value| value.starts_with("application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    use axum::http::StatusCode;
+    let sentence = match status {
+        StatusCode::METHOD_NOT_ALLOWED => format!("This address does not accept {method} requests."),
+        StatusCode::PAYLOAD_TOO_LARGE => {
+            format!("The request body is larger than the limit of {BODY_LIMIT_BYTES} bytes.")
+        }
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => "The request needs the header Content-Type: application/json.".into(),
+        StatusCode::REQUEST_TIMEOUT => "The request body did not arrive in time.".into(),
+        StatusCode::TOO_MANY_REQUESTS => "Too many requests from this address; try again in a minute.".into(),
+        StatusCode::NOT_FOUND => "There is no such API address.".into(),
+        status if status.is_server_error() => "The server could not complete the request.".into(),
+        status => format!("The request was refused ({}).", status.canonical_reason().unwrap_or("client error")),
+    };
+    let (mut parts, _) = response.into_parts();
+    parts.headers.remove(header::CONTENT_LENGTH);
+    parts.headers.insert(header::CONTENT_TYPE, HeaderValue::from_static("application/json"));
+    Response::from_parts(parts, axum::body::Body::from(serde_json::json!({ "error": sentence }).to_string()))
+}
+
 /// `n` random bytes from the operating system, hex-encoded.
 pub(crate) fn random_hex(n: usize) -> String {
     let mut bytes = vec![0u8; n];
@@ -160,7 +218,8 @@ pub(crate) fn random_hex(n: usize) -> String {
 }
 
 /// The whole application: participant API and pages, admin API and pages, static files and
-/// stimuli, with security headers and the body size limit.
+/// stimuli, with security headers, the body size limit and the limits per client
+/// ([`limits`]).
 pub fn app(state: AppState) -> Router {
     Router::new()
         .merge(participant::router())
@@ -169,6 +228,7 @@ pub fn app(state: AppState) -> Router {
         .merge(task::router())
         .fallback(pages::not_found)
         .layer(DefaultBodyLimit::max(BODY_LIMIT_BYTES))
+        .layer(middleware::from_fn_with_state(state.clone(), limits::limit))
         .layer(middleware::from_fn(security_headers))
         .with_state(state)
 }
@@ -179,7 +239,11 @@ pub const CONTENT_SECURITY_POLICY: &str = "default-src 'self'; script-src 'self'
 
 async fn security_headers(request: Request, next: Next) -> Response {
     let is_api = request.uri().path().starts_with("/api/");
+    let method = request.method().clone();
     let mut response = next.run(request).await;
+    if is_api {
+        response = api_error_as_json(response, &method);
+    }
     let headers = response.headers_mut();
     headers.entry(header::CONTENT_SECURITY_POLICY).or_insert(HeaderValue::from_static(CONTENT_SECURITY_POLICY));
     headers.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));

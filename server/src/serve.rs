@@ -34,6 +34,33 @@ pub struct ServeConfig {
     pub studies_dir: PathBuf,
     /// Called while missing stimuli are rendered at start-up (None: quietly).
     pub progress: Option<RenderProgress>,
+    /// What one client address may do ([`crate::limits`]).
+    pub limits: crate::limits::Limits,
+    /// How long the server waits for a client, and for how many at once.
+    pub connections: Connections,
+}
+
+/// How long the server waits for a client and how many connections it keeps at once, so that
+/// idle, slow-header (slowloris) and slow-body clients cannot hold its connections.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Connections {
+    /// From a connection's start, or the end of its last response, to the end of the next
+    /// request's headers: an idle keep-alive connection is closed after this too.
+    pub header_timeout: std::time::Duration,
+    /// From the end of the headers to the end of the body (else 400, and the connection closes).
+    pub body_timeout: std::time::Duration,
+    /// Connections served at once; more wait in the listen queue.
+    pub max_connections: usize,
+}
+
+impl Default for Connections {
+    fn default() -> Connections {
+        Connections {
+            header_timeout: std::time::Duration::from_secs(20),
+            body_timeout: std::time::Duration::from_secs(30),
+            max_connections: 4096,
+        }
+    }
 }
 
 /// Why the server could not start; each displays as one sentence.
@@ -48,8 +75,10 @@ pub enum ServeError {
     Study(#[from] StudyError),
     #[error(transparent)]
     Prepare(PrepareError),
-    #[error("MRSTUDY_ADMIN_TOKEN must be at least 16 characters of A-Z, a-z, 0-9, - and _")]
-    WeakAdminToken,
+    #[error(
+        "MRSTUDY_ADMIN_TOKEN is too weak: {0}; leave it unset and mrstudy makes a random one, or use e.g. `openssl rand -hex 32`"
+    )]
+    WeakAdminToken(String),
     #[error("cannot read or write the admin token file {path}: {source}")]
     AdminToken { path: PathBuf, source: std::io::Error },
     #[error("cannot record study \"{slug}\" in the database: {source}")]
@@ -66,9 +95,7 @@ pub enum ServeError {
 /// generated (256 random bits, hex) and written there (mode 0600) the first time.
 pub fn admin_token(data_dir: &Path) -> Result<String, ServeError> {
     if let Ok(token) = std::env::var("MRSTUDY_ADMIN_TOKEN") {
-        if token.len() < 16 || !token.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
-            return Err(ServeError::WeakAdminToken);
-        }
+        admin_token_strength(&token).map_err(ServeError::WeakAdminToken)?;
         return Ok(token);
     }
     let path = data_dir.join("admin-token");
@@ -92,6 +119,47 @@ pub fn admin_token(data_dir: &Path) -> Result<String, ServeError> {
     file.write_all(format!("{token}\n").as_bytes()).map_err(io_error)?;
     file.sync_all().map_err(io_error)?;
     Ok(token)
+}
+
+/// Bits of a random token drawn from the characters `token` uses, if it was random.
+pub const ADMIN_TOKEN_BITS: f64 = 128.0;
+
+/// Whether an admin token set by hand is strong enough: only A-Z, a-z, 0-9, `-` and `_`, and at
+/// least [`ADMIN_TOKEN_BITS`] bits as a random string of its alphabet would have (hexadecimal:
+/// 32 characters; letters and digits: 22), and not a repetition (at least 8 different
+/// characters). Says why not.
+pub fn admin_token_strength(token: &str) -> Result<(), String> {
+    if let Some(bad) = token.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '-' || *c == '_')) {
+        return Err(format!("it may only hold A-Z, a-z, 0-9, - and _, not {bad:?}"));
+    }
+    let hex = token.chars().all(|c| c.is_ascii_hexdigit()) && !token.chars().any(|c| c.is_ascii_uppercase());
+    let alphabet = if hex {
+        16.0
+    } else {
+        [
+            (token.chars().any(|c| c.is_ascii_lowercase()), 26.0),
+            (token.chars().any(|c| c.is_ascii_uppercase()), 26.0),
+            (token.chars().any(|c| c.is_ascii_digit()), 10.0),
+            (token.chars().any(|c| c == '-' || c == '_'), 2.0),
+        ]
+        .iter()
+        .filter(|(used, _)| *used)
+        .map(|(_, size)| size)
+        .sum::<f64>()
+    };
+    let bits = token.len() as f64 * f64::log2(alphabet.max(1.0));
+    if bits < ADMIN_TOKEN_BITS {
+        return Err(format!(
+            "{} characters of {} kinds hold at most {bits:.0} bits, fewer than {ADMIN_TOKEN_BITS:.0}",
+            token.len(),
+            alphabet
+        ));
+    }
+    let distinct = token.chars().collect::<std::collections::BTreeSet<_>>().len();
+    if distinct < 8 {
+        return Err(format!("it uses only {distinct} different characters"));
+    }
+    Ok(())
 }
 
 /// A data directory opened and studies loaded: everything but the socket.
@@ -239,11 +307,78 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
                 let _ = std::io::stdout().flush();
             });
         }
-        axum::serve(listener, app(prepared.state))
-            .with_graceful_shutdown(shutdown_signal())
-            .await
-            .map_err(ServeError::Server)
+        serve_connections(
+            listener,
+            app(prepared.state.with_limits(config.limits)),
+            config.connections,
+            shutdown_signal(),
+        )
+        .await;
+        Ok(())
     })
+}
+
+/// Serves HTTP/1.1 (with upgrades, for the lab's WebSocket) on `listener` until `shutdown`,
+/// then lets open requests finish (at most 10 s). Each request carries its peer address
+/// ([`crate::limits::ClientAddr`]); headers and bodies are timed ([`Connections`]).
+pub async fn serve_connections(
+    listener: tokio::net::TcpListener,
+    router: axum::Router,
+    connections: Connections,
+    shutdown: impl std::future::Future<Output = ()>,
+) {
+    use tower::ServiceExt;
+    let slots = Arc::new(tokio::sync::Semaphore::new(connections.max_connections.max(1)));
+    let (stop, stopping) = tokio::sync::watch::channel(false);
+    tokio::pin!(shutdown);
+    loop {
+        let permit = tokio::select! {
+            permit = slots.clone().acquire_owned() => permit.expect("the semaphore is never closed"),
+            _ = &mut shutdown => break,
+        };
+        let (stream, peer) = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok(accepted) => accepted,
+                Err(error) => {
+                    // out of file descriptors and the like: wait, do not spin
+                    eprintln!("warning: cannot accept a connection: {error}");
+                    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+                    continue;
+                }
+            },
+            _ = &mut shutdown => break,
+        };
+        let _ = stream.set_nodelay(true);
+        let router = router.clone();
+        let body_timeout = connections.body_timeout;
+        let service = hyper::service::service_fn(move |request: axum::http::Request<hyper::body::Incoming>| {
+            let mut request =
+                request.map(|body| axum::body::Body::new(tower_http::timeout::TimeoutBody::new(body_timeout, body)));
+            request.extensions_mut().insert(crate::limits::ClientAddr(peer.ip()));
+            router.clone().oneshot(request)
+        });
+        let mut stopping = stopping.clone();
+        let header_timeout = connections.header_timeout;
+        tokio::spawn(async move {
+            let mut builder = hyper::server::conn::http1::Builder::new();
+            builder.timer(hyper_util::rt::TokioTimer::new()).header_read_timeout(header_timeout);
+            let connection = builder.serve_connection(hyper_util::rt::TokioIo::new(stream), service).with_upgrades();
+            tokio::pin!(connection);
+            tokio::select! {
+                _ = connection.as_mut() => {}
+                _ = stopping.changed() => {
+                    connection.as_mut().graceful_shutdown();
+                    let _ = connection.await;
+                }
+            }
+            drop(permit);
+            drop(stopping);
+        });
+    }
+    drop(listener);
+    let _ = stop.send(true);
+    // every connection holds a receiver until it has finished
+    let _ = tokio::time::timeout(std::time::Duration::from_secs(10), stop.closed()).await;
 }
 
 async fn shutdown_signal() {

@@ -8,6 +8,15 @@
 //! sent after its row is durably on disk, while many concurrent participants share one fsync
 //! (group commit). If the commit fails, every job in the batch gets the error and nothing of the
 //! batch is kept. Reads use a separate pool of connections; WAL lets them run beside the writer.
+//! Admin reads (exports, the live analysis) have a pool of their own ([`Storage::admin`]), so
+//! however many exports run, participants' reads never wait for a connection behind them.
+//!
+//! The WAL is bounded: a background task checkpoints passively once a second, and when the WAL
+//! file has grown past [`WAL_TRUNCATE_BYTES`] (readers that overlap keep a passive checkpoint
+//! from ever restarting it) the writer, after its batch, runs a truncating checkpoint, which
+//! waits for the readers of the old WAL to finish, copies everything back and empties the file;
+//! `journal_size_limit` caps what a restarted WAL keeps on disk. The database files are the owner's alone (mode 0600):
+//! they hold demographics.
 
 use std::path::Path;
 use std::str::FromStr;
@@ -33,6 +42,8 @@ pub enum OpenError {
     Connect { path: String, source: sqlx::Error },
     #[error("cannot migrate the database {path}: {source}")]
     Migrate { path: String, source: sqlx::migrate::MigrateError },
+    #[error("cannot make the database {path} readable by its owner only: {source}")]
+    Permissions { path: String, source: std::io::Error },
 }
 
 /// A failure of the database itself. What a write refuses (a trial not yet served, an unknown
@@ -69,10 +80,14 @@ pub struct StudyRecord<'a> {
     pub file_sha256: &'a str,
 }
 
-/// The database: a read pool and the writer's queue.
+/// The database: a read pool, the admin's read pool and the writer's queue.
 #[derive(Clone)]
 pub struct Storage {
+    /// Participants' reads.
     pub read: SqlitePool,
+    /// The admin's reads (exports, analysis, lists): apart from `read`, so that exports cannot
+    /// take the connections participants wait for.
+    pub admin: SqlitePool,
     write: SqlitePool,
     jobs: mpsc::Sender<Box<dyn Queued>>,
 }
@@ -146,6 +161,7 @@ impl Storage {
     /// writer task. Must be called inside a tokio runtime.
     pub async fn open(path: &Path) -> Result<Storage, OpenError> {
         let path_text = path.display().to_string();
+        owner_only(path).map_err(|source| OpenError::Permissions { path: path_text.clone(), source })?;
         let options = SqliteConnectOptions::from_str("sqlite:")
             .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?
             .filename(path)
@@ -153,13 +169,15 @@ impl Storage {
             .journal_mode(SqliteJournalMode::Wal)
             .synchronous(SqliteSynchronous::Full)
             .foreign_keys(true)
-            .busy_timeout(Duration::from_secs(10))
+            .busy_timeout(BUSY_TIMEOUT)
             // A deleted participant's bytes are overwritten, not left in free pages (issue 12;
             // `Storage::delete` then truncates the WAL, which still holds the old pages).
             .pragma("secure_delete", "ON")
             // No checkpoint inside a participant's commit (it would stall that batch for the
             // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
-            .pragma("wal_autocheckpoint", "0");
+            .pragma("wal_autocheckpoint", "0")
+            // what a restarted WAL may keep on disk
+            .pragma("journal_size_limit", JOURNAL_SIZE_LIMIT_BYTES.to_string());
         let write = SqlitePoolOptions::new()
             .max_connections(1)
             .min_connections(1)
@@ -171,13 +189,21 @@ impl Storage {
         let read = SqlitePoolOptions::new()
             .max_connections(4)
             .acquire_timeout(Duration::from_secs(60))
+            .connect_with(options.clone())
+            .await
+            .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?;
+        let admin = SqlitePoolOptions::new()
+            .max_connections(2)
+            .acquire_timeout(Duration::from_secs(300))
             .connect_with(options)
             .await
             .map_err(|source| OpenError::Connect { path: path_text, source })?;
         let (sender, receiver) = mpsc::channel(4 * MAX_BATCH);
-        tokio::spawn(writer(write.clone(), receiver));
+        let mut wal = path.as_os_str().to_owned();
+        wal.push("-wal");
+        tokio::spawn(writer(write.clone(), receiver, std::path::PathBuf::from(wal)));
         tokio::spawn(checkpointer(read.clone()));
-        Ok(Storage { read, write, jobs: sender })
+        Ok(Storage { read, admin, write, jobs: sender })
     }
 
     /// Records or refreshes a study at start-up; a new study starts open or closed as its file
@@ -348,7 +374,7 @@ pub struct TrialRow {
     pub right_stimulus: String,
 }
 
-async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>) {
+async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>, wal: std::path::PathBuf) {
     let mut batch: Vec<Box<dyn Queued>> = Vec::with_capacity(MAX_BATCH);
     while let Some(first) = receiver.recv().await {
         batch.push(first);
@@ -372,11 +398,58 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>)
             }
         }
         batch.clear();
+        bound_wal(&pool, &wal).await;
     }
 }
 
+/// After a batch: if the WAL file has grown past [`WAL_TRUNCATE_BYTES`], a truncating
+/// checkpoint on the writer's own connection. A passive checkpoint cannot restart the WAL while
+/// readers overlap (each holds a snapshot in it), so under steady reading the file would grow
+/// without limit; this one waits (busy timeout) for the readers of the old WAL to finish (new
+/// readers read the database file meanwhile), copies the WAL back and empties it. No write can
+/// slip in while it waits, so it cannot be starved; the next batch waits for it instead (tens
+/// of milliseconds, once per [`WAL_TRUNCATE_BYTES`] written).
+async fn bound_wal(pool: &SqlitePool, wal: &Path) {
+    let size = std::fs::metadata(wal).map(|meta| meta.len()).unwrap_or(0);
+    if size <= WAL_TRUNCATE_BYTES {
+        return;
+    }
+    // Wait for readers briefly, not for the connection's busy timeout: participants' next
+    // batch waits meanwhile; if readers still hold the old WAL, the next batch tries again.
+    let checkpoint = async {
+        let mut connection = pool.acquire().await?;
+        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
+            .execute(&mut *connection)
+            .await?;
+        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
+            .fetch_one(&mut *connection)
+            .await
+            .map(|row| row.try_get::<i64, _>(0));
+        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
+            .execute(&mut *connection)
+            .await?;
+        busy?
+    };
+    match checkpoint.await {
+        Ok(0) => {}
+        Ok(_) if size > WAL_WARN_BYTES => {
+            eprintln!("warning: the WAL has grown to {} MB: readers keep it busy; will retry", size >> 20)
+        }
+        Ok(_) => {}
+        Err(error) => eprintln!("warning: WAL checkpoint failed (will retry): {error}"),
+    }
+}
+
+/// How long [`bound_wal`] waits for readers of the old WAL.
+const WAL_TRUNCATE_WAIT: Duration = Duration::from_millis(250);
+/// Past this size a WAL that could not be emptied is worth a warning.
+const WAL_WARN_BYTES: u64 = 4 * WAL_TRUNCATE_BYTES;
+/// How long a connection waits for a lock before giving up.
+const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
+
 /// Copies the WAL back into the database file once a second (a passive checkpoint: it never
-/// blocks the writer or readers), so the WAL stays small without any commit paying for it.
+/// blocks the writer or readers), so the WAL stays small without any commit paying for it;
+/// [`bound_wal`] empties it when overlapping readers keep it from restarting.
 async fn checkpointer(pool: SqlitePool) {
     let mut interval = tokio::time::interval(CHECKPOINT_INTERVAL);
     loop {
@@ -387,8 +460,37 @@ async fn checkpointer(pool: SqlitePool) {
     }
 }
 
-/// How often the WAL is checkpointed.
+/// How often the WAL is checkpointed passively.
 pub const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(1);
+/// Past this size the WAL is emptied by a truncating checkpoint.
+pub const WAL_TRUNCATE_BYTES: u64 = 16 * 1024 * 1024;
+/// `journal_size_limit`: the most a restarted WAL keeps on disk.
+pub const JOURNAL_SIZE_LIMIT_BYTES: u64 = 8 * 1024 * 1024;
+
+/// Creates the database file readable and writable by its owner only, or makes an existing
+/// one (and its WAL and shared-memory files) so. sqlite gives the files it creates beside the
+/// database the database file's mode.
+fn owner_only(path: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+        if let Some(parent) = path.parent().filter(|parent| !parent.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        std::fs::OpenOptions::new().write(true).create(true).truncate(false).mode(0o600).open(path)?;
+        for suffix in ["", "-wal", "-shm", "-journal"] {
+            let mut file = path.as_os_str().to_owned();
+            file.push(suffix);
+            match std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)) {
+                Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
+                other => other?,
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
 
 /// Runs the jobs in one transaction and commits. On a database error the transaction is rolled
 /// back and the jobs stay in `batch` to be failed.

@@ -550,7 +550,7 @@ async fn bad_participant_management_requests_are_refused_with_one_sentence() {
     assert_eq!(long.status, StatusCode::UNPROCESSABLE_ENTITY);
     long.error();
     let answer = fixture.admin(Method::POST, &exclude, None).await;
-    assert_eq!(answer.status, StatusCode::BAD_REQUEST, "no JSON body");
+    assert_eq!(answer.status, StatusCode::UNSUPPORTED_MEDIA_TYPE, "no JSON body");
     answer.error();
     let unknown = "00000000000000000000000000000000";
     for (method, path, body) in [
@@ -569,6 +569,7 @@ async fn bad_participant_management_requests_are_refused_with_one_sentence() {
     assert_eq!(bad_query.status, StatusCode::BAD_REQUEST);
     assert!(bad_query.error().contains("include_pilots"));
     // Without the admin token, or by cookie without X-Requested-With: refused, nothing changed.
+    let cookie = support::admin_session_cookie(&fixture.app, &fixture.admin_token).await;
     for (method, path) in [
         (Method::GET, format!("/api/admin/studies/{STUDY}/participants")),
         (Method::POST, exclude.clone()),
@@ -583,7 +584,7 @@ async fn bad_participant_management_requests_are_refused_with_one_sentence() {
             let request = Request::builder()
                 .method(method)
                 .uri(&path)
-                .header(header::COOKIE, format!("mrstudy_admin={}", fixture.admin_token))
+                .header(header::COOKIE, &cookie)
                 .header(header::CONTENT_TYPE, "application/json")
                 .body(Body::from(json!({"reason": "r"}).to_string()))
                 .unwrap();

@@ -178,7 +178,7 @@ async fn join_refuses_bad_input_without_changing_state() {
     assert_eq!(answer.status, StatusCode::BAD_REQUEST);
     answer.error();
     let answer = send(app, raw(&json!({"demographics": demographics()}).to_string(), None)).await;
-    assert_eq!(answer.status, StatusCode::BAD_REQUEST);
+    assert_eq!(answer.status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
     assert!(answer.error().contains("Content-Type"));
     let huge = json!({"demographics": demographics(), "client": {"userAgent": "x".repeat(20_000)}}).to_string();
     let answer = send(app, raw(&huge, Some("application/json"))).await;

@@ -87,7 +87,8 @@ impl Server {
     ) -> Result<Server, String> {
         let mut child = Command::new(binary())
             .envs(env.iter().copied())
-            .args(["serve", "--addr", addr, "--data-dir"])
+            // the tests' many participants all come from 127.0.0.1: no limits per client
+            .args(["serve", "--join-limit", "0", "--response-limit", "0", "--addr", addr, "--data-dir"])
             .arg(data_dir)
             .arg("--studies")
             .arg(studies)

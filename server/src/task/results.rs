@@ -18,6 +18,7 @@
 //! latencies per condition, and per task and measure the Friedman test, Kendall's W and
 //! the Holm-corrected Wilcoxon post hoc tests of `mrstudy_analysis::task`.
 
+use crate::export::text_cell;
 use askama::Template;
 use axum::Router;
 use axum::extract::{Path, State};
@@ -143,13 +144,13 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
                 }
                 writer
                     .write_record([
-                        cell.id.as_str(),
-                        task,
+                        &text_cell(&cell.id),
+                        &text_cell(task),
                         measure,
-                        &cell.condition,
+                        &text_cell(&cell.condition),
                         &format!("{value}"),
                         &cell.n.to_string(),
-                        &cell.label,
+                        &text_cell(&cell.label),
                     ])
                     .expect("memory");
             }
@@ -234,7 +235,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
                 }
                 "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at"
                 | "shown_at" | "answered_at" | "condition_order" => {
-                    row.try_get::<Option<String>, _>(column)?.unwrap_or_default()
+                    text_cell(&row.try_get::<Option<String>, _>(column)?.unwrap_or_default())
                 }
                 _ => row.try_get::<Option<f64>, _>(column)?.map(|v| format!("{v}")).unwrap_or_default(),
             };
@@ -255,7 +256,7 @@ async fn task_csv_download(
     headers: HeaderMap,
 ) -> AppResult<Response> {
     admin(&state, &headers)?;
-    let csv = task_csv(&state.storage().read, &slug).await?;
+    let csv = task_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
 
@@ -265,7 +266,7 @@ async fn trials_csv_download(
     headers: HeaderMap,
 ) -> AppResult<Response> {
     admin(&state, &headers)?;
-    let csv = trials_csv(&state.storage().read, &slug).await?;
+    let csv = trials_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
 }
 
@@ -331,7 +332,7 @@ pub struct RenderingRow {
 }
 
 pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
-    let pool = &state.storage().read;
+    let pool = &state.storage().admin;
     let definition = definition(pool, slug).await?;
     let served = state.lab().and_then(|lab| {
         let study = lab.studies.get(slug).cloned()?;

@@ -74,3 +74,12 @@ pub async fn call(app: &Router, method: Method, uri: &str, token: Option<&str>, 
     };
     send(app, request).await
 }
+
+/// Logs in with the admin token (`GET /admin/login?token=…`) and returns the `Cookie` header
+/// value of the admin session it starts.
+pub async fn admin_session_cookie(app: &Router, admin_token: &str) -> String {
+    let login = call(app, Method::GET, &format!("/admin/login?token={admin_token}"), None, None).await;
+    assert_eq!(login.status, axum::http::StatusCode::SEE_OTHER, "{}", login.text());
+    let set_cookie = login.headers.get(header::SET_COOKIE).expect("the login sets the cookie").to_str().unwrap();
+    set_cookie.split(';').next().unwrap().to_string()
+}

@@ -1,0 +1,203 @@
+//! Limits per client on the open internet: how often one client address may join a study,
+//! answer trials, and give a wrong admin token, each a token bucket; over the limit a request
+//! gets 429 with a sentence (JSON under `/api/`, a page elsewhere) and nothing is stored.
+//!
+//! The client address is the socket's peer ([`ClientAddr`], put on each request by
+//! [`crate::serve`]), or behind a TLS proxy (`serve --behind-tls`) the last address of
+//! `X-Forwarded-For`, the one the proxy added. A request without a [`ClientAddr`] (the router
+//! driven in-process, as the tests and the load generator do) is not limited.
+
+use std::collections::HashMap;
+use std::net::IpAddr;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use axum::extract::{Request, State};
+use axum::http::{Method, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+
+use crate::AppState;
+use crate::error::AppError;
+
+/// The peer address of the connection a request came on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClientAddr(pub IpAddr);
+
+/// How much one client address may do; 0 turns a limit off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Joins (new participants) per minute, with a burst of twice that.
+    pub joins_per_minute: u32,
+    /// Responses per minute, with a burst of twice that.
+    pub responses_per_minute: u32,
+    /// Wrong admin tokens (and admin calls refused with 403) per 15 minutes.
+    pub admin_failures: u32,
+    /// Behind a TLS-terminating proxy: the client is the last `X-Forwarded-For` address, and
+    /// the admin cookie is `Secure`.
+    pub behind_tls: bool,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits { joins_per_minute: 30, responses_per_minute: 600, admin_failures: 10, behind_tls: false }
+    }
+}
+
+/// Buckets by client address for each limit.
+#[derive(Debug, Default)]
+pub struct Buckets {
+    joins: Mutex<HashMap<IpAddr, Bucket>>,
+    responses: Mutex<HashMap<IpAddr, Bucket>>,
+    admin_failures: Mutex<HashMap<IpAddr, Bucket>>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Bucket {
+    tokens: f64,
+    at: Instant,
+}
+
+/// Takes one token from `client`'s bucket (capacity `burst`, refilled at `per_second`); false
+/// when it is empty. Full, idle buckets are dropped now and then so the map stays small.
+fn take(map: &Mutex<HashMap<IpAddr, Bucket>>, client: IpAddr, burst: f64, per_second: f64, cost: f64) -> bool {
+    let now = Instant::now();
+    let mut map = map.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    if map.len() > 100_000 {
+        map.retain(|_, bucket| bucket.tokens + now.duration_since(bucket.at).as_secs_f64() * per_second < burst);
+    }
+    let bucket = map.entry(client).or_insert(Bucket { tokens: burst, at: now });
+    bucket.tokens = (bucket.tokens + now.duration_since(bucket.at).as_secs_f64() * per_second).min(burst);
+    bucket.at = now;
+    if bucket.tokens >= cost {
+        bucket.tokens -= cost;
+        true
+    } else {
+        false
+    }
+}
+
+/// Whether `client` still has a token, without taking it.
+fn has_token(map: &Mutex<HashMap<IpAddr, Bucket>>, client: IpAddr, burst: f64, per_second: f64) -> bool {
+    let map = map.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    map.get(&client).is_none_or(|bucket| {
+        (bucket.tokens + Instant::now().duration_since(bucket.at).as_secs_f64() * per_second).min(burst) >= 1.0
+    })
+}
+
+const ADMIN_WINDOW: Duration = Duration::from_secs(15 * 60);
+
+/// Which limit a request falls under.
+enum Kind {
+    Join,
+    Response,
+    Admin,
+    None,
+}
+
+fn kind(method: &Method, path: &str) -> Kind {
+    let parts: Vec<&str> = path.trim_end_matches('/').split('/').collect();
+    match (method, parts.as_slice()) {
+        (&Method::POST, ["", "api", "studies", _, "participants"]) => Kind::Join,
+        (&Method::POST, ["", "api", "participants", _, "responses"]) => Kind::Response,
+        (_, ["", "api", "admin", ..]) | (_, ["", "admin", ..]) => Kind::Admin,
+        _ => Kind::None,
+    }
+}
+
+/// The client address of a request (see the module doc), if it came over a socket.
+pub fn client(request: &Request, behind_tls: bool) -> Option<IpAddr> {
+    let peer = request.extensions().get::<ClientAddr>()?.0;
+    if behind_tls {
+        let forwarded = request
+            .headers()
+            .get_all("x-forwarded-for")
+            .iter()
+            .filter_map(|value| value.to_str().ok())
+            .flat_map(|value| value.split(','))
+            .filter_map(|address| address.trim().parse::<IpAddr>().ok())
+            .last();
+        return Some(forwarded.unwrap_or(peer));
+    }
+    Some(peer)
+}
+
+/// The middleware: refuses a request over its limit with 429, counts admin refusals.
+pub async fn limit(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let limits = state.limits();
+    let Some(client) = client(&request, limits.behind_tls) else { return next.run(request).await };
+    let buckets = state.buckets();
+    let is_api = request.uri().path().starts_with("/api/");
+    let per_minute = |n: u32| (2.0 * n as f64, n as f64 / 60.0);
+    match kind(request.method(), request.uri().path()) {
+        Kind::Join if limits.joins_per_minute > 0 => {
+            let (burst, rate) = per_minute(limits.joins_per_minute);
+            if !take(&buckets.joins, client, burst, rate, 1.0) {
+                return too_many(is_api, "joins", limits.joins_per_minute, "a minute");
+            }
+            next.run(request).await
+        }
+        Kind::Response if limits.responses_per_minute > 0 => {
+            let (burst, rate) = per_minute(limits.responses_per_minute);
+            if !take(&buckets.responses, client, burst, rate, 1.0) {
+                return too_many(is_api, "answers", limits.responses_per_minute, "a minute");
+            }
+            next.run(request).await
+        }
+        Kind::Admin if limits.admin_failures > 0 => {
+            let burst = limits.admin_failures as f64;
+            let rate = burst / ADMIN_WINDOW.as_secs_f64();
+            if !has_token(&buckets.admin_failures, client, burst, rate) {
+                return too_many(is_api, "wrong admin tokens", limits.admin_failures, "15 minutes");
+            }
+            let response = next.run(request).await;
+            if response.status() == StatusCode::FORBIDDEN {
+                take(&buckets.admin_failures, client, burst, rate, 1.0);
+            }
+            response
+        }
+        _ => next.run(request).await,
+    }
+}
+
+fn too_many(is_api: bool, what: &str, limit: u32, window: &str) -> Response {
+    let sentence =
+        format!("Too many {what} from this address (at most {limit} in {window}); wait a little and try again.");
+    let mut response = if is_api {
+        AppError::TooManyRequests(sentence).into_response()
+    } else {
+        crate::pages::message_page(StatusCode::TOO_MANY_REQUESTS, "Too many requests", &sentence)
+    };
+    response.headers_mut().insert(header::RETRY_AFTER, axum::http::HeaderValue::from_static("60"));
+    response
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bucket_allows_its_burst_then_refuses_then_refills() {
+        let map = Mutex::new(HashMap::new());
+        let client: IpAddr = "192.0.2.1".parse().unwrap();
+        let other: IpAddr = "192.0.2.2".parse().unwrap();
+        for _ in 0..4 {
+            assert!(take(&map, client, 4.0, 1000.0 / 60.0 / 1000.0, 1.0));
+        }
+        assert!(!take(&map, client, 4.0, 0.0, 1.0));
+        assert!(take(&map, other, 4.0, 0.0, 1.0), "another address has its own bucket");
+        // refilled at 1000 per second, one millisecond is a token
+        std::thread::sleep(Duration::from_millis(5));
+        assert!(take(&map, client, 4.0, 1000.0, 1.0));
+    }
+
+    #[test]
+    fn requests_fall_under_their_limit_by_method_and_path() {
+        assert!(matches!(kind(&Method::POST, "/api/studies/s/participants"), Kind::Join));
+        assert!(matches!(kind(&Method::GET, "/api/studies/s/participants"), Kind::None));
+        assert!(matches!(kind(&Method::POST, "/api/participants/p/responses"), Kind::Response));
+        assert!(matches!(kind(&Method::GET, "/admin/login"), Kind::Admin));
+        assert!(matches!(kind(&Method::GET, "/api/admin/studies"), Kind::Admin));
+        assert!(matches!(kind(&Method::GET, "/administrator"), Kind::None));
+    }
+}

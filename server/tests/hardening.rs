@@ -1,0 +1,349 @@
+//! Issue 16's hardening, at the router (`oneshot`, a client address put on each request as
+//! `serve` does): strict JSON object bodies, `{"error": …}` for every `/api/` error without the
+//! server's type names, the bearer scheme in any case, limits per client address on joining,
+//! answering and wrong admin tokens (429 with a sentence), admin sessions (the cookie holds a
+//! random session id, never the token; logout; `Secure` behind TLS), spreadsheet formulas
+//! neutralised in the export, and the strength rule for an admin token set by hand.
+
+use std::net::IpAddr;
+
+use axum::Router;
+use axum::body::Body;
+use axum::http::{Method, Request, StatusCode, header};
+use mrstudy_server::limits::{ClientAddr, Limits};
+use mrstudy_server::serve::{Prepared, admin_token_strength, prepare};
+use serde_json::{Value, json};
+
+mod support;
+use support::{Answer, admin_session_cookie, call, copy_demo_study, send};
+
+struct Fixture {
+    app: Router,
+    admin_token: String,
+    _data_dir: tempfile::TempDir,
+}
+
+async fn fixture(limits: Option<Limits>) -> Fixture {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = data_dir.path().join("studies");
+    copy_demo_study(&studies);
+    let Prepared { state, admin_token, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
+    let state = match limits {
+        Some(limits) => state.with_limits(limits),
+        None => state,
+    };
+    Fixture { app: mrstudy_server::app(state), admin_token, _data_dir: data_dir }
+}
+
+fn demographics() -> Value {
+    json!({"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"})
+}
+
+/// A request from `client` with an optional bearer token and JSON body.
+async fn from(
+    app: &Router,
+    client: &str,
+    method: Method,
+    uri: &str,
+    token: Option<&str>,
+    body: Option<Value>,
+) -> Answer {
+    let mut request = Request::builder().method(method).uri(uri);
+    if let Some(token) = token {
+        request = request.header(header::AUTHORIZATION, format!("Bearer {token}"));
+    }
+    let mut request = match body {
+        Some(body) => request.header(header::CONTENT_TYPE, "application/json").body(Body::from(body.to_string())),
+        None => request.body(Body::empty()),
+    }
+    .unwrap();
+    request.extensions_mut().insert(ClientAddr(client.parse::<IpAddr>().unwrap()));
+    send(app, request).await
+}
+
+async fn join(app: &Router, client: &str) -> Answer {
+    from(
+        app,
+        client,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics()})),
+    )
+    .await
+}
+
+/// No sentence of the API names the server's Rust types or modules.
+fn plain(sentence: &str) {
+    for word in ["struct", "enum ", "::", "mrstudy_server", "Body", "Rejection"] {
+        assert!(!sentence.contains(word), "{sentence:?} names {word:?}");
+    }
+}
+
+#[tokio::test]
+async fn bodies_must_be_json_objects_and_errors_name_the_field_not_the_type() {
+    let fixture = fixture(None).await;
+    let app = &fixture.app;
+    // an array where an object is expected: serde would take it for a struct
+    let joined =
+        call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(json!([{}, null, null]))).await;
+    assert_eq!(joined.status, StatusCode::UNPROCESSABLE_ENTITY, "{}", joined.text());
+    assert!(joined.error().contains("JSON object"), "{}", joined.error());
+    let joined = join(app, "127.0.0.1").await.json();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    let url = format!("/api/participants/{id}/responses");
+    let answer = call(app, Method::POST, &url, Some(token), Some(json!([1, "left", 500]))).await;
+    assert_eq!(answer.status, StatusCode::UNPROCESSABLE_ENTITY, "{}", answer.text());
+    plain(&answer.error());
+    for (body, mentions) in [
+        (json!({"trial": 1, "chosen": 0, "rt_ms": 500}), "chosen"),
+        (json!({"trial": 1, "chosen": "up", "rt_ms": 500}), "chosen"),
+        (json!({"trial": "one", "chosen": "left", "rt_ms": 500}), "trial"),
+        (json!({"chosen": "left", "rt_ms": 500}), "trial"),
+    ] {
+        let answer = call(app, Method::POST, &url, Some(token), Some(body.clone())).await;
+        assert_eq!(answer.status, StatusCode::UNPROCESSABLE_ENTITY, "{body}: {}", answer.text());
+        let error = answer.error();
+        assert!(error.contains(mentions) && !error.contains("not valid JSON"), "{body}: {error}");
+        plain(&error);
+    }
+    // none of it was stored: trial 1 is still next
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
+    assert_eq!(next["trial"], 1);
+    // the bearer scheme in any case (RFC 9110)
+    let mut request = Request::builder().uri(format!("/api/participants/{id}/next"));
+    request = request.header(header::AUTHORIZATION, format!("bearer {token}"));
+    let answer = send(app, request.body(Body::empty()).unwrap()).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+}
+
+#[tokio::test]
+async fn every_api_error_is_a_json_sentence() {
+    let fixture = fixture(None).await;
+    let app = &fixture.app;
+    let raw = |method: Method, uri: &str, content_type: Option<&str>, body: String| {
+        let mut request = Request::builder().method(method).uri(uri);
+        if let Some(content_type) = content_type {
+            request = request.header(header::CONTENT_TYPE, content_type);
+        }
+        request.body(Body::from(body)).unwrap()
+    };
+    let cases = [
+        (raw(Method::DELETE, "/api/studies", None, String::new()), StatusCode::METHOD_NOT_ALLOWED),
+        (
+            raw(Method::GET, "/api/studies/shadows-demo/participants", None, String::new()),
+            StatusCode::METHOD_NOT_ALLOWED,
+        ),
+        (
+            raw(Method::POST, "/api/studies/shadows-demo/participants", Some("text/plain"), "{}".into()),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        ),
+        (
+            raw(
+                Method::POST,
+                "/api/studies/shadows-demo/participants",
+                Some("application/json"),
+                format!("{{\"demographics\": {{}}, \"pad\": \"{}\"}}", "x".repeat(40_000)),
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+        ),
+        (raw(Method::GET, "/api/no/such/route", None, String::new()), StatusCode::NOT_FOUND),
+        (
+            raw(Method::POST, "/api/studies/shadows-demo/participants", Some("application/json"), "{".into()),
+            StatusCode::BAD_REQUEST,
+        ),
+    ];
+    for (request, status) in cases {
+        let what = format!("{} {}", request.method(), request.uri());
+        let answer = send(app, request).await;
+        assert_eq!(answer.status, status, "{what}: {}", answer.text());
+        assert!(
+            answer.headers.get(header::CONTENT_TYPE).unwrap().to_str().unwrap().starts_with("application/json"),
+            "{what}"
+        );
+        let error = answer.error();
+        assert!(error.ends_with('.'), "{what}: {error}");
+        plain(&error);
+    }
+}
+
+#[tokio::test]
+async fn joining_and_answering_are_limited_per_client_address_with_429() {
+    let limits = Limits { joins_per_minute: 2, responses_per_minute: 3, admin_failures: 0, behind_tls: false };
+    let fixture = fixture(Some(limits)).await;
+    let app = &fixture.app;
+    // a burst of twice the rate per minute, then 429 with a sentence and a Retry-After
+    let mut joined = Vec::new();
+    for _ in 0..4 {
+        let answer = join(app, "192.0.2.7").await;
+        assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+        joined.push(answer.json());
+    }
+    let refused = join(app, "192.0.2.7").await;
+    assert_eq!(refused.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(refused.error().contains("Too many joins"), "{}", refused.error());
+    assert!(refused.headers.contains_key(header::RETRY_AFTER));
+    // another address has its own allowance; a request from inside the process none at all
+    assert_eq!(join(app, "192.0.2.8").await.status, StatusCode::CREATED);
+    let inside = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({"demographics": demographics()})),
+    )
+    .await;
+    assert_eq!(inside.status, StatusCode::CREATED);
+    let stats =
+        call(app, Method::GET, "/api/admin/studies/shadows-demo", Some(&fixture.admin_token), None).await.json();
+    assert_eq!(stats["started"], 6, "the refused join stored nobody: {stats}");
+
+    // answers: 6 in a burst from one address, the 7th is refused and not stored
+    let (id, token) = (joined[0]["participant"].as_str().unwrap(), joined[0]["token"].as_str().unwrap());
+    for trial in 1..=6 {
+        from(app, "192.0.2.7", Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+        let body = json!({"trial": trial, "chosen": "left", "rt_ms": 900});
+        let answer =
+            from(app, "192.0.2.7", Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body))
+                .await;
+        assert_eq!(answer.status, StatusCode::CREATED, "trial {trial}: {}", answer.text());
+    }
+    from(app, "192.0.2.7", Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    let body = json!({"trial": 7, "chosen": "left", "rt_ms": 900});
+    let answer =
+        from(app, "192.0.2.7", Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body))
+            .await;
+    assert_eq!(answer.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(answer.error().contains("Too many answers"));
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
+    assert_eq!(next["trial"], 7, "the refused answer was not stored: {next}");
+}
+
+#[tokio::test]
+async fn wrong_admin_tokens_are_throttled_per_address() {
+    let limits = Limits { joins_per_minute: 0, responses_per_minute: 0, admin_failures: 3, behind_tls: false };
+    let fixture = fixture(Some(limits)).await;
+    let app = &fixture.app;
+    for _ in 0..2 {
+        let answer = from(app, "198.51.100.1", Method::GET, "/api/admin/studies", Some("guess"), None).await;
+        assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    }
+    let login = from(app, "198.51.100.1", Method::GET, "/admin/login?token=guess", None, None).await;
+    assert_eq!(login.status, StatusCode::FORBIDDEN);
+    // the fourth try is refused before the token is looked at, even the right one
+    let answer = from(app, "198.51.100.1", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
+    assert_eq!(answer.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(answer.error().contains("wrong admin tokens"));
+    let page = from(app, "198.51.100.1", Method::GET, "/admin/login?token=guess", None, None).await;
+    assert_eq!(page.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(page.text().contains("<html") || page.text().contains("<!DOCTYPE"), "a page, not JSON");
+    let other = from(app, "198.51.100.2", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
+    assert_eq!(other.status, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn the_admin_cookie_is_a_server_side_session_that_logout_ends() {
+    let fixture = fixture(None).await;
+    let app = &fixture.app;
+    let login = call(app, Method::GET, &format!("/admin/login?token={}", fixture.admin_token), None, None).await;
+    let set_cookie = login.headers.get(header::SET_COOKIE).unwrap().to_str().unwrap().to_string();
+    assert!(!set_cookie.contains(&fixture.admin_token), "the cookie must not hold the admin token: {set_cookie}");
+    assert!(set_cookie.contains("HttpOnly") && set_cookie.contains("SameSite=Strict"), "{set_cookie}");
+    assert!(set_cookie.contains("Max-Age=43200") && !set_cookie.contains("Secure"), "{set_cookie}");
+    let cookie = admin_session_cookie(app, &fixture.admin_token).await;
+    let with_cookie = |cookie: String, method: Method, uri: &str| {
+        Request::builder().method(method).uri(uri).header(header::COOKIE, cookie).body(Body::empty()).unwrap()
+    };
+    let studies = send(app, with_cookie(cookie.clone(), Method::GET, "/api/admin/studies")).await;
+    assert_eq!(studies.status, StatusCode::OK);
+    // the admin token itself is no session
+    let token_cookie = format!("mrstudy_admin={}", fixture.admin_token);
+    assert_eq!(
+        send(app, with_cookie(token_cookie, Method::GET, "/api/admin/studies")).await.status,
+        StatusCode::UNAUTHORIZED
+    );
+    // logout ends the session and clears the cookie
+    let logout = send(app, with_cookie(cookie.clone(), Method::POST, "/admin/logout")).await;
+    assert_eq!(logout.status, StatusCode::OK);
+    assert!(logout.headers.get(header::SET_COOKIE).unwrap().to_str().unwrap().contains("Max-Age=0"));
+    let after = send(app, with_cookie(cookie, Method::GET, "/api/admin/studies")).await;
+    assert_eq!(after.status, StatusCode::UNAUTHORIZED);
+    assert!(after.error().contains("log in again"));
+
+    // behind a TLS proxy the cookie is Secure
+    let behind = fixture_behind_tls().await;
+    let login = call(&behind.app, Method::GET, &format!("/admin/login?token={}", behind.admin_token), None, None).await;
+    assert!(login.headers.get(header::SET_COOKIE).unwrap().to_str().unwrap().contains("; Secure"));
+}
+
+async fn fixture_behind_tls() -> Fixture {
+    fixture(Some(Limits { behind_tls: true, ..Limits::default() })).await
+}
+
+#[tokio::test]
+async fn spreadsheet_formulas_from_participants_are_neutralised_in_the_export() {
+    let fixture = fixture(None).await;
+    let app = &fixture.app;
+    let payload = "=HYPERLINK(\"http://evil.example/\",\"x\")";
+    let joined = call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(json!({
+            "demographics": demographics(),
+            "client": {"viewport": "=1+1", "devicePixelRatio": payload, "userAgent": "+cmd"},
+            "url_params": {"PROLIFIC_PID": "-2+3", "STUDY_ID": "\t=1", "SESSION_ID": "\r@x"}
+        })),
+    )
+    .await;
+    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
+    let joined = joined.json();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    let body = json!({"trial": 1, "chosen": "left", "rt_ms": 900, "client": {"devicePixelRatio": "@SUM(A1)"}});
+    assert_eq!(
+        call(app, Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body)).await.status,
+        StatusCode::CREATED
+    );
+    let csv = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None)
+        .await
+        .text();
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header = reader.headers().unwrap().clone();
+    let mut cells = 0;
+    for record in reader.records() {
+        for (name, cell) in header.iter().zip(record.unwrap().iter()) {
+            cells += 1;
+            if name == "rt_ms" {
+                continue; // a number
+            }
+            assert!(
+                !cell.starts_with(['=', '+', '-', '@', '\t', '\r']),
+                "column {name}: {cell:?} would run as a formula"
+            );
+        }
+    }
+    assert!(cells > 20);
+    assert!(csv.contains("'@SUM(A1)") && csv.contains("'-2+3"), "{csv}");
+}
+
+#[test]
+fn an_admin_token_set_by_hand_needs_128_bits() {
+    for weak in [
+        "aaaaaaaaaaaaaaaa",
+        "a".repeat(64).as_str(),
+        "0123456789abcdef",
+        "abababababababababababababababababab",
+        "short-but-Mixed-99",
+        "bad token with spaces 0123456789abcdef",
+    ] {
+        assert!(admin_token_strength(weak).is_err(), "{weak} should be refused");
+    }
+    for strong in ["3f9c2a7be14d5608f1c2e3d4a5b6c7d8", "Zq8kP2mW9xT4vN7rB3yL6h", &"0123456789abcdef".repeat(4)] {
+        assert!(admin_token_strength(strong).is_ok(), "{strong}: {:?}", admin_token_strength(strong));
+    }
+    let why = admin_token_strength("aaaaaaaaaaaaaaaa").unwrap_err();
+    assert!(why.contains("bits"), "{why}");
+}
