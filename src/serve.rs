@@ -20,6 +20,10 @@ pub struct ServeArgs {
     /// Directory of study files (*.toml).
     #[arg(long, default_value = "./studies")]
     studies: PathBuf,
+    /// A stimulus store shared by several servers (default: <data-dir>/stimuli), rendered
+    /// beforehand by `mrstudy stimuli` (with --shard on a cluster; docs/cluster.md).
+    #[arg(long)]
+    stimuli_dir: Option<PathBuf>,
     /// Behind a TLS-terminating reverse proxy: the client address is the last X-Forwarded-For
     /// address, and the admin cookie is Secure.
     #[arg(long)]
@@ -53,6 +57,7 @@ pub fn run_serve(args: ServeArgs) -> Result<()> {
         addr: args.addr,
         data_dir: args.data_dir,
         studies_dir: args.studies,
+        stimuli_dir: args.stimuli_dir,
         progress: Some(crate::stimuli::progress_bars()),
         limits: Limits {
             joins_per_minute: args.join_limit,

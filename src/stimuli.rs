@@ -25,6 +25,10 @@ pub struct StimuliArgs {
     /// CSV: `stimulus,scene,condition,metric,region,value`).
     #[arg(long)]
     metrics: Option<PathBuf>,
+    /// Render only share K of N (e.g. 3/8) of the study's scene configurations, for a cluster's
+    /// job array; merge the shards' stores by copying (docs/cluster.md).
+    #[arg(long, value_parser = stimuli::Shard::parse)]
+    shard: Option<stimuli::Shard>,
 }
 
 /// Progress bars for rendering: one for the photograph being path-traced, one for the stimuli.
@@ -66,12 +70,29 @@ pub fn progress_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
 }
 
 pub fn run(args: StimuliArgs) -> Result<()> {
+    if let Some(shard) = args.shard
+        && (args.out.is_some() || args.metrics.is_some())
+    {
+        anyhow::bail!(
+            "--shard {shard} renders part of the study; --out and --metrics need all of it: merge the shards' stores first, then run mrstudy stimuli without --shard"
+        );
+    }
     let study = mrstudy_server::study::load_study(&args.study)?;
     let store = args.data_dir.join("stimuli");
     let progress = progress_bars();
     let slug = study.slug.clone();
     let plan = stimuli::StimulusPlan::of(&study)?;
-    let rendered = stimuli::render_missing(&study, &plan, &store, &|step| progress(&slug, &step))
+    if let Some(shard) = args.shard {
+        let owned = plan.shard_scenes(shard);
+        let names: Vec<&str> = owned.iter().map(|&index| study.scenes[index].name.as_str()).collect();
+        eprintln!(
+            "shard {shard}: {} of the study's {} rendered scene configurations{}",
+            owned.len(),
+            plan.scenes.iter().flatten().count(),
+            if names.is_empty() { " (nothing to do: more shards than scene configurations)".to_string() } else { format!(": {}", names.join(", ")) }
+        );
+    }
+    let rendered = stimuli::render_missing_shard(&study, &plan, &store, args.shard, &|step| progress(&slug, &step))
         .with_context(|| format!("cannot render the stimuli of {}", args.study.display()))?;
     if let Some(path) = &args.metrics {
         let (csv, notes) = stimuli::metrics_csv(&study, &plan, &store)?;
@@ -86,7 +107,10 @@ pub fn run(args: StimuliArgs) -> Result<()> {
             .with_context(|| format!("cannot write the stimuli of {} into {}", args.study.display(), out.display()))?;
         eprintln!("wrote {written} stimuli into {}", out.display());
     }
-    let total = plan.stimuli().count();
+    let total = match args.shard {
+        Some(shard) => plan.shard_scenes(shard).iter().filter_map(|&index| plan.scenes[index].as_ref()).map(|scene| scene.stimuli.len()).sum(),
+        None => plan.stimuli().count(),
+    };
     eprintln!(
         "study \"{}\": rendered {} stimuli, {} were already in {} ({total} rendered stimuli in all); {} ground truths and {} stimulus records made",
         study.slug,

@@ -31,11 +31,14 @@ pub struct BenchConfig {
     pub participants: usize,
     /// Measured time (after a one-second warm-up).
     pub duration: Duration,
+    /// Admin export loops running beside the participants (each downloads the trials CSV
+    /// again as soon as it has it).
+    pub exports: usize,
 }
 
 impl Default for BenchConfig {
     fn default() -> Self {
-        BenchConfig { participants: 64, duration: Duration::from_secs(10) }
+        BenchConfig { participants: 64, duration: Duration::from_secs(10), exports: 0 }
     }
 }
 
@@ -60,6 +63,11 @@ pub struct BenchReport {
     pub next_p99_ms: f64,
     pub joins: u64,
     pub errors: u64,
+    /// Concurrent admin export loops, and the exports they finished in the measured time.
+    pub exports: usize,
+    pub exports_done: u64,
+    /// The largest the WAL file was, sampled every 50 ms, in MB.
+    pub wal_max_mb: f64,
     /// Where the database was (its file system decides what an fsync costs).
     pub data_dir: String,
     pub durability: &'static str,
@@ -79,21 +87,23 @@ impl Report {
     }
 }
 
-/// The benchmark: 16, 64 and 256 participants for 10 s each (`quick`: 64 for 3 s); table lines
+/// The benchmark: 16, 64 and 256 participants for 10 s each, then 16 and 64 beside 8 admin
+/// export loops (`quick`: 64 for 3 s); table lines
 /// go to `line` as the rows are measured.
 pub fn bench(quick: bool, line: &dyn Fn(&str)) -> Result<Report, String> {
     let seconds = if quick { 3 } else { 10 };
-    let concurrency: &[usize] = if quick { &[64] } else { &[16, 64, 256] };
+    let concurrency: &[(usize, usize)] = if quick { &[(64, 0)] } else { &[(16, 0), (64, 0), (256, 0), (16, 8), (64, 8)] };
     line(&format!(
-        "{:>12} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7}",
-        "participants", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors"
+        "{:>12} {:>7} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7} {:>8}",
+        "participants", "exports", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors", "WAL MB"
     ));
     let mut rows = Vec::new();
-    for &participants in concurrency {
-        let row = run(BenchConfig { participants, duration: Duration::from_secs(seconds) })?;
+    for &(participants, exports) in concurrency {
+        let row = run(BenchConfig { participants, duration: Duration::from_secs(seconds), exports })?;
         line(&format!(
-            "{:>12} {:>8.1} {:>11.0} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.2} {:>7}",
+            "{:>12} {:>7} {:>8.1} {:>11.0} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.2} {:>7} {:>8.1}",
             row.participants,
+            format!("{}/{}", row.exports, row.exports_done),
             row.seconds,
             row.responses_per_s,
             row.response_p50_ms,
@@ -101,7 +111,8 @@ pub fn bench(quick: bool, line: &dyn Fn(&str)) -> Result<Report, String> {
             row.response_p99_ms,
             row.response_max_ms,
             row.next_p99_ms,
-            row.errors
+            row.errors,
+            row.wal_max_mb
         ));
         rows.push(row);
     }
@@ -166,6 +177,7 @@ struct Tally {
     next_ms: Vec<f64>,
     joins: u64,
     errors: u64,
+    exports_done: u64,
 }
 
 /// Runs the benchmark (blocking).
@@ -184,15 +196,35 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         .enable_all()
         .build()
         .map_err(|error| format!("cannot start the server runtime: {error}"))?;
-    let address = server_runtime.block_on(async {
+    let (address, admin_token) = server_runtime.block_on(async {
         let prepared = prepare(&data_dir, &studies_dir).await.map_err(|error| error.to_string())?;
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(|error| error.to_string())?;
         let address = listener.local_addr().map_err(|error| error.to_string())?;
-        tokio::spawn(async move {
-            let _ = axum::serve(listener, mrstudy_server::app(prepared.state)).await;
-        });
-        Ok::<_, String>(address)
+        // the server's own connection loop; every participant comes from 127.0.0.1: no limits
+        let no_limits = mrstudy_server::limits::Limits { joins_per_minute: 0, responses_per_minute: 0, ..Default::default() };
+        let app = mrstudy_server::app(prepared.state.with_limits(no_limits));
+        tokio::spawn(mrstudy_server::serve::serve_connections(
+            listener,
+            app,
+            mrstudy_server::serve::Connections::default(),
+            std::future::pending(),
+        ));
+        Ok::<_, String>((address, prepared.admin_token))
     })?;
+    // the WAL's size, sampled until the run ends
+    let sampling = Arc::new(AtomicBool::new(true));
+    let sampler = {
+        let sampling = sampling.clone();
+        let wal = data_dir.join("mrstudy.db-wal");
+        std::thread::spawn(move || {
+            let mut largest = 0u64;
+            while sampling.load(Ordering::Relaxed) {
+                largest = largest.max(std::fs::metadata(&wal).map(|meta| meta.len()).unwrap_or(0));
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            largest
+        })
+    };
 
     let client_runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -216,6 +248,25 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
             let stop = stop.clone();
             tasks.push(tokio::spawn(async move { simulate(client, base, measuring, stop).await }));
         }
+        let mut exporters = Vec::new();
+        for _ in 0..config.exports {
+            let (client, base, token) = (client.clone(), base.clone(), admin_token.clone());
+            let (measuring, stop) = (measuring.clone(), stop.clone());
+            exporters.push(tokio::spawn(async move {
+                let mut done = 0u64;
+                while !stop.load(Ordering::Relaxed) {
+                    let export = client.get(format!("{base}/api/admin/studies/bench/export.csv")).bearer_auth(&token).send().await;
+                    if let Ok(export) = export
+                        && export.status().is_success()
+                        && export.bytes().await.is_ok()
+                        && measuring.load(Ordering::Relaxed)
+                    {
+                        done += 1;
+                    }
+                }
+                done
+            }));
+        }
         tokio::time::sleep(Duration::from_secs(1)).await;
         measuring.store(true, Ordering::SeqCst);
         let start = Instant::now();
@@ -231,9 +282,14 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
             total.joins += tally.joins;
             total.errors += tally.errors;
         }
+        for exporter in exporters {
+            total.exports_done += exporter.await.map_err(|error| error.to_string())?;
+        }
         Ok::<_, String>((total, seconds))
     })?;
     drop(client_runtime);
+    sampling.store(false, Ordering::Relaxed);
+    let wal_largest = sampler.join().unwrap_or(0);
     server_runtime.shutdown_timeout(Duration::from_secs(5));
 
     let mut response_ms = tally.response_ms;
@@ -255,6 +311,9 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         next_p99_ms: percentile(&next_ms, 0.99),
         joins: tally.joins,
         errors: tally.errors,
+        exports: config.exports,
+        exports_done: tally.exports_done,
+        wal_max_mb: wal_largest as f64 / (1024.0 * 1024.0),
         data_dir: data_dir.display().to_string(),
         durability: "sqlite WAL, synchronous=FULL, group commit",
     })

@@ -274,7 +274,11 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
     header.extend(definition.url_params.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
-    for row in rows {
+    for (index, row) in rows.into_iter().enumerate() {
+        if index % 256 == 255 {
+            // a long export gives the worker thread back now and then (participants wait on it)
+            tokio::task::yield_now().await;
+        }
         let participant: String = row.try_get("participant")?;
         let Some(record) = kept.get(&participant) else { continue };
         let chosen_side: String = row.try_get("chosen")?;

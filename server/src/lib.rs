@@ -77,6 +77,8 @@ struct StateInner {
     /// What one client address may do, and how much it has done.
     limits: limits::Limits,
     buckets: limits::Buckets,
+    /// One admin API call at a time ([`limits::limit`]).
+    admin_work: tokio::sync::Semaphore,
 }
 
 impl AppState {
@@ -101,6 +103,7 @@ impl AppState {
                 sessions: Default::default(),
                 limits: limits::Limits::default(),
                 buckets: Default::default(),
+                admin_work: tokio::sync::Semaphore::new(1),
             }),
         }
     }
@@ -117,6 +120,10 @@ impl AppState {
 
     pub(crate) fn buckets(&self) -> &limits::Buckets {
         &self.inner.buckets
+    }
+
+    pub(crate) fn admin_work(&self) -> &tokio::sync::Semaphore {
+        &self.inner.admin_work
     }
 
     pub(crate) fn sessions(&self) -> &auth::Sessions {

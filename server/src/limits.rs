@@ -5,7 +5,9 @@
 //! The client address is the socket's peer ([`ClientAddr`], put on each request by
 //! [`crate::serve`]), or behind a TLS proxy (`serve --behind-tls`) the last address of
 //! `X-Forwarded-For`, the one the proxy added. A request without a [`ClientAddr`] (the router
-//! driven in-process, as the tests and the load generator do) is not limited.
+//! driven in-process, as the tests do) is not limited.
+//!
+//! Admin API calls run one at a time (see [`limit`]).
 
 use std::collections::HashMap;
 use std::net::IpAddr;
@@ -122,8 +124,15 @@ pub fn client(request: &Request, behind_tls: bool) -> Option<IpAddr> {
     Some(peer)
 }
 
-/// The middleware: refuses a request over its limit with 429, counts admin refusals.
+/// The middleware: refuses a request over its limit with 429, counts admin refusals, and runs
+/// admin API calls (exports, analyses: work that takes a worker thread for a while) one at a
+/// time, so that however many an admin starts, participants' requests find free workers.
 pub async fn limit(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let _admin_work = if request.uri().path().starts_with("/api/admin/") {
+        Some(state.admin_work().acquire().await.expect("the semaphore is never closed"))
+    } else {
+        None
+    };
     let limits = state.limits();
     let Some(client) = client(&request, limits.behind_tls) else { return next.run(request).await };
     let buckets = state.buckets();

@@ -32,6 +32,9 @@ pub struct ServeConfig {
     pub addr: String,
     pub data_dir: PathBuf,
     pub studies_dir: PathBuf,
+    /// A stimulus store shared with other servers (rendered beforehand, e.g. by a cluster's
+    /// `mrstudy stimuli --shard` jobs); `<data-dir>/stimuli` when `None`.
+    pub stimuli_dir: Option<PathBuf>,
     /// Called while missing stimuli are rendered at start-up (None: quietly).
     pub progress: Option<RenderProgress>,
     /// What one client address may do ([`crate::limits`]).
@@ -176,20 +179,21 @@ pub struct Prepared {
 /// Opens the data directory and loads the studies (see the module doc), rendering missing
 /// stimuli quietly.
 pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, ServeError> {
-    prepare_with_progress(data_dir, studies_dir, None).await
+    prepare_with_progress(data_dir, studies_dir, None, None).await
 }
 
 /// [`prepare`], telling `progress` how rendering missing stimuli goes.
 pub async fn prepare_with_progress(
     data_dir: &Path,
     studies_dir: &Path,
+    stimuli_dir: Option<&Path>,
     progress: Option<&RenderProgress>,
 ) -> Result<Prepared, ServeError> {
     std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
     let storage = Storage::open(&data_dir.join("mrstudy.db")).await?;
     let admin_token = admin_token(data_dir)?;
     let studies = load_studies(studies_dir)?;
-    let stimuli_dir = data_dir.join("stimuli");
+    let stimuli_dir = stimuli_dir.map(Path::to_path_buf).unwrap_or_else(|| data_dir.join("stimuli"));
     let mut prepared = Vec::new();
     let mut skipped = Vec::new();
     let mut tasks = Vec::new();
@@ -264,7 +268,13 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
-        let prepared = prepare_with_progress(&config.data_dir, &config.studies_dir, config.progress.as_ref()).await?;
+        let prepared = prepare_with_progress(
+            &config.data_dir,
+            &config.studies_dir,
+            config.stimuli_dir.as_deref(),
+            config.progress.as_ref(),
+        )
+        .await?;
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }

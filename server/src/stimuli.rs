@@ -16,6 +16,14 @@
 //! against that ground truth per region, its render time and settings — stored as
 //! `<sha256>.json` under the entry `rendered/<key>.metrics`. [`metrics_csv`] writes them as
 //! DESIGN.md's stimulus metrics CSV.
+//!
+//! Sharding ([`Shard`], `mrstudy stimuli --shard K/N`): the unit of work is a scene
+//! configuration (its reference render is shared by all its conditions); the renderable scene
+//! configurations, in the study's order, are dealt round-robin to N shards, so shard K renders a
+//! deterministic, disjoint share whatever its store already holds. Stores merge by copying
+//! their files into one (content-addressed names, index entries that name them; every writer
+//! renames a uniquely named partial file into place), and a merged store holds the same images,
+//! ground truths and index entries as one rendered on a single machine.
 
 use std::path::{Path, PathBuf};
 
@@ -200,6 +208,53 @@ impl StimulusPlan {
     }
 }
 
+/// A share of a study's rendering: the `index`-th (1-based) of `count`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `K/N` with 1 ≤ K ≤ N; says what is wrong otherwise.
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let (index, count) =
+            text.split_once('/').ok_or_else(|| format!("`{text}` is not K/N (e.g. 3/8: the third of eight shares)"))?;
+        let number = |part: &str| part.trim().parse::<usize>().map_err(|_| format!("`{part}` in `{text}` is not a whole number"));
+        let (index, count) = (number(index)?, number(count)?);
+        if count == 0 || index == 0 || index > count {
+            return Err(format!("`{text}`: K must be 1 to N and N at least 1"));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether this shard renders the scene configuration at `position` among the renderable
+    /// ones (0-based, in the study's order).
+    pub fn owns(&self, position: usize) -> bool {
+        position % self.count == self.index - 1
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl StimulusPlan {
+    /// The scene configurations (indices) `shard` renders, incomplete in `store` or not.
+    pub fn shard_scenes(&self, shard: Shard) -> Vec<usize> {
+        self.scenes
+            .iter()
+            .enumerate()
+            .filter(|(_, planned)| planned.is_some())
+            .enumerate()
+            .filter(|(position, _)| shard.owns(*position))
+            .map(|(_, (index, _))| index)
+            .collect()
+    }
+}
+
 /// What [`render_missing`] made.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Rendered {
@@ -257,9 +312,19 @@ pub fn store_bytes(bytes: &[u8], extension: &str, store: &Path) -> Result<String
     let target = store.join(&name);
     if !target.exists() {
         std::fs::create_dir_all(store)?;
-        write_atomically(&store.join(format!(".{name}.partial")), &target, bytes)?;
+        write_atomically(&partial(&store.join(format!(".{name}"))), &target, bytes)?;
     }
     Ok(name)
+}
+
+/// A partial file's name beside `path`, unique to this process and call: several renderers
+/// (shards, servers) may write the same entry of a shared store at once.
+fn partial(path: &Path) -> PathBuf {
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let mut name = path.as_os_str().to_owned();
+    name.push(format!(".{}-{n}.partial", std::process::id()));
+    PathBuf::from(name)
 }
 
 fn write_atomically(temporary: &Path, target: &Path, bytes: &[u8]) -> Result<(), std::io::Error> {
@@ -278,7 +343,7 @@ pub fn lookup_record(store: &Path, stimulus: &PlannedStimulus) -> Option<Stimulu
 
 fn write_entry(store: &Path, key: &str, name: &str) -> Result<(), StimuliError> {
     let entry = index_path(store, key);
-    write_atomically(&entry.with_extension("partial"), &entry, name.as_bytes())
+    write_atomically(&partial(&entry), &entry, name.as_bytes())
         .map_err(|source| StimuliError::Io { path: entry, source })
 }
 
@@ -294,7 +359,22 @@ pub fn render_missing(
     store: &Path,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<Rendered, StimuliError> {
-    let scenes = plan.incomplete(store);
+    render_missing_shard(study, plan, store, None, progress)
+}
+
+/// [`render_missing`] for the scene configurations of one `shard` only (all with `None`).
+pub fn render_missing_shard(
+    study: &Study,
+    plan: &StimulusPlan,
+    store: &Path,
+    shard: Option<Shard>,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Rendered, StimuliError> {
+    let mut scenes = plan.incomplete(store);
+    if let Some(shard) = shard {
+        let owned = plan.shard_scenes(shard);
+        scenes.retain(|index| owned.contains(index));
+    }
     let mut rendered = Rendered::default();
     if scenes.is_empty() {
         return Ok(rendered);

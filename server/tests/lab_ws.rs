@@ -600,3 +600,28 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
 /// With pace = "equal", the largest relative difference allowed between the conditions' mean
 /// shown frame times.
 const PACE_PARITY: f64 = 0.10;
+
+/// Issue 16: an upgrade from another site's page is refused; an oversized message gets an
+/// `error` before the connection is closed (it used to be dropped without a word).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_foreign_origin_is_refused_and_an_oversized_message_is_answered_before_closing() {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let _alone = RENDERING.lock().await;
+    let Some((url, _storage, _state, _data_dir)) = serve(&hygiene_study()).await else { return };
+    let mut request = url.as_str().into_client_request().unwrap();
+    request.headers_mut().insert("origin", "https://evil.example".parse().unwrap());
+    match tokio_tungstenite::connect_async(request).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => assert_eq!(response.status(), 403),
+        other => panic!("a foreign origin must be refused, got {:?}", other.map(|(_, response)| response.status())),
+    }
+    // the server's own page is welcome
+    let host = url.trim_start_matches("ws://").split('/').next().unwrap().to_string();
+    let mut request = url.as_str().into_client_request().unwrap();
+    request.headers_mut().insert("origin", format!("http://{host}").parse().unwrap());
+    let (mut socket, _) = tokio_tungstenite::connect_async(request).await.unwrap();
+    send(&mut socket, json!({"type": "start", "label": "x".repeat(5000)})).await;
+    let error = json_of(&mut socket, "error").await;
+    assert!(error["message"].as_str().unwrap().contains("more than the limit of 4096"), "{error}");
+    let closed = tokio::time::timeout(Duration::from_secs(10), socket.next()).await.unwrap();
+    assert!(matches!(closed, None | Some(Ok(Message::Close(_))) | Some(Err(_))), "{closed:?}");
+}

@@ -13,7 +13,7 @@ use super::support::{Server, binary, client, export, repo_studies_dir};
 /// Three conditions (gi off, gi on, gi and colour mapping on) on two built-in scenes, shown on
 /// different scene configurations side by side so that all six stimuli are compared with each
 /// other (a six-cycle of stimuli): the analysis fits a worth per stimulus.
-fn write_chain_study(dir: &Path) {
+pub fn write_chain_study(dir: &Path) {
     let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
     let texts = &demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()];
     let study = format!(

@@ -85,6 +85,18 @@ impl Server {
         env: &[(&str, &str)],
         wait: Duration,
     ) -> Result<Server, String> {
+        Server::try_start_with_args(data_dir, addr, studies, env, &[], wait)
+    }
+
+    /// [`Server::try_start_with_env`] with extra arguments to `serve`.
+    pub fn try_start_with_args(
+        data_dir: &Path,
+        addr: &str,
+        studies: &Path,
+        env: &[(&str, &str)],
+        args: &[&str],
+        wait: Duration,
+    ) -> Result<Server, String> {
         let mut child = Command::new(binary())
             .envs(env.iter().copied())
             // the tests' many participants all come from 127.0.0.1: no limits per client
@@ -92,6 +104,7 @@ impl Server {
             .arg(data_dir)
             .arg("--studies")
             .arg(studies)
+            .args(args)
             .env_remove("MRSTUDY_ADMIN_TOKEN")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())

@@ -220,6 +220,8 @@ pub struct Lab {
     pub studies: HashMap<String, Arc<LabStudy>>,
     /// Slugs in load order.
     pub order: Vec<String>,
+    /// Live WebSocket sessions, at most [`session::MAX_SESSIONS`].
+    pub sessions: Arc<std::sync::atomic::AtomicUsize>,
 }
 
 /// What starting the lab gave: the lab (if any study is served) and the lines to print.
@@ -323,7 +325,7 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
         served.insert(lab_study.study.slug.clone(), Arc::new(lab_study));
     }
     if !served.is_empty() {
-        start.lab = Some(Lab { renderer, adapter, studies: served, order });
+        start.lab = Some(Lab { renderer, adapter, studies: served, order, sessions: Default::default() });
     }
     start
 }

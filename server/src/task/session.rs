@@ -21,6 +21,12 @@
 //! coalesced into one next frame showing the latest position. Per frame the session measures the
 //! renderer's time and the latency from the oldest input not yet shown to the frame being sent.
 //!
+//! Open to the internet: a browser's upgrade must come from this server's own pages (its
+//! `Origin` names the request's `Host`; clients that send no `Origin` are not browsers), at
+//! most [`MAX_SESSIONS`] sessions run at once (503 beyond), a session without a message for
+//! [`IDLE_TIMEOUT`] is closed with an `error` saying so, and a message over
+//! [`MAX_MESSAGE_BYTES`] gets an `error` before the connection is closed.
+//!
 //! Bad input — malformed or unknown messages, keys outside a key task, answers out of range, an
 //! answer to another trial or a finished one — gets one `error` message with a sentence and
 //! changes nothing. A trial's result is committed to the database before `saved` is sent.
@@ -46,14 +52,54 @@ use crate::study::task::TaskKind;
 
 /// Largest text message accepted from a client, in bytes.
 pub const MAX_MESSAGE_BYTES: usize = 4096;
+/// Largest message read at all: one between this and [`MAX_MESSAGE_BYTES`] is answered with an
+/// `error` and the connection closed; a larger one closes it at once.
+const MAX_READ_BYTES: usize = 1 << 20;
+/// Lab sessions at once, over all task studies.
+pub const MAX_SESSIONS: usize = 64;
+/// A session without any message from its client for this long is closed.
+pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10 * 60);
+
+/// Counts a live session; uncounts it when dropped.
+struct SessionSlot(Arc<std::sync::atomic::AtomicUsize>);
+
+impl SessionSlot {
+    fn take(count: &Arc<std::sync::atomic::AtomicUsize>) -> Option<SessionSlot> {
+        use std::sync::atomic::Ordering;
+        count
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < MAX_SESSIONS).then_some(n + 1))
+            .ok()
+            .map(|_| SessionSlot(count.clone()))
+    }
+}
+
+impl Drop for SessionSlot {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, std::sync::atomic::Ordering::AcqRel);
+    }
+}
+
+/// Whether the upgrade's `Origin` (if any) is this server: its host and port equal `Host`.
+fn same_origin(headers: &axum::http::HeaderMap) -> bool {
+    let Some(origin) = headers.get(axum::http::header::ORIGIN) else { return true };
+    let host = headers.get(axum::http::header::HOST).and_then(|host| host.to_str().ok());
+    let origin_host = origin.to_str().ok().and_then(|origin| origin.split_once("://")).map(|(_, rest)| rest);
+    matches!((origin_host, host), (Some(origin), Some(host)) if origin.eq_ignore_ascii_case(host))
+}
 /// Keys kept in one trial's key log; further keys are refused.
 pub const MAX_KEYS_PER_TRIAL: usize = 5000;
 
 pub async fn websocket(
     State(state): State<AppState>,
     Path(slug): Path<String>,
+    headers: axum::http::HeaderMap,
     upgrade: WebSocketUpgrade,
 ) -> Result<Response, AppError> {
+    if !same_origin(&headers) {
+        return Err(AppError::Forbidden(
+            "A lab session may only be opened from this server's own lab page (the Origin is another site).".into(),
+        ));
+    }
     let lab = state
         .lab()
         .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\" (no lab studies are served).")))?;
@@ -62,7 +108,13 @@ pub async fn websocket(
         .get(&slug)
         .cloned()
         .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\".")))?;
-    Ok(upgrade.max_message_size(MAX_MESSAGE_BYTES).on_upgrade(move |socket| async move {
+    let slot = SessionSlot::take(&lab.sessions).ok_or_else(|| {
+        AppError::Unavailable(format!(
+            "The lab already runs {MAX_SESSIONS} sessions, its most at once; try again when one has finished."
+        ))
+    })?;
+    Ok(upgrade.max_message_size(MAX_READ_BYTES).max_frame_size(MAX_READ_BYTES).on_upgrade(move |socket| async move {
+        let _slot = slot;
         let mut session = Session {
             state,
             lab,
@@ -241,8 +293,19 @@ impl Session {
                 }
             };
             tokio::select! {
-                message = self.socket.recv() => {
+                message = tokio::time::timeout(IDLE_TIMEOUT, self.socket.recv()) => {
+                    let Ok(message) = message else {
+                        let minutes = IDLE_TIMEOUT.as_secs() / 60;
+                        let _ = self.send(json!({"type": "error", "message": format!("The session was closed after {minutes} minutes without a message; reload the page to resume.")})).await;
+                        let _ = self.socket.send(Message::Close(None)).await;
+                        return;
+                    };
                     let Some(Ok(message)) = message else { return };
+                    if let Message::Text(text) = &message && text.len() > MAX_MESSAGE_BYTES {
+                        let _ = self.send(json!({"type": "error", "message": format!("The message has {} bytes, more than the limit of {MAX_MESSAGE_BYTES}; the connection is closed.", text.len())})).await;
+                        let _ = self.socket.send(Message::Close(None)).await;
+                        return;
+                    }
                     let outcome = match message {
                         Message::Text(text) => self.handle(text.as_str()).await,
                         Message::Binary(_) => Err(Refusal("Binary messages are not accepted; send JSON text messages.".into())),
