@@ -89,7 +89,11 @@ pub fn run(args: StimuliArgs) -> Result<()> {
             "shard {shard}: {} of the study's {} rendered scene configurations{}",
             owned.len(),
             plan.scenes.iter().flatten().count(),
-            if names.is_empty() { " (nothing to do: more shards than scene configurations)".to_string() } else { format!(": {}", names.join(", ")) }
+            if names.is_empty() {
+                " (nothing to do: more shards than scene configurations)".to_string()
+            } else {
+                format!(": {}", names.join(", "))
+            }
         );
     }
     let rendered = stimuli::render_missing_shard(&study, &plan, &store, args.shard, &|step| progress(&slug, &step))
@@ -108,7 +112,12 @@ pub fn run(args: StimuliArgs) -> Result<()> {
         eprintln!("wrote {written} stimuli into {}", out.display());
     }
     let total = match args.shard {
-        Some(shard) => plan.shard_scenes(shard).iter().filter_map(|&index| plan.scenes[index].as_ref()).map(|scene| scene.stimuli.len()).sum(),
+        Some(shard) => plan
+            .shard_scenes(shard)
+            .iter()
+            .filter_map(|&index| plan.scenes[index].as_ref())
+            .map(|scene| scene.stimuli.len())
+            .sum(),
         None => plan.stimuli().count(),
     };
     eprintln!(

@@ -20,10 +20,10 @@ mod render;
 mod render_gpu;
 #[path = "e2e/serve.rs"]
 mod serve;
-#[path = "e2e/serve_hardening.rs"]
-mod serve_hardening;
 #[path = "e2e/serve_durability.rs"]
 mod serve_durability;
+#[path = "e2e/serve_hardening.rs"]
+mod serve_hardening;
 #[path = "e2e/shard.rs"]
 mod shard;
 #[path = "e2e/simulate.rs"]

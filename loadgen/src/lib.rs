@@ -92,10 +92,21 @@ impl Report {
 /// go to `line` as the rows are measured.
 pub fn bench(quick: bool, line: &dyn Fn(&str)) -> Result<Report, String> {
     let seconds = if quick { 3 } else { 10 };
-    let concurrency: &[(usize, usize)] = if quick { &[(64, 0)] } else { &[(16, 0), (64, 0), (256, 0), (16, 8), (64, 8)] };
+    let concurrency: &[(usize, usize)] =
+        if quick { &[(64, 0)] } else { &[(16, 0), (64, 0), (256, 0), (16, 8), (64, 8)] };
     line(&format!(
         "{:>12} {:>7} {:>8} {:>11} {:>9} {:>9} {:>9} {:>9} {:>10} {:>7} {:>8}",
-        "participants", "exports", "seconds", "responses/s", "p50 ms", "p90 ms", "p99 ms", "max ms", "next p99", "errors", "WAL MB"
+        "participants",
+        "exports",
+        "seconds",
+        "responses/s",
+        "p50 ms",
+        "p90 ms",
+        "p99 ms",
+        "max ms",
+        "next p99",
+        "errors",
+        "WAL MB"
     ));
     let mut rows = Vec::new();
     for &(participants, exports) in concurrency {
@@ -201,7 +212,8 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(|error| error.to_string())?;
         let address = listener.local_addr().map_err(|error| error.to_string())?;
         // the server's own connection loop; every participant comes from 127.0.0.1: no limits
-        let no_limits = mrstudy_server::limits::Limits { joins_per_minute: 0, responses_per_minute: 0, ..Default::default() };
+        let no_limits =
+            mrstudy_server::limits::Limits { joins_per_minute: 0, responses_per_minute: 0, ..Default::default() };
         let app = mrstudy_server::app(prepared.state.with_limits(no_limits));
         tokio::spawn(mrstudy_server::serve::serve_connections(
             listener,
@@ -255,7 +267,11 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
             exporters.push(tokio::spawn(async move {
                 let mut done = 0u64;
                 while !stop.load(Ordering::Relaxed) {
-                    let export = client.get(format!("{base}/api/admin/studies/bench/export.csv")).bearer_auth(&token).send().await;
+                    let export = client
+                        .get(format!("{base}/api/admin/studies/bench/export.csv"))
+                        .bearer_auth(&token)
+                        .send()
+                        .await;
                     if let Ok(export) = export
                         && export.status().is_success()
                         && export.bytes().await.is_ok()

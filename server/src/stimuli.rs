@@ -220,7 +220,9 @@ impl Shard {
     pub fn parse(text: &str) -> Result<Shard, String> {
         let (index, count) =
             text.split_once('/').ok_or_else(|| format!("`{text}` is not K/N (e.g. 3/8: the third of eight shares)"))?;
-        let number = |part: &str| part.trim().parse::<usize>().map_err(|_| format!("`{part}` in `{text}` is not a whole number"));
+        let number = |part: &str| {
+            part.trim().parse::<usize>().map_err(|_| format!("`{part}` in `{text}` is not a whole number"))
+        };
         let (index, count) = (number(index)?, number(count)?);
         if count == 0 || index == 0 || index > count {
             return Err(format!("`{text}`: K must be 1 to N and N at least 1"));

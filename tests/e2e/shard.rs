@@ -12,7 +12,14 @@ use super::ground_truth::write_chain_study;
 use super::support::{Server, binary, client};
 
 fn stimuli(study: &Path, data_dir: &Path, extra: &[&str]) -> Output {
-    Command::new(binary()).args(["stimuli", "--study"]).arg(study).arg("--data-dir").arg(data_dir).args(extra).output().unwrap()
+    Command::new(binary())
+        .args(["stimuli", "--study"])
+        .arg(study)
+        .arg("--data-dir")
+        .arg(data_dir)
+        .args(extra)
+        .output()
+        .unwrap()
 }
 
 /// Every file under `dir` by its path relative to `dir`, with its bytes.
@@ -53,7 +60,10 @@ fn the_union_of_the_shards_is_the_single_machine_store_and_serve_uses_it_as_is()
         let output = stimuli(&study, &dir, &["--shard", shard]);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{stderr}");
-        assert!(stderr.contains(&format!("shard {shard}: 1 of the study's 2 rendered scene configurations: {scene}")), "{stderr}");
+        assert!(
+            stderr.contains(&format!("shard {shard}: 1 of the study's 2 rendered scene configurations: {scene}")),
+            "{stderr}"
+        );
         assert!(stderr.contains("rendered 3 stimuli, 0 were already"), "{stderr}");
         // merging is copying
         for (path, bytes) in files(&dir.join("stimuli")) {
@@ -62,19 +72,28 @@ fn the_union_of_the_shards_is_the_single_machine_store_and_serve_uses_it_as_is()
         }
     }
     let (single_files, merged_files) = (files(&single.join("stimuli")), files(&merged));
-    assert_eq!(single_files.keys().filter(|p| !is_record(p)).collect::<Vec<_>>(), merged_files.keys().filter(|p| !is_record(p)).collect::<Vec<_>>());
+    assert_eq!(
+        single_files.keys().filter(|p| !is_record(p)).collect::<Vec<_>>(),
+        merged_files.keys().filter(|p| !is_record(p)).collect::<Vec<_>>()
+    );
     for (path, bytes) in &single_files {
         if !is_record(path) {
             assert!(merged_files[path] == *bytes, "{} differs", path.display());
         }
     }
     // the records hold measured render times, so their bytes differ; there is one per stimulus
-    let records = |files: &BTreeMap<PathBuf, Vec<u8>>| files.keys().filter(|p| p.extension().is_some_and(|x| x == "metrics")).count();
+    let records = |files: &BTreeMap<PathBuf, Vec<u8>>| {
+        files.keys().filter(|p| p.extension().is_some_and(|x| x == "metrics")).count()
+    };
     assert_eq!(records(&single_files), 6);
     assert_eq!(records(&merged_files), 6);
     let again = stimuli(&study, &work.path().join("merged"), &[]);
     let stderr = String::from_utf8_lossy(&again.stderr);
-    assert!(stderr.contains("rendered 0 stimuli, 6 were already") && stderr.contains("0 ground truths and 0 stimulus records made"), "{stderr}");
+    assert!(
+        stderr.contains("rendered 0 stimuli, 6 were already")
+            && stderr.contains("0 ground truths and 0 stimulus records made"),
+        "{stderr}"
+    );
 
     // bad shards and a shard with --out are one sentence each
     for (args, says) in [
@@ -84,7 +103,11 @@ fn the_union_of_the_shards_is_the_single_machine_store_and_serve_uses_it_as_is()
     ] {
         let output = stimuli(&study, &work.path().join("bad"), &args);
         assert!(!output.status.success());
-        assert!(String::from_utf8_lossy(&output.stderr).contains(says), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+        assert!(
+            String::from_utf8_lossy(&output.stderr).contains(says),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
     }
 
     // a server on its own data directory serves from the shared store and renders nothing
@@ -101,7 +124,8 @@ fn the_union_of_the_shards_is_the_single_machine_store_and_serve_uses_it_as_is()
         Duration::from_secs(60),
     )
     .unwrap();
-    let listed: serde_json::Value = client().get(format!("{}/api/studies", server.base)).send().unwrap().json().unwrap();
+    let listed: serde_json::Value =
+        client().get(format!("{}/api/studies", server.base)).send().unwrap().json().unwrap();
     assert_eq!(listed[0]["slug"], "chain-mini", "{listed}");
     drop(server);
     assert_eq!(files(&merged), before, "serve wrote nothing into the shared store");
