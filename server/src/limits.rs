@@ -111,14 +111,15 @@ fn kind(method: &Method, path: &str) -> Kind {
 pub fn client(request: &Request, behind_tls: bool) -> Option<IpAddr> {
     let peer = request.extensions().get::<ClientAddr>()?.0;
     if behind_tls {
+        // the last address is the one the proxy added; the ones before it came from the client
         let forwarded = request
             .headers()
             .get_all("x-forwarded-for")
             .iter()
             .filter_map(|value| value.to_str().ok())
             .flat_map(|value| value.split(','))
-            .filter_map(|address| address.trim().parse::<IpAddr>().ok())
-            .last();
+            .next_back()
+            .and_then(|address| address.trim().parse::<IpAddr>().ok());
         return Some(forwarded.unwrap_or(peer));
     }
     Some(peer)
