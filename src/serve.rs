@@ -20,7 +20,7 @@ pub struct ServeArgs {
     /// Directory of study files (*.toml).
     #[arg(long, default_value = "./studies")]
     studies: PathBuf,
-    /// A stimulus store shared by several servers (default: <data-dir>/stimuli), rendered
+    /// A stimulus store shared by several servers (default: `<data-dir>/stimuli`), rendered
     /// beforehand by `mrstudy stimuli` (with --shard on a cluster; docs/cluster.md).
     #[arg(long)]
     stimuli_dir: Option<PathBuf>,
