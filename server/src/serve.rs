@@ -268,13 +268,15 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
-        let prepared = prepare_with_progress(
+        let mut prepared = prepare_with_progress(
             &config.data_dir,
             &config.studies_dir,
             config.stimuli_dir.as_deref(),
             config.progress.as_ref(),
         )
         .await?;
+        // before the state is shared (the lab's start-up task holds a copy)
+        prepared.state = prepared.state.with_limits(config.limits);
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }
@@ -317,13 +319,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
                 let _ = std::io::stdout().flush();
             });
         }
-        serve_connections(
-            listener,
-            app(prepared.state.with_limits(config.limits)),
-            config.connections,
-            shutdown_signal(),
-        )
-        .await;
+        serve_connections(listener, app(prepared.state), config.connections, shutdown_signal()).await;
         Ok(())
     })
 }
