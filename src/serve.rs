@@ -47,11 +47,14 @@ pub struct ServeArgs {
     /// Connections served at once; more wait in the listen queue.
     #[arg(long, default_value_t = Connections::default().max_connections)]
     max_connections: usize,
+    /// Seconds a lab WebSocket session may go without a message before it is closed.
+    #[arg(long, default_value_t = Connections::default().lab_idle_timeout.as_secs())]
+    lab_idle_timeout: u64,
 }
 
 pub fn run_serve(args: ServeArgs) -> Result<()> {
-    if args.header_timeout == 0 || args.body_timeout == 0 {
-        bail!("--header-timeout and --body-timeout must be at least 1 second");
+    if args.header_timeout == 0 || args.body_timeout == 0 || args.lab_idle_timeout == 0 {
+        bail!("--header-timeout, --body-timeout and --lab-idle-timeout must be at least 1 second");
     }
     mrstudy_server::serve::run(mrstudy_server::serve::ServeConfig {
         addr: args.addr,
@@ -69,6 +72,7 @@ pub fn run_serve(args: ServeArgs) -> Result<()> {
             header_timeout: Duration::from_secs(args.header_timeout),
             body_timeout: Duration::from_secs(args.body_timeout),
             max_connections: args.max_connections,
+            lab_idle_timeout: Duration::from_secs(args.lab_idle_timeout),
         },
     })?;
     Ok(())

@@ -54,6 +54,8 @@ pub struct Connections {
     pub body_timeout: std::time::Duration,
     /// Connections served at once; more wait in the listen queue.
     pub max_connections: usize,
+    /// A lab WebSocket session without a message for this long is closed.
+    pub lab_idle_timeout: std::time::Duration,
 }
 
 impl Default for Connections {
@@ -62,6 +64,7 @@ impl Default for Connections {
             header_timeout: std::time::Duration::from_secs(20),
             body_timeout: std::time::Duration::from_secs(30),
             max_connections: 4096,
+            lab_idle_timeout: crate::task::session::IDLE_TIMEOUT,
         }
     }
 }
@@ -302,9 +305,13 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
             let state = prepared.state.clone();
             let tasks = prepared.tasks;
             let data_dir = config.data_dir.clone();
+            let idle_timeout = config.connections.lab_idle_timeout;
             tokio::spawn(async move {
                 let slugs: Vec<String> = tasks.iter().map(|task| task.slug.clone()).collect();
                 let (info, warnings) = start_lab(&state, tasks, &data_dir).await;
+                if let Some(lab) = state.lab() {
+                    lab.set_idle_timeout(idle_timeout);
+                }
                 for line in &warnings {
                     eprintln!("warning: {line}");
                 }

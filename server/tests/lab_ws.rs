@@ -625,3 +625,18 @@ async fn a_foreign_origin_is_refused_and_an_oversized_message_is_answered_before
     let closed = tokio::time::timeout(Duration::from_secs(10), socket.next()).await.unwrap();
     assert!(matches!(closed, None | Some(Ok(Message::Close(_))) | Some(Err(_))), "{closed:?}");
 }
+
+/// Issue 16: a session that sends nothing for the lab's idle timeout is closed with an `error`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idle_session_is_closed_with_an_error_after_the_idle_timeout() {
+    let _alone = RENDERING.lock().await;
+    let Some((url, _storage, state, _data_dir)) = serve(&hygiene_study()).await else { return };
+    state.lab().unwrap().set_idle_timeout(Duration::from_millis(500));
+    let mut socket = connect(&url).await;
+    let started = std::time::Instant::now();
+    let error = json_of(&mut socket, "error").await;
+    assert!(error["message"].as_str().unwrap().contains("closed after 0.5 s without a message"), "{error}");
+    assert!(started.elapsed() >= Duration::from_millis(450), "{:?}", started.elapsed());
+    let closed = tokio::time::timeout(Duration::from_secs(10), socket.next()).await.unwrap();
+    assert!(matches!(closed, None | Some(Ok(Message::Close(_))) | Some(Err(_))), "{closed:?}");
+}

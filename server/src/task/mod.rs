@@ -222,6 +222,21 @@ pub struct Lab {
     pub order: Vec<String>,
     /// Live WebSocket sessions, at most [`session::MAX_SESSIONS`].
     pub sessions: Arc<std::sync::atomic::AtomicUsize>,
+    /// A session without a message for this long is closed, in ms (see [`Lab::idle_timeout`]).
+    idle_timeout_ms: std::sync::atomic::AtomicU64,
+}
+
+impl Lab {
+    /// How long a session may go without a message from its client before it is closed.
+    pub fn idle_timeout(&self) -> std::time::Duration {
+        std::time::Duration::from_millis(self.idle_timeout_ms.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// Sets [`Lab::idle_timeout`] (`serve --lab-idle-timeout`; at least a millisecond).
+    pub fn set_idle_timeout(&self, timeout: std::time::Duration) {
+        let ms = u64::try_from(timeout.as_millis()).unwrap_or(u64::MAX).max(1);
+        self.idle_timeout_ms.store(ms, std::sync::atomic::Ordering::Relaxed);
+    }
 }
 
 /// What starting the lab gave: the lab (if any study is served) and the lines to print.
@@ -325,7 +340,14 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
         served.insert(lab_study.study.slug.clone(), Arc::new(lab_study));
     }
     if !served.is_empty() {
-        start.lab = Some(Lab { renderer, adapter, studies: served, order, sessions: Default::default() });
+        start.lab = Some(Lab {
+            renderer,
+            adapter,
+            studies: served,
+            order,
+            sessions: Default::default(),
+            idle_timeout_ms: std::sync::atomic::AtomicU64::new(session::IDLE_TIMEOUT.as_millis() as u64),
+        });
     }
     start
 }

@@ -24,7 +24,8 @@
 //! Open to the internet: a browser's upgrade must come from this server's own pages (its
 //! `Origin` names the request's `Host`; clients that send no `Origin` are not browsers), at
 //! most [`MAX_SESSIONS`] sessions run at once (503 beyond), a session without a message for
-//! [`IDLE_TIMEOUT`] is closed with an `error` saying so, and a message over
+//! [`Lab::idle_timeout`] ([`IDLE_TIMEOUT`] unless `serve --lab-idle-timeout` says otherwise) is
+//! closed with an `error` saying so, and a message over
 //! [`MAX_MESSAGE_BYTES`] gets an `error` before the connection is closed.
 //!
 //! Bad input — malformed or unknown messages, keys outside a key task, answers out of range, an
@@ -57,7 +58,8 @@ pub const MAX_MESSAGE_BYTES: usize = 4096;
 const MAX_READ_BYTES: usize = 1 << 20;
 /// Lab sessions at once, over all task studies.
 pub const MAX_SESSIONS: usize = 64;
-/// A session without any message from its client for this long is closed.
+/// A session without any message from its client for this long is closed (the default of
+/// [`Lab::idle_timeout`]).
 pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10 * 60);
 
 /// Counts a live session; uncounts it when dropped.
@@ -293,10 +295,11 @@ impl Session {
                 }
             };
             tokio::select! {
-                message = tokio::time::timeout(IDLE_TIMEOUT, self.socket.recv()) => {
+                message = tokio::time::timeout(self.lab.idle_timeout(), self.socket.recv()) => {
                     let Ok(message) = message else {
-                        let minutes = IDLE_TIMEOUT.as_secs() / 60;
-                        let _ = self.send(json!({"type": "error", "message": format!("The session was closed after {minutes} minutes without a message; reload the page to resume.")})).await;
+                        let idle = self.lab.idle_timeout().as_secs_f64();
+                        let after = if idle >= 120.0 { format!("{:.0} minutes", idle / 60.0) } else { format!("{idle:.1} s") };
+                        let _ = self.send(json!({"type": "error", "message": format!("The session was closed after {after} without a message; reload the page to resume.")})).await;
                         let _ = self.socket.send(Message::Close(None)).await;
                         return;
                     };
