@@ -129,7 +129,11 @@ pub fn client(request: &Request, behind_tls: bool) -> Option<IpAddr> {
 /// admin API calls (exports, analyses: work that takes a worker thread for a while) one at a
 /// time, so that however many an admin starts, participants' requests find free workers.
 pub async fn limit(State(state): State<AppState>, request: Request, next: Next) -> Response {
-    let _admin_work = if request.uri().path().starts_with("/api/admin/") {
+    // only calls that carry a valid admin token or session wait for the one slot: a request
+    // without one is refused by its handler at once and must not hold the slot meanwhile
+    let _admin_work = if request.uri().path().starts_with("/api/admin/")
+        && crate::auth::authorize_admin(&state, request.headers()).is_ok()
+    {
         Some(state.admin_work().acquire().await.expect("the semaphore is never closed"))
     } else {
         None
