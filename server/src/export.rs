@@ -41,6 +41,8 @@ pub enum ExportError {
     Database(#[from] sqlx::Error),
     #[error("the stored definition of study \"{slug}\" cannot be read: {message}")]
     Definition { slug: String, message: String },
+    #[error("{0}")]
+    Internal(String),
 }
 
 /// The study as stored with its participants (the one schema of [`Study`]; a task study's
@@ -269,16 +271,26 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
     .bind(slug)
     .fetch_all(pool)
     .await?;
+    // Writing the rows is the export's long work: on a blocking thread, so the async workers
+    // that serve participants stay free.
+    let content = tokio::task::spawn_blocking(move || write_trial_rows(&definition, &kept, rows))
+        .await
+        .map_err(|error| ExportError::Internal(format!("the export's writer stopped: {error}")))??;
+    Ok(Export { content, left_out })
+}
+
+/// The trials CSV's text from the study's definition, the participants kept and the rows.
+fn write_trial_rows(
+    definition: &Study,
+    kept: &std::collections::HashMap<String, ParticipantRecord>,
+    rows: Vec<sqlx::sqlite::SqliteRow>,
+) -> Result<String, ExportError> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = crate::study::TRIALS_CSV_COLUMNS.iter().map(|column| column.to_string()).collect();
     header.extend(definition.url_params.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
-    for (index, row) in rows.into_iter().enumerate() {
-        if index % 256 == 255 {
-            // a long export gives the worker thread back now and then (participants wait on it)
-            tokio::task::yield_now().await;
-        }
+    for row in rows {
         let participant: String = row.try_get("participant")?;
         let Some(record) = kept.get(&participant) else { continue };
         let chosen_side: String = row.try_get("chosen")?;
@@ -330,8 +342,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
         }
         writer.write_record(&record_cells).expect("writing to memory");
     }
-    let content = String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8");
-    Ok(Export { content, left_out })
+    Ok(String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8"))
 }
 
 /// The JSON export: the study, and per participant their stored data, status, flags and whole
