@@ -1,10 +1,10 @@
 //! The frame the line and scatter plots share: the horizontal layout (y label, y tick labels,
-//! plot, title width), the legend centred over the plot, the major ticks with their grid lines
+//! plot, title width), the vertical layout (title, legend, plot, x tick labels, x label), the legend centred over the plot, the major ticks with their grid lines
 //! and labels, the frame and the axis titles.
 
 use super::forest::{draw_tick_label, tick_label_width};
 use super::scale::Axis;
-use super::svg::{self, AXIS, GRID, LABEL_SIZE, LegendLayout, OUTER, Px, Svg, TICK_SIZE};
+use super::svg::{self, AXIS, GRID, LABEL_SIZE, LEGEND_LINE, LegendLayout, OUTER, Px, Svg, TICK_SIZE};
 
 /// Length of a major tick mark.
 pub(super) const TICK_LENGTH: f64 = 5.0;
@@ -26,6 +26,37 @@ pub(super) fn columns(title: &str, y_label: &str, x_axis: &Axis, y_axis: &Axis, 
     let last_x_tick_overhang = x_axis.major.last().map_or(0.0, |tick| tick_label_width(&tick.label) / 2.0);
     let title = svg::Title::layout(title, right + last_x_tick_overhang.max(8.0) + OUTER);
     Columns { left, right, title }
+}
+
+/// Where things sit vertically, from the top: the title, the legend, the plot area, the x tick
+/// labels and the x label.
+pub(super) struct Rows {
+    pub legend_top: f64,
+    pub plot_top: f64,
+    pub plot_bottom: f64,
+    pub x_tick_baseline: f64,
+    pub x_label_baseline: f64,
+    /// The bottom of the last row (the x label's baseline, or the x tick labels' without one).
+    pub bottom: f64,
+}
+
+/// The vertical layout below `title`: the legend's lines and `legend_gap` under them, a plot of
+/// `plot_height`, the x tick labels and, unless `x_label` is empty, the x label.
+pub(super) fn rows(
+    title: &svg::Title,
+    legend: &LegendLayout,
+    legend_gap: f64,
+    plot_height: f64,
+    x_label: &str,
+) -> Rows {
+    let top = OUTER + title.height();
+    let legend_top = top + LEGEND_LINE / 2.0;
+    let plot_top = (top + legend.n_lines as f64 * LEGEND_LINE + legend_gap).max(OUTER + TICK_SIZE / 2.0);
+    let plot_bottom = plot_top + plot_height;
+    let x_tick_baseline = plot_bottom + TICK_LENGTH + TICK_SIZE + 3.0;
+    let x_label_baseline = x_tick_baseline + LABEL_SIZE + 10.0;
+    let bottom = if x_label.is_empty() { x_tick_baseline } else { x_label_baseline };
+    Rows { legend_top, plot_top, plot_bottom, x_tick_baseline, x_label_baseline, bottom }
 }
 
 /// The legend of `names`: centred over the plot when it fits on one line, else from the left.

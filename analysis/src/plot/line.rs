@@ -4,7 +4,7 @@
 use super::LinePlot;
 use super::frame::{self, Area, TICK_LENGTH};
 use super::scale::{Axis, compact};
-use super::svg::{self, AXIS, LABEL_SIZE, LEGEND_LINE, MUTED, NOTE_SIZE, OUTER, Px, Svg, TICK_SIZE};
+use super::svg::{self, AXIS, MUTED, NOTE_SIZE, OUTER, Px, Svg};
 
 const PLOT_WIDTH: f64 = 520.0;
 const PLOT_HEIGHT: f64 = 340.0;
@@ -40,7 +40,6 @@ pub(super) fn render(spec: &LinePlot) -> String {
     let width = title.width;
 
     // Vertical layout: title, legend, plot, x tick labels, x label, note.
-    let mut y = OUTER + title.height();
     // A legend of nameless series would be swatches without words: leave it out.
     let names: Vec<&str> = if series.iter().all(|(name, _)| name.is_empty()) {
         Vec::new()
@@ -48,16 +47,9 @@ pub(super) fn render(spec: &LinePlot) -> String {
         series.iter().map(|(name, _)| *name).collect()
     };
     let legend = svg::legend_layout(&names, width - 2.0 * OUTER);
-    let legend_top = y + LEGEND_LINE / 2.0;
-    y += legend.n_lines as f64 * LEGEND_LINE + 10.0;
-    let plot_top = y.max(OUTER + TICK_SIZE / 2.0);
-    let plot_bottom = plot_top + PLOT_HEIGHT;
-    let x_tick_baseline = plot_bottom + TICK_LENGTH + TICK_SIZE + 3.0;
-    let mut y = x_tick_baseline;
-    let x_label_baseline = y + LABEL_SIZE + 10.0;
-    if !spec.x_label.is_empty() {
-        y = x_label_baseline;
-    }
+    let frame::Rows { legend_top, plot_top, plot_bottom, x_tick_baseline, x_label_baseline, bottom } =
+        frame::rows(&title, &legend, 10.0, PLOT_HEIGHT, &spec.x_label);
+    let mut y = bottom;
     let n_skipped = n_points - n_shown;
     let note_baseline = y + NOTE_SIZE + 10.0;
     if n_skipped > 0 {

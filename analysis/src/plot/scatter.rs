@@ -4,9 +4,9 @@
 //! its label and coordinates as a tooltip.
 
 use super::ScatterPlot;
-use super::frame::{self, Area, TICK_LENGTH};
+use super::frame::{self, Area};
 use super::scale::{Axis, compact};
-use super::svg::{self, LABEL_SIZE, LEGEND_LINE, MUTED, NOTE_SIZE, OUTER, Px, Svg, TICK_SIZE};
+use super::svg::{self, MUTED, NOTE_SIZE, OUTER, Px, Svg};
 
 const PLOT_WIDTH: f64 = 600.0;
 const PLOT_HEIGHT: f64 = 420.0;
@@ -115,18 +115,11 @@ pub(super) fn render(spec: &ScatterPlot) -> String {
     let width = title.width;
 
     // Vertical layout: title, legend, plot, x tick labels, x label, note lines.
-    let mut y = OUTER + title.height();
     let legend = svg::legend_layout(&groups, width - 2.0 * OUTER);
-    let legend_top = y + LEGEND_LINE / 2.0;
-    y += legend.n_lines as f64 * LEGEND_LINE + if groups.is_empty() { 0.0 } else { 10.0 };
-    let plot_top = y.max(OUTER + TICK_SIZE / 2.0);
-    let plot_bottom = plot_top + PLOT_HEIGHT;
-    let x_tick_baseline = plot_bottom + TICK_LENGTH + TICK_SIZE + 3.0;
-    let mut y = x_tick_baseline;
-    let x_label_baseline = y + LABEL_SIZE + 10.0;
-    if !spec.x_label.is_empty() {
-        y = x_label_baseline;
-    }
+    let gap = if groups.is_empty() { 0.0 } else { 10.0 };
+    let frame::Rows { legend_top, plot_top, plot_bottom, x_tick_baseline, x_label_baseline, bottom } =
+        frame::rows(&title, &legend, gap, PLOT_HEIGHT, &spec.x_label);
+    let mut y = bottom;
     let mut notes: Vec<String> = Vec::new();
     if n_skipped > 0 {
         notes.push(format!("{n_skipped} {} not shown (not finite).", if n_skipped == 1 { "point" } else { "points" }));
