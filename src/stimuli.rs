@@ -112,12 +112,7 @@ pub fn run(args: StimuliArgs) -> Result<()> {
         eprintln!("wrote {written} stimuli into {}", out.display());
     }
     let total = match args.shard {
-        Some(shard) => plan
-            .shard_scenes(shard)
-            .iter()
-            .filter_map(|&index| plan.scenes[index].as_ref())
-            .map(|scene| scene.stimuli.len())
-            .sum(),
+        Some(shard) => plan.stimuli_in(&plan.shard_scenes(shard)),
         None => plan.stimuli().count(),
     };
     eprintln!(

@@ -36,7 +36,8 @@ pub(crate) enum Via {
     Cookie,
 }
 
-fn cookie_token(headers: &HeaderMap) -> Option<&str> {
+/// The admin session id of the request's cookie, if any.
+pub(crate) fn session_cookie(headers: &HeaderMap) -> Option<&str> {
     headers
         .get_all(header::COOKIE)
         .iter()
@@ -79,11 +80,6 @@ impl Sessions {
     }
 }
 
-/// The admin session id of the request's cookie, if any.
-pub(crate) fn session_cookie(headers: &HeaderMap) -> Option<&str> {
-    cookie_token(headers)
-}
-
 /// The `Set-Cookie` value for a session id (`None`: the cookie that ends it), `Secure` when the
 /// server is behind a TLS proxy.
 pub(crate) fn session_set_cookie(id: Option<&str>, secure: bool) -> String {
@@ -105,7 +101,7 @@ pub(crate) fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResul
 pub(crate) fn authorize_admin_via(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
     let (token, via) = match bearer(headers) {
         Ok(token) => (token, Via::Header),
-        Err(error) => match cookie_token(headers) {
+        Err(error) => match session_cookie(headers) {
             Some(token) => (token, Via::Cookie),
             None => {
                 return Err(match error {

@@ -101,16 +101,11 @@ impl<T: serde::de::DeserializeOwned, S: Send + Sync> FromRequest<S> for Json<T> 
 
     async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
         if !json_content_type(request.headers()) {
-            return Err(AppError::UnsupportedMediaType(
-                "The request needs the header Content-Type: application/json.".into(),
-            ));
+            return Err(AppError::UnsupportedMediaType(NEEDS_JSON.into()));
         }
         let bytes = Bytes::from_request(request, state).await.map_err(|rejection| {
             if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                AppError::PayloadTooLarge(format!(
-                    "The request body is larger than the limit of {} bytes.",
-                    crate::BODY_LIMIT_BYTES
-                ))
+                AppError::PayloadTooLarge(body_too_large())
             } else {
                 AppError::BadRequest("The request body could not be read.".into())
             }
@@ -134,6 +129,14 @@ impl<T: serde::de::DeserializeOwned, S: Send + Sync> FromRequest<S> for Json<T> 
             })
         })
     }
+}
+
+/// The 415 sentence.
+pub(crate) const NEEDS_JSON: &str = "The request needs the header Content-Type: application/json.";
+
+/// The 413 sentence.
+pub(crate) fn body_too_large() -> String {
+    format!("The request body is larger than the limit of {} bytes.", crate::BODY_LIMIT_BYTES)
 }
 
 /// Whether the request says its body is JSON (`application/json`, parameters allowed).

@@ -201,10 +201,8 @@ fn api_error_as_json(response: Response, method: &axum::http::Method) -> Respons
     use axum::http::StatusCode;
     let sentence = match status {
         StatusCode::METHOD_NOT_ALLOWED => format!("This address does not accept {method} requests."),
-        StatusCode::PAYLOAD_TOO_LARGE => {
-            format!("The request body is larger than the limit of {BODY_LIMIT_BYTES} bytes.")
-        }
-        StatusCode::UNSUPPORTED_MEDIA_TYPE => "The request needs the header Content-Type: application/json.".into(),
+        StatusCode::PAYLOAD_TOO_LARGE => error::body_too_large(),
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => error::NEEDS_JSON.into(),
         StatusCode::REQUEST_TIMEOUT => "The request body did not arrive in time.".into(),
         StatusCode::TOO_MANY_REQUESTS => "Too many requests from this address; try again in a minute.".into(),
         StatusCode::NOT_FOUND => "There is no such API address.".into(),

@@ -60,16 +60,23 @@ struct Bucket {
     at: Instant,
 }
 
+impl Bucket {
+    /// The tokens at `now`: refilled at `per_second` since the last take, at most `burst`.
+    fn refilled(&self, now: Instant, burst: f64, per_second: f64) -> f64 {
+        (self.tokens + now.duration_since(self.at).as_secs_f64() * per_second).min(burst)
+    }
+}
+
 /// Takes one token from `client`'s bucket (capacity `burst`, refilled at `per_second`); false
 /// when it is empty. Full, idle buckets are dropped now and then so the map stays small.
 fn take(map: &Mutex<HashMap<IpAddr, Bucket>>, client: IpAddr, burst: f64, per_second: f64, cost: f64) -> bool {
     let now = Instant::now();
     let mut map = map.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     if map.len() > 100_000 {
-        map.retain(|_, bucket| bucket.tokens + now.duration_since(bucket.at).as_secs_f64() * per_second < burst);
+        map.retain(|_, bucket| bucket.refilled(now, f64::INFINITY, per_second) < burst);
     }
     let bucket = map.entry(client).or_insert(Bucket { tokens: burst, at: now });
-    bucket.tokens = (bucket.tokens + now.duration_since(bucket.at).as_secs_f64() * per_second).min(burst);
+    bucket.tokens = bucket.refilled(now, burst, per_second);
     bucket.at = now;
     if bucket.tokens >= cost {
         bucket.tokens -= cost;
@@ -82,9 +89,7 @@ fn take(map: &Mutex<HashMap<IpAddr, Bucket>>, client: IpAddr, burst: f64, per_se
 /// Whether `client` still has a token, without taking it.
 fn has_token(map: &Mutex<HashMap<IpAddr, Bucket>>, client: IpAddr, burst: f64, per_second: f64) -> bool {
     let map = map.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    map.get(&client).is_none_or(|bucket| {
-        (bucket.tokens + Instant::now().duration_since(bucket.at).as_secs_f64() * per_second).min(burst) >= 1.0
-    })
+    map.get(&client).is_none_or(|bucket| bucket.refilled(Instant::now(), burst, per_second) >= 1.0)
 }
 
 const ADMIN_WINDOW: Duration = Duration::from_secs(15 * 60);

@@ -244,6 +244,11 @@ impl std::fmt::Display for Shard {
 }
 
 impl StimulusPlan {
+    /// How many stimuli the scene configurations `scenes` (indices) have.
+    pub fn stimuli_in(&self, scenes: &[usize]) -> usize {
+        scenes.iter().filter_map(|&index| self.scenes[index].as_ref()).map(|scene| scene.stimuli.len()).sum()
+    }
+
     /// The scene configurations (indices) `shard` renders, incomplete in `store` or not.
     pub fn shard_scenes(&self, shard: Shard) -> Vec<usize> {
         self.scenes
@@ -386,7 +391,7 @@ pub fn render_missing_shard(
         file: study.file.clone(),
         source,
     })?;
-    let frames: usize = scenes.iter().filter_map(|&index| plan.scenes[index].as_ref()).map(|p| p.stimuli.len()).sum();
+    let frames = plan.stimuli_in(&scenes);
     progress(Progress::Start { photos: scenes.len(), stimuli: frames });
     let io = |path: &Path| {
         let path = path.to_path_buf();

@@ -199,9 +199,7 @@ impl Storage {
             .await
             .map_err(|source| OpenError::Connect { path: path_text, source })?;
         let (sender, receiver) = mpsc::channel(4 * MAX_BATCH);
-        let mut wal = path.as_os_str().to_owned();
-        wal.push("-wal");
-        tokio::spawn(writer(write.clone(), receiver, std::path::PathBuf::from(wal)));
+        tokio::spawn(writer(write.clone(), receiver, with_suffix(path, "-wal")));
         tokio::spawn(checkpointer(read.clone()));
         Ok(Storage { read, admin, write, jobs: sender })
     }
@@ -467,6 +465,13 @@ pub const WAL_TRUNCATE_BYTES: u64 = 16 * 1024 * 1024;
 /// `journal_size_limit`: the most a restarted WAL keeps on disk.
 pub const JOURNAL_SIZE_LIMIT_BYTES: u64 = 8 * 1024 * 1024;
 
+/// The path of a file sqlite keeps beside the database: `<database><suffix>` (`-wal`, `-shm`).
+fn with_suffix(path: &Path, suffix: &str) -> std::path::PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(suffix);
+    std::path::PathBuf::from(name)
+}
+
 /// Creates the database file readable and writable by its owner only, or makes an existing
 /// one (and its WAL and shared-memory files) so. sqlite gives the files it creates beside the
 /// database the database file's mode.
@@ -479,9 +484,7 @@ fn owner_only(path: &Path) -> std::io::Result<()> {
         }
         std::fs::OpenOptions::new().write(true).create(true).truncate(false).mode(0o600).open(path)?;
         for suffix in ["", "-wal", "-shm", "-journal"] {
-            let mut file = path.as_os_str().to_owned();
-            file.push(suffix);
-            match std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)) {
+            match std::fs::set_permissions(with_suffix(path, suffix), std::fs::Permissions::from_mode(0o600)) {
                 Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
                 other => other?,
             }

@@ -15,7 +15,7 @@ use mrstudy_server::serve::{Prepared, admin_token_strength, prepare};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, admin_session_cookie, call, copy_demo_study, send};
+use support::{Answer, admin_session_cookie, call, copy_demo_study, demographics, send};
 
 struct Fixture {
     app: Router,
@@ -33,10 +33,6 @@ async fn fixture(limits: Option<Limits>) -> Fixture {
         None => state,
     };
     Fixture { app: mrstudy_server::app(state), admin_token, _data_dir: data_dir }
-}
-
-fn demographics() -> Value {
-    json!({"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"})
 }
 
 /// A request from `client` with an optional bearer token and JSON body.
@@ -272,13 +268,9 @@ async fn the_admin_cookie_is_a_server_side_session_that_logout_ends() {
     assert!(after.error().contains("log in again"));
 
     // behind a TLS proxy the cookie is Secure
-    let behind = fixture_behind_tls().await;
+    let behind = crate::fixture(Some(Limits { behind_tls: true, ..Limits::default() })).await;
     let login = call(&behind.app, Method::GET, &format!("/admin/login?token={}", behind.admin_token), None, None).await;
     assert!(login.headers.get(header::SET_COOKIE).unwrap().to_str().unwrap().contains("; Secure"));
-}
-
-async fn fixture_behind_tls() -> Fixture {
-    fixture(Some(Limits { behind_tls: true, ..Limits::default() })).await
 }
 
 #[tokio::test]

@@ -12,7 +12,7 @@ use mrstudy_server::serve::{Prepared, prepare};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, call, copy_demo_study, repo_studies_dir, send};
+use support::{Answer, call, copy_demo_study, demographics, repo_studies_dir, send};
 
 /// The demo study and the thesis survey, whose first scene is a scene file that does not parse:
 /// `serve` skips the survey (its stimuli cannot be rendered) without opening the GPU, where the
@@ -43,10 +43,6 @@ async fn fixture() -> Fixture {
     let studies = studies_dir(data_dir.path());
     let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
     Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
-}
-
-fn demographics() -> Value {
-    json!({"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"})
 }
 
 async fn join(app: &Router) -> (String, String) {

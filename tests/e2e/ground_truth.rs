@@ -8,14 +8,13 @@ use std::process::Command;
 
 use serde_json::{Value, json};
 
-use super::support::{Server, binary, client, export, repo_studies_dir};
+use super::support::{Server, binary, client, demo_texts, export};
 
 /// Three conditions (gi off, gi on, gi and colour mapping on) on two built-in scenes, shown on
 /// different scene configurations side by side so that all six stimuli are compared with each
 /// other (a six-cycle of stimuli): the analysis fits a worth per stimulus.
 pub fn write_chain_study(dir: &Path) {
-    let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
-    let texts = &demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()];
+    let texts = demo_texts();
     let study = format!(
         r#"slug = "chain-mini"
 title = "Chain"

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-use super::support::{Server, binary, client, copy_demo_study, demographics, export, repo_studies_dir};
+use super::support::{Server, binary, client, copy_demo_study, demo_texts, demographics, export, repo_studies_dir};
 
 #[test]
 fn a_participant_completes_the_demo_study_over_a_real_socket() {
@@ -88,8 +88,7 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
 
 /// A study of two conditions (gi off and on) on one built-in scene, rendered tiny.
 fn write_rendered_study(dir: &Path) {
-    let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
-    let texts = &demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()];
+    let texts = demo_texts();
     let study = format!(
         r#"slug = "rendered-mini"
 title = "Rendered"

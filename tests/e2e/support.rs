@@ -33,6 +33,13 @@ pub fn repo_studies_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")
 }
 
+/// The demo study's `[texts]` section (welcome, consent, instructions, thanks), for the study
+/// files the tests write.
+pub fn demo_texts() -> String {
+    let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
+    demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()].to_string()
+}
+
 /// A studies folder holding only the demo study (copied once per test process): the repository's
 /// folder also holds the thesis survey, whose 48 stimuli `serve` would render at start-up.
 pub fn studies_dir() -> PathBuf {

@@ -299,14 +299,12 @@ impl Session {
                     let Ok(message) = message else {
                         let idle = self.lab.idle_timeout().as_secs_f64();
                         let after = if idle >= 120.0 { format!("{:.0} minutes", idle / 60.0) } else { format!("{idle:.1} s") };
-                        let _ = self.send(json!({"type": "error", "message": format!("The session was closed after {after} without a message; reload the page to resume.")})).await;
-                        let _ = self.socket.send(Message::Close(None)).await;
+                        self.close_with_error(format!("The session was closed after {after} without a message; reload the page to resume.")).await;
                         return;
                     };
                     let Some(Ok(message)) = message else { return };
                     if let Message::Text(text) = &message && text.len() > MAX_MESSAGE_BYTES {
-                        let _ = self.send(json!({"type": "error", "message": format!("The message has {} bytes, more than the limit of {MAX_MESSAGE_BYTES}; the connection is closed.", text.len())})).await;
-                        let _ = self.socket.send(Message::Close(None)).await;
+                        self.close_with_error(format!("The message has {} bytes, more than the limit of {MAX_MESSAGE_BYTES}; the connection is closed.", text.len())).await;
                         return;
                     }
                     let outcome = match message {
@@ -341,6 +339,12 @@ impl Session {
                 }
             }
         }
+    }
+
+    /// Sends an `error` with `message`, then closes the connection (the caller returns).
+    async fn close_with_error(&mut self, message: String) {
+        let _ = self.send(json!({"type": "error", "message": message})).await;
+        let _ = self.socket.send(Message::Close(None)).await;
     }
 
     async fn send(&mut self, value: Value) -> Result<(), axum::Error> {

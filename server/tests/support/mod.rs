@@ -83,3 +83,8 @@ pub async fn admin_session_cookie(app: &Router, admin_token: &str) -> String {
     let set_cookie = login.headers.get(header::SET_COOKIE).expect("the login sets the cookie").to_str().unwrap();
     set_cookie.split(';').next().unwrap().to_string()
 }
+
+/// Demographics that pass the demo study's form.
+pub fn demographics() -> Value {
+    serde_json::json!({"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"})
+}
