@@ -860,13 +860,7 @@ fn check_design(
     }
     let active = if active { Some(check_active(fail, design, &pairs, conditions)?) } else { None };
     if active.is_none() {
-        for (key, given) in [
-            ("design.trials", design.trials.is_some()),
-            ("design.batch", design.batch.is_some()),
-            ("design.target", design.target.is_some()),
-            ("design.warmup", design.warmup.is_some()),
-            ("design.prior_sd", design.prior_sd.is_some()),
-        ] {
+        for (key, given) in active_keys_given(design) {
             if given {
                 return Err(fail.at(key, "expected only with pairs = \"active\""));
             }
@@ -883,6 +877,17 @@ fn check_design(
     })
 }
 
+/// The keys of an active design (`pairs = "active"`), each with whether the file gives it.
+fn active_keys_given(design: &DesignFile) -> [(&'static str, bool); 5] {
+    [
+        ("design.trials", design.trials.is_some()),
+        ("design.batch", design.batch.is_some()),
+        ("design.target", design.target.is_some()),
+        ("design.warmup", design.warmup.is_some()),
+        ("design.prior_sd", design.prior_sd.is_some()),
+    ]
+}
+
 /// `reference = "ground-truth"`: every condition against the ground truth of the same scene
 /// configuration, `repetitions` times; every scene configuration must be one the renderer
 /// synthesises (its ground truth exists), scenes drawn "same".
@@ -896,16 +901,12 @@ fn check_detection(
     if reference != GROUND_TRUTH {
         return Err(fail.at("design.reference", format!("expected \"{GROUND_TRUTH}\", found \"{reference}\"")));
     }
-    for (key, given) in [
+    let pairing = [
         ("design.pairs", design.pairs.is_some()),
         ("design.anchors", !design.anchors.is_empty()),
         ("design.list", !design.list.is_empty()),
-        ("design.trials", design.trials.is_some()),
-        ("design.batch", design.batch.is_some()),
-        ("design.target", design.target.is_some()),
-        ("design.warmup", design.warmup.is_some()),
-        ("design.prior_sd", design.prior_sd.is_some()),
-    ] {
+    ];
+    for (key, given) in pairing.into_iter().chain(active_keys_given(design)) {
         if given {
             return Err(fail.at(
                 key,
