@@ -30,7 +30,7 @@ use crate::pvalue::PValue;
 use crate::{AnalysisError, Result};
 
 /// When to run observer screening.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Screening {
     /// On for designs up to [`SCREENING_AUTO_LIMIT`] conditions.
     Auto,
@@ -38,46 +38,49 @@ pub enum Screening {
     Off,
 }
 
-impl Screening {
-    pub fn parse(name: &str) -> Option<Screening> {
-        match name {
-            "auto" => Some(Screening::Auto),
-            "on" => Some(Screening::On),
-            "off" => Some(Screening::Off),
-            _ => None,
-        }
-    }
-}
-
 /// Screening refits the item model once per participant; above this many conditions `Auto`
 /// skips it (and says so).
 pub const SCREENING_AUTO_LIMIT: usize = 200;
 
-/// Options of an analysis. `Default` gives the documented defaults.
-#[derive(Debug, Clone)]
+/// Options of an analysis. `Default` gives the documented defaults; they are also
+/// `mrstudy analyze`'s flags (the doc comments are its help).
+#[derive(Debug, Clone, clap::Args)]
 pub struct Options {
     /// Reference condition (log-worth 0); default: first of the conditions file, else first by name.
+    #[arg(long)]
     pub reference: Option<String>,
-    /// Factor-model formula (`gi+cm+ca+gi:ca`, `gi*ca`); default: every factor, main effects.
+    /// Factor-model formula, e.g. `gi+cm+ca+gi:ca` or `gi*ca+cm`; default: all factors, main effects.
+    #[arg(long)]
     pub model: Option<String>,
-    /// Column of the trials CSV to group by.
+    /// Fit everything per value of this column (e.g. `gender`) and test whether effects differ.
+    #[arg(long)]
     pub group_by: Option<String>,
-    /// Convergence tolerance on the largest parameter change.
+    /// Convergence tolerance (largest parameter change).
+    #[arg(long, default_value_t = Options::default().tolerance)]
     pub tolerance: f64,
     /// Monte-Carlo replicates for the agreement p-value where no closed form applies.
+    #[arg(skip = Options::default().agreement_simulations)]
     pub agreement_simulations: usize,
-    /// Bootstrap replicates over participants (0: none).
+    /// Bootstrap replicates over participants for intervals (0: none; with --stimuli the metric correlations use 1000 unless given).
+    #[arg(long, default_value_t = Options::default().bootstrap)]
     pub bootstrap: usize,
-    /// Seed of every random choice (agreement simulation, bootstrap).
+    /// Seed for the bootstrap and the agreement simulation.
+    #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
+    /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
+    #[arg(long = "screen", value_enum, default_value = "auto")]
     pub screening: Screening,
     /// Participants whose leave-one-out p-value is below this are flagged.
+    #[arg(skip = Options::default().screening_alpha)]
     pub screening_alpha: f64,
-    /// Use Firth's bias reduction for every model, not only under separation.
+    /// Use Firth's bias-reduced estimate for every model, not only under separation.
+    #[arg(long = "firth")]
     pub always_firth: bool,
-    /// Keep participants the trials CSV marks `pilot = true` (default: left out, and said so).
+    /// Keep participants marked `pilot = true` in the trials CSV (default: left out, and said so).
+    #[arg(long)]
     pub include_pilots: bool,
-    /// Keep participants the trials CSV marks `excluded = true` (default: left out, and said so).
+    /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
+    #[arg(long)]
     pub include_excluded: bool,
 }
 

@@ -23,6 +23,7 @@ pub mod active;
 pub mod agreement;
 pub mod analysis;
 pub mod bench;
+pub mod command;
 pub mod data;
 pub mod design;
 pub mod detection;

@@ -278,3 +278,51 @@ pub fn affected_region(real: &Image, full: &Image, coverage: &Mask, threshold: f
     }
     m
 }
+
+/// What `mrstudy render` path-traces into a file: the photograph (real objects only) or the
+/// ground-truth composite.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Target {
+    Photo,
+    GroundTruth,
+}
+
+impl Target {
+    /// Samples per pixel the progress counts to: the ground truth renders twice (real, full).
+    pub fn progress_total(self, params: &ReferenceParams) -> u32 {
+        match self {
+            Target::Photo => params.spp,
+            Target::GroundTruth => 2 * params.spp,
+        }
+    }
+}
+
+/// Renders `target`, saves it to `out` (`.png` the camera output, `.exr` linear radiance) and,
+/// with `buffers`, every buffer ([`ReferenceOutput::write_buffers`], [`write_photo_buffers`]).
+pub fn render_to_file(
+    scene: &Scene,
+    params: &ReferenceParams,
+    target: Target,
+    out: &std::path::Path,
+    buffers: Option<&std::path::Path>,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<RenderStats> {
+    match target {
+        Target::Photo => {
+            let (hdr, photo, stats) = render_photo(scene, params, progress)?;
+            crate::image::save_by_extension(out, &hdr, &photo)?;
+            if let Some(dir) = buffers {
+                write_photo_buffers(dir, &scene.name, &hdr, &photo, &stats)?;
+            }
+            Ok(stats)
+        }
+        Target::GroundTruth => {
+            let result = render_reference(scene, params, progress)?;
+            crate::image::save_by_extension(out, &result.hdr_full, &result.ground_truth)?;
+            if let Some(dir) = buffers {
+                result.write_buffers(dir, &scene.name)?;
+            }
+            Ok(result.stats)
+        }
+    }
+}

@@ -200,19 +200,42 @@ impl StimulusSettings {
     }
 }
 
-/// What a render of one condition outside a study may change from a stimulus's parameters
-/// (`mrstudy render --condition/--factors` and its GPU knobs).
-#[derive(Clone, Debug)]
+/// What a render of one condition outside a study may change from a stimulus's parameters:
+/// `mrstudy render --condition/--factors`'s GPU flags (the doc comments are their help).
+#[derive(Clone, Debug, clap::Args)]
 pub struct RenderKnobs {
+    /// GPU: the VPL budget of the `gi` condition.
+    #[arg(long, default_value_t = 256)]
     pub vpls: u32,
+    /// GPU: resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
+    #[arg(long, default_value_t = 128)]
     pub ism_size: u32,
+    /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
+    #[arg(long, default_value_t = 1024)]
     pub ism_points: u32,
+    /// GPU: bounces of indirect light in the `gi` condition (1: the single bounce of the RSM
+    /// VPLs; more add the multiple-bounce light source of thesis 5.2.7, at most 8).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
     pub bounces: u32,
+    /// GPU: candidate points each multiple-bounce slot searches.
+    #[arg(long, default_value_t = 4096)]
     pub bounce_candidates: u32,
+    /// GPU: the composition: additive (default) or scaled (Debevec: α = L'_cam / τ(L_r)).
+    #[arg(long, default_value = "additive", value_parser = |text: &str| {
+        crate::cm::Composition::parse(text).ok_or_else(|| format!("`{text}` is not one of additive, scaled"))
+    })]
     pub composition: crate::cm::Composition,
-    /// A colour mapping other than the one the `cm` factor implies.
+    /// GPU: the colour mapping of the GI buffers: off (Reinhard), statistics, samples or rohmer
+    /// (overrides what the `cm` factor implies).
+    #[arg(long, value_parser = |text: &str| {
+        CmMethod::parse(text).ok_or_else(|| format!("`{text}` is not one of off, statistics, samples, rohmer"))
+    })]
     pub cm: Option<CmMethod>,
-    /// Where the `ca` factor's camera comes from: the scene's, or estimated on the photograph.
+    /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
+    /// `estimate` (noise, blur and JPEG quality measured on the photograph).
+    #[arg(long = "ca-params", default_value = "scene", value_parser = |text: &str| {
+        crate::ca::ParamSource::parse(text).ok_or_else(|| format!("`{text}` is not one of scene, estimate"))
+    })]
     pub ca_source: crate::ca::ParamSource,
 }
 
@@ -252,6 +275,54 @@ pub fn render_condition(
     }
     let frame = renderer.render(scene, photo, &params)?;
     Ok(ConditionRender { frame, params, ca_estimates })
+}
+
+/// `mrstudy render --condition/--factors`: the photograph by the path tracer (`progress` counts
+/// its samples per pixel), then `factors` on the GPU over it ([`render_condition`]), saved to
+/// `out` (`.png`, or `.exr` linear) with, given `buffers`, every buffer. Returns the lines to
+/// show the user: the adapter, the estimates and warnings, each pass's time and a summary.
+pub fn render_condition_to_file(
+    scene: &Scene,
+    factors: &Factors,
+    knobs: &RenderKnobs,
+    photo_params: &ReferenceParams,
+    out: &std::path::Path,
+    buffers: Option<&std::path::Path>,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<Vec<String>> {
+    let renderer = DirRenderer::new()?;
+    let mut lines = vec![format!("adapter: {}", renderer.ctx.adapter_name())];
+    let (_, photo, photo_stats) = render_photo(scene, photo_params, progress)?;
+    let ConditionRender { frame, params, ca_estimates } = render_condition(&renderer, scene, &photo, factors, knobs)?;
+    if let Some(estimates) = &ca_estimates {
+        lines.push(format!("ca estimates from the photograph: {estimates}"));
+    }
+    crate::image::save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
+    if let Some(dir) = buffers {
+        let extra = serde_json::json!({ "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates });
+        frame.write_buffers(dir, &photo, extra)?;
+    }
+    lines.extend(frame.report.passes.iter().map(|pass| format!("  {:<40} {:>9.2} ms", pass.pass, pass.ms)));
+    let method = params.cm.method;
+    if let Some(why) = &frame.report.cm.fallback {
+        lines.push(format!("warning: colour mapping {}: {why}", method.name()));
+    }
+    let ca = match (factors.ca, knobs.ca_source) {
+        (false, _) => "",
+        (true, crate::ca::ParamSource::Scene) => ", ca from the scene's camera",
+        (true, crate::ca::ParamSource::Estimate) => ", ca from the photograph",
+    };
+    lines.push(format!(
+        "wrote {} ({} condition, cm {}{ca}, {} VPLs): photo {:.1} s on the CPU, GPU frame {:.1} ms on {}",
+        out.display(),
+        factors.gi.name(),
+        method.name(),
+        frame.report.vpls,
+        photo_stats.seconds,
+        frame.report.ms,
+        frame.report.adapter
+    ));
+    Ok(lines)
 }
 
 #[cfg(test)]

@@ -64,13 +64,16 @@ fn value_text(value: Option<&Value>) -> String {
 }
 
 /// Which participants an export or analysis keeps besides the default ones.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+/// Also `mrstudy export`'s flags (the doc comments are their help).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, clap::Args)]
 pub struct Include {
-    /// Keep pilot participants (joined through a preview link).
+    /// Keep pilot participants (joined through an admin preview link); left out by default.
     #[serde(default, rename = "include_pilots")]
+    #[arg(long = "include-pilots")]
     pub pilots: bool,
-    /// Keep participants the researcher excluded.
+    /// Keep participants the researcher excluded; left out by default.
     #[serde(default, rename = "include_excluded")]
+    #[arg(long = "include-excluded")]
     pub excluded: bool,
 }
 

@@ -1,6 +1,6 @@
 //! `mrstudy-server`: the study server — study files, trial scheduling, sqlite storage through
 //! sqlx, the participant pages, the admin API and pages, export, and the `serve` entry point
-//! the CLI calls (its load generator, `mrstudy bench server`, is the `mrstudy-loadgen` crate).
+//! the CLI calls (its load generator, `mrstudy bench server`, is in the `mrstudy-bench` crate).
 //!
 //! Invariant: only this crate and the CLI touch the network and the database.
 //!

@@ -26,36 +26,60 @@ use crate::{AppState, app};
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
 pub type RenderProgress = Arc<dyn Fn(&str, &crate::stimuli::Progress) + Send + Sync>;
 
-/// Where and what to serve.
-#[derive(Clone)]
+/// Where and what to serve: `mrstudy serve`'s flags (the doc comments are its help).
+#[derive(Clone, clap::Args)]
 pub struct ServeConfig {
+    /// Address to listen on (port 0: any free port).
+    #[arg(long, default_value = "127.0.0.1:8080")]
     pub addr: String,
+    /// Data directory: mrstudy.db, stimuli/, admin-token.
+    #[arg(long, default_value = "./mrstudy-data")]
     pub data_dir: PathBuf,
+    /// Directory of study files (*.toml).
+    #[arg(long = "studies", default_value = "./studies")]
     pub studies_dir: PathBuf,
-    /// A stimulus store shared with other servers (rendered beforehand, e.g. by a cluster's
-    /// `mrstudy stimuli --shard` jobs); `<data-dir>/stimuli` when `None`.
+    /// A stimulus store shared by several servers (default: `<data-dir>/stimuli`), rendered
+    /// beforehand by `mrstudy stimuli` (with --shard on a cluster; docs/cluster.md).
+    #[arg(long)]
     pub stimuli_dir: Option<PathBuf>,
     /// Called while missing stimuli are rendered at start-up (None: quietly).
+    #[arg(skip)]
     pub progress: Option<RenderProgress>,
     /// What one client address may do ([`crate::limits`]).
+    #[command(flatten)]
     pub limits: crate::limits::Limits,
     /// How long the server waits for a client, and for how many at once.
+    #[command(flatten)]
     pub connections: Connections,
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
-/// idle, slow-header (slowloris) and slow-body clients cannot hold its connections.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// idle, slow-header (slowloris) and slow-body clients cannot hold its connections. Also
+/// `mrstudy serve`'s flags (the doc comments are its help; times in whole seconds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
 pub struct Connections {
-    /// From a connection's start, or the end of its last response, to the end of the next
-    /// request's headers: an idle keep-alive connection is closed after this too.
+    /// Seconds a connection may take to send a request's headers, from its start or the end of
+    /// its last response (also how long an idle keep-alive connection is kept).
+    #[arg(long, default_value = "20", value_parser = seconds)]
     pub header_timeout: std::time::Duration,
-    /// From the end of the headers to the end of the body (else 400, and the connection closes).
+    /// Seconds a request may take to send its body after the headers (else 400, and the
+    /// connection closes).
+    #[arg(long, default_value = "30", value_parser = seconds)]
     pub body_timeout: std::time::Duration,
     /// Connections served at once; more wait in the listen queue.
+    #[arg(long, default_value_t = Connections::default().max_connections)]
     pub max_connections: usize,
-    /// A lab WebSocket session without a message for this long is closed.
+    /// Seconds a lab WebSocket session may go without a message before it is closed.
+    #[arg(long, default_value = "600", value_parser = seconds)]
     pub lab_idle_timeout: std::time::Duration,
+}
+
+/// A timeout in whole seconds, at least 1.
+fn seconds(text: &str) -> Result<std::time::Duration, String> {
+    match text.trim().parse::<u64>() {
+        Ok(seconds) if seconds >= 1 => Ok(std::time::Duration::from_secs(seconds)),
+        _ => Err(format!("`{text}` is not a whole number of seconds, at least 1")),
+    }
 }
 
 impl Default for Connections {

@@ -249,6 +249,40 @@ impl StimulusPlan {
         scenes.iter().filter_map(|&index| self.scenes[index].as_ref()).map(|scene| scene.stimuli.len()).sum()
     }
 
+    /// One line naming the scene configurations `shard` renders of `study`.
+    pub fn shard_line(&self, study: &Study, shard: Shard) -> String {
+        let names: Vec<&str> =
+            self.shard_scenes(shard).into_iter().map(|index| study.scenes[index].name.as_str()).collect();
+        format!(
+            "shard {shard}: {} of the study's {} rendered scene configurations{}",
+            names.len(),
+            self.scenes.iter().flatten().count(),
+            if names.is_empty() {
+                " (nothing to do: more shards than scene configurations)".to_string()
+            } else {
+                format!(": {}", names.join(", "))
+            }
+        )
+    }
+
+    /// The summary line of `mrstudy stimuli`: what `rendered` made of the study's (or the
+    /// shard's) stimuli in `store`, and what was there already.
+    pub fn rendered_line(&self, study: &Study, rendered: &Rendered, store: &Path, shard: Option<Shard>) -> String {
+        let total = match shard {
+            Some(shard) => self.stimuli_in(&self.shard_scenes(shard)),
+            None => self.stimuli().count(),
+        };
+        format!(
+            "study \"{}\": rendered {} stimuli, {} were already in {} ({total} rendered stimuli in all); {} ground truths and {} stimulus records made",
+            study.slug,
+            rendered.stimuli,
+            total.saturating_sub(rendered.stimuli),
+            store.display(),
+            rendered.ground_truths,
+            rendered.records
+        )
+    }
+
     /// The scene configurations (indices) `shard` renders, incomplete in `store` or not.
     pub fn shard_scenes(&self, shard: Shard) -> Vec<usize> {
         self.scenes

@@ -67,6 +67,32 @@ pub fn load(name_or_path: &str) -> Result<Scene> {
     Err(RenderError::UnknownScene { name: name_or_path.to_string() })
 }
 
+/// Loads a scene by name or path (as [`load`]) at another image size (the intrinsics scale
+/// with it) and with another simulated camera (its noise seed kept): `mrstudy render`'s
+/// `--size` and `--camera`.
+pub fn load_as(name_or_path: &str, size: Option<(u32, u32)>, sensor: Option<SensorParams>) -> Result<Scene> {
+    let mut scene = load(name_or_path)?;
+    if let Some((width, height)) = size {
+        scene = scene.with_size(width, height);
+    }
+    if let Some(sensor) = sensor {
+        scene.sensor = SensorParams { seed: scene.sensor.seed, ..sensor };
+    }
+    Ok(scene)
+}
+
+/// An image size `WxH` (or `WXH`), from 1x1 to 16384x16384; the refusal is one sentence
+/// about `text`.
+pub fn parse_size(text: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("`{text}` is not of the form WxH"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("`{text}`: the width is not a whole number"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("`{text}`: the height is not a whole number"))?;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err(format!("`{text}` must be between 1x1 and 16384x16384"));
+    }
+    Ok((w, h))
+}
+
 struct Ctx<'a> {
     base: &'a Path,
     file: &'a str,
@@ -596,6 +622,25 @@ fn resolve_environment(ctx: &mut Ctx, e: &EnvironmentDesc) -> Result<Environment
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sizes_are_read_and_refused_by_their_text() {
+        assert_eq!(parse_size("64x48"), Ok((64, 48)));
+        assert_eq!(parse_size(" 64 X 48 "), Ok((64, 48)));
+        for bad in ["64", "0x48", "64x", "x48", "-1x2", "16385x2", "axb"] {
+            let error = parse_size(bad).unwrap_err();
+            assert!(error.contains(&format!("`{bad}`")), "{bad}: {error}");
+        }
+    }
+
+    #[test]
+    fn load_as_resizes_and_changes_the_camera_but_keeps_its_seed() {
+        let plain = load("survey-1").unwrap();
+        let scene = load_as("survey-1", Some((32, 24)), SensorParams::preset("clean")).unwrap();
+        assert_eq!((scene.camera.width, scene.camera.height), (32, 24));
+        assert_eq!(scene.sensor.seed, plain.sensor.seed);
+        assert_eq!(scene.sensor.jpeg_quality, SensorParams::clean().jpeg_quality);
+    }
 
     #[test]
     fn the_documented_example_scene_loads() {

@@ -52,7 +52,7 @@ mod tests;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use mrstudy_analysis::active::{ActiveError, DEFAULT_PRIOR_SD, Posterior};
-use mrstudy_analysis::analysis::{Analysis, Options, Screening, analyze_judgments};
+use mrstudy_analysis::analysis::{self, Analysis, Screening, analyze_judgments};
 use mrstudy_analysis::data::{ConditionTable, Judgment, Judgments};
 use mrstudy_analysis::plot::{LinePlot, LineSeries};
 use mrstudy_analysis::table::fixed;
@@ -105,6 +105,9 @@ pub enum SimulateError {
         "study \"{slug}\" is a detection design (reference = \"ground-truth\"); simulate models paired comparisons of conditions only"
     )]
     Detection { slug: String },
+    /// `power` finds participants per factor, and the study varies none.
+    #[error("the study has no factors, so there is no power per factor to find")]
+    NoFactors,
 }
 
 /// The true log-worth of every condition (study order) and the true factor effects.
@@ -124,6 +127,20 @@ pub struct ConditionWorth {
 pub struct FactorEffect {
     pub factor: String,
     pub effect: f64,
+}
+
+/// The truth of `mrstudy simulate` and `power`: factor effects (`--truth gi=0.3,…`), true
+/// log-worths from a CSV (`--truth-worth`: its text and name), or else the thesis's default.
+pub fn choose_truth(
+    study: &Study,
+    effects: Option<&str>,
+    worths: Option<(&str, &str)>,
+) -> Result<Truth, SimulateError> {
+    match (effects, worths) {
+        (Some(text), _) => truth_from_effects(study, &parse_effects(text)?),
+        (None, Some((text, name))) => truth_from_worths_csv(study, text, name),
+        (None, None) => default_truth(study),
+    }
 }
 
 /// Parses `gi=0.3,cm=-0.2` into (factor, effect) pairs.
@@ -393,40 +410,61 @@ fn anchored_pairs(study: &Study) -> Vec<(usize, usize)> {
 #[derive(Debug, Clone)]
 pub struct Config {
     pub truth: Truth,
-    pub designs: Vec<DesignChoice>,
     pub participants: Vec<usize>,
-    /// Per-participant taste noise: sd of each condition's log-worth offset.
+    pub options: Options,
+}
+
+/// The simulated observers and runs: `mrstudy simulate`'s and `power`'s flags (the doc
+/// comments are their help).
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct Options {
+    /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths).
+    #[arg(long, value_delimiter = ',', default_value = "study", value_parser = |text: &str| {
+        DesignChoice::parse(text).ok_or_else(|| format!("`{text}` is not one of study, all, anchored, active, active-worths"))
+    })]
+    pub designs: Vec<DesignChoice>,
+    /// Per-participant taste noise: sd of each condition's log-worth.
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub observer_sd: f64,
-    /// Probability of a coin-flip answer.
+    /// Probability that an answer is a coin flip.
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub lapse: f64,
-    /// Probability of stopping after each trial.
+    /// Probability that a participant stops after each trial.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dropout: f64,
+    /// Simulated studies per design and participant count.
+    #[arg(long, default_value_t = 200)]
     pub runs: usize,
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Bootstrap replicates of each run's analysis (0: Wald intervals).
+    /// Bootstrap replicates per analysis for the intervals (0: Wald intervals).
+    #[arg(long, default_value_t = 0)]
     pub bootstrap: usize,
 }
 
 impl Config {
     fn check(&self, study: &Study) -> Result<(), SimulateError> {
         let bad = |option: &'static str, message: String| SimulateError::BadOption { option, message };
-        if self.runs == 0 {
+        if self.options.runs == 0 {
             return Err(bad("--runs", "must be at least 1, found 0".into()));
         }
         if self.participants.is_empty() || self.participants.contains(&0) {
             return Err(bad("--participants", "must be counts of at least 1".into()));
         }
-        if self.designs.is_empty() {
+        if self.options.designs.is_empty() {
             return Err(bad("--designs", "must name at least one design".into()));
         }
-        if !(self.observer_sd >= 0.0 && self.observer_sd.is_finite()) {
-            return Err(bad("--observer-sd", format!("must be finite and not negative, found {}", self.observer_sd)));
+        if !(self.options.observer_sd >= 0.0 && self.options.observer_sd.is_finite()) {
+            return Err(bad(
+                "--observer-sd",
+                format!("must be finite and not negative, found {}", self.options.observer_sd),
+            ));
         }
-        if !(0.0..1.0).contains(&self.lapse) {
-            return Err(bad("--lapse", format!("must be in [0, 1), found {}", self.lapse)));
+        if !(0.0..1.0).contains(&self.options.lapse) {
+            return Err(bad("--lapse", format!("must be in [0, 1), found {}", self.options.lapse)));
         }
-        if !(0.0..1.0).contains(&self.dropout) {
-            return Err(bad("--dropout", format!("must be in [0, 1), found {}", self.dropout)));
+        if !(0.0..1.0).contains(&self.options.dropout) {
+            return Err(bad("--dropout", format!("must be in [0, 1), found {}", self.options.dropout)));
         }
         if self.truth.log_worths.len() != study.conditions.len() {
             return Err(bad(
@@ -552,7 +590,7 @@ struct Observer<'a> {
 impl Observer<'_> {
     /// Whether the left condition is chosen.
     fn judge(&mut self, left: usize, right: usize) -> bool {
-        if uniform(&mut self.rng) < self.config.lapse {
+        if uniform(&mut self.rng) < self.config.options.lapse {
             return uniform(&mut self.rng) < 0.5;
         }
         uniform(&mut self.rng) < 1.0 / (1.0 + (self.worths[right] - self.worths[left]).exp())
@@ -560,13 +598,13 @@ impl Observer<'_> {
 
     /// A catch trial: right unless lapsing (nothing recorded).
     fn catch(&mut self) {
-        if uniform(&mut self.rng) < self.config.lapse {
+        if uniform(&mut self.rng) < self.config.options.lapse {
             uniform(&mut self.rng);
         }
     }
 
     fn drops_out(&mut self) -> bool {
-        self.config.dropout > 0.0 && uniform(&mut self.rng) < self.config.dropout
+        self.config.options.dropout > 0.0 && uniform(&mut self.rng) < self.config.options.dropout
     }
 }
 
@@ -586,7 +624,7 @@ fn collect_judgments(
     for participant in 0..participants {
         let seed = derived_seed(run_seed, participant as u64);
         let mut rng = ChaCha8Rng::seed_from_u64(derived_seed(seed, 1));
-        let worths = truth.iter().map(|w| w + config.observer_sd * normal(&mut rng)).collect();
+        let worths = truth.iter().map(|w| w + config.options.observer_sd * normal(&mut rng)).collect();
         let mut observer = Observer { worths, rng, config };
         let mut shown: Vec<(usize, usize)> = Vec::new();
         let mut stopped = false;
@@ -725,12 +763,12 @@ fn run_once(
         groups: Vec::new(),
         rows,
     };
-    let options = Options {
-        bootstrap: config.bootstrap,
+    let options = analysis::Options {
+        bootstrap: config.options.bootstrap,
         seed: run_seed,
         screening: Screening::Off,
         agreement_simulations: 1,
-        ..Options::default()
+        ..analysis::Options::default()
     };
     match analyze_judgments(&judgments, table, &options) {
         Ok(analysis) => score(&analysis, config, &mut outcome),
@@ -751,6 +789,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
     }
     config.check(study)?;
     let variants: Vec<(DesignChoice, Study)> = config
+        .options
         .designs
         .iter()
         .map(|&choice| design_variant(study, choice).map(|variant| (choice, variant)))
@@ -762,7 +801,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
                 .participants
                 .iter()
                 .enumerate()
-                .flat_map(move |(p, _)| (0..config.runs as u64).map(move |r| (v, p, r)))
+                .flat_map(move |(p, _)| (0..config.options.runs as u64).map(move |r| (v, p, r)))
         })
         .collect();
     let total = jobs.len() as u64;
@@ -772,14 +811,15 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
         .map(|&(v, p, run)| {
             let (choice, variant) = &variants[v];
             let participants = config.participants[p];
-            let seed = derived_seed(derived_seed(derived_seed(config.seed, choice.code()), participants as u64), run);
+            let seed =
+                derived_seed(derived_seed(derived_seed(config.options.seed, choice.code()), participants as u64), run);
             let outcome = run_once(variant, table.as_ref(), config, participants, seed);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             outcome
         })
         .collect();
     let mut rows = Vec::new();
-    for (chunk, &(v, p, _)) in outcomes.chunks(config.runs).zip(jobs.iter().step_by(config.runs)) {
+    for (chunk, &(v, p, _)) in outcomes.chunks(config.options.runs).zip(jobs.iter().step_by(config.options.runs)) {
         rows.push(summarise(&variants[v], config.participants[p], chunk, config));
     }
     Ok(Report {
@@ -787,12 +827,12 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
         reference: study.conditions[0].name.clone(),
         truth: config.truth.clone(),
         settings: Settings {
-            observer_sd: config.observer_sd,
-            lapse: config.lapse,
-            dropout: config.dropout,
-            runs: config.runs,
-            seed: config.seed,
-            bootstrap: config.bootstrap,
+            observer_sd: config.options.observer_sd,
+            lapse: config.options.lapse,
+            dropout: config.options.dropout,
+            runs: config.options.runs,
+            seed: config.options.seed,
+            bootstrap: config.options.bootstrap,
             alpha: ALPHA,
         },
         rows,
@@ -985,6 +1025,23 @@ pub struct PowerAt {
     pub participants: usize,
     pub power: f64,
     pub mcse: f64,
+}
+
+/// A target power, strictly between 0 and 1 (`mrstudy power --target`).
+pub fn parse_target(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(target) if target > 0.0 && target < 1.0 => Ok(target),
+        _ => Err(format!("`{text}` is not a power between 0 and 1 (e.g. 0.8)")),
+    }
+}
+
+/// `mrstudy power`'s answer: one sentence per design and factor ([`power_needs`],
+/// [`power_lines`]); refused when the study varies no factor.
+pub fn power_report(report: &Report, target: f64) -> Result<Vec<String>, SimulateError> {
+    if report.truth.effects.is_empty() {
+        return Err(SimulateError::NoFactors);
+    }
+    Ok(power_lines(&power_needs(report, target), target))
 }
 
 /// Per design and factor, the smallest participant count whose power reaches `target`.

@@ -57,14 +57,16 @@ fn config(study: &Study, designs: &[DesignChoice], participants: &[usize], runs:
     let effects = vec![("gi".to_string(), 0.6), ("ca".to_string(), 0.3)];
     Config {
         truth: truth_from_effects(study, &effects).unwrap(),
-        designs: designs.to_vec(),
         participants: participants.to_vec(),
-        observer_sd: 0.3,
-        lapse: 0.02,
-        dropout: 0.0,
-        runs,
-        seed: 7,
-        bootstrap: 0,
+        options: Options {
+            designs: designs.to_vec(),
+            observer_sd: 0.3,
+            lapse: 0.02,
+            dropout: 0.0,
+            runs,
+            seed: 7,
+            bootstrap: 0,
+        },
     }
 }
 
@@ -82,7 +84,9 @@ fn a_seed_gives_the_same_report_whatever_the_thread_count() {
     let one = on(1);
     assert_eq!(one, on(3));
     assert_eq!(one, simulate(&study, &config, &quiet).unwrap());
-    let other = simulate(&study, &Config { seed: 8, ..config.clone() }, &quiet).unwrap();
+    let other =
+        simulate(&study, &Config { options: Options { seed: 8, ..config.options.clone() }, ..config.clone() }, &quiet)
+            .unwrap();
     assert_ne!(one.rows, other.rows, "another seed, other runs");
     assert_eq!(one.rows.len(), 4);
     let json = serde_json::to_string(&one).unwrap();
@@ -137,7 +141,9 @@ fn dropout_shortens_participation_and_catch_trials_are_not_judgments() {
     let base = config(&study, &[DesignChoice::Study], &[10], 4);
     let full = simulate(&with_catch, &base, &quiet).unwrap();
     assert_eq!(full.rows[0].judgments_per_participant.mean, 10.0);
-    let dropping = simulate(&study, &Config { dropout: 0.2, ..base }, &quiet).unwrap();
+    let dropping =
+        simulate(&study, &Config { options: Options { dropout: 0.2, ..base.options.clone() }, ..base }, &quiet)
+            .unwrap();
     let mean = dropping.rows[0].judgments_per_participant.mean;
     assert!((1.0..7.0).contains(&mean), "with dropout 0.2 after each trial: {mean}");
 }
@@ -182,10 +188,16 @@ fn bad_input_is_refused_with_one_sentence() {
     assert!((effects[0] - 0.6).abs() < 1e-12 && (effects[1] - 0.3).abs() < 1e-12, "{effects:?}");
     let good = config(&study, &[DesignChoice::Study], &[4], 2);
     for (bad, words) in [
-        (Config { runs: 0, ..good.clone() }, "--runs must be at least 1"),
+        (Config { options: Options { runs: 0, ..good.options.clone() }, ..good.clone() }, "--runs must be at least 1"),
         (Config { participants: vec![0], ..good.clone() }, "--participants"),
-        (Config { lapse: 1.0, ..good.clone() }, "--lapse must be in [0, 1)"),
-        (Config { dropout: -0.1, ..good.clone() }, "--dropout must be in [0, 1)"),
+        (
+            Config { options: Options { lapse: 1.0, ..good.options.clone() }, ..good.clone() },
+            "--lapse must be in [0, 1)",
+        ),
+        (
+            Config { options: Options { dropout: -0.1, ..good.options.clone() }, ..good.clone() },
+            "--dropout must be in [0, 1)",
+        ),
     ] {
         let error = simulate(&study, &bad, &quiet).unwrap_err().to_string();
         assert!(error.contains(words), "{error}");
@@ -223,14 +235,16 @@ fn the_twenty_condition_example_loads_with_its_true_log_worths() {
     assert!(truth.effects.is_empty(), "a constant factor has no effect to project on");
     let config = Config {
         truth,
-        designs: vec![DesignChoice::Study, DesignChoice::Active],
         participants: vec![4],
-        observer_sd: 0.3,
-        lapse: 0.02,
-        dropout: 0.0,
-        runs: 2,
-        seed: 1,
-        bootstrap: 0,
+        options: Options {
+            designs: vec![DesignChoice::Study, DesignChoice::Active],
+            observer_sd: 0.3,
+            lapse: 0.02,
+            dropout: 0.0,
+            runs: 2,
+            seed: 1,
+            bootstrap: 0,
+        },
     };
     let report = simulate(&study, &config, &quiet).unwrap();
     assert_eq!(report.rows[0].judgments_per_participant.mean, 37.0);

@@ -1,10 +1,10 @@
-//! `mrstudy-loadgen`, the load generator behind `mrstudy bench server`: drives the API of
+//! The load generator behind `mrstudy bench server`: drives the API of
 //! `mrstudy-server` from loopback with many concurrent simulated participants and measures
 //! responses per second and response latency, with the durable writes of a real server (WAL,
 //! `synchronous = FULL`, group commit). [`run`] measures one concurrency, [`bench()`] the table
 //! of DESIGN.md's bench (a typed [`Report`], its JSON by [`Report::to_json`]).
 //!
-//! A crate of its own so that its HTTP client and temporary directories are not dependencies
+//! In the bench crate so that its HTTP client and temporary directories are not dependencies
 //! of the server.
 //!
 //! The server runs in this process on its own tokio runtime (two worker threads) on a fresh

@@ -1,0 +1,116 @@
+//! `mrstudy-bench`: every benchmark of `mrstudy bench` behind one call. [`run`] picks the
+//! experiment by [`Target`] and [`Options`] — the renderer's (`mrstudy_renderer::bench`: GPU
+//! frame time and error, the reference path tracer, ca and cm accuracy), the analysis's
+//! (`mrstudy_analysis::bench`, `mrstudy_analysis::active::bench`) or the server's load
+//! generator ([`server`]) — and returns a [`Measured`]: DESIGN.md's bench JSON and the curves
+//! drawn as SVG. Each experiment's typed report stays in the crate it measures.
+
+pub mod server;
+
+use mrstudy_analysis::plot::{LinePlot, LineSeries, line_plot};
+use mrstudy_renderer::bench::{self as render, Observer, Plot};
+
+/// What `mrstudy bench` measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Target {
+    /// Active pair selection: choice time against conditions × judgments, posterior updates against the refit.
+    Active,
+    /// Bradley–Terry analysis: time against data size and against convergence tolerance.
+    Analysis,
+    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on.
+    Render,
+    /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
+    Server,
+}
+
+/// How a benchmark runs: `mrstudy bench`'s flags (the doc comments are their help).
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct Options {
+    /// Smaller sizes only (for a quick check).
+    #[arg(long)]
+    pub quick: bool,
+    /// bench render: measure the CPU reference path tracer.
+    #[arg(long)]
+    pub reference: bool,
+    /// bench render: the ca factor's accuracy — noise and blur on the virtual objects against
+    /// the camera's (ground truth), ca off / scene / estimated parameters, per scene and preset.
+    #[arg(long, conflicts_with_all = ["reference", "cm"])]
+    pub ca: bool,
+    /// bench render: each colour-mapping (cm) method's CIEDE2000 on the virtual objects against the ground truth through the known camera, over camera presets and settings.
+    #[arg(long, conflicts_with = "reference")]
+    pub cm: bool,
+    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm).
+    #[arg(long)]
+    pub scene: Option<String>,
+}
+
+/// A benchmark's result: DESIGN.md's bench JSON (`{"adapter": ..., "rows": [...]}`) and its
+/// curves as (SVG file name, SVG text).
+#[derive(Clone, Debug)]
+pub struct Measured {
+    pub json: serde_json::Value,
+    pub plots: Vec<(String, String)>,
+}
+
+/// Why a benchmark could not finish.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BenchError {
+    #[error(transparent)]
+    Render(#[from] mrstudy_renderer::RenderError),
+    #[error(transparent)]
+    Analysis(#[from] mrstudy_analysis::AnalysisError),
+    #[error("bench server failed: {0}")]
+    Server(String),
+    #[error("cannot start the benchmark's thread pool: {0}")]
+    Threads(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// Runs the benchmark `target` with `options`; its table lines, notes and progress go to
+/// `observer` as it runs.
+pub fn run(target: Target, options: &Options, observer: &dyn Observer) -> Result<Measured, BenchError> {
+    let scene = options.scene.as_deref();
+    let quick = options.quick;
+    let line = |text: &str| observer.line(text);
+    let drawn =
+        |plots: &[(String, LinePlot)]| plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect();
+    Ok(match target {
+        Target::Analysis => {
+            // one core, as the targets are stated for one core of the 2-core machine
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+            let report = pool.install(|| mrstudy_analysis::bench::run(quick, &line))?;
+            Measured { json: report.to_json(), plots: drawn(&report.plots) }
+        }
+        Target::Active => {
+            let report = mrstudy_analysis::active::bench::run(quick, &line)?;
+            Measured { json: report.to_json(), plots: drawn(&report.plots) }
+        }
+        Target::Render if options.reference => rendered(render::reference::run(scene, quick, observer)?),
+        Target::Render if options.ca => rendered(render::ca::run(scene, quick, observer)?),
+        Target::Render if options.cm => rendered(render::cm::run(scene, quick, observer)?),
+        Target::Render => rendered(render::gpu::run(scene, quick, observer)?),
+        Target::Server => {
+            let report = server::bench(quick, &line).map_err(BenchError::Server)?;
+            Measured { json: report.to_json(), plots: Vec::new() }
+        }
+    })
+}
+
+/// A renderer benchmark's report with its plots drawn.
+fn rendered<R: serde::Serialize>(report: render::Report<R>) -> Measured {
+    Measured { json: report.to_json(), plots: report.plots.iter().map(svg).collect() }
+}
+
+/// The renderer's plot as an SVG file name and text.
+fn svg(plot: &Plot) -> (String, String) {
+    let series = plot.series.iter().map(|s| LineSeries { name: s.name.clone(), points: s.points.clone() }).collect();
+    let line = LinePlot {
+        title: plot.title.clone(),
+        x_label: plot.x_label.clone(),
+        y_label: plot.y_label.clone(),
+        x_log: plot.x_log,
+        y_log: plot.y_log,
+        series,
+    };
+    (plot.file.clone(), line_plot(&line))
+}

@@ -1,0 +1,39 @@
+//! `mrstudy export`: a study's trials (or JSON, conditions, task) from the database, by
+//! `mrstudy_server::serve::export`, to a file or stdout.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, anyhow};
+use clap::Args;
+use mrstudy_server::export::Include;
+use mrstudy_server::serve::ExportFormat;
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The study's slug.
+    #[arg(long)]
+    study: String,
+    /// csv (the trials CSV of DESIGN.md), json (every participant with the whole schedule),
+    /// conditions (the conditions CSV), task (a task study's long CSV), task-trials.
+    #[arg(long, default_value = "csv", value_parser = crate::choice(ExportFormat::parse, ExportFormat::NAMES))]
+    format: ExportFormat,
+    /// Write here instead of stdout.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Data directory that `mrstudy serve` used.
+    #[arg(long, default_value = "./mrstudy-data")]
+    data_dir: PathBuf,
+    #[command(flatten)]
+    include: Include,
+}
+
+pub fn run(args: ExportArgs) -> Result<()> {
+    let output = mrstudy_server::serve::export(&args.data_dir, &args.study, args.format, args.include)
+        .map_err(|message| anyhow!("{message}"))?;
+    output.left_out.iter().for_each(|line| eprintln!("{line}"));
+    match &args.out {
+        Some(path) => crate::write_file(path, &output.text),
+        None => std::io::stdout().write_all(output.text.as_bytes()).context("cannot write to stdout"),
+    }
+}
