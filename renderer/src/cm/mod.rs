@@ -248,13 +248,19 @@ pub fn usable(input: &CmInput, i: usize, params: &CmParams) -> bool {
 }
 
 /// Composition of one pixel: `photo` display-encoded, `m_rv`/`m_r` the mapped buffers.
-/// Real pixels whose differential is exactly zero keep the photograph bit for bit.
+/// Real pixels whose differential is exactly zero keep the photograph bit for bit; virtual
+/// pixels show `m_rv` alone (their L_r is 0: no real solution, so no τ(0) is subtracted).
 pub fn compose(linear_domain: bool, composition: Composition, photo: Vec3, flag: u32, m_rv: Vec3, m_r: Vec3) -> Vec3 {
     if flag == surface::NOTHING || (flag == surface::REAL && m_rv == m_r) {
         return photo;
     }
     let r_p = if flag == surface::REAL { 1.0 } else { 0.0 };
     let cam = if linear_domain { gamma_decode(photo) } else { photo } * r_p;
+    // A virtual pixel has no real solution (L_r = 0 there): it shows τ(L_rv) alone. Taking
+    // eq. 4.19 literally would subtract τ(0), which is not 0 for a mapping with an offset (the
+    // samples method's affine polynomial, the statistics method's shift of means), and darken
+    // every virtual object by that offset.
+    let m_r = m_r * r_p;
     let mut delta = m_rv - m_r;
     if composition == Composition::Scaled {
         let alpha = |c: f32, m: f32| if r_p > 0.0 && m > 1e-4 { c / m } else { 1.0 };

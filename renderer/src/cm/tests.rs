@@ -342,3 +342,16 @@ fn scaled_composition_is_debevecs_ratio() {
     // virtual pixels: α = 1, the camera is masked
     assert_eq!(compose(false, Composition::Scaled, photo, 2, m_rv, Vec3::ZERO), m_rv);
 }
+
+#[test]
+fn a_virtual_pixel_shows_its_mapped_colour_whatever_the_mapping_of_black() {
+    // an affine mapping with an offset maps L_r = 0 (a virtual pixel's real solution) to 0.35;
+    // the virtual pixel must still show τ(L_rv), not τ(L_rv) − 0.35 (issue 17's dark objects)
+    let (photo, m_rv, offset) = (Vec3::new(0.4, 0.5, 0.6), Vec3::new(0.6, 0.55, 0.5), Vec3::splat(0.35));
+    for composition in [Composition::Additive, Composition::Scaled] {
+        assert_eq!(compose(false, composition, photo, 2, m_rv, offset), m_rv);
+    }
+    // in the linear domain (Rohmer) the result is encoded again, as for any pixel
+    let linear = compose(true, Composition::Additive, photo, 2, m_rv, offset);
+    assert!((linear - crate::cm::colour::gamma_encode(m_rv)).abs().max_element() < 1e-6, "{linear}");
+}

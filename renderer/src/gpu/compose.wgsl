@@ -4,7 +4,7 @@
 //   flag 0 (nothing modelled), or a real pixel whose mapped differential is exactly zero:
 //     the photograph as it is
 //   otherwise: cam' + alpha (tau(L_rv) - tau(L_r)), clamped to [0, 1], where cam' is the
-//     photograph masked at virtual pixels, alpha = 1 (additive) or cam'/tau(L_r) per channel
+//     photograph masked at virtual pixels (where tau(L_r) counts as 0: no real solution), alpha = 1 (additive) or cam'/tau(L_r) per channel
 //     (scaled; 1 where tau(L_r) <= 1e-4 or at virtual pixels); in the linear domain (Rohmer)
 //     cam is the photograph decoded with gamma 2.2 and the result is encoded again.
 
@@ -57,7 +57,9 @@ fn cs_compose(@builtin(global_invocation_id) id: vec3<u32>) {
         cam = vec3<f32>(gamma_decode1(cam.x), gamma_decode1(cam.y), gamma_decode1(cam.z));
     }
     cam = cam * select(0.0, 1.0, real);
-    var delta = m_rv - m_r;
+    // a virtual pixel has no real solution: tau(L_rv) alone, not minus tau(0) (an offset)
+    let m_r_real = m_r * select(0.0, 1.0, real);
+    var delta = m_rv - m_r_real;
     if params.size.w == 1u {
         delta = delta * vec3<f32>(alpha(cam.x, m_r.x, real), alpha(cam.y, m_r.y, real), alpha(cam.z, m_r.z, real));
     }
