@@ -218,8 +218,8 @@ fn no_cm_method_darkens_the_virtual_objects_of_a_survey_scene() {
     let mut failures = Vec::new();
     for name in crate::builtin::names().filter(|name| name.starts_with("survey-")) {
         let scene = crate::scene::load(name).unwrap().with_size(64, 48);
-        let truth = render_reference(&scene, &ReferenceParams { spp: 8, ..ReferenceParams::default() }, &|_, _| {})
-            .unwrap();
+        let truth =
+            render_reference(&scene, &ReferenceParams { spp: 8, ..ReferenceParams::default() }, &|_, _| {}).unwrap();
         let mask = &truth.virtual_mask.values;
         assert!(mask.iter().any(|m| *m > 0.5), "{name} shows no virtual object at 64×48");
         let truth_luminance = linear_luminance(&truth.ground_truth, mask);
