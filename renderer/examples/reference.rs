@@ -12,8 +12,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size = args.get(2).map(String::as_str).unwrap_or("320x240");
     let spp: u32 = args.get(3).map(|s| s.parse()).transpose()?.unwrap_or(32);
     let out = PathBuf::from(args.get(4).map(String::as_str).unwrap_or("."));
-    let (w, h) = size.split_once('x').ok_or("size must be WxH")?;
-    let scene = scene::load(name)?.with_size(w.parse()?, h.parse()?);
+    let scene = scene::load_as(name, Some(scene::parse_size(size)?), None)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }

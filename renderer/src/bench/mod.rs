@@ -70,7 +70,7 @@ impl<R: Serialize> Report<R> {
 
 /// A scene by name or path at `width`×`height`.
 fn load_sized(name: &str, width: u32, height: u32) -> Result<Scene> {
-    Ok(scene::load(name)?.with_size(width, height))
+    scene::load_as(name, Some((width, height)), None)
 }
 
 /// The ground-truth composite of `scene` (16 samples per pass), its progress reported as
