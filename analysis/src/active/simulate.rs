@@ -96,8 +96,29 @@ fn centred_rmse(estimate: &[f64], truth: &[f64]) -> f64 {
     (estimate.iter().zip(truth).map(|(e, t)| ((e - me) - (t - mt)).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-/// One run: the RMSE at each checkpoint.
-fn run_once(config: &SimulationConfig, design: Design, run: u64) -> Result<Vec<f64>> {
+/// One judgment of a simulated study: the pair as chosen, and whether its first condition won.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoggedJudgment {
+    pub first: usize,
+    pub second: usize,
+    pub first_won: bool,
+}
+
+/// The judgments of run `run` of `config` with `design`, in order: what [`simulate`] scores, for
+/// scoring by another estimator (the side-by-side with a published scheduler does that).
+pub fn judgment_log(config: &SimulationConfig, design: Design, run: u64) -> Result<Vec<LoggedJudgment>> {
+    let mut log = Vec::new();
+    run_once(config, design, run, Some(&mut log))?;
+    Ok(log)
+}
+
+/// One run: the RMSE at each checkpoint (and, when asked, every judgment).
+fn run_once(
+    config: &SimulationConfig,
+    design: Design,
+    run: u64,
+    mut log: Option<&mut Vec<LoggedJudgment>>,
+) -> Result<Vec<f64>> {
     let n = config.true_log_worths.len();
     let mut posterior =
         Posterior::new(&config.target, config.link, config.prior_sd)?.with_mean_weight(config.mean_weight)?;
@@ -144,6 +165,9 @@ fn run_once(config: &SimulationConfig, design: Design, run: u64) -> Result<Vec<f
                 let i_won = uniform(&mut outcomes) < config.link.probability(worths[i] - worths[j]);
                 let (winner, loser) = if i_won { (i, j) } else { (j, i) };
                 posterior.update(winner, loser)?;
+                if let Some(log) = log.as_deref_mut() {
+                    log.push(LoggedJudgment { first: i, second: j, first_won: i_won });
+                }
                 previous = Some((i, j));
                 judged += 1;
                 done += 1;
@@ -175,7 +199,7 @@ pub fn simulate(config: &SimulationConfig, design: Design) -> Result<Vec<Simulat
         return Err(bad("taste_sd", format!("must be finite and not negative, got {}", config.taste_sd)));
     }
     let per_run: Vec<Vec<f64>> =
-        (0..config.runs as u64).map(|run| run_once(config, design, run)).collect::<Result<_>>()?;
+        (0..config.runs as u64).map(|run| run_once(config, design, run, None)).collect::<Result<_>>()?;
     Ok(config
         .checkpoints
         .iter()

@@ -8,7 +8,7 @@ use rand_chacha::rand_core::SeedableRng;
 
 use super::laplace::{cholesky, refit};
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES, binary_entropy, normal_pdf};
-use super::simulate::{Design, SimulationConfig, factorial, normal, simulate, uniform};
+use super::simulate::{Design, SimulationConfig, factorial, judgment_log, normal, simulate, uniform};
 use super::*;
 
 /// EIG by the 20-point rule against the dense trapezoid rule, for v ≤ 2 (a pair at the default
@@ -476,4 +476,27 @@ fn simulation_refuses_a_mismatched_truth() {
         simulate(&config, Design::Random).unwrap_err().to_string(),
         "true_log_worths: 4 true log-worths for 5 conditions"
     );
+}
+
+/// The judgment log of a simulated run is the study `simulate` scored: replayed through a fresh
+/// posterior it gives the same RMSE at the checkpoint, for both designs.
+#[test]
+fn a_judgment_log_replays_to_the_scored_study() {
+    let (_, worths) = factorial(&[0.27, -0.22, 0.43]);
+    let config = study(worths.clone(), Target::Worths { conditions: 8 }, vec![60], 1);
+    for design in [Design::Active, Design::Random] {
+        let log = judgment_log(&config, design, 0).unwrap();
+        assert_eq!(log.len(), 60);
+        let mut posterior = Posterior::new(&config.target, config.link, config.prior_sd).unwrap();
+        for judgment in &log {
+            let (winner, loser) =
+                if judgment.first_won { (judgment.first, judgment.second) } else { (judgment.second, judgment.first) };
+            posterior.update(winner, loser).unwrap();
+        }
+        let estimate = posterior.log_worths();
+        let (me, mt) = (estimate.iter().sum::<f64>() / 8.0, worths.iter().sum::<f64>() / 8.0);
+        let rmse = (estimate.iter().zip(&worths).map(|(e, t)| ((e - me) - (t - mt)).powi(2)).sum::<f64>() / 8.0).sqrt();
+        let scored = simulate(&config, design).unwrap()[0].rmse;
+        assert!((rmse - scored).abs() < 1e-12, "{design:?}: replayed {rmse}, simulated {scored}");
+    }
 }
