@@ -12,7 +12,9 @@
 //! centred RMSE of its mean at each of the comma-separated trial counts.
 use std::fmt::Write as _;
 
-use mrstudy_analysis::active::simulate::{Design, SimulationConfig, factorial, judgment_log, simulate};
+use mrstudy_analysis::active::simulate::{
+    Design, SimulationConfig, centred_rmse, factorial, judgment_log, mean_and_standard_error, simulate,
+};
 use mrstudy_analysis::active::{DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Posterior, Target, bench};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
@@ -20,17 +22,13 @@ use rand_chacha::rand_core::{Rng, SeedableRng};
 fn main() {
     let mut args = std::env::args().skip(1);
     let what = args.next().unwrap_or_else(|| "simulate".into());
-    let runs: usize =
-        if what == "score" { 0 } else { args.next().map_or(40, |s| s.parse().expect("a number of runs")) };
     match what.as_str() {
         "bench" | "bench-quick" => {
             let report = bench::run(what == "bench-quick", &|line| println!("{line}")).expect("bench");
             println!("{}", serde_json::to_string(&report.to_json()).expect("json"));
         }
         "score" => {
-            // `runs` was read from the first argument: here it is the worths CSV.
-            let mut all = std::env::args().skip(2);
-            let mut arg = |what: &str| all.next().unwrap_or_else(|| panic!("give {what}"));
+            let mut arg = |what: &str| args.next().unwrap_or_else(|| panic!("give {what}"));
             let (worths_csv, checkpoints, log) = (arg("WORTHS"), arg("CHECKPOINTS"), arg("LOG"));
             let worths = read_worths(&worths_csv);
             let checkpoints: Vec<usize> = checkpoints.split(',').map(|c| c.parse().expect("a trial count")).collect();
@@ -44,31 +42,24 @@ fn main() {
                 }
                 runs[run].push(if i_won { (i, j) } else { (j, i) });
             }
-            let n = worths.len();
-            let mean_w = worths.iter().sum::<f64>() / n as f64;
+            let target = Target::Worths { conditions: worths.len() };
             for &c in &checkpoints {
                 let values: Vec<f64> = runs
                     .iter()
                     .map(|judgments| {
-                        let mut posterior =
-                            Posterior::new(&Target::Worths { conditions: n }, Link::Probit, DEFAULT_PRIOR_SD).unwrap();
+                        let mut posterior = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD).unwrap();
                         for &(winner, loser) in &judgments[..c] {
                             posterior.update(winner, loser).expect("update");
                         }
-                        let estimate = posterior.log_worths();
-                        let mean_e = estimate.iter().sum::<f64>() / n as f64;
-                        let squares: f64 =
-                            estimate.iter().zip(&worths).map(|(e, t)| ((e - mean_e) - (t - mean_w)).powi(2)).sum();
-                        (squares / n as f64).sqrt()
+                        centred_rmse(&posterior.log_worths(), &worths)
                     })
                     .collect();
-                let k = values.len() as f64;
-                let mean = values.iter().sum::<f64>() / k;
-                let se = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt();
+                let (mean, se) = mean_and_standard_error(&values);
                 println!("{log}: {c} trials, {} runs, RMSE (posterior mean) {mean:.3} ± {se:.3}", values.len());
             }
         }
         "log" => {
+            let runs = runs_arg(&mut args);
             let mut arg = |what: &str| args.next().unwrap_or_else(|| panic!("give {what}"));
             let (worths_csv, taste_sd, trials, dir) = (arg("WORTHS"), arg("TASTE_SD"), arg("TRIALS"), arg("DIR"));
             let worths = read_worths(&worths_csv);
@@ -98,6 +89,7 @@ fn main() {
             }
         }
         _ => {
+            let runs = runs_arg(&mut args);
             let (_, eight) = factorial(&[0.27, -0.22, 0.43]);
             // Log-worths N(0, 1) by Box–Muller on a seeded ChaCha8 stream.
             let mut rng = ChaCha8Rng::from_seed([7; 32]);
@@ -142,6 +134,11 @@ fn main() {
             }
         }
     }
+}
+
+/// RUNS, the argument after `log` and `simulate` (40 when absent).
+fn runs_arg(args: &mut impl Iterator<Item = String>) -> usize {
+    args.next().map_or(40, |s| s.parse().expect("a number of runs"))
 }
 
 /// The `log_worth` column (the last) of a worths CSV, in row order.

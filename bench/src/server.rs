@@ -191,6 +191,17 @@ struct Tally {
     exports_done: u64,
 }
 
+/// A tokio runtime of two worker threads named `bench-{role}`: the server and the simulated
+/// participants each get one.
+fn two_thread_runtime(role: &str) -> Result<tokio::runtime::Runtime, String> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name(format!("bench-{role}"))
+        .enable_all()
+        .build()
+        .map_err(|error| format!("cannot start the {role} runtime: {error}"))
+}
+
 /// Runs the benchmark (blocking).
 pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
     let work = tempfile::Builder::new()
@@ -201,12 +212,7 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
     let data_dir = work.path().join("data");
     write_bench_study(&studies_dir).map_err(|error| format!("cannot write the bench study: {error}"))?;
 
-    let server_runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .thread_name("bench-server")
-        .enable_all()
-        .build()
-        .map_err(|error| format!("cannot start the server runtime: {error}"))?;
+    let server_runtime = two_thread_runtime("server")?;
     let (address, admin_token) = server_runtime.block_on(async {
         let prepared = prepare(&data_dir, &studies_dir).await.map_err(|error| error.to_string())?;
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(|error| error.to_string())?;
@@ -238,12 +244,7 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         })
     };
 
-    let client_runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .thread_name("bench-client")
-        .enable_all()
-        .build()
-        .map_err(|error| format!("cannot start the client runtime: {error}"))?;
+    let client_runtime = two_thread_runtime("client")?;
     let base = format!("http://{address}");
     let (tally, seconds) = client_runtime.block_on(async move {
         let client = reqwest::Client::builder()

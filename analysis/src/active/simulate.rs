@@ -90,10 +90,20 @@ fn stream(seed: u64, run: u64, purpose: u64) -> ChaCha8Rng {
     ChaCha8Rng::from_seed(key)
 }
 
-fn centred_rmse(estimate: &[f64], truth: &[f64]) -> f64 {
+/// The RMSE of `estimate` against `truth`, both centred (log-worths are identified up to their
+/// mean): what [`simulate`] scores at each checkpoint.
+pub fn centred_rmse(estimate: &[f64], truth: &[f64]) -> f64 {
     let n = truth.len() as f64;
     let (me, mt) = (estimate.iter().sum::<f64>() / n, truth.iter().sum::<f64>() / n);
     (estimate.iter().zip(truth).map(|(e, t)| ((e - me) - (t - mt)).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// The mean of `values` (one per run) and its standard error (0 for a single run).
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let runs = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / runs;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (runs - 1.0).max(1.0);
+    (mean, (variance / runs).sqrt())
 }
 
 /// One judgment of a simulated study: the pair as chosen, and whether its first condition won.
@@ -206,17 +216,8 @@ pub fn simulate(config: &SimulationConfig, design: Design) -> Result<Vec<Simulat
         .enumerate()
         .map(|(c, &trials)| {
             let values: Vec<f64> = per_run.iter().map(|r| r[c]).collect();
-            let runs = values.len() as f64;
-            let mean = values.iter().sum::<f64>() / runs;
-            let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (runs - 1.0).max(1.0);
-            SimulationRow {
-                design,
-                conditions: n,
-                trials,
-                runs: config.runs,
-                rmse: mean,
-                rmse_se: (variance / runs).sqrt(),
-            }
+            let (rmse, rmse_se) = mean_and_standard_error(&values);
+            SimulationRow { design, conditions: n, trials, runs: config.runs, rmse, rmse_se }
         })
         .collect())
 }

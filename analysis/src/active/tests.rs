@@ -8,7 +8,7 @@ use rand_chacha::rand_core::SeedableRng;
 
 use super::laplace::{cholesky, refit};
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES, binary_entropy, normal_pdf};
-use super::simulate::{Design, SimulationConfig, factorial, judgment_log, normal, simulate, uniform};
+use super::simulate::{Design, SimulationConfig, centred_rmse, factorial, judgment_log, normal, simulate, uniform};
 use super::*;
 
 /// EIG by the 20-point rule against the dense trapezoid rule, for v ≤ 2 (a pair at the default
@@ -493,9 +493,7 @@ fn a_judgment_log_replays_to_the_scored_study() {
                 if judgment.first_won { (judgment.first, judgment.second) } else { (judgment.second, judgment.first) };
             posterior.update(winner, loser).unwrap();
         }
-        let estimate = posterior.log_worths();
-        let (me, mt) = (estimate.iter().sum::<f64>() / 8.0, worths.iter().sum::<f64>() / 8.0);
-        let rmse = (estimate.iter().zip(&worths).map(|(e, t)| ((e - me) - (t - mt)).powi(2)).sum::<f64>() / 8.0).sqrt();
+        let rmse = centred_rmse(&posterior.log_worths(), &worths);
         let scored = simulate(&config, design).unwrap()[0].rmse;
         assert!((rmse - scored).abs() < 1e-12, "{design:?}: replayed {rmse}, simulated {scored}");
     }
