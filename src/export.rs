@@ -24,13 +24,18 @@ pub struct ExportArgs {
     /// Data directory that `mrstudy serve` used.
     #[arg(long, default_value = "./mrstudy-data")]
     data_dir: PathBuf,
+    /// The database that `mrstudy serve --database` used (a postgres:// URL or a sqlite file;
+    /// default: <data-dir>/mrstudy.db).
+    #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
+    database: Option<String>,
     #[command(flatten)]
     include: Include,
 }
 
 pub fn run(args: ExportArgs) -> Result<()> {
-    let output = mrstudy_server::serve::export(&args.data_dir, &args.study, args.format, args.include)
-        .map_err(|message| anyhow!("{message}"))?;
+    let output =
+        mrstudy_server::serve::export(&args.data_dir, args.database.as_deref(), &args.study, args.format, args.include)
+            .map_err(|message| anyhow!("{message}"))?;
     output.left_out.iter().for_each(|line| eprintln!("{line}"));
     match &args.out {
         Some(path) => crate::write_file(path, &output.text),

@@ -96,7 +96,7 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
 
 pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     let pool = &state.storage().admin;
-    let study = sqlx::query("SELECT slug, title, kind, open, definition FROM studies WHERE slug = ?")
+    let study = sqlx::query("SELECT slug, title, kind, open, definition FROM studies WHERE slug = $1")
         .bind(slug)
         .fetch_optional(pool)
         .await?
@@ -105,15 +105,15 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     let trials = match served {
         Some(prepared) => prepared.study.trial_count() as i64,
         None => {
-            sqlx::query_scalar("SELECT COALESCE(MAX(trials), 0) FROM participants WHERE study = ?")
+            sqlx::query_scalar("SELECT COALESCE(MAX(trials), 0) FROM participants WHERE study = $1")
                 .bind(slug)
                 .fetch_one(pool)
                 .await?
         }
     };
     let counts = sqlx::query(
-        "SELECT answered, trials, completed_at IS NOT NULL AS finished, COUNT(*) AS n
-         FROM participants WHERE study = ? GROUP BY answered, trials, finished",
+        "SELECT answered, trials, CASE WHEN completed_at IS NULL THEN 0 ELSE 1 END AS finished, COUNT(*) AS n
+         FROM participants WHERE study = $1 GROUP BY answered, trials, finished",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -126,7 +126,7 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     for row in counts {
         let answered: i64 = row.try_get("answered")?;
         let n: i64 = row.try_get("n")?;
-        let is_finished: bool = row.try_get("finished")?;
+        let is_finished = row.try_get::<i64, _>("finished")? != 0;
         started += n;
         responses += answered * n;
         if is_finished {
@@ -139,32 +139,32 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         }
     }
     let rts: Vec<f64> = sqlx::query_scalar(
-        "SELECT r.rt_ms FROM responses r JOIN participants p ON p.id = r.participant WHERE p.study = ?",
+        "SELECT r.rt_ms FROM responses r JOIN participants p ON p.id = r.participant WHERE p.study = $1",
     )
     .bind(slug)
     .fetch_all(pool)
     .await?;
     let totals: Vec<f64> = sqlx::query_scalar(
         "SELECT (julianday(completed_at) - julianday(created_at)) * 86400.0 FROM participants
-         WHERE study = ? AND completed_at IS NOT NULL",
+         WHERE study = $1 AND completed_at IS NOT NULL",
     )
     .bind(slug)
     .fetch_all(pool)
     .await?;
     let catch = sqlx::query(
-        "SELECT COUNT(*) AS n, COALESCE(SUM(r.chosen != t.catch_expected), 0) AS failures,
+        "SELECT COUNT(*) AS n, COALESCE(SUM(CASE WHEN r.chosen != t.catch_expected THEN 1 ELSE 0 END), 0) AS failures,
                 COUNT(DISTINCT CASE WHEN r.chosen != t.catch_expected THEN r.participant END) AS failing
          FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
          JOIN participants p ON p.id = r.participant
-         WHERE p.study = ? AND t.catch_expected IS NOT NULL",
+         WHERE p.study = $1 AND t.catch_expected IS NOT NULL",
     )
     .bind(slug)
     .fetch_one(pool)
     .await?;
     let screened_out: i64 =
-        sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = ?").bind(slug).fetch_one(pool).await?;
+        sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = $1").bind(slug).fetch_one(pool).await?;
     let marked = sqlx::query(
-        "SELECT COALESCE(SUM(pilot), 0) AS pilots, COALESCE(SUM(excluded), 0) AS excluded FROM participants WHERE study = ?",
+        "SELECT COALESCE(SUM(pilot), 0) AS pilots, COALESCE(SUM(excluded), 0) AS excluded FROM participants WHERE study = $1",
     )
     .bind(slug)
     .fetch_one(pool)
@@ -919,7 +919,7 @@ pub async fn participants(
         })
         .collect();
     let screen_outs = sqlx::query(
-        "SELECT id, reason, url_params, pilot, created_at FROM screen_outs WHERE study = ? ORDER BY created_at, id",
+        "SELECT id, reason, url_params, pilot, created_at FROM screen_outs WHERE study = $1 ORDER BY created_at, id",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -1064,7 +1064,7 @@ async fn create_preview(
     headers: HeaderMap,
 ) -> AppResult<(StatusCode, Json<PreviewLink>)> {
     authorize_change(&state, &headers)?;
-    let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = ?")
+    let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = $1")
         .bind(&slug)
         .fetch_optional(&state.storage().admin)
         .await?;

@@ -27,7 +27,9 @@
 
 use serde::Deserialize;
 use serde_json::{Map, Value, json};
-use sqlx::{Row, SqlitePool};
+use sqlx::Row;
+
+use crate::storage::Pool;
 
 use crate::study::Study;
 
@@ -47,9 +49,9 @@ pub enum ExportError {
 
 /// The study as stored with its participants (the one schema of [`Study`]; a task study's
 /// definition does not read as one and says so).
-pub async fn definition(pool: &SqlitePool, slug: &str) -> Result<Study, ExportError> {
+pub async fn definition(pool: &Pool, slug: &str) -> Result<Study, ExportError> {
     let text: Option<String> =
-        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
+        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = $1").bind(slug).fetch_optional(pool).await?;
     let text = text.ok_or_else(|| ExportError::UnknownStudy(slug.to_string()))?;
     serde_json::from_str(&text)
         .map_err(|error| ExportError::Definition { slug: slug.to_string(), message: error.to_string() })
@@ -160,7 +162,7 @@ pub struct ParticipantRecord {
 
 /// Every participant of a study in joining order, with status, external ids and flags.
 pub async fn participant_records(
-    pool: &SqlitePool,
+    pool: &Pool,
     slug: &str,
     definition: &Study,
 ) -> Result<Vec<ParticipantRecord>, ExportError> {
@@ -168,9 +170,10 @@ pub async fn participant_records(
         "SELECT *, (julianday('now') - julianday(last_activity)) * 1440.0 AS idle_minutes FROM (
              SELECT p.id, p.ordinal, p.trials, p.answered, p.completion_code, p.completed_at, p.created_at,
                     p.pilot, p.excluded, p.exclusion_reason, p.excluded_at, p.url_params,
-                    MAX(p.created_at,
-                        COALESCE((SELECT MAX(t.shown_at) FROM trials t WHERE t.participant = p.id), ''),
-                        COALESCE((SELECT MAX(r.answered_at) FROM responses r WHERE r.participant = p.id), ''))
+                    (SELECT MAX(moment) FROM (
+                        SELECT p.created_at AS moment
+                        UNION ALL SELECT MAX(t.shown_at) FROM trials t WHERE t.participant = p.id
+                        UNION ALL SELECT MAX(r.answered_at) FROM responses r WHERE r.participant = p.id) AS moments)
                         AS last_activity,
                     (SELECT COUNT(*) FROM responses r WHERE r.participant = p.id AND r.too_fast = 1) AS too_fast,
                     (SELECT COUNT(*) FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
@@ -178,7 +181,7 @@ pub async fn participant_records(
                     (SELECT COUNT(*) FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
                      WHERE r.participant = p.id AND t.catch_expected IS NOT NULL AND r.chosen != t.catch_expected)
                         AS catch_failed
-             FROM participants p WHERE p.study = ?)
+             FROM participants p WHERE p.study = $1) AS activity
          ORDER BY ordinal",
     )
     .bind(slug)
@@ -255,11 +258,11 @@ const TRIAL_ROWS: &str = "
     FROM participants p
     JOIN trials t ON t.participant = p.id
     LEFT JOIN responses r ON r.participant = t.participant AND r.trial = t.trial
-    WHERE p.study = ?";
+    WHERE p.study = $1";
 
 /// The trials CSV of a study, leaving out pilot and excluded participants unless `include`
 /// keeps them.
-pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Result<Export<String>, ExportError> {
+pub async fn trials_csv(pool: &Pool, slug: &str, include: Include) -> Result<Export<String>, ExportError> {
     let definition = definition(pool, slug).await?;
     let mut left_out = LeftOut::default();
     let mut kept: std::collections::HashMap<String, ParticipantRecord> = Default::default();
@@ -286,7 +289,7 @@ pub async fn trials_csv(pool: &SqlitePool, slug: &str, include: Include) -> Resu
 fn write_trial_rows(
     definition: &Study,
     kept: &std::collections::HashMap<String, ParticipantRecord>,
-    rows: Vec<sqlx::sqlite::SqliteRow>,
+    rows: Vec<sqlx::any::AnyRow>,
 ) -> Result<String, ExportError> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = crate::study::TRIALS_CSV_COLUMNS.iter().map(|column| column.to_string()).collect();
@@ -351,9 +354,9 @@ fn write_trial_rows(
 /// The JSON export: the study, and per participant their stored data, status, flags and whole
 /// schedule, with the response of each answered trial; pilot and excluded participants only
 /// when `include` keeps them.
-pub async fn study_json(pool: &SqlitePool, slug: &str, include: Include) -> Result<Export<Value>, ExportError> {
+pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Export<Value>, ExportError> {
     let definition_text: Option<String> =
-        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
+        sqlx::query_scalar("SELECT definition FROM studies WHERE slug = $1").bind(slug).fetch_optional(pool).await?;
     let definition_text = definition_text.ok_or_else(|| ExportError::UnknownStudy(slug.to_string()))?;
     let definition_json: Value = serde_json::from_str(&definition_text)
         .map_err(|error| ExportError::Definition { slug: slug.to_string(), message: error.to_string() })?;
@@ -368,7 +371,7 @@ pub async fn study_json(pool: &SqlitePool, slug: &str, include: Include) -> Resu
     let participants = sqlx::query(
         "SELECT id, ordinal, seed, schedule_version, file_sha256, demographics, client, url_params, trials,
                 answered, completion_code, created_at, completed_at
-         FROM participants WHERE study = ? ORDER BY ordinal",
+         FROM participants WHERE study = $1 ORDER BY ordinal",
     )
     .bind(slug)
     .fetch_all(pool)

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use crate::prepared::{PrepareError, PreparedStudy};
-use crate::storage::{OpenError, Storage};
+use crate::storage::{Database, OpenError, Storage};
 use crate::study::TaskStudy;
 use crate::study::{LoadedStudy, StudyError, load_studies};
 use crate::{AppState, app};
@@ -35,6 +35,10 @@ pub struct ServeConfig {
     /// Data directory: mrstudy.db, stimuli/, admin-token.
     #[arg(long, default_value = "./mrstudy-data")]
     pub data_dir: PathBuf,
+    /// The database: a PostgreSQL URL (postgres://user:password@host:port/database), which
+    /// several servers may share, or a sqlite file (default: <data-dir>/mrstudy.db).
+    #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
+    pub database: Option<String>,
     /// Directory of study files (*.toml).
     #[arg(long = "studies", default_value = "./studies")]
     pub studies_dir: PathBuf,
@@ -206,18 +210,24 @@ pub struct Prepared {
 /// Opens the data directory and loads the studies (see the module doc), rendering missing
 /// stimuli quietly.
 pub async fn prepare(data_dir: &Path, studies_dir: &Path) -> Result<Prepared, ServeError> {
-    prepare_with_progress(data_dir, studies_dir, None, None).await
+    prepare_with_progress(&Database::in_data_dir(data_dir), data_dir, studies_dir, None, None).await
+}
+
+/// [`prepare`] with the data in `database` instead of `<data-dir>/mrstudy.db`.
+pub async fn prepare_on(database: &Database, data_dir: &Path, studies_dir: &Path) -> Result<Prepared, ServeError> {
+    prepare_with_progress(database, data_dir, studies_dir, None, None).await
 }
 
 /// [`prepare`], telling `progress` how rendering missing stimuli goes.
 pub async fn prepare_with_progress(
+    database: &Database,
     data_dir: &Path,
     studies_dir: &Path,
     stimuli_dir: Option<&Path>,
     progress: Option<&RenderProgress>,
 ) -> Result<Prepared, ServeError> {
     std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
-    let storage = Storage::open(&data_dir.join("mrstudy.db")).await?;
+    let storage = Storage::open(database).await?;
     let admin_token = admin_token(data_dir)?;
     let studies = load_studies(studies_dir)?;
     let stimuli_dir = stimuli_dir.map(Path::to_path_buf).unwrap_or_else(|| data_dir.join("stimuli"));
@@ -295,7 +305,9 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
+        let database = Database::choose(config.database.as_deref(), &config.data_dir).map_err(OpenError::Choose)?;
         let mut prepared = prepare_with_progress(
+            &database,
             &config.data_dir,
             &config.studies_dir,
             config.stimuli_dir.as_deref(),
@@ -316,7 +328,14 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         let local: SocketAddr =
             listener.local_addr().map_err(|source| ServeError::Bind { addr: config.addr.clone(), source })?;
         let base = format!("http://{local}");
-        println!("mrstudy serving on {base} (data in {})", config.data_dir.display());
+        match &database {
+            Database::Sqlite(_) => println!("mrstudy serving on {base} (data in {})", config.data_dir.display()),
+            Database::Postgres(_) => println!(
+                "mrstudy serving on {base} (data in {}, responses in {})",
+                config.data_dir.display(),
+                database.describe()
+            ),
+        }
         for slug in &prepared.slugs {
             println!("participant link: {base}/studies/{slug}");
         }
@@ -448,18 +467,22 @@ pub struct ExportOutput {
 }
 
 /// `mrstudy export`: the trials CSV, the JSON export or the conditions CSV of one study, read
-/// from `<data-dir>/mrstudy.db`; pilot and excluded participants only when `include` keeps them.
+/// from `database` (`serve --database`'s value; `None`: `<data-dir>/mrstudy.db`); pilot and
+/// excluded participants only when `include` keeps them.
 pub fn export(
     data_dir: &Path,
+    database: Option<&str>,
     slug: &str,
     format: ExportFormat,
     include: crate::export::Include,
 ) -> Result<ExportOutput, String> {
-    let database = data_dir.join("mrstudy.db");
-    if !database.is_file() {
+    let database = Database::choose(database, data_dir)?;
+    if let Database::Sqlite(path) = &database
+        && !path.is_file()
+    {
         return Err(format!(
-            "there is no database at {}; pass the --data-dir that mrstudy serve used",
-            database.display()
+            "there is no database at {}; pass the --data-dir (or --database) that mrstudy serve used",
+            path.display()
         ));
     }
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -468,12 +491,13 @@ pub fn export(
         .map_err(|error| format!("cannot start the async runtime: {error}"))?;
     runtime.block_on(async {
         let storage = Storage::open(&database).await.map_err(|error| error.to_string())?;
+        let name = database.describe();
         let pool = &storage.read;
-        let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = ?")
+        let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = $1")
             .bind(slug)
             .fetch_optional(pool)
             .await
-            .map_err(|error| format!("cannot read the database {}: {error}", database.display()))?;
+            .map_err(|error| format!("cannot read the database {name}: {error}"))?;
         if kind.as_deref() == Some("task")
             && matches!(format, ExportFormat::Csv | ExportFormat::Json | ExportFormat::Conditions)
         {

@@ -1,30 +1,46 @@
-//! sqlite storage through sqlx: connections, migrations, the single writer with group commit,
-//! and the read queries.
+//! The database through sqlx: sqlite (embedded, the default) or PostgreSQL (`serve --database
+//! postgres://…`), connections, migrations, the single writer with group commit, and the read
+//! queries. Both run the same SQL through sqlx's `Any` driver, with `$1`-style parameters; the
+//! PostgreSQL schema defines `strftime` and `julianday` for the two forms the queries use (its
+//! migrations are in `migrations/postgres/`).
 //!
-//! Durability: the database runs in WAL mode with `synchronous = FULL`, so a commit returns only
-//! after the WAL has been fsynced. All writes go through one writer task that owns the only
+//! Durability: sqlite runs in WAL mode with `synchronous = FULL`, so a commit returns only after
+//! the WAL has been fsynced; PostgreSQL commits after its WAL is flushed (`synchronous_commit`
+//! on, its default). All writes of a process go through one writer task that owns its only
 //! write connection: it takes every job waiting in its queue (up to [`MAX_BATCH`]), runs them in
 //! one transaction, commits, and only then answers each job. A response's `201` is therefore
-//! sent after its row is durably on disk, while many concurrent participants share one fsync
+//! sent after its row is durably on disk, while many concurrent participants share one commit
 //! (group commit). If the commit fails, every job in the batch gets the error and nothing of the
-//! batch is kept. Reads use a separate pool of connections; WAL lets them run beside the writer.
-//! Admin reads (exports, the live analysis) have a pool of their own ([`Storage::admin`]), so
-//! however many exports run, participants' reads never wait for a connection behind them.
+//! batch is kept. Reads use a separate pool of connections beside the writer. Admin reads
+//! (exports, the live analysis) have a pool of their own ([`Storage::admin`]), so however many
+//! exports run, participants' reads never wait for a connection behind them.
 //!
-//! The WAL is bounded: a background task checkpoints passively once a second, and when the WAL
-//! file has grown past [`WAL_TRUNCATE_BYTES`] (readers that overlap keep a passive checkpoint
-//! from ever restarting it) the writer, after its batch, runs a truncating checkpoint, which
-//! waits for the readers of the old WAL to finish, copies everything back and empties the file;
-//! `journal_size_limit` caps what a restarted WAL keeps on disk. The database files are the owner's alone (mode 0600):
-//! they hold demographics.
+//! Several processes on one PostgreSQL: each batch first takes a transaction-scoped advisory
+//! lock ([`WRITER_LOCK`]), so the batches of all processes run one after another, as sqlite's
+//! single writer does, and every check a job makes before it writes (a trial already answered,
+//! the next ordinal, the next judgment number) sees what every other process committed. The
+//! primary keys and unique constraints back this up: a repeat is refused by the database, not by
+//! a process's memory.
+//!
+//! sqlite's WAL is bounded: a background task checkpoints passively once a second, and when the
+//! WAL file has grown past [`WAL_TRUNCATE_BYTES`] (readers that overlap keep a passive
+//! checkpoint from ever restarting it) the writer, after its batch, runs a truncating
+//! checkpoint, which waits for the readers of the old WAL to finish, copies everything back and
+//! empties the file; `journal_size_limit` caps what a restarted WAL keeps on disk. The database
+//! files are the owner's alone (mode 0600): they hold demographics.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Duration;
 
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
-use sqlx::{Row, SqliteConnection, SqlitePool};
+use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
+use sqlx::{AnyConnection, AnyPool, ConnectOptions, Executor, Row};
 use tokio::sync::{mpsc, oneshot};
+
+/// A connection of either database (what a [`WriteJob`] runs on).
+pub type Connection = AnyConnection;
+/// A pool of either database's connections.
+pub type Pool = AnyPool;
 
 /// Most jobs committed together in one transaction.
 pub const MAX_BATCH: usize = 512;
@@ -32,7 +48,102 @@ pub const MAX_BATCH: usize = 512;
 /// SQL expression for "now" as stored: UTC, ISO 8601, milliseconds.
 pub const NOW: &str = "strftime('%Y-%m-%dT%H:%M:%fZ', 'now')";
 
-static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
+static SQLITE_MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
+static POSTGRES_MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/postgres");
+
+/// The advisory lock every PostgreSQL batch takes first, so that the writers of several
+/// processes take turns (its key: "mrstudy" in ASCII).
+pub const WRITER_LOCK: i64 = 0x6d_72_73_74_75_64_79;
+
+/// Which database a server keeps its data in.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Database {
+    /// The embedded default: one file, `<data-dir>/mrstudy.db` unless named otherwise.
+    Sqlite(PathBuf),
+    /// A PostgreSQL server (`postgres://user:password@host:port/database`), which several
+    /// `serve` processes may share.
+    Postgres(String),
+}
+
+/// The two databases' kinds, for what differs between them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    Sqlite,
+    Postgres,
+}
+
+impl Database {
+    /// `serve --database`'s value: a `postgres://` (or `postgresql://`) URL, or a sqlite file's
+    /// path (`sqlite://` in front optional); `None`: the sqlite file in the data directory.
+    pub fn choose(flag: Option<&str>, data_dir: &Path) -> Result<Database, String> {
+        let Some(text) = flag.map(str::trim) else { return Ok(Database::in_data_dir(data_dir)) };
+        if text.is_empty() {
+            return Err(
+                "--database (or MRSTUDY_DATABASE_URL) is empty; give a postgres:// URL or a sqlite file's path".into(),
+            );
+        }
+        if text.starts_with("postgres://") || text.starts_with("postgresql://") {
+            AnyConnectOptions::from_str(text)
+                .map_err(|error| format!("--database {} is not a usable PostgreSQL URL: {error}", redact(text)))?;
+            return Ok(Database::Postgres(text.to_string()));
+        }
+        if let Some((scheme, _)) = text.split_once("://")
+            && scheme != "sqlite"
+        {
+            return Err(format!(
+                "--database {}: mrstudy keeps its data in sqlite (a file's path) or PostgreSQL (postgres://…), not {scheme}",
+                redact(text)
+            ));
+        }
+        Ok(Database::Sqlite(PathBuf::from(text.strip_prefix("sqlite://").unwrap_or(text))))
+    }
+
+    /// The sqlite file `<data-dir>/mrstudy.db`.
+    pub fn in_data_dir(data_dir: &Path) -> Database {
+        Database::Sqlite(data_dir.join("mrstudy.db"))
+    }
+
+    pub fn backend(&self) -> Backend {
+        match self {
+            Database::Sqlite(_) => Backend::Sqlite,
+            Database::Postgres(_) => Backend::Postgres,
+        }
+    }
+
+    /// The database for messages: the file's path, or the URL without its password.
+    pub fn describe(&self) -> String {
+        match self {
+            Database::Sqlite(path) => path.display().to_string(),
+            Database::Postgres(url) => redact(url),
+        }
+    }
+}
+
+/// Creates a new, empty database with a random name (`<prefix>_<32 hex digits>`) on the
+/// PostgreSQL server of `server_url` (whose own database the connection uses, e.g. `postgres`)
+/// and returns its URL: for benchmarks and tests, which each need a database of their own.
+pub async fn new_postgres_database(server_url: &str, prefix: &str) -> Result<String, sqlx::Error> {
+    use sqlx::Connection as _;
+    let mut url = url::Url::parse(server_url).map_err(|error| sqlx::Error::Configuration(error.into()))?;
+    let name = format!("{prefix}_{}", crate::random_hex(16));
+    let mut connection = sqlx::PgConnection::connect(server_url).await?;
+    connection.execute(sqlx::AssertSqlSafe(format!("CREATE DATABASE \"{name}\""))).await?;
+    connection.close().await?;
+    url.set_path(&name);
+    Ok(url.to_string())
+}
+
+/// A URL with its password replaced by `***`.
+fn redact(url: &str) -> String {
+    match url::Url::parse(url) {
+        Ok(mut parsed) if parsed.password().is_some() => {
+            let _ = parsed.set_password(Some("***"));
+            parsed.to_string()
+        }
+        Ok(_) => url.to_string(),
+        Err(_) => "(a URL that does not parse)".to_string(),
+    }
+}
 
 /// Failure to open the database.
 #[derive(Debug, thiserror::Error)]
@@ -40,6 +151,8 @@ static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
 pub enum OpenError {
     #[error("cannot open the database {path}: {source}")]
     Connect { path: String, source: sqlx::Error },
+    #[error("{0}")]
+    Choose(String),
     #[error("cannot migrate the database {path}: {source}")]
     Migrate { path: String, source: sqlx::migrate::MigrateError },
     #[error("cannot make the database {path} readable by its owner only: {source}")]
@@ -84,12 +197,13 @@ pub struct StudyRecord<'a> {
 #[derive(Clone)]
 pub struct Storage {
     /// Participants' reads.
-    pub read: SqlitePool,
+    pub read: Pool,
     /// The admin's reads (exports, analysis, lists): apart from `read`, so that exports cannot
     /// take the connections participants wait for.
-    pub admin: SqlitePool,
-    write: SqlitePool,
+    pub admin: Pool,
+    write: Pool,
     jobs: mpsc::Sender<Box<dyn Queued>>,
+    backend: Backend,
 }
 
 /// Why an admin write was refused; nothing was written.
@@ -113,13 +227,13 @@ pub trait WriteJob: Send + Sync + 'static {
     type Outcome: Send + 'static;
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send;
 }
 
 /// A job in the writer's queue, its type erased.
 trait Queued: Send {
-    fn run<'a>(&'a mut self, connection: &'a mut SqliteConnection) -> BoxFuture<'a, Result<(), sqlx::Error>>;
+    fn run<'a>(&'a mut self, connection: &'a mut Connection) -> BoxFuture<'a, Result<(), sqlx::Error>>;
     /// Sends the outcome, after the commit.
     fn answer(self: Box<Self>);
     /// Answers with [`StorageError::WriteFailed`]: the batch was rolled back.
@@ -136,7 +250,7 @@ struct Pending<J: WriteJob> {
 }
 
 impl<J: WriteJob> Queued for Pending<J> {
-    fn run<'a>(&'a mut self, connection: &'a mut SqliteConnection) -> BoxFuture<'a, Result<(), sqlx::Error>> {
+    fn run<'a>(&'a mut self, connection: &'a mut Connection) -> BoxFuture<'a, Result<(), sqlx::Error>> {
         Box::pin(async move {
             self.outcome = Some(self.job.run(connection).await?);
             Ok(())
@@ -157,51 +271,48 @@ impl<J: WriteJob> Queued for Pending<J> {
 }
 
 impl Storage {
-    /// Opens (creating if needed) the database file, applies the migrations and starts the
-    /// writer task. Must be called inside a tokio runtime.
-    pub async fn open(path: &Path) -> Result<Storage, OpenError> {
-        let path_text = path.display().to_string();
-        owner_only(path).map_err(|source| OpenError::Permissions { path: path_text.clone(), source })?;
-        let options = SqliteConnectOptions::from_str("sqlite:")
-            .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?
-            .filename(path)
-            .create_if_missing(true)
-            .journal_mode(SqliteJournalMode::Wal)
-            .synchronous(SqliteSynchronous::Full)
-            .foreign_keys(true)
-            .busy_timeout(BUSY_TIMEOUT)
-            // A deleted participant's bytes are overwritten, not left in free pages (issue 12;
-            // `Storage::delete` then truncates the WAL, which still holds the old pages).
-            .pragma("secure_delete", "ON")
-            // No checkpoint inside a participant's commit (it would stall that batch for the
-            // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
-            .pragma("wal_autocheckpoint", "0")
-            // what a restarted WAL may keep on disk
-            .pragma("journal_size_limit", JOURNAL_SIZE_LIMIT_BYTES.to_string());
-        let write = SqlitePoolOptions::new()
-            .max_connections(1)
-            .min_connections(1)
-            .acquire_timeout(Duration::from_secs(60))
-            .connect_with(options.clone())
-            .await
-            .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?;
-        MIGRATOR.run(&write).await.map_err(|source| OpenError::Migrate { path: path_text.clone(), source })?;
-        let read = SqlitePoolOptions::new()
-            .max_connections(4)
-            .acquire_timeout(Duration::from_secs(60))
-            .connect_with(options.clone())
-            .await
-            .map_err(|source| OpenError::Connect { path: path_text.clone(), source })?;
-        let admin = SqlitePoolOptions::new()
-            .max_connections(2)
-            .acquire_timeout(Duration::from_secs(300))
-            .connect_with(options)
-            .await
-            .map_err(|source| OpenError::Connect { path: path_text, source })?;
+    /// Opens (creating if needed) the database, applies the migrations and starts the writer
+    /// task. Must be called inside a tokio runtime.
+    pub async fn open(database: &Database) -> Result<Storage, OpenError> {
+        sqlx::any::install_default_drivers();
+        let name = database.describe();
+        let connect = |source| OpenError::Connect { path: name.clone(), source };
+        let (options, sizes, migrator) = match database {
+            Database::Sqlite(path) => {
+                owner_only(path).map_err(|source| OpenError::Permissions { path: name.clone(), source })?;
+                let url =
+                    sqlx::sqlite::SqliteConnectOptions::new().filename(path).create_if_missing(true).to_url_lossy();
+                (AnyConnectOptions::from_url(&url).map_err(connect)?, (4, 2), &SQLITE_MIGRATOR)
+            }
+            Database::Postgres(url) => (AnyConnectOptions::from_str(url).map_err(connect)?, (8, 2), &POSTGRES_MIGRATOR),
+        };
+        let backend = database.backend();
+        let pool = |connections: u32, acquire: Duration| {
+            AnyPoolOptions::new()
+                .max_connections(connections)
+                .acquire_timeout(acquire)
+                .after_connect(move |connection, _| Box::pin(async move { configure(connection, backend).await }))
+        };
+        let write =
+            pool(1, Duration::from_secs(60)).min_connections(1).connect_with(options.clone()).await.map_err(connect)?;
+        migrator.run(&write).await.map_err(|source| OpenError::Migrate { path: name.clone(), source })?;
+        let read = pool(sizes.0, Duration::from_secs(60)).connect_with(options.clone()).await.map_err(connect)?;
+        let admin = pool(sizes.1, Duration::from_secs(300)).connect_with(options).await.map_err(connect)?;
         let (sender, receiver) = mpsc::channel(4 * MAX_BATCH);
-        tokio::spawn(writer(write.clone(), receiver, with_suffix(path, "-wal")));
-        tokio::spawn(checkpointer(read.clone()));
-        Ok(Storage { read, admin, write, jobs: sender })
+        let wal = match database {
+            Database::Sqlite(path) => {
+                tokio::spawn(checkpointer(read.clone()));
+                Some(with_suffix(path, "-wal"))
+            }
+            Database::Postgres(_) => None,
+        };
+        tokio::spawn(writer(write.clone(), receiver, backend, wal));
+        Ok(Storage { read, admin, write, jobs: sender, backend })
+    }
+
+    /// Which database this is.
+    pub fn backend(&self) -> Backend {
+        self.backend
     }
 
     /// Records or refreshes a study at start-up; a new study starts open or closed as its file
@@ -209,7 +320,7 @@ impl Storage {
     pub async fn upsert_study(&self, study: &StudyRecord<'_>) -> Result<(), sqlx::Error> {
         sqlx::query(sqlx::AssertSqlSafe(format!(
             "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
-             VALUES (?, ?, ?, ?, ?, ?, {NOW}, {NOW})
+             VALUES ($1, $2, $3, $4, $5, $6, {NOW}, {NOW})
              ON CONFLICT (slug) DO UPDATE SET title = excluded.title, kind = excluded.kind,
                  definition = excluded.definition, file_sha256 = excluded.file_sha256,
                  loaded_at = excluded.loaded_at"
@@ -240,7 +351,7 @@ impl Storage {
 
     /// Whether `token_sha256` is a preview link of the study.
     pub async fn is_preview(&self, study: &str, token_sha256: &[u8]) -> Result<bool, sqlx::Error> {
-        let found: Option<i64> = sqlx::query_scalar("SELECT 1 FROM previews WHERE study = ? AND token_sha256 = ?")
+        let found: Option<i64> = sqlx::query_scalar("SELECT 1 FROM previews WHERE study = $1 AND token_sha256 = $2")
             .bind(study)
             .bind(token_sha256)
             .fetch_optional(&self.read)
@@ -253,7 +364,7 @@ impl Storage {
     }
 
     /// The write connection, for start-up writes before participants arrive.
-    pub(crate) fn write_pool(&self) -> &SqlitePool {
+    pub(crate) fn write_pool(&self) -> &Pool {
         &self.write
     }
 
@@ -263,15 +374,17 @@ impl Storage {
 
     /// Whether the study is open, as stored.
     pub async fn is_open(&self, slug: &str) -> Result<bool, sqlx::Error> {
-        let open: Option<i64> =
-            sqlx::query_scalar("SELECT open FROM studies WHERE slug = ?").bind(slug).fetch_optional(&self.read).await?;
+        let open: Option<i64> = sqlx::query_scalar("SELECT open FROM studies WHERE slug = $1")
+            .bind(slug)
+            .fetch_optional(&self.read)
+            .await?;
         Ok(open == Some(1))
     }
 
     pub async fn participant(&self, id: &str) -> Result<Option<ParticipantRow>, sqlx::Error> {
         let row = sqlx::query(
             "SELECT id, study, token_sha256, trials, answered, completion_code, completed_at, url_params
-             FROM participants WHERE id = ?",
+             FROM participants WHERE id = $1",
         )
         .bind(id)
         .fetch_optional(&self.read)
@@ -302,7 +415,7 @@ impl Storage {
                     p.url_params, t.trial, t.left_stimulus, t.right_stimulus
              FROM participants p
              LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
-             WHERE p.id = ? ORDER BY t.trial",
+             WHERE p.id = $1 ORDER BY t.trial",
         )
         .bind(id)
         .fetch_all(&self.read)
@@ -332,12 +445,13 @@ impl Storage {
     }
 
     pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
-        let row =
-            sqlx::query("SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = ? AND trial = ?")
-                .bind(participant)
-                .bind(trial)
-                .fetch_optional(&self.read)
-                .await?;
+        let row = sqlx::query(
+            "SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = $1 AND trial = $2",
+        )
+        .bind(participant)
+        .bind(trial)
+        .fetch_optional(&self.read)
+        .await?;
         row.map(|row| {
             Ok(TrialRow {
                 trial: row.try_get("trial")?,
@@ -372,7 +486,37 @@ pub struct TrialRow {
     pub right_stimulus: String,
 }
 
-async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>, wal: std::path::PathBuf) {
+/// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or
+/// PostgreSQL's UTC session time zone.
+async fn configure(connection: &mut Connection, backend: Backend) -> Result<(), sqlx::Error> {
+    let statements: &[&str] = match backend {
+        Backend::Sqlite => &[
+            "PRAGMA journal_mode = WAL",
+            "PRAGMA synchronous = FULL",
+            "PRAGMA foreign_keys = ON",
+            // A deleted participant's bytes are overwritten, not left in free pages (issue 12;
+            // `Storage::delete` then truncates the WAL, which still holds the old pages).
+            "PRAGMA secure_delete = ON",
+            // No checkpoint inside a participant's commit (it would stall that batch for the
+            // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
+            "PRAGMA wal_autocheckpoint = 0",
+        ],
+        Backend::Postgres => &["SET TIME ZONE 'UTC'"],
+    };
+    for statement in statements {
+        connection.execute(*statement).await?;
+    }
+    if backend == Backend::Sqlite {
+        connection.execute(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis()))).await?;
+        // what a restarted WAL may keep on disk
+        connection
+            .execute(sqlx::AssertSqlSafe(format!("PRAGMA journal_size_limit = {JOURNAL_SIZE_LIMIT_BYTES}")))
+            .await?;
+    }
+    Ok(())
+}
+
+async fn writer(pool: Pool, mut receiver: mpsc::Receiver<Box<dyn Queued>>, backend: Backend, wal: Option<PathBuf>) {
     let mut batch: Vec<Box<dyn Queued>> = Vec::with_capacity(MAX_BATCH);
     while let Some(first) = receiver.recv().await {
         batch.push(first);
@@ -382,7 +526,7 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>,
                 Err(_) => break,
             }
         }
-        match run_batch(&pool, &mut batch).await {
+        match run_batch(&pool, backend, &mut batch).await {
             Ok(()) => {
                 for job in batch.drain(..) {
                     job.answer();
@@ -396,7 +540,9 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>,
             }
         }
         batch.clear();
-        bound_wal(&pool, &wal).await;
+        if let Some(wal) = &wal {
+            bound_wal(&pool, wal).await;
+        }
     }
 }
 
@@ -407,7 +553,7 @@ async fn writer(pool: SqlitePool, mut receiver: mpsc::Receiver<Box<dyn Queued>>,
 /// readers read the database file meanwhile), copies the WAL back and empties it. No write can
 /// slip in while it waits, so it cannot be starved; the next batch waits for it instead (tens
 /// of milliseconds, once per [`WAL_TRUNCATE_BYTES`] written).
-async fn bound_wal(pool: &SqlitePool, wal: &Path) {
+async fn bound_wal(pool: &Pool, wal: &Path) {
     let size = std::fs::metadata(wal).map(|meta| meta.len()).unwrap_or(0);
     if size <= WAL_TRUNCATE_BYTES {
         return;
@@ -448,7 +594,7 @@ const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 /// Copies the WAL back into the database file once a second (a passive checkpoint: it never
 /// blocks the writer or readers), so the WAL stays small without any commit paying for it;
 /// [`bound_wal`] empties it when overlapping readers keep it from restarting.
-async fn checkpointer(pool: SqlitePool) {
+async fn checkpointer(pool: Pool) {
     let mut interval = tokio::time::interval(CHECKPOINT_INTERVAL);
     loop {
         interval.tick().await;
@@ -466,10 +612,10 @@ pub const WAL_TRUNCATE_BYTES: u64 = 16 * 1024 * 1024;
 pub const JOURNAL_SIZE_LIMIT_BYTES: u64 = 8 * 1024 * 1024;
 
 /// The path of a file sqlite keeps beside the database: `<database><suffix>` (`-wal`, `-shm`).
-fn with_suffix(path: &Path, suffix: &str) -> std::path::PathBuf {
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     let mut name = path.as_os_str().to_owned();
     name.push(suffix);
-    std::path::PathBuf::from(name)
+    PathBuf::from(name)
 }
 
 /// Creates the database file readable and writable by its owner only, or makes an existing
@@ -496,9 +642,13 @@ fn owner_only(path: &Path) -> std::io::Result<()> {
 }
 
 /// Runs the jobs in one transaction and commits. On a database error the transaction is rolled
-/// back and the jobs stay in `batch` to be failed.
-async fn run_batch(pool: &SqlitePool, batch: &mut [Box<dyn Queued>]) -> Result<(), sqlx::Error> {
+/// back and the jobs stay in `batch` to be failed. On PostgreSQL the transaction first waits for
+/// [`WRITER_LOCK`], so the batches of several processes take turns.
+async fn run_batch(pool: &Pool, backend: Backend, batch: &mut [Box<dyn Queued>]) -> Result<(), sqlx::Error> {
     let mut transaction = pool.begin().await?;
+    if backend == Backend::Postgres {
+        sqlx::query("SELECT pg_advisory_xact_lock($1)").bind(WRITER_LOCK).execute(&mut *transaction).await?;
+    }
     for job in batch.iter_mut() {
         job.run(&mut transaction).await?;
     }
@@ -514,8 +664,8 @@ struct SetOpen {
 impl WriteJob for SetOpen {
     type Outcome = Result<(), AdminRefused>;
 
-    async fn run(&self, connection: &mut SqliteConnection) -> Result<Self::Outcome, sqlx::Error> {
-        let result = sqlx::query("UPDATE studies SET open = ? WHERE slug = ?")
+    async fn run(&self, connection: &mut Connection) -> Result<Self::Outcome, sqlx::Error> {
+        let result = sqlx::query("UPDATE studies SET open = $1 WHERE slug = $2")
             .bind(self.open as i64)
             .bind(&self.slug)
             .execute(&mut *connection)
@@ -595,13 +745,26 @@ impl Storage {
             Ok(deletion) => deletion,
             Err(refused) => return Ok(Err(refused)),
         };
-        sqlx::query("VACUUM").execute(&self.write).await?;
-        self.truncate_wal().await?;
+        match self.backend {
+            Backend::Sqlite => {
+                sqlx::query("VACUUM").execute(&self.write).await?;
+                self.truncate_wal().await?;
+            }
+            // A full vacuum rewrites the tables into new files without the dead rows (the old
+            // files are removed); PostgreSQL's own WAL keeps the old rows until it is recycled.
+            Backend::Postgres => {
+                sqlx::query("VACUUM FULL responses, trials, participants, screen_outs").execute(&self.admin).await?;
+            }
+        }
         Ok(Ok(deletion))
     }
 
-    /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy.
+    /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy
+    /// (sqlite; nothing to do on PostgreSQL).
     pub async fn truncate_wal(&self) -> Result<(), StorageError> {
+        if self.backend == Backend::Postgres {
+            return Ok(());
+        }
         for _ in 0..WAL_TRUNCATE_TRIES {
             let row = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)").fetch_one(&self.read).await?;
             let busy: i64 = row.try_get(0)?;
@@ -618,17 +781,19 @@ impl Storage {
 const WAL_TRUNCATE_TRIES: usize = 200;
 
 async fn audit(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     action: &str,
     study: &str,
     detail: serde_json::Value,
 ) -> Result<(), sqlx::Error> {
-    sqlx::query(sqlx::AssertSqlSafe(format!("INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, ?, ?, ?)")))
-        .bind(action)
-        .bind(study)
-        .bind(detail.to_string())
-        .execute(&mut *connection)
-        .await?;
+    sqlx::query(sqlx::AssertSqlSafe(format!(
+        "INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, $1, $2, $3)"
+    )))
+    .bind(action)
+    .bind(study)
+    .bind(detail.to_string())
+    .execute(&mut *connection)
+    .await?;
     Ok(())
 }
 
@@ -637,19 +802,19 @@ impl WriteJob for AdminWrite {
 
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
         execute_admin(connection, self)
     }
 }
 
 async fn execute_admin(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     write: &AdminWrite,
 ) -> Result<Result<AdminWritten, AdminRefused>, sqlx::Error> {
     match write {
         AdminWrite::SetExcluded { participant, reason } => {
-            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
+            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = $1")
                 .bind(participant)
                 .fetch_optional(&mut *connection)
                 .await?;
@@ -661,8 +826,8 @@ async fn execute_admin(
             let excluded_at: Option<String> = match reason {
                 Some(reason) => {
                     sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
-                        "UPDATE participants SET excluded = 1, exclusion_reason = ?, excluded_at = {NOW}
-                     WHERE id = ? RETURNING excluded_at"
+                        "UPDATE participants SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
+                     WHERE id = $2 RETURNING excluded_at"
                     )))
                     .bind(reason)
                     .bind(participant)
@@ -671,7 +836,7 @@ async fn execute_admin(
                 }
                 None => {
                     sqlx::query(
-                        "UPDATE participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = ?",
+                        "UPDATE participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1",
                     )
                     .bind(participant)
                     .execute(&mut *connection)
@@ -691,7 +856,7 @@ async fn execute_admin(
         }
         AdminWrite::Delete { id } => Ok(delete_rows(connection, id).await?.map(AdminWritten::Deleted)),
         AdminWrite::Preview { study, token_sha256 } => {
-            let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = ?")
+            let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = $1")
                 .bind(study)
                 .fetch_optional(&mut *connection)
                 .await?;
@@ -699,7 +864,7 @@ async fn execute_admin(
                 return Ok(Err(AdminRefused::UnknownStudy { slug: study.clone() }));
             }
             sqlx::query(sqlx::AssertSqlSafe(format!(
-                "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, ?, {NOW})"
+                "INSERT INTO previews (token_sha256, study, created_at) VALUES ($1, $2, {NOW})"
             )))
             .bind(token_sha256)
             .bind(study)
@@ -711,34 +876,31 @@ async fn execute_admin(
 }
 
 /// Deletes a participant and all their data, or a screen-out row, by id, with an audit line.
-async fn delete_rows(
-    connection: &mut SqliteConnection,
-    id: &str,
-) -> Result<Result<Deletion, AdminRefused>, sqlx::Error> {
-    let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = ?")
+async fn delete_rows(connection: &mut Connection, id: &str) -> Result<Result<Deletion, AdminRefused>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = $1")
         .bind(id)
         .fetch_optional(&mut *connection)
         .await?;
     if let Some(row) = row {
         let study: String = row.try_get("study")?;
         let ordinal: i64 = row.try_get("ordinal")?;
-        let responses = sqlx::query("DELETE FROM responses WHERE participant = ?")
+        let responses = sqlx::query("DELETE FROM responses WHERE participant = $1")
             .bind(id)
             .execute(&mut *connection)
             .await?
             .rows_affected() as i64;
-        let trials = sqlx::query("DELETE FROM trials WHERE participant = ?")
+        let trials = sqlx::query("DELETE FROM trials WHERE participant = $1")
             .bind(id)
             .execute(&mut *connection)
             .await?
             .rows_affected() as i64;
-        sqlx::query("DELETE FROM participants WHERE id = ?").bind(id).execute(&mut *connection).await?;
+        sqlx::query("DELETE FROM participants WHERE id = $1").bind(id).execute(&mut *connection).await?;
         let deletion =
             Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
         audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
         return Ok(Ok(deletion));
     }
-    let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = ? RETURNING study")
+    let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = $1 RETURNING study")
         .bind(id)
         .fetch_optional(&mut *connection)
         .await?;
@@ -758,7 +920,7 @@ struct Delete {
 impl WriteJob for Delete {
     type Outcome = Result<Deletion, AdminRefused>;
 
-    async fn run(&self, connection: &mut SqliteConnection) -> Result<Self::Outcome, sqlx::Error> {
+    async fn run(&self, connection: &mut Connection) -> Result<Self::Outcome, sqlx::Error> {
         delete_rows(connection, &self.id).await
     }
 }

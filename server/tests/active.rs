@@ -11,13 +11,13 @@ use std::path::Path;
 use axum::Router;
 use axum::http::{Method, StatusCode};
 use mrstudy_server::schedule::{self, ActiveHistory, PlannedKind};
-use mrstudy_server::serve::{Prepared, prepare};
+use mrstudy_server::serve::{Prepared, prepare_on};
 use mrstudy_server::{AppState, app};
 use serde_json::json;
 use sqlx::Row;
 
 mod support;
-use support::{call, copy_demo_study};
+use support::{call, copy_demo_study, test_database};
 
 const STUDY: &str = "shadows-demo";
 
@@ -35,7 +35,8 @@ async fn fixture(work: &Path, target: &str, warmup: &str, trials: u32, batch: u3
     let text = text.replace("[design]\npairs = \"all\"\nrepetitions = 1\nscenes = \"different\"\n", &design);
     assert!(text.contains("pairs = \"active\""), "the demo study's design changed; update this fixture");
     std::fs::write(&file, text).unwrap();
-    let Prepared { state, skipped, .. } = prepare(&work.join("data"), &studies).await.unwrap();
+    let data = work.join("data");
+    let Prepared { state, skipped, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
     assert!(skipped.is_empty(), "{skipped:?}");
     (app(state.clone()), state)
 }
@@ -72,7 +73,7 @@ async fn answer_one(app: &Router, state: &AppState, id: &str, token: &str) -> bo
     }
     let trial = next["trial"].as_i64().unwrap();
     let row = sqlx::query(
-        "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = ? AND trial = ?",
+        "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = $1 AND trial = $2",
     )
     .bind(id)
     .bind(trial)
@@ -126,13 +127,13 @@ async fn assert_batches_replay(state: &AppState) -> usize {
         let (id, seed): (String, i64) = (participant.get("id"), participant.get("seed"));
         let rows = sqlx::query(
             "SELECT left_condition, right_condition, left_scene, right_scene, catch_expected, chosen_by, active_batch
-             FROM trials WHERE participant = ? ORDER BY trial",
+             FROM trials WHERE participant = $1 ORDER BY trial",
         )
         .bind(&id)
         .fetch_all(pool)
         .await
         .unwrap();
-        let mut batches: BTreeMap<i64, Vec<&sqlx::sqlite::SqliteRow>> = BTreeMap::new();
+        let mut batches: BTreeMap<i64, Vec<&sqlx::any::AnyRow>> = BTreeMap::new();
         for row in &rows {
             if let Some(batch) = row.get::<Option<i64>, _>("active_batch") {
                 batches.entry(batch).or_default().push(row);
@@ -188,20 +189,22 @@ async fn interleaved_participants_get_every_trial_and_every_batch_replays_from_t
     }
     let pool = &state.storage().read;
     for (id, _, trials) in &participants {
-        let row = sqlx::query("SELECT answered, completed_at IS NOT NULL AS done FROM participants WHERE id = ?")
-            .bind(id)
-            .fetch_one(pool)
-            .await
-            .unwrap();
+        let row = sqlx::query(
+            "SELECT answered, CASE WHEN completed_at IS NULL THEN 0 ELSE 1 END AS done FROM participants WHERE id = $1",
+        )
+        .bind(id)
+        .fetch_one(pool)
+        .await
+        .unwrap();
         assert_eq!(row.get::<i64, _>("answered"), *trials);
-        assert!(row.get::<bool, _>("done"));
-        let pairs = sqlx::query("SELECT left_condition, right_condition FROM trials WHERE participant = ? AND active_batch IS NOT NULL ORDER BY trial")
+        assert_eq!(row.get::<i64, _>("done"), 1);
+        let pairs = sqlx::query("SELECT left_condition, right_condition FROM trials WHERE participant = $1 AND active_batch IS NOT NULL ORDER BY trial")
             .bind(id)
             .fetch_all(pool)
             .await
             .unwrap();
         assert_eq!(pairs.len(), 10);
-        let unordered = |row: &sqlx::sqlite::SqliteRow| {
+        let unordered = |row: &sqlx::any::AnyRow| {
             let (a, b): (String, String) = (row.get("left_condition"), row.get("right_condition"));
             if a < b { (a, b) } else { (b, a) }
         };

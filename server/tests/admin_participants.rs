@@ -10,12 +10,13 @@ use std::path::{Path, PathBuf};
 use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
-use mrstudy_server::serve::{Prepared, prepare};
+use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::storage::{Backend, Database};
 use mrstudy_server::{AppState, app};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, call, copy_demo_study, send};
+use support::{Answer, call, copy_demo_study, send, test_database};
 
 const STUDY: &str = "shadows-demo";
 
@@ -36,6 +37,7 @@ struct Fixture {
     state: AppState,
     admin_token: String,
     data: PathBuf,
+    database: Database,
     _work: tempfile::TempDir,
 }
 
@@ -43,9 +45,10 @@ async fn fixture() -> Fixture {
     let work = tempfile::tempdir().unwrap();
     let studies = studies_dir(work.path());
     let data = work.path().join("data");
-    let Prepared { state, admin_token, skipped, .. } = prepare(&data, &studies).await.unwrap();
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
     assert!(skipped.is_empty(), "{skipped:?}");
-    Fixture { app: app(state.clone()), state, admin_token, data, _work: work }
+    Fixture { app: app(state.clone()), state, admin_token, data, database, _work: work }
 }
 
 impl Fixture {
@@ -82,7 +85,7 @@ impl Fixture {
                 call(&self.app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
             let trial = next["trial"].as_i64().unwrap_or_else(|| panic!("no next trial: {next}"));
             let row = sqlx::query_as::<_, (String, String, Option<String>)>(
-                "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = ? AND trial = ?",
+                "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = $1 AND trial = $2",
             )
             .bind(id)
             .bind(trial)
@@ -113,6 +116,16 @@ impl Fixture {
             )
             .await;
             assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+        }
+    }
+
+    /// SQL for the time `seconds` ago, as the database stores times.
+    fn seconds_ago(&self, seconds: u32) -> String {
+        match self.database.backend() {
+            Backend::Postgres => format!(
+                r#"to_char((now() - interval '{seconds} seconds') AT TIME ZONE 'UTC', 'YYYY-MM-DD"T"HH24:MI:SS.MS"Z"')"#
+            ),
+            Backend::Sqlite => format!("strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-{seconds} seconds')"),
         }
     }
 
@@ -167,12 +180,15 @@ async fn participants_list_statuses_progress_external_ids_and_flags() {
     let (gone, gone_token) = fixture.join("PID-GONE", "").await;
     fixture.answer(&gone, &gone_token, 1, false, false).await;
     // The last participant's activity two hours ago, beyond the default abandon_after_minutes (30).
+    let ago = fixture.seconds_ago(7200);
     for statement in [
-        format!("UPDATE participants SET created_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE id = '{gone}'"),
-        format!("UPDATE trials SET shown_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE participant = '{gone}' AND shown_at IS NOT NULL"),
-        format!("UPDATE responses SET answered_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-2 hours') WHERE participant = '{gone}'"),
+        format!("UPDATE participants SET created_at = {ago} WHERE id = '{gone}'"),
+        format!("UPDATE trials SET shown_at = {ago} WHERE participant = '{gone}' AND shown_at IS NOT NULL"),
+        format!("UPDATE responses SET answered_at = {ago} WHERE participant = '{gone}'"),
         // (answered at once here, so the server flagged every response too fast: set exactly two)
-        format!("UPDATE responses SET too_fast = (participant = '{done}' AND trial IN (1, 2))"),
+        format!(
+            "UPDATE responses SET too_fast = CASE WHEN participant = '{done}' AND trial IN (1, 2) THEN 1 ELSE 0 END"
+        ),
         "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
          VALUES ('5c0ee0005c0ee0005c0ee0005c0ee000', 'shadows-demo', 'The window is too small for the images.',
                  '{\"viewport\": [320, 480]}', '{\"PROLIFIC_PID\": \"PID-SMALL\"}', 0, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))"
@@ -275,20 +291,20 @@ async fn a_short_abandon_timeout_marks_idle_participants_abandoned() {
     fixture.answer(&idle, &idle_token, 1, false, false).await;
     assert_eq!(entry(&fixture.participants().await, &idle)["status"], "started");
     // One minute (the shortest allowed) in the stored definition, and activity 90 s ago.
+    let postgres = fixture.database.backend() == Backend::Postgres;
     fixture
-        .sql("UPDATE studies SET definition = json_set(definition, '$.participation.abandon_after_minutes', 1) WHERE slug = 'shadows-demo'")
+        .sql(if postgres {
+            "UPDATE studies SET definition = jsonb_set(definition::jsonb, '{participation,abandon_after_minutes}', '1')::text WHERE slug = 'shadows-demo'"
+        } else {
+            "UPDATE studies SET definition = json_set(definition, '$.participation.abandon_after_minutes', 1) WHERE slug = 'shadows-demo'"
+        })
         .await;
+    let ago = fixture.seconds_ago(90);
     assert_eq!(entry(&fixture.participants().await, &idle)["status"], "started", "activity just now");
     for statement in [
-        format!(
-            "UPDATE participants SET created_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE id = '{idle}'"
-        ),
-        format!(
-            "UPDATE trials SET shown_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}' AND shown_at IS NOT NULL"
-        ),
-        format!(
-            "UPDATE responses SET answered_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-90 seconds') WHERE participant = '{idle}'"
-        ),
+        format!("UPDATE participants SET created_at = {ago} WHERE id = '{idle}'"),
+        format!("UPDATE trials SET shown_at = {ago} WHERE participant = '{idle}' AND shown_at IS NOT NULL"),
+        format!("UPDATE responses SET answered_at = {ago} WHERE participant = '{idle}'"),
     ] {
         fixture.sql(&statement).await;
     }
@@ -412,13 +428,17 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
             Some(json!({"reason": "asked to be removed"})),
         )
         .await;
-    // A checkpoint moves the rows into the main file too, so both copies must go.
-    fixture.sql("PRAGMA wal_checkpoint(PASSIVE)").await;
-    let before = database_bytes(&fixture.data);
-    assert!(
-        contains(&before, "PPID-UNIQUE-4711") && contains(&before, "my very own unique remark 9x7q"),
-        "stored before"
-    );
+    // The bytes of the database's files (sqlite; PostgreSQL's are the server's).
+    let sqlite = fixture.database.backend() == Backend::Sqlite;
+    if sqlite {
+        // A checkpoint moves the rows into the main file too, so both copies must go.
+        fixture.sql("PRAGMA wal_checkpoint(PASSIVE)").await;
+        let before = database_bytes(&fixture.data);
+        assert!(
+            contains(&before, "PPID-UNIQUE-4711") && contains(&before, "my very own unique remark 9x7q"),
+            "stored before"
+        );
+    }
 
     let answer = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{gone}"), None).await;
     assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
@@ -427,13 +447,15 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
         json!({"study": STUDY, "kind": "participant", "ordinal": 1, "trials": 7, "responses": 4})
     );
 
-    let after = database_bytes(&fixture.data);
-    for needle in ["PPID-UNIQUE-4711", "my very own unique remark 9x7q", "asked to be removed", gone.as_str()] {
-        assert!(!contains(&after, needle), "\"{needle}\" is still in the database file");
+    if sqlite {
+        let after = database_bytes(&fixture.data);
+        for needle in ["PPID-UNIQUE-4711", "my very own unique remark 9x7q", "asked to be removed", gone.as_str()] {
+            assert!(!contains(&after, needle), "\"{needle}\" is still in the database file");
+        }
+        assert!(contains(&after, "PPID-KEEP-0042"), "the other participant is kept");
+        let wal = std::fs::metadata(fixture.data.join("mrstudy.db-wal")).map(|metadata| metadata.len()).unwrap_or(0);
+        assert_eq!(wal, 0, "the WAL is truncated");
     }
-    assert!(contains(&after, "PPID-KEEP-0042"), "the other participant is kept");
-    let wal = std::fs::metadata(fixture.data.join("mrstudy.db-wal")).map(|metadata| metadata.len()).unwrap_or(0);
-    assert_eq!(wal, 0, "the WAL is truncated");
     let list = fixture.participants().await;
     assert_eq!(list.len(), 1);
     assert_eq!(list[0]["participant"], keep.as_str());
@@ -473,7 +495,9 @@ async fn deleting_a_participant_leaves_nothing_of_them_in_the_database_file() {
     let answer = fixture.admin(Method::DELETE, "/api/admin/participants/5c0ee0005c0ee0005c0ee0005c0ee001", None).await;
     assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
     assert_eq!(answer.json()["kind"], "screen-out");
-    assert!(!contains(&database_bytes(&fixture.data), "PPID-SCREENED-5150"));
+    if sqlite {
+        assert!(!contains(&database_bytes(&fixture.data), "PPID-SCREENED-5150"));
+    }
     assert_eq!(fixture.participants().await.len(), 1);
 }
 
@@ -605,8 +629,9 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     let work = tempfile::tempdir().unwrap();
     let data = work.path().join("data");
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    runtime.block_on(async {
-        let Prepared { state, .. } = prepare(&data, &studies_dir(work.path())).await.unwrap();
+    let database = runtime.block_on(async {
+        let database = test_database(&data).await;
+        let Prepared { state, .. } = prepare_on(&database, &data, &studies_dir(work.path())).await.unwrap();
         sqlx::query(
             "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
              VALUES ('lab', 'Cubes', 'task', 1, '{\"slug\": \"lab\"}', '00', '2026-11-23T00:00:00.000Z', '2026-11-23T00:00:00.000Z')",
@@ -614,16 +639,23 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
         .execute(&state.storage().read)
         .await
         .unwrap();
+        database
     });
     drop(runtime);
+    let database = flag(&database);
     for format in [mrstudy_server::serve::ExportFormat::Csv, mrstudy_server::serve::ExportFormat::Json] {
-        let error = mrstudy_server::serve::export(&data, "lab", format, Default::default()).unwrap_err();
+        let error = mrstudy_server::serve::export(&data, database, "lab", format, Default::default()).unwrap_err();
         assert!(error.contains("task study") && error.contains("--format task"), "{error}");
         assert!(!error.contains('\n') && !error.contains("internal"), "{error}");
     }
-    let output =
-        mrstudy_server::serve::export(&data, STUDY, mrstudy_server::serve::ExportFormat::Csv, Default::default())
-            .unwrap();
+    let output = mrstudy_server::serve::export(
+        &data,
+        database,
+        STUDY,
+        mrstudy_server::serve::ExportFormat::Csv,
+        Default::default(),
+    )
+    .unwrap();
     assert!(output.text.starts_with("study,participant,"));
     assert_eq!(output.left_out, None, "nobody left out");
 }
@@ -635,13 +667,16 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     let work = tempfile::tempdir().unwrap();
     let data = work.path().join("data");
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let (kept, pilot) = runtime.block_on(async {
-        let Prepared { state, admin_token, .. } = prepare(&data, &studies_dir(work.path())).await.unwrap();
+    let (kept, pilot, database) = runtime.block_on(async {
+        let database = test_database(&data).await;
+        let Prepared { state, admin_token, .. } =
+            prepare_on(&database, &data, &studies_dir(work.path())).await.unwrap();
         let fixture = Fixture {
             app: app(state.clone()),
             state,
             admin_token,
             data: data.clone(),
+            database: database.clone(),
             _work: tempfile::tempdir().unwrap(),
         };
         let (kept, kept_token) = fixture.join("PID-KEPT", "").await;
@@ -649,11 +684,12 @@ fn export_leaves_out_pilots_unless_include_pilots() {
         let (pilot, pilot_token) = fixture.join("PID-PILOT", "").await;
         fixture.answer(&pilot, &pilot_token, 3, false, false).await;
         fixture.sql(&format!("UPDATE participants SET pilot = 1 WHERE id = '{pilot}'")).await;
-        (kept, pilot)
+        (kept, pilot, database)
     });
     drop(runtime);
+    let database = flag(&database);
     let csv = mrstudy_server::serve::ExportFormat::Csv;
-    let default = mrstudy_server::serve::export(&data, STUDY, csv, Default::default()).unwrap();
+    let default = mrstudy_server::serve::export(&data, database, STUDY, csv, Default::default()).unwrap();
     assert_eq!(
         default.left_out.as_deref(),
         Some(
@@ -662,7 +698,15 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     );
     assert!(default.text.contains(&kept) && !default.text.contains(&pilot) && !default.text.contains("PID-PILOT"));
     let include = mrstudy_server::export::Include { pilots: true, excluded: false };
-    let with_pilots = mrstudy_server::serve::export(&data, STUDY, csv, include).unwrap();
+    let with_pilots = mrstudy_server::serve::export(&data, database, STUDY, csv, include).unwrap();
     assert_eq!(with_pilots.left_out, None);
     assert!(with_pilots.text.contains(&pilot) && with_pilots.text.contains("PID-PILOT"));
+}
+
+/// `mrstudy export --database`'s value for a test's database (`None`: the data directory's sqlite).
+fn flag(database: &Database) -> Option<&str> {
+    match database {
+        Database::Postgres(url) => Some(url),
+        Database::Sqlite(_) => None,
+    }
 }

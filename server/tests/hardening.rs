@@ -11,11 +11,11 @@ use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
 use mrstudy_server::limits::{ClientAddr, Limits};
-use mrstudy_server::serve::{Prepared, admin_token_strength, prepare};
+use mrstudy_server::serve::{Prepared, admin_token_strength, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, admin_session_cookie, call, copy_demo_study, demographics, send};
+use support::{Answer, admin_session_cookie, call, copy_demo_study, demographics, send, test_database};
 
 struct Fixture {
     app: Router,
@@ -27,7 +27,8 @@ async fn fixture(limits: Option<Limits>) -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = data_dir.path().join("studies");
     copy_demo_study(&studies);
-    let Prepared { state, admin_token, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
+    let data = data_dir.path().join("data");
+    let Prepared { state, admin_token, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
     let state = match limits {
         Some(limits) => state.with_limits(limits),
         None => state,

@@ -159,7 +159,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["answered"], 1);
     // durable before `saved`: the row is there, with the truth from the stored start
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1")
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = $1 AND trial = 1")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -176,7 +176,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     assert!(row.get::<f64, _>("completion_ms") > 0.0);
     // answering a finished trial changes nothing
     refused(&mut socket, json!({"type": "answer", "trial": 1, "cm": 20}), "already answered").await;
-    let again: f64 = sqlx::query_scalar("SELECT answer_cm FROM task_trials WHERE participant = ? AND trial = 1")
+    let again: f64 = sqlx::query_scalar("SELECT answer_cm FROM task_trials WHERE participant = $1 AND trial = 1")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -222,7 +222,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     send(&mut socket, json!({"type": "answer", "trial": 3})).await;
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["answered"], 3);
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 3")
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = $1 AND trial = 3")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -301,7 +301,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
         send(&mut socket, json!({"type": "answer", "trial": number})).await;
         let saved = json_of(&mut socket, "saved").await;
         assert_eq!(saved["completed"], number == 6);
-        let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = ?")
+        let row = sqlx::query("SELECT * FROM task_trials WHERE participant = $1 AND trial = $2")
             .bind(&participant)
             .bind(number)
             .fetch_one(&storage.read)
@@ -316,7 +316,7 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     }
     json_of(&mut socket, "done").await;
     refused(&mut socket, json!({"type": "answer", "trial": 6}), "already answered").await;
-    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?")
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = $1")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -429,13 +429,13 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
         assert!(error["message"].as_str().unwrap().contains("sooner than the study's minimum of 400 ms"), "{error}");
     }
     let stored: i64 =
-        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = ? AND answered_at IS NOT NULL")
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = $1 AND answered_at IS NOT NULL")
             .bind(&participant)
             .fetch_one(&storage.read)
             .await
             .unwrap();
     assert_eq!(stored, 0, "refused answers store nothing");
-    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = ?")
+    let answered: i64 = sqlx::query_scalar("SELECT answered FROM task_participants WHERE id = $1")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -445,7 +445,7 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
     send(&mut socket, json!({"type": "answer", "trial": 1})).await;
     let saved = json_of(&mut socket, "saved").await;
     assert_eq!(saved["frames_shown"], 1);
-    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = ? AND trial = 1")
+    let row = sqlx::query("SELECT * FROM task_trials WHERE participant = $1 AND trial = 1")
         .bind(&participant)
         .fetch_one(&storage.read)
         .await
@@ -474,7 +474,7 @@ async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_r
     assert_eq!(json_of(&mut socket, "saved").await["completed"], true);
     json_of(&mut socket, "done").await;
     let rows: Vec<(i64, i64)> =
-        sqlx::query_as("SELECT trial, frames_shown FROM task_trials WHERE participant = ? ORDER BY trial")
+        sqlx::query_as("SELECT trial, frames_shown FROM task_trials WHERE participant = $1 ORDER BY trial")
             .bind(&participant)
             .fetch_all(&storage.read)
             .await

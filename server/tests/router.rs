@@ -8,11 +8,12 @@ use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
 use mrstudy_server::app;
-use mrstudy_server::serve::{Prepared, prepare};
+use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::storage::Database;
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, call, copy_demo_study, demographics, repo_studies_dir, send};
+use support::{Answer, call, copy_demo_study, demographics, repo_studies_dir, send, test_database};
 
 /// The demo study and the thesis survey, whose first scene is a scene file that does not parse:
 /// `serve` skips the survey (its stimuli cannot be rendered) without opening the GPU, where the
@@ -35,14 +36,17 @@ struct Fixture {
     app: Router,
     admin_token: String,
     skipped: Vec<String>,
+    database: Database,
     _data_dir: tempfile::TempDir,
 }
 
 async fn fixture() -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = studies_dir(data_dir.path());
-    let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
-    Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
+    let data = data_dir.path().join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    Fixture { app: app(state), admin_token, skipped, database, _data_dir: data_dir }
 }
 
 async fn join(app: &Router) -> (String, String) {
@@ -611,7 +615,8 @@ async fn live_analysis_runs_the_analysis_crate_on_the_export() {
 #[tokio::test]
 async fn the_database_is_wal_with_full_sync() {
     let data_dir = tempfile::tempdir().unwrap();
-    let storage = mrstudy_server::Storage::open(&data_dir.path().join("mrstudy.db")).await.unwrap();
+    let storage =
+        mrstudy_server::Storage::open(&mrstudy_server::storage::Database::in_data_dir(data_dir.path())).await.unwrap();
     let journal_mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&storage.read).await.unwrap();
     let synchronous: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&storage.read).await.unwrap();
     let foreign_keys: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&storage.read).await.unwrap();
@@ -636,7 +641,8 @@ async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
     )
     .unwrap();
     let data_dir = tempfile::tempdir().unwrap();
-    let Prepared { state, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    let database = test_database(data_dir.path()).await;
+    let Prepared { state, .. } = prepare_on(&database, data_dir.path(), studies.path()).await.unwrap();
     let app = app(state);
     let (id, token) = join(&app).await; // with PROLIFIC_PID = abc123
     for trial in 1..=7 {
@@ -661,13 +667,14 @@ async fn fixture_with(extra: &str) -> Fixture {
     let text = std::fs::read_to_string(&file).unwrap();
     let text = text.replacen("\n[texts]", &format!("\n{extra}\n\n[texts]"), 1);
     std::fs::write(&file, text).unwrap();
-    let Prepared { state, admin_token, skipped, .. } = prepare(&data_dir.path().join("data"), &studies).await.unwrap();
-    Fixture { app: app(state), admin_token, skipped, _data_dir: data_dir }
+    let data = data_dir.path().join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    Fixture { app: app(state), admin_token, skipped, database, _data_dir: data_dir }
 }
 
-async fn database(fixture: &Fixture) -> sqlx::SqlitePool {
-    let path = fixture._data_dir.path().join("data/mrstudy.db");
-    sqlx::SqlitePool::connect(&format!("sqlite://{}?mode=ro", path.display())).await.unwrap()
+async fn database(fixture: &Fixture) -> sqlx::AnyPool {
+    support::connect(&fixture.database).await
 }
 
 async fn post_response(app: &Router, id: &str, token: &str, trial: i64, rt_ms: f64) -> Answer {
@@ -741,10 +748,9 @@ async fn a_preview_link_makes_a_pilot_also_while_the_study_is_closed() {
         use sha2::Digest;
         sha2::Sha256::digest(token.as_bytes()).to_vec()
     };
-    let path = fixture._data_dir.path().join("data/mrstudy.db");
-    let writer = sqlx::SqlitePool::connect(&format!("sqlite://{}", path.display())).await.unwrap();
+    let writer = database(&fixture).await;
     sqlx::query(
-        "INSERT INTO previews (token_sha256, study, created_at) VALUES (?, 'shadows-demo', '2026-11-23T00:00:00.000Z')",
+        "INSERT INTO previews (token_sha256, study, created_at) VALUES ($1, 'shadows-demo', '2026-11-23T00:00:00.000Z')",
     )
     .bind(&hash)
     .execute(&writer)

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use mrstudy_server::storage::{Storage, StudyRecord, WriteJob};
+use mrstudy_server::storage::{Connection, Database, Storage, StudyRecord, WriteJob};
 
 /// A participant-sized write through the writer's queue: one row of `size` bytes.
 struct Blob {
@@ -14,9 +14,9 @@ struct Blob {
 
 impl WriteJob for Blob {
     type Outcome = ();
-    async fn run(&self, connection: &mut sqlx::SqliteConnection) -> Result<(), sqlx::Error> {
-        sqlx::query("INSERT OR REPLACE INTO blobs (key, value) VALUES (?, ?)")
-            .bind(self.key)
+    async fn run(&self, connection: &mut Connection) -> Result<(), sqlx::Error> {
+        sqlx::query("INSERT OR REPLACE INTO blobs (key, value) VALUES ($1, $2)")
+            .bind(i64::from(self.key))
             .bind(vec![self.key as u8; self.size])
             .execute(connection)
             .await?;
@@ -34,7 +34,7 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
 async fn the_wal_stays_below_64_mb_while_readers_overlap() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("mrstudy.db");
-    let storage = Storage::open(&path).await.unwrap();
+    let storage = Storage::open(&Database::Sqlite(path.clone())).await.unwrap();
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     // Two readers, each holding a read transaction 40 ms and starting 20 ms apart: at every
     // moment one of them reads a snapshot in the WAL.
@@ -78,7 +78,7 @@ async fn the_database_files_are_readable_by_their_owner_only() {
     // a database made by an earlier version, world-readable
     std::fs::write(&path, b"").unwrap();
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
-    let storage = Storage::open(&path).await.unwrap();
+    let storage = Storage::open(&Database::Sqlite(path.clone())).await.unwrap();
     storage
         .upsert_study(&StudyRecord {
             slug: "s",
@@ -95,6 +95,6 @@ async fn the_database_files_are_readable_by_their_owner_only() {
         assert_eq!(mode, 0o600, "{} has mode {mode:o}", file.display());
     }
     let fresh = dir.path().join("fresh/mrstudy.db");
-    drop(Storage::open(&fresh).await.unwrap());
+    drop(Storage::open(&Database::Sqlite(fresh.clone())).await.unwrap());
     assert_eq!(std::fs::metadata(&fresh).unwrap().permissions().mode() & 0o777, 0o600);
 }

@@ -18,7 +18,9 @@
 
 use std::collections::HashMap;
 
-use sqlx::{Row, SqliteConnection};
+use sqlx::Row;
+
+use crate::storage::Connection;
 use tokio::sync::Mutex;
 
 use super::store::insert_trial;
@@ -70,7 +72,7 @@ async fn absorb(state: &AppState, prepared: &PreparedStudy, active: &mut ActiveS
          FROM responses r
          JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
          JOIN participants p ON p.id = r.participant
-         WHERE r.seq > ? AND p.study = ? AND p.pilot = 0 AND t.catch_expected IS NULL
+         WHERE r.seq > $1 AND p.study = $2 AND p.pilot = 0 AND t.catch_expected IS NULL
          ORDER BY r.seq",
     )
     .bind(active.absorbed_seq)
@@ -113,7 +115,7 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     let mut active = lock.lock().await;
     let study = &prepared.study;
     let read = &state.storage().read;
-    let header = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = ?")
+    let header = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
         .bind(participant)
         .fetch_optional(read)
         .await
@@ -124,7 +126,7 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     let answered: i64 = header.try_get("answered").map_err(internal)?;
     let rows = sqlx::query(
         "SELECT left_condition, right_condition, catch_expected, active_batch FROM trials
-         WHERE participant = ? ORDER BY trial",
+         WHERE participant = $1 ORDER BY trial",
     )
     .bind(participant)
     .fetch_all(read)
@@ -200,8 +202,8 @@ pub struct ActiveBatch {
 impl WriteJob for ActiveBatch {
     type Outcome = ();
 
-    async fn run(&self, connection: &mut SqliteConnection) -> Result<(), sqlx::Error> {
-        let taken: Option<i64> = sqlx::query_scalar("SELECT trial FROM trials WHERE participant = ? AND trial = ?")
+    async fn run(&self, connection: &mut Connection) -> Result<(), sqlx::Error> {
+        let taken: Option<i64> = sqlx::query_scalar("SELECT trial FROM trials WHERE participant = $1 AND trial = $2")
             .bind(&self.participant)
             .bind(self.first)
             .fetch_optional(&mut *connection)

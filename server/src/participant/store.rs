@@ -6,7 +6,9 @@
 
 use std::sync::Arc;
 
-use sqlx::{Row, SqliteConnection};
+use sqlx::Row;
+
+use crate::storage::Connection;
 
 use crate::prepared::{PreparedStudy, ScheduledTrial};
 use crate::schedule;
@@ -76,7 +78,7 @@ impl WriteJob for NewResponse {
 
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
         store_response(connection, self)
     }
@@ -87,7 +89,7 @@ impl WriteJob for NewParticipant {
 
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
         insert_participant(connection, self)
     }
@@ -104,7 +106,7 @@ impl WriteJob for ScreenOutWrite {
 
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
         write_screen_out(connection, &self.id, self.screen_out.as_ref())
     }
@@ -122,9 +124,9 @@ pub struct Shown {
 impl WriteJob for Shown {
     type Outcome = ();
 
-    async fn run(&self, connection: &mut SqliteConnection) -> Result<(), sqlx::Error> {
+    async fn run(&self, connection: &mut Connection) -> Result<(), sqlx::Error> {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE trials SET shown_at = {NOW} WHERE participant = ? AND trial = ? AND shown_at IS NULL"
+            "UPDATE trials SET shown_at = {NOW} WHERE participant = $1 AND trial = $2 AND shown_at IS NULL"
         )))
         .bind(&self.participant)
         .bind(self.trial)
@@ -135,8 +137,8 @@ impl WriteJob for Shown {
 }
 
 /// A participant's answered and planned trials, if the participant exists.
-async fn progress(connection: &mut SqliteConnection, participant: &str) -> Result<Option<(i64, i64)>, sqlx::Error> {
-    let row = sqlx::query("SELECT answered, trials FROM participants WHERE id = ?")
+async fn progress(connection: &mut Connection, participant: &str) -> Result<Option<(i64, i64)>, sqlx::Error> {
+    let row = sqlx::query("SELECT answered, trials FROM participants WHERE id = $1")
         .bind(participant)
         .fetch_optional(&mut *connection)
         .await?;
@@ -144,15 +146,15 @@ async fn progress(connection: &mut SqliteConnection, participant: &str) -> Resul
 }
 
 async fn store_response(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     response: &NewResponse,
 ) -> Result<Result<ResponseOutcome, ResponseRefused>, sqlx::Error> {
     // Only a trial that was served can be answered; the server's own time since serving it
     // (first serving, so a reload never shortens it) is stored beside the client's.
     let served = sqlx::query(
-        "SELECT shown_at IS NOT NULL AS served,
+        "SELECT CASE WHEN shown_at IS NULL THEN 0 ELSE 1 END AS served,
                 (julianday('now') - julianday(shown_at)) * 86400000.0 AS served_ms
-         FROM trials WHERE participant = ? AND trial = ?",
+         FROM trials WHERE participant = $1 AND trial = $2",
     )
     .bind(&response.participant)
     .bind(response.trial)
@@ -168,8 +170,8 @@ async fn store_response(
         }
         return Ok(Err(ResponseRefused::NeverServed { trial: response.trial, next: answered + 1 }));
     };
-    if !served.try_get::<bool, _>("served")? {
-        let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = ?")
+    if served.try_get::<i64, _>("served")? == 0 {
+        let answered: i64 = sqlx::query_scalar("SELECT answered FROM participants WHERE id = $1")
             .bind(&response.participant)
             .fetch_one(&mut *connection)
             .await?;
@@ -184,7 +186,7 @@ async fn store_response(
     let advanced = sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE participants SET answered = answered + 1,
              completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END
-         WHERE id = ? AND answered = ? AND ? <= trials"
+         WHERE id = $1 AND answered = $2 AND $3 <= trials"
     )))
     .bind(&response.participant)
     .bind(response.trial - 1)
@@ -194,7 +196,7 @@ async fn store_response(
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
             "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq)
-             VALUES (?, ?, ?, ?, ?, {NOW}, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses))"
+             VALUES ($1, $2, $3, $4, $5, {NOW}, $6, $7, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses))"
         )))
         .bind(&response.participant)
         .bind(response.trial)
@@ -209,7 +211,7 @@ async fn store_response(
     }
     // Not the next trial: a repeat, a changed answer, or out of order.
     let existing: Option<String> =
-        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = ? AND trial = ?")
+        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = $1 AND trial = $2")
             .bind(&response.participant)
             .bind(response.trial)
             .fetch_optional(&mut *connection)
@@ -231,18 +233,18 @@ async fn store_response(
 }
 
 async fn write_screen_out(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     id: &str,
     screen_out: Option<&ScreenOut>,
 ) -> Result<(), sqlx::Error> {
     match screen_out {
         None => {
-            sqlx::query("DELETE FROM screen_outs WHERE id = ?").bind(id).execute(&mut *connection).await?;
+            sqlx::query("DELETE FROM screen_outs WHERE id = $1").bind(id).execute(&mut *connection).await?;
         }
         Some(screen_out) => {
             sqlx::query(sqlx::AssertSqlSafe(format!(
                 "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
-                 VALUES (?, ?, ?, ?, ?, ?, {NOW})
+                 VALUES ($1, $2, $3, $4, $5, $6, {NOW})
                  ON CONFLICT (id) DO UPDATE SET reason = excluded.reason, client = excluded.client"
             )))
             .bind(id)
@@ -261,7 +263,7 @@ async fn write_screen_out(
 /// Stores trial number `number` of a participant's schedule; `chosen` is the posterior state and
 /// batch number of an actively chosen trial (`None` for a trial planned at join).
 pub(crate) async fn insert_trial(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     participant: &str,
     number: i64,
     trial: &ScheduledTrial,
@@ -270,7 +272,7 @@ pub(crate) async fn insert_trial(
     sqlx::query(
         "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
              left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
     )
     .bind(participant)
     .bind(number)
@@ -289,26 +291,26 @@ pub(crate) async fn insert_trial(
 }
 
 async fn insert_participant(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     participant: &NewParticipant,
 ) -> Result<JoinOutcome, sqlx::Error> {
     let study = &participant.study.study;
     if let Some(withdraw) = &participant.withdraw_screen_out {
-        sqlx::query("DELETE FROM screen_outs WHERE id = ? AND study = ?")
+        sqlx::query("DELETE FROM screen_outs WHERE id = $1 AND study = $2")
             .bind(withdraw)
             .bind(&study.slug)
             .execute(&mut *connection)
             .await?;
     }
     if let Some(external_key) = &participant.external_key {
-        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = ? AND external_key = ?")
+        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = $1 AND external_key = $2")
             .bind(&study.slug)
             .bind(external_key)
             .fetch_optional(&mut *connection)
             .await?;
         if let Some(existing) = existing {
             let id: String = existing.try_get("id")?;
-            sqlx::query("UPDATE participants SET token_sha256 = ? WHERE id = ?")
+            sqlx::query("UPDATE participants SET token_sha256 = $1 WHERE id = $2")
                 .bind(&participant.token_sha256)
                 .bind(&id)
                 .execute(&mut *connection)
@@ -316,7 +318,7 @@ async fn insert_participant(
             return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
         }
     }
-    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = ?")
+    let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = $1")
         .bind(&study.slug)
         .fetch_one(&mut *connection)
         .await?;
@@ -329,7 +331,7 @@ async fn insert_participant(
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO participants (id, study, ordinal, token_sha256, seed, schedule_version, file_sha256,
              demographics, client, url_params, trials, completion_code, created_at, pilot, external_key)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, ?, ?)"
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, {NOW}, $13, $14)"
     )))
     .bind(&participant.id)
     .bind(&study.slug)

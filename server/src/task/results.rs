@@ -26,7 +26,9 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use mrstudy_analysis::task::{TaskAnalysis, analyze_task_csv};
-use sqlx::{Row, SqlitePool};
+use sqlx::Row;
+
+use crate::storage::Pool;
 
 use crate::AppState;
 use crate::error::{AppError, AppResult, Json};
@@ -41,9 +43,9 @@ pub fn router() -> Router<AppState> {
 }
 
 /// The stored definition of a task study.
-pub async fn definition(pool: &SqlitePool, slug: &str) -> AppResult<serde_json::Value> {
+pub async fn definition(pool: &Pool, slug: &str) -> AppResult<serde_json::Value> {
     let row =
-        sqlx::query("SELECT kind, definition FROM studies WHERE slug = ?").bind(slug).fetch_optional(pool).await?;
+        sqlx::query("SELECT kind, definition FROM studies WHERE slug = $1").bind(slug).fetch_optional(pool).await?;
     let Some(row) = row else { return Err(AppError::NotFound(format!("There is no study \"{slug}\"."))) };
     let kind: String = row.try_get("kind")?;
     if kind != "task" {
@@ -70,7 +72,7 @@ fn measures(kind: TaskKind) -> Vec<&'static str> {
 }
 
 /// The task CSV (see the module doc).
-pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
+pub async fn task_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     let definition = definition(pool, slug).await?;
     let condition_order: Vec<String> = definition["conditions"]
         .as_array()
@@ -86,8 +88,8 @@ pub async fn task_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
                 AVG(ABS(t.error_x_cm)) AS abs_error_x_cm, AVG(ABS(t.error_y_cm)) AS abs_error_y_cm,
                 AVG(ABS(t.error_z_cm)) AS abs_error_z_cm, AVG(t.signed_error_cm) AS signed_error_cm
          FROM task_trials t JOIN task_participants p ON p.id = t.participant
-         WHERE p.study = ? AND t.practice = 0 AND t.answered_at IS NOT NULL
-         GROUP BY p.id, t.task, t.condition",
+         WHERE p.study = $1 AND t.practice = 0 AND t.answered_at IS NOT NULL
+         GROUP BY p.id, t.task, t.kind, t.condition",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -206,12 +208,12 @@ pub const TRIAL_COLUMNS: [&str; 42] = [
 ];
 
 /// The task trials CSV (see the module doc).
-pub async fn trials_csv(pool: &SqlitePool, slug: &str) -> AppResult<String> {
+pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     definition(pool, slug).await?;
     let rows = sqlx::query(
         "SELECT p.id AS participant, p.label, p.ordinal, p.slot, p.seed, p.condition_order, t.* FROM task_trials t
          JOIN task_participants p ON p.id = t.participant
-         WHERE p.study = ? AND t.answered_at IS NOT NULL ORDER BY p.ordinal, t.trial",
+         WHERE p.study = $1 AND t.answered_at IS NOT NULL ORDER BY p.ordinal, t.trial",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -338,7 +340,7 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         let study = lab.studies.get(slug).cloned()?;
         Some((lab, study))
     });
-    let participants = sqlx::query("SELECT id, label, ordinal, slot, condition_order, answered, trials, completed_at, abandoned_at FROM task_participants WHERE study = ? ORDER BY ordinal")
+    let participants = sqlx::query("SELECT id, label, ordinal, slot, condition_order, answered, trials, completed_at, abandoned_at FROM task_participants WHERE study = $1 ORDER BY ordinal")
         .bind(slug)
         .fetch_all(pool)
         .await?
@@ -363,7 +365,7 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
                 SUM(t.shown_frame_ms_mean * t.frames) / NULLIF(SUM(CASE WHEN t.shown_frame_ms_mean IS NULL THEN 0 ELSE t.frames END), 0) AS shown_frame_ms_mean, AVG(t.latency_ms_mean) AS latency_ms_mean, MAX(t.latency_ms_p95) AS latency_ms_p95_max,
                 SUM(t.smoothing) AS smoothing_trials
          FROM task_trials t JOIN task_participants p ON p.id = t.participant
-         WHERE p.study = ? AND t.answered_at IS NOT NULL GROUP BY t.condition ORDER BY t.condition",
+         WHERE p.study = $1 AND t.answered_at IS NOT NULL GROUP BY t.condition ORDER BY t.condition",
     )
     .bind(slug)
     .fetch_all(pool)

@@ -16,7 +16,9 @@
 
 use std::sync::Arc;
 
-use sqlx::{Row, SqliteConnection};
+use sqlx::Row;
+
+use crate::storage::Connection;
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
 use crate::storage::{NOW, Storage, StudyRecord, WriteJob};
@@ -145,7 +147,7 @@ impl WriteJob for TaskWrite {
 
     fn run(
         &self,
-        connection: &mut SqliteConnection,
+        connection: &mut Connection,
     ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
         execute(connection, self)
     }
@@ -153,7 +155,7 @@ impl WriteJob for TaskWrite {
 
 /// Runs one write inside the writer's transaction. `Ok(Err(_))`: refused, nothing written.
 async fn execute(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     write: &TaskWrite,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     match write {
@@ -164,11 +166,11 @@ async fn execute(
 }
 
 async fn resume(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     participant: &str,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     let abandoned: Option<Option<String>> =
-        sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = ?")
+        sqlx::query_scalar("SELECT abandoned_at FROM task_participants WHERE id = $1")
             .bind(participant)
             .fetch_optional(&mut *connection)
             .await?;
@@ -177,7 +179,7 @@ async fn resume(
         Some(Some(_)) => Ok(Err(TaskRefused::Abandoned)),
         Some(None) => {
             sqlx::query(sqlx::AssertSqlSafe(format!(
-                "UPDATE task_participants SET last_active_at = {NOW} WHERE id = ?"
+                "UPDATE task_participants SET last_active_at = {NOW} WHERE id = $1"
             )))
             .bind(participant)
             .execute(&mut *connection)
@@ -188,12 +190,12 @@ async fn resume(
 }
 
 async fn insert_participant(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     participant: &NewTaskParticipant,
 ) -> Result<TaskWritten, sqlx::Error> {
     let study = &participant.study;
     let ordinal: i64 =
-        sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM task_participants WHERE study = ?")
+        sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM task_participants WHERE study = $1")
             .bind(&study.slug)
             .fetch_one(&mut *connection)
             .await?;
@@ -203,8 +205,8 @@ async fn insert_participant(
     };
     // the slot of the longest-abandoned participant, else the next unused one
     let abandoned = sqlx::query(
-        "SELECT id, slot FROM task_participants WHERE study = ? AND completed_at IS NULL AND abandoned_at IS NULL
-             AND last_active_at < ? ORDER BY slot, ordinal LIMIT 1",
+        "SELECT id, slot FROM task_participants WHERE study = $1 AND completed_at IS NULL AND abandoned_at IS NULL
+             AND last_active_at < $2 ORDER BY slot, ordinal LIMIT 1",
     )
     .bind(&study.slug)
     .bind(abandon_cutoff(study.abandon_after_minutes))
@@ -214,7 +216,7 @@ async fn insert_participant(
         Some(row) => (row.try_get::<i64, _>("slot")?, Some(row.try_get::<String, _>("id")?)),
         None => {
             let next: i64 =
-                sqlx::query_scalar("SELECT COALESCE(MAX(slot) + 1, 0) FROM task_participants WHERE study = ?")
+                sqlx::query_scalar("SELECT COALESCE(MAX(slot) + 1, 0) FROM task_participants WHERE study = $1")
                     .bind(&study.slug)
                     .fetch_one(&mut *connection)
                     .await?;
@@ -226,7 +228,7 @@ async fn insert_participant(
         plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
     if let Some(previous) = &took_over {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE task_participants SET abandoned_at = {NOW}, slot_taken_by = ? WHERE id = ?"
+            "UPDATE task_participants SET abandoned_at = {NOW}, slot_taken_by = $1 WHERE id = $2"
         )))
         .bind(&participant.id)
         .bind(previous)
@@ -235,7 +237,7 @@ async fn insert_participant(
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO task_participants (id, study, ordinal, slot, label, token_sha256, seed, schedule_version, file_sha256,
-             condition_order, trials, created_at, last_active_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, {NOW}, {NOW})"
+             condition_order, trials, created_at, last_active_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, {NOW}, {NOW})"
     )))
     .bind(&participant.id)
     .bind(&study.slug)
@@ -253,7 +255,7 @@ async fn insert_participant(
     for trial in &trials {
         sqlx::query(
             "INSERT INTO task_trials (participant, trial, task, kind, condition, practice, start_x, start_y, start_z,
-                 target_x, target_y, target_z) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                 target_x, target_y, target_z) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
         )
         .bind(&participant.id)
         .bind(trial.trial as i64)
@@ -274,10 +276,10 @@ async fn insert_participant(
 }
 
 async fn store_result(
-    connection: &mut SqliteConnection,
+    connection: &mut Connection,
     result: &TrialResult,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
-    let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = ?")
+    let row = sqlx::query("SELECT trials, answered, abandoned_at FROM task_participants WHERE id = $1")
         .bind(&result.participant)
         .fetch_optional(&mut *connection)
         .await?;
@@ -299,11 +301,11 @@ async fn store_result(
         return Ok(Err(TaskRefused::NotNext { trial, next: answered + 1 }));
     }
     let updated = sqlx::query(sqlx::AssertSqlSafe(format!(
-        "UPDATE task_trials SET answer_cm = ?, final_x = ?, final_y = ?, final_z = ?, error_cm = ?, signed_error_cm = ?,
-             error_x_cm = ?, error_y_cm = ?, error_z_cm = ?, completion_ms = ?, key_log = ?, frames = ?,
-             frame_ms_mean = ?, frame_ms_max = ?, latency_ms_mean = ?, latency_ms_p95 = ?, smoothing = ?, adapter = ?,
-             started_at = ?, frames_shown = ?, shown_frame_ms_mean = ?, paced_ms = ?, shown_at = ?, answered_at = {NOW}
-         WHERE participant = ? AND trial = ? AND answered_at IS NULL"
+        "UPDATE task_trials SET answer_cm = $1, final_x = $2, final_y = $3, final_z = $4, error_cm = $5, signed_error_cm = $6,
+             error_x_cm = $7, error_y_cm = $8, error_z_cm = $9, completion_ms = $10, key_log = $11, frames = $12,
+             frame_ms_mean = $13, frame_ms_max = $14, latency_ms_mean = $15, latency_ms_p95 = $16, smoothing = $17, adapter = $18,
+             started_at = $19, frames_shown = $20, shown_frame_ms_mean = $21, paced_ms = $22, shown_at = $23, answered_at = {NOW}
+         WHERE participant = $24 AND trial = $25 AND answered_at IS NULL"
     )))
     .bind(result.answer_cm)
     .bind(result.final_position.map(|p| p[0]))
@@ -337,7 +339,7 @@ async fn store_result(
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "UPDATE task_participants SET answered = answered + 1, last_active_at = {NOW},
-             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END WHERE id = ?"
+             completed_at = CASE WHEN answered + 1 = trials THEN {NOW} ELSE completed_at END WHERE id = $1"
     )))
     .bind(&result.participant)
     .execute(&mut *connection)
@@ -370,7 +372,7 @@ pub async fn record_frame_times(
 ) -> Result<(), sqlx::Error> {
     let measured_at = iso(std::time::SystemTime::now());
     for (condition, median_ms) in medians {
-        sqlx::query("INSERT OR REPLACE INTO task_frame_times (study, measured_at, adapter, condition, width, height, frames, median_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?)")
+        sqlx::query("INSERT INTO task_frame_times (study, measured_at, adapter, condition, width, height, frames, median_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) ON CONFLICT (study, measured_at, condition) DO UPDATE SET adapter = excluded.adapter, width = excluded.width, height = excluded.height, frames = excluded.frames, median_ms = excluded.median_ms")
             .bind(study)
             .bind(&measured_at)
             .bind(adapter)
@@ -401,7 +403,7 @@ pub struct TaskParticipantRow {
 }
 
 pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParticipantRow>, sqlx::Error> {
-    let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at FROM task_participants WHERE id = ?")
+    let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at FROM task_participants WHERE id = $1")
         .bind(id)
         .fetch_optional(&storage.read)
         .await?;
@@ -426,7 +428,7 @@ pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParti
 pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<PlannedTaskTrial>, sqlx::Error> {
     let rows = sqlx::query(
         "SELECT trial, task, kind, condition, practice, start_x, start_y, start_z, target_x, target_y, target_z
-         FROM task_trials WHERE participant = ? ORDER BY trial",
+         FROM task_trials WHERE participant = $1 ORDER BY trial",
     )
     .bind(participant)
     .fetch_all(&storage.read)

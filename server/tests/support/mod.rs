@@ -12,6 +12,39 @@ use http_body_util::BodyExt;
 use serde_json::Value;
 use tower::ServiceExt;
 
+/// The database a test's server keeps its data in: sqlite in `data_dir`, or, when the
+/// environment says `MRSTUDY_TEST_DATABASE=postgres` (scripts/test.sh runs the router and
+/// end-to-end suites a second time so), a new database on the PostgreSQL server of
+/// `MRSTUDY_TEST_POSTGRES`.
+pub async fn test_database(data_dir: &Path) -> mrstudy_server::storage::Database {
+    use mrstudy_server::storage::Database;
+    match std::env::var("MRSTUDY_TEST_DATABASE").as_deref() {
+        Ok("postgres") => Database::Postgres(
+            new_postgres().await.expect("MRSTUDY_TEST_DATABASE=postgres needs MRSTUDY_TEST_POSTGRES"),
+        ),
+        Ok("sqlite") | Err(_) => Database::in_data_dir(data_dir),
+        Ok(other) => panic!("MRSTUDY_TEST_DATABASE={other}: expected sqlite or postgres"),
+    }
+}
+
+/// A new database on the PostgreSQL server of `MRSTUDY_TEST_POSTGRES` (a URL of the server's
+/// `postgres` database), or `None` when that is not set (scripts/test.sh sets it).
+pub async fn new_postgres() -> Option<String> {
+    let server = std::env::var("MRSTUDY_TEST_POSTGRES").ok()?;
+    Some(mrstudy_server::storage::new_postgres_database(&server, "mrstudy_test").await.unwrap())
+}
+
+/// A pool on a test's database, for reading what the server stored.
+pub async fn connect(database: &mrstudy_server::storage::Database) -> sqlx::AnyPool {
+    use mrstudy_server::storage::Database;
+    sqlx::any::install_default_drivers();
+    let url = match database {
+        Database::Sqlite(path) => format!("sqlite://{}", path.display()),
+        Database::Postgres(url) => url.clone(),
+    };
+    sqlx::AnyPool::connect(&url).await.unwrap()
+}
+
 /// The repository's `studies/` folder.
 pub fn repo_studies_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies")
