@@ -412,7 +412,7 @@ impl Storage {
     ) -> Result<Option<(ParticipantRow, Vec<TrialRow>)>, sqlx::Error> {
         let rows = sqlx::query(
             "SELECT p.id, p.study, p.token_sha256, p.trials, p.answered, p.completion_code, p.completed_at,
-                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus
+                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus, t.shown_at
              FROM participants p
              LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
              WHERE p.id = $1 ORDER BY t.trial",
@@ -438,6 +438,7 @@ impl Storage {
                     trial,
                     left_stimulus: row.try_get("left_stimulus")?,
                     right_stimulus: row.try_get("right_stimulus")?,
+                    shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
                 });
             }
         }
@@ -446,7 +447,7 @@ impl Storage {
 
     pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
         let row = sqlx::query(
-            "SELECT trial, left_stimulus, right_stimulus FROM trials WHERE participant = $1 AND trial = $2",
+            "SELECT trial, left_stimulus, right_stimulus, shown_at FROM trials WHERE participant = $1 AND trial = $2",
         )
         .bind(participant)
         .bind(trial)
@@ -457,6 +458,7 @@ impl Storage {
                 trial: row.try_get("trial")?,
                 left_stimulus: row.try_get("left_stimulus")?,
                 right_stimulus: row.try_get("right_stimulus")?,
+                shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
             })
         })
         .transpose()
@@ -484,6 +486,8 @@ pub struct TrialRow {
     pub trial: i64,
     pub left_stimulus: String,
     pub right_stimulus: String,
+    /// Whether the trial has been served (its `shown_at` is set).
+    pub shown: bool,
 }
 
 /// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or

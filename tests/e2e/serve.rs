@@ -412,6 +412,11 @@ fn exported_csv_fed_to_analyze_reproduces_the_live_analysis() {
             .arg(path)
             .arg("--data-dir")
             .arg(data_dir.path())
+            .args(
+                super::support::test_database(data_dir.path())
+                    .iter()
+                    .flat_map(|url| ["--database".to_string(), url.clone()]),
+            )
             .status()
             .unwrap();
         assert!(status.success());

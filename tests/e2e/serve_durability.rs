@@ -5,6 +5,9 @@
 //! A SIGKILL loses what the process had not handed to the kernel; what survives it is what was
 //! committed. (Power loss also needs the fsync that `synchronous = FULL` does on every commit;
 //! no test here pulls the plug.)
+//!
+//! The same on PostgreSQL with two `serve` processes on one database: every participant's
+//! requests alternate between them while one of them is killed and restarted again and again.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-use super::support::{Server, demographics, export};
+use super::support::{Server, demographics, export_from, new_postgres, test_database};
 
 /// Total time of the kill-and-restart phase.
 const KILL_PHASE: Duration = Duration::from_secs(20);
@@ -22,10 +25,43 @@ const PARTICIPANTS: usize = 12;
 #[test]
 fn acknowledged_responses_survive_repeated_sigkill() {
     let data_dir = tempfile::tempdir().unwrap();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
-    let base = format!("http://{addr}");
-    let mut server = Server::start(data_dir.path(), &addr);
+    let database = test_database(data_dir.path());
+    survive_kills(data_dir.path(), database.as_deref(), 1);
+}
+
+#[test]
+fn two_servers_on_one_postgres_lose_nothing_while_one_is_killed_again_and_again() {
+    let Some(database) = new_postgres() else {
+        eprintln!("skipped: MRSTUDY_TEST_POSTGRES is not set (scripts/test.sh starts a PostgreSQL and sets it)");
+        return;
+    };
+    let data_dir = tempfile::tempdir().unwrap();
+    survive_kills(data_dir.path(), Some(&database), 2);
+}
+
+/// `servers` processes of `mrstudy serve` on one database (each with a data directory of its
+/// own under `data_dir`); participants' requests go to each in turn while the first is killed
+/// and restarted; then every acknowledged response must be stored exactly once.
+fn survive_kills(data_dir: &std::path::Path, database: Option<&str>, servers: usize) {
+    let start = |index: usize, addr: &str| {
+        let args: Vec<&str> = database.iter().flat_map(|url| ["--database", url]).collect();
+        Server::try_start_with_args(
+            &data_dir.join(format!("server-{index}")),
+            addr,
+            &super::support::studies_dir(),
+            &[],
+            &args,
+            Duration::from_secs(60),
+        )
+        .unwrap_or_else(|error| panic!("{error}"))
+    };
+    let addrs: Vec<String> = (0..servers)
+        .map(|_| {
+            format!("127.0.0.1:{}", std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port())
+        })
+        .collect();
+    let mut running: Vec<Server> = addrs.iter().enumerate().map(|(index, addr)| start(index, addr)).collect();
+    let bases: Arc<Vec<String>> = Arc::new(addrs.iter().map(|addr| format!("http://{addr}")).collect());
 
     let acknowledged: Arc<Mutex<Vec<(String, i64, String)>>> = Arc::default();
     let stop = Arc::new(AtomicBool::new(false));
@@ -33,8 +69,8 @@ fn acknowledged_responses_survive_repeated_sigkill() {
     for index in 0..PARTICIPANTS {
         let acknowledged = acknowledged.clone();
         let stop = stop.clone();
-        let base = base.clone();
-        clients.push(std::thread::spawn(move || participant_loop(index, &base, &stop, &acknowledged)));
+        let bases = bases.clone();
+        clients.push(std::thread::spawn(move || participant_loop(index, &bases, &stop, &acknowledged)));
     }
 
     let started = Instant::now();
@@ -45,16 +81,18 @@ fn acknowledged_responses_survive_repeated_sigkill() {
         pseudo_random ^= pseudo_random >> 7;
         pseudo_random ^= pseudo_random << 17;
         std::thread::sleep(Duration::from_millis(300 + pseudo_random % 900));
-        server.kill();
+        running[0].kill();
         kills += 1;
-        server = Server::start(data_dir.path(), &addr);
+        running[0] = start(0, &addrs[0]);
     }
     stop.store(true, Ordering::SeqCst);
     let mut clients_acknowledged = 0;
     for client in clients {
         clients_acknowledged += client.join().unwrap();
     }
-    server.kill();
+    for server in &mut running {
+        server.kill();
+    }
 
     let acknowledged = acknowledged.lock().unwrap().clone();
     assert_eq!(clients_acknowledged, acknowledged.len());
@@ -62,7 +100,8 @@ fn acknowledged_responses_survive_repeated_sigkill() {
     assert!(acknowledged.len() >= 200, "only {} acknowledged responses in {kills} kills", acknowledged.len());
 
     // Read back what the database holds, through `mrstudy export`.
-    let stored: Value = serde_json::from_str(&export(data_dir.path(), "shadows-demo", "json")).unwrap();
+    let export = |format: &str| export_from(&data_dir.join("server-0"), database, "shadows-demo", format);
+    let stored: Value = serde_json::from_str(&export("json")).unwrap();
     let mut answers: HashMap<(String, i64), Vec<String>> = HashMap::new();
     let mut catch_trials: HashSet<(String, i64)> = HashSet::new();
     for participant in stored["participants"].as_array().unwrap() {
@@ -79,7 +118,7 @@ fn acknowledged_responses_survive_repeated_sigkill() {
         }
         assert_eq!(participant["answered"], answered, "the progress counter matches the responses");
     }
-    let csv = export(data_dir.path(), "shadows-demo", "csv");
+    let csv = export("csv");
     let mut rows: HashMap<(String, i64), usize> = HashMap::new();
     for line in csv.lines().skip(1) {
         let fields: Vec<&str> = line.split(',').collect();
@@ -97,24 +136,32 @@ fn acknowledged_responses_survive_repeated_sigkill() {
         assert_eq!(rows.get(&key), expected_rows, "{key:?} exactly once in the CSV");
     }
     eprintln!(
-        "durability: {kills} SIGKILLs, {} acknowledged responses, {} stored, all acknowledged ones present exactly once",
+        "durability ({servers} server(s), {}): {kills} SIGKILLs, {} acknowledged responses, {} stored, all acknowledged ones present exactly once",
+        if database.is_some() { "PostgreSQL" } else { "sqlite" },
         acknowledged.len(),
         answers.len()
     );
 }
 
 /// One simulated participant after another: join, answer every trial, retrying through the
-/// restarts. Returns how many responses were acknowledged.
+/// restarts; each request goes to the next of `bases` in turn. Returns how many responses were
+/// acknowledged.
 fn participant_loop(
     index: usize,
-    base: &str,
+    bases: &[String],
     stop: &AtomicBool,
     acknowledged: &Mutex<Vec<(String, i64, String)>>,
 ) -> usize {
     let http = reqwest::blocking::Client::builder().timeout(Duration::from_secs(5)).build().unwrap();
     let mut count = 0;
     let mut choice = index as u64 + 1;
+    let mut turn = index;
+    let mut next_base = || {
+        turn += 1;
+        bases[turn % bases.len()].clone()
+    };
     while !stop.load(Ordering::SeqCst) {
+        let base = next_base();
         let joined = http
             .post(format!("{base}/api/studies/shadows-demo/participants"))
             .json(&json!({"demographics": demographics()}))
@@ -142,10 +189,12 @@ fn participant_loop(
                 }
                 // A response is accepted only for a trial the server has served: ask for it
                 // first (again after a restart; serving is idempotent).
+                let base = next_base();
                 if http.get(format!("{base}/api/participants/{id}/next")).bearer_auth(&token).send().is_err() {
                     std::thread::sleep(Duration::from_millis(20));
                     continue;
                 }
+                let base = next_base();
                 let sent = http
                     .post(format!("{base}/api/participants/{id}/responses"))
                     .bearer_auth(&token)

@@ -104,6 +104,10 @@ impl Server {
         args: &[&str],
         wait: Duration,
     ) -> Result<Server, String> {
+        let database = match args.contains(&"--database") {
+            true => None,
+            false => test_database(data_dir),
+        };
         let mut child = Command::new(binary())
             .envs(env.iter().copied())
             // the tests' many participants all come from 127.0.0.1: no limits per client
@@ -112,6 +116,7 @@ impl Server {
             .arg("--studies")
             .arg(studies)
             .args(args)
+            .args(database.iter().flat_map(|url| ["--database", url.as_str()]))
             .env_remove("MRSTUDY_ADMIN_TOKEN")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -182,11 +187,44 @@ pub fn demographics() -> Value {
 }
 
 pub fn export(data_dir: &Path, study: &str, format: &str) -> String {
+    export_from(data_dir, test_database(data_dir).as_deref(), study, format)
+}
+
+/// `mrstudy export` of the data in `database` (a postgres:// URL; `None`: the data directory's
+/// sqlite file).
+pub fn export_from(data_dir: &Path, database: Option<&str>, study: &str, format: &str) -> String {
     let output = Command::new(binary())
         .args(["export", "--study", study, "--format", format, "--data-dir"])
         .arg(data_dir)
+        .args(database.iter().flat_map(|url| ["--database", url]))
         .output()
         .unwrap();
     assert!(output.status.success(), "export failed: {}", String::from_utf8_lossy(&output.stderr));
     String::from_utf8(output.stdout).unwrap()
+}
+
+/// The PostgreSQL database of a test's data directory when the environment says
+/// `MRSTUDY_TEST_DATABASE=postgres` (scripts/test.sh runs the serving tests a second time so):
+/// made on first use on the server of `MRSTUDY_TEST_POSTGRES` and remembered in the data
+/// directory, so that a restarted server and `mrstudy export` find the same one. `None`: sqlite.
+pub fn test_database(data_dir: &Path) -> Option<String> {
+    if std::env::var("MRSTUDY_TEST_DATABASE").as_deref() != Ok("postgres") {
+        return None;
+    }
+    let remembered = data_dir.join("test-database-url");
+    if let Ok(url) = std::fs::read_to_string(&remembered) {
+        return Some(url);
+    }
+    let url = new_postgres().expect("MRSTUDY_TEST_DATABASE=postgres needs MRSTUDY_TEST_POSTGRES");
+    std::fs::create_dir_all(data_dir).unwrap();
+    std::fs::write(&remembered, &url).unwrap();
+    Some(url)
+}
+
+/// A new database on the PostgreSQL server of `MRSTUDY_TEST_POSTGRES` (a URL of the server's
+/// `postgres` database), or `None` when that is not set (scripts/test.sh sets it).
+pub fn new_postgres() -> Option<String> {
+    let server = std::env::var("MRSTUDY_TEST_POSTGRES").ok()?;
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    Some(runtime.block_on(mrstudy_server::storage::new_postgres_database(&server, "mrstudy_test")).unwrap())
 }

@@ -19,7 +19,7 @@ use serde_json::{Map, Value};
 
 use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::ParticipantRow;
+use crate::storage::{Backend, ParticipantRow};
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::trial::{ResponseOutcome, ResponseRefused, Side};
 use crate::{AppState, random_hex};
@@ -533,7 +533,15 @@ async fn next_trial(
         .filter(|trial| trial.trial == number)
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
-    state.storage().submit(Shown { participant: participant.id.clone(), trial: number }).await?;
+    if !trial.shown {
+        let shown = Shown { participant: participant.id.clone(), trial: number };
+        match state.storage().backend() {
+            // One process: its writer's queue commits this before any response it takes later.
+            Backend::Sqlite => state.storage().submit(shown).await?,
+            // Another process may take the response: committed before the trial is sent.
+            Backend::Postgres => state.storage().write(shown).await?,
+        }
+    }
     Ok(Json(Next::Trial {
         trial: trial.trial,
         total: participant.trials,
