@@ -25,7 +25,7 @@ pub struct ExportArgs {
     #[arg(long, default_value = "./mrstudy-data")]
     data_dir: PathBuf,
     /// The database that `mrstudy serve --database` used (a postgres:// URL or a sqlite file;
-    /// default: <data-dir>/mrstudy.db).
+    /// default: mrstudy.db in the data directory).
     #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
     database: Option<String>,
     #[command(flatten)]

@@ -36,7 +36,7 @@ pub struct ServeConfig {
     #[arg(long, default_value = "./mrstudy-data")]
     pub data_dir: PathBuf,
     /// The database: a PostgreSQL URL (postgres://user:password@host:port/database), which
-    /// several servers may share, or a sqlite file (default: <data-dir>/mrstudy.db).
+    /// several servers may share, or a sqlite file (default: mrstudy.db in the data directory).
     #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
     pub database: Option<String>,
     /// Directory of study files (*.toml).
