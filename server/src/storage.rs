@@ -349,6 +349,17 @@ impl Storage {
         self.send(Box::new(Pending { job, outcome: None, reply: None })).await
     }
 
+    /// Queues `job` so that every later write of any server runs after it, without waiting when
+    /// that is already so: sqlite has one process, whose first-in-first-out queue commits it
+    /// before any job queued later ([`Storage::submit`]); on PostgreSQL another process may take
+    /// the next request, so this waits for the commit ([`Storage::write`]).
+    pub async fn submit_before_others<J: WriteJob<Outcome = ()>>(&self, job: J) -> Result<(), StorageError> {
+        match self.backend {
+            Backend::Sqlite => self.submit(job).await,
+            Backend::Postgres => self.write(job).await,
+        }
+    }
+
     /// Whether `token_sha256` is a preview link of the study.
     pub async fn is_preview(&self, study: &str, token_sha256: &[u8]) -> Result<bool, sqlx::Error> {
         let found: Option<i64> = sqlx::query_scalar("SELECT 1 FROM previews WHERE study = $1 AND token_sha256 = $2")
@@ -493,29 +504,25 @@ pub struct TrialRow {
 /// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or
 /// PostgreSQL's UTC session time zone.
 async fn configure(connection: &mut Connection, backend: Backend) -> Result<(), sqlx::Error> {
-    let statements: &[&str] = match backend {
-        Backend::Sqlite => &[
-            "PRAGMA journal_mode = WAL",
-            "PRAGMA synchronous = FULL",
-            "PRAGMA foreign_keys = ON",
+    let statements = match backend {
+        Backend::Sqlite => vec![
+            "PRAGMA journal_mode = WAL".to_string(),
+            "PRAGMA synchronous = FULL".to_string(),
+            "PRAGMA foreign_keys = ON".to_string(),
+            format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis()),
             // A deleted participant's bytes are overwritten, not left in free pages (issue 12;
             // `Storage::delete` then truncates the WAL, which still holds the old pages).
-            "PRAGMA secure_delete = ON",
+            "PRAGMA secure_delete = ON".to_string(),
             // No checkpoint inside a participant's commit (it would stall that batch for the
             // copy and its fsync); a background task checkpoints instead, see `checkpointer`.
-            "PRAGMA wal_autocheckpoint = 0",
+            "PRAGMA wal_autocheckpoint = 0".to_string(),
+            // what a restarted WAL may keep on disk
+            format!("PRAGMA journal_size_limit = {JOURNAL_SIZE_LIMIT_BYTES}"),
         ],
-        Backend::Postgres => &["SET TIME ZONE 'UTC'"],
+        Backend::Postgres => vec!["SET TIME ZONE 'UTC'".to_string()],
     };
     for statement in statements {
-        connection.execute(*statement).await?;
-    }
-    if backend == Backend::Sqlite {
-        connection.execute(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis()))).await?;
-        // what a restarted WAL may keep on disk
-        connection
-            .execute(sqlx::AssertSqlSafe(format!("PRAGMA journal_size_limit = {JOURNAL_SIZE_LIMIT_BYTES}")))
-            .await?;
+        connection.execute(sqlx::AssertSqlSafe(statement)).await?;
     }
     Ok(())
 }

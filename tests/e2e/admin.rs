@@ -16,7 +16,7 @@ fn export_with(data_dir: &Path, flags: &[&str]) -> (String, String) {
     let output = Command::new(binary())
         .args(["export", "--study", "shadows-demo", "--data-dir"])
         .arg(data_dir)
-        .args(super::support::test_database(data_dir).iter().flat_map(|url| ["--database".to_string(), url.clone()]))
+        .args(super::support::database_args(super::support::test_database(data_dir).as_deref()))
         .args(flags)
         .output()
         .unwrap();

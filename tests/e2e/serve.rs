@@ -412,11 +412,7 @@ fn exported_csv_fed_to_analyze_reproduces_the_live_analysis() {
             .arg(path)
             .arg("--data-dir")
             .arg(data_dir.path())
-            .args(
-                super::support::test_database(data_dir.path())
-                    .iter()
-                    .flat_map(|url| ["--database".to_string(), url.clone()]),
-            )
+            .args(super::support::database_args(super::support::test_database(data_dir.path()).as_deref()))
             .status()
             .unwrap();
         assert!(status.success());

@@ -44,7 +44,8 @@ fn two_servers_on_one_postgres_lose_nothing_while_one_is_killed_again_and_again(
 /// and restarted; then every acknowledged response must be stored exactly once.
 fn survive_kills(data_dir: &std::path::Path, database: Option<&str>, servers: usize) {
     let start = |index: usize, addr: &str| {
-        let args: Vec<&str> = database.iter().flat_map(|url| ["--database", url]).collect();
+        let args = super::support::database_args(database);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         Server::try_start_with_args(
             &data_dir.join(format!("server-{index}")),
             addr,

@@ -116,7 +116,7 @@ impl Server {
             .arg("--studies")
             .arg(studies)
             .args(args)
-            .args(database.iter().flat_map(|url| ["--database", url.as_str()]))
+            .args(database_args(database.as_deref()))
             .env_remove("MRSTUDY_ADMIN_TOKEN")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -196,7 +196,7 @@ pub fn export_from(data_dir: &Path, database: Option<&str>, study: &str, format:
     let output = Command::new(binary())
         .args(["export", "--study", study, "--format", format, "--data-dir"])
         .arg(data_dir)
-        .args(database.iter().flat_map(|url| ["--database", url]))
+        .args(database_args(database))
         .output()
         .unwrap();
     assert!(output.status.success(), "export failed: {}", String::from_utf8_lossy(&output.stderr));
@@ -219,6 +219,11 @@ pub fn test_database(data_dir: &Path) -> Option<String> {
     std::fs::create_dir_all(data_dir).unwrap();
     std::fs::write(&remembered, &url).unwrap();
     Some(url)
+}
+
+/// `--database URL` for `mrstudy serve` or `mrstudy export` (none for the data directory's sqlite).
+pub fn database_args(database: Option<&str>) -> Vec<String> {
+    database.iter().flat_map(|url| ["--database".to_string(), url.to_string()]).collect()
 }
 
 /// A new database on the PostgreSQL server of `MRSTUDY_TEST_POSTGRES` (a URL of the server's

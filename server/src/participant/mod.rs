@@ -19,7 +19,7 @@ use serde_json::{Map, Value};
 
 use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::{Backend, ParticipantRow};
+use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::trial::{ResponseOutcome, ResponseRefused, Side};
 use crate::{AppState, random_hex};
@@ -534,13 +534,8 @@ async fn next_trial(
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
     if !trial.shown {
-        let shown = Shown { participant: participant.id.clone(), trial: number };
-        match state.storage().backend() {
-            // One process: its writer's queue commits this before any response it takes later.
-            Backend::Sqlite => state.storage().submit(shown).await?,
-            // Another process may take the response: committed before the trial is sent.
-            Backend::Postgres => state.storage().write(shown).await?,
-        }
+        // the response may reach another server (PostgreSQL): it must find the trial served
+        state.storage().submit_before_others(Shown { participant: participant.id.clone(), trial: number }).await?;
     }
     Ok(Json(Next::Trial {
         trial: trial.trial,
