@@ -46,25 +46,10 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "style: cargo doc --no-deps (warnings are errors)" >&2
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
-# A PostgreSQL of our own, as an unprivileged user (initdb refuses root): trust on loopback only.
-pg_bin=$(ls -d /usr/lib/postgresql/*/bin | sort -V | tail -n 1)
-pg_dir=$(mktemp -d /tmp/mrstudy-postgres.XXXXXX)
-pg_port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-as_owner=()
-if [[ $(id -u) -eq 0 ]]; then
-  chown postgres "$pg_dir"
-  as_owner=(runuser -u postgres --)
-fi
-stop_postgres() {
-  "${as_owner[@]}" "$pg_bin/pg_ctl" -D "$pg_dir/data" -m immediate stop >/dev/null 2>&1 || true
-  rm -rf "$pg_dir"
-}
-trap stop_postgres EXIT
-"${as_owner[@]}" "$pg_bin/initdb" -D "$pg_dir/data" -U mrstudy -A trust >/dev/null
-"${as_owner[@]}" "$pg_bin/pg_ctl" -D "$pg_dir/data" -l "$pg_dir/log" -w \
-  -o "-p $pg_port -k $pg_dir -c listen_addresses=127.0.0.1 -c max_connections=300" start >/dev/null
-export MRSTUDY_TEST_POSTGRES="postgres://mrstudy@127.0.0.1:$pg_port/postgres"
-echo "PostgreSQL $("$pg_bin/postgres" --version | awk '{print $3}') for the tests on 127.0.0.1:$pg_port" >&2
+# A PostgreSQL of our own, as an unprivileged user: trust on loopback only (scripts/postgres.sh).
+source scripts/postgres.sh
+start_postgres
+export MRSTUDY_TEST_POSTGRES="$POSTGRES_URL"
 
 cargo test --workspace --locked "$@"
 
@@ -72,6 +57,6 @@ cargo test --workspace --locked "$@"
 if (($# == 0)); then
   echo "the router and serving end-to-end tests against PostgreSQL" >&2
   MRSTUDY_TEST_DATABASE=postgres cargo test --locked -p mrstudy-server \
-    --test router --test active --test hardening --test admin_participants
-  MRSTUDY_TEST_DATABASE=postgres cargo test --locked --test e2e -- serve:: serve_durability admin::
+    --test router --test active --test hardening --test admin_participants --test lab_ws
+  MRSTUDY_TEST_DATABASE=postgres cargo test --locked --test e2e -- serve:: serve_durability admin:: lab::three_participants
 fi

@@ -20,6 +20,8 @@ mod render;
 mod render_gpu;
 #[path = "e2e/serve.rs"]
 mod serve;
+#[path = "e2e/serve_bench.rs"]
+mod serve_bench;
 #[path = "e2e/serve_durability.rs"]
 mod serve_durability;
 #[path = "e2e/serve_hardening.rs"]

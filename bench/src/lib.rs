@@ -24,7 +24,7 @@ pub enum Target {
 }
 
 /// How a benchmark runs: `mrstudy bench`'s flags (the doc comments are their help).
-#[derive(Clone, Debug, Default, clap::Args)]
+#[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
 pub struct Options {
     /// Smaller sizes only (for a quick check).
     #[arg(long)]
@@ -42,6 +42,29 @@ pub struct Options {
     /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm).
     #[arg(long)]
     pub scene: Option<String>,
+    /// bench server: the database — sqlite (a file in a temporary data directory), or
+    /// postgres: the PostgreSQL server of MRSTUDY_DATABASE_URL, or of a postgres:// URL given
+    /// here. The benchmark makes a database of its own there for each row and drops it after.
+    #[arg(long, value_name = "sqlite|postgres|URL", default_value = "sqlite")]
+    pub database: String,
+    /// bench server: mrstudy serve processes on the one database (more than one needs
+    /// PostgreSQL); every simulated participant sends its requests to them in turn.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=8))]
+    pub processes: u16,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            quick: false,
+            reference: false,
+            ca: false,
+            cm: false,
+            scene: None,
+            database: "sqlite".into(),
+            processes: 1,
+        }
+    }
 }
 
 /// A benchmark's result: DESIGN.md's bench JSON (`{"adapter": ..., "rows": [...]}`) and its
@@ -60,7 +83,7 @@ pub enum BenchError {
     Render(#[from] mrstudy_renderer::RenderError),
     #[error(transparent)]
     Analysis(#[from] mrstudy_analysis::AnalysisError),
-    #[error("bench server failed: {0}")]
+    #[error("bench server: {0}")]
     Server(String),
     #[error("cannot start the benchmark's thread pool: {0}")]
     Threads(#[from] rayon::ThreadPoolBuildError),
@@ -72,6 +95,9 @@ pub fn run(target: Target, options: &Options, observer: &dyn Observer) -> Result
     let scene = options.scene.as_deref();
     let quick = options.quick;
     let line = |text: &str| observer.line(text);
+    if target != Target::Server && (options.database != "sqlite" || options.processes != 1) {
+        return Err(BenchError::Server("--database and --processes are flags of bench server only.".into()));
+    }
     let drawn =
         |plots: &[(String, LinePlot)]| plots.iter().map(|(file, plot)| (file.clone(), line_plot(plot))).collect();
     Ok(match target {
@@ -90,7 +116,11 @@ pub fn run(target: Target, options: &Options, observer: &dyn Observer) -> Result
         Target::Render if options.cm => rendered(render::cm::run(scene, quick, observer)?),
         Target::Render => rendered(render::gpu::run(scene, quick, observer)?),
         Target::Server => {
-            let report = server::bench(quick, &line).map_err(BenchError::Server)?;
+            let environment = std::env::var("MRSTUDY_DATABASE_URL").ok();
+            let database =
+                server::Backing::parse(Some(&options.database), environment.as_deref()).map_err(BenchError::Server)?;
+            let report =
+                server::bench(quick, &database, options.processes.into(), &line).map_err(BenchError::Server)?;
             Measured { json: report.to_json(), plots: Vec::new() }
         }
     })
@@ -113,4 +143,60 @@ fn svg(plot: &Plot) -> (String, String) {
         series,
     };
     (plot.file.clone(), line_plot(&line))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Command {
+        #[command(flatten)]
+        options: Options,
+    }
+
+    #[test]
+    fn an_empty_command_line_gives_the_default_options() {
+        assert_eq!(Command::try_parse_from(["bench"]).unwrap().options, Options::default());
+    }
+
+    #[test]
+    fn database_names_a_backing_or_says_what_is_wrong() {
+        use server::Backing;
+        assert_eq!(Backing::parse(Some("sqlite"), Some("postgres://x@h/postgres")), Ok(Backing::Sqlite));
+        assert_eq!(
+            Backing::parse(Some("postgres"), Some("postgres://x@h:5/postgres")),
+            Ok(Backing::Postgres { server_url: "postgres://x@h:5/postgres".into() })
+        );
+        assert_eq!(
+            Backing::parse(Some("postgresql://y@h/postgres"), None),
+            Ok(Backing::Postgres { server_url: "postgresql://y@h/postgres".into() })
+        );
+        let unset = Backing::parse(Some("postgres"), None).unwrap_err();
+        assert!(unset.contains("MRSTUDY_DATABASE_URL"), "{unset}");
+        let wrong = Backing::parse(Some("mysql://h"), None).unwrap_err();
+        assert!(wrong.contains("`mysql://h`"), "{wrong}");
+    }
+
+    #[test]
+    fn two_processes_on_sqlite_are_refused_with_a_sentence() {
+        let refused = server::bench(true, &server::Backing::Sqlite, 2, &|_| {}).unwrap_err();
+        assert!(refused.contains("needs PostgreSQL"), "{refused}");
+    }
+
+    struct Quiet;
+
+    impl Observer for Quiet {
+        fn line(&self, _: &str) {}
+        fn note(&self, _: &str) {}
+        fn progress(&self, _: &str, _: u32, _: u32) {}
+    }
+
+    #[test]
+    fn server_flags_on_another_benchmark_are_refused() {
+        let options = Options { processes: 2, ..Options::default() };
+        let refused = run(Target::Analysis, &options, &Quiet).unwrap_err().to_string();
+        assert!(refused.contains("bench server only"), "{refused}");
+    }
 }

@@ -201,7 +201,7 @@ async fn all_slugs(state: &AppState) -> AppResult<Vec<String>> {
 }
 
 async fn list_studies(State(state): State<AppState>, headers: HeaderMap) -> AppResult<Json<Vec<StudyStats>>> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let mut all = Vec::new();
     for slug in all_slugs(&state).await? {
         all.push(stats(&state, &slug).await?);
@@ -214,7 +214,7 @@ async fn study_stats(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<StudyStats>> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     Ok(Json(stats(&state, &slug).await?))
 }
 
@@ -272,7 +272,7 @@ async fn export_csv(
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let include = include_from_query(query)?;
     let csv = export::trials_csv(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv.content), csv.left_out))
@@ -284,7 +284,7 @@ async fn export_json(
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let include = include_from_query(query)?;
     let json = export::study_json(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(
@@ -302,7 +302,7 @@ async fn conditions_csv(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let definition = export::definition(&state.storage().admin, &slug).await?;
     Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
 }
@@ -314,7 +314,7 @@ async fn stimuli_csv(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let study = state.study(&slug).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" is not served by this server, so its stimuli are not known here"))
     })?;
@@ -383,7 +383,7 @@ async fn analysis(
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Json<serde_json::Value>> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let include = include_from_query(query)?;
     Ok(Json(analysis_json(&state, &slug, include, Metrics::Set).await?))
 }
@@ -394,7 +394,7 @@ async fn worth_svg(
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let include = include_from_query(query)?;
     let pool = &state.storage().admin;
     let definition = export::definition(pool, &slug).await?;
@@ -409,7 +409,7 @@ async fn metric_svg(
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     let include = include_from_query(query)?;
     let served = state.study(&slug);
     let stimuli = served.as_ref().and_then(|study| study.stimulus_metrics.as_ref()).ok_or_else(|| {
@@ -438,7 +438,7 @@ struct OpenState {
 }
 
 async fn set_open(state: AppState, slug: String, headers: HeaderMap, open: bool) -> AppResult<Json<OpenState>> {
-    authorize_change(&state, &headers)?;
+    authorize_change(&state, &headers).await?;
     state.storage().set_open(&slug, open).await??;
     Ok(Json(OpenState { slug, open }))
 }
@@ -465,8 +465,10 @@ async fn close_study(
 /// Ends the admin session of the cookie and clears the cookie. A cross-site form cannot send
 /// the SameSite=Strict cookie, so this needs no `X-Requested-With`.
 async fn logout(State(state): State<AppState>, headers: HeaderMap) -> Response {
-    if let Some(id) = crate::auth::session_cookie(&headers) {
-        state.sessions().end(id);
+    if let Some(id) = crate::auth::session_cookie(&headers)
+        && let Err(error) = crate::auth::end_session(&state, id).await
+    {
+        return error.into_response();
     }
     let mut response = crate::pages::message_page(
         StatusCode::OK,
@@ -488,8 +490,11 @@ struct LoginQuery {
 async fn login(State(state): State<AppState>, Query(query): Query<LoginQuery>) -> Response {
     match query.token {
         Some(token) if state.is_admin_token(&token) => {
+            let session = match crate::auth::start_session(&state).await {
+                Ok(session) => session,
+                Err(error) => return error.into_response(),
+            };
             let mut response = Redirect::to("/admin").into_response();
-            let session = state.sessions().start();
             let cookie = crate::auth::session_set_cookie(Some(&session), state.limits().behind_tls);
             if let Ok(cookie) = HeaderValue::from_str(&cookie) {
                 response.headers_mut().insert(header::SET_COOKIE, cookie);
@@ -509,8 +514,8 @@ async fn login(State(state): State<AppState>, Query(query): Query<LoginQuery>) -
     }
 }
 
-fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
-    authorize(state, headers).map(|_| ()).map_err(|error| {
+async fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
+    authorize(state, headers).await.map(|_| ()).map_err(|error| {
         Box::new({
             let status = error.status();
             crate::pages::message_page(
@@ -531,7 +536,7 @@ struct AdminPage {
 }
 
 async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Response {
-    if let Err(page) = page_authorize(&state, &headers) {
+    if let Err(page) = page_authorize(&state, &headers).await {
         return *page;
     }
     let result: AppResult<Vec<StudyStats>> = async {
@@ -638,7 +643,7 @@ pub(crate) fn format_number(value: &serde_json::Value, digits: usize) -> String 
 }
 
 async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
-    if let Err(page) = page_authorize(&state, &headers) {
+    if let Err(page) = page_authorize(&state, &headers).await {
         return *page;
     }
     let stats = match stats(&state, &slug).await {
@@ -951,7 +956,7 @@ async fn list_participants(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<Vec<ParticipantEntry>>> {
-    authorize(&state, &headers)?;
+    authorize(&state, &headers).await?;
     // The observer flags come from the default analysis; a study whose data cannot be analysed
     // yet still lists its participants, without those flags.
     let analysis = match analysis_json(&state, &slug, Include::default(), Metrics::Skip).await {
@@ -1014,7 +1019,7 @@ async fn exclude_participant(
     headers: HeaderMap,
     Json(body): Json<ReasonBody>,
 ) -> AppResult<Json<ExclusionState>> {
-    authorize_change(&state, &headers)?;
+    authorize_change(&state, &headers).await?;
     let reason = body.reason.map(|reason| reason.trim().to_string()).unwrap_or_default();
     if reason.is_empty() {
         return Err(AppError::Unprocessable(
@@ -1036,7 +1041,7 @@ async fn include_participant(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<ExclusionState>> {
-    authorize_change(&state, &headers)?;
+    authorize_change(&state, &headers).await?;
     set_excluded(&state, id, None).await
 }
 
@@ -1045,7 +1050,7 @@ async fn delete_participant(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<crate::storage::Deletion>> {
-    authorize_change(&state, &headers)?;
+    authorize_change(&state, &headers).await?;
     let deletion = state.storage().delete(&id).await??;
     state.forget_credentials(&id);
     Ok(Json(deletion))
@@ -1063,7 +1068,7 @@ async fn create_preview(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<(StatusCode, Json<PreviewLink>)> {
-    authorize_change(&state, &headers)?;
+    authorize_change(&state, &headers).await?;
     let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = $1")
         .bind(&slug)
         .fetch_optional(&state.storage().admin)

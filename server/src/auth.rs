@@ -5,8 +5,9 @@
 //!
 //! Admin sessions: logging in with the admin token (`GET /admin/login?token=…`) starts a
 //! session: a random 256-bit id in the cookie (never the token itself), kept by the server as
-//! its SHA-256 with an expiry ([`SESSION_LIFETIME`]); `POST /admin/logout` ends it. Sessions live
-//! in the server's memory: a restart logs the admin out.
+//! its SHA-256 with an expiry ([`SESSION_LIFETIME`]) in the database (`admin_sessions`), so a
+//! session is valid on every server process sharing the database and survives a restart;
+//! `POST /admin/logout` ends it.
 
 use axum::http::{HeaderMap, header};
 
@@ -51,33 +52,27 @@ pub(crate) fn session_cookie(headers: &HeaderMap) -> Option<&str> {
 /// How long an admin session lasts after login.
 pub const SESSION_LIFETIME: std::time::Duration = std::time::Duration::from_secs(12 * 60 * 60);
 
-/// The admin sessions: SHA-256 of the id → expiry.
-#[derive(Debug, Default)]
-pub struct Sessions {
-    live: std::sync::Mutex<std::collections::HashMap<[u8; 32], std::time::Instant>>,
+/// Seconds since the Unix epoch, the clock of session expiry.
+fn unix_now() -> i64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|since| since.as_secs() as i64).unwrap_or(0)
 }
 
-impl Sessions {
-    /// Starts a session; returns its id (for the cookie).
-    pub fn start(&self) -> String {
-        let id = crate::random_hex(32);
-        let now = std::time::Instant::now();
-        let mut live = self.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        live.retain(|_, expiry| *expiry > now);
-        live.insert(sha256(id.as_bytes()), now + SESSION_LIFETIME);
-        id
-    }
+/// Starts an admin session, durable before this returns; returns its id (for the cookie).
+pub(crate) async fn start_session(state: &AppState) -> AppResult<String> {
+    let id = crate::random_hex(32);
+    let now = unix_now();
+    state.storage().start_admin_session(sha256(id.as_bytes()), now + SESSION_LIFETIME.as_secs() as i64, now).await?;
+    Ok(id)
+}
 
-    /// Whether `id` is a session that has not expired.
-    pub fn is_live(&self, id: &str) -> bool {
-        let live = self.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        live.get(&sha256(id.as_bytes())).is_some_and(|expiry| *expiry > std::time::Instant::now())
-    }
+/// Ends the admin session `id` (if there is one).
+pub(crate) async fn end_session(state: &AppState, id: &str) -> AppResult<()> {
+    Ok(state.storage().end_admin_session(sha256(id.as_bytes())).await?)
+}
 
-    /// Ends the session `id` (if there is one).
-    pub fn end(&self, id: &str) {
-        self.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).remove(&sha256(id.as_bytes()));
-    }
+/// Whether `id` is an admin session that has not expired.
+async fn is_live_session(state: &AppState, id: &str) -> AppResult<bool> {
+    Ok(state.storage().is_admin_session(&sha256(id.as_bytes()), unix_now()).await?)
 }
 
 /// The `Set-Cookie` value for a session id (`None`: the cookie that ends it), `Secure` when the
@@ -93,12 +88,12 @@ pub(crate) fn session_set_cookie(id: Option<&str>, secure: bool) -> String {
 }
 
 /// Checks the admin token (header or cookie), for read-only admin calls of other modules.
-pub(crate) fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    authorize_admin_via(state, headers).map(|_| ())
+pub(crate) async fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
+    authorize_admin_via(state, headers).await.map(|_| ())
 }
 
 /// Checks the admin token sent as a bearer token, or the admin session of the cookie; says which.
-pub(crate) fn authorize_admin_via(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
+pub(crate) async fn authorize_admin_via(state: &AppState, headers: &HeaderMap) -> AppResult<Via> {
     let (token, via) = match bearer(headers) {
         Ok(token) => (token, Via::Header),
         Err(error) => match session_cookie(headers) {
@@ -116,7 +111,7 @@ pub(crate) fn authorize_admin_via(state: &AppState, headers: &HeaderMap) -> AppR
     match via {
         Via::Header if state.is_admin_token(token) => Ok(via),
         Via::Header => Err(AppError::Forbidden("The admin token is wrong.".into())),
-        Via::Cookie if state.sessions().is_live(token) => Ok(via),
+        Via::Cookie if is_live_session(state, token).await? => Ok(via),
         Via::Cookie => Err(AppError::Unauthorized(
             "The admin session has ended; open the admin link that mrstudy serve printed to log in again.".into(),
         )),
@@ -125,8 +120,8 @@ pub(crate) fn authorize_admin_via(state: &AppState, headers: &HeaderMap) -> AppR
 
 /// Checks the admin token for a change: with the cookie, the request must also carry
 /// `X-Requested-With: mrstudy` (a cross-site form cannot).
-pub(crate) fn authorize_admin_change(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    if authorize_admin_via(state, headers)? == Via::Cookie
+pub(crate) async fn authorize_admin_change(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
+    if authorize_admin_via(state, headers).await? == Via::Cookie
         && headers.get("x-requested-with").and_then(|value| value.to_str().ok()) != Some("mrstudy")
     {
         return Err(AppError::Forbidden(

@@ -72,8 +72,6 @@ struct StateInner {
     lab: std::sync::OnceLock<Arc<task::Lab>>,
     /// The shared posterior of each study with an active design.
     active: participant::active::ActiveStudies,
-    /// Admin sessions (login with the admin token, logout).
-    sessions: auth::Sessions,
     /// What one client address may do, and how much it has done.
     limits: limits::Limits,
     buckets: limits::Buckets,
@@ -100,7 +98,6 @@ impl AppState {
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
                 active,
-                sessions: Default::default(),
                 limits: limits::Limits::default(),
                 buckets: Default::default(),
                 admin_work: tokio::sync::Semaphore::new(1),
@@ -124,10 +121,6 @@ impl AppState {
 
     pub(crate) fn admin_work(&self) -> &tokio::sync::Semaphore {
         &self.inner.admin_work
-    }
-
-    pub(crate) fn sessions(&self) -> &auth::Sessions {
-        &self.inner.sessions
     }
 
     pub fn storage(&self) -> &Storage {

@@ -143,7 +143,7 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
     // only calls that carry a valid admin token or session wait for the one slot: a request
     // without one is refused by its handler at once and must not hold the slot meanwhile
     let _admin_work = if request.uri().path().starts_with("/api/admin/")
-        && crate::auth::authorize_admin(&state, request.headers()).is_ok()
+        && crate::auth::authorize_admin(&state, request.headers()).await.is_ok()
     {
         Some(state.admin_work().acquire().await.expect("the semaphore is never closed"))
     } else {

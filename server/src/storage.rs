@@ -133,6 +133,31 @@ pub async fn new_postgres_database(server_url: &str, prefix: &str) -> Result<Str
     Ok(url.to_string())
 }
 
+/// Drops the database of `database_url` (made by [`new_postgres_database`]) on the PostgreSQL
+/// server of `server_url`, closing any connections still open to it (PostgreSQL 13 or later).
+pub async fn drop_postgres_database(server_url: &str, database_url: &str) -> Result<(), sqlx::Error> {
+    use sqlx::Connection as _;
+    let url = url::Url::parse(database_url).map_err(|error| sqlx::Error::Configuration(error.into()))?;
+    let name = url.path().trim_start_matches('/').replace('"', "\"\"");
+    let mut connection = sqlx::PgConnection::connect(server_url).await?;
+    connection.execute(sqlx::AssertSqlSafe(format!("DROP DATABASE IF EXISTS \"{name}\" WITH (FORCE)"))).await?;
+    connection.close().await
+}
+
+/// How durable a commit is on the PostgreSQL server of `server_url`: its version and the
+/// settings that decide it (`fsync`, `synchronous_commit`), for benchmark reports.
+pub async fn postgres_durability(server_url: &str) -> Result<String, sqlx::Error> {
+    use sqlx::Connection as _;
+    let mut connection = sqlx::PgConnection::connect(server_url).await?;
+    let (version, fsync, synchronous): (String, String, String) = sqlx::query_as(
+        "SELECT current_setting('server_version'), current_setting('fsync'), current_setting('synchronous_commit')",
+    )
+    .fetch_one(&mut connection)
+    .await?;
+    connection.close().await?;
+    Ok(format!("PostgreSQL {version}, fsync={fsync}, synchronous_commit={synchronous}"))
+}
+
 /// A URL with its password replaced by `***`.
 fn redact(url: &str) -> String {
     match url::Url::parse(url) {
@@ -142,6 +167,33 @@ fn redact(url: &str) -> String {
         }
         Ok(_) => url.to_string(),
         Err(_) => "(a URL that does not parse)".to_string(),
+    }
+}
+
+/// An optional `f64` to bind. sqlx 0.9.0's `Any` driver hands a NULL `f64` to PostgreSQL as a
+/// `float4` (its `Null(Double)` arm adds an `Option<f32>`, the `Null(Real)` arm the
+/// `Option<f64>`), which PostgreSQL refuses for a `DOUBLE PRECISION` column ("incorrect binary
+/// data format in bind parameter"); this binds NULL as an `Option<f32>`, which lands in the arm
+/// that gives `float8`, and a number as the `f64` it is. Bind every `Option<f64>` through it
+/// (sqlite takes either).
+#[derive(Debug, Clone, Copy)]
+pub struct OptionalF64(pub Option<f64>);
+
+impl sqlx::Type<sqlx::Any> for OptionalF64 {
+    fn type_info() -> sqlx::any::AnyTypeInfo {
+        <f64 as sqlx::Type<sqlx::Any>>::type_info()
+    }
+}
+
+impl<'q> sqlx::Encode<'q, sqlx::Any> for OptionalF64 {
+    fn encode_by_ref(
+        &self,
+        buffer: &mut <sqlx::Any as sqlx::Database>::ArgumentBuffer,
+    ) -> Result<sqlx::encode::IsNull, sqlx::error::BoxDynError> {
+        match self.0 {
+            Some(value) => <f64 as sqlx::Encode<'q, sqlx::Any>>::encode_by_ref(&value, buffer),
+            None => <Option<f32> as sqlx::Encode<'q, sqlx::Any>>::encode_by_ref(&None, buffer),
+        }
     }
 }
 
@@ -883,6 +935,69 @@ async fn execute_admin(
             .await?;
             Ok(Ok(AdminWritten::PreviewStored))
         }
+    }
+}
+
+/// An admin session's row: started (with its expiry, the expired rows deleted) or ended.
+enum AdminSession {
+    Start { id_sha256: [u8; 32], expires_unix: i64, now_unix: i64 },
+    End { id_sha256: [u8; 32] },
+}
+
+impl WriteJob for AdminSession {
+    type Outcome = ();
+
+    async fn run(&self, connection: &mut Connection) -> Result<(), sqlx::Error> {
+        match self {
+            AdminSession::Start { id_sha256, expires_unix, now_unix } => {
+                sqlx::query("DELETE FROM admin_sessions WHERE expires_unix <= $1")
+                    .bind(now_unix)
+                    .execute(&mut *connection)
+                    .await?;
+                sqlx::query("INSERT INTO admin_sessions (id_sha256, expires_unix) VALUES ($1, $2)")
+                    .bind(&id_sha256[..])
+                    .bind(expires_unix)
+                    .execute(&mut *connection)
+                    .await?;
+            }
+            AdminSession::End { id_sha256 } => {
+                sqlx::query("DELETE FROM admin_sessions WHERE id_sha256 = $1")
+                    .bind(&id_sha256[..])
+                    .execute(&mut *connection)
+                    .await?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Storage {
+    /// Stores an admin session (the SHA-256 of its id) valid until `expires_unix` and deletes
+    /// the sessions expired at `now_unix`; answers once it is durable, so that every server on
+    /// the database accepts its cookie.
+    pub async fn start_admin_session(
+        &self,
+        id_sha256: [u8; 32],
+        expires_unix: i64,
+        now_unix: i64,
+    ) -> Result<(), StorageError> {
+        self.write(AdminSession::Start { id_sha256, expires_unix, now_unix }).await
+    }
+
+    /// Ends the admin session (by the SHA-256 of its id), if there is one.
+    pub async fn end_admin_session(&self, id_sha256: [u8; 32]) -> Result<(), StorageError> {
+        self.write(AdminSession::End { id_sha256 }).await
+    }
+
+    /// Whether the admin session (by the SHA-256 of its id) exists and expires after `now_unix`.
+    pub async fn is_admin_session(&self, id_sha256: &[u8; 32], now_unix: i64) -> Result<bool, sqlx::Error> {
+        let found: Option<i64> =
+            sqlx::query_scalar("SELECT 1 FROM admin_sessions WHERE id_sha256 = $1 AND expires_unix > $2")
+                .bind(&id_sha256[..])
+                .bind(now_unix)
+                .fetch_optional(&self.read)
+                .await?;
+        Ok(found.is_some())
     }
 }
 

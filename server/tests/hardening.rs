@@ -275,6 +275,54 @@ async fn the_admin_cookie_is_a_server_side_session_that_logout_ends() {
 }
 
 #[tokio::test]
+async fn an_admin_session_holds_on_every_server_of_the_database_and_across_a_restart() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = data_dir.path().join("studies");
+    copy_demo_study(&studies);
+    let data = data_dir.path().join("data");
+    let database = test_database(&data).await;
+    let server = async || mrstudy_server::app(prepare_on(&database, &data, &studies).await.unwrap().state);
+    let (first, second) = (server().await, server().await);
+    let token = std::fs::read_to_string(data.join("admin-token")).unwrap();
+    let cookie = admin_session_cookie(&first, token.trim()).await;
+    let with_cookie = |method: Method, uri: &str| {
+        Request::builder().method(method).uri(uri).header(header::COOKIE, cookie.clone()).body(Body::empty()).unwrap()
+    };
+    // a login on the first server is a session on the second
+    assert_eq!(send(&second, with_cookie(Method::GET, "/api/admin/studies")).await.status, StatusCode::OK);
+    // and on a server started after both are gone
+    drop((first, second));
+    let restarted = server().await;
+    assert_eq!(send(&restarted, with_cookie(Method::GET, "/api/admin/studies")).await.status, StatusCode::OK);
+    // logout on one server ends the session on every other
+    let other = server().await;
+    assert_eq!(send(&restarted, with_cookie(Method::POST, "/admin/logout")).await.status, StatusCode::OK);
+    let after = send(&other, with_cookie(Method::GET, "/api/admin/studies")).await;
+    assert_eq!(after.status, StatusCode::UNAUTHORIZED, "{}", after.text());
+}
+
+#[tokio::test]
+async fn an_expired_admin_session_is_refused_and_a_login_deletes_the_expired_ones() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let database = test_database(data_dir.path()).await;
+    let storage = mrstudy_server::storage::Storage::open(&database).await.unwrap();
+    let (old, new) = ([1u8; 32], [2u8; 32]);
+    storage.start_admin_session(old, 1_000, 500).await.unwrap();
+    assert!(storage.is_admin_session(&old, 999).await.unwrap());
+    assert!(!storage.is_admin_session(&old, 1_000).await.unwrap(), "a session is over at its expiry");
+    assert!(!storage.is_admin_session(&new, 999).await.unwrap(), "an unknown id is no session");
+    storage.start_admin_session(new, 5_000, 2_000).await.unwrap();
+    assert!(storage.is_admin_session(&new, 2_000).await.unwrap());
+    let rows: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM admin_sessions")
+        .fetch_one(&support::connect(&database).await)
+        .await
+        .unwrap();
+    assert_eq!(rows, 1, "the expired session's row is deleted at the next login");
+    storage.end_admin_session(new).await.unwrap();
+    assert!(!storage.is_admin_session(&new, 2_000).await.unwrap());
+}
+
+#[tokio::test]
 async fn spreadsheet_formulas_from_participants_are_neutralised_in_the_export() {
     let fixture = fixture(None).await;
     let app = &fixture.app;

@@ -6,12 +6,13 @@
 //! with nothing stored, empty codes refused, resume after a dropped connection), counterbalancing
 //! slots of abandoned participants given to the next, and `pace = "equal"` frame-time parity.
 //! Runs on the GPU (lavapipe where there is none) at 96×72; skips with a note when no adapter
-//! can be opened.
+//! can be opened. On sqlite, or on PostgreSQL with `MRSTUDY_TEST_DATABASE=postgres`
+//! (scripts/test.sh runs it both ways).
 
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use mrstudy_server::serve::{Prepared, prepare, start_lab};
+use mrstudy_server::serve::{Prepared, prepare_on, start_lab};
 use serde_json::{Value, json};
 use sqlx::Row;
 use tokio_tungstenite::tungstenite::Message;
@@ -19,6 +20,8 @@ use tokio_tungstenite::tungstenite::Message;
 #[path = "support/lab_study.rs"]
 mod lab_study;
 use lab_study::LabStudy;
+mod support;
+use support::test_database;
 
 type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
@@ -99,7 +102,8 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     std::fs::write(studies.path().join("lab.toml"), study()).unwrap();
-    let Prepared { state, tasks, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    let Prepared { state, tasks, .. } =
+        prepare_on(&test_database(data_dir.path()).await, data_dir.path(), studies.path()).await.unwrap();
     assert_eq!(tasks.len(), 1);
     let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
     if state.lab().is_none() {
@@ -347,7 +351,8 @@ async fn serve(
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     std::fs::write(studies.path().join("lab.toml"), study).unwrap();
-    let Prepared { state, tasks, .. } = prepare(data_dir.path(), studies.path()).await.unwrap();
+    let Prepared { state, tasks, .. } =
+        prepare_on(&test_database(data_dir.path()).await, data_dir.path(), studies.path()).await.unwrap();
     let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
     if state.lab().is_none() {
         assert!(warnings.iter().any(|w| w.contains("GPU adapter")), "{warnings:?}");

@@ -14,7 +14,7 @@ use crate::prepared::{PreparedStudy, ScheduledTrial};
 use crate::schedule;
 #[cfg(doc)]
 use crate::storage::Storage;
-use crate::storage::{NOW, WriteJob};
+use crate::storage::{NOW, OptionalF64, WriteJob};
 use crate::trial::{ResponseOutcome, ResponseRefused, Side};
 
 /// A new response as received.
@@ -204,7 +204,7 @@ async fn store_response(
         .bind(response.rt_ms)
         .bind(&response.client)
         .bind(too_fast as i64)
-        .bind(served_ms)
+        .bind(OptionalF64(served_ms))
         .execute(&mut *connection)
         .await?;
         return Ok(Ok(ResponseOutcome::Created));

@@ -248,8 +248,8 @@ pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     Ok(String::from_utf8(writer.into_inner().expect("memory")).expect("UTF-8"))
 }
 
-fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    crate::auth::authorize_admin(state, headers)
+async fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
+    crate::auth::authorize_admin(state, headers).await
 }
 
 async fn task_csv_download(
@@ -257,7 +257,7 @@ async fn task_csv_download(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    admin(&state, &headers)?;
+    admin(&state, &headers).await?;
     let csv = task_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
@@ -267,7 +267,7 @@ async fn trials_csv_download(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Response> {
-    admin(&state, &headers)?;
+    admin(&state, &headers).await?;
     let csv = trials_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
 }
@@ -423,7 +423,7 @@ async fn analysis_json(
     Path(slug): Path<String>,
     headers: HeaderMap,
 ) -> AppResult<Json<LabReport>> {
-    admin(&state, &headers)?;
+    admin(&state, &headers).await?;
     Ok(Json(report(&state, &slug).await?))
 }
 
@@ -497,7 +497,7 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
 }
 
 async fn admin_lab_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
-    if let Err(error) = admin(&state, &headers) {
+    if let Err(error) = admin(&state, &headers).await {
         return crate::pages::message_page(
             error.status(),
             "Admin token needed",

@@ -21,7 +21,7 @@ use sqlx::Row;
 use crate::storage::Connection;
 
 use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
-use crate::storage::{NOW, Storage, StudyRecord, WriteJob};
+use crate::storage::{NOW, OptionalF64, Storage, StudyRecord, WriteJob};
 use crate::study::task::TaskStudy;
 
 /// A participant to create.
@@ -307,28 +307,28 @@ async fn store_result(
              started_at = $19, frames_shown = $20, shown_frame_ms_mean = $21, paced_ms = $22, shown_at = $23, answered_at = {NOW}
          WHERE participant = $24 AND trial = $25 AND answered_at IS NULL"
     )))
-    .bind(result.answer_cm)
-    .bind(result.final_position.map(|p| p[0]))
-    .bind(result.final_position.map(|p| p[1]))
-    .bind(result.final_position.map(|p| p[2]))
+    .bind(OptionalF64(result.answer_cm))
+    .bind(OptionalF64(result.final_position.map(|p| p[0])))
+    .bind(OptionalF64(result.final_position.map(|p| p[1])))
+    .bind(OptionalF64(result.final_position.map(|p| p[2])))
     .bind(result.error_cm)
-    .bind(result.signed_error_cm)
+    .bind(OptionalF64(result.signed_error_cm))
     .bind(result.error_axes_cm[0])
     .bind(result.error_axes_cm[1])
     .bind(result.error_axes_cm[2])
     .bind(result.completion_ms)
     .bind(&result.key_log)
     .bind(result.frames as i64)
-    .bind(result.frame_ms_mean)
-    .bind(result.frame_ms_max)
-    .bind(result.latency_ms_mean)
-    .bind(result.latency_ms_p95)
+    .bind(OptionalF64(result.frame_ms_mean))
+    .bind(OptionalF64(result.frame_ms_max))
+    .bind(OptionalF64(result.latency_ms_mean))
+    .bind(OptionalF64(result.latency_ms_p95))
     .bind(result.smoothing as i64)
     .bind(&result.adapter)
     .bind(&result.started_at)
     .bind(result.frames_shown as i64)
-    .bind(result.shown_frame_ms_mean)
-    .bind(result.paced_ms)
+    .bind(OptionalF64(result.shown_frame_ms_mean))
+    .bind(OptionalF64(result.paced_ms))
     .bind(&result.shown_at)
     .bind(&result.participant)
     .bind(trial)
