@@ -113,5 +113,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let stats = stats?;
     stats.warnings.iter().filter(|w| w.contains("firefly")).for_each(|warning| eprintln!("warning: {warning}"));
     eprintln!("wrote {} in {:.1} s ({:.0} samples/s)", out.display(), stats.seconds, stats.samples_per_second);
+    eprintln!("light tracing {} ({} light paths)", stats.light_tracing, stats.light_paths);
     Ok(())
 }

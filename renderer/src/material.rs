@@ -1,5 +1,7 @@
 //! Materials: a Lambertian diffuse lobe plus an energy-conserving Blinn–Phong specular lobe,
-//! optional albedo texture (image file or procedural), and emission.
+//! optional albedo texture (image file or procedural), and emission; or a delta BSDF
+//! ([`DeltaBsdf`]): a perfect mirror, or a smooth dielectric (glass) with Fresnel reflection,
+//! refraction and Beer–Lambert absorption inside.
 //!
 //! The BRDF, in the local frame of the shading normal:
 //!
@@ -87,11 +89,27 @@ pub struct Material {
     pub exponent: f32,
     /// Emitted radiance (front face only).
     pub emission: Vec3,
+    /// A mirror or glass: light leaves only in the reflected or refracted direction, and the
+    /// lobes above are unused (zero).
+    pub delta: Option<DeltaBsdf>,
 }
 
 impl Material {
     pub fn diffuse(name: &str, albedo: Vec3) -> Self {
-        Material { name: name.into(), albedo, texture: None, specular: Vec3::ZERO, exponent: 1.0, emission: Vec3::ZERO }
+        Material {
+            name: name.into(),
+            albedo,
+            texture: None,
+            specular: Vec3::ZERO,
+            exponent: 1.0,
+            emission: Vec3::ZERO,
+            delta: None,
+        }
+    }
+
+    /// A material that scatters by `delta` alone.
+    pub fn delta(name: &str, delta: DeltaBsdf) -> Self {
+        Material { albedo: Vec3::ZERO, delta: Some(delta), ..Material::diffuse(name, Vec3::ZERO) }
     }
     pub fn albedo_at(&self, uv: Vec2) -> Vec3 {
         match &self.texture {
@@ -101,6 +119,90 @@ impl Material {
     }
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
+    }
+}
+
+/// A BSDF that scatters into one direction (or two, for glass): nothing reaches it by
+/// next-event estimation, and paths through it are sampled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DeltaBsdf {
+    /// A perfect mirror reflecting `reflectance` (per channel) of the incident light.
+    Mirror { reflectance: Vec3 },
+    /// A smooth dielectric interface: index of refraction `ior` inside (1 outside), unpolarised
+    /// Fresnel reflection, refraction by Snell's law, and inside the Beer–Lambert absorption
+    /// coefficient `absorption` per scene unit (light travelling a distance d inside keeps
+    /// exp(−absorption · d)). The object must be closed with outward normals.
+    Dielectric { ior: f32, absorption: Vec3 },
+}
+
+/// Which quantity a path carries: radiance from the camera, or importance (flux) from a light.
+/// Only refraction tells them apart: radiance is scaled by (η_o / η_t)² across an interface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    Radiance,
+    Importance,
+}
+
+/// A sampled direction of a delta BSDF: the new direction, the path weight, and whether the
+/// path went through the surface.
+#[derive(Clone, Copy, Debug)]
+pub struct DeltaSample {
+    pub wi: Vec3,
+    pub weight: Vec3,
+    pub transmitted: bool,
+}
+
+/// Unpolarised Fresnel reflectance of a smooth interface for light arriving at cos θ_i
+/// (> 0) from a medium of index `eta_i` onto one of index `eta_t`; 1 under total internal
+/// reflection.
+pub fn fresnel_dielectric(cos_i: f32, eta_i: f32, eta_t: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin_t = eta_i / eta_t * (1.0 - cos_i * cos_i).max(0.0).sqrt();
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
+    let parallel = (eta_t * cos_i - eta_i * cos_t) / (eta_t * cos_i + eta_i * cos_t);
+    let perpendicular = (eta_i * cos_i - eta_t * cos_t) / (eta_i * cos_i + eta_t * cos_t);
+    0.5 * (parallel * parallel + perpendicular * perpendicular)
+}
+
+impl DeltaBsdf {
+    /// Samples the direction a path leaving towards `wo` (pointing away from the surface) came
+    /// from, with the uniform number `u` choosing between reflection and refraction (by their
+    /// Fresnel weights, so the weight is the reflectance or 1 — times the radiance scaling).
+    /// `normal` is the surface's outward normal, `front` whether `wo` is on its side.
+    pub fn sample(&self, wo: Vec3, normal: Vec3, front: bool, u: f32, transport: Transport) -> DeltaSample {
+        let n = if front { normal } else { -normal };
+        let cos_o = n.dot(wo).max(0.0);
+        let reflected = 2.0 * cos_o * n - wo;
+        match *self {
+            DeltaBsdf::Mirror { reflectance } => DeltaSample { wi: reflected, weight: reflectance, transmitted: false },
+            DeltaBsdf::Dielectric { ior, .. } => {
+                let (eta_o, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
+                let fresnel = fresnel_dielectric(cos_o, eta_o, eta_t);
+                if u < fresnel {
+                    return DeltaSample { wi: reflected, weight: Vec3::ONE, transmitted: false };
+                }
+                let eta = eta_o / eta_t;
+                let sin2_t = eta * eta * (1.0 - cos_o * cos_o);
+                let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+                let wi = (-eta * wo + (eta * cos_o - cos_t) * n).normalize();
+                let scale = match transport {
+                    Transport::Radiance => eta * eta,
+                    Transport::Importance => 1.0,
+                };
+                DeltaSample { wi, weight: Vec3::splat(scale), transmitted: true }
+            }
+        }
+    }
+
+    /// What a path keeps after travelling `distance` inside the object (glass: Beer–Lambert).
+    pub fn inside_transmittance(&self, distance: f32) -> Vec3 {
+        match *self {
+            DeltaBsdf::Mirror { .. } => Vec3::ONE,
+            DeltaBsdf::Dielectric { absorption, .. } => (-absorption * distance).exp(),
+        }
     }
 }
 
@@ -275,6 +377,46 @@ mod tests {
         let sampled = sum / n as f64;
         assert!(sampled <= 1.0 + 1e-3);
         assert!((sampled - uniform).abs() < 4.0 * se + 0.01, "sampled {sampled} uniform {uniform} ± {se}");
+    }
+
+    #[test]
+    fn fresnel_matches_the_closed_forms() {
+        // normal incidence: ((n1 − n2) / (n1 + n2))²
+        assert!((fresnel_dielectric(1.0, 1.0, 1.5) - 0.04).abs() < 1e-6);
+        assert!((fresnel_dielectric(1.0, 1.5, 1.0) - 0.04).abs() < 1e-6);
+        // Brewster's angle: the parallel part vanishes, the perpendicular one is
+        // ((cos θi − n cos θt) / (cos θi + n cos θt))² / 2 with θi + θt = 90°
+        let brewster = 1.5f32.atan();
+        let (ci, ct) = (brewster.cos(), brewster.sin());
+        let perpendicular = ((ci - 1.5 * ct) / (ci + 1.5 * ct)).powi(2);
+        assert!((fresnel_dielectric(ci, 1.0, 1.5) - 0.5 * perpendicular).abs() < 1e-6);
+        // total internal reflection beyond the critical angle (41.8° for 1.5 → 1)
+        assert_eq!(fresnel_dielectric(42.5f32.to_radians().cos(), 1.5, 1.0), 1.0);
+        assert!(fresnel_dielectric(41.0f32.to_radians().cos(), 1.5, 1.0) < 1.0);
+    }
+
+    #[test]
+    fn refraction_obeys_snell_and_scales_radiance_by_the_squared_index_ratio() {
+        let glass = DeltaBsdf::Dielectric { ior: 1.5, absorption: Vec3::ZERO };
+        let theta = 0.6f32;
+        let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+        // u = 1 always refracts (the Fresnel reflectance is below 1)
+        let s = glass.sample(wo, Vec3::Z, true, 1.0, Transport::Radiance);
+        assert!(s.transmitted && s.wi.z < 0.0);
+        let sin_t = (s.wi.x * s.wi.x + s.wi.y * s.wi.y).sqrt();
+        assert!((theta.sin() - 1.5 * sin_t).abs() < 1e-5, "Snell: {} vs {}", theta.sin(), 1.5 * sin_t);
+        assert!(s.wi.x < 0.0, "the refracted ray goes on across the normal");
+        assert!((s.weight.x - 1.0 / 2.25).abs() < 1e-6);
+        assert_eq!(glass.sample(wo, Vec3::Z, true, 1.0, Transport::Importance).weight, Vec3::ONE);
+        // from inside the scaling is inverted, and u = 0 reflects about the inner normal
+        let inside = glass.sample(-wo, Vec3::Z, false, 1.0, Transport::Radiance);
+        assert!(inside.transmitted && (inside.weight.x - 2.25).abs() < 1e-5);
+        let mirrored = glass.sample(wo, Vec3::Z, true, 0.0, Transport::Radiance);
+        assert!(!mirrored.transmitted && (mirrored.wi - Vec3::new(-wo.x, 0.0, wo.z)).length() < 1e-6);
+        // Beer–Lambert
+        let green = DeltaBsdf::Dielectric { ior: 1.5, absorption: Vec3::new(2.0, 0.1, 2.0) };
+        let kept = green.inside_transmittance(0.5);
+        assert!((kept - Vec3::new((-1.0f32).exp(), (-0.05f32).exp(), (-1.0f32).exp())).abs().max_element() < 1e-6);
     }
 
     #[test]

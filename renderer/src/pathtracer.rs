@@ -3,6 +3,23 @@
 //! environment; spot and point lights are delta lights sampled by NEE alone. Russian roulette
 //! starts after three bounces and is unbiased; there is no clamping of any kind.
 //!
+//! Mirrors and glass ([`crate::material::DeltaBsdf`]) are sampled, never reached by NEE. Light
+//! from an area light or the environment through them (a caustic) is found by camera paths
+//! that hit the emitter after a specular bounce. Light from a spot or point light through them
+//! is not: a camera path can neither hit a delta light nor connect to it through glass. Those
+//! paths — light, one or more mirror or glass bounces, then a diffuse or glossy surface and
+//! whatever follows (L S+ D (D|S)* … with the last non-specular vertex connected to the camera)
+//! — are added by **light tracing** ([`World::trace_light_path`]): paths start at the spot
+//! lights and are connected to the camera at every diffuse or glossy vertex after the first
+//! specular chain. The two estimators count disjoint sets of paths, so their sum is unbiased.
+//! Light tracing was chosen over bidirectional path tracing because it adds exactly the missing
+//! paths with one more loop over the same BVH (no MIS between strategies to keep right), and
+//! over photon mapping because it is unbiased and needs no kernel radius. What neither reaches:
+//! a caustic from a delta light seen only through a mirror or glass (L S+ D S+ E), which no
+//! unbiased estimator with a pinhole camera and a delta light can sample (Mitsuba's `path` and
+//! `ptracer` miss it too). The light-traced part runs only in scenes with a mirror or glass and
+//! a spot light ([`World::needs_light_tracing`]).
+//!
 //! Determinism: sample `s` of pixel `p` draws from its own stream `(seed, p, s)`, and every
 //! bounce consumes exactly eight numbers whatever happens, so results do not depend on thread
 //! scheduling, and two worlds that differ only where a path never goes (the real-only and the
@@ -14,7 +31,7 @@ use crate::camera::Camera;
 use crate::geometry::{Primitive, Ray, Triangle};
 use crate::image::Image;
 use crate::light::{Environment, SpotLight};
-use crate::material::{Bsdf, Material};
+use crate::material::{Bsdf, Material, Transport};
 use crate::math::{Distribution1D, Rng, luminance, power_heuristic, sample_triangle};
 use crate::scene::{Role, Scene};
 use glam::{DVec3, Vec3};
@@ -22,6 +39,19 @@ use rayon::prelude::*;
 use std::sync::Arc;
 
 const RAY_EPSILON: f32 = 1e-4;
+
+/// The random stream of light paths (camera samples use the pixel index as their stream).
+const LIGHT_STREAM: u64 = u64::MAX;
+
+/// A ray origin just off the surface point `point`, on the side of `normal`.
+fn offset(point: Vec3, normal: Vec3) -> Vec3 {
+    point + normal * RAY_EPSILON * (1.0 + point.abs().max_element())
+}
+
+/// The surface's outward normal (its shading normal turned to the geometric normal's side).
+fn outward_normal(s: &crate::geometry::SurfaceHit) -> Vec3 {
+    if s.shading_normal.dot(s.geometric_normal) < 0.0 { -s.shading_normal } else { s.shading_normal }
+}
 
 /// Which part of a scene a world holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,6 +96,8 @@ pub struct World {
     spots: Vec<SpotLight>,
     env: Option<Arc<Environment>>,
     groups: Vec<LightGroup>,
+    /// Whether an object of this world is a mirror or glass.
+    has_delta: bool,
 }
 
 /// Tracing parameters.
@@ -74,11 +106,14 @@ pub struct TraceParams {
     pub seed: u64,
     /// A safety bound on path length; with Russian roulette it is practically never reached.
     pub max_depth: u32,
+    /// Light tracing for caustics from spot and point lights (in scenes that need it); off
+    /// leaves those paths out, as a camera-only path tracer would (for comparisons).
+    pub light_tracing: bool,
 }
 
 impl Default for TraceParams {
     fn default() -> Self {
-        TraceParams { seed: 1, max_depth: 64 }
+        TraceParams { seed: 1, max_depth: 64, light_tracing: true }
     }
 }
 
@@ -88,11 +123,13 @@ impl World {
         let mut prims = Vec::new();
         let mut payload = Vec::new();
         let mut emitters = Vec::new();
+        let mut has_delta = false;
         for (oi, o) in scene.objects.iter().enumerate() {
             if !include(o.role) {
                 continue;
             }
             let mat = &scene.materials[o.material];
+            has_delta |= mat.delta.is_some();
             for p in &o.prims {
                 let mut emitter = -1;
                 if mat.is_emissive()
@@ -132,6 +169,120 @@ impl World {
             spots,
             env: scene.environment.clone(),
             groups,
+            has_delta,
+        }
+    }
+
+    /// Whether light tracing is needed: a mirror or glass object and a spot or point light.
+    pub fn needs_light_tracing(&self) -> bool {
+        self.has_delta && !self.spots.is_empty()
+    }
+
+    /// Traces one light path from a spot light (chosen uniformly; its direction uniformly in
+    /// its cone) and hands every camera connection to `splat` as (pixel index, value): the
+    /// value's mean over all light paths, divided by their number, is the pixel's mean
+    /// radiance from the paths the camera tracer cannot sample (see the module doc). Uses the
+    /// same eight numbers per bounce as camera paths.
+    pub fn trace_light_path(
+        &self,
+        camera: &Camera,
+        rng: &mut Rng,
+        params: &TraceParams,
+        splat: &mut dyn FnMut(usize, Vec3),
+    ) {
+        if self.spots.is_empty() {
+            return;
+        }
+        let u: [f32; 3] = std::array::from_fn(|_| rng.next_f32());
+        let spot = &self.spots[((u[0] * self.spots.len() as f32) as usize).min(self.spots.len() - 1)];
+        // uniform in the cone cos θ ≥ cos_outer (the whole sphere for a point light)
+        let cos_max = spot.cos_outer.max(-1.0);
+        let cos_theta = 1.0 - u[1] * (1.0 - cos_max);
+        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+        let phi = 2.0 * std::f32::consts::PI * u[2];
+        let frame = crate::math::Frame::from_normal(spot.direction);
+        let dir = frame.to_world(Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta));
+        // intensity / (pdf of the direction × probability of the light)
+        let solid_angle = 2.0 * std::f32::consts::PI * (1.0 - cos_max);
+        let mut beta = spot.intensity_towards(dir) * solid_angle * self.spots.len() as f32;
+        if beta.max_element() <= 0.0 {
+            return;
+        }
+        let mut ray = Ray { origin: spot.position, dir };
+        let mut through_specular = false;
+        let forward = -camera.rotation.col(2);
+        for depth in 0..params.max_depth {
+            let u: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+            let Some(hit) = self.bvh.intersect(&ray, RAY_EPSILON, f32::INFINITY) else { break };
+            let info = self.bvh.payload[hit.prim];
+            let s = self.bvh.prims[hit.prim].surface(&ray, hit.t, hit.u, hit.v);
+            let mat = &self.materials[info.material as usize];
+            let wo = -ray.dir;
+            let front = s.geometric_normal.dot(wo) > 0.0;
+            let ng = if front { s.geometric_normal } else { -s.geometric_normal };
+            if let Some(delta) = mat.delta {
+                if !front {
+                    beta *= delta.inside_transmittance(hit.t);
+                }
+                let ds = delta.sample(wo, outward_normal(&s), front, u[4], Transport::Importance);
+                beta *= ds.weight;
+                through_specular = true;
+                ray = Ray { origin: offset(s.point, if ds.transmitted { -ng } else { ng }), dir: ds.wi };
+            } else {
+                // the camera tracer's next-event estimation has every path whose first
+                // bounce from the light is diffuse or glossy
+                if !through_specular {
+                    break;
+                }
+                let mut ns = s.shading_normal;
+                if ns.dot(ng) < 0.0 {
+                    ns = -ns;
+                }
+                let kd = mat.albedo_at(s.uv);
+                if kd.max_element() <= 0.0 && mat.specular.max_element() <= 0.0 {
+                    break;
+                }
+                let bsdf = Bsdf::new(ns, kd, mat.specular, mat.exponent);
+                let p = offset(s.point, ng);
+                // the connection to the pinhole: W = fx fy / cos³θ per solid angle at the camera
+                let to_camera = camera.position - p;
+                let dist2 = to_camera.length_squared();
+                let dist = dist2.sqrt();
+                let wc = to_camera / dist;
+                let cos_camera = forward.dot(-wc);
+                let cos_surface = ns.dot(wc);
+                if cos_camera > 0.0
+                    && cos_surface > 0.0
+                    && ng.dot(wc) > 0.0
+                    && let Some((px, py)) = camera.project(s.point)
+                    && px >= 0.0
+                    && py >= 0.0
+                    && px < camera.width as f32
+                    && py < camera.height as f32
+                {
+                    let f = bsdf.eval(wc, wo);
+                    if f.max_element() > 0.0
+                        && !self.bvh.occluded(&Ray { origin: p, dir: wc }, RAY_EPSILON, dist * (1.0 - 1e-4))
+                    {
+                        let importance = camera.fx * camera.fy / (dist2 * cos_camera * cos_camera * cos_camera);
+                        let pixel = py as usize * camera.width as usize + px as usize;
+                        splat(pixel, beta * f * (cos_surface * importance));
+                    }
+                }
+                let Some(bs) = bsdf.sample(wo, u[4], u[5], u[6]) else { break };
+                if bs.wi.dot(ng) <= 0.0 {
+                    break;
+                }
+                beta *= bs.weight;
+                ray = Ray { origin: p, dir: bs.wi };
+            }
+            if depth >= 3 {
+                let q = beta.max_element().min(0.99);
+                if q <= 0.0 || u[7] >= q {
+                    break;
+                }
+                beta /= q;
+            }
         }
     }
 
@@ -190,6 +341,24 @@ impl World {
                 l += beta * mat.emission * w;
             }
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
+            if let Some(delta) = mat.delta {
+                // a mirror or glass: no light reaches it by NEE; the path goes on sampled
+                if !front {
+                    beta *= delta.inside_transmittance(hit.t);
+                }
+                let ds = delta.sample(wo, outward_normal(&s), front, u[4], Transport::Radiance);
+                beta *= ds.weight;
+                prev_delta = true;
+                ray = Ray { origin: offset(s.point, if ds.transmitted { -ng } else { ng }), dir: ds.wi };
+                if depth >= 3 {
+                    let q = beta.max_element().min(0.99);
+                    if q <= 0.0 || u[7] >= q {
+                        break;
+                    }
+                    beta /= q;
+                }
+                continue;
+            }
             let mut ns = s.shading_normal;
             if ns.dot(ng) < 0.0 {
                 ns = -ns;
@@ -199,7 +368,7 @@ impl World {
                 break;
             }
             let bsdf = Bsdf::new(ns, kd, mat.specular, mat.exponent);
-            let p = s.point + ng * RAY_EPSILON * (1.0 + s.point.abs().max_element());
+            let p = offset(s.point, ng);
 
             // next-event estimation
             if !self.groups.is_empty() {
@@ -299,7 +468,15 @@ pub struct Accumulator {
     sum_lum2: Vec<f64>,
     /// Samples that were NaN or infinite (dropped and counted; an unbiased tracer should have none).
     pub invalid_samples: u64,
+    /// Light tracing's sums per pixel (only in a world that needs it), and its number of paths:
+    /// one per pixel and camera sample.
+    light_sum: Vec<DVec3>,
+    pub light_paths: u64,
 }
+
+/// Light paths traced per parallel task (their splats are summed in task order, so the image
+/// does not depend on the thread count).
+const LIGHT_CHUNK: u64 = 1 << 13;
 
 impl Accumulator {
     pub fn new(width: u32, height: u32) -> Self {
@@ -313,6 +490,8 @@ impl Accumulator {
             max_sample: vec![0.0; n],
             sum_lum2: vec![0.0; n],
             invalid_samples: 0,
+            light_sum: Vec::new(),
+            light_paths: 0,
         }
     }
 
@@ -363,17 +542,64 @@ impl Accumulator {
                 self.max_sample[i] = self.max_sample[i].max(ml);
             }
         }
+        if params.light_tracing && world.needs_light_tracing() {
+            self.add_light_paths(
+                world,
+                camera,
+                params,
+                start as u64 * w as u64 * self.height as u64,
+                n as u64 * w as u64 * self.height as u64,
+            );
+        }
         self.spp += n;
     }
 
-    /// The mean radiance per pixel.
+    /// Traces light paths `first .. first + count` (each from its own stream) and adds their
+    /// camera connections.
+    fn add_light_paths(&mut self, world: &World, camera: &Camera, params: &TraceParams, first: u64, count: u64) {
+        if self.light_sum.is_empty() {
+            self.light_sum = vec![DVec3::ZERO; self.sum.len()];
+        }
+        let chunks = count.div_ceil(LIGHT_CHUNK);
+        // a few chunks per thread at a time keeps the splat lists small
+        let batch = (rayon::current_num_threads() as u64 * 4).max(1);
+        let mut invalid = 0u64;
+        for batch_start in (0..chunks).step_by(batch as usize) {
+            let splats: Vec<Vec<(u32, Vec3)>> = (batch_start..(batch_start + batch).min(chunks))
+                .into_par_iter()
+                .map(|chunk| {
+                    let mut splats = Vec::new();
+                    let end = ((chunk + 1) * LIGHT_CHUNK).min(count);
+                    for path in chunk * LIGHT_CHUNK..end {
+                        let mut rng = Rng::for_stream(params.seed, LIGHT_STREAM, first + path);
+                        world.trace_light_path(camera, &mut rng, params, &mut |pixel, value| {
+                            splats.push((pixel as u32, value))
+                        });
+                    }
+                    splats
+                })
+                .collect();
+            for (pixel, value) in splats.into_iter().flatten() {
+                if value.is_finite() {
+                    self.light_sum[pixel as usize] += value.as_dvec3();
+                } else {
+                    invalid += 1;
+                }
+            }
+        }
+        self.invalid_samples += invalid;
+        self.light_paths += count;
+    }
+
+    /// The mean radiance per pixel (camera paths, plus light paths where the world needs them).
     pub fn image(&self) -> Image {
         let inv = 1.0 / self.spp.max(1) as f64;
-        Image {
-            width: self.width,
-            height: self.height,
-            pixels: self.sum.iter().map(|s| (*s * inv).as_vec3()).collect(),
-        }
+        let light_inv = 1.0 / self.light_paths.max(1) as f64;
+        let pixels = match self.light_sum.is_empty() {
+            true => self.sum.iter().map(|s| (*s * inv).as_vec3()).collect(),
+            false => self.sum.iter().zip(&self.light_sum).map(|(s, l)| (*s * inv + *l * light_inv).as_vec3()).collect(),
+        };
+        Image { width: self.width, height: self.height, pixels }
     }
 
     /// Standard error of each pixel's mean luminance, from the spread of its samples.

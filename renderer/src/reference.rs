@@ -59,6 +59,10 @@ pub struct RenderStats {
     pub invalid_samples: u64,
     pub virtual_coverage: f32,
     pub affected_fraction: f32,
+    /// Light paths traced for caustics from spot lights through mirrors or glass (both renders).
+    pub light_paths: u64,
+    /// Whether light tracing ran, or why it was skipped.
+    pub light_tracing: String,
     pub warnings: Vec<String>,
 }
 
@@ -127,7 +131,7 @@ fn progressive(
     total: u32,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Accumulator {
-    let tp = TraceParams { seed: params.seed, max_depth: params.max_depth };
+    let tp = TraceParams { seed: params.seed, max_depth: params.max_depth, ..TraceParams::default() };
     let mut acc = Accumulator::new(scene.camera.width, scene.camera.height);
     while acc.spp < params.spp {
         let n = params.pass_spp.max(1).min(params.spp - acc.spp);
@@ -157,8 +161,9 @@ pub fn render_photo(
     let hdr = acc.image();
     let photo = sensor::apply(&hdr, &scene.camera, &scene.sensor);
     let secs = start.elapsed().as_secs_f64();
-    let stats =
+    let mut stats =
         stats_for(scene, params, secs, acc.count_fireflies(params.firefly_factor), 0, acc.invalid_samples, 0.0, 0.0);
+    stats.light_paths = acc.light_paths;
     Ok((hdr, photo, stats))
 }
 
@@ -193,7 +198,19 @@ fn stats_for(
         invalid_samples: invalid,
         virtual_coverage: coverage,
         affected_fraction: affected,
+        light_paths: 0,
+        light_tracing: light_tracing(scene),
         warnings,
+    }
+}
+
+/// Whether a scene needs light tracing (see `pathtracer`), in words.
+fn light_tracing(scene: &Scene) -> String {
+    let specular = scene.objects.iter().any(|o| scene.materials[o.material].delta.is_some());
+    match (specular, scene.spots.is_empty()) {
+        (true, false) => "on: caustics from spot and point lights through mirrors or glass".into(),
+        (false, _) => "skipped: no mirror or glass in the scene".into(),
+        (true, true) => "skipped: no spot or point light (camera paths find caustics from area lights)".into(),
     }
 }
 
@@ -242,6 +259,7 @@ pub fn render_reference(
     );
     stats.samples_per_second = (hdr_full.pixels.len() as f64 * params.spp as f64 * 2.0) / secs.max(1e-9);
     stats.affected_fraction = affected_mask.coverage();
+    stats.light_paths = acc_real.light_paths + acc_full.light_paths;
     Ok(ReferenceOutput { hdr_real, hdr_full, photo, ground_truth, virtual_mask, affected_mask, stats })
 }
 

@@ -393,6 +393,15 @@ impl DirRenderer {
                 b_height: photo.height,
             });
         }
+        // thesis 5.3 (reflection and refraction buffers, caustic maps) is not in the GPU
+        // pipeline yet: a mirror or glass would come out black, so it is refused
+        if let Some(object) = scene.objects.iter().find(|o| scene.materials[o.material].delta.is_some()) {
+            return Err(RenderError::Unsupported(format!(
+                "the object \"{}\" is a mirror or glass ({}), which only the reference path tracer renders so far \
+                 (mrstudy render --reference); the GPU renderer handles diffuse and Blinn–Phong materials",
+                object.name, scene.materials[object.material].name
+            )));
+        }
         let mut passes = Vec::new();
         let mesh = mesh::build(scene);
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));

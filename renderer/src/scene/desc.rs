@@ -71,6 +71,17 @@ pub struct CameraDesc {
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialDesc {
+    /// `glossy` (default: diffuse kd plus Blinn–Phong ks), `mirror` or `glass`.
+    pub kind: Option<String>,
+    /// mirror: the fraction reflected (default 1).
+    pub reflectance: Option<Rgb>,
+    /// glass: index of refraction inside (default 1.5; 1 outside).
+    pub ior: Option<f32>,
+    /// glass: the fraction of light kept after `transmittance_depth` scene units inside
+    /// (Beer–Lambert; default 1: clear).
+    pub transmittance: Option<Rgb>,
+    /// glass: the depth at which `transmittance` holds (default 1 scene unit).
+    pub transmittance_depth: Option<f32>,
     /// Diffuse albedo kd (default 0.8); multiplies the texture or pattern.
     pub albedo: Option<Rgb>,
     /// Albedo texture image (relative to the scene file); sRGB-encoded 8-bit or linear HDR.

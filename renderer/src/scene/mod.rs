@@ -12,7 +12,7 @@ use crate::error::{RenderError, Result};
 use crate::geometry::{self, Primitive, Ray, Triangle};
 use crate::image::Image;
 use crate::light::{self, Environment, SpotLight};
-use crate::material::{Material, Texture};
+use crate::material::{DeltaBsdf, Material, Texture};
 use crate::mesh;
 use crate::sensor::SensorParams;
 use glam::{Vec2, Vec3};
@@ -395,6 +395,63 @@ fn resolve_camera(ctx: &Ctx, c: &CameraDesc) -> Result<Camera> {
 }
 
 fn resolve_material(ctx: &Ctx, name: &str, m: &MaterialDesc, key: &str) -> Result<Material> {
+    let delta_keys = [
+        ("reflectance", m.reflectance.is_some()),
+        ("ior", m.ior.is_some()),
+        ("transmittance", m.transmittance.is_some()),
+        ("transmittance_depth", m.transmittance_depth.is_some()),
+    ];
+    let glossy_keys = [
+        ("albedo", m.albedo.is_some()),
+        ("texture", m.texture.is_some()),
+        ("pattern", m.pattern.is_some()),
+        ("specular", m.specular.is_some()),
+        ("exponent", m.exponent.is_some()),
+        ("emission", m.emission.is_some()),
+    ];
+    let refuse_keys = |kind: &str, keys: &[(&str, bool)]| -> Result<()> {
+        match keys.iter().find(|(_, given)| *given) {
+            Some((field, _)) => {
+                Err(ctx.invalid(format!("{key}.{field}"), format!("no `{field}` with kind = \"{kind}\"")))
+            }
+            None => Ok(()),
+        }
+    };
+    match m.kind.as_deref() {
+        None | Some("glossy") => refuse_keys("glossy", &delta_keys)?,
+        Some("mirror") => {
+            refuse_keys("mirror", &glossy_keys)?;
+            refuse_keys("mirror", &delta_keys[1..])?;
+            let reflectance = m.reflectance.map(Rgb::vec).unwrap_or(Vec3::ONE);
+            if !(reflectance.min_element() >= 0.0 && reflectance.max_element() <= 1.0) {
+                return Err(ctx.invalid(format!("{key}.reflectance"), "values in [0, 1]"));
+            }
+            return Ok(Material::delta(name, DeltaBsdf::Mirror { reflectance }));
+        }
+        Some("glass") => {
+            refuse_keys("glass", &glossy_keys)?;
+            refuse_keys("glass", &delta_keys[..1])?;
+            let ior = m.ior.unwrap_or(1.5);
+            if !(ior.is_finite() && (1.0..=4.0).contains(&ior)) {
+                return Err(ctx.invalid(format!("{key}.ior"), "an index of refraction from 1 to 4"));
+            }
+            let transmittance = m.transmittance.map(Rgb::vec).unwrap_or(Vec3::ONE);
+            if !(transmittance.min_element() > 0.0 && transmittance.max_element() <= 1.0) {
+                return Err(ctx.invalid(format!("{key}.transmittance"), "values in (0, 1]"));
+            }
+            let depth = m.transmittance_depth.unwrap_or(1.0);
+            if !(depth.is_finite() && depth > 0.0) {
+                return Err(ctx.invalid(format!("{key}.transmittance_depth"), "a distance > 0"));
+            }
+            let absorption = -Vec3::new(transmittance.x.ln(), transmittance.y.ln(), transmittance.z.ln()) / depth;
+            return Ok(Material::delta(name, DeltaBsdf::Dielectric { ior, absorption }));
+        }
+        Some(other) => {
+            return Err(
+                ctx.invalid(format!("{key}.kind"), format!("\"glossy\", \"mirror\" or \"glass\", not \"{other}\""))
+            );
+        }
+    }
     let albedo = m.albedo.map(Rgb::vec).unwrap_or(Vec3::splat(0.8));
     let specular = m.specular.map(Rgb::vec).unwrap_or(Vec3::ZERO);
     let exponent = m.exponent.unwrap_or(20.0);
@@ -439,7 +496,7 @@ fn resolve_material(ctx: &Ctx, name: &str, m: &MaterialDesc, key: &str) -> Resul
         }
         (None, None) => None,
     };
-    Ok(Material { name: name.to_string(), albedo, texture, specular, exponent, emission })
+    Ok(Material { name: name.to_string(), albedo, texture, specular, exponent, emission, delta: None })
 }
 
 fn resolve_object(
