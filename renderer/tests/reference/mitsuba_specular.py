@@ -28,7 +28,9 @@ import tomllib
 import mitsuba as mi
 import numpy as np
 
-mi.set_variant("scalar_rgb")
+# another script may have chosen a variant before importing this one's scene builder
+if mi.variant() is None:
+    mi.set_variant("scalar_rgb")
 T = mi.ScalarTransform4f
 
 HERE = pathlib.Path(__file__).resolve().parent
