@@ -152,11 +152,7 @@ impl Report {
 /// export loops (`quick`: 64 for 3 s), on `database` with `processes` servers; table lines go
 /// to `line` as the rows are measured.
 pub fn bench(quick: bool, database: &Backing, processes: usize, line: &dyn Fn(&str)) -> Result<Report, String> {
-    if processes > 1 && *database == Backing::Sqlite {
-        return Err(format!(
-            "--processes {processes} needs PostgreSQL (--database postgres): several servers cannot share a sqlite file."
-        ));
-    }
+    check_processes(database, processes)?;
     let seconds = if quick { 3 } else { 10 };
     let concurrency: &[(usize, usize)] =
         if quick { &[(64, 0)] } else { &[(16, 0), (64, 0), (256, 0), (16, 8), (64, 8)] };
@@ -212,6 +208,16 @@ pub fn bench(quick: bool, database: &Backing, processes: usize, line: &dyn Fn(&s
         ),
     };
     Ok(Report { adapter, rows })
+}
+
+/// Several server processes share only a PostgreSQL database (sqlite has one writer process).
+fn check_processes(database: &Backing, processes: usize) -> Result<(), String> {
+    if processes > 1 && *database == Backing::Sqlite {
+        return Err(format!(
+            "--processes {processes} needs PostgreSQL (--database postgres): several servers cannot share a sqlite file."
+        ));
+    }
+    Ok(())
 }
 
 /// A 1×1 PNG.
@@ -380,9 +386,7 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
     let studies_dir = work.path().join("studies");
     let data_dir = work.path().join("data");
     write_bench_study(&studies_dir).map_err(|error| format!("cannot write the bench study: {error}"))?;
-    if config.processes > 1 && config.database == Backing::Sqlite {
-        return Err("several server processes need PostgreSQL: they cannot share a sqlite file.".into());
-    }
+    check_processes(&config.database, config.processes)?;
 
     let server_runtime = two_thread_runtime("server")?;
     let (database, durability) = server_runtime.block_on(async {
@@ -518,14 +522,14 @@ fn measure(
         let mut tasks = Vec::new();
         for first in 0..participants {
             let client = client.clone();
-            let bases = Servers::rotation(&bases, first);
+            let bases = Rotation::new(&bases, first);
             let measuring = measuring.clone();
             let stop = stop.clone();
             tasks.push(tokio::spawn(async move { simulate(client, bases, measuring, stop).await }));
         }
         let mut exporters = Vec::new();
         for first in 0..exports {
-            let (client, mut bases, token) = (client.clone(), Servers::rotation(&bases, first), admin_token.clone());
+            let (client, mut bases, token) = (client.clone(), Rotation::new(&bases, first), admin_token.clone());
             let (measuring, stop) = (measuring.clone(), stop.clone());
             exporters.push(tokio::spawn(async move {
                 let mut done = 0u64;
@@ -582,16 +586,14 @@ struct Rotation {
 }
 
 impl Rotation {
+    fn new(bases: &Arc<Vec<String>>, first: usize) -> Rotation {
+        Rotation { bases: bases.clone(), at: first }
+    }
+
     fn next(&mut self) -> &str {
         let base = &self.bases[self.at % self.bases.len()];
         self.at += 1;
         base
-    }
-}
-
-impl Servers {
-    fn rotation(bases: &Arc<Vec<String>>, first: usize) -> Rotation {
-        Rotation { bases: bases.clone(), at: first }
     }
 }
 

@@ -28,10 +28,10 @@
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::geometry::{Primitive, Ray, Triangle};
+use crate::geometry::{Primitive, Ray, SurfaceHit, Triangle};
 use crate::image::Image;
 use crate::light::{Environment, SpotLight};
-use crate::material::{Bsdf, Material, Transport};
+use crate::material::{Bsdf, DeltaBsdf, Material, Transport};
 use crate::math::{Distribution1D, Rng, luminance, power_heuristic, sample_triangle};
 use crate::scene::{Role, Scene};
 use glam::{DVec3, Vec3};
@@ -49,8 +49,60 @@ fn offset(point: Vec3, normal: Vec3) -> Vec3 {
 }
 
 /// The surface's outward normal (its shading normal turned to the geometric normal's side).
-fn outward_normal(s: &crate::geometry::SurfaceHit) -> Vec3 {
+fn outward_normal(s: &SurfaceHit) -> Vec3 {
     if s.shading_normal.dot(s.geometric_normal) < 0.0 { -s.shading_normal } else { s.shading_normal }
+}
+
+/// A path's bounce off a mirror or glass hit at distance `t` from direction `-wo`, `front`
+/// telling whether it came from outside and `ng` the geometric normal on its side: the Beer–Lambert loss of a segment
+/// that ran inside, the sampled direction's weight, and the next ray, started on the side the
+/// path leaves to.
+#[allow(clippy::too_many_arguments)]
+fn delta_bounce(
+    delta: &DeltaBsdf,
+    s: &SurfaceHit,
+    t: f32,
+    wo: Vec3,
+    front: bool,
+    ng: Vec3,
+    u: f32,
+    transport: Transport,
+    beta: &mut Vec3,
+) -> Ray {
+    if !front {
+        *beta *= delta.inside_transmittance(t);
+    }
+    let sample = delta.sample(wo, outward_normal(s), front, u, transport);
+    *beta *= sample.weight;
+    Ray { origin: offset(s.point, if sample.transmitted { -ng } else { ng }), dir: sample.wi }
+}
+
+/// The diffuse and Blinn–Phong BSDF of `material` at a hit (`ng`: the geometric normal on the
+/// side the path came from), with its shading normal turned to that side and the point to
+/// continue from; `None` when the surface reflects nothing.
+fn shade(material: &Material, s: &SurfaceHit, ng: Vec3) -> Option<(Vec3, Bsdf, Vec3)> {
+    let mut ns = s.shading_normal;
+    if ns.dot(ng) < 0.0 {
+        ns = -ns;
+    }
+    let kd = material.albedo_at(s.uv);
+    if kd.max_element() <= 0.0 && material.specular.max_element() <= 0.0 {
+        return None;
+    }
+    Some((ns, Bsdf::new(ns, kd, material.specular, material.exponent), offset(s.point, ng)))
+}
+
+/// Russian roulette from the fourth bounce on (unbiased: a survivor's weight grows by 1/q);
+/// false ends the path.
+fn survives_roulette(depth: u32, beta: &mut Vec3, u: f32) -> bool {
+    if depth >= 3 {
+        let q = beta.max_element().min(0.99);
+        if q <= 0.0 || u >= q {
+            return false;
+        }
+        *beta /= q;
+    }
+    true
 }
 
 /// Which part of a scene a world holds.
@@ -220,30 +272,16 @@ impl World {
             let wo = -ray.dir;
             let front = s.geometric_normal.dot(wo) > 0.0;
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
-            if let Some(delta) = mat.delta {
-                if !front {
-                    beta *= delta.inside_transmittance(hit.t);
-                }
-                let ds = delta.sample(wo, outward_normal(&s), front, u[4], Transport::Importance);
-                beta *= ds.weight;
+            if let Some(delta) = &mat.delta {
+                ray = delta_bounce(delta, &s, hit.t, wo, front, ng, u[4], Transport::Importance, &mut beta);
                 through_specular = true;
-                ray = Ray { origin: offset(s.point, if ds.transmitted { -ng } else { ng }), dir: ds.wi };
             } else {
                 // the camera tracer's next-event estimation has every path whose first
                 // bounce from the light is diffuse or glossy
                 if !through_specular {
                     break;
                 }
-                let mut ns = s.shading_normal;
-                if ns.dot(ng) < 0.0 {
-                    ns = -ns;
-                }
-                let kd = mat.albedo_at(s.uv);
-                if kd.max_element() <= 0.0 && mat.specular.max_element() <= 0.0 {
-                    break;
-                }
-                let bsdf = Bsdf::new(ns, kd, mat.specular, mat.exponent);
-                let p = offset(s.point, ng);
+                let Some((ns, bsdf, p)) = shade(mat, &s, ng) else { break };
                 // the connection to the pinhole: W = fx fy / cos³θ per solid angle at the camera
                 let to_camera = camera.position - p;
                 let dist2 = to_camera.length_squared();
@@ -276,12 +314,8 @@ impl World {
                 beta *= bs.weight;
                 ray = Ray { origin: p, dir: bs.wi };
             }
-            if depth >= 3 {
-                let q = beta.max_element().min(0.99);
-                if q <= 0.0 || u[7] >= q {
-                    break;
-                }
-                beta /= q;
+            if !survives_roulette(depth, &mut beta, u[7]) {
+                break;
             }
         }
     }
@@ -341,34 +375,16 @@ impl World {
                 l += beta * mat.emission * w;
             }
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
-            if let Some(delta) = mat.delta {
+            if let Some(delta) = &mat.delta {
                 // a mirror or glass: no light reaches it by NEE; the path goes on sampled
-                if !front {
-                    beta *= delta.inside_transmittance(hit.t);
-                }
-                let ds = delta.sample(wo, outward_normal(&s), front, u[4], Transport::Radiance);
-                beta *= ds.weight;
+                ray = delta_bounce(delta, &s, hit.t, wo, front, ng, u[4], Transport::Radiance, &mut beta);
                 prev_delta = true;
-                ray = Ray { origin: offset(s.point, if ds.transmitted { -ng } else { ng }), dir: ds.wi };
-                if depth >= 3 {
-                    let q = beta.max_element().min(0.99);
-                    if q <= 0.0 || u[7] >= q {
-                        break;
-                    }
-                    beta /= q;
+                if !survives_roulette(depth, &mut beta, u[7]) {
+                    break;
                 }
                 continue;
             }
-            let mut ns = s.shading_normal;
-            if ns.dot(ng) < 0.0 {
-                ns = -ns;
-            }
-            let kd = mat.albedo_at(s.uv);
-            if kd.max_element() <= 0.0 && mat.specular.max_element() <= 0.0 {
-                break;
-            }
-            let bsdf = Bsdf::new(ns, kd, mat.specular, mat.exponent);
-            let p = offset(s.point, ng);
+            let Some((ns, bsdf, p)) = shade(mat, &s, ng) else { break };
 
             // next-event estimation
             if !self.groups.is_empty() {
@@ -441,12 +457,8 @@ impl World {
             prev_pdf = bs.pdf;
             prev_delta = false;
             ray = Ray { origin: p, dir: bs.wi };
-            if depth >= 3 {
-                let q = beta.max_element().min(0.99);
-                if q <= 0.0 || u[7] >= q {
-                    break;
-                }
-                beta /= q;
+            if !survives_roulette(depth, &mut beta, u[7]) {
+                break;
             }
         }
         (l, first)

@@ -206,8 +206,7 @@ fn stats_for(
 
 /// Whether a scene needs light tracing (see `pathtracer`), in words.
 fn light_tracing(scene: &Scene) -> String {
-    let specular = scene.objects.iter().any(|o| scene.materials[o.material].delta.is_some());
-    match (specular, scene.spots.is_empty()) {
+    match (scene.specular_object().is_some(), scene.spots.is_empty()) {
         (true, false) => "on: caustics from spot and point lights through mirrors or glass".into(),
         (false, _) => "skipped: no mirror or glass in the scene".into(),
         (true, true) => "skipped: no spot or point light (camera paths find caustics from area lights)".into(),

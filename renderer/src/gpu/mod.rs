@@ -395,7 +395,7 @@ impl DirRenderer {
         }
         // thesis 5.3 (reflection and refraction buffers, caustic maps) is not in the GPU
         // pipeline yet: a mirror or glass would come out black, so it is refused
-        if let Some(object) = scene.objects.iter().find(|o| scene.materials[o.material].delta.is_some()) {
+        if let Some(object) = scene.specular_object() {
             return Err(RenderError::Unsupported(format!(
                 "the object \"{}\" is a mirror or glass ({}), which only the reference path tracer renders so far \
                  (mrstudy render --reference); the GPU renderer handles diffuse and Blinn–Phong materials",

@@ -118,6 +118,11 @@ fn finite3(ctx: &Ctx, key: &str, v: [f32; 3]) -> Result<Vec3> {
 }
 
 impl Scene {
+    /// The first object that is a mirror or glass, if any.
+    pub fn specular_object(&self) -> Option<&SceneObject> {
+        self.objects.iter().find(|o| self.materials[o.material].delta.is_some())
+    }
+
     pub fn load(path: &Path) -> Result<Scene> {
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| RenderError::MissingFile {
