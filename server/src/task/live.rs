@@ -115,11 +115,40 @@ enum Request {
     Frame(FrameJob),
 }
 
-/// The handle of the renderer thread; cheap to clone. The thread ends when every handle is gone.
+/// The handle of the renderer thread; cheap to clone. When the last handle goes, the thread is
+/// told to stop and joined: the frame in flight finishes and the wgpu device is destroyed
+/// before the drop returns, so the process never exits while the thread is still inside the
+/// driver (lavapipe tears itself down at exit, and a thread still using it then crashes the
+/// process).
 #[derive(Clone)]
 pub struct LabRenderer {
-    sender: mpsc::Sender<Request>,
+    thread: std::sync::Arc<RendererThread>,
     pub adapter: AdapterInfo,
+}
+
+/// The renderer thread's channel and join handle, shared by every [`LabRenderer`] handle.
+struct RendererThread {
+    sender: Option<mpsc::Sender<Request>>,
+    handle: Option<std::thread::JoinHandle<()>>,
+}
+
+impl RendererThread {
+    fn send(&self, request: Request) -> Result<(), String> {
+        let stopped = || "the renderer thread has stopped".to_string();
+        self.sender.as_ref().ok_or_else(stopped)?.send(request).map_err(|_| stopped())
+    }
+}
+
+impl Drop for RendererThread {
+    fn drop(&mut self) {
+        // Closing the channel ends the thread's loop once the job in flight is answered.
+        drop(self.sender.take());
+        if let Some(handle) = self.handle.take()
+            && handle.join().is_err()
+        {
+            eprintln!("error: the lab renderer thread panicked");
+        }
+    }
 }
 
 impl LabRenderer {
@@ -128,7 +157,7 @@ impl LabRenderer {
     pub fn start() -> Result<LabRenderer, String> {
         let (sender, receiver) = mpsc::channel::<Request>();
         let (ready, started) = mpsc::channel::<Result<AdapterInfo, String>>();
-        std::thread::Builder::new()
+        let handle = std::thread::Builder::new()
             .name("mrstudy-lab-renderer".into())
             .spawn(move || {
                 let renderer = match DirRenderer::new() {
@@ -146,18 +175,19 @@ impl LabRenderer {
                 run(renderer, receiver);
             })
             .map_err(|error| format!("cannot start the renderer thread: {error}"))?;
+        let thread = std::sync::Arc::new(RendererThread { sender: Some(sender), handle: Some(handle) });
         let adapter = started.recv().map_err(|_| "the renderer thread stopped while opening the GPU".to_string())??;
-        Ok(LabRenderer { sender, adapter })
+        Ok(LabRenderer { thread, adapter })
     }
 
     /// Hands a prepared scene to the renderer thread.
     pub fn register(&self, scene: LabScene) -> Result<(), String> {
-        self.sender.send(Request::Register(Box::new(scene))).map_err(|_| "the renderer thread has stopped".to_string())
+        self.thread.send(Request::Register(Box::new(scene)))
     }
 
     /// Queues a frame; the answer comes on `job.reply`.
     pub fn submit(&self, job: FrameJob) -> Result<(), String> {
-        self.sender.send(Request::Frame(job)).map_err(|_| "the renderer thread has stopped".to_string())
+        self.thread.send(Request::Frame(job))
     }
 
     /// Renders one frame and waits for it.
@@ -416,4 +446,48 @@ pub async fn measure(
         measured.push((condition, times));
     }
     Ok(measured)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ids of this process's threads named like the renderer thread (Linux keeps a thread
+    /// name's first 15 bytes; the driver's threads started from it inherit the name).
+    fn renderer_named_threads() -> Vec<u64> {
+        let Ok(tasks) = std::fs::read_dir("/proc/self/task") else { return Vec::new() };
+        let mut ids: Vec<u64> = tasks
+            .filter_map(|task| {
+                let path = task.ok()?.path();
+                let name = std::fs::read_to_string(path.join("comm")).ok()?;
+                (name.trim() == "mrstudy-lab-ren").then(|| path.file_name()?.to_str()?.parse().ok())?
+            })
+            .collect();
+        ids.sort_unstable();
+        ids
+    }
+
+    #[test]
+    fn the_renderer_thread_has_ended_when_the_last_handle_is_dropped() {
+        if !Path::new("/proc/self/task").exists() {
+            eprintln!("skipping: no /proc/self/task to list threads");
+            return;
+        }
+        let before = renderer_named_threads();
+        let renderer = match LabRenderer::start() {
+            Ok(renderer) => renderer,
+            Err(error) => {
+                eprintln!("skipping: no GPU adapter: {error}");
+                return;
+            }
+        };
+        // The renderer thread started before the driver's threads it spawned: the lowest new id.
+        let thread = renderer_named_threads().into_iter().find(|id| !before.contains(id));
+        let thread = thread.expect("the renderer thread runs");
+        let other = renderer.clone();
+        drop(renderer);
+        assert!(renderer_named_threads().contains(&thread), "a handle is left: the thread still runs");
+        drop(other);
+        assert!(!renderer_named_threads().contains(&thread), "the drop of the last handle joined the thread");
+    }
 }
