@@ -31,7 +31,9 @@ impl Compose {
     }
 
     /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
-    /// composite buffer (one vec4 per pixel, display-encoded).
+    /// composite buffer (one vec4 per pixel, display-encoded). `specular_base` (from
+    /// [`super::specular`]) replaces the photograph at the pixels of mirrors and glass by
+    /// CI_std (eq. 5.23), over which the differential is added as at a real pixel (5.22).
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
@@ -42,12 +44,27 @@ impl Compose {
         composition: Composition,
         mapped: &wgpu::Buffer,
         photo: &wgpu::Buffer,
+        specular_base: Option<&wgpu::Buffer>,
     ) -> wgpu::Buffer {
         let device = &ctx.device;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
+        let options = [specular_base.is_some() as u32, 0, 0, 0];
+        let placeholder;
+        let specular_base = match specular_base {
+            Some(buffer) => buffer,
+            None => {
+                placeholder = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("no specular base"),
+                    size: 16,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+                &placeholder
+            }
+        };
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("compose params"),
-            contents: bytemuck::cast_slice(&size),
+            contents: bytemuck::cast_slice(&[size, options]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let composite = device.create_buffer(&wgpu::BufferDescriptor {
@@ -65,6 +82,7 @@ impl Compose {
                 wgpu::BindGroupEntry { binding: 1, resource: mapped.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: photo.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: specular_base.as_entire_binding() },
             ],
         });
         let mut encoder = device.create_command_encoder(&Default::default());

@@ -7,15 +7,19 @@
 //     photograph masked at virtual pixels (where tau(L_r) counts as 0: no real solution), alpha = 1 (additive) or cam'/tau(L_r) per channel
 //     (scaled; 1 where tau(L_r) <= 1e-4 or at virtual pixels); in the linear domain (Rohmer)
 //     cam is the photograph decoded with gamma 2.2 and the result is encoded again.
+//   a pixel of a mirror or glass (specular.wgsl): cam' is CI_std (eq. 5.23) from the specular
+//     base, alpha' = CI_std / tau(L'_r) when scaled (5.26), the differential as at a real pixel.
 
 struct Compose {
     size: vec4<u32>,    // width, height, linear domain (0/1), composition (0 additive, 1 scaled)
+    options: vec4<u32>, // x: 1 when the specular base is bound
 }
 
 @group(0) @binding(0) var<uniform> params: Compose;
 @group(0) @binding(1) var<storage, read> mapped: array<vec4<f32>>;   // tau(L_rv) (w: flag), tau(L_r)
 @group(0) @binding(2) var<storage, read> photo: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> composite: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> specular_base: array<vec4<f32>>; // CI_std; w: 1 on a mirror or glass
 
 fn gamma_decode1(x: f32) -> f32 {
     return select(0.0, pow(x, 2.2), x > 0.0);
@@ -50,9 +54,17 @@ fn cs_compose(@builtin(global_invocation_id) id: vec3<u32>) {
         composite[pixel] = p;
         return;
     }
-    let real = flag == 1u;
+    var real = flag == 1u;
     let linear = params.size.z == 1u;
     var cam = p.xyz;
+    if params.options.x == 1u {
+        let base = specular_base[pixel];
+        if base.w > 0.5 {
+            // eqs. 5.22-5.26: CI_std, and L'_r holds exactly what it shows of the real scene
+            cam = base.xyz;
+            real = true;
+        }
+    }
     if linear {
         cam = vec3<f32>(gamma_decode1(cam.x), gamma_decode1(cam.y), gamma_decode1(cam.z));
     }

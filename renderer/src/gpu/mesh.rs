@@ -6,7 +6,7 @@
 //! mean colour (the built-in scenes use none).
 
 use crate::geometry::{Primitive, Triangle};
-use crate::material::{Material, Texture};
+use crate::material::{DeltaBsdf, Material, Texture};
 use crate::scene::{Role, Scene};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -36,6 +36,19 @@ pub struct GpuMaterial {
     pub specular_emission: [f32; 4],
 }
 
+/// A mirror or glass object (thesis 5.3): its vertex range in [`GpuMesh::vertices`], its
+/// bounding sphere (the centre of its impostor) and its delta BSDF.
+#[derive(Clone, Debug)]
+pub struct SpecularObject {
+    pub name: String,
+    pub real: bool,
+    pub range: std::ops::Range<u32>,
+    pub centre: Vec3,
+    pub radius: f32,
+    pub material: u32,
+    pub delta: DeltaBsdf,
+}
+
 pub struct GpuMesh {
     pub vertices: Vec<GpuVertex>,
     /// Vertices `0..real_count` are real, the rest virtual.
@@ -46,6 +59,9 @@ pub struct GpuMesh {
     pub bounds_radius: f32,
     /// The same for the virtual geometry alone (`None` without virtual objects).
     pub virtual_bounds: Option<(Vec3, f32)>,
+    /// The mirrors and glass objects, real and virtual (empty in a scene without them). Their
+    /// materials have zero albedo here: they reflect no diffuse light and make no VPLs.
+    pub specular: Vec<SpecularObject>,
 }
 
 fn bounding_sphere(vertices: &[GpuVertex]) -> Option<(Vec3, f32)> {
@@ -109,6 +125,15 @@ fn sphere_triangles(centre: Vec3, radius: f32, segments: u32) -> Vec<Triangle> {
 }
 
 fn gpu_material(m: &Material) -> GpuMaterial {
+    if m.delta.is_some() {
+        // a mirror or glass has no diffuse or glossy lobe: the specular passes shade it
+        return GpuMaterial {
+            albedo: [0.0; 4],
+            pattern_a: [0.0; 4],
+            pattern_b: [0.0, 0.0, 0.0, 1.0],
+            specular_emission: [0.0; 4],
+        };
+    }
     let ks = (m.specular.x + m.specular.y + m.specular.z) / 3.0;
     let (kind, a, b, scale, albedo) = match &m.texture {
         None => (0.0, Vec3::ZERO, Vec3::ZERO, 0.0, m.albedo),
@@ -129,12 +154,15 @@ fn gpu_material(m: &Material) -> GpuMaterial {
 pub fn build(scene: &Scene) -> GpuMesh {
     let mut real = Vec::new();
     let mut virt = Vec::new();
+    // (object, is virtual, start, end) within its role's list
+    let mut specular_ranges = Vec::new();
     for object in &scene.objects {
         let (prims, material) = match (&object.proxy, object.role) {
             (Some((prims, material)), Role::Real) => (prims, *material),
             _ => (&object.prims, object.material),
         };
         let (out, role) = if object.role == Role::Real { (&mut real, 0) } else { (&mut virt, 1) };
+        let start = out.len() as u32;
         for prim in prims {
             match prim {
                 Primitive::Triangle(tri) => push_triangle(out, tri, material as u32, role),
@@ -145,13 +173,35 @@ pub fn build(scene: &Scene) -> GpuMesh {
                 }
             }
         }
+        if let Some(delta) = scene.materials[material].delta {
+            specular_ranges.push((object, material, delta, role == 1, start, out.len() as u32));
+        }
     }
     let real_count = real.len() as u32;
     let virtual_bounds = bounding_sphere(&virt);
+    let specular = specular_ranges
+        .into_iter()
+        .filter(|range| range.5 > range.4)
+        .map(|(object, material, delta, is_virtual, start, end)| {
+            let offset = if is_virtual { real_count } else { 0 };
+            let list = if is_virtual { &virt } else { &real };
+            let (centre, radius) = bounding_sphere(&list[start as usize..end as usize]).unwrap_or((Vec3::ZERO, 1e-3));
+            SpecularObject {
+                name: object.name.clone(),
+                real: !is_virtual,
+                range: start + offset..end + offset,
+                centre,
+                radius,
+                material: material as u32,
+                delta,
+            }
+        })
+        .collect();
     real.extend(virt);
     let (bounds_centre, bounds_radius) = bounding_sphere(&real).unwrap_or((Vec3::ZERO, 1.0));
     GpuMesh {
         virtual_bounds,
+        specular,
         vertices: real,
         real_count,
         materials: scene.materials.iter().map(gpu_material).collect(),

@@ -48,6 +48,7 @@ pub mod ism;
 pub mod mesh;
 pub mod raster;
 pub mod shade;
+pub mod specular;
 pub mod vpl;
 
 use crate::cm::{CmParams, CmReport, CmState, Composition};
@@ -140,6 +141,9 @@ pub struct DirParams {
     /// Half angle (degrees) of the cone around a slot's direction in which a candidate is valid
     /// (the thesis: 5°).
     pub bounce_cone_degrees: f32,
+    /// The passes of mirrors and glass (thesis 5.3, [`specular`]); they run only in a scene
+    /// with such an object.
+    pub specular: specular::SpecularParams,
 }
 
 /// The most bounces of indirect light a frame computes ([`DirParams::bounces`]).
@@ -166,6 +170,7 @@ impl Default for DirParams {
             bounces: 3,
             bounce_candidates: 4096,
             bounce_cone_degrees: 5.0,
+            specular: specular::SpecularParams::default(),
         }
     }
 }
@@ -231,6 +236,8 @@ pub struct GpuReport {
     pub camera_artifacts: Option<crate::ca::CaReport>,
     /// The multiple-bounce light sources that ran (empty with one bounce).
     pub bounces: Vec<bounce::BounceReport>,
+    /// What the passes of mirrors and glass did (None in a scene without them: not run).
+    pub specular: Option<specular::SpecularReport>,
 }
 
 /// What live rendering carries from frame to frame: the colour mapping's smoothing and the
@@ -252,6 +259,7 @@ pub struct DirRenderer {
     indirect: indirect::IndirectPass,
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
+    specular: specular::Specular,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -349,7 +357,8 @@ impl DirRenderer {
         let indirect = indirect::IndirectPass::new(&ctx);
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce }
+        let specular = specular::Specular::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
@@ -392,15 +401,6 @@ impl DirRenderer {
                 b_width: photo.width,
                 b_height: photo.height,
             });
-        }
-        // thesis 5.3 (reflection and refraction buffers, caustic maps) is not in the GPU
-        // pipeline yet: a mirror or glass would come out black, so it is refused
-        if let Some(object) = scene.specular_object() {
-            return Err(RenderError::Unsupported(format!(
-                "the object \"{}\" is a mirror or glass ({}), which only the reference path tracer renders so far \
-                 (mrstudy render --reference); the GPU renderer handles diffuse and Blinn–Phong materials",
-                object.name, scene.materials[object.material].name
-            )));
         }
         let mut passes = Vec::new();
         let mesh = mesh::build(scene);
@@ -657,6 +657,22 @@ impl DirRenderer {
             ViewUniform::perspective(camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
         timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
 
+        // 3a. mirrors and glass (5.3): impostors, back faces, reflected and refracted rays
+        let mut traced = (!mesh.specular.is_empty()).then(|| {
+            self.specular.trace(
+                ctx,
+                &self.raster,
+                &mut passes,
+                scene,
+                &mesh,
+                &buffers,
+                &gbuffer,
+                &camera_view,
+                camera_view_proj,
+                &params.specular,
+            )
+        });
+
         // 4. shading
         let condition_code = match params.condition {
             GiLevel::None => 0,
@@ -729,7 +745,7 @@ impl DirRenderer {
             });
         }
 
-        // 5. colour mapping of both buffers (the cm factor)
+        // 4c. the hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv, L'_r
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
         let photo_buffer = timed(ctx, &mut passes, "upload photograph".into(), || {
             use wgpu::util::DeviceExt;
@@ -739,6 +755,60 @@ impl DirRenderer {
                 usage: wgpu::BufferUsages::STORAGE,
             })
         });
+        let specular_base = match traced.as_mut() {
+            Some(traced) => {
+                let hit_params = ShadeParams { camera: traced.eye.extend(0.0).to_array(), ..shade_params };
+                let mut shaded = Vec::new();
+                for (name, targets) in [("reflected", &traced.refl), ("refracted", &traced.refr)] {
+                    let label = format!("shading the {name} hits");
+                    let hit = timed(ctx, &mut passes, label, || {
+                        self.shade.run(
+                            ctx,
+                            &hit_params,
+                            targets,
+                            &shadow_maps,
+                            &lights,
+                            &vpls,
+                            &buffers,
+                            ism_atlas.as_ref().map(|a| &a.texture),
+                        )
+                    });
+                    if let Some(raw) = &hit.indirect {
+                        let inputs = indirect::IndirectInputs {
+                            width,
+                            height,
+                            split: params.interleave.max(1),
+                            gbuffer: targets,
+                            raw,
+                            solutions: &hit.solutions,
+                            camera: traced.eye,
+                            view_proj: camera_view_proj,
+                            scene_radius: mesh.bounds_radius,
+                        };
+                        timed(ctx, &mut passes, format!("indirect light of the {name} hits"), || {
+                            self.indirect.run(ctx, &inputs, None)
+                        });
+                    }
+                    shaded.push(hit.solutions);
+                }
+                Some(timed(ctx, &mut passes, "mirrors and glass: L'_rv, L'_r and the photograph's part".into(), || {
+                    self.specular.combine(
+                        ctx,
+                        traced,
+                        &gbuffer,
+                        &output.solutions,
+                        &shaded[0],
+                        &shaded[1],
+                        &photo_buffer,
+                        width,
+                        height,
+                    )
+                }))
+            }
+            None => None,
+        };
+
+        // 5. colour mapping of both buffers (the cm factor)
         let cm_buffers = cm::CmBuffers { width, height, solutions: &output.solutions, photo: &photo_buffer };
         let (mapped, cm_report) =
             self.cm.run(ctx, &mut passes, &cm_buffers, &photo.pixels, &params.cm, params.exposure, &mut state.cm);
@@ -753,6 +823,7 @@ impl DirRenderer {
                 params.composition,
                 &mapped,
                 &photo_buffer,
+                specular_base.as_ref(),
             )
         });
         let (composite, solutions) =
@@ -794,6 +865,7 @@ impl DirRenderer {
                 cm: cm_report,
                 camera_artifacts: ca_report,
                 bounces: bounce_reports,
+                specular: traced.map(|traced| traced.report),
             },
         })
     }
@@ -807,3 +879,6 @@ mod cm_tests;
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod specular_tests;

@@ -128,6 +128,9 @@ pub fn texture_2d(
 /// The three raster pipelines, built from one shader module.
 pub struct Raster {
     gbuffer: wgpu::RenderPipeline,
+    /// The G-buffer of the farthest surfaces (depth test `Greater`): the back faces of glass
+    /// objects for two-sided refraction (Wyman 2005).
+    gbuffer_back: wgpu::RenderPipeline,
     shadow: wgpu::RenderPipeline,
     rsm: wgpu::RenderPipeline,
 }
@@ -151,7 +154,10 @@ impl Raster {
             Some(wgpu::ColorTargetState { format: SURFACE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let distance =
             Some(wgpu::ColorTargetState { format: DISTANCE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let pipeline = |label: &str, entry: &str, targets: &[Option<wgpu::ColorTargetState>]| {
+        let pipeline = |label: &str,
+                        entry: &str,
+                        targets: &[Option<wgpu::ColorTargetState>],
+                        depth_compare: wgpu::CompareFunction| {
             ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: None,
@@ -165,7 +171,7 @@ impl Raster {
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
                     depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    depth_compare: Some(depth_compare),
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
@@ -180,10 +186,18 @@ impl Raster {
                 cache: None,
             })
         };
+        let less = wgpu::CompareFunction::Less;
+        let surfaces = [surface.clone(), surface.clone(), surface.clone()];
         Raster {
-            gbuffer: pipeline("g-buffer", "fs_gbuffer", &[surface.clone(), surface.clone(), surface.clone()]),
-            shadow: pipeline("shadow map", "fs_shadow", std::slice::from_ref(&distance)),
-            rsm: pipeline("reflective shadow map", "fs_rsm", &[distance, surface.clone(), surface.clone(), surface]),
+            gbuffer: pipeline("g-buffer", "fs_gbuffer", &surfaces, less),
+            gbuffer_back: pipeline("g-buffer of back faces", "fs_gbuffer", &surfaces, wgpu::CompareFunction::Greater),
+            shadow: pipeline("shadow map", "fs_shadow", std::slice::from_ref(&distance), less),
+            rsm: pipeline(
+                "reflective shadow map",
+                "fs_rsm",
+                &[distance, surface.clone(), surface.clone(), surface],
+                less,
+            ),
         }
     }
 
@@ -326,4 +340,76 @@ impl Raster {
             &[(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)],
         );
     }
+
+    /// G-buffer draws into parts of one set of targets, in one render pass: each draw its own
+    /// view, viewport `[x, y, width, height]` and vertex ranges. With `farthest` the depth test
+    /// keeps the farthest surface (back faces of closed objects) instead of the nearest.
+    /// Used for the impostors of mirrors and glass (six cube faces side by side, without the
+    /// object itself) and for the back faces of glass ([`super::specular`]).
+    pub fn gbuffer_draws(
+        &self,
+        ctx: &GpuContext,
+        scene: &SceneBuffers,
+        targets: &SurfaceTargets,
+        draws: &[GbufferDraw<'_>],
+        farthest: bool,
+    ) {
+        let pipeline = if farthest { &self.gbuffer_back } else { &self.gbuffer };
+        let (width, height) = (targets.position.width(), targets.position.height());
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
+        let bind_groups: Vec<wgpu::BindGroup> =
+            draws.iter().map(|draw| self.bind_group(ctx, pipeline, scene, &draw.view)).collect();
+        let depth = Self::depth(ctx, width, height);
+        let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
+            .iter()
+            .map(|view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            })
+            .collect();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("g-buffer draws"),
+                color_attachments: &attachments,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(if farthest { 0.0 } else { 1.0 }),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_vertex_buffer(0, scene.vertices.slice(..));
+            for (draw, bind_group) in draws.iter().zip(&bind_groups) {
+                let [x, y, w, h] = draw.viewport;
+                pass.set_viewport(x as f32, y as f32, w as f32, h as f32, 0.0, 1.0);
+                pass.set_scissor_rect(x, y, w, h);
+                pass.set_bind_group(0, bind_group, &[]);
+                for range in draw.ranges.iter().filter(|range| !range.is_empty()) {
+                    pass.draw(range.clone(), 0..1);
+                }
+            }
+        }
+        ctx.queue.submit([encoder.finish()]);
+    }
+}
+
+/// One draw of [`Raster::gbuffer_draws`].
+pub struct GbufferDraw<'a> {
+    pub view: ViewUniform,
+    pub viewport: [u32; 4],
+    pub ranges: &'a [std::ops::Range<u32>],
 }

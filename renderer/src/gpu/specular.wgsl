@@ -1,0 +1,418 @@
+// Mirrors and glass in differential instant radiosity (thesis 5.3); driven by specular.rs.
+//
+// cs_trace, per camera pixel on a mirror or glass object: the reflected ray, and for glass the
+// refracted ray through two interfaces (Wyman 2005: the exit point from the back-face G-buffer's
+// distance along the view ray), each intersected with the object's distance impostor (a cube map
+// of the scene around the object without it: position, normal, albedo per texel; linear search
+// then secant refinement, Szirmay-Kalos et al. 2005). The hit surfaces are written as two
+// G-buffers in the camera's pixels (GBuf_refl, GBuf_refr) for the shading pass; a ray that hits
+// nothing takes the environment's radiance (L_env). Per pixel it also writes the weights: the
+// Fresnel factors eta_1, eta_2 and the transmittance T_c = exp(-absorption d).
+//
+// cs_combine, after both G-buffers are shaded: L'_rv and L'_r by eqs. 5.18-5.20 into the
+// camera's solutions, and the camera-image base CI_std of eqs. 5.23-5.25 with back-projection
+// of each hit into the photograph, validated by comparing the hit with the surface the camera
+// sees there. A component is taken from the photograph only where it is a real surface the
+// camera sees; the same component then enters L'_r, so that L'_rv - L'_r keeps only what the
+// virtual objects change (for a component not back-projected, L'_rv alone shows it).
+
+struct Params {
+    view_proj: mat4x4<f32>,   // the camera
+    camera: vec4<f32>,        // xyz: camera position
+    size: vec4<u32>,          // width, height, impostor face size, plane stride (texels per row)
+    search: vec4<u32>,        // linear steps, secant steps, environment width, height
+    env: vec4<f32>,           // rotation (fraction of a turn), has environment, scene radius, 0
+    scene: vec4<f32>,         // xyz: scene bounding sphere centre
+}
+
+struct SpecularObject {
+    centre_radius: vec4<f32>, // bounding sphere
+    kind: vec4<f32>,          // x: 0 mirror, 1 glass; y: ior; z: material index; w: 1 real
+    colour: vec4<f32>,        // mirror: reflectance; glass: absorption per metre
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var g_position: texture_2d<f32>;
+@group(0) @binding(2) var g_normal: texture_2d<f32>;
+@group(0) @binding(3) var back_position: texture_2d<f32>;
+@group(0) @binding(4) var back_normal: texture_2d<f32>;
+@group(0) @binding(5) var imp_position: texture_2d<f32>;
+@group(0) @binding(6) var imp_normal: texture_2d<f32>;
+@group(0) @binding(7) var imp_albedo: texture_2d<f32>;
+@group(0) @binding(8) var<storage, read> objects: array<SpecularObject>;
+@group(0) @binding(9) var<storage, read> env_map: array<vec4<f32>>;
+// six planes of width x height (row stride size.w): refl position, normal, albedo, refr ...
+@group(0) @binding(10) var<storage, read_write> hits: array<vec4<f32>>;
+// four per pixel: (eta_1 weight, status refl), (eta_2 T_c weight, status refr),
+// (L_env refl, 1 on a specular pixel), (L_env refr, object index); status 0 unused, 1 hit, 2 miss
+@group(0) @binding(11) var<storage, read_write> info: array<vec4<f32>>;
+
+const PI: f32 = 3.14159265358979;
+const STATUS_HIT: f32 = 1.0;
+const STATUS_MISS: f32 = 2.0;
+
+fn role_of(w: f32) -> u32 {
+    return u32(w + 0.5) % 4u;
+}
+
+fn material_of(w: f32) -> u32 {
+    return u32(w + 0.5) / 4u;
+}
+
+// The forward, right and up axes of cube face f (+x, -x, +y, -y, +z, -z), as mod.rs's
+// look_at builds the face's view.
+fn face_forward(f: u32) -> vec3<f32> {
+    let axis = f / 2u;
+    let sign = select(1.0, -1.0, (f & 1u) == 1u);
+    var v = vec3<f32>(0.0);
+    v[axis] = sign;
+    return v;
+}
+
+fn face_up_hint(f: u32) -> vec3<f32> {
+    return select(vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(1.0, 0.0, 0.0), f / 2u == 1u);
+}
+
+// The impostor texel (x, y in the texture) that direction d from the centre of object k falls in.
+fn impostor_texel(k: u32, d: vec3<f32>) -> vec2<i32> {
+    let a = abs(d);
+    var f = 0u;
+    if a.x >= a.y && a.x >= a.z {
+        f = select(0u, 1u, d.x < 0.0);
+    } else if a.y >= a.z {
+        f = select(2u, 3u, d.y < 0.0);
+    } else {
+        f = select(4u, 5u, d.z < 0.0);
+    }
+    let forward = face_forward(f);
+    let right = normalize(cross(forward, face_up_hint(f)));
+    let up = cross(right, forward);
+    let depth = max(dot(d, forward), 1e-12);
+    let ndc = vec2<f32>(dot(d, right), dot(d, up)) / depth;
+    let s = f32(params.size.z);
+    let x = clamp(i32((ndc.x * 0.5 + 0.5) * s), 0, i32(params.size.z) - 1);
+    let y = clamp(i32((0.5 - ndc.y * 0.5) * s), 0, i32(params.size.z) - 1);
+    return vec2<i32>(x + i32(f * params.size.z), y + i32(k * params.size.z));
+}
+
+// |x - c| minus the distance the impostor stores in x's direction (1e30 where it saw nothing).
+fn beyond(k: u32, x: vec3<f32>) -> f32 {
+    let c = objects[k].centre_radius.xyz;
+    let stored = textureLoad(imp_position, impostor_texel(k, x - c), 0);
+    if stored.w < 0.5 {
+        return -1e30;
+    }
+    return length(x - c) - length(stored.xyz - c);
+}
+
+// The impostor texel a ray from o along d hits, or (-1, -1).
+fn trace_impostor(k: u32, o: vec3<f32>, d: vec3<f32>) -> vec2<i32> {
+    // to where the ray leaves the scene's bounding sphere
+    let oc = o - params.scene.xyz;
+    let r = params.env.z * 1.05;
+    let b = dot(oc, d);
+    let disc = b * b - (dot(oc, oc) - r * r);
+    let t_max = select(r, -b + sqrt(max(disc, 0.0)), disc > 0.0);
+    let steps = max(params.search.x, 1u);
+    var t0 = 0.0;
+    var f0 = beyond(k, o);
+    for (var i = 1u; i <= steps; i++) {
+        let t1 = t_max * f32(i) / f32(steps);
+        let f1 = beyond(k, o + t1 * d);
+        if f0 < 0.0 && f1 >= 0.0 && f0 > -1e29 {
+            // secant refinement between t0 and t1
+            var a = t0;
+            var fa = f0;
+            var b2 = t1;
+            var fb = f1;
+            for (var j = 0u; j < params.search.y; j++) {
+                let t = a + (b2 - a) * (-fa) / max(fb - fa, 1e-12);
+                let ft = beyond(k, o + t * d);
+                if ft < 0.0 {
+                    a = t;
+                    fa = ft;
+                } else {
+                    b2 = t;
+                    fb = ft;
+                }
+            }
+            // the end of the bracket nearer the stored surface
+            var t_hit = b2;
+            var residual = fb;
+            if -fa < fb {
+                t_hit = a;
+                residual = -fa;
+            }
+            let x = o + t_hit * d;
+            let c = objects[k].centre_radius.xyz;
+            // a crossing at a depth discontinuity of the impostor is no surface: there the
+            // stored distance jumps and the residual stays large
+            let tolerance = 0.01 * length(x - c) + 4.0 * length(x - c) / f32(params.size.z) + 1e-4;
+            if residual < tolerance {
+                return impostor_texel(k, x - c);
+            }
+        }
+        t0 = t1;
+        f0 = f1;
+    }
+    return vec2<i32>(-1, -1);
+}
+
+// The environment's radiance from direction d (nearest texel), as Environment::eval.
+fn environment(d: vec3<f32>) -> vec3<f32> {
+    if params.env.y < 0.5 {
+        return vec3<f32>(0.0);
+    }
+    let theta = acos(clamp(d.y, -1.0, 1.0));
+    let phi = atan2(d.x, -d.z);
+    let u = fract((phi + PI) / (2.0 * PI) + params.env.x);
+    let v = theta / PI;
+    let w = params.search.z;
+    let h = params.search.w;
+    let i = min(u32(u * f32(w)), w - 1u);
+    let j = min(u32(v * f32(h)), h - 1u);
+    return env_map[j * w + i].xyz;
+}
+
+fn plane(p: u32, x: u32, y: u32) -> u32 {
+    return p * params.size.w * params.size.y + y * params.size.w + x;
+}
+
+// Writes a hit (or nothing) into G-buffer `which` (0 refl, 1 refr) and returns the status.
+fn write_hit(which: u32, x: u32, y: u32, k: u32, texel: vec2<i32>) -> f32 {
+    if texel.x < 0 {
+        for (var q = 0u; q < 3u; q++) {
+            hits[plane(3u * which + q, x, y)] = vec4<f32>(0.0);
+        }
+        return STATUS_MISS;
+    }
+    hits[plane(3u * which, x, y)] = textureLoad(imp_position, texel, 0);
+    hits[plane(3u * which + 1u, x, y)] = textureLoad(imp_normal, texel, 0);
+    hits[plane(3u * which + 2u, x, y)] = textureLoad(imp_albedo, texel, 0);
+    return STATUS_HIT;
+}
+
+fn fresnel(cos_i: f32, eta_i: f32, eta_t: f32) -> f32 {
+    let sin_t = eta_i / eta_t * sqrt(max(0.0, 1.0 - cos_i * cos_i));
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = sqrt(max(0.0, 1.0 - sin_t * sin_t));
+    let rs = (eta_i * cos_i - eta_t * cos_t) / (eta_i * cos_i + eta_t * cos_t);
+    let rp = (eta_t * cos_i - eta_i * cos_t) / (eta_t * cos_i + eta_i * cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// The specular object (index) a G-buffer point of material m belongs to: the one of that
+// material whose bounding sphere is nearest.
+fn object_at(p: vec3<f32>, m: u32) -> i32 {
+    var best = -1;
+    var best_d = 1e30;
+    for (var k = 0u; k < arrayLength(&objects); k++) {
+        if u32(objects[k].kind.z + 0.5) != m {
+            continue;
+        }
+        let d = length(p - objects[k].centre_radius.xyz) - objects[k].centre_radius.w;
+        if d < best_d {
+            best_d = d;
+            best = i32(k);
+        }
+    }
+    return best;
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_trace(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = params.size.x;
+    let height = params.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let g = textureLoad(g_position, vec2<i32>(id.xy), 0);
+    var k = -1;
+    if role_of(g.w) != 0u {
+        k = object_at(g.xyz, material_of(g.w));
+    }
+    if k < 0 {
+        for (var q = 0u; q < 6u; q++) {
+            hits[plane(q, id.x, id.y)] = vec4<f32>(0.0);
+        }
+        for (var q = 0u; q < 4u; q++) {
+            info[4u * pixel + q] = vec4<f32>(0.0);
+        }
+        return;
+    }
+    let object = objects[u32(k)];
+    let p1 = g.xyz;
+    let n1 = normalize(textureLoad(g_normal, vec2<i32>(id.xy), 0).xyz); // faces the camera
+    let v = normalize(p1 - params.camera.xyz);
+    let eps = 1e-4 * (1.0 + length(p1 - params.camera.xyz));
+    let reflected = reflect(v, n1);
+    let refl_texel = trace_impostor(u32(k), p1 + eps * n1, reflected);
+    let refl_status = write_hit(0u, id.x, id.y, u32(k), refl_texel);
+    let env_refl = select(vec3<f32>(0.0), environment(reflected), refl_status == STATUS_MISS);
+    if object.kind.x < 0.5 {
+        // a mirror
+        for (var q = 3u; q < 6u; q++) {
+            hits[plane(q, id.x, id.y)] = vec4<f32>(0.0);
+        }
+        info[4u * pixel] = vec4<f32>(object.colour.xyz, refl_status);
+        info[4u * pixel + 1u] = vec4<f32>(0.0);
+        info[4u * pixel + 2u] = vec4<f32>(env_refl, 1.0);
+        info[4u * pixel + 3u] = vec4<f32>(0.0, 0.0, 0.0, f32(k));
+        return;
+    }
+    // glass: in at p1, out at the back face (Wyman: the distance along the view ray)
+    let ior = object.kind.y;
+    let cos1 = max(-dot(v, n1), 0.0);
+    let f1 = fresnel(cos1, 1.0, ior);
+    let t1 = refract(v, n1, 1.0 / ior);
+    let back = textureLoad(back_position, vec2<i32>(id.xy), 0);
+    var d_inside = 0.0;
+    if role_of(back.w) != 0u {
+        d_inside = max(dot(back.xyz - p1, v), 0.0);
+    }
+    let p2 = p1 + d_inside * t1;
+    // the back face's normal where the exit point projects (the pixel's own where it is off
+    // the object); the back G-buffer's normal faces the camera, so it opposes t1
+    let clip = params.view_proj * vec4<f32>(p2, 1.0);
+    var n2 = textureLoad(back_normal, vec2<i32>(id.xy), 0).xyz;
+    if clip.w > 0.0 {
+        let ndc = clip.xy / clip.w;
+        let q = vec2<i32>(i32((ndc.x * 0.5 + 0.5) * f32(width)), i32((0.5 - ndc.y * 0.5) * f32(height)));
+        if q.x >= 0 && q.y >= 0 && q.x < i32(width) && q.y < i32(height) {
+            let at = textureLoad(back_position, q, 0);
+            if role_of(at.w) != 0u {
+                n2 = textureLoad(back_normal, q, 0).xyz;
+            }
+        }
+    }
+    n2 = normalize(n2);
+    var t2 = refract(t1, n2, ior);
+    var f2 = fresnel(max(-dot(t1, n2), 0.0), ior, 1.0);
+    if dot(t2, t2) < 1e-12 {
+        // total internal reflection at the exit: the light leaves along the mirrored direction
+        t2 = reflect(t1, n2);
+        f2 = 0.0;
+    }
+    t2 = normalize(t2);
+    let refr_texel = trace_impostor(u32(k), p2 + eps * t2, t2);
+    let refr_status = write_hit(1u, id.x, id.y, u32(k), refr_texel);
+    let env_refr = select(vec3<f32>(0.0), environment(t2), refr_status == STATUS_MISS);
+    let transmittance = exp(-object.colour.xyz * length(p2 - p1));
+    info[4u * pixel] = vec4<f32>(vec3<f32>(f1), refl_status);
+    info[4u * pixel + 1u] = vec4<f32>((1.0 - f1) * (1.0 - f2) * transmittance, refr_status);
+    info[4u * pixel + 2u] = vec4<f32>(env_refl, 1.0);
+    info[4u * pixel + 3u] = vec4<f32>(env_refr, f32(k));
+}
+
+// ---- composition inputs (after GBuf_refl and GBuf_refr are shaded) ----
+
+@group(0) @binding(12) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv, then L_r
+@group(0) @binding(13) var<storage, read> refl_solutions: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read> refr_solutions: array<vec4<f32>>;
+@group(0) @binding(15) var<storage, read> photo: array<vec4<f32>>;
+// CI_std per pixel in the photograph's encoding; w: 1 on a specular pixel
+@group(0) @binding(16) var<storage, read_write> base: array<vec4<f32>>;
+// specular pixels, components used, back-projected, shaded hits not back-projected, misses
+@group(0) @binding(17) var<storage, read_write> counts: array<atomic<u32>, 8>;
+
+fn decode(c: vec3<f32>) -> vec3<f32> {
+    return pow(max(c, vec3<f32>(0.0)), vec3<f32>(2.2));
+}
+
+fn encode(c: vec3<f32>) -> vec3<f32> {
+    return pow(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2));
+}
+
+// The camera pixel that shows world point h, when the camera sees h itself there and it is
+// real (the validation of eq. 5.24); -1 otherwise.
+fn back_project(h: vec3<f32>) -> i32 {
+    let clip = params.view_proj * vec4<f32>(h, 1.0);
+    if clip.w <= 0.0 {
+        return -1;
+    }
+    let ndc = clip.xy / clip.w;
+    let q = vec2<i32>(i32(floor((ndc.x * 0.5 + 0.5) * f32(params.size.x))), i32(floor((0.5 - ndc.y * 0.5) * f32(params.size.y))));
+    if q.x < 0 || q.y < 0 || q.x >= i32(params.size.x) || q.y >= i32(params.size.y) {
+        return -1;
+    }
+    let seen = textureLoad(g_position, q, 0);
+    let tolerance = 0.02 * length(h - params.camera.xyz) + 1e-3;
+    if role_of(seen.w) != 1u || length(seen.xyz - h) > tolerance {
+        return -1;
+    }
+    return q.y * i32(params.size.x) + q.x;
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_combine(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = params.size.x;
+    let height = params.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let n = width * height;
+    let env_refl = info[4u * pixel + 2u];
+    if env_refl.w < 0.5 {
+        base[pixel] = vec4<f32>(0.0);
+        return;
+    }
+    atomicAdd(&counts[0], 1u);
+    let real_p = role_of(textureLoad(g_position, vec2<i32>(id.xy), 0).w) == 1u;
+    var l_rv = vec3<f32>(0.0);
+    var l_r_all = vec3<f32>(0.0);
+    var l_r_projected = vec3<f32>(0.0);
+    var ci = vec3<f32>(0.0);
+    var all_real = real_p;
+    for (var c = 0u; c < 2u; c++) {
+        let weight = info[4u * pixel + c];
+        let status = weight.w;
+        if status < 0.5 || all(weight.xyz == vec3<f32>(0.0)) {
+            continue;
+        }
+        atomicAdd(&counts[1], 1u);
+        if status > 1.5 {
+            // the ray left the modelled scene: L_env (real light, in the photograph only at
+            // a real pixel whose every component is real)
+            let env = weight.xyz * info[4u * pixel + 2u + c].xyz;
+            l_rv += env;
+            l_r_all += env;
+            atomicAdd(&counts[4], 1u);
+            continue;
+        }
+        var rv = refl_solutions[pixel].xyz;
+        var r = refl_solutions[pixel + n].xyz;
+        if c == 1u {
+            rv = refr_solutions[pixel].xyz;
+            r = refr_solutions[pixel + n].xyz;
+        }
+        l_rv += weight.xyz * rv;
+        l_r_all += weight.xyz * r;
+        let hit = hits[plane(3u * c, id.x, id.y)];
+        if role_of(hit.w) != 1u {
+            all_real = false;
+            atomicAdd(&counts[3], 1u);
+            continue;
+        }
+        let q = back_project(hit.xyz);
+        if q < 0 {
+            atomicAdd(&counts[3], 1u);
+            continue;
+        }
+        atomicAdd(&counts[2], 1u);
+        ci += weight.xyz * decode(photo[u32(q)].xyz);
+        l_r_projected += weight.xyz * r;
+    }
+    solutions[pixel] = vec4<f32>(l_rv, solutions[pixel].w);
+    if all_real {
+        // eq. 5.23, first case: the photograph shows the real reflection and refraction
+        solutions[pixel + n] = vec4<f32>(l_r_all, 1.0);
+        base[pixel] = vec4<f32>(photo[pixel].xyz, 1.0);
+    } else {
+        solutions[pixel + n] = vec4<f32>(l_r_projected, 1.0);
+        base[pixel] = vec4<f32>(encode(ci), 1.0);
+    }
+}

@@ -1,0 +1,169 @@
+//! Invariants of mirrors and glass in the GPU pipeline (thesis 5.3, [`super::specular`]), on
+//! the GPU adapter (lavapipe without a GPU) at small resolution.
+
+use super::*;
+use crate::scene::{Role, SceneDesc};
+use crate::test_support::renderer_or_skip;
+
+fn spot_scene() -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference/specular/spot.toml");
+    Scene::load(&path).unwrap()
+}
+
+/// A photograph unlike any rendering, in which every pixel tells where it is: red is x / w,
+/// green y / h.
+fn coordinate_photo(width: u32, height: u32) -> Image {
+    let mut photo = Image::new(width, height);
+    for (i, p) in photo.pixels.iter_mut().enumerate() {
+        let (x, y) = (i as u32 % width, i as u32 / width);
+        *p = Vec3::new((x as f32 + 0.5) / width as f32, (y as f32 + 0.5) / height as f32, 0.5);
+    }
+    photo
+}
+
+#[test]
+fn a_scene_without_mirrors_or_glass_runs_no_specular_pass() {
+    let Some(r) = renderer_or_skip() else { return };
+    let mut scene = spot_scene();
+    scene.objects.retain(|o| scene.materials[o.material].delta.is_none());
+    let photo = crate::test_support::grey_photo(&scene);
+    let out = r.render(&scene, &photo, &DirParams { vpls: 16, ism_size: 0, ..Default::default() }).unwrap();
+    assert!(out.report.specular.is_none());
+    let names: Vec<&str> = out.report.passes.iter().map(|p| p.pass.as_str()).collect();
+    assert!(!names.iter().any(|n| n.contains("impostor") || n.contains("hits") || n.contains("glass")), "{names:?}");
+}
+
+#[test]
+fn a_real_mirror_and_real_glass_without_virtual_objects_leave_the_photograph_exact() {
+    let Some(r) = renderer_or_skip() else { return };
+    let mut scene = spot_scene();
+    for object in &mut scene.objects {
+        object.role = Role::Real;
+    }
+    let photo = coordinate_photo(scene.camera.width, scene.camera.height);
+    for condition in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
+        let params = DirParams { condition, vpls: 32, ..Default::default() };
+        let out = r.render(&scene, &photo, &params).unwrap();
+        let report = out.report.specular.as_ref().expect("the specular passes ran");
+        assert_eq!(report.objects, ["glass-sphere", "mirror"]);
+        assert!(report.pixels > 500 && report.rays > report.pixels, "{report:?}");
+        for (k, (a, b)) in out.composite.pixels.iter().zip(&photo.pixels).enumerate() {
+            assert_eq!(a, b, "{condition:?}: pixel {k} of the composite differs from the photograph");
+        }
+    }
+}
+
+/// A virtual mirror standing on a real floor reflects the floor in front of it, which the
+/// camera sees: each mirror pixel shows the photograph's pixel where the reflected ray meets
+/// the floor (back-projection, eq. 5.24), computed here analytically. With reflectance 1 and
+/// the `none` condition (no differential light on the floor) nothing is added to it.
+#[test]
+fn a_virtual_mirror_shows_the_photograph_where_its_reflection_is_seen_by_the_camera() {
+    let Some(r) = renderer_or_skip() else { return };
+    let toml = r#"
+        [camera]
+        width = 96
+        height = 72
+        fov_y_deg = 45
+        position = [0.0, 1.2, 2.0]
+        look_at = [0.0, 0.3, -0.3]
+        [materials.floor]
+        albedo = 0.6
+        [materials.mirror]
+        kind = "mirror"
+        [[objects]]
+        name = "floor"
+        role = "real"
+        shape = "quad"
+        size = [6.0, 6.0]
+        material = "floor"
+        [[objects]]
+        name = "mirror"
+        role = "virtual"
+        shape = "quad"
+        size = [1.2, 0.8]
+        rotate_deg = [120.0, 0.0, 0.0]
+        translate = [0.0, 0.45, -0.6]
+        material = "mirror"
+        [[lights]]
+        name = "spot"
+        kind = "spot"
+        position = [0.0, 2.0, 1.5]
+        target = [0.0, 0.0, 0.0]
+        inner_deg = 60.0
+        outer_deg = 70.0
+        intensity = 4.0
+    "#;
+    let desc = SceneDesc::from_toml(toml, "mirror.toml").unwrap();
+    let scene = Scene::from_desc(desc, std::path::Path::new("."), "mirror").unwrap();
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let photo = coordinate_photo(width, height);
+    let params = DirParams { condition: GiLevel::None, ..Default::default() };
+    let out = r.render(&scene, &photo, &params).unwrap();
+    let report = out.report.specular.clone().unwrap();
+    // the mirror's plane from its mesh
+    let mesh = mesh::build(&scene);
+    let mirror = &mesh.vertices[mesh.specular[0].range.start as usize..][..3];
+    let [a, b, c] = [0, 1, 2].map(|k| Vec3::from_array(mirror[k].position));
+    let normal = (b - a).cross(c - a).normalize();
+    let (mut checked, mut agree) = (0, 0);
+    for y in 0..height {
+        for x in 0..width {
+            let k = (y * width + x) as usize;
+            if out.flags[k] != crate::surface::VIRTUAL {
+                continue;
+            }
+            let ray = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let t = (a - ray.origin).dot(normal) / ray.dir.dot(normal);
+            let hit = ray.origin + t * ray.dir;
+            let reflected = ray.dir - 2.0 * ray.dir.dot(normal) * normal;
+            if reflected.y >= -1e-3 {
+                continue;
+            }
+            let floor = hit + reflected * (-hit.y / reflected.y);
+            let Some((u, v)) = scene.camera.project(floor) else { continue };
+            // well inside the image and away from the mirror itself (hidden there)
+            if u < 2.0 || v < 2.0 || u > width as f32 - 2.0 || v > height as f32 - 2.0 {
+                continue;
+            }
+            let q = (v as usize) * width as usize + u as usize;
+            if out.flags[q] != crate::surface::REAL {
+                continue;
+            }
+            checked += 1;
+            let shown = out.composite.pixels[k];
+            let (su, sv) = (shown.x * width as f32, shown.y * height as f32);
+            if (su - u).abs() <= 1.5 && (sv - v).abs() <= 1.5 {
+                agree += 1;
+            }
+        }
+    }
+    eprintln!("{agree} of {checked} mirror pixels agree; {report:?}");
+    assert!(checked > 200, "too few mirror pixels see the visible floor: {checked} ({report:?})");
+    assert!(
+        agree as f32 >= 0.97 * checked as f32,
+        "{agree} of {checked} mirror pixels show the photograph where their reflection meets the floor ({report:?})"
+    );
+    assert!(report.back_projected as f32 >= 0.9 * checked as f32, "{report:?}");
+}
+
+/// A virtual glass sphere: its pixels are the reflected and refracted scene (weights by
+/// Fresnel, sum below one), every ray weighted and accounted for, and the sphere's own
+/// shadow darkens the floor as any virtual object's.
+#[test]
+fn a_virtual_glass_sphere_is_traced_through_two_interfaces_and_accounts_for_every_ray() {
+    let Some(r) = renderer_or_skip() else { return };
+    let mut scene = spot_scene();
+    scene.objects.retain(|o| o.name != "mirror");
+    let photo = coordinate_photo(scene.camera.width, scene.camera.height);
+    let out = r.render(&scene, &photo, &DirParams { condition: GiLevel::Shadows, ..Default::default() }).unwrap();
+    let report = out.report.specular.clone().unwrap();
+    assert_eq!(report.objects, ["glass-sphere"]);
+    // glass: a reflected and a refracted ray per pixel
+    assert_eq!(report.rays, 2 * report.pixels, "{report:?}");
+    assert_eq!(report.rays, report.back_projected + report.rendered + report.missed, "{report:?}");
+    assert!(report.rendered > 0 && report.missed > 0, "{report:?}");
+    let names: Vec<&str> = out.report.passes.iter().map(|p| p.pass.as_str()).collect();
+    assert!(names.iter().any(|n| n.starts_with("back faces of glass")), "{names:?}");
+    assert!(out.composite.pixels.iter().all(|p| p.is_finite()));
+}
