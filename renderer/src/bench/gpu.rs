@@ -36,6 +36,33 @@ pub enum GpuRow {
     Interleave(InterleaveRow),
     Ca(CaRow),
     Thesis(ThesisRow),
+    Specular(SpecularRow),
+}
+
+/// gi in a scene with mirrors or glass at one impostor resolution and ray-search length: the
+/// time of the specular passes (thesis 5.3) and the frame's error in the affected region.
+#[derive(Clone, Debug, Serialize)]
+pub struct SpecularRow {
+    pub scene: String,
+    pub condition: GiLevel,
+    pub vpls: u32,
+    /// Impostors (one per mirror or glass object) and the size of each cube face.
+    pub impostors: usize,
+    pub impostor_size: u32,
+    pub search_steps: u32,
+    pub secant_steps: u32,
+    /// Caustic maps (5.27–5.29): not built yet, 0.
+    pub caustic_map_size: u32,
+    /// Impostors, back faces, ray search, shading of the hits and combination.
+    pub specular_ms: f64,
+    pub ms: f64,
+    pub rmse: f64,
+    pub flip: f64,
+    pub width: u32,
+    pub height: u32,
+    pub reference_spp: u32,
+    pub report: crate::gpu::specular::SpecularReport,
+    pub passes: Vec<PassTime>,
 }
 
 /// The path tracer's error on the frame at one sample count.
@@ -310,7 +337,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             }));
         }
         plots.push(Plot {
-            file: format!("render_gpu_vs_path_tracer_{name}.svg"),
+            file: format!("render_gpu_vs_path_tracer_{}.svg", plot_name(name)),
             title: format!(
                 "DIR gi (16–1024 VPLs) vs the path tracer (1–{} spp), {name}, {w}x{h}",
                 pt_curve.last().map_or(0, |p| p.spp)
@@ -404,12 +431,79 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             }));
         }
         plots.push(error_plot(
-            format!("render_gpu_ism_{name}.svg"),
+            format!("render_gpu_ism_{}.svg", plot_name(name)),
             format!("DIR gi, 256 VPLs: error against ISM size ({name}, {w}x{h}, {adapter}; 1 = no ISMs)"),
             "ISM size (texels per side)",
             ism_rmse,
             ism_flip,
         ));
+        // mirrors and glass (5.3): impostor resolution and ray-search length at 64 VPLs
+        if !crate::gpu::mesh::build(&scene).specular.is_empty() {
+            let sizes: &[(u32, u32)] = if quick {
+                &[(64, 48), (256, 48), (256, 12)]
+            } else {
+                &[(32, 48), (64, 48), (128, 48), (256, 48), (512, 48), (256, 6), (256, 12), (256, 24), (256, 96)]
+            };
+            let (mut size_rmse, mut size_flip) = (Vec::new(), Vec::new());
+            for &(impostor_size, search_steps) in sizes {
+                let specular =
+                    crate::gpu::specular::SpecularParams { impostor_size, search_steps, ..Default::default() };
+                let params = DirParams { condition: GiLevel::Gi, vpls: 64, specular, ..DirParams::default() };
+                let (frame, rmse, flip) = measure(&params)?;
+                let specular_ms = pass_ms(&frame.report, |p| {
+                    p.starts_with("impostors")
+                        || p.starts_with("back faces")
+                        || p.starts_with("reflected and refracted")
+                        || p.ends_with(" hits")
+                        || p.starts_with("mirrors and glass")
+                });
+                let report = frame.report.specular.clone().unwrap_or_default();
+                line(
+                    name,
+                    "gi",
+                    &frame,
+                    rmse,
+                    flip,
+                    &format!(
+                        "   impostors {}× {impostor_size}², {search_steps} search steps ({specular_ms:.1} ms; {} of {} rays back-projected, {} missed)",
+                        report.objects.len(),
+                        report.back_projected,
+                        report.rays,
+                        report.missed
+                    ),
+                );
+                if search_steps == 48 {
+                    size_rmse.push((impostor_size as f64, rmse));
+                    size_flip.push((impostor_size as f64, flip));
+                }
+                rows.push(GpuRow::Specular(SpecularRow {
+                    scene: name.clone(),
+                    condition: GiLevel::Gi,
+                    vpls: 64,
+                    impostors: report.objects.len(),
+                    impostor_size,
+                    search_steps,
+                    secant_steps: params.specular.secant_steps,
+                    caustic_map_size: 0,
+                    specular_ms,
+                    ms: frame.report.ms,
+                    rmse,
+                    flip,
+                    width: w,
+                    height: h,
+                    reference_spp: ref_spp,
+                    report,
+                    passes: frame.report.passes,
+                }));
+            }
+            plots.push(error_plot(
+                format!("render_gpu_specular_{}.svg", plot_name(name)),
+                format!("DIR gi with mirrors and glass: error against impostor size ({name}, {w}x{h}, {adapter})"),
+                "impostor face size (texels per side)",
+                size_rmse,
+                size_flip,
+            ));
+        }
         // the colour mappings at gi: the time of each cm pass and of the composition
         let cm_vpls = if quick { 64 } else { 256 };
         for method in CmMethod::ALL {
@@ -520,7 +614,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             }
         }
         plots.push(error_plot(
-            format!("render_gpu_{name}.svg"),
+            format!("render_gpu_{}.svg", plot_name(name)),
             format!("DIR gi: error against VPL count ({name}, {w}x{h}, {adapter})"),
             "VPLs",
             points_rmse,
@@ -675,6 +769,12 @@ fn error_plot(file: String, title: String, x_label: &str, rmse: Vec<(f64, f64)>,
         y_log: false,
         series: vec![Series::new("RMSE", rmse), Series::new("FLIP", flip)],
     }
+}
+
+/// A scene name (a built-in name or a scene file's path) as part of a file name.
+fn plot_name(name: &str) -> String {
+    let stem = std::path::Path::new(name).file_stem().map_or(name.into(), |s| s.to_string_lossy().to_string());
+    stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect()
 }
 
 #[cfg(test)]

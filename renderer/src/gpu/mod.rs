@@ -15,7 +15,10 @@
 //!    further VPLs from these before the ISMs are made, and the budget is split by flux over
 //!    all sources;
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
-//!    Blinn–Phong parameters);
+//!    Blinn–Phong parameters); in a scene with a mirror or glass, the **specular passes**
+//!    ([`specular`], thesis 5.3): impostors, back faces of glass, reflected and refracted rays
+//!    into two more G-buffers, shaded in step 4 like the camera's, then L'_rv, L'_r and the
+//!    photograph's part CI_std by back-projection, composed in step 7;
 //! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8, the VPLs of each pixel's
 //!    interleaved class only when `interleave` > 1;
 //! 5. the **indirect light** ([`indirect`], only with VPLs): the geometry-aware merge of the
@@ -34,7 +37,8 @@
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
 //! maps (V_rv = min(V_r, V_v)); `gi` adds indirect light from VPLs (`bounces`, default 3).
 //!
-//! Not built: area lights (emissive surfaces show in both solutions but light nothing),
+//! Not built: caustic maps and reflected or refracted VPLs (thesis 5.3, eqs. 5.27–5.29; see
+//! [`specular`]), area lights (emissive surfaces show in both solutions but light nothing),
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
 
