@@ -164,18 +164,7 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
 
 impl Bounce {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("bounce.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("bounce"),
-            layout: None,
-            module: &module,
-            entry_point: Some("cs_nearest"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let [pipeline] = ctx.compute_pipelines("bounce.wgsl", SHADER, ["cs_nearest"]);
         Bounce { pipeline }
     }
 

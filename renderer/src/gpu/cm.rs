@@ -75,21 +75,8 @@ pub struct CmBuffers<'a> {
 
 impl CmPasses {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cm.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = |entry: &str| {
-            ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        CmPasses { reduce: pipeline("cs_reduce"), matcher: pipeline("cs_match"), map: pipeline("cs_map") }
+        let [reduce, matcher, map] = ctx.compute_pipelines("cm.wgsl", SHADER, ["cs_reduce", "cs_match", "cs_map"]);
+        CmPasses { reduce, matcher, map }
     }
 
     fn dispatch(

@@ -15,18 +15,7 @@ pub struct Compose {
 
 impl Compose {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("compose.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("compose"),
-            layout: None,
-            module: &module,
-            entry_point: Some("cs_compose"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let [pipeline] = ctx.compute_pipelines("compose.wgsl", SHADER, ["cs_compose"]);
         Compose { pipeline }
     }
 

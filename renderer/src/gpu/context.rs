@@ -117,6 +117,30 @@ impl GpuContext {
         Ok(GpuContext { device, queue, info, kind })
     }
 
+    /// Compiles the WGSL `source` (named `name` in errors) and one compute pipeline per entry
+    /// point, each with the bind-group layout the shader implies.
+    pub fn compute_pipelines<const N: usize>(
+        &self,
+        name: &str,
+        source: &str,
+        entries: [&str; N],
+    ) -> [wgpu::ComputePipeline; N] {
+        let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(name),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        entries.map(|entry| {
+            self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+    }
+
     /// The adapter in words, for reports: name, backend and kind.
     pub fn adapter_name(&self) -> String {
         describe(&self.info)

@@ -80,18 +80,7 @@ pub struct IndirectInputs<'a> {
 
 impl IndirectPass {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("indirect.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("indirect"),
-            layout: None,
-            module: &module,
-            entry_point: Some("cs_indirect"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let [pipeline] = ctx.compute_pipelines("indirect.wgsl", SHADER, ["cs_indirect"]);
         IndirectPass { pipeline }
     }
 

@@ -154,8 +154,8 @@ fn gpu_material(m: &Material) -> GpuMaterial {
 pub fn build(scene: &Scene) -> GpuMesh {
     let mut real = Vec::new();
     let mut virt = Vec::new();
-    // (object, is virtual, start, end) within its role's list
-    let mut specular_ranges = Vec::new();
+    // ranges within each role's list; the virtual ones move behind the real vertices below
+    let mut specular = Vec::new();
     for object in &scene.objects {
         let (prims, material) = match (&object.proxy, object.role) {
             (Some((prims, material)), Role::Real) => (prims, *material),
@@ -173,30 +173,25 @@ pub fn build(scene: &Scene) -> GpuMesh {
                 }
             }
         }
-        if let Some(delta) = scene.materials[material].delta {
-            specular_ranges.push((object, material, delta, role == 1, start, out.len() as u32));
-        }
-    }
-    let real_count = real.len() as u32;
-    let virtual_bounds = bounding_sphere(&virt);
-    let specular = specular_ranges
-        .into_iter()
-        .filter(|range| range.5 > range.4)
-        .map(|(object, material, delta, is_virtual, start, end)| {
-            let offset = if is_virtual { real_count } else { 0 };
-            let list = if is_virtual { &virt } else { &real };
-            let (centre, radius) = bounding_sphere(&list[start as usize..end as usize]).unwrap_or((Vec3::ZERO, 1e-3));
-            SpecularObject {
+        if let Some(delta) = scene.materials[material].delta
+            && let Some((centre, radius)) = bounding_sphere(&out[start as usize..])
+        {
+            specular.push(SpecularObject {
                 name: object.name.clone(),
-                real: !is_virtual,
-                range: start + offset..end + offset,
+                real: role == 0,
+                range: start..out.len() as u32,
                 centre,
                 radius,
                 material: material as u32,
                 delta,
-            }
-        })
-        .collect();
+            });
+        }
+    }
+    let real_count = real.len() as u32;
+    let virtual_bounds = bounding_sphere(&virt);
+    for object in specular.iter_mut().filter(|o| !o.real) {
+        object.range = object.range.start + real_count..object.range.end + real_count;
+    }
     real.extend(virt);
     let (bounds_centre, bounds_radius) = bounding_sphere(&real).unwrap_or((Vec3::ZERO, 1.0));
     GpuMesh {

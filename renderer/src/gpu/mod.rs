@@ -284,7 +284,7 @@ pub fn camera_matrix(camera: &crate::camera::Camera, near: f32, far: f32) -> Mat
 /// A spot light's perspective view over the scene bounds; returns (matrix, tan of half the fov).
 fn spot_view(position: Vec3, direction: Vec3, cos_outer: f32, centre: Vec3, radius: f32) -> (Mat4, f32) {
     let half = (cos_outer.clamp(-1.0, 1.0).acos() * 1.05 + 0.01).min(80f32.to_radians());
-    let up = if direction.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y };
+    let up = up_hint(direction);
     let far = (position - centre).length() + radius * 1.5;
     let near = (far * 1e-4).max(1e-4);
     let f = 1.0 / half.tan();
@@ -307,7 +307,7 @@ fn radical_inverse(mut bits: u32) -> f32 {
 /// An orthographic view along `forward` covering a sphere of `radius` around `centre` across,
 /// and `depth` in front of and behind it along the light.
 fn directional_view(forward: Vec3, centre: Vec3, radius: f32, depth: f32) -> (Mat4, Vec3) {
-    let up = if forward.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y };
+    let up = up_hint(forward);
     let eye = centre - forward * depth;
     let (near, far) = (0.0, 2.0 * depth);
     let projection = Mat4::from_cols_array_2d(&[
@@ -318,6 +318,12 @@ fn directional_view(forward: Vec3, centre: Vec3, radius: f32, depth: f32) -> (Ma
     ])
     .transpose();
     (projection * look_at(eye, forward, up), eye)
+}
+
+/// The up vector a view along `forward` is built with ([`look_at`]): +y, or +x when looking
+/// along the y axis.
+fn up_hint(forward: Vec3) -> Vec3 {
+    if forward.cross(Vec3::Y).length() < 1e-3 { Vec3::X } else { Vec3::Y }
 }
 
 /// World to a right-handed view space looking down −z along `direction`.

@@ -46,18 +46,7 @@ pub struct ShadeOutput {
 
 impl Shade {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("shade.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("shade"),
-            layout: None,
-            module: &module,
-            entry_point: Some("cs_shade"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let [pipeline] = ctx.compute_pipelines("shade.wgsl", SHADER, ["cs_shade"]);
         Shade { pipeline }
     }
 

@@ -121,14 +121,11 @@ pub struct Traced {
     pub eye: Vec3,
 }
 
-/// The axes of cube face `f` (+x, −x, +y, −y, +z, −z): forward and the up hint of
-/// `super::look_at`, as `specular.wgsl` reads them.
-fn face(f: u32) -> (Vec3, Vec3) {
-    let sign = if f % 2 == 1 { -1.0 } else { 1.0 };
+/// The forward axis of cube face `f` (+x, −x, +y, −y, +z, −z), as `specular.wgsl` reads it.
+fn face_forward(f: u32) -> Vec3 {
     let mut forward = Vec3::ZERO;
-    forward[(f / 2) as usize] = sign;
-    let up = if f / 2 == 1 { Vec3::X } else { Vec3::Y };
-    (forward, up)
+    forward[(f / 2) as usize] = if f % 2 == 1 { -1.0 } else { 1.0 };
+    forward
 }
 
 fn row_stride(width: u32) -> u32 {
@@ -136,39 +133,10 @@ fn row_stride(width: u32) -> u32 {
     width.div_ceil(16) * 16
 }
 
-fn storage_targets(ctx: &GpuContext, width: u32, height: u32, label: &str) -> SurfaceTargets {
-    let make = |what: &str| {
-        ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(&format!("{label} {what}")),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: super::raster::SURFACE_FORMAT,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        })
-    };
-    SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
-}
-
 impl Specular {
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("specular.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = |entry: &str| {
-            ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        Specular { trace: pipeline("cs_trace"), combine: pipeline("cs_combine") }
+        let [trace, combine] = ctx.compute_pipelines("specular.wgsl", SHADER, ["cs_trace", "cs_combine"]);
+        Specular { trace, combine }
     }
 
     /// Impostors, back faces and the ray search (steps 1–3); `passes` gets one entry each.
@@ -209,8 +177,8 @@ impl Specular {
         let mut draws = Vec::new();
         for (k, object) in objects.iter().enumerate() {
             for f in 0..6 {
-                let (forward, up) = face(f);
-                let matrix = projection * super::look_at(object.centre, forward, up);
+                let forward = face_forward(f);
+                let matrix = projection * super::look_at(object.centre, forward, super::up_hint(forward));
                 draws.push(GbufferDraw {
                     view: ViewUniform::perspective(matrix, object.centre, forward),
                     viewport: [f * size, k as u32 * size, size, size],
@@ -223,12 +191,17 @@ impl Specular {
             raster.gbuffer_draws(ctx, buffers, &impostors, &draws, false)
         });
         // 2. the back faces of the glass objects
-        let back = SurfaceTargets::new(ctx, width, height, "back faces");
         let glass: Vec<std::ops::Range<u32>> = objects
             .iter()
             .filter(|o| matches!(o.delta, DeltaBsdf::Dielectric { .. }))
             .map(|o| o.range.clone())
             .collect();
+        // without glass the shader reads no back face, but the binding must exist
+        let back = if glass.is_empty() {
+            SurfaceTargets::new(ctx, 1, 1, "no back faces")
+        } else {
+            SurfaceTargets::new(ctx, width, height, "back faces")
+        };
         if !glass.is_empty() {
             let draw = GbufferDraw { view: *camera_view, viewport: [0, 0, width, height], ranges: &glass };
             super::timed(ctx, passes, "back faces of glass".into(), || {
@@ -298,8 +271,8 @@ impl Specular {
             layout: &self.trace.get_bind_group_layout(0),
             entries: &entries,
         });
-        let refl = storage_targets(ctx, width, height, "GBuf_refl");
-        let refr = storage_targets(ctx, width, height, "GBuf_refr");
+        let refl = SurfaceTargets::new(ctx, width, height, "GBuf_refl");
+        let refr = SurfaceTargets::new(ctx, width, height, "GBuf_refr");
         let label = format!(
             "reflected and refracted rays ({} search + {} secant steps)",
             params.search_steps.max(1),
@@ -396,12 +369,6 @@ impl Specular {
         (report.pixels, report.rays, report.back_projected, report.rendered, report.missed) =
             (counts[0], counts[1], counts[2], counts[3], counts[4]);
         base
-    }
-
-    /// Per pixel, for validation: the weights and statuses the ray search wrote (four
-    /// `[f32; 4]` per pixel, see `specular.wgsl`).
-    pub fn read_info(ctx: &GpuContext, traced: &Traced) -> Vec<[f32; 4]> {
-        ctx.read_f32(&traced.info).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect()
     }
 }
 

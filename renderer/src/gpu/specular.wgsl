@@ -179,7 +179,7 @@ fn plane(p: u32, x: u32, y: u32) -> u32 {
 }
 
 // Writes a hit (or nothing) into G-buffer `which` (0 refl, 1 refr) and returns the status.
-fn write_hit(which: u32, x: u32, y: u32, k: u32, texel: vec2<i32>) -> f32 {
+fn write_hit(which: u32, x: u32, y: u32, texel: vec2<i32>) -> f32 {
     if texel.x < 0 {
         for (var q = 0u; q < 3u; q++) {
             hits[plane(3u * which + q, x, y)] = vec4<f32>(0.0);
@@ -250,7 +250,7 @@ fn cs_trace(@builtin(global_invocation_id) id: vec3<u32>) {
     let eps = 1e-4 * (1.0 + length(p1 - params.camera.xyz));
     let reflected = reflect(v, n1);
     let refl_texel = trace_impostor(u32(k), p1 + eps * n1, reflected);
-    let refl_status = write_hit(0u, id.x, id.y, u32(k), refl_texel);
+    let refl_status = write_hit(0u, id.x, id.y, refl_texel);
     let env_refl = select(vec3<f32>(0.0), environment(reflected), refl_status == STATUS_MISS);
     if object.kind.x < 0.5 {
         // a mirror
@@ -298,7 +298,7 @@ fn cs_trace(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     t2 = normalize(t2);
     let refr_texel = trace_impostor(u32(k), p2 + eps * t2, t2);
-    let refr_status = write_hit(1u, id.x, id.y, u32(k), refr_texel);
+    let refr_status = write_hit(1u, id.x, id.y, refr_texel);
     let env_refr = select(vec3<f32>(0.0), environment(t2), refr_status == STATUS_MISS);
     let transmittance = exp(-object.colour.xyz * length(p2 - p1));
     info[4u * pixel] = vec4<f32>(vec3<f32>(f1), refl_status);
