@@ -32,7 +32,8 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with = "factors", value_parser = crate::choice(GiLevel::parse, "gi, shadows, none (for colour mapping add --cm, for camera artifacts use --factors)"))]
     condition: Option<GiLevel>,
     /// Factors to switch on, on the GPU: `gi` (indirect light and shadows), `cm` (the
-    /// statistics-based colour mapping), `ca` (camera artifacts).
+    /// statistics-based colour mapping), `ca` (camera artifacts); caustics of mirrors and glass
+    /// come with `gi` and `shadows` (`--caustic-map-size 0` turns them off).
     #[arg(long, value_parser = Factors::parse_list)]
     factors: Option<Factors>,
     #[command(flatten)]
@@ -89,8 +90,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let Some(target) = target else {
         // `--condition` is the gi level alone; `--cm` alone renders every factor off
         let factors = match args.condition {
-            Some(gi) => Factors { gi, cm: false, ca: false },
-            None => args.factors.unwrap_or(Factors { gi: GiLevel::None, cm: false, ca: false }),
+            Some(gi) => Factors { gi, cm: false, ca: false, caustics: true },
+            None => args.factors.unwrap_or(Factors { gi: GiLevel::None, cm: false, ca: false, caustics: true }),
         };
         let bar = progress_bar(args.spp as u64, &label, "spp");
         let lines = render_condition_to_file(

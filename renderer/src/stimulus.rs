@@ -7,8 +7,12 @@
 //! light by differential instant radiosity), `shadows` (1 with `gi` 0: shadows only, the middle
 //! mode of the thesis's preliminary study), `cm` (adaptive colour mapping: the thesis's
 //! statistics-based transfer in CIELab, as in its web survey) and `ca` (camera artifacts:
-//! Klein & Murray's chain with the parameters of the scene's simulated camera). A level outside these, or a factor of another name, is refused with the factor
-//! and the level named — a stimulus is never rendered with a factor silently ignored.
+//! Klein & Murray's chain with the parameters of the scene's simulated camera) and `caustics`
+//! (the caustic maps of mirrors and glass, thesis 5.3: they come with `gi` and `shadows`, so a
+//! condition that does not name this factor has them; 0 turns them off, and 1 without `gi` or
+//! `shadows` is refused, since a caustic is light through a virtual object's shadow). A level
+//! outside these, or a factor of another name, is refused with the factor and the level named —
+//! a stimulus is never rendered with a factor silently ignored.
 //!
 //! [`StimulusSettings::fingerprint`] names everything that decides the image (the scene as
 //! TOML, size, samples, seed, VPL budget, the factor levels and [`STIMULUS_VERSION`]), so callers
@@ -27,6 +31,10 @@ use serde::Serialize;
 /// an older renderer are rendered again.
 pub const STIMULUS_VERSION: u32 = 4;
 
+/// Bumped whenever a change to the GPU passes of mirrors and glass changes their images; it
+/// enters the fingerprint of scenes with such an object only, so other cached stimuli stay.
+pub const SPECULAR_VERSION: u32 = 2;
+
 /// The factors a stimulus is rendered under.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Factors {
@@ -36,6 +44,9 @@ pub struct Factors {
     pub cm: bool,
     /// Camera artifacts on.
     pub ca: bool,
+    /// Caustics of mirrors and glass with `gi` or `shadows` (on unless a condition sets the
+    /// `caustics` factor to 0).
+    pub caustics: bool,
 }
 
 impl Factors {
@@ -43,13 +54,14 @@ impl Factors {
     pub fn parse_list(text: &str) -> std::result::Result<Factors, String> {
         let names = text.split(',').map(str::trim).filter(|name| !name.is_empty());
         Factors::from_levels(names.map(|name| (name, 1.0)))
-            .map_err(|reason| format!("{reason}; name them as gi, cm, ca or shadows"))
+            .map_err(|reason| format!("{reason}; name them as gi, cm, ca, shadows or caustics"))
     }
 
     /// Factors from `(name, level)` pairs, as a study's condition lists them. Factors not named
     /// are off.
     pub fn from_levels<'a>(levels: impl IntoIterator<Item = (&'a str, f64)>) -> std::result::Result<Factors, String> {
         let (mut gi, mut shadows, mut cm, mut ca) = (false, false, false, false);
+        let mut caustics = None;
         for (name, level) in levels {
             let on = if level == 0.0 {
                 false
@@ -65,8 +77,11 @@ impl Factors {
                 "shadows" => shadows = on,
                 "cm" => cm = on,
                 "ca" => ca = on,
+                "caustics" => caustics = Some(on),
                 other => {
-                    return Err(format!("the renderer knows no factor `{other}` (it renders gi, shadows, cm and ca)"));
+                    return Err(format!(
+                        "the renderer knows no factor `{other}` (it renders gi, shadows, cm, ca and caustics)"
+                    ));
                 }
             }
         }
@@ -75,7 +90,12 @@ impl Factors {
             (false, true) => GiLevel::Shadows,
             (false, false) => GiLevel::None,
         };
-        Ok(Factors { gi, cm, ca })
+        if caustics == Some(true) && gi == GiLevel::None {
+            return Err("factor `caustics` is 1 while `gi` and `shadows` are 0; caustics are light through a \
+                        virtual object's shadow and come only with gi or shadows"
+                .into());
+        }
+        Ok(Factors { gi, cm, ca, caustics: caustics.unwrap_or(true) })
     }
 
     /// A short label such as `gi+ca` or `none`.
@@ -91,6 +111,9 @@ impl Factors {
         }
         if self.ca {
             parts.push("ca");
+        }
+        if !self.caustics && self.gi != GiLevel::None {
+            parts.push("no-caustics");
         }
         if parts.is_empty() { "none".into() } else { parts.join("+") }
     }
@@ -126,8 +149,13 @@ impl StimulusSettings {
     /// Text naming everything that decides the stimulus of `scene` (already sized) under
     /// `factors`; equal texts give equal images. Hash it for a cache key.
     pub fn fingerprint(&self, scene: &Scene, factors: &Factors) -> String {
+        let specular = if scene.objects.iter().any(|o| scene.materials[o.material].delta.is_some()) {
+            format!("specular v{SPECULAR_VERSION}\n")
+        } else {
+            String::new()
+        };
         format!(
-            "mrstudy stimulus v{STIMULUS_VERSION}\nsize {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{}",
+            "mrstudy stimulus v{STIMULUS_VERSION}\n{specular}size {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{}",
             self.width,
             self.height,
             self.spp,
@@ -191,6 +219,9 @@ impl StimulusSettings {
             // Klein & Murray's chain with the scene camera's own parameters
             params.camera_artifacts = Some(CaParams::from_sensor(&scene.sensor));
         }
+        if !factors.caustics {
+            params.specular.caustic_map_size = 0;
+        }
         params
     }
 
@@ -237,6 +268,9 @@ pub struct RenderKnobs {
         crate::ca::ParamSource::parse(text).ok_or_else(|| format!("`{text}` is not one of scene, estimate"))
     })]
     pub ca_source: crate::ca::ParamSource,
+    /// GPU: resolution of each caustic map of a mirror or glass object (0: no caustics).
+    #[arg(long, default_value_t = 256)]
+    pub caustic_map_size: u32,
 }
 
 /// One condition rendered over a photograph, with the parameters it was rendered by and, when
@@ -266,6 +300,9 @@ pub fn render_condition(
     };
     if let Some(method) = knobs.cm {
         params.cm.method = method;
+    }
+    if factors.caustics {
+        params.specular.caustic_map_size = knobs.caustic_map_size;
     }
     let mut ca_estimates = None;
     if factors.ca && knobs.ca_source == crate::ca::ParamSource::Estimate {
@@ -337,7 +374,7 @@ mod tests {
     fn factor_levels_map_to_the_three_gi_modes() {
         assert_eq!(
             levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(),
-            Factors { gi: GiLevel::None, cm: false, ca: false }
+            Factors { gi: GiLevel::None, cm: false, ca: false, caustics: true }
         );
         assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, GiLevel::Gi);
         assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Shadows);
@@ -353,6 +390,22 @@ mod tests {
         let error = levels(&[("bloom", 1.0)]).unwrap_err();
         assert!(error.contains("`bloom`"), "{error}");
         assert!(levels(&[("gi", f64::NAN)]).is_err());
+    }
+
+    #[test]
+    fn caustics_come_with_gi_and_shadows_and_the_factor_turns_them_off() {
+        assert!(levels(&[("gi", 1.0)]).unwrap().caustics);
+        let off = levels(&[("gi", 1.0), ("caustics", 0.0)]).unwrap();
+        assert_eq!(off.label(), "gi+no-caustics");
+        assert_ne!(off.label(), levels(&[("gi", 1.0), ("caustics", 1.0)]).unwrap().label());
+        let settings = StimulusSettings::default();
+        let scene = crate::scene::load("dir-lamp-box").unwrap();
+        assert_eq!(settings.params(&scene, &off).specular.caustic_map_size, 0);
+        assert!(settings.params(&scene, &levels(&[("shadows", 1.0)]).unwrap()).specular.caustic_map_size > 0);
+        // gi off: no shadows, so no caustics either way, and the label says nothing of them
+        assert_eq!(levels(&[("caustics", 0.0)]).unwrap().label(), "none");
+        let error = levels(&[("gi", 0.0), ("caustics", 1.0)]).unwrap_err();
+        assert!(error.contains("`caustics`") && error.contains("gi"), "{error}");
     }
 
     #[test]

@@ -51,10 +51,13 @@ pub struct SpecularRow {
     pub impostor_size: u32,
     pub search_steps: u32,
     pub secant_steps: u32,
-    /// Caustic maps (5.27–5.29): not built yet, 0.
+    /// Resolution of each caustic map (5.27–5.29); 0: caustics off.
     pub caustic_map_size: u32,
-    /// Impostors, back faces, ray search, shading of the hits and combination.
+    /// Impostors, back faces, ray search, shading of the hits, combination and caustics.
     pub specular_ms: f64,
+    /// Of those, the caustic maps (photon G-buffers, their rays, the splats) and their
+    /// addition to L_rv and L_r.
+    pub caustic_ms: f64,
     pub ms: f64,
     pub rmse: f64,
     pub flip: f64,
@@ -439,25 +442,48 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         ));
         // mirrors and glass (5.3): impostor resolution and ray-search length at 64 VPLs
         if !crate::gpu::mesh::build(&scene).specular.is_empty() {
-            let sizes: &[(u32, u32)] = if quick {
-                &[(64, 48), (256, 48), (256, 12)]
+            // (impostor face size, search steps, caustic map size)
+            let sizes: &[(u32, u32, u32)] = if quick {
+                &[(64, 48, 256), (256, 48, 0), (256, 48, 256), (256, 12, 256)]
             } else {
-                &[(32, 48), (64, 48), (128, 48), (256, 48), (512, 48), (256, 6), (256, 12), (256, 24), (256, 96)]
+                &[
+                    (32, 48, 256),
+                    (64, 48, 256),
+                    (128, 48, 256),
+                    (256, 48, 256),
+                    (512, 48, 256),
+                    (256, 6, 256),
+                    (256, 12, 256),
+                    (256, 24, 256),
+                    (256, 96, 256),
+                    (256, 48, 0),
+                    (256, 48, 64),
+                    (256, 48, 128),
+                    (256, 48, 512),
+                ]
             };
             let (mut size_rmse, mut size_flip) = (Vec::new(), Vec::new());
-            for &(impostor_size, search_steps) in sizes {
-                let specular =
-                    crate::gpu::specular::SpecularParams { impostor_size, search_steps, ..Default::default() };
+            let (mut caustic_rmse, mut caustic_flip) = (Vec::new(), Vec::new());
+            for &(impostor_size, search_steps, caustic_map_size) in sizes {
+                let specular = crate::gpu::specular::SpecularParams {
+                    impostor_size,
+                    search_steps,
+                    caustic_map_size,
+                    ..Default::default()
+                };
                 let params = DirParams { condition: GiLevel::Gi, vpls: 64, specular, ..DirParams::default() };
                 let (frame, rmse, flip) = measure(&params)?;
-                let specular_ms = pass_ms(&frame.report, |p| {
-                    p.starts_with("impostors")
-                        || p.starts_with("back faces")
-                        || p.starts_with("reflected and refracted")
-                        || p.ends_with(" hits")
-                        || p.starts_with("mirrors and glass")
-                });
+                let caustic_ms = pass_ms(&frame.report, |p| p.starts_with("caustic"));
+                let specular_ms = caustic_ms
+                    + pass_ms(&frame.report, |p| {
+                        p.starts_with("impostors")
+                            || p.starts_with("back faces")
+                            || p.starts_with("reflected and refracted")
+                            || p.ends_with(" hits")
+                            || p.starts_with("mirrors and glass")
+                    });
                 let report = frame.report.specular.clone().unwrap_or_default();
+                let photons = report.caustics.as_ref().map_or(0, |c| c.photons);
                 line(
                     name,
                     "gi",
@@ -465,16 +491,20 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     rmse,
                     flip,
                     &format!(
-                        "   impostors {}× {impostor_size}², {search_steps} search steps ({specular_ms:.1} ms; {} of {} rays back-projected, {} missed)",
+                        "   impostors {}× {impostor_size}², {search_steps} search steps, caustic maps {caustic_map_size}² ({specular_ms:.1} ms, caustics {caustic_ms:.1} ms; {} of {} rays back-projected, {} missed; {photons} photons)",
                         report.objects.len(),
                         report.back_projected,
                         report.rays,
                         report.missed
                     ),
                 );
-                if search_steps == 48 {
+                if search_steps == 48 && caustic_map_size == 256 {
                     size_rmse.push((impostor_size as f64, rmse));
                     size_flip.push((impostor_size as f64, flip));
+                }
+                if search_steps == 48 && impostor_size == 256 {
+                    caustic_rmse.push((caustic_map_size as f64, rmse));
+                    caustic_flip.push((caustic_map_size as f64, flip));
                 }
                 rows.push(GpuRow::Specular(SpecularRow {
                     scene: name.clone(),
@@ -484,8 +514,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     impostor_size,
                     search_steps,
                     secant_steps: params.specular.secant_steps,
-                    caustic_map_size: 0,
+                    caustic_map_size,
                     specular_ms,
+                    caustic_ms,
                     ms: frame.report.ms,
                     rmse,
                     flip,
@@ -495,6 +526,21 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     report,
                     passes: frame.report.passes,
                 }));
+            }
+            caustic_rmse.sort_by(|a, b| a.0.total_cmp(&b.0));
+            caustic_flip.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if caustic_rmse.len() > 1 {
+                // a linear axis: 0 (caustics off) is one of the sizes
+                plots.push(Plot {
+                    x_log: false,
+                    ..error_plot(
+                        format!("render_gpu_caustics_{}.svg", plot_name(name)),
+                        format!("DIR gi: error against caustic map size, 0 = off ({name}, {w}x{h}, {adapter})"),
+                        "caustic map size (texels per side)",
+                        caustic_rmse,
+                        caustic_flip,
+                    )
+                });
             }
             plots.push(error_plot(
                 format!("render_gpu_specular_{}.svg", plot_name(name)),

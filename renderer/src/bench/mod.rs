@@ -85,5 +85,6 @@ fn ground_truth(scene: &Scene, params: ReferenceParams, observer: &dyn Observer)
 
 /// The summed time of the passes whose name `selects`.
 fn pass_ms(report: &crate::gpu::GpuReport, selects: impl Fn(&str) -> bool) -> f64 {
-    report.passes.iter().filter(|p| selects(&p.pass)).map(|p| p.ms).sum()
+    // from +0.0: an empty f64 sum is -0.0, which would print as "-0.0 ms"
+    report.passes.iter().filter(|p| selects(&p.pass)).map(|p| p.ms).fold(0.0, |a, b| a + b)
 }

@@ -13,12 +13,15 @@
 //!    splats; not made when `ism_size` is 0 or there are no VPLs);
 //!    With `bounces` > 1, the **multiple-bounce light source** ([`bounce`], 5.2.7) spawns
 //!    further VPLs from these before the ISMs are made, and the budget is split by flux over
-//!    all sources;
+//!    all sources; in a scene with a mirror or glass, with `shadows` or `gi`, the **caustic
+//!    maps**' photons ([`specular`], 5.27–5.29) are traced first and, with `gi`, drawn as
+//!    reflected and refracted VPL candidates together with the RSMs' (Figure 5.23);
 //! 3. the camera's **G-buffer** (position, real/virtual flag and material, normal, albedo and
 //!    Blinn–Phong parameters); in a scene with a mirror or glass, the **specular passes**
 //!    ([`specular`], thesis 5.3): impostors, back faces of glass, reflected and refracted rays
 //!    into two more G-buffers, shaded in step 4 like the camera's, then L'_rv, L'_r and the
-//!    photograph's part CI_std by back-projection, composed in step 7;
+//!    photograph's part CI_std by back-projection, composed in step 7; the caustic photons
+//!    splatted into the camera's pixels and added to L_rv and L_r after step 5;
 //! 4. **shading** ([`shade`]): L_rv and L_r by equations 5.1–5.8, the VPLs of each pixel's
 //!    interleaved class only when `interleave` > 1;
 //! 5. the **indirect light** ([`indirect`], only with VPLs): the geometry-aware merge of the
@@ -37,8 +40,7 @@
 //! (virtual objects cast none) and no indirect light; `shadows` adds the virtual-only shadow
 //! maps (V_rv = min(V_r, V_v)); `gi` adds indirect light from VPLs (`bounces`, default 3).
 //!
-//! Not built: caustic maps and reflected or refracted VPLs (thesis 5.3, eqs. 5.27–5.29; see
-//! [`specular`]), area lights (emissive surfaces show in both solutions but light nothing),
+//! Not built: caustics seen in mirrors and glass (L'_rv, L'_r; see [`specular`]), area lights (emissive surfaces show in both solutions but light nothing),
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
 
@@ -516,9 +518,33 @@ impl DirRenderer {
             );
         }
 
+        // 1c. mirrors and glass (5.3): their impostors, and the photons of their caustic maps
+        // (with the conditions that show virtual objects' shadows)
+        let impostors = (!mesh.specular.is_empty())
+            .then(|| self.specular.impostors(ctx, &self.raster, &mut passes, scene, &mesh, &buffers, &params.specular));
+        let photon_maps = match &impostors {
+            None => Err("no mirror or glass"),
+            Some(_) if params.condition == GiLevel::None => {
+                Err("the none condition: virtual objects cast neither shadows nor caustics")
+            }
+            Some(_) if params.specular.caustic_map_size == 0 => Err("caustic_map_size is 0 (caustics off)"),
+            Some(_) if scene.spots.is_empty() => Err("no spot or point light (caustic maps are made from those)"),
+            Some(impostors) => Ok(self.specular.photon_maps(
+                ctx,
+                &self.raster,
+                &mut passes,
+                scene,
+                &mesh,
+                &buffers,
+                impostors,
+                &params.specular,
+            )),
+        };
+
         // 2. RSMs and VPLs (gi only)
         let mut vpls = Vec::new();
         let mut rsms = Vec::new();
+        let mut caustic_candidates = Vec::new();
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
             let read_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
@@ -565,8 +591,14 @@ impl DirRenderer {
                 };
                 rsms.push((light, vpl::RsmTexels { size: rsm_size, tan_half_fov: 0.0, real, virt }));
             }
+            // reflected and refracted VPLs where the caustics land (Figure 5.23)
+            if let Ok(maps) = &photon_maps {
+                caustic_candidates = timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
+                    self.specular.caustic_vpls(ctx, maps)
+                });
+            }
             let start = Instant::now();
-            vpls = vpl::create(&rsms, params.vpls);
+            vpls = vpl::create_with(&rsms, &caustic_candidates, params.vpls);
             passes.push(PassTime { pass: "VPL creation (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
         }
 
@@ -628,7 +660,7 @@ impl DirRenderer {
             fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
             let counts = vpl::split_budget(budget, &fluxes);
             if given_vpls.is_none() {
-                vpls = vpl::create(&rsms, counts[0]);
+                vpls = vpl::create_with(&rsms, &caustic_candidates, counts[0]);
             }
             for (k, pilot) in pilots.iter().enumerate() {
                 let drawn = vpl::resample(pilot, counts[k + 1]);
@@ -667,8 +699,8 @@ impl DirRenderer {
             ViewUniform::perspective(camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
         timed(ctx, &mut passes, "g-buffer".into(), || self.raster.gbuffer(ctx, &buffers, &camera_view, &gbuffer));
 
-        // 3a. mirrors and glass (5.3): impostors, back faces, reflected and refracted rays
-        let mut traced = (!mesh.specular.is_empty()).then(|| {
+        // 3a. mirrors and glass (5.3): back faces, reflected and refracted rays
+        let mut traced = impostors.as_ref().map(|impostors| {
             self.specular.trace(
                 ctx,
                 &self.raster,
@@ -676,12 +708,28 @@ impl DirRenderer {
                 scene,
                 &mesh,
                 &buffers,
+                impostors,
                 &gbuffer,
                 &camera_view,
                 camera_view_proj,
                 &params.specular,
             )
         });
+        // 3b. the caustics' photons splatted into the camera's pixels
+        let mut caustic_buffer = None;
+        if let Some(traced) = traced.as_mut() {
+            match &photon_maps {
+                Ok(maps) => {
+                    let (buffer, mut report) = timed(ctx, &mut passes, "caustic splats".into(), || {
+                        self.specular.splat(ctx, maps, scene, &gbuffer, camera_view_proj)
+                    });
+                    report.vpls = vpls.iter().filter(|v| v.flux[3] > 0.5).count();
+                    caustic_buffer = Some(buffer);
+                    traced.report.caustics = Some(report);
+                }
+                Err(reason) => traced.report.caustics_skipped = Some(reason.to_string()),
+            }
+        }
 
         // 4. shading
         let condition_code = match params.condition {
@@ -755,7 +803,14 @@ impl DirRenderer {
             });
         }
 
-        // 4c. the hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv, L'_r
+        // 4c. the caustics into L_rv and L_r
+        if let Some(caustic) = &caustic_buffer {
+            timed(ctx, &mut passes, "caustics into L_rv and L_r".into(), || {
+                self.specular.apply_caustics(ctx, caustic, &gbuffer, &output.solutions, width, height)
+            });
+        }
+
+        // 4d. the hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv, L'_r
         let photo_texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
         let photo_buffer = timed(ctx, &mut passes, "upload photograph".into(), || {
             use wgpu::util::DeviceExt;

@@ -30,15 +30,34 @@
 //! the per-component rule contains that exception and equals the thesis where both or neither
 //! are valid.
 //!
-//! Not built (yet): caustic maps (5.27–5.29) and reflected or refracted VPLs (Figure 5.23): a
-//! glass object's shadow is dark where the ground truth has its caustic; interreflections
-//! between mirrors and glass (one specular bounce, as the thesis); VPLs on mirrors or glass
-//! (they have no diffuse albedo and make none).
+//! 6. **caustic maps** (5.27–5.29; with `shadows` and `gi`, [`SpecularParams::caustic_map_size`]
+//!    > 0): per spot or point light and per object it lights, the object's G-buffer from the
+//!    light (PGBuf, aimed at the object's bounding sphere — the thesis renders from the spot's
+//!    view) and its photons traced by the same ray search (for glass, through both
+//!    interfaces); each photon carries I(ω) dω × its Fresnel and transmittance weight and is
+//!    splatted into the camera's pixels with a disc kernel on the receiving surface whose
+//!    radius is its footprint, from its neighbours' hits in the light's grid (Wyman and Davis
+//!    2006 splat quads of a fixed size); summed in 64-bit fixed point (order-independent, so a
+//!    real caustic enters L_rv and L_r identically), then ρ/π E added to L_rv, and to L_r where
+//!    light, object and receiver are real (5.29);
+//! 7. **reflected and refracted VPLs** (Figure 5.23, `gi` only): every photon is also a
+//!    candidate VPL where it lands (albedo × its flux), drawn with the RSMs' candidates by flux.
+//!
+//! Glass's exit point (step 3, for camera rays and photons alike) is searched along the
+//! refracted ray in the back-face G-buffer; Wyman's estimate (the back face's distance along
+//! the view ray) remains the fallback where that search brackets nothing.
+//!
+//! Not built: caustics seen in mirrors and glass (the thesis adds them to L'_rv and L'_r);
+//! the specular lobe of a glossy receiver under a caustic (ρ/π only); interreflections between
+//! mirrors and glass (one specular bounce, as the thesis); VPLs on mirrors or glass (they have
+//! no diffuse albedo and make none).
 
 use super::context::GpuContext;
 use super::mesh::{GpuMesh, SpecularObject};
 use super::raster::{GbufferDraw, Raster, SceneBuffers, SurfaceTargets, ViewUniform};
+use crate::light::SpotLight;
 use crate::material::DeltaBsdf;
+use crate::math::luminance;
 use crate::scene::Scene;
 use glam::{Mat4, Vec3};
 use serde::Serialize;
@@ -56,11 +75,14 @@ pub struct SpecularParams {
     pub search_steps: u32,
     /// Secant refinement steps once the search has bracketed a hit.
     pub secant_steps: u32,
+    /// Resolution of each caustic map (the photon G-buffer of one object from one light; the
+    /// thesis: 512²); 0: no caustics. Caustics run with the `shadows` and `gi` conditions.
+    pub caustic_map_size: u32,
 }
 
 impl Default for SpecularParams {
     fn default() -> Self {
-        SpecularParams { impostor_size: 256, search_steps: 48, secant_steps: 6 }
+        SpecularParams { impostor_size: 256, search_steps: 48, secant_steps: 6, caustic_map_size: 256 }
     }
 }
 
@@ -80,7 +102,50 @@ pub struct SpecularReport {
     pub rendered: u32,
     /// Rays that left the modelled scene (the environment's radiance).
     pub missed: u32,
+    /// The caustic maps (None: not run, with the reason in `caustics_skipped`).
+    pub caustics: Option<CausticReport>,
+    /// Why no caustic map ran, when none did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub caustics_skipped: Option<String>,
 }
+
+/// What the caustic maps did in a frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CausticReport {
+    pub map_size: u32,
+    /// One map per light and mirror or glass object it lights ("spot → glass-sphere").
+    pub maps: Vec<String>,
+    /// Pairs without a map, and why.
+    pub skipped: Vec<String>,
+    /// Photons with flux (a light pixel on the object, per reflected or refracted component
+    /// that hit a surface).
+    pub photons: u32,
+    /// Photons that reached a surface the camera sees.
+    pub splatted: u32,
+    /// Reflected and refracted VPLs drawn from the photons (gi only; Figure 5.23).
+    pub vpls: usize,
+}
+
+/// The traced photons of a frame's caustic maps.
+pub struct PhotonMaps {
+    map_size: u32,
+    maps: Vec<PhotonMap>,
+    skipped: Vec<String>,
+}
+
+/// One light's photons through one mirror or glass object.
+struct PhotonMap {
+    pair: String,
+    light: SpotLight,
+    object: u32,
+    object_real: bool,
+    tan_half: f32,
+    pgbuf: SurfaceTargets,
+    search: Search,
+}
+
+/// The most camera pixels a photon's splat reaches from its centre (a wider footprint is cut).
+const MAX_SPLAT_REACH: u32 = 24;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -101,10 +166,45 @@ struct GpuSpecularObject {
     colour: [f32; 4],
 }
 
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct PhotonUniform {
+    light_position: [f32; 4],
+    light_direction: [f32; 4],
+    intensity: [f32; 4],
+    camera_view_proj: [[f32; 4]; 4],
+    camera: [f32; 4],
+    map: [f32; 4],
+    size: [u32; 4],
+}
+
 /// The compiled passes.
 pub struct Specular {
     trace: wgpu::ComputePipeline,
     combine: wgpu::ComputePipeline,
+    photons: wgpu::ComputePipeline,
+    apply: wgpu::ComputePipeline,
+}
+
+/// The distance impostors of a frame's mirrors and glass, and what every ray search reads.
+pub struct Impostors {
+    targets: SurfaceTargets,
+    size: u32,
+    objects: wgpu::Buffer,
+    environment: wgpu::Buffer,
+    env_size: [u32; 2],
+    env_rotation: f32,
+    has_environment: bool,
+    bounds: (Vec3, f32),
+    names: Vec<String>,
+}
+
+/// One ray search's output: hits (six planes) and weights.
+struct Search {
+    params: wgpu::Buffer,
+    hits: wgpu::Buffer,
+    info: wgpu::Buffer,
+    stride: u32,
 }
 
 /// The traced rays of a frame, waiting for their G-buffers to be shaded.
@@ -135,13 +235,17 @@ fn row_stride(width: u32) -> u32 {
 
 impl Specular {
     pub fn new(ctx: &GpuContext) -> Self {
-        let [trace, combine] = ctx.compute_pipelines("specular.wgsl", SHADER, ["cs_trace", "cs_combine"]);
-        Specular { trace, combine }
+        let [trace, combine, photons, apply] = ctx.compute_pipelines(
+            "specular.wgsl",
+            SHADER,
+            ["cs_trace", "cs_combine", "cs_photons", "cs_caustics_apply"],
+        );
+        Specular { trace, combine, photons, apply }
     }
 
-    /// Impostors, back faces and the ray search (steps 1–3); `passes` gets one entry each.
+    /// The distance impostors of the scene's mirrors and glass (step 1), one pass.
     #[allow(clippy::too_many_arguments)]
-    pub fn trace(
+    pub fn impostors(
         &self,
         ctx: &GpuContext,
         raster: &Raster,
@@ -149,18 +253,14 @@ impl Specular {
         scene: &Scene,
         mesh: &GpuMesh,
         buffers: &SceneBuffers,
-        gbuffer: &SurfaceTargets,
-        camera_view: &ViewUniform,
-        camera_view_proj: Mat4,
         params: &SpecularParams,
-    ) -> Traced {
+    ) -> Impostors {
         let device = &ctx.device;
-        let (width, height) = (scene.camera.width, scene.camera.height);
         let objects = &mesh.specular;
         let max_dimension = device.limits().max_texture_dimension_2d;
         let size = params.impostor_size.clamp(8, max_dimension / 6).min(max_dimension / objects.len().max(1) as u32);
-        // 1. impostors: six faces side by side per object, one object per row
-        let impostors = SurfaceTargets::new(ctx, 6 * size, size * objects.len() as u32, "impostors");
+        // six faces side by side per object, one object per row
+        let targets = SurfaceTargets::new(ctx, 6 * size, size * objects.len() as u32, "impostors");
         let total = mesh.vertices.len() as u32;
         let far = 2.0 * mesh.bounds_radius
             + objects.iter().map(|o| (o.centre - mesh.bounds_centre).length()).fold(0.0, f32::max);
@@ -188,27 +288,8 @@ impl Specular {
         }
         let names: Vec<&str> = objects.iter().map(|o| o.name.as_str()).collect();
         super::timed(ctx, passes, format!("impostors ({}, 6 × {size}² each)", names.join(", ")), || {
-            raster.gbuffer_draws(ctx, buffers, &impostors, &draws, false)
+            raster.gbuffer_draws(ctx, buffers, &targets, &draws, false)
         });
-        // 2. the back faces of the glass objects
-        let glass: Vec<std::ops::Range<u32>> = objects
-            .iter()
-            .filter(|o| matches!(o.delta, DeltaBsdf::Dielectric { .. }))
-            .map(|o| o.range.clone())
-            .collect();
-        // without glass the shader reads no back face, but the binding must exist
-        let back = if glass.is_empty() {
-            SurfaceTargets::new(ctx, 1, 1, "no back faces")
-        } else {
-            SurfaceTargets::new(ctx, width, height, "back faces")
-        };
-        if !glass.is_empty() {
-            let draw = GbufferDraw { view: *camera_view, viewport: [0, 0, width, height], ranges: &glass };
-            super::timed(ctx, passes, "back faces of glass".into(), || {
-                raster.gbuffer_draws(ctx, buffers, &back, std::slice::from_ref(&draw), true)
-            });
-        }
-        // 3. the ray search
         let (env_map, env_size, rotation) = match &scene.environment {
             Some(env) => (
                 env.map.pixels.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect::<Vec<[f32; 4]>>(),
@@ -217,23 +298,81 @@ impl Specular {
             ),
             None => (vec![[0.0; 4]], [1, 1], 0.0),
         };
-        let stride = row_stride(width);
-        let uniform = Params {
-            view_proj: camera_view_proj.to_cols_array_2d(),
-            camera: scene.camera.position.extend(0.0).to_array(),
-            size: [width, height, size, stride],
-            search: [params.search_steps.max(1), params.secant_steps, env_size[0], env_size[1]],
-            env: [rotation, scene.environment.is_some() as u32 as f32, mesh.bounds_radius, 0.0],
-            scene: mesh.bounds_centre.extend(0.0).to_array(),
-        };
         let gpu_objects: Vec<GpuSpecularObject> = objects.iter().map(gpu_object).collect();
-        let storage = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage })
+        let storage = |label: &str, bytes: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
         };
-        let params_buffer = storage("specular params", bytemuck::bytes_of(&uniform), wgpu::BufferUsages::UNIFORM);
-        let objects_buffer =
-            storage("specular objects", bytemuck::cast_slice(&gpu_objects), wgpu::BufferUsages::STORAGE);
-        let env_buffer = storage("environment", bytemuck::cast_slice(&env_map), wgpu::BufferUsages::STORAGE);
+        Impostors {
+            objects: storage("specular objects", bytemuck::cast_slice(&gpu_objects)),
+            environment: storage("environment", bytemuck::cast_slice(&env_map)),
+            targets,
+            size,
+            env_size,
+            env_rotation: rotation,
+            has_environment: scene.environment.is_some(),
+            bounds: (mesh.bounds_centre, mesh.bounds_radius),
+            names: objects.iter().map(|o| o.name.clone()).collect(),
+        }
+    }
+
+    /// The back faces of the glass objects among `ranges` seen from `view` (step 2): the
+    /// farthest surfaces, for the exit of two-sided refraction; 1×1 without glass (the shader
+    /// reads none, but the binding must exist).
+    #[allow(clippy::too_many_arguments)]
+    fn back_faces(
+        &self,
+        ctx: &GpuContext,
+        raster: &Raster,
+        buffers: &SceneBuffers,
+        glass: &[std::ops::Range<u32>],
+        view: &ViewUniform,
+        width: u32,
+        height: u32,
+    ) -> SurfaceTargets {
+        if glass.is_empty() {
+            return SurfaceTargets::new(ctx, 1, 1, "no back faces");
+        }
+        let back = SurfaceTargets::new(ctx, width, height, "back faces");
+        let draw = GbufferDraw { view: *view, viewport: [0, 0, width, height], ranges: glass };
+        raster.gbuffer_draws(ctx, buffers, &back, std::slice::from_ref(&draw), true);
+        back
+    }
+
+    /// The ray search (step 3) for every pixel of `gbuffer` (width × height, seen from `eye`
+    /// through `view_proj`) on a mirror or glass: hits and weights, submitted.
+    #[allow(clippy::too_many_arguments)]
+    fn search(
+        &self,
+        ctx: &GpuContext,
+        impostors: &Impostors,
+        gbuffer: &SurfaceTargets,
+        back: &SurfaceTargets,
+        view_proj: Mat4,
+        eye: Vec3,
+        width: u32,
+        height: u32,
+        params: &SpecularParams,
+    ) -> Search {
+        let device = &ctx.device;
+        let stride = row_stride(width);
+        let (centre, radius) = impostors.bounds;
+        let uniform = Params {
+            view_proj: view_proj.to_cols_array_2d(),
+            camera: eye.extend(0.0).to_array(),
+            size: [width, height, impostors.size, stride],
+            search: [params.search_steps.max(1), params.secant_steps, impostors.env_size[0], impostors.env_size[1]],
+            env: [impostors.env_rotation, impostors.has_environment as u32 as f32, radius, 0.0],
+            scene: centre.extend(0.0).to_array(),
+        };
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("specular params"),
+            contents: bytemuck::bytes_of(&uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let plane_texels = stride as u64 * height as u64;
         let buffer = |label: &str, texels: u64| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -251,9 +390,9 @@ impl Specular {
             view(&gbuffer.normal),
             view(&back.position),
             view(&back.normal),
-            view(&impostors.position),
-            view(&impostors.normal),
-            view(&impostors.albedo),
+            view(&impostors.targets.position),
+            view(&impostors.targets.normal),
+            view(&impostors.targets.albedo),
         ];
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: params_buffer.as_entire_binding() }];
         for (k, texture) in texture_views.iter().enumerate() {
@@ -262,8 +401,8 @@ impl Specular {
                 resource: wgpu::BindingResource::TextureView(texture),
             });
         }
-        entries.push(wgpu::BindGroupEntry { binding: 8, resource: objects_buffer.as_entire_binding() });
-        entries.push(wgpu::BindGroupEntry { binding: 9, resource: env_buffer.as_entire_binding() });
+        entries.push(wgpu::BindGroupEntry { binding: 8, resource: impostors.objects.as_entire_binding() });
+        entries.push(wgpu::BindGroupEntry { binding: 9, resource: impostors.environment.as_entire_binding() });
         entries.push(wgpu::BindGroupEntry { binding: 10, resource: hits.as_entire_binding() });
         entries.push(wgpu::BindGroupEntry { binding: 11, resource: info.as_entire_binding() });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -271,29 +410,77 @@ impl Specular {
             layout: &self.trace.get_bind_group_layout(0),
             entries: &entries,
         });
-        let refl = SurfaceTargets::new(ctx, width, height, "GBuf_refl");
-        let refr = SurfaceTargets::new(ctx, width, height, "GBuf_refr");
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.trace);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        Search { params: params_buffer, hits, info, stride }
+    }
+
+    /// Back faces and the ray search from the camera (steps 2–3); `passes` gets one entry each.
+    #[allow(clippy::too_many_arguments)]
+    pub fn trace(
+        &self,
+        ctx: &GpuContext,
+        raster: &Raster,
+        passes: &mut Vec<super::PassTime>,
+        scene: &Scene,
+        mesh: &GpuMesh,
+        buffers: &SceneBuffers,
+        impostors: &Impostors,
+        gbuffer: &SurfaceTargets,
+        camera_view: &ViewUniform,
+        camera_view_proj: Mat4,
+        params: &SpecularParams,
+    ) -> Traced {
+        let device = &ctx.device;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let glass: Vec<std::ops::Range<u32>> = mesh
+            .specular
+            .iter()
+            .filter(|o| matches!(o.delta, DeltaBsdf::Dielectric { .. }))
+            .map(|o| o.range.clone())
+            .collect();
+        let back = if glass.is_empty() {
+            self.back_faces(ctx, raster, buffers, &glass, camera_view, width, height)
+        } else {
+            super::timed(ctx, passes, "back faces of glass".into(), || {
+                self.back_faces(ctx, raster, buffers, &glass, camera_view, width, height)
+            })
+        };
         let label = format!(
             "reflected and refracted rays ({} search + {} secant steps)",
             params.search_steps.max(1),
             params.secant_steps
         );
-        super::timed(ctx, passes, label, || {
+        let refl = SurfaceTargets::new(ctx, width, height, "GBuf_refl");
+        let refr = SurfaceTargets::new(ctx, width, height, "GBuf_refr");
+        let search = super::timed(ctx, passes, label, || {
+            let search = self.search(
+                ctx,
+                impostors,
+                gbuffer,
+                &back,
+                camera_view_proj,
+                scene.camera.position,
+                width,
+                height,
+                params,
+            );
+            let plane_texels = search.stride as u64 * height as u64;
             let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.trace);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
-            }
             let targets = [&refl.position, &refl.normal, &refl.albedo, &refr.position, &refr.normal, &refr.albedo];
             for (p, texture) in targets.into_iter().enumerate() {
                 encoder.copy_buffer_to_texture(
                     wgpu::TexelCopyBufferInfo {
-                        buffer: &hits,
+                        buffer: &search.hits,
                         layout: wgpu::TexelCopyBufferLayout {
                             offset: p as u64 * plane_texels * 16,
-                            bytes_per_row: Some(stride * 16),
+                            bytes_per_row: Some(search.stride * 16),
                             rows_per_image: Some(height),
                         },
                     },
@@ -302,13 +489,254 @@ impl Specular {
                 );
             }
             ctx.queue.submit([encoder.finish()]);
+            search
         });
-        let report = SpecularReport {
-            objects: objects.iter().map(|o| o.name.clone()).collect(),
-            impostor_size: size,
-            ..Default::default()
+        let report =
+            SpecularReport { objects: impostors.names.clone(), impostor_size: impostors.size, ..Default::default() };
+        Traced {
+            refl,
+            refr,
+            params: search.params,
+            hits: search.hits,
+            info: search.info,
+            report,
+            eye: mesh.specular[0].centre,
+        }
+    }
+
+    /// Caustic maps (5.27–5.29), first half: for every light and every mirror or glass object
+    /// it lights, the object's G-buffer from the light (PGBuf) and its photons traced through
+    /// the impostor like the camera's rays. [`Specular::caustic_vpls`] makes VPLs of them,
+    /// [`Specular::splat`] the caustic buffer.
+    #[allow(clippy::too_many_arguments)]
+    pub fn photon_maps(
+        &self,
+        ctx: &GpuContext,
+        raster: &Raster,
+        passes: &mut Vec<super::PassTime>,
+        scene: &Scene,
+        mesh: &GpuMesh,
+        buffers: &SceneBuffers,
+        impostors: &Impostors,
+        params: &SpecularParams,
+    ) -> PhotonMaps {
+        let map_size = params.caustic_map_size.clamp(8, ctx.device.limits().max_texture_dimension_2d);
+        let mut maps = PhotonMaps { map_size, maps: Vec::new(), skipped: Vec::new() };
+        let everything = 0..mesh.vertices.len() as u32;
+        for light in &scene.spots {
+            for (k, object) in mesh.specular.iter().enumerate() {
+                let pair = format!("{} → {}", light.name, object.name);
+                let Some((matrix, forward, tan_half)) = photon_view(light, object) else {
+                    maps.skipped.push(format!("{pair}: the light is inside the object's bounds or its cone misses it"));
+                    continue;
+                };
+                let view = ViewUniform::perspective(matrix, light.position, forward);
+                let label = format!("caustic map {pair} ({map_size}²)");
+                let (pgbuf, search) = super::timed(ctx, passes, label, || {
+                    let pgbuf = SurfaceTargets::new(ctx, map_size, map_size, "PGBuf");
+                    let draw = GbufferDraw {
+                        view,
+                        viewport: [0, 0, map_size, map_size],
+                        ranges: std::slice::from_ref(&everything),
+                    };
+                    raster.gbuffer_draws(ctx, buffers, &pgbuf, std::slice::from_ref(&draw), false);
+                    let glass: Vec<std::ops::Range<u32>> = match object.delta {
+                        DeltaBsdf::Dielectric { .. } => vec![object.range.clone()],
+                        DeltaBsdf::Mirror { .. } => Vec::new(),
+                    };
+                    let back = self.back_faces(ctx, raster, buffers, &glass, &view, map_size, map_size);
+                    let search =
+                        self.search(ctx, impostors, &pgbuf, &back, matrix, light.position, map_size, map_size, params);
+                    ctx.wait();
+                    (pgbuf, search)
+                });
+                maps.maps.push(PhotonMap {
+                    pair,
+                    light: light.clone(),
+                    object: k as u32,
+                    object_real: object.real,
+                    tan_half,
+                    pgbuf,
+                    search,
+                });
+            }
+        }
+        maps
+    }
+
+    /// Reflected and refracted VPLs (Figure 5.23): every photon of the caustic maps as a
+    /// candidate VPL where it lands, carrying the flux the surface there reflects (albedo ×
+    /// the photon's flux); real where light, object and surface are all real. Read back and
+    /// made on the CPU, like the RSMs' candidates, with which they are drawn.
+    pub fn caustic_vpls(&self, ctx: &GpuContext, maps: &PhotonMaps) -> Vec<super::vpl::GpuVpl> {
+        let mut candidates = Vec::new();
+        let n = maps.map_size as usize;
+        for map in &maps.maps {
+            let positions = ctx.read_texture_rgba32(&map.pgbuf.position);
+            let info = ctx.read_f32(&map.search.info);
+            let hits = ctx.read_f32(&map.search.hits);
+            let plane = |p: usize, x: usize, y: usize| {
+                let texel = (p * map.search.stride as usize * n) + y * map.search.stride as usize + x;
+                Vec3::new(hits[4 * texel], hits[4 * texel + 1], hits[4 * texel + 2])
+            };
+            let role = |p: usize, x: usize, y: usize| {
+                let texel = (p * map.search.stride as usize * n) + y * map.search.stride as usize + x;
+                (hits[4 * texel + 3] + 0.5) as u32 % 4
+            };
+            let delta = 2.0 * map.tan_half / n as f32;
+            for y in 0..n {
+                for x in 0..n {
+                    let pixel = y * n + x;
+                    let weights = |q: usize| &info[16 * pixel + 4 * q..16 * pixel + 4 * q + 4];
+                    if weights(2)[3] < 0.5 || (weights(3)[3] + 0.5) as u32 != map.object {
+                        continue;
+                    }
+                    let p1 = Vec3::from_slice(&positions[pixel][..3]);
+                    let to = p1 - map.light.position;
+                    let u = ((x as f32 + 0.5) * 2.0 / n as f32 - 1.0) * map.tan_half;
+                    let v = ((y as f32 + 0.5) * 2.0 / n as f32 - 1.0) * map.tan_half;
+                    let d_omega = delta * delta / (1.0 + u * u + v * v).powf(1.5);
+                    let flux_in = map.light.intensity_towards(to.normalize()) * d_omega;
+                    for c in 0..2 {
+                        let w = weights(c);
+                        if w[3] != 1.0 {
+                            continue;
+                        }
+                        let albedo = plane(3 * c + 2, x, y);
+                        let flux = flux_in * Vec3::new(w[0], w[1], w[2]) * albedo;
+                        if luminance(flux) <= 0.0 || !flux.is_finite() {
+                            continue;
+                        }
+                        let real = map.light.real && map.object_real && role(3 * c, x, y) == 1;
+                        let position = plane(3 * c, x, y);
+                        let normal = plane(3 * c + 1, x, y).normalize_or_zero();
+                        candidates.push(super::vpl::GpuVpl {
+                            position: position.extend(if real { 1.0 } else { 0.0 }).to_array(),
+                            normal: normal.extend(0.0).to_array(),
+                            flux: flux.extend(1.0).to_array(),
+                        });
+                    }
+                }
+            }
+        }
+        candidates
+    }
+
+    /// Caustic maps, second half: splats every photon into the caustic buffer in the camera's
+    /// pixels. Returns the buffer for [`Specular::apply_caustics`] and the report.
+    pub fn splat(
+        &self,
+        ctx: &GpuContext,
+        maps: &PhotonMaps,
+        scene: &Scene,
+        gbuffer: &SurfaceTargets,
+        camera_view_proj: Mat4,
+    ) -> (wgpu::Buffer, CausticReport) {
+        let device = &ctx.device;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let caustic = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("caustic buffer"),
+            size: 12 * 4 * width as u64 * height as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("photon counts"),
+            contents: &[0u8; 16],
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let cam_position = gbuffer.position.create_view(&Default::default());
+        let cam_normal = gbuffer.normal.create_view(&Default::default());
+        let mut encoder = device.create_command_encoder(&Default::default());
+        for map in &maps.maps {
+            let light = &map.light;
+            let uniform = PhotonUniform {
+                light_position: light.position.extend(if light.real { 1.0 } else { 0.0 }).to_array(),
+                light_direction: light.direction.extend(light.cos_outer).to_array(),
+                intensity: light.intensity.extend(light.cos_inner).to_array(),
+                camera_view_proj: camera_view_proj.to_cols_array_2d(),
+                camera: scene.camera.position.extend(0.5 / scene.camera.fy).to_array(),
+                map: [map.tan_half, maps.map_size as f32, map.object as f32, if map.object_real { 1.0 } else { 0.0 }],
+                size: [width, height, MAX_SPLAT_REACH, 0],
+            };
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("photons"),
+                contents: bytemuck::bytes_of(&uniform),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let light_position = map.pgbuf.position.create_view(&Default::default());
+            let entries = [
+                wgpu::BindGroupEntry { binding: 0, resource: map.search.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&light_position) },
+                wgpu::BindGroupEntry { binding: 10, resource: map.search.hits.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 11, resource: map.search.info.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 18, resource: uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 19, resource: wgpu::BindingResource::TextureView(&cam_position) },
+                wgpu::BindGroupEntry { binding: 20, resource: wgpu::BindingResource::TextureView(&cam_normal) },
+                wgpu::BindGroupEntry { binding: 21, resource: caustic.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 22, resource: counts.as_entire_binding() },
+            ];
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("photons"),
+                layout: &self.photons.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.photons);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(maps.map_size.div_ceil(8), maps.map_size.div_ceil(8), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let counts: Vec<u32> = ctx.read_f32(&counts).into_iter().map(f32::to_bits).collect();
+        let report = CausticReport {
+            map_size: maps.map_size,
+            maps: maps.maps.iter().map(|m| m.pair.clone()).collect(),
+            skipped: maps.skipped.clone(),
+            photons: counts[0],
+            splatted: counts[1],
+            vpls: 0,
         };
-        Traced { refl, refr, params: params_buffer, hits, info, report, eye: objects[0].centre }
+        (caustic, report)
+    }
+
+    /// Adds the caustic buffer's irradiance, as diffuse radiance rho/pi E, to L_rv and (where
+    /// light, object and receiver are real) to L_r.
+    pub fn apply_caustics(
+        &self,
+        ctx: &GpuContext,
+        caustic: &wgpu::Buffer,
+        gbuffer: &SurfaceTargets,
+        solutions: &wgpu::Buffer,
+        width: u32,
+        height: u32,
+    ) {
+        let device = &ctx.device;
+        let uniform = PhotonUniform { size: [width, height, 0, 0], ..bytemuck::Zeroable::zeroed() };
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("caustics apply"),
+            contents: bytemuck::bytes_of(&uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let albedo = gbuffer.albedo.create_view(&Default::default());
+        let entries = [
+            wgpu::BindGroupEntry { binding: 12, resource: solutions.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 18, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 21, resource: caustic.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 23, resource: wgpu::BindingResource::TextureView(&albedo) },
+        ];
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("caustics apply"),
+            layout: &self.apply.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.apply);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
     }
 
     /// L'_rv, L'_r and CI_std (step 5): rewrites `solutions` at the specular pixels and returns
@@ -370,6 +798,34 @@ impl Specular {
             (counts[0], counts[1], counts[2], counts[3], counts[4]);
         base
     }
+}
+
+/// The view of `light` onto `object` for its caustic map: aimed at the object's bounding
+/// sphere, which it just contains; returns (matrix, forward axis, tan of half the fov), or None
+/// where the light is inside the sphere or a spot's cone misses it.
+fn photon_view(light: &SpotLight, object: &SpecularObject) -> Option<(Mat4, Vec3, f32)> {
+    let to = object.centre - light.position;
+    let distance = to.length();
+    if distance <= object.radius * 1.001 {
+        return None;
+    }
+    let forward = to / distance;
+    let half = ((object.radius / distance).asin() * 1.02).min(80f32.to_radians());
+    let off_axis = forward.dot(light.direction).clamp(-1.0, 1.0).acos();
+    if light.cos_outer > -1.0 && off_axis - half > light.cos_outer.clamp(-1.0, 1.0).acos() {
+        return None;
+    }
+    let far = distance + object.radius * 1.01;
+    let near = ((distance - object.radius) * 0.01).max(1e-4);
+    let f = 1.0 / half.tan();
+    let projection = Mat4::from_cols_array_2d(&[
+        [f, 0.0, 0.0, 0.0],
+        [0.0, f, 0.0, 0.0],
+        [0.0, 0.0, far / (near - far), near * far / (near - far)],
+        [0.0, 0.0, -1.0, 0.0],
+    ])
+    .transpose();
+    Some((projection * super::look_at(light.position, forward, super::up_hint(forward)), forward, half.tan()))
 }
 
 fn gpu_object(object: &SpecularObject) -> GpuSpecularObject {

@@ -221,6 +221,70 @@ fn object_at(p: vec3<f32>, m: u32) -> i32 {
     return best;
 }
 
+// The pixel of this view (params.view_proj, width x height) that world point p projects to,
+// or (-1, -1) off the image.
+fn to_pixel(p: vec3<f32>) -> vec2<i32> {
+    let clip = params.view_proj * vec4<f32>(p, 1.0);
+    if clip.w <= 0.0 {
+        return vec2<i32>(-1, -1);
+    }
+    let ndc = clip.xy / clip.w;
+    let q = vec2<i32>(i32(floor((ndc.x * 0.5 + 0.5) * f32(params.size.x))), i32(floor((0.5 - ndc.y * 0.5) * f32(params.size.y))));
+    if q.x < 0 || q.y < 0 || q.x >= i32(params.size.x) || q.y >= i32(params.size.y) {
+        return vec2<i32>(-1, -1);
+    }
+    return q;
+}
+
+// How far inside the back faces point p is, seen from the eye: the back face's distance
+// where p projects minus p's own (negative once p has left the object through them, or where
+// no back face is seen).
+fn inside_back(p: vec3<f32>) -> f32 {
+    let q = to_pixel(p);
+    if q.x < 0 {
+        return -1.0;
+    }
+    let b = textureLoad(back_position, q, 0);
+    if role_of(b.w) == 0u {
+        return -1.0;
+    }
+    return length(b.xyz - params.camera.xyz) - length(p - params.camera.xyz);
+}
+
+// Where the refracted ray from p1 along t1 leaves a glass object through its back faces: a
+// search along the ray in the back-face G-buffer (like the impostor's: linear steps over the
+// bounding diameter, then bisection), which refines Wyman's estimate (the back face's distance
+// along the view ray, the start when the search brackets nothing).
+fn exit_point(p1: vec3<f32>, t1: vec3<f32>, radius: f32, pixel: vec2<i32>) -> vec3<f32> {
+    let v = normalize(p1 - params.camera.xyz);
+    let back = textureLoad(back_position, pixel, 0);
+    var d_view = 0.0;
+    if role_of(back.w) != 0u {
+        d_view = max(dot(back.xyz - p1, v), 0.0);
+    }
+    let steps = 24u;
+    let t_max = 2.0 * radius;
+    var t0 = 0.0;
+    for (var i = 1u; i <= steps; i++) {
+        let t = t_max * f32(i) / f32(steps);
+        if inside_back(p1 + t * t1) < 0.0 {
+            var a = t0;
+            var b = t;
+            for (var j = 0u; j < 8u; j++) {
+                let m = 0.5 * (a + b);
+                if inside_back(p1 + m * t1) < 0.0 {
+                    b = m;
+                } else {
+                    a = m;
+                }
+            }
+            return p1 + 0.5 * (a + b) * t1;
+        }
+        t0 = t;
+    }
+    return p1 + d_view * t1;
+}
+
 @compute @workgroup_size(8, 8)
 fn cs_trace(@builtin(global_invocation_id) id: vec3<u32>) {
     let width = params.size.x;
@@ -268,24 +332,15 @@ fn cs_trace(@builtin(global_invocation_id) id: vec3<u32>) {
     let cos1 = max(-dot(v, n1), 0.0);
     let f1 = fresnel(cos1, 1.0, ior);
     let t1 = refract(v, n1, 1.0 / ior);
-    let back = textureLoad(back_position, vec2<i32>(id.xy), 0);
-    var d_inside = 0.0;
-    if role_of(back.w) != 0u {
-        d_inside = max(dot(back.xyz - p1, v), 0.0);
-    }
-    let p2 = p1 + d_inside * t1;
+    let p2 = exit_point(p1, t1, object.centre_radius.w, vec2<i32>(id.xy));
     // the back face's normal where the exit point projects (the pixel's own where it is off
-    // the object); the back G-buffer's normal faces the camera, so it opposes t1
-    let clip = params.view_proj * vec4<f32>(p2, 1.0);
+    // the object); the back G-buffer's normal faces the eye, so it opposes t1
     var n2 = textureLoad(back_normal, vec2<i32>(id.xy), 0).xyz;
-    if clip.w > 0.0 {
-        let ndc = clip.xy / clip.w;
-        let q = vec2<i32>(i32((ndc.x * 0.5 + 0.5) * f32(width)), i32((0.5 - ndc.y * 0.5) * f32(height)));
-        if q.x >= 0 && q.y >= 0 && q.x < i32(width) && q.y < i32(height) {
-            let at = textureLoad(back_position, q, 0);
-            if role_of(at.w) != 0u {
-                n2 = textureLoad(back_normal, q, 0).xyz;
-            }
+    let q2 = to_pixel(p2);
+    if q2.x >= 0 {
+        let at = textureLoad(back_position, q2, 0);
+        if role_of(at.w) != 0u {
+            n2 = textureLoad(back_normal, q2, 0).xyz;
         }
     }
     n2 = normalize(n2);
@@ -329,13 +384,8 @@ fn encode(c: vec3<f32>) -> vec3<f32> {
 // The camera pixel that shows world point h, when the camera sees h itself there and it is
 // real (the validation of eq. 5.24); -1 otherwise.
 fn back_project(h: vec3<f32>) -> i32 {
-    let clip = params.view_proj * vec4<f32>(h, 1.0);
-    if clip.w <= 0.0 {
-        return -1;
-    }
-    let ndc = clip.xy / clip.w;
-    let q = vec2<i32>(i32(floor((ndc.x * 0.5 + 0.5) * f32(params.size.x))), i32(floor((0.5 - ndc.y * 0.5) * f32(params.size.y))));
-    if q.x < 0 || q.y < 0 || q.x >= i32(params.size.x) || q.y >= i32(params.size.y) {
+    let q = to_pixel(h);
+    if q.x < 0 {
         return -1;
     }
     let seen = textureLoad(g_position, q, 0);
@@ -415,4 +465,221 @@ fn cs_combine(@builtin(global_invocation_id) id: vec3<u32>) {
         solutions[pixel + n] = vec4<f32>(l_r_projected, 1.0);
         base[pixel] = vec4<f32>(encode(ci), 1.0);
     }
+}
+
+// ---- caustic maps (5.27-5.29): photons from a light through one mirror or glass object ----
+//
+// cs_trace has run from the light's view (params: the light's view and the light as "camera"),
+// so hits and info hold, per light pixel on the object, where its reflected and refracted
+// photons land. cs_photons gives each photon its flux and splats it into the caustic buffer
+// in the camera's pixels: a disc kernel on the receiving surface whose radius is the photon's
+// own footprint (from the hits of its neighbours in the light's pixel grid), summed in 64-bit
+// fixed point so that the result does not depend on the order of the atomic additions.
+// cs_caustics_apply adds rho/pi E to L_rv, and to L_r where light, object and receiver are all
+// real (5.29).
+
+struct Photons {
+    light_position: vec4<f32>,  // xyz; w: 1 real light
+    light_direction: vec4<f32>, // xyz: spot axis; w: cos outer
+    intensity: vec4<f32>,       // rgb: W/sr; w: cos inner
+    camera_view_proj: mat4x4<f32>,
+    camera: vec4<f32>,          // xyz: camera position; w: tan of half a camera pixel (y)
+    map: vec4<f32>,             // x: tan of half the map's fov; y: map size; z: object index; w: 1 real object
+    size: vec4<u32>,            // camera width, height, most splat half-width in pixels, 0
+}
+
+@group(0) @binding(18) var<uniform> photons: Photons;
+@group(0) @binding(19) var cam_position: texture_2d<f32>;
+@group(0) @binding(20) var cam_normal: texture_2d<f32>;
+// per camera pixel 12 words: E of all photons (r lo, r hi, g lo, g hi, b lo, b hi), then the
+// same for photons whose light, object and receiver are real
+@group(0) @binding(21) var<storage, read_write> caustic: array<atomic<u32>>;
+// photons with flux, photons that reached a camera pixel
+@group(0) @binding(22) var<storage, read_write> photon_counts: array<atomic<u32>, 4>;
+@group(0) @binding(23) var cam_albedo: texture_2d<f32>;
+
+const FIXED_SCALE: f32 = 1048576.0; // 2^20 per W/m^2
+const TWO_32: f32 = 4294967296.0;
+
+fn add_fixed(index: u32, value: f32) {
+    let s = max(value, 0.0) * FIXED_SCALE;
+    let hi = floor(s / TWO_32);
+    let lo = u32(s - hi * TWO_32);
+    let old = atomicAdd(&caustic[index], lo);
+    var carry = u32(hi);
+    if old + lo < old {
+        carry += 1u;
+    }
+    if carry > 0u {
+        atomicAdd(&caustic[index + 1u], carry);
+    }
+}
+
+fn read_fixed(index: u32) -> f32 {
+    let lo = atomicLoad(&caustic[index]);
+    let hi = atomicLoad(&caustic[index + 1u]);
+    return (f32(hi) * TWO_32 + f32(lo)) / FIXED_SCALE;
+}
+
+// Radiant intensity of the light towards `dir` (as shade.wgsl's spot_intensity).
+fn light_intensity(dir: vec3<f32>) -> vec3<f32> {
+    let c = dot(dir, photons.light_direction.xyz);
+    let cos_inner = photons.intensity.w;
+    let cos_outer = photons.light_direction.w;
+    if c >= cos_inner {
+        return photons.intensity.xyz;
+    }
+    if c <= cos_outer {
+        return vec3<f32>(0.0);
+    }
+    let t = (c - cos_outer) / (cos_inner - cos_outer);
+    return photons.intensity.xyz * (t * t * (3.0 - 2.0 * t));
+}
+
+// The hit of component c of light pixel q, when it is a photon of the target object.
+fn photon_hit(c: u32, q: vec2<i32>) -> vec4<f32> {
+    let n = i32(params.size.x);
+    if q.x < 0 || q.y < 0 || q.x >= n || q.y >= n {
+        return vec4<f32>(0.0);
+    }
+    let pixel = u32(q.y) * params.size.x + u32(q.x);
+    if info[4u * pixel + c].w != STATUS_HIT || u32(info[4u * pixel + 3u].w + 0.5) != u32(photons.map.z + 0.5) {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(hits[plane(3u * c, u32(q.x), u32(q.y))].xyz, 1.0);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_photons(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = params.size.x;
+    if id.x >= n || id.y >= n {
+        return;
+    }
+    let pixel = id.y * n + id.x;
+    if info[4u * pixel + 2u].w < 0.5 || u32(info[4u * pixel + 3u].w + 0.5) != u32(photons.map.z + 0.5) {
+        return;
+    }
+    let p1 = textureLoad(g_position, vec2<i32>(id.xy), 0).xyz;
+    let to_p1 = p1 - photons.light_position.xyz;
+    let omega = normalize(to_p1);
+    // the solid angle of this light pixel: (2 tan(half) / size)^2 cos^3 of its angle off the axis
+    let delta = 2.0 * photons.map.x / photons.map.y;
+    let ndc = vec2<f32>((f32(id.x) + 0.5) / photons.map.y * 2.0 - 1.0, 1.0 - (f32(id.y) + 0.5) / photons.map.y * 2.0);
+    let plane_xy = ndc * photons.map.x;
+    let cos_axis = 1.0 / sqrt(1.0 + dot(plane_xy, plane_xy));
+    let d_omega = delta * delta * cos_axis * cos_axis * cos_axis;
+    let flux_in = light_intensity(omega) * d_omega;
+    if all(flux_in <= vec3<f32>(0.0)) {
+        return;
+    }
+    let real_path = photons.light_position.w > 0.5 && photons.map.w > 0.5;
+    for (var c = 0u; c < 2u; c++) {
+        let here = photon_hit(c, vec2<i32>(id.xy));
+        if here.w < 0.5 {
+            continue;
+        }
+        let weight = info[4u * pixel + c].xyz;
+        let flux = flux_in * weight;
+        if all(flux <= vec3<f32>(0.0)) {
+            continue;
+        }
+        atomicAdd(&photon_counts[0], 1u);
+        let h = here.xyz;
+        let n_h = normalize(hits[plane(3u * c + 1u, id.x, id.y)].xyz);
+        // the photon's footprint: the spacing of its neighbours' hits in the light's grid
+        let path = length(to_p1) + length(h - p1);
+        let unfocused = path * delta;
+        var spacing = 0.0;
+        var found = 0u;
+        for (var k = 0u; k < 4u; k++) {
+            var step = vec2<i32>(1, 0);
+            if k == 1u {
+                step = vec2<i32>(-1, 0);
+            } else if k == 2u {
+                step = vec2<i32>(0, 1);
+            } else if k == 3u {
+                step = vec2<i32>(0, -1);
+            }
+            let other = photon_hit(c, vec2<i32>(id.xy) + step);
+            if other.w > 0.5 {
+                spacing = max(spacing, length(other.xyz - h));
+                found += 1u;
+            }
+        }
+        if found == 0u {
+            spacing = unfocused;
+        }
+        // project the hit into the camera
+        let clip = photons.camera_view_proj * vec4<f32>(h, 1.0);
+        if clip.w <= 0.0 {
+            continue;
+        }
+        let cam_ndc = clip.xy / clip.w;
+        let width = photons.size.x;
+        let height = photons.size.y;
+        let centre = vec2<f32>((cam_ndc.x * 0.5 + 0.5) * f32(width), (0.5 - cam_ndc.y * 0.5) * f32(height));
+        let cam_pixel = 2.0 * photons.camera.w * length(h - photons.camera.xyz); // a camera pixel at h
+        let r = max(clamp(1.25 * spacing, 0.1 * unfocused, 8.0 * unfocused), 1.5 * cam_pixel);
+        let reach = min(i32(ceil(r / max(cam_pixel, 1e-9))), i32(photons.size.z));
+        let lo = vec2<i32>(floor(centre)) - vec2<i32>(reach);
+        let hi = vec2<i32>(floor(centre)) + vec2<i32>(reach);
+        if hi.x < 0 || hi.y < 0 || lo.x >= i32(width) || lo.y >= i32(height) {
+            continue;
+        }
+        let norm = 2.0 / (PI * r * r);
+        var reached = false;
+        for (var y = max(lo.y, 0); y <= min(hi.y, i32(height) - 1); y++) {
+            for (var x = max(lo.x, 0); x <= min(hi.x, i32(width) - 1); x++) {
+                let g = textureLoad(cam_position, vec2<i32>(x, y), 0);
+                if role_of(g.w) == 0u {
+                    continue;
+                }
+                let dx = g.xyz - h;
+                let d2 = dot(dx, dx);
+                if d2 >= r * r || abs(dot(dx, n_h)) > 0.25 * r + 1e-4 {
+                    continue;
+                }
+                let n_recv = textureLoad(cam_normal, vec2<i32>(x, y), 0).xyz;
+                if dot(n_recv, n_h) < 0.5 {
+                    continue;
+                }
+                let e = flux * (norm * (1.0 - d2 / (r * r)));
+                let index = 12u * (u32(y) * width + u32(x));
+                add_fixed(index, e.x);
+                add_fixed(index + 2u, e.y);
+                add_fixed(index + 4u, e.z);
+                if real_path && role_of(g.w) == 1u {
+                    add_fixed(index + 6u, e.x);
+                    add_fixed(index + 8u, e.y);
+                    add_fixed(index + 10u, e.z);
+                }
+                reached = true;
+            }
+        }
+        if reached {
+            atomicAdd(&photon_counts[1], 1u);
+        }
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_caustics_apply(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = photons.size.x;
+    let height = photons.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let index = 12u * pixel;
+    let all_e = vec3<f32>(read_fixed(index), read_fixed(index + 2u), read_fixed(index + 4u));
+    if all(all_e == vec3<f32>(0.0)) {
+        return;
+    }
+    let real_e = vec3<f32>(read_fixed(index + 6u), read_fixed(index + 8u), read_fixed(index + 10u));
+    let rho = textureLoad(cam_albedo, vec2<i32>(id.xy), 0).xyz / PI;
+    let n = width * height;
+    let rv = solutions[pixel];
+    solutions[pixel] = vec4<f32>(rv.xyz + rho * all_e, rv.w);
+    let r = solutions[pixel + n];
+    solutions[pixel + n] = vec4<f32>(r.xyz + rho * real_e, r.w);
 }

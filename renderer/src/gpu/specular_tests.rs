@@ -167,3 +167,161 @@ fn a_virtual_glass_sphere_is_traced_through_two_interfaces_and_accounts_for_ever
     assert!(names.iter().any(|n| n.starts_with("back faces of glass")), "{names:?}");
     assert!(out.composite.pixels.iter().all(|p| p.is_finite()));
 }
+
+/// A virtual mirror lying on a real floor under a spot light throws the light's mirror image
+/// onto a real wall: there the caustic map's irradiance must be the mirrored light's,
+/// E = R I cos θ / d² from the light's reflection in the mirror's plane (analytic), inside
+/// the reflected patch. The caustic is what L_rv gains over a frame with caustics off.
+#[test]
+fn a_virtual_mirror_casts_the_irradiance_of_the_mirrored_light() {
+    let Some(r) = renderer_or_skip() else { return };
+    let scene = mirror_caustic_scene();
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let photo = crate::test_support::grey_photo(&scene);
+    let render = |caustic_map_size| {
+        let specular = specular::SpecularParams { caustic_map_size, ..Default::default() };
+        r.render(&scene, &photo, &DirParams { condition: GiLevel::Shadows, specular, ..Default::default() }).unwrap()
+    };
+    let with = render(256);
+    let without = render(0);
+    let caustics = with.report.specular.as_ref().and_then(|s| s.caustics.clone()).expect("caustic maps ran");
+    assert_eq!(caustics.maps, ["spot → mirror"]);
+    assert!(caustics.photons > 10_000 && caustics.splatted > 0, "{caustics:?}");
+    let skipped = without.report.specular.as_ref().unwrap().caustics_skipped.clone();
+    assert!(skipped.is_some_and(|why| why.contains("caustic_map_size is 0")));
+    let spot = &scene.spots[0];
+    let reflectance = match scene.materials.iter().find_map(|m| m.delta.clone()) {
+        Some(crate::material::DeltaBsdf::Mirror { reflectance }) => reflectance.x,
+        other => panic!("not a mirror: {other:?}"),
+    };
+    let mesh = mesh::build(&scene);
+    let y_mirror = mesh.vertices[mesh.specular[0].range.start as usize].position[1];
+    let mirrored = Vec3::new(spot.position.x, 2.0 * y_mirror - spot.position.y, spot.position.z);
+    let (mut checked, mut within, mut ratios) = (0, 0, Vec::new());
+    for y in 0..height {
+        for x in 0..width {
+            let k = (y * width + x) as usize;
+            let ray = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            if ray.dir.z >= 0.0 {
+                continue;
+            }
+            let wall = ray.origin + ray.dir * ((-1.0 - ray.origin.z) / ray.dir.z);
+            if wall.y < 0.05 || out_of(wall.x, 1.9) {
+                continue;
+            }
+            // where the mirrored light's ray to this wall point crosses the mirror's plane:
+            // well inside the mirror (the splat blurs the patch's edge)
+            let to = wall - mirrored;
+            let m = mirrored + to * ((y_mirror - mirrored.y) / to.y);
+            if out_of(m.x, 0.3 * 0.7) || out_of(m.z, 0.3 * 0.7) {
+                continue;
+            }
+            let d2 = to.length_squared();
+            let cos_wall = (-to.normalize()).dot(Vec3::Z).abs();
+            let expected = reflectance * spot.intensity.x * cos_wall / d2 * 0.5 / std::f32::consts::PI;
+            let got = with.l_rv.pixels[k].x - without.l_rv.pixels[k].x;
+            checked += 1;
+            ratios.push(got / expected);
+            if (got / expected - 1.0).abs() < 0.15 {
+                within += 1;
+            }
+        }
+    }
+    ratios.sort_by(f32::total_cmp);
+    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(f32::NAN);
+    eprintln!("{within} of {checked} wall pixels within 15 %; median ratio {median}; {caustics:?}");
+    assert!(checked > 150, "too few wall pixels in the reflected patch: {checked}");
+    assert!((median - 1.0).abs() < 0.05, "median caustic / analytic irradiance {median}");
+    assert!(within as f32 >= 0.9 * checked as f32, "{within} of {checked} within 15 % (median ratio {median})");
+}
+
+fn out_of(value: f32, half: f32) -> bool {
+    value.abs() > half
+}
+
+/// A virtual mirror lying on a real floor, a spot light above that it reflects onto a real wall.
+fn mirror_caustic_scene() -> Scene {
+    let toml = r#"
+        [camera]
+        width = 96
+        height = 72
+        fov_y_deg = 50
+        position = [0.0, 0.9, 2.0]
+        look_at = [0.0, 0.8, -1.0]
+        [materials.white]
+        albedo = 0.5
+        [materials.mirror]
+        kind = "mirror"
+        [[objects]]
+        name = "floor"
+        role = "real"
+        shape = "quad"
+        size = [4.0, 4.0]
+        material = "white"
+        [[objects]]
+        name = "wall"
+        role = "real"
+        shape = "quad"
+        size = [4.0, 3.0]
+        rotate_deg = [90.0, 0.0, 0.0]
+        translate = [0.0, 1.5, -1.0]
+        material = "white"
+        [[objects]]
+        name = "mirror"
+        role = "virtual"
+        shape = "quad"
+        size = [0.6, 0.6]
+        translate = [0.0, 0.01, 0.0]
+        material = "mirror"
+        [[lights]]
+        name = "spot"
+        kind = "spot"
+        position = [0.0, 1.0, 1.0]
+        target = [0.0, 0.01, 0.0]
+        inner_deg = 40.0
+        outer_deg = 40.0
+        intensity = 4.0
+    "#;
+    let desc = SceneDesc::from_toml(toml, "mirror-caustic.toml").unwrap();
+    Scene::from_desc(desc, std::path::Path::new("."), "mirror-caustic").unwrap()
+}
+
+/// Reflected VPLs (Figure 5.23): with gi, VPLs are also drawn where the mirror's caustic lands,
+/// and together they carry the flux the wall reflects of it, albedo × R × I × the mirror's
+/// solid angle seen from the light (integrated here over the mirror).
+#[test]
+fn the_caustics_reflected_vpls_carry_the_flux_the_wall_reflects() {
+    let Some(r) = renderer_or_skip() else { return };
+    let scene = mirror_caustic_scene();
+    let photo = crate::test_support::grey_photo(&scene);
+    let out = r.render(&scene, &photo, &DirParams { vpls: 256, bounces: 1, ..Default::default() }).unwrap();
+    let caustic: Vec<_> = out.vpls.iter().filter(|v| v.flux[3] > 0.5).collect();
+    let report = out.report.specular.as_ref().and_then(|s| s.caustics.clone()).unwrap();
+    assert_eq!(report.vpls, caustic.len());
+    assert!(caustic.len() >= 8, "{} reflected VPLs of {}", caustic.len(), out.vpls.len());
+    // on the wall (z = -1), not real (the mirror is virtual)
+    for v in &caustic {
+        assert!((v.position[2] + 1.0).abs() < 0.02 && v.position[3] == 0.0, "{v:?}");
+        assert!(v.normal[2] > 0.99, "{v:?}");
+    }
+    let got: f32 = caustic.iter().map(|v| v.flux[0]).sum();
+    let spot = &scene.spots[0];
+    let (half, n) = (0.3f32, 200);
+    let mut expected = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let p = Vec3::new(
+                -half + (i as f32 + 0.5) * 2.0 * half / n as f32,
+                0.01,
+                -half + (j as f32 + 0.5) * 2.0 * half / n as f32,
+            );
+            let to = p - spot.position;
+            let d2 = to.length_squared();
+            let cos = (-to.normalize()).dot(Vec3::Y);
+            expected += spot.intensity_towards(to.normalize()).x * cos / d2 * (2.0 * half / n as f32).powi(2);
+        }
+    }
+    expected *= 0.5; // the wall's albedo (the mirror's reflectance is 1)
+    eprintln!("reflected VPLs: {} carrying {got} W, expected {expected} W", caustic.len());
+    assert!((got / expected - 1.0).abs() < 0.1, "reflected VPLs carry {got} W, the wall reflects {expected} W");
+}

@@ -29,6 +29,8 @@ pub struct GpuVpl {
     pub position: [f32; 4],
     /// xyz; w: ir(VPL) (1: only the real-only solution).
     pub normal: [f32; 4],
+    /// rgb: reflected flux (W); w: 1 for a reflected or refracted VPL of a caustic (Figure
+    /// 5.23), 0 otherwise (the shaders read only rgb).
     pub flux: [f32; 4],
 }
 
@@ -130,7 +132,19 @@ fn candidate(
 /// Draws `count` VPLs from the RSMs of the given lights (spot lights and environment
 /// directions).
 pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
-    let mut candidates = Vec::new();
+    create_with(lights, &[], count)
+}
+
+/// [`create`], with further candidate VPLs drawn together with the RSMs' in proportion to
+/// their flux: the reflected and refracted VPLs of caustics.
+pub fn create_with(lights: &[(RsmLight, RsmTexels)], extra: &[GpuVpl], count: u32) -> Vec<GpuVpl> {
+    let mut candidates: Vec<Candidate> = extra
+        .iter()
+        .filter_map(|v| {
+            let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
+            (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
+        })
+        .collect();
     for (light, rsm) in lights {
         let r_pl = if light.real() { 1.0 } else { 0.0 };
         for idx in 0..rsm.real.len() {
@@ -163,7 +177,7 @@ fn draw(candidates: &[Candidate], count: u32) -> Vec<GpuVpl> {
         .map(|(i, p)| {
             let scale = (1.0 / (count as f64 * p)) as f32;
             let mut vpl = candidates[i].vpl;
-            vpl.flux = [vpl.flux[0] * scale, vpl.flux[1] * scale, vpl.flux[2] * scale, 0.0];
+            vpl.flux = [vpl.flux[0] * scale, vpl.flux[1] * scale, vpl.flux[2] * scale, vpl.flux[3]];
             vpl
         })
         .collect()
