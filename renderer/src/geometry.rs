@@ -282,6 +282,73 @@ pub fn frustum(r0: f32, r1: f32, height: f32, segments: u32, caps: bool) -> Vec<
 
 /// A tube swept along a polyline `path` with per-point radii (closed at both ends), with smooth
 /// normals: used for the banana.
+/// A closed solid of revolution about +Y: `profile` holds `[radius, height]` from the bottom
+/// up; an end of radius 0 is a pole, any other end gets a flat cap. Normals are smooth, from
+/// the profile's slope (averaged over the two segments at each ring), so that glass and
+/// mirrors see the turned surface, not its facets.
+pub fn lathe(profile: &[[f32; 2]], segments: u32) -> Vec<Triangle> {
+    let n = segments.max(3) as usize;
+    let m = profile.len();
+    // the outward normal of each profile segment in the (r, y) plane
+    let segment_normal = |i: usize| {
+        let (dr, dy) = (profile[i + 1][0] - profile[i][0], profile[i + 1][1] - profile[i][1]);
+        Vec2::new(dy, -dr).normalize_or_zero()
+    };
+    let ring_normal: Vec<Vec2> = (0..m)
+        .map(|i| {
+            let before = if i > 0 { segment_normal(i - 1) } else { Vec2::ZERO };
+            let after = if i + 1 < m { segment_normal(i) } else { Vec2::ZERO };
+            let n = (before + after).normalize_or_zero();
+            if n == Vec2::ZERO { Vec2::Y } else { n }
+        })
+        .collect();
+    let at = |i: usize, k: usize| {
+        let a = 2.0 * PI * k as f32 / n as f32;
+        let (c, s) = (a.cos(), a.sin());
+        let [r, y] = profile[i];
+        let nr = ring_normal[i];
+        (Vec3::new(r * c, y, r * s), Vec3::new(nr.x * c, nr.y, nr.x * s).normalize())
+    };
+    let mut out = Vec::new();
+    let uv = [Vec2::ZERO; 3];
+    for i in 0..m - 1 {
+        for k in 0..n {
+            let k1 = (k + 1) % n;
+            let (a, na) = at(i, k);
+            let (b, nb) = at(i, k1);
+            let (c, nc) = at(i + 1, k1);
+            let (d, nd) = at(i + 1, k);
+            // outward winding: counter-clockwise seen from outside
+            for tri in [
+                Triangle { p: [a, c, b], n: Some([na, nc, nb]), uv },
+                Triangle { p: [a, d, c], n: Some([na, nd, nc]), uv },
+            ] {
+                if tri.geometric_normal().length_squared() > 0.0 {
+                    out.push(tri);
+                }
+            }
+        }
+    }
+    for (i, down) in [(0usize, true), (m - 1, false)] {
+        let [r, y] = profile[i];
+        if r <= 0.0 {
+            continue;
+        }
+        let centre = Vec3::new(0.0, y, 0.0);
+        let normal = if down { -Vec3::Y } else { Vec3::Y };
+        for k in 0..n {
+            let (a, _) = at(i, k);
+            let (b, _) = at(i, (k + 1) % n);
+            let mut tri = Triangle { p: [centre, a, b], n: Some([normal; 3]), uv };
+            if tri.geometric_normal().dot(normal) < 0.0 {
+                tri.p.swap(1, 2);
+            }
+            out.push(tri);
+        }
+    }
+    out
+}
+
 pub fn tube(path: &[Vec3], radii: &[f32], segments: u32) -> Vec<Triangle> {
     let n = segments.max(3) as usize;
     let m = path.len();
@@ -347,4 +414,51 @@ pub fn tube(path: &[Vec3], radii: &[f32], segments: u32) -> Vec<Triangle> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Volume by the divergence theorem: positive when every triangle faces outward.
+    fn volume(tris: &[Triangle]) -> f32 {
+        tris.iter().map(|t| t.p[0].dot(t.p[1].cross(t.p[2])) / 6.0).sum()
+    }
+
+    #[test]
+    fn a_lathe_is_closed_faces_outward_and_has_the_turned_volume() {
+        // a cylinder of radius 0.1 and height 0.2 (capped), and a sphere of radius 0.1 (poles)
+        let cylinder = lathe(&[[0.1, 0.0], [0.1, 0.2]], 256);
+        let v = volume(&cylinder);
+        let exact = std::f32::consts::PI * 0.01 * 0.2;
+        assert!((v / exact - 1.0).abs() < 1e-3, "cylinder volume {v} against {exact}");
+        let profile: Vec<[f32; 2]> = (0..=200)
+            .map(|i| {
+                let t = std::f32::consts::PI * i as f32 / 200.0;
+                [0.1 * t.sin(), 0.1 - 0.1 * t.cos()]
+            })
+            .collect();
+        let sphere = lathe(&profile, 256);
+        let exact = 4.0 / 3.0 * std::f32::consts::PI * 1e-3;
+        assert!((volume(&sphere) / exact - 1.0).abs() < 2e-3, "sphere volume {}", volume(&sphere));
+        // every edge shared by exactly two triangles (watertight), in opposite directions
+        let key = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+        let mut edges = std::collections::HashMap::new();
+        for t in &cylinder {
+            for e in 0..3 {
+                *edges.entry((key(t.p[e]), key(t.p[(e + 1) % 3]))).or_insert(0) += 1;
+            }
+        }
+        for ((a, b), count) in &edges {
+            assert_eq!(*count, 1, "edge used twice in one direction");
+            assert_eq!(edges.get(&(*b, *a)), Some(&1), "an open edge");
+        }
+        // smooth normals agree with the sphere's radial direction
+        for t in &sphere {
+            for k in 0..3 {
+                let radial = (t.p[k] - Vec3::new(0.0, 0.1, 0.0)).normalize();
+                assert!(t.n.unwrap()[k].dot(radial) > 0.999, "{:?}", t.n.unwrap()[k]);
+            }
+        }
+    }
 }

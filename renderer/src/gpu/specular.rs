@@ -30,8 +30,8 @@
 //! the per-component rule contains that exception and equals the thesis where both or neither
 //! are valid.
 //!
-//! 6. **caustic maps** (5.27–5.29; with `shadows` and `gi`, [`SpecularParams::caustic_map_size`]
-//!    > 0): per spot or point light and per object it lights, the object's G-buffer from the
+//! 6. **caustic maps** (5.27–5.29; with `shadows` and `gi`, unless
+//!    [`SpecularParams::caustic_map_size`] is 0): per spot or point light and per object it lights, the object's G-buffer from the
 //!    light (PGBuf, aimed at the object's bounding sphere — the thesis renders from the spot's
 //!    view) and its photons traced by the same ray search (for glass, through both
 //!    interfaces); each photon carries I(ω) dω × its Fresnel and transmittance weight and is

@@ -619,7 +619,7 @@ fn cs_photons(@builtin(global_invocation_id) id: vec3<u32>) {
         let height = photons.size.y;
         let centre = vec2<f32>((cam_ndc.x * 0.5 + 0.5) * f32(width), (0.5 - cam_ndc.y * 0.5) * f32(height));
         let cam_pixel = 2.0 * photons.camera.w * length(h - photons.camera.xyz); // a camera pixel at h
-        let r = max(clamp(1.25 * spacing, 0.1 * unfocused, 8.0 * unfocused), 1.5 * cam_pixel);
+        let r = max(clamp(2.0 * spacing, 0.1 * unfocused, 8.0 * unfocused), 1.5 * cam_pixel);
         let reach = min(i32(ceil(r / max(cam_pixel, 1e-9))), i32(photons.size.z));
         let lo = vec2<i32>(floor(centre)) - vec2<i32>(reach);
         let hi = vec2<i32>(floor(centre)) + vec2<i32>(reach);

@@ -325,3 +325,132 @@ fn the_caustics_reflected_vpls_carry_the_flux_the_wall_reflects() {
     eprintln!("reflected VPLs: {} carrying {got} W, expected {expected} W", caustic.len());
     assert!((got / expected - 1.0).abs() < 0.1, "reflected VPLs carry {got} W, the wall reflects {expected} W");
 }
+
+/// Thesis 5.24's invariant for glass: a virtual glass sphere above a real floor shows, where its
+/// refracted ray meets floor the camera sees, the photograph's pixel there (back-projection).
+/// The photograph codes each pixel's position (red x / w, green y / h, blue 0.5), the sphere has
+/// no absorption and its reflected rays leave a scene without environment, so the composite is
+/// k × the photograph's linear colour at the analytic refracted floor point (k the Fresnel
+/// transmission, recovered from blue).
+#[test]
+fn a_virtual_glass_sphere_shows_the_refracted_floor_from_the_photograph() {
+    let Some(r) = renderer_or_skip() else { return };
+    let toml = r#"
+        [camera]
+        width = 96
+        height = 72
+        fov_y_deg = 40
+        position = [0.0, 1.2, 1.5]
+        look_at = [0.0, 0.5, 0.0]
+        [materials.floor]
+        albedo = 0.6
+        [materials.glass]
+        kind = "glass"
+        ior = 1.5
+        [[objects]]
+        name = "floor"
+        role = "real"
+        shape = "quad"
+        size = [6.0, 6.0]
+        material = "floor"
+        [[objects]]
+        name = "ball"
+        role = "virtual"
+        shape = "sphere"
+        radius = 0.15
+        translate = [0.0, 0.8, 0.0]
+        material = "glass"
+        [[lights]]
+        name = "spot"
+        kind = "spot"
+        position = [0.0, 2.0, 0.5]
+        target = [0.0, 0.0, 0.0]
+        inner_deg = 60.0
+        outer_deg = 70.0
+        intensity = 2.0
+    "#;
+    let desc = SceneDesc::from_toml(toml, "glass-ball.toml").unwrap();
+    let scene = Scene::from_desc(desc, std::path::Path::new("."), "glass-ball").unwrap();
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let photo = coordinate_photo(width, height);
+    let out = r.render(&scene, &photo, &DirParams { condition: GiLevel::None, ..Default::default() }).unwrap();
+    let (centre, radius, ior) = (Vec3::new(0.0, 0.8, 0.0), 0.15f32, 1.5f32);
+    let sphere_hit = |o: Vec3, d: Vec3, far: bool| {
+        let oc = o - centre;
+        let b = oc.dot(d);
+        let disc = b * b - (oc.length_squared() - radius * radius);
+        (disc > 0.0).then(|| o + d * (-b + if far { disc.sqrt() } else { -disc.sqrt() }))
+    };
+    let refract = |d: Vec3, n: Vec3, eta: f32| {
+        let c = -d.dot(n);
+        let k = 1.0 - eta * eta * (1.0 - c * c);
+        (k >= 0.0).then(|| (eta * d + (eta * c - k.sqrt()) * n).normalize())
+    };
+    let decode = |c: f32| c.max(0.0).powf(2.2);
+    let (mut checked, mut projected, mut agree) = (0, 0, 0);
+    for y in 0..height {
+        for x in 0..width {
+            let k = (y * width + x) as usize;
+            let ray = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            // well inside the silhouette: the tessellated sphere and the analytic one agree there
+            // (towards the rim the refraction magnifies a facet's normal error: a tenth of a
+            // pixel on the ball moves the floor point by a pixel)
+            let oc = ray.origin - centre;
+            let b = oc.dot(ray.dir);
+            let miss = (oc.length_squared() - b * b).sqrt();
+            if miss > 0.55 * radius || out.flags[k] != crate::surface::VIRTUAL {
+                continue;
+            }
+            let Some(p1) = sphere_hit(ray.origin, ray.dir, false) else { continue };
+            let n1 = (p1 - centre).normalize();
+            let reflected = ray.dir - 2.0 * ray.dir.dot(n1) * n1;
+            let Some(t1) = refract(ray.dir, n1, 1.0 / ior) else { continue };
+            let Some(p2) = sphere_hit(p1 + t1 * 1e-4, t1, true) else { continue };
+            let Some(t2) = refract(t1, -(p2 - centre).normalize(), ior) else { continue };
+            // only where the reflected ray leaves the scene and the refracted one meets the floor
+            if reflected.y < 0.0 || t2.y >= -1e-3 {
+                continue;
+            }
+            let floor = p2 + t2 * (-p2.y / t2.y);
+            let Some((u, v)) = scene.camera.project(floor) else { continue };
+            if u < 2.0 || v < 2.0 || u > width as f32 - 2.0 || v > height as f32 - 2.0 {
+                continue;
+            }
+            // visible: the camera's ray to that floor point does not pass through the ball
+            let to = floor - scene.camera.position;
+            if sphere_hit(scene.camera.position, to.normalize(), false)
+                .is_some_and(|h| (h - scene.camera.position).length() < to.length())
+            {
+                continue;
+            }
+            checked += 1;
+            let shown = out.composite.pixels[k];
+            let scale = decode(shown.z) / decode(0.5);
+            if !(scale > 0.5) {
+                eprintln!("pixel ({x}, {y}): not from the photograph (transmission {scale})");
+                continue;
+            }
+            projected += 1;
+            let su = (decode(shown.x) / scale).powf(1.0 / 2.2) * width as f32;
+            let sv = (decode(shown.y) / scale).powf(1.0 / 2.2) * height as f32;
+            if (su - u).abs() <= 2.0 && (sv - v).abs() <= 2.0 {
+                agree += 1;
+            } else {
+                eprintln!(
+                    "pixel ({x}, {y}) miss {:.2}: shows ({su:.1}, {sv:.1}), analytic ({u:.1}, {v:.1})",
+                    miss / radius
+                );
+            }
+        }
+    }
+    let report = out.report.specular.clone().unwrap();
+    eprintln!(
+        "{agree} of {projected} back-projected ({checked} analytically valid) glass pixels show the refracted floor; {report:?}"
+    );
+    assert!(checked >= 20, "too few glass pixels see visible floor through the ball: {checked}");
+    // Known gap (issue 17's note): about a quarter of these pixels, on the ball's upper cap,
+    // lose their refracted ray on the GPU (no hit, black without an environment); the rest
+    // must be taken from the photograph at the right place.
+    assert!(projected as f32 >= 0.6 * checked as f32, "{projected} of {checked} pixels from the photograph");
+    assert!(agree as f32 >= 0.9 * projected as f32, "{agree} of {projected} glass pixels show the refracted floor");
+}

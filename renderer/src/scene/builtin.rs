@@ -9,6 +9,11 @@
 //!   an environment light; the double-shadow case with a real spot, a real box and a virtual box
 //!   behind it).
 //! - `lab-task`: the lab task scene of Section 6.3 (a table, a real cube, a virtual cube).
+//! - `glass-figure`, `metal-bottle`: mirrors and glass after Figures 5.24–5.26 — a green glass
+//!   figure (a closed turned mesh of 71 424 triangles, in place of the thesis's 69 680-triangle
+//!   Stanford bunny) before a real white box and a sheet of paper under a real spot light that
+//!   throws its caustic onto them; a virtual metal bottle beside a virtual yellow box, lit by a
+//!   real and a virtual pocket lamp.
 //!
 //! Units are metres; +Y is up; the table top is the plane y = 0 and the wall is at z = −0.45.
 //! Each scene is an ordinary [`SceneDesc`], so `mrstudy render --scene NAME --print-toml` (or
@@ -21,7 +26,7 @@ use crate::sensor::SensorDesc;
 use std::collections::BTreeMap;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const SCENES: [(&str, &str); 11] = [
+pub const SCENES: [(&str, &str); 13] = [
     ("survey-1", "survey: centre view; Cornell box and banana virtual; red lamp real"),
     ("survey-2", "survey: from the left; red lamp (and its light) and Cornell box virtual"),
     ("survey-3", "survey: from the right; banana and white box virtual; blue lamp real"),
@@ -36,6 +41,14 @@ pub const SCENES: [(&str, &str); 11] = [
     ("dir-lamp-box", "DIR Fig. 5.14: the real pocket lamp lights the real box, which lights the virtual Cornell box"),
     ("dir-double-shadow", "DIR Figs. 5.15-5.17: a real spot, a real box, and a virtual box in the real box's shadow"),
     ("lab-task", "lab task (Sec. 6.3): a table, a real green cube and a virtual green cube"),
+    (
+        "glass-figure",
+        "Figs. 5.24-5.25: a virtual green glass figure throws its caustic onto a real box and paper under a real spot",
+    ),
+    (
+        "metal-bottle",
+        "Fig. 5.26: a virtual metal bottle beside a virtual yellow box, lit by a real and a virtual pocket lamp",
+    ),
 ];
 
 pub fn names() -> impl Iterator<Item = &'static str> {
@@ -51,6 +64,8 @@ pub fn get(name: &str) -> Option<SceneDesc> {
         "dir-lamp-box" => dir_scene(DirCase::LampBox),
         "dir-double-shadow" => dir_scene(DirCase::DoubleShadow),
         "lab-task" => lab_task(),
+        "glass-figure" => glass_figure(),
+        "metal-bottle" => metal_bottle(),
         _ => return None,
     };
     d.name = name.to_string();
@@ -462,6 +477,136 @@ fn lab_task() -> SceneDesc {
         name: String::new(),
         description: String::new(),
         camera: camera_at(0.0, 45.0, 0.6, [0.05, 0.0, -0.02], "webcam"),
+        materials,
+        objects,
+        lights,
+        environment: Some(env),
+        background: None,
+    }
+}
+
+/// A desk under a dim room, for the scenes of mirrors and glass.
+fn specular_desk(objects: &mut Vec<ObjectDesc>, materials: &mut BTreeMap<String, MaterialDesc>) -> EnvironmentDesc {
+    materials.insert("desk".into(), mat(rgb(0.42, 0.4, 0.37), 0.05, 15.0));
+    objects
+        .push(ObjectDesc { size: Some(vec![1.2, 0.04, 0.8]), ..obj("desk", Real, "box", "desk", [0.0, -0.02, 0.0]) });
+    EnvironmentDesc {
+        kind: "sky".into(),
+        intensity: Some(0.25),
+        zenith: Some(rgb(0.7, 0.72, 0.75)),
+        horizon: Some(rgb(0.5, 0.48, 0.45)),
+        ground: Some(rgb(0.15, 0.13, 0.12)),
+        ..Default::default()
+    }
+}
+
+fn glass_figure() -> SceneDesc {
+    let mut objects = Vec::new();
+    let mut materials = common_materials();
+    let env = specular_desk(&mut objects, &mut materials);
+    materials.insert("paper".into(), mat(rgb(0.85, 0.85, 0.83), 0.0, 1.0));
+    materials.insert(
+        "green-glass".into(),
+        MaterialDesc {
+            kind: Some("glass".into()),
+            ior: Some(1.5),
+            transmittance: Some(rgb(0.35, 0.85, 0.45)),
+            transmittance_depth: Some(0.1),
+            ..Default::default()
+        },
+    );
+    objects.push(boxed("white-box", Real, "white", [0.24, 0.16, 0.1], [0.0, -0.16], 0.0));
+    objects.push(ObjectDesc {
+        size: Some(vec![0.21, 0.002, 0.297]),
+        rotate_deg: Some([0.0, 75.0, 0.0]),
+        ..obj("paper", Real, "box", "paper", [0.1, 0.001, -0.05])
+    });
+    // a figure of two lobes (a body and a head), turned: 280 profile points × 128 segments
+    let (body, head) = ((0.038, 0.045), (0.028, 0.112));
+    let radius_at = |y: f32| {
+        let lobe = |(r, c): (f32, f32)| (r * r - (y - c) * (y - c)).max(0.0).sqrt();
+        (lobe(body).powi(4) + lobe(head).powi(4)).powf(0.25)
+    };
+    let (bottom, top) = (body.1 - body.0, head.1 + head.0);
+    let profile: Vec<[f32; 2]> = (0..280)
+        .map(|i| {
+            let t = std::f32::consts::PI * i as f32 / 279.0;
+            let y = bottom + (top - bottom) * (1.0 - t.cos()) / 2.0;
+            let r = if i == 0 || i == 279 { 0.0 } else { radius_at(y) };
+            [r, y - bottom]
+        })
+        .collect();
+    objects.push(ObjectDesc {
+        profile: Some(profile),
+        segments: Some(128),
+        ..obj("glass-figure", Virtual, "lathe", "green-glass", [-0.01, 0.0, -0.02])
+    });
+    let lights = vec![LightDesc {
+        name: "spot".into(),
+        kind: "spot".into(),
+        role: Some(Real),
+        position: [0.22, 0.3, 0.3],
+        target: Some([-0.03, 0.04, -0.1]),
+        inner_deg: Some(14.0),
+        outer_deg: Some(20.0),
+        intensity: 1.0,
+        color: Some(rgb(1.0, 0.96, 0.9)),
+        ..Default::default()
+    }];
+    SceneDesc {
+        name: String::new(),
+        description: String::new(),
+        camera: camera_at(-20.0, 22.0, 0.55, [0.0, 0.06, -0.06], "webcam"),
+        materials,
+        objects,
+        lights,
+        environment: Some(env),
+        background: None,
+    }
+}
+
+fn metal_bottle() -> SceneDesc {
+    let mut objects = Vec::new();
+    let mut materials = common_materials();
+    let env = specular_desk(&mut objects, &mut materials);
+    materials.insert("yellow".into(), mat(rgb(0.8, 0.65, 0.08), 0.05, 20.0));
+    materials.insert(
+        "bottle-metal".into(),
+        MaterialDesc { kind: Some("mirror".into()), reflectance: Some(rgb(0.85, 0.85, 0.88)), ..Default::default() },
+    );
+    objects.push(boxed("yellow-box", Virtual, "yellow", [0.07, 0.07, 0.07], [-0.09, 0.01], 20.0));
+    // body, rounded shoulder, neck and cap
+    let mut profile = vec![[0.03, 0.0], [0.032, 0.004], [0.032, 0.1]];
+    for k in 1..=8 {
+        let a = std::f32::consts::FRAC_PI_2 * k as f32 / 8.0;
+        profile.push([0.011 + 0.021 * a.cos(), 0.1 + 0.03 * a.sin()]);
+    }
+    profile.extend([[0.011, 0.15], [0.013, 0.15], [0.013, 0.168], [0.0, 0.168]]);
+    objects.push(ObjectDesc {
+        profile: Some(profile),
+        segments: Some(64),
+        ..obj("metal-bottle", Virtual, "lathe", "bottle-metal", [0.04, 0.0, 0.0])
+    });
+    let lamp = |name: &str, role: Role, position: [f32; 3]| LightDesc {
+        name: name.into(),
+        kind: "spot".into(),
+        role: Some(role),
+        position,
+        target: Some([0.04, 0.07, 0.0]),
+        inner_deg: Some(8.0),
+        outer_deg: Some(14.0),
+        intensity: 3.0,
+        color: Some(rgb(1.0, 0.95, 0.85)),
+        ..Default::default()
+    };
+    let lights = vec![
+        lamp("real-pocket-lamp", Real, [0.32, 0.1, 0.08]),
+        lamp("virtual-pocket-lamp", Virtual, [0.1, 0.12, 0.32]),
+    ];
+    SceneDesc {
+        name: String::new(),
+        description: String::new(),
+        camera: camera_at(-15.0, 24.0, 0.5, [-0.02, 0.05, 0.0], "webcam"),
         materials,
         objects,
         lights,

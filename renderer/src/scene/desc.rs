@@ -121,7 +121,7 @@ pub struct ObjectDesc {
     pub name: String,
     /// `real` or `virtual` (required for objects; a proxy inherits its object's).
     pub role: Option<Role>,
-    /// `box`, `sphere`, `plane`, `quad`, `cylinder`, `cone`, `tube` or `mesh`.
+    /// `box`, `sphere`, `plane`, `quad`, `cylinder`, `cone`, `tube`, `lathe` or `mesh`.
     pub shape: String,
     /// box: `[x, y, z]`; plane and quad: `[x, z]`.
     pub size: Option<Vec<f32>>,
@@ -133,6 +133,8 @@ pub struct ObjectDesc {
     /// tube: the centre line and the radius at each point.
     pub points: Option<Vec<[f32; 3]>>,
     pub radii: Option<Vec<f32>>,
+    /// lathe: `[radius, height]` pairs from the bottom up, turned about +Y.
+    pub profile: Option<Vec<[f32; 2]>>,
     /// mesh: a `.gltf`, `.glb` or `.obj` file relative to the scene file.
     pub path: Option<String>,
     pub uv_scale: Option<[f32; 2]>,

@@ -594,6 +594,20 @@ fn resolve_object(
             let pts: Vec<Vec3> = pts.into_iter().map(Vec3::from_array).collect();
             (geometry::tube(&pts, &radii, segments.min(64)), true)
         }
+        "lathe" => {
+            let profile = o.profile.clone().unwrap_or_default();
+            let valid = profile.len() >= 2
+                && profile.iter().all(|[r, y]| *r >= 0.0 && r.is_finite() && y.is_finite())
+                && profile.windows(2).all(|w| w[1][1] >= w[0][1] && (w[1][1] > w[0][1] || w[1][0] != w[0][0]))
+                && profile.iter().any(|[r, _]| *r > 0.0);
+            if !valid {
+                return Err(ctx.invalid(
+                    format!("{key}.profile"),
+                    "at least two [radius, height] pairs, radii ≥ 0 (not all 0), heights rising from the bottom up",
+                ));
+            }
+            (geometry::lathe(&profile, segments), true)
+        }
         "mesh" => {
             let p = o
                 .path
@@ -605,7 +619,7 @@ fn resolve_object(
         other => {
             return Err(ctx.invalid(
                 format!("{key}.shape"),
-                format!("one of \"box\", \"sphere\", \"plane\", \"quad\", \"cylinder\", \"cone\", \"tube\", \"mesh\"; not \"{other}\""),
+                format!("one of \"box\", \"sphere\", \"plane\", \"quad\", \"cylinder\", \"cone\", \"tube\", \"lathe\", \"mesh\"; not \"{other}\""),
             ));
         }
     };
