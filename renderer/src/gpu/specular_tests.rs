@@ -190,7 +190,7 @@ fn a_virtual_mirror_casts_the_irradiance_of_the_mirrored_light() {
     let skipped = without.report.specular.as_ref().unwrap().caustics_skipped.clone();
     assert!(skipped.is_some_and(|why| why.contains("caustic_map_size is 0")));
     let spot = &scene.spots[0];
-    let reflectance = match scene.materials.iter().find_map(|m| m.delta.clone()) {
+    let reflectance = match scene.materials.iter().find_map(|m| m.delta) {
         Some(crate::material::DeltaBsdf::Mirror { reflectance }) => reflectance.x,
         other => panic!("not a mirror: {other:?}"),
     };
