@@ -250,25 +250,18 @@ impl Bounce {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("bounce"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
+        ctx.dispatch(
+            "bounce",
+            &self.pipeline,
+            &[
                 wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: scene.positions.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: scene.cdf.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: slot_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: hits.as_entire_binding() },
             ],
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(n.min(65535), n.div_ceil(65535), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+            [n.min(65535), n.div_ceil(65535)],
+        );
         ctx.read_f32(&hits)
     }
 }

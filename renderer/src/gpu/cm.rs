@@ -86,24 +86,11 @@ impl CmPasses {
         entries: &[(u32, &wgpu::Buffer)],
         groups: (u32, u32),
     ) {
-        let layout = pipeline.get_bind_group_layout(0);
         let entries: Vec<wgpu::BindGroupEntry> = entries
             .iter()
             .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: *binding, resource: buffer.as_entire_binding() })
             .collect();
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cm"),
-            layout: &layout,
-            entries: &entries,
-        });
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(groups.0, groups.1, 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.dispatch("cm", pipeline, &entries, [groups.0, groups.1]);
     }
 
     fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> wgpu::Buffer {

@@ -1,5 +1,6 @@
 // Functions shared by several shaders of the GPU renderer; the Rust side prepends this file to
-// ism.wgsl, shade.wgsl and bounce.wgsl (`concat!`), so each of them is defined once.
+// ism.wgsl, shade.wgsl, bounce.wgsl and specular.wgsl (`concat!`), so each of them is defined
+// once.
 
 // A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
 fn pcg(v: u32) -> u32 {
@@ -23,4 +24,17 @@ fn basis_y(n: vec3<f32>) -> vec3<f32> {
     let s = select(-1.0, 1.0, n.z >= 0.0);
     let a = -1.0 / (s + n.z);
     return vec3<f32>(n.x * n.y * a, s + n.y * n.y * a, -n.y);
+}
+
+// A spot's fraction of its intensity at cosine c off its axis: 1 inside the inner cone, 0
+// outside the outer, smoothstep between (as light.rs's SpotLight::intensity_towards).
+fn spot_falloff(c: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    if c >= cos_inner {
+        return 1.0;
+    }
+    if c <= cos_outer {
+        return 0.0;
+    }
+    let t = (c - cos_outer) / (cos_inner - cos_outer);
+    return t * t * (3.0 - 2.0 * t);
 }

@@ -62,26 +62,14 @@ impl Compose {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("compose"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: mapped.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: photo.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: specular_base.as_entire_binding() },
-            ],
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: mapped.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: photo.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: specular_base.as_entire_binding() },
+        ];
+        ctx.dispatch("compose", &self.pipeline, &entries, [width.div_ceil(8), height.div_ceil(8)]);
         composite
     }
 }

@@ -141,6 +141,30 @@ impl GpuContext {
         })
     }
 
+    /// Runs one compute pass: `pipeline` over `groups` workgroups (x, y) with bind group 0 made of
+    /// `entries` in the pipeline's own layout, submitted alone.
+    pub fn dispatch(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        entries: &[wgpu::BindGroupEntry],
+        groups: [u32; 2],
+    ) {
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(groups[0], groups[1], 1);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
     /// The adapter in words, for reports: name, backend and kind.
     pub fn adapter_name(&self) -> String {
         describe(&self.info)

@@ -133,10 +133,10 @@ impl IndirectPass {
         });
         let gp = inputs.gbuffer.position.create_view(&Default::default());
         let gn = inputs.gbuffer.normal.create_view(&Default::default());
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("indirect"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
+        ctx.dispatch(
+            "indirect",
+            &self.pipeline,
+            &[
                 wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&gp) },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&gn) },
@@ -147,15 +147,8 @@ impl IndirectPass {
                 wgpu::BindGroupEntry { binding: 7, resource: next_indirect.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 8, resource: next_surface.as_entire_binding() },
             ],
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(inputs.width.div_ceil(8), inputs.height.div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+            [inputs.width.div_ceil(8), inputs.height.div_ceil(8)],
+        );
         if let Some((_, state)) = temporal {
             let frames = state.as_ref().map_or(0, |s| s.frames) + 1;
             *state = Some(TemporalState {

@@ -289,15 +289,19 @@ fn spot_view(position: Vec3, direction: Vec3, cos_outer: f32, centre: Vec3, radi
     let up = up_hint(direction);
     let far = (position - centre).length() + radius * 1.5;
     let near = (far * 1e-4).max(1e-4);
-    let f = 1.0 / half.tan();
-    let projection = Mat4::from_cols_array_2d(&[
+    (perspective(1.0 / half.tan(), near, far) * look_at(position, direction, up), half.tan())
+}
+
+/// A square perspective projection looking down −z with depth 0..1 between `near` and `far`;
+/// `f` is 1 / tan of half the field of view.
+fn perspective(f: f32, near: f32, far: f32) -> Mat4 {
+    Mat4::from_cols_array_2d(&[
         [f, 0.0, 0.0, 0.0],
         [0.0, f, 0.0, 0.0],
         [0.0, 0.0, far / (near - far), near * far / (near - far)],
         [0.0, 0.0, -1.0, 0.0],
     ])
-    .transpose();
-    (projection * look_at(position, direction, up), half.tan())
+    .transpose()
 }
 
 /// Van der Corput radical inverse in base 2 (the second coordinate of a Hammersley set).

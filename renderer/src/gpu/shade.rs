@@ -122,32 +122,20 @@ impl Shade {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shade"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&gp) },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&gn) },
-                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&ga) },
-                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&shadow_view) },
-                wgpu::BindGroupEntry { binding: 5, resource: lights_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: vpls_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 7, resource: scene.materials.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 8, resource: solutions.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&ism_view) },
-                wgpu::BindGroupEntry { binding: 10, resource: indirect.as_entire_binding() },
-            ],
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(params.size[0].div_ceil(8), params.size[1].div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&gp) },
+            wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&gn) },
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&ga) },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&shadow_view) },
+            wgpu::BindGroupEntry { binding: 5, resource: lights_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: vpls_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 7, resource: scene.materials.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 8, resource: solutions.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&ism_view) },
+            wgpu::BindGroupEntry { binding: 10, resource: indirect.as_entire_binding() },
+        ];
+        ctx.dispatch("shade", &self.pipeline, &entries, [params.size[0].div_ceil(8), params.size[1].div_ceil(8)]);
         ShadeOutput { solutions, indirect: (!vpls.is_empty()).then_some(indirect) }
     }
 }

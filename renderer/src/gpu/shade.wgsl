@@ -132,17 +132,7 @@ fn ism_visibility(index: u32, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
 
 // Radiant intensity of a spot towards `dir` (from the light): smoothstep between the cones.
 fn spot_intensity(light: Light, dir: vec3<f32>) -> vec3<f32> {
-    let c = dot(dir, light.direction.xyz);
-    let cos_inner = light.intensity.w;
-    let cos_outer = light.direction.w;
-    if c >= cos_inner {
-        return light.intensity.xyz;
-    }
-    if c <= cos_outer {
-        return vec3<f32>(0.0);
-    }
-    let t = (c - cos_outer) / (cos_inner - cos_outer);
-    return light.intensity.xyz * (t * t * (3.0 - 2.0 * t));
+    return light.intensity.xyz * spot_falloff(dot(dir, light.direction.xyz), light.intensity.w, light.direction.w);
 }
 
 @compute @workgroup_size(8, 8)

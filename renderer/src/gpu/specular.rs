@@ -59,11 +59,11 @@ use crate::light::SpotLight;
 use crate::material::DeltaBsdf;
 use crate::math::luminance;
 use crate::scene::Scene;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec3, Vec4};
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = include_str!("specular.wgsl");
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("specular.wgsl"));
 
 /// The knobs of the specular passes.
 #[derive(Clone, Debug, Serialize)]
@@ -265,13 +265,8 @@ impl Specular {
         let far = 2.0 * mesh.bounds_radius
             + objects.iter().map(|o| (o.centre - mesh.bounds_centre).length()).fold(0.0, f32::max);
         let near = (far * 1e-5).max(1e-5);
-        let projection = Mat4::from_cols_array_2d(&[
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, far / (near - far), near * far / (near - far)],
-            [0.0, 0.0, -1.0, 0.0],
-        ])
-        .transpose();
+        // a cube face: 90° field of view
+        let projection = super::perspective(1.0, near, far);
         let others: Vec<[std::ops::Range<u32>; 2]> =
             objects.iter().map(|o| [0..o.range.start, o.range.end..total]).collect();
         let mut draws = Vec::new();
@@ -405,19 +400,7 @@ impl Specular {
         entries.push(wgpu::BindGroupEntry { binding: 9, resource: impostors.environment.as_entire_binding() });
         entries.push(wgpu::BindGroupEntry { binding: 10, resource: hits.as_entire_binding() });
         entries.push(wgpu::BindGroupEntry { binding: 11, resource: info.as_entire_binding() });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("specular trace"),
-            layout: &self.trace.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.trace);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.dispatch("specular trace", &self.trace, &entries, [width.div_ceil(8), height.div_ceil(8)]);
         Search { params: params_buffer, hits, info, stride }
     }
 
@@ -547,7 +530,6 @@ impl Specular {
                     let back = self.back_faces(ctx, raster, buffers, &glass, &view, map_size, map_size);
                     let search =
                         self.search(ctx, impostors, &pgbuf, &back, matrix, light.position, map_size, map_size, params);
-                    ctx.wait();
                     (pgbuf, search)
                 });
                 maps.maps.push(PhotonMap {
@@ -575,15 +557,11 @@ impl Specular {
             let positions = ctx.read_texture_rgba32(&map.pgbuf.position);
             let info = ctx.read_f32(&map.search.info);
             let hits = ctx.read_f32(&map.search.hits);
+            // texel (x, y) of hit plane p (see specular.wgsl's `plane`)
             let plane = |p: usize, x: usize, y: usize| {
-                let texel = (p * map.search.stride as usize * n) + y * map.search.stride as usize + x;
-                Vec3::new(hits[4 * texel], hits[4 * texel + 1], hits[4 * texel + 2])
+                let texel = 4 * ((p * n + y) * map.search.stride as usize + x);
+                Vec4::from_slice(&hits[texel..texel + 4])
             };
-            let role = |p: usize, x: usize, y: usize| {
-                let texel = (p * map.search.stride as usize * n) + y * map.search.stride as usize + x;
-                (hits[4 * texel + 3] + 0.5) as u32 % 4
-            };
-            let delta = 2.0 * map.tan_half / n as f32;
             for y in 0..n {
                 for x in 0..n {
                     let pixel = y * n + x;
@@ -593,23 +571,23 @@ impl Specular {
                     }
                     let p1 = Vec3::from_slice(&positions[pixel][..3]);
                     let to = p1 - map.light.position;
-                    let u = ((x as f32 + 0.5) * 2.0 / n as f32 - 1.0) * map.tan_half;
-                    let v = ((y as f32 + 0.5) * 2.0 / n as f32 - 1.0) * map.tan_half;
-                    let d_omega = delta * delta / (1.0 + u * u + v * v).powf(1.5);
+                    let d_omega = super::vpl::texel_solid_angle(x as u32, y as u32, n as u32, map.tan_half);
                     let flux_in = map.light.intensity_towards(to.normalize()) * d_omega;
                     for c in 0..2 {
                         let w = weights(c);
                         if w[3] != 1.0 {
                             continue;
                         }
-                        let albedo = plane(3 * c + 2, x, y);
+                        let albedo = plane(3 * c + 2, x, y).truncate();
                         let flux = flux_in * Vec3::new(w[0], w[1], w[2]) * albedo;
                         if luminance(flux) <= 0.0 || !flux.is_finite() {
                             continue;
                         }
-                        let real = map.light.real && map.object_real && role(3 * c, x, y) == 1;
+                        // position w: role (1 real, 2 virtual) + 4 × material
                         let position = plane(3 * c, x, y);
-                        let normal = plane(3 * c + 1, x, y).normalize_or_zero();
+                        let real = map.light.real && map.object_real && (position.w + 0.5) as u32 % 4 == 1;
+                        let position = position.truncate();
+                        let normal = plane(3 * c + 1, x, y).truncate().normalize_or_zero();
                         candidates.push(super::vpl::GpuVpl {
                             position: position.extend(if real { 1.0 } else { 0.0 }).to_array(),
                             normal: normal.extend(0.0).to_array(),
@@ -647,7 +625,6 @@ impl Specular {
         });
         let cam_position = gbuffer.position.create_view(&Default::default());
         let cam_normal = gbuffer.normal.create_view(&Default::default());
-        let mut encoder = device.create_command_encoder(&Default::default());
         for map in &maps.maps {
             let light = &map.light;
             let uniform = PhotonUniform {
@@ -676,17 +653,9 @@ impl Specular {
                 wgpu::BindGroupEntry { binding: 21, resource: caustic.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 22, resource: counts.as_entire_binding() },
             ];
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("photons"),
-                layout: &self.photons.get_bind_group_layout(0),
-                entries: &entries,
-            });
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.photons);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(maps.map_size.div_ceil(8), maps.map_size.div_ceil(8), 1);
+            let groups = maps.map_size.div_ceil(8);
+            ctx.dispatch("photons", &self.photons, &entries, [groups, groups]);
         }
-        ctx.queue.submit([encoder.finish()]);
         let counts: Vec<u32> = ctx.read_f32(&counts).into_iter().map(f32::to_bits).collect();
         let report = CausticReport {
             map_size: maps.map_size,
@@ -724,19 +693,7 @@ impl Specular {
             wgpu::BindGroupEntry { binding: 21, resource: caustic.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 23, resource: wgpu::BindingResource::TextureView(&albedo) },
         ];
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("caustics apply"),
-            layout: &self.apply.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.apply);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.dispatch("caustics apply", &self.apply, &entries, [width.div_ceil(8), height.div_ceil(8)]);
     }
 
     /// L'_rv, L'_r and CI_std (step 5): rewrites `solutions` at the specular pixels and returns
@@ -779,19 +736,7 @@ impl Specular {
             wgpu::BindGroupEntry { binding: 16, resource: base.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 17, resource: counts.as_entire_binding() },
         ];
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("specular combine"),
-            layout: &self.combine.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.combine);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.dispatch("specular combine", &self.combine, &entries, [width.div_ceil(8), height.div_ceil(8)]);
         let counts: Vec<u32> = ctx.read_f32(&counts).into_iter().map(f32::to_bits).collect();
         let report = &mut traced.report;
         (report.pixels, report.rays, report.back_projected, report.rendered, report.missed) =
@@ -817,14 +762,7 @@ fn photon_view(light: &SpotLight, object: &SpecularObject) -> Option<(Mat4, Vec3
     }
     let far = distance + object.radius * 1.01;
     let near = ((distance - object.radius) * 0.01).max(1e-4);
-    let f = 1.0 / half.tan();
-    let projection = Mat4::from_cols_array_2d(&[
-        [f, 0.0, 0.0, 0.0],
-        [0.0, f, 0.0, 0.0],
-        [0.0, 0.0, far / (near - far), near * far / (near - far)],
-        [0.0, 0.0, -1.0, 0.0],
-    ])
-    .transpose();
+    let projection = super::perspective(1.0 / half.tan(), near, far);
     Some((projection * super::look_at(light.position, forward, super::up_hint(forward)), forward, half.tan()))
 }
 

@@ -524,16 +524,7 @@ fn read_fixed(index: u32) -> f32 {
 // Radiant intensity of the light towards `dir` (as shade.wgsl's spot_intensity).
 fn light_intensity(dir: vec3<f32>) -> vec3<f32> {
     let c = dot(dir, photons.light_direction.xyz);
-    let cos_inner = photons.intensity.w;
-    let cos_outer = photons.light_direction.w;
-    if c >= cos_inner {
-        return photons.intensity.xyz;
-    }
-    if c <= cos_outer {
-        return vec3<f32>(0.0);
-    }
-    let t = (c - cos_outer) / (cos_inner - cos_outer);
-    return photons.intensity.xyz * (t * t * (3.0 - 2.0 * t));
+    return photons.intensity.xyz * spot_falloff(c, photons.intensity.w, photons.light_direction.w);
 }
 
 // The hit of component c of light pixel q, when it is a photon of the target object.

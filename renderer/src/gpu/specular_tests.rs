@@ -10,6 +10,12 @@ fn spot_scene() -> Scene {
     Scene::load(&path).unwrap()
 }
 
+/// A scene from the text of a scene file named `name`.toml.
+fn scene_from_toml(toml: &str, name: &str) -> Scene {
+    let desc = SceneDesc::from_toml(toml, &format!("{name}.toml")).unwrap();
+    Scene::from_desc(desc, std::path::Path::new("."), name).unwrap()
+}
+
 /// A photograph unlike any rendering, in which every pixel tells where it is: red is x / w,
 /// green y / h.
 fn coordinate_photo(width: u32, height: u32) -> Image {
@@ -94,8 +100,7 @@ fn a_virtual_mirror_shows_the_photograph_where_its_reflection_is_seen_by_the_cam
         outer_deg = 70.0
         intensity = 4.0
     "#;
-    let desc = SceneDesc::from_toml(toml, "mirror.toml").unwrap();
-    let scene = Scene::from_desc(desc, std::path::Path::new("."), "mirror").unwrap();
+    let scene = scene_from_toml(toml, "mirror");
     let (width, height) = (scene.camera.width, scene.camera.height);
     let photo = coordinate_photo(width, height);
     let params = DirParams { condition: GiLevel::None, ..Default::default() };
@@ -282,8 +287,7 @@ fn mirror_caustic_scene() -> Scene {
         outer_deg = 40.0
         intensity = 4.0
     "#;
-    let desc = SceneDesc::from_toml(toml, "mirror-caustic.toml").unwrap();
-    Scene::from_desc(desc, std::path::Path::new("."), "mirror-caustic").unwrap()
+    scene_from_toml(toml, "mirror-caustic")
 }
 
 /// Reflected VPLs (Figure 5.23): with gi, VPLs are also drawn where the mirror's caustic lands,
@@ -369,8 +373,7 @@ fn a_virtual_glass_sphere_shows_the_refracted_floor_from_the_photograph() {
         outer_deg = 70.0
         intensity = 2.0
     "#;
-    let desc = SceneDesc::from_toml(toml, "glass-ball.toml").unwrap();
-    let scene = Scene::from_desc(desc, std::path::Path::new("."), "glass-ball").unwrap();
+    let scene = scene_from_toml(toml, "glass-ball");
     let (width, height) = (scene.camera.width, scene.camera.height);
     let photo = coordinate_photo(width, height);
     let out = r.render(&scene, &photo, &DirParams { condition: GiLevel::None, ..Default::default() }).unwrap();

@@ -108,12 +108,7 @@ fn candidate(
         return None;
     }
     let intensity = light.intensity_towards(to_surface / dist);
-    // solid angle of the texel: pixel area on the unit image plane / (1 + x² + y²)^{3/2}
-    let (ix, iy) = ((idx as u32 % rsm.size) as f32 + 0.5, (idx as u32 / rsm.size) as f32 + 0.5);
-    let x = (2.0 * ix / rsm.size as f32 - 1.0) * rsm.tan_half_fov;
-    let y = (2.0 * iy / rsm.size as f32 - 1.0) * rsm.tan_half_fov;
-    let pixel = (2.0 * rsm.tan_half_fov / rsm.size as f32).powi(2);
-    let d_omega = pixel / (1.0 + x * x + y * y).powf(1.5);
+    let d_omega = texel_solid_angle(idx as u32 % rsm.size, idx as u32 / rsm.size, rsm.size, rsm.tan_half_fov);
     let flux = Vec3::new(albedo[0], albedo[1], albedo[2]) * intensity * d_omega;
     let weight = luminance(flux);
     if weight <= 0.0 || !weight.is_finite() {
@@ -127,6 +122,14 @@ fn candidate(
         },
         weight,
     })
+}
+
+/// The solid angle of texel (ix, iy) of a square perspective map of `size`² whose half field
+/// of view has tangent `tan_half`: the texel's area on the unit image plane / (1 + x² + y²)^{3/2}.
+pub fn texel_solid_angle(ix: u32, iy: u32, size: u32, tan_half: f32) -> f32 {
+    let x = (2.0 * (ix as f32 + 0.5) / size as f32 - 1.0) * tan_half;
+    let y = (2.0 * (iy as f32 + 0.5) / size as f32 - 1.0) * tan_half;
+    (2.0 * tan_half / size as f32).powi(2) / (1.0 + x * x + y * y).powf(1.5)
 }
 
 /// Draws `count` VPLs from the RSMs of the given lights (spot lights and environment
