@@ -145,6 +145,13 @@ impl Primitive {
 
     /// Completes an intersection found by [`Primitive::intersect_t`].
     pub fn surface(&self, ray: &Ray, t: f32, u: f32, v: f32) -> SurfaceHit {
+        self.surface_with(ray, t, u, v, true)
+    }
+
+    /// [`Primitive::surface`], with a sphere's texture coordinates (an arc tangent and an arc
+    /// cosine) computed only when `uv` asks for them (a textured material); otherwise zero.
+    #[inline]
+    pub fn surface_with(&self, ray: &Ray, t: f32, u: f32, v: f32, uv: bool) -> SurfaceHit {
         let point = ray.origin + ray.dir * t;
         match self {
             Primitive::Triangle(tri) => {
@@ -159,7 +166,10 @@ impl Primitive {
             }
             Primitive::Sphere { center, radius } => {
                 let n = ((point - *center) / *radius).normalize();
-                let uv = Vec2::new(0.5 + n.z.atan2(n.x) / (2.0 * PI), n.y.clamp(-1.0, 1.0).acos() / PI);
+                let uv = match uv {
+                    true => Vec2::new(0.5 + n.z.atan2(n.x) / (2.0 * PI), n.y.clamp(-1.0, 1.0).acos() / PI),
+                    false => Vec2::ZERO,
+                };
                 SurfaceHit { t, point, geometric_normal: n, shading_normal: n, uv }
             }
         }

@@ -258,6 +258,14 @@ impl Bsdf {
         f
     }
 
+    /// f(wi, wo) and the solid-angle pdf of sampling `wi` given `wo`, with one change of frame
+    /// (next-event estimation's MIS needs both).
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let lo = self.frame.to_local(wo);
+        let li = self.frame.to_local(wi);
+        (self.eval_local(lo, li), self.pdf_local(lo, li))
+    }
+
     /// Solid-angle pdf of sampling `wi` given `wo`.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let lo = self.frame.to_local(wo);
@@ -282,6 +290,14 @@ impl Bsdf {
         let lo = self.frame.to_local(wo);
         if lo.z <= 0.0 || (self.kd.max_element() <= 0.0 && self.ks.max_element() <= 0.0) {
             return None;
+        }
+        if self.p_spec <= 0.0 {
+            // Lambertian: cosine sampling, whose weight f cos / pdf is the albedo itself
+            let li = sample_cosine_hemisphere(u1, u2);
+            if li.z <= 0.0 {
+                return None;
+            }
+            return Some(BsdfSample { wi: self.frame.to_world(li), weight: self.kd, pdf: li.z / PI });
         }
         let li = if u_lobe < self.p_spec {
             let cos_h = u1.powf(1.0 / (self.exponent + 1.0));

@@ -267,8 +267,8 @@ impl World {
             let u: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
             let Some(hit) = self.bvh.intersect(&ray, RAY_EPSILON, f32::INFINITY) else { break };
             let info = self.bvh.payload[hit.prim];
-            let s = self.bvh.prims[hit.prim].surface(&ray, hit.t, hit.u, hit.v);
             let mat = &self.materials[info.material as usize];
+            let s = self.bvh.prims[hit.prim].surface_with(&ray, hit.t, hit.u, hit.v, mat.texture.is_some());
             let wo = -ray.dir;
             let front = s.geometric_normal.dot(wo) > 0.0;
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
@@ -362,8 +362,8 @@ impl World {
             if depth == 0 {
                 first = Some(info.object);
             }
-            let s = self.bvh.prims[hit.prim].surface(&ray, hit.t, hit.u, hit.v);
             let mat = &self.materials[info.material as usize];
+            let s = self.bvh.prims[hit.prim].surface_with(&ray, hit.t, hit.u, hit.v, mat.texture.is_some());
             let wo = -ray.dir;
             let front = s.geometric_normal.dot(wo) > 0.0;
             if front && mat.is_emissive() {
@@ -421,11 +421,11 @@ impl World {
                         let cos = ns.dot(wi);
                         if cos_l > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
                             let pdf = p_group * pe / em.area * dist2 / cos_l;
-                            let f = bsdf.eval(wo, wi);
+                            let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
                             if f.max_element() > 0.0
                                 && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4))
                             {
-                                let w = power_heuristic(pdf, bsdf.pdf(wo, wi));
+                                let w = power_heuristic(pdf, bsdf_pdf);
                                 l += beta * f * em.radiance * (cos * w / pdf);
                             }
                         }
@@ -435,11 +435,11 @@ impl World {
                             let cos = ns.dot(wi);
                             if cos > 0.0 && ng.dot(wi) > 0.0 && le.max_element() > 0.0 {
                                 let pdf = p_group * pdf_env;
-                                let f = bsdf.eval(wo, wi);
+                                let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
                                 if f.max_element() > 0.0
                                     && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, f32::INFINITY)
                                 {
-                                    let w = power_heuristic(pdf, bsdf.pdf(wo, wi));
+                                    let w = power_heuristic(pdf, bsdf_pdf);
                                     l += beta * f * le * (cos * w / pdf);
                                 }
                             }
