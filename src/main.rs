@@ -11,6 +11,7 @@ use mrstudy_server::serve::ServeConfig;
 
 mod analyze;
 mod bench;
+mod capture;
 mod export;
 mod progress;
 mod render;
@@ -34,6 +35,8 @@ enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Measure speed (and error against a reference) of a part of mrstudy.
     Bench(bench::BenchArgs),
+    /// Simulate an RGB-D capture of a scene's real objects (depth sensor, plane-fit normals, hash grid of environment samples) and report its error against the true geometry.
+    Capture(capture::CaptureArgs),
     /// Render a scene: the reference photograph or ground-truth composite (CPU path tracer); `--list` names the built-in scenes.
     Render(render::RenderArgs),
     /// Run the web survey server: migrate the database, load the studies, print the participant and admin links.
@@ -85,6 +88,7 @@ fn main() -> ExitCode {
         Command::Analyze(args) => analyze::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Render(args) => render::run(args),
+        Command::Capture(args) => capture::run(args),
         Command::Serve(config) => {
             let progress = Some(progress::stimulus_bars());
             mrstudy_server::serve::run(ServeConfig { progress, ..config }).map_err(Into::into)

@@ -38,6 +38,7 @@ pub mod bench;
 pub mod bvh;
 pub mod ca;
 pub mod camera;
+pub mod capture;
 pub mod cm;
 pub mod error;
 pub mod geometry;

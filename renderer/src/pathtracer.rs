@@ -225,6 +225,19 @@ impl World {
         }
     }
 
+    /// The nearest surface along `ray` (beyond the tracer's epsilon): the hit with its shading
+    /// normal turned towards the ray's origin, and the surface's diffuse albedo there. Used by
+    /// the simulated depth sensor ([`crate::capture`]) for the true geometry.
+    pub fn first_hit(&self, ray: &Ray) -> Option<(SurfaceHit, Vec3)> {
+        let hit = self.bvh.intersect(ray, RAY_EPSILON, f32::INFINITY)?;
+        let mat = &self.materials[self.bvh.payload[hit.prim].material as usize];
+        let mut s = self.bvh.prims[hit.prim].surface_with(ray, hit.t, hit.u, hit.v, mat.texture.is_some());
+        if s.shading_normal.dot(ray.dir) > 0.0 {
+            s.shading_normal = -s.shading_normal;
+        }
+        Some((s, mat.albedo_at(s.uv)))
+    }
+
     /// Whether light tracing is needed: a mirror or glass object and a spot or point light.
     pub fn needs_light_tracing(&self) -> bool {
         self.has_delta && !self.spots.is_empty()
