@@ -6,8 +6,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use mrstudy_renderer::capture::impostor::{DistanceImpostor, evaluate};
 use mrstudy_renderer::capture::{CaptureParams, capture};
+use mrstudy_renderer::pathtracer::{Subset, World};
 use mrstudy_renderer::scene;
+use mrstudy_renderer::scene::Role;
 
 use crate::progress::progress_bar;
 
@@ -35,6 +38,9 @@ pub struct CaptureArgs {
     /// keeps more detail with a smaller one).
     #[arg(long, default_value_t = 0.05)]
     cell: f32,
+    /// Texels per cube-map face of the distance impostor built from the capture.
+    #[arg(long, default_value_t = 128)]
+    impostor_size: u32,
     /// Random seed of the sensor's pattern and noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -100,8 +106,64 @@ pub fn run(args: CaptureArgs) -> Result<()> {
         r.depth_ms, r.fit_ms, r.colour_ms, r.grid_ms
     );
     println!("  albedo error: not measured yet (reflectance estimation, eq. 5, is issue 18's Deliver 3)");
+
+    // the distance impostor at the virtual objects (or, with none, at the point the camera
+    // looks at), and how well EM and DIT answer rays from around it
+    let virtual_bounds = scene
+        .objects
+        .iter()
+        .filter(|o| o.role == Role::Virtual)
+        .flat_map(|o| o.prims.iter().map(|p| p.bounds()))
+        .reduce(|a, b| a.union(&b));
+    let real = World::new(&scene, Subset::RealOnly);
+    let (centre, radius) = match virtual_bounds {
+        Some(b) => (b.centroid(), 0.5 * (b.max - b.min).length()),
+        None => {
+            let mut above = params.poses[0].look_at;
+            above.y += 0.2;
+            (above, 0.2)
+        }
+    };
+    let start = std::time::Instant::now();
+    let map = DistanceImpostor::build(cap.grid.samples(), centre, args.impostor_size, params.cell);
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut imp = evaluate(&map, &real, radius, 20_000, args.seed);
+    imp.build_ms = build_ms;
+    println!(
+        "distance impostor at [{:.2}, {:.2}, {:.2}] ({} the virtual objects), {}² texels per face: {} of {} filled, {:.1} MB, built in {:.0} ms",
+        centre.x,
+        centre.y,
+        centre.z,
+        if virtual_bounds.is_some() {
+            "the centre of"
+        } else {
+            "no virtual object; above the point the camera looks at, not"
+        },
+        imp.size,
+        imp.filled_texels,
+        imp.texels,
+        imp.bytes as f64 / 1e6,
+        imp.build_ms
+    );
+    if imp.rays == 0 {
+        println!("  no ray from around the centre meets a real surface: nothing to compare");
+    } else {
+        println!(
+            "  {} rays from within {:.2} m of the centre: EM answers {} (error median {:.3} m, p90 {:.3} m), DIT answers {} (error median {:.3} m, p90 {:.3} m; {:.0} ms per million rays)",
+            imp.rays,
+            radius,
+            imp.em_answered,
+            imp.em_error_m.median,
+            imp.em_error_m.p90,
+            imp.dit_answered,
+            imp.dit_error_m.median,
+            imp.dit_error_m.p90,
+            imp.dit_ms_per_million
+        );
+    }
     if let Some(path) = &args.json {
-        std::fs::write(path, serde_json::to_string_pretty(r)? + "\n")
+        let json = serde_json::json!({ "capture": r, "impostor": imp });
+        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())

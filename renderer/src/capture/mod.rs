@@ -20,6 +20,7 @@
 //! and albedo are known, and [`CaptureReport`] gives the capture's error against them.
 
 pub mod hashgrid;
+pub mod impostor;
 pub mod plane;
 
 use crate::camera::Camera;
@@ -159,7 +160,7 @@ pub struct Spread {
 }
 
 impl Spread {
-    fn of(mut values: Vec<f64>) -> Spread {
+    pub(crate) fn of(mut values: Vec<f64>) -> Spread {
         values.sort_by(f64::total_cmp);
         Spread {
             median: crate::metrics::quantile(&values, 0.5),
