@@ -63,7 +63,8 @@ pub fn run(args: CaptureArgs) -> Result<()> {
         bail!("--cell must be a positive size in metres (got {})", args.cell);
     }
     let scene = scene::load(&args.scene).with_context(|| format!("loading scene `{}`", args.scene))?;
-    let mut params = CaptureParams::for_scene(&scene, args.poses);
+    let real = World::new(&scene, Subset::RealOnly);
+    let mut params = CaptureParams::for_scene(&scene, &real, args.poses);
     (params.sensor.width, params.sensor.height) = args.size;
     params.sensor.noise = args.noise;
     params.sensor.density = args.density;
@@ -71,7 +72,7 @@ pub fn run(args: CaptureArgs) -> Result<()> {
     params.seed = args.seed;
     params.cell = args.cell;
     let bar = progress_bar(args.poses as u64, "capture", "poses");
-    let cap = capture(&scene, &params, |done, _| bar.set_position(done as u64));
+    let cap = capture(&real, &params, |done, _| bar.set_position(done as u64));
     bar.finish_and_clear();
     let r = &cap.report;
     println!("capture of `{}`: {} poses of {}×{} depth pixels", scene.name, r.poses, args.size.0, args.size.1);
@@ -115,7 +116,6 @@ pub fn run(args: CaptureArgs) -> Result<()> {
         .filter(|o| o.role == Role::Virtual)
         .flat_map(|o| o.prims.iter().map(|p| p.bounds()))
         .reduce(|a, b| a.union(&b));
-    let real = World::new(&scene, Subset::RealOnly);
     let (centre, radius) = match virtual_bounds {
         Some(b) => (b.centroid(), 0.5 * (b.max - b.min).length()),
         None => {

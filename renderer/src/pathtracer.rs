@@ -26,7 +26,7 @@
 //! full scene) produce identical samples there — the photograph and the ground truth share
 //! their noise realisation.
 
-use crate::bvh::Bvh;
+use crate::bvh::{Bvh, BvhHit};
 use crate::camera::Camera;
 use crate::geometry::{Primitive, Ray, SurfaceHit, Triangle};
 use crate::image::Image;
@@ -225,13 +225,19 @@ impl World {
         }
     }
 
+    /// The material of a hit and the surface there (texture coordinates only where the
+    /// material is textured).
+    fn surface_at(&self, ray: &Ray, hit: &BvhHit) -> (&Material, SurfaceHit) {
+        let mat = &self.materials[self.bvh.payload[hit.prim].material as usize];
+        (mat, self.bvh.prims[hit.prim].surface_with(ray, hit.t, hit.u, hit.v, mat.texture.is_some()))
+    }
+
     /// The nearest surface along `ray` (beyond the tracer's epsilon): the hit with its shading
     /// normal turned towards the ray's origin, and the surface's diffuse albedo there. Used by
     /// the simulated depth sensor ([`crate::capture`]) for the true geometry.
     pub fn first_hit(&self, ray: &Ray) -> Option<(SurfaceHit, Vec3)> {
         let hit = self.bvh.intersect(ray, RAY_EPSILON, f32::INFINITY)?;
-        let mat = &self.materials[self.bvh.payload[hit.prim].material as usize];
-        let mut s = self.bvh.prims[hit.prim].surface_with(ray, hit.t, hit.u, hit.v, mat.texture.is_some());
+        let (mat, mut s) = self.surface_at(ray, &hit);
         if s.shading_normal.dot(ray.dir) > 0.0 {
             s.shading_normal = -s.shading_normal;
         }
@@ -279,9 +285,7 @@ impl World {
         for depth in 0..params.max_depth {
             let u: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
             let Some(hit) = self.bvh.intersect(&ray, RAY_EPSILON, f32::INFINITY) else { break };
-            let info = self.bvh.payload[hit.prim];
-            let mat = &self.materials[info.material as usize];
-            let s = self.bvh.prims[hit.prim].surface_with(&ray, hit.t, hit.u, hit.v, mat.texture.is_some());
+            let (mat, s) = self.surface_at(&ray, &hit);
             let wo = -ray.dir;
             let front = s.geometric_normal.dot(wo) > 0.0;
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
@@ -375,8 +379,7 @@ impl World {
             if depth == 0 {
                 first = Some(info.object);
             }
-            let mat = &self.materials[info.material as usize];
-            let s = self.bvh.prims[hit.prim].surface_with(&ray, hit.t, hit.u, hit.v, mat.texture.is_some());
+            let (mat, s) = self.surface_at(&ray, &hit);
             let wo = -ray.dir;
             let front = s.geometric_normal.dot(wo) > 0.0;
             if front && mat.is_emissive() {

@@ -103,6 +103,12 @@ intensity = 1.0
     }
 }
 
+/// A scene from a test's own scene-file text, named `name` (a parse error panics with the text).
+pub(crate) fn scene_from_toml(text: &str, name: &str) -> Scene {
+    let desc = SceneDesc::from_toml(text, &format!("{name}.toml")).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    Scene::from_desc(desc, Path::new("."), name).unwrap()
+}
+
 /// The GPU tests' scene ([`TestScene::new`]) with extra objects.
 pub(crate) fn scene_with(objects: &str) -> Scene {
     TestScene::new("gpu-test").objects(objects).build()

@@ -50,10 +50,14 @@ fn face_uv(d: Vec3) -> (usize, f32, f32) {
     (face, 0.5 * (sc / ma + 1.0), 0.5 * (tc / ma + 1.0))
 }
 
-/// The direction through the centre of texel (x, y) of `face` (the inverse of [`face_uv`]).
-fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
-    let s = 2.0 * (x as f32 + 0.5) / size as f32 - 1.0;
-    let t = 2.0 * (y as f32 + 0.5) / size as f32 - 1.0;
+/// The face coordinate in [−1, 1] of texel column or row `i` (outside for a texel past an edge).
+fn texel_coord(i: i64, size: u32) -> f32 {
+    2.0 * (i as f32 + 0.5) / size as f32 - 1.0
+}
+
+/// The direction through face coordinates (s, t) of `face` (the inverse of [`face_uv`]); (s, t)
+/// may lie outside [−1, 1], for a splat that spills over an edge.
+fn face_dir(face: usize, s: f32, t: f32) -> Vec3 {
     match face {
         0 => Vec3::new(1.0, -t, -s),
         1 => Vec3::new(-1.0, -t, s),
@@ -63,6 +67,11 @@ fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
         _ => Vec3::new(-s, -t, -1.0),
     }
     .normalize()
+}
+
+/// The direction through the centre of texel (x, y) of `face`.
+fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
+    face_dir(face, texel_coord(x as i64, size), texel_coord(y as i64, size))
 }
 
 impl DistanceImpostor {
@@ -104,9 +113,7 @@ impl DistanceImpostor {
                     // texels past a face's edge are on the neighbouring face: reach them by
                     // direction instead of by index
                     let (f, tx, ty) = if x < 0 || y < 0 || x >= size as i64 || y >= size as i64 {
-                        let sx = 2.0 * (x as f32 + 0.5) / size as f32 - 1.0;
-                        let sy = 2.0 * (y as f32 + 0.5) / size as f32 - 1.0;
-                        let probe = texel_dir_unclamped(face, sx, sy);
+                        let probe = face_dir(face, texel_coord(x, size), texel_coord(y, size));
                         let (f, pu, pv) = face_uv(probe);
                         (f, ((pu * size as f32) as u32).min(size - 1), ((pv * size as f32) as u32).min(size - 1))
                     } else {
@@ -275,19 +282,6 @@ pub fn evaluate(
     report.dit_error_m = super::Spread::of(dit);
     report.dit_ms_per_million = if report.rays > 0 { dit_time * 1e3 * 1e6 / report.rays as f64 } else { 0.0 };
     report
-}
-
-/// [`texel_dir`] for face coordinates outside [−1, 1] (a splat that spills over an edge).
-fn texel_dir_unclamped(face: usize, s: f32, t: f32) -> Vec3 {
-    match face {
-        0 => Vec3::new(1.0, -t, -s),
-        1 => Vec3::new(-1.0, -t, s),
-        2 => Vec3::new(s, 1.0, t),
-        3 => Vec3::new(s, -1.0, -t),
-        4 => Vec3::new(s, -t, 1.0),
-        _ => Vec3::new(-s, -t, -1.0),
-    }
-    .normalize()
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ pub mod plane;
 use crate::camera::Camera;
 use crate::image::Image;
 use crate::math::{Rng, hash3};
-use crate::pathtracer::{Subset, TraceParams, World, render};
+use crate::pathtracer::{TraceParams, World, render};
 use crate::scene::Scene;
 use glam::Vec3;
 use hashgrid::{EnvironmentSample, HashGrid, Inserted};
@@ -108,12 +108,12 @@ pub struct CaptureParams {
 }
 
 impl CaptureParams {
-    /// The default sensor and grid, with [`default_poses`] of `scene` (`count` of them).
-    pub fn for_scene(scene: &Scene, count: usize) -> CaptureParams {
-        let world = World::new(scene, Subset::RealOnly);
+    /// The default sensor and grid, with [`default_poses`] of `scene` (`count` of them; `real`
+    /// is the scene's real world).
+    pub fn for_scene(scene: &Scene, real: &World, count: usize) -> CaptureParams {
         CaptureParams {
             sensor: DepthSensor::default(),
-            poses: default_poses(scene, &world, count),
+            poses: default_poses(scene, real, count),
             colour_spp: 16,
             grid_capacity: 1 << 20,
             cell: 0.05,
@@ -145,8 +145,9 @@ pub fn default_poses(scene: &Scene, world: &World, count: usize) -> Vec<Pose> {
 #[derive(Clone, Copy, Debug)]
 struct Measurement {
     pixel: u32,
-    /// Measured depth along the view axis.
+    /// Measured depth along the view axis, and the world point it puts on the pixel's ray.
     z: f32,
+    point: Vec3,
     /// The true surface: point, normal (towards the sensor), albedo.
     truth: (Vec3, Vec3, Vec3),
 }
@@ -219,11 +220,10 @@ struct DepthImage {
     refined: Vec<Option<(f32, Vec3)>>,
 }
 
-/// Captures the real objects of `scene` from every pose (`progress` is told after each).
-pub fn capture(scene: &Scene, params: &CaptureParams, progress: impl FnMut(usize, usize)) -> Capture {
-    let world = World::new(scene, Subset::RealOnly);
-    let worlds = vec![&world; params.poses.len()];
-    capture_worlds(&worlds, params, progress)
+/// Captures a scene's real world (`World::new(scene, Subset::RealOnly)`) from every pose
+/// (`progress` is told after each).
+pub fn capture(real: &World, params: &CaptureParams, progress: impl FnMut(usize, usize)) -> Capture {
+    capture_worlds(&vec![real; params.poses.len()], params, progress)
 }
 
 /// [`capture`] with the real world as it is at each pose (`worlds[i]` at `params.poses[i]`): a
@@ -258,7 +258,6 @@ pub fn capture_worlds(worlds: &[&World], params: &CaptureParams, mut progress: i
         // remove what this depth image sees through, then offer its samples
         report.removed += grid.retain(|sample| !seen_through(&depth, s, sample.position));
         let mut rng = Rng::for_stream(params.seed, 0x6a1d, pose_index as u64);
-        let forward = -depth.camera.rotation.col(2);
         for m in &measurements {
             let Some((t, normal)) = depth.refined[m.pixel as usize] else { continue };
             let (x, y) = (m.pixel % s.width, m.pixel / s.width);
@@ -273,8 +272,7 @@ pub fn capture_worlds(worlds: &[&World], params: &CaptureParams, mut progress: i
             }
             let (true_point, true_normal, _albedo) = m.truth;
             pos_err.push(((position - true_point).length() * 1000.0) as f64);
-            let raw = ray.origin + ray.dir * (m.z / ray.dir.dot(forward));
-            raw_err.push(((raw - true_point).length() * 1000.0) as f64);
+            raw_err.push(((m.point - true_point).length() * 1000.0) as f64);
             normal_err.push(normal.dot(true_normal).clamp(-1.0, 1.0).acos().to_degrees() as f64);
         }
         let t4 = Instant::now();
@@ -311,7 +309,8 @@ fn measure(world: &World, camera: &Camera, s: &DepthSensor, seed: u64, pose: u64
                     return None;
                 }
                 let z = z_true + s.sigma(z_true) * rng.next_normal();
-                Some(Measurement { pixel, z, truth: (hit.point, hit.shading_normal, albedo) })
+                let point = ray.origin + ray.dir * (z / ray.dir.dot(forward));
+                Some(Measurement { pixel, z, point, truth: (hit.point, hit.shading_normal, albedo) })
             })
         })
         .collect()
@@ -338,11 +337,6 @@ fn fit_depth_image(camera: Camera, s: &DepthSensor, measurements: &[Measurement]
             }
         }
     }
-    let forward = -camera.rotation.col(2);
-    let world_of = |m: &Measurement| {
-        let ray = camera.ray((m.pixel % s.width) as f32 + 0.5, (m.pixel / s.width) as f32 + 0.5);
-        ray.origin + ray.dir * (m.z / ray.dir.dot(forward))
-    };
     let results: Vec<Result<(f32, Vec3), Option<FitFailure>>> = lists
         .par_iter()
         .enumerate()
@@ -361,7 +355,7 @@ fn fit_depth_image(camera: Camera, s: &DepthSensor, measurements: &[Measurement]
                 .iter()
                 .map(|i| &measurements[*i as usize])
                 .filter(|m| (m.z - z_ref).abs() <= s.discontinuity)
-                .map(world_of)
+                .map(|m| m.point)
                 .collect();
             let plane = fit_plane(&points).map_err(Some)?;
             let ray = camera.ray(px + 0.5, py + 0.5);

@@ -2,7 +2,8 @@
 //! sensor's noise, a box that moves away between poses, a sensor that sees nothing.
 
 use super::*;
-use crate::scene::SceneDesc;
+use crate::pathtracer::Subset;
+use crate::test_support::scene_from_toml;
 
 /// A real floor and a real box under a real spot light, camera 2 m away.
 const ROOM: &str = r#"
@@ -42,13 +43,15 @@ target = [0.0, 0.0, 0.0]
 intensity = 8.0
 "#;
 
-fn scene(text: &str) -> Scene {
-    let desc = SceneDesc::from_toml(text, "room.toml").unwrap();
-    Scene::from_desc(desc, std::path::Path::new("."), "room").unwrap()
+/// The scene and its real world.
+fn scene(text: &str) -> (Scene, World) {
+    let scene = scene_from_toml(text, "room");
+    let real = World::new(&scene, Subset::RealOnly);
+    (scene, real)
 }
 
-fn params(scene: &Scene, poses: usize, noise: f32) -> CaptureParams {
-    let mut p = CaptureParams::for_scene(scene, poses);
+fn params((scene, real): &(Scene, World), poses: usize, noise: f32) -> CaptureParams {
+    let mut p = CaptureParams::for_scene(scene, real, poses);
     p.sensor.noise = noise;
     p.colour_spp = 2;
     p.grid_capacity = 1 << 14;
@@ -57,8 +60,8 @@ fn params(scene: &Scene, poses: usize, noise: f32) -> CaptureParams {
 
 #[test]
 fn noise_free_capture_recovers_the_true_geometry() {
-    let scene = scene(ROOM);
-    let cap = capture(&scene, &params(&scene, 3, 0.0), |_, _| {});
+    let room = scene(ROOM);
+    let cap = capture(&room.1, &params(&room, 3, 0.0), |_, _| {});
     let r = &cap.report;
     assert_eq!(r.poses, 3);
     assert!(r.measured > 3 * 160 * 120 / 6, "{r:?}");
@@ -85,8 +88,8 @@ fn noise_free_capture_recovers_the_true_geometry() {
 
 #[test]
 fn plane_fits_halve_the_sensor_noise_and_the_normals_follow_the_surfaces() {
-    let scene = scene(ROOM);
-    let cap = capture(&scene, &params(&scene, 2, 0.0016), |_, _| {});
+    let room = scene(ROOM);
+    let cap = capture(&room.1, &params(&room, 2, 0.0016), |_, _| {});
     let r = &cap.report;
     // σ = 1.6 mm × z² at about 2.4 m: ~9 mm raw; the fit over ~10 neighbours averages it down
     assert!(r.raw_position_error_mm.median > 4.0, "{:?}", r.raw_position_error_mm);
@@ -102,14 +105,14 @@ fn plane_fits_halve_the_sensor_noise_and_the_normals_follow_the_surfaces() {
 #[test]
 fn a_real_object_that_moves_away_is_removed_from_the_grid() {
     let with_box = scene(ROOM);
-    let without = scene(&ROOM.replace("translate = [0.0, 0.2, 0.0]", "translate = [30.0, 0.2, 0.0]"));
-    let (a, b) = (World::new(&with_box, Subset::RealOnly), World::new(&without, Subset::RealOnly));
+    let (_, without) = scene(&ROOM.replace("translate = [0.0, 0.2, 0.0]", "translate = [30.0, 0.2, 0.0]"));
+    let (a, b) = (&with_box.1, &without);
     let mut p = params(&with_box, 2, 0.0);
     p.poses[1] = p.poses[0];
     let on_box = |s: &EnvironmentSample| s.position.y > 0.05;
-    let before = capture_worlds(&[&a], &CaptureParams { poses: vec![p.poses[0]], ..p.clone() }, |_, _| {});
+    let before = capture_worlds(&[a], &CaptureParams { poses: vec![p.poses[0]], ..p.clone() }, |_, _| {});
     assert!(before.grid.samples().filter(|s| on_box(s)).count() > 50);
-    let after = capture_worlds(&[&a, &b], &p, |_, _| {});
+    let after = capture_worlds(&[a, b], &p, |_, _| {});
     assert!(after.report.removed > 50, "{:?}", after.report);
     let left: Vec<Vec3> = after.grid.samples().filter(|s| on_box(s)).map(|s| s.position).collect();
     assert!(left.is_empty(), "{left:?}");
@@ -119,10 +122,10 @@ fn a_real_object_that_moves_away_is_removed_from_the_grid() {
 
 #[test]
 fn a_sensor_that_sees_nothing_makes_an_empty_capture() {
-    let scene = scene(ROOM);
-    let mut p = params(&scene, 1, 0.0);
+    let room = scene(ROOM);
+    let mut p = params(&room, 1, 0.0);
     p.sensor.far = 0.5; // everything is farther
-    let cap = capture(&scene, &p, |_, _| {});
+    let cap = capture(&room.1, &p, |_, _| {});
     assert_eq!(cap.report.measured, 0);
     assert_eq!(cap.report.stored, 0);
     assert_eq!(cap.report.empty, cap.report.depth_pixels);

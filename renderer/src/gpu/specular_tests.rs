@@ -2,18 +2,12 @@
 //! the GPU adapter (lavapipe without a GPU) at small resolution.
 
 use super::*;
-use crate::scene::{Role, SceneDesc};
-use crate::test_support::renderer_or_skip;
+use crate::scene::Role;
+use crate::test_support::{renderer_or_skip, scene_from_toml};
 
 fn spot_scene() -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference/specular/spot.toml");
     Scene::load(&path).unwrap()
-}
-
-/// A scene from the text of a scene file named `name`.toml.
-fn scene_from_toml(toml: &str, name: &str) -> Scene {
-    let desc = SceneDesc::from_toml(toml, &format!("{name}.toml")).unwrap();
-    Scene::from_desc(desc, std::path::Path::new("."), name).unwrap()
 }
 
 /// A photograph unlike any rendering, in which every pixel tells where it is: red is x / w,
