@@ -1,11 +1,13 @@
 //! `mrstudy render`: the flags, then `scene::load_as`, and `reference::render_to_file` (the CPU
 //! reference path tracer: `--photo`, `--reference`) or `stimulus::render_condition_to_file`
-//! (a condition on the GPU over the path-traced photograph) with a progress bar.
+//! (a condition on the GPU over the path-traced photograph) or `coherent::render::render_to_file`
+//! (`--gi-method`: Rohmer et al.'s methods from a simulated capture) with a progress bar.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use mrstudy_renderer::coherent::{CoherentParams, Method, Quality};
 use mrstudy_renderer::gpu::GiLevel;
 use mrstudy_renderer::reference::{ReferenceParams, Target, render_to_file};
 use mrstudy_renderer::sensor::SensorParams;
@@ -38,6 +40,14 @@ pub struct RenderArgs {
     factors: Option<Factors>,
     #[command(flatten)]
     knobs: RenderKnobs,
+    /// Render by one of Rohmer et al.'s methods from a simulated capture of the real scene
+    /// (CPU): `em`, `dit`, `vct`, or `off` (no coherent rendering); prints its errors against
+    /// the ground truth.
+    #[arg(long, conflicts_with_all = ["reference", "photo", "condition", "factors", "cm"], value_parser = crate::choice(Method::parse, "em, dit, vct, off"))]
+    gi_method: Option<Method>,
+    /// The paper's quality setting of `--gi-method`: low, med or high.
+    #[arg(long, default_value = "med", value_parser = crate::choice(Quality::parse, "low, med, high"))]
+    quality: Quality,
     /// Samples per pixel of the reference path tracer.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
@@ -78,13 +88,28 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     scene.warnings.iter().for_each(|warning| eprintln!("warning: {warning}"));
     let target = args.reference.then_some(Target::GroundTruth).or(args.photo.then_some(Target::Photo));
-    if !gpu && target.is_none() {
+    if !gpu && target.is_none() && args.gi_method.is_none() {
         bail!(
-            "say what to render: --condition gi|shadows|none (GPU), or --reference or --photo (CPU reference path tracer)"
+            "say what to render: --condition gi|shadows|none (GPU), --reference or --photo (CPU reference path tracer), or --gi-method em|dit|vct|off"
         );
     }
     let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
     let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
+    if let Some(method) = args.gi_method {
+        let coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(method, args.quality) };
+        let bar = progress_bar(2 * args.spp as u64 + 9, &format!("{} {}", scene.name, method.name()), "steps");
+        let lines = mrstudy_renderer::coherent::render::render_to_file(
+            &scene,
+            &coherent,
+            &params,
+            out,
+            args.buffers.as_deref(),
+            &|done, _| bar.set_position(done as u64),
+        );
+        bar.finish_and_clear();
+        lines?.iter().for_each(|line| eprintln!("{line}"));
+        return Ok(());
+    }
     let label =
         format!("{}{} {}x{}", if gpu { "photo " } else { "" }, scene.name, scene.camera.width, scene.camera.height);
     let Some(target) = target else {

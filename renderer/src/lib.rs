@@ -40,6 +40,7 @@ pub mod ca;
 pub mod camera;
 pub mod capture;
 pub mod cm;
+pub mod coherent;
 pub mod error;
 pub mod geometry;
 pub mod gpu;

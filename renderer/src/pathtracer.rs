@@ -44,7 +44,7 @@ const RAY_EPSILON: f32 = 1e-4;
 const LIGHT_STREAM: u64 = u64::MAX;
 
 /// A ray origin just off the surface point `point`, on the side of `normal`.
-fn offset(point: Vec3, normal: Vec3) -> Vec3 {
+pub(crate) fn offset(point: Vec3, normal: Vec3) -> Vec3 {
     point + normal * RAY_EPSILON * (1.0 + point.abs().max_element())
 }
 
@@ -80,7 +80,7 @@ fn delta_bounce(
 /// The diffuse and Blinn–Phong BSDF of `material` at a hit (`ng`: the geometric normal on the
 /// side the path came from), with its shading normal turned to that side and the point to
 /// continue from; `None` when the surface reflects nothing.
-fn shade(material: &Material, s: &SurfaceHit, ng: Vec3) -> Option<(Vec3, Bsdf, Vec3)> {
+pub(crate) fn shade(material: &Material, s: &SurfaceHit, ng: Vec3) -> Option<(Vec3, Bsdf, Vec3)> {
     let mut ns = s.shading_normal;
     if ns.dot(ng) < 0.0 {
         ns = -ns;
@@ -112,6 +112,9 @@ pub enum Subset {
     RealOnly,
     /// Everything: the ground-truth composite.
     All,
+    /// Virtual objects and virtual lights only: what the coherent renderer
+    /// ([`crate::coherent`]) traces for the virtual object's self-shadowing and its influence.
+    VirtualOnly,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -171,7 +174,11 @@ impl Default for TraceParams {
 
 impl World {
     pub fn new(scene: &Scene, subset: Subset) -> World {
-        let include = |role: Role| subset == Subset::All || role == Role::Real;
+        let include = |role: Role| match subset {
+            Subset::All => true,
+            Subset::RealOnly => role == Role::Real,
+            Subset::VirtualOnly => role == Role::Virtual,
+        };
         let mut prims = Vec::new();
         let mut payload = Vec::new();
         let mut emitters = Vec::new();
@@ -204,7 +211,8 @@ impl World {
         }
         let weights: Vec<f32> = emitters.iter().map(|e| luminance(e.radiance) * e.area).collect();
         let emitter_dist = Distribution1D::new(&weights);
-        let spots: Vec<SpotLight> = scene.spots.iter().filter(|s| subset == Subset::All || s.real).cloned().collect();
+        let spots: Vec<SpotLight> =
+            scene.spots.iter().filter(|s| include(if s.real { Role::Real } else { Role::Virtual })).cloned().collect();
         let mut groups: Vec<LightGroup> = (0..spots.len()).map(LightGroup::Spot).collect();
         if !emitters.is_empty() {
             groups.push(LightGroup::Emitters);
@@ -242,6 +250,19 @@ impl World {
             s.shading_normal = -s.shading_normal;
         }
         Some((s, mat.albedo_at(s.uv)))
+    }
+
+    /// The nearest surface along `ray` closer than `t_max`, with its material; the shading
+    /// normal is left as the primitive gives it.
+    pub fn hit_with_material(&self, ray: &Ray, t_max: f32) -> Option<(SurfaceHit, &Material)> {
+        let hit = self.bvh.intersect(ray, RAY_EPSILON, t_max)?;
+        let (mat, s) = self.surface_at(ray, &hit);
+        Some((s, mat))
+    }
+
+    /// Whether anything lies along `ray` closer than `t_max`.
+    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.bvh.occluded(ray, RAY_EPSILON, t_max)
     }
 
     /// Whether light tracing is needed: a mirror or glass object and a spot or point light.
