@@ -672,6 +672,29 @@ impl<'a> Coherent<'a> {
         Vec3::select(irradiance.cmpgt(Vec3::splat(1e-8)), rho, Vec3::ZERO)
     }
 
+    /// The albedo error of the capture (issue 18, Deliver 1): eq. 5 estimated from up to
+    /// `count` environment samples' captured colours (spread evenly over them) against the true
+    /// albedo of the surface each lies on; the absolute error of the worst channel, unclamped.
+    /// Samples with no real surface within 5 cm behind them are left out.
+    pub fn albedo_error(&self, samples: &[EnvironmentSample], count: usize) -> crate::capture::Spread {
+        let step = (samples.len() / count.max(1)).max(1);
+        let errors: Vec<f64> = samples
+            .par_iter()
+            .enumerate()
+            .filter(|(i, _)| i % step == 0)
+            .filter_map(|(i, s)| {
+                let n = s.normal.normalize_or_zero();
+                let ray = Ray { origin: s.position + n * 0.02, dir: -n };
+                let (hit, albedo) = self.real.first_hit(&ray)?;
+                (hit.t < 0.07).then(|| {
+                    let rho = self.estimate_albedo(s.position, n, s.colour, i as u64);
+                    (rho - albedo).abs().max_element() as f64
+                })
+            })
+            .collect();
+        if errors.is_empty() { crate::capture::Spread::default() } else { crate::capture::Spread::of(errors) }
+    }
+
     /// Eqs. 8 and 9: ΔL at the real point `x` with albedo `rho`. Of the `big_n` cosine directions,
     /// those that miss the object's box contribute nothing (set F); of those that meet it, at
     /// most `cache` (0: all) chosen at random are traced (H_a) and stand for the rest (H_b).
