@@ -106,3 +106,45 @@ fn bench_render_reference_writes_rows_and_plot() {
     assert!(last < first / 3.0, "{first} → {last}");
     assert!(dir.join("render_reference.svg").exists());
 }
+
+#[test]
+fn render_gi_method_writes_the_composite_its_buffers_and_its_errors() {
+    let dir = temp_dir("gi-method");
+    let png = dir.join("dit.png");
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-lamp-box", "--gi-method", "dit", "--quality", "low"])
+        .args(["--spp", "2", "--size", "40x30", "--out"])
+        .arg(&png)
+        .arg("--buffers")
+        .arg(dir.join("buffers"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(png_size(&png), (40, 30));
+    for line in ["material estimation (eq. 5)", "differential background", "against the ground truth, affected region"]
+    {
+        assert!(err.contains(line), "`{line}` missing from {err}");
+    }
+    assert!(err.contains("self-shadow tests (quality low)"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("buffers/report.json")).unwrap()).unwrap();
+    assert_eq!(report["params"]["method"], "dit");
+    assert!(report["frame"]["object_pixels"].as_u64().unwrap() > 0, "{report}");
+    for f in ["composite.png", "composite.exr", "differential.exr", "albedo.png", "coverage.png", "ground_truth.png"] {
+        assert!(dir.join("buffers").join(f).exists(), "{f} missing");
+    }
+
+    // an unknown method or quality: one sentence naming the choices
+    let out =
+        mrstudy().args(["render", "--scene", "dir-lamp-box", "--gi-method", "rt", "--out", "x.png"]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("rt") && err.contains("em, dit, vct, off"), "{err}");
+    let out = mrstudy()
+        .args(["render", "--scene", "dir-lamp-box", "--gi-method", "em", "--quality", "ultra", "--out", "x.png"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8(out.stderr).unwrap().contains("low, med, high"));
+}
