@@ -3,12 +3,14 @@
 //! geometry printed as a table and optionally written as JSON.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use mrstudy_renderer::capture::impostor::{DistanceImpostor, evaluate};
 use mrstudy_renderer::capture::{CaptureParams, capture};
-use mrstudy_renderer::coherent::{Coherent, CoherentParams, Method, Quality, build_representation};
+use mrstudy_renderer::coherent::query::Representation;
+use mrstudy_renderer::coherent::{Coherent, CoherentParams, Method, PROBE_PATHS, PROBE_WIDTH, Quality, light_probe};
 use mrstudy_renderer::pathtracer::{Subset, World};
 use mrstudy_renderer::scene;
 use mrstudy_renderer::scene::Role;
@@ -161,12 +163,13 @@ pub fn run(args: CaptureArgs) -> Result<()> {
             imp.dit_ms_per_million
         );
     }
-    // the albedo of the captured surfaces by eq. 5 (DIT from each sample, 64 cosine samples)
+    // the albedo of the captured surfaces by eq. 5 (DIT in the impostor above, 64 cosine
+    // samples, a light probe at its centre for what the capture missed)
     let mut coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(Method::Dit, Quality::Med) };
-    coherent.settings.impostor_size = args.impostor_size;
     coherent.settings.material_samples = 64;
+    let probe = light_probe(&real, centre, PROBE_WIDTH, PROBE_PATHS, args.seed);
+    let rep = Representation { impostor: Some(map), voxels: None, sky: Some(Arc::new(probe)) };
     let samples: Vec<_> = cap.grid.samples().copied().collect();
-    let (rep, _) = build_representation(&scene, &real, &samples, params.cell, &coherent);
     let albedo = Coherent::new(&scene, &real, &rep, coherent).albedo_error(&samples, 4000);
     if albedo.count == 0 {
         println!("albedo error: no environment sample lies on a real surface to compare with");

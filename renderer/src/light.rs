@@ -77,9 +77,7 @@ impl Environment {
         (u, theta / PI)
     }
     fn uv_to_dir(&self, u: f32, v: f32) -> Vec3 {
-        let phi = 2.0 * PI * (u - self.rotation) - PI;
-        let theta = PI * v;
-        Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
+        equirect_dir(u - self.rotation, v)
     }
     /// Radiance arriving from direction `d` (pointing away from the scene), nearest texel.
     pub fn eval(&self, d: Vec3) -> Vec3 {
@@ -122,6 +120,15 @@ impl Environment {
         let pdf = p * (w * h) as f32 / (2.0 * PI * PI * sin_t);
         Some((d, self.map.pixels[j * w + i], pdf))
     }
+}
+
+/// The direction of equirectangular map coordinates (`u`, `v`) in [0, 1)² of an unrotated map
+/// (+y up, u = ½ looking down −z): the layout of every [`Environment`], and of the light probes
+/// made for one.
+pub fn equirect_dir(u: f32, v: f32) -> Vec3 {
+    let phi = 2.0 * PI * u - PI;
+    let theta = PI * v;
+    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
 }
 
 /// A procedural indoor "sky": a vertical gradient from `ground` through `horizon` to `zenith`,

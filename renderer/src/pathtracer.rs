@@ -44,7 +44,7 @@ const RAY_EPSILON: f32 = 1e-4;
 const LIGHT_STREAM: u64 = u64::MAX;
 
 /// A ray origin just off the surface point `point`, on the side of `normal`.
-pub(crate) fn offset(point: Vec3, normal: Vec3) -> Vec3 {
+fn offset(point: Vec3, normal: Vec3) -> Vec3 {
     point + normal * RAY_EPSILON * (1.0 + point.abs().max_element())
 }
 
@@ -58,7 +58,7 @@ fn outward_normal(s: &SurfaceHit) -> Vec3 {
 /// that ran inside, the sampled direction's weight, and the next ray, started on the side the
 /// path leaves to.
 #[allow(clippy::too_many_arguments)]
-fn delta_bounce(
+pub(crate) fn delta_bounce(
     delta: &DeltaBsdf,
     s: &SurfaceHit,
     t: f32,

@@ -35,10 +35,10 @@ use crate::capture::impostor::DistanceImpostor;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
 use crate::image::{Image, Mask};
-use crate::light::Environment;
-use crate::material::{Material, Transport};
+use crate::light::{Environment, SpotLight, equirect_dir};
+use crate::material::{DeltaBsdf, Material, Transport};
 use crate::math::{Frame, Rng, sample_cosine_hemisphere};
-use crate::pathtracer::{Subset, TraceParams, World, offset, shade};
+use crate::pathtracer::{Subset, TraceParams, World, delta_bounce, shade};
 use crate::scene::{Role, Scene};
 use glam::Vec3;
 use query::{Query, Representation};
@@ -233,6 +233,10 @@ pub struct CoherentFrame {
     pub report: CoherentReport,
 }
 
+/// The light probe's width in texels (its height is half) and paths per texel.
+pub const PROBE_WIDTH: u32 = 128;
+pub const PROBE_PATHS: u32 = 8;
+
 /// The light probe at `centre`: the real scene path traced in every direction from there, an
 /// equirectangular map `width` × `width`/2 with `spp` paths per texel.
 pub fn light_probe(real: &World, centre: Vec3, width: u32, spp: u32, seed: u64) -> Environment {
@@ -250,7 +254,7 @@ pub fn light_probe(real: &World, centre: Vec3, width: u32, spp: u32, seed: u64) 
                 // jittered within the texel
                 let u = (i as f32 + rng.next_f32()) / w as f32;
                 let v = (j as f32 + rng.next_f32()) / h as f32;
-                let (l, _) = real.radiance(Ray { origin: centre, dir: map_dir(u, v) }, &mut rng, &params);
+                let (l, _) = real.radiance(Ray { origin: centre, dir: equirect_dir(u, v) }, &mut rng, &params);
                 if l.is_finite() {
                     sum += l;
                 }
@@ -259,13 +263,6 @@ pub fn light_probe(real: &World, centre: Vec3, width: u32, spp: u32, seed: u64) 
         })
         .collect();
     Environment::new(map, 0.0)
-}
-
-/// The direction of equirectangular coordinates (u, v) in [0, 1)², as [`Environment`] maps
-/// them with no rotation (a test checks the round trip).
-fn map_dir(u: f32, v: f32) -> Vec3 {
-    let (phi, theta) = (2.0 * PI * u - PI, PI * v);
-    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
 }
 
 /// The bounds of a scene's virtual objects (None without one).
@@ -291,8 +288,9 @@ pub fn build_representation(
     let mut passes = Vec::new();
     let centre = virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
     let start = Instant::now();
-    let probe = light_probe(real, centre, 128, 8, params.seed);
-    passes.push(Pass { pass: "light probe (128×64, 8 paths per texel)".into(), ms: ms_since(start) });
+    let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
+    let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
+    passes.push(Pass { pass: format!("light probe ({size})"), ms: ms_since(start) });
     let mut rep = Representation { sky: Some(Arc::new(probe)), ..Representation::default() };
     if params.method == Method::Off {
         return (rep, passes);
@@ -319,6 +317,28 @@ fn ms_since(start: Instant) -> f64 {
 fn cone_half_angle(omega: f32) -> f32 {
     let omega = omega.clamp(1e-6, 2.0 * PI * 0.3);
     (1.0 - omega / (2.0 * PI)).clamp(-1.0, 1.0).acos()
+}
+
+/// A known light seen from `p`: the unit direction to it, its distance and the irradiance it
+/// gives a surface of normal `n` there; None when it lies behind the surface or sends nothing
+/// this way.
+fn light_towards(spot: &SpotLight, p: Vec3, n: Vec3) -> Option<(Vec3, f32, Vec3)> {
+    let d = spot.position - p;
+    let dist2 = d.length_squared();
+    let dist = dist2.sqrt();
+    let wi = d / dist;
+    let cos = n.dot(wi);
+    let intensity = spot.intensity_towards(-wi);
+    (cos > 0.0 && intensity.max_element() > 0.0).then(|| (wi, dist, intensity * (cos / dist2)))
+}
+
+/// Eq. 9's directions at `x`: `big_n` cosine samples about `n` drawn from `rng`, those that meet
+/// the object's box `bounds` (the set H; the others are F).
+fn box_directions<'r>(bounds: Aabb, x: Vec3, n: Vec3, big_n: u32, rng: &'r mut Rng) -> impl Iterator<Item = Vec3> + 'r {
+    let frame = Frame::from_normal(n);
+    (0..big_n)
+        .map(move |_| frame.to_world(sample_cosine_hemisphere(rng.next_f32(), rng.next_f32())))
+        .filter(move |dir| bounds.hit(x, dir.recip(), f32::INFINITY).is_some())
 }
 
 /// What the render of one pixel's background point needs.
@@ -497,21 +517,12 @@ impl<'a> Coherent<'a> {
             return false;
         }
         let mut rng = Rng::for_stream(self.params.seed, 0xd1ff, k);
-        let frame = Frame::from_normal(n);
-        for _ in 0..self.params.settings.background_samples {
-            let dir = frame.to_world(sample_cosine_hemisphere(rng.next_f32(), rng.next_f32()));
-            if bounds.hit(x, dir.recip(), f32::INFINITY).is_some() {
-                return true;
-            }
+        if box_directions(bounds, x, n, self.params.settings.background_samples, &mut rng).next().is_some() {
+            return true;
         }
         self.scene.spots.iter().any(|spot| {
-            let d = spot.position - x;
-            let dist = d.length();
-            let wi = d / dist;
-            if n.dot(wi) <= 0.0 || spot.intensity_towards(-wi).max_element() <= 0.0 {
-                return false;
-            }
-            !spot.real || bounds.hit(x, wi.recip(), dist).is_some()
+            light_towards(spot, x, n)
+                .is_some_and(|(wi, dist, _)| !spot.real || bounds.hit(x, wi.recip(), dist).is_some())
         })
     }
 
@@ -537,13 +548,8 @@ impl<'a> Coherent<'a> {
     fn known_lights(&self, p: Vec3, ns: Vec3, ng: Vec3, shadowed: bool, f: impl Fn(Vec3) -> Vec3) -> Vec3 {
         let mut l = Vec3::ZERO;
         for spot in &self.scene.spots {
-            let d = spot.position - p;
-            let dist2 = d.length_squared();
-            let dist = dist2.sqrt();
-            let wi = d / dist;
-            let cos = ns.dot(wi);
-            let intensity = spot.intensity_towards(-wi);
-            if cos <= 0.0 || ng.dot(wi) <= 0.0 || intensity.max_element() <= 0.0 {
+            let Some((wi, dist, irradiance)) = light_towards(spot, p, ns) else { continue };
+            if ng.dot(wi) <= 0.0 {
                 continue;
             }
             if shadowed {
@@ -554,7 +560,7 @@ impl<'a> Coherent<'a> {
                     continue;
                 }
             }
-            l += f(wi) * intensity * (cos / dist2);
+            l += f(wi) * irradiance;
         }
         l
     }
@@ -567,15 +573,8 @@ impl<'a> Coherent<'a> {
         let method = self.params.method;
         if let Some(delta) = &mat.delta {
             // a mirror or glass: its one or two directions, sampled
-            let mut ns = hit.shading_normal;
-            if ns.dot(ng) < 0.0 {
-                ns = -ns;
-            }
             for _ in 0..samples {
-                let ds = delta.sample(wo, ns, front, rng.next_f32(), Transport::Radiance);
-                let origin = offset(hit.point, if ds.transmitted { -ng } else { ng });
-                let incident = self.rep.incident(method.query(), origin, ds.wi, 0.0).radiance;
-                l += ds.weight * incident / samples as f32;
+                l += self.through_delta(delta, hit, wo, front, ng, rng) / samples as f32;
             }
             return l;
         }
@@ -618,28 +617,39 @@ impl<'a> Coherent<'a> {
     fn diffuse_bounce(&self, hit: &SurfaceHit, mat: &Material, wo: Vec3, rng: &mut Rng) -> Vec3 {
         let front = hit.geometric_normal.dot(wo) > 0.0;
         let ng = if front { hit.geometric_normal } else { -hit.geometric_normal };
-        let mut ns = hit.shading_normal;
-        if ns.dot(ng) < 0.0 {
-            ns = -ns;
-        }
-        let query = self.params.method.query();
         if let Some(delta) = &mat.delta {
-            let ds = delta.sample(wo, ns, front, rng.next_f32(), Transport::Radiance);
-            let origin = offset(hit.point, if ds.transmitted { -ng } else { ng });
-            return ds.weight * self.rep.incident(query, origin, ds.wi, 0.0).radiance;
+            return self.through_delta(delta, hit, wo, front, ng, rng);
         }
-        let albedo = mat.albedo_at(hit.uv);
         let mut l = if front { mat.emission } else { Vec3::ZERO };
+        let Some((ns, bsdf, p)) = shade(mat, hit, ng) else { return l };
+        let albedo = bsdf.kd;
         if albedo.max_element() <= 0.0 {
             return l;
         }
-        let p = offset(hit.point, ng);
+        let query = self.params.method.query();
         l += self.known_lights(p, ns, ng, true, |_| albedo / PI);
         let dir = Frame::from_normal(ns).to_world(sample_cosine_hemisphere(rng.next_f32(), rng.next_f32()));
         if dir.dot(ng) > 0.0 {
             l += albedo * self.rep.incident(query, p, dir, cone_half_angle(PI / 4.0)).radiance;
         }
         l
+    }
+
+    /// A mirror or glass at `hit` seen from `wo`: its one sampled direction (the path tracer's
+    /// [`delta_bounce`], absorption inside glass included) answered by the query, weighted.
+    fn through_delta(
+        &self,
+        delta: &DeltaBsdf,
+        hit: &SurfaceHit,
+        wo: Vec3,
+        front: bool,
+        ng: Vec3,
+        rng: &mut Rng,
+    ) -> Vec3 {
+        let mut weight = Vec3::ONE;
+        let u = rng.next_f32();
+        let ray = delta_bounce(delta, hit, hit.t, wo, front, ng, u, Transport::Radiance, &mut weight);
+        weight * self.rep.incident(self.params.method.query(), ray.origin, ray.dir, 0.0).radiance
     }
 
     /// Eq. 5: the Lambertian albedo that explains the photographed radiance `observed` at `x`
@@ -659,13 +669,10 @@ impl<'a> Coherent<'a> {
         // irradiance: π times the mean radiance of cosine samples, plus the real known lights
         let mut irradiance = sum * (PI / m as f32);
         for spot in self.scene.spots.iter().filter(|s| s.real) {
-            let d = spot.position - origin;
-            let dist2 = d.length_squared();
-            let dist = dist2.sqrt();
-            let wi = d / dist;
-            let cos = n.dot(wi);
-            if cos > 0.0 && self.rep.transmits(query, origin, wi, dist) {
-                irradiance += spot.intensity_towards(-wi) * (cos / dist2);
+            if let Some((wi, dist, e)) = light_towards(spot, origin, n)
+                && self.rep.transmits(query, origin, wi, dist)
+            {
+                irradiance += e;
             }
         }
         let rho = PI * observed / irradiance;
@@ -703,15 +710,8 @@ impl<'a> Coherent<'a> {
     fn differential(&self, x: Vec3, n: Vec3, rho: Vec3, big_n: u32, cache: u32, rng: &mut Rng) -> Differential {
         let Some(bounds) = self.bounds else { return Differential::default() };
         let big_n = big_n.max(1);
-        let frame = Frame::from_normal(n);
         // the same directions the G-buffer's test drew
-        let mut hits: Vec<Vec3> = Vec::new();
-        for _ in 0..big_n {
-            let dir = frame.to_world(sample_cosine_hemisphere(rng.next_f32(), rng.next_f32()));
-            if bounds.hit(x, dir.recip(), f32::INFINITY).is_some() {
-                hits.push(dir);
-            }
-        }
+        let mut hits: Vec<Vec3> = box_directions(bounds, x, n, big_n, rng).collect();
         let traced = if cache == 0 { hits.len() } else { hits.len().min(cache as usize) };
         // a uniformly random subset of size `traced` in front (partial Fisher–Yates)
         for i in 0..traced {
@@ -730,15 +730,7 @@ impl<'a> Coherent<'a> {
         // known lights: a real light the object now blocks, a virtual light that now arrives
         let mut change = Vec3::ZERO;
         for spot in &self.scene.spots {
-            let d = spot.position - origin;
-            let dist2 = d.length_squared();
-            let dist = dist2.sqrt();
-            let wi = d / dist;
-            let cos = n.dot(wi);
-            let intensity = spot.intensity_towards(-wi);
-            if cos <= 0.0 || intensity.max_element() <= 0.0 {
-                continue;
-            }
+            let Some((wi, dist, e)) = light_towards(spot, origin, n) else { continue };
             let ray = Ray { origin, dir: wi };
             let blocked =
                 bounds.hit(origin, wi.recip(), dist).is_some() && self.object.occluded(&ray, dist * (1.0 - 1e-4));
@@ -748,7 +740,6 @@ impl<'a> Coherent<'a> {
             if !self.rep.transmits(query, origin, wi, dist) {
                 continue;
             }
-            let e = intensity * (cos / dist2);
             if spot.real {
                 change -= e;
             } else if !blocked {

@@ -114,7 +114,7 @@ fn the_light_probe_is_laid_out_as_environment_maps_are() {
     let env = Environment::new(map, 0.0);
     for j in 0..h {
         for i in 0..w {
-            let dir = map_dir((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
+            let dir = crate::light::equirect_dir((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
             assert_eq!(env.eval(dir).x, (j * w + i) as f32, "texel ({i}, {j})");
         }
     }
