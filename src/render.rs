@@ -115,8 +115,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let Some(target) = target else {
         // `--condition` is the gi level alone; `--cm` alone renders every factor off
         let factors = match args.condition {
-            Some(gi) => Factors { gi, cm: false, ca: false, caustics: true },
-            None => args.factors.unwrap_or(Factors { gi: GiLevel::None, cm: false, ca: false, caustics: true }),
+            Some(gi) => Factors { gi, coherent: None, cm: false, ca: false, caustics: true },
+            None => args.factors.unwrap_or(Factors {
+                gi: GiLevel::None,
+                coherent: None,
+                cm: false,
+                ca: false,
+                caustics: true,
+            }),
         };
         let bar = progress_bar(args.spp as u64, &label, "spp");
         let lines = render_condition_to_file(

@@ -8,6 +8,8 @@ mod admin;
 mod analyze;
 #[path = "e2e/browser.rs"]
 mod browser;
+#[path = "e2e/gi_methods.rs"]
+mod gi_methods;
 #[path = "e2e/ground_truth.rs"]
 mod ground_truth;
 #[path = "e2e/lab.rs"]

@@ -17,7 +17,7 @@ pub enum Target {
     Active,
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
-    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on.
+    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on; with `--gi-methods`, DIR against EM, DIT and VCT.
     Render,
     /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
     Server,
@@ -39,7 +39,10 @@ pub struct Options {
     /// bench render: each colour-mapping (cm) method's CIEDE2000 on the virtual objects against the ground truth through the known camera, over camera presets and settings.
     #[arg(long, conflicts_with = "reference")]
     pub cm: bool,
-    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm).
+    /// bench render: the global-illumination methods a study can compare — DIR over VPL counts against Rohmer et al.'s EM, DIT and VCT at low/med/high and gi off: time per stage and FLIP/RMSE against the ground truth, every built-in scene.
+    #[arg(long = "gi-methods", conflicts_with_all = ["reference", "ca", "cm"])]
+    pub gi_methods: bool,
+    /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm and --gi-methods).
     #[arg(long)]
     pub scene: Option<String>,
     /// bench server: the database — sqlite (a file in a temporary data directory), or
@@ -60,6 +63,7 @@ impl Default for Options {
             reference: false,
             ca: false,
             cm: false,
+            gi_methods: false,
             scene: None,
             database: "sqlite".into(),
             processes: 1,
@@ -114,6 +118,7 @@ pub fn run(target: Target, options: &Options, observer: &dyn Observer) -> Result
         Target::Render if options.reference => rendered(render::reference::run(scene, quick, observer)?),
         Target::Render if options.ca => rendered(render::ca::run(scene, quick, observer)?),
         Target::Render if options.cm => rendered(render::cm::run(scene, quick, observer)?),
+        Target::Render if options.gi_methods => rendered(render::methods::run(scene, quick, observer)?),
         Target::Render => rendered(render::gpu::run(scene, quick, observer)?),
         Target::Server => {
             let environment = std::env::var("MRSTUDY_DATABASE_URL").ok();

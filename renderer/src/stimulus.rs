@@ -14,12 +14,22 @@
 //! outside these, or a factor of another name, is refused with the factor and the level named —
 //! a stimulus is never rendered with a factor silently ignored.
 //!
+//! The `gi` factor also takes its global-illumination *method* by name ([`FactorLevel::Name`]):
+//! `"off"` (the same stimulus as 0), `"shadows"` (as `shadows` = 1), `"dir"` (differential
+//! instant radiosity, the same stimulus as 1), or one of Rohmer et al.'s coherent methods
+//! `"em"`, `"dit"`, `"vct"` ([`crate::coherent`]) at quality *med*, or at another quality with a
+//! suffix (`"dit-low"`, `"vct-high"`). A coherent stimulus is rendered on the CPU
+//! ([`crate::coherent::render::render_stimulus`]) from a simulated capture of the real scene,
+//! then colour-mapped and given camera artifacts by the same `cm` and `ca` as a DIR stimulus
+//! (the CPU references of those passes), so that only the method differs between conditions.
+//!
 //! [`StimulusSettings::fingerprint`] names everything that decides the image (the scene as
 //! TOML, size, samples, seed, VPL budget, the factor levels and [`STIMULUS_VERSION`]), so callers
 //! can cache rendered stimuli and know when one must be rendered again.
 
 use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
+use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::{RenderError, Result};
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
 use crate::image::Image;
@@ -35,11 +45,82 @@ pub const STIMULUS_VERSION: u32 = 4;
 /// enters the fingerprint of scenes with such an object only, so other cached stimuli stay.
 pub const SPECULAR_VERSION: u32 = 2;
 
+/// Bumped whenever a change to the coherent renderer changes its stimuli; it enters the
+/// fingerprint of coherent stimuli only.
+pub const COHERENT_VERSION: u32 = 1;
+
+/// A factor's level as a study file writes it: a number (`gi = 1`) or a name (`gi = "dit"`).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(untagged)]
+pub enum FactorLevel {
+    Number(f64),
+    Name(String),
+}
+
+impl std::fmt::Display for FactorLevel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FactorLevel::Number(value) => write!(f, "{value}"),
+            FactorLevel::Name(name) => write!(f, "\"{name}\""),
+        }
+    }
+}
+
+/// A coherent method and its quality: the `gi` level `"dit"`, `"vct-high"`, ….
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct CoherentLevel {
+    pub method: Method,
+    pub quality: Quality,
+}
+
+impl CoherentLevel {
+    /// `dit` (quality med) or `dit-high`: the name a study and a fingerprint use.
+    pub fn name(&self) -> String {
+        if self.quality == Quality::Med {
+            self.method.name().to_string()
+        } else {
+            format!("{}-{}", self.method.name(), self.quality.name())
+        }
+    }
+}
+
+/// The names the `gi` factor takes, for messages.
+pub const GI_NAMES: &str =
+    "\"off\", \"shadows\", \"dir\", \"em\", \"dit\", \"vct\" (a coherent method may end in -low, -med or -high)";
+
+/// The `gi` factor's level named `name`: DIR's mode, or a coherent method.
+fn gi_by_name(name: &str) -> std::result::Result<(GiLevel, Option<CoherentLevel>), String> {
+    let dir = match name {
+        "off" => Some(GiLevel::None),
+        "shadows" => Some(GiLevel::Shadows),
+        "dir" => Some(GiLevel::Gi),
+        _ => None,
+    };
+    if let Some(level) = dir {
+        return Ok((level, None));
+    }
+    let (method, quality) = match name.split_once('-') {
+        Some((method, quality)) => (method, Quality::parse(quality)),
+        None => (name, Some(Quality::Med)),
+    };
+    match (Method::parse(method), quality) {
+        (Some(method), Some(quality)) if method != Method::Off => {
+            Ok((GiLevel::Gi, Some(CoherentLevel { method, quality })))
+        }
+        _ => Err(format!(
+            "factor `gi` has level \"{name}\"; the renderer knows the numbers 0 and 1 and the names {GI_NAMES}"
+        )),
+    }
+}
+
 /// The factors a stimulus is rendered under.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Factors {
     /// The gi factor's mode: none, shadows, or shadows and indirect light.
     pub gi: GiLevel,
+    /// The gi factor's coherent method, when the level names one (`gi` is then
+    /// [`GiLevel::Gi`]: the method renders shadows and indirect light); none: DIR.
+    pub coherent: Option<CoherentLevel>,
     /// Adaptive colour mapping on.
     pub cm: bool,
     /// Camera artifacts on.
@@ -57,12 +138,33 @@ impl Factors {
             .map_err(|reason| format!("{reason}; name them as gi, cm, ca, shadows or caustics"))
     }
 
-    /// Factors from `(name, level)` pairs, as a study's condition lists them. Factors not named
-    /// are off.
+    /// Factors from numeric `(name, level)` pairs. Factors not named are off.
     pub fn from_levels<'a>(levels: impl IntoIterator<Item = (&'a str, f64)>) -> std::result::Result<Factors, String> {
+        let levels: Vec<(&str, FactorLevel)> =
+            levels.into_iter().map(|(name, level)| (name, FactorLevel::Number(level))).collect();
+        Factors::from_study_levels(levels.iter().map(|(name, level)| (*name, level)))
+    }
+
+    /// Factors from `(name, level)` pairs as a study's condition lists them, numbers or (for
+    /// `gi`) names. Factors not named are off.
+    pub fn from_study_levels<'a>(
+        levels: impl IntoIterator<Item = (&'a str, &'a FactorLevel)>,
+    ) -> std::result::Result<Factors, String> {
         let (mut gi, mut shadows, mut cm, mut ca) = (false, false, false, false);
-        let mut caustics = None;
+        let (mut caustics, mut named_gi) = (None, None);
         for (name, level) in levels {
+            let level = match level {
+                FactorLevel::Number(value) => *value,
+                FactorLevel::Name(text) if name == "gi" => {
+                    named_gi = Some(gi_by_name(text)?);
+                    continue;
+                }
+                FactorLevel::Name(text) => {
+                    return Err(format!(
+                        "factor `{name}` has level \"{text}\"; the renderer knows the levels 0 (off) and 1 (on) for it (only `gi` takes names)"
+                    ));
+                }
+            };
             let on = if level == 0.0 {
                 false
             } else if level == 1.0 {
@@ -85,26 +187,43 @@ impl Factors {
                 }
             }
         }
-        let gi = match (gi, shadows) {
-            (true, _) => GiLevel::Gi,
-            (false, true) => GiLevel::Shadows,
-            (false, false) => GiLevel::None,
+        let (gi, coherent) = match (named_gi, gi, shadows) {
+            (Some((_, Some(coherent))), _, true) => {
+                return Err(format!(
+                    "factor `shadows` is 1 while `gi` is \"{}\"; shadows alone is a mode of differential instant radiosity (write gi = \"shadows\")",
+                    coherent.name()
+                ));
+            }
+            (Some((level, coherent)), _, shadows) => {
+                (if shadows && level == GiLevel::None { GiLevel::Shadows } else { level }, coherent)
+            }
+            (None, true, _) => (GiLevel::Gi, None),
+            (None, false, true) => (GiLevel::Shadows, None),
+            (None, false, false) => (GiLevel::None, None),
         };
+        if let (Some(coherent), Some(true)) = (coherent, caustics) {
+            return Err(format!(
+                "factor `caustics` is 1 while `gi` is \"{}\"; the coherent methods render no caustics",
+                coherent.name()
+            ));
+        }
         if caustics == Some(true) && gi == GiLevel::None {
             return Err("factor `caustics` is 1 while `gi` and `shadows` are 0; caustics are light through a \
                         virtual object's shadow and come only with gi or shadows"
                 .into());
         }
-        Ok(Factors { gi, cm, ca, caustics: caustics.unwrap_or(true) })
+        Ok(Factors { gi, coherent, cm, ca, caustics: coherent.is_none() && caustics.unwrap_or(true) })
     }
 
     /// A short label such as `gi+ca` or `none`.
     pub fn label(&self) -> String {
         let mut parts = Vec::new();
-        match self.gi {
-            GiLevel::Gi => parts.push("gi"),
-            GiLevel::Shadows => parts.push("shadows"),
-            GiLevel::None => {}
+        let coherent = self.coherent.map(|level| level.name());
+        match (self.gi, &coherent) {
+            (_, Some(name)) => parts.push(name.as_str()),
+            (GiLevel::Gi, None) => parts.push("gi"),
+            (GiLevel::Shadows, None) => parts.push("shadows"),
+            (GiLevel::None, None) => {}
         }
         if self.cm {
             parts.push("cm");
@@ -112,7 +231,7 @@ impl Factors {
         if self.ca {
             parts.push("ca");
         }
-        if !self.caustics && self.gi != GiLevel::None {
+        if !self.caustics && self.gi != GiLevel::None && self.coherent.is_none() {
             parts.push("no-caustics");
         }
         if parts.is_empty() { "none".into() } else { parts.join("+") }
@@ -149,11 +268,14 @@ impl StimulusSettings {
     /// Text naming everything that decides the stimulus of `scene` (already sized) under
     /// `factors`; equal texts give equal images. Hash it for a cache key.
     pub fn fingerprint(&self, scene: &Scene, factors: &Factors) -> String {
-        let specular = if scene.objects.iter().any(|o| scene.materials[o.material].delta.is_some()) {
+        let mut specular = if scene.objects.iter().any(|o| scene.materials[o.material].delta.is_some()) {
             format!("specular v{SPECULAR_VERSION}\n")
         } else {
             String::new()
         };
+        if factors.coherent.is_some() {
+            specular.push_str(&format!("coherent v{COHERENT_VERSION}\n"));
+        }
         format!(
             "mrstudy stimulus v{STIMULUS_VERSION}\n{specular}size {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{}",
             self.width,
@@ -195,17 +317,17 @@ impl StimulusSettings {
         crate::reference::render_reference(scene, &params, progress)
     }
 
-    /// The photograph of the scene's real part, display-encoded (the CPU path tracer through
-    /// the scene's camera); `progress(done, total)` is called as samples complete.
-    pub fn photo(&self, scene: &Scene, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, RenderStats)> {
+    /// The photograph of the scene's real part: its linear radiance and the display-encoded
+    /// camera output (the CPU path tracer through the scene's camera); `progress(done, total)`
+    /// is called as samples complete.
+    pub fn photo(&self, scene: &Scene, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<(Image, Image, RenderStats)> {
         if self.spp == 0 {
             return Err(RenderError::Unsupported(
                 "a stimulus needs at least 1 sample per pixel for its photograph".into(),
             ));
         }
         let params = ReferenceParams { spp: self.spp, seed: self.seed, ..ReferenceParams::default() };
-        let (_, photo, stats) = render_photo(scene, &params, progress)?;
-        Ok((photo, stats))
+        render_photo(scene, &params, progress)
     }
 
     /// The GPU parameters of a stimulus of `scene` under `factors`.
@@ -225,10 +347,46 @@ impl StimulusSettings {
         params
     }
 
-    /// Renders one stimulus over `photo` (from [`StimulusSettings::photo`] of the same scene).
+    /// Renders one DIR stimulus over `photo` (from [`StimulusSettings::photo`] of the same scene).
     pub fn render(&self, renderer: &DirRenderer, scene: &Scene, photo: &Image, factors: &Factors) -> Result<GpuRender> {
         renderer.render(scene, photo, &self.params(scene, factors))
     }
+
+    /// Renders one stimulus by the method its `gi` level names: DIR on the GPU over `photo`
+    /// ([`StimulusSettings::render`]), or a coherent method on the CPU from `linear` (the
+    /// photograph's linear radiance) composed over `photo`.
+    pub fn render_stimulus(
+        &self,
+        renderer: &DirRenderer,
+        scene: &Scene,
+        photo: &Image,
+        linear: &Image,
+        factors: &Factors,
+    ) -> Result<StimulusFrame> {
+        match factors.coherent {
+            None => {
+                let frame = self.render(renderer, scene, photo, factors)?;
+                Ok(StimulusFrame { composite: frame.composite, ms: frame.report.ms, adapter: frame.report.adapter })
+            }
+            Some(level) => {
+                let params = CoherentParams { seed: self.seed, ..CoherentParams::new(level.method, level.quality) };
+                let (cm, ca) = (self.params(scene, factors).cm, self.params(scene, factors).camera_artifacts);
+                let frame = crate::coherent::render::render_stimulus(scene, photo, linear, &params, &cm, ca.as_ref())?;
+                Ok(StimulusFrame {
+                    composite: frame.composite,
+                    ms: frame.ms,
+                    adapter: "CPU (coherent rendering)".into(),
+                })
+            }
+        }
+    }
+}
+
+/// One stimulus as shown (display-encoded), the time it took and what rendered it.
+pub struct StimulusFrame {
+    pub composite: Image,
+    pub ms: f64,
+    pub adapter: String,
 }
 
 /// What a render of one condition outside a study may change from a stimulus's parameters:
@@ -374,7 +532,7 @@ mod tests {
     fn factor_levels_map_to_the_three_gi_modes() {
         assert_eq!(
             levels(&[("gi", 0.0), ("cm", 0.0), ("ca", 0.0)]).unwrap(),
-            Factors { gi: GiLevel::None, cm: false, ca: false, caustics: true }
+            Factors { gi: GiLevel::None, coherent: None, cm: false, ca: false, caustics: true }
         );
         assert_eq!(levels(&[("gi", 1.0)]).unwrap().gi, GiLevel::Gi);
         assert_eq!(levels(&[("gi", 0.0), ("shadows", 1.0)]).unwrap().gi, GiLevel::Shadows);
@@ -408,6 +566,41 @@ mod tests {
         assert!(error.contains("`caustics`") && error.contains("gi"), "{error}");
     }
 
+    fn named(pairs: &[(&'static str, &str)]) -> std::result::Result<Factors, String> {
+        let levels: Vec<(&str, FactorLevel)> =
+            pairs.iter().map(|(name, level)| (*name, FactorLevel::Name(level.to_string()))).collect();
+        Factors::from_study_levels(levels.iter().map(|(name, level)| (*name, level)))
+    }
+
+    #[test]
+    fn the_gi_factor_names_its_methods_and_the_dir_names_equal_the_numbers() {
+        assert_eq!(named(&[("gi", "off")]).unwrap(), levels(&[("gi", 0.0)]).unwrap());
+        assert_eq!(named(&[("gi", "dir")]).unwrap(), levels(&[("gi", 1.0)]).unwrap());
+        assert_eq!(named(&[("gi", "shadows")]).unwrap(), levels(&[("shadows", 1.0)]).unwrap());
+        let dit = named(&[("gi", "dit")]).unwrap();
+        assert_eq!(dit.coherent, Some(CoherentLevel { method: Method::Dit, quality: Quality::Med }));
+        assert_eq!(dit.label(), "dit");
+        assert!(!dit.caustics, "the coherent methods render no caustics");
+        let vct = named(&[("gi", "vct-high")]).unwrap();
+        assert_eq!(vct.coherent, Some(CoherentLevel { method: Method::Vct, quality: Quality::High }));
+        assert_eq!(named(&[("gi", "em-low")]).unwrap().label(), "em-low");
+        assert_eq!(named(&[("gi", "dit-med")]).unwrap(), dit);
+        for bad in ["pt", "dit-ultra", "off-high", "DIT", ""] {
+            let error = named(&[("gi", bad)]).unwrap_err();
+            assert!(error.contains(&format!("\"{bad}\"")) && error.contains("\"vct\""), "{error}");
+        }
+        let error = named(&[("cm", "statistics")]).unwrap_err();
+        assert!(error.contains("`cm`") && error.contains("only `gi`"), "{error}");
+        let mixed: Vec<(&str, FactorLevel)> =
+            vec![("gi", FactorLevel::Name("dit".into())), ("caustics", FactorLevel::Number(1.0))];
+        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err();
+        assert!(error.contains("no caustics"), "{error}");
+        let mixed: Vec<(&str, FactorLevel)> =
+            vec![("gi", FactorLevel::Name("vct".into())), ("shadows", FactorLevel::Number(1.0))];
+        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err();
+        assert!(error.contains("`shadows`") && error.contains("\"vct\""), "{error}");
+    }
+
     #[test]
     fn the_fingerprint_changes_with_every_input() {
         let scene = crate::scene::load("dir-lamp-box").unwrap();
@@ -418,6 +611,13 @@ mod tests {
         let base = settings.fingerprint(&scene, &gi);
         assert_eq!(base, settings.fingerprint(&scene, &gi));
         assert_ne!(base, settings.fingerprint(&scene, &none));
+        // the method and its quality; off and dir by name are the numbers' stimuli
+        let dit = settings.fingerprint(&scene, &named(&[("gi", "dit")]).unwrap());
+        assert!(dit.contains("coherent v"), "{dit}");
+        assert_ne!(dit, base);
+        assert_ne!(dit, settings.fingerprint(&scene, &named(&[("gi", "dit-high")]).unwrap()));
+        assert_ne!(dit, settings.fingerprint(&scene, &named(&[("gi", "vct")]).unwrap()));
+        assert_eq!(base, settings.fingerprint(&scene, &named(&[("gi", "dir")]).unwrap()));
         assert_ne!(base, StimulusSettings { spp: 2, ..settings.clone() }.fingerprint(&scene, &gi));
         assert_ne!(base, StimulusSettings { seed: 2, ..settings.clone() }.fingerprint(&scene, &gi));
         let other = StimulusSettings { width: 32, height: 24, ..settings.clone() };
@@ -430,7 +630,7 @@ mod tests {
         // render's photograph is the same image, bit for bit
         let settings = StimulusSettings { width: 32, height: 24, spp: 2, ..StimulusSettings::default() };
         let scene = settings.sized(crate::scene::load("dir-lamp-box").unwrap());
-        let (photo, _) = settings.photo(&scene, &|_, _| {}).unwrap();
+        let (_, photo, _) = settings.photo(&scene, &|_, _| {}).unwrap();
         let reference = settings.reference(&scene, &|_, _| {}).unwrap();
         assert_eq!(photo.pixels, reference.photo.pixels);
         assert_ne!(reference.photo.pixels, reference.ground_truth.pixels);

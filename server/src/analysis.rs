@@ -17,7 +17,7 @@ use crate::study::Study;
 pub fn condition_table(study: &Study) -> ConditionTable {
     ConditionTable {
         conditions: study.conditions.iter().map(|condition| condition.name.clone()).collect(),
-        factors: study.factors.iter().map(|factor| factor.name.clone()).collect(),
+        factors: study.design_columns(),
         levels: study.conditions.iter().map(|condition| condition.levels.clone()).collect(),
     }
 }

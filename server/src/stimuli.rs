@@ -443,7 +443,7 @@ pub fn render_missing_shard(
         };
         let report = |done, total| progress(Progress::Photo { scene: scene_name.clone(), done, total });
         // the photograph, and the ground truth with its masks where the scene is synthesised
-        let (photo, reference) = match &planned.ground_truth_key {
+        let (photo, linear, reference) = match &planned.ground_truth_key {
             Some(key) => {
                 let reference = plan.settings.reference(&planned.scene, &report).map_err(render_error)?;
                 let shown = quantized(&reference.ground_truth);
@@ -456,9 +456,12 @@ pub fn render_missing_shard(
                         name
                     }
                 };
-                (reference.photo.clone(), Some((reference, shown, name)))
+                (reference.photo.clone(), reference.hdr_real.clone(), Some((reference, shown, name)))
             }
-            None => (plan.settings.photo(&planned.scene, &report).map_err(render_error)?.0, None),
+            None => {
+                let (linear, photo, _) = plan.settings.photo(&planned.scene, &report).map_err(render_error)?;
+                (photo, linear, None)
+            }
         };
         for stimulus in &planned.stimuli {
             let stored = lookup(store, &stimulus.key);
@@ -471,8 +474,10 @@ pub fn render_missing_shard(
                 });
                 continue;
             }
-            let frame =
-                plan.settings.render(&renderer, &planned.scene, &photo, &stimulus.factors).map_err(render_error)?;
+            let frame = plan
+                .settings
+                .render_stimulus(&renderer, &planned.scene, &photo, &linear, &stimulus.factors)
+                .map_err(render_error)?;
             let (name, shown) = match stored {
                 Some(name) => {
                     let path = store.join(&name);
@@ -493,8 +498,8 @@ pub fn render_missing_shard(
                     ground_truth: ground_truth_name.clone(),
                     factors: stimulus.factors.label(),
                     settings: plan.settings.clone(),
-                    render_ms: frame.report.ms,
-                    adapter: frame.report.adapter.clone(),
+                    render_ms: frame.ms,
+                    adapter: frame.adapter.clone(),
                     reference_seconds: reference.stats.seconds,
                     errors: stimulus_errors(ground_truth, &shown, &reference.affected_mask, &reference.virtual_mask),
                 };
@@ -506,7 +511,7 @@ pub fn render_missing_shard(
             progress(Progress::Stimulus {
                 scene: stimulus.scene.clone(),
                 condition: stimulus.condition.clone(),
-                ms: frame.report.ms,
+                ms: frame.ms,
             });
         }
     }

@@ -818,7 +818,7 @@ fn error_plot(file: String, title: String, x_label: &str, rmse: Vec<(f64, f64)>,
 }
 
 /// A scene name (a built-in name or a scene file's path) as part of a file name.
-fn plot_name(name: &str) -> String {
+pub(super) fn plot_name(name: &str) -> String {
     let stem = std::path::Path::new(name).file_stem().map_or(name.into(), |s| s.to_string_lossy().to_string());
     stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect()
 }

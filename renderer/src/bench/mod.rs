@@ -1,6 +1,7 @@
 //! The renderer's benchmarks, behind `mrstudy bench render`: the GPU renderer's frame time and
 //! error against the path-traced ground truth ([`gpu`]), the reference path tracer's
-//! convergence ([`reference`](mod@reference)), and the accuracy of the `ca` ([`ca`]) and `cm` ([`cm`]) factors.
+//! convergence ([`reference`](mod@reference)), the accuracy of the `ca` ([`ca`]) and `cm` ([`cm`]) factors, and
+//! the global-illumination methods a study can compare, DIR against EM, DIT and VCT ([`methods`]).
 //!
 //! Each returns a typed [`Report`]: the adapter, one typed row per measurement (serialised as
 //! the rows of DESIGN.md's bench JSON, `{"adapter": "...", "rows": [...]}`, by
@@ -10,6 +11,7 @@
 pub mod ca;
 pub mod cm;
 pub mod gpu;
+pub mod methods;
 pub mod reference;
 
 use serde::Serialize;

@@ -230,6 +230,13 @@ pub struct CoherentFrame {
     pub albedo: Image,
     /// The virtual object's coverage per pixel (2×2 subsamples).
     pub coverage: Mask,
+    /// The virtual object's radiance where it covers a pixel (the mean of its covered
+    /// subsamples), zero elsewhere.
+    pub object: Image,
+    /// Per pixel, as the colour mapping reads them: `surface::VIRTUAL` where the object covers
+    /// at least half, else `surface::REAL` where a real surface is modelled, else
+    /// `surface::NOTHING`.
+    pub flags: Vec<u32>,
     pub report: CoherentReport,
 }
 
@@ -440,9 +447,17 @@ impl<'a> Coherent<'a> {
         let mut differential = Image::new(w, h);
         let mut albedo_image = Image::new(w, h);
         let mut coverage = Mask::new(w, h);
+        let mut flags = vec![crate::surface::NOTHING; n];
         for k in 0..n {
             let (covered, bg) = gbuffer[k];
             let c = covered as f32 / 4.0;
+            flags[k] = if covered >= 2 {
+                crate::surface::VIRTUAL
+            } else if bg.is_some() {
+                crate::surface::REAL
+            } else {
+                crate::surface::NOTHING
+            };
             let background =
                 if bg.is_some() { (photo.pixels[k] + deltas[k].0).max(Vec3::ZERO) } else { photo.pixels[k] };
             composite.pixels[k] = if covered == 0 { background } else { c * object[k] + (1.0 - c) * background };
@@ -472,7 +487,8 @@ impl<'a> Coherent<'a> {
         if self.scene.spots.is_empty() {
             report.skipped.push("known lights: the scene has no point or spot light".into());
         }
-        Ok(CoherentFrame { composite, differential, albedo: albedo_image, coverage, report })
+        let object = Image { width: w, height: h, pixels: object };
+        Ok(CoherentFrame { composite, differential, albedo: albedo_image, coverage, object, flags, report })
     }
 
     /// Subsample `s` (0–3) of pixel `k`: its primary ray.

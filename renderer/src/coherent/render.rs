@@ -2,7 +2,10 @@
 //! does: the reference render (the photograph and the ground truth, one path-tracing run), the
 //! simulated capture of the real scene, the representation, the frame, and the frame through
 //! the scene's camera (the same sensor and noise as the photograph) with its errors against the
-//! ground truth.
+//! ground truth; and a study's coherent stimulus ([`render_stimulus`]): the same capture,
+//! representation and frame, shown the way a DIR stimulus is (the `cm` factor's colour mapping
+//! of the two radiance buffers, the differential composition over the photograph, the `ca`
+//! factor's camera artifacts).
 
 use super::{Coherent, CoherentFrame, CoherentParams, Pass, build_representation};
 use crate::capture::{CaptureParams, CaptureReport, capture};
@@ -12,6 +15,7 @@ use crate::metrics::{StimulusErrors, stimulus_errors};
 use crate::pathtracer::{Subset, World};
 use crate::reference::{ReferenceOutput, ReferenceParams, render_reference};
 use crate::scene::Scene;
+use glam::Vec3;
 use std::time::Instant;
 
 /// Everything one coherent render of a scene made.
@@ -36,29 +40,144 @@ pub fn render_scene(
     reference: &ReferenceParams,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<SceneRender> {
-    let poses = 4u32;
-    let total = 2 * reference.spp + poses + 5;
+    let total = 2 * reference.spp + POSES + 5;
     let reference_out = render_reference(scene, reference, &|done, _| progress(done, total))?;
+    let (capture, build, frame, stimulus, errors) =
+        render_over(scene, params, &reference_out, &|done, _| progress(2 * reference.spp + done, total))?;
+    Ok(SceneRender { reference: reference_out, capture, build, frame, stimulus, errors })
+}
+
+/// The capture, representation and frame of `scene` over a reference render made already (its
+/// photograph's radiance the frame's input), the composite through the scene's camera, and its
+/// errors against the reference's ground truth. `progress(done, total)` counts the capture's
+/// poses and the frame's passes.
+pub fn render_over(
+    scene: &Scene,
+    params: &CoherentParams,
+    reference: &ReferenceOutput,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<(CaptureReport, Vec<Pass>, CoherentFrame, Image, StimulusErrors)> {
+    let (capture, build, frame) = capture_and_render(scene, params, &reference.hdr_real, progress)?;
+    let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
+    let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
+    Ok((capture, build, frame, stimulus, errors))
+}
+
+/// Capture poses of a coherent render.
+const POSES: u32 = 4;
+
+/// The capture of the real scene from [`POSES`] poses, the representation and the frame over
+/// `linear` (the photograph's linear radiance). `progress(done, total)` counts the poses, then
+/// the frame's passes.
+fn capture_and_render(
+    scene: &Scene,
+    params: &CoherentParams,
+    linear: &Image,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<(CaptureReport, Vec<Pass>, CoherentFrame)> {
+    let total = POSES + 5;
     let real = World::new(scene, Subset::RealOnly);
-    let mut capture_params = CaptureParams::for_scene(scene, &real, poses as usize);
+    let mut capture_params = CaptureParams::for_scene(scene, &real, POSES as usize);
     capture_params.seed = params.seed;
     let start = Instant::now();
-    let cap = capture(&real, &capture_params, |done, _| progress(2 * reference.spp + done as u32, total));
-    let mut build = vec![Pass { pass: format!("capture ({poses} poses)"), ms: start.elapsed().as_secs_f64() * 1e3 }];
+    let cap = capture(&real, &capture_params, |done, _| progress(done as u32, total));
+    let mut build = vec![Pass { pass: format!("capture ({POSES} poses)"), ms: start.elapsed().as_secs_f64() * 1e3 }];
     let samples: Vec<_> = cap.grid.samples().copied().collect();
     let (rep, passes) = build_representation(scene, &real, &samples, capture_params.cell, params);
     build.extend(passes);
     let renderer = Coherent::new(scene, &real, &rep, *params);
-    let frame =
-        renderer.render(&reference_out.hdr_real, &|done, _| progress(2 * reference.spp + poses + done, total))?;
-    let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
-    let errors = stimulus_errors(
-        &reference_out.ground_truth,
-        &stimulus,
-        &reference_out.affected_mask,
-        &reference_out.virtual_mask,
-    );
-    Ok(SceneRender { reference: reference_out, capture: cap.report, build, frame, stimulus, errors })
+    let frame = renderer.render(linear, &|done, _| progress(POSES + done, total))?;
+    Ok((cap.report, build, frame))
+}
+
+/// A study's coherent stimulus and what it took.
+pub struct CoherentStimulus {
+    /// The stimulus as shown (display-encoded).
+    pub composite: Image,
+    /// Capture, representation, frame and display, in milliseconds.
+    pub ms: f64,
+    pub capture: CaptureReport,
+    pub build: Vec<Pass>,
+    pub frame: CoherentFrame,
+    /// The colour mapping of the frame's buffers.
+    pub cm: crate::cm::CmReport,
+}
+
+/// A stimulus of `scene` by a coherent method, shown as a DIR stimulus is: `photo` is the
+/// photograph (display-encoded) and `linear` its linear radiance. The frame's two radiance
+/// buffers — the real surfaces as photographed (`L_r`) and with the differential added
+/// (`L_rv`), the object's radiance on it — go through the colour mapping `cm` (the `cm`
+/// factor's: Reinhard off, the statistics transfer on) and the differential composition over
+/// the photograph, blended by the object's coverage at its edges; `ca`, when the `ca` factor is
+/// on, adds the camera artifacts (the CPU reference of the ca chain).
+pub fn render_stimulus(
+    scene: &Scene,
+    photo: &Image,
+    linear: &Image,
+    params: &CoherentParams,
+    cm: &crate::cm::CmParams,
+    ca: Option<&crate::ca::CaParams>,
+) -> Result<CoherentStimulus> {
+    use crate::cm::{CmInput, CmState, Composition, compose, cpu_frame};
+    use crate::surface::{NOTHING, REAL, VIRTUAL};
+    let start = Instant::now();
+    let (capture, build, frame) = capture_and_render(scene, params, linear, &|_, _| {})?;
+    let (w, h) = (photo.width, photo.height);
+    if (linear.width, linear.height) != (w, h) {
+        return Err(crate::error::RenderError::SizeMismatch {
+            a_width: w,
+            a_height: h,
+            b_width: linear.width,
+            b_height: linear.height,
+        });
+    }
+    let n = (w * h) as usize;
+    let l_r: Vec<Vec3> =
+        (0..n).map(|k| if frame.flags[k] == VIRTUAL { Vec3::ZERO } else { linear.pixels[k].max(Vec3::ZERO) }).collect();
+    let background: Vec<Vec3> =
+        (0..n).map(|k| (linear.pixels[k] + frame.differential.pixels[k]).max(Vec3::ZERO)).collect();
+    let l_rv: Vec<Vec3> =
+        (0..n).map(|k| if frame.flags[k] == VIRTUAL { frame.object.pixels[k] } else { background[k] }).collect();
+    let input = CmInput { width: w, height: h, l_rv: &l_rv, l_r: &l_r, flags: &frame.flags, photo: &photo.pixels };
+    let mapped = cpu_frame(&input, cm, 1.0, Composition::Additive, &mut CmState::default());
+    let mapping = &mapped.report.mapping;
+    let linear_domain = mapping.linear_domain();
+    let mut composite = Image::new(w, h);
+    for k in 0..n {
+        let real = linear.pixels[k].max(Vec3::ZERO);
+        let flag = if frame.flags[k] == NOTHING { NOTHING } else { REAL };
+        let behind = compose(
+            linear_domain,
+            Composition::Additive,
+            photo.pixels[k],
+            flag,
+            mapping.apply(background[k], 1.0),
+            mapping.apply(real, 1.0),
+        );
+        let c = frame.coverage.values[k];
+        composite.pixels[k] = if c > 0.0 {
+            let object = mapping.apply(frame.object.pixels[k], 1.0);
+            let object = if linear_domain {
+                crate::cm::colour::gamma_encode(object.clamp(Vec3::ZERO, Vec3::ONE))
+            } else {
+                object.clamp(Vec3::ZERO, Vec3::ONE)
+            };
+            c * object + (1.0 - c) * behind
+        } else {
+            behind
+        };
+    }
+    if let Some(ca) = ca {
+        composite = crate::ca::apply_cpu(&composite, photo, &frame.coverage, &scene.camera, ca)?.0;
+    }
+    Ok(CoherentStimulus {
+        composite,
+        ms: start.elapsed().as_secs_f64() * 1e3,
+        capture,
+        build,
+        frame,
+        cm: mapped.report,
+    })
 }
 
 /// [`render_scene`], saved to `out` (`.png` the camera's output, `.exr` the linear composite)

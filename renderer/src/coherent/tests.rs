@@ -268,3 +268,44 @@ fn on_the_survey_scenes_every_method_beats_gi_off_against_the_ground_truth() {
         }
     }
 }
+
+#[test]
+fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimulus_is() {
+    let (scene, _, _) = captured(FLOOR);
+    let params = crate::reference::ReferenceParams { spp: 4, ..Default::default() };
+    let (linear, display, _) = crate::reference::render_photo(&scene, &params, &|_, _| {}).unwrap();
+    let p = CoherentParams::new(Method::Dit, Quality::Low);
+    let off = crate::cm::CmParams::default();
+    let shown = render::render_stimulus(&scene, &display, &linear, &p, &off, None).unwrap();
+    let frame = &shown.frame;
+    let (mut object_pixels, mut untouched) = (0, 0);
+    for k in 0..display.pixels.len() {
+        let c = shown.composite.pixels[k];
+        assert!(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0, "pixel {k}: {c}");
+        if frame.coverage.values[k] == 1.0 {
+            // the object as DIR's cm off shows it: sRGB of the simplified Reinhard operator
+            let expected = crate::cm::Mapping::Off.apply(frame.object.pixels[k], 1.0).clamp(Vec3::ZERO, Vec3::ONE);
+            assert!((c - expected).abs().max_element() < 1e-6, "pixel {k}: {c} against {expected}");
+            object_pixels += 1;
+        } else if frame.coverage.values[k] == 0.0 && frame.differential.pixels[k] == Vec3::ZERO {
+            // no change to the real scene: the photograph bit for bit
+            assert_eq!(c, display.pixels[k], "pixel {k}");
+            untouched += 1;
+        }
+    }
+    assert!(object_pixels > 20 && untouched > 100, "{object_pixels} object pixels, {untouched} untouched");
+    // the shadow darkens the floor beside the box
+    let darker = (0..display.pixels.len())
+        .filter(|&k| frame.coverage.values[k] == 0.0 && frame.differential.pixels[k].max_element() < -1e-3)
+        .filter(|&k| shown.composite.pixels[k].max_element() < display.pixels[k].max_element())
+        .count();
+    assert!(darker > 20, "{darker} darkened pixels");
+
+    // with no virtual object, cm's colour transfer and ca's camera leave the photograph exact
+    let (scene, _, _) = captured(&FLOOR.replace("role = \"virtual\"", "role = \"real\""));
+    let (linear, display, _) = crate::reference::render_photo(&scene, &params, &|_, _| {}).unwrap();
+    let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
+    let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
+    let shown = render::render_stimulus(&scene, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
+    assert_eq!(shown.composite.pixels, display.pixels);
+}

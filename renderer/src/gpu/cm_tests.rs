@@ -205,7 +205,7 @@ fn no_cm_method_darkens_the_virtual_objects_of_a_survey_scene() {
         ca_source: crate::ca::ParamSource::Scene,
         caustic_map_size: 256,
     };
-    let factors = Factors { gi: GiLevel::Gi, cm: false, ca: false, caustics: true };
+    let factors = Factors { gi: GiLevel::Gi, coherent: None, cm: false, ca: false, caustics: true };
     let linear_luminance = |image: &Image, mask: &[f32]| {
         let linear = image.srgb_to_linear();
         let (sum, count) = linear

@@ -162,7 +162,7 @@ pub fn parse_effects(text: &str) -> Result<Vec<(String, f64)>, SimulateError> {
 
 /// The truth from factor effects; a factor the study lacks is refused, one not given is 0.
 pub fn truth_from_effects(study: &Study, effects: &[(String, f64)]) -> Result<Truth, SimulateError> {
-    let names: Vec<&str> = study.factors.iter().map(|factor| factor.name.as_str()).collect();
+    let names = study.design_columns();
     let mut values = vec![0.0; names.len()];
     for (name, effect) in effects {
         let index = names.iter().position(|n| n == name).ok_or_else(|| SimulateError::UnknownFactor {
@@ -186,10 +186,10 @@ pub fn truth_from_effects(study: &Study, effects: &[(String, f64)]) -> Result<Tr
 
 /// The thesis's effects when the study's factors are gi, cm, ca; else a refusal asking for a truth.
 pub fn default_truth(study: &Study) -> Result<Truth, SimulateError> {
-    let mut names: Vec<&str> = study.factors.iter().map(|factor| factor.name.as_str()).collect();
+    let mut names = study.design_columns();
     names.sort_unstable();
     if names != ["ca", "cm", "gi"] {
-        let factors = study.factors.iter().map(|factor| factor.name.as_str()).collect::<Vec<_>>().join(", ");
+        let factors = study.design_columns().join(", ");
         return Err(SimulateError::NoDefaultTruth {
             factors: if factors.is_empty() { "none".into() } else { factors },
         });
@@ -237,10 +237,10 @@ pub fn truth_from_worths_csv(study: &Study, text: &str, source_name: &str) -> Re
     let effects = projected_effects(study, &worths)
         .map(|values| {
             study
-                .factors
-                .iter()
+                .design_columns()
+                .into_iter()
                 .zip(values)
-                .map(|(factor, effect)| FactorEffect { factor: factor.name.clone(), effect })
+                .map(|(factor, effect)| FactorEffect { factor, effect })
                 .collect()
         })
         .unwrap_or_default();
@@ -250,8 +250,8 @@ pub fn truth_from_worths_csv(study: &Study, text: &str, source_name: &str) -> Re
 /// Least squares of the log-worths on [1, levels]: the factor effects (none when the factors
 /// are collinear or absent).
 fn projected_effects(study: &Study, worths: &[f64]) -> Option<Vec<f64>> {
-    let p = study.factors.len() + 1;
-    if study.factors.is_empty() {
+    let p = study.design_columns().len() + 1;
+    if p == 1 {
         return None;
     }
     let row = |c: usize| std::iter::once(1.0).chain(study.conditions[c].levels.iter().copied()).collect::<Vec<f64>>();
@@ -362,7 +362,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                 if n < 3 {
                     return Err(SimulateError::TooFewConditions { conditions: n });
                 }
-                let varying = study.factors.iter().enumerate().any(|(k, _)| {
+                let varying = (0..study.design_columns().len()).any(|k| {
                     study.conditions.iter().any(|condition| condition.levels[k] != study.conditions[0].levels[k])
                 });
                 let mut active = ActiveDesign {

@@ -11,7 +11,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use mrstudy_renderer::stimulus::Factors;
+use mrstudy_renderer::stimulus::{FactorLevel, Factors};
 use serde::{Deserialize, Serialize};
 
 use super::StudyError;
@@ -230,27 +230,49 @@ pub enum FieldType {
     Text,
 }
 
-/// A rendering feature that the study switches on or off.
+/// A rendering feature that the study switches on or off, or (named levels) sets to one of
+/// several methods.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Factor {
     pub name: String,
     #[serde(default)]
     pub label: String,
+    /// The names of the levels, when the conditions name them (`gi = "dit"`) instead of giving
+    /// numbers; the first is the reference level the others' effects are measured from. A study
+    /// file may list them to choose the order; by default the names in the order the conditions
+    /// first use them, with `off` first where a condition uses it. Empty: numeric levels.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub levels: Vec<String>,
+}
+
+impl Factor {
+    /// The factor's columns in the design matrix: its name for numeric levels, else one
+    /// indicator `<name>_<level>` per level after the reference (treatment coding; a `-` in
+    /// the level's name becomes `_`: `gi_dit_high`).
+    pub fn columns(&self) -> Vec<String> {
+        if self.levels.is_empty() {
+            vec![self.name.clone()]
+        } else {
+            self.levels[1..].iter().map(|level| format!("{}_{}", self.name, level.replace('-', "_"))).collect()
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConditionFile {
     name: String,
-    levels: BTreeMap<String, f64>,
+    levels: BTreeMap<String, FactorLevel>,
 }
 
 /// One combination of factor levels.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Condition {
     pub name: String,
-    /// One level per factor, in the order of [`Study::factors`].
+    /// The condition's row of the design matrix: one value per column of
+    /// [`Study::design_columns`] (a numeric factor's level; 0/1 indicators for a factor with
+    /// named levels).
     pub levels: Vec<f64>,
     /// The levels as the renderer renders them, or why it cannot (a study whose stimuli are all
     /// image files may use levels the renderer has not). Not stored: a definition read back from
@@ -500,11 +522,19 @@ impl Study {
         self.scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_)))
     }
 
-    /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition.
+    /// The design matrix's columns, in the order of [`Condition::levels`]: each numeric
+    /// factor's name, and for a factor with named levels one indicator per level after its
+    /// reference ([`Factor::columns`], e.g. `gi_dit`).
+    pub fn design_columns(&self) -> Vec<String> {
+        self.factors.iter().flat_map(Factor::columns).collect()
+    }
+
+    /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition (a
+    /// factor with named levels as its indicator columns, [`Study::design_columns`]).
     pub fn conditions_csv(&self) -> String {
         let mut writer = csv::Writer::from_writer(Vec::new());
         let mut header = vec!["condition".to_string()];
-        header.extend(self.factors.iter().map(|factor| factor.name.clone()));
+        header.extend(self.design_columns());
         writer.write_record(&header).expect("writing to memory");
         for condition in &self.conditions {
             let mut row = vec![condition.name.clone()];
@@ -536,7 +566,8 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
     )?;
     let field_names = check_demographics(fail, &raw.demographics)?;
     check_url_params(fail, &raw.url_params, &field_names)?;
-    let conditions = check_conditions(fail, &raw.factors, &raw.conditions)?;
+    let mut factors = raw.factors.clone();
+    let conditions = check_conditions(fail, &mut factors, &raw.conditions)?;
     let scenes = check_scenes(fail, base, &raw.scenes, &conditions)?;
     check_render(fail, raw.render.as_ref())?;
     if scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_))) {
@@ -575,7 +606,7 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
         },
         demographics: raw.demographics,
         url_params: raw.url_params,
-        factors: raw.factors,
+        factors,
         conditions,
         render: raw.render,
         scenes,
@@ -656,9 +687,11 @@ fn check_url_params(fail: Fail, url_params: &[String], field_names: &BTreeSet<St
     Ok(())
 }
 
-/// Factors and conditions: unique names, one finite level per factor, each condition resolved
-/// into the renderer's [`Factors`] (or why it cannot be).
-fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Result<Vec<Condition>, StudyError> {
+/// Factors and conditions: unique names, one level per factor (a finite number, or a name for
+/// a factor whose levels are all names), each condition coded as its row of the design matrix
+/// and resolved into the renderer's [`Factors`] (or why it cannot be). Fills in the named
+/// levels of each factor that has them ([`Factor::levels`]).
+fn check_conditions(fail: Fail, factors: &mut [Factor], raw: &[ConditionFile]) -> Result<Vec<Condition>, StudyError> {
     if factors.is_empty() {
         return Err(fail.at("factors", "expected at least one factor"));
     }
@@ -680,10 +713,9 @@ fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Re
     if raw.len() < 2 {
         return Err(fail.at("conditions", "expected at least two conditions"));
     }
-    let mut conditions: Vec<Condition> = Vec::new();
     for (index, condition) in raw.iter().enumerate() {
         let key = format!("conditions[{index}]");
-        check_name(fail, &key, &condition.name, conditions.iter().map(|other| other.name.as_str()))?;
+        check_name(fail, &key, &condition.name, raw[..index].iter().map(|other| other.name.as_str()))?;
         if condition.name == GROUND_TRUTH {
             return Err(fail.at(
                 &format!("{key}.name"),
@@ -701,13 +733,19 @@ fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Re
                 ),
             ));
         }
-        let mut levels = Vec::new();
-        for factor in factors {
+        for factor in factors.iter() {
             match condition.levels.get(&factor.name) {
-                Some(level) if level.is_finite() => levels.push(*level),
-                Some(_) => {
+                Some(FactorLevel::Number(level)) if level.is_finite() => {}
+                Some(FactorLevel::Number(_)) => {
                     return Err(fail.at(&format!("{key}.levels.{}", factor.name), "expected a finite number"));
                 }
+                Some(FactorLevel::Name(name)) if !is_level_name(name) => {
+                    return Err(fail.at(
+                        &format!("{key}.levels.{}", factor.name),
+                        format!("expected a number or a level name (a-z, 0-9, -), found \"{name}\""),
+                    ));
+                }
+                Some(FactorLevel::Name(_)) => {}
                 None => {
                     return Err(
                         fail.at(&format!("{key}.levels"), format!("expected a level for factor \"{}\"", factor.name))
@@ -715,11 +753,123 @@ fn check_conditions(fail: Fail, factors: &[Factor], raw: &[ConditionFile]) -> Re
                 }
             }
         }
-        let resolved =
-            Factors::from_levels(factors.iter().map(|factor| factor.name.as_str()).zip(levels.iter().copied()));
+    }
+    named_levels(fail, factors, raw)?;
+    let mut conditions: Vec<Condition> = Vec::new();
+    for condition in raw {
+        let mut levels = Vec::new();
+        for factor in factors.iter() {
+            match &condition.levels[&factor.name] {
+                FactorLevel::Number(level) => levels.push(*level),
+                FactorLevel::Name(name) => {
+                    levels.extend(factor.levels[1..].iter().map(|level| if level == name { 1.0 } else { 0.0 }))
+                }
+            }
+        }
+        let resolved = Factors::from_study_levels(
+            factors.iter().map(|factor| (factor.name.as_str(), &condition.levels[&factor.name])),
+        );
         conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved });
     }
+    let columns: Vec<String> = factors.iter().flat_map(Factor::columns).collect();
+    if let Some(column) = columns.iter().enumerate().find(|(k, column)| columns[..*k].contains(column)).map(|(_, c)| c)
+    {
+        return Err(fail.at(
+            "factors",
+            format!("expected distinct design columns, \"{column}\" names both a factor and a named level of another"),
+        ));
+    }
     Ok(conditions)
+}
+
+/// A level name: 1–32 of a-z, 0-9 and `-`, starting with a letter.
+fn is_level_name(name: &str) -> bool {
+    name.len() <= 32
+        && name.starts_with(|c: char| c.is_ascii_lowercase())
+        && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+}
+
+/// Each factor's named levels: a factor's conditions give all numbers or all names; the names
+/// are the file's `levels` list (which must hold every name used, once) or, by default, the
+/// order of first use with `off` first.
+fn named_levels(fail: Fail, factors: &mut [Factor], raw: &[ConditionFile]) -> Result<(), StudyError> {
+    for (index, factor) in factors.iter_mut().enumerate() {
+        let used: Vec<(usize, &FactorLevel)> = raw.iter().map(|c| &c.levels[&factor.name]).enumerate().collect();
+        let named: Vec<(usize, &str)> = used
+            .iter()
+            .filter_map(|(c, level)| match level {
+                FactorLevel::Name(name) => Some((*c, name.as_str())),
+                FactorLevel::Number(_) => None,
+            })
+            .collect();
+        if named.is_empty() {
+            if !factor.levels.is_empty() {
+                return Err(fail.at(
+                    &format!("factors[{index}].levels"),
+                    format!(
+                        "expected no level names for factor \"{}\": its conditions give numbers (levels lists the names of a factor whose conditions name them)",
+                        factor.name
+                    ),
+                ));
+            }
+            continue;
+        }
+        if named.len() < used.len() {
+            // the first condition that differs in kind from the first condition
+            let first_named = matches!(used[0].1, FactorLevel::Name(_));
+            let (c, level) = used
+                .iter()
+                .find(|(_, level)| matches!(level, FactorLevel::Name(_)) != first_named)
+                .expect("a level of the other kind");
+            let wanted = if first_named { "a level name" } else { "a number" };
+            return Err(fail.at(
+                &format!("conditions[{c}].levels.{}", factor.name),
+                format!(
+                    "expected {wanted} for factor \"{}\" as conditions[0] gives ({}), found {level}; a factor's levels are all numbers or all names",
+                    factor.name, used[0].1
+                ),
+            ));
+        }
+        if factor.levels.is_empty() {
+            let mut order: Vec<String> = Vec::new();
+            for (_, name) in &named {
+                if !order.iter().any(|n| n == name) {
+                    order.push(name.to_string());
+                }
+            }
+            if let Some(off) = order.iter().position(|n| n == "off") {
+                let off = order.remove(off);
+                order.insert(0, off);
+            }
+            factor.levels = order;
+        } else {
+            for (k, level) in factor.levels.iter().enumerate() {
+                if !is_level_name(level) {
+                    return Err(fail.at(
+                        &format!("factors[{index}].levels[{k}]"),
+                        format!("expected a level name (a-z, 0-9, -), found \"{level}\""),
+                    ));
+                }
+                if factor.levels[..k].contains(level) {
+                    return Err(fail.at(
+                        &format!("factors[{index}].levels[{k}]"),
+                        format!("expected each level once, \"{level}\" appears twice"),
+                    ));
+                }
+            }
+            if let Some((c, name)) = named.iter().find(|(_, name)| !factor.levels.iter().any(|l| l == name)) {
+                return Err(fail.at(
+                    &format!("conditions[{c}].levels.{}", factor.name),
+                    format!(
+                        "expected one of the levels of factor \"{}\" ({}), found \"{name}\"",
+                        factor.name,
+                        factor.levels.join(", ")
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The index of the condition called `name`, or a refusal at `key` listing the conditions.

@@ -231,3 +231,75 @@ fn no_condition_may_be_named_ground_truth() {
     assert_eq!(error.key, "conditions[1].name");
     assert!(error.expected.contains("ground truth"), "{error}");
 }
+
+/// MINIMAL with the gi factor's levels named: off, dir, dit.
+fn named_gi() -> String {
+    MINIMAL
+        .replace("levels = { gi = 0, ca = 0 }", "levels = { gi = \"dit\", ca = 0 }")
+        .replace("levels = { gi = 1, ca = 0 }", "levels = { gi = \"off\", ca = 0 }")
+        .replace("levels = { gi = 1, ca = 1 }", "levels = { gi = \"dir\", ca = 1 }")
+}
+
+#[test]
+fn named_gi_levels_are_coded_against_off_and_resolve_to_their_methods() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = load_study(&write_study(dir.path(), &named_gi())).unwrap();
+    // off first (the reference), then the others in the order the conditions use them
+    assert_eq!(study.factors[0].levels, ["off", "dit", "dir"]);
+    assert_eq!(study.design_columns(), ["gi_dit", "gi_dir", "ca"]);
+    assert_eq!(study.conditions[0].levels, [1.0, 0.0, 0.0]);
+    assert_eq!(study.conditions[1].levels, [0.0, 0.0, 0.0]);
+    assert_eq!(study.conditions[2].levels, [0.0, 1.0, 1.0]);
+    assert_eq!(study.conditions_csv(), "condition,gi_dit,gi_dir,ca\nLQ,1,0,0\nGI,0,0,0\nHQ,0,1,1\n");
+    let factors: Vec<mrstudy_renderer::stimulus::Factors> =
+        study.conditions.iter().map(|c| c.factors.clone().unwrap()).collect();
+    assert_eq!(factors[0].label(), "dit");
+    assert_eq!(factors[1].label(), "none");
+    assert_eq!(factors[2].label(), "gi+ca");
+    // the analysis reads the same columns
+    let table = crate::analysis::condition_table(&study);
+    assert_eq!(table.factors, study.design_columns());
+    // a file's own order chooses the reference level; a quality suffix becomes `_` in the column
+    let ordered = named_gi()
+        .replace("name = \"gi\"\n", "name = \"gi\"\nlevels = [\"dir\", \"off\", \"dit-high\"]\n")
+        .replace("gi = \"dit\"", "gi = \"dit-high\"");
+    let study = load_study(&write_study(dir.path(), &ordered)).unwrap();
+    assert_eq!(study.design_columns(), ["gi_off", "gi_dit_high", "ca"]);
+    assert_eq!(study.conditions[2].levels, [0.0, 0.0, 1.0]);
+    assert_eq!(study.conditions[0].factors.as_ref().unwrap().label(), "dit-high");
+}
+
+#[test]
+fn named_levels_are_refused_naming_the_key_when_mixed_unknown_or_unrenderable() {
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |body: String| load_study(&write_study(dir.path(), &body)).unwrap_err();
+    // numbers and names in one factor
+    let error = refused(named_gi().replace("gi = \"off\"", "gi = 0"));
+    assert_eq!(error.key, "conditions[1].levels.gi");
+    assert!(error.expected.contains("all numbers or all names"), "{}", error.expected);
+    // a name the renderer does not know
+    let error = refused(named_gi().replace("gi = \"dit\"", "gi = \"pathtracing\""));
+    assert_eq!(error.key, "conditions[0].levels");
+    assert!(error.expected.contains("\"pathtracing\"") && error.expected.contains("\"vct\""), "{}", error.expected);
+    // a name for a factor that takes numbers only
+    let error = refused(named_gi().replace("gi = \"off\", ca = 0", "gi = \"off\", ca = \"on\""));
+    assert_eq!(error.key, "conditions[1].levels.ca");
+    // a name the file's list lacks, and a list for a numeric factor
+    let listed = named_gi().replace("name = \"gi\"\n", "name = \"gi\"\nlevels = [\"off\", \"dir\"]\n");
+    let error = refused(listed);
+    assert_eq!(error.key, "conditions[0].levels.gi");
+    assert!(error.expected.contains("off, dir"), "{}", error.expected);
+    let error = refused(MINIMAL.replace("name = \"ca\"\n", "name = \"ca\"\nlevels = [\"off\"]\n"));
+    assert_eq!(error.key, "factors[1].levels");
+    // not a level name
+    let error = refused(named_gi().replace("gi = \"dit\"", "gi = \"DIT!\""));
+    assert_eq!(error.key, "conditions[0].levels.gi");
+    // a column named twice: the factor gi_dit beside gi's level dit
+    let clash = named_gi()
+        .replace("[[factors]]\nname = \"ca\"", "[[factors]]\nname = \"gi_dit\"\n[[factors]]\nname = \"ca\"")
+        .replace("ca = 0 }", "ca = 0, gi_dit = 0 }")
+        .replace("ca = 1 }", "ca = 1, gi_dit = 0 }");
+    let error = refused(clash);
+    assert_eq!(error.key, "factors");
+    assert!(error.expected.contains("gi_dit"), "{}", error.expected);
+}
