@@ -370,8 +370,16 @@ impl StimulusSettings {
             }
             Some(level) => {
                 let params = CoherentParams { seed: self.seed, ..CoherentParams::new(level.method, level.quality) };
-                let (cm, ca) = (self.params(scene, factors).cm, self.params(scene, factors).camera_artifacts);
-                let frame = crate::coherent::render::render_stimulus(scene, photo, linear, &params, &cm, ca.as_ref())?;
+                // the cm and ca of a DIR stimulus under the same factors
+                let dir = self.params(scene, factors);
+                let frame = crate::coherent::render::render_stimulus(
+                    scene,
+                    photo,
+                    linear,
+                    &params,
+                    &dir.cm,
+                    dir.camera_artifacts.as_ref(),
+                )?;
                 Ok(StimulusFrame {
                     composite: frame.composite,
                     ms: frame.ms,
