@@ -196,6 +196,13 @@ pub struct StimulusErrors {
     pub skipped: Vec<String>,
 }
 
+impl StimulusErrors {
+    /// The value of `metric` in `region`, if that region was measured.
+    pub fn value(&self, metric: &str, region: &str) -> Option<f64> {
+        self.values.iter().find(|v| v.metric == metric && v.region == region).map(|v| v.value)
+    }
+}
+
 /// Every metric of [`STIMULUS_METRICS`] of `stimulus` against `ground_truth` (both
 /// display-encoded, as a participant sees them) in each region of [`STIMULUS_REGIONS`]:
 /// FLIP (mean and 95th percentile, R's type 7), RMSE on the linear values the display
@@ -322,7 +329,7 @@ mod tests {
     }
 
     fn value(errors: &StimulusErrors, metric: &str, region: &str) -> f64 {
-        errors.values.iter().find(|v| v.metric == metric && v.region == region).unwrap().value
+        errors.value(metric, region).unwrap()
     }
 
     #[test]

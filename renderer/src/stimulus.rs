@@ -29,6 +29,7 @@
 
 use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
+use crate::coherent::render::CapturedScene;
 use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::{RenderError, Result};
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
@@ -354,7 +355,8 @@ impl StimulusSettings {
 
     /// Renders one stimulus by the method its `gi` level names: DIR on the GPU over `photo`
     /// ([`StimulusSettings::render`]), or a coherent method on the CPU from `linear` (the
-    /// photograph's linear radiance) composed over `photo`.
+    /// photograph's linear radiance) composed over `photo`. `captured` is the scene's capture:
+    /// the first coherent stimulus of a scene makes it, the others reuse it.
     pub fn render_stimulus(
         &self,
         renderer: &DirRenderer,
@@ -362,6 +364,7 @@ impl StimulusSettings {
         photo: &Image,
         linear: &Image,
         factors: &Factors,
+        captured: &mut Option<CapturedScene>,
     ) -> Result<StimulusFrame> {
         match factors.coherent {
             None => {
@@ -372,8 +375,10 @@ impl StimulusSettings {
                 let params = CoherentParams { seed: self.seed, ..CoherentParams::new(level.method, level.quality) };
                 // the cm and ca of a DIR stimulus under the same factors
                 let dir = self.params(scene, factors);
+                let captured = captured.get_or_insert_with(|| CapturedScene::new(scene, self.seed, &|_, _| {}));
                 let frame = crate::coherent::render::render_stimulus(
                     scene,
+                    captured,
                     photo,
                     linear,
                     &params,

@@ -463,6 +463,8 @@ pub fn render_missing_shard(
                 (photo, linear, None)
             }
         };
+        // the simulated capture of the real scene, made by its first coherent stimulus
+        let mut captured = None;
         for stimulus in &planned.stimuli {
             let stored = lookup(store, &stimulus.key);
             let needs_record = reference.is_some() && lookup_record(store, stimulus).is_none();
@@ -476,7 +478,7 @@ pub fn render_missing_shard(
             }
             let frame = plan
                 .settings
-                .render_stimulus(&renderer, &planned.scene, &photo, &linear, &stimulus.factors)
+                .render_stimulus(&renderer, &planned.scene, &photo, &linear, &stimulus.factors, &mut captured)
                 .map_err(render_error)?;
             let (name, shown) = match stored {
                 Some(name) => {

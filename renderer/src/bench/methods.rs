@@ -19,11 +19,12 @@ use serde::Serialize;
 
 use super::gpu::dir_linear_composite;
 use super::{Observer, Plot, Report, Series, ground_truth, load_sized};
-use crate::coherent::render::render_over;
+use crate::coherent::render::{CapturedScene, render_over};
 use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::Result;
+use crate::gpu::PassTime;
 use crate::gpu::{DirParams, DirRenderer, GiLevel};
-use crate::metrics::{self, StimulusErrors, stimulus_errors};
+use crate::metrics::{self, stimulus_errors};
 use crate::reference::ReferenceParams;
 use crate::sensor;
 
@@ -64,12 +65,7 @@ pub struct MethodRow {
     pub width: u32,
     pub height: u32,
     pub reference_spp: u32,
-    pub passes: Vec<crate::coherent::Pass>,
-}
-
-/// The value of `metric` in `region`, if that region was measured.
-fn value(errors: &StimulusErrors, metric: &str, region: &str) -> Option<f64> {
-    errors.values.iter().find(|v| v.metric == metric && v.region == region).map(|v| v.value)
+    pub passes: Vec<PassTime>,
 }
 
 /// Runs the benchmark on `scene_name` (default: every built-in scene; `quick`: survey-1 small).
@@ -106,8 +102,6 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let linear = dir_linear_composite(&frame, &reference.hdr_real);
             let shown = sensor::apply(&linear, &scene.camera, &scene.sensor);
             let errors = stimulus_errors(&reference.ground_truth, &shown, affected, &reference.virtual_mask);
-            let passes =
-                frame.report.passes.iter().map(|p| crate::coherent::Pass { pass: p.pass.clone(), ms: p.ms }).collect();
             rows.push(MethodRow {
                 scene: name.clone(),
                 method: "dir".into(),
@@ -120,32 +114,35 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 background_ms: None,
                 frame_ms: frame.report.ms,
                 ms: frame.report.ms,
-                flip: value(&errors, "flip_mean", "affected").unwrap_or(0.0),
-                rmse: value(&errors, "rmse_display", "affected").unwrap_or(0.0),
-                flip_virtual: value(&errors, "flip_mean", "virtual"),
-                rmse_virtual: value(&errors, "rmse_display", "virtual"),
+                flip: errors.value("flip_mean", "affected").unwrap_or(0.0),
+                rmse: errors.value("rmse_display", "affected").unwrap_or(0.0),
+                flip_virtual: errors.value("flip_mean", "virtual"),
+                rmse_virtual: errors.value("rmse_display", "virtual"),
                 rmse_linear: metrics::rmse(&reference.hdr_full, &linear, Some(affected)),
                 representation_bytes: 0,
                 width: w,
                 height: h,
                 reference_spp: ref_spp,
-                passes,
+                passes: frame.report.passes,
             });
             print_row(observer, rows.last().expect("a row"));
         }
-        // the coherent methods: off once, EM, DIT and VCT at each quality
+        // the coherent methods from one capture: off once, EM, DIT and VCT at each quality
+        // (seed 1: CoherentParams::new's, as in mrstudy render --gi-method)
+        let captured = CapturedScene::new(&scene, 1, &|done, total| observer.progress("capture", done, total));
         let mut settings = vec![(Method::Off, Quality::Med)];
         for method in [Method::Em, Method::Dit, Method::Vct] {
             settings.extend(qualities.iter().map(|&q| (method, q)));
         }
         for (method, quality) in settings {
             let params = CoherentParams::new(method, quality);
-            let (_, build, frame, _, errors) =
-                render_over(&scene, &params, &reference, &|done, total| observer.progress("coherent", done, total))?;
+            let (build, frame, _, errors) = render_over(&scene, &captured, &params, &reference, &|done, total| {
+                observer.progress("coherent", done, total)
+            })?;
             let pass = |prefix: &str| {
                 frame.report.passes.iter().filter(|p| p.pass.starts_with(prefix)).map(|p| p.ms).fold(0.0, |a, b| a + b)
             };
-            let capture_ms = build.first().map_or(0.0, |p| p.ms);
+            let capture_ms = captured.ms;
             let representation_ms = build.iter().skip(1).map(|p| p.ms).fold(0.0, |a, b| a + b);
             let frame_ms = frame.report.total_ms();
             rows.push(MethodRow {
@@ -160,10 +157,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 background_ms: Some(pass("material estimation") + pass("differential background")),
                 frame_ms,
                 ms: representation_ms + frame_ms,
-                flip: value(&errors, "flip_mean", "affected").unwrap_or(0.0),
-                rmse: value(&errors, "rmse_display", "affected").unwrap_or(0.0),
-                flip_virtual: value(&errors, "flip_mean", "virtual"),
-                rmse_virtual: value(&errors, "rmse_display", "virtual"),
+                flip: errors.value("flip_mean", "affected").unwrap_or(0.0),
+                rmse: errors.value("rmse_display", "affected").unwrap_or(0.0),
+                flip_virtual: errors.value("flip_mean", "virtual"),
+                rmse_virtual: errors.value("rmse_display", "virtual"),
                 rmse_linear: metrics::rmse(&reference.hdr_full, &frame.composite, Some(affected)),
                 representation_bytes: frame.report.representation_bytes,
                 width: w,

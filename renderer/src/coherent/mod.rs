@@ -34,6 +34,7 @@ use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::impostor::DistanceImpostor;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
+use crate::gpu::PassTime;
 use crate::image::{Image, Mask};
 use crate::light::{Environment, SpotLight, equirect_dir};
 use crate::material::{DeltaBsdf, Material, Transport};
@@ -180,19 +181,12 @@ impl CoherentParams {
     }
 }
 
-/// One pass and its time.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Pass {
-    pub pass: String,
-    pub ms: f64,
-}
-
 /// What a coherent render did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct CoherentReport {
     pub method: String,
     pub quality: String,
-    pub passes: Vec<Pass>,
+    pub passes: Vec<PassTime>,
     pub representation_bytes: usize,
     /// Pixels the virtual object covers (in part).
     pub object_pixels: usize,
@@ -291,13 +285,13 @@ pub fn build_representation(
     samples: &[EnvironmentSample],
     footprint: f32,
     params: &CoherentParams,
-) -> (Representation, Vec<Pass>) {
+) -> (Representation, Vec<PassTime>) {
     let mut passes = Vec::new();
     let centre = virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
     let start = Instant::now();
     let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
     let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
-    passes.push(Pass { pass: format!("light probe ({size})"), ms: ms_since(start) });
+    passes.push(PassTime { pass: format!("light probe ({size})"), ms: ms_since(start) });
     let mut rep = Representation { sky: Some(Arc::new(probe)), ..Representation::default() };
     if params.method == Method::Off {
         return (rep, passes);
@@ -306,17 +300,17 @@ pub fn build_representation(
         let start = Instant::now();
         rep.impostor = Some(DistanceImpostor::build(samples, centre, params.settings.impostor_size, footprint));
         let n = params.settings.impostor_size;
-        passes.push(Pass { pass: format!("distance impostor (6×{n}²)"), ms: ms_since(start) });
+        passes.push(PassTime { pass: format!("distance impostor (6×{n}²)"), ms: ms_since(start) });
     } else {
         let start = Instant::now();
         rep.voxels = Some(VoxelVolume::build(samples, params.settings.scene_voxels, footprint));
         let n = params.settings.scene_voxels;
-        passes.push(Pass { pass: format!("scene voxel volume ({n}³ with mipmaps)"), ms: ms_since(start) });
+        passes.push(PassTime { pass: format!("scene voxel volume ({n}³ with mipmaps)"), ms: ms_since(start) });
     }
     (rep, passes)
 }
 
-fn ms_since(start: Instant) -> f64 {
+pub(crate) fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
@@ -397,14 +391,14 @@ impl<'a> Coherent<'a> {
         // G-buffer: coverage by 2×2 subsamples, the real point behind, eq. 9's box test
         let start = Instant::now();
         let gbuffer: Vec<(u8, Option<Background>)> = (0..n).into_par_iter().map(|k| self.gbuffer(k)).collect();
-        report.passes.push(Pass { pass: "G-buffer and box tests (eq. 9)".into(), ms: ms_since(start) });
+        report.passes.push(PassTime { pass: "G-buffer and box tests (eq. 9)".into(), ms: ms_since(start) });
         progress(1, steps);
 
         // the virtual object
         let start = Instant::now();
         let object: Vec<Vec3> =
             (0..n).into_par_iter().map(|k| if gbuffer[k].0 > 0 { self.object_pixel(k) } else { Vec3::ZERO }).collect();
-        report.passes.push(Pass { pass: "virtual object".into(), ms: ms_since(start) });
+        report.passes.push(PassTime { pass: "virtual object".into(), ms: ms_since(start) });
         report.object_pixels = gbuffer.iter().filter(|g| g.0 > 0).count();
         progress(2, steps);
 
@@ -420,7 +414,7 @@ impl<'a> Coherent<'a> {
                 _ => None,
             })
             .collect();
-        report.passes.push(Pass { pass: "material estimation (eq. 5)".into(), ms: ms_since(start) });
+        report.passes.push(PassTime { pass: "material estimation (eq. 5)".into(), ms: ms_since(start) });
         progress(3, steps);
 
         // the differential background
@@ -438,7 +432,7 @@ impl<'a> Coherent<'a> {
                 _ => (Vec3::ZERO, 0, 0),
             })
             .collect();
-        report.passes.push(Pass { pass: "differential background (eqs. 8, 9)".into(), ms: ms_since(start) });
+        report.passes.push(PassTime { pass: "differential background (eqs. 8, 9)".into(), ms: ms_since(start) });
         progress(4, steps);
 
         // composition in the reference colour space
@@ -474,7 +468,7 @@ impl<'a> Coherent<'a> {
             report.rays_traced += deltas[k].1;
             report.rays_scaled += deltas[k].2;
         }
-        report.passes.push(Pass { pass: "composition".into(), ms: ms_since(start) });
+        report.passes.push(PassTime { pass: "composition".into(), ms: ms_since(start) });
         progress(5, steps);
         if self.bounds.is_none() {
             report.skipped.push("no virtual object: the photograph is returned unchanged".into());

@@ -7,9 +7,11 @@
 //! of the two radiance buffers, the differential composition over the photograph, the `ca`
 //! factor's camera artifacts).
 
-use super::{Coherent, CoherentFrame, CoherentParams, Pass, build_representation};
+use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_since};
+use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::error::Result;
+use crate::gpu::PassTime;
 use crate::image::Image;
 use crate::metrics::{StimulusErrors, stimulus_errors};
 use crate::pathtracer::{Subset, World};
@@ -23,7 +25,7 @@ pub struct SceneRender {
     pub reference: ReferenceOutput,
     pub capture: CaptureReport,
     /// The build passes (light probe, impostor or voxel volume) before the frame's passes.
-    pub build: Vec<Pass>,
+    pub build: Vec<PassTime>,
     pub frame: CoherentFrame,
     /// The composite through the scene's camera (display-encoded).
     pub stimulus: Image,
@@ -42,69 +44,91 @@ pub fn render_scene(
 ) -> Result<SceneRender> {
     let total = 2 * reference.spp + POSES + 5;
     let reference_out = render_reference(scene, reference, &|done, _| progress(done, total))?;
-    let (capture, build, frame, stimulus, errors) =
-        render_over(scene, params, &reference_out, &|done, _| progress(2 * reference.spp + done, total))?;
-    Ok(SceneRender { reference: reference_out, capture, build, frame, stimulus, errors })
-}
-
-/// The capture, representation and frame of `scene` over a reference render made already (its
-/// photograph's radiance the frame's input), the composite through the scene's camera, and its
-/// errors against the reference's ground truth. `progress(done, total)` counts the capture's
-/// poses and the frame's passes.
-pub fn render_over(
-    scene: &Scene,
-    params: &CoherentParams,
-    reference: &ReferenceOutput,
-    progress: &(dyn Fn(u32, u32) + Sync),
-) -> Result<(CaptureReport, Vec<Pass>, CoherentFrame, Image, StimulusErrors)> {
-    let (capture, build, frame) = capture_and_render(scene, params, &reference.hdr_real, progress)?;
-    let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
-    let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
-    Ok((capture, build, frame, stimulus, errors))
+    let captured = CapturedScene::new(scene, params.seed, &|done, _| progress(2 * reference.spp + done, total));
+    let (build, frame, stimulus, errors) = render_over(scene, &captured, params, &reference_out, &|done, _| {
+        progress(2 * reference.spp + POSES + done, total)
+    })?;
+    Ok(SceneRender { reference: reference_out, capture: captured.report, build, frame, stimulus, errors })
 }
 
 /// Capture poses of a coherent render.
 const POSES: u32 = 4;
 
-/// The capture of the real scene from [`POSES`] poses, the representation and the frame over
-/// `linear` (the photograph's linear radiance). `progress(done, total)` counts the poses, then
+/// The real scene as the simulated depth sensor captured it from [`POSES`] poses: made once per
+/// scene and seed, shared by every method and quality rendered from it.
+pub struct CapturedScene {
+    real: World,
+    samples: Vec<EnvironmentSample>,
+    /// The hash grid's cell (the samples' footprint).
+    cell: f32,
+    pub report: CaptureReport,
+    /// The capture's time.
+    pub ms: f64,
+}
+
+impl CapturedScene {
+    /// Captures `scene`'s real world with the capture's random numbers from `seed`;
+    /// `progress(done, total)` counts the poses.
+    pub fn new(scene: &Scene, seed: u64, progress: &(dyn Fn(u32, u32) + Sync)) -> CapturedScene {
+        let real = World::new(scene, Subset::RealOnly);
+        let mut params = CaptureParams::for_scene(scene, &real, POSES as usize);
+        params.seed = seed;
+        let start = Instant::now();
+        let cap = capture(&real, &params, |done, _| progress(done as u32, POSES));
+        let ms = ms_since(start);
+        let samples = cap.grid.samples().copied().collect();
+        CapturedScene { real, samples, cell: params.cell, report: cap.report, ms }
+    }
+
+    /// The representation and the frame of `params` over `linear` (the photograph's linear
+    /// radiance), with the build passes — the capture's first — and the frame.
+    /// `progress(done, total)` counts the frame's passes.
+    fn render(
+        &self,
+        scene: &Scene,
+        params: &CoherentParams,
+        linear: &Image,
+        progress: &(dyn Fn(u32, u32) + Sync),
+    ) -> Result<(Vec<PassTime>, CoherentFrame)> {
+        let mut build = vec![PassTime { pass: format!("capture ({POSES} poses)"), ms: self.ms }];
+        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params);
+        build.extend(passes);
+        let frame = Coherent::new(scene, &self.real, &rep, *params).render(linear, progress)?;
+        Ok((build, frame))
+    }
+}
+
+/// The representation and frame of `scene` from `captured` over a reference render made
+/// already (its photograph's radiance the frame's input), the composite through the scene's
+/// camera, and its errors against the reference's ground truth. `progress(done, total)` counts
 /// the frame's passes.
-fn capture_and_render(
+pub fn render_over(
     scene: &Scene,
+    captured: &CapturedScene,
     params: &CoherentParams,
-    linear: &Image,
+    reference: &ReferenceOutput,
     progress: &(dyn Fn(u32, u32) + Sync),
-) -> Result<(CaptureReport, Vec<Pass>, CoherentFrame)> {
-    let total = POSES + 5;
-    let real = World::new(scene, Subset::RealOnly);
-    let mut capture_params = CaptureParams::for_scene(scene, &real, POSES as usize);
-    capture_params.seed = params.seed;
-    let start = Instant::now();
-    let cap = capture(&real, &capture_params, |done, _| progress(done as u32, total));
-    let mut build = vec![Pass { pass: format!("capture ({POSES} poses)"), ms: start.elapsed().as_secs_f64() * 1e3 }];
-    let samples: Vec<_> = cap.grid.samples().copied().collect();
-    let (rep, passes) = build_representation(scene, &real, &samples, capture_params.cell, params);
-    build.extend(passes);
-    let renderer = Coherent::new(scene, &real, &rep, *params);
-    let frame = renderer.render(linear, &|done, _| progress(POSES + done, total))?;
-    Ok((cap.report, build, frame))
+) -> Result<(Vec<PassTime>, CoherentFrame, Image, StimulusErrors)> {
+    let (build, frame) = captured.render(scene, params, &reference.hdr_real, progress)?;
+    let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
+    let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
+    Ok((build, frame, stimulus, errors))
 }
 
 /// A study's coherent stimulus and what it took.
 pub struct CoherentStimulus {
     /// The stimulus as shown (display-encoded).
     pub composite: Image,
-    /// Capture, representation, frame and display, in milliseconds.
+    /// The capture it was rendered from (shared by the scene's coherent stimuli), its
+    /// representation, frame and display, in milliseconds.
     pub ms: f64,
-    pub capture: CaptureReport,
-    pub build: Vec<Pass>,
     pub frame: CoherentFrame,
     /// The colour mapping of the frame's buffers.
     pub cm: crate::cm::CmReport,
 }
 
-/// A stimulus of `scene` by a coherent method, shown as a DIR stimulus is: `photo` is the
-/// photograph (display-encoded) and `linear` its linear radiance. The frame's two radiance
+/// A stimulus of `scene` by a coherent method from `captured`, shown as a DIR stimulus is:
+/// `photo` is the photograph (display-encoded) and `linear` its linear radiance. The frame's two radiance
 /// buffers — the real surfaces as photographed (`L_r`) and with the differential added
 /// (`L_rv`), the object's radiance on it — go through the colour mapping `cm` (the `cm`
 /// factor's: Reinhard off, the statistics transfer on) and the differential composition over
@@ -112,6 +136,7 @@ pub struct CoherentStimulus {
 /// on, adds the camera artifacts (the CPU reference of the ca chain).
 pub fn render_stimulus(
     scene: &Scene,
+    captured: &CapturedScene,
     photo: &Image,
     linear: &Image,
     params: &CoherentParams,
@@ -121,7 +146,7 @@ pub fn render_stimulus(
     use crate::cm::{CmInput, CmState, Composition, compose, cpu_frame};
     use crate::surface::{NOTHING, REAL, VIRTUAL};
     let start = Instant::now();
-    let (capture, build, frame) = capture_and_render(scene, params, linear, &|_, _| {})?;
+    let (_, frame) = captured.render(scene, params, linear, &|_, _| {})?;
     let (w, h) = (photo.width, photo.height);
     if (linear.width, linear.height) != (w, h) {
         return Err(crate::error::RenderError::SizeMismatch {
@@ -170,14 +195,7 @@ pub fn render_stimulus(
     if let Some(ca) = ca {
         composite = crate::ca::apply_cpu(&composite, photo, &frame.coverage, &scene.camera, ca)?.0;
     }
-    Ok(CoherentStimulus {
-        composite,
-        ms: start.elapsed().as_secs_f64() * 1e3,
-        capture,
-        build,
-        frame,
-        cm: mapped.report,
-    })
+    Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm: mapped.report })
 }
 
 /// [`render_scene`], saved to `out` (`.png` the camera's output, `.exr` the linear composite)
@@ -234,11 +252,9 @@ pub fn render_to_file(
     for skipped in &report.skipped {
         lines.push(format!("  skipped: {skipped}"));
     }
-    let value = |metric: &str, region: &str| {
-        result.errors.values.iter().find(|v| v.metric == metric && v.region == region).map(|v| v.value)
-    };
     for region in ["affected", "virtual"] {
-        if let (Some(flip), Some(rmse)) = (value("flip_mean", region), value("rmse_display", region)) {
+        let value = |metric: &str| result.errors.value(metric, region);
+        if let (Some(flip), Some(rmse)) = (value("flip_mean"), value("rmse_display")) {
             lines
                 .push(format!("  against the ground truth, {region} region: FLIP {flip:.4}, RMSE {rmse:.4} (display)"));
         }
@@ -247,12 +263,13 @@ pub fn render_to_file(
         lines.push(format!("  errors skipped: {skipped}"));
     }
     lines.push(format!(
-        "wrote {} (gi {} at quality {}): reference {:.1} s on the CPU, representation {:.0} ms, frame {:.0} ms",
+        "wrote {} (gi {} at quality {}): reference {:.1} s on the CPU, capture {:.0} ms, representation {:.0} ms, frame {:.0} ms",
         out.display(),
         params.method.name(),
         params.quality.name(),
         result.reference.stats.seconds,
-        result.build.iter().map(|p| p.ms).sum::<f64>(),
+        result.build[0].ms,
+        result.build[1..].iter().map(|p| p.ms).sum::<f64>(),
         report.total_ms()
     ));
     Ok(lines)

@@ -259,7 +259,7 @@ fn on_the_survey_scenes_every_method_beats_gi_off_against_the_ground_truth() {
             let result =
                 render::render_scene(&scene, &CoherentParams::new(method, Quality::Med), &reference, &|_, _| {})
                     .unwrap();
-            result.errors.values.iter().find(|v| v.metric == "flip_mean" && v.region == "affected").unwrap().value
+            result.errors.value("flip_mean", "affected").unwrap()
         };
         let off = flip(Method::Off);
         for method in [Method::Em, Method::Dit, Method::Vct] {
@@ -276,7 +276,8 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let (linear, display, _) = crate::reference::render_photo(&scene, &params, &|_, _| {}).unwrap();
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
-    let shown = render::render_stimulus(&scene, &display, &linear, &p, &off, None).unwrap();
+    let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None).unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -306,6 +307,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let (linear, display, _) = crate::reference::render_photo(&scene, &params, &|_, _| {}).unwrap();
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
-    let shown = render::render_stimulus(&scene, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
+    let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
