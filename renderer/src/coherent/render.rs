@@ -52,7 +52,7 @@ pub fn render_scene(
 }
 
 /// Capture poses of a coherent render.
-const POSES: u32 = 4;
+pub const POSES: u32 = 4;
 
 /// The real scene as the simulated depth sensor captured it from [`POSES`] poses: made once per
 /// scene and seed, shared by every method and quality rendered from it.
