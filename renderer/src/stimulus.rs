@@ -384,6 +384,7 @@ impl StimulusSettings {
                     &params,
                     &dir.cm,
                     dir.camera_artifacts.as_ref(),
+                    None,
                 )?;
                 Ok(StimulusFrame {
                     composite: frame.composite,

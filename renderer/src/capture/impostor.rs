@@ -28,6 +28,10 @@ pub struct DistanceImpostor {
     far: f32,
 }
 
+/// A sample's splat radius as a fraction of its footprint (the hash grid's cell): a disk a
+/// little wider than the inscribed one, so that neighbouring cells' disks close the surface.
+pub const SPLAT_RADIUS: f32 = 0.75;
+
 /// A query's answer: the radiance found and the point it came from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -76,9 +80,12 @@ fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
 
 impl DistanceImpostor {
     /// Splats `samples` into a cube map of `size`² texels per face centred at `centre`; each
-    /// sample covers the texels whose directions lie within its footprint (a disk of
-    /// `footprint` metres, the hash grid's cell) seen from the centre, the nearest sample
-    /// winning each texel.
+    /// sample is a disk in its tangent plane (radius [`SPLAT_RADIUS`] × `footprint`, the hash
+    /// grid's cell) and covers the texels whose directions from the centre cross that disk, at
+    /// the distance where they cross it; the nearest sample wins each texel. A disk seen edge-on
+    /// covers only the texels it really crosses: a floor seen at a grazing angle stays flat
+    /// instead of rising into a bowl around the centre. A sample without a usable normal is a
+    /// disk facing the centre.
     pub fn build<'a>(
         samples: impl IntoIterator<Item = &'a EnvironmentSample>,
         centre: Vec3,
@@ -103,7 +110,10 @@ impl DistanceImpostor {
                 continue;
             }
             let dir = d / dist;
-            let angular = (footprint / dist).atan();
+            let radius = SPLAT_RADIUS * footprint;
+            let normal =
+                if s.normal.is_finite() && s.normal.length_squared() > 0.5 { s.normal.normalize() } else { dir };
+            let angular = (radius / dist).atan();
             let cos_reach = angular.cos();
             let (face, u, v) = face_uv(dir);
             let reach = (angular / texel_angle * 2.0).ceil() as i64 + 1;
@@ -119,12 +129,22 @@ impl DistanceImpostor {
                     } else {
                         (face, x as u32, y as u32)
                     };
-                    if texel_dir(f, tx, ty, size).dot(dir) < cos_reach {
+                    let t = texel_dir(f, tx, ty, size);
+                    if t.dot(dir) < cos_reach {
+                        continue;
+                    }
+                    // where the texel's direction crosses the sample's plane, if within its disk
+                    let facing = normal.dot(t);
+                    if facing.abs() < 1e-4 {
+                        continue;
+                    }
+                    let along = normal.dot(d) / facing;
+                    if !(along > 0.0) || (centre + t * along - s.position).length() > radius {
                         continue;
                     }
                     let i = f * (size * size) as usize + (ty * size + tx) as usize;
-                    if dist < map.distance[i] {
-                        map.distance[i] = dist;
+                    if along < map.distance[i] {
+                        map.distance[i] = along;
                         map.radiance[i] = s.colour;
                     }
                 }
@@ -132,6 +152,18 @@ impl DistanceImpostor {
         }
         map.far = map.distance.iter().copied().filter(|d| d.is_finite()).fold(0.0f32, f32::max);
         map
+    }
+
+    /// An impostor from its maps (6 faces of `size`² texels each; infinite distance where no
+    /// sample landed), as the GPU builds it.
+    pub fn from_maps(centre: Vec3, size: u32, radiance: Vec<Vec3>, distance: Vec<f32>) -> DistanceImpostor {
+        let far = distance.iter().copied().filter(|d| d.is_finite()).fold(0.0f32, f32::max);
+        DistanceImpostor { centre, size, radiance, distance, far }
+    }
+
+    /// The stored radiance and distance of every texel (face by face, rows top down).
+    pub fn maps(&self) -> (&[Vec3], &[f32]) {
+        (&self.radiance, &self.distance)
     }
 
     fn texel(&self, dir: Vec3) -> usize {
@@ -304,7 +336,9 @@ mod tests {
                         p[(axis + 2) % 3] = b;
                         let mut colour = Vec3::splat(0.2);
                         colour[axis] = if side > 0.0 { 1.0 } else { 0.6 };
-                        out.push(EnvironmentSample { position: p, normal: -p.signum() * Vec3::ONE, colour, pose: 0 });
+                        let mut normal = Vec3::ZERO;
+                        normal[axis] = -side;
+                        out.push(EnvironmentSample { position: p, normal, colour, pose: 0 });
                     }
                 }
             }
@@ -363,6 +397,43 @@ mod tests {
         // measured: EM median 0.57 m, p90 0.76 m; DIT median 0.011 m, p90 0.033 m
         assert!(dit_err[200] < 0.02 && dit_err[360] < 0.06, "DIT median {} p90 {}", dit_err[200], dit_err[360]);
         assert!(em_err[200] > 5.0 * dit_err[200], "EM median {} DIT median {}", em_err[200], dit_err[200]);
+    }
+
+    #[test]
+    fn a_floor_seen_from_just_above_stays_flat() {
+        // samples every 5 cm on the floor y = −1, the centre 2 cm above it: each sample's disk
+        // lies in the floor's plane, so no direction above the horizon meets one and every
+        // direction below meets the plane where it truly is (a disk facing the centre would
+        // rise 3.75 cm at every distance, a bowl around the centre)
+        let floor: Vec<EnvironmentSample> = room(0.05).into_iter().filter(|s| s.position.y == -1.0).collect();
+        let centre = Vec3::new(0.013, -0.98, -0.021);
+        let map = DistanceImpostor::build(&floor, centre, 64, 0.05);
+        let mut below = 0;
+        for k in 0..720 {
+            let azimuth = k as f32 * std::f32::consts::TAU / 720.0;
+            for elevation_deg in [-60.0f32, -20.0, -8.0, -4.0, 3.0, 10.0, 30.0] {
+                let e = elevation_deg.to_radians();
+                let d = Vec3::new(e.cos() * azimuth.cos(), e.sin(), e.cos() * azimuth.sin());
+                let hit = map.lookup(d);
+                if elevation_deg > 0.0 {
+                    assert!(hit.is_none(), "elevation {elevation_deg}°: the floor seen above the horizon");
+                    continue;
+                }
+                // the texel's own direction differs from d by up to half a texel (≈ 1/64 rad
+                // near a face's centre): compare the height of the stored point, which lies on
+                // the plane wherever the texel's direction crosses it
+                if let Some(hit) = hit {
+                    below += 1;
+                    assert!(
+                        (hit.point.y + 1.0).abs() < 0.02,
+                        "elevation {elevation_deg}°: stored at y = {}",
+                        hit.point.y
+                    );
+                }
+            }
+        }
+        // the floor's 2×2 m ends 1 m away: texels looking past its edge at −4° hold nothing
+        assert!(below > 720 * 3, "{below} directions below the horizon met the floor");
     }
 
     #[test]

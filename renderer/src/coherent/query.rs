@@ -40,7 +40,10 @@ pub struct Incident {
 /// The scene representations a query reads.
 #[derive(Clone, Debug, Default)]
 pub struct Representation {
-    pub impostor: Option<DistanceImpostor>,
+    /// One distance impostor per virtual object, centred in it (EM, DIT); a query reads the
+    /// one whose centre is nearest its origin, so that no query starts far from the centre its
+    /// parallax correction assumes.
+    pub impostors: Vec<DistanceImpostor>,
     pub voxels: Option<VoxelVolume>,
     /// The environment light beyond the capture.
     pub sky: Option<Arc<Environment>>,
@@ -51,11 +54,19 @@ impl Representation {
         self.sky.as_ref().map_or(Vec3::ZERO, |env| env.eval(dir))
     }
 
+    /// The impostor whose centre is nearest `origin` (None when none was built).
+    pub fn impostor_near(&self, origin: Vec3) -> Option<&DistanceImpostor> {
+        self.impostors.iter().min_by(|a, b| {
+            let (da, db) = ((a.centre - origin).length_squared(), (b.centre - origin).length_squared());
+            da.total_cmp(&db)
+        })
+    }
+
     /// The radiance arriving at `origin` from the unit direction `dir`, by `query`; a cone of
     /// half-angle `half_angle` for VCT (rays ignore it). A query whose representation was not
     /// built falls back to impostor tracing, then to the environment light alone.
     pub fn incident(&self, query: Query, origin: Vec3, dir: Vec3, half_angle: f32) -> Incident {
-        match (query, &self.impostor, &self.voxels) {
+        match (query, self.impostor_near(origin), &self.voxels) {
             (Query::Vct, _, Some(voxels)) => {
                 let hit = voxels.cone(origin, dir, half_angle);
                 Incident { radiance: hit.radiance + (1.0 - hit.opacity) * self.sky(dir), distance: hit.distance }
@@ -92,6 +103,6 @@ impl Representation {
 
     /// Bytes held by the representations.
     pub fn bytes(&self) -> usize {
-        self.impostor.as_ref().map_or(0, |m| m.bytes()) + self.voxels.as_ref().map_or(0, |v| v.bytes())
+        self.impostors.iter().map(|m| m.bytes()).sum::<usize>() + self.voxels.as_ref().map_or(0, |v| v.bytes())
     }
 }

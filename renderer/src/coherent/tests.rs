@@ -104,6 +104,36 @@ fn a_cone_stops_at_a_wall_of_samples_and_passes_where_there_is_none() {
 }
 
 #[test]
+fn a_surface_of_coarse_samples_fills_one_layer_of_fine_voxels() {
+    // a floor at y = 0.003 of samples every 5 cm (the footprint), voxels of 1 cm: each
+    // sample's disk fills the voxels its plane passes through, not a ball 5 cm across
+    let mut samples = Vec::new();
+    for i in 0..=20 {
+        for j in 0..=20 {
+            samples.push(EnvironmentSample {
+                position: Vec3::new(-0.5 + i as f32 * 0.05, 0.003, -0.5 + j as f32 * 0.05),
+                normal: Vec3::Y,
+                colour: Vec3::splat(0.5),
+                pose: 0,
+            });
+        }
+    }
+    let volume = VoxelVolume::build(&samples, 110, 0.05);
+    assert!((volume.voxel - 0.01).abs() < 1e-4, "voxel {}", volume.voxel);
+    // the floor is closed: 1.075 m across (the disks reach 3.75 cm past the outer samples)
+    let layer = 107 * 107;
+    assert!(volume.filled() > layer * 9 / 10 && volume.filled() < layer * 11 / 10, "{} filled", volume.filled());
+    // a thin cone straight down meets it within a voxel of the plane, and one a voxel above
+    // it, going up, meets nothing
+    for x in [-0.31f32, 0.0, 0.17] {
+        let hit = volume.cone(Vec3::new(x, 0.2, 0.05), Vec3::NEG_Y, 0.005);
+        // one voxel thick, read trilinearly, it stops most of the cone (measured 0.82)
+        assert!(hit.opacity > 0.75 && (hit.distance - 0.197).abs() < 0.015, "{hit:?}");
+        assert_eq!(volume.cone(Vec3::new(x, 0.015, 0.05), Vec3::Y, 0.005).opacity, 0.0);
+    }
+}
+
+#[test]
 fn the_light_probe_is_laid_out_as_environment_maps_are() {
     // every texel a different value: a direction through a texel's centre reads that texel
     let (w, h) = (16, 8);
@@ -125,7 +155,7 @@ fn reflectance_estimation_recovers_a_known_albedo_under_a_known_environment() {
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.material_samples = 4096;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point away from the box; its photographed radiance by the path tracer, many paths
     let x = Vec3::new(-0.5, 0.0, 0.4);
@@ -171,7 +201,7 @@ fn the_cache_of_eq_9_is_unbiased_against_eq_8_and_less_noisy_at_equal_tracing() 
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.background_samples = 64;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point beside the box: some directions meet it
     let x = Vec3::new(0.3, 0.0, 0.1);
@@ -210,7 +240,7 @@ fn with_no_virtual_object_every_method_leaves_the_photograph_exact() {
     let photo = photo(&scene);
     for method in Method::ALL {
         let p = CoherentParams::new(method, Quality::Low);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&photo, &|_, _| {}).unwrap();
         assert_eq!(frame.composite.pixels, photo.pixels, "{}", method.name());
         assert_eq!(frame.report.object_pixels, 0);
@@ -235,7 +265,7 @@ fn every_method_brings_the_composite_closer_to_the_ground_truth_than_gi_off() {
     .unwrap();
     let error = |method: Method| {
         let p = CoherentParams::new(method, Quality::Med);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&reference.hdr_real, &|_, _| {}).unwrap();
         assert!(frame.report.object_pixels > 20, "{:?}", frame.report);
         // linear radiance against the path-traced composite in the affected region
@@ -252,9 +282,9 @@ fn every_method_brings_the_composite_closer_to_the_ground_truth_than_gi_off() {
 fn on_the_survey_scenes_every_method_beats_gi_off_against_the_ground_truth() {
     // the whole chain of `mrstudy render --gi-method`: reference, capture, representation,
     // frame, camera; FLIP in the affected region (display values, as a participant sees them)
-    for name in ["survey-1", "survey-2"] {
-        let scene = crate::scene::load(name).unwrap().with_size(80, 60);
-        let reference = crate::reference::ReferenceParams { spp: 8, ..Default::default() };
+    for name in ["survey-1", "survey-2", "survey-3", "survey-4", "survey-5", "survey-6"] {
+        let scene = crate::scene::load(name).unwrap().with_size(128, 96);
+        let reference = crate::reference::ReferenceParams { spp: 16, ..Default::default() };
         let flip = |method: Method| {
             let result =
                 render::render_scene(&scene, &CoherentParams::new(method, Quality::Med), &reference, &|_, _| {})
@@ -277,7 +307,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -308,6 +338,6 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca), None).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }

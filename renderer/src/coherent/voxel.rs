@@ -4,8 +4,14 @@
 //! of half the cone's diameter, reading the level whose voxel matches the diameter.
 
 use crate::capture::hashgrid::EnvironmentSample;
+use crate::capture::impostor::SPLAT_RADIUS;
 use crate::geometry::Aabb;
 use glam::Vec3;
+
+/// The largest radiance one sample brings into a voxel (the GPU build sums radiance in 32-bit
+/// fixed point at 1/4096, and this keeps 64 samples in one voxel from overflowing it); far above
+/// what a camera records of a surface, it clips only a captured light source's core.
+pub const RADIANCE_MAX: f32 = 16383.0;
 
 /// One level: `res`³ voxels of premultiplied radiance (rgb) and opacity (a).
 #[derive(Clone, Debug)]
@@ -43,37 +49,29 @@ pub struct ConeHit {
 
 impl VoxelVolume {
     /// Fills `res`³ voxels over the samples' bounds (a cube, padded by `footprint`); each
-    /// sample covers the voxels within half its footprint (the hash grid's cell), so that a
-    /// surface sampled every cell is closed. Radiance is averaged per voxel.
+    /// sample is a disk in its tangent plane (radius [`SPLAT_RADIUS`] × `footprint`, the hash
+    /// grid's cell, so that a surface sampled every cell is closed) and fills the voxels that
+    /// disk passes through: a surface stays one voxel thick. A sample without a usable normal
+    /// fills the voxels within its radius. Radiance is averaged per voxel.
     pub fn build<'a>(
         samples: impl IntoIterator<Item = &'a EnvironmentSample> + Clone,
         res: u32,
         footprint: f32,
     ) -> Self {
-        let res = res.clamp(1, 512) as usize;
-        let mut bounds = Aabb::EMPTY;
-        for s in samples.clone() {
-            if s.position.is_finite() && s.colour.is_finite() {
-                bounds.grow(s.position);
-            }
-        }
-        let empty = bounds.min.x > bounds.max.x;
-        let (origin, edge) = if empty {
-            (Vec3::ZERO, 1.0)
-        } else {
-            let pad = Vec3::splat(footprint.max(1e-3));
-            let (lo, hi) = (bounds.min - pad, bounds.max + pad);
-            (lo, (hi - lo).max_element())
-        };
-        let voxel = edge / res as f32;
+        let (origin, voxel, res) = VoxelVolume::frame(samples.clone(), res, footprint);
+        let res = res as usize;
+        let empty = !samples.clone().into_iter().any(|s| s.position.is_finite() && s.colour.is_finite());
         let mut sum = vec![[0.0f32; 4]; res * res * res];
         if !empty {
-            let radius = (0.5 * footprint).max(0.5 * voxel);
+            let radius = (SPLAT_RADIUS * footprint).max(0.5 * voxel);
             let reach = (radius / voxel).ceil() as i64;
             for s in samples {
                 if !(s.position.is_finite() && s.colour.is_finite()) {
                     continue;
                 }
+                let normal = (s.normal.is_finite() && s.normal.length_squared() > 0.5).then(|| s.normal.normalize());
+                // a plane meets a voxel's cube when its centre lies within this of the plane
+                let slab = normal.map_or(f32::INFINITY, |n| 0.5 * voxel * (n.x.abs() + n.y.abs() + n.z.abs()));
                 let c = (s.position - origin) / voxel;
                 let (cx, cy, cz) = (c.x.floor() as i64, c.y.floor() as i64, c.z.floor() as i64);
                 for z in cz - reach..=cz + reach {
@@ -83,13 +81,17 @@ impl VoxelVolume {
                                 continue;
                             }
                             let centre = origin + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * voxel;
-                            if (centre - s.position).length() > radius + 0.5 * voxel {
+                            let offset = centre - s.position;
+                            let across = normal.map_or(0.0, |n| n.dot(offset));
+                            if across.abs() > slab || (offset - normal.unwrap_or(Vec3::ZERO) * across).length() > radius
+                            {
                                 continue;
                             }
                             let v = &mut sum[((z as usize) * res + y as usize) * res + x as usize];
-                            v[0] += s.colour.x;
-                            v[1] += s.colour.y;
-                            v[2] += s.colour.z;
+                            let colour = s.colour.clamp(Vec3::ZERO, Vec3::splat(RADIANCE_MAX));
+                            v[0] += colour.x;
+                            v[1] += colour.y;
+                            v[2] += colour.z;
                             v[3] += 1.0;
                         }
                     }
@@ -126,6 +128,45 @@ impl VoxelVolume {
             levels.push(Level { res: r, data });
         }
         VoxelVolume { origin, voxel, res: res as u32, levels }
+    }
+
+    /// Where a volume of `res`³ voxels over `samples` lies: the corner of voxel (0, 0, 0), the
+    /// voxel's edge and the resolution (clamped to 1–512). The cube spans the finite samples'
+    /// bounds padded by `footprint`; a unit cube at the origin when there is none.
+    pub fn frame<'a>(
+        samples: impl IntoIterator<Item = &'a EnvironmentSample>,
+        res: u32,
+        footprint: f32,
+    ) -> (Vec3, f32, u32) {
+        let res = res.clamp(1, 512);
+        let mut bounds = Aabb::EMPTY;
+        for s in samples {
+            if s.position.is_finite() && s.colour.is_finite() {
+                bounds.grow(s.position);
+            }
+        }
+        let (origin, edge) = if bounds.min.x > bounds.max.x {
+            (Vec3::ZERO, 1.0)
+        } else {
+            let pad = Vec3::splat(footprint.max(1e-3));
+            let (lo, hi) = (bounds.min - pad, bounds.max + pad);
+            (lo, (hi - lo).max_element())
+        };
+        (origin, edge / res as f32, res)
+    }
+
+    /// A volume from its levels' voxels (premultiplied rgb and opacity; level 0 first, each
+    /// level half the previous per axis, rounded up, down to one voxel), as the GPU builds it.
+    pub fn from_levels(origin: Vec3, voxel: f32, levels: Vec<Vec<[f32; 4]>>) -> Self {
+        let levels: Vec<Level> =
+            levels.into_iter().map(|data| Level { res: (data.len() as f64).cbrt().round() as usize, data }).collect();
+        let res = levels.first().map_or(1, |l| l.res as u32);
+        VoxelVolume { origin, voxel, res, levels }
+    }
+
+    /// Level `level`'s voxels (x fastest, then y, then z), for comparisons.
+    pub fn level(&self, level: usize) -> &[[f32; 4]] {
+        &self.levels[level].data
     }
 
     /// Bytes held by every level.

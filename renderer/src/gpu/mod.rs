@@ -53,6 +53,7 @@ pub mod indirect;
 pub mod ism;
 pub mod mesh;
 pub mod raster;
+pub mod representation;
 pub mod shade;
 pub mod specular;
 pub mod vpl;
@@ -266,6 +267,8 @@ pub struct DirRenderer {
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
     specular: specular::Specular,
+    /// Rohmer et al.'s scene representations (the coherent methods' build passes).
+    pub representation: representation::RepresentationBuilder,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -374,7 +377,8 @@ impl DirRenderer {
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
         let specular = specular::Specular::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular }
+        let representation = representation::RepresentationBuilder::new(&ctx);
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular, representation }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real

@@ -47,6 +47,7 @@ fn every_shader_parses_and_validates_with_naga() {
         "indirect.wgsl",
         "ism.wgsl",
         "raster.wgsl",
+        "representation.wgsl",
         "shade.wgsl",
         "specular.wgsl",
     ] {

@@ -1,0 +1,250 @@
+// Rohmer et al.'s scene representations built from the captured environment samples (Sec. 6.1):
+// the distance impostor (radiance and distance cube map) and the mip-mapped scene voxel volume.
+// The GPU twin of `capture::impostor::DistanceImpostor::build` and `coherent::voxel::VoxelVolume::
+// build`, splat for splat: each sample is a disk in its tangent plane.
+
+struct Sample {
+    position: vec4<f32>,
+    normal: vec4<f32>,
+    colour: vec4<f32>,
+}
+
+struct Params {
+    // impostor: centre (xyz); voxels: origin of voxel (0, 0, 0) (xyz); w: the disk's radius
+    centre: vec4<f32>,
+    // x: samples, y: impostor texels per face or voxels per axis, z: bits of the voxel edge
+    counts: vec4<u32>,
+}
+
+// a mip step: x, y: voxels per axis of the fine and coarse level, z, w: their first voxel
+struct Mip {
+    levels: vec4<u32>,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> samples: array<Sample>;
+// the impostor's distance per texel as ordered bits (positive floats sort as u32), 0xffffffff empty
+@group(0) @binding(2) var<storage, read_write> depth: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read_write> radiance: array<vec4<f32>>;
+// per voxel: r, g, b in fixed point (COLOUR_SCALE) and the count
+@group(0) @binding(4) var<storage, read_write> sums: array<atomic<u32>>;
+// every level of the volume, one after the other
+@group(0) @binding(5) var<storage, read_write> levels: array<vec4<f32>>;
+@group(0) @binding(6) var<uniform> mip: Mip;
+
+const EMPTY: u32 = 0xffffffffu;
+const COLOUR_SCALE: f32 = 4096.0;
+// one sample's radiance is clamped here so that 64 of them in a voxel cannot overflow 32 bits
+const COLOUR_MAX: f32 = 16383.0;
+
+fn sample_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * nwg.x + wid.x) * 64u + lid;
+}
+
+fn finite3(v: vec3<f32>) -> bool {
+    // NaN fails every comparison; infinity exceeds the largest float
+    return all(abs(v) <= vec3<f32>(3.4e38));
+}
+
+// the face and its coordinates in [0, 1)² of a direction (axes as `face_uv` in impostor.rs)
+fn face_uv(d: vec3<f32>) -> vec3<f32> {
+    let a = abs(d);
+    var face = 0.0;
+    var sc = 0.0;
+    var tc = 0.0;
+    var ma = 1.0;
+    if a.x >= a.y && a.x >= a.z {
+        ma = a.x;
+        if d.x > 0.0 { face = 0.0; sc = -d.z; tc = -d.y; } else { face = 1.0; sc = d.z; tc = -d.y; }
+    } else if a.y >= a.z {
+        ma = a.y;
+        if d.y > 0.0 { face = 2.0; sc = d.x; tc = d.z; } else { face = 3.0; sc = d.x; tc = -d.z; }
+    } else {
+        ma = a.z;
+        if d.z > 0.0 { face = 4.0; sc = d.x; tc = -d.y; } else { face = 5.0; sc = -d.x; tc = -d.y; }
+    }
+    return vec3<f32>(face, 0.5 * (sc / ma + 1.0), 0.5 * (tc / ma + 1.0));
+}
+
+fn texel_coord(i: i32, size: u32) -> f32 {
+    return 2.0 * (f32(i) + 0.5) / f32(size) - 1.0;
+}
+
+fn face_dir(face: u32, s: f32, t: f32) -> vec3<f32> {
+    var d: vec3<f32>;
+    switch face {
+        case 0u: { d = vec3<f32>(1.0, -t, -s); }
+        case 1u: { d = vec3<f32>(-1.0, -t, s); }
+        case 2u: { d = vec3<f32>(s, 1.0, t); }
+        case 3u: { d = vec3<f32>(s, -1.0, -t); }
+        case 4u: { d = vec3<f32>(s, -t, 1.0); }
+        default: { d = vec3<f32>(-s, -t, -1.0); }
+    }
+    return normalize(d);
+}
+
+// A sample's splat on the impostor: calls `visit(texel, distance)` for every texel whose
+// direction from the centre crosses the sample's disk. WGSL has no closures: `write` picks the
+// pass (false: the nearest distance by atomicMin; true: the radiance where this sample won).
+fn splat_impostor(k: u32, write: bool) {
+    let s = samples[k];
+    let size = params.counts.y;
+    let centre = params.centre.xyz;
+    let radius = params.centre.w;
+    let d = s.position.xyz - centre;
+    let dist = length(d);
+    if !(dist > 1e-6) || !finite3(s.colour.xyz) || !finite3(s.position.xyz) {
+        return;
+    }
+    let dir = d / dist;
+    var normal = dir;
+    if finite3(s.normal.xyz) && dot(s.normal.xyz, s.normal.xyz) > 0.5 {
+        normal = normalize(s.normal.xyz);
+    }
+    let angular = atan(radius / dist);
+    let cos_reach = cos(angular);
+    let texel_angle = 2.0 / f32(size);
+    let fuv = face_uv(dir);
+    let face = u32(fuv.x);
+    let reach = i32(ceil(angular / texel_angle * 2.0)) + 1;
+    let cx = i32(fuv.y * f32(size));
+    let cy = i32(fuv.z * f32(size));
+    let isize = i32(size);
+    for (var y = cy - reach; y <= cy + reach; y++) {
+        for (var x = cx - reach; x <= cx + reach; x++) {
+            var f = face;
+            var tx = u32(max(x, 0));
+            var ty = u32(max(y, 0));
+            if x < 0 || y < 0 || x >= isize || y >= isize {
+                let probe = face_uv(face_dir(face, texel_coord(x, size), texel_coord(y, size)));
+                f = u32(probe.x);
+                tx = min(u32(probe.y * f32(size)), size - 1u);
+                ty = min(u32(probe.z * f32(size)), size - 1u);
+            }
+            let t = face_dir(f, texel_coord(i32(tx), size), texel_coord(i32(ty), size));
+            if dot(t, dir) < cos_reach {
+                continue;
+            }
+            let facing = dot(normal, t);
+            if abs(facing) < 1e-4 {
+                continue;
+            }
+            let along = dot(normal, d) / facing;
+            if !(along > 0.0) || length(centre + t * along - s.position.xyz) > radius {
+                continue;
+            }
+            let i = f * size * size + ty * size + tx;
+            let bits = bitcast<u32>(along);
+            if write {
+                if atomicLoad(&depth[i]) == bits {
+                    radiance[i] = vec4<f32>(s.colour.xyz, 1.0);
+                }
+            } else {
+                atomicMin(&depth[i], bits);
+            }
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn cs_impostor_depth(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let k = sample_index(wid, nwg, lid);
+    if k < params.counts.x {
+        splat_impostor(k, false);
+    }
+}
+
+@compute @workgroup_size(64)
+fn cs_impostor_radiance(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let k = sample_index(wid, nwg, lid);
+    if k < params.counts.x {
+        splat_impostor(k, true);
+    }
+}
+
+// A sample's disk into the voxels it passes through (level 0), summed in fixed point.
+@compute @workgroup_size(64)
+fn cs_voxel_splat(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let k = sample_index(wid, nwg, lid);
+    if k >= params.counts.x {
+        return;
+    }
+    let s = samples[k];
+    if !finite3(s.position.xyz) || !finite3(s.colour.xyz) {
+        return;
+    }
+    let res = i32(params.counts.y);
+    let voxel = bitcast<f32>(params.counts.z);
+    let origin = params.centre.xyz;
+    let radius = params.centre.w;
+    let has_normal = finite3(s.normal.xyz) && dot(s.normal.xyz, s.normal.xyz) > 0.5;
+    var n = vec3<f32>(0.0);
+    var slab = 3.4e38;
+    if has_normal {
+        n = normalize(s.normal.xyz);
+        slab = 0.5 * voxel * (abs(n.x) + abs(n.y) + abs(n.z));
+    }
+    let reach = i32(ceil(radius / voxel));
+    let c = (s.position.xyz - origin) / voxel;
+    let cc = vec3<i32>(floor(c));
+    let colour = vec3<u32>(round(clamp(s.colour.xyz, vec3<f32>(0.0), vec3<f32>(COLOUR_MAX)) * COLOUR_SCALE));
+    for (var z = cc.z - reach; z <= cc.z + reach; z++) {
+        for (var y = cc.y - reach; y <= cc.y + reach; y++) {
+            for (var x = cc.x - reach; x <= cc.x + reach; x++) {
+                if x < 0 || y < 0 || z < 0 || x >= res || y >= res || z >= res {
+                    continue;
+                }
+                let centre = origin + (vec3<f32>(f32(x), f32(y), f32(z)) + 0.5) * voxel;
+                let offset = centre - s.position.xyz;
+                let across = dot(n, offset);
+                if abs(across) > slab || length(offset - n * across) > radius {
+                    continue;
+                }
+                let v = 4u * u32((z * res + y) * res + x);
+                atomicAdd(&sums[v], colour.x);
+                atomicAdd(&sums[v + 1u], colour.y);
+                atomicAdd(&sums[v + 2u], colour.z);
+                atomicAdd(&sums[v + 3u], 1u);
+            }
+        }
+    }
+}
+
+// Level 0: the mean radiance of the samples in a voxel, opacity 1 where any landed.
+@compute @workgroup_size(64)
+fn cs_voxel_resolve(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let v = sample_index(wid, nwg, lid);
+    let res = params.counts.y;
+    if v >= res * res * res {
+        return;
+    }
+    let count = atomicLoad(&sums[4u * v + 3u]);
+    if count == 0u {
+        levels[v] = vec4<f32>(0.0);
+        return;
+    }
+    let sum = vec3<f32>(f32(atomicLoad(&sums[4u * v])), f32(atomicLoad(&sums[4u * v + 1u])), f32(atomicLoad(&sums[4u * v + 2u])));
+    levels[v] = vec4<f32>(sum / (COLOUR_SCALE * f32(count)), 1.0);
+}
+
+// One mip step: each coarse voxel the mean of its (up to) eight fine voxels, over eight.
+@compute @workgroup_size(64)
+fn cs_voxel_mip(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let v = sample_index(wid, nwg, lid);
+    let fine = mip.levels.x;
+    let r = mip.levels.y;
+    if v >= r * r * r {
+        return;
+    }
+    let x = v % r;
+    let y = (v / r) % r;
+    let z = v / (r * r);
+    var acc = vec4<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        let f = vec3<u32>(2u * x + (k & 1u), 2u * y + ((k >> 1u) & 1u), 2u * z + ((k >> 2u) & 1u));
+        if all(f < vec3<u32>(fine)) {
+            acc += levels[mip.levels.z + (f.z * fine + f.y) * fine + f.x] / 8.0;
+        }
+    }
+    levels[mip.levels.w + v] = acc;
+}
