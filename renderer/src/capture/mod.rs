@@ -22,6 +22,7 @@
 pub mod hashgrid;
 pub mod impostor;
 pub mod plane;
+pub mod voxel;
 
 use crate::camera::Camera;
 use crate::image::Image;

@@ -27,13 +27,13 @@
 
 pub mod query;
 pub mod render;
-pub mod voxel;
 
 #[cfg(test)]
 mod tests;
 
 use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::impostor::DistanceImpostor;
+use crate::capture::voxel::VoxelVolume;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
 use crate::gpu::{DirRenderer, PassTime};
@@ -49,7 +49,6 @@ use rayon::prelude::*;
 use std::f32::consts::PI;
 use std::sync::Arc;
 use std::time::Instant;
-use voxel::VoxelVolume;
 
 /// A global-illumination method of Rohmer et al. (or none).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]

@@ -6,8 +6,8 @@
 //! capture did not reach (beyond the depth sensor's range: the sky, a window) is answered by the
 //! scene's environment light, as the thesis's fish-eye capture of the surroundings would.
 
-use super::voxel::VoxelVolume;
 use crate::capture::impostor::DistanceImpostor;
+use crate::capture::voxel::VoxelVolume;
 use crate::light::Environment;
 use glam::Vec3;
 use std::sync::Arc;

@@ -341,3 +341,69 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca), None).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
+
+/// The fraction of `n` items for which `differ` holds.
+fn share(n: usize, differ: impl Fn(usize) -> bool) -> f64 {
+    (0..n).filter(|&i| differ(i)).count() as f64 / n.max(1) as f64
+}
+
+#[test]
+fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_does() {
+    let Some(renderer) = crate::test_support::renderer_or_skip() else { return };
+    let ctx = &renderer.ctx;
+    // survey-6's capture: two virtual objects, so two impostors
+    let scene = crate::scene::load("survey-6").unwrap().with_size(80, 60);
+    let captured = render::CapturedScene::new(&scene, 1, &|_, _| {});
+    let cell = captured.cell();
+    let mut samples = captured.samples().to_vec();
+    assert!(samples.len() > 500, "{} samples", samples.len());
+    // hard cases both builds must skip or clip alike: a NaN position, a NaN radiance, no
+    // normal, and radiance far above RADIANCE_MAX (a lamp's core)
+    let on_desk = samples[samples.len() / 2].position;
+    samples.push(EnvironmentSample { position: Vec3::NAN, normal: Vec3::Y, colour: Vec3::ONE, pose: 0 });
+    samples.push(EnvironmentSample { position: on_desk, normal: Vec3::Y, colour: Vec3::NAN, pose: 0 });
+    samples.push(EnvironmentSample { position: on_desk + 0.01, normal: Vec3::ZERO, colour: Vec3::ONE, pose: 0 });
+    samples.push(EnvironmentSample { position: on_desk - 0.01, normal: Vec3::X, colour: Vec3::splat(1e7), pose: 0 });
+    let builder = crate::gpu::representation::RepresentationBuilder::new(ctx);
+    let centres: Vec<Vec3> = virtual_object_bounds(&scene).iter().map(|b| b.centroid()).collect();
+    assert_eq!(centres.len(), 2);
+    for centre in centres {
+        // not 128² or 256²: see gpu::representation's documentation (a known bug)
+        for size in [64u32] {
+            let cpu = crate::capture::impostor::DistanceImpostor::build(&samples, centre, size, cell);
+            let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
+            let gpu = &built.value;
+            assert!(built.gpu_bytes > 0 && built.gpu_ms.is_finite());
+            let ((cr, cd), (gr, gd)) = (cpu.maps(), gpu.maps());
+            assert_eq!(cd.len(), 6 * (size * size) as usize);
+            assert_eq!(gd.len(), cd.len());
+            assert!(cpu.filled() > cd.len() / 3, "{} filled", cpu.filled());
+            // identical on lavapipe; float rounding elsewhere may move a disk's edge across
+            // a texel's direction, or an equal distance between two samples: a few texels
+            let filled_differ = share(cd.len(), |i| cd[i].is_finite() != gd[i].is_finite());
+            assert!(filled_differ < 0.002, "{size}²: {filled_differ:.4} of texels filled on one side only");
+            let distance_differ =
+                share(cd.len(), |i| cd[i].is_finite() && gd[i].is_finite() && (cd[i] - gd[i]).abs() > 1e-4 * cd[i]);
+            assert!(distance_differ < 0.005, "{size}²: {distance_differ:.4} of texels at another distance");
+            let radiance_differ = share(cd.len(), |i| cd[i].is_finite() && (cr[i] - gr[i]).abs().max_element() > 1e-6);
+
+            assert!(radiance_differ < 0.005, "{radiance_differ:.4} of texels with another radiance");
+        }
+    }
+    let cpu = VoxelVolume::build(&samples, 64, cell);
+    let built = builder.voxels(ctx, &samples, 64, cell).unwrap();
+    let gpu = &built.value;
+    assert_eq!((gpu.origin, gpu.voxel, gpu.res), (cpu.origin, cpu.voxel, cpu.res));
+    assert_eq!(gpu.level_count(), cpu.level_count());
+    assert!(cpu.filled() > 1000, "{} voxels filled", cpu.filled());
+    for level in 0..cpu.level_count() {
+        let (c, g) = (cpu.level(level), gpu.level(level));
+        assert_eq!(c.len(), g.len());
+        // fixed point (1/4096) against f32 sums: within 1e-3 of the value, relative
+        let differ = share(c.len(), |i| (0..4).any(|k| (c[i][k] - g[i][k]).abs() > 1e-3 * (1.0 + c[i][k].abs())));
+        assert!(differ < 0.002, "level {level}: {differ:.4} of voxels differ");
+    }
+    // the clipped lamp core: no voxel above RADIANCE_MAX on either side
+    let brightest = gpu.level(0).iter().map(|v| v[0]).fold(0.0f32, f32::max);
+    assert!(brightest > 1000.0 && brightest <= crate::capture::voxel::RADIANCE_MAX, "{brightest}");
+}
