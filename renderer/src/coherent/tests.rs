@@ -369,7 +369,8 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
     assert_eq!(centres.len(), 2);
     for centre in centres {
         // not 128² or 256²: see gpu::representation's documentation (a known bug)
-        for size in [64u32] {
+        {
+            let size = 64u32;
             let cpu = crate::capture::impostor::DistanceImpostor::build(&samples, centre, size, cell);
             let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
             let gpu = &built.value;
