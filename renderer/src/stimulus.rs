@@ -384,7 +384,6 @@ impl StimulusSettings {
                     &params,
                     &dir.cm,
                     dir.camera_artifacts.as_ref(),
-                    None,
                 )?;
                 Ok(StimulusFrame {
                     composite: frame.composite,

@@ -136,10 +136,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         }
         for (method, quality) in settings {
             let params = CoherentParams::new(method, quality);
-            let (build, frame, _, errors) =
-                render_over(&scene, &captured, &params, &reference, None, &|done, total| {
-                    observer.progress("coherent", done, total)
-                })?;
+            let (build, frame, _, errors) = render_over(&scene, &captured, &params, &reference, &|done, total| {
+                observer.progress("coherent", done, total)
+            })?;
             let pass = |prefix: &str| {
                 frame.report.passes.iter().filter(|p| p.pass.starts_with(prefix)).map(|p| p.ms).fold(0.0, |a, b| a + b)
             };

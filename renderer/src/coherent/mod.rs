@@ -36,7 +36,7 @@ use crate::capture::impostor::DistanceImpostor;
 use crate::capture::voxel::VoxelVolume;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
-use crate::gpu::{DirRenderer, PassTime};
+use crate::gpu::PassTime;
 use crate::image::{Image, Mask};
 use crate::light::{Environment, SpotLight, equirect_dir};
 use crate::material::{DeltaBsdf, Material, Transport};
@@ -289,16 +289,14 @@ pub fn virtual_object_bounds(scene: &Scene) -> Vec<Aabb> {
 
 /// Builds what `method` queries from the captured `samples` (footprint: the hash grid's
 /// cell), with the light probe at the virtual object for what the capture missed; returns the
-/// representation and the build passes with their times. With `gpu`, the impostors and the
-/// voxel volume are built by its compute passes ([`crate::gpu::representation`]) and read back;
-/// without, on the CPU (the reference). The light probe is always path traced on the CPU.
+/// representation and the build passes with their times. Everything is built on the CPU (the
+/// GPU builds of [`crate::gpu::representation`] are not used yet: see their documentation).
 pub fn build_representation(
     scene: &Scene,
     real: &World,
     samples: &[EnvironmentSample],
     footprint: f32,
     params: &CoherentParams,
-    gpu: Option<&DirRenderer>,
 ) -> (Representation, Vec<PassTime>) {
     let mut passes = Vec::new();
     let centre = virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
@@ -317,54 +315,21 @@ pub fn build_representation(
         if centres.is_empty() {
             centres.push(centre);
         }
-        let mut on = String::new();
-        let built: Option<std::result::Result<Vec<_>, String>> =
-            gpu.map(|r| centres.iter().map(|&c| r.representation.impostor(&r.ctx, samples, c, n, footprint)).collect());
-        rep.impostors = match built {
-            Some(Ok(built)) => {
-                on = gpu_words(built.iter().map(|b| (b.gpu_ms, b.readback_ms, b.gpu_bytes)));
-                built.into_iter().map(|b| b.value).collect()
-            }
-            other => {
-                if let Some(Err(why)) = other {
-                    on = format!(", on the CPU: {why}");
-                }
-                centres.par_iter().map(|&c| DistanceImpostor::build(samples, c, n, footprint)).collect()
-            }
-        };
+        rep.impostors = centres.par_iter().map(|&c| DistanceImpostor::build(samples, c, n, footprint)).collect();
         let count = rep.impostors.len();
         let what = if count == 1 {
-            format!("distance impostor (6×{n}²{on})")
+            format!("distance impostor (6×{n}²)")
         } else {
-            format!("{count} distance impostors (6×{n}² each, one per virtual object{on})")
+            format!("{count} distance impostors (6×{n}² each, one per virtual object)")
         };
         passes.push(PassTime { pass: what, ms: ms_since(start) });
     } else {
         let start = Instant::now();
         let n = params.settings.scene_voxels;
-        let mut on = String::new();
-        rep.voxels = Some(match gpu.map(|r| r.representation.voxels(&r.ctx, samples, n, footprint)) {
-            Some(Ok(built)) => {
-                on = gpu_words([(built.gpu_ms, built.readback_ms, built.gpu_bytes)]);
-                built.value
-            }
-            other => {
-                if let Some(Err(why)) = other {
-                    on = format!(", on the CPU: {why}");
-                }
-                VoxelVolume::build(samples, n, footprint)
-            }
-        });
-        passes.push(PassTime { pass: format!("scene voxel volume ({n}³ with mipmaps{on})"), ms: ms_since(start) });
+        rep.voxels = Some(VoxelVolume::build(samples, n, footprint));
+        passes.push(PassTime { pass: format!("scene voxel volume ({n}³ with mipmaps)"), ms: ms_since(start) });
     }
     (rep, passes)
-}
-
-/// A GPU build's times and memory in words: ", GPU 3.1 ms + readback 0.8 ms, 2.0 MB".
-fn gpu_words(builds: impl IntoIterator<Item = (f64, f64, u64)>) -> String {
-    let (gpu, readback, bytes) =
-        builds.into_iter().fold((0.0, 0.0, 0u64), |(g, r, b), (bg, br, bb)| (g + bg, r + br, b + bb));
-    format!(", GPU {gpu:.1} ms + readback {readback:.1} ms, {:.1} MB", bytes as f64 / 1e6)
 }
 
 pub(crate) fn ms_since(start: Instant) -> f64 {

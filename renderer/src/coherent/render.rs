@@ -11,7 +11,7 @@ use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_si
 use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::error::Result;
-use crate::gpu::{DirRenderer, PassTime};
+use crate::gpu::PassTime;
 use crate::image::Image;
 use crate::metrics::{StimulusErrors, stimulus_errors};
 use crate::pathtracer::{Subset, World};
@@ -45,7 +45,7 @@ pub fn render_scene(
     let total = 2 * reference.spp + POSES + 5;
     let reference_out = render_reference(scene, reference, &|done, _| progress(done, total))?;
     let captured = CapturedScene::new(scene, params.seed, &|done, _| progress(2 * reference.spp + done, total));
-    let (build, frame, stimulus, errors) = render_over(scene, &captured, params, &reference_out, None, &|done, _| {
+    let (build, frame, stimulus, errors) = render_over(scene, &captured, params, &reference_out, &|done, _| {
         progress(2 * reference.spp + POSES + done, total)
     })?;
     Ok(SceneRender { reference: reference_out, capture: captured.report, build, frame, stimulus, errors })
@@ -90,19 +90,18 @@ impl CapturedScene {
         self.cell
     }
 
-    /// The representation (built on `gpu`'s compute passes where given) and the frame of
-    /// `params` over `linear` (the photograph's linear radiance), with the build passes — the
-    /// capture's first — and the frame. `progress(done, total)` counts the frame's passes.
+    /// The representation and the frame of `params` over `linear` (the photograph's linear
+    /// radiance), with the build passes — the capture's first — and the frame.
+    /// `progress(done, total)` counts the frame's passes.
     fn render(
         &self,
         scene: &Scene,
         params: &CoherentParams,
         linear: &Image,
-        gpu: Option<&DirRenderer>,
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
         let mut build = vec![PassTime { pass: format!("capture ({POSES} poses)"), ms: self.ms }];
-        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params, gpu);
+        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params);
         build.extend(passes);
         let frame = Coherent::new(scene, &self.real, &rep, *params).render(linear, progress)?;
         Ok((build, frame))
@@ -111,17 +110,16 @@ impl CapturedScene {
 
 /// The representation and frame of `scene` from `captured` over a reference render made
 /// already (its photograph's radiance the frame's input), the composite through the scene's
-/// camera, and its errors against the reference's ground truth; the representation is built on
-/// `gpu` where given. `progress(done, total)` counts the frame's passes.
+/// camera, and its errors against the reference's ground truth. `progress(done, total)` counts
+/// the frame's passes.
 pub fn render_over(
     scene: &Scene,
     captured: &CapturedScene,
     params: &CoherentParams,
     reference: &ReferenceOutput,
-    gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<(Vec<PassTime>, CoherentFrame, Image, StimulusErrors)> {
-    let (build, frame) = captured.render(scene, params, &reference.hdr_real, gpu, progress)?;
+    let (build, frame) = captured.render(scene, params, &reference.hdr_real, progress)?;
     let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
     let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
     Ok((build, frame, stimulus, errors))
@@ -145,9 +143,7 @@ pub struct CoherentStimulus {
 /// (`L_rv`), the object's radiance on it — go through the colour mapping `cm` (the `cm`
 /// factor's: Reinhard off, the statistics transfer on) and the differential composition over
 /// the photograph, blended by the object's coverage at its edges; `ca`, when the `ca` factor is
-/// on, adds the camera artifacts (the CPU reference of the ca chain). The representation is
-/// built on `gpu` where given.
-#[allow(clippy::too_many_arguments)]
+/// on, adds the camera artifacts (the CPU reference of the ca chain).
 pub fn render_stimulus(
     scene: &Scene,
     captured: &CapturedScene,
@@ -156,12 +152,11 @@ pub fn render_stimulus(
     params: &CoherentParams,
     cm: &crate::cm::CmParams,
     ca: Option<&crate::ca::CaParams>,
-    gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
     use crate::cm::{CmInput, CmState, Composition, compose, cpu_frame};
     use crate::surface::{NOTHING, REAL, VIRTUAL};
     let start = Instant::now();
-    let (_, frame) = captured.render(scene, params, linear, gpu, &|_, _| {})?;
+    let (_, frame) = captured.render(scene, params, linear, &|_, _| {})?;
     let (w, h) = (photo.width, photo.height);
     if (linear.width, linear.height) != (w, h) {
         return Err(crate::error::RenderError::SizeMismatch {

@@ -155,7 +155,7 @@ fn reflectance_estimation_recovers_a_known_albedo_under_a_known_environment() {
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.material_samples = 4096;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point away from the box; its photographed radiance by the path tracer, many paths
     let x = Vec3::new(-0.5, 0.0, 0.4);
@@ -201,7 +201,7 @@ fn the_cache_of_eq_9_is_unbiased_against_eq_8_and_less_noisy_at_equal_tracing() 
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.background_samples = 64;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point beside the box: some directions meet it
     let x = Vec3::new(0.3, 0.0, 0.1);
@@ -240,7 +240,7 @@ fn with_no_virtual_object_every_method_leaves_the_photograph_exact() {
     let photo = photo(&scene);
     for method in Method::ALL {
         let p = CoherentParams::new(method, Quality::Low);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&photo, &|_, _| {}).unwrap();
         assert_eq!(frame.composite.pixels, photo.pixels, "{}", method.name());
         assert_eq!(frame.report.object_pixels, 0);
@@ -265,7 +265,7 @@ fn every_method_brings_the_composite_closer_to_the_ground_truth_than_gi_off() {
     .unwrap();
     let error = |method: Method| {
         let p = CoherentParams::new(method, Quality::Med);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&reference.hdr_real, &|_, _| {}).unwrap();
         assert!(frame.report.object_pixels > 20, "{:?}", frame.report);
         // linear radiance against the path-traced composite in the affected region
@@ -307,7 +307,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None).unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -338,7 +338,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca), None).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
 

@@ -267,8 +267,6 @@ pub struct DirRenderer {
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
     specular: specular::Specular,
-    /// Rohmer et al.'s scene representations (the coherent methods' build passes).
-    pub representation: representation::RepresentationBuilder,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -377,8 +375,7 @@ impl DirRenderer {
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
         let specular = specular::Specular::new(&ctx);
-        let representation = representation::RepresentationBuilder::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular, representation }
+        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular }
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real

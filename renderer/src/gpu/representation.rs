@@ -19,8 +19,8 @@
 //! the desk) differs from the CPU's in 0.5 % of its texels, and at 256² the first impostor leaves
 //! 1.3 % of the texels the CPU fills empty and holds 4.9 % farther (all at 4–8 cm) — the splats of
 //! samples a few centimetres from the centre, the ones that reach hundreds of texels, are partly
-//! lost. Until it is found the coherent pipeline builds its representations on the CPU
-//! (`build_representation` is called without a GPU).
+//! lost. Until it is found the coherent pipeline (`coherent::build_representation`) builds its
+//! representations on the CPU, and nothing but the test calls these passes.
 
 use super::context::GpuContext;
 use crate::capture::hashgrid::EnvironmentSample;
@@ -158,7 +158,7 @@ impl RepresentationBuilder {
         ctx.wait();
         let gpu_ms = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
-        let bits: Vec<u32> = bytemuck::cast_slice(&read(ctx, &depth)).to_vec();
+        let bits: Vec<u32> = bytemuck::cast_slice(&ctx.read_storage(&depth)).to_vec();
         let rgba = ctx.read_f32(&radiance);
         let distance: Vec<f32> =
             bits.iter().map(|&b| if b == u32::MAX { f32::INFINITY } else { f32::from_bits(b) }).collect();
@@ -252,18 +252,4 @@ impl RepresentationBuilder {
         let gpu_bytes = base * 16 + total * 16 + samples.len() as u64 * 48;
         Ok(Built { value, gpu_ms, readback_ms: start.elapsed().as_secs_f64() * 1e3, gpu_bytes })
     }
-}
-
-/// A storage buffer's bytes.
-fn read(ctx: &GpuContext, source: &wgpu::Buffer) -> Vec<u8> {
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size: source.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = ctx.device.create_command_encoder(&Default::default());
-    encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
-    ctx.queue.submit([encoder.finish()]);
-    ctx.read_buffer(&staging)
 }
