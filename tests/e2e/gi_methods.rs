@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use super::support::{mrstudy, repo_studies_dir, temp_dir};
+use super::support::{bench_render_quick, mrstudy, repo_studies_dir, temp_dir};
 
 /// The example study at 64×48 pixels, 4 samples, one scene configuration.
 fn small_example(dir: &std::path::Path) -> std::path::PathBuf {
@@ -103,21 +103,7 @@ fn the_methods_are_the_analysis_s_columns_against_off() {
 #[test]
 fn bench_render_gi_methods_times_each_stage_and_measures_each_method_against_the_ground_truth() {
     let dir = temp_dir("gi-methods", "bench");
-    let json = dir.join("bench.json");
-    let out = mrstudy()
-        .args(["bench", "render", "--gi-methods", "--quick", "--json"])
-        .arg(&json)
-        .arg("--plot-dir")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && stderr.contains("could be opened") {
-        eprintln!("skipping: no GPU adapter ({stderr})");
-        return;
-    }
-    assert!(out.status.success(), "{stderr}");
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let Some(doc) = bench_render_quick(&dir, &["--gi-methods"]) else { return };
     let rows = doc["rows"].as_array().unwrap();
     let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
     assert_eq!(methods, ["dir", "off", "em", "dit", "vct"]);

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::support::mrstudy;
+use super::support::{bench_render_quick, mrstudy};
 
 fn temp_dir(name: &str) -> PathBuf {
     super::support::temp_dir("render-gpu", name)
@@ -128,21 +128,7 @@ fn render_refuses_unknown_factors_and_conditions() {
 #[test]
 fn bench_render_sweeps_vpls_and_names_the_adapter() {
     let dir = temp_dir("bench");
-    let json = dir.join("bench.json");
-    let out = mrstudy()
-        .args(["bench", "render", "--quick", "--json"])
-        .arg(&json)
-        .arg("--plot-dir")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && stderr.contains("could be opened") {
-        eprintln!("skipping: no GPU adapter ({stderr})");
-        return;
-    }
-    assert!(out.status.success(), "{stderr}");
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let Some(doc) = bench_render_quick(&dir, &[]) else { return };
     assert!(doc["adapter"].as_str().is_some_and(|a| !a.is_empty()));
     let rows = doc["rows"].as_array().unwrap();
     let gi: Vec<&serde_json::Value> = rows.iter().filter(|r| r["condition"] == "gi").collect();
@@ -189,21 +175,7 @@ fn bench_render_sweeps_vpls_and_names_the_adapter() {
 #[test]
 fn bench_render_ca_measures_noise_and_blur_on_virtual_objects() {
     let dir = temp_dir("bench-ca");
-    let json = dir.join("ca.json");
-    let out = mrstudy()
-        .args(["bench", "render", "--ca", "--quick", "--json"])
-        .arg(&json)
-        .arg("--plot-dir")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && stderr.contains("could be opened") {
-        eprintln!("skipping: no GPU adapter ({stderr})");
-        return;
-    }
-    assert!(out.status.success(), "{stderr}");
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let Some(doc) = bench_render_quick(&dir, &["--ca"]) else { return };
     let rows = doc["rows"].as_array().unwrap();
     for layer in ["gpu", "path-traced"] {
         for ca in ["off", "scene", "estimate"] {

@@ -24,6 +24,28 @@ pub fn temp_dir(area: &str, name: &str) -> PathBuf {
     dir
 }
 
+/// `mrstudy bench render <flags> --quick --json J --plot-dir dir`: its JSON document, or None
+/// after saying why when no GPU adapter opens.
+pub fn bench_render_quick(dir: &Path, flags: &[&str]) -> Option<Value> {
+    let json = dir.join("bench.json");
+    let out = mrstudy()
+        .args(["bench", "render"])
+        .args(flags)
+        .args(["--quick", "--json"])
+        .arg(&json)
+        .arg("--plot-dir")
+        .arg(dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("could be opened") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return None;
+    }
+    assert!(out.status.success(), "{stderr}");
+    Some(serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap())
+}
+
 pub fn binary() -> &'static str {
     env!("CARGO_BIN_EXE_mrstudy")
 }

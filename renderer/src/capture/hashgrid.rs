@@ -18,6 +18,15 @@ pub struct EnvironmentSample {
     pub pose: u32,
 }
 
+impl EnvironmentSample {
+    /// The sample's unit normal, or None where the capture left none usable (not finite, or
+    /// too short to be a fitted plane's normal): the splats then fall back on a disk facing the
+    /// impostor's centre or a ball.
+    pub fn unit_normal(&self) -> Option<Vec3> {
+        (self.normal.is_finite() && self.normal.length_squared() > 0.5).then(|| self.normal.normalize())
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct HashGrid {
     pub cell: f32,

@@ -111,8 +111,7 @@ impl DistanceImpostor {
             }
             let dir = d / dist;
             let radius = SPLAT_RADIUS * footprint;
-            let normal =
-                if s.normal.is_finite() && s.normal.length_squared() > 0.5 { s.normal.normalize() } else { dir };
+            let normal = s.unit_normal().unwrap_or(dir);
             let angular = (radius / dist).atan();
             let cos_reach = angular.cos();
             let (face, u, v) = face_uv(dir);

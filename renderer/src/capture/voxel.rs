@@ -69,7 +69,7 @@ impl VoxelVolume {
                 if !(s.position.is_finite() && s.colour.is_finite()) {
                     continue;
                 }
-                let normal = (s.normal.is_finite() && s.normal.length_squared() > 0.5).then(|| s.normal.normalize());
+                let normal = s.unit_normal();
                 // a plane meets a voxel's cube when its centre lies within this of the plane
                 let slab = normal.map_or(f32::INFINITY, |n| 0.5 * voxel * (n.x.abs() + n.y.abs() + n.z.abs()));
                 let c = (s.position - origin) / voxel;

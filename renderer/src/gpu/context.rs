@@ -187,6 +187,11 @@ impl GpuContext {
 
     /// Copies a storage buffer to a fresh staging buffer and reads it back as `f32`s.
     pub fn read_f32(&self, source: &wgpu::Buffer) -> Vec<f32> {
+        bytemuck::cast_slice(&self.read_storage(source)).to_vec()
+    }
+
+    /// Copies a storage buffer to a fresh staging buffer and reads its bytes back.
+    pub fn read_storage(&self, source: &wgpu::Buffer) -> Vec<u8> {
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size: source.size(),
@@ -196,7 +201,7 @@ impl GpuContext {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
         self.queue.submit([encoder.finish()]);
-        bytemuck::cast_slice(&self.read_buffer(&staging)).to_vec()
+        self.read_buffer(&staging)
     }
 
     /// Reads a 2D texture of 16-byte texels (`Rgba32Float`) back as `[f32; 4]` per texel.
