@@ -1,6 +1,6 @@
 //! Times `mrstudy analyze` of a synthetic trials CSV end to end and by phase, on one thread:
 //! `cargo run --release -p mrstudy-analysis --example end_to_end -- JUDGMENTS`. Each line is
-//! the fastest of five runs, by this thread's CPU time (the machine may be shared) and wall time.
+//! the fastest of five runs (or `REPEATS`), by this thread's CPU time (the machine may be shared) and wall time.
 use std::time::Instant;
 
 use mrstudy_analysis::analysis::{Options, Screening, analyze_judgments, analyze_named};
@@ -15,7 +15,8 @@ fn cpu_ms() -> f64 {
 
 fn time(what: &str, mut f: impl FnMut()) {
     let (mut wall, mut cpu) = (f64::INFINITY, f64::INFINITY);
-    for _ in 0..5 {
+    let repeats = std::env::var("REPEATS").ok().and_then(|r| r.parse().ok()).unwrap_or(5);
+    for _ in 0..repeats {
         let (start, start_cpu) = (Instant::now(), cpu_ms());
         f();
         wall = wall.min(start.elapsed().as_secs_f64() * 1e3);

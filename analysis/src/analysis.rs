@@ -903,10 +903,22 @@ fn item_score_information(
     score: &mut [f64],
     information: &mut [f64],
 ) {
-    let q = score.len();
     let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
+    item_score_information_with(pairs, column, |i, j| 1.0 / (1.0 + (lambda(j) - lambda(i)).exp()), score, information);
+}
+
+/// As [`item_score_information`], with the model's probability that `i` is chosen over `j`
+/// given by `pi(i, j)` (a table, where the same estimate serves many participants).
+fn item_score_information_with(
+    pairs: impl Iterator<Item = (usize, usize, f64, f64)>,
+    column: &[Option<usize>],
+    pi: impl Fn(usize, usize) -> f64,
+    score: &mut [f64],
+    information: &mut [f64],
+) {
+    let q = score.len();
     for (i, j, wins_i, n) in pairs {
-        let pi = 1.0 / (1.0 + (lambda(j) - lambda(i)).exp());
+        let pi = pi(i, j);
         let residual = wins_i - n * pi;
         let weight = n * pi * (1.0 - pi);
         let (a, b) = (column[i], column[j]);
@@ -996,6 +1008,16 @@ fn screen_observers(
     let exact_step = q <= SCREENING_EXACT_STEP_PARAMETERS;
     let more_steps = pairs.len() <= 4096 && exact_step;
     let dense = n_conditions <= 64;
+    // The whole data's model probability per pair of conditions (dense designs): every
+    // participant's first step starts there, so it is computed once rather than per participant.
+    let full_pi: Vec<f64> = if dense {
+        let lambda = |c: usize| column[c].map_or(0.0, |k| full_fit.beta[k]);
+        (0..n_conditions * n_conditions)
+            .map(|ij| 1.0 / (1.0 + (lambda(ij % n_conditions) - lambda(ij / n_conditions)).exp()))
+            .collect()
+    } else {
+        Vec::new()
+    };
 
     struct Scratch {
         sorted: Vec<PairTally>,
@@ -1025,7 +1047,12 @@ fn screen_observers(
                     let (score, information) = (&mut scratch.score, &mut scratch.information);
                     score.fill(0.0);
                     information.fill(0.0);
-                    item_score_information(own_f64(), &column, &beta, score, information);
+                    if step == 0 && dense {
+                        let pi = |i: usize, j: usize| full_pi[i * n_conditions + j];
+                        item_score_information_with(own_f64(), &column, pi, score, information);
+                    } else {
+                        item_score_information(own_f64(), &column, &beta, score, information);
+                    }
                     if step == 0 {
                         for (s, f) in score.iter_mut().zip(&full_score) {
                             *s = f - *s;

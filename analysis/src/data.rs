@@ -458,10 +458,18 @@ impl<'a> RowReader<'a> {
         self.condition_index.get(name.text).copied()
     }
 
+    #[inline(always)]
     fn condition(&mut self, line: u64, column: &str, name: Field) -> Result<u32> {
-        if let Some(k) = self.find_condition(name) {
-            return Ok(k);
+        match self.find_condition(name) {
+            Some(k) => Ok(k),
+            None => self.new_condition(line, column, name),
         }
+    }
+
+    /// A condition not seen before: an error where the conditions file lists them all.
+    #[cold]
+    #[inline(never)]
+    fn new_condition(&mut self, line: u64, column: &str, name: Field) -> Result<u32> {
         if name.text.is_empty() {
             return Err(self.bad(line, column, "the condition name is empty".to_string()));
         }
@@ -482,7 +490,7 @@ impl<'a> RowReader<'a> {
     /// The index of a participant or group `name`: `last` where it is the last one seen (rows
     /// are grouped by participant in exports), else interned by hashing in `index` and `names`
     /// and remembered as the last one.
-    #[inline]
+    #[inline(always)]
     fn intern(
         name: Field,
         last: &mut Option<(String, u64, u32)>,
@@ -494,6 +502,17 @@ impl<'a> RowReader<'a> {
         {
             return *last_index;
         }
+        Self::intern_new(name, last, index, names)
+    }
+
+    /// [`RowReader::intern`] where `name` is not the last one seen.
+    #[inline(never)]
+    fn intern_new(
+        name: Field,
+        last: &mut Option<(String, u64, u32)>,
+        index: &mut FnvMap<u32>,
+        names: &mut Vec<String>,
+    ) -> u32 {
         let k = match index.get(name.text) {
             Some(&k) => k,
             None => {
@@ -741,25 +760,23 @@ fn read_unquoted(data: &str, first_line: u64, n_columns: usize, rows: &mut RowRe
 }
 
 /// The positions of `,` and `\n` in a text, in order, each with whether it is a `\n`. Sixty-four
-/// bytes at a time become two bit masks (eight bytes tested at once as one integer: a byte
-/// equal to the separator becomes zero after an exclusive or, and zero bytes are found exactly
+/// bytes at a time become one bit mask (eight bytes tested at once as one integer: a byte
+/// equal to a separator becomes zero after an exclusive or, and zero bytes are found exactly
 /// by Mycroft's test; a multiplication gathers their high bits), so the cost is a few
-/// operations per eight bytes and a bit scan per separator.
+/// operations per eight bytes and a bit scan and a byte read per separator.
 struct Separators<'a> {
     bytes: &'a [u8],
     /// Where the current block starts.
     base: usize,
     /// Bit k: byte `base + k` is a `,` or `\n` (found, not yet returned).
     separators: u64,
-    /// Bit k: byte `base + k` is a `\n`.
-    newlines: u64,
 }
 
 impl<'a> Separators<'a> {
     const BLOCK: usize = 64;
 
     fn new(bytes: &'a [u8]) -> Separators<'a> {
-        let mut separators = Separators { bytes, base: 0, separators: 0, newlines: 0 };
+        let mut separators = Separators { bytes, base: 0, separators: 0 };
         separators.load();
         separators
     }
@@ -780,24 +797,21 @@ impl<'a> Separators<'a> {
 
     #[inline]
     fn load(&mut self) {
-        let (mut separators, mut newlines) = (0, 0);
+        let mut separators = 0;
         match self.bytes.get(self.base..self.base + Self::BLOCK) {
             Some(block) => {
                 for (k, chunk) in block.chunks_exact(8).enumerate() {
                     let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
-                    let newline = Self::equal(word, b'\n');
-                    newlines |= Self::gather(newline) << (8 * k);
-                    separators |= Self::gather(newline | Self::equal(word, b',')) << (8 * k);
+                    separators |= Self::gather(Self::equal(word, b'\n') | Self::equal(word, b',')) << (8 * k);
                 }
             }
             None => {
                 for (k, &byte) in self.bytes[self.base.min(self.bytes.len())..].iter().enumerate() {
-                    newlines |= u64::from(byte == b'\n') << k;
                     separators |= u64::from(byte == b'\n' || byte == b',') << k;
                 }
             }
         }
-        (self.separators, self.newlines) = (separators, newlines);
+        self.separators = separators;
     }
 }
 
@@ -815,7 +829,8 @@ impl Iterator for Separators<'_> {
         }
         let bit = self.separators.trailing_zeros();
         self.separators &= self.separators - 1;
-        Some((self.base + bit as usize, self.newlines >> bit & 1 == 1))
+        let at = self.base + bit as usize;
+        Some((at, self.bytes[at] == b'\n'))
     }
 }
 

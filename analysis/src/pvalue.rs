@@ -106,8 +106,7 @@ fn format_bound(bound: f64) -> String {
 pub fn ln_normal_upper(z: f64) -> f64 {
     if z < 30.0 {
         let normal = Normal::standard();
-        let upper = 1.0 - normal.cdf(z);
-        let upper = if z > 0.0 { normal.sf(z) } else { upper };
+        let upper = if z > 0.0 { normal.sf(z) } else { 1.0 - normal.cdf(z) };
         return upper.ln();
     }
     // Mills-ratio asymptotic series: Q(z) = φ(z)/z · (1 − 1/z² + 3/z⁴ − 15/z⁶ + …).
