@@ -97,6 +97,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
     if let Some(method) = args.gi_method {
         let coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(method, args.quality) };
+        // the representation is built on the GPU where one opens (the frame on the CPU)
+        let renderer = match mrstudy_renderer::gpu::DirRenderer::new() {
+            Ok(renderer) => Some(renderer),
+            Err(e) => {
+                eprintln!("note: no GPU ({e}); the representation is built on the CPU");
+                None
+            }
+        };
         let bar = progress_bar(2 * args.spp as u64 + 9, &format!("{} {}", scene.name, method.name()), "steps");
         let lines = mrstudy_renderer::coherent::render::render_to_file(
             &scene,
@@ -104,6 +112,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             &params,
             out,
             args.buffers.as_deref(),
+            renderer.as_ref(),
             &|done, _| bar.set_position(done as u64),
         );
         bar.finish_and_clear();

@@ -95,7 +95,7 @@ impl LnProduct {
 /// With `e = exp(−|η|)`, `ln(1 − π) = −softplus(η) = −max(η, 0) − ln(1 + e)` and
 /// `ln π = ln(1 − π) + η`, so the log-likelihood is `S − Σ nₖ·softplus(ηₖ)`, its mean
 /// `E[S] − Σ nₖ·softplus(ηₖ)`, and the least likely outcome's `−Σ nₖ·softplus(|ηₖ|)`: one
-/// exponential per pair and one logarithm in all ([`LnProduct`]).
+/// exponential per pair and one logarithm in all (a product of the `(1 + eₖ)^nₖ`).
 pub fn log_likelihood_test(terms: &[PairTerm]) -> LogLikelihoodTest {
     let (mut variance, mut third) = (0.0, 0.0);
     let (mut s_observed, mut s_mean, mut s_min) = (0.0, 0.0, 0.0);

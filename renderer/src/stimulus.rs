@@ -354,8 +354,9 @@ impl StimulusSettings {
     }
 
     /// Renders one stimulus by the method its `gi` level names: DIR on the GPU over `photo`
-    /// ([`StimulusSettings::render`]), or a coherent method on the CPU from `linear` (the
-    /// photograph's linear radiance) composed over `photo`. `captured` is the scene's capture:
+    /// ([`StimulusSettings::render`]), or a coherent method from `linear` (the photograph's
+    /// linear radiance) composed over `photo`: its representation built on the GPU, its frame
+    /// on the CPU. `captured` is the scene's capture:
     /// the first coherent stimulus of a scene makes it, the others reuse it.
     pub fn render_stimulus(
         &self,
@@ -384,11 +385,15 @@ impl StimulusSettings {
                     &params,
                     &dir.cm,
                     dir.camera_artifacts.as_ref(),
+                    Some(renderer),
                 )?;
                 Ok(StimulusFrame {
                     composite: frame.composite,
                     ms: frame.ms,
-                    adapter: "CPU (coherent rendering)".into(),
+                    adapter: format!(
+                        "{} (coherent rendering: representation on the GPU, frame on the CPU)",
+                        renderer.ctx.adapter_name()
+                    ),
                 })
             }
         }

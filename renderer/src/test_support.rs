@@ -124,7 +124,7 @@ pub(crate) fn box_object(name: &str, role: &str, size: [f32; 3], translate: [f32
 
 /// The tests' one GPU renderer (one device, shaders compiled once per test binary), or why none
 /// opened.
-fn dir_renderer() -> Result<&'static DirRenderer, &'static str> {
+pub(crate) fn dir_renderer() -> Result<&'static DirRenderer, &'static str> {
     static RENDERER: OnceLock<Result<DirRenderer, String>> = OnceLock::new();
     RENDERER
         .get_or_init(|| match DirRenderer::new() {

@@ -81,7 +81,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let renderer = DirRenderer::new()?;
     let adapter = renderer.ctx.adapter_name();
     let cpu = format!("CPU, {} threads", rayon::current_num_threads());
-    observer.note(&format!("DIR on {adapter}; the coherent methods on the {cpu}"));
+    observer.note(&format!(
+        "DIR on {adapter}; the coherent methods' representations on {adapter}, their frames on the {cpu}"
+    ));
     observer.line(&format!(
         "{:<17} {:<4} {:<5} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7}",
         "scene", "gi", "set", "capture", "repr.", "object", "backgr.", "frame ms", "ms", "FLIP", "RMSE", "FLIPvirt"
@@ -136,9 +138,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         }
         for (method, quality) in settings {
             let params = CoherentParams::new(method, quality);
-            let (build, frame, _, errors) = render_over(&scene, &captured, &params, &reference, &|done, total| {
-                observer.progress("coherent", done, total)
-            })?;
+            let (build, frame, _, errors) =
+                render_over(&scene, &captured, &params, &reference, Some(&renderer), &|done, total| {
+                    observer.progress("coherent", done, total)
+                })?;
             let pass = |prefix: &str| {
                 frame.report.passes.iter().filter(|p| p.pass.starts_with(prefix)).map(|p| p.ms).fold(0.0, |a, b| a + b)
             };
@@ -150,7 +153,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 method: method.name().into(),
                 quality: Some(quality.name().into()),
                 vpls: None,
-                device: cpu.clone(),
+                device: format!("representation {adapter}; frame {cpu}"),
                 capture_ms,
                 representation_ms,
                 object_ms: Some(pass("virtual object")),
@@ -175,7 +178,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         }
         plots.push(error_time_plot(
             format!("render_gi_methods_{}.svg", super::gpu::plot_name(name)),
-            format!("FLIP against time by gi method, {name}, {w}x{h} (DIR on the GPU, the others on the CPU)"),
+            format!("FLIP against time by gi method, {name}, {w}x{h} (DIR and the representations on the GPU, the others' frames on the CPU)"),
             &rows[first_row..],
         ));
     }

@@ -78,6 +78,48 @@ fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
     face_dir(face, texel_coord(x as i64, size), texel_coord(y as i64, size))
 }
 
+/// The rectangle of texels `(x0, x1, y0, y1)` (inclusive) of `face` that the box `lo..=hi`
+/// (relative to the impostor's centre) can project onto, one texel wider on every side; `None`
+/// where the box lies wholly behind the face. A face's coordinates are ratios `num / major`
+/// (as [`face_uv`] forms them), whose extremes over a box in front of the face lie at its
+/// corners; where the box reaches the face's apex plane (`major ≤ 0`), a ratio is unbounded
+/// towards the sign of its numerator.
+fn face_bounds(face: usize, lo: Vec3, hi: Vec3, size: u32) -> Option<(u32, u32, u32, u32)> {
+    // (major, s numerator, t numerator) as axis index and sign, per face, as in `face_uv`
+    const AXES: [[(usize, f32); 3]; 6] = [
+        [(0, 1.0), (2, -1.0), (1, -1.0)],
+        [(0, -1.0), (2, 1.0), (1, -1.0)],
+        [(1, 1.0), (0, 1.0), (2, 1.0)],
+        [(1, -1.0), (0, 1.0), (2, -1.0)],
+        [(2, 1.0), (0, 1.0), (1, -1.0)],
+        [(2, -1.0), (0, -1.0), (1, -1.0)],
+    ];
+    let range = |(axis, sign): (usize, f32)| {
+        let (a, b) = (sign * lo[axis], sign * hi[axis]);
+        (a.min(b), a.max(b))
+    };
+    let [major, s_axis, t_axis] = AXES[face];
+    let (m0, m1) = range(major);
+    if !(m1 > 0.0) {
+        return None;
+    }
+    let texels = |(n0, n1): (f32, f32)| -> Option<(u32, u32)> {
+        let (low, high) = if m0 > 0.0 {
+            ((n0 / m0).min(n0 / m1), (n1 / m0).max(n1 / m1))
+        } else {
+            (if n0 < 0.0 { -1.0 } else { n0 / m1 }, if n1 > 0.0 { 1.0 } else { n1 / m1 })
+        };
+        if low > 1.0 || high < -1.0 {
+            return None;
+        }
+        let index = |c: f32| ((0.5 * (c.clamp(-1.0, 1.0) + 1.0) * size as f32) as i64).clamp(0, size as i64 - 1);
+        Some(((index(low) - 1).max(0) as u32, (index(high) + 1).min(size as i64 - 1) as u32))
+    };
+    let (x0, x1) = texels(range(s_axis))?;
+    let (y0, y1) = texels(range(t_axis))?;
+    Some((x0, x1, y0, y1))
+}
+
 impl DistanceImpostor {
     /// Splats `samples` into a cube map of `size`² texels per face centred at `centre`; each
     /// sample is a disk in its tangent plane (radius [`SPLAT_RADIUS`] × `footprint`, the hash
@@ -85,7 +127,9 @@ impl DistanceImpostor {
     /// the distance where they cross it; the nearest sample wins each texel. A disk seen edge-on
     /// covers only the texels it really crosses: a floor seen at a grazing angle stays flat
     /// instead of rising into a bowl around the centre. A sample without a usable normal is a
-    /// disk facing the centre.
+    /// disk facing the centre. On each face, the texels tested are those the disk's bounding
+    /// box projects onto (`face_bounds`), so a disk near the centre, which spans several
+    /// faces and wide angles, is covered whole.
     pub fn build<'a>(
         samples: impl IntoIterator<Item = &'a EnvironmentSample>,
         centre: Vec3,
@@ -101,50 +145,37 @@ impl DistanceImpostor {
             distance: vec![f32::INFINITY; n],
             far: 0.0,
         };
-        // a texel subtends about (2 / size) / distance-to-face radians near the face centre
-        let texel_angle = 2.0 / size as f32;
+        let radius = SPLAT_RADIUS * footprint;
         for s in samples {
             let d = s.position - centre;
             let dist = d.length();
-            if !(dist > 1e-6) || !s.colour.is_finite() {
+            if !(dist > 1e-6) || !s.colour.is_finite() || !d.is_finite() {
                 continue;
             }
             let dir = d / dist;
-            let radius = SPLAT_RADIUS * footprint;
             let normal = s.unit_normal().unwrap_or(dir);
-            let angular = (radius / dist).atan();
-            let cos_reach = angular.cos();
-            let (face, u, v) = face_uv(dir);
-            let reach = (angular / texel_angle * 2.0).ceil() as i64 + 1;
-            let (cx, cy) = ((u * size as f32) as i64, (v * size as f32) as i64);
-            for y in cy - reach..=cy + reach {
-                for x in cx - reach..=cx + reach {
-                    // texels past a face's edge are on the neighbouring face: reach them by
-                    // direction instead of by index
-                    let (f, tx, ty) = if x < 0 || y < 0 || x >= size as i64 || y >= size as i64 {
-                        let probe = face_dir(face, texel_coord(x, size), texel_coord(y, size));
-                        let (f, pu, pv) = face_uv(probe);
-                        (f, ((pu * size as f32) as u32).min(size - 1), ((pv * size as f32) as u32).min(size - 1))
-                    } else {
-                        (face, x as u32, y as u32)
-                    };
-                    let t = texel_dir(f, tx, ty, size);
-                    if t.dot(dir) < cos_reach {
-                        continue;
-                    }
-                    // where the texel's direction crosses the sample's plane, if within its disk
-                    let facing = normal.dot(t);
-                    if facing.abs() < 1e-4 {
-                        continue;
-                    }
-                    let along = normal.dot(d) / facing;
-                    if !(along > 0.0) || (centre + t * along - s.position).length() > radius {
-                        continue;
-                    }
-                    let i = f * (size * size) as usize + (ty * size + tx) as usize;
-                    if along < map.distance[i] {
-                        map.distance[i] = along;
-                        map.radiance[i] = s.colour;
+            // the disk's bounding box: half-extent r·√(1 − nᵢ²) along axis i
+            let half = radius * (Vec3::ONE - normal * normal).max(Vec3::ZERO).sqrt();
+            let (lo, hi) = (d - half, d + half);
+            for f in 0..6 {
+                let Some((x0, x1, y0, y1)) = face_bounds(f, lo, hi, size) else { continue };
+                for ty in y0..=y1 {
+                    for tx in x0..=x1 {
+                        // where the texel's direction crosses the sample's plane, if within its disk
+                        let t = texel_dir(f, tx, ty, size);
+                        let facing = normal.dot(t);
+                        if facing.abs() < 1e-4 {
+                            continue;
+                        }
+                        let along = normal.dot(d) / facing;
+                        if !(along > 0.0) || (centre + t * along - s.position).length() > radius {
+                            continue;
+                        }
+                        let i = f * (size * size) as usize + (ty * size + tx) as usize;
+                        if along < map.distance[i] {
+                            map.distance[i] = along;
+                            map.radiance[i] = s.colour;
+                        }
                     }
                 }
             }

@@ -4,7 +4,8 @@
 //! environment mapping (EM), distance impostor tracing (DIT) or voxel cone tracing (VCT),
 //! [`query`] — and composed in the reference (linear) colour space (Sec. 6.6).
 //!
-//! This is the CPU reference of the method, pass by pass as the paper's Table 2 lists them:
+//! The frame is rendered on the CPU, pass by pass as the paper's Table 2 lists them (the
+//! representation is built on the GPU where a renderer is given, [`build_representation`]):
 //! representation build, the G-buffer with the tests of eq. 9 against the virtual object's
 //! bounding box, the virtual object (importance-sampled Blinn–Phong, Sec. 6.3, self-shadowing
 //! and on `high` a secondary diffuse bounce), material estimation (eq. 5), the differential
@@ -289,14 +290,18 @@ pub fn virtual_object_bounds(scene: &Scene) -> Vec<Aabb> {
 
 /// Builds what `method` queries from the captured `samples` (footprint: the hash grid's
 /// cell), with the light probe at the virtual object for what the capture missed; returns the
-/// representation and the build passes with their times. Everything is built on the CPU (the
-/// GPU builds of [`crate::gpu::representation`] are not used yet: see their documentation).
+/// representation and the build passes with their times. With `gpu`, the distance impostors
+/// and the scene voxel volume are built by its compute passes ([`crate::gpu::representation`],
+/// texel for texel the CPU's builds, tested) and read back; a build the adapter cannot hold
+/// falls back to the CPU, and the pass's name says why. The light probe is path traced on the
+/// CPU.
 pub fn build_representation(
     scene: &Scene,
     real: &World,
     samples: &[EnvironmentSample],
     footprint: f32,
     params: &CoherentParams,
+    gpu: Option<&crate::gpu::DirRenderer>,
 ) -> (Representation, Vec<PassTime>) {
     let mut passes = Vec::new();
     let centre = virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
@@ -308,6 +313,10 @@ pub fn build_representation(
     if params.method == Method::Off {
         return (rep, passes);
     }
+    // where a build ran, as the pass names it: the GPU's times and memory, or why the CPU;
+    // the passes compile (on first use) before the clock starts
+    let mut on_gpu = GpuBuilds::default();
+    let builder = gpu.map(|r| (r, r.representation_builder()));
     if params.method != Method::Vct {
         let start = Instant::now();
         let n = params.settings.impostor_size;
@@ -315,21 +324,79 @@ pub fn build_representation(
         if centres.is_empty() {
             centres.push(centre);
         }
-        rep.impostors = centres.par_iter().map(|&c| DistanceImpostor::build(samples, c, n, footprint)).collect();
+        rep.impostors = match gpu {
+            Some(r) => centres
+                .iter()
+                .map(|&c| {
+                    on_gpu
+                        .add(r.representation_builder().impostor(&r.ctx, samples, c, n, footprint))
+                        .unwrap_or_else(|| DistanceImpostor::build(samples, c, n, footprint))
+                })
+                .collect(),
+            None => centres.par_iter().map(|&c| DistanceImpostor::build(samples, c, n, footprint)).collect(),
+        };
         let count = rep.impostors.len();
         let what = if count == 1 {
             format!("distance impostor (6×{n}²)")
         } else {
             format!("{count} distance impostors (6×{n}² each, one per virtual object)")
         };
-        passes.push(PassTime { pass: what, ms: ms_since(start) });
+        passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start) });
     } else {
         let start = Instant::now();
         let n = params.settings.scene_voxels;
-        rep.voxels = Some(VoxelVolume::build(samples, n, footprint));
-        passes.push(PassTime { pass: format!("scene voxel volume ({n}³ with mipmaps)"), ms: ms_since(start) });
+        rep.voxels = Some(match builder {
+            Some((r, builder)) => on_gpu
+                .add(builder.voxels(&r.ctx, samples, n, footprint))
+                .unwrap_or_else(|| VoxelVolume::build(samples, n, footprint)),
+            None => VoxelVolume::build(samples, n, footprint),
+        });
+        let what = format!("scene voxel volume ({n}³ with mipmaps)");
+        passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start) });
     }
     (rep, passes)
+}
+
+/// What the GPU builds of one pass took, and why any fell back to the CPU.
+#[derive(Default)]
+struct GpuBuilds {
+    gpu_ms: f64,
+    readback_ms: f64,
+    bytes: u64,
+    fallback: Option<String>,
+}
+
+impl GpuBuilds {
+    /// The built value, counted, or None (and the reason kept) where the GPU could not build it.
+    fn add<T>(&mut self, built: std::result::Result<crate::gpu::representation::Built<T>, String>) -> Option<T> {
+        match built {
+            Ok(built) => {
+                self.gpu_ms += built.gpu_ms;
+                self.readback_ms += built.readback_ms;
+                self.bytes += built.gpu_bytes;
+                Some(built.value)
+            }
+            Err(reason) => {
+                self.fallback = Some(reason);
+                None
+            }
+        }
+    }
+
+    /// The pass's name: `what`, and where it was built.
+    fn name(&self, what: String, gpu: Option<&crate::gpu::DirRenderer>) -> String {
+        match (gpu, &self.fallback) {
+            (None, _) => format!("{what} on the CPU"),
+            (Some(_), Some(reason)) => format!("{what} on the CPU: {reason}"),
+            (Some(r), None) => format!(
+                "{what} on {}: GPU {:.1} ms, readback {:.1} ms, {:.1} MB",
+                r.ctx.adapter_name(),
+                self.gpu_ms,
+                self.readback_ms,
+                self.bytes as f64 / 1e6
+            ),
+        }
+    }
 }
 
 pub(crate) fn ms_since(start: Instant) -> f64 {

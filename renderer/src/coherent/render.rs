@@ -11,6 +11,7 @@ use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_si
 use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::error::Result;
+use crate::gpu::DirRenderer;
 use crate::gpu::PassTime;
 use crate::image::Image;
 use crate::metrics::{StimulusErrors, stimulus_errors};
@@ -34,18 +35,19 @@ pub struct SceneRender {
 
 /// Renders `scene` by `params`: the reference path tracer at `reference` (its photograph is the
 /// frame's input, its ground truth the errors' reference), a capture from 4 poses, then the
-/// frame. `progress(done, total)` counts the reference render's samples per pixel, then the
-/// capture's poses and the frame's passes.
+/// frame; with `gpu`, the representation is built there. `progress(done, total)` counts the
+/// reference render's samples per pixel, then the capture's poses and the frame's passes.
 pub fn render_scene(
     scene: &Scene,
     params: &CoherentParams,
     reference: &ReferenceParams,
+    gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<SceneRender> {
     let total = 2 * reference.spp + POSES + 5;
     let reference_out = render_reference(scene, reference, &|done, _| progress(done, total))?;
     let captured = CapturedScene::new(scene, params.seed, &|done, _| progress(2 * reference.spp + done, total));
-    let (build, frame, stimulus, errors) = render_over(scene, &captured, params, &reference_out, &|done, _| {
+    let (build, frame, stimulus, errors) = render_over(scene, &captured, params, &reference_out, gpu, &|done, _| {
         progress(2 * reference.spp + POSES + done, total)
     })?;
     Ok(SceneRender { reference: reference_out, capture: captured.report, build, frame, stimulus, errors })
@@ -98,10 +100,11 @@ impl CapturedScene {
         scene: &Scene,
         params: &CoherentParams,
         linear: &Image,
+        gpu: Option<&DirRenderer>,
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
         let mut build = vec![PassTime { pass: format!("capture ({POSES} poses)"), ms: self.ms }];
-        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params);
+        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params, gpu);
         build.extend(passes);
         let frame = Coherent::new(scene, &self.real, &rep, *params).render(linear, progress)?;
         Ok((build, frame))
@@ -117,9 +120,10 @@ pub fn render_over(
     captured: &CapturedScene,
     params: &CoherentParams,
     reference: &ReferenceOutput,
+    gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<(Vec<PassTime>, CoherentFrame, Image, StimulusErrors)> {
-    let (build, frame) = captured.render(scene, params, &reference.hdr_real, progress)?;
+    let (build, frame) = captured.render(scene, params, &reference.hdr_real, gpu, progress)?;
     let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
     let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
     Ok((build, frame, stimulus, errors))
@@ -152,11 +156,12 @@ pub fn render_stimulus(
     params: &CoherentParams,
     cm: &crate::cm::CmParams,
     ca: Option<&crate::ca::CaParams>,
+    gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
     use crate::cm::{CmInput, CmState, Composition, compose, cpu_frame};
     use crate::surface::{NOTHING, REAL, VIRTUAL};
     let start = Instant::now();
-    let (_, frame) = captured.render(scene, params, linear, &|_, _| {})?;
+    let (_, frame) = captured.render(scene, params, linear, gpu, &|_, _| {})?;
     let (w, h) = (photo.width, photo.height);
     if (linear.width, linear.height) != (w, h) {
         return Err(crate::error::RenderError::SizeMismatch {
@@ -218,9 +223,10 @@ pub fn render_to_file(
     reference: &ReferenceParams,
     out: &std::path::Path,
     buffers: Option<&std::path::Path>,
+    gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<Vec<String>> {
-    let result = render_scene(scene, params, reference, progress)?;
+    let result = render_scene(scene, params, reference, gpu, progress)?;
     crate::image::save_by_extension(out, &result.frame.composite, &result.stimulus)?;
     let report = &result.frame.report;
     if let Some(dir) = buffers {

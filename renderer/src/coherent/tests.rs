@@ -155,7 +155,7 @@ fn reflectance_estimation_recovers_a_known_albedo_under_a_known_environment() {
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.material_samples = 4096;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point away from the box; its photographed radiance by the path tracer, many paths
     let x = Vec3::new(-0.5, 0.0, 0.4);
@@ -201,7 +201,7 @@ fn the_cache_of_eq_9_is_unbiased_against_eq_8_and_less_noisy_at_equal_tracing() 
     let (scene, real, samples) = captured(FLOOR);
     let mut params = CoherentParams::new(Method::Dit, Quality::Med);
     params.settings.background_samples = 64;
-    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params);
+    let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &params, None);
     let renderer = Coherent::new(&scene, &real, &rep, params);
     // a floor point beside the box: some directions meet it
     let x = Vec3::new(0.3, 0.0, 0.1);
@@ -240,7 +240,7 @@ fn with_no_virtual_object_every_method_leaves_the_photograph_exact() {
     let photo = photo(&scene);
     for method in Method::ALL {
         let p = CoherentParams::new(method, Quality::Low);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&photo, &|_, _| {}).unwrap();
         assert_eq!(frame.composite.pixels, photo.pixels, "{}", method.name());
         assert_eq!(frame.report.object_pixels, 0);
@@ -265,7 +265,7 @@ fn every_method_brings_the_composite_closer_to_the_ground_truth_than_gi_off() {
     .unwrap();
     let error = |method: Method| {
         let p = CoherentParams::new(method, Quality::Med);
-        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p);
+        let (rep, _) = build_representation(&scene, &real, &samples, 0.03, &p, None);
         let frame = Coherent::new(&scene, &real, &rep, p).render(&reference.hdr_real, &|_, _| {}).unwrap();
         assert!(frame.report.object_pixels > 20, "{:?}", frame.report);
         // linear radiance against the path-traced composite in the affected region
@@ -280,14 +280,16 @@ fn every_method_brings_the_composite_closer_to_the_ground_truth_than_gi_off() {
 
 #[test]
 fn on_the_survey_scenes_every_method_beats_gi_off_against_the_ground_truth() {
-    // the whole chain of `mrstudy render --gi-method`: reference, capture, representation,
-    // frame, camera; FLIP in the affected region (display values, as a participant sees them)
+    // the whole chain of `mrstudy render --gi-method`: reference, capture, representation
+    // (on the GPU where one opens, as studies build it), frame, camera; FLIP in the affected
+    // region (display values, as a participant sees them)
+    let gpu = crate::test_support::dir_renderer().ok();
     for name in ["survey-1", "survey-2", "survey-3", "survey-4", "survey-5", "survey-6"] {
         let scene = crate::scene::load(name).unwrap().with_size(128, 96);
         let reference = crate::reference::ReferenceParams { spp: 16, ..Default::default() };
         let flip = |method: Method| {
             let result =
-                render::render_scene(&scene, &CoherentParams::new(method, Quality::Med), &reference, &|_, _| {})
+                render::render_scene(&scene, &CoherentParams::new(method, Quality::Med), &reference, gpu, &|_, _| {})
                     .unwrap();
             result.errors.value("flip_mean", "affected").unwrap()
         };
@@ -307,7 +309,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -338,7 +340,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca)).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca), None).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
 
@@ -368,9 +370,9 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
     let centres: Vec<Vec3> = virtual_object_bounds(&scene).iter().map(|b| b.centroid()).collect();
     assert_eq!(centres.len(), 2);
     for centre in centres {
-        // not 128² or 256²: see gpu::representation's documentation (a known bug)
-        {
-            let size = 64u32;
+        // 256² as the pipeline's high quality; up to the spring of this issue the GPU lost
+        // splats of disks near the centre there (0.5 % of texels at 128², 1.3 % at 256²)
+        for size in [64u32, 128, 256] {
             let cpu = crate::capture::impostor::DistanceImpostor::build(&samples, centre, size, cell);
             let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
             let gpu = &built.value;
@@ -387,7 +389,6 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
                 share(cd.len(), |i| cd[i].is_finite() && gd[i].is_finite() && (cd[i] - gd[i]).abs() > 1e-4 * cd[i]);
             assert!(distance_differ < 0.005, "{size}²: {distance_differ:.4} of texels at another distance");
             let radiance_differ = share(cd.len(), |i| cd[i].is_finite() && (cr[i] - gr[i]).abs().max_element() > 1e-6);
-
             assert!(radiance_differ < 0.005, "{radiance_differ:.4} of texels with another radiance");
         }
     }

@@ -267,6 +267,8 @@ pub struct DirRenderer {
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
     specular: specular::Specular,
+    /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
+    representation: std::sync::OnceLock<representation::RepresentationBuilder>,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -375,7 +377,25 @@ impl DirRenderer {
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
         let specular = specular::Specular::new(&ctx);
-        DirRenderer { ctx, raster, shade, ism, cm, compose, indirect, artifacts, bounce, specular }
+        DirRenderer {
+            ctx,
+            raster,
+            shade,
+            ism,
+            cm,
+            compose,
+            indirect,
+            artifacts,
+            bounce,
+            specular,
+            representation: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// The compute passes that build Rohmer et al.'s representations on this GPU
+    /// ([`representation`]), compiled on first use.
+    pub fn representation_builder(&self) -> &representation::RepresentationBuilder {
+        self.representation.get_or_init(|| representation::RepresentationBuilder::new(&self.ctx))
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real

@@ -46,26 +46,6 @@ fn finite3(v: vec3<f32>) -> bool {
     return all(abs(v) <= vec3<f32>(3.4e38));
 }
 
-// the face and its coordinates in [0, 1)² of a direction (axes as `face_uv` in impostor.rs)
-fn face_uv(d: vec3<f32>) -> vec3<f32> {
-    let a = abs(d);
-    var face = 0.0;
-    var sc = 0.0;
-    var tc = 0.0;
-    var ma = 1.0;
-    if a.x >= a.y && a.x >= a.z {
-        ma = a.x;
-        if d.x > 0.0 { face = 0.0; sc = -d.z; tc = -d.y; } else { face = 1.0; sc = d.z; tc = -d.y; }
-    } else if a.y >= a.z {
-        ma = a.y;
-        if d.y > 0.0 { face = 2.0; sc = d.x; tc = d.z; } else { face = 3.0; sc = d.x; tc = -d.z; }
-    } else {
-        ma = a.z;
-        if d.z > 0.0 { face = 4.0; sc = d.x; tc = -d.y; } else { face = 5.0; sc = -d.x; tc = -d.y; }
-    }
-    return vec3<f32>(face, 0.5 * (sc / ma + 1.0), 0.5 * (tc / ma + 1.0));
-}
-
 fn texel_coord(i: i32, size: u32) -> f32 {
     return 2.0 * (f32(i) + 0.5) / f32(size) - 1.0;
 }
@@ -83,10 +63,53 @@ fn face_dir(face: u32, s: f32, t: f32) -> vec3<f32> {
     return normalize(d);
 }
 
-// A sample's splat on the impostor: calls `visit(texel, distance)` for every texel whose
-// direction from the centre crosses the sample's disk. WGSL has no closures: `write` picks the
-// pass (false: the nearest distance by atomicMin; true: the radiance where this sample won).
-fn splat_impostor(k: u32, write: bool) {
+// (axis, sign) of a face's major axis and of its s and t numerators, as `face_uv` forms them
+fn face_axis(face: u32, which: u32) -> vec2<f32> {
+    var table = array<vec2<f32>, 18>(
+        vec2<f32>(0.0, 1.0), vec2<f32>(2.0, -1.0), vec2<f32>(1.0, -1.0),
+        vec2<f32>(0.0, -1.0), vec2<f32>(2.0, 1.0), vec2<f32>(1.0, -1.0),
+        vec2<f32>(1.0, 1.0), vec2<f32>(0.0, 1.0), vec2<f32>(2.0, 1.0),
+        vec2<f32>(1.0, -1.0), vec2<f32>(0.0, 1.0), vec2<f32>(2.0, -1.0),
+        vec2<f32>(2.0, 1.0), vec2<f32>(0.0, 1.0), vec2<f32>(1.0, -1.0),
+        vec2<f32>(2.0, -1.0), vec2<f32>(0.0, -1.0), vec2<f32>(1.0, -1.0),
+    );
+    return table[face * 3u + which];
+}
+
+// the range of a signed axis over the box lo..hi
+fn axis_range(lo: vec3<f32>, hi: vec3<f32>, axis: vec2<f32>) -> vec2<f32> {
+    let i = u32(axis.x);
+    let a = axis.y * lo[i];
+    let b = axis.y * hi[i];
+    return vec2<f32>(min(a, b), max(a, b));
+}
+
+// the texel columns (or rows) that a numerator range n over a major range m projects onto, one
+// wider on each side; x > y where none (as `face_bounds` in impostor.rs)
+fn texel_span(n: vec2<f32>, m: vec2<f32>, size: u32) -> vec2<i32> {
+    var low: f32;
+    var high: f32;
+    if m.x > 0.0 {
+        low = min(n.x / m.x, n.x / m.y);
+        high = max(n.y / m.x, n.y / m.y);
+    } else {
+        low = select(n.x / m.y, -1.0, n.x < 0.0);
+        high = select(n.y / m.y, 1.0, n.y > 0.0);
+    }
+    if low > 1.0 || high < -1.0 {
+        return vec2<i32>(1, 0);
+    }
+    let last = i32(size) - 1;
+    let a = clamp(i32(0.5 * (clamp(low, -1.0, 1.0) + 1.0) * f32(size)), 0, last);
+    let b = clamp(i32(0.5 * (clamp(high, -1.0, 1.0) + 1.0) * f32(size)), 0, last);
+    return vec2<i32>(max(a - 1, 0), min(b + 1, last));
+}
+
+// A sample's splat on the impostor: every texel whose direction from the centre crosses the
+// sample's disk, on each face the texels its bounding box projects onto (`face_bounds` in
+// impostor.rs). WGSL has no closures: `write` picks the pass (false: the nearest distance by
+// atomicMin; true: the radiance where this sample won).
+fn splat_impostor(k: u32, face: u32, write: bool) {
     let s = samples[k];
     let size = params.counts.y;
     let centre = params.centre.xyz;
@@ -101,46 +124,37 @@ fn splat_impostor(k: u32, write: bool) {
     if finite3(s.normal.xyz) && dot(s.normal.xyz, s.normal.xyz) > 0.5 {
         normal = normalize(s.normal.xyz);
     }
-    let angular = atan(radius / dist);
-    let cos_reach = cos(angular);
-    let texel_angle = 2.0 / f32(size);
-    let fuv = face_uv(dir);
-    let face = u32(fuv.x);
-    let reach = i32(ceil(angular / texel_angle * 2.0)) + 1;
-    let cx = i32(fuv.y * f32(size));
-    let cy = i32(fuv.z * f32(size));
-    let isize = i32(size);
-    for (var y = cy - reach; y <= cy + reach; y++) {
-        for (var x = cx - reach; x <= cx + reach; x++) {
-            var f = face;
-            var tx = u32(max(x, 0));
-            var ty = u32(max(y, 0));
-            if x < 0 || y < 0 || x >= isize || y >= isize {
-                let probe = face_uv(face_dir(face, texel_coord(x, size), texel_coord(y, size)));
-                f = u32(probe.x);
-                tx = min(u32(probe.y * f32(size)), size - 1u);
-                ty = min(u32(probe.z * f32(size)), size - 1u);
-            }
-            let t = face_dir(f, texel_coord(i32(tx), size), texel_coord(i32(ty), size));
-            if dot(t, dir) < cos_reach {
-                continue;
-            }
-            let facing = dot(normal, t);
-            if abs(facing) < 1e-4 {
-                continue;
-            }
-            let along = dot(normal, d) / facing;
-            if !(along > 0.0) || length(centre + t * along - s.position.xyz) > radius {
-                continue;
-            }
-            let i = f * size * size + ty * size + tx;
-            let bits = bitcast<u32>(along);
-            if write {
-                if atomicLoad(&depth[i]) == bits {
-                    radiance[i] = vec4<f32>(s.colour.xyz, 1.0);
+    let half = radius * sqrt(max(vec3<f32>(1.0) - normal * normal, vec3<f32>(0.0)));
+    let lo = d - half;
+    let hi = d + half;
+    {
+        let f = face;
+        let m = axis_range(lo, hi, face_axis(f, 0u));
+        if !(m.y > 0.0) {
+            return;
+        }
+        let xs = texel_span(axis_range(lo, hi, face_axis(f, 1u)), m, size);
+        let ys = texel_span(axis_range(lo, hi, face_axis(f, 2u)), m, size);
+        for (var y = ys.x; y <= ys.y; y++) {
+            for (var x = xs.x; x <= xs.y; x++) {
+                let t = face_dir(f, texel_coord(x, size), texel_coord(y, size));
+                let facing = dot(normal, t);
+                if abs(facing) < 1e-4 {
+                    continue;
                 }
-            } else {
-                atomicMin(&depth[i], bits);
+                let along = dot(normal, d) / facing;
+                if !(along > 0.0) || length(centre + t * along - s.position.xyz) > radius {
+                    continue;
+                }
+                let i = f * size * size + u32(y) * size + u32(x);
+                let bits = bitcast<u32>(along);
+                if write {
+                    if atomicLoad(&depth[i]) == bits {
+                        radiance[i] = vec4<f32>(s.colour.xyz, 1.0);
+                    }
+                } else {
+                    atomicMin(&depth[i], bits);
+                }
             }
         }
     }
@@ -149,16 +163,16 @@ fn splat_impostor(k: u32, write: bool) {
 @compute @workgroup_size(64)
 fn cs_impostor_depth(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let k = sample_index(wid, nwg, lid);
-    if k < params.counts.x {
-        splat_impostor(k, false);
+    if k < 6u * params.counts.x {
+        splat_impostor(k / 6u, k % 6u, false);
     }
 }
 
 @compute @workgroup_size(64)
 fn cs_impostor_radiance(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let k = sample_index(wid, nwg, lid);
-    if k < params.counts.x {
-        splat_impostor(k, true);
+    if k < 6u * params.counts.x {
+        splat_impostor(k / 6u, k % 6u, true);
     }
 }
 
