@@ -903,8 +903,13 @@ fn item_score_information(
     score: &mut [f64],
     information: &mut [f64],
 ) {
+    item_score_information_with(pairs, column, |i, j| item_probability(column, beta, i, j), score, information);
+}
+
+/// The item model's probability at `beta` that condition `i` is chosen over `j`.
+fn item_probability(column: &[Option<usize>], beta: &[f64], i: usize, j: usize) -> f64 {
     let lambda = |c: usize| column[c].map_or(0.0, |k| beta[k]);
-    item_score_information_with(pairs, column, |i, j| 1.0 / (1.0 + (lambda(j) - lambda(i)).exp()), score, information);
+    1.0 / (1.0 + (lambda(j) - lambda(i)).exp())
 }
 
 /// As [`item_score_information`], with the model's probability that `i` is chosen over `j`
@@ -1011,9 +1016,8 @@ fn screen_observers(
     // The whole data's model probability per pair of conditions (dense designs): every
     // participant's first step starts there, so it is computed once rather than per participant.
     let full_pi: Vec<f64> = if dense {
-        let lambda = |c: usize| column[c].map_or(0.0, |k| full_fit.beta[k]);
         (0..n_conditions * n_conditions)
-            .map(|ij| 1.0 / (1.0 + (lambda(ij % n_conditions) - lambda(ij / n_conditions)).exp()))
+            .map(|ij| item_probability(&column, &full_fit.beta, ij / n_conditions, ij % n_conditions))
             .collect()
     } else {
         Vec::new()

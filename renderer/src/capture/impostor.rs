@@ -54,13 +54,13 @@ fn face_uv(d: Vec3) -> (usize, f32, f32) {
     (face, 0.5 * (sc / ma + 1.0), 0.5 * (tc / ma + 1.0))
 }
 
-/// The face coordinate in [−1, 1] of texel column or row `i` (outside for a texel past an edge).
-fn texel_coord(i: i64, size: u32) -> f32 {
+/// The face coordinate in [−1, 1] of texel column or row `i`.
+fn texel_coord(i: u32, size: u32) -> f32 {
     2.0 * (i as f32 + 0.5) / size as f32 - 1.0
 }
 
-/// The direction through face coordinates (s, t) of `face` (the inverse of [`face_uv`]); (s, t)
-/// may lie outside [−1, 1], for a splat that spills over an edge.
+/// The direction through face coordinates (s, t) ∈ [−1, 1]² of `face` (the inverse of
+/// [`face_uv`]).
 fn face_dir(face: usize, s: f32, t: f32) -> Vec3 {
     match face {
         0 => Vec3::new(1.0, -t, -s),
@@ -75,7 +75,7 @@ fn face_dir(face: usize, s: f32, t: f32) -> Vec3 {
 
 /// The direction through the centre of texel (x, y) of `face`.
 fn texel_dir(face: usize, x: u32, y: u32, size: u32) -> Vec3 {
-    face_dir(face, texel_coord(x as i64, size), texel_coord(y as i64, size))
+    face_dir(face, texel_coord(x, size), texel_coord(y, size))
 }
 
 /// The rectangle of texels `(x0, x1, y0, y1)` (inclusive) of `face` that the box `lo..=hi`

@@ -324,12 +324,12 @@ pub fn build_representation(
         if centres.is_empty() {
             centres.push(centre);
         }
-        rep.impostors = match gpu {
-            Some(r) => centres
+        rep.impostors = match builder {
+            Some((r, builder)) => centres
                 .iter()
                 .map(|&c| {
                     on_gpu
-                        .add(r.representation_builder().impostor(&r.ctx, samples, c, n, footprint))
+                        .add(builder.impostor(&r.ctx, samples, c, n, footprint))
                         .unwrap_or_else(|| DistanceImpostor::build(samples, c, n, footprint))
                 })
                 .collect(),

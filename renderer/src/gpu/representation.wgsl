@@ -105,11 +105,11 @@ fn texel_span(n: vec2<f32>, m: vec2<f32>, size: u32) -> vec2<i32> {
     return vec2<i32>(max(a - 1, 0), min(b + 1, last));
 }
 
-// A sample's splat on the impostor: every texel whose direction from the centre crosses the
-// sample's disk, on each face the texels its bounding box projects onto (`face_bounds` in
-// impostor.rs). WGSL has no closures: `write` picks the pass (false: the nearest distance by
-// atomicMin; true: the radiance where this sample won).
-fn splat_impostor(k: u32, face: u32, write: bool) {
+// Sample k's splat on one face of the impostor: every texel of `f` whose direction from the
+// centre crosses the sample's disk, among those its bounding box projects onto (`face_bounds`
+// in impostor.rs); one invocation per (sample, face). WGSL has no closures: `write` picks the
+// pass (false: the nearest distance by atomicMin; true: the radiance where this sample won).
+fn splat_impostor(k: u32, f: u32, write: bool) {
     let s = samples[k];
     let size = params.counts.y;
     let centre = params.centre.xyz;
@@ -127,34 +127,31 @@ fn splat_impostor(k: u32, face: u32, write: bool) {
     let half = radius * sqrt(max(vec3<f32>(1.0) - normal * normal, vec3<f32>(0.0)));
     let lo = d - half;
     let hi = d + half;
-    {
-        let f = face;
-        let m = axis_range(lo, hi, face_axis(f, 0u));
-        if !(m.y > 0.0) {
-            return;
-        }
-        let xs = texel_span(axis_range(lo, hi, face_axis(f, 1u)), m, size);
-        let ys = texel_span(axis_range(lo, hi, face_axis(f, 2u)), m, size);
-        for (var y = ys.x; y <= ys.y; y++) {
-            for (var x = xs.x; x <= xs.y; x++) {
-                let t = face_dir(f, texel_coord(x, size), texel_coord(y, size));
-                let facing = dot(normal, t);
-                if abs(facing) < 1e-4 {
-                    continue;
+    let m = axis_range(lo, hi, face_axis(f, 0u));
+    if !(m.y > 0.0) {
+        return;
+    }
+    let xs = texel_span(axis_range(lo, hi, face_axis(f, 1u)), m, size);
+    let ys = texel_span(axis_range(lo, hi, face_axis(f, 2u)), m, size);
+    for (var y = ys.x; y <= ys.y; y++) {
+        for (var x = xs.x; x <= xs.y; x++) {
+            let t = face_dir(f, texel_coord(x, size), texel_coord(y, size));
+            let facing = dot(normal, t);
+            if abs(facing) < 1e-4 {
+                continue;
+            }
+            let along = dot(normal, d) / facing;
+            if !(along > 0.0) || length(centre + t * along - s.position.xyz) > radius {
+                continue;
+            }
+            let i = f * size * size + u32(y) * size + u32(x);
+            let bits = bitcast<u32>(along);
+            if write {
+                if atomicLoad(&depth[i]) == bits {
+                    radiance[i] = vec4<f32>(s.colour.xyz, 1.0);
                 }
-                let along = dot(normal, d) / facing;
-                if !(along > 0.0) || length(centre + t * along - s.position.xyz) > radius {
-                    continue;
-                }
-                let i = f * size * size + u32(y) * size + u32(x);
-                let bits = bitcast<u32>(along);
-                if write {
-                    if atomicLoad(&depth[i]) == bits {
-                        radiance[i] = vec4<f32>(s.colour.xyz, 1.0);
-                    }
-                } else {
-                    atomicMin(&depth[i], bits);
-                }
+            } else {
+                atomicMin(&depth[i], bits);
             }
         }
     }
