@@ -83,6 +83,16 @@ impl CoherentLevel {
             format!("{}-{}", self.method.name(), self.quality.name())
         }
     }
+
+    /// The level [`CoherentLevel::name`] gives: `em`, `dit` or `vct`, at quality *med* or with
+    /// a suffix `-low`, `-med`, `-high`; None for any other name.
+    pub fn parse(name: &str) -> Option<CoherentLevel> {
+        let (method, quality) = match name.split_once('-') {
+            Some((method, quality)) => (method, Quality::parse(quality)?),
+            None => (name, Quality::Med),
+        };
+        Method::parse(method).filter(|&m| m != Method::Off).map(|method| CoherentLevel { method, quality })
+    }
 }
 
 /// The names the `gi` factor takes, for messages.
@@ -100,18 +110,9 @@ fn gi_by_name(name: &str) -> std::result::Result<(GiLevel, Option<CoherentLevel>
     if let Some(level) = dir {
         return Ok((level, None));
     }
-    let (method, quality) = match name.split_once('-') {
-        Some((method, quality)) => (method, Quality::parse(quality)),
-        None => (name, Some(Quality::Med)),
-    };
-    match (Method::parse(method), quality) {
-        (Some(method), Some(quality)) if method != Method::Off => {
-            Ok((GiLevel::Gi, Some(CoherentLevel { method, quality })))
-        }
-        _ => Err(format!(
-            "factor `gi` has level \"{name}\"; the renderer knows the numbers 0 and 1 and the names {GI_NAMES}"
-        )),
-    }
+    CoherentLevel::parse(name).map(|level| (GiLevel::Gi, Some(level))).ok_or_else(|| {
+        format!("factor `gi` has level \"{name}\"; the renderer knows the numbers 0 and 1 and the names {GI_NAMES}")
+    })
 }
 
 /// The factors a stimulus is rendered under.

@@ -118,8 +118,8 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let per_condition = lines.iter().filter(|line| line.contains("condition \"")).count();
     assert!(lines.len() == 1 || (lines.len() == 3 && per_condition == 2), "{lines:?}");
     assert_eq!(lines.len() == 3, lines[0].contains("confounded with lag"), "{lines:?}");
-    // the photograph was cached in the data dir
-    assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() == 1);
+    // the photograph (PNG) and its radiance (EXR, for coherent conditions) were cached in the data dir
+    assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() == 2);
 
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
@@ -600,6 +600,80 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
     }
     let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
     assert!(report.pace_ms.is_some() && report.frame_times.len() == 2);
+}
+
+/// Issue 18: a task study may name a coherent method as a condition (`dit-low` beside DIR's
+/// `none`): the start-up captures the real scene and measures its frame time, the photograph's
+/// radiance is cached beside the photograph, a participant's trials in it are rendered live
+/// (each key moves the cube, and the frame with it) and stored under the method's name.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_coherent_method_runs_live_as_a_condition_and_its_frames_follow_the_cube() {
+    let _alone = RENDERING.lock().await;
+    let study = LabStudy {
+        seed: 11,
+        conditions: &["none", "dit-low"],
+        tasks: &["kind = \"placement\"\nstep_cm = 2"],
+        ..LabStudy::default()
+    }
+    .toml();
+    let Some((url, storage, _state, data_dir)) = serve(&study).await else { return };
+    let startup: Vec<(String, f64)> =
+        sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition")
+            .fetch_all(&storage.read)
+            .await
+            .unwrap();
+    let names: Vec<&str> = startup.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names, ["dit-low", "none"], "{startup:?}");
+    assert!(startup.iter().all(|(_, ms)| ms.is_finite() && *ms > 0.0), "{startup:?}");
+    let mut cached: Vec<String> = std::fs::read_dir(data_dir.path().join("lab"))
+        .unwrap()
+        .map(|entry| entry.unwrap().file_name().to_string_lossy().rsplit('.').next().unwrap().to_string())
+        .collect();
+    cached.sort();
+    assert_eq!(cached, ["exr", "png"], "the photograph and its radiance are cached");
+
+    let mut socket = connect(&url).await;
+    send(&mut socket, json!({"type": "start", "label": "coherent"})).await;
+    let session = json_of(&mut socket, "session").await;
+    let trials = session["trials"].as_u64().unwrap();
+    assert_eq!(trials, 2);
+    for number in 1..=trials {
+        send(&mut socket, json!({"type": "ready"})).await;
+        let mut message = recv(&mut socket).await;
+        if let Incoming::Json(value) = &message
+            && value["type"] == "instructions"
+        {
+            send(&mut socket, json!({"type": "acknowledge"})).await;
+            message = recv(&mut socket).await;
+        }
+        let Incoming::Json(trial) = message else { panic!("expected the trial") };
+        let (_, first, _) = frame_with_inputs(&mut socket, 0).await;
+        let mut last = Vec::new();
+        for keys in 1..=3 {
+            send(&mut socket, json!({"type": "key", "key": "ArrowRight"})).await;
+            last = frame_with_inputs(&mut socket, keys).await.1;
+        }
+        let decode = |jpeg: &[u8]| image::load_from_memory(jpeg).unwrap().into_rgb8();
+        let (first, last) = (decode(&first), decode(&last));
+        assert_eq!((first.width(), first.height()), (96, 72));
+        let changed = first
+            .pixels()
+            .zip(last.pixels())
+            .filter(|(a, b)| a.0.iter().zip(b.0).any(|(x, y)| x.abs_diff(y) > 24))
+            .count();
+        assert!(changed > 30, "trial {number}: the cube moved 6 cm and {changed} pixels changed ({trial})");
+        send(&mut socket, json!({"type": "answer", "trial": number})).await;
+        json_of(&mut socket, "saved").await;
+    }
+    json_of(&mut socket, "done").await;
+    let mut stored: Vec<(String, i64)> =
+        sqlx::query_as("SELECT condition, frames FROM task_trials WHERE answered_at IS NOT NULL ORDER BY condition")
+            .fetch_all(&storage.read)
+            .await
+            .unwrap();
+    stored.sort();
+    assert_eq!(stored.iter().map(|row| row.0.as_str()).collect::<Vec<_>>(), ["dit-low", "none"]);
+    assert!(stored.iter().all(|row| row.1 >= 4), "{stored:?}");
 }
 
 /// With pace = "equal", the largest relative difference allowed between the conditions' mean

@@ -303,13 +303,32 @@ pub fn build_representation(
     params: &CoherentParams,
     gpu: Option<&crate::gpu::DirRenderer>,
 ) -> (Representation, Vec<PassTime>) {
-    let mut passes = Vec::new();
     let centre = virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
     let start = Instant::now();
     let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
     let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
-    passes.push(PassTime { pass: format!("light probe ({size})"), ms: ms_since(start) });
-    let mut rep = Representation { sky: Some(Arc::new(probe)), ..Representation::default() };
+    let mut passes = vec![PassTime { pass: format!("light probe ({size})"), ms: ms_since(start) }];
+    let (rep, built) = build_queries(scene, samples, footprint, params, gpu, Arc::new(probe), None);
+    passes.extend(built);
+    (rep, passes)
+}
+
+/// What `params.method` queries, built from the captured `samples` around the virtual objects
+/// where they are now, with `sky` (the light probe) for what the capture missed: the distance
+/// impostors (EM, DIT; one per virtual object, centred in it) or the scene voxel volume (VCT),
+/// which does not depend on the objects — `voxels`, one built before from the same samples at
+/// the settings' size, is reused. With `gpu`, built as [`build_representation`] says.
+pub fn build_queries(
+    scene: &Scene,
+    samples: &[EnvironmentSample],
+    footprint: f32,
+    params: &CoherentParams,
+    gpu: Option<&crate::gpu::DirRenderer>,
+    sky: Arc<Environment>,
+    voxels: Option<Arc<VoxelVolume>>,
+) -> (Representation, Vec<PassTime>) {
+    let mut passes = Vec::new();
+    let mut rep = Representation { sky: Some(sky), ..Representation::default() };
     if params.method == Method::Off {
         return (rep, passes);
     }
@@ -322,7 +341,7 @@ pub fn build_representation(
         let n = params.settings.impostor_size;
         let mut centres: Vec<Vec3> = virtual_object_bounds(scene).iter().map(|b| b.centroid()).collect();
         if centres.is_empty() {
-            centres.push(centre);
+            centres.push(scene.camera.position);
         }
         rep.impostors = match builder {
             Some((r, builder)) => centres
@@ -342,15 +361,17 @@ pub fn build_representation(
             format!("{count} distance impostors (6×{n}² each, one per virtual object)")
         };
         passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start) });
+    } else if let Some(voxels) = voxels.filter(|v| v.res == params.settings.scene_voxels) {
+        rep.voxels = Some(voxels);
     } else {
         let start = Instant::now();
         let n = params.settings.scene_voxels;
-        rep.voxels = Some(match builder {
+        rep.voxels = Some(Arc::new(match builder {
             Some((r, builder)) => on_gpu
                 .add(builder.voxels(&r.ctx, samples, n, footprint))
                 .unwrap_or_else(|| VoxelVolume::build(samples, n, footprint)),
             None => VoxelVolume::build(samples, n, footprint),
-        });
+        }));
         let what = format!("scene voxel volume ({n}³ with mipmaps)");
         passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start) });
     }

@@ -44,7 +44,8 @@ pub struct Representation {
     /// one whose centre is nearest its origin, so that no query starts far from the centre its
     /// parallax correction assumes.
     pub impostors: Vec<DistanceImpostor>,
-    pub voxels: Option<VoxelVolume>,
+    /// The scene voxel volume (VCT); shared, as it does not depend on the virtual object.
+    pub voxels: Option<Arc<VoxelVolume>>,
     /// The environment light beyond the capture.
     pub sky: Option<Arc<Environment>>,
 }

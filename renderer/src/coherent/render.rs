@@ -9,16 +9,19 @@
 
 use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_since};
 use crate::capture::hashgrid::EnvironmentSample;
+use crate::capture::voxel::VoxelVolume;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::error::Result;
 use crate::gpu::DirRenderer;
 use crate::gpu::PassTime;
 use crate::image::Image;
+use crate::light::Environment;
 use crate::metrics::{StimulusErrors, stimulus_errors};
 use crate::pathtracer::{Subset, World};
 use crate::reference::{ReferenceOutput, ReferenceParams, render_reference};
 use crate::scene::Scene;
 use glam::Vec3;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// Everything one coherent render of a scene made.
@@ -158,10 +161,27 @@ pub fn render_stimulus(
     ca: Option<&crate::ca::CaParams>,
     gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
-    use crate::cm::{CmInput, CmState, Composition, compose, cpu_frame};
-    use crate::surface::{NOTHING, REAL, VIRTUAL};
     let start = Instant::now();
     let (_, frame) = captured.render(scene, params, linear, gpu, &|_, _| {})?;
+    let (composite, cm) = show(scene, &frame, photo, linear, cm, ca, &mut crate::cm::CmState::default())?;
+    Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm })
+}
+
+/// A coherent frame shown as a DIR stimulus is (see [`render_stimulus`]): its two radiance
+/// buffers through the colour mapping `cm` (with the mapping's history `state`, for live
+/// frames), the differential composition over `photo` (display-encoded; `linear` its linear
+/// radiance), the object blended by its coverage, and the camera artifacts `ca`.
+fn show(
+    scene: &Scene,
+    frame: &CoherentFrame,
+    photo: &Image,
+    linear: &Image,
+    cm: &crate::cm::CmParams,
+    ca: Option<&crate::ca::CaParams>,
+    state: &mut crate::cm::CmState,
+) -> Result<(Image, crate::cm::CmReport)> {
+    use crate::cm::{CmInput, Composition, compose, cpu_frame};
+    use crate::surface::{NOTHING, REAL, VIRTUAL};
     let (w, h) = (photo.width, photo.height);
     if (linear.width, linear.height) != (w, h) {
         return Err(crate::error::RenderError::SizeMismatch {
@@ -179,7 +199,7 @@ pub fn render_stimulus(
     let l_rv: Vec<Vec3> =
         (0..n).map(|k| if frame.flags[k] == VIRTUAL { frame.object.pixels[k] } else { background[k] }).collect();
     let input = CmInput { width: w, height: h, l_rv: &l_rv, l_r: &l_r, flags: &frame.flags, photo: &photo.pixels };
-    let mapped = cpu_frame(&input, cm, 1.0, Composition::Additive, &mut CmState::default());
+    let mapped = cpu_frame(&input, cm, 1.0, Composition::Additive, state);
     let mapping = &mapped.report.mapping;
     let linear_domain = mapping.linear_domain();
     let mut composite = Image::new(w, h);
@@ -210,7 +230,95 @@ pub fn render_stimulus(
     if let Some(ca) = ca {
         composite = crate::ca::apply_cpu(&composite, photo, &frame.coverage, &scene.camera, ca)?.0;
     }
-    Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm: mapped.report })
+    Ok((composite, mapped.report))
+}
+
+/// A coherent method run live, frame after frame, as a lab task study runs it: the real scene's
+/// capture, its photograph and the light probe are made once; each frame builds what its method
+/// queries around the virtual object where it now is — the distance impostors follow the
+/// object, as the paper rebuilds them every frame; the scene voxel volume does not depend on
+/// the object and is built once per size — then renders the frame on the CPU and shows it as a
+/// stimulus is shown ([`render_stimulus`]).
+pub struct LiveCoherent {
+    captured: CapturedScene,
+    photo: Image,
+    linear: Image,
+    probe: Arc<Environment>,
+    /// Scene voxel volumes built so far, by size.
+    voxels: Mutex<Vec<Arc<VoxelVolume>>>,
+}
+
+/// A live coherent frame: the composite (display-encoded) and the passes it took.
+pub struct LiveFrame {
+    pub composite: Image,
+    pub passes: Vec<PassTime>,
+}
+
+impl LiveCoherent {
+    /// Captures `scene`'s real world (random numbers from `seed`) and path traces the light
+    /// probe at its virtual objects' centre; `photo` is the photograph (display-encoded) and
+    /// `linear` its linear radiance, both of the scene's camera size.
+    pub fn new(scene: &Scene, photo: Image, linear: Image, seed: u64) -> Result<LiveCoherent> {
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        for image in [&photo, &linear] {
+            if (image.width, image.height) != (w, h) {
+                return Err(crate::error::RenderError::SizeMismatch {
+                    a_width: w,
+                    a_height: h,
+                    b_width: image.width,
+                    b_height: image.height,
+                });
+            }
+        }
+        let captured = CapturedScene::new(scene, seed, &|_, _| {});
+        let centre = super::virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
+        let probe = super::light_probe(&captured.real, centre, super::PROBE_WIDTH, super::PROBE_PATHS, seed);
+        Ok(LiveCoherent { captured, photo, linear, probe: Arc::new(probe), voxels: Mutex::new(Vec::new()) })
+    }
+
+    /// The capture this live renderer answers from.
+    pub fn captured(&self) -> &CapturedScene {
+        &self.captured
+    }
+
+    /// One frame of `scene` — the scene this was made for, its virtual objects moved as they
+    /// now stand (its real part unchanged) — by `params`, shown with the colour mapping `cm`
+    /// and its history `state` (a trial starts with a fresh one). With `gpu`, the
+    /// representation is built there.
+    pub fn frame(
+        &self,
+        scene: &Scene,
+        params: &CoherentParams,
+        cm: &crate::cm::CmParams,
+        state: &mut crate::cm::CmState,
+        gpu: Option<&DirRenderer>,
+    ) -> Result<LiveFrame> {
+        let kept = self
+            .voxels
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .iter()
+            .find(|v| v.res == params.settings.scene_voxels)
+            .cloned();
+        let (rep, mut passes) = super::build_queries(
+            scene,
+            &self.captured.samples,
+            self.captured.cell,
+            params,
+            gpu,
+            Arc::clone(&self.probe),
+            kept.clone(),
+        );
+        if let (None, Some(built)) = (kept, &rep.voxels) {
+            self.voxels.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(Arc::clone(built));
+        }
+        let frame = Coherent::new(scene, &self.captured.real, &rep, *params).render(&self.linear, &|_, _| {})?;
+        passes.extend(frame.report.passes.iter().cloned());
+        let start = Instant::now();
+        let (composite, _) = show(scene, &frame, &self.photo, &self.linear, cm, None, state)?;
+        passes.push(PassTime { pass: "colour mapping and display".into(), ms: ms_since(start) });
+        Ok(LiveFrame { composite, passes })
+    }
 }
 
 /// [`render_scene`], saved to `out` (`.png` the camera's output, `.exr` the linear composite)

@@ -409,3 +409,37 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
     let brightest = gpu.level(0).iter().map(|v| v[0]).fold(0.0f32, f32::max);
     assert!(brightest > 1000.0 && brightest <= crate::capture::voxel::RADIANCE_MAX, "{brightest}");
 }
+
+#[test]
+fn a_live_frame_of_the_unmoved_scene_is_its_stimulus_and_follows_the_object_when_it_moves() {
+    let (scene, _, _) = captured(FLOOR);
+    let params = crate::reference::ReferenceParams { spp: 4, ..Default::default() };
+    let (linear, display, _) = crate::reference::render_photo(&scene, &params, &|_, _| {}).unwrap();
+    let off = crate::cm::CmParams::default();
+    let live = render::LiveCoherent::new(&scene, display.clone(), linear.clone(), 1).unwrap();
+    let mut moved = scene.clone();
+    moved.translate_object("box", Vec3::new(0.3, 0.0, 0.0));
+    // the mean column of the pixels a frame changes from the photograph
+    let changed_column = |image: &Image| {
+        let w = image.width as usize;
+        let columns: Vec<f64> = (0..image.pixels.len())
+            .filter(|&k| (image.pixels[k] - display.pixels[k]).abs().max_element() > 0.02)
+            .map(|k| (k % w) as f64)
+            .collect();
+        assert!(columns.len() > 20, "{} changed pixels", columns.len());
+        columns.iter().sum::<f64>() / columns.len() as f64
+    };
+    for method in [Method::Em, Method::Dit, Method::Vct] {
+        let p = CoherentParams::new(method, Quality::Low);
+        let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
+        let stimulus = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
+        let frame = live.frame(&scene, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();
+        assert_eq!(frame.composite.pixels, stimulus.composite.pixels, "{}", method.name());
+        let after = live.frame(&moved, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();
+        let (before, now) = (changed_column(&frame.composite), changed_column(&after.composite));
+        assert!(now > before + 3.0, "{}: the change's mean column went from {before:.1} to {now:.1}", method.name());
+        // the scene voxel volume does not depend on the object: built for the first frame only
+        let built = |f: &render::LiveFrame| f.passes.iter().filter(|pass| pass.pass.contains("voxel volume")).count();
+        assert_eq!((built(&frame), built(&after)), if method == Method::Vct { (1, 0) } else { (0, 0) });
+    }
+}

@@ -1,19 +1,61 @@
 //! Task study files (`kind = "task"`): parsing and validation into a [`TaskStudy`].
 //!
 //! The raw TOML shape is read with unknown keys refused, then checked: the tasks and their
-//! parameters, the rendering conditions (names of the renderer's `gi` levels: `none`,
-//! `shadows`, `gi`), the counterbalancing rule, trial counts, the scene and its two cubes. Every
+//! parameters, the rendering conditions ([`Condition`]: the live renderer's `gi` levels `none`,
+//! `shadows`, `gi`, or a coherent method `em`, `dit`, `vct`), the counterbalancing rule, trial counts, the scene and its two cubes. Every
 //! refusal is a [`StudyError`] naming the file, the key and what was expected. The schema is
 //! documented for researchers in `studies/README.md` ("Task studies").
 
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use mrstudy_renderer::gpu::GiLevel as Condition;
+use mrstudy_renderer::gpu::GiLevel;
+use mrstudy_renderer::stimulus::CoherentLevel;
 use serde::{Deserialize, Serialize};
 
 use super::checks::{Fail, check_min_response_ms, check_slug, check_texts, resolve_scene};
 use super::{StudyError, one_line};
+
+/// A task study's rendering condition: how the live renderer lights the virtual cube and its
+/// influence on the real scene — differential instant radiosity's `gi` levels on the GPU
+/// (`none`, `shadows`, `gi`), or one of Rohmer et al.'s coherent methods (`em`, `dit`, `vct`,
+/// at quality *med* or with `-low` / `-high`), its representation rebuilt where the cube now
+/// is and its frame rendered on the CPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Condition {
+    Dir(GiLevel),
+    Coherent(CoherentLevel),
+}
+
+/// The names a task study's condition takes, for messages.
+pub const CONDITION_NAMES: &str = "none, shadows, gi, em, dit, vct (a coherent method may end in -low, -med or -high)";
+
+impl Condition {
+    /// The condition named `name` (see [`CONDITION_NAMES`]; `off` is `none` too).
+    pub fn parse(name: &str) -> Option<Condition> {
+        GiLevel::parse(name).map(Condition::Dir).or_else(|| CoherentLevel::parse(name).map(Condition::Coherent))
+    }
+
+    /// The name a study file gives it, stored with every trial and frame time.
+    pub fn name(&self) -> String {
+        match self {
+            Condition::Dir(level) => level.name().to_string(),
+            Condition::Coherent(level) => level.name(),
+        }
+    }
+}
+
+impl std::fmt::Display for Condition {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+impl Serialize for Condition {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(&self.name())
+    }
+}
 
 /// How condition orders are counterbalanced across participants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -365,14 +407,16 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
     // design
     let design = &raw.design;
     if design.conditions.len() < 2 {
-        return Err(fail.at("design.conditions", "expected at least two rendering conditions (none, shadows, gi)"));
+        return Err(
+            fail.at("design.conditions", format!("expected at least two rendering conditions ({CONDITION_NAMES})"))
+        );
     }
     let mut conditions = Vec::new();
     for (index, name) in design.conditions.iter().enumerate() {
         let condition = Condition::parse(name).ok_or_else(|| {
             fail.at(
                 &format!("design.conditions[{index}]"),
-                format!("expected one of none, shadows, gi, found \"{name}\""),
+                format!("expected one of {CONDITION_NAMES}, found \"{name}\""),
             )
         })?;
         if conditions.contains(&condition) {

@@ -19,14 +19,17 @@ use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
 
-use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel as Condition, LiveState};
+use mrstudy_renderer::cm::CmState;
+use mrstudy_renderer::coherent::CoherentParams;
+use mrstudy_renderer::coherent::render::LiveCoherent;
+use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel, LiveState};
 use mrstudy_renderer::image::Image;
 use mrstudy_renderer::reference::{ReferenceParams, render_photo};
 use mrstudy_renderer::scene::Scene;
 use tokio::sync::oneshot;
 
 use super::plan::Layout;
-use crate::study::task::TaskStudy;
+use crate::study::task::{Condition, TaskStudy};
 
 /// Default live resolution on a software adapter (lavapipe, llvmpipe).
 pub const SOFTWARE_SIZE: [u32; 2] = [160, 120];
@@ -60,6 +63,8 @@ pub struct SessionRenderState {
     pub last: Option<(u32, Condition)>,
     /// The renderer's history (GPU buffers); one frame of a session is in flight at a time.
     pub live: std::sync::Arc<std::sync::Mutex<LiveState>>,
+    /// The colour mapping's history of a coherent condition's frames.
+    pub coherent_cm: CmState,
 }
 
 impl std::fmt::Debug for SessionRenderState {
@@ -82,6 +87,9 @@ pub struct LabScene {
     pub base_centre: glam::Vec3,
     pub layout: Layout,
     pub params: DirParams,
+    /// The capture, linear photograph and light probe the coherent conditions render from;
+    /// None when the study has none.
+    pub coherent: Option<LiveCoherent>,
     pub jpeg_quality: u8,
 }
 
@@ -231,28 +239,51 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
     }
     let mut scene = lab.scene.clone();
     scene.translate_object(&lab.virtual_object, centre - lab.base_centre);
-    let params = DirParams { condition: job.condition, ..lab.params.clone() };
     let mut state = job.state.clone();
+    let fresh = state.last != Some((job.trial, job.condition));
     let render_start = Instant::now();
-    let render = {
-        let mut live = state.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        if state.last != Some((job.trial, job.condition)) {
-            *live = LiveState::default();
+    let (composite, smoothing) = match job.condition {
+        Condition::Dir(level) => {
+            let params = DirParams { condition: level, ..lab.params.clone() };
+            let mut live = state.live.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            if fresh {
+                *live = LiveState::default();
+            }
+            let render = renderer
+                .render_with_state(&scene, &lab.photo, &params, &mut live)
+                .map_err(|error| error.to_string())?;
+            let smoothing = render
+                .report
+                .passes
+                .iter()
+                .any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
+            (render.composite, smoothing)
         }
-        renderer.render_with_state(&scene, &lab.photo, &params, &mut live).map_err(|error| error.to_string())?
+        Condition::Coherent(level) => {
+            let Some(coherent) = &lab.coherent else {
+                return Err(format!("study \"{}\" was prepared without its coherent conditions", lab.slug));
+            };
+            if fresh {
+                state.coherent_cm = CmState::default();
+            }
+            // the same random numbers every frame: a still cube shows a still picture
+            let params = CoherentParams::new(level.method, level.quality);
+            // lavapipe builds the representations slower than the CPU (issue 18's note)
+            let gpu = (renderer.ctx.kind == mrstudy_renderer::gpu::context::AdapterKind::Hardware).then_some(renderer);
+            let frame = coherent
+                .frame(&scene, &params, &lab.params.cm, &mut state.coherent_cm, gpu)
+                .map_err(|error| error.to_string())?;
+            (frame.composite, false)
+        }
     };
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
     let encode_start = Instant::now();
-    let jpeg = encode_jpeg(&render.composite, lab.jpeg_quality)?;
+    let jpeg = encode_jpeg(&composite, lab.jpeg_quality)?;
     let encode_ms = encode_start.elapsed().as_secs_f64() * 1e3;
     state.frames += 1;
     state.last = Some((job.trial, job.condition));
-    state.smoothing = render
-        .report
-        .passes
-        .iter()
-        .any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
-    Ok(Frame { jpeg, width: render.composite.width, height: render.composite.height, render_ms, encode_ms, state })
+    state.smoothing = smoothing;
+    Ok(Frame { jpeg, width: composite.width, height: composite.height, render_ms, encode_ms, state })
 }
 
 /// A display-encoded image as baseline JPEG.
@@ -322,7 +353,15 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
         half_height: half,
         reach: reach(&scene.camera, real_centre.as_dvec3(), half),
     };
-    let photo = cached_photo(&scene, study, cache_dir)?;
+    let coherent_conditions = study.conditions.iter().any(|c| matches!(c, Condition::Coherent(_)));
+    let (photo, linear) = cached_photo(&scene, study, cache_dir, coherent_conditions)?;
+    let coherent = match linear {
+        Some(linear) => Some(
+            LiveCoherent::new(&scene, photo.clone(), linear, COHERENT_SEED)
+                .map_err(|error| context(&format!("cannot capture the scene for the coherent conditions: {error}")))?,
+        ),
+        None => None,
+    };
     Ok(LabScene {
         slug: study.slug.clone(),
         scene,
@@ -331,7 +370,7 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
         base_centre,
         layout,
         params: DirParams {
-            condition: Condition::Gi,
+            condition: GiLevel::Gi,
             vpls: study.render.vpls,
             shadow_map_size: study.render.shadow_map_size,
             env_lights: study.render.env_lights,
@@ -347,9 +386,13 @@ pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Res
             bounces: 1,
             ..DirParams::default()
         },
+        coherent,
         jpeg_quality: study.render.jpeg_quality,
     })
 }
+
+/// The seed of the live coherent conditions' capture and light probe.
+const COHERENT_SEED: u64 = 1;
 
 /// How far (m, up to 0.30) the virtual cube can move from the real one towards −x, +x, −z and
 /// +z with every corner — up to 10 cm above the table for the contact task — inside the image
@@ -381,36 +424,59 @@ fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64
     })
 }
 
-/// The photograph of the real scene at the live size, from `cache_dir` when it is there (named
-/// by a hash of the scene description, size and samples), else path-traced and stored.
-fn cached_photo(scene: &Scene, study: &TaskStudy, cache_dir: &Path) -> Result<Image, String> {
+/// The photograph of the real scene at the live size (display-encoded) and, with `linear`, its
+/// linear radiance (for the coherent conditions), from `cache_dir` when they are there (named
+/// by a hash of the scene description, size and samples; the photograph as PNG, its radiance
+/// as EXR), else path-traced and stored.
+fn cached_photo(
+    scene: &Scene,
+    study: &TaskStudy,
+    cache_dir: &Path,
+    linear: bool,
+) -> Result<(Image, Option<Image>), String> {
     let key = crate::study::sha256_hex(
         format!("{}\n{}x{}\n{}", scene.desc.to_toml(), scene.camera.width, scene.camera.height, study.render.photo_spp)
             .as_bytes(),
     );
-    let path = cache_dir.join(format!(
-        "photo-{}-{}x{}-{}.png",
-        study.slug,
-        scene.camera.width,
-        scene.camera.height,
-        &key[..16]
-    ));
-    if let Ok(image) = image::open(&path) {
-        let rgb = image.into_rgb8();
-        if rgb.width() == scene.camera.width && rgb.height() == scene.camera.height {
-            return Ok(Image::from_rgb8(rgb.width(), rgb.height(), rgb.as_raw()));
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let stem = format!("photo-{}-{width}x{height}-{}", study.slug, &key[..16]);
+    let path = cache_dir.join(format!("{stem}.png"));
+    let exr = cache_dir.join(format!("{stem}.exr"));
+    let cached_png = image::open(&path)
+        .ok()
+        .map(|image| image.into_rgb8())
+        .filter(|rgb| rgb.width() == width && rgb.height() == height)
+        .map(|rgb| Image::from_rgb8(width, height, rgb.as_raw()));
+    let cached_exr = || {
+        Image::load(&exr, "the photograph's radiance")
+            .ok()
+            .filter(|image| (image.width, image.height) == (width, height))
+    };
+    match (cached_png, linear) {
+        (Some(photo), false) => return Ok((photo, None)),
+        (Some(photo), true) => {
+            if let Some(radiance) = cached_exr() {
+                return Ok((photo, Some(radiance)));
+            }
         }
+        (None, _) => {}
     }
     let params = ReferenceParams { spp: study.render.photo_spp, ..ReferenceParams::default() };
-    let (_, photo, _) = render_photo(scene, &params, &|_, _| {})
+    let (hdr, photo, _) = render_photo(scene, &params, &|_, _| {})
         .map_err(|error| format!("study \"{}\": cannot render the photograph: {error}", study.slug))?;
     let bytes = photo.to_rgb8();
     std::fs::create_dir_all(cache_dir).map_err(|error| format!("cannot create {}: {error}", cache_dir.display()))?;
-    let temporary = cache_dir.join(format!(".{}.partial.png", key));
+    // written under a temporary name and renamed, so a crash never leaves half a file
+    let temporary = cache_dir.join(format!(".{key}.partial.exr"));
+    hdr.save_exr(&temporary)
+        .map_err(|error| error.to_string())
+        .and_then(|_| std::fs::rename(&temporary, &exr).map_err(|error| error.to_string()))
+        .map_err(|error| format!("cannot write the photograph cache {}: {error}", exr.display()))?;
+    let temporary = cache_dir.join(format!(".{key}.partial.png"));
     image::save_buffer(&temporary, &bytes, photo.width, photo.height, image::ExtendedColorType::Rgb8)
         .and_then(|_| std::fs::rename(&temporary, &path).map_err(image::ImageError::IoError))
         .map_err(|error| format!("cannot write the photograph cache {}: {error}", path.display()))?;
-    Ok(Image::from_rgb8(photo.width, photo.height, &bytes))
+    Ok((Image::from_rgb8(photo.width, photo.height, &bytes), linear.then_some(hdr)))
 }
 
 /// Frame-time measurement at start-up: after one warm-up frame, renders `frames` frames of the

@@ -76,7 +76,7 @@ impl LabStudy {
     }
 
     /// Records a live frame's time.
-    pub fn record_frame(&self, condition: mrstudy_renderer::gpu::GiLevel, ms: f64) {
+    pub fn record_frame(&self, condition: crate::study::task::Condition, ms: f64) {
         self.frame_times.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).record(condition, ms);
     }
 

@@ -11,8 +11,8 @@
 //! rand_chacha's reproducibility guarantee); the draws are written out here, not taken from
 //! `rand`'s distributions, so a stored seed keeps reproducing its schedule.
 
+use crate::study::task::Condition;
 use glam::DVec3;
-use mrstudy_renderer::gpu::GiLevel as Condition;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
@@ -182,6 +182,7 @@ pub fn plan(study: &TaskStudy, layout: &Layout, seed: u64, slot: u64) -> Vec<Pla
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mrstudy_renderer::gpu::GiLevel;
     use std::path::Path;
 
     fn study() -> TaskStudy {
@@ -239,12 +240,12 @@ kind = "contact"
         assert_eq!(
             counted,
             vec![
-                Condition::None,
-                Condition::None,
-                Condition::Gi,
-                Condition::Gi,
-                Condition::Shadows,
-                Condition::Shadows
+                Condition::Dir(GiLevel::None),
+                Condition::Dir(GiLevel::None),
+                Condition::Dir(GiLevel::Gi),
+                Condition::Dir(GiLevel::Gi),
+                Condition::Dir(GiLevel::Shadows),
+                Condition::Dir(GiLevel::Shadows)
             ]
         );
         assert!(first[0].practice && first[0].task == "distance");

@@ -201,7 +201,7 @@ struct Pending {
     /// Keys of the trial included in this frame.
     inputs: usize,
     input_at: Option<Instant>,
-    condition: mrstudy_renderer::gpu::GiLevel,
+    condition: crate::study::task::Condition,
     requested_at: Instant,
     /// Not sent before this (pacing).
     release_at: Instant,

@@ -224,7 +224,7 @@ async fn insert_participant(
         }
     };
     let trials = plan::plan(study, &participant.layout, seed, slot as u64);
-    let order: Vec<&str> =
+    let order: Vec<String> =
         plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
     if let Some(previous) = &took_over {
         sqlx::query(sqlx::AssertSqlSafe(format!(
@@ -368,7 +368,7 @@ pub async fn record_frame_times(
     adapter: &str,
     size: [u32; 2],
     frames: usize,
-    medians: &[(mrstudy_renderer::gpu::GiLevel, f64)],
+    medians: &[(crate::study::task::Condition, f64)],
 ) -> Result<(), sqlx::Error> {
     let measured_at = iso(std::time::SystemTime::now());
     for (condition, median_ms) in medians {
@@ -442,7 +442,7 @@ pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<
                 trial: row.try_get::<i64, _>("trial")? as u32,
                 task: row.try_get("task")?,
                 kind: serde_json::from_value(serde_json::Value::String(kind)).map_err(|_| decode("kind"))?,
-                condition: mrstudy_renderer::gpu::GiLevel::parse(&condition).ok_or_else(|| decode("condition"))?,
+                condition: crate::study::task::Condition::parse(&condition).ok_or_else(|| decode("condition"))?,
                 practice: row.try_get::<i64, _>("practice")? == 1,
                 start: [row.try_get("start_x")?, row.try_get("start_y")?, row.try_get("start_z")?],
                 target: [row.try_get("target_x")?, row.try_get("target_y")?, row.try_get("target_z")?],

@@ -14,7 +14,7 @@
 
 use std::collections::VecDeque;
 
-use mrstudy_renderer::gpu::GiLevel as Condition;
+use crate::study::task::Condition;
 
 /// Conditions whose frame times differ by more than this fraction are reported.
 pub const PARITY_TOLERANCE: f64 = 0.20;
@@ -139,23 +139,24 @@ impl FrameTimes {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mrstudy_renderer::gpu::GiLevel;
 
     #[test]
     fn spread_pace_and_window_follow_the_live_frames() {
         let mut times = FrameTimes::new(vec![
-            (Condition::None, vec![50.0, 60.0, 55.0]),
-            (Condition::Gi, vec![190.0, 200.0, 210.0]),
+            (Condition::Dir(GiLevel::None), vec![50.0, 60.0, 55.0]),
+            (Condition::Dir(GiLevel::Gi), vec![190.0, 200.0, 210.0]),
         ]);
-        assert_eq!(times.current(), vec![(Condition::None, 55.0), (Condition::Gi, 200.0)]);
+        assert_eq!(times.current(), vec![(Condition::Dir(GiLevel::None), 55.0), (Condition::Dir(GiLevel::Gi), 200.0)]);
         assert!((times.spread() - (200.0 / 55.0 - 1.0)).abs() < 1e-12);
         assert!(times.unequal());
         assert_eq!(times.pace_ms(), PACE_HEADROOM * 210.0);
         // live frames replace the start-up ones in the window
         for _ in 0..WINDOW {
-            times.record(Condition::Gi, 60.0);
+            times.record(Condition::Dir(GiLevel::Gi), 60.0);
         }
-        times.record(Condition::Gi, f64::NAN);
-        assert_eq!(times.current()[1], (Condition::Gi, 60.0));
+        times.record(Condition::Dir(GiLevel::Gi), f64::NAN);
+        assert_eq!(times.current()[1], (Condition::Dir(GiLevel::Gi), 60.0));
         assert!(!times.unequal(), "{}", times.spread());
         let summary = times.summary();
         assert_eq!(summary[1].startup_ms, 200.0);

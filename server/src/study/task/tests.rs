@@ -22,11 +22,45 @@ fn load(text: &str) -> Result<TaskStudy, StudyError> {
 #[test]
 fn defaults_are_the_thesis_design() {
     let study = load(MINIMAL).unwrap();
-    assert_eq!(study.conditions, vec![Condition::None, Condition::Shadows, Condition::Gi]);
+    assert_eq!(
+        study.conditions,
+        vec![Condition::Dir(GiLevel::None), Condition::Dir(GiLevel::Shadows), Condition::Dir(GiLevel::Gi)]
+    );
     assert_eq!(study.counterbalance, Counterbalance::Williams);
     assert_eq!(study.scene, "lab-task");
     assert_eq!(study.tasks.len(), 2);
     assert_eq!(study.trial_count(), 2 * (1 + 3 * 3));
+}
+
+#[test]
+fn a_condition_may_name_a_coherent_method_and_a_wrong_one_is_refused_with_its_key() {
+    use mrstudy_renderer::coherent::{Method, Quality};
+    let with = |conditions: &str| {
+        load(&MINIMAL.replace("[[tasks]]\nkind = \"placement\"", &format!("[design]\nconditions = {conditions}")))
+    };
+    let study = with(r#"["off", "dit", "vct-high", "em-low"]"#).unwrap();
+    let coherent = |method, quality| Condition::Coherent(CoherentLevel { method, quality });
+    assert_eq!(
+        study.conditions,
+        vec![
+            Condition::Dir(GiLevel::None),
+            coherent(Method::Dit, Quality::Med),
+            coherent(Method::Vct, Quality::High),
+            coherent(Method::Em, Quality::Low),
+        ]
+    );
+    let names: Vec<String> = study.conditions.iter().map(Condition::name).collect();
+    assert_eq!(names, ["none", "dit", "vct-high", "em-low"]);
+    assert_eq!(serde_json::to_value(study.conditions[2]).unwrap(), "vct-high");
+    for (conditions, key) in [
+        (r#"["gi", "dit-best"]"#, "design.conditions[1]"),
+        (r#"["off-high", "gi"]"#, "design.conditions[0]"),
+        (r#"["dit", "dit-med"]"#, "design.conditions[1]"),
+    ] {
+        let error = with(conditions).unwrap_err();
+        assert_eq!(error.key, key, "{conditions}: {error}");
+    }
+    assert!(with(r#"["dit", "dit-med"]"#).unwrap_err().expected.contains("\"dit\" appears twice"));
 }
 
 #[test]
