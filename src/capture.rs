@@ -168,7 +168,7 @@ pub fn run(args: CaptureArgs) -> Result<()> {
     let mut coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(Method::Dit, Quality::Med) };
     coherent.settings.material_samples = 64;
     let probe = light_probe(&real, centre, PROBE_WIDTH, PROBE_PATHS, args.seed);
-    let rep = Representation { impostors: vec![map], voxels: None, sky: Some(Arc::new(probe)) };
+    let rep = Representation { impostors: vec![map], sky: Some(Arc::new(probe)), ..Representation::default() };
     let samples: Vec<_> = cap.grid.samples().copied().collect();
     let albedo = Coherent::new(&scene, &real, &rep, coherent).albedo_error(&samples, 4000);
     if albedo.count == 0 {

@@ -13,8 +13,10 @@
 //! VCT) and the composition. Where it departs from the paper, it says so:
 //! - the G-buffer is the real scene's true geometry (as differential instant radiosity's is)
 //!   rather than the splatted point cloud;
-//! - the virtual object is intersected exactly (its BVH) where the paper marches its solid
-//!   voxel volume;
+//! - the virtual object's self-shadow rays and secondary bounces march its solid voxel volume
+//!   ([`solid`]) as the paper's do, but its primary visibility (the paper rasterises it), the
+//!   known lights' shadows on it and the differential background's rays to it intersect it
+//!   exactly (its BVH);
 //! - what the capture did not reach is answered by a light probe at the virtual object (the
 //!   real scene path traced from there, as the thesis's fish-eye capture of the surroundings);
 //! - a scene with several virtual objects gets one distance impostor per object, centred in it,
@@ -28,6 +30,7 @@
 
 pub mod query;
 pub mod render;
+pub mod solid;
 
 #[cfg(test)]
 mod tests;
@@ -47,6 +50,7 @@ use crate::scene::{Role, Scene};
 use glam::Vec3;
 use query::{Query, Representation};
 use rayon::prelude::*;
+use solid::SolidVolume;
 use std::f32::consts::PI;
 use std::sync::Arc;
 use std::time::Instant;
@@ -121,7 +125,8 @@ impl Quality {
     /// *Low* and *med*: 16 samples for material estimation, the differential background
     /// (cache 8) and the object; *low* omits self-shadow tests. *High*: 64 (cache 32) and 128
     /// for the object, with a secondary bounce. Representations: the paper's 6×256² impostor
-    /// and 256³ volume on *high*, half that per axis below (a CPU's memory and time).
+    /// and 256³ volume on *high*, half that per axis below (a CPU's memory and time); the
+    /// object's solid volume 32 voxels along its longest axis below *high*, 128 on it.
     pub fn settings(self) -> Settings {
         match self {
             Quality::Low | Quality::Med => Settings {
@@ -131,6 +136,7 @@ impl Quality {
                 cache: 8,
                 impostor_size: 128,
                 scene_voxels: 128,
+                object_voxels: 32,
                 self_shadow: self == Quality::Med,
                 secondary_bounce: false,
             },
@@ -141,6 +147,7 @@ impl Quality {
                 cache: 32,
                 impostor_size: 256,
                 scene_voxels: 256,
+                object_voxels: 128,
                 self_shadow: true,
                 secondary_bounce: true,
             },
@@ -164,6 +171,9 @@ pub struct Settings {
     pub impostor_size: u32,
     /// Voxels per axis of the scene voxel volume (VCT).
     pub scene_voxels: u32,
+    /// Voxels along the longest axis of each virtual object's solid volume (the others in
+    /// proportion; the paper's 32³ and 128 × 96 × 96), built when `self_shadow` is on.
+    pub object_voxels: u32,
     pub self_shadow: bool,
     pub secondary_bounce: bool,
 }
@@ -308,7 +318,7 @@ pub fn build_representation(
     let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
     let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
     let mut passes = vec![PassTime { pass: format!("light probe ({size})"), ms: ms_since(start) }];
-    let (rep, built) = build_queries(scene, samples, footprint, params, gpu, Arc::new(probe), None);
+    let (rep, built) = build_queries(scene, samples, footprint, params, gpu, Arc::new(probe), None, None);
     passes.extend(built);
     (rep, passes)
 }
@@ -317,7 +327,10 @@ pub fn build_representation(
 /// where they are now, with `sky` (the light probe) for what the capture missed: the distance
 /// impostors (EM, DIT; one per virtual object, centred in it) or the scene voxel volume (VCT),
 /// which does not depend on the objects — `voxels`, one built before from the same samples at
-/// the settings' size, is reused. With `gpu`, built as [`build_representation`] says.
+/// the settings' size, is reused — and, where self-shadows are tested, each virtual object's
+/// solid volume ([`solid`], on the CPU), unless `solids` brings them already placed. With
+/// `gpu`, built as [`build_representation`] says.
+#[allow(clippy::too_many_arguments)]
 pub fn build_queries(
     scene: &Scene,
     samples: &[EnvironmentSample],
@@ -326,11 +339,34 @@ pub fn build_queries(
     gpu: Option<&crate::gpu::DirRenderer>,
     sky: Arc<Environment>,
     voxels: Option<Arc<VoxelVolume>>,
+    solids: Option<Vec<SolidVolume>>,
 ) -> (Representation, Vec<PassTime>) {
     let mut passes = Vec::new();
     let mut rep = Representation { sky: Some(sky), ..Representation::default() };
     if params.method == Method::Off {
         return (rep, passes);
+    }
+    if params.settings.self_shadow {
+        match solids {
+            Some(solids) => rep.solids = solids,
+            None => {
+                let start = Instant::now();
+                let object = World::new(scene, Subset::VirtualOnly);
+                let n = params.settings.object_voxels;
+                let bounds = virtual_object_bounds(scene);
+                rep.solids = bounds.par_iter().map(|&b| SolidVolume::build(&object, b, n)).collect();
+                let dims: Vec<String> = rep
+                    .solids
+                    .iter()
+                    .map(|v| {
+                        let d = v.dims();
+                        format!("{}×{}×{}", d.x, d.y, d.z)
+                    })
+                    .collect();
+                let what = format!("object solid volumes ({}, with mipmaps) on the CPU", dims.join(", "));
+                passes.push(PassTime { pass: what, ms: ms_since(start) });
+            }
+        }
     }
     // where a build ran, as the pass names it: the GPU's times and memory, or why the CPU;
     // the passes compile (on first use) before the clock starts
@@ -711,7 +747,7 @@ impl<'a> Coherent<'a> {
             let incident = if method == Method::Off {
                 self.rep.sky.as_ref().map_or(Vec3::ZERO, |env| env.eval(bs.wi))
             } else {
-                self.incident_at_object(p, bs.wi, half, rng)
+                self.incident_at_object(p, ng, bs.wi, half, rng)
             };
             l += bs.weight * incident / samples as f32;
         }
@@ -719,16 +755,41 @@ impl<'a> Coherent<'a> {
     }
 
     /// Light arriving at the object's surface point `p` from `dir`: stopped by the object
-    /// itself (Sec. 6.3: zero on *med*, a secondary diffuse bounce on *high*), else the query.
-    fn incident_at_object(&self, p: Vec3, dir: Vec3, half: f32, rng: &mut Rng) -> Vec3 {
+    /// itself (Sec. 6.3: zero on *med*, a secondary diffuse bounce on *high*), as its solid
+    /// volume has it, else the query; `ng` is the surface's geometric normal on the side `dir`
+    /// leaves by.
+    fn incident_at_object(&self, p: Vec3, ng: Vec3, dir: Vec3, half: f32, rng: &mut Rng) -> Vec3 {
         let settings = &self.params.settings;
-        if settings.self_shadow {
-            let ray = Ray { origin: p, dir };
-            if let Some((hit, mat)) = self.object.hit_with_material(&ray, f32::INFINITY) {
-                return if settings.secondary_bounce { self.diffuse_bounce(&hit, mat, -dir, rng) } else { Vec3::ZERO };
+        if settings.self_shadow
+            && let Some(hit) = self.rep.solid_hit(p, ng, dir)
+        {
+            if !settings.secondary_bounce {
+                return Vec3::ZERO;
             }
+            if hit.surface.delta {
+                // a mirror or glass: its exact surface passes its one direction on
+                let ray = Ray { origin: p, dir };
+                return match self.object.hit_with_material(&ray, f32::INFINITY) {
+                    Some((hit, mat)) => self.diffuse_bounce(&hit, mat, -dir, rng),
+                    None => Vec3::ZERO,
+                };
+            }
+            return self.voxel_bounce(hit.point, hit.surface.normal, hit.surface.albedo, rng);
         }
         self.rep.incident(self.params.method.query(), p, dir, half).radiance
+    }
+
+    /// A diffuse surface of normal `n` and albedo `albedo` at `p` as the solid volume stores it
+    /// (Sec. 6.3's secondary bounce): the known lights and one cosine-sampled query.
+    fn voxel_bounce(&self, p: Vec3, n: Vec3, albedo: Vec3, rng: &mut Rng) -> Vec3 {
+        if albedo.max_element() <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let query = self.params.method.query();
+        let mut l = self.known_lights(p, n, n, true, |_| albedo / PI);
+        let dir = Frame::from_normal(n).to_world(sample_cosine_hemisphere(rng.next_f32(), rng.next_f32()));
+        l += albedo * self.rep.incident(query, p, dir, cone_half_angle(PI / 4.0)).radiance;
+        l
     }
 
     /// The object's radiance at `hit` towards `wo`, as if it were diffuse (Sec. 6.4, ray 2):

@@ -6,6 +6,7 @@
 //! capture did not reach (beyond the depth sensor's range: the sky, a window) is answered by the
 //! scene's environment light, as the thesis's fish-eye capture of the surroundings would.
 
+use super::solid::{SolidHit, SolidVolume};
 use crate::capture::impostor::DistanceImpostor;
 use crate::capture::voxel::VoxelVolume;
 use crate::light::Environment;
@@ -48,6 +49,8 @@ pub struct Representation {
     pub voxels: Option<Arc<VoxelVolume>>,
     /// The environment light beyond the capture.
     pub sky: Option<Arc<Environment>>,
+    /// Each virtual object's solid volume (self-shadows; empty when none are tested).
+    pub solids: Vec<SolidVolume>,
 }
 
 impl Representation {
@@ -102,8 +105,25 @@ impl Representation {
         }
     }
 
+    /// The nearest opaque voxel of the objects' solid volumes along a ray leaving the object's
+    /// surface at `origin` (geometric normal `normal`, on the side the ray leaves by), past the
+    /// voxels that surface fills: the ray starts a voxel diagonal off the surface and half a
+    /// diagonal along itself (the usual offsets of cone tracing), so that a ray grazing a face
+    /// cut at an angle by the grid is not stopped by the face's own voxels.
+    pub fn solid_hit(&self, origin: Vec3, normal: Vec3, dir: Vec3) -> Option<SolidHit> {
+        self.solids
+            .iter()
+            .filter_map(|v| {
+                let diagonal = v.voxel.length();
+                v.march(origin + normal * diagonal, dir, 0.5 * diagonal, f32::INFINITY)
+            })
+            .min_by(|a, b| a.t.total_cmp(&b.t))
+    }
+
     /// Bytes held by the representations.
     pub fn bytes(&self) -> usize {
-        self.impostors.iter().map(|m| m.bytes()).sum::<usize>() + self.voxels.as_ref().map_or(0, |v| v.bytes())
+        self.impostors.iter().map(|m| m.bytes()).sum::<usize>()
+            + self.voxels.as_ref().map_or(0, |v| v.bytes())
+            + self.solids.iter().map(|v| v.bytes()).sum::<usize>()
     }
 }

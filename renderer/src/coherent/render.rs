@@ -11,6 +11,7 @@ use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_si
 use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::voxel::VoxelVolume;
 use crate::capture::{CaptureParams, CaptureReport, capture};
+use crate::coherent::solid::SolidVolume;
 use crate::error::Result;
 use crate::gpu::DirRenderer;
 use crate::gpu::PassTime;
@@ -237,7 +238,8 @@ fn show(
 /// capture, its photograph and the light probe are made once; each frame builds what its method
 /// queries around the virtual object where it now is — the distance impostors follow the
 /// object, as the paper rebuilds them every frame; the scene voxel volume does not depend on
-/// the object and is built once per size — then renders the frame on the CPU and shows it as a
+/// the object and is built once per size; the object's solid volume is built once and moved
+/// with it — then renders the frame on the CPU and shows it as a
 /// stimulus is shown ([`render_stimulus`]).
 pub struct LiveCoherent {
     captured: CapturedScene,
@@ -246,6 +248,9 @@ pub struct LiveCoherent {
     probe: Arc<Environment>,
     /// Scene voxel volumes built so far, by size.
     voxels: Mutex<Vec<Arc<VoxelVolume>>>,
+    /// The objects' solid volumes built so far, by size, with the objects' centres then: a
+    /// later frame moves them with the objects instead of rebuilding them.
+    solids: Mutex<Vec<(u32, Vec<Vec3>, Vec<SolidVolume>)>>,
 }
 
 /// A live coherent frame: the composite (display-encoded) and the passes it took.
@@ -273,7 +278,14 @@ impl LiveCoherent {
         let captured = CapturedScene::new(scene, seed, &|_, _| {});
         let centre = super::virtual_bounds(scene).map_or(scene.camera.position, |b| b.centroid());
         let probe = super::light_probe(&captured.real, centre, super::PROBE_WIDTH, super::PROBE_PATHS, seed);
-        Ok(LiveCoherent { captured, photo, linear, probe: Arc::new(probe), voxels: Mutex::new(Vec::new()) })
+        Ok(LiveCoherent {
+            captured,
+            photo,
+            linear,
+            probe: Arc::new(probe),
+            voxels: Mutex::new(Vec::new()),
+            solids: Mutex::new(Vec::new()),
+        })
     }
 
     /// The capture this live renderer answers from.
@@ -300,6 +312,18 @@ impl LiveCoherent {
             .iter()
             .find(|v| v.res == params.settings.scene_voxels)
             .cloned();
+        let size = params.settings.object_voxels;
+        let centres: Vec<Vec3> = super::virtual_object_bounds(scene).iter().map(|b| b.centroid()).collect();
+        let placed = self
+            .solids
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .iter()
+            .find(|(n, then, _)| *n == size && then.len() == centres.len())
+            .map(|(_, then, volumes)| {
+                volumes.iter().zip(then.iter().zip(&centres)).map(|(v, (then, now))| v.moved(*now - *then)).collect()
+            });
+        let reused = placed.is_some();
         let (rep, mut passes) = super::build_queries(
             scene,
             &self.captured.samples,
@@ -308,9 +332,14 @@ impl LiveCoherent {
             gpu,
             Arc::clone(&self.probe),
             kept.clone(),
+            placed,
         );
         if let (None, Some(built)) = (kept, &rep.voxels) {
             self.voxels.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(Arc::clone(built));
+        }
+        if !reused && !rep.solids.is_empty() {
+            let mut solids = self.solids.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            solids.push((size, centres, rep.solids.clone()));
         }
         let frame = Coherent::new(scene, &self.captured.real, &rep, *params).render(&self.linear, &|_, _| {})?;
         passes.extend(frame.report.passes.iter().cloned());

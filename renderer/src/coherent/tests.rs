@@ -443,3 +443,126 @@ fn a_live_frame_of_the_unmoved_scene_is_its_stimulus_and_follows_the_object_when
         assert_eq!((built(&frame), built(&after)), if method == Method::Vct { (1, 0) } else { (0, 0) });
     }
 }
+
+/// FLOOR with the virtual box replaced by `object` (TOML of one `[[objects]]` entry's keys).
+fn floor_with(object: &str) -> Scene {
+    let start = FLOOR.find("[[objects]]\nname = \"box\"").unwrap();
+    let end = start + FLOOR[start..].find("[[lights]]").unwrap();
+    let text =
+        format!("{}[[objects]]\nname = \"thing\"\nrole = \"virtual\"\n{object}\n\n{}", &FLOOR[..start], &FLOOR[end..]);
+    scene_from_toml(&text, "floor")
+}
+
+#[test]
+fn a_solid_volume_holds_a_sphere_and_a_box_by_their_volume_with_outward_normals() {
+    use solid::SolidVolume;
+    // a sphere fills π/6 of its box (exact along z, 4 × 4 columns a voxel across)
+    let scene = floor_with("shape = \"sphere\"\nradius = 0.1\ntranslate = [0.0, 0.3, 0.0]\nmaterial = \"box\"");
+    let object = World::new(&scene, Subset::VirtualOnly);
+    let bounds = virtual_object_bounds(&scene)[0];
+    let volume = SolidVolume::build(&object, bounds, 32);
+    assert_eq!(volume.dims(), glam::UVec3::splat(32));
+    assert_eq!(volume.level_count(), 6);
+    let filled = volume.filled();
+    assert!((filled - PI as f64 / 6.0).abs() < 2e-3, "filled {filled:.5} against {:.5}", PI as f64 / 6.0);
+    // each level is the mean of the one below: the fill is kept
+    let mean = |level: usize| {
+        let n = 32u32 >> level;
+        let mut sum = 0.0;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    sum += volume.tau(level, glam::UVec3::new(x, y, z)) as f64;
+                }
+            }
+        }
+        sum / (n * n * n) as f64
+    };
+    assert!((mean(2) - filled).abs() < 1e-5 && (mean(5) - filled).abs() < 1e-5);
+    // rays towards the centre stop at the surface (within a voxel's diagonal); rays passing
+    // two voxels beside it do not
+    let centre = Vec3::new(0.0, 0.3, 0.0);
+    let diagonal = volume.voxel.length();
+    let mut rng = Rng::new(3);
+    for _ in 0..200 {
+        let dir = crate::math::sample_uniform_sphere(rng.next_f32(), rng.next_f32());
+        let origin = centre - dir * 0.5;
+        let hit = volume.march(origin, dir, 0.0, f32::INFINITY).expect("a ray at the centre stops");
+        assert!((hit.t - 0.4).abs() < diagonal, "stopped at {} instead of 0.4", hit.t);
+        let outward = (hit.point - centre).normalize();
+        assert!(hit.surface.normal.dot(outward) > 0.85, "normal {} at {}", hit.surface.normal, hit.point);
+        assert!((hit.surface.albedo - Vec3::new(0.8, 0.2, 0.1)).abs().max_element() < 1e-5);
+        let side = Frame::from_normal(dir).to_world(Vec3::X) * (0.1 + 2.0 * diagonal);
+        assert!(volume.march(origin + side, dir, 0.0, f32::INFINITY).is_none());
+    }
+    // a box fills its own volume, and moving the volume is building it where the object went
+    let scene = floor_with("shape = \"box\"\nsize = [0.3, 0.1, 0.2]\ntranslate = [0.0, 0.05, 0.0]\nmaterial = \"box\"");
+    let object = World::new(&scene, Subset::VirtualOnly);
+    let volume = SolidVolume::build(&object, virtual_object_bounds(&scene)[0], 32);
+    assert_eq!(volume.dims(), glam::UVec3::new(32, 11, 22));
+    assert!((volume.filled() - 1.0).abs() < 1e-4, "{}", volume.filled());
+    let offset = Vec3::new(0.37, 0.0, -0.21);
+    let mut moved_scene = scene.clone();
+    moved_scene.translate_object("thing", offset);
+    let rebuilt =
+        SolidVolume::build(&World::new(&moved_scene, Subset::VirtualOnly), virtual_object_bounds(&moved_scene)[0], 32);
+    let moved = volume.moved(offset);
+    for _ in 0..200 {
+        let dir = crate::math::sample_uniform_sphere(rng.next_f32(), rng.next_f32());
+        let origin = offset + Vec3::new(0.0, 0.05, 0.0) - dir * 0.5 + 0.05 * Vec3::new(rng.next_f32(), 0.0, 0.0);
+        let (a, b) = (moved.march(origin, dir, 0.0, 2.0), rebuilt.march(origin, dir, 0.0, 2.0));
+        assert_eq!(a.is_some(), b.is_some());
+        if let (Some(a), Some(b)) = (a, b) {
+            assert!((a.t - b.t).abs() < 1e-4 && a.surface.normal.dot(b.surface.normal) > 0.999, "{a:?} {b:?}");
+        }
+    }
+}
+
+#[test]
+fn self_shadows_through_the_solid_volume_darken_the_object_as_a_fine_volume_does() {
+    // a low box before a tall one: the low box's top sees the tall one's front, and med stops
+    // those rays at the tall box's voxels, as intersecting it exactly would
+    let scene = floor_with(
+        "shape = \"box\"\nsize = [0.2, 0.1, 0.1]\ntranslate = [0.0, 0.05, 0.1]\nmaterial = \"box\"\n\n[[objects]]\nname = \"other\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.2, 0.4, 0.1]\ntranslate = [0.0, 0.2, -0.05]\nmaterial = \"box\"",
+    );
+    let real = World::new(&scene, Subset::RealOnly);
+    let mut capture_params = CaptureParams::for_scene(&scene, &real, 2);
+    capture_params.colour_spp = 4;
+    capture_params.cell = 0.03;
+    capture_params.grid_capacity = 1 << 16;
+    let samples: Vec<EnvironmentSample> = capture(&real, &capture_params, |_, _| {}).grid.samples().copied().collect();
+    let photo = photo(&scene);
+    let p = CoherentParams::new(Method::Dit, Quality::Med);
+    let (rep, passes) = build_representation(&scene, &real, &samples, 0.03, &p, None);
+    assert_eq!(rep.solids.len(), 2);
+    assert!(passes.iter().any(|pass| pass.pass.starts_with("object solid volumes (32×16×16, 16×32×8")), "{passes:?}");
+    let voxel = Coherent::new(&scene, &real, &rep, p).render(&photo, &|_, _| {}).unwrap();
+    // the same frame with no self-shadow tests (quality low's rule), and through a fine volume
+    let unshadowed = Coherent::new(
+        &scene,
+        &real,
+        &rep,
+        CoherentParams { settings: Settings { self_shadow: false, ..p.settings }, ..p },
+    )
+    .render(&photo, &|_, _| {})
+    .unwrap();
+    let object_mean = |frame: &CoherentFrame| {
+        let pixels: Vec<Vec3> = (0..frame.object.pixels.len())
+            .filter(|&k| frame.coverage.values[k] == 1.0)
+            .map(|k| frame.object.pixels[k])
+            .collect();
+        pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>() / pixels.len() as f64
+    };
+    let exact = {
+        let object = World::new(&scene, Subset::VirtualOnly);
+        let mut rep = rep.clone();
+        // a solid volume so fine that it is the exact object to well within the others' gap
+        rep.solids =
+            virtual_object_bounds(&scene).iter().map(|&b| solid::SolidVolume::build(&object, b, 256)).collect();
+        Coherent::new(&scene, &real, &rep, p).render(&photo, &|_, _| {}).unwrap()
+    };
+    let (v, u, e) = (object_mean(&voxel), object_mean(&unshadowed), object_mean(&exact));
+    eprintln!("object's mean radiance: 32 voxels {v:.4}, 256 voxels {e:.4}, no self-shadow tests {u:.4}");
+    assert!(v < 0.97 * u, "self-shadowed {v:.4} against unshadowed {u:.4}");
+    assert!((v - e).abs() < 0.25 * (u - e), "32-voxel {v:.4}, 256-voxel {e:.4}, unshadowed {u:.4}");
+}
