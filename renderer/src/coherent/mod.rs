@@ -351,9 +351,23 @@ pub fn build_queries(
             Some(solids) => rep.solids = solids,
             None => {
                 let start = Instant::now();
+                let open: Vec<&str> = scene
+                    .objects
+                    .iter()
+                    .filter(|o| o.role == Role::Virtual && !solid::is_closed(&o.prims))
+                    .map(|o| o.name.as_str())
+                    .collect();
+                if !open.is_empty() {
+                    rep.exact_self_shadows = true;
+                    let what = format!(
+                        "object solid volumes: none, {} not closed (parity voxelisation needs closed objects), so the objects are intersected exactly",
+                        open.join(", ")
+                    );
+                    passes.push(PassTime { pass: what, ms: ms_since(start) });
+                }
                 let object = World::new(scene, Subset::VirtualOnly);
                 let n = params.settings.object_voxels;
-                let bounds = virtual_object_bounds(scene);
+                let bounds = if open.is_empty() { virtual_object_bounds(scene) } else { Vec::new() };
                 rep.solids = bounds.par_iter().map(|&b| SolidVolume::build(&object, b, n)).collect();
                 let dims: Vec<String> = rep
                     .solids
@@ -363,8 +377,10 @@ pub fn build_queries(
                         format!("{}×{}×{}", d.x, d.y, d.z)
                     })
                     .collect();
-                let what = format!("object solid volumes ({}, with mipmaps) on the CPU", dims.join(", "));
-                passes.push(PassTime { pass: what, ms: ms_since(start) });
+                if open.is_empty() {
+                    let what = format!("object solid volumes ({}, with mipmaps) on the CPU", dims.join(", "));
+                    passes.push(PassTime { pass: what, ms: ms_since(start) });
+                }
             }
         }
     }
@@ -760,7 +776,12 @@ impl<'a> Coherent<'a> {
     /// leaves by.
     fn incident_at_object(&self, p: Vec3, ng: Vec3, dir: Vec3, half: f32, rng: &mut Rng) -> Vec3 {
         let settings = &self.params.settings;
-        if settings.self_shadow
+        if settings.self_shadow && self.rep.exact_self_shadows {
+            let ray = Ray { origin: p, dir };
+            if let Some((hit, mat)) = self.object.hit_with_material(&ray, f32::INFINITY) {
+                return if settings.secondary_bounce { self.diffuse_bounce(&hit, mat, -dir, rng) } else { Vec3::ZERO };
+            }
+        } else if settings.self_shadow
             && let Some(hit) = self.rep.solid_hit(p, ng, dir)
         {
             if !settings.secondary_bounce {

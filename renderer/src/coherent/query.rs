@@ -51,6 +51,9 @@ pub struct Representation {
     pub sky: Option<Arc<Environment>>,
     /// Each virtual object's solid volume (self-shadows; empty when none are tested).
     pub solids: Vec<SolidVolume>,
+    /// Self-shadow rays intersect the objects exactly: some virtual object is not closed, so
+    /// it has no solid volume.
+    pub exact_self_shadows: bool,
 }
 
 impl Representation {

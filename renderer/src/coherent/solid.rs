@@ -11,13 +11,14 @@
 //! surface crossings are found exactly (its BVH), the intervals between an odd and the next even
 //! crossing are inside, and each voxel gets the share of its z extent they cover, averaged over
 //! its columns — exact along z, sampled across. The object must be closed; an odd number of
-//! crossings in a column (an open mesh) closes its last interval at the box's far side. Normals
+//! crossings in a column closes its last interval at the box's far side. An object that is not
+//! closed ([`is_closed`]) gets no volume: the renderer intersects it exactly and says so. Normals
 //! and albedos come from crossings along all three axes, so faces parallel to one axis are
 //! still seen. The volume is built in the object's place at build time; [`SolidVolume::moved`]
 //! follows a translated object without rebuilding (the paper applies rigid transformations to
 //! the ray).
 
-use crate::geometry::{Aabb, Ray};
+use crate::geometry::{Aabb, Primitive, Ray};
 use crate::pathtracer::World;
 use glam::{UVec3, Vec3};
 use std::sync::Arc;
@@ -84,8 +85,10 @@ impl SolidVolume {
             let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
             let mut dir = Vec3::ZERO;
             dir[axis] = 1.0;
-            for j in 0..dims[v] * SUB {
-                for i in 0..dims[u] * SUB {
+            // τ needs the z sweep's every column; the normals of the other two, every other one
+            let stride = if axis == 2 { 1 } else { 2 };
+            for j in (0..dims[v] * SUB).step_by(stride) {
+                for i in (0..dims[u] * SUB).step_by(stride) {
                     let mut start = origin;
                     start[u] += (i as f32 + 0.5) / SUB as f32 * voxel[u];
                     start[v] += (j as f32 + 0.5) / SUB as f32 * voxel[v];
@@ -266,6 +269,22 @@ impl SolidVolume {
         let normal = if normal.length_squared() > 0.0 { normal.normalize() } else { -dir };
         SolidSurface { normal, albedo: albedo / n as f32, delta }
     }
+}
+
+/// Whether `prims` bound a solid, as parity voxelisation needs: spheres do, and triangles do
+/// when every edge is shared by exactly two of them (corners compared as stored). A Cornell box
+/// of five one-sided walls does not.
+pub fn is_closed(prims: &[Primitive]) -> bool {
+    let mut edges: std::collections::HashMap<([u32; 3], [u32; 3]), u32> = std::collections::HashMap::new();
+    for prim in prims {
+        if let Primitive::Triangle(t) = prim {
+            for k in 0..3 {
+                let (a, b) = (t.p[k].to_array().map(f32::to_bits), t.p[(k + 1) % 3].to_array().map(f32::to_bits));
+                *edges.entry(if a < b { (a, b) } else { (b, a) }).or_default() += 1;
+            }
+        }
+    }
+    edges.values().all(|&n| n == 2)
 }
 
 /// A crossing of the object's surface along a sweep.

@@ -495,6 +495,13 @@ fn a_solid_volume_holds_a_sphere_and_a_box_by_their_volume_with_outward_normals(
         let side = Frame::from_normal(dir).to_world(Vec3::X) * (0.1 + 2.0 * diagonal);
         assert!(volume.march(origin + side, dir, 0.0, f32::INFINITY).is_none());
     }
+    // closed objects get a volume; a Cornell box's one-sided walls do not bound a solid
+    assert!(solid::is_closed(&scene.objects.iter().find(|o| o.name == "thing").unwrap().prims));
+    for (name, closed) in [("dir-env-shadow", false), ("glass-figure", true), ("survey-6", true)] {
+        let scene = crate::scene::load(name).unwrap();
+        let all = scene.objects.iter().filter(|o| o.role == Role::Virtual).all(|o| solid::is_closed(&o.prims));
+        assert_eq!(all, closed, "{name}");
+    }
     // a box fills its own volume, and moving the volume is building it where the object went
     let scene = floor_with("shape = \"box\"\nsize = [0.3, 0.1, 0.2]\ntranslate = [0.0, 0.05, 0.0]\nmaterial = \"box\"");
     let object = World::new(&scene, Subset::VirtualOnly);
