@@ -17,7 +17,7 @@ pub enum Target {
     Active,
     /// Bradley–Terry analysis: time against data size and against convergence tolerance.
     Analysis,
-    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on; with `--gi-methods`, DIR against EM, DIT and VCT.
+    /// Rendering: the GPU renderer's frame time and error against the path-traced ground truth over VPL counts; with `--reference`, the CPU reference path tracer's samples/s and error against a high-spp render; with `--ca`, noise and blur on the virtual objects against the camera's, ca off/on; with `--gi-methods`, DIR against EM, DIT and VCT; with `--frame-rate`, the thesis's real-time settings frame after frame; with `--paper-tables`, Rohmer et al.'s Tables 2–4.
     Render,
     /// Web survey server: responses/s and latency percentiles with durable writes, concurrent simulated participants over loopback.
     Server,
@@ -42,6 +42,16 @@ pub struct Options {
     /// bench render: the global-illumination methods a study can compare — DIR over VPL counts against Rohmer et al.'s EM, DIT and VCT at low/med/high and gi off: time per stage and FLIP/RMSE against the ground truth, every built-in scene.
     #[arg(long = "gi-methods", conflicts_with_all = ["reference", "ca", "cm"])]
     pub gi_methods: bool,
+    /// bench render: the thesis's real-time settings at 1024×768 (256 VPLs, 128² ISMs, 4×4
+    /// tiles, 512² caustic maps), 30 frames back to back per scene and condition: median and
+    /// percentile frame times, fps and each pass's median — for a hardware GPU; no ground truth.
+    #[arg(long = "frame-rate", conflicts_with_all = ["reference", "ca", "cm", "gi_methods"])]
+    pub frame_rate: bool,
+    /// bench render: Rohmer et al.'s Tables 2–4 (the rendering phase per quality setting, the
+    /// queries over N with and without visibility, the differential background over N and the
+    /// cache) at 640×360 on one scene (default survey-1), each cell beside the paper's GTX 980 number.
+    #[arg(long = "paper-tables", conflicts_with_all = ["reference", "ca", "cm", "gi_methods", "frame_rate"])]
+    pub paper_tables: bool,
     /// bench render: the scene (default: DIR scenes on the GPU, survey-1 with --reference, every built-in scene with --cm and --gi-methods).
     #[arg(long)]
     pub scene: Option<String>,
@@ -64,6 +74,8 @@ impl Default for Options {
             ca: false,
             cm: false,
             gi_methods: false,
+            frame_rate: false,
+            paper_tables: false,
             scene: None,
             database: "sqlite".into(),
             processes: 1,
@@ -119,6 +131,8 @@ pub fn run(target: Target, options: &Options, observer: &dyn Observer) -> Result
         Target::Render if options.ca => rendered(render::ca::run(scene, quick, observer)?),
         Target::Render if options.cm => rendered(render::cm::run(scene, quick, observer)?),
         Target::Render if options.gi_methods => rendered(render::methods::run(scene, quick, observer)?),
+        Target::Render if options.frame_rate => rendered(render::frame_rate::run(scene, quick, observer)?),
+        Target::Render if options.paper_tables => rendered(render::paper_tables::run(scene, quick, observer)?),
         Target::Render => rendered(render::gpu::run(scene, quick, observer)?),
         Target::Server => {
             let environment = std::env::var("MRSTUDY_DATABASE_URL").ok();

@@ -89,6 +89,21 @@ async fn frame_with_inputs(socket: &mut Socket, inputs: usize) -> (Value, Vec<u8
     }
 }
 
+/// Asks for the next trial, acknowledging its task's instructions when they come first; the
+/// trial's message.
+async fn next_trial(socket: &mut Socket) -> Value {
+    send(socket, json!({"type": "ready"})).await;
+    let mut message = recv(socket).await;
+    if let Incoming::Json(value) = &message
+        && value["type"] == "instructions"
+    {
+        send(socket, json!({"type": "acknowledge"})).await;
+        message = recv(socket).await;
+    }
+    let Incoming::Json(trial) = message else { panic!("expected the trial") };
+    trial
+}
+
 /// Sends `message` and expects an error naming `needle`.
 async fn refused(socket: &mut Socket, message: Value, needle: &str) {
     send(socket, message).await;
@@ -559,15 +574,7 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
     assert_eq!(session["pace"], "equal");
     let trials = session["trials"].as_u64().unwrap();
     for number in 1..=trials {
-        send(&mut socket, json!({"type": "ready"})).await;
-        let mut message = recv(&mut socket).await;
-        if let Incoming::Json(value) = &message
-            && value["type"] == "instructions"
-        {
-            send(&mut socket, json!({"type": "acknowledge"})).await;
-            message = recv(&mut socket).await;
-        }
-        let Incoming::Json(trial) = message else { panic!("expected the trial") };
+        let trial = next_trial(&mut socket).await;
         assert_eq!(trial["trial"], number);
         frame_with_inputs(&mut socket, 0).await;
         // keys one at a time, each waiting for its frame: every frame is a paced frame
@@ -638,15 +645,7 @@ async fn a_coherent_method_runs_live_as_a_condition_and_its_frames_follow_the_cu
     let trials = session["trials"].as_u64().unwrap();
     assert_eq!(trials, 2);
     for number in 1..=trials {
-        send(&mut socket, json!({"type": "ready"})).await;
-        let mut message = recv(&mut socket).await;
-        if let Incoming::Json(value) = &message
-            && value["type"] == "instructions"
-        {
-            send(&mut socket, json!({"type": "acknowledge"})).await;
-            message = recv(&mut socket).await;
-        }
-        let Incoming::Json(trial) = message else { panic!("expected the trial") };
+        let trial = next_trial(&mut socket).await;
         let (_, first, _) = frame_with_inputs(&mut socket, 0).await;
         let mut last = Vec::new();
         for keys in 1..=3 {

@@ -133,3 +133,39 @@ fn bench_render_gi_methods_times_each_stage_and_measures_each_method_against_the
     let svg = std::fs::read_to_string(dir.join("render_gi_methods_survey-1.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("DIR (VPLs)") && svg.contains("DIT"), "{svg}");
 }
+
+#[test]
+fn bench_render_paper_tables_measures_rohmer_s_tables_beside_the_paper_s_numbers() {
+    let dir = temp_dir("gi-methods", "paper-tables");
+    let Some(doc) = bench_render_quick(&dir, &["--paper-tables"]) else { return };
+    let rows = doc["rows"].as_array().unwrap();
+    let table = |k: u64| rows.iter().filter(move |r| r["table"] == k);
+    // quick: Table 2's DIT med and high; Tables 3 and 4 at their first and last N
+    assert_eq!(table(2).count(), 2);
+    assert_eq!(table(3).count(), 3 * 2 * 2);
+    assert_eq!(table(4).count(), 3 * 3 * 2);
+    for row in rows {
+        assert_eq!((row["scene"].as_str(), row["width"].as_u64()), (Some("survey-1"), Some(160)), "{row}");
+        let ms = row["ms"].as_f64().unwrap();
+        assert!(ms > 0.0 && row["frame_ms"].as_f64().unwrap() >= ms, "{row}");
+        // every cell measured here has the paper's PC number beside it
+        assert!(row["paper_ms"].as_f64().is_some_and(|p| p > 0.0), "{row}");
+    }
+    // Table 2 reports the representation's build; Table 4 is the background alone
+    assert!(table(2).all(|r| r["representation_ms"].as_f64().is_some_and(|m| m > 0.0)));
+    assert!(table(4).all(|r| r["ms"] == r["background_ms"] && r["visibility"] == true));
+    // Table 3's paper numbers: DIT with visibility at N = 64 is 51.86 ms
+    let dit64 = table(3).find(|r| r["method"] == "dit" && r["samples"] == 64 && r["visibility"] == true).unwrap();
+    assert_eq!(dit64["paper_ms"].as_f64(), Some(51.86));
+    // more directions cost more background time (N = 8 against 128, cache 32)
+    for method in ["em", "dit", "vct"] {
+        let at = |n: u64| {
+            table(4).find(|r| r["method"] == method && r["cache"] == 32 && r["samples"] == n).unwrap()["ms"]
+                .as_f64()
+                .unwrap()
+        };
+        assert!(at(128) > at(8), "{method}: {} against {}", at(128), at(8));
+    }
+    let svg = std::fs::read_to_string(dir.join("render_paper_table4.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("paper, GTX 980"), "{svg}");
+}

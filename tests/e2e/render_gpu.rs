@@ -263,3 +263,30 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("off, statistics, samples, rohmer"));
 }
+
+#[test]
+fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passes() {
+    let dir = temp_dir("frame-rate");
+    let Some(doc) = bench_render_quick(&dir, &["--frame-rate", "--scene", "metal-bottle"]) else { return };
+    let rows = doc["rows"].as_array().unwrap();
+    let conditions: Vec<&str> = rows.iter().map(|r| r["condition"].as_str().unwrap()).collect();
+    assert_eq!(conditions, ["none", "shadows", "gi"], "{rows:?}");
+    for row in rows {
+        let (p10, median, p90) =
+            (row["p10_ms"].as_f64().unwrap(), row["median_ms"].as_f64().unwrap(), row["p90_ms"].as_f64().unwrap());
+        assert!(0.0 < p10 && p10 <= median && median <= p90, "{row}");
+        assert!((row["fps"].as_f64().unwrap() - 1000.0 / median).abs() < 1e-6, "{row}");
+        assert_eq!(row["frames"], 3, "{row}");
+        let passes = row["passes"].as_array().unwrap();
+        assert!(passes.iter().any(|p| p["pass"] == "g-buffer"), "{passes:?}");
+    }
+    // the metal bottle is a mirror: its caustic maps run with shadows and gi, not with none
+    assert_eq!(rows[0]["caustic_map_size"], 0);
+    assert_eq!(rows[2]["caustic_map_size"], 512);
+    assert!(rows[2]["vpls"].as_u64().unwrap() > 0 && rows[0]["vpls"] == 0);
+    let caustic_passes = |row: &serde_json::Value| {
+        row["passes"].as_array().unwrap().iter().filter(|p| p["pass"].as_str().unwrap().contains("caustic")).count()
+    };
+    assert_eq!(caustic_passes(&rows[0]), 0, "{}", rows[0]);
+    assert!(caustic_passes(&rows[2]) > 0, "{}", rows[2]);
+}

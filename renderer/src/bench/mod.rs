@@ -1,7 +1,9 @@
 //! The renderer's benchmarks, behind `mrstudy bench render`: the GPU renderer's frame time and
 //! error against the path-traced ground truth ([`gpu`]), the reference path tracer's
 //! convergence ([`reference`](mod@reference)), the accuracy of the `ca` ([`ca`]) and `cm` ([`cm`]) factors, and
-//! the global-illumination methods a study can compare, DIR against EM, DIT and VCT ([`methods`]).
+//! the global-illumination methods a study can compare, DIR against EM, DIT and VCT ([`methods`]),
+//! the thesis's real-time settings frame after frame ([`frame_rate`]), and Rohmer et al.'s
+//! Tables 2–4 beside the paper's numbers ([`paper_tables`]).
 //!
 //! Each returns a typed [`Report`]: the adapter, one typed row per measurement (serialised as
 //! the rows of DESIGN.md's bench JSON, `{"adapter": "...", "rows": [...]}`, by
@@ -10,8 +12,10 @@
 
 pub mod ca;
 pub mod cm;
+pub mod frame_rate;
 pub mod gpu;
 pub mod methods;
+pub mod paper_tables;
 pub mod reference;
 
 use serde::Serialize;

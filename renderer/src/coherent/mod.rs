@@ -328,7 +328,7 @@ pub fn build_representation(
 /// impostors (EM, DIT; one per virtual object, centred in it) or the scene voxel volume (VCT),
 /// which does not depend on the objects — `voxels`, one built before from the same samples at
 /// the settings' size, is reused — and, where self-shadows are tested, each virtual object's
-/// solid volume ([`solid`], on the CPU), unless `solids` brings them already placed. With
+/// solid volume ([`solid`]), unless `solids` brings them already placed. With
 /// `gpu`, built as [`build_representation`] says.
 #[allow(clippy::too_many_arguments)]
 pub fn build_queries(
@@ -346,48 +346,20 @@ pub fn build_queries(
     if params.method == Method::Off {
         return (rep, passes);
     }
+    // where a build ran, as the pass names it: the GPU's times and memory, or why the CPU;
+    // the passes compile (on first use) before the clock starts
+    let builder = gpu.map(|r| (r, r.representation_builder()));
     if params.settings.self_shadow {
         match solids {
             Some(solids) => rep.solids = solids,
             None => {
-                let start = Instant::now();
-                let open: Vec<&str> = scene
-                    .objects
-                    .iter()
-                    .filter(|o| o.role == Role::Virtual && !solid::is_closed(&o.prims))
-                    .map(|o| o.name.as_str())
-                    .collect();
-                if !open.is_empty() {
-                    rep.exact_self_shadows = true;
-                    let what = format!(
-                        "object solid volumes: none, {} not closed (parity voxelisation needs closed objects), so the objects are intersected exactly",
-                        open.join(", ")
-                    );
-                    passes.push(PassTime { pass: what, ms: ms_since(start) });
-                }
-                let object = World::new(scene, Subset::VirtualOnly);
-                let n = params.settings.object_voxels;
-                let bounds = if open.is_empty() { virtual_object_bounds(scene) } else { Vec::new() };
-                rep.solids = bounds.par_iter().map(|&b| SolidVolume::build(&object, b, n)).collect();
-                let dims: Vec<String> = rep
-                    .solids
-                    .iter()
-                    .map(|v| {
-                        let d = v.dims();
-                        format!("{}×{}×{}", d.x, d.y, d.z)
-                    })
-                    .collect();
-                if open.is_empty() {
-                    let what = format!("object solid volumes ({}, with mipmaps) on the CPU", dims.join(", "));
-                    passes.push(PassTime { pass: what, ms: ms_since(start) });
-                }
+                let (solids, exact, pass) = build_solids(scene, params.settings.object_voxels, builder);
+                (rep.solids, rep.exact_self_shadows) = (solids, exact);
+                passes.push(pass);
             }
         }
     }
-    // where a build ran, as the pass names it: the GPU's times and memory, or why the CPU;
-    // the passes compile (on first use) before the clock starts
     let mut on_gpu = GpuBuilds::default();
-    let builder = gpu.map(|r| (r, r.representation_builder()));
     if params.method != Method::Vct {
         let start = Instant::now();
         let n = params.settings.impostor_size;
@@ -428,6 +400,87 @@ pub fn build_queries(
         passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start) });
     }
     (rep, passes)
+}
+
+/// Each virtual object's solid volume, `n` voxels along its longest axis, with the pass that
+/// built them: the sweeps on `gpu` where one is given and every virtual material is plain
+/// ([`crate::gpu::representation`]; the mip levels on the CPU), else on the CPU, the pass
+/// saying why; none, and `true` (intersect the objects exactly), when some virtual object is not
+/// closed, as the pass then says.
+fn build_solids(
+    scene: &Scene,
+    n: u32,
+    gpu: Option<(&crate::gpu::DirRenderer, &crate::gpu::representation::RepresentationBuilder)>,
+) -> (Vec<SolidVolume>, bool, PassTime) {
+    let start = Instant::now();
+    let open: Vec<&str> = scene
+        .objects
+        .iter()
+        .filter(|o| o.role == Role::Virtual && !solid::is_closed(&o.prims))
+        .map(|o| o.name.as_str())
+        .collect();
+    if !open.is_empty() {
+        let what = format!(
+            "object solid volumes: none, {} not closed (parity voxelisation needs closed objects), so the objects are intersected exactly",
+            open.join(", ")
+        );
+        return (Vec::new(), true, PassTime { pass: what, ms: ms_since(start) });
+    }
+    let bounds = virtual_object_bounds(scene);
+    let on_cpu = |b: &[Aabb]| {
+        let object = World::new(scene, Subset::VirtualOnly);
+        b.par_iter().map(|&b| SolidVolume::build(&object, b, n)).collect::<Vec<_>>()
+    };
+    let mut on_gpu = GpuBuilds::default();
+    let solids: Vec<SolidVolume> = match gpu.map(|(r, builder)| (r, builder, solid_primitives(scene))) {
+        Some((r, builder, Ok(prims))) => bounds
+            .iter()
+            .map(|&b| {
+                let (voxel, dims) = SolidVolume::frame(&b, n);
+                on_gpu
+                    .add(builder.solid_sweeps(&r.ctx, &prims, b, voxel, dims))
+                    .map(|sweeps| SolidVolume::from_sweeps(b.min, voxel, dims, sweeps))
+                    .unwrap_or_else(|| on_cpu(&[b]).remove(0))
+            })
+            .collect(),
+        Some((_, _, Err(reason))) => {
+            on_gpu.fallback = Some(reason);
+            on_cpu(&bounds)
+        }
+        None => on_cpu(&bounds),
+    };
+    let dims: Vec<String> = solids
+        .iter()
+        .map(|v| {
+            let d = v.dims();
+            format!("{}×{}×{}", d.x, d.y, d.z)
+        })
+        .collect();
+    let what = format!("object solid volumes ({}, with mipmaps)", dims.join(", "));
+    (solids, false, PassTime { pass: on_gpu.name(what, gpu.map(|(r, _)| r)), ms: ms_since(start) })
+}
+
+/// The virtual objects' primitives as the GPU's solid sweeps read them, with their materials'
+/// albedo and pattern, or why they cannot: an image texture (the sweeps evaluate the procedural
+/// patterns only).
+fn solid_primitives(scene: &Scene) -> std::result::Result<Vec<crate::gpu::representation::SolidPrimitive>, String> {
+    let mut prims = Vec::new();
+    for o in scene.objects.iter().filter(|o| o.role == Role::Virtual) {
+        let material = &scene.materials[o.material];
+        if let Some(crate::material::Texture::Image(_)) = material.texture {
+            return Err(format!(
+                "{}'s material `{}` has an image texture, which the GPU's sweeps do not evaluate",
+                o.name, material.name
+            ));
+        }
+        prims.extend(o.prims.iter().map(|prim| crate::gpu::representation::SolidPrimitive {
+            prim: prim.clone(),
+            albedo: material.albedo,
+            pattern: material.texture.clone(),
+            delta: material.delta.is_some(),
+        }));
+    }
+    Ok(prims)
 }
 
 /// What the GPU builds of one pass took, and why any fell back to the CPU.
@@ -777,9 +830,8 @@ impl<'a> Coherent<'a> {
     fn incident_at_object(&self, p: Vec3, ng: Vec3, dir: Vec3, half: f32, rng: &mut Rng) -> Vec3 {
         let settings = &self.params.settings;
         if settings.self_shadow && self.rep.exact_self_shadows {
-            let ray = Ray { origin: p, dir };
-            if let Some((hit, mat)) = self.object.hit_with_material(&ray, f32::INFINITY) {
-                return if settings.secondary_bounce { self.diffuse_bounce(&hit, mat, -dir, rng) } else { Vec3::ZERO };
+            if let Some(l) = self.exact_self_hit(p, dir, rng) {
+                return l;
             }
         } else if settings.self_shadow
             && let Some(hit) = self.rep.solid_hit(p, ng, dir)
@@ -789,15 +841,18 @@ impl<'a> Coherent<'a> {
             }
             if hit.surface.delta {
                 // a mirror or glass: its exact surface passes its one direction on
-                let ray = Ray { origin: p, dir };
-                return match self.object.hit_with_material(&ray, f32::INFINITY) {
-                    Some((hit, mat)) => self.diffuse_bounce(&hit, mat, -dir, rng),
-                    None => Vec3::ZERO,
-                };
+                return self.exact_self_hit(p, dir, rng).unwrap_or(Vec3::ZERO);
             }
             return self.voxel_bounce(hit.point, hit.surface.normal, hit.surface.albedo, rng);
         }
         self.rep.incident(self.params.method.query(), p, dir, half).radiance
+    }
+
+    /// The object's exact surface along the ray from its point `p`: zero on *med*, its
+    /// secondary diffuse bounce on *high*; None where the ray leaves the object.
+    fn exact_self_hit(&self, p: Vec3, dir: Vec3, rng: &mut Rng) -> Option<Vec3> {
+        let (hit, mat) = self.object.hit_with_material(&Ray { origin: p, dir }, f32::INFINITY)?;
+        Some(if self.params.settings.secondary_bounce { self.diffuse_bounce(&hit, mat, -dir, rng) } else { Vec3::ZERO })
     }
 
     /// A diffuse surface of normal `n` and albedo `albedo` at `p` as the solid volume stores it

@@ -7,6 +7,7 @@
 //! of the two radiance buffers, the differential composition over the photograph, the `ca`
 //! factor's camera artifacts).
 
+use super::query::Representation;
 use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_since};
 use crate::capture::hashgrid::EnvironmentSample;
 use crate::capture::voxel::VoxelVolume;
@@ -108,10 +109,34 @@ impl CapturedScene {
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
         let mut build = vec![PassTime { pass: format!("capture ({POSES} poses)"), ms: self.ms }];
-        let (rep, passes) = build_representation(scene, &self.real, &self.samples, self.cell, params, gpu);
+        let (rep, passes) = self.representation(scene, params, gpu);
         build.extend(passes);
-        let frame = Coherent::new(scene, &self.real, &rep, *params).render(linear, progress)?;
+        let frame = self.frame(scene, &rep, params, linear, progress)?;
         Ok((build, frame))
+    }
+
+    /// What `params` queries, built from this capture ([`build_representation`]), with its
+    /// build passes (the light probe first).
+    pub fn representation(
+        &self,
+        scene: &Scene,
+        params: &CoherentParams,
+        gpu: Option<&DirRenderer>,
+    ) -> (Representation, Vec<PassTime>) {
+        build_representation(scene, &self.real, &self.samples, self.cell, params, gpu)
+    }
+
+    /// One frame of `params` from `rep` (made by [`CapturedScene::representation`] with settings
+    /// that build what `params` queries) over `linear`, the photograph's radiance.
+    pub fn frame(
+        &self,
+        scene: &Scene,
+        rep: &Representation,
+        params: &CoherentParams,
+        linear: &Image,
+        progress: &(dyn Fn(u32, u32) + Sync),
+    ) -> Result<CoherentFrame> {
+        Coherent::new(scene, &self.real, rep, *params).render(linear, progress)
     }
 }
 
@@ -286,11 +311,6 @@ impl LiveCoherent {
             voxels: Mutex::new(Vec::new()),
             solids: Mutex::new(Vec::new()),
         })
-    }
-
-    /// The capture this live renderer answers from.
-    pub fn captured(&self) -> &CapturedScene {
-        &self.captured
     }
 
     /// One frame of `scene` — the scene this was made for, its virtual objects moved as they

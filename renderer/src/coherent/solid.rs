@@ -19,12 +19,11 @@
 //! the ray).
 
 use crate::geometry::{Aabb, Primitive, Ray};
+use crate::gpu::representation::{SOLID_SUB as SUB, SolidSweeps, mip_dims, sweep_span};
 use crate::pathtracer::World;
 use glam::{UVec3, Vec3};
 use std::sync::Arc;
 
-/// Sample columns per voxel and axis across a sweep.
-const SUB: u32 = 4;
 /// τ from which a voxel stops a ray.
 const OPAQUE: f32 = 0.5;
 
@@ -69,22 +68,23 @@ impl SolidVolume {
     /// `longest` voxels along the box's longest axis and proportionally fewer (at least one)
     /// along the others: the paper's 32³ and 128 × 96 × 96.
     pub fn build(object: &World, bounds: Aabb, longest: u32) -> SolidVolume {
-        let extent = (bounds.max - bounds.min).max(Vec3::splat(1e-6));
-        let longest = longest.max(1);
-        // (a hair under the quotient before rounding up: 0.1 / 0.2 × 32 is 16, not 17)
-        let dims = (extent / extent.max_element() * longest as f32 - 1e-3).ceil().max(Vec3::ONE).as_uvec3();
-        let voxel = extent / dims.as_vec3();
+        let (voxel, dims) = SolidVolume::frame(&bounds, longest);
         let origin = bounds.min;
         let count = (dims.x * dims.y * dims.z) as usize;
         let index = |v: UVec3| (v.x + dims.x * (v.y + dims.y * v.z)) as usize;
-        let mut tau = vec![0.0f32; count];
-        let mut normals = vec![(Vec3::ZERO, Vec3::ZERO, 0u32, false); count];
+        let mut sweeps = SolidSweeps {
+            tau: vec![0.0; count],
+            normals: vec![[0.0; 4]; count],
+            albedos: vec![[0.0; 4]; count],
+            mips: Vec::new(),
+        };
         let samples = (SUB * SUB) as f32;
         for axis in 0..3 {
             // the two axes across the sweep, and the sweep's direction
             let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
             let mut dir = Vec3::ZERO;
             dir[axis] = 1.0;
+            let (from, to) = sweep_span(&bounds, axis);
             // τ needs the z sweep's every column; the normals of the other two, every other one
             let stride = if axis == 2 { 1 } else { 2 };
             for j in (0..dims[v] * SUB).step_by(stride) {
@@ -92,8 +92,8 @@ impl SolidVolume {
                     let mut start = origin;
                     start[u] += (i as f32 + 0.5) / SUB as f32 * voxel[u];
                     start[v] += (j as f32 + 0.5) / SUB as f32 * voxel[v];
-                    start[axis] = bounds.min[axis] - 1e-3 * extent[axis] - 1e-4;
-                    let crossings = crossings(object, start, dir, bounds.max[axis] + 1e-3 * extent[axis] + 1e-4);
+                    start[axis] = from;
+                    let crossings = crossings(object, start, dir, to);
                     let column = |k: u32| {
                         let mut cell = UVec3::ZERO;
                         cell[u] = i / SUB;
@@ -106,11 +106,13 @@ impl SolidVolume {
                             .clamp(0, dims[axis] as i64 - 1) as u32;
                         // entering (even) crossings face against the sweep, leaving ones along it
                         let outward = if (n % 2 == 0) == (c.normal[axis] > 0.0) { -c.normal } else { c.normal };
-                        let cell = &mut normals[index(column(k))];
-                        cell.0 += outward;
-                        cell.1 += c.albedo;
-                        cell.2 += 1;
-                        cell.3 |= c.delta;
+                        let at = index(column(k));
+                        let normal = &mut sweeps.normals[at];
+                        *normal =
+                            [normal[0] + outward.x, normal[1] + outward.y, normal[2] + outward.z, normal[3] + 1.0];
+                        let albedo = &mut sweeps.albedos[at];
+                        let delta = if c.delta { 1.0 } else { albedo[3] };
+                        *albedo = [albedo[0] + c.albedo.x, albedo[1] + c.albedo.y, albedo[2] + c.albedo.z, delta];
                     }
                     if axis != 2 {
                         continue;
@@ -127,22 +129,49 @@ impl SolidVolume {
                         for k in first..=last {
                             let (lo, hi) = (origin[2] + k as f32 * voxel[2], origin[2] + (k + 1) as f32 * voxel[2]);
                             let covered = (leave.min(hi) - enter.max(lo)).max(0.0) / voxel[2];
-                            tau[index(column(k))] += covered / samples;
+                            sweeps.tau[index(column(k))] += covered / samples;
                         }
                     }
                 }
             }
         }
+        SolidVolume::from_sweeps(origin, voxel, dims, sweeps)
+    }
+
+    /// A voxel's edges and the voxels per axis of a volume over `bounds` with `longest` voxels
+    /// along its longest axis and proportionally fewer (at least one) along the others.
+    pub fn frame(bounds: &Aabb, longest: u32) -> (Vec3, UVec3) {
+        let extent = (bounds.max - bounds.min).max(Vec3::splat(1e-6));
+        let longest = longest.max(1);
+        // (a hair under the quotient before rounding up: 0.1 / 0.2 × 32 is 16, not 17)
+        let dims = (extent / extent.max_element() * longest as f32 - 1e-3).ceil().max(Vec3::ONE).as_uvec3();
+        (extent / dims.as_vec3(), dims)
+    }
+
+    /// The volume from its sweeps' sums (the CPU's or the GPU's, [`SolidSweeps`]): τ clamped to
+    /// [0, 1] with its mip levels (the sweeps' own, else made here), and at each voxel a
+    /// crossing passed the mean outward normal and albedo.
+    pub fn from_sweeps(origin: Vec3, voxel: Vec3, dims: UVec3, sweeps: SolidSweeps) -> SolidVolume {
+        let SolidSweeps { mut tau, normals, albedos, mips } = sweeps;
         for t in &mut tau {
             *t = t.clamp(0.0, 1.0);
         }
         let surface = normals
-            .into_iter()
-            .map(|(normal, albedo, n, delta)| {
-                (n > 0).then(|| SolidSurface { normal: normal.normalize_or_zero(), albedo: albedo / n as f32, delta })
+            .iter()
+            .zip(&albedos)
+            .map(|(n, a)| {
+                (n[3] > 0.0).then(|| SolidSurface {
+                    normal: Vec3::new(n[0], n[1], n[2]).normalize_or_zero(),
+                    albedo: Vec3::new(a[0], a[1], a[2]) / n[3],
+                    delta: a[3] > 0.0,
+                })
             })
             .collect();
         let mut levels = vec![Level { dims, tau }];
+        let sizes = mip_dims(dims);
+        if mips.len() + 1 == sizes.len() {
+            levels.extend(sizes[1..].iter().zip(mips).map(|(&dims, tau)| Level { dims, tau }));
+        }
         while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
             levels.push(downsample(levels.last().expect("a level")));
         }
@@ -236,6 +265,15 @@ impl SolidVolume {
             }
             t_next[axis] += delta[axis];
         }
+    }
+
+    /// The surface stored at voxel `v` of level 0, if a crossing passed it.
+    pub fn surface(&self, v: UVec3) -> Option<SolidSurface> {
+        let dims = self.dims();
+        if v.cmpge(dims).any() {
+            return None;
+        }
+        self.surface[(v.x + dims.x * (v.y + dims.y * v.z)) as usize]
     }
 
     /// The surface stored at voxel `v`, else the mean of its neighbours' within one voxel; else

@@ -1,0 +1,161 @@
+//! `bench render --frame-rate`: the thesis's real-time settings at its resolution, frames
+//! rendered back to back, for a hardware GPU. Per scene and condition: the median, 10th and
+//! 90th percentile of the whole frame's wall-clock time (upload, every pass, the read-back of
+//! the composite — what a stimulus or a live lab frame costs) and its rate, and each pass's
+//! median time.
+//!
+//! The settings are the thesis's: 256 VPLs, 128² ISMs of 1024 points, 4×4 interleaved sampling
+//! at 1024×768 (5.2, 13–18 fps on a GTX 580); in scenes with mirrors or glass also 512² caustic
+//! maps (5.3: the glass bunny at 13 fps). No ground truth is rendered: the error of these
+//! settings at a size the path tracer reaches is in `bench render` (DIR rows and the specular
+//! rows).
+//!
+//! Every pass is timed by waiting for the device after it (`timed` in [`crate::gpu`]), so a
+//! frame here is a sum of synchronised passes, an upper bound of a pipelined frame's time.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::{Observer, Report, load_sized};
+use crate::error::Result;
+use crate::gpu::{DirParams, DirRenderer, GiLevel, PassTime, specular::SpecularParams};
+use crate::reference::{ReferenceParams, render_photo};
+
+/// One scene and condition rendered back to back.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRateRow {
+    pub scene: String,
+    pub condition: GiLevel,
+    pub width: u32,
+    pub height: u32,
+    pub vpls: u32,
+    pub ism_size: u32,
+    pub ism_points: u32,
+    pub interleave: u32,
+    /// 0 where the scene has no mirror or glass (no caustic maps run).
+    pub caustic_map_size: u32,
+    /// Frames timed (after two untimed ones that compile pipelines and warm caches).
+    pub frames: u32,
+    pub median_ms: f64,
+    pub p10_ms: f64,
+    pub p90_ms: f64,
+    /// 1000 / median_ms.
+    pub fps: f64,
+    /// Each pass's median over the timed frames, in the frame's order.
+    pub passes: Vec<PassTime>,
+}
+
+/// The scenes measured by default: DIR's thesis scene, the glass figure and the metal bottle.
+pub const SCENES: [&str; 3] = ["dir-lamp-box", "glass-figure", "metal-bottle"];
+
+/// Runs the benchmark on `scene_name` (default: [`SCENES`]); `quick`: 160×120 and 3 frames
+/// (a check that it runs, not a measurement).
+pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Result<Report<FrameRateRow>> {
+    let names: Vec<String> = match scene_name {
+        Some(name) => vec![name.to_string()],
+        None => SCENES.iter().map(|s| s.to_string()).collect(),
+    };
+    let (width, height, frames) = if quick { (160, 120, 3) } else { (1024, 768, 30) };
+    let renderer = DirRenderer::new()?;
+    let adapter = renderer.ctx.adapter_name();
+    observer.note(&format!("bench render --frame-rate on {adapter}: {width}×{height}, {frames} frames per row"));
+    observer.line(&format!(
+        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8}   slowest passes (median ms)",
+        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps"
+    ));
+    let mut rows = Vec::new();
+    for name in &names {
+        let scene = load_sized(name, width, height)?;
+        observer.note(&format!("{name}: the photograph at {width}×{height} (1 spp, path traced)"));
+        let (_, photo, _) =
+            render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
+        let specular = scene.specular_object().is_some();
+        for condition in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
+            let params = DirParams {
+                condition,
+                vpls: 256,
+                ism_size: 128,
+                ism_points: 1024,
+                interleave: 4,
+                specular: SpecularParams { caustic_map_size: 512, ..SpecularParams::default() },
+                ..DirParams::default()
+            };
+            for _ in 0..2 {
+                renderer.render(&scene, &photo, &params)?;
+            }
+            let mut times = Vec::with_capacity(frames as usize);
+            let mut pass_times: Vec<(String, Vec<f64>)> = Vec::new();
+            for _ in 0..frames {
+                let start = Instant::now();
+                let frame = renderer.render(&scene, &photo, &params)?;
+                times.push(start.elapsed().as_secs_f64() * 1e3);
+                for (k, pass) in frame.report.passes.iter().enumerate() {
+                    match pass_times.get_mut(k) {
+                        Some((name, list)) if *name == pass.pass => list.push(pass.ms),
+                        _ => pass_times.insert(k, (pass.pass.clone(), vec![pass.ms])),
+                    }
+                }
+            }
+            let passes: Vec<PassTime> =
+                pass_times.into_iter().map(|(pass, mut ms)| PassTime { pass, ms: quantile(&mut ms, 0.5) }).collect();
+            let median_ms = quantile(&mut times, 0.5);
+            let row = FrameRateRow {
+                scene: name.clone(),
+                condition,
+                width,
+                height,
+                vpls: if condition == GiLevel::Gi { params.vpls } else { 0 },
+                ism_size: if condition == GiLevel::Gi { params.ism_size } else { 0 },
+                ism_points: if condition == GiLevel::Gi { params.ism_points } else { 0 },
+                interleave: params.interleave,
+                caustic_map_size: if specular && condition != GiLevel::None { 512 } else { 0 },
+                frames,
+                median_ms,
+                p10_ms: quantile(&mut times, 0.1),
+                p90_ms: quantile(&mut times, 0.9),
+                fps: 1000.0 / median_ms.max(1e-9),
+                passes,
+            };
+            let mut slowest: Vec<&PassTime> = row.passes.iter().collect();
+            slowest.sort_by(|a, b| b.ms.total_cmp(&a.ms));
+            let slowest: Vec<String> = slowest.iter().take(3).map(|p| format!("{} {:.2}", p.pass, p.ms)).collect();
+            observer.line(&format!(
+                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1}   {}",
+                row.scene,
+                condition.name(),
+                row.median_ms,
+                row.p10_ms,
+                row.p90_ms,
+                row.fps,
+                slowest.join("; ")
+            ));
+            rows.push(row);
+        }
+    }
+    Ok(Report { adapter, rows, plots: Vec::new() })
+}
+
+/// The `q` quantile of `values` (nearest rank; sorts them); 0 for none.
+fn quantile(values: &mut [f64], q: f64) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    values.sort_by(f64::total_cmp);
+    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
+    values[rank - 1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_take_the_nearest_rank() {
+        let mut v = vec![5.0, 1.0, 4.0, 2.0, 3.0];
+        assert_eq!(quantile(&mut v, 0.5), 3.0);
+        assert_eq!(quantile(&mut v, 0.1), 1.0);
+        assert_eq!(quantile(&mut v, 0.9), 5.0);
+        assert_eq!(quantile(&mut [], 0.5), 0.0);
+    }
+}
