@@ -42,6 +42,9 @@ pub struct FrameRateRow {
     pub p90_ms: f64,
     /// 1000 / median_ms.
     pub fps: f64,
+    /// The sum of the passes' medians: what the passes account for of the median frame (the
+    /// rest: allocations, bind groups and the like outside the timed passes).
+    pub passes_ms: f64,
     /// Each pass's median over the timed frames, in the frame's order.
     pub passes: Vec<PassTime>,
 }
@@ -115,6 +118,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 p10_ms: quantile(&mut times, 0.1),
                 p90_ms: quantile(&mut times, 0.9),
                 fps: 1000.0 / median_ms.max(1e-9),
+                passes_ms: passes.iter().map(|p| p.ms).sum(),
                 passes,
             };
             let mut slowest: Vec<&PassTime> = row.passes.iter().collect();

@@ -211,31 +211,60 @@ impl GpuContext {
 
     /// Reads a 2D texture (layer 0) with `texel_bytes` per texel, rows unpadded.
     pub fn read_texture(&self, texture: &wgpu::Texture, texel_bytes: u32) -> Vec<u8> {
-        let (w, h) = (texture.width(), texture.height());
-        let row = w * texel_bytes;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        self.read_textures(&[(texture, texel_bytes)]).pop().unwrap_or_default()
+    }
+
+    /// Reads several 2D textures (layer 0; each with its bytes per texel) in one copy, one
+    /// submission and one wait; each texture's bytes with rows unpadded.
+    pub fn read_textures(&self, textures: &[(&wgpu::Texture, u32)]) -> Vec<Vec<u8>> {
+        let layouts: Vec<(u64, u32, u32, u32)> = textures
+            .iter()
+            .scan(0u64, |at, &(texture, texel_bytes)| {
+                let row = texture.width() * texel_bytes;
+                let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+                let offset = *at;
+                *at += padded as u64 * texture.height() as u64;
+                Some((offset, row, padded, texture.height()))
+            })
+            .collect();
+        let size = layouts.last().map_or(0, |&(offset, _, padded, h)| offset + padded as u64 * h as u64);
+        if size == 0 {
+            return vec![Vec::new(); textures.len()];
+        }
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("texture readback"),
-            size: (padded * h) as u64,
+            size,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        encoder.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &staging,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) },
-            },
-            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-        );
+        for (&(texture, _), &(offset, _, padded, h)) in textures.iter().zip(&layouts) {
+            encoder.copy_texture_to_buffer(
+                texture.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &staging,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset,
+                        bytes_per_row: Some(padded),
+                        rows_per_image: Some(h),
+                    },
+                },
+                wgpu::Extent3d { width: texture.width(), height: h, depth_or_array_layers: 1 },
+            );
+        }
         self.queue.submit([encoder.finish()]);
         let bytes = self.read_buffer(&staging);
-        let mut out = Vec::with_capacity((row * h) as usize);
-        for y in 0..h as usize {
-            out.extend_from_slice(&bytes[y * padded as usize..y * padded as usize + row as usize]);
-        }
-        out
+        layouts
+            .iter()
+            .map(|&(offset, row, padded, h)| {
+                let mut out = Vec::with_capacity((row * h) as usize);
+                for y in 0..h as usize {
+                    let from = offset as usize + y * padded as usize;
+                    out.extend_from_slice(&bytes[from..from + row as usize]);
+                }
+                out
+            })
+            .collect()
     }
 }
 

@@ -440,7 +440,9 @@ impl DirRenderer {
             });
         }
         let mut passes = Vec::new();
+        let start = Instant::now();
         let mesh = mesh::build(scene);
+        passes.push(PassTime { pass: "scene mesh (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
         let virtual_maps = params.condition != GiLevel::None && has_virtual;
@@ -572,34 +574,24 @@ impl DirRenderer {
         let mut caustic_candidates = Vec::new();
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
-            let read_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
+            // every RSM is rendered first and all are read back at once (one wait, not four per map)
+            let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
                 let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
                 let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
                 timed(ctx, passes, format!("RSM {name} {label}"), || {
                     self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets)
                 });
-                let position = ctx.read_texture_rgba32(&targets.position);
-                let normal = ctx.read_texture_rgba32(&targets.normal);
-                let albedo = ctx.read_texture_rgba32(&targets.albedo);
-                let dist: Vec<f32> = bytemuck::cast_slice(&ctx.read_texture(&distance, 4)).to_vec();
-                (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+                (targets, distance)
             };
-            let read_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
-                let real = read_rsm(passes, view, name, Subset::Real);
-                let virt = if has_virtual {
-                    read_rsm(passes, view, name, Subset::Virtual)
-                } else {
-                    vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()]
-                };
+            let render_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
+                let real = render_rsm(passes, view, name, Subset::Real);
+                let virt = has_virtual.then(|| render_rsm(passes, view, name, Subset::Virtual));
                 (real, virt)
             };
+            let mut rendered = Vec::new();
             for (spot, (view, tan_half)) in scene.spots.iter().zip(&spot_views) {
-                let (real, virt) = read_pair(&mut passes, view, &spot.name);
-                rsms.push((
-                    vpl::RsmLight::Spot(spot),
-                    vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half, real, virt },
-                ));
+                rendered.push((vpl::RsmLight::Spot(spot), *tan_half, render_pair(&mut passes, view, &spot.name)));
             }
             // the environment's light bounces too: orthographic RSMs along a subset of its
             // directions (evenly spread over the importance-sampled ones), each standing for
@@ -609,12 +601,32 @@ impl DirRenderer {
                 let (forward, irradiance) = env_dirs[j * env_dirs.len() / k];
                 let (matrix, eye) = directional_view(forward, env_centre, env_radius, env_depth);
                 let view = ViewUniform::orthographic(matrix, eye, forward);
-                let (real, virt) = read_pair(&mut passes, &view, &format!("environment {}", j + 1));
                 let light = vpl::RsmLight::Directional {
                     irradiance: irradiance * (env_dirs.len() as f32 / k as f32),
                     texel_area: (2.0 * env_radius / rsm_size as f32).powi(2),
                 };
-                rsms.push((light, vpl::RsmTexels { size: rsm_size, tan_half_fov: 0.0, real, virt }));
+                rendered.push((light, 0.0, render_pair(&mut passes, &view, &format!("environment {}", j + 1))));
+            }
+            let maps: Vec<&(SurfaceTargets, wgpu::Texture)> =
+                rendered.iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
+            let textures: Vec<(&wgpu::Texture, u32)> =
+                maps.iter().flat_map(|(t, d)| [(&t.position, 16), (&t.normal, 16), (&t.albedo, 16), (d, 4)]).collect();
+            let bytes = timed(ctx, &mut passes, format!("RSMs read back ({} maps)", maps.len()), || {
+                ctx.read_textures(&textures)
+            });
+            let mut texels = bytes.chunks_exact(4).map(|b| {
+                let quads = |bytes: &[u8]| -> Vec<[f32; 4]> { bytemuck::pod_collect_to_vec(bytes) };
+                let (position, normal, albedo) = (quads(&b[0]), quads(&b[1]), quads(&b[2]));
+                let dist: Vec<f32> = bytemuck::pod_collect_to_vec(&b[3]);
+                (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+            });
+            for (light, tan_half_fov, (_, virt)) in rendered.iter() {
+                let real = texels.next().expect("a real map per light");
+                let virt = match virt {
+                    Some(_) => texels.next().expect("a virtual map per light"),
+                    None => vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()],
+                };
+                rsms.push((*light, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half_fov, real, virt }));
             }
             // reflected and refracted VPLs where the caustics land (Figure 5.23)
             if let Ok(maps) = &photon_maps {
@@ -918,6 +930,7 @@ impl DirRenderer {
         });
         let (composite, solutions) =
             timed(ctx, &mut passes, "readback".into(), || (ctx.read_f32(&composite), ctx.read_f32(&output.solutions)));
+        let start = Instant::now();
         let half = solutions.len() / 2;
         let mut composite = to_image(width, height, &composite);
         let virtual_mask = Mask {
@@ -925,6 +938,13 @@ impl DirRenderer {
             height,
             values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect(),
         };
+        let l_rv = to_image(width, height, &solutions[..half]);
+        let l_r = to_image(width, height, &solutions[half..]);
+        let flags = solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect();
+        passes.push(PassTime {
+            pass: "images from the read-back buffers (CPU)".into(),
+            ms: start.elapsed().as_secs_f64() * 1e3,
+        });
         // 5. camera artifacts (the ca factor) on the virtual layers of the composite
         let mut ca_report = None;
         if let Some(ca) = &params.camera_artifacts {
@@ -937,10 +957,10 @@ impl DirRenderer {
         let ms = passes.iter().map(|p| p.ms).sum();
         Ok(GpuRender {
             composite,
-            l_rv: to_image(width, height, &solutions[..half]),
-            l_r: to_image(width, height, &solutions[half..]),
+            l_rv,
+            l_r,
             virtual_mask,
-            flags: solutions[..half].chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
+            flags,
             vpls: vpls.clone(),
             report: GpuReport {
                 adapter: ctx.adapter_name(),
