@@ -17,7 +17,8 @@
 //! and voxel for voxel, and on lavapipe they agree exactly for survey-6's two impostors at 64²,
 //! 128² and 256² and for the voxel volume. (With one invocation per sample looping over the
 //! six faces, lavapipe lost 9 % of the book's impostor at 256², deterministically and at no
-//! other size; why was not found.)
+//! other size — likely llvmpipe's limit on an invocation's loop iterations, found with the
+//! solid volume below.)
 //!
 //! - **Solid volume** of the virtual objects (`solid.wgsl`): the sweeps of
 //!   `coherent::solid::SolidVolume::build` — one dispatch per sample column of a voxel column
@@ -26,8 +27,7 @@
 //!   column (a triangle's or sphere's box across the sweep) and adds τ and the crossings' normals
 //!   and albedos to the column's own voxels; no atomics, the CPU's order of every sum. (One
 //!   invocation walking all 16 sample columns lost most of the glass figure on lavapipe, which
-//!   stops an invocation's loops after about 2¹⁴ iterations — likely also the unexplained loss
-//!   of the impostor's six-face loop below.)
+//!   stops an invocation's loops after about 2¹⁴ iterations in all, silently.)
 //!   The procedural patterns (wood, checker, stripes) are evaluated at each crossing as
 //!   `Texture::eval` does; an image texture is not, and such an object is built on the CPU. τ's
 //!   mip levels follow, one pass per level (the CPU's `downsample`); the surface's means are
