@@ -403,10 +403,10 @@ pub fn build_queries(
 }
 
 /// Each virtual object's solid volume, `n` voxels along its longest axis, with the pass that
-/// built them: the sweeps on `gpu` where one is given and every virtual material is plain
-/// ([`crate::gpu::representation`]; the mip levels on the CPU), else on the CPU, the pass
-/// saying why; none, and `true` (intersect the objects exactly), when some virtual object is not
-/// closed, as the pass then says.
+/// built them: on `gpu` where one is given ([`crate::gpu::representation`]: the sweeps and τ's
+/// mip levels) unless a virtual material has an image texture or a voxel column meets too many
+/// primitives, else on the CPU, the pass saying why; none, and `true` (intersect the objects
+/// exactly), when some virtual object is not closed, as the pass then says.
 fn build_solids(
     scene: &Scene,
     n: u32,
