@@ -29,8 +29,10 @@
 //! within a few hundredths of the exact posterior mean on tiny designs (grid integration,
 //! tested) and closer to the refit than the online Laplace step in most measured cases, but it
 //! never revisits a judgment: with strongly separated conditions its mean can stay up to half a
-//! posterior sd off the refit after 10⁴ judgments. Re-anchoring on a refit now and then (say
-//! when the judgments double) would remove that at an amortised O(1) cost; it is not done yet.
+//! posterior sd off the refit after 10⁴ judgments. [`Posterior::reanchor`] sets the posterior
+//! to a refit's; the served design does not call it (the `early_gap` example measures re-anchoring
+//! before every batch: with the plain EIG it matches ASAP at 20 conditions and loses to random
+//! pairs at 8 — README, "What closes the gap").
 //!
 //! **Choice.** y depends on θ only through d = aᵀθ, so the EIG of a pair is the mutual
 //! information of y and d: EIG(m, v) = H[E F(d)] − E H[F(d)], a function of the projected mean

@@ -60,6 +60,8 @@ pub struct Posterior {
     components: usize,
     /// ρ_max of the choice's score EIG(ρ·m, v); see [`Posterior::with_mean_weight`].
     mean_weight: f64,
+    /// Judgments per condition over which ρ rises to ρ_max; see [`Posterior::with_mean_ramp`].
+    mean_ramp: f64,
     eig_rule: Rule,
     update_rule: Rule,
 }
@@ -115,6 +117,7 @@ impl Posterior {
             parent: (0..n_conditions).collect(),
             components: n_conditions,
             mean_weight: super::DEFAULT_MEAN_WEIGHT,
+            mean_ramp: super::MEAN_WEIGHT_RAMP,
             eig_rule: Rule::gauss_hermite(EIG_NODES),
             update_rule: Rule::gauss_hermite(UPDATE_NODES),
         })
@@ -141,10 +144,49 @@ impl Posterior {
         self.mean_weight
     }
 
-    /// ρ now: ρ_max · min(1, judgments / (ramp · conditions)).
+    /// Sets the ramp: ρ rises from 0 to ρ_max over the first `judgments_per_condition`
+    /// judgments per condition (default [`super::MEAN_WEIGHT_RAMP`]); 0: ρ_max from the start.
+    pub fn with_mean_ramp(mut self, judgments_per_condition: f64) -> Result<Posterior> {
+        if !(judgments_per_condition >= 0.0 && judgments_per_condition.is_finite()) {
+            return Err(ActiveError::BadOption {
+                option: "mean_ramp",
+                message: format!("the ramp must be finite and not negative, got {judgments_per_condition}"),
+            });
+        }
+        self.mean_ramp = judgments_per_condition;
+        Ok(self)
+    }
+
+    /// ρ now: ρ_max · min(1, judgments / (ramp · conditions)); ρ_max without a ramp.
     pub fn effective_mean_weight(&self) -> f64 {
-        let ramp = super::MEAN_WEIGHT_RAMP * self.n_conditions as f64;
+        if self.mean_ramp == 0.0 {
+            return self.mean_weight;
+        }
+        let ramp = self.mean_ramp * self.n_conditions as f64;
         self.mean_weight * (self.judgments as f64 / ramp).min(1.0)
+    }
+
+    /// Re-anchors the posterior on `fit`, a Laplace refit of every judgment absorbed
+    /// ([`super::laplace::refit`] of the same target, link and prior): mean and covariance are
+    /// the fit's, the rest (judgments, state id, the comparison graph) stays. ADF never revisits
+    /// a judgment; this does, at the refit's O(p³) cost. Refused: a fit of another size or with
+    /// a non-finite value.
+    pub fn reanchor(&mut self, fit: &super::laplace::LaplaceFit) -> Result<()> {
+        let p = self.mean.len();
+        if fit.mean.len() != p || fit.covariance.len() != p * p {
+            return Err(self.degenerate(format!("a refit of {} parameters for a posterior of {p}", fit.mean.len())));
+        }
+        if fit.mean.iter().chain(&fit.covariance).any(|v| !v.is_finite()) {
+            return Err(self.degenerate("a refit with a non-finite value".into()));
+        }
+        self.mean = fit.mean.clone();
+        // kept exactly symmetric, as every update keeps it
+        for a in 0..p {
+            for b in 0..p {
+                self.covariance[a * p + b] = 0.5 * (fit.covariance[a * p + b] + fit.covariance[b * p + a]);
+            }
+        }
+        Ok(())
     }
 
     pub fn link(&self) -> Link {

@@ -498,3 +498,56 @@ fn a_judgment_log_replays_to_the_scored_study() {
         assert!((rmse - scored).abs() < 1e-12, "{design:?}: replayed {rmse}, simulated {scored}");
     }
 }
+
+#[test]
+fn a_posterior_reanchored_on_a_refit_has_the_fit_s_moments_and_keeps_its_state() {
+    let target = Target::Worths { conditions: 5 };
+    let mut posterior = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD).unwrap();
+    let judgments = [(0, 1), (1, 2), (0, 2), (3, 4), (2, 3), (4, 0), (0, 3), (1, 4)];
+    for &(w, l) in &judgments {
+        posterior.update(w, l).unwrap();
+    }
+    let state = posterior.state_id();
+    let fit = refit(&target, Link::Probit, DEFAULT_PRIOR_SD, &judgments).unwrap();
+    // ADF is near the refit but not on it: re-anchoring moves the mean
+    let moved = posterior.mean().iter().zip(&fit.mean).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(moved > 1e-6, "ADF's mean equals the refit's to {moved}");
+    posterior.reanchor(&fit).unwrap();
+    assert_eq!(posterior.mean(), &fit.mean[..]);
+    let c = posterior.covariance();
+    for a in 0..5 {
+        for b in 0..5 {
+            assert_eq!(c[a * 5 + b], c[b * 5 + a]);
+            assert!((c[a * 5 + b] - fit.covariance[a * 5 + b]).abs() < 1e-12);
+        }
+    }
+    assert_eq!(posterior.state_id(), state, "the state is the log's, refit or not");
+    let pairs = posterior.best_pairs(3, None, &mut tie_stream(1, state, 0)).unwrap();
+    assert_eq!(pairs.len(), 3);
+    // a fit of another size, or with a NaN, is refused and changes nothing
+    let small = refit(&Target::Worths { conditions: 4 }, Link::Probit, DEFAULT_PRIOR_SD, &[(0, 1)]).unwrap();
+    assert!(matches!(posterior.reanchor(&small), Err(ActiveError::Degenerate { .. })));
+    let mut broken = fit.clone();
+    broken.covariance[3] = f64::NAN;
+    assert!(matches!(posterior.reanchor(&broken), Err(ActiveError::Degenerate { .. })));
+    assert_eq!(posterior.mean(), &fit.mean[..]);
+}
+
+#[test]
+fn without_a_ramp_the_mean_weight_is_full_from_the_first_judgment() {
+    let target = Target::Worths { conditions: 6 };
+    let ramped = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD).unwrap().with_mean_weight(1.0).unwrap();
+    assert_eq!(ramped.effective_mean_weight(), 0.0);
+    let flat = ramped.clone().with_mean_ramp(0.0).unwrap();
+    assert_eq!(flat.effective_mean_weight(), 1.0);
+    let mut short = ramped.with_mean_ramp(1.0).unwrap();
+    for k in 0..3 {
+        short.update(k, k + 1).unwrap();
+    }
+    // 3 judgments of a 1-per-condition ramp over 6 conditions: half way
+    assert!((short.effective_mean_weight() - 0.5).abs() < 1e-12);
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let refused = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD).unwrap().with_mean_ramp(bad);
+        assert!(matches!(refused, Err(ActiveError::BadOption { option: "mean_ramp", .. })), "{bad}");
+    }
+}
