@@ -133,7 +133,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     let pixels = errors.len();
                     let mean = if pixels == 0 { 0.0 } else { errors.iter().sum::<f64>() / pixels as f64 };
                     let p95 = metrics::quantile(&errors, 0.95);
-                    let cm_ms = pass_ms(&frame.report, |p| p.starts_with("cm "));
+                    let cm_ms = pass_ms(&frame.report.passes, |p| p.starts_with("cm "));
                     observer.line(&format!(
                         "{:<18} {:<7} {:<12} {:<11} {:>8.2} {:>8.2} {:>7} {:>8.2}",
                         name,

@@ -371,7 +371,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         for &(vpls, bounces, bounce_candidates) in bounce_settings {
             let params = DirParams { condition: GiLevel::Gi, vpls, bounces, bounce_candidates, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
-            let bounce_ms = pass_ms(&frame.report, |p| p.starts_with("bounce "));
+            let bounce_ms = pass_ms(&frame.report.passes, |p| p.starts_with("bounce "));
             let found: Vec<String> = frame
                 .report
                 .bounces
@@ -413,7 +413,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         for &ism_size in ism_sizes {
             let params = DirParams { condition: GiLevel::Gi, vpls: 256, ism_size, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
-            let ism_ms = pass_ms(&frame.report, |p| p.starts_with("ISMs"));
+            let ism_ms = pass_ms(&frame.report.passes, |p| p.starts_with("ISMs"));
             line(name, "gi", &frame, rmse, flip, &format!("   ISM {}² ({:.1} ms)", ism_size, ism_ms));
             ism_rmse.push((ism_size.max(1) as f64, rmse));
             ism_flip.push((ism_size.max(1) as f64, flip));
@@ -473,9 +473,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 };
                 let params = DirParams { condition: GiLevel::Gi, vpls: 64, specular, ..DirParams::default() };
                 let (frame, rmse, flip) = measure(&params)?;
-                let caustic_ms = pass_ms(&frame.report, |p| p.starts_with("caustic"));
+                let caustic_ms = pass_ms(&frame.report.passes, |p| p.starts_with("caustic"));
                 let specular_ms = caustic_ms
-                    + pass_ms(&frame.report, |p| {
+                    + pass_ms(&frame.report.passes, |p| {
                         p.starts_with("impostors")
                             || p.starts_with("back faces")
                             || p.starts_with("reflected and refracted")
@@ -560,8 +560,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 ..DirParams::default()
             };
             let (frame, rmse, flip) = measure(&params)?;
-            let cm_ms = pass_ms(&frame.report, |p| p.starts_with("cm "));
-            let compose_ms = pass_ms(&frame.report, |p| p == "composition");
+            let cm_ms = pass_ms(&frame.report.passes, |p| p.starts_with("cm "));
+            let compose_ms = pass_ms(&frame.report.passes, |p| p == "composition");
             line(
                 name,
                 "gi",
@@ -592,7 +592,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         for &interleave in splits {
             let params = DirParams { condition: GiLevel::Gi, vpls: 256, interleave, ..DirParams::default() };
             let (frame, rmse, flip) = measure(&params)?;
-            let shading_ms = pass_ms(&frame.report, |p| p.starts_with("shading") || p.starts_with("indirect light"));
+            let shading_ms =
+                pass_ms(&frame.report.passes, |p| p.starts_with("shading") || p.starts_with("indirect light"));
             line(
                 name,
                 "gi",

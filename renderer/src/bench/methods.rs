@@ -18,7 +18,7 @@
 use serde::Serialize;
 
 use super::gpu::dir_linear_composite;
-use super::{Observer, Plot, Report, Series, ground_truth, load_sized};
+use super::{Observer, Plot, Report, Series, ground_truth, load_sized, pass_ms};
 use crate::coherent::render::{CapturedScene, render_over};
 use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::Result;
@@ -142,9 +142,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 render_over(&scene, &captured, &params, &reference, Some(&renderer), &|done, total| {
                     observer.progress("coherent", done, total)
                 })?;
-            let pass = |prefix: &str| {
-                frame.report.passes.iter().filter(|p| p.pass.starts_with(prefix)).map(|p| p.ms).fold(0.0, |a, b| a + b)
-            };
+            let pass = |prefix: &str| pass_ms(&frame.report.passes, |p| p.starts_with(prefix));
             let capture_ms = captured.ms;
             let representation_ms = build.iter().skip(1).map(|p| p.ms).fold(0.0, |a, b| a + b);
             let frame_ms = frame.report.total_ms();

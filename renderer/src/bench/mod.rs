@@ -89,8 +89,8 @@ fn ground_truth(scene: &Scene, params: ReferenceParams, observer: &dyn Observer)
     Ok(output)
 }
 
-/// The summed time of the passes whose name `selects`.
-fn pass_ms(report: &crate::gpu::GpuReport, selects: impl Fn(&str) -> bool) -> f64 {
+/// The summed time of the passes (a GPU frame's or a coherent frame's) whose name `selects`.
+fn pass_ms(passes: &[crate::gpu::PassTime], selects: impl Fn(&str) -> bool) -> f64 {
     // from +0.0: an empty f64 sum is -0.0, which would print as "-0.0 ms"
-    report.passes.iter().filter(|p| selects(&p.pass)).map(|p| p.ms).fold(0.0, |a, b| a + b)
+    passes.iter().filter(|p| selects(&p.pass)).map(|p| p.ms).fold(0.0, |a, b| a + b)
 }

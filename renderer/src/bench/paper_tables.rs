@@ -21,7 +21,7 @@
 
 use serde::Serialize;
 
-use super::{Observer, Plot, Report, Series, load_sized};
+use super::{Observer, Plot, Report, Series, load_sized, pass_ms};
 use crate::coherent::render::CapturedScene;
 use crate::coherent::{CoherentFrame, CoherentParams, Method, Quality, Settings};
 use crate::error::Result;
@@ -187,9 +187,7 @@ fn measured(
     w: u32,
     h: u32,
 ) -> PaperRow {
-    let pass = |prefix: &str| {
-        frame.report.passes.iter().filter(|p| p.pass.starts_with(prefix)).map(|p| p.ms).fold(0.0, |a, b| a + b)
-    };
+    let pass = |prefix: &str| pass_ms(&frame.report.passes, |p| p.starts_with(prefix));
     let s = &params.settings;
     PaperRow {
         table,

@@ -164,6 +164,20 @@ fn bin_columns(prims: &[SolidPrimitive], origin: Vec3, voxel: Vec3, dims: UVec3,
     (offsets, indices)
 }
 
+/// Where each of consecutive blocks of `counts` elements starts in one buffer, and the total:
+/// the mip levels of a volume laid one after the other.
+fn level_offsets(counts: impl Iterator<Item = u64>) -> (Vec<u64>, u64) {
+    let mut total = 0;
+    let offsets = counts
+        .map(|count| {
+            let here = total;
+            total += count;
+            here
+        })
+        .collect();
+    (offsets, total)
+}
+
 /// Workgroups (x, y) for `n` threads: rows of at most 65 535 groups.
 fn groups(n: u32) -> [u32; 2] {
     let total = n.div_ceil(GROUP).max(1);
@@ -248,15 +262,7 @@ impl RepresentationBuilder {
         let start = Instant::now();
         let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
         let levels = mip_dims(dims);
-        let level_offsets: Vec<u64> = levels
-            .iter()
-            .scan(0u64, |at, d| {
-                let here = *at;
-                *at += d.x as u64 * d.y as u64 * d.z as u64;
-                Some(here)
-            })
-            .collect();
-        let total = level_offsets.last().copied().unwrap_or(0) + 1;
+        let (level_offsets, total) = level_offsets(levels.iter().map(|d| d.x as u64 * d.y as u64 * d.z as u64));
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if count * 16 > limit || total * 4 > limit || prims.len() as u64 * 128 > limit {
             return Err(format!(
@@ -271,17 +277,15 @@ impl RepresentationBuilder {
         let mut data: Vec<[f32; 4]> = Vec::with_capacity(8 * prims.len().max(1));
         for p in prims {
             let uv = match &p.prim {
-                Primitive::Triangle(t) => t.uv,
-                Primitive::Sphere { .. } => [glam::Vec2::ZERO; 3],
-            };
-            match &p.prim {
                 Primitive::Triangle(t) => {
-                    data.extend([t.p[0].extend(0.0), t.p[1].extend(0.0), t.p[2].extend(0.0)].map(|v| v.to_array()))
+                    data.extend(t.p.map(|v| v.extend(0.0).to_array()));
+                    t.uv
                 }
                 &Primitive::Sphere { center, radius } => {
-                    data.extend([center.extend(radius).to_array(), [0.0, 0.0, 0.0, 1.0], [0.0; 4]])
+                    data.extend([center.extend(radius).to_array(), [0.0, 0.0, 0.0, 1.0], [0.0; 4]]);
+                    [glam::Vec2::ZERO; 3]
                 }
-            }
+            };
             data.push(p.albedo.extend(if p.delta { 1.0 } else { 0.0 }).to_array());
             let (kind, scale, a, b) = match &p.pattern {
                 None => (0.0, 0.0, Vec3::ZERO, Vec3::ZERO),
@@ -486,15 +490,7 @@ impl RepresentationBuilder {
         while let Some(&r) = sizes.last().filter(|&&r| r > 1) {
             sizes.push(r.div_ceil(2));
         }
-        let offsets: Vec<u64> = sizes
-            .iter()
-            .scan(0u64, |at, &r| {
-                let here = *at;
-                *at += (r as u64).pow(3);
-                Some(here)
-            })
-            .collect();
-        let total = offsets.last().copied().unwrap_or(0) + 1;
+        let (offsets, total) = level_offsets(sizes.iter().map(|&r| (r as u64).pow(3)));
         let base = (res as u64).pow(3);
         let sums = storage(ctx, "voxel sums", base * 16);
         let levels = storage(ctx, "voxel levels", total * 16);
