@@ -1,14 +1,21 @@
 //! Issue 14's early gap to ASAP, measured: `cargo run --release -p mrstudy-analysis --example
-//! early_gap -- [RUNS] [20|8]`. Four schedulers against the same simulated Thurstone observers
-//! (no taste noise, a new participant every 20 trials, batches of 5 pairs per request): random
-//! pairs; the active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per
-//! condition); the same posterior re-anchored on a Laplace refit of every judgment before each
-//! batch ([`Posterior::reanchor`]) with the plain EIG (ρ = 1 from the start); and the refit with
-//! the server's ramp. Each run's judgments are scored by one estimator, the MAP of the Thurstone
-//! model with prior N(0, 1) per condition ([`laplace::refit`]), as the README's side-by-side with
-//! ASAP scores them; the centred RMSE ± its Monte-Carlo standard error at each checkpoint. `20`:
-//! the 20 log-worths of `studies/examples/twenty-conditions-worths.csv`; `8`: the thesis's
-//! factor effects (gi 0.27, cm −0.22, ca 0.43) as 8 conditions' log-worths.
+//! early_gap -- [RUNS] [20|8]`. Schedulers against the same simulated Thurstone observers (no
+//! taste noise, a new participant every 20 trials, requests of 5 pairs): random pairs; the
+//! active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
+//! the same posterior re-anchored on a Laplace refit of every judgment before each request
+//! ([`Posterior::reanchor`]) with the plain EIG (ρ = 1 from the start) or with the server's
+//! ramp; the ADF posterior scoring by variance alone (ρ = 0); and four rules tried on top of the refit with the plain EIG: ASAP's batches (the
+//! spanning tree of largest total EIG, N − 1 pairs, served in order across requests and
+//! recomputed when used up), balanced candidates (only pairs with a least-judged condition),
+//! pairs drawn with probability ∝ (EIG / largest EIG)⁴ instead of the greedy best, and ρ from
+//! the James–Stein factor of the posterior means, squared. Each run's judgments are scored by
+//! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
+//! ([`laplace::refit`]), as the README's side-by-side with ASAP scores them; the centred RMSE ±
+//! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
+//! `studies/examples/twenty-conditions-worths.csv`; `8`: the thesis's factor effects (gi 0.27,
+//! cm −0.22, ca 0.43) as 8 conditions' log-worths.
+
+use std::collections::VecDeque;
 
 use mrstudy_analysis::active::laplace::{self, refit};
 use mrstudy_analysis::active::simulate::{centred_rmse, factorial, mean_and_standard_error};
@@ -16,22 +23,82 @@ use mrstudy_analysis::active::{DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Post
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
-/// A scheduler: random pairs, or the active posterior with a largest ρ, a ramp (judgments per
-/// condition, 0: none) and whether it is re-anchored on a refit before each batch.
-struct Scheduler {
-    name: &'static str,
-    active: Option<(f64, f64, bool)>,
+/// How a scheduler picks a request's pairs.
+#[derive(Clone, Copy)]
+enum Rule {
+    Random,
+    /// The posterior's greedy batch with a largest ρ and a ramp (judgments per condition, 0:
+    /// none), re-anchored on a refit before each request or not.
+    Greedy {
+        rho: f64,
+        ramp: f64,
+        reanchor: bool,
+    },
+    /// Refit; the largest-EIG spanning tree, served in order.
+    Tree,
+    /// Refit; plain EIG among pairs with a least-judged condition.
+    Balanced,
+    /// Refit; pairs drawn ∝ (EIG / largest)^γ, without replacement.
+    Draw(f64),
+    /// Refit; ρ = (James–Stein factor of the means)^power, no ramp.
+    Stein(f64),
 }
 
-const SCHEDULERS: [Scheduler; 4] = [
-    Scheduler { name: "random pairs", active: None },
-    Scheduler { name: "active (ADF, ρ ramp to ½)", active: Some((DEFAULT_MEAN_WEIGHT, 20.0, false)) },
-    Scheduler { name: "refit + plain EIG (ρ = 1)", active: Some((1.0, 0.0, true)) },
-    Scheduler { name: "refit + ρ ramp to ½", active: Some((DEFAULT_MEAN_WEIGHT, 20.0, true)) },
+const SCHEDULERS: [(&str, Rule); 9] = [
+    ("random pairs", Rule::Random),
+    ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
+    ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
+    ("refit + ρ ramp to ½", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: true }),
+    ("ADF + variance only (ρ = 0)", Rule::Greedy { rho: 0.0, ramp: 0.0, reanchor: false }),
+    ("refit + spanning trees", Rule::Tree),
+    ("refit + balanced", Rule::Balanced),
+    ("refit + draw ∝ EIG⁴", Rule::Draw(4.0)),
+    ("refit + ρ Stein²", Rule::Stein(2.0)),
 ];
 
 fn uniform(rng: &mut ChaCha8Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Every pair (i < j) with its plain EIG.
+fn scored_pairs(posterior: &Posterior) -> Vec<(usize, usize, f64)> {
+    let n = posterior.conditions();
+    (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).map(|(i, j)| (i, j, posterior.eig(i, j))).collect()
+}
+
+/// The spanning tree of largest total EIG (Kruskal; ties by `rng`), best pair first.
+fn eig_tree(posterior: &Posterior, rng: &mut ChaCha8Rng) -> Vec<(usize, usize)> {
+    let mut pairs: Vec<(f64, u64, usize, usize)> =
+        scored_pairs(posterior).into_iter().map(|(i, j, eig)| (eig, rng.next_u64(), i, j)).collect();
+    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut parent: Vec<usize> = (0..posterior.conditions()).collect();
+    let find = |parent: &mut Vec<usize>, mut x: usize| {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    };
+    let mut tree = Vec::new();
+    for (_, _, i, j) in pairs {
+        let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+        if a != b {
+            parent[a] = b;
+            tree.push((i, j));
+        }
+    }
+    tree
+}
+
+/// ρ = (1 − (n − 3)·v̄ / Σ(mᵢ − m̄)²)₊^power, v̄ the mean variance of the centred log-worths.
+fn stein_weight(posterior: &Posterior, power: f64) -> f64 {
+    let n = posterior.conditions();
+    let (m, c) = (posterior.mean(), posterior.covariance());
+    let mean = m.iter().sum::<f64>() / n as f64;
+    let spread: f64 = m.iter().map(|x| (x - mean).powi(2)).sum();
+    let trace: f64 = (0..n).map(|i| c[i * n + i]).sum();
+    let centred_variance = (trace - c.iter().sum::<f64>() / n as f64) / n as f64;
+    (1.0 - (n as f64 - 3.0) * centred_variance / spread.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0).powf(power)
 }
 
 fn main() {
@@ -56,34 +123,36 @@ fn main() {
         refit(&target, Link::Probit, DEFAULT_PRIOR_SD, judgments).expect("a refit")
     };
     println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
-    for scheduler in &SCHEDULERS {
+    for (name, rule) in SCHEDULERS {
         let mut at: Vec<Vec<f64>> = vec![Vec::new(); checkpoints.len()];
         for run in 0..runs {
-            let mut posterior = scheduler.active.map(|(rho, ramp, _)| {
-                Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD)
-                    .and_then(|p| p.with_mean_weight(rho))
-                    .and_then(|p| p.with_mean_ramp(ramp))
-                    .expect("a posterior")
-            });
+            let (rho, ramp) = match rule {
+                Rule::Greedy { rho, ramp, .. } => (rho, ramp),
+                _ => (1.0, 0.0),
+            };
+            let mut posterior = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD)
+                .and_then(|p| p.with_mean_weight(rho))
+                .and_then(|p| p.with_mean_ramp(ramp))
+                .expect("a posterior");
             let mut outcomes = ChaCha8Rng::seed_from_u64(1000 + run);
             let mut random = ChaCha8Rng::seed_from_u64(5000 + run);
             let mut judgments: Vec<(usize, usize)> = Vec::new();
             let (mut participant, mut previous) = (0u64, None);
+            let mut queue: VecDeque<(usize, usize)> = VecDeque::new();
+            let mut counts = vec![0u64; n];
             while judgments.len() < total {
                 if judgments.len().is_multiple_of(20) {
                     participant += 1;
                     previous = None;
                 }
                 let k = 5.min(total - judgments.len());
-                let pairs = match (&mut posterior, scheduler.active) {
-                    (Some(posterior), Some((_, _, reanchor))) => {
-                        if reanchor && !judgments.is_empty() {
-                            posterior.reanchor(&map(&judgments)).expect("a usable refit");
-                        }
-                        let mut ties = tie_stream(run, posterior.state_id(), participant);
-                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
-                    }
-                    _ => (0..k)
+                let reanchor = !matches!(rule, Rule::Random | Rule::Greedy { reanchor: false, .. } | Rule::Tree);
+                if reanchor && !judgments.is_empty() {
+                    posterior.reanchor(&map(&judgments)).expect("a usable refit");
+                }
+                let mut ties = tie_stream(run, posterior.state_id(), participant);
+                let pairs: Vec<(usize, usize)> = match rule {
+                    Rule::Random => (0..k)
                         .map(|_| {
                             loop {
                                 let (i, j) =
@@ -94,11 +163,74 @@ fn main() {
                             }
                         })
                         .collect(),
+                    Rule::Greedy { .. } => posterior.best_pairs(k, previous, &mut ties).expect("a batch"),
+                    Rule::Stein(power) => {
+                        let weight = stein_weight(&posterior, power);
+                        posterior = posterior.clone().with_mean_weight(weight).expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
+                    Rule::Tree => (0..k)
+                        .map(|_| {
+                            if queue.is_empty() {
+                                if !judgments.is_empty() {
+                                    posterior.reanchor(&map(&judgments)).expect("a usable refit");
+                                }
+                                queue.extend(eig_tree(&posterior, &mut ties));
+                            }
+                            queue.pop_front().expect("a tree of n − 1 pairs")
+                        })
+                        .collect(),
+                    Rule::Balanced => {
+                        let scored = scored_pairs(&posterior);
+                        let mut last = previous;
+                        (0..k)
+                            .map(|_| {
+                                let least = *counts.iter().min().expect("conditions");
+                                let (i, j, _, _) = scored
+                                    .iter()
+                                    .filter(|&&(i, j, _)| counts[i].min(counts[j]) == least && last != Some((i, j)))
+                                    .map(|&(i, j, eig)| (i, j, eig, ties.next_u64()))
+                                    .max_by(|a, b| a.2.total_cmp(&b.2).then(a.3.cmp(&b.3)))
+                                    .expect("a candidate");
+                                counts[i] += 1;
+                                counts[j] += 1;
+                                last = Some((i, j));
+                                (i, j)
+                            })
+                            .collect()
+                    }
+                    Rule::Draw(gamma) => {
+                        let mut scored = scored_pairs(&posterior);
+                        let top = scored.iter().map(|c| c.2).fold(0.0, f64::max);
+                        for c in &mut scored {
+                            c.2 = (c.2 / top).powf(gamma);
+                        }
+                        let mut last = previous;
+                        (0..k)
+                            .map(|_| {
+                                let total: f64 = scored.iter().filter(|c| Some((c.0, c.1)) != last).map(|c| c.2).sum();
+                                let mut r = uniform(&mut ties) * total;
+                                let mut pick = None;
+                                for (index, c) in scored.iter().enumerate() {
+                                    if Some((c.0, c.1)) != last {
+                                        pick = Some(index);
+                                        r -= c.2;
+                                        if r < 0.0 {
+                                            break;
+                                        }
+                                    }
+                                }
+                                let (i, j, _) = scored.remove(pick.expect("a pair"));
+                                last = Some((i, j));
+                                (i, j)
+                            })
+                            .collect()
+                    }
                 };
                 for (i, j) in pairs {
                     let i_won = uniform(&mut outcomes) < Link::Probit.probability(worths[i] - worths[j]);
                     let (winner, loser) = if i_won { (i, j) } else { (j, i) };
-                    if let Some(posterior) = &mut posterior {
+                    if !matches!(rule, Rule::Random) {
                         posterior.update(winner, loser).expect("an update");
                     }
                     judgments.push((winner, loser));
@@ -117,6 +249,6 @@ fn main() {
                 format!("{trials}: {mean:.3} ± {se:.3}")
             })
             .collect();
-        println!("{:<28} {}", scheduler.name, cells.join("   "));
+        println!("{name:<28} {}", cells.join("   "));
     }
 }
