@@ -8,7 +8,8 @@
 //! spanning tree of largest total EIG, N − 1 pairs, served in order across requests and
 //! recomputed when used up), balanced candidates (only pairs with a least-judged condition),
 //! pairs drawn with probability ∝ (EIG / largest EIG)⁴ instead of the greedy best, and ρ from
-//! the James–Stein factor of the posterior means, squared. Each run's judgments are scored by
+//! the James–Stein factor of the posterior means, squared; and the EIG with ASAP's diagonal
+//! variance, batched by spanning trees or by greedy matchings. Each run's judgments are scored by
 //! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
 //! ([`laplace::refit`]), as the README's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
@@ -42,9 +43,12 @@ enum Rule {
     Draw(f64),
     /// Refit; ρ = (James–Stein factor of the means)^power, no ramp.
     Stein(f64),
+    /// Refit; the EIG with the diagonal variance Σᵢᵢ + Σⱼⱼ (as ASAP's factorised posterior has
+    /// it), batched by spanning trees (true) or by greedy matchings (false).
+    Diagonal(bool),
 }
 
-const SCHEDULERS: [(&str, Rule); 9] = [
+const SCHEDULERS: [(&str, Rule); 11] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -54,6 +58,8 @@ const SCHEDULERS: [(&str, Rule); 9] = [
     ("refit + balanced", Rule::Balanced),
     ("refit + draw ∝ EIG⁴", Rule::Draw(4.0)),
     ("refit + ρ Stein²", Rule::Stein(2.0)),
+    ("refit + diagonal EIG + trees", Rule::Diagonal(true)),
+    ("refit + diagonal + matchings", Rule::Diagonal(false)),
 ];
 
 fn uniform(rng: &mut ChaCha8Rng) -> f64 {
@@ -71,7 +77,12 @@ fn eig_tree(posterior: &Posterior, rng: &mut ChaCha8Rng) -> Vec<(usize, usize)> 
     let mut pairs: Vec<(f64, u64, usize, usize)> =
         scored_pairs(posterior).into_iter().map(|(i, j, eig)| (eig, rng.next_u64(), i, j)).collect();
     pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-    let mut parent: Vec<usize> = (0..posterior.conditions()).collect();
+    spanning_tree(posterior.conditions(), pairs.into_iter().map(|(_, _, i, j)| (i, j)))
+}
+
+/// Kruskal's spanning tree over `pairs` sorted best first.
+fn spanning_tree(n: usize, pairs: impl Iterator<Item = (usize, usize)>) -> Vec<(usize, usize)> {
+    let mut parent: Vec<usize> = (0..n).collect();
     let find = |parent: &mut Vec<usize>, mut x: usize| {
         while parent[x] != x {
             parent[x] = parent[parent[x]];
@@ -80,7 +91,7 @@ fn eig_tree(posterior: &Posterior, rng: &mut ChaCha8Rng) -> Vec<(usize, usize)> 
         x
     };
     let mut tree = Vec::new();
-    for (_, _, i, j) in pairs {
+    for (i, j) in pairs {
         let (a, b) = (find(&mut parent, i), find(&mut parent, j));
         if a != b {
             parent[a] = b;
@@ -119,6 +130,8 @@ fn main() {
     let checkpoints: Vec<usize> = if n == 20 { vec![100, 200, 400, 800] } else { vec![40, 80, 160, 320] };
     let total = *checkpoints.last().expect("a checkpoint");
     let target = Target::Worths { conditions: n };
+    let gauss =
+        mrstudy_analysis::active::quadrature::Rule::gauss_hermite(mrstudy_analysis::active::quadrature::EIG_NODES);
     let map = |judgments: &[(usize, usize)]| -> laplace::LaplaceFit {
         refit(&target, Link::Probit, DEFAULT_PRIOR_SD, judgments).expect("a refit")
     };
@@ -168,6 +181,45 @@ fn main() {
                         let weight = stein_weight(&posterior, power);
                         posterior = posterior.clone().with_mean_weight(weight).expect("a weight");
                         posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
+                    Rule::Diagonal(trees) => {
+                        let (m, c) = (posterior.mean(), posterior.covariance());
+                        let mut scored: Vec<(f64, u64, usize, usize)> = (0..n)
+                            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+                            .map(|(i, j)| {
+                                let eig = Link::Probit.eig(m[i] - m[j], c[i * n + i] + c[j * n + j], &gauss);
+                                (eig, ties.next_u64(), i, j)
+                            })
+                            .collect();
+                        scored.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                        let best_first = scored.iter().map(|&(_, _, i, j)| (i, j));
+                        if trees {
+                            (0..k)
+                                .map(|_| {
+                                    if queue.is_empty() {
+                                        queue.extend(spanning_tree(n, best_first.clone()));
+                                    }
+                                    queue.pop_front().expect("a tree of n − 1 pairs")
+                                })
+                                .collect()
+                        } else {
+                            // each condition at most once per batch, then the best pairs left
+                            let mut used = vec![false; n];
+                            let mut batch: Vec<(usize, usize)> = Vec::new();
+                            for (i, j) in best_first.clone() {
+                                if batch.len() < k && !used[i] && !used[j] && previous != Some((i, j)) {
+                                    used[i] = true;
+                                    used[j] = true;
+                                    batch.push((i, j));
+                                }
+                            }
+                            for pair in best_first {
+                                if batch.len() < k && !batch.contains(&pair) {
+                                    batch.push(pair);
+                                }
+                            }
+                            batch
+                        }
                     }
                     Rule::Tree => (0..k)
                         .map(|_| {
