@@ -11,7 +11,10 @@
 //! rows).
 //!
 //! Every pass is timed by waiting for the device after it (`timed` in [`crate::gpu`]), so a
-//! frame here is a sum of synchronised passes, an upper bound of a pipelined frame's time.
+//! frame of the first series is a sum of synchronised passes. A second series renders the same
+//! frames pipelined ([`crate::gpu::GpuContext::set_pass_waits`] off: passes only submitted,
+//! the frame waiting where it needs data back) — the frame rate the renderer reaches as built,
+//! with the same images.
 
 use std::time::Instant;
 
@@ -42,6 +45,12 @@ pub struct FrameRateRow {
     pub p90_ms: f64,
     /// 1000 / median_ms.
     pub fps: f64,
+    /// The same frames pipelined (no wait after each pass): median, 10th and 90th percentile.
+    pub pipelined_median_ms: f64,
+    pub pipelined_p10_ms: f64,
+    pub pipelined_p90_ms: f64,
+    /// 1000 / pipelined_median_ms.
+    pub pipelined_fps: f64,
     /// The sum of the passes' medians: what the passes account for of the median frame (the
     /// rest: allocations, bind groups and the like outside the timed passes).
     pub passes_ms: f64,
@@ -64,8 +73,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let adapter = renderer.ctx.adapter_name();
     observer.note(&format!("bench render --frame-rate on {adapter}: {width}×{height}, {frames} frames per row"));
     observer.line(&format!(
-        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8}   slowest passes (median ms)",
-        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps"
+        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8} {:>12} {:>8}   slowest passes (median ms)",
+        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps", "pipelined ms", "fps"
     ));
     let mut rows = Vec::new();
     for name in &names {
@@ -103,6 +112,20 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let passes: Vec<PassTime> =
                 pass_times.into_iter().map(|(pass, mut ms)| PassTime { pass, ms: quantile(&mut ms, 0.5) }).collect();
             let median_ms = quantile(&mut times, 0.5);
+            renderer.ctx.set_pass_waits(false);
+            let mut pipelined = Vec::with_capacity(frames as usize);
+            let series = (|| {
+                renderer.render(&scene, &photo, &params)?;
+                for _ in 0..frames {
+                    let start = Instant::now();
+                    renderer.render(&scene, &photo, &params)?;
+                    pipelined.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+                Ok::<(), crate::error::RenderError>(())
+            })();
+            renderer.ctx.set_pass_waits(true);
+            series?;
+            let pipelined_median_ms = quantile(&mut pipelined, 0.5);
             let row = FrameRateRow {
                 scene: name.clone(),
                 condition,
@@ -118,6 +141,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 p10_ms: quantile(&mut times, 0.1),
                 p90_ms: quantile(&mut times, 0.9),
                 fps: 1000.0 / median_ms.max(1e-9),
+                pipelined_median_ms,
+                pipelined_p10_ms: quantile(&mut pipelined, 0.1),
+                pipelined_p90_ms: quantile(&mut pipelined, 0.9),
+                pipelined_fps: 1000.0 / pipelined_median_ms.max(1e-9),
                 passes_ms: passes.iter().map(|p| p.ms).sum(),
                 passes,
             };
@@ -125,13 +152,15 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             slowest.sort_by(|a, b| b.ms.total_cmp(&a.ms));
             let slowest: Vec<String> = slowest.iter().take(3).map(|p| format!("{} {:.2}", p.pass, p.ms)).collect();
             observer.line(&format!(
-                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1}   {}",
+                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1}   {}",
                 row.scene,
                 condition.name(),
                 row.median_ms,
                 row.p10_ms,
                 row.p90_ms,
                 row.fps,
+                row.pipelined_median_ms,
+                row.pipelined_fps,
                 slowest.join("; ")
             ));
             rows.push(row);

@@ -4,6 +4,7 @@
 
 use crate::error::{RenderError, Result};
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Which kind of adapter to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,6 +54,9 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub kind: AdapterKind,
+    /// Whether a frame waits for the device after every pass to time it (the default; see
+    /// [`GpuContext::set_pass_waits`]).
+    pass_waits: AtomicBool,
 }
 
 impl GpuContext {
@@ -114,7 +118,7 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| RenderError::Unsupported(format!("the adapter {} refused a device: {e}", describe(&info))))?;
-        Ok(GpuContext { device, queue, info, kind })
+        Ok(GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true) })
     }
 
     /// Compiles the WGSL `source` (named `name` in errors) and one compute pipeline per entry
@@ -168,6 +172,21 @@ impl GpuContext {
     /// The adapter in words, for reports: name, backend and kind.
     pub fn adapter_name(&self) -> String {
         describe(&self.info)
+    }
+
+    /// On (the default): every pass of a frame waits for the device and is timed, so a frame's
+    /// report says where its time went. Off: passes are only submitted, in order, and the
+    /// frame waits where it needs data back (the RSMs for the VPLs, the caustic maps'
+    /// candidates, the composite) — a pipelined frame, whose report lists only its CPU steps. The
+    /// images are the same either way (wgpu runs submissions in order); only the timing
+    /// differs. `bench render --frame-rate` measures both.
+    pub fn set_pass_waits(&self, on: bool) {
+        self.pass_waits.store(on, Ordering::Relaxed);
+    }
+
+    /// Whether frames wait for the device after every pass ([`GpuContext::set_pass_waits`]).
+    pub fn pass_waits(&self) -> bool {
+        self.pass_waits.load(Ordering::Relaxed)
     }
 
     /// Blocks until the GPU has finished all submitted work.

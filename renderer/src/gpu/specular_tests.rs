@@ -451,3 +451,32 @@ fn a_virtual_glass_sphere_shows_the_refracted_floor_from_the_photograph() {
     assert!(projected as f32 >= 0.6 * checked as f32, "{projected} of {checked} pixels from the photograph");
     assert!(agree as f32 >= 0.9 * projected as f32, "{agree} of {projected} glass pixels show the refracted floor");
 }
+
+/// A pipelined frame (no wait after each pass, [`GpuContext::set_pass_waits`] off) is the same
+/// frame: gi with its bounce, caustic maps and their reflected VPLs, bit for bit; its report
+/// lists only the CPU steps, and the context times passes again once switched back.
+#[test]
+fn a_pipelined_frame_equals_the_frame_timed_pass_by_pass() {
+    let Some(r) = renderer_or_skip() else { return };
+    let scene = mirror_caustic_scene();
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = DirParams { vpls: 64, bounces: 2, ..Default::default() };
+    let timed = r.render(&scene, &photo, &params).unwrap();
+    r.ctx.set_pass_waits(false);
+    let pipelined = r.render(&scene, &photo, &params);
+    r.ctx.set_pass_waits(true);
+    let pipelined = pipelined.unwrap();
+    assert!(timed.report.specular.as_ref().and_then(|s| s.caustics.as_ref()).is_some(), "caustic maps ran");
+    for (name, a, b) in [
+        ("composite", &timed.composite, &pipelined.composite),
+        ("L_rv", &timed.l_rv, &pipelined.l_rv),
+        ("L_r", &timed.l_r, &pipelined.l_r),
+    ] {
+        assert!(a.pixels == b.pixels, "the pipelined frame's {name} differs");
+    }
+    assert_eq!(timed.vpls.len(), pipelined.vpls.len());
+    assert!(timed.report.passes.len() > 10, "{:?}", timed.report.passes);
+    assert!(pipelined.report.passes.iter().all(|p| p.pass.contains("CPU")), "{:?}", pipelined.report.passes);
+    let again = r.render(&scene, &photo, &params).unwrap();
+    assert_eq!(again.report.passes.len(), timed.report.passes.len());
+}
