@@ -12,7 +12,7 @@
 //!
 //! Every pass is timed by waiting for the device after it (`timed` in [`crate::gpu`]), so a
 //! frame of the first series is a sum of synchronised passes. A second series renders the same
-//! frames pipelined ([`crate::gpu::GpuContext::set_pass_waits`] off: passes only submitted,
+//! frames pipelined ([`crate::gpu::context::GpuContext::set_pass_waits`] off: passes only submitted,
 //! the frame waiting where it needs data back) — the frame rate the renderer reaches as built,
 //! with the same images.
 
