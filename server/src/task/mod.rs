@@ -163,8 +163,10 @@ impl LabStudy {
                 paced_speed(pace)
             ),
             (true, Some(pace)) => format!(
-                "the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at the slowest condition's {pace:.1} ms{}, so lag does not tell them apart",
-                paced_speed(pace)
+                "the conditions differ by {spread:.0} % in frame time; pace = \"equal\" sends every condition's frames at {pace:.1} ms ({headroom}× the slowest condition's {quantile:.0}th-percentile frame time){}, so lag does not tell them apart",
+                paced_speed(pace),
+                headroom = timing::PACE_HEADROOM,
+                quantile = timing::PACE_QUANTILE * 100.0
             ),
             (true, None) => format!(
                 "the conditions differ by {spread:.0} % in frame time, so condition is confounded with lag — set pace = \"equal\" in the study file to send every condition's frames at the slowest's"
