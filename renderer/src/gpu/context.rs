@@ -3,6 +3,7 @@
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 
 use crate::error::{RenderError, Result};
+use rayon::prelude::*;
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -197,25 +198,21 @@ impl GpuContext {
         let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
     }
 
-    /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU, copying the
-    /// mapped memory in blocks on all threads (see [`GpuContext::read_staged_f32`]).
+    /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU (copied once,
+    /// in blocks on all threads).
     pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Vec<u8> {
-        use rayon::prelude::*;
+        self.mapped(buffer, copy_blocks::<u8>).unwrap_or_default()
+    }
+
+    /// Maps a `MAP_READ` buffer (waiting for the device), hands its bytes to `read` and unmaps
+    /// it; `None` when it cannot be mapped.
+    fn mapped<R>(&self, buffer: &wgpu::Buffer, read: impl FnOnce(&[u8]) -> R) -> Option<R> {
         let slice = buffer.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
         self.wait();
-        let bytes = match slice.get_mapped_range() {
-            Ok(view) => {
-                let mut out = vec![0u8; view.len()];
-                out.par_chunks_mut(READ_BLOCK)
-                    .zip(view.par_chunks(READ_BLOCK))
-                    .for_each(|(to, from)| to.copy_from_slice(from));
-                out
-            }
-            Err(_) => Vec::new(),
-        };
+        let out = slice.get_mapped_range().ok().map(|view| read(&view));
         buffer.unmap();
-        bytes
+        out
     }
 
     /// Copies a storage buffer to a fresh staging buffer and reads it back as `f32`s.
@@ -244,23 +241,9 @@ impl GpuContext {
     }
 
     /// Maps a staging buffer (waiting for the device) and copies it once, straight into
-    /// `f32`s, in blocks on all threads (reading mapped memory is slow from one thread: a
-    /// 1024×768 frame's 38 MB took 10–22 ms on an H200's host).
+    /// `f32`s, in blocks on all threads.
     pub fn read_staged_f32(&self, staging: &wgpu::Buffer) -> Vec<f32> {
-        use rayon::prelude::*;
-        const BLOCK: usize = READ_BLOCK / 4;
-        let slice = staging.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.wait();
-        let mut out = vec![0f32; (staging.size() / 4) as usize];
-        if let Ok(view) = slice.get_mapped_range() {
-            let bytes: &[u8] = &view[..out.len() * 4];
-            out.par_chunks_mut(BLOCK)
-                .zip(bytes.par_chunks(4 * BLOCK))
-                .for_each(|(to, from)| bytemuck::cast_slice_mut::<f32, u8>(to).copy_from_slice(from));
-        }
-        staging.unmap();
-        out
+        self.mapped(staging, copy_blocks::<f32>).unwrap_or_default()
     }
 
     /// Reads a 2D texture of 16-byte texels (`Rgba32Float`) back as `[f32; 4]` per texel.
@@ -313,12 +296,8 @@ impl GpuContext {
         }
         self.queue.submit([encoder.finish()]);
         // rows copied straight from the mapped memory without their padding, on all threads
-        use rayon::prelude::*;
-        let slice = staging.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.wait();
-        let out = match slice.get_mapped_range() {
-            Ok(view) => layouts
+        self.mapped(&staging, |view| {
+            layouts
                 .iter()
                 .map(|&(offset, row, padded, h)| {
                     let mut out = vec![0u8; (row * h) as usize];
@@ -330,12 +309,23 @@ impl GpuContext {
                     }
                     out
                 })
-                .collect(),
-            Err(_) => vec![Vec::new(); textures.len()],
-        };
-        staging.unmap();
-        out
+                .collect()
+        })
+        .unwrap_or_else(|| vec![Vec::new(); textures.len()])
     }
+}
+
+/// `bytes` as `T`s, copied once, in blocks of [`READ_BLOCK`] bytes on all threads: reading
+/// mapped memory is slow from one thread (a 1024×768 frame's 38 MB took 10–22 ms on an H200's
+/// host).
+fn copy_blocks<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
+    let mut out = vec![T::zeroed(); bytes.len() / std::mem::size_of::<T>()];
+    let whole = std::mem::size_of_val(out.as_slice());
+    bytemuck::cast_slice_mut::<T, u8>(&mut out)
+        .par_chunks_mut(READ_BLOCK)
+        .zip(bytes[..whole].par_chunks(READ_BLOCK))
+        .for_each(|(to, from)| to.copy_from_slice(from));
+    out
 }
 
 /// The G-buffer and shadow maps render to `Rgba32Float` and `R32Float` (GL ES often cannot).
