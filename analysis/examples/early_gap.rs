@@ -1,5 +1,6 @@
 //! Issue 14's early gap to ASAP, measured: `cargo run --release -p mrstudy-analysis --example
-//! early_gap -- [RUNS] [20|8]`. Schedulers against the same simulated Thurstone observers (no
+//! early_gap -- [RUNS] [20|8] [NAME,NAME…]` (the last: only the schedulers whose
+//! names contain one of these). Schedulers against the same simulated Thurstone observers (no
 //! taste noise, a new participant every 20 trials, requests of 5 pairs): random pairs; the
 //! active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
 //! the same posterior re-anchored on a Laplace refit of every judgment before each request
@@ -46,9 +47,12 @@ enum Rule {
     /// Refit; the EIG with the diagonal variance Σᵢᵢ + Σⱼⱼ (as ASAP's factorised posterior has
     /// it), batched by spanning trees (true) or by greedy matchings (false).
     Diagonal(bool),
+    /// Refit; the plain EIG (ρ = 1) once the moment estimate of the worths' sd,
+    /// √(Σ(mᵢ − m̄)²/(n − 1) − v̄), reaches the threshold, the server's ρ ramp to ½ before.
+    Spread(f64),
 }
 
-const SCHEDULERS: [(&str, Rule); 11] = [
+const SCHEDULERS: [(&str, Rule); 14] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -60,6 +64,9 @@ const SCHEDULERS: [(&str, Rule); 11] = [
     ("refit + ρ Stein²", Rule::Stein(2.0)),
     ("refit + diagonal EIG + trees", Rule::Diagonal(true)),
     ("refit + diagonal + matchings", Rule::Diagonal(false)),
+    ("refit + switch at sd 0.5", Rule::Spread(0.5)),
+    ("refit + switch at sd 0.7", Rule::Spread(0.7)),
+    ("refit + switch at sd 0.9", Rule::Spread(0.9)),
 ];
 
 fn uniform(rng: &mut ChaCha8Rng) -> f64 {
@@ -112,10 +119,24 @@ fn stein_weight(posterior: &Posterior, power: f64) -> f64 {
     (1.0 - (n as f64 - 3.0) * centred_variance / spread.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0).powf(power)
 }
 
+/// The moment estimate of the sd of the log-worths: √(Σ(mᵢ − m̄)²/(n − 1) − v̄)₊, v̄ the mean
+/// variance of the centred posterior log-worths.
+fn spread_estimate(posterior: &Posterior) -> f64 {
+    let n = posterior.conditions();
+    let (m, c) = (posterior.mean(), posterior.covariance());
+    let mean = m.iter().sum::<f64>() / n as f64;
+    let spread: f64 = m.iter().map(|x| (x - mean).powi(2)).sum();
+    let trace: f64 = (0..n).map(|i| c[i * n + i]).sum();
+    let centred_variance = (trace - c.iter().sum::<f64>() / n as f64) / n as f64;
+    (spread / (n as f64 - 1.0) - centred_variance).max(0.0).sqrt()
+}
+
 fn main() {
     let mut args = std::env::args().skip(1);
     let runs: u64 = args.next().map_or(40, |a| a.parse().expect("RUNS"));
     let study = args.next().unwrap_or_else(|| "20".into());
+    // optional: only the schedulers whose names contain one of these comma-separated parts
+    let only: Option<Vec<String>> = args.next().map(|a| a.split(',').map(str::to_owned).collect());
     let worths: Vec<f64> = match study.as_str() {
         "20" => std::fs::read_to_string("studies/examples/twenty-conditions-worths.csv")
             .expect("run from the repository's root")
@@ -137,6 +158,9 @@ fn main() {
     };
     println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
     for (name, rule) in SCHEDULERS {
+        if only.as_ref().is_some_and(|parts| !parts.iter().any(|p| name.contains(p.as_str()))) {
+            continue;
+        }
         let mut at: Vec<Vec<f64>> = vec![Vec::new(); checkpoints.len()];
         for run in 0..runs {
             let (rho, ramp) = match rule {
@@ -177,6 +201,16 @@ fn main() {
                         })
                         .collect(),
                     Rule::Greedy { .. } => posterior.best_pairs(k, previous, &mut ties).expect("a batch"),
+                    Rule::Spread(threshold) => {
+                        let (rho, ramp) =
+                            if spread_estimate(&posterior) >= threshold { (1.0, 0.0) } else { (DEFAULT_MEAN_WEIGHT, 20.0) };
+                        posterior = posterior
+                            .clone()
+                            .with_mean_weight(rho)
+                            .and_then(|p| p.with_mean_ramp(ramp))
+                            .expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
                     Rule::Stein(power) => {
                         let weight = stein_weight(&posterior, power);
                         posterior = posterior.clone().with_mean_weight(weight).expect("a weight");

@@ -338,6 +338,7 @@ impl<P: Clone> Bvh<P> {
     }
 
     /// Nearest intersection in (t_min, t_max).
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<BvhHit> {
         if self.nodes.is_empty() {
             return None;

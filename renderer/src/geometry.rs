@@ -150,7 +150,7 @@ impl Primitive {
 
     /// [`Primitive::surface`], with a sphere's texture coordinates (an arc tangent and an arc
     /// cosine) computed only when `uv` asks for them (a textured material); otherwise zero.
-    #[inline]
+    #[inline(always)]
     pub fn surface_with(&self, ray: &Ray, t: f32, u: f32, v: f32, uv: bool) -> SurfaceHit {
         let point = ray.origin + ray.dir * t;
         match self {

@@ -260,6 +260,7 @@ impl Bsdf {
 
     /// f(wi, wo) and the solid-angle pdf of sampling `wi` given `wo`, with one change of frame
     /// (next-event estimation's MIS needs both).
+    #[inline]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let lo = self.frame.to_local(wo);
         let li = self.frame.to_local(wi);
@@ -286,6 +287,7 @@ impl Bsdf {
     }
 
     /// Samples an incoming direction with uniform numbers `u_lobe`, `u1`, `u2`.
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u1: f32, u2: f32) -> Option<BsdfSample> {
         let lo = self.frame.to_local(wo);
         if lo.z <= 0.0 || (self.kd.max_element() <= 0.0 && self.ks.max_element() <= 0.0) {

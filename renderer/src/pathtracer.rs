@@ -80,6 +80,7 @@ pub(crate) fn delta_bounce(
 /// The diffuse and Blinn–Phong BSDF of `material` at a hit (`ng`: the geometric normal on the
 /// side the path came from), with its shading normal turned to that side and the point to
 /// continue from; `None` when the surface reflects nothing.
+#[inline(always)]
 pub(crate) fn shade(material: &Material, s: &SurfaceHit, ng: Vec3) -> Option<(Vec3, Bsdf, Vec3)> {
     let mut ns = s.shading_normal;
     if ns.dot(ng) < 0.0 {
@@ -235,6 +236,7 @@ impl World {
 
     /// The material of a hit and the surface there (texture coordinates only where the
     /// material is textured).
+    #[inline(always)]
     fn surface_at(&self, ray: &Ray, hit: &BvhHit) -> (&Material, SurfaceHit) {
         let mat = &self.materials[self.bvh.payload[hit.prim].material as usize];
         (mat, self.bvh.prims[hit.prim].surface_with(ray, hit.t, hit.u, hit.v, mat.texture.is_some()))
