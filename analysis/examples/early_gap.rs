@@ -202,8 +202,11 @@ fn main() {
                         .collect(),
                     Rule::Greedy { .. } => posterior.best_pairs(k, previous, &mut ties).expect("a batch"),
                     Rule::Spread(threshold) => {
-                        let (rho, ramp) =
-                            if spread_estimate(&posterior) >= threshold { (1.0, 0.0) } else { (DEFAULT_MEAN_WEIGHT, 20.0) };
+                        let (rho, ramp) = if spread_estimate(&posterior) >= threshold {
+                            (1.0, 0.0)
+                        } else {
+                            (DEFAULT_MEAN_WEIGHT, 20.0)
+                        };
                         posterior = posterior
                             .clone()
                             .with_mean_weight(rho)

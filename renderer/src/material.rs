@@ -19,7 +19,7 @@
 use crate::image::Image;
 use crate::math::{Frame, luminance, sample_cosine_hemisphere};
 use glam::{Vec2, Vec3};
-use std::f32::consts::PI;
+use std::f32::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
 
 /// A texture lookup: an image (linear values, repeat wrap, bilinear) or a procedural pattern.
@@ -249,7 +249,7 @@ impl Bsdf {
         if lo.z <= 0.0 || li.z <= 0.0 {
             return Vec3::ZERO;
         }
-        let mut f = self.kd / PI;
+        let mut f = self.kd * FRAC_1_PI;
         if self.ks.max_element() > 0.0 {
             let h = (lo + li).normalize();
             let idoth = li.dot(h).max(1e-8);
@@ -278,7 +278,7 @@ impl Bsdf {
         if lo.z <= 0.0 || li.z <= 0.0 {
             return 0.0;
         }
-        let mut pdf = (1.0 - self.p_spec) * li.z / PI;
+        let mut pdf = (1.0 - self.p_spec) * li.z * FRAC_1_PI;
         if self.p_spec > 0.0 {
             let h = (lo + li).normalize();
             pdf += self.p_spec * self.d(h.z) / (4.0 * lo.dot(h).max(1e-8));
@@ -299,7 +299,7 @@ impl Bsdf {
             if li.z <= 0.0 {
                 return None;
             }
-            return Some(BsdfSample { wi: self.frame.to_world(li), weight: self.kd, pdf: li.z / PI });
+            return Some(BsdfSample { wi: self.frame.to_world(li), weight: self.kd, pdf: li.z * FRAC_1_PI });
         }
         let li = if u_lobe < self.p_spec {
             let cos_h = u1.powf(1.0 / (self.exponent + 1.0));

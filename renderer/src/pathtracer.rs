@@ -435,7 +435,7 @@ impl World {
                         let d = spot.position - p;
                         let dist2 = d.length_squared();
                         let dist = dist2.sqrt();
-                        let wi = d / dist;
+                        let wi = d * (1.0 / dist);
                         let intensity = spot.intensity_towards(-wi);
                         let cos = ns.dot(wi);
                         if intensity.max_element() > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
@@ -455,7 +455,7 @@ impl World {
                         let d = q - p;
                         let dist2 = d.length_squared();
                         let dist = dist2.sqrt();
-                        let wi = d / dist;
+                        let wi = d * (1.0 / dist);
                         let cos_l = em.normal.dot(-wi);
                         let cos = ns.dot(wi);
                         if cos_l > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
