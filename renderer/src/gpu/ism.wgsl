@@ -79,6 +79,14 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 
     // into the VPL's hemisphere
     let vpl = vpls[vpl_index];
+    // a point on the VPL's own plane cannot shadow it (the fragment shader's first test, which
+    // depends on the splat alone): the whole splat goes beyond the far plane instead of being
+    // rasterised and discarded texel by texel — these splats lie along the tile's rim and are
+    // the largest when the point is near the VPL
+    if abs(dot(p - vpl.position.xyz, n)) < 0.5 * params.scale.y {
+        out.clip = vec4<f32>(0.0, 0.0, 2.0, 1.0);
+        return out;
+    }
     let nv = vpl.normal.xyz;
     let d = q - vpl.position.xyz;
     let dist = max(length(d), 1e-6);

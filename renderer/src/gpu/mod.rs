@@ -532,13 +532,15 @@ impl DirRenderer {
                     if virtual_maps { ", real and virtual" } else { ", real" }
                 ),
                 || {
+                    // every direction's maps in one submission
+                    let mut maps = Vec::new();
                     for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
                         let (matrix, eye) = directional_view(*forward, centre, radius, depth);
                         let view = ViewUniform::orthographic(matrix, eye, *forward);
                         let layer = 2 * (first + k as u32);
-                        self.raster.shadow_map(ctx, &buffers, &view, Subset::Real, &layer_view(layer), size);
+                        maps.push((view, Subset::Real, layer_view(layer)));
                         if virtual_maps {
-                            self.raster.shadow_map(ctx, &buffers, &view, Subset::Virtual, &layer_view(layer + 1), size);
+                            maps.push((view, Subset::Virtual, layer_view(layer + 1)));
                         }
                         lights.push(GpuLight {
                             view_proj: matrix.to_cols_array_2d(),
@@ -548,6 +550,9 @@ impl DirRenderer {
                             info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
                         });
                     }
+                    let maps: Vec<(ViewUniform, Subset, &wgpu::TextureView)> =
+                        maps.iter().map(|(view, subset, target)| (*view, *subset, target)).collect();
+                    self.raster.shadow_maps(ctx, &buffers, &maps, size);
                 },
             );
         }

@@ -134,6 +134,10 @@ pub struct Raster {
     gbuffer_back: wgpu::RenderPipeline,
     shadow: wgpu::RenderPipeline,
     rsm: wgpu::RenderPipeline,
+    /// Depth attachments by size, made once and reused by every pass of that size (each pass
+    /// clears its depth on load and discards it on store, and the queue runs passes in order);
+    /// making a new one per pass cost each of a frame's 60-odd passes a texture allocation.
+    depth_cache: std::sync::Mutex<Vec<((u32, u32), wgpu::TextureView)>>,
 }
 
 pub const SHADER: &str = include_str!("raster.wgsl");
@@ -199,6 +203,7 @@ impl Raster {
                 &[distance, surface.clone(), surface.clone(), surface],
                 less,
             ),
+            depth_cache: std::sync::Mutex::new(Vec::new()),
         }
     }
 
@@ -214,17 +219,33 @@ impl Raster {
             contents: bytemuck::bytes_of(view),
             usage: wgpu::BufferUsages::UNIFORM,
         });
+        self.bind_group_with(ctx, pipeline, scene, uniform.as_entire_binding())
+    }
+
+    /// The bind group of a pass whose view uniform is `view` (a whole buffer or a part of one).
+    fn bind_group_with(
+        &self,
+        ctx: &GpuContext,
+        pipeline: &wgpu::RenderPipeline,
+        scene: &SceneBuffers,
+        view: wgpu::BindingResource<'_>,
+    ) -> wgpu::BindGroup {
         let layout = pipeline.get_bind_group_layout(0);
         // fs_shadow does not read the materials, so its derived layout has no binding 1
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: view }];
         if !std::ptr::eq(pipeline, &self.shadow) {
             entries.push(wgpu::BindGroupEntry { binding: 1, resource: scene.materials.as_entire_binding() });
         }
         ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
     }
 
-    fn depth(ctx: &GpuContext, width: u32, height: u32) -> wgpu::TextureView {
-        ctx.device
+    fn depth(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::TextureView {
+        let mut cache = self.depth_cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, view)) = cache.iter().find(|(size, _)| *size == (width, height)) {
+            return view.clone();
+        }
+        let view = ctx
+            .device
             .create_texture(&wgpu::TextureDescriptor {
                 label: Some("depth"),
                 size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
@@ -235,7 +256,9 @@ impl Raster {
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
                 view_formats: &[],
             })
-            .create_view(&Default::default())
+            .create_view(&Default::default());
+        cache.push(((width, height), view.clone()));
+        view
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -250,7 +273,25 @@ impl Raster {
         targets: &[(&wgpu::TextureView, f64)],
     ) {
         let bind_group = self.bind_group(ctx, pipeline, scene, view);
-        let depth = Self::depth(ctx, size.0, size.1);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.record(ctx, &mut encoder, pipeline, &bind_group, scene, subset, size, targets);
+        ctx.queue.submit([encoder.finish()]);
+    }
+
+    /// Records one pass of [`Raster::draw`] into `encoder`.
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        bind_group: &wgpu::BindGroup,
+        scene: &SceneBuffers,
+        subset: Subset,
+        size: (u32, u32),
+        targets: &[(&wgpu::TextureView, f64)],
+    ) {
+        let depth = self.depth(ctx, size.0, size.1);
         let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
             .iter()
             .map(|(view, clear)| {
@@ -265,7 +306,6 @@ impl Raster {
                 })
             })
             .collect();
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: None,
@@ -282,12 +322,11 @@ impl Raster {
             let range = scene.range(subset);
             if !range.is_empty() {
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_bind_group(0, bind_group, &[]);
                 pass.set_vertex_buffer(0, scene.vertices.slice(..));
                 pass.draw(range, 0..1);
             }
         }
-        ctx.queue.submit([encoder.finish()]);
     }
 
     /// The camera's G-buffer (all geometry); position.w is 0 where nothing was drawn.
@@ -316,6 +355,53 @@ impl Raster {
         size: u32,
     ) {
         self.draw(ctx, &self.shadow, scene, view, subset, (size, size), &[(distance, 1e30)]);
+    }
+
+    /// Several shadow maps of one size (each a view, a subset and a target), recorded into one
+    /// command buffer and submitted once, their views in one uniform buffer — as
+    /// [`Raster::shadow_map`] one by one, without a buffer and a submission per map.
+    pub fn shadow_maps(
+        &self,
+        ctx: &GpuContext,
+        scene: &SceneBuffers,
+        maps: &[(ViewUniform, Subset, &wgpu::TextureView)],
+        size: u32,
+    ) {
+        if maps.is_empty() {
+            return;
+        }
+        let stride = (std::mem::size_of::<ViewUniform>() as u64)
+            .next_multiple_of(ctx.device.limits().min_uniform_buffer_offset_alignment as u64);
+        let mut contents = vec![0u8; stride as usize * maps.len()];
+        for (k, (view, _, _)) in maps.iter().enumerate() {
+            let at = k * stride as usize;
+            contents[at..at + std::mem::size_of::<ViewUniform>()].copy_from_slice(bytemuck::bytes_of(view));
+        }
+        let views = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("views"),
+            contents: &contents,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for (k, (_, subset, distance)) in maps.iter().enumerate() {
+            let binding = wgpu::BufferBinding {
+                buffer: &views,
+                offset: k as u64 * stride,
+                size: std::num::NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
+            };
+            let bind_group = self.bind_group_with(ctx, &self.shadow, scene, wgpu::BindingResource::Buffer(binding));
+            self.record(
+                ctx,
+                &mut encoder,
+                &self.shadow,
+                &bind_group,
+                scene,
+                *subset,
+                (size, size),
+                &[(*distance, 1e30)],
+            );
+        }
+        ctx.queue.submit([encoder.finish()]);
     }
 
     /// A reflective shadow map: distance plus the surfaces the light sees (its own resolution,
@@ -360,7 +446,7 @@ impl Raster {
         let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
         let bind_groups: Vec<wgpu::BindGroup> =
             draws.iter().map(|draw| self.bind_group(ctx, pipeline, scene, &draw.view)).collect();
-        let depth = Self::depth(ctx, width, height);
+        let depth = self.depth(ctx, width, height);
         let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
             .iter()
             .map(|view| {

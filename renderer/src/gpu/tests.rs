@@ -1,5 +1,6 @@
-//! Tests of the GPU renderer that need no adapter: every shader parsed and validated by naga,
-//! the camera matrix against the CPU camera.
+//! Tests of the GPU renderer's parts: every shader parsed and validated by naga, the camera
+//! matrix against the CPU camera (neither needs an adapter), and shadow maps drawn in one
+//! submission against each drawn alone (on the adapter; lavapipe without a GPU).
 
 use super::*;
 
@@ -74,4 +75,50 @@ fn camera_matrix_projects_like_the_cpu_camera() {
         assert!(((0.5 - y * 0.5) * 96.0 - v).abs() < 1e-3, "{y} {v}");
         assert!((0.0..1.0).contains(&(clip.z / clip.w)));
     }
+}
+
+/// Shadow maps drawn together (one submission, their views in one uniform buffer, the depth
+/// attachment reused from pass to pass) equal each drawn alone: a depth attachment that kept
+/// the previous map's surfaces would leave the nearer of both in the second map.
+#[test]
+fn shadow_maps_drawn_together_equal_each_drawn_alone() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let scene = crate::scene::load("dir-lamp-box").unwrap();
+    let mesh = mesh::build(&scene);
+    let buffers = SceneBuffers::new(&r.ctx, &mesh);
+    let size = 64;
+    let radius = mesh.bounds_radius;
+    let view = |forward: Vec3| {
+        let forward = forward.normalize();
+        let (matrix, eye) = directional_view(forward, mesh.bounds_centre, radius, 2.0 * radius);
+        ViewUniform::orthographic(matrix, eye, forward)
+    };
+    let (from_above, from_the_side) = (view(Vec3::new(0.1, -1.0, 0.2)), view(Vec3::new(-1.0, -0.3, 0.1)));
+    let textures: Vec<wgpu::Texture> = (0..4)
+        .map(|_| {
+            r.ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("test shadow map"),
+                size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: raster::DISTANCE_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        })
+        .collect();
+    let views: Vec<wgpu::TextureView> = textures.iter().map(|t| t.create_view(&Default::default())).collect();
+    r.raster.shadow_map(&r.ctx, &buffers, &from_above, Subset::All, &views[0], size);
+    r.raster.shadow_map(&r.ctx, &buffers, &from_the_side, Subset::All, &views[1], size);
+    r.raster.shadow_maps(
+        &r.ctx,
+        &buffers,
+        &[(from_the_side, Subset::All, &views[2]), (from_above, Subset::All, &views[3])],
+        size,
+    );
+    let maps = r.ctx.read_textures(&textures.iter().map(|t| (t, 4)).collect::<Vec<_>>());
+    assert_ne!(maps[0], maps[1], "the two views must differ for this test to tell anything");
+    assert_eq!(maps[3], maps[0], "the map from above, drawn after the side view in one submission");
+    assert_eq!(maps[2], maps[1], "the side view, drawn first in one submission");
 }
