@@ -574,3 +574,21 @@ fn multiple_bounces_bring_the_cornell_box_closer_to_the_ground_truth() {
     }
     assert!(failures.is_empty(), "{failures:?}");
 }
+
+/// A frame's RSM targets serve the next frame of their size (`DirRenderer::rsm_targets`): a gi
+/// frame of one scene after another scene's equals the same scene's frame before it, so no
+/// texel of the other scene's RSMs (whose lights and surfaces differ) reaches its VPLs.
+#[test]
+fn a_gi_frame_after_another_scenes_frame_is_the_same() {
+    let Some(r) = renderer_or_skip() else { return };
+    let first = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let other = scene_with(VIRTUAL_BOX).with_size(64, 48);
+    let (photo, other_photo) = (grey_photo(&first), grey_photo(&other));
+    let p = DirParams { vpls: 32, ..params(GiLevel::Gi) };
+    let before = r.render(&first, &photo, &p).unwrap();
+    let between = r.render(&other, &other_photo, &p).unwrap();
+    let after = r.render(&first, &photo, &p).unwrap();
+    assert!(before.report.vpls > 0 && between.report.vpls > 0, "both scenes must make VPLs");
+    assert_eq!(before.composite.pixels, after.composite.pixels, "the composite changed after another scene's frame");
+    assert_eq!(before.l_rv.pixels, after.l_rv.pixels);
+}

@@ -269,6 +269,11 @@ pub struct DirRenderer {
     specular: specular::Specular,
     /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
     representation: std::sync::OnceLock<representation::RepresentationBuilder>,
+    /// The last frame's RSM targets (their size, surfaces and distance), taken by the next frame
+    /// of that RSM size instead of making new textures (72 a frame at the thesis's settings); a
+    /// frame that finds none (another thread's frame holds them) makes its own. Every RSM pass
+    /// clears its targets, and they go back only after they are read back.
+    rsm_targets: std::sync::Mutex<(u32, Vec<(SurfaceTargets, wgpu::Texture)>)>,
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -396,6 +401,7 @@ impl DirRenderer {
             bounce,
             specular,
             representation: std::sync::OnceLock::new(),
+            rsm_targets: std::sync::Mutex::new((0, Vec::new())),
         }
     }
 
@@ -584,12 +590,22 @@ impl DirRenderer {
         let mut vpls = Vec::new();
         let mut rsms = Vec::new();
         let mut caustic_candidates = Vec::new();
+        // the first bounce's candidate VPLs, kept for the budget split below
+        let mut first_bounce: Option<vpl::Candidates> = None;
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
             // every RSM is rendered first and all are read back at once (one wait, not four per map)
+            let spare = std::cell::RefCell::new({
+                let mut cached = self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                if cached.0 == rsm_size { std::mem::take(&mut cached.1) } else { Vec::new() }
+            });
             let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
-                let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
-                let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
+                let (targets, distance) = spare.borrow_mut().pop().unwrap_or_else(|| {
+                    (
+                        SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm"),
+                        raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance"),
+                    )
+                });
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
                 timed(ctx, passes, format!("RSM {name} {label}"), || {
                     self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets)
@@ -626,12 +642,20 @@ impl DirRenderer {
             let bytes = timed(ctx, &mut passes, format!("RSMs read back ({} maps)", maps.len()), || {
                 ctx.read_textures(&textures)
             });
-            let mut texels = bytes.chunks_exact(4).map(|b| {
-                let quads = |bytes: &[u8]| -> Vec<[f32; 4]> { bytemuck::pod_collect_to_vec(bytes) };
-                let (position, normal, albedo) = (quads(&b[0]), quads(&b[1]), quads(&b[2]));
-                let dist: Vec<f32> = bytemuck::pod_collect_to_vec(&b[3]);
-                (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
-            });
+            // each map's texels on its own thread (in map order)
+            let texels: Vec<Vec<vpl::RsmTexel>> = {
+                use rayon::prelude::*;
+                bytes
+                    .par_chunks_exact(4)
+                    .map(|b| {
+                        let quads = |bytes: &[u8]| -> Vec<[f32; 4]> { bytemuck::pod_collect_to_vec(bytes) };
+                        let (position, normal, albedo) = (quads(&b[0]), quads(&b[1]), quads(&b[2]));
+                        let dist: Vec<f32> = bytemuck::pod_collect_to_vec(&b[3]);
+                        (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+                    })
+                    .collect()
+            };
+            let mut texels = texels.into_iter();
             for (light, tan_half_fov, (_, virt)) in rendered.iter() {
                 let real = texels.next().expect("a real map per light");
                 let virt = match virt {
@@ -640,6 +664,10 @@ impl DirRenderer {
                 };
                 rsms.push((*light, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half_fov, real, virt }));
             }
+            // read back: the targets serve the next frame
+            let returned: Vec<(SurfaceTargets, wgpu::Texture)> =
+                rendered.into_iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
+            *self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (rsm_size, returned);
             // reflected and refracted VPLs where the caustics land (Figure 5.23)
             if let Ok(maps) = &photon_maps {
                 caustic_candidates = timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
@@ -647,7 +675,9 @@ impl DirRenderer {
                 });
             }
             let start = Instant::now();
-            vpls = vpl::create_with(&rsms, &caustic_candidates, params.vpls);
+            let candidates = vpl::Candidates::new(&rsms, &caustic_candidates);
+            vpls = candidates.draw(params.vpls);
+            first_bounce = Some(candidates);
             passes.push(PassTime { pass: "VPL creation (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
         }
 
@@ -709,7 +739,10 @@ impl DirRenderer {
             fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
             let counts = vpl::split_budget(budget, &fluxes);
             if given_vpls.is_none() {
-                vpls = vpl::create_with(&rsms, &caustic_candidates, counts[0]);
+                vpls = match &first_bounce {
+                    Some(candidates) => candidates.draw(counts[0]),
+                    None => vpl::create_with(&rsms, &caustic_candidates, counts[0]),
+                };
             }
             for (k, pilot) in pilots.iter().enumerate() {
                 let drawn = vpl::resample(pilot, counts[k + 1]);

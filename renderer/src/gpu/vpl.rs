@@ -141,34 +141,63 @@ pub fn create(lights: &[(RsmLight, RsmTexels)], count: u32) -> Vec<GpuVpl> {
 /// [`create`], with further candidate VPLs drawn together with the RSMs' in proportion to
 /// their flux: the reflected and refracted VPLs of caustics.
 pub fn create_with(lights: &[(RsmLight, RsmTexels)], extra: &[GpuVpl], count: u32) -> Vec<GpuVpl> {
-    let mut candidates: Vec<Candidate> = extra
-        .iter()
-        .filter_map(|v| {
-            let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
-            (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
-        })
-        .collect();
-    for (light, rsm) in lights {
-        let r_pl = if light.real() { 1.0 } else { 0.0 };
-        for idx in 0..rsm.real.len() {
-            let real = &rsm.real[idx];
-            let virt = &rsm.virt[idx];
-            let has_real = real.0[3] > 0.5;
-            let has_virt = virt.0[3] > 0.5;
-            let virtual_in_front = has_virt && (!has_real || virt.3 < real.3);
-            let found = if virtual_in_front {
-                let shadowed_real =
-                    if has_real && light.real() { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
-                [candidate(light, rsm, idx, virt, 0.0, 0.0), shadowed_real]
-            } else if has_real {
-                [candidate(light, rsm, idx, real, r_pl, 0.0), None]
-            } else {
-                [None, None]
-            };
-            candidates.extend(found.into_iter().flatten());
+    Candidates::new(lights, extra).draw(count)
+}
+
+/// The candidate VPLs of [`create_with`] — `extra` first, then every light's RSM texels in
+/// order — each weighted by its flux's luminance: made once, drawn from as often as needed (a
+/// frame with more bounces draws the first bounce's VPLs twice, as a pilot and for its share of
+/// the budget). The lights' maps are gone through on all threads and joined in order, so the
+/// candidates, and what is drawn from them, do not depend on the thread count.
+pub struct Candidates(Vec<Candidate>);
+
+impl Candidates {
+    pub fn new(lights: &[(RsmLight, RsmTexels)], extra: &[GpuVpl]) -> Candidates {
+        use rayon::prelude::*;
+        let mut candidates: Vec<Candidate> = extra
+            .iter()
+            .filter_map(|v| {
+                let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
+                (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
+            })
+            .collect();
+        let per_light: Vec<Vec<Candidate>> =
+            lights.par_iter().map(|(light, rsm)| light_candidates(light, rsm)).collect();
+        candidates.reserve(per_light.iter().map(Vec::len).sum());
+        for found in per_light {
+            candidates.extend(found);
         }
+        Candidates(candidates)
     }
-    draw(&candidates, count)
+
+    /// `count` VPLs drawn in proportion to the candidates' flux (see `draw`).
+    pub fn draw(&self, count: u32) -> Vec<GpuVpl> {
+        draw(&self.0, count)
+    }
+}
+
+/// The candidates of one light's RSM texels, in texel order.
+fn light_candidates(light: &RsmLight, rsm: &RsmTexels) -> Vec<Candidate> {
+    let r_pl = if light.real() { 1.0 } else { 0.0 };
+    let mut candidates = Vec::new();
+    for idx in 0..rsm.real.len() {
+        let real = &rsm.real[idx];
+        let virt = &rsm.virt[idx];
+        let has_real = real.0[3] > 0.5;
+        let has_virt = virt.0[3] > 0.5;
+        let virtual_in_front = has_virt && (!has_real || virt.3 < real.3);
+        let found = if virtual_in_front {
+            let shadowed_real =
+                if has_real && light.real() { candidate(light, rsm, idx, real, 1.0, 1.0) } else { None };
+            [candidate(light, rsm, idx, virt, 0.0, 0.0), shadowed_real]
+        } else if has_real {
+            [candidate(light, rsm, idx, real, r_pl, 0.0), None]
+        } else {
+            [None, None]
+        };
+        candidates.extend(found.into_iter().flatten());
+    }
+    candidates
 }
 
 /// Draws `count` VPLs from weighted candidates: stratified inversion of the weights' CDF, each
