@@ -551,51 +551,65 @@ impl Specular {
     /// the photon's flux); real where light, object and surface are all real. Read back and
     /// made on the CPU, like the RSMs' candidates, with which they are drawn.
     pub fn caustic_vpls(&self, ctx: &GpuContext, maps: &PhotonMaps) -> Vec<super::vpl::GpuVpl> {
+        use rayon::prelude::*;
         let mut candidates = Vec::new();
         let n = maps.map_size as usize;
-        for map in &maps.maps {
-            let positions = ctx.read_texture_rgba32(&map.pgbuf.position);
-            let info = ctx.read_f32(&map.search.info);
-            let hits = ctx.read_f32(&map.search.hits);
+        // every map's buffers copied for reading first, then its positions read with one wait
+        // for all (not three waits per map)
+        let staged: Vec<(wgpu::Buffer, wgpu::Buffer)> =
+            maps.maps.iter().map(|map| (ctx.stage(&map.search.info), ctx.stage(&map.search.hits))).collect();
+        let textures: Vec<(&wgpu::Texture, u32)> = maps.maps.iter().map(|map| (&map.pgbuf.position, 16)).collect();
+        let positions_bytes = ctx.read_textures(&textures);
+        for ((map, (info, hits)), positions) in maps.maps.iter().zip(&staged).zip(&positions_bytes) {
+            let positions: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(positions);
+            let info = ctx.read_staged_f32(info);
+            let hits = ctx.read_staged_f32(hits);
             // texel (x, y) of hit plane p (see specular.wgsl's `plane`)
             let plane = |p: usize, x: usize, y: usize| {
                 let texel = 4 * ((p * n + y) * map.search.stride as usize + x);
                 Vec4::from_slice(&hits[texel..texel + 4])
             };
-            for y in 0..n {
-                for x in 0..n {
-                    let pixel = y * n + x;
-                    let weights = |q: usize| &info[16 * pixel + 4 * q..16 * pixel + 4 * q + 4];
-                    if weights(2)[3] < 0.5 || (weights(3)[3] + 0.5) as u32 != map.object {
-                        continue;
-                    }
-                    let p1 = Vec3::from_slice(&positions[pixel][..3]);
-                    let to = p1 - map.light.position;
-                    let d_omega = super::vpl::texel_solid_angle(x as u32, y as u32, n as u32, map.tan_half);
-                    let flux_in = map.light.intensity_towards(to.normalize()) * d_omega;
-                    for c in 0..2 {
-                        let w = weights(c);
-                        if w[3] != 1.0 {
+            // rows on all threads, joined in row order
+            let rows: Vec<Vec<super::vpl::GpuVpl>> = (0..n)
+                .into_par_iter()
+                .map(|y| {
+                    let mut candidates = Vec::new();
+                    for x in 0..n {
+                        let pixel = y * n + x;
+                        let weights = |q: usize| &info[16 * pixel + 4 * q..16 * pixel + 4 * q + 4];
+                        if weights(2)[3] < 0.5 || (weights(3)[3] + 0.5) as u32 != map.object {
                             continue;
                         }
-                        let albedo = plane(3 * c + 2, x, y).truncate();
-                        let flux = flux_in * Vec3::new(w[0], w[1], w[2]) * albedo;
-                        if luminance(flux) <= 0.0 || !flux.is_finite() {
-                            continue;
+                        let p1 = Vec3::from_slice(&positions[pixel][..3]);
+                        let to = p1 - map.light.position;
+                        let d_omega = super::vpl::texel_solid_angle(x as u32, y as u32, n as u32, map.tan_half);
+                        let flux_in = map.light.intensity_towards(to.normalize()) * d_omega;
+                        for c in 0..2 {
+                            let w = weights(c);
+                            if w[3] != 1.0 {
+                                continue;
+                            }
+                            let albedo = plane(3 * c + 2, x, y).truncate();
+                            let flux = flux_in * Vec3::new(w[0], w[1], w[2]) * albedo;
+                            if luminance(flux) <= 0.0 || !flux.is_finite() {
+                                continue;
+                            }
+                            // position w: role (1 real, 2 virtual) + 4 × material
+                            let position = plane(3 * c, x, y);
+                            let real = map.light.real && map.object_real && (position.w + 0.5) as u32 % 4 == 1;
+                            let position = position.truncate();
+                            let normal = plane(3 * c + 1, x, y).truncate().normalize_or_zero();
+                            candidates.push(super::vpl::GpuVpl {
+                                position: position.extend(if real { 1.0 } else { 0.0 }).to_array(),
+                                normal: normal.extend(0.0).to_array(),
+                                flux: flux.extend(1.0).to_array(),
+                            });
                         }
-                        // position w: role (1 real, 2 virtual) + 4 × material
-                        let position = plane(3 * c, x, y);
-                        let real = map.light.real && map.object_real && (position.w + 0.5) as u32 % 4 == 1;
-                        let position = position.truncate();
-                        let normal = plane(3 * c + 1, x, y).truncate().normalize_or_zero();
-                        candidates.push(super::vpl::GpuVpl {
-                            position: position.extend(if real { 1.0 } else { 0.0 }).to_array(),
-                            normal: normal.extend(0.0).to_array(),
-                            flux: flux.extend(1.0).to_array(),
-                        });
                     }
-                }
-            }
+                    candidates
+                })
+                .collect();
+            candidates.extend(rows.into_iter().flatten());
         }
         candidates
     }
