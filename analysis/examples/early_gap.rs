@@ -110,25 +110,26 @@ fn spanning_tree(n: usize, pairs: impl Iterator<Item = (usize, usize)>) -> Vec<(
 
 /// ρ = (1 − (n − 3)·v̄ / Σ(mᵢ − m̄)²)₊^power, v̄ the mean variance of the centred log-worths.
 fn stein_weight(posterior: &Posterior, power: f64) -> f64 {
+    let (spread, centred_variance) = spread_and_centred_variance(posterior);
+    let n = posterior.conditions() as f64;
+    (1.0 - (n - 3.0) * centred_variance / spread.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0).powf(power)
+}
+
+/// Σ(mᵢ − m̄)² of the posterior means, and v̄, the mean variance of the centred log-worths.
+fn spread_and_centred_variance(posterior: &Posterior) -> (f64, f64) {
     let n = posterior.conditions();
     let (m, c) = (posterior.mean(), posterior.covariance());
     let mean = m.iter().sum::<f64>() / n as f64;
     let spread: f64 = m.iter().map(|x| (x - mean).powi(2)).sum();
     let trace: f64 = (0..n).map(|i| c[i * n + i]).sum();
-    let centred_variance = (trace - c.iter().sum::<f64>() / n as f64) / n as f64;
-    (1.0 - (n as f64 - 3.0) * centred_variance / spread.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0).powf(power)
+    (spread, (trace - c.iter().sum::<f64>() / n as f64) / n as f64)
 }
 
 /// The moment estimate of the sd of the log-worths: √(Σ(mᵢ − m̄)²/(n − 1) − v̄)₊, v̄ the mean
 /// variance of the centred posterior log-worths.
 fn spread_estimate(posterior: &Posterior) -> f64 {
-    let n = posterior.conditions();
-    let (m, c) = (posterior.mean(), posterior.covariance());
-    let mean = m.iter().sum::<f64>() / n as f64;
-    let spread: f64 = m.iter().map(|x| (x - mean).powi(2)).sum();
-    let trace: f64 = (0..n).map(|i| c[i * n + i]).sum();
-    let centred_variance = (trace - c.iter().sum::<f64>() / n as f64) / n as f64;
-    (spread / (n as f64 - 1.0) - centred_variance).max(0.0).sqrt()
+    let (spread, centred_variance) = spread_and_centred_variance(posterior);
+    (spread / (posterior.conditions() as f64 - 1.0) - centred_variance).max(0.0).sqrt()
 }
 
 fn main() {

@@ -588,11 +588,10 @@ impl DirRenderer {
 
         // 2. RSMs and VPLs (gi only)
         let mut vpls = Vec::new();
-        let mut rsms = Vec::new();
-        let mut caustic_candidates = Vec::new();
         // the first bounce's candidate VPLs, kept for the budget split below
         let mut first_bounce: Option<vpl::Candidates> = None;
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
+            let mut rsms = Vec::new();
             let rsm_size = params.rsm_size.max(4);
             // every RSM is rendered first and all are read back at once (one wait, not four per map)
             let spare = std::cell::RefCell::new({
@@ -669,11 +668,12 @@ impl DirRenderer {
                 rendered.into_iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
             *self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (rsm_size, returned);
             // reflected and refracted VPLs where the caustics land (Figure 5.23)
-            if let Ok(maps) = &photon_maps {
-                caustic_candidates = timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
+            let caustic_candidates = match &photon_maps {
+                Ok(maps) => timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
                     self.specular.caustic_vpls(ctx, maps)
-                });
-            }
+                }),
+                Err(_) => Vec::new(),
+            };
             let start = Instant::now();
             let candidates = vpl::Candidates::new(&rsms, &caustic_candidates);
             vpls = candidates.draw(params.vpls);
@@ -739,10 +739,8 @@ impl DirRenderer {
             fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
             let counts = vpl::split_budget(budget, &fluxes);
             if given_vpls.is_none() {
-                vpls = match &first_bounce {
-                    Some(candidates) => candidates.draw(counts[0]),
-                    None => vpl::create_with(&rsms, &caustic_candidates, counts[0]),
-                };
+                // no first-bounce candidates: no RSMs were drawn, so there is nothing to draw from
+                vpls = first_bounce.as_ref().map_or_else(Vec::new, |candidates| candidates.draw(counts[0]));
             }
             for (k, pilot) in pilots.iter().enumerate() {
                 let drawn = vpl::resample(pilot, counts[k + 1]);

@@ -72,6 +72,14 @@ struct Candidate {
     weight: f32,
 }
 
+impl Candidate {
+    /// A VPL as a candidate weighted by its flux's luminance; `None` without usable flux.
+    fn of(vpl: &GpuVpl) -> Option<Candidate> {
+        let weight = luminance(Vec3::new(vpl.flux[0], vpl.flux[1], vpl.flux[2]));
+        (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *vpl, weight })
+    }
+}
+
 fn candidate(
     light: &RsmLight,
     rsm: &RsmTexels,
@@ -154,13 +162,7 @@ pub struct Candidates(Vec<Candidate>);
 impl Candidates {
     pub fn new(lights: &[(RsmLight, RsmTexels)], extra: &[GpuVpl]) -> Candidates {
         use rayon::prelude::*;
-        let mut candidates: Vec<Candidate> = extra
-            .iter()
-            .filter_map(|v| {
-                let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
-                (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
-            })
-            .collect();
+        let mut candidates: Vec<Candidate> = extra.iter().filter_map(Candidate::of).collect();
         let per_light: Vec<Vec<Candidate>> =
             lights.par_iter().map(|(light, rsm)| light_candidates(light, rsm)).collect();
         candidates.reserve(per_light.iter().map(Vec::len).sum());
@@ -242,13 +244,7 @@ pub fn stratify(weights: &[f64], count: u32) -> Vec<(usize, f64)> {
 /// expectation (each carries total / count in luminance): how a bounce's pilot VPLs shrink to
 /// the bounce's share of the budget.
 pub fn resample(vpls: &[GpuVpl], count: u32) -> Vec<GpuVpl> {
-    let candidates: Vec<Candidate> = vpls
-        .iter()
-        .filter_map(|v| {
-            let weight = luminance(Vec3::new(v.flux[0], v.flux[1], v.flux[2]));
-            (weight > 0.0 && weight.is_finite()).then_some(Candidate { vpl: *v, weight })
-        })
-        .collect();
+    let candidates: Vec<Candidate> = vpls.iter().filter_map(Candidate::of).collect();
     draw(&candidates, count)
 }
 
