@@ -25,6 +25,15 @@
 //! scheduling, and two worlds that differ only where a path never goes (the real-only and the
 //! full scene) produce identical samples there — the photograph and the ground truth share
 //! their noise realisation.
+//!
+//! That also lets the reference trace both images at once ([`World::radiance_pair`]): while a
+//! path of the full world meets only real objects it is, number for number, the path of the
+//! real-only world, so it is traced once and its light counted for both; a shadow ray blocked
+//! in the full world is retraced in the real-only one (a virtual object may be what blocks it),
+//! and at the first virtual hit the real-only path goes on alone from the same state and the
+//! same numbers. Both images are bit for bit those of two passes. It needs the two worlds to
+//! sample the same lights ([`World::shares_lights_with`]): with a virtual light the light
+//! choice differs from the first bounce, and the reference renders two passes.
 
 use crate::bvh::{Bvh, BvhHit};
 use crate::camera::Camera;
@@ -382,25 +391,81 @@ impl World {
     }
 
     /// Radiance along `ray`, and the object the primary ray hit first.
-    pub fn radiance(&self, mut ray: Ray, rng: &mut Rng, params: &TraceParams) -> (Vec3, Option<u32>) {
-        let mut l = Vec3::ZERO;
-        let mut beta = Vec3::ONE;
-        let mut prev_pdf = 0.0f32;
-        let mut prev_delta = true;
+    pub fn radiance(&self, ray: Ray, rng: &mut Rng, params: &TraceParams) -> (Vec3, Option<u32>) {
+        let (l, _, first) = self.trace::<false>(self, PathState::start(ray), None, rng, params);
+        (l, first)
+    }
+
+    /// Whether `real`, the real-only world of the same scene, has this world's lights: then a
+    /// path of both worlds is one path until it first meets a virtual object
+    /// ([`World::radiance_pair`]). No virtual light and no virtual emitter.
+    pub fn shares_lights_with(&self, real: &World) -> bool {
+        self.spots.len() == real.spots.len()
+            && self.emitters.len() == real.emitters.len()
+            && self.groups.len() == real.groups.len()
+            && self.env.is_some() == real.env.is_some()
+    }
+
+    /// The radiance along `ray` in this world (the full scene) and in `real` (its real-only
+    /// world, which must share its lights: [`World::shares_lights_with`]), each bit for bit what
+    /// [`World::radiance`] gives from the same stream, and the object hit first in this world.
+    /// The two paths are traced once while they are the same path — every hit real, the same
+    /// random numbers, the same light sample — and a shadow ray blocked here is retraced in the
+    /// real world alone; at the first virtual hit the real path goes on by itself.
+    pub fn radiance_pair(
+        &self,
+        real: &World,
+        ray: Ray,
+        rng: &mut Rng,
+        params: &TraceParams,
+    ) -> (Vec3, Vec3, Option<u32>) {
+        self.trace::<true>(real, PathState::start(ray), None, rng, params)
+    }
+
+    /// The path tracer's loop, from `path` on (`pending`: this bounce's numbers, already drawn).
+    /// With `JOINT`, `twin` is the real-only world and the path is traced for both worlds while
+    /// it stays real ([`World::radiance_pair`]); returns this world's radiance, the twin's, and
+    /// the object hit first.
+    #[inline(always)]
+    fn trace<const JOINT: bool>(
+        &self,
+        twin: &World,
+        path: PathState,
+        pending: Option<[f32; 8]>,
+        rng: &mut Rng,
+        params: &TraceParams,
+    ) -> (Vec3, Vec3, Option<u32>) {
+        let PathState { mut ray, mut l, mut beta, mut prev_pdf, mut prev_delta, depth: first_depth } = path;
+        let mut l_twin = l;
+        let mut shared = JOINT;
         let mut first = None;
-        for depth in 0..params.max_depth {
-            let u: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+        let draw = |rng: &mut Rng| -> [f32; 8] { std::array::from_fn(|_| rng.next_f32()) };
+        let mut next = pending.unwrap_or_else(|| draw(rng));
+        for depth in first_depth..params.max_depth {
+            // this bounce's numbers; the next bounce's are drawn when this one goes on (no
+            // other draw comes between, so the stream is used in the same order)
+            let u = next;
             let Some(hit) = self.bvh.intersect(&ray, RAY_EPSILON, f32::INFINITY) else {
                 if let Some(env) = &self.env {
                     let le = env.eval(ray.dir);
                     let w = if prev_delta { 1.0 } else { power_heuristic(prev_pdf, self.env_pdf(ray.dir)) };
-                    l += beta * le * w;
+                    let term = beta * le * w;
+                    l += term;
+                    if shared {
+                        l_twin += term;
+                    }
                 }
                 break;
             };
             let info = self.bvh.payload[hit.prim];
             if depth == 0 {
                 first = Some(info.object);
+            }
+            if shared && self.object_roles[info.object as usize] == Role::Virtual {
+                // the real path misses this object: it goes on alone, from this bounce's numbers
+                let here = PathState { ray, l: l_twin, beta, prev_pdf, prev_delta, depth };
+                l_twin = twin.trace::<false>(twin, here, Some(u), &mut rng.clone(), params).0;
+                shared = false;
             }
             let (mat, s) = self.surface_at(&ray, &hit);
             let wo = -ray.dir;
@@ -411,7 +476,11 @@ impl World {
                 } else {
                     power_heuristic(prev_pdf, self.emitter_pdf(info.emitter as usize, ray.dir, hit.t))
                 };
-                l += beta * mat.emission * w;
+                let term = beta * mat.emission * w;
+                l += term;
+                if shared {
+                    l_twin += term;
+                }
             }
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
             if let Some(delta) = &mat.delta {
@@ -421,69 +490,21 @@ impl World {
                 if !survives_roulette(depth, &mut beta, u[7]) {
                     break;
                 }
+                next = draw(rng);
                 continue;
             }
             let Some((ns, bsdf, p)) = shade(mat, &s, ng) else { break };
 
             // next-event estimation
-            if !self.groups.is_empty() {
-                let gi = ((u[0] * self.groups.len() as f32) as usize).min(self.groups.len() - 1);
-                let p_group = self.group_prob();
-                match self.groups[gi] {
-                    LightGroup::Spot(i) => {
-                        let spot = &self.spots[i];
-                        let d = spot.position - p;
-                        let dist2 = d.length_squared();
-                        let dist = dist2.sqrt();
-                        let wi = d * (1.0 / dist);
-                        let intensity = spot.intensity_towards(-wi);
-                        let cos = ns.dot(wi);
-                        if intensity.max_element() > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
-                            let f = bsdf.eval(wo, wi);
-                            if f.max_element() > 0.0
-                                && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4))
-                            {
-                                l += beta * f * intensity * (cos / (dist2 * p_group));
-                            }
-                        }
+            if let Some((term, shadow, t_max)) = self.next_event(&bsdf, p, ns, ng, wo, beta, &u) {
+                if !self.bvh.occluded(&shadow, RAY_EPSILON, t_max) {
+                    l += term;
+                    if shared {
+                        l_twin += term;
                     }
-                    LightGroup::Emitters => {
-                        let (e, pe, _) = self.emitter_dist.sample(u[1]);
-                        let em = &self.emitters[e];
-                        let (b1, b2) = sample_triangle(u[2], u[3]);
-                        let q = em.tri.p[0] * (1.0 - b1 - b2) + em.tri.p[1] * b1 + em.tri.p[2] * b2;
-                        let d = q - p;
-                        let dist2 = d.length_squared();
-                        let dist = dist2.sqrt();
-                        let wi = d * (1.0 / dist);
-                        let cos_l = em.normal.dot(-wi);
-                        let cos = ns.dot(wi);
-                        if cos_l > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
-                            let pdf = p_group * pe / em.area * dist2 / cos_l;
-                            let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
-                            if f.max_element() > 0.0
-                                && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, dist * (1.0 - 1e-4))
-                            {
-                                let w = power_heuristic(pdf, bsdf_pdf);
-                                l += beta * f * em.radiance * (cos * w / pdf);
-                            }
-                        }
-                    }
-                    LightGroup::Environment => {
-                        if let Some((wi, le, pdf_env)) = self.env.as_ref().and_then(|env| env.sample(u[1], u[2])) {
-                            let cos = ns.dot(wi);
-                            if cos > 0.0 && ng.dot(wi) > 0.0 && le.max_element() > 0.0 {
-                                let pdf = p_group * pdf_env;
-                                let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
-                                if f.max_element() > 0.0
-                                    && !self.bvh.occluded(&Ray { origin: p, dir: wi }, RAY_EPSILON, f32::INFINITY)
-                                {
-                                    let w = power_heuristic(pdf, bsdf_pdf);
-                                    l += beta * f * le * (cos * w / pdf);
-                                }
-                            }
-                        }
-                    }
+                } else if shared && !twin.bvh.occluded(&shadow, RAY_EPSILON, t_max) {
+                    // blocked by a virtual object only
+                    l_twin += term;
                 }
             }
 
@@ -499,8 +520,104 @@ impl World {
             if !survives_roulette(depth, &mut beta, u[7]) {
                 break;
             }
+            next = draw(rng);
         }
-        (l, first)
+        (l, l_twin, first)
+    }
+
+    /// Next-event estimation at a diffuse or glossy point `p`: the contribution of one light
+    /// sample if nothing blocks it, the shadow ray and its length; `None` when the sample
+    /// cannot contribute.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn next_event(
+        &self,
+        bsdf: &Bsdf,
+        p: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        wo: Vec3,
+        beta: Vec3,
+        u: &[f32; 8],
+    ) -> Option<(Vec3, Ray, f32)> {
+        if self.groups.is_empty() {
+            return None;
+        }
+        let gi = ((u[0] * self.groups.len() as f32) as usize).min(self.groups.len() - 1);
+        let p_group = self.group_prob();
+        match self.groups[gi] {
+            LightGroup::Spot(i) => {
+                let spot = &self.spots[i];
+                let d = spot.position - p;
+                let dist2 = d.length_squared();
+                let dist = dist2.sqrt();
+                let wi = d * (1.0 / dist);
+                let intensity = spot.intensity_towards(-wi);
+                let cos = ns.dot(wi);
+                if intensity.max_element() > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
+                    let f = bsdf.eval(wo, wi);
+                    if f.max_element() > 0.0 {
+                        let term = beta * f * intensity * (cos / (dist2 * p_group));
+                        return Some((term, Ray { origin: p, dir: wi }, dist * (1.0 - 1e-4)));
+                    }
+                }
+                None
+            }
+            LightGroup::Emitters => {
+                let (e, pe, _) = self.emitter_dist.sample(u[1]);
+                let em = &self.emitters[e];
+                let (b1, b2) = sample_triangle(u[2], u[3]);
+                let q = em.tri.p[0] * (1.0 - b1 - b2) + em.tri.p[1] * b1 + em.tri.p[2] * b2;
+                let d = q - p;
+                let dist2 = d.length_squared();
+                let dist = dist2.sqrt();
+                let wi = d * (1.0 / dist);
+                let cos_l = em.normal.dot(-wi);
+                let cos = ns.dot(wi);
+                if cos_l > 0.0 && cos > 0.0 && ng.dot(wi) > 0.0 {
+                    let pdf = p_group * pe / em.area * dist2 / cos_l;
+                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+                    if f.max_element() > 0.0 {
+                        let w = power_heuristic(pdf, bsdf_pdf);
+                        let term = beta * f * em.radiance * (cos * w / pdf);
+                        return Some((term, Ray { origin: p, dir: wi }, dist * (1.0 - 1e-4)));
+                    }
+                }
+                None
+            }
+            LightGroup::Environment => {
+                let (wi, le, pdf_env) = self.env.as_ref().and_then(|env| env.sample(u[1], u[2]))?;
+                let cos = ns.dot(wi);
+                if cos > 0.0 && ng.dot(wi) > 0.0 && le.max_element() > 0.0 {
+                    let pdf = p_group * pdf_env;
+                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+                    if f.max_element() > 0.0 {
+                        let w = power_heuristic(pdf, bsdf_pdf);
+                        let term = beta * f * le * (cos * w / pdf);
+                        return Some((term, Ray { origin: p, dir: wi }, f32::INFINITY));
+                    }
+                }
+                None
+            }
+        }
+    }
+}
+
+/// Where a camera path stands before a bounce: the ray to follow, the radiance gathered so far,
+/// the throughput, the last bounce's pdf (and whether it was a mirror or glass), and the depth.
+#[derive(Clone, Copy, Debug)]
+struct PathState {
+    ray: Ray,
+    l: Vec3,
+    beta: Vec3,
+    prev_pdf: f32,
+    prev_delta: bool,
+    depth: u32,
+}
+
+impl PathState {
+    fn start(ray: Ray) -> PathState {
+        PathState { ray, l: Vec3::ZERO, beta: Vec3::ONE, prev_pdf: 0.0, prev_delta: true, depth: 0 }
     }
 }
 
@@ -523,6 +640,35 @@ pub struct Accumulator {
     /// one per pixel and camera sample.
     light_sum: Vec<DVec3>,
     pub light_paths: u64,
+}
+
+/// One pixel's sums over a batch of samples: radiance, samples whose primary ray hit a virtual
+/// object, the brightest sample's luminance, the sum of squared luminances, invalid samples.
+#[derive(Clone, Copy, Debug, Default)]
+struct PixelSums {
+    acc: DVec3,
+    virtual_hits: u32,
+    max_l: f32,
+    lum2: f64,
+    invalid: u64,
+}
+
+/// A row of [`PixelSums`] and its invalid samples.
+#[derive(Clone, Debug, Default)]
+struct RowSums {
+    pixels: Vec<PixelSums>,
+    invalid: u64,
+}
+
+/// Rows of `K` images' sums, one list of rows per image.
+fn unzip_rows<const K: usize>(rows: Vec<[RowSums; K]>) -> [Vec<RowSums>; K] {
+    let mut out: [Vec<RowSums>; K] = std::array::from_fn(|_| Vec::with_capacity(rows.len()));
+    for row in rows {
+        for (o, r) in out.iter_mut().zip(row) {
+            o.push(r);
+        }
+    }
+    out
 }
 
 /// Light paths traced per parallel task (their splats are summed in task order, so the image
@@ -548,59 +694,107 @@ impl Accumulator {
 
     /// Adds samples `self.spp .. self.spp + n` to every pixel (rayon over rows).
     pub fn add_samples(&mut self, world: &World, camera: &Camera, params: &TraceParams, n: u32) {
+        let start = self.spp;
+        let rows = self.trace_rows(camera, params, n, |ray, rng| {
+            let (l, first) = world.radiance(ray, rng, params);
+            [(l, first.is_some_and(|o| world.object_roles[o as usize] == Role::Virtual))]
+        });
+        let [rows] = unzip_rows(rows);
+        self.add_rows(rows);
+        self.finish_samples(world, camera, params, start, n);
+    }
+
+    /// [`Accumulator::add_samples`] for the full scene's world (into `self`) and its real-only
+    /// world (into `real`) at once, tracing each path once while it is the same in both
+    /// ([`World::radiance_pair`]); the sums are bit for bit those of two separate calls. The
+    /// worlds must share their lights ([`World::shares_lights_with`]).
+    pub fn add_samples_pair(
+        &mut self,
+        real: &mut Accumulator,
+        full_world: &World,
+        real_world: &World,
+        camera: &Camera,
+        params: &TraceParams,
+        n: u32,
+    ) {
+        assert!(full_world.shares_lights_with(real_world), "a paired render needs worlds with the same lights");
+        assert_eq!(self.spp, real.spp, "paired accumulators must hold the same samples");
+        let start = self.spp;
+        let rows = self.trace_rows(camera, params, n, |ray, rng| {
+            let (l, l_real, first) = full_world.radiance_pair(real_world, ray, rng, params);
+            [(l, first.is_some_and(|o| full_world.object_roles[o as usize] == Role::Virtual)), (l_real, false)]
+        });
+        let [full_rows, real_rows] = unzip_rows(rows);
+        self.add_rows(full_rows);
+        real.add_rows(real_rows);
+        self.finish_samples(full_world, camera, params, start, n);
+        real.finish_samples(real_world, camera, params, start, n);
+    }
+
+    /// Samples `self.spp .. self.spp + n` of every pixel, `K` radiance values per sample (with
+    /// whether the primary ray hit a virtual object), summed per pixel: rows of per-pixel sums.
+    fn trace_rows<const K: usize>(
+        &self,
+        camera: &Camera,
+        params: &TraceParams,
+        n: u32,
+        sample: impl Fn(Ray, &mut Rng) -> [(Vec3, bool); K] + Sync,
+    ) -> Vec<[RowSums; K]> {
         let w = self.width as usize;
         let start = self.spp;
-        let rows: Vec<(u64, Vec<(DVec3, u32, f32, f64)>)> = (0..self.height)
+        (0..self.height)
             .into_par_iter()
             .map(|y| {
-                let mut invalid = 0u64;
-                let row = (0..self.width)
-                    .map(|x| {
-                        let pixel = (y as u64) * w as u64 + x as u64;
-                        let mut acc = DVec3::ZERO;
-                        let mut vhits = 0u32;
-                        let mut max_l = 0.0f32;
-                        let mut lum2 = 0.0f64;
-                        for s in start..start + n {
-                            let mut rng = Rng::for_stream(params.seed, pixel, s as u64);
-                            let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                            let ray = camera.ray(x as f32 + jx, y as f32 + jy);
-                            let (l, first) = world.radiance(ray, &mut rng, params);
+                let mut rows: [RowSums; K] = std::array::from_fn(|_| RowSums::default());
+                for x in 0..self.width {
+                    let pixel = (y as u64) * w as u64 + x as u64;
+                    let mut sums = [PixelSums::default(); K];
+                    for s in start..start + n {
+                        let mut rng = Rng::for_stream(params.seed, pixel, s as u64);
+                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                        let ray = camera.ray(x as f32 + jx, y as f32 + jy);
+                        for (sum, (l, virtual_first)) in sums.iter_mut().zip(sample(ray, &mut rng)) {
                             if !l.is_finite() {
-                                invalid += 1;
+                                sum.invalid += 1;
                                 continue;
                             }
-                            acc += l.as_dvec3();
-                            max_l = max_l.max(luminance(l));
-                            lum2 += (luminance(l) as f64).powi(2);
-                            if first.is_some_and(|o| world.object_roles[o as usize] == Role::Virtual) {
-                                vhits += 1;
-                            }
+                            sum.acc += l.as_dvec3();
+                            sum.max_l = sum.max_l.max(luminance(l));
+                            sum.lum2 += (luminance(l) as f64).powi(2);
+                            sum.virtual_hits += virtual_first as u32;
                         }
-                        (acc, vhits, max_l, lum2)
-                    })
-                    .collect();
-                (invalid, row)
+                    }
+                    for (row, sum) in rows.iter_mut().zip(sums) {
+                        row.invalid += sum.invalid;
+                        row.pixels.push(sum);
+                    }
+                }
+                rows
             })
-            .collect();
-        for (y, (invalid, row)) in rows.into_iter().enumerate() {
-            self.invalid_samples += invalid;
-            for (x, (acc, vh, ml, l2)) in row.into_iter().enumerate() {
+            .collect()
+    }
+
+    /// Adds per-pixel sums (rows in order) to the image's.
+    fn add_rows(&mut self, rows: Vec<RowSums>) {
+        let w = self.width as usize;
+        for (y, row) in rows.into_iter().enumerate() {
+            self.invalid_samples += row.invalid;
+            for (x, p) in row.pixels.into_iter().enumerate() {
                 let i = y * w + x;
-                self.sum_lum2[i] += l2;
-                self.sum[i] += acc;
-                self.virtual_hits[i] += vh;
-                self.max_sample[i] = self.max_sample[i].max(ml);
+                self.sum_lum2[i] += p.lum2;
+                self.sum[i] += p.acc;
+                self.virtual_hits[i] += p.virtual_hits;
+                self.max_sample[i] = self.max_sample[i].max(p.max_l);
             }
         }
+    }
+
+    /// After camera samples `start .. start + n`: the light paths of the same samples (where
+    /// the world needs them), and the new sample count.
+    fn finish_samples(&mut self, world: &World, camera: &Camera, params: &TraceParams, start: u32, n: u32) {
+        let pixels = self.width as u64 * self.height as u64;
         if params.light_tracing && world.needs_light_tracing() {
-            self.add_light_paths(
-                world,
-                camera,
-                params,
-                start as u64 * w as u64 * self.height as u64,
-                n as u64 * w as u64 * self.height as u64,
-            );
+            self.add_light_paths(world, camera, params, start as u64 * pixels, n as u64 * pixels);
         }
         self.spp += n;
     }

@@ -63,6 +63,9 @@ pub struct RenderStats {
     pub light_paths: u64,
     /// Whether light tracing ran, or why it was skipped.
     pub light_tracing: String,
+    /// How the photograph and the ground truth were traced: together, each path once until it
+    /// meets a virtual object, or in two passes (and why); empty for a photograph alone.
+    pub paths: String,
     pub warnings: Vec<String>,
 }
 
@@ -142,6 +145,26 @@ fn progressive(
     acc
 }
 
+/// [`progressive`] for the real-only and the full world at once
+/// ([`Accumulator::add_samples_pair`]): (photograph's sums, ground truth's sums).
+fn progressive_pair(
+    full_world: &World,
+    real_world: &World,
+    scene: &Scene,
+    params: &ReferenceParams,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> (Accumulator, Accumulator) {
+    let tp = TraceParams { seed: params.seed, max_depth: params.max_depth, ..TraceParams::default() };
+    let mut real = Accumulator::new(scene.camera.width, scene.camera.height);
+    let mut full = Accumulator::new(scene.camera.width, scene.camera.height);
+    while full.spp < params.spp {
+        let n = params.pass_spp.max(1).min(params.spp - full.spp);
+        full.add_samples_pair(&mut real, full_world, real_world, &scene.camera, &tp, n);
+        progress(full.spp, params.spp);
+    }
+    (real, full)
+}
+
 /// The photograph alone: (linear radiance, camera output, stats). A scene with a background
 /// photograph returns that photograph.
 pub fn render_photo(
@@ -200,6 +223,7 @@ fn stats_for(
         affected_fraction: affected,
         light_paths: 0,
         light_tracing: light_tracing(scene),
+        paths: String::new(),
         warnings,
     }
 }
@@ -226,13 +250,20 @@ pub fn render_reference(
         )));
     }
     let start = Instant::now();
-    let total = params.spp * 2;
-    let mut done = 0;
     let real_world = World::new(scene, Subset::RealOnly);
-    let acc_real = progressive(&real_world, scene, params, &mut done, total, progress);
-    drop(real_world);
     let full_world = World::new(scene, Subset::All);
-    let acc_full = progressive(&full_world, scene, params, &mut done, total, progress);
+    let paired = full_world.shares_lights_with(&real_world);
+    let (acc_real, acc_full) = if paired {
+        // no virtual light: each path is traced once for both images until it meets a
+        // virtual object (the same images as two passes, bit for bit)
+        progressive_pair(&full_world, &real_world, scene, params, progress)
+    } else {
+        let total = params.spp * 2;
+        let mut done = 0;
+        let acc_real = progressive(&real_world, scene, params, &mut done, total, progress);
+        let acc_full = progressive(&full_world, scene, params, &mut done, total, progress);
+        (acc_real, acc_full)
+    };
     let hdr_real = acc_real.image();
     let hdr_full = acc_full.image();
     let photo = sensor::apply(&hdr_real, &scene.camera, &scene.sensor);
@@ -259,6 +290,12 @@ pub fn render_reference(
     stats.samples_per_second = (hdr_full.pixels.len() as f64 * params.spp as f64 * 2.0) / secs.max(1e-9);
     stats.affected_fraction = affected_mask.coverage();
     stats.light_paths = acc_real.light_paths + acc_full.light_paths;
+    stats.paths = match paired {
+        true => "together: each path traced once for both images until it meets a virtual object".into(),
+        false => {
+            "two passes: the scene has a virtual light or emitter, so the two images sample different lights".into()
+        }
+    };
     Ok(ReferenceOutput { hdr_real, hdr_full, photo, ground_truth, virtual_mask, affected_mask, stats })
 }
 

@@ -395,3 +395,48 @@ fn obj_and_gltf_meshes_load() {
     assert_eq!(gltf.len(), 1);
     assert!((gltf[0].p[0].z + 1.0).abs() < 1e-6, "node transform not applied");
 }
+
+/// The reference's photograph and ground truth traced together (each path once until it meets
+/// a virtual object) are bit for bit the two images traced in separate passes, on every built-in
+/// scene whose lights are all real — with mirrors, glass, light tracing, environments and
+/// area lights among them.
+#[test]
+fn paths_traced_for_both_images_at_once_give_the_images_of_two_passes() {
+    use mrstudy_renderer::pathtracer::Accumulator;
+    let params = TraceParams { seed: 5, ..TraceParams::default() };
+    let (mut paired, mut apart) = (Vec::new(), Vec::new());
+    for name in scene::builtin::names() {
+        let scene = scene::load_as(name, Some((40, 30)), None).unwrap();
+        let real = World::new(&scene, Subset::RealOnly);
+        let full = World::new(&scene, Subset::All);
+        if !full.shares_lights_with(&real) {
+            apart.push(name);
+            continue;
+        }
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let (mut acc_full, mut acc_real) = (Accumulator::new(w, h), Accumulator::new(w, h));
+        // two batches, as a progressive render makes them
+        for n in [2, 1] {
+            acc_full.add_samples_pair(&mut acc_real, &full, &real, &scene.camera, &params, n);
+        }
+        let (alone_full, alone_real) =
+            (render(&full, &scene.camera, &params, 3), render(&real, &scene.camera, &params, 3));
+        let differ = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+        let (gt, photo) = (acc_full.image(), acc_real.image());
+        assert_eq!(differ(&gt.pixels, &alone_full.image().pixels), 0, "{name}: ground-truth pixels differ");
+        assert_eq!(differ(&photo.pixels, &alone_real.image().pixels), 0, "{name}: photograph pixels differ");
+        assert!(acc_full.virtual_coverage() == alone_full.virtual_coverage(), "{name}: virtual coverage");
+        assert!(acc_full.max_sample == alone_full.max_sample, "{name}: brightest samples");
+        assert!(acc_real.luminance_standard_error() == alone_real.luminance_standard_error(), "{name}: noise");
+        assert_eq!(acc_full.light_paths, alone_full.light_paths, "{name}");
+        assert!(differ(&gt.pixels, &photo.pixels) > 0, "{name}: the virtual objects change nothing");
+        paired.push(name);
+    }
+    eprintln!("traced together: {paired:?}; in two passes: {apart:?}");
+    assert!(paired.len() >= 6, "paired: {paired:?}");
+    // a virtual light makes the two images sample different lights: two passes
+    assert!(apart.contains(&"survey-2") && apart.contains(&"metal-bottle"), "apart: {apart:?}");
+    let scene = scene::load_as("survey-1", Some((40, 30)), None).unwrap();
+    let out = render_reference(&scene, &ReferenceParams { spp: 2, ..Default::default() }, &|_, _| {}).unwrap();
+    assert!(out.stats.paths.starts_with("together"), "{}", out.stats.paths);
+}
