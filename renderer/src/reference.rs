@@ -146,7 +146,8 @@ fn progressive(
 }
 
 /// [`progressive`] for the real-only and the full world at once
-/// ([`Accumulator::add_samples_pair`]): (photograph's sums, ground truth's sums).
+/// ([`Accumulator::add_samples_pair`]): (photograph's sums, ground truth's sums). Progress is
+/// reported out of 2 × spp, as for two passes.
 fn progressive_pair(
     full_world: &World,
     real_world: &World,
@@ -160,7 +161,8 @@ fn progressive_pair(
     while full.spp < params.spp {
         let n = params.pass_spp.max(1).min(params.spp - full.spp);
         full.add_samples_pair(&mut real, full_world, real_world, &scene.camera, &tp, n);
-        progress(full.spp, params.spp);
+        // counted as two passes count: samples per pixel of both images
+        progress(2 * full.spp, 2 * params.spp);
     }
     (real, full)
 }

@@ -437,6 +437,10 @@ fn paths_traced_for_both_images_at_once_give_the_images_of_two_passes() {
     // a virtual light makes the two images sample different lights: two passes
     assert!(apart.contains(&"survey-2") && apart.contains(&"metal-bottle"), "apart: {apart:?}");
     let scene = scene::load_as("survey-1", Some((40, 30)), None).unwrap();
-    let out = render_reference(&scene, &ReferenceParams { spp: 2, ..Default::default() }, &|_, _| {}).unwrap();
+    let last = std::sync::Mutex::new((0, 0));
+    let params = ReferenceParams { spp: 2, pass_spp: 1, ..Default::default() };
+    let out = render_reference(&scene, &params, &|done, total| *last.lock().unwrap() = (done, total)).unwrap();
     assert!(out.stats.paths.starts_with("together"), "{}", out.stats.paths);
+    // progress counts both images' samples, as two passes do
+    assert_eq!(*last.lock().unwrap(), (4, 4));
 }
