@@ -10,7 +10,9 @@
 //! recomputed when used up), balanced candidates (only pairs with a least-judged condition),
 //! pairs drawn with probability ∝ (EIG / largest EIG)⁴ instead of the greedy best, and ρ from
 //! the James–Stein factor of the posterior means, squared; and the EIG with ASAP's diagonal
-//! variance, batched by spanning trees or by greedy matchings. Each run's judgments are scored by
+//! variance, batched by spanning trees or by greedy matchings; and switches from the server's
+//! ramp to the plain EIG once the worths' sd — by a moment estimate, or the prior sd of largest
+//! Laplace evidence — reaches a threshold. Each run's judgments are scored by
 //! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
 //! ([`laplace::refit`]), as the README's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
@@ -50,9 +52,15 @@ enum Rule {
     /// Refit; the plain EIG (ρ = 1) once the moment estimate of the worths' sd,
     /// √(Σ(mᵢ − m̄)²/(n − 1) − v̄), reaches the threshold, the server's ρ ramp to ½ before.
     Spread(f64),
+    /// Refit; the plain EIG once the prior sd of largest Laplace evidence (over
+    /// [`EVIDENCE_SDS`]) reaches the threshold, the server's ρ ramp to ½ before.
+    Evidence(f64),
 }
 
-const SCHEDULERS: [(&str, Rule); 14] = [
+/// The prior sds whose Laplace evidence [`Rule::Evidence`] compares.
+const EVIDENCE_SDS: [f64; 7] = [0.15, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4];
+
+const SCHEDULERS: [(&str, Rule); 16] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -67,7 +75,44 @@ const SCHEDULERS: [(&str, Rule); 14] = [
     ("refit + switch at sd 0.5", Rule::Spread(0.5)),
     ("refit + switch at sd 0.7", Rule::Spread(0.7)),
     ("refit + switch at sd 0.9", Rule::Spread(0.9)),
+    ("refit + evidence switch 0.5", Rule::Evidence(0.5)),
+    ("refit + evidence switch 0.7", Rule::Evidence(0.7)),
 ];
+
+/// The Laplace approximation of log p(judgments | prior sd) for the Thurstone worths model:
+/// ℓ(θ̂) + log N(θ̂; 0, sd²·I) + (p/2)·log 2π + ½·log|Σ|, at the MAP θ̂ with covariance Σ.
+fn log_evidence(n: usize, sd: f64, judgments: &[(usize, usize)]) -> f64 {
+    let fit = refit(&Target::Worths { conditions: n }, Link::Probit, sd, judgments).expect("a refit");
+    let theta = &fit.mean;
+    let likelihood: f64 = judgments.iter().map(|&(w, l)| Link::Probit.probability(theta[w] - theta[l]).ln()).sum();
+    let two_pi = 2.0 * std::f64::consts::PI;
+    let prior: f64 = theta.iter().map(|t| -0.5 * (t / sd).powi(2) - (sd * two_pi.sqrt()).ln()).sum();
+    // ½·log|Σ| by Cholesky
+    let c = &fit.covariance;
+    let mut l = vec![0.0; n * n];
+    let mut half_log_det = 0.0;
+    for i in 0..n {
+        for j in 0..=i {
+            let sum: f64 = (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum();
+            if i == j {
+                l[i * n + i] = (c[i * n + i] - sum).sqrt();
+                half_log_det += l[i * n + i].ln();
+            } else {
+                l[i * n + j] = (c[i * n + j] - sum) / l[j * n + j];
+            }
+        }
+    }
+    likelihood + prior + 0.5 * n as f64 * two_pi.ln() + half_log_det
+}
+
+/// The prior sd of [`EVIDENCE_SDS`] with the largest Laplace evidence.
+fn evidence_sd(n: usize, judgments: &[(usize, usize)]) -> f64 {
+    EVIDENCE_SDS
+        .iter()
+        .map(|&sd| (sd, log_evidence(n, sd, judgments)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(1.0, |(sd, _)| sd)
+}
 
 fn uniform(rng: &mut ChaCha8Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
@@ -208,6 +253,16 @@ fn main() {
                         } else {
                             (DEFAULT_MEAN_WEIGHT, 20.0)
                         };
+                        posterior = posterior
+                            .clone()
+                            .with_mean_weight(rho)
+                            .and_then(|p| p.with_mean_ramp(ramp))
+                            .expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
+                    Rule::Evidence(threshold) => {
+                        let large = !judgments.is_empty() && evidence_sd(n, &judgments) >= threshold;
+                        let (rho, ramp) = if large { (1.0, 0.0) } else { (DEFAULT_MEAN_WEIGHT, 20.0) };
                         posterior = posterior
                             .clone()
                             .with_mean_weight(rho)
