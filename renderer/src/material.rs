@@ -260,7 +260,7 @@ impl Bsdf {
 
     /// f(wi, wo) and the solid-angle pdf of sampling `wi` given `wo`, with one change of frame
     /// (next-event estimation's MIS needs both).
-    #[inline]
+    #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let lo = self.frame.to_local(wo);
         let li = self.frame.to_local(wi);
