@@ -101,10 +101,17 @@ fn bench_render_reference_writes_rows_and_plot() {
         assert!(row["ms"].as_f64().unwrap() > 0.0 && row["rmse"].as_f64().is_some() && row["flip"].as_f64().is_some());
     }
     // error falls as samples grow
-    let first = rows.first().unwrap()["rmse"].as_f64().unwrap();
-    let last = rows.last().unwrap()["rmse"].as_f64().unwrap();
+    let growing: Vec<&serde_json::Value> = rows.iter().filter(|r| r["condition"] == "reference").collect();
+    let first = growing.first().unwrap()["rmse"].as_f64().unwrap();
+    let last = growing.last().unwrap()["rmse"].as_f64().unwrap();
     assert!(last < first / 3.0, "{first} → {last}");
     assert!(dir.join("render_reference.svg").exists());
+    // both images one world after the other, and together: the same ground truth
+    let both =
+        |condition: &str| rows.iter().find(|r| r["condition"] == condition).unwrap_or_else(|| panic!("{condition}"));
+    let (apart, together) = (both("two passes"), both("together"));
+    assert_eq!(apart["rmse"], together["rmse"]);
+    assert_eq!(apart["flip"], together["flip"]);
 }
 
 #[test]

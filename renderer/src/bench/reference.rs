@@ -17,7 +17,11 @@ use crate::sensor;
 #[derive(Clone, Debug, Serialize)]
 pub struct ReferenceRow {
     pub scene: String,
-    /// Always `reference`.
+    /// `reference`: the ground truth alone at a growing sample count; `two passes` and
+    /// `together`: the photograph and the ground truth at 16 spp (8 with `--quick`), rendered
+    /// one world after the other or each path once for both
+    /// ([`Accumulator::add_samples_pair`]; only in a scene without virtual lights). Their
+    /// errors are the ground truth's, the same bit for bit.
     pub condition: &'static str,
     pub spp: u32,
     /// Cumulative time to this sample count.
@@ -110,5 +114,45 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             Series::new("FLIP", points_flip),
         ],
     };
+    // the photograph and the ground truth: one world after the other, and together
+    let real_world = World::new(&scene, Subset::RealOnly);
+    let both_spp = if quick { 8 } else { 16 };
+    let row = |condition: &'static str, ms: f64, img: &Image| {
+        let display = sensor::apply(img, &scene.camera, &scene.sensor);
+        ReferenceRow {
+            scene: name.to_string(),
+            condition,
+            spp: both_spp,
+            ms,
+            samples_per_s: 2.0 * (w * h) as f64 * both_spp as f64 / (ms / 1e3),
+            rmse: metrics::rmse(&reference.hdr_full, img, Some(affected)),
+            rmse_all: metrics::rmse(&reference.hdr_full, img, None),
+            flip: metrics::flip(&reference.ground_truth, &display, Some(affected)),
+            width: w,
+            height: h,
+            reference_spp: ref_spp,
+        }
+    };
+    let start = Instant::now();
+    let _photo = crate::pathtracer::render(&real_world, &scene.camera, &params, both_spp);
+    let full = crate::pathtracer::render(&world, &scene.camera, &params, both_spp);
+    let apart = row("two passes", start.elapsed().as_secs_f64() * 1e3, &full.image());
+    observer.line(&format!("photograph and ground truth at {both_spp} spp: two passes {:.1} ms", apart.ms));
+    rows.push(apart);
+    if world.shares_lights_with(&real_world) {
+        let start = Instant::now();
+        let (mut full, mut photo) = (Accumulator::new(w, h), Accumulator::new(w, h));
+        full.add_samples_pair(&mut photo, &world, &real_world, &scene.camera, &params, both_spp);
+        let together = row("together", start.elapsed().as_secs_f64() * 1e3, &full.image());
+        observer.line(&format!(
+            "photograph and ground truth at {both_spp} spp: together {:.1} ms ({:.2}x faster, the same images)",
+            together.ms,
+            rows.last().map_or(0.0, |r| r.ms) / together.ms.max(1e-9)
+        ));
+        rows.push(together);
+    } else {
+        observer
+            .note("a virtual light: the photograph and the ground truth sample different lights, so no `together` row");
+    }
     Ok(Report { adapter, rows, plots: vec![plot] })
 }
