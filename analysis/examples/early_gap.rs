@@ -247,22 +247,14 @@ fn main() {
                         })
                         .collect(),
                     Rule::Greedy { .. } => posterior.best_pairs(k, previous, &mut ties).expect("a batch"),
-                    Rule::Spread(threshold) => {
-                        let (rho, ramp) = if spread_estimate(&posterior) >= threshold {
-                            (1.0, 0.0)
-                        } else {
-                            (DEFAULT_MEAN_WEIGHT, 20.0)
+                    Rule::Spread(threshold) | Rule::Evidence(threshold) => {
+                        // the worths' sd, by the moment estimate or the evidence
+                        let sd = match rule {
+                            Rule::Spread(_) => spread_estimate(&posterior),
+                            _ if judgments.is_empty() => 0.0,
+                            _ => evidence_sd(n, &judgments),
                         };
-                        posterior = posterior
-                            .clone()
-                            .with_mean_weight(rho)
-                            .and_then(|p| p.with_mean_ramp(ramp))
-                            .expect("a weight");
-                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
-                    }
-                    Rule::Evidence(threshold) => {
-                        let large = !judgments.is_empty() && evidence_sd(n, &judgments) >= threshold;
-                        let (rho, ramp) = if large { (1.0, 0.0) } else { (DEFAULT_MEAN_WEIGHT, 20.0) };
+                        let (rho, ramp) = if sd >= threshold { (1.0, 0.0) } else { (DEFAULT_MEAN_WEIGHT, 20.0) };
                         posterior = posterior
                             .clone()
                             .with_mean_weight(rho)

@@ -64,34 +64,34 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         "{:<10} {:>6} {:>10} {:>14} {:>12} {:>12} {:>8}",
         "scene", "spp", "ms", "samples/s", "rmse(aff)", "rmse(all)", "flip"
     ));
+    // a row for `images` images of `spp` samples each, rendered in `ms`, the ground truth `img`
+    let row = |condition: &'static str, spp: u32, images: f64, ms: f64, img: &Image| {
+        let display = sensor::apply(img, &scene.camera, &scene.sensor);
+        ReferenceRow {
+            scene: name.to_string(),
+            condition,
+            spp,
+            ms,
+            samples_per_s: images * (w * h) as f64 * spp as f64 / (ms / 1e3),
+            rmse: metrics::rmse(&reference.hdr_full, img, Some(affected)),
+            rmse_all: metrics::rmse(&reference.hdr_full, img, None),
+            flip: metrics::flip(&reference.ground_truth, &display, Some(affected)),
+            width: w,
+            height: h,
+            reference_spp: ref_spp,
+        }
+    };
     let start = Instant::now();
     let mut spp = 1u32;
     while spp <= max_spp {
         acc.add_samples(&world, &scene.camera, &params, spp - acc.spp);
-        let ms = start.elapsed().as_secs_f64() * 1e3;
-        let img: Image = acc.image();
-        let display = sensor::apply(&img, &scene.camera, &scene.sensor);
-        let rmse_aff = metrics::rmse(&reference.hdr_full, &img, Some(affected));
-        let rmse_all = metrics::rmse(&reference.hdr_full, &img, None);
-        let flip = metrics::flip(&reference.ground_truth, &display, Some(affected));
-        let sps = (w * h) as f64 * spp as f64 / (ms / 1e3);
+        let r = row("reference", spp, 1.0, start.elapsed().as_secs_f64() * 1e3, &acc.image());
+        let (ms, rmse_aff, flip) = (r.ms, r.rmse, r.flip);
         observer.line(&format!(
             "{:<10} {:>6} {:>10.1} {:>14.0} {:>12.5} {:>12.5} {:>8.4}",
-            name, spp, ms, sps, rmse_aff, rmse_all, flip
+            name, spp, ms, r.samples_per_s, rmse_aff, r.rmse_all, flip
         ));
-        rows.push(ReferenceRow {
-            scene: name.to_string(),
-            condition: "reference",
-            spp,
-            ms,
-            samples_per_s: sps,
-            rmse: rmse_aff,
-            rmse_all,
-            flip,
-            width: w,
-            height: h,
-            reference_spp: ref_spp,
-        });
+        rows.push(r);
         points_rmse.push((ms, rmse_aff));
         points_flip.push((ms, flip));
         spp *= 2;
@@ -117,33 +117,17 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     // the photograph and the ground truth: one world after the other, and together
     let real_world = World::new(&scene, Subset::RealOnly);
     let both_spp = if quick { 8 } else { 16 };
-    let row = |condition: &'static str, ms: f64, img: &Image| {
-        let display = sensor::apply(img, &scene.camera, &scene.sensor);
-        ReferenceRow {
-            scene: name.to_string(),
-            condition,
-            spp: both_spp,
-            ms,
-            samples_per_s: 2.0 * (w * h) as f64 * both_spp as f64 / (ms / 1e3),
-            rmse: metrics::rmse(&reference.hdr_full, img, Some(affected)),
-            rmse_all: metrics::rmse(&reference.hdr_full, img, None),
-            flip: metrics::flip(&reference.ground_truth, &display, Some(affected)),
-            width: w,
-            height: h,
-            reference_spp: ref_spp,
-        }
-    };
     let start = Instant::now();
     let _photo = crate::pathtracer::render(&real_world, &scene.camera, &params, both_spp);
     let full = crate::pathtracer::render(&world, &scene.camera, &params, both_spp);
-    let apart = row("two passes", start.elapsed().as_secs_f64() * 1e3, &full.image());
+    let apart = row("two passes", both_spp, 2.0, start.elapsed().as_secs_f64() * 1e3, &full.image());
     observer.line(&format!("photograph and ground truth at {both_spp} spp: two passes {:.1} ms", apart.ms));
     rows.push(apart);
     if world.shares_lights_with(&real_world) {
         let start = Instant::now();
         let (mut full, mut photo) = (Accumulator::new(w, h), Accumulator::new(w, h));
         full.add_samples_pair(&mut photo, &world, &real_world, &scene.camera, &params, both_spp);
-        let together = row("together", start.elapsed().as_secs_f64() * 1e3, &full.image());
+        let together = row("together", both_spp, 2.0, start.elapsed().as_secs_f64() * 1e3, &full.image());
         observer.line(&format!(
             "photograph and ground truth at {both_spp} spp: together {:.1} ms ({:.2}x faster, the same images)",
             together.ms,
