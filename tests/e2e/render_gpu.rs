@@ -287,6 +287,15 @@ fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passe
         assert!((row["pipelined_fps"].as_f64().unwrap() - 1000.0 / median).abs() < 1e-6, "{row}");
         let passes = row["passes"].as_array().unwrap();
         assert!(passes.iter().any(|p| p["pass"] == "g-buffer"), "{passes:?}");
+        // GPU timestamps (lavapipe has them; a GPU without them reports none): the GPU's time
+        // of a drawing pass is within its wall-clock time, and the row sums the passes'
+        if let Some(gpu) = row.get("gpu_ms").and_then(|g| g.as_f64()) {
+            let g_buffer = passes.iter().find(|p| p["pass"] == "g-buffer").unwrap();
+            let (wall, own) = (g_buffer["ms"].as_f64().unwrap(), g_buffer["gpu_ms"].as_f64().unwrap());
+            assert!(0.0 < own && own <= wall + 0.05, "{g_buffer}");
+            let sum: f64 = passes.iter().filter_map(|p| p["gpu_ms"].as_f64()).sum();
+            assert!((sum - gpu).abs() < 1e-6 && gpu <= row["passes_ms"].as_f64().unwrap() + 0.5, "{row}");
+        }
     }
     // the metal bottle is a mirror: its caustic maps run with shadows and gi, not with none
     assert_eq!(rows[0]["caustic_map_size"], 0);

@@ -11,7 +11,10 @@
 //! rows).
 //!
 //! Every pass is timed by waiting for the device after it (`timed` in [`crate::gpu`]), so a
-//! frame of the first series is a sum of synchronised passes. A second series renders the same
+//! frame of the first series is a sum of synchronised passes; where the adapter has timestamp
+//! queries each pass also reports the GPU's own time in its command buffers (`gpu_ms`, see
+//! [`crate::gpu::context::GpuContext::submit`]), so a pass's host work and waiting is the
+//! difference. A second series renders the same
 //! frames pipelined ([`crate::gpu::context::GpuContext::set_pass_waits`] off: passes only submitted,
 //! the frame waiting where it needs data back) — the frame rate the renderer reaches as built,
 //! with the same images.
@@ -54,7 +57,12 @@ pub struct FrameRateRow {
     /// The sum of the passes' medians: what the passes account for of the median frame (the
     /// rest: allocations, bind groups and the like outside the timed passes).
     pub passes_ms: f64,
-    /// Each pass's median over the timed frames, in the frame's order.
+    /// The sum of the passes' GPU medians (their `gpu_ms`; passes on the CPU have none): how
+    /// much of the frame is the GPU's own work. Absent on an adapter without timestamp queries.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_ms: Option<f64>,
+    /// Each pass's median over the timed frames, in the frame's order (with its GPU time's
+    /// median, `gpu_ms`, where the adapter has timestamp queries).
     pub passes: Vec<PassTime>,
 }
 
@@ -97,20 +105,33 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 renderer.render(&scene, &photo, &params)?;
             }
             let mut times = Vec::with_capacity(frames as usize);
-            let mut pass_times: Vec<(String, Vec<f64>)> = Vec::new();
+            // per pass: its wall-clock times and its GPU times (where the adapter times them)
+            let mut pass_times: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
             for _ in 0..frames {
                 let start = Instant::now();
                 let frame = renderer.render(&scene, &photo, &params)?;
                 times.push(start.elapsed().as_secs_f64() * 1e3);
                 for (k, pass) in frame.report.passes.iter().enumerate() {
                     match pass_times.get_mut(k) {
-                        Some((name, list)) if *name == pass.pass => list.push(pass.ms),
-                        _ => pass_times.insert(k, (pass.pass.clone(), vec![pass.ms])),
+                        Some((name, list, gpu)) if *name == pass.pass => {
+                            list.push(pass.ms);
+                            gpu.extend(pass.gpu_ms);
+                        }
+                        _ => {
+                            pass_times.insert(k, (pass.pass.clone(), vec![pass.ms], pass.gpu_ms.into_iter().collect()))
+                        }
                     }
                 }
             }
-            let passes: Vec<PassTime> =
-                pass_times.into_iter().map(|(pass, mut ms)| PassTime { pass, ms: quantile(&mut ms, 0.5) }).collect();
+            let passes: Vec<PassTime> = pass_times
+                .into_iter()
+                .map(|(pass, mut ms, mut gpu)| PassTime {
+                    pass,
+                    ms: quantile(&mut ms, 0.5),
+                    // a median only where every timed frame had the pass's GPU time
+                    gpu_ms: (gpu.len() == ms.len()).then(|| quantile(&mut gpu, 0.5)),
+                })
+                .collect();
             let median_ms = quantile(&mut times, 0.5);
             renderer.ctx.set_pass_waits(false);
             let mut pipelined = Vec::with_capacity(frames as usize);
@@ -146,11 +167,19 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 pipelined_p90_ms: quantile(&mut pipelined, 0.9),
                 pipelined_fps: 1000.0 / pipelined_median_ms.max(1e-9),
                 passes_ms: passes.iter().map(|p| p.ms).sum(),
+                gpu_ms: passes.iter().any(|p| p.gpu_ms.is_some()).then(|| passes.iter().filter_map(|p| p.gpu_ms).sum()),
                 passes,
             };
             let mut slowest: Vec<&PassTime> = row.passes.iter().collect();
             slowest.sort_by(|a, b| b.ms.total_cmp(&a.ms));
-            let slowest: Vec<String> = slowest.iter().take(3).map(|p| format!("{} {:.2}", p.pass, p.ms)).collect();
+            let slowest: Vec<String> = slowest
+                .iter()
+                .take(3)
+                .map(|p| match p.gpu_ms {
+                    Some(gpu) => format!("{} {:.2} (GPU {gpu:.2})", p.pass, p.ms),
+                    None => format!("{} {:.2}", p.pass, p.ms),
+                })
+                .collect();
             observer.line(&format!(
                 "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1}   {}",
                 row.scene,

@@ -224,7 +224,7 @@ impl Artifacts {
             stage(7, &oa, layers, &ob, (w.div_ceil(8).div_ceil(8), h.div_ceil(8).div_ceil(8)));
             out = &ob;
         }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         let data = ctx.read_f32(out);
         let pixels: Vec<Vec3> = data.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let processed = (0..n as usize).filter(|&i| pixels[i] != photo.pixels[i] || mask.values[i] > 0.0).count();

@@ -230,6 +230,7 @@ impl CmPasses {
                 passes.push(PassTime {
                     pass: format!("cm {name}: matching (GPU) and regression"),
                     ms: start.elapsed().as_secs_f64() * 1e3,
+                    gpu_ms: None,
                 });
                 out
             }

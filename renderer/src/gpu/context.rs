@@ -5,7 +5,12 @@
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 use std::fmt;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The features GPU pass timing needs: timestamp queries written between command buffers.
+const TIMESTAMPS: wgpu::Features =
+    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
 
 /// Bytes of mapped memory one thread copies at a time when a buffer is read back.
 const READ_BLOCK: usize = 1 << 18;
@@ -61,7 +66,24 @@ pub struct GpuContext {
     /// Whether a frame waits for the device after every pass to time it (the default; see
     /// [`GpuContext::set_pass_waits`]).
     pass_waits: AtomicBool,
+    /// GPU timestamps around every submission while passes are timed, where the adapter has
+    /// them ([`GpuContext::submit`], [`GpuContext::take_gpu_ms`]).
+    timer: Option<Mutex<GpuTimer>>,
 }
+
+/// Timestamp queries written before and after each command buffer submitted since the last
+/// [`GpuContext::take_gpu_ms`]: pairs (begin, end) in `queries`.
+struct GpuTimer {
+    queries: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    written: u32,
+    /// Nanoseconds per timestamp tick.
+    period_ns: f64,
+}
+
+/// Timestamp queries per timed pass (two per submission); submissions beyond them go untimed
+/// and the pass reports no GPU time rather than part of it.
+const TIMER_QUERIES: u32 = 512;
 
 impl GpuContext {
     /// Opens the adapter chosen by `MRSTUDY_ADAPTER`, or the best one available.
@@ -117,12 +139,88 @@ impl GpuContext {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("mrstudy"),
-            required_features: wgpu::Features::empty(),
+            required_features: adapter.features() & TIMESTAMPS,
             required_limits: adapter.limits(),
             ..Default::default()
         }))
         .map_err(|e| RenderError::Unsupported(format!("the adapter {} refused a device: {e}", describe(&info))))?;
-        Ok(GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true) })
+        let timer = device.features().contains(TIMESTAMPS).then(|| {
+            Mutex::new(GpuTimer {
+                queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("pass timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: TIMER_QUERIES,
+                }),
+                resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("pass timestamps resolved"),
+                    size: TIMER_QUERIES as u64 * 8,
+                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                }),
+                written: 0,
+                period_ns: queue.get_timestamp_period() as f64,
+            })
+        });
+        Ok(GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true), timer })
+    }
+
+    /// Submits one command buffer. While passes are timed ([`GpuContext::set_pass_waits`]) on
+    /// an adapter with timestamp queries, timestamps are written just before and just after
+    /// it (tiny command buffers in the same submission), for [`GpuContext::take_gpu_ms`].
+    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
+        let commands = encoder.finish();
+        let Some(timer) = self.timer.as_ref().filter(|_| self.pass_waits()) else {
+            self.queue.submit([commands]);
+            return;
+        };
+        let mut timer = timer.lock().unwrap_or_else(|e| e.into_inner());
+        if timer.written + 2 > TIMER_QUERIES {
+            // more submissions than queries: the pass's GPU time is not reported
+            timer.written = TIMER_QUERIES + 1;
+            self.queue.submit([commands]);
+            return;
+        }
+        let marker = |index: u32| {
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            encoder.write_timestamp(&timer.queries, index);
+            encoder.finish()
+        };
+        let (begin, end) = (marker(timer.written), marker(timer.written + 1));
+        timer.written += 2;
+        self.queue.submit([begin, commands, end]);
+    }
+
+    /// The GPU's time in milliseconds over the command buffers [`GpuContext::submit`]ted since
+    /// the last call (the sum of each one's end minus begin timestamp), then forgets them.
+    /// `None` without timestamp queries, when nothing was submitted, or when a pass submitted
+    /// more command buffers than the queries hold. Waits for the device.
+    pub fn take_gpu_ms(&self) -> Option<f64> {
+        let mut timer = self.timer.as_ref()?.lock().unwrap_or_else(|e| e.into_inner());
+        let written = std::mem::take(&mut timer.written);
+        if written == 0 || written > TIMER_QUERIES {
+            return None;
+        }
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pass timestamps read back"),
+            size: written as u64 * 8,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.resolve_query_set(&timer.queries, 0..written, &timer.resolve, 0);
+        encoder.copy_buffer_to_buffer(&timer.resolve, 0, &staging, 0, written as u64 * 8);
+        // not through `submit`: this copy is no pass's work (and the timer is locked)
+        self.queue.submit([encoder.finish()]);
+        let ticks: Vec<u64> = self.mapped(&staging, |bytes| {
+            bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect()
+        })?;
+        let total: u64 = ticks.chunks_exact(2).map(|pair| pair[1].saturating_sub(pair[0])).sum();
+        Some(total as f64 * timer.period_ns * 1e-6)
+    }
+
+    /// Whether this device writes GPU timestamps around timed passes' submissions.
+    pub fn has_gpu_timer(&self) -> bool {
+        self.timer.is_some()
     }
 
     /// Compiles the WGSL `source` (named `name` in errors) and one compute pipeline per entry
@@ -170,7 +268,7 @@ impl GpuContext {
             pass.set_bind_group(0, &bind_group, &[]);
             pass.dispatch_workgroups(groups[0], groups[1], 1);
         }
-        self.queue.submit([encoder.finish()]);
+        self.submit(encoder);
     }
 
     /// The adapter in words, for reports: name, backend and kind.
@@ -236,7 +334,7 @@ impl GpuContext {
         });
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
-        self.queue.submit([encoder.finish()]);
+        self.submit(encoder);
         staging
     }
 
@@ -294,7 +392,7 @@ impl GpuContext {
                 wgpu::Extent3d { width: texture.width(), height: h, depth_or_array_layers: 1 },
             );
         }
-        self.queue.submit([encoder.finish()]);
+        self.submit(encoder);
         // rows copied straight from the mapped memory without their padding, on all threads
         self.mapped(&staging, |view| {
             layouts

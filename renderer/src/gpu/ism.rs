@@ -206,7 +206,7 @@ impl Ism {
             pass.set_bind_group(0, &bind_group, &[]);
             pass.draw(0..6, 0..vpls.len() as u32 * points_per_vpl);
         }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         IsmAtlas { texture, tiles_per_row, tile_size, inv_max_distance, splat_radius, points }
     }
 }

@@ -187,6 +187,11 @@ impl Default for DirParams {
 pub struct PassTime {
     pub pass: String,
     pub ms: f64,
+    /// The GPU's own time in the pass's command buffers (timestamps before and after each),
+    /// where the adapter has timestamp queries and the pass was timed with waits; what is left
+    /// of `ms` is the host's work and waiting.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_ms: Option<f64>,
 }
 
 /// A GPU frame's images and report.
@@ -361,7 +366,8 @@ fn timed<T>(ctx: &GpuContext, passes: &mut Vec<PassTime>, name: String, f: impl 
     let out = f();
     if ctx.pass_waits() {
         ctx.wait();
-        passes.push(PassTime { pass: name, ms: start.elapsed().as_secs_f64() * 1e3 });
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        passes.push(PassTime { pass: name, ms, gpu_ms: ctx.take_gpu_ms() });
     }
     out
 }
@@ -455,7 +461,11 @@ impl DirRenderer {
         let mut passes = Vec::new();
         let start = Instant::now();
         let mesh = mesh::build(scene);
-        passes.push(PassTime { pass: "scene mesh (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
+        passes.push(PassTime {
+            pass: "scene mesh (CPU)".into(),
+            ms: start.elapsed().as_secs_f64() * 1e3,
+            gpu_ms: None,
+        });
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
         let virtual_maps = params.condition != GiLevel::None && has_virtual;
@@ -678,7 +688,11 @@ impl DirRenderer {
             let candidates = vpl::Candidates::new(&rsms, &caustic_candidates);
             vpls = candidates.draw(params.vpls);
             first_bounce = Some(candidates);
-            passes.push(PassTime { pass: "VPL creation (CPU)".into(), ms: start.elapsed().as_secs_f64() * 1e3 });
+            passes.push(PassTime {
+                pass: "VPL creation (CPU)".into(),
+                ms: start.elapsed().as_secs_f64() * 1e3,
+                gpu_ms: None,
+            });
         }
 
         if let Some(given) = given_vpls {
@@ -750,6 +764,7 @@ impl DirRenderer {
             passes.push(PassTime {
                 pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
                 ms: start.elapsed().as_secs_f64() * 1e3,
+                gpu_ms: None,
             });
         }
 
@@ -995,6 +1010,7 @@ impl DirRenderer {
         passes.push(PassTime {
             pass: "images from the read-back buffers (CPU)".into(),
             ms: start.elapsed().as_secs_f64() * 1e3,
+            gpu_ms: None,
         });
         // 5. camera artifacts (the ca factor) on the virtual layers of the composite
         let mut ca_report = None;

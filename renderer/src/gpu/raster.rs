@@ -275,7 +275,7 @@ impl Raster {
         let bind_group = self.bind_group(ctx, pipeline, scene, view);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         self.record(ctx, &mut encoder, pipeline, &bind_group, scene, subset, size, targets);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
     }
 
     /// Records one pass of [`Raster::draw`] into `encoder`.
@@ -401,7 +401,7 @@ impl Raster {
                 &[(*distance, 1e30)],
             );
         }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
     }
 
     /// A reflective shadow map: distance plus the surfaces the light sees (its own resolution,
@@ -490,7 +490,7 @@ impl Raster {
                 }
             }
         }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
     }
 }
 

@@ -317,7 +317,7 @@ impl RepresentationBuilder {
         for buffer in [&tau, &normals, &albedos] {
             encoder.clear_buffer(buffer, 0, None);
         }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         let origin = bounds.min;
         let mut gpu_bytes = total * 4 + count * 32 + data.len() as u64 * 16;
         for axis in 0..3 {
@@ -437,7 +437,7 @@ impl RepresentationBuilder {
         // 0xffffffff: no sample (the bits of a NaN, above every distance's bits)
         ctx.queue.write_buffer(&depth, 0, &vec![0xffu8; texels as usize * 4]);
         encoder.clear_buffer(&radiance, 0, None);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         // both passes run the one splat function, so both bind all four
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
@@ -496,7 +496,7 @@ impl RepresentationBuilder {
         let levels = storage(ctx, "voxel levels", total * 16);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&sums, 0, None);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         if count > 0 {
             let entries = [
                 wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },

@@ -471,7 +471,7 @@ impl Specular {
                     wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
                 );
             }
-            ctx.queue.submit([encoder.finish()]);
+            ctx.submit(encoder);
             search
         });
         let report =

@@ -122,3 +122,46 @@ fn shadow_maps_drawn_together_equal_each_drawn_alone() {
     assert_eq!(maps[3], maps[0], "the map from above, drawn after the side view in one submission");
     assert_eq!(maps[2], maps[1], "the side view, drawn first in one submission");
 }
+
+/// GPU timestamps around every timed pass's submissions: a pass that draws or computes reports
+/// its GPU time, no more than its wall-clock time; a pass on the CPU reports none; nothing is
+/// written while passes are not timed, and a pass's timestamps are read once.
+#[test]
+fn timed_passes_report_the_gpu_time_of_their_own_submissions() {
+    if crate::test_support::renderer_or_skip().is_none() {
+        return;
+    }
+    // a renderer of its own: other tests' frames on the shared one would add their submissions
+    let r = DirRenderer::new().unwrap();
+    assert!(
+        r.ctx.has_gpu_timer() || r.ctx.kind != context::AdapterKind::Software,
+        "lavapipe has timestamp queries; the test would tell nothing without them"
+    );
+    if !r.ctx.has_gpu_timer() {
+        eprintln!("skipping the GPU-time checks: {} has no timestamp queries", r.ctx.adapter_name());
+        return;
+    }
+    let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = DirParams { condition: GiLevel::Gi, vpls: 32, rsm_size: 32, ..DirParams::default() };
+    let frame = r.render(&scene, &photo, &params).unwrap();
+    let pass = |prefix: &str| frame.report.passes.iter().find(|p| p.pass.starts_with(prefix)).unwrap();
+    for drawn in ["g-buffer", "shading", "ISMs", "composition"] {
+        let p = pass(drawn);
+        let gpu = p.gpu_ms.unwrap_or_else(|| panic!("{}: no GPU time", p.pass));
+        // the two clocks differ by their resolution at most
+        assert!(gpu > 0.0 && gpu <= p.ms + 0.05, "{}: GPU {gpu} ms in {} ms", p.pass, p.ms);
+    }
+    for p in frame.report.passes.iter().filter(|p| p.pass.contains("(CPU)")) {
+        assert_eq!(p.gpu_ms, None, "{} ran on the CPU", p.pass);
+    }
+    assert_eq!(r.ctx.take_gpu_ms(), None, "the frame's timestamps were all taken by its passes");
+    r.ctx.set_pass_waits(false);
+    let pipelined = r.render(&scene, &photo, &params);
+    r.ctx.set_pass_waits(true);
+    assert_eq!(pipelined.unwrap().composite.pixels, frame.composite.pixels);
+    assert_eq!(r.ctx.take_gpu_ms(), None, "no timestamps while passes are not timed");
+    r.ctx.submit(r.ctx.device.create_command_encoder(&Default::default()));
+    assert!(r.ctx.take_gpu_ms().is_some_and(|ms| ms >= 0.0));
+    assert_eq!(r.ctx.take_gpu_ms(), None, "a submission's time is read once");
+}
