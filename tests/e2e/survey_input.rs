@@ -373,3 +373,109 @@ fn the_researcher_previews_excludes_and_deletes_from_the_admin_page_in_chromium(
     phone.wait_visible("participants");
     phone.screenshot(&screenshot_path("admin-participants-phone.png"));
 }
+
+/// An active design (`pairs = "active"`, issue 14) through the real page: the next batch of
+/// trials is chosen from the answers so far while the participant goes on, so a double click,
+/// a held key and a reload land exactly where a fixed schedule's would. Every trial shown is
+/// answered once, with the side the participant chose, a reload shows the same pair again,
+/// and every chosen trial names the judgments it was chosen from.
+#[test]
+fn an_active_study_stores_the_side_chosen_once_per_trial_through_double_clicks_a_held_key_and_a_reload() {
+    if !browser_available() {
+        return;
+    }
+    let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    copy_demo_study(studies.path());
+    let file = studies.path().join("shadows-demo.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let active = text.replace(
+        "[design]\npairs = \"all\"\nrepetitions = 1\n",
+        "[design]\npairs = \"active\"\ntrials = 8\nbatch = 2\ntarget = \"worths\"\nwarmup = \"none\"\n",
+    );
+    assert!(active.contains("pairs = \"active\""), "the demo study's design changed; update this test");
+    std::fs::write(&file, active).unwrap();
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &server.base, "");
+    driver.click("#start");
+    let total: usize = {
+        driver.wait_trial("1");
+        let progress = driver.text("#trial-progress");
+        progress.rsplit(' ').next().unwrap().parse().unwrap_or_else(|_| panic!("{progress}"))
+    };
+    assert!(total >= 8, "8 chosen trials (and the catch trial) expected, the page says {total}");
+    let shown_pair = || {
+        driver.script("return [document.getElementById('image-left').src, document.getElementById('image-right').src];")
+    };
+    let mut chose = Vec::new();
+
+    // trial 1: a double click on the left image, 120 ms apart
+    ready(&driver, "1");
+    let left = driver.centre("#image-left");
+    mouse_click(&driver, left, 1);
+    std::thread::sleep(Duration::from_millis(120));
+    mouse_click(&driver, left, 2);
+    chose.push("left");
+    driver.wait_trial("2");
+    std::thread::sleep(Duration::from_millis(800));
+    assert_eq!(answered(data_dir.path()), 1, "the double click's second click answered trial 2");
+
+    // trial 2: the right arrow held for half a second, with auto-repeat
+    ready(&driver, "2");
+    key(&driver, "keyDown", "ArrowRight", 39, false);
+    let until = std::time::Instant::now() + Duration::from_millis(500);
+    while std::time::Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(33));
+        key(&driver, "keyDown", "ArrowRight", 39, true);
+    }
+    key(&driver, "keyUp", "ArrowRight", 39, false);
+    chose.push("right");
+    driver.wait_trial("3");
+    std::thread::sleep(Duration::from_millis(800));
+    assert_eq!(answered(data_dir.path()), 2, "auto-repeat answered more trials");
+
+    // trial 3 by a click; trial 4 comes from a batch chosen from the answers so far, and a
+    // reload shows it again
+    ready(&driver, "3");
+    driver.click("#choose-left");
+    chose.push("left");
+    ready(&driver, "4");
+    let before = shown_pair();
+    driver.refresh();
+    driver.wait_trial("4");
+    assert_eq!(shown_pair(), before, "the reload showed another pair as trial 4");
+    assert_eq!(answered(data_dir.path()), 3, "the reload answered a trial");
+
+    // the rest by deliberate clicks, alternating sides
+    for trial in 4..=total {
+        ready(&driver, &trial.to_string());
+        let side = if trial % 2 == 0 { "left" } else { "right" };
+        driver.click(&format!("#choose-{side}"));
+        chose.push(side);
+        let next = if trial == total { "done".to_string() } else { (trial + 1).to_string() };
+        driver.wait_trial(&next);
+    }
+    driver.wait_visible("stage-done");
+
+    let stored = query(data_dir.path(), "SELECT trial, chosen FROM responses ORDER BY trial");
+    let expected: Vec<Vec<String>> =
+        chose.iter().enumerate().map(|(i, side)| vec![(i + 1).to_string(), side.to_string()]).collect();
+    assert_eq!(stored, expected, "stored answers against what the participant did");
+    let trials = query(
+        data_dir.path(),
+        "SELECT trial, COALESCE(chosen_by, ''), catch_expected IS NOT NULL FROM trials ORDER BY trial",
+    );
+    assert_eq!(trials.len(), total, "{trials:?}");
+    // chosen_by = "<judgments absorbed>-<fingerprint>": 8 chosen trials in batches of two, the
+    // first from the prior alone and each later one from more answers (trial 4's included)
+    let chosen: Vec<(usize, u32)> = trials
+        .iter()
+        .filter(|t| t[2] == "0")
+        .map(|t| {
+            (t[0].parse().unwrap(), t[1].split('-').next().unwrap().parse().unwrap_or_else(|_| panic!("{trials:?}")))
+        })
+        .collect();
+    assert_eq!(chosen.len(), 8, "{trials:?}");
+    assert!(chosen.windows(2).all(|w| w[0].1 <= w[1].1) && chosen[0].1 == 0, "{trials:?}");
+    assert!(chosen.iter().any(|&(trial, absorbed)| trial == 4 && absorbed > 0), "{trials:?}");
+}
