@@ -152,11 +152,22 @@ impl Primitive {
     /// cosine) computed only when `uv` asks for them (a textured material); otherwise zero.
     #[inline(always)]
     pub fn surface_with(&self, ray: &Ray, t: f32, u: f32, v: f32, uv: bool) -> SurfaceHit {
+        let normal = match self {
+            Primitive::Triangle(tri) => tri.geometric_normal(),
+            Primitive::Sphere { .. } => Vec3::ZERO,
+        };
+        self.surface_with_normal(ray, t, u, v, uv, normal)
+    }
+
+    /// [`Primitive::surface_with`] with a triangle's geometric normal given (precomputed, as
+    /// [`Triangle::geometric_normal`] gives it; unused for a sphere).
+    #[inline(always)]
+    pub fn surface_with_normal(&self, ray: &Ray, t: f32, u: f32, v: f32, uv: bool, normal: Vec3) -> SurfaceHit {
         let point = ray.origin + ray.dir * t;
         match self {
             Primitive::Triangle(tri) => {
                 let w = 1.0 - u - v;
-                let ng = tri.geometric_normal();
+                let ng = normal;
                 let ns = match tri.n {
                     Some(n) => (n[0] * w + n[1] * u + n[2] * v).normalize_or(ng),
                     None => ng,

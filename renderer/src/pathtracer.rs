@@ -153,6 +153,8 @@ enum LightGroup {
 /// A scene prepared for tracing: BVH, materials and light-sampling tables.
 pub struct World {
     bvh: Bvh<PrimInfo>,
+    /// Each BVH primitive's geometric normal (a triangle's, computed once; zero for a sphere).
+    normals: Vec<Vec3>,
     materials: Vec<Material>,
     /// Role of each object (indexed by `PrimInfo::object`).
     pub object_roles: Vec<Role>,
@@ -230,8 +232,18 @@ impl World {
         if scene.environment.is_some() {
             groups.push(LightGroup::Environment);
         }
+        let bvh = Bvh::build(prims, payload);
+        let normals = bvh
+            .prims
+            .iter()
+            .map(|p| match p {
+                Primitive::Triangle(t) => t.geometric_normal(),
+                Primitive::Sphere { .. } => Vec3::ZERO,
+            })
+            .collect();
         World {
-            bvh: Bvh::build(prims, payload),
+            bvh,
+            normals,
             materials: scene.materials.clone(),
             object_roles: scene.objects.iter().map(|o| o.role).collect(),
             emitters,
@@ -248,7 +260,8 @@ impl World {
     #[inline(always)]
     fn surface_at(&self, ray: &Ray, hit: &BvhHit) -> (&Material, SurfaceHit) {
         let mat = &self.materials[self.bvh.payload[hit.prim].material as usize];
-        (mat, self.bvh.prims[hit.prim].surface_with(ray, hit.t, hit.u, hit.v, mat.texture.is_some()))
+        let prim = &self.bvh.prims[hit.prim];
+        (mat, prim.surface_with_normal(ray, hit.t, hit.u, hit.v, mat.texture.is_some(), self.normals[hit.prim]))
     }
 
     /// The nearest surface along `ray` (beyond the tracer's epsilon): the hit with its shading
