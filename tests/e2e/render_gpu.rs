@@ -287,8 +287,9 @@ fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passe
         assert!((row["pipelined_fps"].as_f64().unwrap() - 1000.0 / median).abs() < 1e-6, "{row}");
         let passes = row["passes"].as_array().unwrap();
         assert!(passes.iter().any(|p| p["pass"] == "g-buffer"), "{passes:?}");
-        // GPU timestamps (lavapipe has them; a GPU without them reports none): the GPU's time
-        // of a drawing pass is within its wall-clock time, and the row sums the passes'
+        // GPU timestamps (taken on a hardware adapter with timestamp queries; none on lavapipe,
+        // whose timestamps miss some compute dispatches): the GPU's time of a drawing pass is
+        // within its wall-clock time, and the row sums the passes'
         if let Some(gpu) = row.get("gpu_ms").and_then(|g| g.as_f64()) {
             let g_buffer = passes.iter().find(|p| p["pass"] == "g-buffer").unwrap();
             let (wall, own) = (g_buffer["ms"].as_f64().unwrap(), g_buffer["gpu_ms"].as_f64().unwrap());

@@ -66,9 +66,10 @@ pub struct GpuContext {
     /// Whether a frame waits for the device after every pass to time it (the default; see
     /// [`GpuContext::set_pass_waits`]).
     pass_waits: AtomicBool,
-    /// GPU timestamps around every submission while passes are timed, where the adapter has
-    /// them ([`GpuContext::submit`], [`GpuContext::take_gpu_ms`]).
-    timer: Option<Mutex<GpuTimer>>,
+    /// GPU timestamps around every submission while passes are timed ([`GpuContext::submit`],
+    /// [`GpuContext::take_gpu_ms`]): on a hardware adapter with timestamp queries, or once
+    /// [`GpuContext::enable_gpu_timer`] asks for them.
+    timer: Mutex<Option<GpuTimer>>,
 }
 
 /// Timestamp queries written before and after each command buffer submitted since the last
@@ -144,36 +145,59 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| RenderError::Unsupported(format!("the adapter {} refused a device: {e}", describe(&info))))?;
-        let timer = device.features().contains(TIMESTAMPS).then(|| {
-            Mutex::new(GpuTimer {
-                queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+        let ctx = GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true), timer: Mutex::new(None) };
+        // lavapipe writes some timestamps without waiting for the compute dispatch before them
+        // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
+        // 65 536 — 500 ms of it waiting for the device after the dispatch — while its
+        // timestamps stayed under 0.06 ms; draws and the shading dispatch are timed right), so
+        // a software adapter's GPU times could mislead: they are taken on hardware only,
+        // unless asked for
+        if kind == AdapterKind::Hardware {
+            ctx.enable_gpu_timer();
+        }
+        Ok(ctx)
+    }
+
+    /// Turns GPU timestamps around timed passes' submissions on, where the device has timestamp
+    /// queries (on by itself on a hardware adapter; on lavapipe they miss some compute
+    /// dispatches); whether they are on.
+    pub fn enable_gpu_timer(&self) -> bool {
+        if !self.device.features().contains(TIMESTAMPS) {
+            return false;
+        }
+        let mut timer = self.timer.lock().unwrap_or_else(|e| e.into_inner());
+        if timer.is_none() {
+            *timer = Some(GpuTimer {
+                queries: self.device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("pass timestamps"),
                     ty: wgpu::QueryType::Timestamp,
                     count: TIMER_QUERIES,
                 }),
-                resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                resolve: self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("pass timestamps resolved"),
                     size: TIMER_QUERIES as u64 * 8,
                     usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                     mapped_at_creation: false,
                 }),
                 written: 0,
-                period_ns: queue.get_timestamp_period() as f64,
-            })
-        });
-        Ok(GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true), timer })
+                period_ns: self.queue.get_timestamp_period() as f64,
+            });
+        }
+        true
     }
 
-    /// Submits one command buffer. While passes are timed ([`GpuContext::set_pass_waits`]) on
-    /// an adapter with timestamp queries, timestamps are written just before and just after
-    /// it (tiny command buffers in the same submission), for [`GpuContext::take_gpu_ms`].
+    /// Submits one command buffer. While passes are timed ([`GpuContext::set_pass_waits`]) with
+    /// the GPU timer on ([`GpuContext::enable_gpu_timer`]), timestamps are written just before
+    /// and just after it (tiny command buffers in the same submission), for
+    /// [`GpuContext::take_gpu_ms`].
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let commands = encoder.finish();
-        let Some(timer) = self.timer.as_ref().filter(|_| self.pass_waits()) else {
+        let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
+            drop(guard);
             self.queue.submit([commands]);
             return;
         };
-        let mut timer = timer.lock().unwrap_or_else(|e| e.into_inner());
         if timer.written + 2 > TIMER_QUERIES {
             // more submissions than queries: the pass's GPU time is not reported
             timer.written = TIMER_QUERIES + 1;
@@ -192,10 +216,11 @@ impl GpuContext {
 
     /// The GPU's time in milliseconds over the command buffers [`GpuContext::submit`]ted since
     /// the last call (the sum of each one's end minus begin timestamp), then forgets them.
-    /// `None` without timestamp queries, when nothing was submitted, or when a pass submitted
-    /// more command buffers than the queries hold. Waits for the device.
+    /// `None` with the timer off, when nothing was submitted, or when a pass submitted more
+    /// command buffers than the queries hold. Waits for the device.
     pub fn take_gpu_ms(&self) -> Option<f64> {
-        let mut timer = self.timer.as_ref()?.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
+        let timer = guard.as_mut()?;
         let written = std::mem::take(&mut timer.written);
         if written == 0 || written > TIMER_QUERIES {
             return None;
@@ -220,7 +245,7 @@ impl GpuContext {
 
     /// Whether this device writes GPU timestamps around timed passes' submissions.
     pub fn has_gpu_timer(&self) -> bool {
-        self.timer.is_some()
+        self.timer.lock().unwrap_or_else(|e| e.into_inner()).is_some()
     }
 
     /// Compiles the WGSL `source` (named `name` in errors) and one compute pipeline per entry
