@@ -152,11 +152,17 @@ impl Primitive {
     /// cosine) computed only when `uv` asks for them (a textured material); otherwise zero.
     #[inline(always)]
     pub fn surface_with(&self, ray: &Ray, t: f32, u: f32, v: f32, uv: bool) -> SurfaceHit {
-        let normal = match self {
+        self.surface_with_normal(ray, t, u, v, uv, self.flat_normal())
+    }
+
+    /// A triangle's geometric normal ([`Triangle::geometric_normal`]); zero for a sphere, whose
+    /// normal depends on the point.
+    #[inline(always)]
+    pub fn flat_normal(&self) -> Vec3 {
+        match self {
             Primitive::Triangle(tri) => tri.geometric_normal(),
             Primitive::Sphere { .. } => Vec3::ZERO,
-        };
-        self.surface_with_normal(ray, t, u, v, uv, normal)
+        }
     }
 
     /// [`Primitive::surface_with`] with a triangle's geometric normal given (precomputed, as

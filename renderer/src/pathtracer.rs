@@ -233,14 +233,7 @@ impl World {
             groups.push(LightGroup::Environment);
         }
         let bvh = Bvh::build(prims, payload);
-        let normals = bvh
-            .prims
-            .iter()
-            .map(|p| match p {
-                Primitive::Triangle(t) => t.geometric_normal(),
-                Primitive::Sphere { .. } => Vec3::ZERO,
-            })
-            .collect();
+        let normals = bvh.prims.iter().map(Primitive::flat_normal).collect();
         World {
             bvh,
             normals,

@@ -72,6 +72,25 @@ fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
     );
 }
 
+/// A key held down for `held`: one press, then auto-repeat keydowns every 33 ms (as an OS
+/// sends them), then the release.
+fn hold_key(driver: &Driver, name: &str, code: u32, held: Duration) {
+    key(driver, "keyDown", name, code, false);
+    let until = std::time::Instant::now() + held;
+    while std::time::Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(33));
+        key(driver, "keyDown", name, code, true);
+    }
+    key(driver, "keyUp", name, code, false);
+}
+
+/// A double click at `at`: a click, and 120 ms later the second click of a double click.
+fn double_click(driver: &Driver, at: (f64, f64)) {
+    mouse_click(driver, at, 1);
+    std::thread::sleep(Duration::from_millis(120));
+    mouse_click(driver, at, 2);
+}
+
 /// Waits for the trial, then longer than `min_response_ms` (300 ms), so a fresh press counts.
 fn ready(driver: &Driver, trial: &str) {
     driver.wait_trial(trial);
@@ -92,9 +111,7 @@ fn a_double_click_answers_one_trial_and_a_double_click_on_start_answers_none() {
     // A double click on "Start": the first starts, the second (120 ms later, where the left
     // image appears) must not answer trial 1.
     let start = driver.centre("#start");
-    mouse_click(&driver, start, 1);
-    std::thread::sleep(Duration::from_millis(120));
-    mouse_click(&driver, start, 2);
+    double_click(&driver, start);
     driver.wait_for("document.body.dataset.trial === '1'");
     std::thread::sleep(Duration::from_millis(1000));
     assert_eq!(answered(data_dir.path()), 0, "a double click on Start answered a trial");
@@ -104,9 +121,7 @@ fn a_double_click_answers_one_trial_and_a_double_click_on_start_answers_none() {
     // A double click on the left image, 120 ms apart: one answer, to trial 1 only.
     ready(&driver, "1");
     let left = driver.centre("#image-left");
-    mouse_click(&driver, left, 1);
-    std::thread::sleep(Duration::from_millis(120));
-    mouse_click(&driver, left, 2);
+    double_click(&driver, left);
     driver.wait_for("document.body.dataset.trial === '2'");
     std::thread::sleep(Duration::from_millis(1000));
     assert_eq!(answered(data_dir.path()), 1, "the second click answered the next trial");
@@ -132,14 +147,8 @@ fn a_held_arrow_key_answers_one_trial() {
     enter(&driver, &server.base, "");
     driver.click("#start");
     ready(&driver, "1");
-    // Held for one second: one press, then auto-repeat keydowns every 33 ms (as an OS does).
-    key(&driver, "keyDown", "ArrowLeft", 37, false);
-    let until = std::time::Instant::now() + Duration::from_secs(1);
-    while std::time::Instant::now() < until {
-        std::thread::sleep(Duration::from_millis(33));
-        key(&driver, "keyDown", "ArrowLeft", 37, true);
-    }
-    key(&driver, "keyUp", "ArrowLeft", 37, false);
+    // Held for one second, with auto-repeat.
+    hold_key(&driver, "ArrowLeft", 37, Duration::from_secs(1));
     std::thread::sleep(Duration::from_millis(800));
     assert_eq!(answered(data_dir.path()), 1, "auto-repeat answered more trials");
     driver.wait_trial("2");
@@ -412,9 +421,7 @@ fn an_active_study_stores_the_side_chosen_once_per_trial_through_double_clicks_a
     // trial 1: a double click on the left image, 120 ms apart
     ready(&driver, "1");
     let left = driver.centre("#image-left");
-    mouse_click(&driver, left, 1);
-    std::thread::sleep(Duration::from_millis(120));
-    mouse_click(&driver, left, 2);
+    double_click(&driver, left);
     chose.push("left");
     driver.wait_trial("2");
     std::thread::sleep(Duration::from_millis(800));
@@ -422,13 +429,7 @@ fn an_active_study_stores_the_side_chosen_once_per_trial_through_double_clicks_a
 
     // trial 2: the right arrow held for half a second, with auto-repeat
     ready(&driver, "2");
-    key(&driver, "keyDown", "ArrowRight", 39, false);
-    let until = std::time::Instant::now() + Duration::from_millis(500);
-    while std::time::Instant::now() < until {
-        std::thread::sleep(Duration::from_millis(33));
-        key(&driver, "keyDown", "ArrowRight", 39, true);
-    }
-    key(&driver, "keyUp", "ArrowRight", 39, false);
+    hold_key(&driver, "ArrowRight", 39, Duration::from_millis(500));
     chose.push("right");
     driver.wait_trial("3");
     std::thread::sleep(Duration::from_millis(800));

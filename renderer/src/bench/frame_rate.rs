@@ -11,10 +11,10 @@
 //! rows).
 //!
 //! Every pass is timed by waiting for the device after it (`timed` in [`crate::gpu`]), so a
-//! frame of the first series is a sum of synchronised passes; where the adapter has timestamp
-//! queries each pass also reports the GPU's own time in its command buffers (`gpu_ms`, see
-//! [`crate::gpu::context::GpuContext::submit`]), so a pass's host work and waiting is the
-//! difference. A second series renders the same
+//! frame of the first series is a sum of synchronised passes; on a hardware adapter with
+//! timestamp queries each pass also reports the GPU's own time in its command buffers
+//! (`gpu_ms`, see [`crate::gpu::context::GpuContext::submit`]), so a pass's host work and
+//! waiting is the difference. A second series renders the same
 //! frames pipelined ([`crate::gpu::context::GpuContext::set_pass_waits`] off: passes only submitted,
 //! the frame waiting where it needs data back) — the frame rate the renderer reaches as built,
 //! with the same images.
@@ -58,11 +58,12 @@ pub struct FrameRateRow {
     /// rest: allocations, bind groups and the like outside the timed passes).
     pub passes_ms: f64,
     /// The sum of the passes' GPU medians (their `gpu_ms`; passes on the CPU have none): how
-    /// much of the frame is the GPU's own work. Absent on an adapter without timestamp queries.
+    /// much of the frame is the GPU's own work. Absent where the context takes no GPU times (a
+    /// software adapter, or one without timestamp queries).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_ms: Option<f64>,
     /// Each pass's median over the timed frames, in the frame's order (with its GPU time's
-    /// median, `gpu_ms`, where the adapter has timestamp queries).
+    /// median, `gpu_ms`, where the context takes GPU times).
     pub passes: Vec<PassTime>,
 }
 

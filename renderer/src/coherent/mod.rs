@@ -317,7 +317,7 @@ pub fn build_representation(
     let start = Instant::now();
     let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
     let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
-    let mut passes = vec![PassTime { pass: format!("light probe ({size})"), ms: ms_since(start), gpu_ms: None }];
+    let mut passes = vec![PassTime::new(format!("light probe ({size})"), ms_since(start))];
     let (rep, built) = build_queries(scene, samples, footprint, params, gpu, Arc::new(probe), None, None);
     passes.extend(built);
     (rep, passes)
@@ -384,7 +384,7 @@ pub fn build_queries(
         } else {
             format!("{count} distance impostors (6×{n}² each, one per virtual object)")
         };
-        passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start), gpu_ms: None });
+        passes.push(PassTime::new(on_gpu.name(what, gpu), ms_since(start)));
     } else if let Some(voxels) = voxels.filter(|v| v.res == params.settings.scene_voxels) {
         rep.voxels = Some(voxels);
     } else {
@@ -397,7 +397,7 @@ pub fn build_queries(
             None => VoxelVolume::build(samples, n, footprint),
         }));
         let what = format!("scene voxel volume ({n}³ with mipmaps)");
-        passes.push(PassTime { pass: on_gpu.name(what, gpu), ms: ms_since(start), gpu_ms: None });
+        passes.push(PassTime::new(on_gpu.name(what, gpu), ms_since(start)));
     }
     (rep, passes)
 }
@@ -424,7 +424,7 @@ fn build_solids(
             "object solid volumes: none, {} not closed (parity voxelisation needs closed objects), so the objects are intersected exactly",
             open.join(", ")
         );
-        return (Vec::new(), true, PassTime { pass: what, ms: ms_since(start), gpu_ms: None });
+        return (Vec::new(), true, PassTime::new(what, ms_since(start)));
     }
     let bounds = virtual_object_bounds(scene);
     let on_cpu = |b: &[Aabb]| {
@@ -457,7 +457,7 @@ fn build_solids(
         })
         .collect();
     let what = format!("object solid volumes ({}, with mipmaps)", dims.join(", "));
-    (solids, false, PassTime { pass: on_gpu.name(what, gpu.map(|(r, _)| r)), ms: ms_since(start), gpu_ms: None })
+    (solids, false, PassTime::new(on_gpu.name(what, gpu.map(|(r, _)| r)), ms_since(start)))
 }
 
 /// The virtual objects' primitives as the GPU's solid sweeps read them, with their materials'
@@ -606,18 +606,14 @@ impl<'a> Coherent<'a> {
         // G-buffer: coverage by 2×2 subsamples, the real point behind, eq. 9's box test
         let start = Instant::now();
         let gbuffer: Vec<(u8, Option<Background>)> = (0..n).into_par_iter().map(|k| self.gbuffer(k)).collect();
-        report.passes.push(PassTime {
-            pass: "G-buffer and box tests (eq. 9)".into(),
-            ms: ms_since(start),
-            gpu_ms: None,
-        });
+        report.passes.push(PassTime::new("G-buffer and box tests (eq. 9)", ms_since(start)));
         progress(1, steps);
 
         // the virtual object
         let start = Instant::now();
         let object: Vec<Vec3> =
             (0..n).into_par_iter().map(|k| if gbuffer[k].0 > 0 { self.object_pixel(k) } else { Vec3::ZERO }).collect();
-        report.passes.push(PassTime { pass: "virtual object".into(), ms: ms_since(start), gpu_ms: None });
+        report.passes.push(PassTime::new("virtual object", ms_since(start)));
         report.object_pixels = gbuffer.iter().filter(|g| g.0 > 0).count();
         progress(2, steps);
 
@@ -633,7 +629,7 @@ impl<'a> Coherent<'a> {
                 _ => None,
             })
             .collect();
-        report.passes.push(PassTime { pass: "material estimation (eq. 5)".into(), ms: ms_since(start), gpu_ms: None });
+        report.passes.push(PassTime::new("material estimation (eq. 5)", ms_since(start)));
         progress(3, steps);
 
         // the differential background
@@ -651,11 +647,7 @@ impl<'a> Coherent<'a> {
                 _ => (Vec3::ZERO, 0, 0),
             })
             .collect();
-        report.passes.push(PassTime {
-            pass: "differential background (eqs. 8, 9)".into(),
-            ms: ms_since(start),
-            gpu_ms: None,
-        });
+        report.passes.push(PassTime::new("differential background (eqs. 8, 9)", ms_since(start)));
         progress(4, steps);
 
         // composition in the reference colour space
@@ -691,7 +683,7 @@ impl<'a> Coherent<'a> {
             report.rays_traced += deltas[k].1;
             report.rays_scaled += deltas[k].2;
         }
-        report.passes.push(PassTime { pass: "composition".into(), ms: ms_since(start), gpu_ms: None });
+        report.passes.push(PassTime::new("composition", ms_since(start)));
         progress(5, steps);
         if self.bounds.is_none() {
             report.skipped.push("no virtual object: the photograph is returned unchanged".into());

@@ -108,7 +108,7 @@ impl CapturedScene {
         gpu: Option<&DirRenderer>,
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
-        let mut build = vec![PassTime { pass: format!("capture ({POSES} poses)"), ms: self.ms, gpu_ms: None }];
+        let mut build = vec![PassTime::new(format!("capture ({POSES} poses)"), self.ms)];
         let (rep, passes) = self.representation(scene, params, gpu);
         build.extend(passes);
         let frame = self.frame(scene, &rep, params, linear, progress)?;
@@ -365,7 +365,7 @@ impl LiveCoherent {
         passes.extend(frame.report.passes.iter().cloned());
         let start = Instant::now();
         let (composite, _) = show(scene, &frame, &self.photo, &self.linear, cm, None, state)?;
-        passes.push(PassTime { pass: "colour mapping and display".into(), ms: ms_since(start), gpu_ms: None });
+        passes.push(PassTime::new("colour mapping and display", ms_since(start)));
         Ok(LiveFrame { composite, passes })
     }
 }

@@ -227,11 +227,10 @@ impl CmPasses {
                 let out = samples::estimate(&input, params, exposure, state, &|colours| {
                     self.matches(ctx, buffers, &uniform, colours)
                 });
-                passes.push(PassTime {
-                    pass: format!("cm {name}: matching (GPU) and regression"),
-                    ms: start.elapsed().as_secs_f64() * 1e3,
-                    gpu_ms: None,
-                });
+                passes.push(PassTime::new(
+                    format!("cm {name}: matching (GPU) and regression"),
+                    start.elapsed().as_secs_f64() * 1e3,
+                ));
                 out
             }
             CmMethod::Rohmer => {

@@ -188,10 +188,19 @@ pub struct PassTime {
     pub pass: String,
     pub ms: f64,
     /// The GPU's own time in the pass's command buffers (timestamps before and after each),
-    /// where the adapter has timestamp queries and the pass was timed with waits; what is left
-    /// of `ms` is the host's work and waiting.
+    /// where the context's GPU timer is on (a hardware adapter with timestamp queries:
+    /// [`context::GpuContext::enable_gpu_timer`]) and the pass was timed with waits; what is
+    /// left of `ms` is the host's work and waiting.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_ms: Option<f64>,
+}
+
+impl PassTime {
+    /// A pass's wall-clock time, without a GPU time (a pass on the CPU, or one not timed by
+    /// the GPU's timestamps).
+    pub fn new(pass: impl Into<String>, ms: f64) -> PassTime {
+        PassTime { pass: pass.into(), ms, gpu_ms: None }
+    }
 }
 
 /// A GPU frame's images and report.
@@ -461,11 +470,7 @@ impl DirRenderer {
         let mut passes = Vec::new();
         let start = Instant::now();
         let mesh = mesh::build(scene);
-        passes.push(PassTime {
-            pass: "scene mesh (CPU)".into(),
-            ms: start.elapsed().as_secs_f64() * 1e3,
-            gpu_ms: None,
-        });
+        passes.push(PassTime::new("scene mesh (CPU)", start.elapsed().as_secs_f64() * 1e3));
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
         let virtual_maps = params.condition != GiLevel::None && has_virtual;
@@ -688,11 +693,7 @@ impl DirRenderer {
             let candidates = vpl::Candidates::new(&rsms, &caustic_candidates);
             vpls = candidates.draw(params.vpls);
             first_bounce = Some(candidates);
-            passes.push(PassTime {
-                pass: "VPL creation (CPU)".into(),
-                ms: start.elapsed().as_secs_f64() * 1e3,
-                gpu_ms: None,
-            });
+            passes.push(PassTime::new("VPL creation (CPU)", start.elapsed().as_secs_f64() * 1e3));
         }
 
         if let Some(given) = given_vpls {
@@ -761,11 +762,10 @@ impl DirRenderer {
                 bounce_reports[k].vpls = drawn.len();
                 vpls.extend(drawn);
             }
-            passes.push(PassTime {
-                pass: format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
-                ms: start.elapsed().as_secs_f64() * 1e3,
-                gpu_ms: None,
-            });
+            passes.push(PassTime::new(
+                format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
+                start.elapsed().as_secs_f64() * 1e3,
+            ));
         }
 
         // 2b. imperfect shadow maps: VPL visibility from the real and the virtual point clouds
@@ -1007,11 +1007,7 @@ impl DirRenderer {
             use rayon::prelude::*;
             solutions[..half].par_chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect()
         };
-        passes.push(PassTime {
-            pass: "images from the read-back buffers (CPU)".into(),
-            ms: start.elapsed().as_secs_f64() * 1e3,
-            gpu_ms: None,
-        });
+        passes.push(PassTime::new("images from the read-back buffers (CPU)", start.elapsed().as_secs_f64() * 1e3));
         // 5. camera artifacts (the ca factor) on the virtual layers of the composite
         let mut ca_report = None;
         if let Some(ca) = &params.camera_artifacts {
