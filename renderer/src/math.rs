@@ -50,6 +50,14 @@ impl Rng {
     pub fn next_f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
     }
+    /// Two numbers uniform in [0, 1) from one draw: the 64-bit output's top 24 bits and the 24
+    /// below them (SplitMix64's output bits are all equally good).
+    #[inline]
+    pub fn next_f32_pair(&mut self) -> (f32, f32) {
+        let word = self.next_u64();
+        let scale = 1.0 / (1u64 << 24) as f32;
+        ((word >> 40) as f32 * scale, ((word >> 16) & 0xff_ffff) as f32 * scale)
+    }
     /// Standard normal (Box–Muller).
     pub fn next_normal(&mut self) -> f32 {
         let u1 = (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);

@@ -102,6 +102,16 @@ pub(crate) fn shade(material: &Material, s: &SurfaceHit, ng: Vec3) -> Option<(Ve
     Some((ns, Bsdf::new(ns, kd, material.specular, material.exponent), offset(s.point, ng)))
 }
 
+/// A bounce's eight numbers, two from each of four draws.
+#[inline(always)]
+fn draw_bounce(rng: &mut Rng) -> [f32; 8] {
+    let mut u = [0.0; 8];
+    for pair in u.chunks_exact_mut(2) {
+        (pair[0], pair[1]) = rng.next_f32_pair();
+    }
+    u
+}
+
 /// Russian roulette from the fourth bounce on (unbiased: a survivor's weight grows by 1/q);
 /// false ends the path.
 fn survives_roulette(depth: u32, beta: &mut Vec3, u: f32) -> bool {
@@ -136,11 +146,60 @@ struct PrimInfo {
 }
 
 #[derive(Clone, Debug)]
+/// An emitting triangle, or two that make a parallelogram (an area light's quad), sampled
+/// uniformly by area: the points `corner + b1 e1 + b2 e2` with b1, b2 ≥ 0 and b1 + b2 ≤ 1 (a
+/// triangle) or b1, b2 ≤ 1 (a parallelogram).
 struct Emitter {
-    tri: Triangle,
+    corner: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    parallelogram: bool,
     normal: Vec3,
     area: f32,
     radiance: Vec3,
+}
+
+impl Emitter {
+    fn triangle(t: &Triangle, radiance: Vec3) -> Emitter {
+        Emitter {
+            corner: t.p[0],
+            e1: t.p[1] - t.p[0],
+            e2: t.p[2] - t.p[0],
+            parallelogram: false,
+            normal: t.geometric_normal(),
+            area: t.area(),
+            radiance,
+        }
+    }
+
+    /// This triangle and `t` as one parallelogram, where they share an edge, face the same way
+    /// and their other corners lie opposite each other across it.
+    fn joined(&self, t: &Triangle) -> Option<Emitter> {
+        if self.parallelogram || t.geometric_normal().dot(self.normal) < 1.0 - 1e-5 {
+            return None;
+        }
+        let mine = [self.corner, self.corner + self.e1, self.corner + self.e2];
+        let apart = |points: &[Vec3; 3], others: &[Vec3; 3]| points.iter().position(|p| !others.contains(p));
+        let (Some(i), Some(j)) = (apart(&mine, &t.p), apart(&t.p, &mine)) else { return None };
+        let shared: Vec<Vec3> = mine.iter().copied().filter(|p| t.p.contains(p)).collect();
+        if shared.len() != 2 {
+            return None;
+        }
+        let (p, q) = (mine[i], t.p[j]);
+        let scale = mine.iter().chain(&t.p).fold(1.0f32, |m, v| m.max(v.abs().max_element()));
+        if (p + q - shared[0] - shared[1]).abs().max_element() > 1e-5 * scale {
+            return None;
+        }
+        Some(Emitter {
+            corner: p,
+            e1: shared[0] - p,
+            e2: shared[1] - p,
+            parallelogram: true,
+            normal: self.normal,
+            area: self.area + t.area(),
+            radiance: self.radiance,
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -193,7 +252,7 @@ impl World {
         };
         let mut prims = Vec::new();
         let mut payload = Vec::new();
-        let mut emitters = Vec::new();
+        let mut emitters: Vec<Emitter> = Vec::new();
         let mut has_delta = false;
         for (oi, o) in scene.objects.iter().enumerate() {
             if !include(o.role) {
@@ -205,16 +264,19 @@ impl World {
                 let mut emitter = -1;
                 if mat.is_emissive()
                     && let Primitive::Triangle(t) = p
+                    && t.area() > 0.0
                 {
-                    let area = t.area();
-                    if area > 0.0 {
-                        emitter = emitters.len() as i32;
-                        emitters.push(Emitter {
-                            tri: t.clone(),
-                            normal: t.geometric_normal(),
-                            area,
-                            radiance: mat.emission,
-                        });
+                    // an object's two triangles of one quad are one emitter
+                    let last = payload.last().filter(|l: &&PrimInfo| l.object == oi as u32 && l.emitter >= 0);
+                    match last.and_then(|l| emitters[l.emitter as usize].joined(t).map(|j| (l.emitter, j))) {
+                        Some((index, joined)) => {
+                            emitters[index as usize] = joined;
+                            emitter = index;
+                        }
+                        None => {
+                            emitter = emitters.len() as i32;
+                            emitters.push(Emitter::triangle(t, mat.emission));
+                        }
                     }
                 }
                 prims.push(p.clone());
@@ -321,7 +383,7 @@ impl World {
         let mut through_specular = false;
         let forward = -camera.rotation.col(2);
         for depth in 0..params.max_depth {
-            let u: [f32; 8] = std::array::from_fn(|_| rng.next_f32());
+            let u = draw_bounce(rng);
             let Some(hit) = self.bvh.intersect(&ray, RAY_EPSILON, f32::INFINITY) else { break };
             let (mat, s) = self.surface_at(&ray, &hit);
             let wo = -ray.dir;
@@ -445,7 +507,7 @@ impl World {
         let mut l_twin = l;
         let mut shared = JOINT;
         let mut first = None;
-        let draw = |rng: &mut Rng| -> [f32; 8] { std::array::from_fn(|_| rng.next_f32()) };
+        let draw = draw_bounce;
         let mut next = pending.unwrap_or_else(|| draw(rng));
         for depth in first_depth..params.max_depth {
             // this bounce's numbers; the next bounce's are drawn when this one goes on (no
@@ -572,8 +634,8 @@ impl World {
             LightGroup::Emitters => {
                 let (e, pe, _) = self.emitter_dist.sample(u[1]);
                 let em = &self.emitters[e];
-                let (b1, b2) = sample_triangle(u[2], u[3]);
-                let q = em.tri.p[0] * (1.0 - b1 - b2) + em.tri.p[1] * b1 + em.tri.p[2] * b2;
+                let (b1, b2) = if em.parallelogram { (u[2], u[3]) } else { sample_triangle(u[2], u[3]) };
+                let q = em.corner + em.e1 * b1 + em.e2 * b2;
                 let d = q - p;
                 let dist2 = d.length_squared();
                 let dist = dist2.sqrt();
@@ -757,7 +819,7 @@ impl Accumulator {
                     let mut sums = [PixelSums::default(); K];
                     for s in start..start + n {
                         let mut rng = Rng::for_stream(params.seed, pixel, s as u64);
-                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                        let (jx, jy) = rng.next_f32_pair();
                         let ray = camera.ray(x as f32 + jx, y as f32 + jy);
                         for (sum, (l, virtual_first)) in sums.iter_mut().zip(sample(ray, &mut rng)) {
                             if !l.is_finite() {
@@ -892,4 +954,35 @@ pub fn render(world: &World, camera: &Camera, params: &TraceParams, spp: u32) ->
     let mut acc = Accumulator::new(camera.width, camera.height);
     acc.add_samples(world, camera, params, spp);
     acc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec2;
+
+    fn tri(p: [Vec3; 3]) -> Triangle {
+        Triangle { p, n: None, uv: [Vec2::ZERO; 3] }
+    }
+
+    #[test]
+    fn a_quads_two_triangles_are_one_parallelogram_emitter_and_other_pairs_are_not() {
+        let (a, b, c, d) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 1.0), Vec3::ZERO);
+        let d = d + Vec3::new(0.0, 1.0, 1.0);
+        let first = Emitter::triangle(&tri([a, b, c]), Vec3::ONE);
+        let quad = first.joined(&tri([a, c, d])).expect("a quad's triangles join");
+        assert!(quad.parallelogram);
+        assert!((quad.area - 2.0).abs() < 1e-6, "{}", quad.area);
+        // its four corners are the quad's
+        let corners = [quad.corner, quad.corner + quad.e1, quad.corner + quad.e2, quad.corner + quad.e1 + quad.e2];
+        for p in [a, b, c, d] {
+            assert!(corners.iter().any(|q| (*q - p).length() < 1e-6), "{p} not a corner of {corners:?}");
+        }
+        // a kite (the fourth corner off the parallelogram), a triangle facing the other way, one
+        // sharing a single corner, and a third triangle on a parallelogram are refused
+        assert!(first.joined(&tri([a, c, d + Vec3::X * 0.3])).is_none());
+        assert!(first.joined(&tri([a, d, c])).is_none());
+        assert!(first.joined(&tri([a, d, d + Vec3::X * 0.5])).is_none());
+        assert!(quad.joined(&tri([a, c, d])).is_none());
+    }
 }
