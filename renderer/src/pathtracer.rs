@@ -145,10 +145,10 @@ struct PrimInfo {
     emitter: i32,
 }
 
-#[derive(Clone, Debug)]
 /// An emitting triangle, or two that make a parallelogram (an area light's quad), sampled
 /// uniformly by area: the points `corner + b1 e1 + b2 e2` with b1, b2 ≥ 0 and b1 + b2 ≤ 1 (a
 /// triangle) or b1, b2 ≤ 1 (a parallelogram).
+#[derive(Clone, Debug)]
 struct Emitter {
     corner: Vec3,
     e1: Vec3,
@@ -967,8 +967,8 @@ mod tests {
 
     #[test]
     fn a_quads_two_triangles_are_one_parallelogram_emitter_and_other_pairs_are_not() {
-        let (a, b, c, d) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 1.0), Vec3::ZERO);
-        let d = d + Vec3::new(0.0, 1.0, 1.0);
+        // a 2 × 1 rectangle at height 1, corners in order
+        let [a, b, c, d] = [[0.0, 1.0, 0.0], [2.0, 1.0, 0.0], [2.0, 1.0, 1.0], [0.0, 1.0, 1.0]].map(Vec3::from_array);
         let first = Emitter::triangle(&tri([a, b, c]), Vec3::ONE);
         let quad = first.joined(&tri([a, c, d])).expect("a quad's triangles join");
         assert!(quad.parallelogram);
