@@ -179,13 +179,13 @@ impl Emitter {
             return None;
         }
         let mine = [self.corner, self.corner + self.e1, self.corner + self.e2];
-        let apart = |points: &[Vec3; 3], others: &[Vec3; 3]| points.iter().position(|p| !others.contains(p));
-        let (Some(i), Some(j)) = (apart(&mine, &t.p), apart(&t.p, &mine)) else { return None };
-        let shared: Vec<Vec3> = mine.iter().copied().filter(|p| t.p.contains(p)).collect();
-        if shared.len() != 2 {
+        // the shared edge's two corners, and each triangle's corner off it
+        let shared: Vec<Vec3> = mine.into_iter().filter(|v| t.p.contains(v)).collect();
+        let (Some(&p), Some(&q), &[_, _]) =
+            (mine.iter().find(|v| !t.p.contains(v)), t.p.iter().find(|v| !mine.contains(v)), &shared[..])
+        else {
             return None;
-        }
-        let (p, q) = (mine[i], t.p[j]);
+        };
         let scale = mine.iter().chain(&t.p).fold(1.0f32, |m, v| m.max(v.abs().max_element()));
         if (p + q - shared[0] - shared[1]).abs().max_element() > 1e-5 * scale {
             return None;

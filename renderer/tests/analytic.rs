@@ -1,7 +1,7 @@
 //! Analytic checks of the reference path tracer and the scene loader: the white furnace, the
 //! irradiance of a spot light and of an area light, convergence as 1/√spp, determinism, and the
-//! hard cases and bad inputs of the renderer issue. Images are tiny and sample counts small; each tolerance is
-//! stated with its statistical reason.
+//! hard cases and bad inputs of the renderer issue. Images are tiny and sample counts small;
+//! each tolerance is stated with its statistical reason.
 
 use glam::Vec3;
 use mrstudy_renderer::geometry::Ray;
@@ -29,6 +29,35 @@ fn temp_dir(name: &str) -> PathBuf {
 fn scene_from(toml: &str) -> Scene {
     let desc = SceneDesc::from_toml(toml, "test.toml").unwrap();
     Scene::from_desc(desc, Path::new("."), "test.toml").unwrap()
+}
+
+/// A Lambertian floor (albedo 0.5, 20 m square at y = 0) seen from above, lit by `light` (a
+/// `[[lights]]` table) and nothing else.
+fn floor_under(light: &str) -> Scene {
+    scene_from(&format!(
+        r#"
+        [camera]
+        width = 4
+        height = 4
+        fov_y_deg = 40.0
+        position = [0.0, 3.0, 0.01]
+        look_at = [0.0, 0.0, 0.0]
+        [[objects]]
+        name = "floor"
+        role = "real"
+        shape = "plane"
+        size = [20.0, 20.0]
+        material = {{ albedo = 0.5 }}
+        {light}
+        "#
+    ))
+}
+
+/// The mean of independent samples and its standard error.
+fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    (mean, (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt())
 }
 
 #[test]
@@ -59,9 +88,7 @@ fn white_furnace_returns_albedo_times_radiance() {
     let acc = render(&world, &scene.camera, &TraceParams::default(), 128);
     // grey albedo and radiance: the channels are equal, so take one (pixels are independent)
     let values: Vec<f64> = acc.image().pixels.iter().map(|p| p.x as f64).collect();
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let se = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let (mean, se) = mean_and_standard_error(&values);
     // the test only means something if its own noise is well inside the tolerance
     // (3 σ of the estimate must fit twice inside the tolerance band)
     assert!(6.0 * se < FURNACE_TOLERANCE * 0.8, "standard error {se} too large for the test");
@@ -74,20 +101,8 @@ fn spot_light_irradiance_follows_inverse_square_and_cosine_laws() {
     // straight down from height h. Outgoing radiance at horizontal offset x: ρ/π · I cos θ / d².
     // Nothing else is in the scene, so the estimate is deterministic.
     for h in [0.5f32, 1.0, 2.0] {
-        let scene = scene_from(&format!(
+        let scene = floor_under(&format!(
             r#"
-            [camera]
-            width = 4
-            height = 4
-            fov_y_deg = 40.0
-            position = [0.0, 3.0, 0.01]
-            look_at = [0.0, 0.0, 0.0]
-            [[objects]]
-            name = "floor"
-            role = "real"
-            shape = "plane"
-            size = [20.0, 20.0]
-            material = {{ albedo = 0.5 }}
             [[lights]]
             kind = "spot"
             position = [0.0, {h}, 0.0]
@@ -131,20 +146,8 @@ fn area_light_irradiance_matches_the_rectangles_form_factor() {
     // estimation and the light hit by BSDF sampling, weighted by MIS). Outgoing radiance at a
     // floor point: ρ/π · L · E, E from the rectangle's form factor (Howell's catalogue, C-11).
     for h in [0.5f64, 1.5] {
-        let scene = scene_from(&format!(
+        let scene = floor_under(&format!(
             r#"
-            [camera]
-            width = 4
-            height = 4
-            fov_y_deg = 40.0
-            position = [0.0, 3.0, 0.01]
-            look_at = [0.0, 0.0, 0.0]
-            [[objects]]
-            name = "floor"
-            role = "real"
-            shape = "plane"
-            size = [20.0, 20.0]
-            material = {{ albedo = 0.5 }}
             [[lights]]
             kind = "area"
             position = [0.0, {h}, 0.0]
@@ -163,8 +166,7 @@ fn area_light_irradiance_matches_the_rectangles_form_factor() {
                     world.radiance(ray, &mut Rng::for_stream(7, x.to_bits(), i), &TraceParams::default()).0.x as f64
                 })
                 .collect();
-            let mean = samples.iter().sum::<f64>() / n as f64;
-            let se = (samples.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n as f64 - 1.0) / n as f64).sqrt();
+            let (mean, se) = mean_and_standard_error(&samples);
             // 1 % as for the spot light, and the estimate's own noise well inside it
             assert!(4.0 * se < 0.01 * expected, "h={h} x={x}: standard error {se} too large against {expected}");
             assert!((mean / expected - 1.0).abs() < 0.01, "h={h} x={x}: {mean} (± {se}) vs {expected}");
