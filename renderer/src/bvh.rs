@@ -222,7 +222,8 @@ impl<P: Clone> Bvh<P> {
         let mut order: Vec<usize> = (0..n).collect();
         let mut binary = Vec::with_capacity(2 * n.max(1));
         if n > 0 {
-            build_rec(&mut binary, &mut order, 0, n, &bounds, &centroids);
+            let sphere: Vec<bool> = prims.iter().map(|p| matches!(p, Primitive::Sphere { .. })).collect();
+            build_rec(&mut binary, &mut order, 0, n, &bounds, &centroids, &sphere);
         }
         let prims: Vec<Primitive> = order.iter().map(|&i| prims[i].clone()).collect();
         let payload = order.iter().map(|&i| payload[i].clone()).collect();
@@ -453,6 +454,21 @@ impl<P: Clone> Bvh<P> {
     }
 }
 
+/// The cost of testing a small leaf, in primitive tests: its triangles four to a packet test,
+/// its spheres one test each.
+fn packet_cost(triangles: usize, spheres: usize) -> f32 {
+    triangles.div_ceil(4) as f32 + spheres as f32
+}
+
+/// The cost of a box test in the same units, for splitting a small node.
+const TRAVERSAL_COST: f32 = 1.0;
+
+/// Builds the binary node over `order[start..end]` and below and returns its index: split by
+/// a binned surface-area heuristic along the centroids' widest axis, counting primitives,
+/// down to at most [`MAX_LEAF`] primitives (a node of up to twice that stays a leaf where no
+/// split is cheaper); then a node of two to [`MAX_LEAF`] primitives is split again where its
+/// packet tests and box test cost less than its own packet tests — a floor and the spheres
+/// on it, a room's walls, which would otherwise share one large box that most rays enter.
 fn build_rec(
     nodes: &mut Vec<Node>,
     order: &mut [usize],
@@ -460,17 +476,20 @@ fn build_rec(
     end: usize,
     bounds: &[Aabb],
     centroids: &[glam::Vec3],
+    sphere: &[bool],
 ) -> u32 {
     let node_idx = nodes.len() as u32;
     let mut bb = Aabb::EMPTY;
     let mut cb = Aabb::EMPTY;
+    let mut spheres = 0;
     for &i in &order[start..end] {
         bb = bb.union(&bounds[i]);
         cb.grow(centroids[i]);
+        spheres += sphere[i] as usize;
     }
     nodes.push(Node { bounds: bb, offset: start as u32, count: (end - start) as u32 });
     let n = end - start;
-    if n <= MAX_LEAF {
+    if n == 1 {
         return node_idx;
     }
     let extent = cb.max - cb.min;
@@ -481,70 +500,74 @@ fn build_rec(
     } else {
         2
     };
-    let lo = cb.min[axis];
-    let span = extent[axis];
-    let mut mid;
-    if span <= 1e-12 {
-        mid = start + n / 2;
-    } else {
+    let (lo, span) = (cb.min[axis], extent[axis]);
+    let bin_of = |c: f32| (((c - lo) / span * BINS as f32) as usize).min(BINS - 1);
+    let small = n <= MAX_LEAF;
+    // the cheapest split: (cost, first bin on the right)
+    let mut best: Option<(f32, usize)> = None;
+    if span > 1e-12 {
         let mut bin_b = [Aabb::EMPTY; BINS];
-        let mut bin_n = [0usize; BINS];
-        let bin_of = |c: f32| (((c - lo) / span * BINS as f32) as usize).min(BINS - 1);
+        // triangles and spheres per bin
+        let mut bin_n = [(0usize, 0usize); BINS];
         for &i in &order[start..end] {
             let b = bin_of(centroids[i][axis]);
             bin_b[b] = bin_b[b].union(&bounds[i]);
-            bin_n[b] += 1;
+            match sphere[i] {
+                true => bin_n[b].1 += 1,
+                false => bin_n[b].0 += 1,
+            }
         }
-        let mut best_cost = f32::INFINITY;
-        let mut best_split = 1;
+        let side = |bins: std::ops::Range<usize>| {
+            bins.fold((Aabb::EMPTY, 0, 0), |(b, t, s), k| (b.union(&bin_b[k]), t + bin_n[k].0, s + bin_n[k].1))
+        };
         for split in 1..BINS {
-            let (mut lb, mut rb) = (Aabb::EMPTY, Aabb::EMPTY);
-            let (mut ln, mut rn) = (0, 0);
-            for b in 0..split {
-                lb = lb.union(&bin_b[b]);
-                ln += bin_n[b];
-            }
-            for b in split..BINS {
-                rb = rb.union(&bin_b[b]);
-                rn += bin_n[b];
-            }
-            if ln == 0 || rn == 0 {
+            let (lb, lt, ls) = side(0..split);
+            let (rb, rt, rs) = side(split..BINS);
+            if lt + ls == 0 || rt + rs == 0 {
                 continue;
             }
-            let cost = lb.area() * ln as f32 + rb.area() * rn as f32;
-            if cost < best_cost {
-                best_cost = cost;
-                best_split = split;
+            let cost = match small {
+                true => lb.area() * packet_cost(lt, ls) + rb.area() * packet_cost(rt, rs),
+                false => lb.area() * (lt + ls) as f32 + rb.area() * (rt + rs) as f32,
+            };
+            if best.is_none_or(|(c, _)| cost < c) {
+                best = Some((cost, split));
             }
         }
-        let leaf_cost = bb.area() * n as f32;
-        if best_cost.is_finite() && best_cost >= leaf_cost && n <= 2 * MAX_LEAF {
-            return node_idx;
-        }
-        if !best_cost.is_finite() {
-            mid = start + n / 2;
-            order[start..end].sort_by(|&a, &b| centroids[a][axis].total_cmp(&centroids[b][axis]));
-        } else {
+    }
+    let stays_leaf = match (small, best) {
+        (true, None) => true,
+        (true, Some((cost, _))) => cost + TRAVERSAL_COST * bb.area() >= bb.area() * packet_cost(n - spheres, spheres),
+        (false, Some((cost, _))) => cost >= bb.area() * n as f32 && n <= 2 * MAX_LEAF,
+        (false, None) => false,
+    };
+    if stays_leaf {
+        return node_idx;
+    }
+    let mut mid = match best {
+        Some((_, split)) => {
             let slice = &mut order[start..end];
             let mut left = 0;
             for k in 0..slice.len() {
-                if bin_of(centroids[slice[k]][axis]) < best_split {
+                if bin_of(centroids[slice[k]][axis]) < split {
                     slice.swap(left, k);
                     left += 1;
                 }
             }
-            mid = start + left;
-            if mid == start || mid == end {
-                mid = start + n / 2;
-            }
+            start + left
         }
-    }
+        // every centroid in one plane across the axis: halves in centroid order
+        None => {
+            order[start..end].sort_by(|&a, &b| centroids[a][axis].total_cmp(&centroids[b][axis]));
+            start + n / 2
+        }
+    };
     if mid == start || mid == end {
         mid = start + n / 2;
     }
     nodes[node_idx as usize].count = 0;
-    build_rec(nodes, order, start, mid, bounds, centroids);
-    let right = build_rec(nodes, order, mid, end, bounds, centroids);
+    build_rec(nodes, order, start, mid, bounds, centroids, sphere);
+    let right = build_rec(nodes, order, mid, end, bounds, centroids, sphere);
     nodes[node_idx as usize].offset = right;
     node_idx
 }
@@ -682,6 +705,44 @@ mod tests {
             assert_eq!(bvh.occluded(&ray, 0.0, f32::INFINITY), want.is_some());
         }
         assert!(hits > 200, "only {hits} hits");
+    }
+
+    /// Triangles per packet, over all packets.
+    fn packet_fill<P: Clone>(bvh: &Bvh<P>) -> f32 {
+        let lanes: usize = bvh.tris.iter().map(|t| t.prim.iter().filter(|&&p| p != NONE).count()).sum();
+        lanes as f32 / bvh.tris.len() as f32
+    }
+
+    #[test]
+    fn a_floors_spheres_get_leaves_of_their_own_and_a_dense_mesh_keeps_full_packets() {
+        // a 2 × 2 floor and two spheres standing on it: one leaf of four would be a box over the
+        // whole floor, entered by every ray that reaches the floor, each paying both spheres' tests
+        let (a, b, c, d) = (
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+        );
+        let prims = vec![
+            tri(a, b, c),
+            tri(a, c, d),
+            Primitive::Sphere { center: Vec3::new(-0.4, 0.35, -0.3), radius: 0.35 },
+            Primitive::Sphere { center: Vec3::new(0.45, 0.25, 0.2), radius: 0.25 },
+        ];
+        let bvh = Bvh::build(prims, vec![(); 4]);
+        assert!(bvh.leaves.len() >= 2, "one leaf for the floor and its spheres");
+        for leaf in &bvh.leaves {
+            assert!(
+                leaf.tris.0 == leaf.tris.1 || leaf.spheres.0 == leaf.spheres.1,
+                "a leaf mixes the floor and a sphere: {leaf:?}"
+            );
+        }
+        // a turned mesh: its leaves stay packets of about four triangles
+        let mesh = crate::geometry::lathe(&[[0.0, 0.0], [0.5, 0.1], [0.3, 0.6], [0.45, 1.0], [0.0, 1.1]], 128);
+        let prims: Vec<Primitive> = mesh.into_iter().map(Primitive::Triangle).collect();
+        let n = prims.len();
+        let bvh = Bvh::build(prims, vec![(); n]);
+        assert!(packet_fill(&bvh) > 3.0, "{} triangles per packet", packet_fill(&bvh));
     }
 
     #[test]
