@@ -2,10 +2,10 @@
 //!
 //! Built top-down as a binary tree with a binned surface-area heuristic (16 bins, leaves of at
 //! most 4 primitives; a node of 2–4 is split again where its cost in packet and sphere tests
-//! says so, so that a floor and the spheres standing on it, or a room's walls, do not share one
-//! box that nearly every ray enters), then collapsed into a tree of four-wide nodes (each binary node pulls up
-//! its grandchildren, largest surface area first, until it has four children), as Embree and
-//! Mitsuba's CPU back end do. A ray tests a node's four child boxes at once and a leaf's
+//! says so, so that a floor and the spheres standing on it, or a room's walls, do not share
+//! one box that nearly every ray enters), then collapsed into a tree of four-wide nodes (each
+//! binary node pulls up its grandchildren, largest surface area first, until it has four
+//! children), as Embree and Mitsuba's CPU back end do. A ray tests a node's four child boxes at once and a leaf's
 //! triangles four at a time (SIMD lanes through the `wide` crate: SSE on x86-64), with the
 //! triangles' edges precomputed; analytic spheres are tested one by one. Every lane does the
 //! scalar Möller–Trumbore arithmetic in the scalar order (no fused multiply-add), so a hit's
