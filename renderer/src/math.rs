@@ -192,3 +192,42 @@ impl Distribution1D {
         (i, p, du)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bucket [`Distribution1D::sample`] must pick, by its definition: the first with
+    /// cdf[i+1] > u, the last where none is.
+    fn first_above(d: &Distribution1D, u: f32) -> usize {
+        (0..d.len()).find(|&i| d.cdf[i + 1] > u).unwrap_or(d.len() - 1)
+    }
+
+    #[test]
+    fn sampling_picks_the_first_bucket_above_u_with_empty_buckets_and_at_every_edge() {
+        let mut rng = Rng::new(11);
+        // sizes around powers of two, zero weights (flat stretches of the cdf) at the ends and
+        // inside, one bucket, and all zero (uniform)
+        let shapes: Vec<Vec<f32>> = vec![
+            vec![1.0],
+            vec![0.0, 0.0, 0.0],
+            vec![0.0, 2.0, 0.0, 0.0, 1.0, 0.0],
+            vec![3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            (0..17).map(|i| (i % 3) as f32).collect(),
+            (0..64).map(|_| if rng.next_f32() < 0.3 { 0.0 } else { rng.next_f32() }).collect(),
+            (0..1000).map(|_| rng.next_f32().powi(4)).collect(),
+        ];
+        for weights in shapes {
+            let d = Distribution1D::new(&weights);
+            // every cdf value exactly, just below and above it, and random points
+            let mut us: Vec<f32> = d.cdf.iter().flat_map(|&c| [c, c.next_down(), c.next_up()]).collect();
+            us.extend((0..2000).map(|_| rng.next_f32()));
+            for u in us.into_iter().filter(|u| (0.0..1.0).contains(u)) {
+                let (i, p, du) = d.sample(u);
+                assert_eq!(i, first_above(&d, u), "u = {u} over weights {weights:?}");
+                assert!(p > 0.0, "an empty bucket {i} was picked at u = {u}");
+                assert!((0.0..1.0).contains(&du), "{du}");
+            }
+        }
+    }
+}
