@@ -20,6 +20,8 @@ use wide::f32x4;
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
+/// Triangles per SIMD packet test ([`Tri4`]).
+const PACKET: usize = 4;
 
 /// A node of the binary tree the builder makes (and the four-wide tree is collapsed from).
 #[derive(Clone, Copy, Debug)]
@@ -319,7 +321,7 @@ impl<P: Clone> Bvh<P> {
                 }
             }
         }
-        for chunk in lanes.chunks(4) {
+        for chunk in lanes.chunks(PACKET) {
             let mut v = [[[0.0f32; 4]; 3]; 3];
             let mut prim = [NONE; 4];
             for (lane, (i, vecs)) in chunk.iter().enumerate() {
@@ -459,7 +461,7 @@ impl<P: Clone> Bvh<P> {
 /// The cost of testing a small leaf, in primitive tests: its triangles four to a packet test,
 /// its spheres one test each.
 fn packet_cost(triangles: usize, spheres: usize) -> f32 {
-    triangles.div_ceil(4) as f32 + spheres as f32
+    triangles.div_ceil(PACKET) as f32 + spheres as f32
 }
 
 /// The cost of a box test in the same units, for splitting a small node: a split becomes one
@@ -561,11 +563,8 @@ fn build_rec(
             }
             start + left
         }
-        // every centroid in one plane across the axis: halves in centroid order
-        None => {
-            order[start..end].sort_by(|&a, &b| centroids[a][axis].total_cmp(&centroids[b][axis]));
-            start + n / 2
-        }
+        // every centroid in one plane across the axis (no split has two sides): halves
+        None => start + n / 2,
     };
     if mid == start || mid == end {
         mid = start + n / 2;
