@@ -8,7 +8,8 @@
 //!    virtual-only map (two maps avoid the double shadows of Figure 5.6);
 //! 2. **RSMs** (condition `gi` only): per spot light, and along `env_vpl_directions` of the
 //!    environment's directions (orthographic), a real-only and a virtual-only reflective shadow
-//!    map, read back, and **VPL creation** from them by flux ([`vpl`]); then the **imperfect
+//!    map, and **VPL creation** from them by flux ([`vpl`], on the GPU: only the drawn VPLs are
+//!    read back); then the **imperfect
 //!    shadow maps** of the VPLs ([`ism`]: real and virtual point clouds, geometry-aligned
 //!    splats; not made when `ism_size` is 0 or there are no VPLs);
 //!    With `bounces` > 1, the **multiple-bounce light source** ([`bounce`], 5.2.7) spawns
@@ -288,6 +289,32 @@ pub struct DirRenderer {
     /// frame that finds none (another thread's frame holds them) makes its own. Every RSM pass
     /// clears its targets, and they go back only after they are read back.
     rsm_targets: std::sync::Mutex<(u32, Vec<(SurfaceTargets, wgpu::Texture)>)>,
+    /// VPL creation on the GPU from the RSMs where they were rendered.
+    vpl_sampler: vpl::VplSampler,
+    /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
+    /// by itself when the candidates exceed one storage buffer).
+    cpu_vpls: std::sync::atomic::AtomicBool,
+}
+
+/// One light's rendered RSMs: the light, a spot's tan of half its field of view, and the
+/// real-only and virtual-only maps (surfaces and distance).
+type RenderedRsms<'a> =
+    (vpl::RsmLight<'a>, f32, ((SurfaceTargets, wgpu::Texture), Option<(SurfaceTargets, wgpu::Texture)>));
+
+/// A frame's first-bounce candidate VPLs, drawn from once, or twice with further bounces (the
+/// pilot and the bounce's share of the budget).
+enum FirstBounce {
+    Gpu(vpl::GpuCandidates),
+    Cpu(vpl::Candidates),
+}
+
+impl FirstBounce {
+    fn draw(&self, renderer: &DirRenderer, count: u32) -> Vec<vpl::GpuVpl> {
+        match self {
+            FirstBounce::Gpu(candidates) => renderer.vpl_sampler.draw(&renderer.ctx, candidates, count),
+            FirstBounce::Cpu(candidates) => candidates.draw(count),
+        }
+    }
 }
 
 /// The camera's view-projection: the pinhole intrinsics of [`crate::camera::Camera`] as a
@@ -404,6 +431,7 @@ impl DirRenderer {
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
         let specular = specular::Specular::new(&ctx);
+        let vpl_sampler = vpl::VplSampler::new(&ctx);
         DirRenderer {
             ctx,
             raster,
@@ -417,7 +445,61 @@ impl DirRenderer {
             specular,
             representation: std::sync::OnceLock::new(),
             rsm_targets: std::sync::Mutex::new((0, Vec::new())),
+            vpl_sampler,
+            cpu_vpls: std::sync::atomic::AtomicBool::new(false),
         }
+    }
+
+    /// Creates the VPLs on the CPU from read-back RSMs (the reference the GPU sampler is tested
+    /// against) instead of on the GPU.
+    #[cfg(test)]
+    pub(crate) fn set_cpu_vpls(&self, on: bool) {
+        self.cpu_vpls.store(on, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The CPU's candidate VPLs: every RSM read back (one wait), unpacked map by map on all
+    /// threads, then [`vpl::Candidates::new`].
+    fn cpu_candidates(
+        &self,
+        ctx: &GpuContext,
+        passes: &mut Vec<PassTime>,
+        rendered: &[RenderedRsms],
+        rsm_size: u32,
+        extra: &[vpl::GpuVpl],
+    ) -> vpl::Candidates {
+        let maps: Vec<&(SurfaceTargets, wgpu::Texture)> =
+            rendered.iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
+        let textures: Vec<(&wgpu::Texture, u32)> =
+            maps.iter().flat_map(|(t, d)| [(&t.position, 16), (&t.normal, 16), (&t.albedo, 16), (d, 4)]).collect();
+        let bytes =
+            timed(ctx, passes, format!("RSMs read back ({} maps)", maps.len()), || ctx.read_textures(&textures));
+        let start = Instant::now();
+        // each map's texels on its own thread (in map order)
+        let texels: Vec<Vec<vpl::RsmTexel>> = {
+            use rayon::prelude::*;
+            bytes
+                .par_chunks_exact(4)
+                .map(|b| {
+                    let quads = |bytes: &[u8]| -> Vec<[f32; 4]> { bytemuck::pod_collect_to_vec(bytes) };
+                    let (position, normal, albedo) = (quads(&b[0]), quads(&b[1]), quads(&b[2]));
+                    let dist: Vec<f32> = bytemuck::pod_collect_to_vec(&b[3]);
+                    (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
+                })
+                .collect()
+        };
+        let mut texels = texels.into_iter();
+        let mut rsms = Vec::new();
+        for (light, tan_half_fov, (_, virt)) in rendered.iter() {
+            let real = texels.next().expect("a real map per light");
+            let virt = match virt {
+                Some(_) => texels.next().expect("a virtual map per light"),
+                None => vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()],
+            };
+            rsms.push((*light, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half_fov, real, virt }));
+        }
+        let candidates = vpl::Candidates::new(&rsms, extra);
+        passes.push(PassTime::new("VPL candidates (CPU)", start.elapsed().as_secs_f64() * 1e3));
+        candidates
     }
 
     /// The compute passes that build Rohmer et al.'s representations on this GPU
@@ -604,9 +686,8 @@ impl DirRenderer {
         // 2. RSMs and VPLs (gi only)
         let mut vpls = Vec::new();
         // the first bounce's candidate VPLs, kept for the budget split below
-        let mut first_bounce: Option<vpl::Candidates> = None;
+        let mut first_bounce: Option<FirstBounce> = None;
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
-            let mut rsms = Vec::new();
             let rsm_size = params.rsm_size.max(4);
             // every RSM is rendered first and all are read back at once (one wait, not four per map)
             let spare = std::cell::RefCell::new({
@@ -649,51 +730,62 @@ impl DirRenderer {
                 };
                 rendered.push((light, 0.0, render_pair(&mut passes, &view, &format!("environment {}", j + 1))));
             }
-            let maps: Vec<&(SurfaceTargets, wgpu::Texture)> =
-                rendered.iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
-            let textures: Vec<(&wgpu::Texture, u32)> =
-                maps.iter().flat_map(|(t, d)| [(&t.position, 16), (&t.normal, 16), (&t.albedo, 16), (d, 4)]).collect();
-            let bytes = timed(ctx, &mut passes, format!("RSMs read back ({} maps)", maps.len()), || {
-                ctx.read_textures(&textures)
-            });
-            // each map's texels on its own thread (in map order)
-            let texels: Vec<Vec<vpl::RsmTexel>> = {
-                use rayon::prelude::*;
-                bytes
-                    .par_chunks_exact(4)
-                    .map(|b| {
-                        let quads = |bytes: &[u8]| -> Vec<[f32; 4]> { bytemuck::pod_collect_to_vec(bytes) };
-                        let (position, normal, albedo) = (quads(&b[0]), quads(&b[1]), quads(&b[2]));
-                        let dist: Vec<f32> = bytemuck::pod_collect_to_vec(&b[3]);
-                        (0..position.len()).map(|k| (position[k], normal[k], albedo[k], dist[k])).collect::<Vec<_>>()
-                    })
-                    .collect()
-            };
-            let mut texels = texels.into_iter();
-            for (light, tan_half_fov, (_, virt)) in rendered.iter() {
-                let real = texels.next().expect("a real map per light");
-                let virt = match virt {
-                    Some(_) => texels.next().expect("a virtual map per light"),
-                    None => vec![([0.0; 4], [0.0; 4], [0.0; 4], 1e30); real.len()],
+            // the RSMs' texels on the GPU where they were rendered, with the reflected and
+            // refracted VPLs where the caustics land (Figure 5.23)
+            let maps: Vec<vpl::RsmMaps> = rendered
+                .iter()
+                .map(|(light, tan_half_fov, (real, virt))| {
+                    fn textures((t, d): &(SurfaceTargets, wgpu::Texture)) -> [&wgpu::Texture; 4] {
+                        [&t.position, &t.normal, &t.albedo, d]
+                    }
+                    vpl::RsmMaps {
+                        light: *light,
+                        tan_half_fov: *tan_half_fov,
+                        size: rsm_size,
+                        real: textures(real),
+                        virt: virt.as_ref().map(textures),
+                    }
+                })
+                .collect();
+            let caustics = photon_maps.as_ref().map_or_else(|_| Vec::new(), |maps| self.specular.caustic_sources(maps));
+            let slots = vpl::VplSampler::slots(0, &caustics, &maps);
+            let candidates =
+                if !self.cpu_vpls.load(std::sync::atomic::Ordering::Relaxed) && vpl::VplSampler::fits(ctx, slots) {
+                    let label = format!(
+                        "VPL candidates and their CDF ({slots} slots: {} RSMs, {} caustic maps; GPU)",
+                        rendered.iter().map(|(_, _, (_, virt))| 1 + virt.is_some() as usize).sum::<usize>(),
+                        caustics.len()
+                    );
+                    FirstBounce::Gpu(timed(ctx, &mut passes, label, || {
+                        self.vpl_sampler.candidates(ctx, &[], &caustics, &maps)
+                    }))
+                } else {
+                    let caustic_candidates = match &photon_maps {
+                        Ok(maps) => timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
+                            self.specular.caustic_vpls(ctx, maps)
+                        }),
+                        Err(_) => Vec::new(),
+                    };
+                    FirstBounce::Cpu(self.cpu_candidates(ctx, &mut passes, &rendered, rsm_size, &caustic_candidates))
                 };
-                rsms.push((*light, vpl::RsmTexels { size: rsm_size, tan_half_fov: *tan_half_fov, real, virt }));
-            }
-            // read back: the targets serve the next frame
+            drop(maps);
+            // the targets serve the next frame (its passes are queued after this frame's)
             let returned: Vec<(SurfaceTargets, wgpu::Texture)> =
                 rendered.into_iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
             *self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (rsm_size, returned);
-            // reflected and refracted VPLs where the caustics land (Figure 5.23)
-            let caustic_candidates = match &photon_maps {
-                Ok(maps) => timed(ctx, &mut passes, "caustic VPL candidates (read back)".into(), || {
-                    self.specular.caustic_vpls(ctx, maps)
-                }),
-                Err(_) => Vec::new(),
+            vpls = match &candidates {
+                // a GPU pass: reported only while passes are timed
+                FirstBounce::Gpu(_) => {
+                    timed(ctx, &mut passes, "VPLs drawn (GPU, read back)".into(), || candidates.draw(self, params.vpls))
+                }
+                FirstBounce::Cpu(_) => {
+                    let start = Instant::now();
+                    let drawn = candidates.draw(self, params.vpls);
+                    passes.push(PassTime::new("VPLs drawn (CPU)", start.elapsed().as_secs_f64() * 1e3));
+                    drawn
+                }
             };
-            let start = Instant::now();
-            let candidates = vpl::Candidates::new(&rsms, &caustic_candidates);
-            vpls = candidates.draw(params.vpls);
             first_bounce = Some(candidates);
-            passes.push(PassTime::new("VPL creation (CPU)", start.elapsed().as_secs_f64() * 1e3));
         }
 
         if let Some(given) = given_vpls {
@@ -755,15 +847,19 @@ impl DirRenderer {
             let counts = vpl::split_budget(budget, &fluxes);
             if given_vpls.is_none() {
                 // no first-bounce candidates: no RSMs were drawn, so there is nothing to draw from
-                vpls = first_bounce.as_ref().map_or_else(Vec::new, |candidates| candidates.draw(counts[0]));
+                vpls = first_bounce.as_ref().map_or_else(Vec::new, |candidates| candidates.draw(self, counts[0]));
             }
             for (k, pilot) in pilots.iter().enumerate() {
                 let drawn = vpl::resample(pilot, counts[k + 1]);
                 bounce_reports[k].vpls = drawn.len();
                 vpls.extend(drawn);
             }
+            let drawn_where = match &first_bounce {
+                Some(FirstBounce::Gpu(_)) => "; the first bounce's share drawn on the GPU",
+                _ => "",
+            };
             passes.push(PassTime::new(
-                format!("VPL budget split by flux over {} sources (CPU)", fluxes.len()),
+                format!("VPL budget split by flux over {} sources (CPU{drawn_where})", fluxes.len()),
                 start.elapsed().as_secs_f64() * 1e3,
             ));
         }

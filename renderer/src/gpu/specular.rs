@@ -546,10 +546,30 @@ impl Specular {
         maps
     }
 
+    /// The caustic maps' photons where they are, for VPL creation on the GPU
+    /// ([`super::vpl::VplSampler::candidates`], the counterpart of [`Specular::caustic_vpls`]).
+    pub fn caustic_sources<'a>(&self, maps: &'a PhotonMaps) -> Vec<super::vpl::CausticMap<'a>> {
+        maps.maps
+            .iter()
+            .map(|map| super::vpl::CausticMap {
+                light: &map.light,
+                object: map.object,
+                object_real: map.object_real,
+                tan_half: map.tan_half,
+                size: maps.map_size,
+                stride: map.search.stride,
+                position: &map.pgbuf.position,
+                info: &map.search.info,
+                hits: &map.search.hits,
+            })
+            .collect()
+    }
+
     /// Reflected and refracted VPLs (Figure 5.23): every photon of the caustic maps as a
     /// candidate VPL where it lands, carrying the flux the surface there reflects (albedo ×
     /// the photon's flux); real where light, object and surface are all real. Read back and
-    /// made on the CPU, like the RSMs' candidates, with which they are drawn.
+    /// made on the CPU: the reference for `vpl.wgsl`'s `cs_caustic_candidates`, which makes the
+    /// same candidates on the GPU ([`Specular::caustic_sources`]).
     pub fn caustic_vpls(&self, ctx: &GpuContext, maps: &PhotonMaps) -> Vec<super::vpl::GpuVpl> {
         use rayon::prelude::*;
         let mut candidates = Vec::new();

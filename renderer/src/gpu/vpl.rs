@@ -14,8 +14,13 @@
 //! The VPLs are drawn from all candidates of all spot lights together, in proportion to their
 //! flux (stratified inversion of the CDF, deterministic), and each carries flux / (N · p): the
 //! budget is thereby split over the lights by flux — the thesis's third distribution mode — and
-//! over the two RSMs by the flux they hold, with the compensation built in. The RSMs are read
-//! back and sampled on the CPU (a GPU sampler is future work).
+//! over the two RSMs by the flux they hold, with the compensation built in.
+//!
+//! Two implementations draw the same VPLs. [`VplSampler`] (shader `vpl.wgsl`) makes the
+//! candidates on the GPU from the RSM textures and the caustic maps' photons where they were
+//! rendered, sums their CDF there and reads back only the drawn VPLs; the renderer uses it. The
+//! CPU's [`Candidates`] works on read-back texels ([`RsmTexels`]): the reference the sampler is
+//! tested against, and the renderer's fall-back when the candidates exceed one storage buffer.
 
 use crate::light::SpotLight;
 use crate::math::luminance;
@@ -282,6 +287,345 @@ pub fn split_budget(budget: u32, fluxes: &[f64]) -> Vec<u32> {
     counts
 }
 
+/// The sampler's shader (`vpl.wgsl`).
+pub const SHADER: &str = include_str!("vpl.wgsl");
+
+/// One light's RSM textures on the GPU, for [`VplSampler::candidates`]: position, normal, albedo
+/// and distance of the real-only map, and of the virtual-only map where there is one.
+pub struct RsmMaps<'a> {
+    pub light: RsmLight<'a>,
+    /// Half-width of a spot's image plane at unit distance (0 for an environment direction).
+    pub tan_half_fov: f32,
+    pub size: u32,
+    pub real: [&'a wgpu::Texture; 4],
+    pub virt: Option<[&'a wgpu::Texture; 4]>,
+}
+
+/// One caustic map's photons on the GPU (`Specular::caustic_sources`), for
+/// [`VplSampler::candidates`]: the GPU's counterpart of `Specular::caustic_vpls`.
+pub struct CausticMap<'a> {
+    pub light: &'a SpotLight,
+    /// The mirror or glass object's index (the photon's `info` names the object it met).
+    pub object: u32,
+    pub object_real: bool,
+    pub tan_half: f32,
+    pub size: u32,
+    /// The hit planes' row stride (texels).
+    pub stride: u32,
+    /// Where each photon left the light's image plane onto the object (the photon G-buffer).
+    pub position: &'a wgpu::Texture,
+    /// Per photon: reflection and refraction weights and status, the object (specular.wgsl).
+    pub info: &'a wgpu::Buffer,
+    /// The reflected and refracted hits: position, normal, albedo planes.
+    pub hits: &'a wgpu::Buffer,
+}
+
+/// Matches `CausticParams` in vpl.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct CausticUniform {
+    info: [u32; 4],
+    offset: [u32; 4],
+    position: [f32; 4],
+    direction: [f32; 4],
+    intensity: [f32; 4],
+}
+
+/// Matches `MapParams` in vpl.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct MapUniform {
+    info: [u32; 4],
+    offset: [u32; 4],
+    position: [f32; 4],
+    direction: [f32; 4],
+    intensity: [f32; 4],
+    area: [f32; 4],
+}
+
+/// Slots of the CDF's blocks in vpl.wgsl (256 threads of 8).
+const BLOCK: u32 = 2048;
+/// Workgroups per dispatch row (the limit per dimension).
+const ROW: u32 = 65_535;
+
+/// VPL creation on the GPU: the candidates of [`Candidates`] made from the RSM textures where
+/// they were rendered, their CDF, and the stratified draw of [`Candidates::draw`] — only the
+/// drawn VPLs are read back (48 bytes each), not the RSMs (15 MB at the thesis's 18 maps of
+/// 128²). The CDF is summed in `f32` in a fixed order (the CPU's in `f64`), so a stratum that
+/// falls within rounding of a CDF step can take the neighbouring candidate; the test
+/// `the_gpu_sampler_draws_the_cpu_references_vpls` bounds how often.
+pub struct VplSampler {
+    candidates: wgpu::ComputePipeline,
+    caustic_candidates: wgpu::ComputePipeline,
+    block_sums: wgpu::ComputePipeline,
+    scan_blocks: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    draw: wgpu::ComputePipeline,
+}
+
+/// A frame's candidate VPLs on the GPU and their CDF ([`VplSampler::candidates`]), drawn from
+/// as often as needed ([`VplSampler::draw`]).
+pub struct GpuCandidates {
+    slots: u32,
+    blocks: u32,
+    candidates: wgpu::Buffer,
+    weights: wgpu::Buffer,
+    /// The blocks' exclusive offsets, then the total weight.
+    offsets: wgpu::Buffer,
+    cdf: wgpu::Buffer,
+}
+
+impl GpuCandidates {
+    /// Candidate slots (two per RSM texel, one per extra candidate), most of them empty.
+    pub fn slots(&self) -> u32 {
+        self.slots
+    }
+}
+
+impl VplSampler {
+    pub fn new(ctx: &super::context::GpuContext) -> VplSampler {
+        let [candidates, caustic_candidates, block_sums, scan_blocks, scan, draw] = ctx.compute_pipelines(
+            "vpl.wgsl",
+            SHADER,
+            ["cs_candidates", "cs_caustic_candidates", "cs_block_sums", "cs_scan_blocks", "cs_scan", "cs_draw"],
+        );
+        VplSampler { candidates, caustic_candidates, block_sums, scan_blocks, scan, draw }
+    }
+
+    /// The bytes of the candidates' buffer for `slots` slots: more than the device binds in one
+    /// storage buffer means the RSMs must be sampled on the CPU.
+    pub fn fits(ctx: &super::context::GpuContext, slots: u64) -> bool {
+        let limits = ctx.device.limits();
+        slots * std::mem::size_of::<GpuVpl>() as u64
+            <= limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)
+    }
+
+    /// Candidate slots for `extra` candidates, `caustics` and `maps`.
+    pub fn slots(extra: usize, caustics: &[CausticMap], maps: &[RsmMaps]) -> u64 {
+        let square = |size: u32| 2 * size as u64 * size as u64;
+        extra as u64
+            + caustics.iter().map(|c| square(c.size)).sum::<u64>()
+            + maps.iter().map(|m| square(m.size)).sum::<u64>()
+    }
+
+    /// The candidates of [`Candidates::new`] — `extra` first (made on the CPU), then every
+    /// caustic map's photons (two slots each: reflected, refracted), then every light's RSM texels
+    /// in order (two slots each) — and their CDF, submitted in one command buffer (nothing waits).
+    /// With the caustic maps' candidates of `Specular::caustic_vpls` as `extra` instead of
+    /// `caustics`, the same candidates in the same order.
+    pub fn candidates(
+        &self,
+        ctx: &super::context::GpuContext,
+        extra: &[GpuVpl],
+        caustics: &[CausticMap],
+        maps: &[RsmMaps],
+    ) -> GpuCandidates {
+        use wgpu::util::DeviceExt;
+        let device = &ctx.device;
+        let slots = u32::try_from(Self::slots(extra.len(), caustics, maps)).expect("candidate slots fit in u32");
+        let blocks = slots.div_ceil(BLOCK).max(1);
+        let storage = |label: &str, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let out = GpuCandidates {
+            slots,
+            blocks,
+            candidates: storage("vpl candidates", slots as u64 * std::mem::size_of::<GpuVpl>() as u64),
+            weights: storage("vpl candidate weights", slots as u64 * 4),
+            offsets: storage("vpl cdf offsets", (blocks as u64 + 1) * 4),
+            cdf: storage("vpl cdf", slots as u64 * 4),
+        };
+        if !extra.is_empty() {
+            let weights: Vec<f32> = extra.iter().map(|v| Candidate::of(v).map_or(0.0, |c| c.weight)).collect();
+            ctx.queue.write_buffer(&out.candidates, 0, bytemuck::cast_slice(extra));
+            ctx.queue.write_buffer(&out.weights, 0, bytemuck::cast_slice(&weights));
+        }
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut offset = extra.len() as u32;
+        for map in caustics {
+            let (light, n) = (map.light, map.size);
+            let uniform = CausticUniform {
+                info: [n, map.stride, map.object, (light.real && map.object_real) as u32],
+                offset: [offset, 0, 0, 0],
+                position: [light.position.x, light.position.y, light.position.z, map.tan_half],
+                direction: [light.direction.x, light.direction.y, light.direction.z, light.cos_outer],
+                intensity: [light.intensity.x, light.intensity.y, light.intensity.z, light.cos_inner],
+            };
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vpl caustic map"),
+                contents: bytemuck::bytes_of(&uniform),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let position = map.position.create_view(&Default::default());
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vpl caustic candidates"),
+                layout: &self.caustic_candidates.get_bind_group_layout(0),
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&position) },
+                    wgpu::BindGroupEntry { binding: 2, resource: map.info.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: map.hits.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 9, resource: out.candidates.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 10, resource: out.weights.as_entire_binding() },
+                ],
+            });
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.caustic_candidates);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
+            drop(pass);
+            offset += 2 * n * n;
+        }
+        for map in maps {
+            let (kind, real, position, direction, intensity, area) = match &map.light {
+                RsmLight::Spot(spot) => (
+                    0,
+                    spot.real,
+                    [spot.position.x, spot.position.y, spot.position.z, map.tan_half_fov],
+                    [spot.direction.x, spot.direction.y, spot.direction.z, spot.cos_outer],
+                    [spot.intensity.x, spot.intensity.y, spot.intensity.z, spot.cos_inner],
+                    0.0,
+                ),
+                RsmLight::Directional { irradiance, texel_area } => {
+                    (1, true, [0.0; 4], [0.0; 4], [irradiance.x, irradiance.y, irradiance.z, 0.0], *texel_area)
+                }
+            };
+            let uniform = MapUniform {
+                info: [kind, real as u32, map.virt.is_some() as u32, map.size],
+                offset: [offset, 0, 0, 0],
+                position,
+                direction,
+                intensity,
+                area: [area, 0.0, 0.0, 0.0],
+            };
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vpl map"),
+                contents: bytemuck::bytes_of(&uniform),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            // without a virtual map the real one is bound in its place (the shader does not read it)
+            let views: Vec<wgpu::TextureView> = map
+                .real
+                .iter()
+                .chain(map.virt.as_ref().unwrap_or(&map.real))
+                .map(|t| t.create_view(&Default::default()))
+                .collect();
+            let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+            entries.extend(views.iter().enumerate().map(|(k, view)| wgpu::BindGroupEntry {
+                binding: 1 + k as u32,
+                resource: wgpu::BindingResource::TextureView(view),
+            }));
+            entries.push(wgpu::BindGroupEntry { binding: 9, resource: out.candidates.as_entire_binding() });
+            entries.push(wgpu::BindGroupEntry { binding: 10, resource: out.weights.as_entire_binding() });
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vpl candidates"),
+                layout: &self.candidates.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.candidates);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(map.size.div_ceil(8), map.size.div_ceil(8), 1);
+            drop(pass);
+            offset += 2 * map.size * map.size;
+        }
+        let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vpl cdf sizes"),
+            contents: bytemuck::bytes_of(&[slots, blocks, 0, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let rows = [blocks.min(ROW), blocks.div_ceil(ROW)];
+        let steps: [(&wgpu::ComputePipeline, &[u32], [u32; 2]); 3] = [
+            (&self.block_sums, &[0, 1, 2], rows),
+            (&self.scan_blocks, &[0, 2], [1, 1]),
+            (&self.scan, &[0, 1, 2, 3], rows),
+        ];
+        for (pipeline, bindings, groups) in steps {
+            let buffers = [&sizes, &out.weights, &out.offsets, &out.cdf];
+            let entries: Vec<wgpu::BindGroupEntry> = bindings
+                .iter()
+                .map(|&b| wgpu::BindGroupEntry { binding: b, resource: buffers[b as usize].as_entire_binding() })
+                .collect();
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vpl cdf"),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(groups[0], groups[1], 1);
+        }
+        ctx.submit(encoder);
+        out
+    }
+
+    /// `count` VPLs drawn from `candidates` as [`Candidates::draw`] does (stratified, each carrying
+    /// flux / (count · p)); empty when no candidate has flux. Waits for the device to read
+    /// back the drawn VPLs.
+    pub fn draw(&self, ctx: &super::context::GpuContext, candidates: &GpuCandidates, count: u32) -> Vec<GpuVpl> {
+        use wgpu::util::DeviceExt;
+        if count == 0 || candidates.slots == 0 {
+            return Vec::new();
+        }
+        let device = &ctx.device;
+        let vpl_bytes = count as u64 * std::mem::size_of::<GpuVpl>() as u64;
+        let drawn = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vpls drawn"),
+            size: vpl_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vpls drawn read back"),
+            size: vpl_bytes + 4,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vpl draw sizes"),
+            contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vpl draw"),
+            layout: &self.draw.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: sizes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: candidates.candidates.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: candidates.weights.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: candidates.cdf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: candidates.offsets.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: drawn.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.draw);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&drawn, 0, &staging, 0, vpl_bytes);
+        encoder.copy_buffer_to_buffer(&candidates.offsets, candidates.blocks as u64 * 4, &staging, vpl_bytes, 4);
+        ctx.submit(encoder);
+        let bytes = ctx.read_buffer(&staging);
+        if bytes.len() as u64 != vpl_bytes + 4 {
+            return Vec::new();
+        }
+        let total = f32::from_le_bytes(bytes[vpl_bytes as usize..].try_into().expect("4 bytes"));
+        if !(total > 0.0 && total.is_finite()) {
+            return Vec::new();
+        }
+        bytemuck::pod_collect_to_vec(&bytes[..vpl_bytes as usize])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -375,5 +719,130 @@ mod tests {
         let light = spot(false);
         let vpls = create(&[(RsmLight::Spot(&light), rsm)], 16);
         assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0));
+    }
+
+    /// Random RSMs (a real spot's two maps, an environment direction without a virtual map) and
+    /// caustic candidates, as textures for the GPU sampler and as texels for the CPU's reference.
+    fn random_maps(
+        ctx: &crate::gpu::context::GpuContext,
+        size: u32,
+        seed: u64,
+    ) -> Vec<(RsmTexels, [wgpu::Texture; 4])> {
+        let mut state = seed;
+        let mut next = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((state >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let mut maps = Vec::new();
+        for virtual_map in [false, true] {
+            let texels: Vec<RsmTexel> = (0..size * size)
+                .map(|k| {
+                    // a quarter empty; a virtual map's surfaces nearer or farther than the real one's
+                    if next() < 0.25 {
+                        return EMPTY;
+                    }
+                    let flag = if virtual_map { 2.0 + 4.0 * (k % 3) as f32 } else { 1.0 + 4.0 * (k % 2) as f32 };
+                    let (x, z) = (next() * 4.0 - 2.0, next() * 4.0 - 2.0);
+                    let albedo = if k == 7 { f32::NAN } else { next() };
+                    ([x, next() * 0.3, z, flag], [0.0, 1.0, 0.0, 0.0], [albedo, next(), next(), 0.0], 1.0 + next())
+                })
+                .collect();
+            let quads = |f: &dyn Fn(&RsmTexel) -> [f32; 4]| -> Vec<f32> { texels.iter().flat_map(f).collect() };
+            let upload = |data: Vec<f32>, format: wgpu::TextureFormat, texel_bytes: u32| {
+                let texture = crate::gpu::raster::texture_2d(ctx, size, size, format, "test rsm");
+                ctx.queue.write_texture(
+                    texture.as_image_copy(),
+                    bytemuck::cast_slice(&data),
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(size * texel_bytes),
+                        rows_per_image: None,
+                    },
+                    wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
+                );
+                texture
+            };
+            let surface = crate::gpu::raster::SURFACE_FORMAT;
+            let textures = [
+                upload(quads(&|t| t.0), surface, 16),
+                upload(quads(&|t| t.1), surface, 16),
+                upload(quads(&|t| t.2), surface, 16),
+                upload(texels.iter().map(|t| t.3).collect(), crate::gpu::raster::DISTANCE_FORMAT, 4),
+            ];
+            maps.push((RsmTexels { size, tan_half_fov: 0.9, real: texels.clone(), virt: texels }, textures));
+        }
+        maps
+    }
+
+    #[test]
+    fn the_gpu_sampler_draws_the_cpu_references_vpls() {
+        let Some(renderer) = crate::test_support::renderer_or_skip() else { return };
+        let ctx = &renderer.ctx;
+        let size = 48;
+        let maps = random_maps(ctx, size, 17);
+        let (real, virt) = (&maps[0], &maps[1]);
+        let light = SpotLight { cos_inner: 0.8, cos_outer: 0.6, intensity: Vec3::new(3.0, 2.0, 1.0), ..spot(true) };
+        let environment = RsmLight::Directional { irradiance: Vec3::new(0.5, 0.7, 1.1), texel_area: 0.003 };
+        let extra: Vec<GpuVpl> = (0..5)
+            .map(|k| GpuVpl {
+                position: [k as f32, 0.0, 0.0, 0.0],
+                normal: [0.0, 1.0, 0.0, 0.0],
+                flux: [0.002 * k as f32, 0.001, 0.0, 1.0],
+            })
+            .collect();
+        // the spot with both maps; the environment direction with only its real map
+        let cpu_lights = vec![
+            (
+                RsmLight::Spot(&light),
+                RsmTexels { size, tan_half_fov: 0.9, real: real.0.real.clone(), virt: virt.0.real.clone() },
+            ),
+            (
+                environment,
+                RsmTexels {
+                    size,
+                    tan_half_fov: 0.0,
+                    real: real.0.real.clone(),
+                    virt: vec![EMPTY; (size * size) as usize],
+                },
+            ),
+        ];
+        let gpu_maps = vec![
+            RsmMaps {
+                light: RsmLight::Spot(&light),
+                tan_half_fov: 0.9,
+                size,
+                real: real.1.each_ref(),
+                virt: Some(virt.1.each_ref()),
+            },
+            RsmMaps { light: environment, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None },
+        ];
+        let sampler = VplSampler::new(ctx);
+        let candidates = sampler.candidates(ctx, &extra, &[], &gpu_maps);
+        assert_eq!(candidates.slots(), 5 + 2 * 2 * size * size);
+        let reference = Candidates::new(&cpu_lights, &extra);
+        let mut kinds = [0usize; 4];
+        for count in [1, 7, 256, 1000] {
+            let (gpu, cpu) = (sampler.draw(ctx, &candidates, count), reference.draw(count));
+            assert_eq!(gpu.len(), cpu.len(), "{count} VPLs");
+            for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+                // the same candidate (position, normal, flags), the same flux to f32 rounding
+                assert_eq!((g.position, g.normal, g.flux[3]), (c.position, c.normal, c.flux[3]), "VPL {k} of {count}");
+                for channel in 0..3 {
+                    let (a, b) = (g.flux[channel], c.flux[channel]);
+                    assert!((a - b).abs() <= 2e-5 * b.abs().max(1e-12), "VPL {k} of {count}: flux {a} against {b}");
+                }
+                let kind = (c.flux[3] == 1.0) as usize * 3
+                    + (c.flux[3] != 1.0) as usize * (c.position[3] as usize + 2 * c.normal[3] as usize).min(2);
+                kinds[kind.min(3)] += 1;
+            }
+        }
+        // every kind of candidate was drawn: virtual (r = 0), real (r = 1), real behind virtual
+        // (ir = 1) and caustic
+        assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");
+        // no candidate at all: nothing is drawn
+        let dark = RsmLight::Directional { irradiance: Vec3::ZERO, texel_area: 0.003 };
+        let dark = [RsmMaps { light: dark, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None }];
+        let none = sampler.candidates(ctx, &[], &[], &dark);
+        assert!(sampler.draw(ctx, &none, 16).is_empty());
     }
 }
