@@ -265,7 +265,7 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
 }
 
 #[test]
-fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passes_and_pipelined() {
+fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passes_pipelined_and_live() {
     let dir = temp_dir("frame-rate");
     let Some(doc) = bench_render_quick(&dir, &["--frame-rate", "--scene", "metal-bottle"]) else { return };
     let rows = doc["rows"].as_array().unwrap();
@@ -285,6 +285,14 @@ fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passe
         );
         assert!(0.0 < p10 && p10 <= median && median <= p90, "{row}");
         assert!((row["pipelined_fps"].as_f64().unwrap() - 1000.0 / median).abs() < 1e-6, "{row}");
+        // and as the lab's live frames (pipelined, only the composite read back)
+        let (p10, median, p90) = (
+            row["live_p10_ms"].as_f64().unwrap(),
+            row["live_median_ms"].as_f64().unwrap(),
+            row["live_p90_ms"].as_f64().unwrap(),
+        );
+        assert!(0.0 < p10 && p10 <= median && median <= p90, "{row}");
+        assert!((row["live_fps"].as_f64().unwrap() - 1000.0 / median).abs() < 1e-6, "{row}");
         let passes = row["passes"].as_array().unwrap();
         assert!(passes.iter().any(|p| p["pass"] == "g-buffer"), "{passes:?}");
         // GPU timestamps (taken on a hardware adapter with timestamp queries; none on lavapipe,

@@ -17,7 +17,8 @@
 //! waiting is the difference. A second series renders the same
 //! frames pipelined ([`crate::gpu::context::GpuContext::set_pass_waits`] off: passes only submitted,
 //! the frame waiting where it needs data back) — the frame rate the renderer reaches as built,
-//! with the same images.
+//! with the same images. A third renders them as the lab's live frames: pipelined, only the
+//! composite read back (`DirRenderer::render_display`), temporal smoothing from frame to frame.
 
 use std::time::Instant;
 
@@ -54,6 +55,14 @@ pub struct FrameRateRow {
     pub pipelined_p90_ms: f64,
     /// 1000 / pipelined_median_ms.
     pub pipelined_fps: f64,
+    /// The lab's live frames: pipelined, shown only (`DirRenderer::render_display`: the
+    /// composite read back, not L_rv and L_r), temporal smoothing carried from frame to frame:
+    /// median, 10th and 90th percentile.
+    pub live_median_ms: f64,
+    pub live_p10_ms: f64,
+    pub live_p90_ms: f64,
+    /// 1000 / live_median_ms.
+    pub live_fps: f64,
     /// The sum of the passes' medians: what the passes account for of the median frame (the
     /// rest: allocations, bind groups and the like outside the timed passes).
     pub passes_ms: f64,
@@ -82,8 +91,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let adapter = renderer.ctx.adapter_name();
     observer.note(&format!("bench render --frame-rate on {adapter}: {width}×{height}, {frames} frames per row"));
     observer.line(&format!(
-        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8} {:>12} {:>8}   slowest passes (median ms)",
-        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps", "pipelined ms", "fps"
+        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8} {:>12} {:>8} {:>8} {:>8}   slowest passes (median ms)",
+        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps", "pipelined ms", "fps", "live ms", "fps"
     ));
     let mut rows = Vec::new();
     for name in &names {
@@ -136,6 +145,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let median_ms = quantile(&mut times, 0.5);
             renderer.ctx.set_pass_waits(false);
             let mut pipelined = Vec::with_capacity(frames as usize);
+            let mut live = Vec::with_capacity(frames as usize);
             let series = (|| {
                 renderer.render(&scene, &photo, &params)?;
                 for _ in 0..frames {
@@ -143,11 +153,19 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                     renderer.render(&scene, &photo, &params)?;
                     pipelined.push(start.elapsed().as_secs_f64() * 1e3);
                 }
+                let mut state = crate::gpu::LiveState::default();
+                renderer.render_display(&scene, &photo, &params, &mut state)?;
+                for _ in 0..frames {
+                    let start = Instant::now();
+                    renderer.render_display(&scene, &photo, &params, &mut state)?;
+                    live.push(start.elapsed().as_secs_f64() * 1e3);
+                }
                 Ok::<(), crate::error::RenderError>(())
             })();
             renderer.ctx.set_pass_waits(true);
             series?;
             let pipelined_median_ms = quantile(&mut pipelined, 0.5);
+            let live_median_ms = quantile(&mut live, 0.5);
             let row = FrameRateRow {
                 scene: name.clone(),
                 condition,
@@ -167,6 +185,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 pipelined_p10_ms: quantile(&mut pipelined, 0.1),
                 pipelined_p90_ms: quantile(&mut pipelined, 0.9),
                 pipelined_fps: 1000.0 / pipelined_median_ms.max(1e-9),
+                live_median_ms,
+                live_p10_ms: quantile(&mut live, 0.1),
+                live_p90_ms: quantile(&mut live, 0.9),
+                live_fps: 1000.0 / live_median_ms.max(1e-9),
                 passes_ms: passes.iter().map(|p| p.ms).sum(),
                 gpu_ms: passes.iter().any(|p| p.gpu_ms.is_some()).then(|| passes.iter().filter_map(|p| p.gpu_ms).sum()),
                 passes,
@@ -182,7 +204,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 })
                 .collect();
             observer.line(&format!(
-                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1}   {}",
+                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1} {:>8.2} {:>8.1}   {}",
                 row.scene,
                 condition.name(),
                 row.median_ms,
@@ -191,6 +213,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 row.fps,
                 row.pipelined_median_ms,
                 row.pipelined_fps,
+                row.live_median_ms,
+                row.live_fps,
                 slowest.join("; ")
             ));
             rows.push(row);

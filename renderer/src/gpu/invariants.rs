@@ -230,16 +230,17 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
         normal: [0.0, -1.0, 0.0, ir],
         flux: [0.05, 0.05, 0.05, 0.0],
     };
-    let none = r.render_frame(&scene, &photo, &p, Some(&[]), &mut LiveState::default(), false).unwrap();
+    let none = r.render_frame(&scene, &photo, &p, Some(&[]), &mut LiveState::default(), Frame::Stimulus).unwrap();
     let sum = |img: &Image| img.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>();
     let (rv0, r0) = (sum(&none.l_rv), sum(&none.l_r));
     // a VPL on a virtual object (path flag 0): L_rv only
     let on_virtual =
-        r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)]), &mut LiveState::default(), false).unwrap();
+        r.render_frame(&scene, &photo, &p, Some(&[vpl(0.0, 0.0)]), &mut LiveState::default(), Frame::Stimulus).unwrap();
     assert!(sum(&on_virtual.l_rv) > rv0 * 1.01);
     assert_eq!(on_virtual.l_r.pixels, none.l_r.pixels);
     // a real VPL of a real light (path flag 1): both solutions, equally on real pixels
-    let real = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 0.0)]), &mut LiveState::default(), false).unwrap();
+    let real =
+        r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 0.0)]), &mut LiveState::default(), Frame::Stimulus).unwrap();
     assert!(sum(&real.l_r) > r0 * 1.01);
     for i in 0..photo.pixels.len() {
         if none.l_r.pixels[i] != Vec3::ZERO {
@@ -248,7 +249,8 @@ fn vpl_flags_route_light_to_the_solutions_as_equations_5_6_and_5_7() {
         }
     }
     // ir = 1 (a real VPL behind a virtual blocker): L_r only
-    let ir = r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 1.0)]), &mut LiveState::default(), false).unwrap();
+    let ir =
+        r.render_frame(&scene, &photo, &p, Some(&[vpl(1.0, 1.0)]), &mut LiveState::default(), Frame::Stimulus).unwrap();
     assert_eq!(ir.l_rv.pixels, none.l_rv.pixels);
     assert!(sum(&ir.l_r) > r0 * 1.01);
 }
@@ -260,8 +262,8 @@ fn vpl_light_at(r: &DirRenderer, scene: &Scene, p: &DirParams, at: Vec3) -> (f32
     let vpl = GpuVpl { position: [0.0, 0.4, 0.0, 1.0], normal: [0.0, -1.0, 0.0, 0.0], flux: [0.05, 0.05, 0.05, 0.0] };
     // one bounce: the hand-placed VPL alone
     let p = &DirParams { bounces: 1, ..p.clone() };
-    let without = r.render_frame(scene, &photo, p, Some(&[]), &mut LiveState::default(), false).unwrap();
-    let with = r.render_frame(scene, &photo, p, Some(&[vpl]), &mut LiveState::default(), false).unwrap();
+    let without = r.render_frame(scene, &photo, p, Some(&[]), &mut LiveState::default(), Frame::Stimulus).unwrap();
+    let with = r.render_frame(scene, &photo, p, Some(&[vpl]), &mut LiveState::default(), Frame::Stimulus).unwrap();
     let (u, v) = scene.camera.project(at).unwrap();
     let i = v as usize * scene.camera.width as usize + u as usize;
     let sum = |x: Vec3| x.x + x.y + x.z;

@@ -43,7 +43,7 @@
 //!
 //! Not built: caustics seen in mirrors and glass (L'_rv, L'_r; see [`specular`]), area lights (emissive surfaces show in both solutions but light nothing),
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
-//! reflect diffusely), RSM sampling on the GPU (RSMs are read back).
+//! reflect diffusely).
 
 pub mod bounce;
 pub mod ca;
@@ -260,6 +260,9 @@ pub struct GpuReport {
     pub bounces: Vec<bounce::BounceReport>,
     /// What the passes of mirrors and glass did (None in a scene without them: not run).
     pub specular: Option<specular::SpecularReport>,
+    /// Whether the indirect light was smoothed against a previous frame (5.11–5.15; a live
+    /// frame after another of the same size).
+    pub temporal_smoothing: bool,
 }
 
 /// What live rendering carries from frame to frame: the colour mapping's smoothing and the
@@ -268,6 +271,24 @@ pub struct GpuReport {
 pub struct LiveState {
     pub cm: CmState,
     pub temporal: Option<indirect::TemporalState>,
+}
+
+/// A live frame that is only shown ([`DirRenderer::render_display`]).
+pub struct DisplayFrame {
+    /// The composite, display-encoded like the photograph.
+    pub composite: Image,
+    pub report: GpuReport,
+}
+
+/// What a frame keeps from one frame to the next and reads back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Frame {
+    /// A stimulus: no history, every buffer read back.
+    Stimulus,
+    /// A live frame: temporal smoothing against the state, every buffer read back.
+    Live,
+    /// A live frame only shown: the composite read back, not L_rv and L_r.
+    Display,
 }
 
 /// The device and the compiled pipelines, reusable across frames and scenes.
@@ -512,7 +533,7 @@ impl DirRenderer {
     /// scene, display-encoded, at the scene's resolution), as a single frame without colour
     /// mapping history.
     pub fn render(&self, scene: &Scene, photo: &Image, params: &DirParams) -> Result<GpuRender> {
-        self.render_frame(scene, photo, params, None, &mut LiveState::default(), false)
+        self.render_frame(scene, photo, params, None, &mut LiveState::default(), Frame::Stimulus)
     }
 
     /// [`DirRenderer::render`] for live use: `state` carries the colour mapping's smoothing
@@ -525,11 +546,26 @@ impl DirRenderer {
         params: &DirParams,
         state: &mut LiveState,
     ) -> Result<GpuRender> {
-        self.render_frame(scene, photo, params, None, state, true)
+        self.render_frame(scene, photo, params, None, state, Frame::Live)
+    }
+
+    /// [`DirRenderer::render_with_state`] for a live frame that is only shown (the lab's): the
+    /// composite is the only image read back (12 MB at 1024×768, not 38 MB with L_rv and L_r),
+    /// with the radiance buffers only where the ca factor needs the virtual objects' mask. The
+    /// composite equals `render_with_state`'s bit for bit.
+    pub fn render_display(
+        &self,
+        scene: &Scene,
+        photo: &Image,
+        params: &DirParams,
+        state: &mut LiveState,
+    ) -> Result<DisplayFrame> {
+        let frame = self.render_frame(scene, photo, params, None, state, Frame::Display)?;
+        Ok(DisplayFrame { composite: frame.composite, report: frame.report })
     }
 
     /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7),
-    /// and temporal smoothing against `state` when `temporal`.
+    /// temporal smoothing against `state` in live frames, and the read-back `mode` asks for.
     fn render_frame(
         &self,
         scene: &Scene,
@@ -537,8 +573,9 @@ impl DirRenderer {
         params: &DirParams,
         given_vpls: Option<&[vpl::GpuVpl]>,
         state: &mut LiveState,
-        temporal: bool,
+        mode: Frame,
     ) -> Result<GpuRender> {
+        let temporal = mode != Frame::Stimulus;
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         if photo.width != width || photo.height != height {
@@ -963,6 +1000,7 @@ impl DirRenderer {
         });
 
         // 4b. the indirect light: merge of the interleaved classes, temporal smoothing, sum
+        let mut smoothed = false;
         if let Some(raw) = &output.indirect {
             let split = params.interleave.max(1);
             let inputs = indirect::IndirectInputs {
@@ -988,6 +1026,7 @@ impl DirRenderer {
                 });
             }
             steps.push("sum".into());
+            smoothed = temporal && state.temporal.is_some();
             let label = format!("indirect light ({})", steps.join(", "));
             timed(ctx, &mut passes, label, || {
                 self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, &mut state.temporal)))
@@ -1082,12 +1121,14 @@ impl DirRenderer {
                 specular_base.as_ref(),
             )
         });
-        // in two timed steps: the GPU's copies into staging buffers, then the host's map and copy
+        // in two timed steps: the GPU's copies into staging buffers, then the host's map and copy;
+        // a frame only shown needs the radiance buffers only for the ca pass's mask
+        let radiance = mode != Frame::Display || params.camera_artifacts.is_some();
         let staged = timed(ctx, &mut passes, "readback: copies to staging (GPU)".into(), || {
-            (ctx.stage(&composite), ctx.stage(&output.solutions))
+            (ctx.stage(&composite), radiance.then(|| ctx.stage(&output.solutions)))
         });
         let (composite, solutions) = timed(ctx, &mut passes, "readback: mapped and copied to the host".into(), || {
-            (ctx.read_staged_f32(&staged.0), ctx.read_staged_f32(&staged.1))
+            (ctx.read_staged_f32(&staged.0), staged.1.as_ref().map_or_else(Vec::new, |s| ctx.read_staged_f32(s)))
         });
         let start = Instant::now();
         let half = solutions.len() / 2;
@@ -1097,11 +1138,15 @@ impl DirRenderer {
             height,
             values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect(),
         };
-        let l_rv = to_image(width, height, &solutions[..half]);
-        let l_r = to_image(width, height, &solutions[half..]);
-        let flags = {
+        let (l_rv, l_r, flags) = if mode == Frame::Display {
+            (Image::filled(0, 0, Vec3::ZERO), Image::filled(0, 0, Vec3::ZERO), Vec::new())
+        } else {
             use rayon::prelude::*;
-            solutions[..half].par_chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect()
+            (
+                to_image(width, height, &solutions[..half]),
+                to_image(width, height, &solutions[half..]),
+                solutions[..half].par_chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
+            )
         };
         passes.push(PassTime::new("images from the read-back buffers (CPU)", start.elapsed().as_secs_f64() * 1e3));
         // 5. camera artifacts (the ca factor) on the virtual layers of the composite
@@ -1134,6 +1179,7 @@ impl DirRenderer {
                 cm: cm_report,
                 camera_artifacts: ca_report,
                 bounces: bounce_reports,
+                temporal_smoothing: smoothed,
                 specular: traced.map(|traced| traced.report),
             },
         })

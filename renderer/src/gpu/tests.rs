@@ -228,3 +228,33 @@ fn a_gi_frames_vpls_are_the_same_made_on_the_gpu_or_the_cpu() {
         assert!(worst < 2e-3, "{name}: composites differ by up to {worst}");
     }
 }
+
+/// A live frame that is only shown (`render_display`, the lab's; it reads back the composite and
+/// not L_rv and L_r) has `render_with_state`'s composite bit for bit, frame after frame
+/// (temporal smoothing and the colour mapping's state carried the same way), with the ca
+/// factor (which needs the virtual objects' mask from the radiance buffers) and without.
+#[test]
+fn a_frame_only_shown_is_the_live_frame_without_its_radiance_buffers() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    for ca in [false, true] {
+        let params = DirParams {
+            condition: GiLevel::Gi,
+            vpls: 32,
+            rsm_size: 32,
+            camera_artifacts: ca.then(|| crate::ca::CaParams::from_sensor(&scene.sensor)),
+            ..DirParams::default()
+        };
+        let (mut live, mut shown) = (LiveState::default(), LiveState::default());
+        for frame in 0..2 {
+            let full = r.render_with_state(&scene, &photo, &params, &mut live).unwrap();
+            let display = r.render_display(&scene, &photo, &params, &mut shown).unwrap();
+            assert!(full.composite.pixels == display.composite.pixels, "ca {ca}, frame {frame}: the composites differ");
+            assert_eq!(display.report.camera_artifacts.is_some(), ca);
+            // the first frame has no history to smooth against; the second does
+            assert_eq!((full.report.temporal_smoothing, display.report.temporal_smoothing), (frame > 0, frame > 0));
+        }
+        assert_eq!(live.temporal.as_ref().map(|t| t.frames), shown.temporal.as_ref().map(|t| t.frames));
+    }
+}

@@ -7,8 +7,8 @@
 //! the first start show the same pixels). A frame job names the study, the condition, the trial,
 //! where the virtual cube's centre is, and carries the session's [`SessionRenderState`] in and
 //! out: the renderer's [`LiveState`] with the previous frame's indirect light for temporal
-//! smoothing (thesis 5.2.9, eqs. 5.11–5.15, `DirRenderer::render_with_state`) and the colour
-//! mapping's history. The history starts afresh with each trial (and each condition), so one
+//! smoothing (thesis 5.2.9, eqs. 5.11–5.15; `DirRenderer::render_display`, which reads back
+//! only the composite, with the passes pipelined) and the colour mapping's history. The history starts afresh with each trial (and each condition), so one
 //! trial's light never shows in the next; `smoothing` says whether the last frame reused any.
 //!
 //! Jobs are rendered in arrival order. A session keeps at most one job in flight and coalesces
@@ -175,6 +175,9 @@ impl LabRenderer {
                         return;
                     }
                 };
+                // frames pipelined: passes are only submitted, and the frame waits where it
+                // needs data back (the drawn VPLs, the composite); nothing here reads pass times
+                renderer.ctx.set_pass_waits(false);
                 let info = &renderer.ctx.info;
                 let _ = ready.send(Ok(AdapterInfo {
                     adapter: format!("{} ({:?})", info.name, info.backend),
@@ -249,15 +252,10 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
             if fresh {
                 *live = LiveState::default();
             }
-            let render = renderer
-                .render_with_state(&scene, &lab.photo, &params, &mut live)
-                .map_err(|error| error.to_string())?;
-            let smoothing = render
-                .report
-                .passes
-                .iter()
-                .any(|pass| pass.pass.contains("temporal smoothing") && !pass.pass.contains("first frame"));
-            (render.composite, smoothing)
+            // only the composite is read back: the lab shows it and nothing else
+            let render =
+                renderer.render_display(&scene, &lab.photo, &params, &mut live).map_err(|error| error.to_string())?;
+            (render.composite, render.report.temporal_smoothing)
         }
         Condition::Coherent(level) => {
             let Some(coherent) = &lab.coherent else {

@@ -409,7 +409,7 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         pace_ms: served.as_ref().and_then(|(_, study)| study.pace_ms()),
         min_response_ms: definition["min_response_ms"].as_u64(),
         reach_cm: served.as_ref().map(|(_, study)| study.layout.reach.map(|r| (r * 1000.0).round() / 10.0)),
-        // every live frame of a task study goes through `render_with_state` (live.rs)
+        // every live frame of a task study goes through `render_display` (live.rs), smoothed
         smoothing: served.is_some(),
         participants,
         rendering,
