@@ -105,7 +105,7 @@ impl IndirectPass {
         };
         let (weights, history) = match &temporal {
             Some((weights, state)) => {
-                ((*weights).clone(), state.as_ref().filter(|s| s.width == inputs.width && s.height == inputs.height))
+                ((*weights).clone(), state.as_ref().filter(|s| s.fits(inputs.width, inputs.height)))
             }
             None => (TemporalParams::default(), None),
         };
@@ -164,6 +164,12 @@ impl IndirectPass {
 }
 
 impl TemporalState {
+    /// Whether this state can smooth a frame of `width` × `height` (a frame of another size
+    /// starts afresh).
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.width == width && self.height == height
+    }
+
     /// The smoothed indirect light of the last frame (I_rv then I_r, w of I_rv: the confidence).
     pub fn read_indirect(&self, ctx: &GpuContext) -> Vec<f32> {
         ctx.read_f32(&self.indirect)

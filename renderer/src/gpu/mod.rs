@@ -308,7 +308,9 @@ pub struct DirRenderer {
     /// The last frame's RSM targets (their size, surfaces and distance), taken by the next frame
     /// of that RSM size instead of making new textures (72 a frame at the thesis's settings); a
     /// frame that finds none (another thread's frame holds them) makes its own. Every RSM pass
-    /// clears its targets, and they go back only after they are read back.
+    /// clears its targets, and they go back once the passes that read them (the GPU's VPL
+    /// candidates, or the CPU's read-back) are submitted: the next frame's RSM passes are queued
+    /// after those.
     rsm_targets: std::sync::Mutex<(u32, Vec<(SurfaceTargets, wgpu::Texture)>)>,
     /// VPL creation on the GPU from the RSMs where they were rendered.
     vpl_sampler: vpl::VplSampler,
@@ -726,7 +728,8 @@ impl DirRenderer {
         let mut first_bounce: Option<FirstBounce> = None;
         if params.condition == GiLevel::Gi && n_lights > 0 && params.vpls > 0 {
             let rsm_size = params.rsm_size.max(4);
-            // every RSM is rendered first and all are read back at once (one wait, not four per map)
+            // every RSM is rendered first, then all are read at once: by the GPU's VPL sampler, or
+            // read back for the CPU's reference (one wait, not four per map)
             let spare = std::cell::RefCell::new({
                 let mut cached = self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
                 if cached.0 == rsm_size { std::mem::take(&mut cached.1) } else { Vec::new() }
@@ -1019,14 +1022,16 @@ impl DirRenderer {
                 steps.push(format!("merge {split}×{split}"));
             }
             if temporal {
-                steps.push(if state.temporal.is_some() {
+                // the history is used only at this frame's size (`IndirectPass::run`)
+                let history = state.temporal.as_ref().is_some_and(|t| t.fits(width, height));
+                smoothed = history;
+                steps.push(if history {
                     "temporal smoothing".to_string()
                 } else {
                     "temporal smoothing (first frame)".to_string()
                 });
             }
             steps.push("sum".into());
-            smoothed = temporal && state.temporal.is_some();
             let label = format!("indirect light ({})", steps.join(", "));
             timed(ctx, &mut passes, label, || {
                 self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, &mut state.temporal)))

@@ -202,7 +202,8 @@ fn a_gi_frames_vpls_are_the_same_made_on_the_gpu_or_the_cpu() {
         let gpu = r.render(&scene, &photo, &params).unwrap();
         let on = |frame: &GpuRender, what: &str| frame.report.passes.iter().any(|p| p.pass.contains(what));
         assert!(on(&cpu, "RSMs read back") && !on(&gpu, "RSMs read back"), "{name}: each frame took its own path");
-        assert!(on(&gpu, "GPU)"), "{name}: the GPU sampler's pass is reported");
+        let sampled = "VPL candidates and their CDF";
+        assert!(on(&gpu, sampled) && !on(&cpu, sampled), "{name}: the GPU sampler's pass is reported");
         if name == "glass-figure" {
             let caustic = |frame: &GpuRender| frame.vpls.iter().filter(|v| v.flux[3] == 1.0).count();
             assert!(caustic(&cpu) > 0, "{name}: caustic VPLs are among those drawn");

@@ -352,8 +352,10 @@ const ROW: u32 = 65_535;
 /// they were rendered, their CDF, and the stratified draw of [`Candidates::draw`] — only the
 /// drawn VPLs are read back (48 bytes each), not the RSMs (15 MB at the thesis's 18 maps of
 /// 128²). The CDF is summed in `f32` in a fixed order (the CPU's in `f64`), so a stratum that
-/// falls within rounding of a CDF step can take the neighbouring candidate; the test
-/// `the_gpu_sampler_draws_the_cpu_references_vpls` bounds how often.
+/// falls within rounding of a CDF step can take the neighbouring candidate: the tests
+/// `the_gpu_sampler_draws_the_cpu_references_vpls` (random RSMs) and
+/// `a_gi_frames_vpls_are_the_same_made_on_the_gpu_or_the_cpu` (gi frames, with caustics) bound
+/// how often.
 pub struct VplSampler {
     candidates: wgpu::ComputePipeline,
     caustic_candidates: wgpu::ComputePipeline,
@@ -721,8 +723,8 @@ mod tests {
         assert!(vpls.iter().all(|v| v.position[3] == 0.0 && v.normal[3] == 0.0));
     }
 
-    /// Random RSMs (a real spot's two maps, an environment direction without a virtual map) and
-    /// caustic candidates, as textures for the GPU sampler and as texels for the CPU's reference.
+    /// Random RSMs (a real spot's two maps, an environment direction without a virtual map), as
+    /// textures for the GPU sampler and as texels for the CPU's reference.
     fn random_maps(
         ctx: &crate::gpu::context::GpuContext,
         size: u32,
@@ -774,6 +776,12 @@ mod tests {
         maps
     }
 
+    /// The GPU sampler against the CPU's reference on random RSMs (a spot with both maps, an
+    /// environment direction with its real map only, a NaN albedo) and extra candidates (as the
+    /// renderer's CPU path passes the caustic ones; `cs_caustic_candidates` is compared in the
+    /// gi frames of `a_gi_frames_vpls_are_the_same_made_on_the_gpu_or_the_cpu`): every drawn VPL
+    /// of 1, 7, 256 and 1000 is the same candidate with the same flux to f32 rounding, except at
+    /// most two neighbours over all 1264 (none on lavapipe: the f32 CDF's rounding).
     #[test]
     fn the_gpu_sampler_draws_the_cpu_references_vpls() {
         let Some(renderer) = crate::test_support::renderer_or_skip() else { return };
@@ -821,12 +829,16 @@ mod tests {
         assert_eq!(candidates.slots(), 5 + 2 * 2 * size * size);
         let reference = Candidates::new(&cpu_lights, &extra);
         let mut kinds = [0usize; 4];
+        let mut neighbours = Vec::new();
         for count in [1, 7, 256, 1000] {
             let (gpu, cpu) = (sampler.draw(ctx, &candidates, count), reference.draw(count));
             assert_eq!(gpu.len(), cpu.len(), "{count} VPLs");
             for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
                 // the same candidate (position, normal, flags), the same flux to f32 rounding
-                assert_eq!((g.position, g.normal, g.flux[3]), (c.position, c.normal, c.flux[3]), "VPL {k} of {count}");
+                if (g.position, g.normal, g.flux[3]) != (c.position, c.normal, c.flux[3]) {
+                    neighbours.push((count, k, *g, *c));
+                    continue;
+                }
                 for channel in 0..3 {
                     let (a, b) = (g.flux[channel], c.flux[channel]);
                     assert!((a - b).abs() <= 2e-5 * b.abs().max(1e-12), "VPL {k} of {count}: flux {a} against {b}");
@@ -836,6 +848,7 @@ mod tests {
                 kinds[kind.min(3)] += 1;
             }
         }
+        assert!(neighbours.len() <= 2, "{} VPLs differ: {neighbours:?}", neighbours.len());
         // every kind of candidate was drawn: virtual (r = 0), real (r = 1), real behind virtual
         // (ir = 1) and caustic
         assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");

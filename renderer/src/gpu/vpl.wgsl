@@ -274,7 +274,13 @@ fn cs_scan(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         shared_sums[local] = value;
         workgroupBarrier();
     }
-    var running = block_sums[block] + (shared_sums[local] - own);
+    // this thread's exclusive prefix: the scan's value one thread before (not inclusive - own,
+    // which would round differently from the block sums)
+    var before = 0.0;
+    if local > 0u {
+        before = shared_sums[local - 1u];
+    }
+    var running = block_sums[block] + before;
     for (var i = 0u; i < PER_THREAD; i++) {
         if first + i < scan.sizes.x {
             running += scan_weights[first + i];
