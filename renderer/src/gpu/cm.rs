@@ -11,7 +11,7 @@ use glam::{Mat3, Vec3};
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = include_str!("cm.wgsl");
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cm.wgsl"));
 
 /// Floats per contribution in `cm.wgsl` (K).
 const K: usize = 20;

@@ -32,10 +32,6 @@ var<workgroup> shared_sums: array<f32, 1280>;   // GROUP * K
 var<workgroup> shared_score: array<f32, 64>;
 var<workgroup> shared_index: array<u32, 64>;
 
-fn luminance(c: vec3<f32>) -> f32 {
-    return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-}
-
 fn tone_map(x: vec3<f32>) -> vec3<f32> {
     let y = max(x, vec3<f32>(0.0)) * cm.tone.x;
     return y / (vec3<f32>(1.0) + y);

@@ -1,6 +1,13 @@
 // Functions shared by several shaders of the GPU renderer; the Rust side prepends this file to
-// ism.wgsl, shade.wgsl, bounce.wgsl and specular.wgsl (`concat!`), so each of them is defined
-// once.
+// ism.wgsl, shade.wgsl, bounce.wgsl, specular.wgsl, cm.wgsl and vpl.wgsl (`concat!`), so each
+// of them is defined once.
+
+// One VPL (vpl.rs's `GpuVpl`).
+struct Vpl {
+    position: vec4<f32>,        // xyz; w: the path flag r(x) of eq. 5.9 (1: every element real)
+    normal: vec4<f32>,          // xyz; w: ir(VPL), 1: illuminates the real-only solution only
+    flux: vec4<f32>,            // rgb: reflected flux (W); w: 1 for a caustic's reflected or refracted VPL
+}
 
 // A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
 fn pcg(v: u32) -> u32 {
@@ -37,4 +44,9 @@ fn spot_falloff(c: f32, cos_inner: f32, cos_outer: f32) -> f32 {
     }
     let t = (c - cos_outer) / (cos_inner - cos_outer);
     return t * t * (3.0 - 2.0 * t);
+}
+
+// Rec. 709 luminance of linear RGB (as math.rs's `luminance`).
+fn luminance(c: vec3<f32>) -> f32 {
+    return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
 }

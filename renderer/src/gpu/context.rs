@@ -272,10 +272,24 @@ impl GpuContext {
         })
     }
 
-    /// Runs one compute pass: `pipeline` over `groups` workgroups (x, y) with bind group 0 made of
-    /// `entries` in the pipeline's own layout, submitted alone.
+    /// Runs one compute pass ([`GpuContext::record_dispatch`]), submitted alone.
     pub fn dispatch(
         &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        entries: &[wgpu::BindGroupEntry],
+        groups: [u32; 2],
+    ) {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.record_dispatch(&mut encoder, label, pipeline, entries, groups);
+        self.submit(encoder);
+    }
+
+    /// Records one compute pass into `encoder`: `pipeline` over `groups` workgroups (x, y) with
+    /// bind group 0 made of `entries` in the pipeline's own layout.
+    pub fn record_dispatch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
         entries: &[wgpu::BindGroupEntry],
@@ -286,14 +300,10 @@ impl GpuContext {
             layout: &pipeline.get_bind_group_layout(0),
             entries,
         });
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(groups[0], groups[1], 1);
-        }
-        self.submit(encoder);
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(groups[0], groups[1], 1);
     }
 
     /// The adapter in words, for reports: name, backend and kind.

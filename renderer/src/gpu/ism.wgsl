@@ -17,12 +17,6 @@ struct IsmParams {
     scale: vec4<f32>,     // x: 1 / maximum distance; y: splat radius (m)
 }
 
-struct Vpl {
-    position: vec4<f32>,
-    normal: vec4<f32>,
-    flux: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> params: IsmParams;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;   // 3 per triangle
 @group(0) @binding(2) var<storage, read> cdf: array<f32>;               // per subset triangle, ends at 1

@@ -22,12 +22,6 @@ struct Light {
                                 // distance; directional: in metres)
 }
 
-struct Vpl {
-    position: vec4<f32>,        // xyz; w: the path flag r(x) of eq. 5.9 (1: every element real)
-    normal: vec4<f32>,          // xyz; w: ir(VPL), 1: illuminates the real-only solution only
-    flux: vec4<f32>,            // rgb: reflected flux (W)
-}
-
 struct Material {
     albedo: vec4<f32>,
     pattern_a: vec4<f32>,

@@ -26,7 +26,7 @@ use crate::light::SpotLight;
 use crate::math::luminance;
 use glam::Vec3;
 
-/// One VPL: matches `Vpl` in shade.wgsl.
+/// One VPL: matches `Vpl` in common.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuVpl {
@@ -288,7 +288,7 @@ pub fn split_budget(budget: u32, fluxes: &[f64]) -> Vec<u32> {
 }
 
 /// The sampler's shader (`vpl.wgsl`).
-pub const SHADER: &str = include_str!("vpl.wgsl");
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("vpl.wgsl"));
 
 /// One light's RSM textures on the GPU, for [`VplSampler::candidates`]: position, normal, albedo
 /// and distance of the real-only map, and of the virtual-only map where there is one.
@@ -320,15 +320,35 @@ pub struct CausticMap<'a> {
     pub hits: &'a wgpu::Buffer,
 }
 
+/// A light in `CausticParams` and `MapParams` of vpl.wgsl: a spot's position (w: tan of half
+/// the map's field of view), direction (w: cos_outer) and intensity (w: cos_inner); an
+/// environment direction's irradiance in `intensity`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct LightRows {
+    position: [f32; 4],
+    direction: [f32; 4],
+    intensity: [f32; 4],
+}
+
+impl LightRows {
+    fn spot(light: &SpotLight, tan_half: f32) -> LightRows {
+        let (p, d, i) = (light.position, light.direction, light.intensity);
+        LightRows {
+            position: [p.x, p.y, p.z, tan_half],
+            direction: [d.x, d.y, d.z, light.cos_outer],
+            intensity: [i.x, i.y, i.z, light.cos_inner],
+        }
+    }
+}
+
 /// Matches `CausticParams` in vpl.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct CausticUniform {
     info: [u32; 4],
     offset: [u32; 4],
-    position: [f32; 4],
-    direction: [f32; 4],
-    intensity: [f32; 4],
+    light: LightRows,
 }
 
 /// Matches `MapParams` in vpl.wgsl.
@@ -337,9 +357,7 @@ struct CausticUniform {
 struct MapUniform {
     info: [u32; 4],
     offset: [u32; 4],
-    position: [f32; 4],
-    direction: [f32; 4],
-    intensity: [f32; 4],
+    light: LightRows,
     area: [f32; 4],
 }
 
@@ -454,9 +472,7 @@ impl VplSampler {
             let uniform = CausticUniform {
                 info: [n, map.stride, map.object, (light.real && map.object_real) as u32],
                 offset: [offset, 0, 0, 0],
-                position: [light.position.x, light.position.y, light.position.z, map.tan_half],
-                direction: [light.direction.x, light.direction.y, light.direction.z, light.cos_outer],
-                intensity: [light.intensity.x, light.intensity.y, light.intensity.z, light.cos_inner],
+                light: LightRows::spot(light, map.tan_half),
             };
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vpl caustic map"),
@@ -464,10 +480,11 @@ impl VplSampler {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
             let position = map.position.create_view(&Default::default());
-            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vpl caustic candidates"),
-                layout: &self.caustic_candidates.get_bind_group_layout(0),
-                entries: &[
+            ctx.record_dispatch(
+                &mut encoder,
+                "vpl caustic candidates",
+                &self.caustic_candidates,
+                &[
                     wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&position) },
                     wgpu::BindGroupEntry { binding: 2, resource: map.info.as_entire_binding() },
@@ -475,34 +492,22 @@ impl VplSampler {
                     wgpu::BindGroupEntry { binding: 9, resource: out.candidates.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 10, resource: out.weights.as_entire_binding() },
                 ],
-            });
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.caustic_candidates);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
-            drop(pass);
+                [n.div_ceil(8), n.div_ceil(8)],
+            );
             offset += 2 * n * n;
         }
         for map in maps {
-            let (kind, real, position, direction, intensity, area) = match &map.light {
-                RsmLight::Spot(spot) => (
-                    0,
-                    spot.real,
-                    [spot.position.x, spot.position.y, spot.position.z, map.tan_half_fov],
-                    [spot.direction.x, spot.direction.y, spot.direction.z, spot.cos_outer],
-                    [spot.intensity.x, spot.intensity.y, spot.intensity.z, spot.cos_inner],
-                    0.0,
-                ),
+            let (kind, light, area) = match &map.light {
+                RsmLight::Spot(spot) => (0, LightRows::spot(spot, map.tan_half_fov), 0.0),
                 RsmLight::Directional { irradiance, texel_area } => {
-                    (1, true, [0.0; 4], [0.0; 4], [irradiance.x, irradiance.y, irradiance.z, 0.0], *texel_area)
+                    let intensity = [irradiance.x, irradiance.y, irradiance.z, 0.0];
+                    (1, LightRows { intensity, ..LightRows::default() }, *texel_area)
                 }
             };
             let uniform = MapUniform {
-                info: [kind, real as u32, map.virt.is_some() as u32, map.size],
+                info: [kind, map.light.real() as u32, map.virt.is_some() as u32, map.size],
                 offset: [offset, 0, 0, 0],
-                position,
-                direction,
-                intensity,
+                light,
                 area: [area, 0.0, 0.0, 0.0],
             };
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -524,16 +529,8 @@ impl VplSampler {
             }));
             entries.push(wgpu::BindGroupEntry { binding: 9, resource: out.candidates.as_entire_binding() });
             entries.push(wgpu::BindGroupEntry { binding: 10, resource: out.weights.as_entire_binding() });
-            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vpl candidates"),
-                layout: &self.candidates.get_bind_group_layout(0),
-                entries: &entries,
-            });
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.candidates);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(map.size.div_ceil(8), map.size.div_ceil(8), 1);
-            drop(pass);
+            let groups = map.size.div_ceil(8);
+            ctx.record_dispatch(&mut encoder, "vpl candidates", &self.candidates, &entries, [groups, groups]);
             offset += 2 * map.size * map.size;
         }
         let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -553,15 +550,7 @@ impl VplSampler {
                 .iter()
                 .map(|&b| wgpu::BindGroupEntry { binding: b, resource: buffers[b as usize].as_entire_binding() })
                 .collect();
-            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vpl cdf"),
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &entries,
-            });
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(groups[0], groups[1], 1);
+            ctx.record_dispatch(&mut encoder, "vpl cdf", pipeline, &entries, groups);
         }
         ctx.submit(encoder);
         out
@@ -594,10 +583,12 @@ impl VplSampler {
             contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vpl draw"),
-            layout: &self.draw.get_bind_group_layout(0),
-            entries: &[
+        let mut encoder = device.create_command_encoder(&Default::default());
+        ctx.record_dispatch(
+            &mut encoder,
+            "vpl draw",
+            &self.draw,
+            &[
                 wgpu::BindGroupEntry { binding: 0, resource: sizes.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: candidates.candidates.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: candidates.weights.as_entire_binding() },
@@ -605,14 +596,8 @@ impl VplSampler {
                 wgpu::BindGroupEntry { binding: 4, resource: candidates.offsets.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: drawn.as_entire_binding() },
             ],
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.draw);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
-        }
+            [count.div_ceil(64), 1],
+        );
         encoder.copy_buffer_to_buffer(&drawn, 0, &staging, 0, vpl_bytes);
         encoder.copy_buffer_to_buffer(&candidates.offsets, candidates.blocks as u64 * 4, &staging, vpl_bytes, 4);
         ctx.submit(encoder);

@@ -14,12 +14,6 @@
 // 3. cs_draw: stratum k of `count` takes the first slot whose CDF reaches (k + 0.5) / count of the
 //    total, and carries flux · total / (count · weight). Driven by vpl.rs (`VplSampler`).
 
-struct Vpl {
-    position: vec4<f32>,   // xyz; w: path flag (1: light and surface real)
-    normal: vec4<f32>,     // xyz; w: ir (1: only the real-only solution)
-    flux: vec4<f32>,       // rgb: reflected flux; w: 1 for a caustic's VPL
-}
-
 struct MapParams {
     info: vec4<u32>,       // x: 0 spot, 1 environment direction; y: real light; z: has a virtual map; w: size
     offset: vec4<u32>,     // x: first slot of this light
@@ -41,10 +35,6 @@ struct MapParams {
 @group(0) @binding(9) var<storage, read_write> candidates: array<Vpl>;
 @group(0) @binding(10) var<storage, read_write> weights: array<f32>;
 
-fn luminance(c: vec3<f32>) -> f32 {
-    return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-}
-
 fn texel_solid_angle(ix: u32, iy: u32, size: u32, tan_half: f32) -> f32 {
     let x = (2.0 * (f32(ix) + 0.5) / f32(size) - 1.0) * tan_half;
     let y = (2.0 * (f32(iy) + 0.5) / f32(size) - 1.0) * tan_half;
@@ -53,19 +43,9 @@ fn texel_solid_angle(ix: u32, iy: u32, size: u32, tan_half: f32) -> f32 {
 }
 
 // A spot's intensity towards the unit direction `dir`: `direction` xyz with cos_outer in w,
-// `intensity` rgb with cos_inner in w (light.rs: `SpotLight::intensity_towards`).
+// `intensity` rgb with cos_inner in w (common.wgsl's falloff, as shade.wgsl's spot_intensity).
 fn spot_intensity(dir: vec3<f32>, direction: vec4<f32>, intensity: vec4<f32>) -> vec3<f32> {
-    let c = dot(dir, direction.xyz);
-    let cos_inner = intensity.w;
-    let cos_outer = direction.w;
-    if c >= cos_inner {
-        return intensity.xyz;
-    }
-    if c <= cos_outer {
-        return vec3<f32>(0.0);
-    }
-    let t = (c - cos_outer) / (cos_inner - cos_outer);
-    return intensity.xyz * (t * t * (3.0 - 2.0 * t));
+    return intensity.xyz * spot_falloff(dot(dir, direction.xyz), intensity.w, direction.w);
 }
 
 // One candidate at slot `slot`: weight 0 (and a zero VPL) where the texel gives none.
@@ -190,11 +170,11 @@ fn cs_caustic_candidates(@builtin(global_invocation_id) id: vec3<u32>) {
         let real = caustic.info.w == 1u && u32(position.w + 0.5) % 4u == 1u;
         let normal = photon_plane(3u * c + 1u, id.x, id.y).xyz;
         let length_recip = 1.0 / length(normal);
-        var unit = vec3<f32>(0.0);
+        var unit_normal = vec3<f32>(0.0);
         if length_recip > 0.0 && length_recip <= 3.4e38 {
-            unit = normal * length_recip;
+            unit_normal = normal * length_recip;
         }
-        candidates[slot + c] = Vpl(vec4<f32>(position.xyz, select(0.0, 1.0, real)), vec4<f32>(unit, 0.0),
+        candidates[slot + c] = Vpl(vec4<f32>(position.xyz, select(0.0, 1.0, real)), vec4<f32>(unit_normal, 0.0),
                                    vec4<f32>(flux, 1.0));
         weights[slot + c] = weight;
     }
