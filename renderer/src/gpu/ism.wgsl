@@ -1,6 +1,6 @@
 // Imperfect shadow maps (Ritschel et al. 2008; thesis 5.2.4 and 5.2.8): one small hemispherical
 // depth map per VPL, all in one atlas, rendered from a point cloud instead of the triangles.
-// One instance per (VPL, point): the point is drawn on the GPU from the subset's triangles in
+// One instance per (point, VPL), point-major: the point is drawn on the GPU from the subset's triangles in
 // proportion to their area (stratified per VPL, rotated by a per-VPL offset, so every VPL sees
 // its own cloud spread over all surfaces), then splatted as a quad in the point's tangent plane
 // (geometry-aligned splats, 5.2.8) whose four corners are each mapped into the VPL's hemisphere
@@ -34,9 +34,14 @@ struct SplatOut {
 @vertex
 fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> SplatOut {
     var out: SplatOut;
+    // point-major order: consecutive splats belong to consecutive VPLs, so they fall in
+    // different tiles of the atlas (spread over the rasteriser's screen regions) instead of a
+    // thousand in a row in one tile; `point_id` is the (VPL, point) pair's VPL-major number,
+    // which seeds its random numbers, so the splats are the same in either order
     let per_vpl = params.counts.x;
-    let vpl_index = instance / per_vpl;
-    let k = instance % per_vpl;
+    let vpl_index = instance % params.subset.z;
+    let k = instance / params.subset.z;
+    let point_id = vpl_index * per_vpl + k;
     let tiles = params.counts.y;
     out.tile = vec2<u32>(vpl_index % tiles, vpl_index / tiles);
 
@@ -57,7 +62,7 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     let a = positions[3u * triangle].xyz;
     let b = positions[3u * triangle + 1u].xyz;
     let c = positions[3u * triangle + 2u].xyz;
-    let h = pcg(instance ^ 0x9e3779b9u);
+    let h = pcg(point_id ^ 0x9e3779b9u);
     let r1 = sqrt(unit(h));
     let r2 = unit(pcg(h));
     let p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
