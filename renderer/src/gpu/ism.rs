@@ -6,7 +6,9 @@
 //!
 //! Each VPL gets `points_per_vpl` points drawn on the GPU in proportion to surface area (a
 //! per-subset CDF over triangles is built here), splatted as geometry-aligned quads (5.2.8) into
-//! its `tile_size`² tile of a square atlas (paraboloid mapping of the VPL's hemisphere).
+//! its `tile_size`² tile of a square atlas (paraboloid mapping of the VPL's hemisphere). A quad
+//! is two indexed triangles on four vertices, so the vertex shader — which draws the point —
+//! runs four times per splat, not six.
 
 use super::context::GpuContext;
 use super::mesh::GpuMesh;
@@ -41,6 +43,10 @@ pub struct IsmAtlas {
 
 pub struct Ism {
     pipeline: wgpu::RenderPipeline,
+    /// The splats' index buffer (4s, 4s+1, 4s+2, 4s+2, 4s+1, 4s+3 for splat s: two triangles
+    /// sharing their diagonal's vertices) and how many splats it holds, kept from frame to frame
+    /// and made anew only when a frame needs more.
+    indices: std::sync::Mutex<Option<(u32, wgpu::Buffer)>>,
 }
 
 /// The cumulative area distribution over `triangles` (each three positions), ending at 1, and
@@ -98,7 +104,25 @@ impl Ism {
             multiview_mask: None,
             cache: None,
         });
-        Ism { pipeline }
+        Ism { pipeline, indices: std::sync::Mutex::new(None) }
+    }
+
+    /// An index buffer for at least `splats` splats.
+    fn indices(&self, ctx: &GpuContext, splats: u32) -> wgpu::Buffer {
+        let mut cache = self.indices.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((held, buffer)) = cache.as_ref()
+            && *held >= splats
+        {
+            return buffer.clone();
+        }
+        let indices: Vec<u32> = (0..splats).flat_map(|s| [0, 1, 2, 2, 1, 3].map(|k| 4 * s + k)).collect();
+        let buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("ism splat indices"),
+            contents: bytemuck::cast_slice(&indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        *cache = Some((splats, buffer.clone()));
+        buffer
     }
 
     /// Renders both atlases for `vpls`. `max_distance` bounds every VPL-to-surface distance.
@@ -151,6 +175,8 @@ impl Ism {
         });
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
         let mut points = [0u32; 2];
+        let splats = vpls.len() as u32 * points_per_vpl;
+        let indices = (splats > 0).then(|| self.indices(ctx, splats));
         let mut encoder = device.create_command_encoder(&Default::default());
         for (layer, range) in subsets.iter().enumerate() {
             let view = texture.create_view(&wgpu::TextureViewDescriptor {
@@ -204,7 +230,11 @@ impl Ism {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind_group, &[]);
-            pass.draw(0..6, 0..vpls.len() as u32 * points_per_vpl);
+            // one vertex shader invocation per corner, not per triangle's corner
+            if let Some(indices) = &indices {
+                pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..6 * splats, 0, 0..1);
+            }
         }
         ctx.submit(encoder);
         IsmAtlas { texture, tiles_per_row, tile_size, inv_max_distance, splat_radius, points }

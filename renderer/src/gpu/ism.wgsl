@@ -25,6 +25,8 @@ struct IsmParams {
 struct SplatOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) @interpolate(flat) tile: vec2<u32>,
+    // the splat's centre and normal in its VPL's frame (basis_x, basis_y, normal; origin at
+    // the VPL), so the fragment shader needs neither the VPL nor its frame
     @location(1) @interpolate(flat) point: vec3<f32>,
     @location(2) @interpolate(flat) normal: vec3<f32>,
 }
@@ -32,7 +34,9 @@ struct SplatOut {
 // pcg, unit, basis_x and basis_y: common.wgsl.
 
 @vertex
-fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> SplatOut {
+fn vs_splat(@builtin(vertex_index) vertex: u32) -> SplatOut {
+    // four vertices per splat, shared by its two triangles through the index buffer (ism.rs)
+    let instance = vertex / 4u;
     var out: SplatOut;
     // point-major order: consecutive splats belong to consecutive VPLs, so they fall in
     // different tiles of the atlas (spread over the rasteriser's screen regions) instead of a
@@ -68,12 +72,10 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     let p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
     var n = cross(b - a, c - a);
     n = n / max(length(n), 1e-20);
-    out.point = p;
-    out.normal = n;
 
     // the splat's corner in the point's tangent plane (two triangles: corners 0 1 2, 2 1 3)
-    let corners = array<vec2<f32>, 6>(vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0));
-    let corner = corners[vertex % 6u] * params.scale.y;
+    let corners = array<vec2<f32>, 4>(vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, 1.0));
+    let corner = corners[vertex % 4u] * params.scale.y;
     let q = p + basis_x(n) * corner.x + basis_y(n) * corner.y;
 
     // into the VPL's hemisphere
@@ -87,9 +89,14 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
         return out;
     }
     let nv = vpl.normal.xyz;
+    let bx = basis_x(nv);
+    let by = basis_y(nv);
+    let to_point = p - vpl.position.xyz;
+    out.point = vec3<f32>(dot(to_point, bx), dot(to_point, by), dot(to_point, nv));
+    out.normal = vec3<f32>(dot(n, bx), dot(n, by), dot(n, nv));
     let d = q - vpl.position.xyz;
     let dist = max(length(d), 1e-6);
-    let local = vec3<f32>(dot(d, basis_x(nv)), dot(d, basis_y(nv)), dot(d, nv)) / dist;
+    let local = vec3<f32>(dot(d, bx), dot(d, by), dot(d, nv)) / dist;
     // behind the VPL's surface: nothing there can shadow its light; put it beyond the far plane
     if local.z < -0.05 {
         out.clip = vec4<f32>(0.0, 0.0, 2.0, 1.0);
@@ -103,7 +110,8 @@ fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 }
 
 // Keeps a splat inside its VPL's tile and its disc; writes the exact distance along the texel's
-// direction to the splat's plane.
+// direction to the splat's plane. All in the VPL's frame (the vertex shader's `point` and
+// `normal`); a splat on the VPL's own plane never gets here (the vertex shader culls it).
 @fragment
 fn fs_splat(in: SplatOut) -> @builtin(frag_depth) f32 {
     let tile_size = f32(params.counts.z);
@@ -117,21 +125,13 @@ fn fs_splat(in: SplatOut) -> @builtin(frag_depth) f32 {
     if r2 > 1.0 {
         discard;
     }
-    let local = vec3<f32>(2.0 * uv, 1.0 - r2) / (1.0 + r2);
-    let vpl = vpls[in.tile.y * params.counts.y + in.tile.x];
-    // the VPL's own surface (its plane through the VPL, up to half a splat radius) cannot shadow
-    // it: its discs would only cover the horizon with distances near 0
-    if abs(dot(in.point - vpl.position.xyz, in.normal)) < 0.5 * params.scale.y {
-        discard;
-    }
-    let nv = vpl.normal.xyz;
-    let dir = basis_x(nv) * local.x + basis_y(nv) * local.y + nv * local.z;
+    let dir = vec3<f32>(2.0 * uv, 1.0 - r2) / (1.0 + r2);
     let denom = dot(dir, in.normal);
     if abs(denom) < 1e-6 {
         discard;
     }
-    let t = dot(in.point - vpl.position.xyz, in.normal) / denom;
-    if t <= 0.0 || length(vpl.position.xyz + dir * t - in.point) > params.scale.y {
+    let t = dot(in.point, in.normal) / denom;
+    if t <= 0.0 || length(dir * t - in.point) > params.scale.y {
         discard;
     }
     return clamp(t * params.scale.x, 0.0, 1.0);
