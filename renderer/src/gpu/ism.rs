@@ -53,6 +53,8 @@ pub struct Ism {
     /// sharing their diagonal's vertices) and how many splats it holds, kept from frame to frame
     /// and made anew only when a frame needs more.
     indices: std::sync::Mutex<Option<(u32, wgpu::Buffer)>>,
+    /// Splats per indexed draw ([`SPLATS_PER_DRAW`]; tests draw in smaller pieces).
+    splats_per_draw: u32,
 }
 
 /// The cumulative area distribution over `triangles` (each three positions), ending at 1, and
@@ -110,7 +112,7 @@ impl Ism {
             multiview_mask: None,
             cache: None,
         });
-        Ism { pipeline, indices: std::sync::Mutex::new(None) }
+        Ism { pipeline, indices: std::sync::Mutex::new(None), splats_per_draw: SPLATS_PER_DRAW }
     }
 
     /// An index buffer for at least `splats` splats.
@@ -140,21 +142,6 @@ impl Ism {
         points_per_vpl: u32,
         tile_size: u32,
         max_distance: f32,
-    ) -> IsmAtlas {
-        self.render_in_draws(ctx, mesh, vpls, points_per_vpl, tile_size, max_distance, SPLATS_PER_DRAW)
-    }
-
-    /// [`Ism::render`] with at most `splats_per_draw` splats per draw.
-    #[allow(clippy::too_many_arguments)]
-    fn render_in_draws(
-        &self,
-        ctx: &GpuContext,
-        mesh: &GpuMesh,
-        vpls: &[GpuVpl],
-        points_per_vpl: u32,
-        tile_size: u32,
-        max_distance: f32,
-        splats_per_draw: u32,
     ) -> IsmAtlas {
         let device = &ctx.device;
         let n_vpls = vpls.len().max(1) as u32;
@@ -201,7 +188,7 @@ impl Ism {
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
         let mut points = [0u32; 2];
         let splats = vpls.len() as u32 * points_per_vpl;
-        let splats_per_draw = splats_per_draw.max(1);
+        let splats_per_draw = self.splats_per_draw.max(1);
         let indices = (splats > 0).then(|| self.indices(ctx, splats.min(splats_per_draw)));
         let mut encoder = device.create_command_encoder(&Default::default());
         for (layer, range) in subsets.iter().enumerate() {
@@ -277,7 +264,7 @@ mod tests {
 
     /// A cloud drawn in several indexed draws (each a base vertex further, the last one partial)
     /// makes the same ISMs bit for bit as in one draw: 7 VPLs of dir-lamp-box's first bounce ×
-    /// 100 points in draws of 64 splats, after a frame that left a larger index buffer behind.
+    /// 100 points in draws of 64 splats against the renderer's one draw.
     #[test]
     fn a_cloud_drawn_in_several_draws_makes_the_same_isms_as_in_one() {
         let Some(r) = crate::test_support::renderer_or_skip() else { return };
@@ -297,8 +284,9 @@ mod tests {
             .collect();
         assert_eq!(vpls.len(), 7);
         let read = |atlas: &IsmAtlas| r.ctx.read_textures(&[(&atlas.texture, 4)]).remove(0);
-        let one = read(&r.ism.render_in_draws(&r.ctx, &mesh, &vpls, 100, 32, 20.0, 1 << 20));
-        let several = read(&r.ism.render_in_draws(&r.ctx, &mesh, &vpls, 100, 32, 20.0, 64));
+        let one = read(&r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0));
+        let in_pieces = Ism { splats_per_draw: 64, ..Ism::new(&r.ctx) };
+        let several = read(&in_pieces.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0));
         let cleared = one.chunks_exact(4).filter(|t| f32::from_le_bytes([t[0], t[1], t[2], t[3]]) == 1.0).count();
         assert!(cleared < one.len() / 4, "the splats must cover some texels for this test to tell anything");
         assert!(one == several, "the ISMs drawn in draws of 64 splats differ from one draw's");

@@ -1023,9 +1023,8 @@ impl DirRenderer {
             }
             if temporal {
                 // the history is used only at this frame's size (`IndirectPass::run`)
-                let history = state.temporal.as_ref().is_some_and(|t| t.fits(width, height));
-                smoothed = history;
-                steps.push(if history {
+                smoothed = state.temporal.as_ref().is_some_and(|t| t.fits(width, height));
+                steps.push(if smoothed {
                     "temporal smoothing".to_string()
                 } else {
                     "temporal smoothing (first frame)".to_string()

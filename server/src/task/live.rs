@@ -8,8 +8,9 @@
 //! where the virtual cube's centre is, and carries the session's [`SessionRenderState`] in and
 //! out: the renderer's [`LiveState`] with the previous frame's indirect light for temporal
 //! smoothing (thesis 5.2.9, eqs. 5.11–5.15; `DirRenderer::render_display`, which reads back
-//! only the composite, with the passes pipelined) and the colour mapping's history. The history starts afresh with each trial (and each condition), so one
-//! trial's light never shows in the next; `smoothing` says whether the last frame reused any.
+//! only the composite, with the passes pipelined) and the colour mapping's history. The history
+//! starts afresh with each trial (and each condition), so one trial's light never shows in the
+//! next; `smoothing` says whether the last frame reused any.
 //!
 //! Jobs are rendered in arrival order. A session keeps at most one job in flight and coalesces
 //! the inputs that arrive meanwhile into its next job (see [`super::session`]), so a slow
