@@ -19,6 +19,11 @@
 //! Task studies run in the lab against the live renderer ([`task`]): `serve` starts them in the
 //! background once listening.
 
+// the live renderer's GPU types (wgpu-core's, through the renderer's pool of buffers and
+// textures) nest deeper than the default limit when the compiler checks that the server's
+// futures are Send
+#![recursion_limit = "256"]
+
 pub mod admin;
 pub mod analysis;
 pub mod auth;

@@ -71,6 +71,13 @@ pub struct FrameRateRow {
     /// software adapter, or one without timestamp queries).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_ms: Option<f64>,
+    /// MB of GPU buffers and textures ([`crate::gpu::pool`]) the row's first frame made anew
+    /// (after the row before it: what a change of scene or condition allocates), and what the
+    /// last timed frame made anew and took reused from the pool (0 new: nothing allocated once
+    /// a frame of the row has run).
+    pub first_frame_new_mb: f64,
+    pub new_mb: f64,
+    pub reused_mb: f64,
     /// Each pass's median over the timed frames, in the frame's order (with its GPU time's
     /// median, `gpu_ms`, where the context takes GPU times).
     pub passes: Vec<PassTime>,
@@ -111,9 +118,14 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 specular: SpecularParams { caustic_map_size: 512, ..SpecularParams::default() },
                 ..DirParams::default()
             };
-            for _ in 0..2 {
-                renderer.render(&scene, &photo, &params)?;
+            let mut first_frame_new_mb = 0.0;
+            for k in 0..2 {
+                let frame = renderer.render(&scene, &photo, &params)?;
+                if k == 0 {
+                    first_frame_new_mb = frame.report.memory.new_bytes as f64 / 1e6;
+                }
             }
+            let mut memory = crate::gpu::pool::PoolStats::default();
             let mut times = Vec::with_capacity(frames as usize);
             // per pass: its wall-clock times and its GPU times (where the adapter times them)
             let mut pass_times: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
@@ -121,6 +133,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let start = Instant::now();
                 let frame = renderer.render(&scene, &photo, &params)?;
                 times.push(start.elapsed().as_secs_f64() * 1e3);
+                memory = frame.report.memory;
                 for (k, pass) in frame.report.passes.iter().enumerate() {
                     match pass_times.get_mut(k) {
                         Some((name, list, gpu)) if *name == pass.pass => {
@@ -189,6 +202,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 live_p10_ms: quantile(&mut live, 0.1),
                 live_p90_ms: quantile(&mut live, 0.9),
                 live_fps: 1000.0 / live_median_ms.max(1e-9),
+                first_frame_new_mb,
+                new_mb: memory.new_bytes as f64 / 1e6,
+                reused_mb: memory.reused_bytes as f64 / 1e6,
                 passes_ms: passes.iter().map(|p| p.ms).sum(),
                 gpu_ms: passes.iter().any(|p| p.gpu_ms.is_some()).then(|| passes.iter().filter_map(|p| p.gpu_ms).sum()),
                 passes,

@@ -244,12 +244,12 @@ impl Bounce {
             contents: bytemuck::cast_slice(&gpu_slots),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let hits = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("bounce hits"),
-            size: (2 * n as u64) * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let hits = ctx.buffer(
+            "bounce hits",
+            (2 * n as u64) * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Zeroed,
+        );
         ctx.dispatch(
             "bounce",
             &self.pipeline,

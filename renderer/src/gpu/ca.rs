@@ -165,12 +165,12 @@ impl Artifacts {
         let tables_buf = init("ca tables", bytemuck::cast_slice(&tables));
         let dummy = init("ca dummy", &[0u8; 16]);
         let scratch = |label: &str, images: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: images * n * 16,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
+            ctx.buffer(
+                label,
+                images * n * 16,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                super::pool::Contents::Zeroed,
+            )
         };
         let (la, lb) = (scratch("ca layers a", 3), scratch("ca layers b", 3));
         let (pa, pb) = (scratch("ca images a", 2), scratch("ca images b", 2));

@@ -101,13 +101,13 @@ impl CmPasses {
         })
     }
 
-    fn output(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes.max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
+    fn output(ctx: &GpuContext, label: &str, bytes: u64) -> std::sync::Arc<wgpu::Buffer> {
+        ctx.buffer(
+            label,
+            bytes.max(16),
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Zeroed,
+        )
     }
 
     /// One reduction (mode 0 statistics, 1 Rohmer approximation, 2 Rohmer fit): the sums of
@@ -180,7 +180,7 @@ impl CmPasses {
     }
 
     /// τ(L_rv) and τ(L_r) into a new buffer of the same layout as the solutions.
-    pub fn map(&self, ctx: &GpuContext, buffers: &CmBuffers, uniform: &CmUniform) -> wgpu::Buffer {
+    pub fn map(&self, ctx: &GpuContext, buffers: &CmBuffers, uniform: &CmUniform) -> std::sync::Arc<wgpu::Buffer> {
         let texels = 2 * buffers.width as u64 * buffers.height as u64;
         let mapped = Self::output(ctx, "cm mapped", texels * 16);
         let uni = Self::uniform_buffer(ctx, uniform);
@@ -201,7 +201,7 @@ impl CmPasses {
         params: &CmParams,
         exposure: f32,
         state: &mut CmState,
-    ) -> (wgpu::Buffer, CmReport) {
+    ) -> (std::sync::Arc<wgpu::Buffer>, CmReport) {
         let (w, h) = (buffers.width, buffers.height);
         let base = |mode: u32, m: [[f32; 4]; 3]| CmUniform::new(params, exposure, w, h, mode, m);
         let name = params.method.name();

@@ -34,7 +34,7 @@ impl Compose {
         mapped: &wgpu::Buffer,
         photo: &wgpu::Buffer,
         specular_base: Option<&wgpu::Buffer>,
-    ) -> wgpu::Buffer {
+    ) -> std::sync::Arc<wgpu::Buffer> {
         let device = &ctx.device;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
         let options = [specular_base.is_some() as u32, 0, 0, 0];
@@ -56,12 +56,12 @@ impl Compose {
             contents: bytemuck::cast_slice(&[size, options]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let composite = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("composite"),
-            size: width as u64 * height as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let composite = ctx.buffer(
+            "composite",
+            width as u64 * height as u64 * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Zeroed,
+        );
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: mapped.as_entire_binding() },

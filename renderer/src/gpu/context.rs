@@ -2,6 +2,7 @@
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 
+use super::pool::Contents;
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 use std::fmt;
@@ -70,6 +71,8 @@ pub struct GpuContext {
     /// [`GpuContext::take_gpu_ms`]): on a hardware adapter with timestamp queries, or once
     /// [`GpuContext::enable_gpu_timer`] asks for them.
     timer: Mutex<Option<GpuTimer>>,
+    /// Buffers and textures kept from frame to frame ([`GpuContext::buffer`]).
+    pub(super) pool: super::pool::Pool,
 }
 
 /// Timestamp queries written before and after each command buffer submitted since the last
@@ -145,7 +148,15 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| RenderError::Unsupported(format!("the adapter {} refused a device: {e}", describe(&info))))?;
-        let ctx = GpuContext { device, queue, info, kind, pass_waits: AtomicBool::new(true), timer: Mutex::new(None) };
+        let ctx = GpuContext {
+            device,
+            queue,
+            info,
+            kind,
+            pass_waits: AtomicBool::new(true),
+            timer: Mutex::new(None),
+            pool: Default::default(),
+        };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
         // 65 536 — 500 ms of it waiting for the device after the dispatch — while its
@@ -360,13 +371,9 @@ impl GpuContext {
 
     /// Submits the copy of a storage buffer into a fresh staging buffer (`MAP_READ`) and
     /// returns the staging buffer, without waiting: [`GpuContext::read_staged_f32`] reads it.
-    pub fn stage(&self, source: &wgpu::Buffer) -> wgpu::Buffer {
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: source.size(),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+    pub fn stage(&self, source: &wgpu::Buffer) -> std::sync::Arc<wgpu::Buffer> {
+        // from the pool: the copy below writes all of it
+        let staging = self.buffer("readback", source.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
         self.submit(encoder);
@@ -406,12 +413,8 @@ impl GpuContext {
         if size == 0 {
             return vec![Vec::new(); textures.len()];
         }
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("texture readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        // from the pool: the copies below write every byte read back (not rows' padding)
+        let staging = self.buffer("texture readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         for (&(texture, _), &(offset, _, padded, h)) in textures.iter().zip(&layouts) {
             encoder.copy_texture_to_buffer(

@@ -10,9 +10,11 @@
 //! terms, which lower the confidence where they change — there are no per-object motion vectors.
 
 use super::context::GpuContext;
+use super::pool::Contents;
 use super::raster::SurfaceTargets;
 use glam::{Mat4, Vec3};
 use serde::Serialize;
+use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("indirect.wgsl");
@@ -41,8 +43,8 @@ pub struct TemporalState {
     width: u32,
     height: u32,
     view_proj: Mat4,
-    indirect: wgpu::Buffer,
-    surface: wgpu::Buffer,
+    indirect: Arc<wgpu::Buffer>,
+    surface: Arc<wgpu::Buffer>,
     /// Frames smoothed so far.
     pub frames: u64,
 }
@@ -96,12 +98,12 @@ impl IndirectPass {
         let device = &ctx.device;
         let pixels = (inputs.width * inputs.height) as u64;
         let buffer = |label: &str| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: 2 * pixels * 16,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
+            ctx.buffer(
+                label,
+                2 * pixels * 16,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                Contents::Zeroed,
+            )
         };
         let (weights, history) = match &temporal {
             Some((weights, state)) => {

@@ -577,7 +577,7 @@ fn multiple_bounces_bring_the_cornell_box_closer_to_the_ground_truth() {
     assert!(failures.is_empty(), "{failures:?}");
 }
 
-/// A frame's RSM targets serve the next frame of their size (`DirRenderer::rsm_targets`): a gi
+/// A frame's RSM targets serve the next frame of their size (from the GPU context's pool): a gi
 /// frame of one scene after another scene's equals the same scene's frame before it, so no
 /// texel of the other scene's RSMs (whose lights and surfaces differ) reaches its VPLs.
 #[test]

@@ -35,7 +35,7 @@ struct IsmUniform {
 
 /// The two ISM atlases (layer 0 real points, layer 1 virtual points) and how to read them.
 pub struct IsmAtlas {
-    pub texture: wgpu::Texture,
+    pub texture: std::sync::Arc<wgpu::Texture>,
     pub tiles_per_row: u32,
     pub tile_size: u32,
     /// 1 / the distance that maps to depth 1.
@@ -151,7 +151,8 @@ impl Ism {
         // the atlas must fit the device: shrink the tiles if it would not
         let tile_size = tile_size.max(4).min((max_texture / tiles_per_row).max(4));
         let atlas = tiles_per_row * tile_size;
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
+        // from the pool: both layers are rendered with a clear below
+        let texture = ctx.texture(&wgpu::TextureDescriptor {
             label: Some("ism atlas"),
             size: wgpu::Extent3d { width: atlas, height: atlas, depth_or_array_layers: 2 },
             mip_level_count: 1,

@@ -53,6 +53,7 @@ pub mod context;
 pub mod indirect;
 pub mod ism;
 pub mod mesh;
+pub mod pool;
 pub mod raster;
 pub mod representation;
 pub mod shade;
@@ -68,6 +69,7 @@ use glam::{Mat4, Vec3};
 use raster::{Raster, SceneBuffers, Subset, SurfaceTargets, ViewUniform};
 use serde::Serialize;
 use shade::{GpuLight, Shade, ShadeParams};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The level of the `gi` factor, in the three modes of the preliminary study (thesis 6.3.2).
@@ -263,6 +265,9 @@ pub struct GpuReport {
     /// Whether the indirect light was smoothed against a previous frame (5.11–5.15; a live
     /// frame after another of the same size).
     pub temporal_smoothing: bool,
+    /// The GPU buffers and textures the frame took from the pool: made anew or reused from an
+    /// earlier frame ([`pool`]); with other frames on the same device at the same time, theirs too.
+    pub memory: pool::PoolStats,
 }
 
 /// What live rendering carries from frame to frame: the colour mapping's smoothing and the
@@ -305,13 +310,6 @@ pub struct DirRenderer {
     specular: specular::Specular,
     /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
     representation: std::sync::OnceLock<representation::RepresentationBuilder>,
-    /// The last frame's RSM targets (their size, surfaces and distance), taken by the next frame
-    /// of that RSM size instead of making new textures (72 a frame at the thesis's settings); a
-    /// frame that finds none (another thread's frame holds them) makes its own. Every RSM pass
-    /// clears its targets, and they go back once the passes that read them (the GPU's VPL
-    /// candidates, or the CPU's read-back) are submitted: the next frame's RSM passes are queued
-    /// after those.
-    rsm_targets: std::sync::Mutex<(u32, Vec<(SurfaceTargets, wgpu::Texture)>)>,
     /// VPL creation on the GPU from the RSMs where they were rendered.
     vpl_sampler: vpl::VplSampler,
     /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
@@ -322,7 +320,7 @@ pub struct DirRenderer {
 /// One light's rendered RSMs: the light, a spot's tan of half its field of view, and the
 /// real-only and virtual-only maps (surfaces and distance).
 type RenderedRsms<'a> =
-    (vpl::RsmLight<'a>, f32, ((SurfaceTargets, wgpu::Texture), Option<(SurfaceTargets, wgpu::Texture)>));
+    (vpl::RsmLight<'a>, f32, ((SurfaceTargets, Arc<wgpu::Texture>), Option<(SurfaceTargets, Arc<wgpu::Texture>)>));
 
 /// A frame's first-bounce candidate VPLs, drawn from once, or twice with further bounces (the
 /// pilot and the bounce's share of the budget).
@@ -467,7 +465,6 @@ impl DirRenderer {
             bounce,
             specular,
             representation: std::sync::OnceLock::new(),
-            rsm_targets: std::sync::Mutex::new((0, Vec::new())),
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
         }
@@ -490,10 +487,12 @@ impl DirRenderer {
         rsm_size: u32,
         extra: &[vpl::GpuVpl],
     ) -> vpl::Candidates {
-        let maps: Vec<&(SurfaceTargets, wgpu::Texture)> =
+        let maps: Vec<&(SurfaceTargets, Arc<wgpu::Texture>)> =
             rendered.iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
-        let textures: Vec<(&wgpu::Texture, u32)> =
-            maps.iter().flat_map(|(t, d)| [(&t.position, 16), (&t.normal, 16), (&t.albedo, 16), (d, 4)]).collect();
+        let textures: Vec<(&wgpu::Texture, u32)> = maps
+            .iter()
+            .flat_map(|(t, d)| [(&*t.position, 16), (&*t.normal, 16), (&*t.albedo, 16), (&**d, 4)])
+            .collect();
         let bytes =
             timed(ctx, passes, format!("RSMs read back ({} maps)", maps.len()), || ctx.read_textures(&textures));
         let start = Instant::now();
@@ -588,6 +587,7 @@ impl DirRenderer {
                 b_height: photo.height,
             });
         }
+        ctx.begin_frame();
         let mut passes = Vec::new();
         let start = Instant::now();
         let mesh = mesh::build(scene);
@@ -613,7 +613,9 @@ impl DirRenderer {
             }
         }
         let n_lights = (scene.spots.len() + env_dirs.len()) as u32;
-        let shadow_maps = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        // from the pool: every layer the shaders read is rendered with a clear below (the
+        // virtual layers are read only where they are drawn: `virtual_maps`)
+        let shadow_maps = ctx.texture(&wgpu::TextureDescriptor {
             label: Some("shadow maps"),
             size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: (2 * n_lights).max(2) },
             mip_level_count: 1,
@@ -730,17 +732,10 @@ impl DirRenderer {
             let rsm_size = params.rsm_size.max(4);
             // every RSM is rendered first, then all are read at once: by the GPU's VPL sampler, or
             // read back for the CPU's reference (one wait, not four per map)
-            let spare = std::cell::RefCell::new({
-                let mut cached = self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                if cached.0 == rsm_size { std::mem::take(&mut cached.1) } else { Vec::new() }
-            });
+            // (their targets from the pool: each RSM pass clears them)
             let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
-                let (targets, distance) = spare.borrow_mut().pop().unwrap_or_else(|| {
-                    (
-                        SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm"),
-                        raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance"),
-                    )
-                });
+                let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
+                let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
                 timed(ctx, passes, format!("RSM {name} {label}"), || {
                     self.raster.rsm(ctx, &buffers, view, subset, &distance.create_view(&Default::default()), &targets)
@@ -775,7 +770,7 @@ impl DirRenderer {
             let maps: Vec<vpl::RsmMaps> = rendered
                 .iter()
                 .map(|(light, tan_half_fov, (real, virt))| {
-                    fn textures((t, d): &(SurfaceTargets, wgpu::Texture)) -> [&wgpu::Texture; 4] {
+                    fn textures((t, d): &(SurfaceTargets, Arc<wgpu::Texture>)) -> [&wgpu::Texture; 4] {
                         [&t.position, &t.normal, &t.albedo, d]
                     }
                     vpl::RsmMaps {
@@ -810,9 +805,9 @@ impl DirRenderer {
                 };
             drop(maps);
             // the targets serve the next frame (its passes are queued after this frame's)
-            let returned: Vec<(SurfaceTargets, wgpu::Texture)> =
-                rendered.into_iter().flat_map(|(_, _, (real, virt))| std::iter::once(real).chain(virt)).collect();
-            *self.rsm_targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (rsm_size, returned);
+            // the RSM targets go back to the pool for the next frame (the passes reading them are
+            // submitted, so the next frame's RSM passes are queued after those)
+            drop(rendered);
             vpls = match &candidates {
                 // a GPU pass: reported only while passes are timed
                 FirstBounce::Gpu(_) => {
@@ -998,7 +993,7 @@ impl DirRenderer {
                 &lights,
                 &vpls,
                 &buffers,
-                ism_atlas.as_ref().map(|a| &a.texture),
+                ism_atlas.as_ref().map(|a| &*a.texture),
             )
         });
 
@@ -1069,7 +1064,7 @@ impl DirRenderer {
                             &lights,
                             &vpls,
                             &buffers,
-                            ism_atlas.as_ref().map(|a| &a.texture),
+                            ism_atlas.as_ref().map(|a| &*a.texture),
                         )
                     });
                     if let Some(raw) = &hit.indirect {
@@ -1122,7 +1117,7 @@ impl DirRenderer {
                 params.composition,
                 &mapped,
                 &photo_buffer,
-                specular_base.as_ref(),
+                specular_base.as_deref(),
             )
         });
         // in two timed steps: the GPU's copies into staging buffers, then the host's map and copy;
@@ -1184,6 +1179,7 @@ impl DirRenderer {
                 camera_artifacts: ca_report,
                 bounces: bounce_reports,
                 temporal_smoothing: smoothed,
+                memory: ctx.pool_stats(),
                 specular: traced.map(|traced| traced.report),
             },
         })

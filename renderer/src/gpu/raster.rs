@@ -5,6 +5,7 @@
 use super::context::GpuContext;
 use super::mesh::{GpuMesh, GpuVertex};
 use glam::{Mat4, Vec3};
+use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 /// G-buffer and RSM attachments: position+flag, normal+exponent, albedo+ks.
@@ -92,26 +93,49 @@ impl SceneBuffers {
 
 /// The three surface attachments (G-buffer or RSM).
 pub struct SurfaceTargets {
-    pub position: wgpu::Texture,
-    pub normal: wgpu::Texture,
-    pub albedo: wgpu::Texture,
+    pub position: Arc<wgpu::Texture>,
+    pub normal: Arc<wgpu::Texture>,
+    pub albedo: Arc<wgpu::Texture>,
 }
 
 impl SurfaceTargets {
+    /// Targets from the pool ([`texture_2d`]): the caller renders them with a clear first.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, label: &str) -> Self {
         let make = |what: &str| texture_2d(ctx, width, height, SURFACE_FORMAT, &format!("{label} {what}"));
         SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
     }
+
+    /// Targets of one texel, zero, never rendered: bound where a pass reads no surface.
+    pub fn placeholder(ctx: &GpuContext, label: &str) -> Self {
+        let make = |what: &str| {
+            Arc::new(ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(&format!("{label} {what}")),
+                size: wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: SURFACE_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            }))
+        };
+        SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
+    }
 }
 
+/// A 2D render target from the pool ([`GpuContext::texture`]): as its last user left it, so
+/// whoever reads it renders it with a clear (or copies every texel into it) first.
 pub fn texture_2d(
     ctx: &GpuContext,
     width: u32,
     height: u32,
     format: wgpu::TextureFormat,
     label: &str,
-) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
+) -> std::sync::Arc<wgpu::Texture> {
+    ctx.texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         mip_level_count: 1,

@@ -3,6 +3,7 @@
 //! ([`super::compose`]) read its output.
 
 use super::context::GpuContext;
+use super::pool::Contents;
 use super::raster::{SceneBuffers, SurfaceTargets};
 use super::vpl::GpuVpl;
 use wgpu::util::DeviceExt;
@@ -38,10 +39,10 @@ pub struct Shade {
 pub struct ShadeOutput {
     /// L_rv (first width·height texels; w: 0 nothing modelled, 1 real, 2 virtual surface) then
     /// L_r: the direct light (and emission) only.
-    pub solutions: wgpu::Buffer,
+    pub solutions: std::sync::Arc<wgpu::Buffer>,
     /// The indirect light from the VPLs, I_rv then I_r, as shaded (one interleaved class per
     /// pixel, scaled); `None` without VPLs.
-    pub indirect: Option<wgpu::Buffer>,
+    pub indirect: Option<std::sync::Arc<wgpu::Buffer>>,
 }
 
 impl Shade {
@@ -80,12 +81,7 @@ impl Shade {
             storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
         let pixels = (params.size[0] * params.size[1]) as u64;
         let output = |label: &str, texels: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: texels * 16,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
+            ctx.buffer(label, texels * 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, Contents::Zeroed)
         };
         let solutions = output("solutions", 2 * pixels);
         let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });

@@ -54,6 +54,7 @@
 
 use super::context::GpuContext;
 use super::mesh::{GpuMesh, SpecularObject};
+use super::pool::Contents;
 use super::raster::{GbufferDraw, Raster, SceneBuffers, SurfaceTargets, ViewUniform};
 use crate::light::SpotLight;
 use crate::material::DeltaBsdf;
@@ -61,6 +62,7 @@ use crate::math::luminance;
 use crate::scene::Scene;
 use glam::{Mat4, Vec3, Vec4};
 use serde::Serialize;
+use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("specular.wgsl"));
@@ -202,8 +204,8 @@ pub struct Impostors {
 /// One ray search's output: hits (six planes) and weights.
 struct Search {
     params: wgpu::Buffer,
-    hits: wgpu::Buffer,
-    info: wgpu::Buffer,
+    hits: std::sync::Arc<wgpu::Buffer>,
+    info: std::sync::Arc<wgpu::Buffer>,
     stride: u32,
 }
 
@@ -213,8 +215,8 @@ pub struct Traced {
     pub refl: SurfaceTargets,
     pub refr: SurfaceTargets,
     params: wgpu::Buffer,
-    hits: wgpu::Buffer,
-    info: wgpu::Buffer,
+    hits: std::sync::Arc<wgpu::Buffer>,
+    info: std::sync::Arc<wgpu::Buffer>,
     pub report: SpecularReport,
     /// Where shading of the hit G-buffers looks from (Blinn–Phong's view direction): the
     /// first specular object's centre.
@@ -329,7 +331,7 @@ impl Specular {
         height: u32,
     ) -> SurfaceTargets {
         if glass.is_empty() {
-            return SurfaceTargets::new(ctx, 1, 1, "no back faces");
+            return SurfaceTargets::placeholder(ctx, "no back faces");
         }
         let back = SurfaceTargets::new(ctx, width, height, "back faces");
         let draw = GbufferDraw { view: *view, viewport: [0, 0, width, height], ranges: glass };
@@ -370,12 +372,7 @@ impl Specular {
         });
         let plane_texels = stride as u64 * height as u64;
         let buffer = |label: &str, texels: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: texels * 16,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
+            ctx.buffer(label, texels * 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, Contents::Zeroed)
         };
         let hits = buffer("specular hits", 6 * plane_texels);
         let info = buffer("specular weights", 4 * width as u64 * height as u64);
@@ -576,9 +573,9 @@ impl Specular {
         let n = maps.map_size as usize;
         // every map's buffers copied for reading first, then its positions read with one wait
         // for all (not three waits per map)
-        let staged: Vec<(wgpu::Buffer, wgpu::Buffer)> =
+        let staged: Vec<(std::sync::Arc<wgpu::Buffer>, std::sync::Arc<wgpu::Buffer>)> =
             maps.maps.iter().map(|map| (ctx.stage(&map.search.info), ctx.stage(&map.search.hits))).collect();
-        let textures: Vec<(&wgpu::Texture, u32)> = maps.maps.iter().map(|map| (&map.pgbuf.position, 16)).collect();
+        let textures: Vec<(&wgpu::Texture, u32)> = maps.maps.iter().map(|map| (&*map.pgbuf.position, 16)).collect();
         let positions_bytes = ctx.read_textures(&textures);
         for ((map, (info, hits)), positions) in maps.maps.iter().zip(&staged).zip(&positions_bytes) {
             let positions: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(positions);
@@ -643,15 +640,15 @@ impl Specular {
         scene: &Scene,
         gbuffer: &SurfaceTargets,
         camera_view_proj: Mat4,
-    ) -> (wgpu::Buffer, CausticReport) {
+    ) -> (Arc<wgpu::Buffer>, CausticReport) {
         let device = &ctx.device;
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let caustic = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("caustic buffer"),
-            size: 12 * 4 * width as u64 * height as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let caustic = ctx.buffer(
+            "caustic buffer",
+            12 * 4 * width as u64 * height as u64,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            Contents::Zeroed,
+        );
         let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("photon counts"),
             contents: &[0u8; 16],
@@ -744,14 +741,14 @@ impl Specular {
         photo: &wgpu::Buffer,
         width: u32,
         height: u32,
-    ) -> wgpu::Buffer {
+    ) -> Arc<wgpu::Buffer> {
         let device = &ctx.device;
-        let base = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("specular base"),
-            size: width as u64 * height as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let base = ctx.buffer(
+            "specular base",
+            width as u64 * height as u64 * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            Contents::Zeroed,
+        );
         let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("specular counts"),
             contents: &[0u8; 32],

@@ -480,3 +480,45 @@ fn a_pipelined_frame_equals_the_frame_timed_pass_by_pass() {
     let again = r.render(&scene, &photo, &params).unwrap();
     assert_eq!(again.report.passes.len(), timed.report.passes.len());
 }
+
+/// Frames take their large buffers and textures from the GPU context's pool (`pool.rs`), as
+/// their last frame left them. A frame made after frames of other scenes and conditions (with
+/// caustics, two bounces and camera artifacts, so every pass's resources were used before, and
+/// read-back staging filled with NaNs on reuse in tests) equals a fresh device's frame bit for
+/// bit, and the same frame again makes nothing new. Its own renderer: the pool's counts are
+/// per device.
+#[test]
+fn a_frame_on_reused_buffers_equals_a_fresh_devices_frame() {
+    if renderer_or_skip().is_none() {
+        return;
+    }
+    let (fresh, reused) = (DirRenderer::new().unwrap(), DirRenderer::new().unwrap());
+    let caustic = mirror_caustic_scene();
+    let lamp_box = crate::scene::load("dir-lamp-box").unwrap().with_size(caustic.camera.width, caustic.camera.height);
+    let (photo, box_photo) = (crate::test_support::grey_photo(&caustic), crate::test_support::grey_photo(&lamp_box));
+    let gi = DirParams { vpls: 64, bounces: 2, ..Default::default() };
+    let with_ca = DirParams {
+        camera_artifacts: Some(crate::ca::CaParams::from_sensor(&lamp_box.sensor)),
+        ..DirParams { condition: GiLevel::Shadows, ..gi.clone() }
+    };
+    reused.render(&lamp_box, &box_photo, &gi).unwrap();
+    reused.render(&caustic, &photo, &DirParams { condition: GiLevel::Shadows, ..gi.clone() }).unwrap();
+    reused.render(&lamp_box, &box_photo, &with_ca).unwrap();
+    let first = reused.render(&caustic, &photo, &gi).unwrap();
+    let expected = fresh.render(&caustic, &photo, &gi).unwrap();
+    assert!(first.report.specular.as_ref().and_then(|s| s.caustics.as_ref()).is_some(), "caustic maps ran");
+    assert!(first.report.memory.reused_count > 0, "{:?}", first.report.memory);
+    for (name, a, b) in [
+        ("composite", &first.composite, &expected.composite),
+        ("L_rv", &first.l_rv, &expected.l_rv),
+        ("L_r", &first.l_r, &expected.l_r),
+    ] {
+        assert!(a.pixels == b.pixels, "the {name} on reused buffers differs from a fresh device's");
+    }
+    let again = reused.render(&caustic, &photo, &gi).unwrap();
+    assert_eq!(again.report.memory.new_count, 0, "{:?}", again.report.memory);
+    assert!(again.composite.pixels == first.composite.pixels);
+    let box_again = reused.render(&lamp_box, &box_photo, &with_ca).unwrap();
+    let box_fresh = fresh.render(&lamp_box, &box_photo, &with_ca).unwrap();
+    assert!(box_again.composite.pixels == box_fresh.composite.pixels, "the ca frame on reused buffers differs");
+}

@@ -388,11 +388,11 @@ pub struct VplSampler {
 pub struct GpuCandidates {
     slots: u32,
     blocks: u32,
-    candidates: wgpu::Buffer,
-    weights: wgpu::Buffer,
+    candidates: std::sync::Arc<wgpu::Buffer>,
+    weights: std::sync::Arc<wgpu::Buffer>,
     /// The blocks' exclusive offsets, then the total weight.
-    offsets: wgpu::Buffer,
-    cdf: wgpu::Buffer,
+    offsets: std::sync::Arc<wgpu::Buffer>,
+    cdf: std::sync::Arc<wgpu::Buffer>,
 }
 
 impl GpuCandidates {
@@ -445,12 +445,12 @@ impl VplSampler {
         let slots = u32::try_from(Self::slots(extra.len(), caustics, maps)).expect("candidate slots fit in u32");
         let blocks = slots.div_ceil(BLOCK).max(1);
         let storage = |label: &str, bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
+            ctx.buffer(
+                label,
+                bytes.max(16),
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                super::pool::Contents::Zeroed,
+            )
         };
         let out = GpuCandidates {
             slots,
@@ -566,18 +566,10 @@ impl VplSampler {
         }
         let device = &ctx.device;
         let vpl_bytes = count as u64 * std::mem::size_of::<GpuVpl>() as u64;
-        let drawn = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vpls drawn"),
-            size: vpl_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vpls drawn read back"),
-            size: vpl_bytes + 4,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let zeroed = super::pool::Contents::Zeroed;
+        let drawn =
+            ctx.buffer("vpls drawn", vpl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, zeroed);
+        let staging = ctx.buffer("vpls drawn read back", vpl_bytes + 4, wgpu::BufferUsages::MAP_READ, zeroed);
         let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vpl draw sizes"),
             contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
@@ -714,7 +706,7 @@ mod tests {
         ctx: &crate::gpu::context::GpuContext,
         size: u32,
         seed: u64,
-    ) -> Vec<(RsmTexels, [wgpu::Texture; 4])> {
+    ) -> Vec<(RsmTexels, [std::sync::Arc<wgpu::Texture>; 4])> {
         let mut state = seed;
         let mut next = move || {
             state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -804,10 +796,10 @@ mod tests {
                 light: RsmLight::Spot(&light),
                 tan_half_fov: 0.9,
                 size,
-                real: real.1.each_ref(),
-                virt: Some(virt.1.each_ref()),
+                real: real.1.each_ref().map(|t| &**t),
+                virt: Some(virt.1.each_ref().map(|t| &**t)),
             },
-            RsmMaps { light: environment, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None },
+            RsmMaps { light: environment, tan_half_fov: 0.0, size, real: real.1.each_ref().map(|t| &**t), virt: None },
         ];
         let sampler = VplSampler::new(ctx);
         let candidates = sampler.candidates(ctx, &extra, &[], &gpu_maps);
@@ -839,7 +831,8 @@ mod tests {
         assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");
         // no candidate at all: nothing is drawn
         let dark = RsmLight::Directional { irradiance: Vec3::ZERO, texel_area: 0.003 };
-        let dark = [RsmMaps { light: dark, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None }];
+        let dark =
+            [RsmMaps { light: dark, tan_half_fov: 0.0, size, real: real.1.each_ref().map(|t| &**t), virt: None }];
         let none = sampler.candidates(ctx, &[], &[], &dark);
         assert!(sampler.draw(ctx, &none, 16).is_empty());
     }
