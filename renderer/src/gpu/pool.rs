@@ -168,12 +168,12 @@ impl Pool {
 }
 
 impl GpuContext {
-    /// A buffer of `size` bytes (at least 16) and `usage` from the pool (see the module
+    /// A buffer of `size` bytes and `usage` from the pool (see the module
     /// documentation): a free one of the same size and usage, or a new one. With
     /// [`Contents::Zeroed`] it reads as zeros. It gets `COPY_DST` besides `usage`, to be cleared.
     pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages, contents: Contents) -> Arc<wgpu::Buffer> {
         let usage = usage | wgpu::BufferUsages::COPY_DST;
-        let key = BufferKey { size: size.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT), usage };
+        let key = BufferKey { size, usage };
         let (buffer, reused) = self.pool.buffer(&self.device, label, key);
         if reused {
             match contents {
