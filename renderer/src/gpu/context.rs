@@ -359,17 +359,17 @@ impl GpuContext {
         out
     }
 
-    /// Copies a storage buffer to a fresh staging buffer and reads it back as `f32`s.
+    /// Copies a storage buffer to a staging buffer (from the pool) and reads it back as `f32`s.
     pub fn read_f32(&self, source: &wgpu::Buffer) -> Vec<f32> {
         self.read_staged_f32(&self.stage(source))
     }
 
-    /// Copies a storage buffer to a fresh staging buffer and reads its bytes back.
+    /// Copies a storage buffer to a staging buffer (from the pool) and reads its bytes back.
     pub fn read_storage(&self, source: &wgpu::Buffer) -> Vec<u8> {
         self.read_buffer(&self.stage(source))
     }
 
-    /// Submits the copy of a storage buffer into a fresh staging buffer (`MAP_READ`) and
+    /// Submits the copy of a storage buffer into a staging buffer from the pool (`MAP_READ`) and
     /// returns the staging buffer, without waiting: [`GpuContext::read_staged_f32`] reads it.
     pub fn stage(&self, source: &wgpu::Buffer) -> std::sync::Arc<wgpu::Buffer> {
         // from the pool: the copy below writes all of it

@@ -804,7 +804,6 @@ impl DirRenderer {
                     FirstBounce::Cpu(self.cpu_candidates(ctx, &mut passes, &rendered, rsm_size, &caustic_candidates))
                 };
             drop(maps);
-            // the targets serve the next frame (its passes are queued after this frame's)
             // the RSM targets go back to the pool for the next frame (the passes reading them are
             // submitted, so the next frame's RSM passes are queued after those)
             drop(rendered);

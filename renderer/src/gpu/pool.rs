@@ -104,15 +104,15 @@ impl Pool {
     }
 
     /// Starts a frame: forgets free resources unused for [`KEPT_FRAMES`] frames and the last
-    /// frame's counts, which it returns.
-    pub fn begin_frame(&self) -> PoolStats {
+    /// frame's counts.
+    pub fn begin_frame(&self) {
         let mut inner = self.lock();
         inner.frame += 1;
         let oldest = inner.frame.saturating_sub(KEPT_FRAMES);
         let keep = |last: u64, in_use: bool| in_use || last >= oldest;
         inner.buffers.retain(|e| keep(e.last_frame, Arc::strong_count(&e.item) > 1));
         inner.textures.retain(|e| keep(e.last_frame, Arc::strong_count(&e.item) > 1));
-        std::mem::take(&mut inner.stats)
+        inner.stats = PoolStats::default();
     }
 
     /// What frames took since the last [`Pool::begin_frame`], and what the pool holds.

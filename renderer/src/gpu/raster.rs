@@ -105,37 +105,19 @@ impl SurfaceTargets {
         SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
     }
 
-    /// Targets of one texel, zero, never rendered: bound where a pass reads no surface.
+    /// Targets of one texel, zero, never rendered (not from the pool, where another user could
+    /// leave something in them): bound where a pass reads no surface.
     pub fn placeholder(ctx: &GpuContext, label: &str) -> Self {
         let make = |what: &str| {
-            Arc::new(ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(&format!("{label} {what}")),
-                size: wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: SURFACE_FORMAT,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC
-                    | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            }))
+            Arc::new(ctx.device.create_texture(&target_2d(1, 1, SURFACE_FORMAT, &format!("{label} {what}"))))
         };
         SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
     }
 }
 
-/// A 2D render target from the pool ([`GpuContext::texture`]): as its last user left it, so
-/// whoever reads it renders it with a clear (or copies every texel into it) first.
-pub fn texture_2d(
-    ctx: &GpuContext,
-    width: u32,
-    height: u32,
-    format: wgpu::TextureFormat,
-    label: &str,
-) -> std::sync::Arc<wgpu::Texture> {
-    ctx.texture(&wgpu::TextureDescriptor {
+/// The description of a 2D render target that can also be sampled and copied.
+fn target_2d(width: u32, height: u32, format: wgpu::TextureFormat, label: &str) -> wgpu::TextureDescriptor<'_> {
+    wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         mip_level_count: 1,
@@ -147,7 +129,19 @@ pub fn texture_2d(
             | wgpu::TextureUsages::COPY_SRC
             | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
-    })
+    }
+}
+
+/// A 2D render target from the pool ([`GpuContext::texture`]): as its last user left it, so
+/// whoever reads it renders it with a clear (or copies every texel into it) first.
+pub fn texture_2d(
+    ctx: &GpuContext,
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+    label: &str,
+) -> Arc<wgpu::Texture> {
+    ctx.texture(&target_2d(width, height, format, label))
 }
 
 /// The three raster pipelines, built from one shader module.

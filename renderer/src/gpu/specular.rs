@@ -204,8 +204,8 @@ pub struct Impostors {
 /// One ray search's output: hits (six planes) and weights.
 struct Search {
     params: wgpu::Buffer,
-    hits: std::sync::Arc<wgpu::Buffer>,
-    info: std::sync::Arc<wgpu::Buffer>,
+    hits: Arc<wgpu::Buffer>,
+    info: Arc<wgpu::Buffer>,
     stride: u32,
 }
 
@@ -215,8 +215,8 @@ pub struct Traced {
     pub refl: SurfaceTargets,
     pub refr: SurfaceTargets,
     params: wgpu::Buffer,
-    hits: std::sync::Arc<wgpu::Buffer>,
-    info: std::sync::Arc<wgpu::Buffer>,
+    hits: Arc<wgpu::Buffer>,
+    info: Arc<wgpu::Buffer>,
     pub report: SpecularReport,
     /// Where shading of the hit G-buffers looks from (Blinn–Phong's view direction): the
     /// first specular object's centre.
@@ -573,7 +573,7 @@ impl Specular {
         let n = maps.map_size as usize;
         // every map's buffers copied for reading first, then its positions read with one wait
         // for all (not three waits per map)
-        let staged: Vec<(std::sync::Arc<wgpu::Buffer>, std::sync::Arc<wgpu::Buffer>)> =
+        let staged: Vec<(Arc<wgpu::Buffer>, Arc<wgpu::Buffer>)> =
             maps.maps.iter().map(|map| (ctx.stage(&map.search.info), ctx.stage(&map.search.hits))).collect();
         let textures: Vec<(&wgpu::Texture, u32)> = maps.maps.iter().map(|map| (&*map.pgbuf.position, 16)).collect();
         let positions_bytes = ctx.read_textures(&textures);
