@@ -421,6 +421,12 @@ pub struct RenderKnobs {
     /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
     #[arg(long, default_value_t = 1024)]
     pub ism_points: u32,
+    /// GPU: how the imperfect shadow maps' splats are drawn: `compute` (a compute pass, atomics)
+    /// or `raster` (the rasteriser, depth test).
+    #[arg(long, default_value = "compute", value_parser = |text: &str| {
+        crate::gpu::ism::IsmSplatting::parse(text).ok_or_else(|| format!("`{text}` is not one of compute, raster"))
+    })]
+    pub ism_splatting: crate::gpu::ism::IsmSplatting,
     /// GPU: bounces of indirect light in the `gi` condition (1: the single bounce of the RSM
     /// VPLs; more add the multiple-bounce light source of thesis 5.2.7, at most 8).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
@@ -470,6 +476,7 @@ pub fn render_condition(
     let mut params = DirParams {
         ism_size: knobs.ism_size,
         ism_points: knobs.ism_points,
+        ism_splatting: knobs.ism_splatting,
         bounces: knobs.bounces,
         bounce_candidates: knobs.bounce_candidates,
         composition: knobs.composition,

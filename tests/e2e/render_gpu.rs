@@ -270,7 +270,14 @@ fn bench_render_frame_rate_times_each_condition_frame_after_frame_with_its_passe
     let Some(doc) = bench_render_quick(&dir, &["--frame-rate", "--scene", "metal-bottle"]) else { return };
     let rows = doc["rows"].as_array().unwrap();
     let conditions: Vec<&str> = rows.iter().map(|r| r["condition"].as_str().unwrap()).collect();
-    assert_eq!(conditions, ["none", "shadows", "gi"], "{rows:?}");
+    assert_eq!(conditions, ["none", "shadows", "gi", "gi"], "{rows:?}");
+    // gi twice: the ISMs splatted by the compute pass and by the rasteriser
+    let splatting: Vec<Option<&str>> = rows.iter().map(|r| r.get("ism_splatting").and_then(|s| s.as_str())).collect();
+    assert_eq!(splatting, [None, None, Some("compute"), Some("raster")], "{rows:?}");
+    for (row, how) in rows[2..].iter().zip(["compute", "raster"]) {
+        let ism = row["passes"].as_array().unwrap().iter().find(|p| p["pass"].as_str().unwrap().starts_with("ISMs"));
+        assert!(ism.is_some_and(|p| p["pass"].as_str().unwrap().contains(&format!("{how} splatting"))), "{row}");
+    }
     for row in rows {
         assert_eq!(row["frames"], 3, "{row}");
         // the frames timed pass by pass, the same frames pipelined (no wait after each pass), and

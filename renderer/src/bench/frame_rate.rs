@@ -26,6 +26,7 @@ use serde::Serialize;
 
 use super::{Observer, Report, load_sized};
 use crate::error::Result;
+use crate::gpu::ism::IsmSplatting;
 use crate::gpu::{DirParams, DirRenderer, GiLevel, PassTime, specular::SpecularParams};
 use crate::reference::{ReferenceParams, render_photo};
 
@@ -39,6 +40,10 @@ pub struct FrameRateRow {
     pub vpls: u32,
     pub ism_size: u32,
     pub ism_points: u32,
+    /// How the ISMs were splatted (gi rows only): every scene has a gi row of each, so one run
+    /// compares the compute pass with the rasteriser on the same machine.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ism_splatting: Option<IsmSplatting>,
     pub interleave: u32,
     /// 0 where the scene has no mirror or glass (no caustic maps run).
     pub caustic_map_size: u32,
@@ -108,12 +113,19 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         let (_, photo, _) =
             render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
         let specular = scene.specular_object().is_some();
-        for condition in [GiLevel::None, GiLevel::Shadows, GiLevel::Gi] {
+        let rows_of_scene = [
+            (GiLevel::None, IsmSplatting::Compute),
+            (GiLevel::Shadows, IsmSplatting::Compute),
+            (GiLevel::Gi, IsmSplatting::Compute),
+            (GiLevel::Gi, IsmSplatting::Raster),
+        ];
+        for (condition, ism_splatting) in rows_of_scene {
             let params = DirParams {
                 condition,
                 vpls: 256,
                 ism_size: 128,
                 ism_points: 1024,
+                ism_splatting,
                 interleave: 4,
                 specular: SpecularParams { caustic_map_size: 512, ..SpecularParams::default() },
                 ..DirParams::default()
@@ -187,6 +199,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 vpls: if condition == GiLevel::Gi { params.vpls } else { 0 },
                 ism_size: if condition == GiLevel::Gi { params.ism_size } else { 0 },
                 ism_points: if condition == GiLevel::Gi { params.ism_points } else { 0 },
+                ism_splatting: (condition == GiLevel::Gi).then_some(ism_splatting),
                 interleave: params.interleave,
                 caustic_map_size: if specular && condition != GiLevel::None { 512 } else { 0 },
                 frames,
@@ -222,7 +235,10 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             observer.line(&format!(
                 "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1} {:>8.2} {:>8.1}   {}",
                 row.scene,
-                condition.name(),
+                match row.ism_splatting {
+                    Some(IsmSplatting::Raster) => "gi/rast".to_string(),
+                    _ => condition.name().to_string(),
+                },
                 row.median_ms,
                 row.p10_ms,
                 row.p90_ms,

@@ -198,6 +198,7 @@ fn no_cm_method_darkens_the_virtual_objects_of_a_survey_scene() {
         vpls: 64,
         ism_size: 64,
         ism_points: 512,
+        ism_splatting: crate::gpu::ism::IsmSplatting::default(),
         bounces: 1,
         bounce_candidates: 1024,
         composition: Composition::Additive,

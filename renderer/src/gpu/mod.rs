@@ -129,6 +129,9 @@ pub struct DirParams {
     pub ism_size: u32,
     /// Points of each point cloud (real, virtual) splatted into each VPL's ISM.
     pub ism_points: u32,
+    /// How the ISMs' splats are drawn ([`ism::IsmSplatting`]): a compute pass (default) or
+    /// the rasteriser.
+    pub ism_splatting: ism::IsmSplatting,
     /// The colour mapping of both GI buffers (the `cm` factor); default `off` (Reinhard).
     pub cm: CmParams,
     /// How the mapped differential is added to the photograph.
@@ -172,6 +175,7 @@ impl Default for DirParams {
             vpl_clamp_distance: 0.05,
             ism_size: 128,
             ism_points: 1024,
+            ism_splatting: ism::IsmSplatting::default(),
             cm: CmParams::default(),
             composition: Composition::Additive,
             interleave: 1,
@@ -905,12 +909,23 @@ impl DirRenderer {
                 ctx,
                 &mut passes,
                 format!(
-                    "ISMs ({} VPLs, {}² each, {} points per cloud)",
+                    "ISMs ({} VPLs, {}² each, {} points per cloud, {} splatting)",
                     vpls.len(),
                     params.ism_size,
-                    params.ism_points
+                    params.ism_points,
+                    params.ism_splatting.name()
                 ),
-                || self.ism.render(ctx, &mesh, &vpls, params.ism_points, params.ism_size, max_distance),
+                || {
+                    self.ism.render(
+                        ctx,
+                        &mesh,
+                        &vpls,
+                        params.ism_points,
+                        params.ism_size,
+                        max_distance,
+                        params.ism_splatting,
+                    )
+                },
             ))
         } else {
             None
@@ -992,7 +1007,7 @@ impl DirRenderer {
                 &lights,
                 &vpls,
                 &buffers,
-                ism_atlas.as_ref().map(|a| &*a.texture),
+                ism_atlas.as_ref().map(|a| &*a.buffer),
             )
         });
 
@@ -1063,7 +1078,7 @@ impl DirRenderer {
                             &lights,
                             &vpls,
                             &buffers,
-                            ism_atlas.as_ref().map(|a| &*a.texture),
+                            ism_atlas.as_ref().map(|a| &*a.buffer),
                         )
                     });
                     if let Some(raw) = &hit.indirect {

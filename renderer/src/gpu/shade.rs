@@ -61,7 +61,7 @@ impl Shade {
         lights: &[GpuLight],
         vpls: &[GpuVpl],
         scene: &SceneBuffers,
-        ism: Option<&wgpu::Texture>,
+        ism: Option<&wgpu::Buffer>,
     ) -> ShadeOutput {
         let device = &ctx.device;
         let storage = |label: &str, bytes: &[u8]| {
@@ -99,25 +99,12 @@ impl Shade {
         // without ISMs the shader reads none (tile size 0), but the binding must exist
         let placeholder;
         let ism = match ism {
-            Some(texture) => texture,
+            Some(buffer) => buffer,
             None => {
-                placeholder = device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some("no ism"),
-                    size: wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 2 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: super::ism::DEPTH_FORMAT,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                });
+                placeholder = storage("no ism", &[0u8; 4]);
                 &placeholder
             }
         };
-        let ism_view = ism.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&gp) },
@@ -128,7 +115,7 @@ impl Shade {
             wgpu::BindGroupEntry { binding: 6, resource: vpls_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 7, resource: scene.materials.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 8, resource: solutions.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&ism_view) },
+            wgpu::BindGroupEntry { binding: 9, resource: ism.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 10, resource: indirect.as_entire_binding() },
         ];
         ctx.dispatch("shade", &self.pipeline, &entries, [params.size[0].div_ceil(8), params.size[1].div_ceil(8)]);
