@@ -3,7 +3,7 @@
 //! albedo). Every pass draws the scene's triangle list, or its real or virtual subset.
 
 use super::context::GpuContext;
-use super::mesh::{GpuMesh, GpuVertex};
+use super::mesh::{GpuMaterial, GpuMesh, GpuVertex};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
@@ -58,23 +58,21 @@ pub struct SceneBuffers {
 
 impl SceneBuffers {
     pub fn new(ctx: &GpuContext, mesh: &GpuMesh) -> Self {
-        let mut vertices = mesh.vertices.clone();
-        if vertices.is_empty() {
-            vertices.push(bytemuck::Zeroable::zeroed());
-        }
-        let mut materials = mesh.materials.clone();
-        if materials.is_empty() {
-            materials.push(bytemuck::Zeroable::zeroed());
-        }
+        // uploaded from the mesh itself (no copy); one zeroed element where a list is empty,
+        // as a binding must not be
+        let zero_vertex: [GpuVertex; 1] = [bytemuck::Zeroable::zeroed()];
+        let zero_material: [GpuMaterial; 1] = [bytemuck::Zeroable::zeroed()];
+        let vertices = if mesh.vertices.is_empty() { &zero_vertex[..] } else { &mesh.vertices[..] };
+        let materials = if mesh.materials.is_empty() { &zero_material[..] } else { &mesh.materials[..] };
         SceneBuffers {
             vertices: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
-                contents: bytemuck::cast_slice(&vertices),
+                contents: bytemuck::cast_slice(vertices),
                 usage: wgpu::BufferUsages::VERTEX,
             }),
             materials: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("materials"),
-                contents: bytemuck::cast_slice(&materials),
+                contents: bytemuck::cast_slice(materials),
                 usage: wgpu::BufferUsages::STORAGE,
             }),
             real_count: mesh.real_count,
