@@ -115,6 +115,9 @@ pub struct Ism {
     indices: std::sync::Mutex<Option<(u32, wgpu::Buffer)>>,
     /// Splats per indexed draw ([`SPLATS_PER_DRAW`]; tests draw in smaller pieces).
     splats_per_draw: u32,
+    /// Workgroups per row of the compute splatting's dispatch (the device's limit per
+    /// dimension; tests use shorter rows).
+    groups_per_row: u32,
 }
 /// The cumulative area distribution over `triangles` (each three positions), ending at 1, and
 /// the total area; `None` when the area is zero.
@@ -172,7 +175,14 @@ impl Ism {
             cache: None,
         });
         let [splat, from_depth] = ctx.compute_pipelines("ism.wgsl", SHADER, ["cs_splat", "cs_from_depth"]);
-        Ism { pipeline, splat, from_depth, indices: std::sync::Mutex::new(None), splats_per_draw: SPLATS_PER_DRAW }
+        Ism {
+            pipeline,
+            splat,
+            from_depth,
+            indices: std::sync::Mutex::new(None),
+            splats_per_draw: SPLATS_PER_DRAW,
+            groups_per_row: ctx.device.limits().max_compute_workgroups_per_dimension,
+        }
     }
 
     /// An index buffer for at least `splats` splats.
@@ -287,7 +297,7 @@ impl Ism {
             IsmSplatting::Compute => {
                 // 64 splats per group, in rows of at most 65 535 groups
                 let groups = splats.div_ceil(SPLAT_GROUP);
-                let row = groups.clamp(1, limits.max_compute_workgroups_per_dimension);
+                let row = groups.clamp(1, self.groups_per_row.max(1));
                 for (_, uniform, cdf) in &layers {
                     ctx.record_dispatch(
                         &mut encoder,
@@ -448,6 +458,24 @@ mod tests {
         let covered = one.iter().filter(|&&t| t != 0).count();
         assert!(covered > 0, "the splats must cover some texels for this test to tell anything");
         assert!(one == several, "the ISMs drawn in draws of 64 splats differ from one draw's");
+    }
+
+    /// The compute splatting's dispatch in rows (a cloud of more splats than one row of
+    /// workgroups holds, 4 194 240 on most devices) covers every splat once: rows of 3 groups
+    /// (7 × 100 splats in 11 groups of 64, the last row partial) make the same atlas bit for
+    /// bit as one row.
+    #[test]
+    fn compute_splats_dispatched_in_rows_make_the_same_isms() {
+        let Some(r) = crate::test_support::renderer_or_skip() else { return };
+        let scene = crate::scene::load("dir-lamp-box").unwrap();
+        let mesh = crate::gpu::mesh::build(&scene);
+        let vpls = surface_vpls(&mesh, 7);
+        let compute = IsmSplatting::Compute;
+        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, compute));
+        let in_rows = Ism { groups_per_row: 3, ..Ism::new(&r.ctx) };
+        let rows = read_atlas(&r.ctx, &in_rows.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, compute));
+        assert!(one.iter().any(|&t| t != 0), "the splats must cover some texels for this test to tell anything");
+        assert!(one == rows, "the ISMs splatted in rows of 3 workgroups differ from one row's");
     }
 
     /// The compute splatting makes the rasteriser's ISMs: on 64 VPLs of dir-lamp-box and of
