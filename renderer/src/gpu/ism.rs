@@ -478,6 +478,37 @@ mod tests {
         assert!(one == rows, "the ISMs splatted in rows of 3 workgroups differ from one row's");
     }
 
+    /// A VPL at NaN or at infinity (a degenerate source upstream) leaves its own tile empty and
+    /// every other tile as without it, in both splattings: its splats' bounds are clamped to
+    /// its tile, so the compute pass neither runs away nor writes elsewhere.
+    #[test]
+    fn a_vpl_at_nan_or_infinity_touches_no_other_tile() {
+        let Some(r) = crate::test_support::renderer_or_skip() else { return };
+        let scene = crate::scene::load("dir-lamp-box").unwrap();
+        let mesh = crate::gpu::mesh::build(&scene);
+        let good = surface_vpls(&mesh, 4);
+        for bad in [f32::NAN, f32::INFINITY] {
+            let mut vpls = good.clone();
+            vpls[1].position = [bad, 0.0, bad, 1.0];
+            for splatting in IsmSplatting::ALL {
+                let atlas = r.ism.render(&r.ctx, &mesh, &vpls, 100, 16, 20.0, splatting);
+                let reference = r.ism.render(&r.ctx, &mesh, &good, 100, 16, 20.0, splatting);
+                let (with_bad, without) = (read_atlas(&r.ctx, &atlas), read_atlas(&r.ctx, &reference));
+                let width = atlas.width() as usize;
+                let tile_of = |i: usize| {
+                    let (x, y) = ((i % (width * width)) % width, (i % (width * width)) / width);
+                    (y / 16) * atlas.tiles_per_row as usize + x / 16
+                };
+                for (i, (a, b)) in with_bad.iter().zip(&without).enumerate() {
+                    match tile_of(i) {
+                        1 => assert_eq!(*a, 0, "{splatting:?}, {bad}: the bad VPL's tile has a splat at {i}"),
+                        _ => assert_eq!(a, b, "{splatting:?}, {bad}: texel {i} changed"),
+                    }
+                }
+            }
+        }
+    }
+
     /// The compute splatting makes the rasteriser's ISMs: on 64 VPLs of dir-lamp-box and of
     /// the glass figure (real and virtual clouds, 1024 points, 64² tiles), at most 0.1 % of
     /// the covered texels differ (texel centres within the rasteriser's sub-texel snapping of a
