@@ -9,6 +9,17 @@ struct Vpl {
     flux: vec4<f32>,            // rgb: reflected flux (W); w: 1 for a caustic's reflected or refracted VPL
 }
 
+// An ISM atlas texel (ism.wgsl writes them, shade.wgsl reads them): the bits of 1.0 minus the
+// bits of the stored depth in [0, 1], so a zeroed texel is "nothing nearer than the far plane"
+// and the nearest splat is the largest value (non-negative floats order as their bits do).
+fn ism_encode(depth: f32) -> u32 {
+    return 0x3f800000u - bitcast<u32>(clamp(depth, 0.0, 1.0));
+}
+
+fn ism_decode(stored: u32) -> f32 {
+    return bitcast<f32>(0x3f800000u - stored);
+}
+
 // A 32-bit integer hash (Jarzynski & Olano's PCG hash) and floats in [0, 1) from it.
 fn pcg(v: u32) -> u32 {
     let state = v * 747796405u + 2891336453u;

@@ -17,9 +17,9 @@
 //!   triangles on four vertices, so the vertex shader — which draws the point — runs four times
 //!   per splat), then copied into the buffer.
 //!
-//! They share the splat and the per-texel test; they differ only in texels on a quad's edge
-//! (the rasteriser snaps vertices to a sub-texel grid) and where a quad crosses its VPL's
-//! horizon (the rasteriser clips it, the compute pass maps the corner onto the rim).
+//! They share the splat, the per-texel test and the clipping of a quad at the far plane where
+//! it crosses its VPL's horizon; they differ only in texels on a quad's edge (the rasteriser
+//! snaps vertices to a sub-texel grid).
 
 use super::context::GpuContext;
 use super::mesh::GpuMesh;
@@ -79,7 +79,7 @@ struct IsmUniform {
 pub struct IsmAtlas {
     /// Per texel (layer, row, column) a `u32`: the bits of 1.0 minus the bits of the stored
     /// depth (distance × `inv_max_distance`, in [0, 1]); 0 where nothing is nearer than the far
-    /// plane. See [`IsmAtlas::depth`].
+    /// plane (`ism_encode` in common.wgsl).
     pub buffer: std::sync::Arc<wgpu::Buffer>,
     pub tiles_per_row: u32,
     pub tile_size: u32,
@@ -90,18 +90,12 @@ pub struct IsmAtlas {
     pub splat_radius: [f32; 2],
     /// Points drawn per VPL and subset (0 where the subset has no surface).
     pub points: [u32; 2],
-    pub splatting: IsmSplatting,
 }
 
 impl IsmAtlas {
     /// Texels per atlas row (and rows).
     pub fn width(&self) -> u32 {
         self.tiles_per_row * self.tile_size
-    }
-
-    /// The stored depth of one of the atlas buffer's values.
-    pub fn depth(stored: u32) -> f32 {
-        f32::from_bits(1.0f32.to_bits().wrapping_sub(stored))
     }
 }
 
@@ -119,6 +113,7 @@ pub struct Ism {
     /// dimension; tests use shorter rows).
     groups_per_row: u32,
 }
+
 /// The cumulative area distribution over `triangles` (each three positions), ending at 1, and
 /// the total area; `None` when the area is zero.
 pub fn area_cdf(positions: &[[f32; 4]], triangles: std::ops::Range<usize>) -> Option<(Vec<f32>, f64)> {
@@ -260,13 +255,6 @@ impl Ism {
         });
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
         let splats = vpls.len() as u32 * points_per_vpl;
-        let uniform_buffer = |uniform: &IsmUniform| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("ism params"),
-                contents: bytemuck::bytes_of(uniform),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
-        };
         // per layer with a surface and VPLs: its uniform and its area CDF
         let mut points = [0u32; 2];
         let mut splat_radius = [0.0f32; 2];
@@ -290,7 +278,12 @@ impl Ism {
                 contents: bytemuck::cast_slice(&cdf),
                 usage: wgpu::BufferUsages::STORAGE,
             });
-            layers.push((layer, uniform_buffer(&uniform), cdf_buffer));
+            let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ism params"),
+                contents: bytemuck::bytes_of(&uniform),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            layers.push((layer, uniform_buffer, cdf_buffer));
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         match splatting {
@@ -319,7 +312,7 @@ impl Ism {
             }
         }
         ctx.submit(encoder);
-        IsmAtlas { buffer, tiles_per_row, tile_size, inv_max_distance, splat_radius, points, splatting }
+        IsmAtlas { buffer, tiles_per_row, tile_size, inv_max_distance, splat_radius, points }
     }
 
     /// The raster splatting: both layers' quads into a depth texture (cleared to the far plane),
@@ -441,20 +434,30 @@ mod tests {
         bytemuck::cast_slice::<u8, u32>(&ctx.read_storage(&atlas.buffer)).to_vec()
     }
 
+    /// dir-lamp-box's atlases of 7 VPLs × 100 points in 32² tiles, splatted by the renderer's
+    /// `Ism` and by `variant` (the same passes cut into other pieces).
+    fn atlases_of_the_renderer_and(variant: impl FnOnce(Ism) -> Ism, splatting: IsmSplatting) -> (Vec<u32>, Vec<u32>) {
+        let r = crate::test_support::renderer_or_skip().expect("checked by the caller");
+        let scene = crate::scene::load("dir-lamp-box").unwrap();
+        let mesh = crate::gpu::mesh::build(&scene);
+        let vpls = surface_vpls(&mesh, 7);
+        assert_eq!(vpls.len(), 7);
+        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, splatting));
+        let pieces = variant(Ism::new(&r.ctx));
+        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, splatting));
+        (one, other)
+    }
+
     /// A cloud drawn in several indexed draws (each a base vertex further, the last one partial)
     /// makes the same ISMs bit for bit as in one draw: 7 VPLs of dir-lamp-box's first bounce ×
     /// 100 points in draws of 64 splats against the renderer's one draw.
     #[test]
     fn a_cloud_drawn_in_several_draws_makes_the_same_isms_as_in_one() {
-        let Some(r) = crate::test_support::renderer_or_skip() else { return };
-        let scene = crate::scene::load("dir-lamp-box").unwrap();
-        let mesh = crate::gpu::mesh::build(&scene);
-        let vpls = surface_vpls(&mesh, 7);
-        assert_eq!(vpls.len(), 7);
-        let raster = IsmSplatting::Raster;
-        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, raster));
-        let in_pieces = Ism { splats_per_draw: 64, ..Ism::new(&r.ctx) };
-        let several = read_atlas(&r.ctx, &in_pieces.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, raster));
+        if crate::test_support::renderer_or_skip().is_none() {
+            return;
+        }
+        let (one, several) =
+            atlases_of_the_renderer_and(|ism| Ism { splats_per_draw: 64, ..ism }, IsmSplatting::Raster);
         let covered = one.iter().filter(|&&t| t != 0).count();
         assert!(covered > 0, "the splats must cover some texels for this test to tell anything");
         assert!(one == several, "the ISMs drawn in draws of 64 splats differ from one draw's");
@@ -466,14 +469,10 @@ mod tests {
     /// bit as one row.
     #[test]
     fn compute_splats_dispatched_in_rows_make_the_same_isms() {
-        let Some(r) = crate::test_support::renderer_or_skip() else { return };
-        let scene = crate::scene::load("dir-lamp-box").unwrap();
-        let mesh = crate::gpu::mesh::build(&scene);
-        let vpls = surface_vpls(&mesh, 7);
-        let compute = IsmSplatting::Compute;
-        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, compute));
-        let in_rows = Ism { groups_per_row: 3, ..Ism::new(&r.ctx) };
-        let rows = read_atlas(&r.ctx, &in_rows.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, compute));
+        if crate::test_support::renderer_or_skip().is_none() {
+            return;
+        }
+        let (one, rows) = atlases_of_the_renderer_and(|ism| Ism { groups_per_row: 3, ..ism }, IsmSplatting::Compute);
         assert!(one.iter().any(|&t| t != 0), "the splats must cover some texels for this test to tell anything");
         assert!(one == rows, "the ISMs splatted in rows of 3 workgroups differ from one row's");
     }

@@ -12,7 +12,7 @@
 //
 // Two ways to splat, one result: `cs_splat` (compute, the default) walks each splat's covered
 // texels itself and keeps the nearest distance with an atomic maximum in the atlas buffer
-// (see `ISM_FAR` below); `vs_splat`/`fs_splat` rasterise the quads into a depth texture, which
+// (`ism_encode`, common.wgsl); `vs_splat`/`fs_splat` rasterise the quads into a depth texture, which
 // `cs_from_depth` copies into the same buffer. Both share the splat (`splat_point`,
 // `splat_corner`) and the per-texel test (`splat_depth`), and the compute pass covers the
 // texels the rasteriser covers (its two triangles, clipped at the far plane as the raster path
@@ -29,15 +29,12 @@ struct IsmParams {
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;   // 3 per triangle
 @group(0) @binding(2) var<storage, read> cdf: array<f32>;               // per subset triangle, ends at 1
 @group(0) @binding(3) var<storage, read> vpls: array<Vpl>;
-// The atlas as the shading pass reads it: per texel (layer, row, column) ISM_FAR minus the bits
-// of the stored depth in [0, 1], so a zeroed buffer is "nothing nearer than the far plane" and
-// the nearest splat is the largest value (non-negative floats order as their bits do).
+// The atlas as the shading pass reads it: per texel (layer, row, column) `ism_encode` of its
+// depth (common.wgsl), so the nearest splat is the largest value.
 @group(0) @binding(4) var<storage, read_write> atlas: array<atomic<u32>>;
 @group(0) @binding(5) var depth_texture: texture_depth_2d_array;        // cs_from_depth only
 
-const ISM_FAR: u32 = 0x3f800000u;   // the bits of 1.0
-
-// pcg, unit, basis_x and basis_y: common.wgsl.
+// pcg, unit, basis_x, basis_y and ism_encode: common.wgsl.
 
 // One splat: the k-th stratified area sample of a VPL's cloud.
 struct Splat {
@@ -192,9 +189,8 @@ fn clipped(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>) -> Polygon {
 }
 
 // The polygon's edges as line equations, one per column (a, b, c: a·x + b·y + c ≥ 0 inside,
-// edges included), so a texel's test is one vector-matrix product: vec3(p, 1) * edges ≥ 0.
-// Unused columns are always inside; a degenerate polygon (fewer than three vertices, no area)
-// is never.
+// edges included), which `row_span` intersects row by row. Unused columns are always inside; a
+// degenerate polygon (fewer than three vertices, no area) is never.
 fn edges_of(poly: Polygon) -> mat4x3<f32> {
     var m = mat4x3<f32>(vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, 1.0));
     let never = mat4x3<f32>(vec3<f32>(0.0, 0.0, -1.0), vec3<f32>(0.0, 0.0, -1.0), vec3<f32>(0.0, 0.0, -1.0), vec3<f32>(0.0, 0.0, -1.0));
@@ -216,6 +212,15 @@ fn edges_of(poly: Polygon) -> mat4x3<f32> {
         m[i] = orientation * vec3<f32>(-(b.y - a.y), b.x - a.x, (b.y - a.y) * a.x - (b.x - a.x) * a.y);
     }
     return m;
+}
+
+// The bounds `b` (low x, low y, high x, high y) grown by the polygon's vertices.
+fn grow_bounds(b: vec4<f32>, poly: Polygon) -> vec4<f32> {
+    var out = b;
+    for (var i = 0u; i < poly.count; i++) {
+        out = vec4<f32>(min(out.xy, poly.v[i]), max(out.zw, poly.v[i]));
+    }
+    return out;
 }
 
 // Narrows the span `s` (x from, x to) of a row at height `y` to where the line equation `e`
@@ -268,22 +273,15 @@ fn cs_splat(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
     let k3 = splat_corner(s, 3u);
     let first = clipped(k0, k1, k2);
     let second = clipped(k2, k1, k3);
-    let first_edges = edges_of(first);
-    let second_edges = edges_of(second);
-    // the texels whose centres the polygons' bounds reach, within the tile
-    var lo_f = vec2<f32>(3.0e38);
-    var hi_f = vec2<f32>(-3.0e38);
-    for (var i = 0u; i < first.count; i++) {
-        lo_f = min(lo_f, first.v[i]);
-        hi_f = max(hi_f, first.v[i]);
-    }
-    for (var i = 0u; i < second.count; i++) {
-        lo_f = min(lo_f, second.v[i]);
-        hi_f = max(hi_f, second.v[i]);
-    }
     if first.count + second.count == 0u {
         return;
     }
+    let first_edges = edges_of(first);
+    let second_edges = edges_of(second);
+    // the texels whose centres the polygons' bounds reach, within the tile
+    let bounds = grow_bounds(grow_bounds(vec4<f32>(3.0e38, 3.0e38, -3.0e38, -3.0e38), first), second);
+    let lo_f = bounds.xy;
+    let hi_f = bounds.zw;
     let frame = splat_frame(s);
     let tile_size = i32(params.counts.z);
     let tile_lo = vec2<i32>(s.tile) * tile_size;
@@ -312,7 +310,7 @@ fn cs_splat(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
 fn splat_texel(x: i32, y: i32, tile: vec2<u32>, frame: array<vec3<f32>, 2>, base: u32, width: u32) {
     let depth = splat_depth(vec2<f32>(f32(x), f32(y)) + vec2<f32>(0.5), tile, frame[0], frame[1]);
     if depth >= 0.0 {
-        atomicMax(&atlas[base + u32(y) * width + u32(x)], ISM_FAR - bitcast<u32>(depth));
+        atomicMax(&atlas[base + u32(y) * width + u32(x)], ism_encode(depth));
     }
 }
 
@@ -370,6 +368,6 @@ fn cs_from_depth(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     for (var layer = 0u; layer < 2u; layer++) {
         let depth = textureLoad(depth_texture, vec2<u32>(id.xy), i32(layer), 0);
-        atomicStore(&atlas[(layer * width + id.y) * width + id.x], ISM_FAR - bitcast<u32>(clamp(depth, 0.0, 1.0)));
+        atomicStore(&atlas[(layer * width + id.y) * width + id.x], ism_encode(depth));
     }
 }

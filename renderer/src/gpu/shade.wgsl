@@ -38,8 +38,8 @@ struct Material {
 @group(0) @binding(6) var<storage, read> vpls: array<Vpl>;
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
 @group(0) @binding(8) var<storage, read_write> solutions: array<vec4<f32>>; // L_rv then L_r: direct light
-// the ISM atlas (ism.wgsl): per texel (layer 0 real points, 1 virtual points; row; column) the
-// bits of 1.0 minus those of the stored depth
+// the ISM atlas (ism.wgsl): per texel (layer 0 real points, 1 virtual points; row; column) its
+// depth by `ism_encode` (common.wgsl)
 @group(0) @binding(9) var<storage, read> ism: array<u32>;
 @group(0) @binding(10) var<storage, read_write> indirect: array<vec4<f32>>; // I_rv then I_r (with VPLs)
 
@@ -122,8 +122,8 @@ fn ism_visibility(index: u32, layer: i32, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let texel = vec2<i32>(floor((tile + (uv * 0.5 + vec2<f32>(0.5))) * f32(tile_size)));
     let lo = vec2<i32>(tile) * i32(tile_size);
     let c = clamp(texel, lo, lo + vec2<i32>(i32(tile_size) - 1));
-    let width = u32(tiles) * tile_size;
-    let stored = bitcast<f32>(0x3f800000u - ism[(u32(layer) * width + u32(c.y)) * width + u32(c.x)]);
+    let width = tiles * tile_size;
+    let stored = ism_decode(ism[(u32(layer) * width + u32(c.y)) * width + u32(c.x)]);
     return select(0.0, 1.0, dist * 0.995 * params.tone.z <= stored);
 }
 
