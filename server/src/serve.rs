@@ -433,7 +433,9 @@ pub async fn serve_connections(
     }
     drop(listener);
     let _ = stop.send(true);
-    // every connection holds a receiver until it has finished
+    // every connection holds a receiver until it has finished; this loop's own receiver goes
+    // first, or `closed` would wait out the whole timeout even with no connection open
+    drop(stopping);
     let _ = tokio::time::timeout(std::time::Duration::from_secs(10), stop.closed()).await;
 }
 
@@ -551,5 +553,47 @@ impl ExportFormat {
             "task-trials" => Some(ExportFormat::TaskTrials),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::{Duration, Instant};
+
+    /// After the shutdown signal, `serve_connections` lets a request in flight finish (its
+    /// response arrives whole), and returns as soon as none is open — not after the 10 s it
+    /// allows at most (it did wait them out, holding its own receiver of the stop signal).
+    #[tokio::test]
+    async fn shutdown_lets_a_request_finish_then_returns_at_once() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let address = listener.local_addr().unwrap();
+        let router = axum::Router::new().route(
+            "/slow",
+            axum::routing::get(|| async {
+                tokio::time::sleep(Duration::from_millis(500)).await;
+                "done"
+            }),
+        );
+        let (signal, signalled) = tokio::sync::oneshot::channel::<()>();
+        let server = tokio::spawn(serve_connections(listener, router, Connections::default(), async {
+            let _ = signalled.await;
+        }));
+        let request = tokio::spawn(async move {
+            use tokio::io::{AsyncReadExt, AsyncWriteExt};
+            let mut stream = tokio::net::TcpStream::connect(address).await.unwrap();
+            stream.write_all(b"GET /slow HTTP/1.1\r\nhost: x\r\n\r\n").await.unwrap();
+            let mut response = Vec::new();
+            let _ = stream.read_to_end(&mut response).await;
+            String::from_utf8_lossy(&response).into_owned()
+        });
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let start = Instant::now();
+        signal.send(()).unwrap();
+        let response = request.await.unwrap();
+        assert!(response.starts_with("HTTP/1.1 200") && response.ends_with("done"), "{response}");
+        server.await.unwrap();
+        let took = start.elapsed();
+        assert!(took < Duration::from_secs(5), "serve_connections took {took:?} to return after its requests finished");
     }
 }
