@@ -1,6 +1,6 @@
 //! `mrstudy bench`: runs a benchmark of `mrstudy-bench` (the renderer's, the analysis's or the
 //! server's load generator), prints its table as it goes and, with `--json FILE`, writes
-//! `{"adapter": ..., "rows": [...]}` (DESIGN.md); `--plot-dir DIR` writes its curves as SVG.
+//! `{"adapter": ..., "rows": [...]}` (docs/design.md); `--plot-dir DIR` writes its curves as SVG.
 
 use std::path::PathBuf;
 

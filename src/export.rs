@@ -14,7 +14,7 @@ pub struct ExportArgs {
     /// The study's slug.
     #[arg(long)]
     study: String,
-    /// csv (the trials CSV of DESIGN.md), json (every participant with the whole schedule),
+    /// csv (the trials CSV of docs/design.md), json (every participant with the whole schedule),
     /// conditions (the conditions CSV), task (a task study's long CSV), task-trials.
     #[arg(long, default_value = "csv", value_parser = crate::choice(ExportFormat::parse, ExportFormat::NAMES))]
     format: ExportFormat,

@@ -48,7 +48,7 @@ pub struct PowerArgs {
     /// Participant counts to simulate.
     #[arg(long, value_delimiter = ',', default_value = "10,20,40,80,160", value_parser = clap::value_parser!(u32).range(1..))]
     participants: Vec<u32>,
-    /// The power to reach (DESIGN.md's `--target`; `--target-power` is the same).
+    /// The power to reach (docs/design.md's `--target`; `--target-power` is the same).
     #[arg(long = "target", visible_alias = "target-power", default_value = "0.8", value_parser = simulate::parse_target)]
     target_power: f64,
 }

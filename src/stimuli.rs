@@ -19,7 +19,7 @@ pub struct StimuliArgs {
     /// rendered before, or an image file of the study).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Write each stimulus's errors against its ground truth here (DESIGN.md's stimulus metrics
+    /// Write each stimulus's errors against its ground truth here (docs/design.md's stimulus metrics
     /// CSV: `stimulus,scene,condition,metric,region,value`).
     #[arg(long)]
     metrics: Option<PathBuf>,

@@ -1,4 +1,4 @@
-//! The whole paired-comparison analysis: from judgments to the Analysis JSON of DESIGN.md.
+//! The whole paired-comparison analysis: from judgments to the Analysis JSON of docs/design.md.
 //!
 //! Steps, each only where the data call for it:
 //! 1. tally judgments per unordered pair; find the connected components of the comparison graph;
@@ -299,7 +299,7 @@ impl GroupResult {
     }
 }
 
-/// The analysis of a data set (DESIGN.md's Analysis JSON).
+/// The analysis of a data set (docs/design.md's Analysis JSON).
 #[derive(Debug, Clone, Serialize)]
 pub struct Analysis {
     pub judgments: u64,

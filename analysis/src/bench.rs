@@ -1,7 +1,7 @@
 //! The analysis's benchmark, behind `mrstudy bench analysis`: the time of the whole
 //! paired-comparison analysis against the number of judgments and of conditions, and time and
 //! error of the log-worth against the convergence tolerance, on synthetic studies
-//! ([`synthetic`]). Returns a typed [`Report`] (DESIGN.md's bench JSON by [`Report::to_json`]);
+//! ([`synthetic`]). Returns a typed [`Report`] (docs/design.md's bench JSON by [`Report::to_json`]);
 //! table lines go to a callback as the rows are measured. The `end_to_end` row times what
 //! `mrstudy analyze` does with a trials CSV of 10⁶ judgments ([`synthetic_csv`]: 8 conditions,
 //! factors, two groups), parsing included. The targets are stated for one core:
@@ -83,7 +83,7 @@ pub struct Report {
 }
 
 impl Report {
-    /// DESIGN.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
+    /// docs/design.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({ "adapter": self.adapter, "rows": self.rows })
     }

@@ -1,5 +1,5 @@
 //! Reading the two inputs of a paired-comparison analysis from text: the trials CSV (one row
-//! per judgment, DESIGN.md's long format) and the optional conditions CSV (factor levels per
+//! per judgment, docs/design.md's long format) and the optional conditions CSV (factor levels per
 //! condition). Every error names the source, the line and the column.
 //!
 //! Trials CSV: required columns `participant,left,right,chosen`; `chosen` equals `left` or

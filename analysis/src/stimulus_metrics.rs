@@ -66,7 +66,7 @@ pub enum Direction {
 }
 
 impl Metric {
-    /// Every metric, in the order of DESIGN.md.
+    /// Every metric, in the order of docs/design.md.
     pub const ALL: [Metric; 8] = [
         Metric::FlipMean,
         Metric::FlipP95,
@@ -190,7 +190,7 @@ impl StimulusMetrics {
     }
 }
 
-/// Parses a stimulus metrics CSV (DESIGN.md: `stimulus,scene,condition,metric,region,value`, in
+/// Parses a stimulus metrics CSV (docs/design.md: `stimulus,scene,condition,metric,region,value`, in
 /// any column order, other columns ignored). Every error names the source, line and column.
 pub fn parse_stimulus_metrics(text: &str, source_name: &str) -> Result<StimulusMetrics> {
     let mut reader = crate::data::reader(text);
@@ -808,7 +808,7 @@ pub fn analyze_judgments(
         }
     }
 
-    // Ranking: best agreement first; ties keep DESIGN.md's order.
+    // Ranking: best agreement first; ties keep docs/design.md's order.
     correlations.sort_by(|a, b| b.agreement.total_cmp(&a.agreement));
     for (k, correlation) in correlations.iter_mut().enumerate() {
         correlation.rank = k + 1;

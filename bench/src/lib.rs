@@ -2,7 +2,7 @@
 //! experiment by [`Target`] and [`Options`] — the renderer's (`mrstudy_renderer::bench`: GPU
 //! frame time and error, the reference path tracer, ca and cm accuracy), the analysis's
 //! (`mrstudy_analysis::bench`, `mrstudy_analysis::active::bench`) or the server's load
-//! generator ([`server`]) — and returns a [`Measured`]: DESIGN.md's bench JSON and the curves
+//! generator ([`server`]) — and returns a [`Measured`]: docs/design.md's bench JSON and the curves
 //! drawn as SVG. Each experiment's typed report stays in the crate it measures.
 
 pub mod server;
@@ -83,7 +83,7 @@ impl Default for Options {
     }
 }
 
-/// A benchmark's result: DESIGN.md's bench JSON (`{"adapter": ..., "rows": [...]}`) and its
+/// A benchmark's result: docs/design.md's bench JSON (`{"adapter": ..., "rows": [...]}`) and its
 /// curves as (SVG file name, SVG text).
 #[derive(Clone, Debug)]
 pub struct Measured {

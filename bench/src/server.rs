@@ -1,7 +1,7 @@
 //! The load generator behind `mrstudy bench server`: drives the API of
 //! `mrstudy-server` from loopback with many concurrent simulated participants and measures
 //! responses per second and response latency, with the durable writes of a real server. [`run`]
-//! measures one concurrency, [`bench()`] the table of DESIGN.md's bench (a typed [`Report`], its
+//! measures one concurrency, [`bench()`] the table of docs/design.md's bench (a typed [`Report`], its
 //! JSON by [`Report::to_json`]).
 //!
 //! In the bench crate so that its HTTP client and temporary directories are not dependencies
@@ -142,7 +142,7 @@ pub struct Report {
 }
 
 impl Report {
-    /// DESIGN.md's bench JSON: `{ "adapter": …, "rows": [...] }`.
+    /// docs/design.md's bench JSON: `{ "adapter": …, "rows": [...] }`.
     pub fn to_json(&self) -> serde_json::Value {
         json!({ "adapter": self.adapter, "rows": self.rows })
     }

@@ -4,7 +4,7 @@
 //! K1 = 0.01, K2 = 0.03, on display luminance); and FLIP (LDR-FLIP of Andersson et al. 2020
 //! through the `nv-flip` crate, NVIDIA's reference implementation, at 67 pixels per degree).
 //!
-//! [`stimulus_errors`] measures a stimulus against its ground-truth composite the way DESIGN.md's
+//! [`stimulus_errors`] measures a stimulus against its ground-truth composite the way docs/design.md's
 //! stimulus metrics CSV reports it: every metric in the whole image, the affected region and on
 //! the virtual objects, from one FLIP, SSIM and CIEDE2000 map each.
 
@@ -170,7 +170,7 @@ pub fn compare(
     }
 }
 
-/// The metrics of the stimulus metrics CSV (DESIGN.md), in its order; `render_ms` is written
+/// The metrics of the stimulus metrics CSV (docs/design.md), in its order; `render_ms` is written
 /// beside them by the caller that timed the render.
 pub const STIMULUS_METRICS: [&str; 7] =
     ["flip_mean", "flip_p95", "rmse_linear", "rmse_display", "ssim", "ciede2000_mean", "ciede2000_p95"];

@@ -307,7 +307,7 @@ async fn conditions_csv(
     Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
 }
 
-/// The study's stimulus metrics CSV (DESIGN.md): each rendered stimulus's errors against the
+/// The study's stimulus metrics CSV (docs/design.md): each rendered stimulus's errors against the
 /// ground truth of its scene configuration. 404 with the reason when the study has none.
 async fn stimuli_csv(
     State(state): State<AppState>,

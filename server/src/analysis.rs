@@ -13,7 +13,7 @@ use crate::error::AppError;
 use crate::export::Include;
 use crate::study::Study;
 
-/// The study's conditions as the analysis reads them (the conditions CSV of DESIGN.md).
+/// The study's conditions as the analysis reads them (the conditions CSV of docs/design.md).
 pub fn condition_table(study: &Study) -> ConditionTable {
     ConditionTable {
         conditions: study.conditions.iter().map(|condition| condition.name.clone()).collect(),
@@ -45,7 +45,7 @@ fn cannot_run(error: AnalysisError) -> AppError {
     AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
 }
 
-/// The Analysis JSON of DESIGN.md, with its `detection` and `metrics` sections where they apply.
+/// The Analysis JSON of docs/design.md, with its `detection` and `metrics` sections where they apply.
 pub fn run(
     trials_csv: &str,
     study: &Study,

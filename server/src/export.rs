@@ -1,4 +1,4 @@
-//! Export: the trials CSV of DESIGN.md and a fuller JSON, read from the database alone (the
+//! Export: the trials CSV of docs/design.md and a fuller JSON, read from the database alone (the
 //! study's definition is stored there), so `mrstudy export` works without the study files.
 //!
 //! Trials CSV: one row per answered paired-comparison trial (a judgment between two of the

@@ -44,7 +44,7 @@ pub struct PreparedStudy {
     pub catch_stimuli: Vec<(String, String)>,
     /// `[scene]` → the ground truth's file name, for a detection design (empty otherwise).
     pub ground_truths: Vec<String>,
-    /// The stimulus metrics CSV (DESIGN.md) of the rendered stimuli, `None` when no stimulus
+    /// The stimulus metrics CSV (docs/design.md) of the rendered stimuli, `None` when no stimulus
     /// has a ground truth; and why a scene configuration has none (or the records could not be
     /// read).
     pub metrics_csv: Option<String>,

@@ -528,11 +528,11 @@ pub fn export(
 /// What `mrstudy export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExportFormat {
-    /// The trials CSV of DESIGN.md.
+    /// The trials CSV of docs/design.md.
     Csv,
     /// Everything about each participant, with the whole schedule.
     Json,
-    /// The conditions CSV of DESIGN.md.
+    /// The conditions CSV of docs/design.md.
     Conditions,
     /// A task study's long CSV for `mrstudy analyze` (see [`crate::task::results`]).
     Task,

@@ -15,7 +15,7 @@
 //! (`rendered/<ground-truth key>`), and every stimulus of it a [`StimulusRecord`] — its errors
 //! against that ground truth per region, its render time and settings — stored as
 //! `<sha256>.json` under the entry `rendered/<key>.metrics`. [`metrics_csv`] writes them as
-//! DESIGN.md's stimulus metrics CSV.
+//! docs/design.md's stimulus metrics CSV.
 //!
 //! Sharding ([`Shard`], `mrstudy stimuli --shard K/N`): the unit of work is a scene
 //! configuration (its reference render is shared by all its conditions); the renderable scene
@@ -520,7 +520,7 @@ pub fn render_missing_shard(
     Ok(rendered)
 }
 
-/// The study's stimulus metrics CSV (DESIGN.md): `stimulus,scene,condition,metric,region,value`,
+/// The study's stimulus metrics CSV (docs/design.md): `stimulus,scene,condition,metric,region,value`,
 /// one row per stimulus, metric and region, `render_ms` in region `image`; and one sentence per
 /// scene configuration that has no ground truth (image files, or a background photograph).
 /// A rendered stimulus without its record in `store` is an error naming it (render it first).

@@ -1,4 +1,4 @@
-// The participant flow of a paired-comparison study, on top of the JSON API (DESIGN.md).
+// The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md).
 // Stages: welcome and consent → demographics → instructions → trials → completion.
 // The participant's id and token are kept in localStorage (per study) and in the page's URL
 // fragment, so reloading or coming back with the same link resumes at the next unanswered trial.

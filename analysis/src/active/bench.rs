@@ -82,7 +82,7 @@ pub struct Report {
 }
 
 impl Report {
-    /// DESIGN.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
+    /// docs/design.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({ "adapter": self.adapter, "rows": self.rows })
     }

@@ -4,7 +4,7 @@
 //!
 //! **Model.** Each condition i has a log-worth λᵢ; a judgment "w chosen over l" has likelihood
 //! F(λ_w − λ_l), with F the logistic function σ ([`Link::Logit`], Bradley–Terry on the logit
-//! scale of the analysis and DESIGN.md) or the normal CDF Φ ([`Link::Probit`], Thurstone's case
+//! scale of the analysis and docs/design.md) or the normal CDF Φ ([`Link::Probit`], Thurstone's case
 //! V with unit-variance differences, on the probit scale). The **target** ([`Target`]) is
 //! either the log-worths themselves (θ = λ, one parameter per condition) or the **factor
 //! effects** of a factorial study (λ = X·β with the condition × factor matrix X, θ = β; with

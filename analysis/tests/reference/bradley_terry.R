@@ -11,7 +11,7 @@
 # double, so full precision survives; the script stops if any number is not finite.
 #
 # Scale: coefficients are log-worths / covariate effects on the logit scale of
-# P(i beats j) = plogis(lambda_i - lambda_j), as in BradleyTerry2 and in DESIGN.md.
+# P(i beats j) = plogis(lambda_i - lambda_j), as in BradleyTerry2 and in docs/design.md.
 
 suppressPackageStartupMessages({
   library(BradleyTerry2)

@@ -6,7 +6,7 @@
 //! Tables 2–4 beside the paper's numbers ([`paper_tables`]).
 //!
 //! Each returns a typed [`Report`]: the adapter, one typed row per measurement (serialised as
-//! the rows of DESIGN.md's bench JSON, `{"adapter": "...", "rows": [...]}`, by
+//! the rows of docs/design.md's bench JSON, `{"adapter": "...", "rows": [...]}`, by
 //! [`Report::to_json`]) and the curves to plot. While it runs it hands its table lines, notes
 //! and the progress of each reference render to an [`Observer`]; it prints nothing itself.
 
@@ -68,7 +68,7 @@ pub struct Report<R> {
 }
 
 impl<R: Serialize> Report<R> {
-    /// DESIGN.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
+    /// docs/design.md's bench JSON: `{"adapter": "...", "rows": [...]}`.
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({ "adapter": self.adapter, "rows": self.rows })
     }

@@ -1,4 +1,4 @@
-//! The GPU context: adapter choice (DESIGN.md "GPU": a hardware adapter if there is one, else a
+//! The GPU context: adapter choice (docs/design.md "GPU": a hardware adapter if there is one, else a
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 

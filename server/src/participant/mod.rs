@@ -1,4 +1,4 @@
-//! The participant area of the HTTP API (DESIGN.md): list open studies, join a study, get the
+//! The participant area of the HTTP API (docs/design.md): list open studies, join a study, get the
 //! next trial, answer it.
 //!
 //! A participant is identified by a random 128-bit id and authorised by a random 256-bit bearer

@@ -529,7 +529,7 @@ impl Study {
         self.factors.iter().flat_map(Factor::columns).collect()
     }
 
-    /// The conditions CSV of DESIGN.md: `condition,<factor>,…`, one row per condition (a
+    /// The conditions CSV of docs/design.md: `condition,<factor>,…`, one row per condition (a
     /// factor with named levels as its indicator columns, [`Study::design_columns`]).
     pub fn conditions_csv(&self) -> String {
         let mut writer = csv::Writer::from_writer(Vec::new());
@@ -1284,7 +1284,7 @@ fn check_completion(fail: Fail, completion: &Completion) -> Result<(), StudyErro
     Ok(())
 }
 
-/// The trials CSV's own columns, in order (DESIGN.md); the external ids and the demographic
+/// The trials CSV's own columns, in order (docs/design.md); the external ids and the demographic
 /// fields follow them, so neither may be named like one. `export` writes this header.
 pub const TRIALS_CSV_COLUMNS: &[&str] = &[
     "study",
