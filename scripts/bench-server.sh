@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The server benchmark of the README: `mrstudy bench server` on sqlite (one process) and on a
+# The server benchmark of bench/README.md: `mrstudy bench server` on sqlite (one process) and on a
 # throw-away PostgreSQL cluster (scripts/postgres.sh) with one and with two server processes,
 # 16/64/256 participants and 8 concurrent exports; the JSON of each goes to DIR (default
 # bench-server/). Needs Debian's `postgresql` package (scripts/test.sh installs it).

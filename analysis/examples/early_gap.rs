@@ -14,7 +14,7 @@
 //! ramp to the plain EIG once the worths' sd — by a moment estimate, or the prior sd of largest
 //! Laplace evidence — reaches a threshold. Each run's judgments are scored by
 //! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
-//! ([`laplace::refit`]), as the README's side-by-side with ASAP scores them; the centred RMSE ±
+//! ([`laplace::refit`]), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
 //! `studies/examples/twenty-conditions-worths.csv`; `8`: the thesis's factor effects (gi 0.27,
 //! cm −0.22, ca 0.43) as 8 conditions' log-worths.

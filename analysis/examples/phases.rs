@@ -1,5 +1,5 @@
 //! Times the phases of an analysis on synthetic data: `cargo run --release -p mrstudy-analysis
-//! --example phases -- CONDITIONS JUDGMENTS` (one thread, as the README's targets).
+//! --example phases -- CONDITIONS JUDGMENTS` (one thread, as analysis/bench/README.md's targets).
 use std::time::Instant;
 
 use mrstudy_analysis::analysis::{Options, Screening, analyze_judgments};
