@@ -27,6 +27,7 @@
 pub mod admin;
 pub mod analysis;
 pub mod auth;
+pub mod connections;
 pub mod error;
 pub mod export;
 pub mod limits;

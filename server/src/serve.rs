@@ -58,7 +58,8 @@ pub struct ServeConfig {
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
-/// idle, slow-header (slowloris) and slow-body clients cannot hold its connections. Also
+/// idle, slow-header (slowloris), slow-body and never-reading clients cannot hold its
+/// connections, and one address cannot take them all ([`crate::connections`]). Also
 /// `mrstudy serve`'s flags (the doc comments are its help; times in whole seconds).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
 pub struct Connections {
@@ -66,13 +67,26 @@ pub struct Connections {
     /// its last response (also how long an idle keep-alive connection is kept).
     #[arg(long, default_value = "20", value_parser = seconds)]
     pub header_timeout: std::time::Duration,
-    /// Seconds a request may take to send its body after the headers (else 400, and the
+    /// Seconds a request may take to send its whole body after the headers (else 400, and the
     /// connection closes).
     #[arg(long, default_value = "30", value_parser = seconds)]
     pub body_timeout: std::time::Duration,
-    /// Connections served at once; more wait in the listen queue.
+    /// Seconds a whole request (headers and body together) may take, from the connection's
+    /// start or the end of its last response; a slower one is cut off and its connection closed.
+    #[arg(long, default_value = "30", value_parser = seconds)]
+    pub request_timeout: std::time::Duration,
+    /// Seconds a response may wait for the client to read any of it before the connection is
+    /// closed.
+    #[arg(long, default_value = "20", value_parser = seconds)]
+    pub write_timeout: std::time::Duration,
+    /// Connections served at once; when full, a new one takes the place of the oldest
+    /// connection of the address holding the most (if it holds more than the newcomer's).
     #[arg(long, default_value_t = Connections::default().max_connections)]
     pub max_connections: usize,
+    /// Connections one client address (an IPv6 /64) may hold at once; more are refused with 503
+    /// (0: no cap; behind a reverse proxy every connection comes from the proxy, so there is none).
+    #[arg(long, default_value_t = Connections::default().max_connections_per_address)]
+    pub max_connections_per_address: usize,
     /// Seconds a lab WebSocket session may go without a message before it is closed.
     #[arg(long, default_value = "600", value_parser = seconds)]
     pub lab_idle_timeout: std::time::Duration,
@@ -91,7 +105,10 @@ impl Default for Connections {
         Connections {
             header_timeout: std::time::Duration::from_secs(20),
             body_timeout: std::time::Duration::from_secs(30),
+            request_timeout: std::time::Duration::from_secs(30),
+            write_timeout: std::time::Duration::from_secs(20),
             max_connections: 4096,
+            max_connections_per_address: 512,
             lab_idle_timeout: crate::task::session::IDLE_TIMEOUT,
         }
     }
@@ -369,29 +386,33 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
                 let _ = std::io::stdout().flush();
             });
         }
-        serve_connections(listener, app(prepared.state), config.connections, shutdown_signal()).await;
+        // behind a reverse proxy every connection comes from the proxy: no cap per address
+        let connections = match config.limits.behind_tls {
+            true => Connections { max_connections_per_address: 0, ..config.connections },
+            false => config.connections,
+        };
+        serve_connections(listener, app(prepared.state), connections, shutdown_signal()).await;
         Ok(())
     })
 }
 
 /// Serves HTTP/1.1 (with upgrades, for the lab's WebSocket) on `listener` until `shutdown`,
 /// then lets open requests finish (at most 10 s). Each request carries its peer address
-/// ([`crate::limits::ClientAddr`]); headers and bodies are timed ([`Connections`]).
+/// ([`crate::limits::ClientAddr`]); requests, bodies, idle connections and unread responses
+/// are timed and connections capped per address and in all ([`Connections`],
+/// [`crate::connections`]).
 pub async fn serve_connections(
     listener: tokio::net::TcpListener,
     router: axum::Router,
     connections: Connections,
     shutdown: impl std::future::Future<Output = ()>,
 ) {
+    use crate::connections::{Clock, DeadlineBody, Table, TrackedBody, WriteDeadline, refusal_response};
     use tower::ServiceExt;
-    let slots = Arc::new(tokio::sync::Semaphore::new(connections.max_connections.max(1)));
+    let table = Table::new(connections.max_connections, connections.max_connections_per_address);
     let (stop, stopping) = tokio::sync::watch::channel(false);
     tokio::pin!(shutdown);
     loop {
-        let permit = tokio::select! {
-            permit = slots.clone().acquire_owned() => permit.expect("the semaphore is never closed"),
-            _ = &mut shutdown => break,
-        };
         let (stream, peer) = tokio::select! {
             accepted = listener.accept() => match accepted {
                 Ok(accepted) => accepted,
@@ -404,30 +425,75 @@ pub async fn serve_connections(
             },
             _ = &mut shutdown => break,
         };
+        let mut admitted = match table.admit(peer.ip()) {
+            Ok(admitted) => admitted,
+            Err(refused) => {
+                // one try, never waiting on a client that does not read
+                let _ = stream.try_write(&refusal_response(refused));
+                continue;
+            }
+        };
         let _ = stream.set_nodelay(true);
         let router = router.clone();
-        let body_timeout = connections.body_timeout;
-        let service = hyper::service::service_fn(move |request: axum::http::Request<hyper::body::Incoming>| {
-            let mut request =
-                request.map(|body| axum::body::Body::new(tower_http::timeout::TimeoutBody::new(body_timeout, body)));
-            request.extensions_mut().insert(crate::limits::ClientAddr(peer.ip()));
-            router.clone().oneshot(request)
-        });
+        let clock = Clock::new();
+        let service = {
+            let clock = clock.clone();
+            hyper::service::service_fn(move |request: axum::http::Request<hyper::body::Incoming>| {
+                clock.request_started();
+                // the whole request by `request_timeout` from its start, its body by `body_timeout`
+                let whole = clock.since() + connections.request_timeout;
+                let body = tokio::time::Instant::now() + connections.body_timeout;
+                let (deadline, allowed) = if whole <= body {
+                    (whole, connections.request_timeout)
+                } else {
+                    (body, connections.body_timeout)
+                };
+                let mut request =
+                    request.map(|body| axum::body::Body::new(DeadlineBody::new(body, deadline, allowed)));
+                request.extensions_mut().insert(crate::limits::ClientAddr(peer.ip()));
+                let clock = clock.clone();
+                let response = router.clone().oneshot(request);
+                async move {
+                    let response = response.await?;
+                    Ok::<_, std::convert::Infallible>(response.map(|body| TrackedBody::new(body, clock)))
+                }
+            })
+        };
         let mut stopping = stopping.clone();
-        let header_timeout = connections.header_timeout;
+        let header_timeout = connections.header_timeout.min(connections.request_timeout);
+        let idle_timeout = header_timeout;
+        let write_timeout = connections.write_timeout;
         tokio::spawn(async move {
             let mut builder = hyper::server::conn::http1::Builder::new();
             builder.timer(hyper_util::rt::TokioTimer::new()).header_read_timeout(header_timeout);
-            let connection = builder.serve_connection(hyper_util::rt::TokioIo::new(stream), service).with_upgrades();
+            let io = hyper_util::rt::TokioIo::new(WriteDeadline::new(stream, write_timeout));
+            let connection = builder.serve_connection(io, service).with_upgrades();
             tokio::pin!(connection);
-            tokio::select! {
-                _ = connection.as_mut() => {}
-                _ = stopping.changed() => {
-                    connection.as_mut().graceful_shutdown();
-                    let _ = connection.await;
+            // between requests (and while one's headers come) the connection may wait
+            // `idle_timeout` from the end of its last response; a request being served is
+            // bounded by its body's deadline and the socket's write deadline instead
+            let watchdog = tokio::time::sleep(idle_timeout);
+            tokio::pin!(watchdog);
+            loop {
+                tokio::select! {
+                    _ = connection.as_mut() => break,
+                    _ = &mut admitted.closed => break,
+                    _ = stopping.changed() => {
+                        connection.as_mut().graceful_shutdown();
+                        let _ = connection.await;
+                        break;
+                    }
+                    _ = &mut watchdog => {
+                        let until = clock.since() + idle_timeout;
+                        if !clock.busy() && tokio::time::Instant::now() >= until {
+                            break;
+                        }
+                        let next = if clock.busy() { tokio::time::Instant::now() + idle_timeout } else { until };
+                        watchdog.as_mut().reset(next);
+                    }
                 }
             }
-            drop(permit);
+            drop(admitted);
             drop(stopping);
         });
     }
