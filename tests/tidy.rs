@@ -155,3 +155,196 @@ fn no_crate_has_an_import_cycle_between_its_top_level_modules() {
         }
     }
 }
+
+/// The long flags (`--name`) an option line of a `--help` text names, `--help` and `--version`
+/// left out.
+fn long_flags(help: &str) -> Vec<String> {
+    let mut flags = Vec::new();
+    for line in help.lines().map(str::trim_start).filter(|line| line.starts_with('-')) {
+        // `-s, --name <VALUE>`: the flag is the first word that starts with two dashes
+        let Some(word) = line.split([' ', ',', '=']).find(|word| word.starts_with("--")) else { continue };
+        let flag: String = word.chars().take_while(|c| *c == '-' || c.is_ascii_alphanumeric()).collect();
+        if flag.len() > 2 && flag != "--help" && flag != "--version" {
+            flags.push(flag);
+        }
+    }
+    flags
+}
+
+/// The subcommands `mrstudy --help` lists.
+fn subcommands(help: &str) -> Vec<String> {
+    let section = help.split("Commands:").nth(1).expect("a Commands: section in mrstudy --help");
+    let section = section.split("\n\n").next().unwrap();
+    section
+        .lines()
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|name| *name != "help")
+        .map(str::to_string)
+        .collect()
+}
+
+fn help_of(args: &[&str]) -> String {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_mrstudy")).args(args).arg("--help").output().unwrap();
+    assert!(output.status.success(), "mrstudy {args:?} --help failed: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).unwrap()
+}
+
+/// Whether `text` names `flag` as a whole word (`--plot` does not count as `--plot-dir`).
+fn names_flag(text: &str, flag: &str) -> bool {
+    text.match_indices(flag).any(|(index, _)| {
+        let next = text[index + flag.len()..].chars().next();
+        !next.is_some_and(|c| c == '-' || c.is_ascii_alphanumeric())
+    })
+}
+
+#[test]
+fn every_long_flag_of_the_command_line_is_in_the_design() {
+    let design = std::fs::read_to_string(root().join("docs/design.md")).unwrap();
+    let top = help_of(&[]);
+    let commands = subcommands(&top);
+    assert!(commands.len() >= 8, "found only {commands:?} in mrstudy --help");
+    let mut missing = Vec::new();
+    for command in &commands {
+        let flags = long_flags(&help_of(&[command]));
+        assert!(!flags.is_empty() || command == "power", "mrstudy {command} --help lists no flag");
+        for flag in flags {
+            if !names_flag(&design, &flag) {
+                missing.push(format!("mrstudy {command} {flag}"));
+            }
+        }
+    }
+    assert!(missing.is_empty(), "docs/design.md does not name these flags: {missing:?}");
+}
+
+/// The routes the server's router serves: every `.route("…"` of `server/src` outside its test
+/// modules (the router is built from each area's `router()`, so the strings are the routes).
+fn routes() -> Vec<String> {
+    fn walk(dir: &Path, out: &mut Vec<String>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|extension| extension == "rs") && !test_only(&path) {
+                let text = std::fs::read_to_string(&path).unwrap();
+                let code = text.split("#[cfg(test)]").next().unwrap();
+                for (index, _) in code.match_indices(".route(\"") {
+                    let rest = &code[index + 8..];
+                    out.push(rest[..rest.find('"').unwrap()].to_string());
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&root().join("server/src"), &mut out);
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn every_route_of_the_router_is_in_the_design() {
+    let design = std::fs::read_to_string(root().join("docs/design.md")).unwrap();
+    let routes = routes();
+    assert!(routes.len() >= 25, "found only {} routes in server/src: {routes:?}", routes.len());
+    assert!(routes.iter().any(|route| route == "/api/participants/{id}/responses"), "{routes:?}");
+    let missing: Vec<&String> = routes
+        .iter()
+        .filter(|route| !design.contains(&format!("`{route}`")) && !design.contains(&format!(" {route}`")))
+        .collect();
+    assert!(missing.is_empty(), "docs/design.md does not name these routes: {missing:?}");
+}
+
+/// Every relative link `](target)` of a markdown text, without its `#fragment`.
+fn relative_links(text: &str) -> Vec<String> {
+    text.match_indices("](")
+        .filter_map(|(index, _)| {
+            let rest = &text[index + 2..];
+            let target = &rest[..rest.find(')')?];
+            let target = target.split('#').next().unwrap().trim();
+            let external = target.is_empty() || target.contains("://") || target.starts_with("mailto:");
+            (!external).then(|| target.to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn every_relative_link_of_the_readme_and_the_docs_resolves() {
+    let mut pages = vec![root().join("README.md"), root().join("ARCHITECTURE.md")];
+    for entry in std::fs::read_dir(root().join("docs")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|extension| extension == "md") {
+            pages.push(path);
+        }
+    }
+    let mut broken = Vec::new();
+    let mut checked = 0;
+    for page in &pages {
+        let text = std::fs::read_to_string(page).unwrap();
+        for link in relative_links(&text) {
+            checked += 1;
+            if !page.parent().unwrap().join(&link).exists() {
+                broken.push(format!("{}: {link}", relative(page)));
+            }
+        }
+    }
+    assert!(checked >= 10, "found only {checked} relative links");
+    assert!(broken.is_empty(), "these relative links point at nothing: {broken:?}");
+}
+
+#[test]
+fn the_readme_stays_short() {
+    let lines = std::fs::read_to_string(root().join("README.md")).unwrap().lines().count();
+    assert!(lines <= 300, "README.md has {lines} lines; move the detail into docs/ and keep it at 300 or fewer");
+}
+
+/// `scripts/serve.sh` with a stand-in `cargo` first on the PATH (it records its arguments), so
+/// the test builds nothing; `probe` is where the script looks for Mesa's Vulkan drivers.
+fn run_serve_script(probe: &Path, dir: &Path) -> (std::process::Output, Option<String>) {
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let record = dir.join("cargo-args");
+    let fake = bin.join("cargo");
+    std::fs::write(
+        &fake,
+        format!("#!/bin/sh\necho \"$@ XDG_RUNTIME_DIR=$XDG_RUNTIME_DIR\" > '{}'\n", record.display()),
+    )
+    .unwrap();
+    std::process::Command::new("chmod").arg("+x").arg(&fake).status().unwrap();
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+    let output = std::process::Command::new("bash")
+        .arg(root().join("scripts/serve.sh"))
+        .args(["--addr", "127.0.0.1:0"])
+        .env("PATH", path)
+        .env("MRSTUDY_VULKAN_PROBE", probe)
+        .env("MRSTUDY_NO_INSTALL", "1")
+        .env_remove("XDG_RUNTIME_DIR")
+        .env("TMPDIR", dir)
+        .output()
+        .unwrap();
+    (output, std::fs::read_to_string(record).ok())
+}
+
+#[test]
+fn the_serve_script_names_the_missing_package_and_stops() {
+    let dir = tempfile::tempdir().unwrap();
+    let (output, cargo) = run_serve_script(&dir.path().join("no-such-icd.json"), dir.path());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "serve.sh went on without the drivers: {stderr}");
+    assert!(cargo.is_none(), "serve.sh ran cargo without the drivers: {cargo:?}");
+    assert!(stderr.contains("apt-get install mesa-vulkan-drivers"), "no install sentence: {stderr}");
+    assert!(stderr.contains("no-such-icd.json"), "the sentence does not name the probe: {stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "more than one sentence: {stderr}");
+}
+
+#[test]
+fn the_serve_script_serves_when_the_drivers_are_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let probe = dir.path().join("lvp_icd.json");
+    std::fs::write(&probe, "{}").unwrap();
+    let (output, cargo) = run_serve_script(&probe, dir.path());
+    assert!(output.status.success(), "serve.sh failed: {}", String::from_utf8_lossy(&output.stderr));
+    let cargo = cargo.expect("serve.sh did not run cargo");
+    assert!(cargo.starts_with("run --release --locked -- serve --addr 127.0.0.1:0 "), "cargo ran as {cargo}");
+    let runtime = cargo.split("XDG_RUNTIME_DIR=").nth(1).unwrap().trim();
+    assert!(runtime.starts_with(&dir.path().display().to_string()), "XDG_RUNTIME_DIR not set: {cargo}");
+}
