@@ -38,12 +38,16 @@ pub enum PrepareError {
 #[derive(Debug)]
 pub struct PreparedStudy {
     pub study: Study,
-    /// `[scene][condition]` → stimulus file name.
+    /// `[scene][condition]` → stimulus file name (realisation 0).
     pub stimuli: Vec<Vec<String>>,
+    /// `[scene][realisation − 1][condition]` → stimulus file name of the further sensor-noise
+    /// realisations of a detection design (empty otherwise).
+    pub realisation_stimuli: Vec<Vec<Vec<String>>>,
     /// `[catch trial]` → (better, worse) stimulus file names.
     pub catch_stimuli: Vec<(String, String)>,
-    /// `[scene]` → the ground truth's file name, for a detection design (empty otherwise).
-    pub ground_truths: Vec<String>,
+    /// `[scene][realisation]` → the ground truth's file name, for a detection design (empty
+    /// otherwise).
+    pub ground_truths: Vec<Vec<String>>,
     /// The stimulus metrics CSV (docs/design.md) of the rendered stimuli, `None` when no stimulus
     /// has a ground truth; and why a scene configuration has none (or the records could not be
     /// read).
@@ -127,21 +131,34 @@ impl PreparedStudy {
             .map(|catch| Ok((store_image(&catch.better, store)?, store_image(&catch.worse, store)?)))
             .collect::<Result<Vec<_>, PrepareError>>()?;
         let mut ground_truths = Vec::new();
+        let mut realisation_stimuli = Vec::new();
         if study.design.reference.is_some() {
             for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
-                let name = planned
-                    .as_ref()
-                    .and_then(|planned| planned.ground_truth_key.as_ref())
-                    .and_then(|key| crate::stimuli::lookup(store, key));
-                let Some(name) = name else {
-                    return Err(PrepareError::NeedsRendering {
-                        slug: study.slug.clone(),
-                        file: study.file.clone(),
-                        scene: scene.name.clone(),
-                        missing: 1,
-                    });
+                let needs_rendering = |missing: usize| PrepareError::NeedsRendering {
+                    slug: study.slug.clone(),
+                    file: study.file.clone(),
+                    scene: scene.name.clone(),
+                    missing,
                 };
-                ground_truths.push(name);
+                let mut names = Vec::new();
+                let mut further = Vec::new();
+                for realisation in 0..study.design.realisations.max(1) as usize {
+                    let Some((key, stimuli)) = planned.as_ref().and_then(|planned| planned.realisation(realisation))
+                    else {
+                        return Err(needs_rendering(1));
+                    };
+                    let Some(name) = key.and_then(|key| crate::stimuli::lookup(store, key)) else {
+                        return Err(needs_rendering(1));
+                    };
+                    names.push(name);
+                    if realisation > 0 {
+                        let stimuli: Option<Vec<String>> =
+                            stimuli.iter().map(|stimulus| crate::stimuli::lookup(store, &stimulus.key)).collect();
+                        further.push(stimuli.ok_or_else(|| needs_rendering(study.conditions.len()))?);
+                    }
+                }
+                ground_truths.push(names);
+                realisation_stimuli.push(further);
             }
         }
         let (mut metrics_csv, mut metrics_notes) = match crate::stimuli::metrics_csv(&study, plan, store) {
@@ -158,7 +175,16 @@ impl PreparedStudy {
                 }
                 None => None,
             };
-        Ok(PreparedStudy { study, stimuli, catch_stimuli, ground_truths, metrics_csv, metrics_notes, stimulus_metrics })
+        Ok(PreparedStudy {
+            study,
+            stimuli,
+            realisation_stimuli,
+            catch_stimuli,
+            ground_truths,
+            metrics_csv,
+            metrics_notes,
+            stimulus_metrics,
+        })
     }
 
     /// The schedule of the participant with this seed (for an active design: the trials
@@ -172,10 +198,17 @@ impl PreparedStudy {
         let study = &self.study;
         match planned.kind {
             PlannedKind::Pair { left, right } => {
-                // a detection design's index past the conditions is the scene's ground truth
+                // a detection design's index past the conditions is the scene's ground truth, of
+                // the trial's sensor-noise realisation
+                let realisation = planned.realisation;
                 let side = |condition: usize, scene: usize| match study.conditions.get(condition) {
-                    Some(condition_of) => (condition_of.name.clone(), self.stimuli[scene][condition].clone()),
-                    None => (GROUND_TRUTH.to_string(), self.ground_truths[scene].clone()),
+                    Some(condition_of) if realisation == 0 => {
+                        (condition_of.name.clone(), self.stimuli[scene][condition].clone())
+                    }
+                    Some(condition_of) => {
+                        (condition_of.name.clone(), self.realisation_stimuli[scene][realisation - 1][condition].clone())
+                    }
+                    None => (GROUND_TRUTH.to_string(), self.ground_truths[scene][realisation].clone()),
                 };
                 let (left_condition, left_stimulus) = side(left, planned.left_scene);
                 let (right_condition, right_stimulus) = side(right, planned.right_scene);
@@ -234,3 +267,77 @@ pub fn stimulus_content_type(name: &str) -> Option<&'static str> {
 
 /// Studies by slug.
 pub type Studies = HashMap<String, std::sync::Arc<PreparedStudy>>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A store in which every planned image of `plan` is a distinct one-line file.
+    fn fake_store(plan: &StimulusPlan, store: &Path) {
+        std::fs::create_dir_all(store.join("rendered")).unwrap();
+        let mut keys: Vec<&String> = plan.stimuli().map(|stimulus| &stimulus.key).collect();
+        for planned in plan.scenes.iter().flatten() {
+            keys.extend(&planned.ground_truth_key);
+            keys.extend(planned.realisations.iter().map(|realisation| &realisation.ground_truth_key));
+        }
+        for key in keys {
+            let name = crate::stimuli::store_bytes(key.as_bytes(), "png", store).unwrap();
+            std::fs::write(store.join("rendered").join(key), name).unwrap();
+        }
+    }
+
+    #[test]
+    fn each_trial_of_a_detection_design_shows_its_realisations_ground_truth_and_stimulus() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies/real-or-rendered.toml");
+        let study = crate::study::load_study(&file).unwrap();
+        let plan = StimulusPlan::of(&study).unwrap();
+        assert_eq!(plan.stimuli().count(), 6 * 8 * 4);
+        // realisation 0 is the web survey's stimuli: the same keys as without realisations
+        let mut single = study.clone();
+        single.design.realisations = 1;
+        let single_plan = StimulusPlan::of(&single).unwrap();
+        let first: Vec<&String> = single_plan.stimuli().map(|stimulus| &stimulus.key).collect();
+        let shared: Vec<&String> = plan.stimuli().filter(|s| s.realisation == 0).map(|s| &s.key).collect();
+        assert_eq!(first, shared);
+        let all: std::collections::BTreeSet<&String> = plan.stimuli().map(|stimulus| &stimulus.key).collect();
+        assert_eq!(all.len(), 6 * 8 * 4, "every realisation has its own stimuli");
+
+        let store = tempfile::tempdir().unwrap();
+        fake_store(&plan, store.path());
+        let prepared = PreparedStudy::prepare(study, &plan, store.path()).unwrap();
+        // the file name of each image says which key (scene, realisation, condition) it is for
+        let mut keys: Vec<String> = plan.stimuli().map(|stimulus| stimulus.key.clone()).collect();
+        for planned in plan.scenes.iter().flatten() {
+            keys.extend(planned.ground_truth_key.iter().cloned());
+            keys.extend(planned.realisations.iter().map(|realisation| realisation.ground_truth_key.clone()));
+        }
+        let by_name: HashMap<String, String> =
+            keys.into_iter().map(|key| (crate::stimuli::lookup(store.path(), &key).unwrap(), key)).collect();
+        let key_of = |name: &str| by_name[name].clone();
+        for seed in 0..20 {
+            let trials = prepared.schedule(seed);
+            let mut truths = std::collections::BTreeSet::new();
+            for trial in &trials {
+                let (truth, stimulus) = if trial.left_condition == GROUND_TRUTH {
+                    (&trial.left_stimulus, &trial.right_stimulus)
+                } else {
+                    (&trial.right_stimulus, &trial.left_stimulus)
+                };
+                assert!(truths.insert(truth.clone()), "seed {seed}: a ground-truth picture twice");
+                let planned = plan.scenes.iter().flatten().find(|planned| {
+                    (0..4).any(|r| planned.realisation(r).unwrap().0.is_some_and(|key| *key == key_of(truth)))
+                });
+                let planned = planned.unwrap();
+                let realisation = (0..4)
+                    .find(|&r| planned.realisation(r).unwrap().0.is_some_and(|key| *key == key_of(truth)))
+                    .unwrap();
+                let stimuli = planned.realisation(realisation).unwrap().1;
+                assert!(
+                    stimuli.iter().any(|s| s.key == key_of(stimulus) && s.condition != GROUND_TRUTH),
+                    "seed {seed}: the stimulus is not of the ground truth's realisation"
+                );
+            }
+            assert_eq!(truths.len(), 24);
+        }
+    }
+}

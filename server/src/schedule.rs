@@ -13,6 +13,19 @@
 //! - catch trials are balanced left/right the same way;
 //! - the order of all trials is a uniform random permutation.
 //!
+//! A detection design (`reference = "ground-truth"`, "real or rendered?") is scheduled so that
+//! remembering pictures cannot tell the answer ([`plan_detection`], schedule version 2): the
+//! ground truth is on the left in half of the participant's trials; each scene configuration
+//! is shown equally often (the counts differ by at most one); each scene configuration's
+//! trials take its sensor-noise realisations ([`crate::study::Design::realisations`]) in a
+//! random order, each once before any twice, so with at least as many realisations as trials
+//! per scene configuration no ground-truth picture is ever shown twice; and no scene
+//! configuration comes twice in a row (where the counts allow it), so neither does a
+//! ground-truth picture. Catch trials are inserted at random places afterwards.
+//! [`plan_detection_v1`] keeps version 1 (scene configurations drawn per trial, any order),
+//! so stored version-1 schedules can be reproduced and the two designs compared
+//! (`crate::simulate::familiarity`).
+//!
 //! An active design (`pairs = "active"`) plans its warm-up and catch trials this way at join;
 //! the rest come in batches from [`active_batch`], chosen from every judgment so far.
 
@@ -23,8 +36,9 @@ use crate::study::{SceneDraw, Study};
 
 pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 
-/// Version of the scheduling algorithm, stored with each participant.
-pub const SCHEDULE_VERSION: i64 = 1;
+/// Version of the scheduling algorithm, stored with each participant. Version 2 changed the
+/// detection designs only ([`plan_detection`]); other designs are scheduled as in version 1.
+pub const SCHEDULE_VERSION: i64 = 2;
 
 /// One scheduled trial, before stimuli are attached.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -32,6 +46,9 @@ pub struct PlannedTrial {
     pub kind: PlannedKind,
     pub left_scene: usize,
     pub right_scene: usize,
+    /// The sensor-noise realisation of the scene configuration shown (both sides): 0 except in
+    /// a detection design with `realisations` > 1.
+    pub realisation: usize,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -100,39 +117,171 @@ impl Stream {
 
 /// The schedule of one participant.
 pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
+    if study.design.reference.is_some() {
+        return plan_detection(study, seed);
+    }
     let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
     let scene_count = study.scenes.len();
     let repetitions = study.design.repetitions as usize;
     let mut trials = Vec::with_capacity(study.trial_count());
-    if study.design.reference.is_some() {
-        // detection: the ground truth on the left in half of all the participant's trials (the
-        // odd one to a random side), not only within each condition's repetitions
-        let count = study.design.pairs.len() * repetitions;
-        let mut sides = stream.balanced_sides(count).into_iter();
-        for &(condition, truth) in &study.design.pairs {
-            for truth_left in sides.by_ref().take(repetitions) {
-                let (left, right) = if truth_left { (truth, condition) } else { (condition, truth) };
-                let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
-                trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
-            }
-        }
-    }
-    for &(first, second) in study.design.pairs.iter().filter(|_| study.design.reference.is_none()) {
+    for &(first, second) in &study.design.pairs {
         for first_left in stream.balanced_sides(repetitions) {
             let (left, right) = if first_left { (first, second) } else { (second, first) };
             let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
-            trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+            trials.push(PlannedTrial {
+                kind: PlannedKind::Pair { left, right },
+                left_scene,
+                right_scene,
+                realisation: 0,
+            });
         }
     }
+    push_catch_trials(study, &mut stream, &mut trials);
+    stream.shuffle(&mut trials);
+    trials
+}
+
+fn push_catch_trials(study: &Study, stream: &mut Stream, trials: &mut Vec<PlannedTrial>) {
     for (index, catch) in study.catch.iter().enumerate() {
         for better_left in stream.balanced_sides(catch.repetitions as usize) {
             trials.push(PlannedTrial {
                 kind: PlannedKind::Catch { index, better_left },
                 left_scene: 0,
                 right_scene: 0,
+                realisation: 0,
             });
         }
     }
+}
+
+/// The schedule of one participant of a detection design, version 2 (see the module header):
+/// sides balanced over all the participant's trials, scene configurations balanced (each
+/// `n / S` or one more times), realisations of each scene configuration each used once before
+/// any is used again, no scene configuration twice in a row where the counts allow it, catch
+/// trials inserted at random places.
+pub fn plan_detection(study: &Study, seed: u64) -> Vec<PlannedTrial> {
+    let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
+    let scene_count = study.scenes.len().max(1);
+    let realisations = (study.design.realisations as usize).max(1);
+    let repetitions = study.design.repetitions as usize;
+    let count = study.design.pairs.len() * repetitions;
+    let mut sides = stream.balanced_sides(count).into_iter();
+    let mut trials = Vec::with_capacity(study.trial_count());
+    for &(condition, truth) in &study.design.pairs {
+        for truth_left in sides.by_ref().take(repetitions) {
+            let (left, right) = if truth_left { (truth, condition) } else { (condition, truth) };
+            trials.push(PlannedTrial {
+                kind: PlannedKind::Pair { left, right },
+                left_scene: 0,
+                right_scene: 0,
+                realisation: 0,
+            });
+        }
+    }
+    // scene configurations: whole rounds of every scene configuration in random order, the last
+    // round cut short, dealt to the trials in random order
+    stream.shuffle(&mut trials);
+    let mut scenes = Vec::with_capacity(count);
+    while scenes.len() < count {
+        let mut round: Vec<usize> = (0..scene_count).collect();
+        stream.shuffle(&mut round);
+        scenes.extend(round.into_iter().take(count - scenes.len()));
+    }
+    // realisations: per scene configuration, rounds of every realisation in random order
+    let mut rounds: Vec<Vec<usize>> = vec![Vec::new(); scene_count];
+    for (trial, &scene) in trials.iter_mut().zip(&scenes) {
+        if rounds[scene].is_empty() {
+            let mut round: Vec<usize> = (0..realisations).collect();
+            stream.shuffle(&mut round);
+            round.reverse(); // popped from the back
+            rounds[scene] = round;
+        }
+        trial.left_scene = scene;
+        trial.right_scene = scene;
+        trial.realisation = rounds[scene].pop().expect("a round is never empty");
+    }
+    let mut ordered = order_without_repeats(&mut stream, trials, scene_count);
+    let mut catch = Vec::new();
+    push_catch_trials(study, &mut stream, &mut catch);
+    for trial in catch {
+        let at = stream.below(ordered.len() + 1);
+        ordered.insert(at, trial);
+    }
+    ordered
+}
+
+/// `trials` in a random order in which no two neighbours show the same scene configuration:
+/// each next trial is drawn uniformly from those whose scene configuration differs from the
+/// previous one's and leaves the rest arrangeable (no scene configuration holding more than
+/// half, rounded up, of what is left). Where no arrangement exists (one scene configuration
+/// has more than half the trials) a repeat is allowed when nothing else is left.
+fn order_without_repeats(stream: &mut Stream, mut trials: Vec<PlannedTrial>, scene_count: usize) -> Vec<PlannedTrial> {
+    let mut counts = vec![0usize; scene_count];
+    for trial in &trials {
+        counts[trial.left_scene] += 1;
+    }
+    // Whether `counts` (after taking one of `taken`) can be ordered with no neighbours equal
+    // and its first element not `taken`.
+    let arrangeable = |counts: &[usize], taken: usize| {
+        let total: usize = counts.iter().sum();
+        let most = counts.iter().copied().max().unwrap_or(0);
+        most <= total.div_ceil(2) && !(total % 2 == 1 && counts[taken] == total.div_ceil(2))
+    };
+    let mut ordered = Vec::with_capacity(trials.len());
+    let mut previous: Option<usize> = None;
+    while !trials.is_empty() {
+        let candidates: Vec<usize> = (0..trials.len())
+            .filter(|&index| {
+                let scene = trials[index].left_scene;
+                if Some(scene) == previous {
+                    return false;
+                }
+                counts[scene] -= 1;
+                let fits = arrangeable(&counts, scene);
+                counts[scene] += 1;
+                fits
+            })
+            .collect();
+        let index = if candidates.is_empty() {
+            // no order without a repeat exists: take one that differs if any, else any
+            let differing: Vec<usize> =
+                (0..trials.len()).filter(|&index| Some(trials[index].left_scene) != previous).collect();
+            if differing.is_empty() { stream.below(trials.len()) } else { differing[stream.below(differing.len())] }
+        } else {
+            candidates[stream.below(candidates.len())]
+        };
+        let trial = trials.swap_remove(index);
+        counts[trial.left_scene] -= 1;
+        previous = Some(trial.left_scene);
+        ordered.push(trial);
+    }
+    ordered
+}
+
+/// The schedule of a detection design as schedule version 1 made it: the ground truth on the
+/// left in half of the trials, each trial's scene configuration drawn uniformly and
+/// independently, realisation 0 only, the order a uniform random permutation. Kept to
+/// reproduce version-1 schedules and as the baseline of `crate::simulate::familiarity`.
+pub fn plan_detection_v1(study: &Study, seed: u64) -> Vec<PlannedTrial> {
+    let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
+    let scene_count = study.scenes.len();
+    let repetitions = study.design.repetitions as usize;
+    let mut trials = Vec::with_capacity(study.trial_count());
+    let count = study.design.pairs.len() * repetitions;
+    let mut sides = stream.balanced_sides(count).into_iter();
+    for &(condition, truth) in &study.design.pairs {
+        for truth_left in sides.by_ref().take(repetitions) {
+            let (left, right) = if truth_left { (truth, condition) } else { (condition, truth) };
+            let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
+            trials.push(PlannedTrial {
+                kind: PlannedKind::Pair { left, right },
+                left_scene,
+                right_scene,
+                realisation: 0,
+            });
+        }
+    }
+    push_catch_trials(study, &mut stream, &mut trials);
     stream.shuffle(&mut trials);
     trials
 }
@@ -188,7 +337,7 @@ pub fn active_batch(
     for pair in pairs {
         let (left, right) = history.sides.assign(pair, &mut ties);
         let (left_scene, right_scene) = stream.scenes(study.design.scenes, study.scenes.len());
-        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene, realisation: 0 });
         history.previous = Some(pair);
     }
     Ok(trials)
@@ -219,7 +368,7 @@ pub fn fallback_batch(study: &Study, seed: u64, history: &mut ActiveHistory, cou
         }
         let (left, right) = history.sides.assign(pair, &mut sides);
         let (left_scene, right_scene) = stream.scenes(study.design.scenes, study.scenes.len());
-        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene });
+        trials.push(PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene, realisation: 0 });
         history.previous = Some(pair);
     }
     trials
@@ -266,6 +415,91 @@ mod tests {
             assert_eq!(truth_left, 12, "the ground truth left in half of the trials");
             assert!(shown.iter().all(|&count| count == 3), "{shown:?}");
         }
+    }
+
+    fn real_or_rendered() -> Study {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies/real-or-rendered.toml");
+        load_study(&file).unwrap()
+    }
+
+    /// Per scene configuration, how often a participant's trials show it.
+    fn scene_counts(study: &Study, trials: &[PlannedTrial]) -> Vec<usize> {
+        let mut counts = vec![0; study.scenes.len()];
+        for trial in trials.iter().filter(|trial| matches!(trial.kind, PlannedKind::Pair { .. })) {
+            counts[trial.left_scene] += 1;
+        }
+        counts
+    }
+
+    #[test]
+    fn a_detection_design_shows_every_scene_configuration_equally_often() {
+        // version 1 drew scene configurations per trial: one participant saw survey-5 in 8 of 24
+        let study = real_or_rendered();
+        for seed in 0..500 {
+            let counts = scene_counts(&study, &plan(&study, seed));
+            assert!(counts.iter().all(|&count| count == 4), "seed {seed}: {counts:?}");
+        }
+        // 3 conditions x 3 over 6 scene configurations: counts 1 or 2 (within one)
+        let mut fewer = study.clone();
+        fewer.design.pairs.truncate(3);
+        for seed in 0..200 {
+            let counts = scene_counts(&fewer, &plan(&fewer, seed));
+            let (low, high) = (counts.iter().min().unwrap(), counts.iter().max().unwrap());
+            assert!(high - low <= 1 && counts.iter().sum::<usize>() == 9, "seed {seed}: {counts:?}");
+        }
+    }
+
+    #[test]
+    fn a_detection_design_never_shows_a_ground_truth_picture_twice_or_a_scene_twice_in_a_row() {
+        let study = real_or_rendered();
+        assert_eq!(study.design.realisations, 4);
+        for seed in 0..500 {
+            let trials = plan(&study, seed);
+            let pictures: std::collections::BTreeSet<(usize, usize)> =
+                trials.iter().map(|trial| (trial.left_scene, trial.realisation)).collect();
+            assert_eq!(pictures.len(), 24, "seed {seed}: a ground-truth picture shown twice");
+            assert!(trials.iter().all(|trial| trial.realisation < 4));
+            assert!(
+                trials.windows(2).all(|pair| pair[0].left_scene != pair[1].right_scene),
+                "seed {seed}: a scene configuration twice in a row"
+            );
+        }
+        // with fewer realisations than showings, each realisation is used once before any twice
+        let mut two = study.clone();
+        two.design.realisations = 2;
+        for seed in 0..100 {
+            let trials = plan(&two, seed);
+            for scene in 0..6 {
+                let used: Vec<usize> = trials.iter().filter(|t| t.left_scene == scene).map(|t| t.realisation).collect();
+                assert_eq!(used.iter().filter(|&&r| r == 0).count(), 2, "seed {seed}: {used:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_detection_design_with_one_scene_configuration_still_gets_every_trial() {
+        let mut study = real_or_rendered();
+        study.scenes.truncate(1);
+        let trials = plan(&study, 5);
+        assert_eq!(trials.len(), 24);
+        assert!(trials.iter().all(|trial| trial.left_scene == 0 && trial.right_scene == 0));
+    }
+
+    #[test]
+    fn version_1_of_a_detection_schedule_is_kept() {
+        // Pinned output of plan_detection_v1 for seed 1 (what version-1 participants were shown):
+        // left | right (8: the ground truth) | scene configuration
+        let mut study = real_or_rendered();
+        study.design.realisations = 1;
+        let first: Vec<String> = plan_detection_v1(&study, 1)
+            .iter()
+            .take(3)
+            .map(|trial| match trial.kind {
+                PlannedKind::Pair { left, right } => format!("{left}|{right}|{}", trial.left_scene),
+                PlannedKind::Catch { .. } => "catch".into(),
+            })
+            .collect();
+        assert_eq!(first, ["8|4|1", "8|7|2", "8|1|3"]);
     }
 
     #[test]

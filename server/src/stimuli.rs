@@ -17,6 +17,14 @@
 //! `<sha256>.json` under the entry `rendered/<key>.metrics`. [`metrics_csv`] writes them as
 //! docs/design.md's stimulus metrics CSV.
 //!
+//! Sensor-noise realisations (a detection design's `realisations` > 1): realisation k > 0 of a
+//! scene configuration is its scene with the simulated camera's noise seed replaced
+//! ([`realisation_seed`]), so it has its own fingerprints, its own ground truth and its own
+//! stimuli, each rendered over its own photograph. The path tracer's radiance does not depend on
+//! the noise seed, so [`render_missing`] path-traces a scene configuration once and passes the
+//! same radiance through the camera once per realisation ([`mrstudy_renderer::sensor::apply`]):
+//! a realisation costs one GPU frame per condition, not a reference render.
+//!
 //! Sharding ([`Shard`], `mrstudy stimuli --shard K/N`): the unit of work is a scene
 //! configuration (its reference render is shared by all its conditions); the renderable scene
 //! configurations, in the study's order, are dealt round-robin to N shards, so shard K renders a
@@ -30,7 +38,7 @@ use std::path::{Path, PathBuf};
 use mrstudy_renderer::gpu::DirRenderer;
 use mrstudy_renderer::metrics::{StimulusErrors, quantized, stimulus_errors};
 use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
-use mrstudy_renderer::{Image, RenderError};
+use mrstudy_renderer::{Image, ReferenceOutput, RenderError};
 use serde::{Deserialize, Serialize};
 
 use crate::study::{StimulusSource, Study, sha256_hex};
@@ -68,6 +76,8 @@ pub struct PlannedStimulus {
     pub factors: Factors,
     /// SHA-256 of the fingerprint: the index entry's name.
     pub key: String,
+    /// The sensor-noise realisation (0: the scene's own noise seed).
+    pub realisation: usize,
 }
 
 impl PlannedStimulus {
@@ -86,12 +96,62 @@ pub struct PlannedScene {
     /// photograph, which has no ground truth.
     pub ground_truth_key: Option<String>,
     pub stimuli: Vec<PlannedStimulus>,
+    /// Realisations 1, 2, … of a detection design with `realisations` > 1 (realisation 0 is
+    /// the fields above).
+    pub realisations: Vec<PlannedRealisation>,
+}
+
+/// One further sensor-noise realisation of a scene configuration: its scene (the noise seed
+/// replaced), its ground truth's key and a stimulus per condition.
+#[derive(Debug, Clone)]
+pub struct PlannedRealisation {
+    pub scene: mrstudy_renderer::Scene,
+    pub ground_truth_key: String,
+    pub stimuli: Vec<PlannedStimulus>,
+}
+
+/// The noise seed of realisation `realisation` of a scene whose camera has noise seed `base`:
+/// `base` itself for realisation 0 (the stimuli other studies of the scene share), else a
+/// SplitMix64 step of the two.
+pub fn realisation_seed(base: u64, realisation: usize) -> u64 {
+    if realisation == 0 { base } else { crate::schedule::derived_seed(base, realisation as u64) }
+}
+
+/// `scene` with its camera's noise seed that of realisation `realisation` (in the resolved
+/// parameters and in the description, so fingerprints tell realisations apart).
+pub fn realised(mut scene: mrstudy_renderer::Scene, realisation: usize) -> mrstudy_renderer::Scene {
+    if realisation > 0 {
+        let seed = realisation_seed(scene.sensor.seed, realisation);
+        scene.sensor.seed = seed;
+        scene.desc.camera.sensor.seed = Some(seed);
+    }
+    scene
 }
 
 impl PlannedScene {
+    /// The ground-truth key and stimuli of realisation `realisation`, if planned.
+    pub fn realisation(&self, realisation: usize) -> Option<(Option<&String>, &[PlannedStimulus])> {
+        match realisation {
+            0 => Some((self.ground_truth_key.as_ref(), &self.stimuli)),
+            k => self.realisations.get(k - 1).map(|r| (Some(&r.ground_truth_key), r.stimuli.as_slice())),
+        }
+    }
+
+    /// Every planned stimulus of the scene configuration, realisation by realisation.
+    pub fn all_stimuli(&self) -> impl Iterator<Item = &PlannedStimulus> {
+        self.stimuli.iter().chain(self.realisations.iter().flat_map(|r| &r.stimuli))
+    }
+
     /// True when something of the scene configuration is not in `store`: a stimulus, its
     /// ground truth, or a stimulus's record.
     fn incomplete(&self, store: &Path) -> bool {
+        let realisation_incomplete = |r: &PlannedRealisation| {
+            lookup(store, &r.ground_truth_key).is_none()
+                || r.stimuli.iter().any(|s| lookup(store, &s.key).is_none() || lookup_record(store, s).is_none())
+        };
+        if self.realisations.iter().any(realisation_incomplete) {
+            return true;
+        }
         match &self.ground_truth_key {
             Some(key) => {
                 lookup(store, key).is_none()
@@ -164,31 +224,48 @@ impl StimulusPlan {
             }
             let ground_truth_key =
                 loaded.background.is_none().then(|| sha256_hex(settings.ground_truth_fingerprint(&loaded).as_bytes()));
-            let mut stimuli = Vec::new();
-            for (condition_index, condition) in study.conditions.iter().enumerate() {
-                let factors = condition.factors.clone().map_err(|reason| StimuliError::Factors {
-                    slug: study.slug.clone(),
-                    file: study.file.clone(),
-                    condition: condition.name.clone(),
-                    reason,
-                })?;
-                stimuli.push(PlannedStimulus {
-                    scene_index,
-                    condition_index,
-                    scene: scene.name.clone(),
-                    condition: condition.name.clone(),
-                    factors,
-                    key: sha256_hex(settings.fingerprint(&loaded, &factors).as_bytes()),
-                });
+            let stimuli_of = |loaded: &mrstudy_renderer::Scene, realisation: usize| {
+                let mut stimuli = Vec::new();
+                for (condition_index, condition) in study.conditions.iter().enumerate() {
+                    let factors = condition.factors.clone().map_err(|reason| StimuliError::Factors {
+                        slug: study.slug.clone(),
+                        file: study.file.clone(),
+                        condition: condition.name.clone(),
+                        reason,
+                    })?;
+                    stimuli.push(PlannedStimulus {
+                        scene_index,
+                        condition_index,
+                        scene: scene.name.clone(),
+                        condition: condition.name.clone(),
+                        factors,
+                        key: sha256_hex(settings.fingerprint(loaded, &factors).as_bytes()),
+                        realisation,
+                    });
+                }
+                Ok::<_, StimuliError>(stimuli)
+            };
+            let stimuli = stimuli_of(&loaded, 0)?;
+            let mut realisations = Vec::new();
+            if ground_truth_key.is_some() {
+                for realisation in 1..study.design.realisations.max(1) as usize {
+                    let scene = realised(loaded.clone(), realisation);
+                    realisations.push(PlannedRealisation {
+                        ground_truth_key: sha256_hex(settings.ground_truth_fingerprint(&scene).as_bytes()),
+                        stimuli: stimuli_of(&scene, realisation)?,
+                        scene,
+                    });
+                }
             }
-            scenes.push(Some(PlannedScene { scene: loaded, ground_truth_key, stimuli }));
+            scenes.push(Some(PlannedScene { scene: loaded, ground_truth_key, stimuli, realisations }));
         }
         Ok(StimulusPlan { settings, scenes })
     }
 
-    /// Every planned stimulus, scene configuration by scene configuration.
+    /// Every planned stimulus, scene configuration by scene configuration (each with its
+    /// realisations).
     pub fn stimuli(&self) -> impl Iterator<Item = &PlannedStimulus> {
-        self.scenes.iter().flatten().flat_map(|scene| &scene.stimuli)
+        self.scenes.iter().flatten().flat_map(|scene| scene.all_stimuli())
     }
 
     /// The planned stimuli not yet in `store` (their images: what serving needs).
@@ -246,7 +323,7 @@ impl std::fmt::Display for Shard {
 impl StimulusPlan {
     /// How many stimuli the scene configurations `scenes` (indices) have.
     pub fn stimuli_in(&self, scenes: &[usize]) -> usize {
-        scenes.iter().filter_map(|&index| self.scenes[index].as_ref()).map(|scene| scene.stimuli.len()).sum()
+        scenes.iter().filter_map(|&index| self.scenes[index].as_ref()).map(|scene| scene.all_stimuli().count()).sum()
     }
 
     /// One line naming the scene configurations `shard` renders of `study`.
@@ -447,15 +524,7 @@ pub fn render_missing_shard(
             Some(key) => {
                 let reference = plan.settings.reference(&planned.scene, &report).map_err(render_error)?;
                 let shown = quantized(&reference.ground_truth);
-                let name = match lookup(store, key) {
-                    Some(name) => name,
-                    None => {
-                        let name = store_bytes(&shown.encode_png(), "png", store).map_err(io(store))?;
-                        write_entry(store, key, &name)?;
-                        rendered.ground_truths += 1;
-                        name
-                    }
-                };
+                let name = store_ground_truth(store, key, &shown, &mut rendered)?;
                 (reference.photo.clone(), reference.hdr_real.clone(), Some((reference, shown, name)))
             }
             None => {
@@ -463,65 +532,116 @@ pub fn render_missing_shard(
                 (photo, linear, None)
             }
         };
-        // the simulated capture of the real scene, made by its first coherent stimulus
-        let mut captured = None;
-        for stimulus in &planned.stimuli {
-            let stored = lookup(store, &stimulus.key);
-            let needs_record = reference.is_some() && lookup_record(store, stimulus).is_none();
-            if stored.is_some() && !needs_record {
+        let render_realisation = |scene: &mrstudy_renderer::Scene,
+                                  stimuli: &[PlannedStimulus],
+                                  photo: &Image,
+                                  ground_truth: Option<(&ReferenceOutput, &Image, &String)>,
+                                  rendered: &mut Rendered|
+         -> Result<(), StimuliError> {
+            // the simulated capture of the real scene, made by its first coherent stimulus
+            let mut captured = None;
+            for stimulus in stimuli {
+                let stored = lookup(store, &stimulus.key);
+                let needs_record = ground_truth.is_some() && lookup_record(store, stimulus).is_none();
+                if stored.is_some() && !needs_record {
+                    progress(Progress::Stimulus {
+                        scene: stimulus.scene.clone(),
+                        condition: stimulus.condition.clone(),
+                        ms: 0.0,
+                    });
+                    continue;
+                }
+                let frame = plan
+                    .settings
+                    .render_stimulus(&renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
+                    .map_err(render_error)?;
+                let (name, shown) = match stored {
+                    Some(name) => {
+                        let path = store.join(&name);
+                        let image = Image::load(&path, "stimulus")
+                            .map_err(|error| StimuliError::Store { path, reason: error.to_string() })?;
+                        (name, image)
+                    }
+                    None => {
+                        let name = store_bytes(&frame.composite.encode_png(), "png", store).map_err(io(store))?;
+                        write_entry(store, &stimulus.key, &name)?;
+                        rendered.stimuli += 1;
+                        (name, quantized(&frame.composite))
+                    }
+                };
+                if let Some((reference, ground_truth, ground_truth_name)) = ground_truth {
+                    let record = StimulusRecord {
+                        stimulus: name,
+                        ground_truth: ground_truth_name.clone(),
+                        factors: stimulus.factors.label(),
+                        settings: plan.settings.clone(),
+                        render_ms: frame.ms,
+                        adapter: frame.adapter.clone(),
+                        reference_seconds: reference.stats.seconds,
+                        errors: stimulus_errors(
+                            ground_truth,
+                            &shown,
+                            &reference.affected_mask,
+                            &reference.virtual_mask,
+                        ),
+                    };
+                    let bytes = serde_json::to_vec_pretty(&record).expect("a stimulus record serialises");
+                    let record_name = store_bytes(&bytes, "json", store).map_err(io(store))?;
+                    write_entry(store, &stimulus.record_key(), &record_name)?;
+                    rendered.records += 1;
+                }
                 progress(Progress::Stimulus {
                     scene: stimulus.scene.clone(),
                     condition: stimulus.condition.clone(),
-                    ms: 0.0,
+                    ms: frame.ms,
                 });
-                continue;
             }
-            let frame = plan
-                .settings
-                .render_stimulus(&renderer, &planned.scene, &photo, &linear, &stimulus.factors, &mut captured)
-                .map_err(render_error)?;
-            let (name, shown) = match stored {
-                Some(name) => {
-                    let path = store.join(&name);
-                    let image = Image::load(&path, "stimulus")
-                        .map_err(|error| StimuliError::Store { path, reason: error.to_string() })?;
-                    (name, image)
-                }
-                None => {
-                    let name = store_bytes(&frame.composite.encode_png(), "png", store).map_err(io(store))?;
-                    write_entry(store, &stimulus.key, &name)?;
-                    rendered.stimuli += 1;
-                    (name, quantized(&frame.composite))
-                }
-            };
-            if let Some((reference, ground_truth, ground_truth_name)) = &reference {
-                let record = StimulusRecord {
-                    stimulus: name,
-                    ground_truth: ground_truth_name.clone(),
-                    factors: stimulus.factors.label(),
-                    settings: plan.settings.clone(),
-                    render_ms: frame.ms,
-                    adapter: frame.adapter.clone(),
-                    reference_seconds: reference.stats.seconds,
-                    errors: stimulus_errors(ground_truth, &shown, &reference.affected_mask, &reference.virtual_mask),
-                };
-                let bytes = serde_json::to_vec_pretty(&record).expect("a stimulus record serialises");
-                let record_name = store_bytes(&bytes, "json", store).map_err(io(store))?;
-                write_entry(store, &stimulus.record_key(), &record_name)?;
-                rendered.records += 1;
+            Ok(())
+        };
+        render_realisation(
+            &planned.scene,
+            &planned.stimuli,
+            &photo,
+            reference.as_ref().map(|(reference, shown, name)| (reference, shown, name)),
+            &mut rendered,
+        )?;
+        // further realisations: the same radiance through the camera with another noise seed
+        if let Some((reference, _, _)) = &reference {
+            for realisation in &planned.realisations {
+                let camera = &realisation.scene.camera;
+                let sensor = &realisation.scene.sensor;
+                let photo = mrstudy_renderer::sensor::apply(&reference.hdr_real, camera, sensor);
+                let shown = quantized(&mrstudy_renderer::sensor::apply(&reference.hdr_full, camera, sensor));
+                let name = store_ground_truth(store, &realisation.ground_truth_key, &shown, &mut rendered)?;
+                render_realisation(
+                    &realisation.scene,
+                    &realisation.stimuli,
+                    &photo,
+                    Some((reference, &shown, &name)),
+                    &mut rendered,
+                )?;
             }
-            progress(Progress::Stimulus {
-                scene: stimulus.scene.clone(),
-                condition: stimulus.condition.clone(),
-                ms: frame.ms,
-            });
         }
     }
     Ok(rendered)
 }
 
+/// The stored ground truth under `key`, storing `shown` first where it is not there yet.
+fn store_ground_truth(store: &Path, key: &str, shown: &Image, rendered: &mut Rendered) -> Result<String, StimuliError> {
+    if let Some(name) = lookup(store, key) {
+        return Ok(name);
+    }
+    let name = store_bytes(&shown.encode_png(), "png", store)
+        .map_err(|source| StimuliError::Io { path: store.to_path_buf(), source })?;
+    write_entry(store, key, &name)?;
+    rendered.ground_truths += 1;
+    Ok(name)
+}
+
 /// The study's stimulus metrics CSV (docs/design.md): `stimulus,scene,condition,metric,region,value`,
-/// one row per stimulus, metric and region, `render_ms` in region `image`; and one sentence per
+/// one row per stimulus, metric and region, `render_ms` in region `image` (realisation 0 of each
+/// scene configuration only: further sensor-noise realisations differ from it in noise alone,
+/// and the CSV is joined to trials by scene and condition); and one sentence per
 /// scene configuration that has no ground truth (image files, or a background photograph).
 /// A rendered stimulus without its record in `store` is an error naming it (render it first).
 pub fn metrics_csv(study: &Study, plan: &StimulusPlan, store: &Path) -> Result<(String, Vec<String>), StimuliError> {
@@ -589,7 +709,7 @@ pub fn write_copies(study: &Study, plan: &StimulusPlan, store: &Path, dir: &Path
     for (scene, planned) in study.scenes.iter().zip(&plan.scenes) {
         match (planned, &scene.source) {
             (Some(planned), _) => {
-                for stimulus in &planned.stimuli {
+                for stimulus in planned.all_stimuli() {
                     let name = lookup(store, &stimulus.key).ok_or_else(|| StimuliError::Io {
                         path: store.join("rendered").join(&stimulus.key),
                         source: std::io::Error::new(
@@ -598,8 +718,11 @@ pub fn write_copies(study: &Study, plan: &StimulusPlan, store: &Path, dir: &Path
                         ),
                     })?;
                     let extension = Path::new(&name).extension().and_then(|e| e.to_str()).unwrap_or("png").to_string();
+                    // realisation k > 0 of a detection design: `<scene>__<condition>__r<k>`
+                    let realisation =
+                        if stimulus.realisation == 0 { String::new() } else { format!("__r{}", stimulus.realisation) };
                     let copy = dir.join(format!(
-                        "{}__{}.{extension}",
+                        "{}__{}{realisation}.{extension}",
                         file_safe(&stimulus.scene),
                         file_safe(&stimulus.condition)
                     ));

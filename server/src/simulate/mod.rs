@@ -46,6 +46,7 @@
 //! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
 //! `[{factor, effect, power, mcse}]`.
 
+pub mod familiarity;
 #[cfg(test)]
 mod tests;
 

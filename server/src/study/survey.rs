@@ -68,6 +68,8 @@ pub(super) struct StudyFile {
     completion: Completion,
     #[serde(default = "default_min_response_ms")]
     min_response_ms: i64,
+    #[serde(default = "default_answer_lock_ms")]
+    answer_lock_ms: i64,
     #[serde(default)]
     unique_external_id: bool,
     #[serde(default)]
@@ -84,6 +86,10 @@ pub(super) struct StudyFile {
 
 fn default_min_response_ms() -> i64 {
     300
+}
+
+fn default_answer_lock_ms() -> i64 {
+    500
 }
 
 fn default_abandon_after_minutes() -> u32 {
@@ -137,6 +143,10 @@ pub struct Participation {
     /// Responses faster than this (client response time or server time since serving the trial)
     /// are stored and flagged `too_fast`; the page accepts no answer before it.
     pub min_response_ms: u32,
+    /// After an answer (and after "Start") the page takes no press that begins sooner than this,
+    /// nor one before the next pair is painted: the second click of a slow double click, or a
+    /// double tap, never answers the next trial.
+    pub answer_lock_ms: u32,
     /// One run per value of the study's first URL parameter that is present (e.g.
     /// `PROLIFIC_PID`): a second join with the same value resumes the first run.
     pub unique_external_id: bool,
@@ -155,6 +165,7 @@ impl Default for Participation {
     fn default() -> Self {
         Participation {
             min_response_ms: default_min_response_ms() as u32,
+            answer_lock_ms: default_answer_lock_ms() as u32,
             unique_external_id: false,
             min_viewport: None,
             devices: Vec::new(),
@@ -344,6 +355,13 @@ struct DesignFile {
     /// `"ground-truth"`: the detection design ("real or rendered?").
     #[serde(default)]
     reference: Option<String>,
+    /// Detection designs only: sensor-noise realisations per scene configuration (default 1).
+    #[serde(default)]
+    realisations: Option<u32>,
+    /// Detection designs only: what the reference image is, in words for the participant pages
+    /// and the admin (default: "a path-traced render of the whole scene").
+    #[serde(default)]
+    reference_label: Option<String>,
     #[serde(default)]
     anchors: Vec<String>,
     #[serde(default)]
@@ -434,7 +452,24 @@ pub struct Design {
     /// Set for `reference = "ground-truth"`.
     #[serde(default)]
     pub reference: Option<DesignReference>,
+    /// Sensor-noise realisations of each scene configuration (1 unless a detection design asks
+    /// for more): realisation k > 0 is the same path-traced radiance through the same simulated
+    /// camera with another noise seed, with its own ground truth and its own stimuli rendered
+    /// over its own photograph, so no ground-truth picture need be shown twice.
+    #[serde(default = "default_realisations")]
+    pub realisations: u32,
+    /// What the reference of a detection design is, in words (`reference_label`): shown to
+    /// researchers and available to the texts; never "a photograph" unless it is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_label: Option<String>,
 }
+
+fn default_realisations() -> u32 {
+    1
+}
+
+/// The most sensor-noise realisations a detection design may ask for per scene configuration.
+pub const MAX_REALISATIONS: u32 = 16;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -984,6 +1019,14 @@ fn check_design(
             );
         }
     };
+    for (key, given) in [
+        ("design.realisations", design.realisations.is_some()),
+        ("design.reference_label", design.reference_label.is_some()),
+    ] {
+        if given {
+            return Err(fail.at(key, "expected only with reference = \"ground-truth\" (a detection design)"));
+        }
+    }
     if rule != "anchored" && !design.anchors.is_empty() {
         return Err(fail.at("design.anchors", format!("expected only with {} = \"anchored\"", &rule_key[7..])));
     }
@@ -1024,6 +1067,8 @@ fn check_design(
         seed: design.seed,
         active,
         reference: None,
+        realisations: 1,
+        reference_label: None,
     })
 }
 
@@ -1090,6 +1135,15 @@ fn check_detection(
     if repetitions == 0 || repetitions > 100 {
         return Err(fail.at("design.repetitions", format!("expected 1 to 100, found {repetitions}")));
     }
+    let realisations = design.realisations.unwrap_or(1);
+    if realisations == 0 || realisations > MAX_REALISATIONS {
+        return Err(fail.at("design.realisations", format!("expected 1 to {MAX_REALISATIONS}, found {realisations}")));
+    }
+    if let Some(label) = &design.reference_label
+        && label.trim().is_empty()
+    {
+        return Err(fail.at("design.reference_label", "expected a non-empty text saying what the reference image is"));
+    }
     let truth = conditions.len();
     Ok(Design {
         pairs_rule: GROUND_TRUTH.into(),
@@ -1099,6 +1153,8 @@ fn check_detection(
         seed: design.seed,
         active: None,
         reference: Some(DesignReference::GroundTruth),
+        realisations,
+        reference_label: design.reference_label.clone(),
     })
 }
 
@@ -1313,6 +1369,9 @@ pub const TRIALS_CSV_COLUMNS: &[&str] = &[
 /// The participation keys: response-time floor, external ids, screen requirements.
 fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, StudyError> {
     let min_response_ms = check_min_response_ms(fail, raw.min_response_ms)?;
+    if !(0..=10_000).contains(&raw.answer_lock_ms) {
+        return Err(fail.at("answer_lock_ms", format!("expected 0 to 10000 ms, found {}", raw.answer_lock_ms)));
+    }
     if let Some([width, height]) = raw.min_viewport
         && (width == 0 || height == 0 || width > 10_000 || height > 10_000)
     {
@@ -1339,6 +1398,7 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
     };
     Ok(Participation {
         min_response_ms,
+        answer_lock_ms: raw.answer_lock_ms as u32,
         unique_external_id: raw.unique_external_id,
         min_viewport: raw.min_viewport,
         devices,

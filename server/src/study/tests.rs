@@ -224,6 +224,25 @@ fn a_detection_design_pairs_every_condition_with_the_ground_truth_and_names_each
 }
 
 #[test]
+fn a_detection_design_takes_realisations_and_a_reference_label_and_nothing_else_does() {
+    let design = "reference = \"ground-truth\"\nrepetitions = 2\nscenes = \"same\"";
+    let study = detection(design).unwrap();
+    assert_eq!((study.design.realisations, study.design.reference_label.as_deref()), (1, None));
+    let study = detection(&format!("{design}\nrealisations = 4\nreference_label = \"a path-traced render\"")).unwrap();
+    assert_eq!((study.design.realisations, study.design.reference_label.as_deref()), (4, Some("a path-traced render")));
+    for (extra, key, words) in [
+        ("realisations = 0", "design.realisations", "1 to 16"),
+        ("realisations = 17", "design.realisations", "1 to 16"),
+        ("reference_label = \" \"", "design.reference_label", "non-empty"),
+    ] {
+        let error = detection(&format!("{design}\n{extra}")).unwrap_err();
+        assert!(error.key == key && error.expected.contains(words), "{error}");
+    }
+    let error = detection("pairs = \"all\"\nrepetitions = 1\nscenes = \"different\"\nrealisations = 2").unwrap_err();
+    assert!(error.key == "design.realisations" && error.expected.contains("detection design"), "{error}");
+}
+
+#[test]
 fn no_condition_may_be_named_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
     let file = write_study(dir.path(), &MINIMAL.replace("name = \"GI\"", "name = \"ground-truth\""));
@@ -302,4 +321,20 @@ fn named_levels_are_refused_naming_the_key_when_mixed_unknown_or_unrenderable() 
     let error = refused(clash);
     assert_eq!(error.key, "factors");
     assert!(error.expected.contains("gi_dit"), "{}", error.expected);
+}
+
+#[test]
+fn answer_lock_ms_defaults_to_500_and_is_refused_outside_0_to_10000_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = load_study(&write_study(dir.path(), MINIMAL)).unwrap();
+    assert_eq!(study.participation.answer_lock_ms, 500);
+    let with = |line: &str| MINIMAL.replace("question = \"Q?\"", &format!("question = \"Q?\"\n{line}"));
+    let study = load_study(&write_study(dir.path(), &with("answer_lock_ms = 800"))).unwrap();
+    assert_eq!(study.participation.answer_lock_ms, 800);
+    // the resolved study (the `definition` stored and the page's `data-answer-lock-ms`) carries it
+    assert_eq!(serde_json::to_value(&study).unwrap()["participation"]["answer_lock_ms"], 800);
+    for bad in ["answer_lock_ms = -1", "answer_lock_ms = 10001"] {
+        let message = load_study(&write_study(dir.path(), &with(bad))).unwrap_err().to_string();
+        assert!(message.contains("answer_lock_ms") && message.contains("0 to 10000"), "{message}");
+    }
 }
