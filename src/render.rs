@@ -1,7 +1,8 @@
 //! `mrstudy render`: the flags, then `scene::load_as`, and `reference::render_to_file` (the CPU
 //! reference path tracer: `--photo`, `--reference`) or `stimulus::render_condition_to_file`
 //! (a condition on the GPU over the path-traced photograph) or `coherent::render::render_to_file`
-//! (`--gi-method`: Rohmer et al.'s methods from a simulated capture) with a progress bar.
+//! (`--gi-method`: Rohmer et al.'s methods from a simulated capture) with a progress bar;
+//! `--contact-sheet`: `contact_sheet::render` over the web survey's conditions or a study's.
 
 use std::path::PathBuf;
 
@@ -11,8 +12,8 @@ use mrstudy_renderer::coherent::{CoherentParams, Method, Quality};
 use mrstudy_renderer::gpu::GiLevel;
 use mrstudy_renderer::reference::{ReferenceParams, Target, render_to_file};
 use mrstudy_renderer::sensor::SensorParams;
-use mrstudy_renderer::stimulus::{Factors, RenderKnobs, render_condition_to_file};
-use mrstudy_renderer::{builtin, scene};
+use mrstudy_renderer::stimulus::{Factors, RenderKnobs, StimulusSettings, render_condition_to_file};
+use mrstudy_renderer::{builtin, contact_sheet, scene};
 
 use crate::progress::progress_bar;
 
@@ -70,6 +71,65 @@ pub struct RenderArgs {
     /// Print the scene as a scene file (TOML) and exit.
     #[arg(long)]
     print_toml: bool,
+    /// Write a contact sheet (PNG): the ground truth, the photograph and the stimulus of each
+    /// condition side by side, labelled, rendered as a study renders them (default size 200x150).
+    #[arg(long, value_name = "FILE.png", conflicts_with_all = ["reference", "photo", "condition", "factors", "gi_method", "out"])]
+    contact_sheet: Option<PathBuf>,
+    /// The conditions of the contact sheet: those of this study file (default: the web survey's
+    /// eight, LQ … HQ).
+    #[arg(long, value_name = "FILE", requires = "contact_sheet")]
+    study: Option<PathBuf>,
+}
+
+/// The web survey's conditions (`studies/web-survey.toml`): every combination of gi, cm, ca.
+const SURVEY_CONDITIONS: [(&str, &str); 8] = [
+    ("LQ", ""),
+    ("GI", "gi"),
+    ("CM", "cm"),
+    ("CA", "ca"),
+    ("GI+CM", "gi,cm"),
+    ("GI+CA", "gi,ca"),
+    ("CM+CA", "cm,ca"),
+    ("HQ", "gi,cm,ca"),
+];
+
+/// `--contact-sheet`: the ground truth and every condition of `--study` (or the web survey's).
+fn contact_sheet(args: &RenderArgs, name: &str, out: &std::path::Path) -> Result<()> {
+    let conditions: Vec<(String, Factors)> = match &args.study {
+        None => SURVEY_CONDITIONS
+            .iter()
+            .map(|(label, factors)| (label.to_string(), Factors::parse_list(factors).expect("a known factor list")))
+            .collect(),
+        Some(file) => match mrstudy_server::study::load_any(file)? {
+            mrstudy_server::study::LoadedStudy::Survey(study) => study
+                .conditions
+                .into_iter()
+                .map(|c| c.factors.map(|f| (c.name.clone(), f)).map_err(|why| anyhow::anyhow!("{}: {why}", c.name)))
+                .collect::<Result<_>>()?,
+            mrstudy_server::study::LoadedStudy::Task(_) => {
+                bail!("{} is a task study; name a paired-comparison study", file.display())
+            }
+        },
+    };
+    let (width, height) = args.size.unwrap_or((200, 150));
+    let settings = StimulusSettings { width, height, spp: args.spp, seed: args.seed, ..StimulusSettings::default() };
+    let scene = scene::load_as(name, Some((width, height)), args.camera.clone())?;
+    scene.warnings.iter().for_each(|warning| eprintln!("warning: {warning}"));
+    let renderer = mrstudy_renderer::gpu::DirRenderer::new()?;
+    let bar =
+        progress_bar(2 * args.spp as u64 + conditions.len() as u64, &format!("{} contact sheet", scene.name), "steps");
+    let sheet =
+        contact_sheet::render(&renderer, &scene, &settings, &conditions, &|done, _| bar.set_position(done as u64));
+    bar.finish_and_clear();
+    sheet?.save_png(out)?;
+    eprintln!(
+        "wrote {} ({} conditions at {width}x{height}, {} spp, on {})",
+        out.display(),
+        conditions.len(),
+        args.spp,
+        renderer.ctx.adapter_name()
+    );
+    Ok(())
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -78,6 +138,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return Ok(());
     }
     let name = args.scene.as_deref().context("--scene NAME|FILE is required (see `mrstudy render --list`)")?;
+    if let Some(out) = &args.contact_sheet {
+        return contact_sheet(&args, name, out);
+    }
     let gpu = args.condition.is_some() || args.factors.is_some() || args.knobs.cm.is_some();
     // conditions render at 1024x768 unless --size says otherwise
     let size = args.size.or(gpu.then_some((1024, 768)));

@@ -26,6 +26,7 @@
 //! - [`image`]: linear RGB float images, masks, PNG/EXR input and output.
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
 //!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
+//! - [`contact_sheet`]: a scene's ground truth, photograph and stimuli side by side, labelled.
 //! - [`surface`]: the G-buffer's per-pixel surface flag (nothing, real, virtual).
 //! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
 //!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
@@ -41,6 +42,7 @@ pub mod camera;
 pub mod capture;
 pub mod cm;
 pub mod coherent;
+pub mod contact_sheet;
 pub mod error;
 pub mod geometry;
 pub mod gpu;

@@ -216,12 +216,18 @@ fn table_lamp(objects: &mut Vec<ObjectDesc>, lights: &mut Vec<LightDesc>, colour
     });
     objects
         .push(ObjectDesc { radius: Some(0.014), ..obj(&format!("{name}-bulb"), role, "sphere", "bulb", [x, 0.25, z]) });
+    // The light hangs 1 cm below the bulb, inside the shade, 16 mm off the stem's axis towards
+    // where it points: clear of the stem (radius 6 mm, up to the bulb's socket at y = 0.235)
+    // and of the bulb (radius 14 mm about y = 0.25). On the axis it sat on the stem's top cap
+    // and every ray of its cone started inside the stem: the lamp lit nothing.
+    let direction: [f32; 3] = [0.15, -1.0, 0.2];
+    let off = 0.016 / (direction[0] * direction[0] + direction[2] * direction[2]).sqrt();
     lights.push(LightDesc {
         name: format!("{name}-light"),
         kind: "spot".into(),
         role: Some(role),
-        position: [x, 0.235, z],
-        direction: Some([0.15, -1.0, 0.2]),
+        position: [x + direction[0] * off, 0.226, z + direction[2] * off],
+        direction: Some(direction),
         inner_deg: Some(35.0),
         outer_deg: Some(55.0),
         intensity: 0.35,

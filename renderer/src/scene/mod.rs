@@ -22,6 +22,10 @@ use std::sync::Arc;
 
 pub mod builtin;
 pub mod desc;
+pub mod light_check;
+
+#[cfg(test)]
+mod intent_tests;
 
 pub use desc::*;
 
@@ -174,6 +178,8 @@ impl Scene {
         }
 
         let mut spots = Vec::new();
+        // the objects that are area lights' emitters
+        let mut area_lights = Vec::new();
         for (i, l) in desc.lights.iter().enumerate() {
             let key = format!("lights[{i}]");
             let role = l.role.unwrap_or(Role::Real);
@@ -240,6 +246,7 @@ impl Scene {
                     let mut mat = Material::diffuse(&format!("{name}-emitter"), Vec3::ZERO);
                     mat.emission = color * l.intensity;
                     materials.push(mat);
+                    area_lights.push(objects.len());
                     objects.push(SceneObject {
                         name,
                         role,
@@ -284,6 +291,7 @@ impl Scene {
             warnings: ctx.warnings,
             desc,
         };
+        scene.warnings.extend(light_check::warnings(&scene.objects, &scene.spots, &area_lights));
         if let Some(inside) = scene.object_containing_camera() {
             scene.warnings.push(format!(
                 "the camera is inside object `{inside}`; its view is blocked by that object's inner faces"
