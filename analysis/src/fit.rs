@@ -93,7 +93,9 @@ impl Method {
 /// Convergence settings.
 #[derive(Debug, Clone, Copy)]
 pub struct FitOptions {
-    /// Converged when the largest parameter change of an iteration is below this.
+    /// Converged when the largest parameter change of an iteration is below this (for Firth's
+    /// fit: of the full scoring step I⁻¹·U*, the gradient, however far the line search shrank
+    /// the step taken).
     pub tolerance: f64,
     pub max_iterations: usize,
 }
@@ -352,8 +354,67 @@ pub fn fit_ml(
     Err(FitFailure::NotConverged { iterations: options.max_iterations, last_change })
 }
 
+/// Firth's scoring direction at β: the modified score U*(β) (the gradient of the penalised
+/// log-likelihood l(β) + ½·log|I(β)| for the logit link) and the scoring step I(β)⁻¹·U*(β).
+/// `None` where the information is singular.
+fn firth_direction(observations: &[Observation], beta: &[f64], p: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let (_, information, _) = score_and_information(observations, beta, p);
+    let covariance = inverse(&information)?;
+    let mut modified_score = vec![0.0; p];
+    for o in observations {
+        let eta = eta(o, beta);
+        let pi = sigmoid(eta);
+        let weight = o.n * pi * (1.0 - pi);
+        let mut quadratic = 0.0;
+        for &(a, va) in &o.design {
+            for &(b, vb) in &o.design {
+                quadratic += va * vb * covariance[(a, b)];
+            }
+        }
+        let leverage = weight * quadratic;
+        let residual = o.wins - o.n * pi + leverage * (0.5 - pi);
+        for &(a, va) in &o.design {
+            modified_score[a] += va * residual;
+        }
+    }
+    let step: Vec<f64> = (0..p).map(|a| (0..p).map(|b| covariance[(a, b)] * modified_score[b]).sum()).collect();
+    step.iter().all(|s| s.is_finite()).then_some((modified_score, step))
+}
+
+/// Sufficient increase of a step (Armijo): the penalised log-likelihood must rise by at least
+/// this fraction of what its slope at β promises, so a step across the maximum to a point no
+/// higher (the scoring iteration's 2-cycle) is refused.
+const FIRTH_SUFFICIENT_INCREASE: f64 = 1e-4;
+
+/// Below this relative change of the penalised log-likelihood, the change is measured by the
+/// trapezoid rule on its directional derivatives rather than as a difference of two values:
+/// those are exact to about 1e-15 relative, so a smaller difference is mostly rounding.
+const FIRTH_DIRECT_CHANGE: f64 = 1e-9;
+
+/// The line search halves the step at most this often (a scale of 2⁻⁴⁰ ≈ 1e-12).
+const FIRTH_HALVINGS: usize = 40;
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn largest_magnitude(values: &[f64]) -> f64 {
+    values.iter().fold(0.0, |m, v| m.max(v.abs()))
+}
+
 /// Firth's bias-reduced fit (Jeffreys-prior penalised likelihood), as BradleyTerry2's
 /// `br = TRUE`. Exists under separation.
+///
+/// Step control: each iteration goes along the scoring step d = I⁻¹·U* (an ascent direction
+/// of the penalised log-likelihood ℓ*, as I is positive definite), halved until ℓ* rises by at
+/// least [`FIRTH_SUFFICIENT_INCREASE`] of its slope's promise. A step that does not improve ℓ*
+/// is never taken: near the maximum, where ℓ* is flat to rounding, the rise is measured by
+/// the trapezoid rule on the directional derivative U*ᵀd at both ends (exact for a quadratic,
+/// which ℓ* is there). Convergence is judged on the gradient, not on a shrunken step: the fit
+/// has converged when the full scoring step, the modified score in the metric of I⁻¹, is below
+/// the tolerance in every parameter. When no halving improves ℓ*, β is kept and the fit has
+/// converged if that step is below √tolerance (the maximum to the precision the arithmetic
+/// allows), else it fails with that step's size.
 pub fn fit_firth(pairs: &[PairTally], x: &ModelMatrix, options: FitOptions) -> Result<Fit, FitFailure> {
     let observations = observations(pairs, x);
     let p = x.n_params;
@@ -363,51 +424,59 @@ pub fn fit_firth(pairs: &[PairTally], x: &ModelMatrix, options: FitOptions) -> R
     }
     let penalised = |beta: &[f64]| -> Option<f64> {
         let (_, information, _) = score_and_information(&observations, beta, p);
-        Some(kernel_log_likelihood(&observations, beta) + 0.5 * log_det(&information)?)
+        let value = kernel_log_likelihood(&observations, beta) + 0.5 * log_det(&information)?;
+        value.is_finite().then_some(value)
     };
     let mut objective = penalised(&beta).ok_or(FitFailure::Singular)?;
-    let mut last_change = f64::INFINITY;
-    for iteration in 1..=options.max_iterations {
-        let (_, information, _) = score_and_information(&observations, &beta, p);
-        let covariance = inverse(&information).ok_or(FitFailure::Singular)?;
-        let mut modified_score = vec![0.0; p];
-        for o in &observations {
-            let eta = eta(o, &beta);
-            let pi = sigmoid(eta);
-            let weight = o.n * pi * (1.0 - pi);
-            let mut quadratic = 0.0;
-            for &(a, va) in &o.design {
-                for &(b, vb) in &o.design {
-                    quadratic += va * vb * covariance[(a, b)];
-                }
-            }
-            let leverage = weight * quadratic;
-            let residual = o.wins - o.n * pi + leverage * (0.5 - pi);
-            for &(a, va) in &o.design {
-                modified_score[a] += va * residual;
-            }
-        }
-        let step: Vec<f64> = (0..p).map(|a| (0..p).map(|b| covariance[(a, b)] * modified_score[b]).sum()).collect();
-        let mut scale = 1.0;
-        let mut candidate;
-        loop {
-            candidate = beta.iter().zip(&step).map(|(b, s)| b + scale * s).collect::<Vec<_>>();
-            match penalised(&candidate) {
-                Some(value) if value >= objective - 1e-12 * objective.abs().max(1.0) => {
-                    objective = value;
-                    break;
-                }
-                _ if scale < 1e-6 => break,
-                _ => scale *= 0.5,
-            }
-        }
-        last_change = step.iter().map(|s| (scale * s).abs()).fold(0.0, f64::max);
-        beta = candidate;
-        if last_change < options.tolerance {
+    let (mut modified_score, mut step) = firth_direction(&observations, &beta, p).ok_or(FitFailure::Singular)?;
+    for iteration in 0..options.max_iterations {
+        let size = largest_magnitude(&step);
+        if size < options.tolerance {
             return finish(Method::Firth, &observations, beta, iteration);
         }
+        // U*ᵀd = U*ᵀI⁻¹U* > 0: the slope of ℓ* along d at β.
+        let slope = dot(&modified_score, &step);
+        let mut scale = 1.0;
+        let mut accepted = None;
+        for _ in 0..=FIRTH_HALVINGS {
+            let candidate: Vec<f64> = beta.iter().zip(&step).map(|(b, s)| b + scale * s).collect();
+            if let Some(value) = penalised(&candidate) {
+                let required = FIRTH_SUFFICIENT_INCREASE * scale * slope;
+                let change = value - objective;
+                if change.abs() > FIRTH_DIRECT_CHANGE * objective.abs().max(1.0) {
+                    if change >= required {
+                        accepted = Some((candidate, value, None));
+                        break;
+                    }
+                } else if let Some((next_score, next_step)) = firth_direction(&observations, &candidate, p) {
+                    let trapezoid = 0.5 * scale * (slope + dot(&next_score, &step));
+                    if trapezoid >= required {
+                        accepted = Some((candidate, value, Some((next_score, next_step))));
+                        break;
+                    }
+                }
+            }
+            scale *= 0.5;
+        }
+        let Some((candidate, value, direction)) = accepted else {
+            // No step improves ℓ*: β is its maximum as far as the arithmetic can tell, if the
+            // gradient says so too.
+            if size < options.tolerance.sqrt() {
+                return finish(Method::Firth, &observations, beta, iteration);
+            }
+            return Err(FitFailure::NotConverged { iterations: iteration, last_change: size });
+        };
+        beta = candidate;
+        objective = value;
+        (modified_score, step) = match direction {
+            Some(direction) => direction,
+            None => firth_direction(&observations, &beta, p).ok_or(FitFailure::Singular)?,
+        };
     }
-    Err(FitFailure::NotConverged { iterations: options.max_iterations, last_change })
+    if largest_magnitude(&step) < options.tolerance {
+        return finish(Method::Firth, &observations, beta, options.max_iterations);
+    }
+    Err(FitFailure::NotConverged { iterations: options.max_iterations, last_change: largest_magnitude(&step) })
 }
 
 #[cfg(test)]
@@ -449,6 +518,43 @@ mod tests {
         let x = ModelMatrix::items(2, &[0, 1], 0);
         let fit = fit_firth(&pairs, &x, FitOptions::default()).unwrap();
         assert!((fit.beta[0] - (12.5f64 / 0.5).ln()).abs() < 1e-9, "{}", fit.beta[0]);
+    }
+
+    /// One judgment, won: the penalised log-likelihood 1.5·ln π + 0.5·ln(1 − π) has its
+    /// maximum at π = ¾ (Haldane: (1 + ½)/(0 + ½) = 3), where its curvature is twice the
+    /// information, so the plain scoring step overshoots by exactly a factor 2 and the
+    /// iteration circles the maximum. The old step control took every step that did not lower
+    /// the objective by more than 1e-12 relative and stopped with "did not converge in 200
+    /// iterations".
+    #[test]
+    fn firth_with_one_judgment_converges_to_the_haldane_logit() {
+        let pairs = [tally(0, 1, 0, 1)];
+        let x = ModelMatrix::items(2, &[0, 1], 0);
+        let fit = fit_firth(&pairs, &x, FitOptions::default()).unwrap();
+        assert!((fit.beta[0] - 3f64.ln()).abs() < 1e-9, "{}", fit.beta[0]);
+    }
+
+    /// Stimuli judged once or twice, each only winning or only losing against a well-judged
+    /// pair (the early data of a stimulus model): every stimulus of one judgment is a direction
+    /// in which the scoring step overshoots twofold. Converges, and to the maximum of the
+    /// penalised log-likelihood: its modified score vanishes there.
+    #[test]
+    fn firth_converges_with_one_sided_stimuli_of_one_judgment() {
+        let pairs = [
+            tally(0, 1, 6, 4),
+            tally(0, 2, 1, 0),
+            tally(1, 3, 0, 1),
+            tally(2, 4, 1, 0),
+            tally(3, 5, 0, 2),
+            tally(1, 5, 1, 0),
+            tally(0, 6, 0, 1),
+        ];
+        let x = ModelMatrix::items(7, &[0, 1, 2, 3, 4, 5, 6], 0);
+        let fit = fit_firth(&pairs, &x, FitOptions::default()).unwrap();
+        let observations = observations(&pairs, &x);
+        let (modified_score, _) = firth_direction(&observations, &fit.beta, x.n_params).unwrap();
+        assert!(largest_magnitude(&modified_score) < 1e-9, "U* = {modified_score:?}");
+        assert!(fit.iterations < 100, "{} iterations", fit.iterations);
     }
 
     #[test]
