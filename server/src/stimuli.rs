@@ -770,4 +770,71 @@ mod tests {
         assert_eq!(std::fs::read(dir.path().join(&a)).unwrap(), b"abc");
         assert!(crate::prepared::stimulus_content_type(&a).is_some());
     }
+
+    const REALISED: &str = r#"
+slug = "realised"
+title = "T"
+kind = "paired-comparison"
+question = "Q?"
+[texts]
+welcome = "w"
+consent = "c"
+instructions = "i"
+[[factors]]
+name = "ca"
+[[conditions]]
+name = "LQ"
+levels = { ca = 0 }
+[[conditions]]
+name = "CA"
+levels = { ca = 1 }
+[[scenes]]
+name = "a"
+render = "survey-1"
+[render]
+size = [48, 36]
+spp = 2
+[design]
+reference = "ground-truth"
+realisations = 2
+repetitions = 1
+scenes = "same"
+"#;
+
+    #[test]
+    fn a_realisation_is_the_same_radiance_through_the_camera_with_another_noise_seed() {
+        if DirRenderer::new().is_err() {
+            eprintln!("skipped: no GPU adapter (not even a software one)");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("realised.toml");
+        std::fs::write(&file, REALISED).unwrap();
+        let study = crate::study::load_study(&file).unwrap();
+        let plan = StimulusPlan::of(&study).unwrap();
+        let store = dir.path().join("store");
+        let rendered = render_missing(&study, &plan, &store, &|_| {}).unwrap();
+        assert_eq!(rendered, Rendered { stimuli: 4, ground_truths: 2, records: 4 });
+        assert!(plan.incomplete(&store).is_empty());
+        let planned = plan.scenes[0].as_ref().unwrap();
+        let realisation = &planned.realisations[0];
+        let load = |key: &str| Image::load(&store.join(lookup(&store, key).unwrap()), "test").unwrap();
+        let (first, second) = (load(planned.ground_truth_key.as_ref().unwrap()), load(&realisation.ground_truth_key));
+        // the pass through the camera of the kept radiance equals a whole reference render of
+        // the realised scene: the path tracer's radiance does not depend on the noise seed
+        let whole = plan.settings.reference(&realisation.scene, &|_, _| {}).unwrap();
+        assert_eq!(quantized(&whole.ground_truth).encode_png(), second.encode_png());
+        // another noise realisation: different pixels, the same picture on average
+        let differing = first.pixels.iter().zip(&second.pixels).filter(|(a, b)| a != b).count();
+        assert!(differing * 4 > first.pixels.len(), "{differing} of {} pixels differ", first.pixels.len());
+        let mean = |image: &Image| {
+            image.pixels.iter().map(|p| f64::from(p.x + p.y + p.z) / 3.0).sum::<f64>() / image.pixels.len() as f64
+        };
+        assert!((mean(&first) - mean(&second)).abs() < 0.02, "{} vs {}", mean(&first), mean(&second));
+        // the stimuli of realisation 1 differ from realisation 0's (rendered over its photograph)
+        for (zero, one) in planned.stimuli.iter().zip(&realisation.stimuli) {
+            assert_ne!(lookup(&store, &zero.key), lookup(&store, &one.key), "{}", zero.condition);
+            assert!(lookup_record(&store, one).is_some_and(|record| record.ground_truth == lookup(&store, &realisation.ground_truth_key).unwrap()));
+        }
+    }
 }
