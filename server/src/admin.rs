@@ -1073,15 +1073,12 @@ async fn create_preview(
         .bind(&slug)
         .fetch_optional(&state.storage().admin)
         .await?;
-    match kind.as_deref() {
+    // a lab task study's preview opens its lab page; its participants are pilots too
+    let page = match kind.as_deref() {
         None => return Err(AppError::NotFound(format!("There is no study \"{slug}\"."))),
-        Some("task") => {
-            return Err(AppError::Unprocessable(format!(
-                "Study \"{slug}\" is a lab task study, which has no web preview; open it from the lab page."
-            )));
-        }
-        Some(_) => {}
-    }
+        Some("task") => "lab",
+        Some(_) => "studies",
+    };
     let token = crate::random_hex(32);
     state
         .storage()
@@ -1090,7 +1087,7 @@ async fn create_preview(
             token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
         })
         .await??;
-    Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/studies/{slug}?preview={token}") })))
+    Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/{page}/{slug}?preview={token}") })))
 }
 
 /// One row of the page's participants table, as text.

@@ -112,6 +112,8 @@ fn kind(method: &Method, path: &str) -> Kind {
     let parts: Vec<&str> = path.trim_end_matches('/').split('/').collect();
     match (method, parts.as_slice()) {
         (&Method::POST, ["", "api", "studies", _, "participants"]) => Kind::Join,
+        // a lab participant (task::join) joins under the same limit
+        (&Method::POST, ["", "api", "lab", _, "participants"]) => Kind::Join,
         (&Method::POST, ["", "api", "participants", _, "responses"]) => Kind::Response,
         (_, ["", "api", "admin", ..]) | (_, ["", "admin", ..]) => Kind::Admin,
         _ => Kind::None,
@@ -241,6 +243,7 @@ mod tests {
     fn requests_fall_under_their_limit_by_method_and_path() {
         assert!(matches!(kind(&Method::POST, "/api/studies/s/participants"), Kind::Join));
         assert!(matches!(kind(&Method::GET, "/api/studies/s/participants"), Kind::None));
+        assert!(matches!(kind(&Method::POST, "/api/lab/s/participants"), Kind::Join));
         assert!(matches!(kind(&Method::POST, "/api/participants/p/responses"), Kind::Response));
         assert!(matches!(kind(&Method::GET, "/admin/login"), Kind::Admin));
         assert!(matches!(kind(&Method::GET, "/api/admin/studies"), Kind::Admin));

@@ -55,6 +55,9 @@ pub struct ServeConfig {
     /// How long the server waits for a client, and for how many at once.
     #[command(flatten)]
     pub connections: Connections,
+    /// The lab's origins and sessions per address.
+    #[command(flatten)]
+    pub lab: crate::task::LabConfig,
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
@@ -366,11 +369,14 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
             let tasks = prepared.tasks;
             let data_dir = config.data_dir.clone();
             let idle_timeout = config.connections.lab_idle_timeout;
+            let lab_config = config.lab.clone();
             tokio::spawn(async move {
                 let slugs: Vec<String> = tasks.iter().map(|task| task.slug.clone()).collect();
                 let (info, warnings) = start_lab(&state, tasks, &data_dir).await;
                 if let Some(lab) = state.lab() {
                     lab.set_idle_timeout(idle_timeout);
+                    lab.set_sessions_per_address(lab_config.sessions_per_address);
+                    lab.set_origins(lab_config.allowed_origins(local));
                 }
                 for line in &warnings {
                     eprintln!("warning: {line}");

@@ -780,7 +780,7 @@ pub enum AdminWritten {
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct Deletion {
     pub study: String,
-    /// `participant` or `screen-out`.
+    /// `participant`, `lab-participant` or `screen-out`.
     pub kind: &'static str,
     /// The participant's ordinal within the study (absent for a screen-out).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -816,7 +816,9 @@ impl Storage {
             // A full vacuum rewrites the tables into new files without the dead rows (the old
             // files are removed); PostgreSQL's own WAL keeps the old rows until it is recycled.
             Backend::Postgres => {
-                sqlx::query("VACUUM FULL responses, trials, participants, screen_outs").execute(&self.admin).await?;
+                sqlx::query("VACUUM FULL responses, trials, participants, screen_outs, task_trials, task_participants")
+                    .execute(&self.admin)
+                    .await?;
             }
         }
         Ok(Ok(deletion))
@@ -882,7 +884,21 @@ async fn execute_admin(
                 .fetch_optional(&mut *connection)
                 .await?;
             let Some(row) = row else {
-                return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
+                // a lab participant (task studies keep theirs in task_participants)
+                let Some((study, ordinal, excluded_at)) =
+                    crate::task::store::set_excluded(connection, participant, reason.as_deref()).await?
+                else {
+                    return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
+                };
+                let action = if reason.is_some() { "exclude" } else { "include" };
+                audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
+                return Ok(Ok(AdminWritten::Excluded {
+                    study,
+                    ordinal,
+                    excluded: reason.is_some(),
+                    reason: reason.clone(),
+                    excluded_at,
+                }));
             };
             let study: String = row.try_get("study")?;
             let ordinal: i64 = row.try_get("ordinal")?;
@@ -1024,6 +1040,10 @@ async fn delete_rows(connection: &mut Connection, id: &str) -> Result<Result<Del
         let deletion =
             Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
         audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
+        return Ok(Ok(deletion));
+    }
+    if let Some(deletion) = crate::task::store::delete_participant(connection, id).await? {
+        audit(connection, "delete", &deletion.study, serde_json::to_value(&deletion).expect("serialises")).await?;
         return Ok(Ok(deletion));
     }
     let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = $1 RETURNING study")

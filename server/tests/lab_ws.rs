@@ -111,6 +111,64 @@ async fn refused(socket: &mut Socket, message: Value, needle: &str) {
     assert!(error["message"].as_str().unwrap().contains(needle), "{error}");
 }
 
+/// `POST path` with a JSON body over a real socket to `http` (a `ws://host:port/…` URL's host):
+/// (status, JSON answer).
+async fn post_json(ws_url: &str, path: &str, body: Value) -> (u16, Value) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let host = ws_url.trim_start_matches("ws://").split('/').next().unwrap().to_string();
+    let mut stream = tokio::net::TcpStream::connect(&host).await.unwrap();
+    let body = body.to_string();
+    let request = format!(
+        "POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    stream.write_all(request.as_bytes()).await.unwrap();
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(30), stream.read_to_end(&mut answer)).await.unwrap().unwrap();
+    let answer = String::from_utf8(answer).unwrap();
+    let (head, body) = answer.split_once("\r\n\r\n").unwrap();
+    let status = head.split(' ').nth(1).unwrap().parse().unwrap();
+    (status, serde_json::from_str(body).unwrap_or_else(|_| panic!("not JSON: {answer}")))
+}
+
+/// Creates a lab participant over HTTP (`POST /api/lab/lab/participants`): (id, token).
+async fn join_http(ws_url: &str, label: &str) -> (String, String) {
+    let (status, joined) = post_json(ws_url, "/api/lab/lab/participants", json!({"label": label})).await;
+    assert_eq!(status, 201, "{joined}");
+    (joined["participant"].as_str().unwrap().to_string(), joined["token"].as_str().unwrap().to_string())
+}
+
+/// Creates a participant over HTTP and starts it on `socket`: (id, token, the session message).
+async fn join_and_start(socket: &mut Socket, ws_url: &str, label: &str) -> (String, String, Value) {
+    let (participant, token) = join_http(ws_url, label).await;
+    send(socket, json!({"type": "start", "participant": participant, "token": token})).await;
+    let session = json_of(socket, "session").await;
+    assert_eq!(session["participant"], participant.as_str());
+    (participant, token, session)
+}
+
+/// Serves `router` on a loopback socket, each request carrying its peer address as `serve`
+/// gives it (so the limits per client address apply): the address.
+async fn listen(state: mrstudy_server::AppState) -> std::net::SocketAddr {
+    use axum::extract::{ConnectInfo, Request};
+    use axum::middleware::Next;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    if let Some(lab) = state.lab() {
+        lab.set_origins(vec![format!("http://{addr}")]);
+    }
+    let router = mrstudy_server::app(state).layer(axum::middleware::from_fn(
+        |ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>, mut request: Request, next: Next| async move {
+            request.extensions_mut().insert(mrstudy_server::limits::ClientAddr(peer.ip()));
+            next.run(request).await
+        },
+    ));
+    tokio::spawn(async move {
+        axum::serve(listener, router.into_make_service_with_connect_info::<std::net::SocketAddr>()).await.unwrap()
+    });
+    addr
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     let _alone = RENDERING.lock().await;
@@ -136,10 +194,8 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     // the photograph (PNG) and its radiance (EXR, for coherent conditions) were cached in the data dir
     assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() == 2);
 
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
     let storage = state.storage().clone();
-    tokio::spawn(async move { axum::serve(listener, mrstudy_server::app(state)).await.unwrap() });
+    let addr = listen(state).await;
     let url = format!("ws://{addr}/api/lab/lab/ws");
     let (mut socket, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
 
@@ -147,13 +203,17 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     refused(&mut socket, json!({"type": "ready"}), "Start or resume").await;
     refused(&mut socket, json!({"type": "dance"}), "Unknown message type \"dance\"").await;
     refused(&mut socket, json!({"type": "start", "label": "x", "extra": 1}), "expected fields").await;
-    send(&mut socket, json!({"type": "start", "label": "P01"})).await;
-    let session = json_of(&mut socket, "session").await;
-    let participant = session["participant"].as_str().unwrap().to_string();
-    let token = session["token"].as_str().unwrap().to_string();
+    let (participant, token, session) = join_and_start(&mut socket, &url, "P01").await;
     assert_eq!(session["trials"], 6);
     assert_eq!(session["smoothing"], false);
-    refused(&mut socket, json!({"type": "start", "label": "P02"}), "already runs a participant").await;
+    assert!(session["token"].is_null(), "the token came over HTTP, not again over the socket");
+    let (other, other_token) = join_http(&url, "P02").await;
+    refused(
+        &mut socket,
+        json!({"type": "start", "participant": other, "token": other_token}),
+        "already runs a participant",
+    )
+    .await;
 
     // trial 1: distance, after its instructions are acknowledged
     send(&mut socket, json!({"type": "ready"})).await;
@@ -360,13 +420,15 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
 /// frame times one measures are not another's load (the pacing test compares them).
 static RENDERING: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
-async fn serve(
-    study: &str,
-) -> Option<(String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir)> {
+type Served = (String, mrstudy_server::storage::Storage, mrstudy_server::AppState, tempfile::TempDir, String);
+
+/// Serves `study` (see [`listen`]): (WebSocket URL, storage, state, data directory, admin token),
+/// or None (with a note) when no GPU adapter opens.
+async fn serve(study: &str) -> Option<Served> {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     std::fs::write(studies.path().join("lab.toml"), study).unwrap();
-    let Prepared { state, tasks, .. } =
+    let Prepared { state, tasks, admin_token, .. } =
         prepare_on(&test_database(data_dir.path()).await, data_dir.path(), studies.path()).await.unwrap();
     let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
     if state.lab().is_none() {
@@ -377,12 +439,10 @@ async fn serve(
     for line in info.iter().chain(&warnings) {
         eprintln!("{line}");
     }
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
     let storage = state.storage().clone();
     let app_state = state.clone();
-    tokio::spawn(async move { axum::serve(listener, mrstudy_server::app(state)).await.unwrap() });
-    Some((format!("ws://{addr}/api/lab/lab/ws"), storage, app_state, data_dir))
+    let addr = listen(state).await;
+    Some((format!("ws://{addr}/api/lab/lab/ws"), storage, app_state, data_dir, admin_token))
 }
 
 async fn connect(url: &str) -> Socket {
@@ -410,19 +470,19 @@ fn hygiene_study() -> String {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn answers_before_the_first_frame_is_shown_or_before_min_response_ms_are_refused_and_nothing_is_stored() {
     let _alone = RENDERING.lock().await;
-    let Some((url, storage, _state, _data_dir)) = serve(&hygiene_study()).await else { return };
+    let Some((url, storage, _state, _data_dir, _)) = serve(&hygiene_study()).await else { return };
     let mut socket = connect(&url).await;
     // an empty participant code is refused with one sentence, and nobody is stored
-    refused(&mut socket, json!({"type": "start", "label": ""}), "The participant code is empty").await;
-    refused(&mut socket, json!({"type": "start", "label": "   "}), "The participant code is empty").await;
+    for label in ["", "   "] {
+        let (status, refusal) = post_json(&url, "/api/lab/lab/participants", json!({"label": label})).await;
+        assert_eq!(status, 422, "{refusal}");
+        assert!(refusal["error"].as_str().unwrap().contains("The participant code is empty"), "{refusal}");
+    }
     let participants: i64 =
         sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
     assert_eq!(participants, 0);
-    send(&mut socket, json!({"type": "start", "label": "H1"})).await;
-    let session = json_of(&mut socket, "session").await;
+    let (participant, token, session) = join_and_start(&mut socket, &url, "H1").await;
     assert_eq!(session["min_response_ms"], 400);
-    let participant = session["participant"].as_str().unwrap().to_string();
-    let token = session["token"].as_str().unwrap().to_string();
 
     // the task's instructions stay until acknowledged, and not sooner than min_response_ms
     send(&mut socket, json!({"type": "ready"})).await;
@@ -509,12 +569,11 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
     let study = hygiene_study()
         .replace("min_response_ms = 400", "min_response_ms = 0\nabandon_after_minutes = 0.005")
         .replace("conditions = [\"none\", \"gi\"]", "conditions = [\"none\", \"shadows\", \"gi\"]");
-    let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
+    let Some((url, storage, state, _data_dir, _)) = serve(&study).await else { return };
     async fn join(url: &str, label: &str) -> (Socket, String, String) {
         let mut socket = connect(url).await;
-        send(&mut socket, json!({"type": "start", "label": label})).await;
-        let session = json_of(&mut socket, "session").await;
-        (socket, session["participant"].as_str().unwrap().to_string(), session["token"].as_str().unwrap().to_string())
+        let (participant, token, _) = join_and_start(&mut socket, url, label).await;
+        (socket, participant, token)
     }
     let (socket_a, a, token_a) = join(&url, "A").await;
     let (socket_b, b, token_b) = join(&url, "B").await;
@@ -560,7 +619,7 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
     let study = hygiene_study()
         .replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"")
         .replace("trials_per_condition = 1", "trials_per_condition = 3");
-    let Some((url, storage, state, _data_dir)) = serve(&study).await else { return };
+    let Some((url, storage, state, _data_dir, _)) = serve(&study).await else { return };
     let startup: Vec<(String, f64)> =
         sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition")
             .fetch_all(&storage.read)
@@ -569,8 +628,7 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
     eprintln!("start-up frame times (render + encode, unpaced): {startup:?}");
     assert_eq!(startup.len(), 2);
     let mut socket = connect(&url).await;
-    send(&mut socket, json!({"type": "start", "label": "pace"})).await;
-    let session = json_of(&mut socket, "session").await;
+    let (_, _, session) = join_and_start(&mut socket, &url, "pace").await;
     assert_eq!(session["pace"], "equal");
     let trials = session["trials"].as_u64().unwrap();
     for number in 1..=trials {
@@ -623,7 +681,7 @@ async fn a_coherent_method_runs_live_as_a_condition_and_its_frames_follow_the_cu
         ..LabStudy::default()
     }
     .toml();
-    let Some((url, storage, _state, data_dir)) = serve(&study).await else { return };
+    let Some((url, storage, _state, data_dir, _)) = serve(&study).await else { return };
     let startup: Vec<(String, f64)> =
         sqlx::query_as("SELECT condition, median_ms FROM task_frame_times ORDER BY condition")
             .fetch_all(&storage.read)
@@ -640,8 +698,7 @@ async fn a_coherent_method_runs_live_as_a_condition_and_its_frames_follow_the_cu
     assert_eq!(cached, ["exr", "png"], "the photograph and its radiance are cached");
 
     let mut socket = connect(&url).await;
-    send(&mut socket, json!({"type": "start", "label": "coherent"})).await;
-    let session = json_of(&mut socket, "session").await;
+    let (_, _, session) = join_and_start(&mut socket, &url, "coherent").await;
     let trials = session["trials"].as_u64().unwrap();
     assert_eq!(trials, 2);
     for number in 1..=trials {
@@ -685,15 +742,27 @@ const PACE_PARITY: f64 = 0.10;
 async fn a_foreign_origin_is_refused_and_an_oversized_message_is_answered_before_closing() {
     use tokio_tungstenite::tungstenite::client::IntoClientRequest;
     let _alone = RENDERING.lock().await;
-    let Some((url, _storage, _state, _data_dir)) = serve(&hygiene_study()).await else { return };
+    let Some((url, _storage, _state, _data_dir, _)) = serve(&hygiene_study()).await else { return };
     let mut request = url.as_str().into_client_request().unwrap();
     request.headers_mut().insert("origin", "https://evil.example".parse().unwrap());
     match tokio_tungstenite::connect_async(request).await {
         Err(tokio_tungstenite::tungstenite::Error::Http(response)) => assert_eq!(response.status(), 403),
         other => panic!("a foreign origin must be refused, got {:?}", other.map(|(_, response)| response.status())),
     }
-    // the server's own page is welcome
+    // issue 46: a DNS-rebinding page (its name now resolving to this server) sends an Origin
+    // equal to the Host it addressed; only configured origins are accepted, never the Host's echo
     let host = url.trim_start_matches("ws://").split('/').next().unwrap().to_string();
+    let port = host.rsplit(':').next().unwrap();
+    let mut request = url.as_str().into_client_request().unwrap();
+    request.headers_mut().insert("host", format!("rebind.example:{port}").parse().unwrap());
+    request.headers_mut().insert("origin", format!("http://rebind.example:{port}").parse().unwrap());
+    match tokio_tungstenite::connect_async(request).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => assert_eq!(response.status(), 403),
+        other => {
+            panic!("an Origin equal to the Host is no configured origin, got {:?}", other.map(|(_, r)| r.status()))
+        }
+    }
+    // the server's own page (a configured origin) is welcome
     let mut request = url.as_str().into_client_request().unwrap();
     request.headers_mut().insert("origin", format!("http://{host}").parse().unwrap());
     let (mut socket, _) = tokio_tungstenite::connect_async(request).await.unwrap();
@@ -704,17 +773,352 @@ async fn a_foreign_origin_is_refused_and_an_oversized_message_is_answered_before
     assert!(matches!(closed, None | Some(Ok(Message::Close(_))) | Some(Err(_))), "{closed:?}");
 }
 
-/// Issue 16: a session that sends nothing for the lab's idle timeout is closed with an `error`.
+/// Issue 16 and issue 46: a session is closed with an `error` when it has shown no activity for
+/// the lab's idle timeout, whatever pings, pongs, junk or refused messages it sent meanwhile; a
+/// connection that starts no participant is closed as soon (at most 10 s after it opened).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_idle_session_is_closed_with_an_error_after_the_idle_timeout() {
+async fn idle_sessions_are_closed_whatever_pings_and_junk_they_send() {
     let _alone = RENDERING.lock().await;
-    let Some((url, _storage, state, _data_dir)) = serve(&hygiene_study()).await else { return };
-    state.lab().unwrap().set_idle_timeout(Duration::from_millis(500));
+    let Some((url, _storage, state, _data_dir, _)) = serve(&hygiene_study()).await else { return };
+    state.lab().unwrap().set_idle_timeout(Duration::from_millis(600));
+    /// Keeps sending pings and junk every 100 ms until an `error` comes: (its message, when).
+    async fn keep_pinging(socket: &mut Socket) -> (String, Duration) {
+        let started = std::time::Instant::now();
+        loop {
+            assert!(started.elapsed() < Duration::from_secs(5), "still open after 5 s of pings and junk");
+            socket.send(Message::Ping(vec![1, 2, 3].into())).await.unwrap();
+            socket.send(Message::Binary(vec![0; 8].into())).await.unwrap();
+            send(socket, json!({"type": "dance"})).await;
+            send(socket, json!({"type": "ready", "extra": 1})).await;
+            let deadline = tokio::time::Instant::now() + Duration::from_millis(100);
+            while let Ok(Some(Ok(message))) = tokio::time::timeout_at(deadline, socket.next()).await {
+                if let Message::Text(text) = message {
+                    let value: Value = serde_json::from_str(text.as_str()).unwrap();
+                    let message = value["message"].as_str().unwrap_or_default().to_string();
+                    if message.contains("closed") {
+                        return (message, started.elapsed());
+                    }
+                }
+            }
+        }
+    }
+    // never started: closed after the idle timeout (shorter than 10 s here), pings or not
     let mut socket = connect(&url).await;
-    let started = std::time::Instant::now();
-    let error = json_of(&mut socket, "error").await;
-    assert!(error["message"].as_str().unwrap().contains("closed after 0.5 s without a message"), "{error}");
-    assert!(started.elapsed() >= Duration::from_millis(450), "{:?}", started.elapsed());
-    let closed = tokio::time::timeout(Duration::from_secs(10), socket.next()).await.unwrap();
-    assert!(matches!(closed, None | Some(Ok(Message::Close(_))) | Some(Err(_))), "{closed:?}");
+    let (message, after) = keep_pinging(&mut socket).await;
+    assert!(message.contains("no participant was started within 0.6 s"), "{message}");
+    assert!(after >= Duration::from_millis(550) && after < Duration::from_millis(2500), "{after:?}");
+    // a running participant who only pings is closed too
+    let mut socket = connect(&url).await;
+    join_and_start(&mut socket, &url, "idle").await;
+    let (message, after) = keep_pinging(&mut socket).await;
+    assert!(message.contains("closed after 0.6 s without activity"), "{message}");
+    assert!(after >= Duration::from_millis(500) && after < Duration::from_millis(2500), "{after:?}");
+    let closed = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            match socket.next().await {
+                None | Some(Err(_)) | Some(Ok(Message::Close(_))) => return,
+                Some(Ok(_)) => continue,
+            }
+        }
+    })
+    .await;
+    assert!(closed.is_ok(), "the connection is closed after the error");
+}
+
+/// Issue 46: a WebSocket alone creates no participant and takes no counterbalancing slot (an
+/// unauthenticated `start` loop made 1 635 participants in 15 s); participants are created over
+/// HTTP under the survey's join rules (a closed study refuses all but pilots of a preview link,
+/// the joins per address are limited); one client address holds at most its cap of sessions.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_websocket_alone_creates_no_participant_and_one_address_holds_at_most_its_cap_of_sessions() {
+    let _alone = RENDERING.lock().await;
+    let Some((url, storage, state, _data_dir, admin_token)) = serve(&hygiene_study()).await else { return };
+    for round in 0..20 {
+        let mut socket = connect(&url).await;
+        refused(&mut socket, json!({"type": "start", "label": format!("bot{round}")}), "created over HTTP first").await;
+        refused(&mut socket, json!({"type": "start"}), "created over HTTP first").await;
+        refused(
+            &mut socket,
+            json!({"type": "start", "participant": "0".repeat(32), "token": "0".repeat(64)}),
+            "No participant",
+        )
+        .await;
+    }
+    let stored: (i64, Option<i64>) =
+        sqlx::query_as("SELECT COUNT(*), MAX(slot) FROM task_participants").fetch_one(&storage.read).await.unwrap();
+    assert_eq!(stored, (0, None), "no participant, no slot taken");
+
+    // the HTTP join: a closed study accepts only pilots of a preview link
+    storage.set_open("lab", false).await.unwrap().unwrap();
+    let (status, refusal) = post_json(&url, "/api/lab/lab/participants", json!({"label": "late"})).await;
+    assert_eq!(status, 403, "{refusal}");
+    assert!(refusal["error"].as_str().unwrap().contains("closed"), "{refusal}");
+    let app = mrstudy_server::app(state.clone());
+    let preview =
+        support::call(&app, axum::http::Method::POST, "/api/admin/studies/lab/preview", Some(&admin_token), None).await;
+    assert_eq!(preview.status, 201, "{}", preview.text());
+    let link = preview.json()["url"].as_str().unwrap().to_string();
+    assert!(link.starts_with("/lab/lab?preview="), "{link}");
+    let token = link.split("preview=").nth(1).unwrap();
+    let (status, pilot) =
+        post_json(&url, "/api/lab/lab/participants", json!({"label": "pilot", "preview": token})).await;
+    assert_eq!((status, pilot["pilot"].as_bool()), (201, Some(true)), "{pilot}");
+    let (status, _) = post_json(&url, "/api/lab/lab/participants", json!({"label": "x", "preview": "f00"})).await;
+    assert_eq!(status, 403);
+    storage.set_open("lab", true).await.unwrap().unwrap();
+    // joins of one address are limited as the survey's (30 a minute, bursts of 60)
+    let mut created = 1;
+    let refused_at = loop {
+        let (status, answer) =
+            post_json(&url, "/api/lab/lab/participants", json!({"label": format!("p{created}")})).await;
+        if status == 429 {
+            assert!(answer["error"].as_str().unwrap().contains("Too many joins"), "{answer}");
+            break created;
+        }
+        assert_eq!(status, 201, "{answer}");
+        created += 1;
+        assert!(created <= 100, "no join limit");
+    };
+    let stored: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
+    assert_eq!(stored, refused_at, "every accepted join, nothing more");
+
+    // at most `sessions_per_address` open sessions from one address; a closed one frees its place
+    state.lab().unwrap().set_sessions_per_address(3);
+    let mut open = Vec::new();
+    for _ in 0..3 {
+        open.push(connect(&url).await);
+    }
+    match tokio_tungstenite::connect_async(&url).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => assert_eq!(response.status(), 429),
+        other => panic!("a fourth session from one address must be refused, got {:?}", other.map(|(_, r)| r.status())),
+    }
+    open.pop().unwrap().close(None).await.unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        match tokio_tungstenite::connect_async(&url).await {
+            Ok(_) => break,
+            Err(_) if std::time::Instant::now() < deadline => tokio::time::sleep(Duration::from_millis(50)).await,
+            Err(error) => panic!("a closed session frees its place: {error}"),
+        }
+    }
+}
+
+/// The database file and its WAL, as bytes.
+fn database_bytes(data: &std::path::Path) -> Vec<u8> {
+    let mut bytes = std::fs::read(data.join("mrstudy.db")).unwrap();
+    if let Ok(wal) = std::fs::read(data.join("mrstudy.db-wal")) {
+        bytes.extend(wal);
+    }
+    bytes
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    haystack.windows(needle.len()).any(|window| window == needle)
+}
+
+/// Issues 45 and 46: a lab participant can be excluded, included and deleted by the admin API
+/// (`DELETE /api/admin/participants/{id}` answered 404 for them), and the deletion leaves none of
+/// their bytes in the database files — code, id, token hash, key log — while another
+/// participant's stay.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deleting_a_lab_participant_leaves_nothing_of_them_in_the_database_file() {
+    let _alone = RENDERING.lock().await;
+    let study = hygiene_study().replace("min_response_ms = 400", "min_response_ms = 0");
+    let Some((url, storage, state, data_dir, admin_token)) = serve(&study).await else { return };
+    let app = mrstudy_server::app(state.clone());
+    let admin = |method: axum::http::Method, uri: String, body: Option<Value>| {
+        let app = app.clone();
+        let admin_token = admin_token.clone();
+        async move { support::call(&app, method, &uri, Some(&admin_token), body).await }
+    };
+    let mut ids = Vec::new();
+    let mut tokens = Vec::new();
+    for (label, t) in [("LABCODE-UNIQUE-4711", 987654.321), ("LABCODE-KEEP-0042", 123456.789)] {
+        let mut socket = connect(&url).await;
+        let (participant, token, _) = join_and_start(&mut socket, &url, label).await;
+        next_trial(&mut socket).await;
+        frame_with_inputs(&mut socket, 0).await;
+        send(&mut socket, json!({"type": "key", "key": "ArrowLeft", "t": t})).await;
+        frame_with_inputs(&mut socket, 1).await;
+        send(&mut socket, json!({"type": "answer", "trial": 1})).await;
+        json_of(&mut socket, "saved").await;
+        ids.push(participant);
+        tokens.push(token);
+    }
+    let (gone, kept) = (ids[0].clone(), ids[1].clone());
+    // exclude and include, as for survey participants
+    let excluded = admin(
+        axum::http::Method::POST,
+        format!("/api/admin/participants/{gone}/exclude"),
+        Some(json!({"reason": "asleep"})),
+    )
+    .await;
+    assert_eq!(excluded.status, 200, "{}", excluded.text());
+    assert_eq!(excluded.json()["excluded"], true);
+    let row: (i64, Option<String>) =
+        sqlx::query_as("SELECT excluded, exclusion_reason FROM task_participants WHERE id = $1")
+            .bind(&gone)
+            .fetch_one(&storage.read)
+            .await
+            .unwrap();
+    assert_eq!(row, (1, Some("asleep".into())));
+    let included = admin(axum::http::Method::POST, format!("/api/admin/participants/{gone}/include"), None).await;
+    assert_eq!((included.status.as_u16(), included.json()["excluded"].as_bool()), (200, Some(false)));
+
+    let token_hash = {
+        use sha2::Digest;
+        sha2::Sha256::digest(tokens[0].as_bytes()).to_vec()
+    };
+    let sqlite = std::env::var("MRSTUDY_TEST_DATABASE").as_deref() != Ok("postgres");
+    if sqlite {
+        let before = database_bytes(data_dir.path());
+        assert!(contains(&before, b"LABCODE-UNIQUE-4711") && contains(&before, gone.as_bytes()));
+        assert!(contains(&before, &token_hash) && contains(&before, b"987654.321"));
+    }
+    let deleted = admin(axum::http::Method::DELETE, format!("/api/admin/participants/{gone}"), None).await;
+    assert_eq!(deleted.status, 200, "{}", deleted.text());
+    let deletion = deleted.json();
+    assert_eq!(
+        (deletion["kind"].as_str(), deletion["responses"].as_i64()),
+        (Some("lab-participant"), Some(1)),
+        "{deletion}"
+    );
+    assert_eq!(deletion["trials"], 2, "{deletion}");
+    let again = admin(axum::http::Method::DELETE, format!("/api/admin/participants/{gone}"), None).await;
+    assert_eq!(again.status, 404);
+    let left: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = $1")
+        .bind(&gone)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
+    assert_eq!(left, 0);
+    if sqlite {
+        let after = database_bytes(data_dir.path());
+        for needle in [b"LABCODE-UNIQUE-4711".as_slice(), gone.as_bytes(), &token_hash, b"987654.321"] {
+            assert!(!contains(&after, needle), "{:?} is still in the database file", String::from_utf8_lossy(needle));
+        }
+        assert!(
+            contains(&after, b"LABCODE-KEEP-0042") && contains(&after, kept.as_bytes()),
+            "the other participant is kept"
+        );
+        assert!(contains(&after, b"123456.789"), "the other participant's key log is kept");
+    }
+    // the deleted participant's token opens nothing any more
+    let mut socket = connect(&url).await;
+    refused(&mut socket, json!({"type": "start", "participant": gone, "token": tokens[0]}), "No participant").await;
+}
+
+/// Issue 45: with `pace = "equal"` a participant's pace is fixed when they are created and never
+/// raised mid-session, even when the renderer's recent frames became slower (it used to rise from
+/// 240 to 394 ms in one session); a participant whose frames come later than their pace is
+/// flagged in the trials CSV and on the admin page, which also opens and closes the study, makes
+/// preview links, lists participants with exclude / include / delete and counts progress as the
+/// survey does (real participants only, pilots and excluded beside them).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_participants_pace_is_fixed_at_the_start_and_late_frames_are_flagged_on_the_admin_page() {
+    let _alone = RENDERING.lock().await;
+    let study = hygiene_study().replace("min_response_ms = 400", "min_response_ms = 0\npace = \"equal\"");
+    let Some((url, storage, state, _data_dir, admin_token)) = serve(&study).await else { return };
+    let lab_study = state.lab().unwrap().studies.get("lab").unwrap().clone();
+    let mut socket = connect(&url).await;
+    let (steady, _, _) = join_and_start(&mut socket, &url, "steady").await;
+    let stored_pace: f64 = sqlx::query_scalar("SELECT pace_ms FROM task_participants WHERE id = $1")
+        .bind(&steady)
+        .fetch_one(&storage.read)
+        .await
+        .unwrap();
+    assert_eq!(Some(stored_pace), lab_study.pace_ms(), "the pace is taken when the participant is created");
+    // the renderer's recent frames become much slower: the study's pace for new participants
+    // rises, the running participant's does not
+    for condition in lab_study.study.conditions.clone() {
+        for _ in 0..64 {
+            lab_study.record_frame(condition, stored_pace * 3.0);
+        }
+    }
+    assert!(lab_study.pace_ms().unwrap() > 2.0 * stored_pace);
+    for number in 1..=2 {
+        next_trial(&mut socket).await;
+        frame_with_inputs(&mut socket, 0).await;
+        send(&mut socket, json!({"type": "key", "key": "ArrowLeft"})).await;
+        frame_with_inputs(&mut socket, 1).await;
+        send(&mut socket, json!({"type": "answer", "trial": number})).await;
+        json_of(&mut socket, "saved").await;
+    }
+    let paced: Vec<f64> = sqlx::query_scalar("SELECT paced_ms FROM task_trials WHERE participant = $1 ORDER BY trial")
+        .bind(&steady)
+        .fetch_all(&storage.read)
+        .await
+        .unwrap();
+    assert_eq!(paced, vec![stored_pace, stored_pace], "never re-paced mid-session");
+
+    // a participant whose frames cannot keep their pace (here a pace far below any frame time)
+    let mut socket = connect(&url).await;
+    let (late, late_token) = join_http(&url, "late").await;
+    sqlx::query("UPDATE task_participants SET pace_ms = 0.001 WHERE id = $1")
+        .bind(&late)
+        .execute(&storage.read)
+        .await
+        .unwrap();
+    send(&mut socket, json!({"type": "start", "participant": late, "token": late_token})).await;
+    json_of(&mut socket, "session").await;
+    next_trial(&mut socket).await;
+    frame_with_inputs(&mut socket, 0).await;
+    send(&mut socket, json!({"type": "answer", "trial": 1})).await;
+    json_of(&mut socket, "saved").await;
+    let row: (i64, i64) =
+        sqlx::query_as("SELECT frames, frames_late FROM task_trials WHERE participant = $1 AND trial = 1")
+            .bind(&late)
+            .fetch_one(&storage.read)
+            .await
+            .unwrap();
+    assert!(row.0 >= 1 && row.1 == row.0, "every frame of the late participant is late: {row:?}");
+    let csv = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
+    let late_rows: Vec<&str> = csv.lines().filter(|line| line.starts_with(late.as_str())).collect();
+    assert!(!late_rows.is_empty() && late_rows.iter().all(|line| line.ends_with(",false,false,false")), "{csv}");
+    let header = csv.lines().next().unwrap();
+    assert!(header.contains(",paced_ms,frames_late,") && header.ends_with(",pilot,excluded,pace_kept"), "{header}");
+
+    // a pilot from a preview link, and an excluded participant: counted beside the real ones
+    let app = mrstudy_server::app(state.clone());
+    let preview =
+        support::call(&app, axum::http::Method::POST, "/api/admin/studies/lab/preview", Some(&admin_token), None).await;
+    let token = preview.json()["url"].as_str().unwrap().split("preview=").nth(1).unwrap().to_string();
+    let (status, _) = post_json(&url, "/api/lab/lab/participants", json!({"label": "pilot", "preview": token})).await;
+    assert_eq!(status, 201);
+    let (excluded, _) = join_http(&url, "excluded").await;
+    let answer = support::call(
+        &app,
+        axum::http::Method::POST,
+        &format!("/api/admin/participants/{excluded}/exclude"),
+        Some(&admin_token),
+        Some(json!({"reason": "fell asleep"})),
+    )
+    .await;
+    assert_eq!(answer.status, 200, "{}", answer.text());
+    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    let counts = serde_json::to_value(&report.counts).unwrap();
+    assert_eq!(counts["started"], 2, "steady and late: {counts}");
+    assert_eq!(counts["finished"], 1, "{counts}");
+    assert_eq!((counts["pilots"].as_i64(), counts["excluded"].as_i64()), (Some(1), Some(1)), "{counts}");
+    assert_eq!(counts["pace_not_kept"], 1, "{counts}");
+    let page = support::call(&app, axum::http::Method::GET, "/admin/lab/lab", Some(&admin_token), None).await;
+    let html = page.text();
+    assert_eq!(page.status, 200, "{html}");
+    for needle in [
+        r#"id="toggle-open""#,
+        r#"id="preview""#,
+        r#"data-action="exclude""#,
+        r#"data-action="include""#,
+        r#"data-action="delete""#,
+        "Started 2, finished 1 (50 %)",
+        "1 pilots and 1 excluded",
+        "1 did not keep the pace",
+        "not kept</strong> (",
+        "fell asleep",
+        "/static/admin.js",
+    ] {
+        assert!(html.contains(needle), "the admin page lacks {needle}: {html}");
+    }
+    assert!(html.contains(&format!(r#"data-participant="{late}""#)));
 }

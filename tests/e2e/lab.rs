@@ -84,7 +84,17 @@ fn run_participant(base: &str, label: &str, skill: f64) {
     if let MaybeTlsStream::Plain(stream) = socket.get_ref() {
         stream.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     }
-    send(&mut socket, json!({"type": "start", "label": label}));
+    // the participant is created over HTTP first; the session starts with its id and token
+    let joined: Value = reqwest::blocking::Client::new()
+        .post(format!("{base}/api/lab/lab/participants"))
+        .json(&json!({"label": label}))
+        .send()
+        .unwrap()
+        .error_for_status()
+        .unwrap()
+        .json()
+        .unwrap();
+    send(&mut socket, json!({"type": "start", "participant": joined["participant"], "token": joined["token"]}));
     let session = until(&mut socket, "session");
     let trials = session["trials"].as_u64().unwrap();
     for _ in 0..trials {
@@ -239,6 +249,24 @@ fn enter(driver: &super::browser::Driver, kind: &str, repeat: bool) {
     driver.cdp("Input.dispatchKeyEvent", params);
 }
 
+/// Holds ArrowLeft for `duration` as a system does: one keydown, auto-repeated keydowns every
+/// 30 ms, one keyup.
+fn hold_arrow_left(driver: &super::browser::Driver, duration: Duration) {
+    let key = |kind: &str, repeat: bool| {
+        driver.cdp(
+            "Input.dispatchKeyEvent",
+            json!({"type": kind, "key": "ArrowLeft", "code": "ArrowLeft", "windowsVirtualKeyCode": 37, "nativeVirtualKeyCode": 37, "autoRepeat": repeat}),
+        );
+    };
+    key("keyDown", false);
+    let until = Instant::now() + duration;
+    while Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(30));
+        key("keyDown", true);
+    }
+    key("keyUp", false);
+}
+
 /// Holds Enter for `duration`: one keydown, auto-repeated keydowns every 30 ms, one keyup.
 fn hold_enter(driver: &super::browser::Driver, duration: Duration) {
     enter(driver, "keyDown", false);
@@ -320,6 +348,10 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
         .script("return document.getElementById('lab-keys').getBoundingClientRect().bottom <= window.innerHeight;");
     assert_eq!(hint_visible, json!(true), "the frame and the key hint fit the window without scrolling");
 
+    // issue 45: a held arrow key moves the cube continuously at the task's fixed rate (10 steps
+    // a second by default), whatever the system's auto-repeat (every 30 ms here) does
+    hold_arrow_left(&driver, Duration::from_secs(1));
+    std::thread::sleep(Duration::from_millis(300));
     // held on trial 1: the first keydown answers it, the repeats do nothing more
     hold_enter(&driver, Duration::from_secs(1));
     std::thread::sleep(Duration::from_millis(300));
@@ -377,6 +409,13 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     }
     let numbers: Vec<&str> = rows.iter().map(|row| row[column("trial")].as_str()).collect();
     assert_eq!(numbers, vec!["1", "2", "3", "4"]);
+    // trial 1's key log: one step when ArrowLeft went down, then about ten held steps in its second
+    let log: Value = serde_json::from_str(&rows[0][column("key_log")]).unwrap();
+    let log = log.as_array().unwrap();
+    let held = log.iter().filter(|key| key["held"] == json!(true)).count();
+    assert!(log.iter().all(|key| key["key"] == "ArrowLeft"), "{log:?}");
+    assert_eq!(log.len() - held, 1, "one press: {log:?}");
+    assert!((6..=14).contains(&held), "{held} held steps in 1 s at 10 a second: {log:?}");
 
     // the phone-sized page
     let phone = super::browser::Driver::start(390, 844);

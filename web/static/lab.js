@@ -1,17 +1,25 @@
-// The lab task page: one WebSocket session (see studies/README.md, "The live WebSocket API").
+// The lab task page: the participant is created over HTTP (POST /api/lab/{slug}/participants,
+// with the admin's preview token when the page was opened from a preview link), then one
+// WebSocket session runs their trials (see studies/README.md, "The live WebSocket API", and
+// docs/lab.md).
 // Keys go to the server as they are pressed; frames come back as a JSON "frame" message followed
 // by a binary message (u32 frame number, big-endian, then the JPEG), shown in order, and each
 // frame on screen is reported back with "shown" (the server refuses answers before that).
 //
 // Input hygiene: auto-repeated keys (a held key) are ignored everywhere, and a key that went down
 // before the current screen appeared does nothing on it, so a held Enter answers at most one
-// trial and never acknowledges instructions. The participant id and token are kept in
-// localStorage, so a closed tab resumes at the next unanswered trial. No timing is shown here.
+// trial and never acknowledges instructions. A held arrow key moves the cube continuously
+// instead: one step when it goes down, then the task's `held_steps_per_second` steps a second
+// (sent as keys with `held: true`) until it goes up, at that fixed rate whatever the system's
+// auto-repeat does. The participant id and token are kept in
+// localStorage (per preview link for a pilot, so a new preview link starts a fresh pilot), so a
+// closed tab resumes at the next unanswered trial. No timing is shown here.
 (function () {
   "use strict";
   const slug = document.body.dataset.slug;
   const $ = (id) => document.getElementById(id);
-  const storageKey = "mrstudy-lab-" + slug;
+  const preview = new URLSearchParams(location.search).get("preview");
+  const storageKey = "mrstudy-lab-" + slug + (preview ? ":preview:" + preview : "");
   let socket = null;
   let trial = null;
   let expectFrame = null;
@@ -21,7 +29,37 @@
   let waiting = false; // a message was sent whose answer has not come yet
   let resuming = false;
 
+  // held arrow keys: key -> the interval that sends its steps
+  const held = new Map();
+
+  function release(key) {
+    const interval = held.get(key);
+    if (interval !== undefined) {
+      clearInterval(interval);
+      held.delete(key);
+    }
+  }
+
+  function releaseAll() {
+    for (const key of Array.from(held.keys())) release(key);
+  }
+
+  function hold(key) {
+    if (held.has(key) || !trial) return;
+    const forTrial = trial.trial;
+    const rate = trial.held_steps_per_second || 10;
+    send({ type: "key", key: key, t: performance.now() });
+    held.set(key, setInterval(() => {
+      if (mode !== "trial" || !trial || trial.trial !== forTrial || waiting) {
+        release(key);
+        return;
+      }
+      send({ type: "key", key: key, t: performance.now(), held: true });
+    }, 1000 / rate));
+  }
+
   function setMode(next) {
+    releaseAll();
     mode = next;
     screenSince = performance.now();
     waiting = false;
@@ -207,8 +245,21 @@
 
   function answer(extra) {
     if (mode !== "trial" || !trial || waiting) return;
+    releaseAll();
     waiting = true;
     send(Object.assign({ type: "answer", trial: trial.trial }, extra || {}));
+  }
+
+  // creates the participant over HTTP: {participant, token, trials}, or throws the server's sentence
+  async function join(label) {
+    const body = preview ? { label: label, preview: preview } : { label: label };
+    const response = await fetch("/api/lab/" + encodeURIComponent(slug) + "/participants", {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
+    });
+    let answer = null;
+    try { answer = await response.json(); } catch (e) { answer = null; }
+    if (!response.ok) throw new Error((answer && answer.error) || ("The server refused to start (" + response.status + ")."));
+    return answer;
   }
 
   $("lab-start").addEventListener("submit", (event) => {
@@ -220,7 +271,13 @@
     }
     $("lab-start-error").textContent = "";
     $("lab-start-button").disabled = true;
-    connect({ type: "start", label: label });
+    join(label).then((joined) => {
+      remember({ participant: joined.participant, token: joined.token });
+      connect({ type: "start", participant: joined.participant, token: joined.token });
+    }).catch((error) => {
+      $("lab-start-error").textContent = error.message;
+      $("lab-start-button").disabled = false;
+    });
   });
 
   $("lab-distance").addEventListener("submit", (event) => {
@@ -255,12 +312,15 @@
     }
     if (trial.keys.indexOf(event.key) >= 0) {
       event.preventDefault();
-      if (!event.repeat) send({ type: "key", key: event.key, t: performance.now() });
+      if (!event.repeat) hold(event.key);
     } else if (event.key === "Enter") {
       event.preventDefault();
       if (fresh(event)) answer();
     }
   });
+
+  document.addEventListener("keyup", (event) => release(event.key));
+  window.addEventListener("blur", releaseAll);
 
   // a reload or a reopened tab resumes this browser's participant
   let saved = null;

@@ -117,6 +117,9 @@ pub enum Directions {
     Any,
 }
 
+/// Steps per second of a held arrow key unless a task says otherwise (`held_steps_per_second`).
+pub const DEFAULT_HELD_STEPS_PER_SECOND: f64 = 10.0;
+
 /// One task of the study with its parameters (lengths in cm).
 #[derive(Debug, Clone, Serialize)]
 pub struct TaskSpec {
@@ -135,6 +138,9 @@ pub struct TaskSpec {
     pub answer_max_cm: f64,
     /// `placement`, `contact`: how far one arrow key press moves the cube.
     pub step_cm: f64,
+    /// `placement`, `contact`: while an arrow key is held, the page sends this many steps per
+    /// second, at a fixed rate (the system's auto-repeat is ignored).
+    pub held_steps_per_second: f64,
     /// `contact`: the floating height of the cube's bottom above the table, uniform in
     /// [min_height_cm, max_height_cm].
     pub min_height_cm: f64,
@@ -363,6 +369,8 @@ struct TaskFile {
     #[serde(default)]
     step_cm: Option<f64>,
     #[serde(default)]
+    held_steps_per_second: Option<f64>,
+    #[serde(default)]
     min_height_cm: Option<f64>,
     #[serde(default)]
     max_height_cm: Option<f64>,
@@ -532,6 +540,7 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         match task.kind {
             TaskKind::Distance => {
                 not_for("step_cm", task.step_cm.is_some())?;
+                not_for("held_steps_per_second", task.held_steps_per_second.is_some())?;
                 not_for("min_height_cm", task.min_height_cm.is_some())?;
                 not_for("max_height_cm", task.max_height_cm.is_some())?;
                 if min_cm < 6.0 {
@@ -554,6 +563,13 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
         let step_cm = task.step_cm.unwrap_or(if task.kind == TaskKind::Contact { 0.25 } else { 0.5 });
         if !(step_cm.is_finite() && (0.05..=5.0).contains(&step_cm)) {
             return Err(fail.at(&format!("{key}.step_cm"), format!("expected 0.05 to 5, found {step_cm}")));
+        }
+        let held_steps_per_second = task.held_steps_per_second.unwrap_or(DEFAULT_HELD_STEPS_PER_SECOND);
+        if !(held_steps_per_second.is_finite() && (1.0..=60.0).contains(&held_steps_per_second)) {
+            return Err(fail.at(
+                &format!("{key}.held_steps_per_second"),
+                format!("expected 1 to 60 steps per second, found {held_steps_per_second}"),
+            ));
         }
         let answer_max_cm = task.answer_max_cm.unwrap_or(200.0);
         if !(answer_max_cm.is_finite() && (max_cm..=10_000.0).contains(&answer_max_cm)) {
@@ -587,6 +603,7 @@ pub fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Resul
             directions: task.directions.unwrap_or(Directions::Main),
             answer_max_cm,
             step_cm,
+            held_steps_per_second,
             min_height_cm,
             max_height_cm,
         });

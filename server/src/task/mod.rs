@@ -11,6 +11,7 @@
 //! Without a GPU adapter the task studies are not served and one warning line says why; the
 //! other studies are served as usual.
 
+pub mod join;
 pub mod live;
 pub mod plan;
 pub mod results;
@@ -226,6 +227,69 @@ pub struct Lab {
     pub sessions: Arc<std::sync::atomic::AtomicUsize>,
     /// A session without a message for this long is closed, in ms (see [`Lab::idle_timeout`]).
     idle_timeout_ms: std::sync::atomic::AtomicU64,
+    /// Open sessions per client address (see [`session::SessionSlot`]).
+    pub(crate) by_address: Mutex<HashMap<std::net::IpAddr, usize>>,
+    /// At most this many open sessions per client address; 0: no cap.
+    sessions_per_address: std::sync::atomic::AtomicUsize,
+    /// The origins (`scheme://host[:port]`, lower case) whose pages may open a session.
+    origins: std::sync::RwLock<Vec<String>>,
+}
+
+/// The lab's settings on the open internet: `mrstudy serve`'s flags (the doc comments are its
+/// help).
+#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
+pub struct LabConfig {
+    /// An origin (`https://lab.example.org`, `http://192.0.2.7:8080`) whose pages may open lab
+    /// sessions, besides the address serve listens on (and, on a loopback or wildcard address,
+    /// `http://localhost:PORT` and `http://127.0.0.1:PORT`); repeat for more. A browser's
+    /// WebSocket from any other origin is refused (403), whatever its Host.
+    #[arg(long = "origin", value_parser = origin_flag)]
+    pub origins: Vec<String>,
+    /// Open lab sessions per client address; 0: no cap.
+    #[arg(long = "lab-sessions-per-address", default_value_t = session::SESSIONS_PER_ADDRESS)]
+    pub sessions_per_address: usize,
+}
+
+impl Default for LabConfig {
+    fn default() -> LabConfig {
+        LabConfig { origins: Vec::new(), sessions_per_address: session::SESSIONS_PER_ADDRESS }
+    }
+}
+
+/// `origin` as the lab compares origins: lower case, without a trailing slash; None when it is
+/// not `http://…` or `https://…` with a host and nothing after it.
+pub fn normalise_origin(origin: &str) -> Option<String> {
+    let origin = origin.trim().trim_end_matches('/').to_ascii_lowercase();
+    let (scheme, rest) = origin.split_once("://")?;
+    let fine = matches!(scheme, "http" | "https")
+        && !rest.is_empty()
+        && !rest.contains(['/', '?', '#', '@'])
+        && !rest.chars().any(|c| c.is_whitespace() || c.is_control());
+    fine.then_some(origin)
+}
+
+/// `--origin`'s value, normalised ([`normalise_origin`]).
+fn origin_flag(text: &str) -> Result<String, String> {
+    normalise_origin(text).ok_or_else(|| {
+        format!("`{text}` is not an origin: expected http:// or https://, a host, an optional port, and nothing after")
+    })
+}
+
+impl LabConfig {
+    /// The origins allowed when serve listens on `local`: the configured ones, the listening
+    /// address's, and on a loopback or wildcard address `localhost` and `127.0.0.1` with its
+    /// port.
+    pub fn allowed_origins(&self, local: std::net::SocketAddr) -> Vec<String> {
+        let mut origins: Vec<String> = self.origins.iter().filter_map(|origin| normalise_origin(origin)).collect();
+        origins.push(format!("http://{local}"));
+        if local.ip().is_loopback() || local.ip().is_unspecified() {
+            origins.push(format!("http://localhost:{}", local.port()));
+            origins.push(format!("http://127.0.0.1:{}", local.port()));
+        }
+        origins.sort();
+        origins.dedup();
+        origins
+    }
 }
 
 impl Lab {
@@ -238,6 +302,32 @@ impl Lab {
     pub fn set_idle_timeout(&self, timeout: std::time::Duration) {
         let ms = u64::try_from(timeout.as_millis()).unwrap_or(u64::MAX).max(1);
         self.idle_timeout_ms.store(ms, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// At most `n` open sessions per client address (`serve --lab-sessions-per-address`); 0: no
+    /// cap. Requests that did not come over a socket (the router driven in-process) have no
+    /// address and are not capped.
+    pub fn set_sessions_per_address(&self, n: usize) {
+        self.sessions_per_address.store(n, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    pub fn sessions_per_address(&self) -> usize {
+        self.sessions_per_address.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// The origins whose pages may open a session ([`LabConfig::allowed_origins`]); until this
+    /// is called none may (a client without `Origin`, not a browser, always may).
+    pub fn set_origins(&self, origins: Vec<String>) {
+        let origins = origins.iter().filter_map(|origin| normalise_origin(origin)).collect();
+        *self.origins.write().unwrap_or_else(|poisoned| poisoned.into_inner()) = origins;
+    }
+
+    /// Whether a request's `Origin` (if it has one) may open a session: one of the configured
+    /// origins exactly, never inferred from the request's own `Host` (DNS rebinding).
+    pub fn origin_allowed(&self, origin: Option<&str>) -> bool {
+        let Some(origin) = origin else { return true };
+        let Some(origin) = normalise_origin(origin) else { return false };
+        self.origins.read().unwrap_or_else(|poisoned| poisoned.into_inner()).contains(&origin)
     }
 }
 
@@ -349,6 +439,9 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
             order,
             sessions: Default::default(),
             idle_timeout_ms: std::sync::atomic::AtomicU64::new(session::IDLE_TIMEOUT.as_millis() as u64),
+            by_address: Default::default(),
+            sessions_per_address: std::sync::atomic::AtomicUsize::new(session::SESSIONS_PER_ADDRESS),
+            origins: Default::default(),
         });
     }
     start
@@ -357,6 +450,7 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
 pub fn router() -> Router<AppState> {
     Router::new()
         .route("/lab/{slug}", get(lab_page))
+        .route("/api/lab/{slug}/participants", axum::routing::post(join::create_participant))
         .route("/api/lab/{slug}/ws", get(session::websocket))
         .merge(results::router())
 }
@@ -375,6 +469,9 @@ fn paragraphs(text: &str) -> Vec<&str> {
 }
 
 async fn lab_page(State(state): State<AppState>, UrlPath(slug): UrlPath<String>, uri: axum::http::Uri) -> Response {
+    if let Some(title) = state.preparation().lab_starting(&slug) {
+        return crate::pages::opens_soon_page(&title, 30);
+    }
     let Some(lab) = state.lab() else { return crate::pages::not_found(uri).await };
     let Some(study) = lab.studies.get(&slug) else { return crate::pages::not_found(uri).await };
     let page = LabPage {

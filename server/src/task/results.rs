@@ -3,13 +3,16 @@
 //! - **Task CSV** (`/api/admin/lab/{slug}/task.csv`, `mrstudy export --format task`): the long
 //!   CSV that `mrstudy analyze` reads, `participant,task,measure,condition,value,trials,label`,
 //!   one row per participant, task, measure and condition, `value` the mean over that cell's
-//!   answered non-practice trials (`trials` of them). Measures: `time_s` (completion time),
+//!   answered non-practice trials (`trials` of them), of real participants only (pilots from
+//!   preview links and excluded participants are left out, as in the survey's analysis). Measures: `time_s` (completion time),
 //!   `error_cm` (total error: |answer − true distance| for `distance`, the Euclidean distance
 //!   from the target for `placement` and `contact`), `abs_error_<axis>_cm` for each axis along
 //!   which the task varies (x and z for distance and placement, y for contact), and
 //!   `signed_error_cm` for distance (answer − truth) and contact (height left above the table).
 //! - **Task trials CSV** (`/api/admin/lab/{slug}/trials.csv`, `--format task-trials`): one row
-//!   per answered trial with every stored column (practice trials included, flagged).
+//!   per answered trial with every stored column (practice trials included, flagged), of every
+//!   participant with `pilot` and `excluded`, the trial's `frames_late` and the participant's
+//!   `pace_kept` (`false`: more than 5 % of their paced frames came late; empty when not paced).
 //!
 //! The admin page (`/admin/lab/{slug}`) shows the adapter and each condition's frame time, at
 //! start-up and now (each condition fast enough or too slow, and a warning when the conditions
@@ -88,7 +91,7 @@ pub async fn task_csv(pool: &Pool, slug: &str) -> AppResult<String> {
                 AVG(ABS(t.error_x_cm)) AS abs_error_x_cm, AVG(ABS(t.error_y_cm)) AS abs_error_y_cm,
                 AVG(ABS(t.error_z_cm)) AS abs_error_z_cm, AVG(t.signed_error_cm) AS signed_error_cm
          FROM task_trials t JOIN task_participants p ON p.id = t.participant
-         WHERE p.study = $1 AND t.practice = 0 AND t.answered_at IS NOT NULL
+         WHERE p.study = $1 AND t.practice = 0 AND t.answered_at IS NOT NULL AND p.pilot = 0 AND p.excluded = 0
          GROUP BY p.id, t.task, t.kind, t.condition",
     )
     .bind(slug)
@@ -162,7 +165,7 @@ pub async fn task_csv(pool: &Pool, slug: &str) -> AppResult<String> {
 }
 
 /// Columns of the task trials CSV, in order.
-pub const TRIAL_COLUMNS: [&str; 42] = [
+pub const TRIAL_COLUMNS: [&str; 46] = [
     "participant",
     "label",
     "ordinal",
@@ -196,6 +199,7 @@ pub const TRIAL_COLUMNS: [&str; 42] = [
     "frame_ms_max",
     "shown_frame_ms_mean",
     "paced_ms",
+    "frames_late",
     "latency_ms_mean",
     "latency_ms_p95",
     "smoothing",
@@ -205,13 +209,20 @@ pub const TRIAL_COLUMNS: [&str; 42] = [
     "answered_at",
     "seed",
     "condition_order",
+    "pilot",
+    "excluded",
+    "pace_kept",
 ];
 
 /// The task trials CSV (see the module doc).
 pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     definition(pool, slug).await?;
     let rows = sqlx::query(
-        "SELECT p.id AS participant, p.label, p.ordinal, p.slot, p.seed, p.condition_order, t.* FROM task_trials t
+        "SELECT p.id AS participant, p.label, p.ordinal, p.slot, p.seed, p.condition_order, p.pilot, p.excluded,
+                p.pace_ms AS participant_pace_ms,
+                (SELECT SUM(u.frames) FROM task_trials u WHERE u.participant = p.id AND u.answered_at IS NOT NULL) AS participant_frames,
+                (SELECT SUM(u.frames_late) FROM task_trials u WHERE u.participant = p.id AND u.answered_at IS NOT NULL) AS participant_frames_late,
+                t.* FROM task_trials t
          JOIN task_participants p ON p.id = t.participant
          WHERE p.study = $1 AND t.answered_at IS NOT NULL ORDER BY p.ordinal, t.trial",
     )
@@ -232,7 +243,15 @@ pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
                         .to_string()
                 }
                 "seed" => (row.try_get::<i64, _>("seed")? as u64).to_string(),
-                "practice" | "smoothing" | "ordinal" | "slot" | "trial" | "frames" | "frames_shown" => {
+                "pilot" | "excluded" => (row.try_get::<i64, _>(column)? == 1).to_string(),
+                "pace_kept" => pace_kept(
+                    row.try_get("participant_pace_ms")?,
+                    row.try_get::<Option<i64>, _>("participant_frames")?.unwrap_or(0),
+                    row.try_get::<Option<i64>, _>("participant_frames_late")?.unwrap_or(0),
+                )
+                .map(|kept| kept.to_string())
+                .unwrap_or_default(),
+                "practice" | "smoothing" | "ordinal" | "slot" | "trial" | "frames" | "frames_shown" | "frames_late" => {
                     row.try_get::<Option<i64>, _>(column)?.map(|v| v.to_string()).unwrap_or_default()
                 }
                 "participant" | "label" | "task" | "kind" | "condition" | "key_log" | "adapter" | "started_at"
@@ -294,11 +313,33 @@ pub struct LabReport {
     /// How far targets may lie from the real cube and stay in view, cm: [−x, +x, −z (away), +z (towards the camera)].
     pub reach_cm: Option<[f64; 4]>,
     pub smoothing: bool,
+    /// Whether the study accepts new participants (pilots of a preview link always).
+    pub open: bool,
+    /// Progress counted as the survey's: real participants only, pilots and excluded beside.
+    pub counts: LabCounts,
     pub participants: Vec<ParticipantProgress>,
     pub rendering: Vec<RenderingRow>,
     /// Absent while there is nothing to analyse.
     pub analysis: Option<TaskAnalysis>,
     pub analysis_error: Option<String>,
+}
+
+/// Progress of a task study, counted as the survey's: `started`, `finished` and the completion
+/// rate count real participants only (neither pilots nor excluded); pilots and excluded
+/// participants are counted beside them.
+#[derive(Debug, Default, serde::Serialize)]
+pub struct LabCounts {
+    pub started: i64,
+    pub finished: i64,
+    pub completion_rate: Option<f64>,
+    /// Real participants whose slot was given to another after a long pause.
+    pub abandoned: i64,
+    /// Participants from preview links (not in `started`).
+    pub pilots: i64,
+    /// Excluded participants who are not pilots (not in `started`).
+    pub excluded: i64,
+    /// Real participants who did not keep their pace (see [`ParticipantProgress::pace_kept`]).
+    pub pace_not_kept: i64,
 }
 
 #[derive(serde::Serialize)]
@@ -314,6 +355,24 @@ pub struct ParticipantProgress {
     pub completed: bool,
     /// The slot was given to another participant after `abandon_after_minutes` without activity.
     pub abandoned: bool,
+    /// Joined through a preview link.
+    pub pilot: bool,
+    pub excluded: bool,
+    pub exclusion_reason: Option<String>,
+    /// The frame time this participant's frames are held to (`pace = "equal"`), ms.
+    pub pace_ms: Option<f64>,
+    /// Frames of answered trials, and those that reached the participant late (more than
+    /// `session::LATE_TOLERANCE` after the pace).
+    pub frames: i64,
+    pub frames_late: i64,
+    /// Whether at most `session::LATE_SHARE` of the frames were late; None when not paced or
+    /// no frame yet.
+    pub pace_kept: Option<bool>,
+}
+
+/// Whether a participant kept their pace: None when not paced or without frames.
+pub fn pace_kept(pace_ms: Option<f64>, frames: i64, frames_late: i64) -> Option<bool> {
+    (pace_ms.is_some() && frames > 0).then_some(frames_late as f64 <= super::session::LATE_SHARE * frames as f64)
 }
 
 /// Frame times and latencies of answered trials per condition.
@@ -340,13 +399,22 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         let study = lab.studies.get(slug).cloned()?;
         Some((lab, study))
     });
-    let participants = sqlx::query("SELECT id, label, ordinal, slot, condition_order, answered, trials, completed_at, abandoned_at FROM task_participants WHERE study = $1 ORDER BY ordinal")
-        .bind(slug)
-        .fetch_all(pool)
-        .await?
-        .iter()
-        .map(|row| {
-            Ok(ParticipantProgress {
+    let participants = sqlx::query(
+        "SELECT p.id, p.label, p.ordinal, p.slot, p.condition_order, p.answered, p.trials, p.completed_at, p.abandoned_at,
+                p.pilot, p.excluded, p.exclusion_reason, p.pace_ms,
+                (SELECT SUM(t.frames) FROM task_trials t WHERE t.participant = p.id AND t.answered_at IS NOT NULL) AS frames,
+                (SELECT SUM(t.frames_late) FROM task_trials t WHERE t.participant = p.id AND t.answered_at IS NOT NULL) AS frames_late
+         FROM task_participants p WHERE p.study = $1 ORDER BY p.ordinal",
+    )
+    .bind(slug)
+    .fetch_all(pool)
+    .await?
+    .iter()
+    .map(|row| {
+        let pace_ms: Option<f64> = row.try_get("pace_ms")?;
+        let frames = row.try_get::<Option<i64>, _>("frames")?.unwrap_or(0);
+        let frames_late = row.try_get::<Option<i64>, _>("frames_late")?.unwrap_or(0);
+        Ok(ParticipantProgress {
                 participant: row.try_get("id")?,
                 label: row.try_get("label")?,
                 ordinal: row.try_get("ordinal")?,
@@ -356,9 +424,18 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
                 trials: row.try_get("trials")?,
                 completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
                 abandoned: row.try_get::<Option<String>, _>("abandoned_at")?.is_some(),
+                pilot: row.try_get::<i64, _>("pilot")? == 1,
+                excluded: row.try_get::<i64, _>("excluded")? == 1,
+                exclusion_reason: row.try_get("exclusion_reason")?,
+                pace_ms,
+                frames,
+                frames_late,
+                pace_kept: pace_kept(pace_ms, frames, frames_late),
             })
-        })
-        .collect::<Result<Vec<_>, sqlx::Error>>()?;
+    })
+    .collect::<Result<Vec<_>, sqlx::Error>>()?;
+    let counts = counts(&participants);
+    let open = state.storage().is_open(slug).await?;
     let rendering = sqlx::query(
         "SELECT t.condition, COUNT(*) AS n, SUM(t.frames) AS frames, SUM(t.frame_ms_mean * t.frames) / NULLIF(SUM(t.frames), 0) AS frame_ms_mean,
                 MAX(t.frame_ms_max) AS frame_ms_max, SUM(t.frames_shown) AS frames_shown,
@@ -411,11 +488,34 @@ pub async fn report(state: &AppState, slug: &str) -> AppResult<LabReport> {
         reach_cm: served.as_ref().map(|(_, study)| study.layout.reach.map(|r| (r * 1000.0).round() / 10.0)),
         // every live frame of a task study goes through `render_display` (live.rs), smoothed
         smoothing: served.is_some(),
+        open,
+        counts,
         participants,
         rendering,
         analysis,
         analysis_error,
     })
+}
+
+/// The survey's counts for a task study's participants (see [`LabCounts`]).
+pub fn counts(participants: &[ParticipantProgress]) -> LabCounts {
+    let mut counts = LabCounts::default();
+    for participant in participants {
+        if participant.pilot {
+            counts.pilots += 1;
+            continue;
+        }
+        if participant.excluded {
+            counts.excluded += 1;
+            continue;
+        }
+        counts.started += 1;
+        counts.finished += participant.completed as i64;
+        counts.abandoned += participant.abandoned as i64;
+        counts.pace_not_kept += (participant.pace_kept == Some(false)) as i64;
+    }
+    counts.completion_rate = (counts.started > 0).then(|| counts.finished as f64 / counts.started as f64);
+    counts
 }
 
 async fn analysis_json(

@@ -1,6 +1,8 @@
 //! The live WebSocket session of a task study (`GET /api/lab/{slug}/ws`): one connection runs
-//! one participant's trials. The protocol is documented in `studies/README.md` ("The live
-//! WebSocket API"); in short, the client sends JSON text messages `start`, `resume`, `ready`,
+//! one participant's trials. The participant is created over HTTP first ([`super::join`]); the
+//! session starts with their id and token. The protocol is documented in `studies/README.md`
+//! ("The live WebSocket API") and docs/lab.md; in short, the client sends JSON text messages
+//! `start`, `resume`, `ready`,
 //! `acknowledge`, `key`, `shown` and `answer`, and the server answers with `session`,
 //! `instructions`, `trial`, `frame` (a JSON text message followed by one binary message: the
 //! frame number as a big-endian u32, then the JPEG), `saved`, `done` and `error`.
@@ -13,19 +15,26 @@
 //! participant with an empty code is refused at `start`.
 //!
 //! Pacing: with `pace = "equal"` every frame is held until the slowest condition's frame time
-//! (see [`super::timing`]), fixed for the session when the participant starts or resumes, has
-//! passed since it was requested, so all conditions show the same lag.
+//! (see [`super::timing`]) has passed since it was requested, so all conditions show the same
+//! lag. That pace is fixed when the participant is created and kept for all their sessions; it is
+//! never raised mid-session. A frame that reaches the participant more than [`LATE_TOLERANCE`]
+//! later than the pace is counted late (`frames_late` per trial), and a participant with more
+//! than [`LATE_SHARE`] of their frames late is flagged (export and admin page).
 //!
 //! Rendering: every accepted key moves the virtual cube at once; the session keeps at most one
 //! frame job in flight on the renderer thread, and when keys arrive while it renders they are
 //! coalesced into one next frame showing the latest position. Per frame the session measures the
 //! renderer's time and the latency from the oldest input not yet shown to the frame being sent.
 //!
-//! Open to the internet: a browser's upgrade must come from this server's own pages (its
-//! `Origin` names the request's `Host`; clients that send no `Origin` are not browsers), at
-//! most [`MAX_SESSIONS`] sessions run at once (503 beyond), a session without a message for
+//! Open to the internet: a browser's upgrade must come from a configured origin
+//! ([`Lab::origin_allowed`]: `serve --origin` and the address serve listens on, never the
+//! request's own `Host`, which a DNS-rebinding page controls; clients that send no `Origin` are
+//! not browsers), at most [`MAX_SESSIONS`] sessions run at once (503 beyond) and at most
+//! [`Lab::sessions_per_address`] from one client address (429 beyond), a session that has not
+//! started a participant within [`START_TIMEOUT`] is closed, a session without activity for
 //! [`Lab::idle_timeout`] ([`IDLE_TIMEOUT`] unless `serve --lab-idle-timeout` says otherwise) is
-//! closed with an `error` saying so, and a message over
+//! closed with an `error` saying so — activity is a message the session accepted: pings, pongs,
+//! binary messages and refused messages do not count — and a message over
 //! [`MAX_MESSAGE_BYTES`] gets an `error` before the connection is closed.
 //!
 //! Bad input — malformed or unknown messages, keys outside a key task, answers out of range, an
@@ -45,7 +54,7 @@ use tokio::sync::oneshot;
 
 use super::live::{Frame, FrameJob, SessionRenderState};
 use super::plan::PlannedTaskTrial;
-use super::store::{self, NewTaskParticipant, TaskRefused, TaskWrite, TaskWritten, TrialResult};
+use super::store::{self, TaskRefused, TaskWrite, TaskWritten, TrialResult};
 use super::{Lab, LabStudy};
 use crate::AppState;
 use crate::error::AppError;
@@ -62,31 +71,84 @@ pub const MAX_SESSIONS: usize = 64;
 /// [`Lab::idle_timeout`]).
 pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10 * 60);
 
-/// Counts a live session; uncounts it when dropped.
-struct SessionSlot(Arc<std::sync::atomic::AtomicUsize>);
+/// Open sessions from one client address, by default (`serve --lab-sessions-per-address`).
+pub const SESSIONS_PER_ADDRESS: usize = 8;
+/// A session that has not started a participant this long after it opened is closed (or after
+/// the idle timeout, if that is shorter).
+pub const START_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
+/// A paced frame is late when it reaches the participant more than this fraction later than the
+/// pace.
+pub const LATE_TOLERANCE: f64 = 0.10;
+/// A participant whose late frames are more than this fraction of their paced frames did not
+/// keep the pace (flagged in the export and on the admin page).
+pub const LATE_SHARE: f64 = 0.05;
+
+/// Counts a live session, in all and for its client address; uncounts it when dropped.
+pub(crate) struct SessionSlot {
+    lab: Arc<Lab>,
+    address: Option<std::net::IpAddr>,
+}
+
+/// Why no session slot was free.
+enum Full {
+    Lab,
+    Address(usize),
+}
 
 impl SessionSlot {
-    fn take(count: &Arc<std::sync::atomic::AtomicUsize>) -> Option<SessionSlot> {
+    fn take(lab: &Arc<Lab>, address: Option<std::net::IpAddr>) -> Result<SessionSlot, Full> {
         use std::sync::atomic::Ordering;
-        count
+        lab.sessions
             .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < MAX_SESSIONS).then_some(n + 1))
-            .ok()
-            .map(|_| SessionSlot(count.clone()))
+            .map_err(|_| Full::Lab)?;
+        if let Some(address) = address {
+            let cap = lab.sessions_per_address();
+            let mut open = lab.by_address.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            let count = open.entry(address).or_insert(0);
+            if cap > 0 && *count >= cap {
+                lab.sessions.fetch_sub(1, Ordering::AcqRel);
+                return Err(Full::Address(cap));
+            }
+            *count += 1;
+        }
+        Ok(SessionSlot { lab: lab.clone(), address })
     }
 }
 
 impl Drop for SessionSlot {
     fn drop(&mut self) {
-        self.0.fetch_sub(1, std::sync::atomic::Ordering::AcqRel);
+        self.lab.sessions.fetch_sub(1, std::sync::atomic::Ordering::AcqRel);
+        if let Some(address) = self.address {
+            let mut open = self.lab.by_address.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            if let Some(count) = open.get_mut(&address) {
+                *count = count.saturating_sub(1);
+                if *count == 0 {
+                    open.remove(&address);
+                }
+            }
+        }
     }
 }
 
-/// Whether the upgrade's `Origin` (if any) is this server: its host and port equal `Host`.
-fn same_origin(headers: &axum::http::HeaderMap) -> bool {
-    let Some(origin) = headers.get(axum::http::header::ORIGIN) else { return true };
-    let host = headers.get(axum::http::header::HOST).and_then(|host| host.to_str().ok());
-    let origin_host = origin.to_str().ok().and_then(|origin| origin.split_once("://")).map(|(_, rest)| rest);
-    matches!((origin_host, host), (Some(origin), Some(host)) if origin.eq_ignore_ascii_case(host))
+/// The client address of an upgrade: the socket's peer, or behind a TLS proxy the last
+/// `X-Forwarded-For` address (as [`crate::limits::client`] finds it).
+fn client_address(
+    peer: Option<crate::limits::ClientAddr>,
+    headers: &axum::http::HeaderMap,
+    behind_tls: bool,
+) -> Option<std::net::IpAddr> {
+    let peer = peer?.0;
+    if !behind_tls {
+        return Some(peer);
+    }
+    let forwarded = headers
+        .get_all("x-forwarded-for")
+        .iter()
+        .filter_map(|value| value.to_str().ok())
+        .flat_map(|value| value.split(','))
+        .next_back()
+        .and_then(|address| address.trim().parse().ok());
+    Some(forwarded.unwrap_or(peer))
 }
 /// Keys kept in one trial's key log; further keys are refused.
 pub const MAX_KEYS_PER_TRIAL: usize = 5000;
@@ -95,25 +157,32 @@ pub async fn websocket(
     State(state): State<AppState>,
     Path(slug): Path<String>,
     headers: axum::http::HeaderMap,
+    peer: Option<axum::Extension<crate::limits::ClientAddr>>,
     upgrade: WebSocketUpgrade,
 ) -> Result<Response, AppError> {
-    if !same_origin(&headers) {
-        return Err(AppError::Forbidden(
-            "A lab session may only be opened from this server's own lab page (the Origin is another site).".into(),
-        ));
-    }
     let lab = state
         .lab()
         .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\" (no lab studies are served).")))?;
+    // a header that is not text is no configured origin
+    let origin = headers.get(axum::http::header::ORIGIN).map(|origin| origin.to_str().unwrap_or("\u{0}"));
+    if !lab.origin_allowed(origin) {
+        return Err(AppError::Forbidden(
+            "A lab session may only be opened from this server's own lab page (the Origin is not one of the server's configured origins; see serve --origin).".into(),
+        ));
+    }
     let study = lab
         .studies
         .get(&slug)
         .cloned()
         .ok_or_else(|| AppError::NotFound(format!("There is no task study \"{slug}\".")))?;
-    let slot = SessionSlot::take(&lab.sessions).ok_or_else(|| {
-        AppError::Unavailable(format!(
+    let address = client_address(peer.map(|peer| peer.0), &headers, state.limits().behind_tls);
+    let slot = SessionSlot::take(&lab, address).map_err(|full| match full {
+        Full::Lab => AppError::Unavailable(format!(
             "The lab already runs {MAX_SESSIONS} sessions, its most at once; try again when one has finished."
-        ))
+        )),
+        Full::Address(cap) => AppError::TooManyRequests(format!(
+            "This address already has {cap} lab sessions open, its most at once; close one, or wait until it times out, and try again."
+        )),
     })?;
     Ok(upgrade.max_message_size(MAX_READ_BYTES).max_frame_size(MAX_READ_BYTES).on_upgrade(move |socket| async move {
         let _slot = slot;
@@ -140,9 +209,15 @@ pub async fn websocket(
 #[derive(Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 enum ClientMessage {
+    /// A participant created over HTTP ([`super::join`]) starts; `label` alone is the old
+    /// protocol, refused with a sentence saying what to do.
     Start {
         #[serde(default)]
-        label: String,
+        participant: Option<String>,
+        #[serde(default)]
+        token: Option<String>,
+        #[serde(default)]
+        label: Option<String>,
     },
     Resume {
         participant: String,
@@ -153,10 +228,14 @@ enum ClientMessage {
     Shown {
         n: u32,
     },
+    /// An arrow key: pressed (`held` false), or a step of a held key, which the page sends at
+    /// the task's `held_steps_per_second` while the key stays down (`held` true).
     Key {
         key: String,
         #[serde(default)]
         t: Option<f64>,
+        #[serde(default)]
+        held: bool,
     },
     Answer {
         trial: u32,
@@ -189,6 +268,8 @@ struct Active {
     shown_frame_ms: Vec<f64>,
     /// The frame time frames were paced to, ms.
     paced_ms: Option<f64>,
+    /// Frames sent more than [`LATE_TOLERANCE`] later than the pace.
+    frames_late: u32,
     latencies: Vec<f64>,
     /// The oldest input not yet in a requested frame.
     unrendered_since: Option<Instant>,
@@ -284,7 +365,18 @@ impl From<sqlx::Error> for Refusal {
 
 impl Session {
     async fn run(&mut self) {
+        let opened = Instant::now();
+        // the last message the session accepted (pings, pongs, binary and refused messages are
+        // no activity)
+        let mut last_activity = opened;
         loop {
+            let idle = self.lab.idle_timeout();
+            let (deadline, limit) = if self.participant.is_some() {
+                (last_activity + idle, idle)
+            } else {
+                let limit = idle.min(START_TIMEOUT);
+                (opened + limit, limit)
+            };
             let frame_ready = async {
                 match self.pending.as_mut() {
                     Some(pending) => {
@@ -295,13 +387,18 @@ impl Session {
                 }
             };
             tokio::select! {
-                message = tokio::time::timeout(self.lab.idle_timeout(), self.socket.recv()) => {
-                    let Ok(message) = message else {
-                        let idle = self.lab.idle_timeout().as_secs_f64();
-                        let after = if idle >= 120.0 { format!("{:.0} minutes", idle / 60.0) } else { format!("{idle:.1} s") };
-                        self.close_with_error(format!("The session was closed after {after} without a message; reload the page to resume.")).await;
-                        return;
+                () = tokio::time::sleep_until(deadline.into()) => {
+                    let seconds = limit.as_secs_f64();
+                    let after = if seconds >= 120.0 { format!("{:.0} minutes", seconds / 60.0) } else { format!("{seconds:.1} s") };
+                    let message = if self.participant.is_some() {
+                        format!("The session was closed after {after} without activity; reload the page to resume.")
+                    } else {
+                        format!("The session was closed: no participant was started within {after} of opening it; reload the page to try again.")
                     };
+                    self.close_with_error(message).await;
+                    return;
+                }
+                message = self.socket.recv() => {
                     let Some(Ok(message)) = message else { return };
                     if let Message::Text(text) = &message && text.len() > MAX_MESSAGE_BYTES {
                         self.close_with_error(format!("The message has {} bytes, more than the limit of {MAX_MESSAGE_BYTES}; the connection is closed.", text.len())).await;
@@ -311,8 +408,11 @@ impl Session {
                         Message::Text(text) => self.handle(text.as_str()).await,
                         Message::Binary(_) => Err(Refusal("Binary messages are not accepted; send JSON text messages.".into())),
                         Message::Close(_) => return,
-                        Message::Ping(_) | Message::Pong(_) => Ok(()),
+                        Message::Ping(_) | Message::Pong(_) => Ok(false),
                     };
+                    if let Ok(true) = outcome {
+                        last_activity = Instant::now();
+                    }
                     if let Err(Refusal(message)) = outcome
                         && self.send(json!({"type": "error", "message": message})).await.is_err()
                     {
@@ -351,7 +451,9 @@ impl Session {
         self.socket.send(Message::Text(Utf8Bytes::from(value.to_string()))).await
     }
 
-    async fn handle(&mut self, text: &str) -> Result<(), Refusal> {
+    /// Handles one text message: Ok(true) when it was activity (it changed the session), Ok(false)
+    /// when it changed nothing (a stale `shown`).
+    async fn handle(&mut self, text: &str) -> Result<bool, Refusal> {
         let value: Value = serde_json::from_str(text).map_err(|_| Refusal("The message is not valid JSON.".into()))?;
         let kind = value.get("type").and_then(Value::as_str).unwrap_or("").to_string();
         if !["start", "resume", "ready", "acknowledge", "shown", "key", "answer"].contains(&kind.as_str()) {
@@ -362,14 +464,23 @@ impl Session {
         let message: ClientMessage = serde_json::from_value(value)
             .map_err(|error| Refusal(format!("The {kind} message does not have the expected fields: {error}.")))?;
         match message {
-            ClientMessage::Start { label } => self.start(label).await,
-            ClientMessage::Resume { participant, token } => self.resume(participant, token).await,
-            ClientMessage::Ready {} => self.ready().await,
-            ClientMessage::Acknowledge {} => self.acknowledge().await,
-            ClientMessage::Shown { n } => self.shown(n),
-            ClientMessage::Key { key, t } => self.key(key, t),
-            ClientMessage::Answer { trial, cm } => self.answer(trial, cm).await,
+            ClientMessage::Start { participant: Some(participant), token: Some(token), label: None } => {
+                self.resume(participant, token).await?
+            }
+            ClientMessage::Start { .. } => {
+                return Err(Refusal(format!(
+                    "A lab participant is created over HTTP first (POST /api/lab/{}/participants with {{\"label\": \"…\"}}); then send {{\"type\": \"start\", \"participant\": …, \"token\": …}} with the participant and token it answered.",
+                    self.study.study.slug
+                )));
+            }
+            ClientMessage::Resume { participant, token } => self.resume(participant, token).await?,
+            ClientMessage::Ready {} => self.ready().await?,
+            ClientMessage::Acknowledge {} => self.acknowledge().await?,
+            ClientMessage::Shown { n } => return self.shown(n),
+            ClientMessage::Key { key, t, held } => self.key(key, t, held)?,
+            ClientMessage::Answer { trial, cm } => self.answer(trial, cm).await?,
         }
+        Ok(true)
     }
 
     fn session_message(&self, token: Option<&str>) -> Value {
@@ -389,54 +500,6 @@ impl Session {
         })
     }
 
-    async fn start(&mut self, label: String) -> Result<(), Refusal> {
-        if self.participant.is_some() {
-            return Err(Refusal(
-                "This connection already runs a participant; open a new connection for another.".into(),
-            ));
-        }
-        let label = label.trim().to_string();
-        if label.is_empty() {
-            return Err(Refusal(
-                "The participant code is empty; type the code the experimenter gave you, then start.".into(),
-            ));
-        }
-        if label.chars().count() > 64 || label.chars().any(char::is_control) {
-            return Err(Refusal(
-                "The participant label must be at most 64 characters without control characters.".into(),
-            ));
-        }
-        if !self.state.storage().is_open(&self.study.study.slug).await? {
-            return Err(Refusal(format!("Study \"{}\" is closed; the admin page can open it.", self.study.study.slug)));
-        }
-        let token = crate::random_hex(32);
-        let id = crate::random_hex(16);
-        let mut seed_bytes = [0u8; 8];
-        getrandom::fill(&mut seed_bytes).map_err(|error| AppError::Internal(format!("no random seed: {error}")))?;
-        let written = self
-            .state
-            .storage()
-            .write(TaskWrite::Participant(NewTaskParticipant {
-                study: self.study.study.clone(),
-                layout: self.study.layout,
-                id: id.clone(),
-                label: label.clone(),
-                token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
-                random_seed: u64::from_le_bytes(seed_bytes),
-            }))
-            .await??;
-        let TaskWritten::Participant { trials, .. } = written else {
-            return Err(AppError::Internal("creating a participant wrote something else".into()).into());
-        };
-        self.participant = Some(Participant { id, label });
-        self.pace_ms = self.study.pace_ms();
-        self.trials = trials;
-        self.answered = 0;
-        let message = self.session_message(Some(&token));
-        let _ = self.send(message).await;
-        Ok(())
-    }
-
     async fn resume(&mut self, id: String, token: String) -> Result<(), Refusal> {
         if self.participant.is_some() {
             return Err(Refusal(
@@ -454,7 +517,12 @@ impl Session {
         self.trials = store::planned_trials(self.state.storage(), &id).await?;
         self.answered = row.answered as u32;
         self.participant = Some(Participant { id, label: row.label });
-        self.pace_ms = self.study.pace_ms();
+        // the participant's pace, fixed when they were created (a participant stored before
+        // paces were kept per participant gets the study's pace now, fixed for this session)
+        self.pace_ms = match (self.study.study.render.pace, row.pace_ms) {
+            (crate::study::task::Pace::Equal, Some(pace)) => Some(pace),
+            _ => self.study.pace_ms(),
+        };
         let message = self.session_message(None);
         let _ = self.send(message).await;
         Ok(())
@@ -519,6 +587,7 @@ impl Session {
             "instructions": task.instructions,
             "answer": answer,
             "keys": keys,
+            "held_steps_per_second": (task.kind != TaskKind::Distance).then_some(task.held_steps_per_second),
         });
         self.active = Some(Active {
             position: DVec3::from(planned.start),
@@ -534,6 +603,7 @@ impl Session {
             frame_ms: Vec::new(),
             shown_frame_ms: Vec::new(),
             paced_ms: None,
+            frames_late: 0,
             latencies: Vec::new(),
             unrendered_since: None,
             dirty: true,
@@ -560,28 +630,29 @@ impl Session {
         self.ready().await
     }
 
-    /// The page put frame `n` on screen.
-    fn shown(&mut self, n: u32) -> Result<(), Refusal> {
+    /// The page put frame `n` on screen: Ok(true) when it is a frame of the running trial not
+    /// reported before.
+    fn shown(&mut self, n: u32) -> Result<bool, Refusal> {
         if n == 0 || n > self.frame_number {
             return Err(Refusal(format!(
                 "Frame {n} was not sent on this connection; shown names a frame the server sent."
             )));
         }
         // a report that arrives after its trial ended changes nothing
-        let Some(active) = self.active.as_mut() else { return Ok(()) };
-        let Some(first) = active.first_frame_number else { return Ok(()) };
+        let Some(active) = self.active.as_mut() else { return Ok(false) };
+        let Some(first) = active.first_frame_number else { return Ok(false) };
         if n < first || n <= active.last_shown_number {
-            return Ok(());
+            return Ok(false);
         }
         active.last_shown_number = n;
         active.frames_shown += 1;
         if active.first_shown.is_none() {
             active.first_shown = Some((Instant::now(), iso_now()));
         }
-        Ok(())
+        Ok(true)
     }
 
-    fn key(&mut self, key: String, client_t: Option<f64>) -> Result<(), Refusal> {
+    fn key(&mut self, key: String, client_t: Option<f64>, held: bool) -> Result<(), Refusal> {
         let Some(active) = self.active.as_mut() else {
             return Err(Refusal("There is no running trial to move the cube in; send ready first.".into()));
         };
@@ -620,6 +691,7 @@ impl Session {
             "key": key,
             "t_ms": round3(now.duration_since(active.sent_at).as_secs_f64() * 1e3),
             "client_t_ms": client_t,
+            "held": held,
             "x": active.position.x, "y": active.position.y, "z": active.position.z,
         }));
         active.dirty = true;
@@ -638,15 +710,8 @@ impl Session {
         }
         let (reply, answer) = oneshot::channel();
         let requested_at = Instant::now();
-        // The session's pace only rises, and only when frames come late: when the slowest
-        // condition's recent frames (p90, without the headroom) no longer fit in the pace, every
-        // later frame of every condition is held to the new pace. A pace that still fits is
-        // kept, so that conditions shown before and after stay alike.
-        if let (Some(pace), Some(now)) = (self.pace_ms, self.study.pace_ms())
-            && now / super::timing::PACE_HEADROOM > pace
-        {
-            self.pace_ms = Some(now);
-        }
+        // the participant's pace, fixed when they were created: never changed mid-session (a
+        // frame that cannot keep it is counted late in `deliver`)
         let paced_ms = self.pace_ms;
         let release_at = requested_at + std::time::Duration::from_secs_f64(paced_ms.unwrap_or(0.0).max(0.0) / 1e3);
         active.paced_ms = paced_ms;
@@ -694,7 +759,11 @@ impl Session {
         if let Some(latency) = latency {
             active.latencies.push(latency);
         }
-        active.shown_frame_ms.push(now.duration_since(pending.requested_at).as_secs_f64() * 1e3);
+        let shown_ms = now.duration_since(pending.requested_at).as_secs_f64() * 1e3;
+        active.shown_frame_ms.push(shown_ms);
+        if active.paced_ms.is_some_and(|pace| shown_ms > pace * (1.0 + LATE_TOLERANCE)) {
+            active.frames_late += 1;
+        }
         if active.first_frame.is_none() {
             active.first_frame = Some((now, iso_now()));
             active.first_frame_number = Some(self.frame_number);
@@ -810,6 +879,7 @@ impl Session {
             frames_shown: active.frames_shown,
             shown_frame_ms_mean: mean(&active.shown_frame_ms),
             paced_ms: active.paced_ms,
+            frames_late: active.frames_late,
             shown_at,
             latency_ms_mean: mean(&latencies),
             latency_ms_p95: (!latencies.is_empty())

@@ -33,6 +33,11 @@ pub struct NewTaskParticipant {
     pub token_sha256: Vec<u8>,
     /// Used when the study has no seed.
     pub random_seed: u64,
+    /// Joined through an admin preview link.
+    pub pilot: bool,
+    /// The frame time every frame of this participant is held to (`pace = "equal"`), fixed now
+    /// for all its sessions; None when not paced.
+    pub pace_ms: Option<f64>,
 }
 
 /// `at` as UTC ISO 8601 with milliseconds, as the database stores times.
@@ -82,6 +87,9 @@ pub struct TrialResult {
     pub shown_frame_ms_mean: Option<f64>,
     /// The frame time frames were paced to (`pace = "equal"`), ms.
     pub paced_ms: Option<f64>,
+    /// Frames that reached the participant more than [`super::session::LATE_TOLERANCE`] later
+    /// than the pace (0 when not paced).
+    pub frames_late: u32,
     /// When the page reported the trial's first frame shown (UTC, ISO 8601 with ms).
     pub shown_at: String,
     pub latency_ms_mean: Option<f64>,
@@ -237,7 +245,8 @@ async fn insert_participant(
     }
     sqlx::query(sqlx::AssertSqlSafe(format!(
         "INSERT INTO task_participants (id, study, ordinal, slot, label, token_sha256, seed, schedule_version, file_sha256,
-             condition_order, trials, created_at, last_active_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, {NOW}, {NOW})"
+             condition_order, trials, pilot, pace_ms, created_at, last_active_at)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, {NOW}, {NOW})"
     )))
     .bind(&participant.id)
     .bind(&study.slug)
@@ -250,6 +259,8 @@ async fn insert_participant(
     .bind(&study.file_sha256)
     .bind(serde_json::to_string(&order).expect("JSON"))
     .bind(trials.len() as i64)
+    .bind(participant.pilot as i64)
+    .bind(OptionalF64(participant.pace_ms))
     .execute(&mut *connection)
     .await?;
     for trial in &trials {
@@ -304,8 +315,9 @@ async fn store_result(
         "UPDATE task_trials SET answer_cm = $1, final_x = $2, final_y = $3, final_z = $4, error_cm = $5, signed_error_cm = $6,
              error_x_cm = $7, error_y_cm = $8, error_z_cm = $9, completion_ms = $10, key_log = $11, frames = $12,
              frame_ms_mean = $13, frame_ms_max = $14, latency_ms_mean = $15, latency_ms_p95 = $16, smoothing = $17, adapter = $18,
-             started_at = $19, frames_shown = $20, shown_frame_ms_mean = $21, paced_ms = $22, shown_at = $23, answered_at = {NOW}
-         WHERE participant = $24 AND trial = $25 AND answered_at IS NULL"
+             started_at = $19, frames_shown = $20, shown_frame_ms_mean = $21, paced_ms = $22, shown_at = $23, frames_late = $24,
+             answered_at = {NOW}
+         WHERE participant = $25 AND trial = $26 AND answered_at IS NULL"
     )))
     .bind(OptionalF64(result.answer_cm))
     .bind(OptionalF64(result.final_position.map(|p| p[0])))
@@ -330,6 +342,7 @@ async fn store_result(
     .bind(OptionalF64(result.shown_frame_ms_mean))
     .bind(OptionalF64(result.paced_ms))
     .bind(&result.shown_at)
+    .bind(result.frames_late as i64)
     .bind(&result.participant)
     .bind(trial)
     .execute(&mut *connection)
@@ -400,10 +413,13 @@ pub struct TaskParticipantRow {
     pub answered: i64,
     pub completed: bool,
     pub abandoned: bool,
+    pub pilot: bool,
+    /// The participant's fixed pace (see [`NewTaskParticipant::pace_ms`]).
+    pub pace_ms: Option<f64>,
 }
 
 pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParticipantRow>, sqlx::Error> {
-    let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at FROM task_participants WHERE id = $1")
+    let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at, pilot, pace_ms FROM task_participants WHERE id = $1")
         .bind(id)
         .fetch_optional(&storage.read)
         .await?;
@@ -419,6 +435,8 @@ pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParti
             answered: row.try_get("answered")?,
             completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
             abandoned: row.try_get::<Option<String>, _>("abandoned_at")?.is_some(),
+            pilot: row.try_get::<i64, _>("pilot")? == 1,
+            pace_ms: row.try_get("pace_ms")?,
         })
     })
     .transpose()
@@ -449,4 +467,77 @@ pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<
             })
         })
         .collect()
+}
+
+/// Deletes a lab participant and every datum of theirs — their trials (schedule, answers, key
+/// logs, frame times) and their row (code, token hash, seed) — inside the admin's write; the
+/// participant who took an abandoned participant's slot is no longer named there
+/// (`slot_taken_by`). None when no lab participant has this id. [`Storage::delete`] then
+/// rewrites the database files, as for a survey participant.
+pub async fn delete_participant(
+    connection: &mut Connection,
+    id: &str,
+) -> Result<Option<crate::storage::Deletion>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(row) = row else { return Ok(None) };
+    let study: String = row.try_get("study")?;
+    let ordinal: i64 = row.try_get("ordinal")?;
+    let answered: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = $1 AND answered_at IS NOT NULL")
+            .bind(id)
+            .fetch_one(&mut *connection)
+            .await?;
+    let trials =
+        sqlx::query("DELETE FROM task_trials WHERE participant = $1").bind(id).execute(&mut *connection).await?;
+    sqlx::query("UPDATE task_participants SET slot_taken_by = NULL WHERE slot_taken_by = $1")
+        .bind(id)
+        .execute(&mut *connection)
+        .await?;
+    sqlx::query("DELETE FROM task_participants WHERE id = $1").bind(id).execute(&mut *connection).await?;
+    Ok(Some(crate::storage::Deletion {
+        study,
+        kind: "lab-participant",
+        ordinal: Some(ordinal),
+        trials: trials.rows_affected() as i64,
+        responses: answered,
+    }))
+}
+
+/// Excludes a lab participant with `reason`, or (None) includes them again, inside the admin's
+/// write: (study, ordinal, excluded_at), or None when no lab participant has this id.
+pub async fn set_excluded(
+    connection: &mut Connection,
+    id: &str,
+    reason: Option<&str>,
+) -> Result<Option<(String, i64, Option<String>)>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(row) = row else { return Ok(None) };
+    let excluded_at: Option<String> = match reason {
+        Some(reason) => {
+            sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+                "UPDATE task_participants SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
+                 WHERE id = $2 RETURNING excluded_at"
+            )))
+            .bind(reason)
+            .bind(id)
+            .fetch_one(&mut *connection)
+            .await?
+        }
+        None => {
+            sqlx::query(
+                "UPDATE task_participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1",
+            )
+            .bind(id)
+            .execute(&mut *connection)
+            .await?;
+            None
+        }
+    };
+    Ok(Some((row.try_get("study")?, row.try_get("ordinal")?, excluded_at)))
 }
