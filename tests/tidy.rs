@@ -254,21 +254,52 @@ fn every_route_of_the_router_is_in_the_design() {
     assert!(missing.is_empty(), "docs/design.md does not name these routes: {missing:?}");
 }
 
-/// Every relative link `](target)` of a markdown text, without its `#fragment`.
-fn relative_links(text: &str) -> Vec<String> {
+/// Every relative link `](target#fragment)` of a markdown text as (target, fragment); the target
+/// is empty for a link within the page.
+fn relative_links(text: &str) -> Vec<(String, Option<String>)> {
     text.match_indices("](")
         .filter_map(|(index, _)| {
             let rest = &text[index + 2..];
-            let target = &rest[..rest.find(')')?];
-            let target = target.split('#').next().unwrap().trim();
-            let external = target.is_empty() || target.contains("://") || target.starts_with("mailto:");
-            (!external).then(|| target.to_string())
+            let link = rest[..rest.find(')')?].trim();
+            let (target, fragment) = match link.split_once('#') {
+                Some((target, fragment)) => (target, Some(fragment.to_string())),
+                None => (link, None),
+            };
+            let external = link.is_empty() || target.contains("://") || target.starts_with("mailto:");
+            (!external).then(|| (target.to_string(), fragment))
         })
         .collect()
 }
 
+/// The anchors GitHub gives a markdown page's headings: lower case, letters, digits, `-` and `_`
+/// kept, spaces as `-`, a repeated heading numbered `-1`, `-2`, ….
+fn anchors(text: &str) -> Vec<String> {
+    let mut anchors: Vec<String> = Vec::new();
+    let mut in_code = false;
+    for line in text.lines() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+        }
+        let Some(heading) = line.strip_prefix('#').filter(|_| !in_code) else { continue };
+        let heading = heading.trim_start_matches('#');
+        if !heading.starts_with(' ') {
+            continue;
+        }
+        let slug: String = heading
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || matches!(c, '-' | '_' | ' '))
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect();
+        let repeats = anchors.iter().filter(|anchor| **anchor == slug).count();
+        anchors.push(if repeats == 0 { slug.clone() } else { format!("{slug}-{repeats}") });
+    }
+    anchors
+}
+
 #[test]
-fn every_relative_link_of_the_readme_and_the_docs_resolves() {
+fn every_relative_link_of_the_readme_and_the_docs_resolves_to_a_file_and_heading() {
     let mut pages = vec![root().join("README.md"), root().join("ARCHITECTURE.md")];
     for entry in std::fs::read_dir(root().join("docs")).unwrap() {
         let path = entry.unwrap().path();
@@ -280,10 +311,15 @@ fn every_relative_link_of_the_readme_and_the_docs_resolves() {
     let mut checked = 0;
     for page in &pages {
         let text = std::fs::read_to_string(page).unwrap();
-        for link in relative_links(&text) {
+        for (target, fragment) in relative_links(&text) {
             checked += 1;
-            if !page.parent().unwrap().join(&link).exists() {
-                broken.push(format!("{}: {link}", relative(page)));
+            let file = if target.is_empty() { page.clone() } else { page.parent().unwrap().join(&target) };
+            if !file.exists() {
+                broken.push(format!("{}: {target}", relative(page)));
+            } else if let Some(fragment) = fragment.filter(|_| file.extension().is_some_and(|e| e == "md"))
+                && !anchors(&std::fs::read_to_string(&file).unwrap()).contains(&fragment)
+            {
+                broken.push(format!("{}: {target}#{fragment} (no such heading)", relative(page)));
             }
         }
     }
