@@ -13,6 +13,12 @@
 //! is *indistinguishable from the real scene at the study's power*; a significant one is
 //! *distinguishable*; any other is *inconclusive*, with its power said.
 //!
+//! Per scene configuration (where the trials name theirs, `scene_left`/`scene_right`): the rate
+//! over all the configuration's detection trials with its interval and test, and its trials
+//! and rate per condition ([`SceneDetection`]). A configuration whose rate is far from the others'
+//! points at its scene (a lamp that lights nothing, a visible artefact), or at a design in which
+//! its ground truth could be learnt; the analysis only reports it.
+//!
 //! Binomial tails are summed relative to their largest term and carried as logarithms, over
 //! the terms that matter (never the whole support for huge counts), so p-values do not
 //! underflow and no number is ever NaN or infinite.
@@ -127,12 +133,44 @@ pub struct Detection {
     pub level: f64,
     /// One entry per rendered condition, in the order of the data's conditions.
     pub conditions: Vec<DetectionRate>,
+    /// One entry per scene configuration, in order of first appearance, where the trials name
+    /// their scene configurations; absent otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scenes: Vec<SceneDetection>,
     /// Participants left out before the analysis (pilots, excluded), where there is no
     /// preference analysis to carry them; absent when none were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub left_out: Option<LeftOut>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+}
+
+/// The detection trials of one scene configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneDetection {
+    pub scene: String,
+    /// Detection trials of this scene configuration, all conditions together.
+    pub trials: u64,
+    /// Of them, the trials in which the ground truth was chosen as real.
+    pub correct: u64,
+    pub rate: f64,
+    /// Clopper–Pearson interval of the rate at the analysis's level.
+    pub ci: [f64; 2],
+    /// Exact two-sided binomial test of rate = 0.5.
+    #[serde(flatten)]
+    pub p: PValue,
+    /// The configuration's trials per rendered condition, in the order of the data's
+    /// conditions (conditions it never showed left out).
+    pub conditions: Vec<SceneConditionCount>,
+}
+
+/// One condition's detection trials in one scene configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneConditionCount {
+    pub condition: String,
+    pub trials: u64,
+    pub correct: u64,
+    pub rate: f64,
 }
 
 /// A trials data set split by the reserved condition: preference trials (no side is the ground
@@ -145,6 +183,9 @@ pub struct Split {
     /// The detection trials, conditions indexed as in the whole data set; `None` when there
     /// are none.
     pub detection: Option<Judgments>,
+    /// The scene configurations of the detection trials (`rows[k]` belongs to the detection
+    /// trials' row k), where the trials were read with theirs.
+    pub detection_scenes: Option<TrialScenes>,
 }
 
 /// Splits parsed trials into preference and detection trials. `n_table_conditions`: the number
@@ -154,13 +195,17 @@ pub struct Split {
 pub fn split(parsed: ParsedTrials, n_table_conditions: Option<usize>) -> Split {
     let ParsedTrials { judgments, scenes, .. } = parsed;
     let Some(ground_truth) = judgments.conditions.iter().position(|c| c == GROUND_TRUTH) else {
-        return Split { preference: Some((judgments, scenes)), detection: None };
+        return Split { preference: Some((judgments, scenes)), detection: None, detection_scenes: None };
     };
     let is_detection = |row: &Judgment| row.left as usize == ground_truth || row.right as usize == ground_truth;
     let detection_rows: Vec<Judgment> = judgments.rows.iter().filter(|row| is_detection(row)).copied().collect();
     if detection_rows.is_empty() {
-        return Split { preference: Some((judgments, scenes)), detection: None };
+        return Split { preference: Some((judgments, scenes)), detection: None, detection_scenes: None };
     }
+    let detection_scenes = scenes.as_ref().map(|all| TrialScenes {
+        names: all.names.clone(),
+        rows: judgments.rows.iter().zip(&all.rows).filter(|(row, _)| is_detection(row)).map(|(_, s)| *s).collect(),
+    });
     let detection = Some(judgments.subset(detection_rows, |_| true));
     let mut used = vec![false; judgments.conditions.len()];
     let mut preference_rows = Vec::new();
@@ -177,19 +222,110 @@ pub fn split(parsed: ParsedTrials, n_table_conditions: Option<usize>) -> Split {
         }
     }
     if preference_rows.is_empty() {
-        return Split { preference: None, detection };
+        return Split { preference: None, detection, detection_scenes };
     }
     let keep = |c: usize| match n_table_conditions {
         Some(n) => c < n,
         None => c != ground_truth && used[c],
     };
     let preference = judgments.subset(preference_rows, keep);
-    Split { preference: Some((preference, preference_scenes)), detection }
+    Split { preference: Some((preference, preference_scenes)), detection, detection_scenes }
 }
 
 /// Detection rates, tests, d′ and verdicts per rendered condition, from judgments in which one
 /// side of every row is [`GROUND_TRUTH`] (rows without it are ignored).
 pub fn analyze_detection(judgments: &Judgments, options: &DetectionOptions) -> crate::Result<Detection> {
+    analyze_detection_by_scene(judgments, None, options)
+}
+
+/// [`analyze_detection`], and with `scenes` (`rows[k]` the scene configurations of
+/// `judgments.rows[k]`) the breakdown per scene configuration ([`Detection::scenes`]). A row whose
+/// scene cell is empty counts in the conditions' rates but in no scene configuration's (a warning
+/// says how many).
+pub fn analyze_detection_by_scene(
+    judgments: &Judgments,
+    scenes: Option<&TrialScenes>,
+    options: &DetectionOptions,
+) -> crate::Result<Detection> {
+    let mut detection = analyze_conditions(judgments, options)?;
+    if let Some(scenes) = scenes.filter(|scenes| scenes.rows.len() == judgments.rows.len()) {
+        let (rows, unnamed) = scene_breakdown(judgments, scenes, options);
+        detection.scenes = rows;
+        if unnamed > 0 {
+            detection.warnings.push(format!(
+                "{} without a scene configuration (empty `scene_left`/`scene_right`) {} in no scene configuration's rate",
+                if unnamed == 1 { "1 detection trial".to_string() } else { format!("{unnamed} detection trials") },
+                if unnamed == 1 { "counts" } else { "count" }
+            ));
+        }
+    }
+    Ok(detection)
+}
+
+/// The rows of [`Detection::scenes`] and the number of detection trials without a scene.
+fn scene_breakdown(
+    judgments: &Judgments,
+    scenes: &TrialScenes,
+    options: &DetectionOptions,
+) -> (Vec<SceneDetection>, u64) {
+    let Some(ground_truth) = judgments.conditions.iter().position(|c| c == GROUND_TRUTH) else {
+        return (Vec::new(), 0);
+    };
+    let n = judgments.conditions.len();
+    // [scene][condition] → (trials, correct)
+    let mut counts = vec![vec![(0u64, 0u64); n]; scenes.names.len()];
+    let mut unnamed = 0;
+    for (row, &[left_scene, right_scene]) in judgments.rows.iter().zip(&scenes.rows) {
+        let (left, right) = (row.left as usize, row.right as usize);
+        let (rendered, truth_chosen, scene) = if left == ground_truth {
+            (right, row.left_chosen, left_scene)
+        } else if right == ground_truth {
+            (left, !row.left_chosen, right_scene)
+        } else {
+            continue;
+        };
+        if scene == TrialScenes::EMPTY || scene as usize >= counts.len() {
+            unnamed += row.count;
+            continue;
+        }
+        let cell = &mut counts[scene as usize][rendered];
+        cell.0 += row.count;
+        if truth_chosen {
+            cell.1 += row.count;
+        }
+    }
+    let rows = scenes
+        .names
+        .iter()
+        .zip(&counts)
+        .filter_map(|(name, cells)| {
+            let trials: u64 = cells.iter().map(|cell| cell.0).sum();
+            let correct: u64 = cells.iter().map(|cell| cell.1).sum();
+            (trials > 0).then(|| SceneDetection {
+                scene: name.clone(),
+                trials,
+                correct,
+                rate: correct as f64 / trials as f64,
+                ci: clopper_pearson(correct, trials, options.level),
+                p: binomial_test(correct, trials, CHANCE),
+                conditions: cells
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, cell)| cell.0 > 0)
+                    .map(|(condition, &(trials, correct))| SceneConditionCount {
+                        condition: judgments.conditions[condition].clone(),
+                        trials,
+                        correct,
+                        rate: correct as f64 / trials as f64,
+                    })
+                    .collect(),
+            })
+        })
+        .collect();
+    (rows, unnamed)
+}
+
+fn analyze_conditions(judgments: &Judgments, options: &DetectionOptions) -> crate::Result<Detection> {
     check_options(options)?;
     let ground_truth = judgments.conditions.iter().position(|c| c == GROUND_TRUTH);
     let n = judgments.conditions.len();
@@ -226,6 +362,7 @@ pub fn analyze_detection(judgments: &Judgments, options: &DetectionOptions) -> c
         target_power: options.target_power,
         level: options.level,
         conditions,
+        scenes: Vec::new(),
         left_out: None,
         warnings: Vec::new(),
     })
@@ -588,6 +725,81 @@ mod tests {
         assert_eq!(power, 1.0);
         let [low, high] = clopper_pearson(0, 1_000_000, 0.95);
         assert!(low == 0.0 && high > 0.0 && high < 1e-5);
+    }
+
+    /// Detection trials of two scene configurations: `s1` told apart every time, `s2` never;
+    /// one trial with an empty scene, and one preference trial that is not counted.
+    const BY_SCENE: &str = "participant,left,right,chosen,scene_left,scene_right\n\
+        p1,ground-truth,LQ,ground-truth,s1,s1\np1,HQ,ground-truth,ground-truth,s1,s1\n\
+        p1,ground-truth,LQ,LQ,s2,s2\np1,HQ,ground-truth,HQ,s2,s2\n\
+        p2,LQ,ground-truth,ground-truth,s1,s1\np2,ground-truth,HQ,HQ,s2,s2\n\
+        p2,LQ,ground-truth,LQ,,\np2,LQ,HQ,HQ,s1,s2\n";
+
+    fn by_scene() -> Detection {
+        let options = crate::data::TrialsOptions { scenes: true, allow_ground_truth: true, ..Default::default() };
+        let parsed = crate::data::parse_trials_with(BY_SCENE, "t.csv", None, &options).unwrap();
+        let split = split(parsed, None);
+        assert!(split.preference.is_some());
+        analyze_detection_by_scene(
+            split.detection.as_ref().unwrap(),
+            split.detection_scenes.as_ref(),
+            &DetectionOptions::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn detection_rates_are_broken_down_by_scene_configuration() {
+        let detection = by_scene();
+        // the conditions' rates count every detection trial, the empty-scene one included
+        assert_eq!(detection.judgments, 7);
+        let rates: Vec<(&str, u64, u64)> =
+            detection.conditions.iter().map(|c| (c.condition.as_str(), c.correct, c.trials)).collect();
+        assert_eq!(rates, [("HQ", 1, 3), ("LQ", 2, 4)]);
+        let scenes: Vec<(&str, u64, u64)> =
+            detection.scenes.iter().map(|s| (s.scene.as_str(), s.correct, s.trials)).collect();
+        assert_eq!(scenes, [("s1", 3, 3), ("s2", 0, 3)]);
+        let s1 = &detection.scenes[0];
+        let per_condition: Vec<(&str, u64, u64)> =
+            s1.conditions.iter().map(|c| (c.condition.as_str(), c.correct, c.trials)).collect();
+        assert_eq!(per_condition, [("HQ", 1, 1), ("LQ", 2, 2)]);
+        // 3 of 3: R's binom.test(3, 3) gives p = 0.25 and the interval [0.2924018, 1]
+        assert!((s1.p.p - 0.25).abs() < 1e-12 && (s1.ci[0] - 0.292_401_8).abs() < 1e-6 && s1.ci[1] == 1.0);
+        assert!(
+            detection.warnings.iter().any(|w| w.starts_with("1 detection trial without a scene")),
+            "{:?}",
+            detection.warnings
+        );
+        let json = serde_json::to_value(&detection).unwrap();
+        assert_eq!(json["scenes"][1]["scene"], "s2");
+        assert_eq!(json["scenes"][1]["rate"], 0.0);
+        assert_eq!(json["scenes"][0]["conditions"][0]["condition"], "HQ");
+        assert!(json["scenes"][0]["p"].is_number());
+    }
+
+    #[test]
+    fn without_scene_columns_there_is_no_scene_breakdown() {
+        let options = crate::data::TrialsOptions { scenes: true, allow_ground_truth: true, ..Default::default() };
+        let text = "participant,left,right,chosen\np1,ground-truth,LQ,LQ\np2,LQ,ground-truth,LQ\n";
+        let parsed = crate::data::parse_trials_with(text, "t.csv", None, &options).unwrap();
+        let split = split(parsed, None);
+        let detection = analyze_detection_by_scene(
+            split.detection.as_ref().unwrap(),
+            split.detection_scenes.as_ref(),
+            &DetectionOptions::default(),
+        )
+        .unwrap();
+        assert!(detection.scenes.is_empty());
+        assert!(serde_json::to_value(&detection).unwrap().get("scenes").is_none());
+    }
+
+    #[test]
+    fn the_table_prints_the_scene_breakdown() {
+        let report = crate::report::Report { preference: None, detection: Some(by_scene()), metrics: None };
+        let text = crate::table::render_report(&report);
+        assert!(text.contains("per scene configuration"), "{text}");
+        let line = text.lines().find(|line| line.starts_with("s2 ")).unwrap();
+        assert!(line.contains("HQ 0/2, LQ 0/1") && line.contains("0.000"), "{line}");
     }
 
     #[test]

@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::analysis::{Analysis, Options, analyze_judgments};
 use crate::data::{ConditionTable, GROUND_TRUTH, TrialsOptions};
-use crate::detection::{Detection, DetectionOptions, analyze_detection};
+use crate::detection::{Detection, DetectionOptions, analyze_detection_by_scene};
 use crate::error::Result;
 use crate::stimulus_metrics::{StimulusAnalysis, StimulusMetrics, StimulusOptions};
 
@@ -59,14 +59,18 @@ pub fn analyze_with_table(
         group_by: options.group_by.clone(),
         include_pilots: options.include_pilots,
         include_excluded: options.include_excluded,
-        scenes: stimuli.is_some(),
+        // the metrics join trials by scene; the detection analysis breaks its rates down by scene
+        scenes: true,
         allow_ground_truth: true,
     };
     let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
     let left_out = parsed.left_out.clone();
     let split = crate::detection::split(parsed, table.map(|t| t.conditions.len()));
-    let mut detection =
-        split.detection.as_ref().map(|j| analyze_detection(j, &DetectionOptions::default())).transpose()?;
+    let mut detection = split
+        .detection
+        .as_ref()
+        .map(|j| analyze_detection_by_scene(j, split.detection_scenes.as_ref(), &DetectionOptions::default()))
+        .transpose()?;
     let mut preference = None;
     let mut metrics = None;
     match &split.preference {

@@ -292,8 +292,39 @@ fn render_detection(out: &mut String, detection: &crate::detection::Detection) {
             let _ = writeln!(out, "note: {}: {note}", c.condition);
         }
     }
+    if !detection.scenes.is_empty() {
+        render_detection_scenes(out, detection, &level);
+    }
     for warning in &detection.warnings {
         let _ = writeln!(out, "warning: {warning}");
+    }
+}
+
+/// The per-scene-configuration table of a detection analysis: each configuration's trials,
+/// ground truth chosen, rate, interval and test, and its counts per condition.
+fn render_detection_scenes(out: &mut String, detection: &crate::detection::Detection, level: &str) {
+    let _ =
+        writeln!(out, "per scene configuration (all conditions together; by condition: ground truth chosen / trials):");
+    let width = detection.scenes.iter().map(|s| s.scene.chars().count()).max().unwrap_or(5).max(5);
+    let _ = writeln!(
+        out,
+        "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}  by condition",
+        "scene", "trials", "correct", "rate", level, "p"
+    );
+    for scene in &detection.scenes {
+        let by_condition: Vec<String> =
+            scene.conditions.iter().map(|c| format!("{} {}/{}", c.condition, c.correct, c.trials)).collect();
+        let _ = writeln!(
+            out,
+            "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}  {}",
+            scene.scene,
+            scene.trials,
+            scene.correct,
+            fixed(scene.rate, 3),
+            interval(scene.ci),
+            scene.p.display(),
+            by_condition.join(", ")
+        );
     }
 }
 
