@@ -36,3 +36,5 @@ mod simulate;
 mod support;
 #[path = "e2e/survey_input.rs"]
 mod survey_input;
+#[path = "e2e/survey_intent.rs"]
+mod survey_intent;

@@ -149,6 +149,8 @@ impl StudyPage {
     fn new(prepared: &PreparedStudy, open: bool) -> StudyPage {
         let study = &prepared.study;
         StudyPage {
+    /// `answer_lock_ms`: after an answer the page takes no press that begins sooner.
+    answer_lock_ms: u32,
             slug: study.slug.clone(),
             title: study.title.clone(),
             question: study.question.clone(),
@@ -172,6 +174,7 @@ impl StudyPage {
             min_viewport: study.participation.min_viewport.map(|[w, h]| format!("{w},{h}")).unwrap_or_default(),
         }
     }
+            answer_lock_ms: study.participation.answer_lock_ms,
 }
 
 async fn study_page(State(state): State<AppState>, Path(slug): Path<String>) -> Response {

@@ -147,11 +147,12 @@ impl Driver {
     }
 
     /// Waits until the trial is on screen and, for a trial, until the page takes answers: the
-    /// demo study's `min_response_ms` (300 ms) after the pair appeared.
+    /// demo study's `min_response_ms` (300 ms) after the pair appeared, and its `answer_lock_ms`
+    /// (500 ms) after the previous answer, which came before the pair appeared.
     pub(super) fn wait_trial(&self, trial: &str) {
         self.wait_for(&format!("document.body.dataset.trial === '{trial}'"));
         if trial != "done" {
-            std::thread::sleep(Duration::from_millis(350));
+            std::thread::sleep(Duration::from_millis(550));
         }
     }
 

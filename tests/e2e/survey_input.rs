@@ -21,7 +21,7 @@ fn demo_with(dir: &Path, extra: &str) {
 }
 
 /// Rows of a query on the server's database (read-only), as text.
-fn query(data_dir: &Path, sql: &str) -> Vec<Vec<String>> {
+pub(super) fn query(data_dir: &Path, sql: &str) -> Vec<Vec<String>> {
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
     runtime.block_on(async {
         use sqlx::Row;
@@ -49,7 +49,7 @@ fn answered(data_dir: &Path) -> i64 {
 }
 
 /// Consent and demographics, up to the instructions.
-fn enter(driver: &Driver, base: &str, query: &str) {
+pub(super) fn enter(driver: &Driver, base: &str, query: &str) {
     driver.go(&format!("{base}/studies/shadows-demo{query}"));
     driver.wait_visible("stage-welcome");
     consent_and_demographics(driver, "female", "34");
@@ -193,7 +193,7 @@ fn a_reload_on_the_instructions_shows_them_again_and_an_age_out_of_range_is_name
 
 const IPHONE: &str = "Mozilla/5.0 (iPhone; CPU iPhone OS 17_0 like Mac OS X) AppleWebKit/605.1.15 (KHTML, like Gecko) Version/17.0 Mobile/15E148 Safari/604.1";
 
-fn phone() -> Driver {
+pub(super) fn phone() -> Driver {
     Driver::start_with(
         390,
         844,

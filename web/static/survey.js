@@ -7,10 +7,14 @@
 //
 // Every stored answer must be one the participant gave on purpose, so an answer counts only
 // when: both images of the pair are decoded and on screen; the study's `min_response_ms` has
-// passed since then; the press began after the pair was shown (the click on "Start", or the
-// second click of a double click, never answers a trial); the key is not an auto-repeat of a
-// held key; and the trial has not been answered already. The server flags responses faster
-// than `min_response_ms` by its own clock as well, and refuses answers to trials it never served.
+// passed since then; the press began after the pair was shown and after the answer lock (below);
+// it is not the second or third click of a multi-click (`event.detail > 1`; a double tap is one
+// on touch screens); the key is not an auto-repeat of a held key; and the trial has not been
+// answered already. The answer lock: after an answer, and after the click on "Start", no press
+// that begins within the study's `answer_lock_ms` answers, so the second click of a slow double
+// click (or a double tap) never answers the next trial, even where the browser counts it as a
+// click of its own. The server flags responses faster than `min_response_ms` by its own clock as
+// well, and refuses answers to trials it never served.
 "use strict";
 
 (function () {
@@ -18,9 +22,11 @@
   const slug = body.dataset.study;
   const studyOpen = body.dataset.open === "true";
   const minResponseMs = Number(body.dataset.minResponseMs || 0);
+  const answerLockMs = Number(body.dataset.answerLockMs || 0);
   const display = body.dataset.display || "native";
   const query = new URLSearchParams(location.search);
-  // An admin preview link (`?preview=TOKEN`): the participant is a pilot, kept apart.
+  // An admin preview link (`?preview=TOKEN`): the participant is a pilot, kept apart, and only
+  // in the page's URL fragment: opening a preview link again always starts a fresh pilot.
   const preview = query.get("preview") || null;
   const storageKey = "mrstudy:" + slug + (preview ? ":preview" : "");
   const $ = (id) => document.getElementById(id);
@@ -33,6 +39,13 @@
   // When the press now under way began (pointerdown on a choice, or a fresh keydown), in the
   // clock of performance.now(); an answer needs a press that began after the pair was shown.
   let pressedAt = -Infinity;
+  // No press that begins before this (the performance.now() clock) answers: the answer lock
+  // after an answer or the click on "Start".
+  let lockedUntil = -Infinity;
+  // The lock from an event at `at` (its timeStamp) on; from now if the page is running late.
+  function lock(at) {
+    lockedUntil = Math.max(at || 0, performance.now()) + answerLockMs;
+  }
   const needOrientation = body.dataset.orientation || "";
   const minViewport = (body.dataset.minViewport || "").split(",").map(Number).filter((n) => n > 0);
   let screenOut = null; // id of this visitor's screen-out record, if the screen did not fit
@@ -78,7 +91,9 @@
   function loadSession() {
     const fragment = new URLSearchParams(location.hash.slice(1));
     let stored = null;
-    try { stored = JSON.parse(localStorage.getItem(storageKey) || "null"); } catch (error) { /* storage unavailable */ }
+    if (!preview) {
+      try { stored = JSON.parse(localStorage.getItem(storageKey) || "null"); } catch (error) { /* storage unavailable */ }
+    }
     if (fragment.get("p") && fragment.get("t")) {
       const same = stored && stored.participant === fragment.get("p");
       return { participant: fragment.get("p"), token: fragment.get("t"),
@@ -89,7 +104,9 @@
   }
 
   function saveSession() {
-    try { localStorage.setItem(storageKey, JSON.stringify(session)); } catch (error) { /* private mode */ }
+    if (!preview) {
+      try { localStorage.setItem(storageKey, JSON.stringify(session)); } catch (error) { /* private mode */ }
+    }
     const fragment = new URLSearchParams({ p: session.participant, t: session.token });
     if (session.started) fragment.set("s", "1");
     history.replaceState(null, "", location.pathname + location.search + "#" + fragment.toString());
@@ -144,8 +161,10 @@
   }
 
   // Checks the screen against the study's requirements (server side, so the sentence and the
-  // record are the same for everybody). Resolves when it fits; until then the visitor sees one
-  // sentence, is counted as screened out, and the check runs again when the window changes.
+  // record are the same for everybody). Resolves with the server's answer when it fits (with
+  // `completed` when the study's external id in the URL already finished: a returning
+  // participant); until then the visitor sees one sentence, is counted as screened out, and the
+  // check runs again when the window changes.
   function screenFits() {
     return new Promise((resolve) => {
       let timer = null;
@@ -154,7 +173,7 @@
           { client: clientInfo(), url_params: urlParams(), preview, screen_out: screenOut });
         if (answer.status === 200 && answer.data && answer.data.meets) {
           window.removeEventListener("resize", later);
-          resolve(true);
+          resolve(answer.data);
           return;
         }
         if (answer.status === 201 && answer.data) {
@@ -182,8 +201,8 @@
     } else if (!studyOpen && !preview) {
       show("closed");
     } else {
-      await screenFits();
-      show("welcome");
+      const fits = await screenFits();
+      if (fits.completed) finish(fits.completed); else show("welcome");
     }
   }
 
@@ -237,8 +256,10 @@
     }
   });
 
-  $("start").addEventListener("click", () => {
-    if (!session || session.started) return; // a second click of a double click
+  $("start").addEventListener("click", (event) => {
+    // a second (or third) click of a multi-click
+    if (!session || session.started || event.detail > 1) return;
+    lock(event.timeStamp);
     session.started = true;
     saveSession();
     $("start").disabled = true;
@@ -330,9 +351,6 @@
   }
   window.addEventListener("resize", () => { if (!$("stage-trial").hidden) { layout(); checkScreenDuringTrials(); } });
 
-  // An answer from a press that began at `pressed` (performance.now() clock); ignored unless
-  // the pair is on screen, the press began after it appeared, min_response_ms has passed and
-  // this trial has no answer yet.
   // During the trials the window must still meet the study's orientation and size (a phone
   // turned mid-study): until it does again, a sentence says so and no answer is taken.
   function screenWarning() {
@@ -351,12 +369,14 @@
     return !warning;
   }
 
-  async function choose(side, pressed) {
+  // `at`: the time of the event that answers (its timeStamp), from which the answer lock runs.
+  async function choose(side, pressed, at) {
     if (!accepting || !current || answered.has(current.trial)) return;
     if (!checkScreenDuringTrials()) return;
-    if (!(pressed >= shownAt)) return;
+    if (!(pressed >= shownAt) || !(pressed >= lockedUntil)) return;
     if (performance.now() - shownAt < minResponseMs) return;
     accepting = false;
+    lock(at);
     const rtMs = Math.round((performance.now() - shownAt) * 10) / 10;
     const trial = current;
     answered.add(trial.trial);
@@ -385,7 +405,9 @@
     button.addEventListener("click", (event) => {
       const pressed = pressedAt;
       pressedAt = -Infinity;
-      choose(side, pressed);
+      // The second click of a double click (or tap) never answers, whatever its timing.
+      if (event.detail > 1) return;
+      choose(side, pressed, event.timeStamp);
     });
   }
   document.addEventListener("keydown", (event) => {
@@ -400,7 +422,7 @@
       event.preventDefault();
       const pressed = pressedAt;
       pressedAt = -Infinity;
-      choose(arrow, pressed);
+      choose(arrow, pressed, event.timeStamp);
     }
   }, true);
 
