@@ -62,6 +62,8 @@ pub struct StudyStats {
     /// Whether its stimuli have errors against a ground truth (`stimuli.csv`).
     pub has_stimulus_metrics: bool,
     pub trials: i64,
+    /// Real participants who joined: neither pilots nor excluded (as every count below, apart
+    /// from `pilots`, `pilots_finished`, `excluded` and `excluded_finished`).
     pub started: i64,
     pub finished: i64,
     /// finished / started; absent with no participants.
@@ -77,12 +79,17 @@ pub struct StudyStats {
     pub catch_responses: i64,
     pub catch_failures: i64,
     pub participants_failing_catch: i64,
-    /// Visitors refused by the study's screen requirements (not participants: they never started).
+    /// Visitors refused by the study's screen requirements (not participants: they never
+    /// started), not counting those who came through a preview link.
     pub screened_out: i64,
-    /// Participants who joined through a preview link (counted in `started`).
+    /// Participants who joined through a preview link (not counted in `started`), and of them
+    /// those who finished.
     pub pilots: i64,
-    /// Participants the researcher excluded (counted in `started`).
+    pub pilots_finished: i64,
+    /// Participants the researcher excluded, pilots not counted again (not counted in
+    /// `started`), and of them those who finished.
     pub excluded: i64,
+    pub excluded_finished: i64,
 }
 
 fn median(mut values: Vec<f64>) -> Option<f64> {
@@ -94,6 +101,9 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
     Some(if values.len() % 2 == 1 { values[middle] } else { (values[middle - 1] + values[middle]) / 2.0 })
 }
 
+/// A study's progress. Pilots (preview links) and excluded participants are counted apart, as
+/// the analysis and the exports leave them out: a participant both pilot and excluded counts as
+/// a pilot.
 pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     let pool = &state.storage().admin;
     let study = sqlx::query("SELECT slug, title, kind, open, definition FROM studies WHERE slug = $1")
@@ -112,8 +122,9 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         }
     };
     let counts = sqlx::query(
-        "SELECT answered, trials, CASE WHEN completed_at IS NULL THEN 0 ELSE 1 END AS finished, COUNT(*) AS n
-         FROM participants WHERE study = $1 GROUP BY answered, trials, finished",
+        "SELECT answered, CASE WHEN completed_at IS NULL THEN 0 ELSE 1 END AS finished,
+                CASE WHEN pilot <> 0 THEN 1 WHEN excluded <> 0 THEN 2 ELSE 0 END AS apart, COUNT(*) AS n
+         FROM participants WHERE study = $1 GROUP BY answered, finished, apart",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -123,10 +134,21 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
     let mut responses = 0;
     let mut reached = vec![0i64; trials as usize + 1];
     let mut stopped_after = vec![0i64; trials as usize + 1];
+    let [mut pilots, mut pilots_finished, mut excluded, mut excluded_finished] = [0i64; 4];
     for row in counts {
         let answered: i64 = row.try_get("answered")?;
         let n: i64 = row.try_get("n")?;
         let is_finished = row.try_get::<i64, _>("finished")? != 0;
+        let apart = row.try_get::<i64, _>("apart")?;
+        if apart != 0 {
+            let (all, done) =
+                if apart == 1 { (&mut pilots, &mut pilots_finished) } else { (&mut excluded, &mut excluded_finished) };
+            *all += n;
+            if is_finished {
+                *done += n;
+            }
+            continue;
+        }
         started += n;
         responses += answered * n;
         if is_finished {
@@ -139,14 +161,15 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         }
     }
     let rts: Vec<f64> = sqlx::query_scalar(
-        "SELECT r.rt_ms FROM responses r JOIN participants p ON p.id = r.participant WHERE p.study = $1",
+        "SELECT r.rt_ms FROM responses r JOIN participants p ON p.id = r.participant
+         WHERE p.study = $1 AND p.pilot = 0 AND p.excluded = 0",
     )
     .bind(slug)
     .fetch_all(pool)
     .await?;
     let totals: Vec<f64> = sqlx::query_scalar(
         "SELECT (julianday(completed_at) - julianday(created_at)) * 86400.0 FROM participants
-         WHERE study = $1 AND completed_at IS NOT NULL",
+         WHERE study = $1 AND completed_at IS NOT NULL AND pilot = 0 AND excluded = 0",
     )
     .bind(slug)
     .fetch_all(pool)
@@ -156,19 +179,15 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
                 COUNT(DISTINCT CASE WHEN r.chosen != t.catch_expected THEN r.participant END) AS failing
          FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
          JOIN participants p ON p.id = r.participant
-         WHERE p.study = $1 AND t.catch_expected IS NOT NULL",
+         WHERE p.study = $1 AND p.pilot = 0 AND p.excluded = 0 AND t.catch_expected IS NOT NULL",
     )
     .bind(slug)
     .fetch_one(pool)
     .await?;
-    let screened_out: i64 =
-        sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = $1").bind(slug).fetch_one(pool).await?;
-    let marked = sqlx::query(
-        "SELECT COALESCE(SUM(pilot), 0) AS pilots, COALESCE(SUM(excluded), 0) AS excluded FROM participants WHERE study = $1",
-    )
-    .bind(slug)
-    .fetch_one(pool)
-    .await?;
+    let screened_out: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM screen_outs WHERE study = $1 AND pilot = 0")
+        .bind(slug)
+        .fetch_one(pool)
+        .await?;
     Ok(StudyStats {
         slug: study.try_get("slug")?,
         title: study.try_get("title")?,
@@ -189,8 +208,10 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         catch_failures: catch.try_get("failures")?,
         participants_failing_catch: catch.try_get("failing")?,
         screened_out,
-        pilots: marked.try_get("pilots")?,
-        excluded: marked.try_get("excluded")?,
+        pilots,
+        pilots_finished,
+        excluded,
+        excluded_finished,
     })
 }
 

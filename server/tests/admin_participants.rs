@@ -710,3 +710,76 @@ fn flag(database: &Database) -> Option<&str> {
         Database::Sqlite(_) => None,
     }
 }
+
+/// Progress, funnel and completion rate count only real participants (issue 45): a pilot and an
+/// excluded participant who both finished, and a pilot screened out, are shown beside them.
+#[tokio::test]
+async fn progress_funnel_and_completion_rate_count_only_real_participants() {
+    let fixture = fixture().await;
+    let (done, done_token) = fixture.join("PID-REAL-DONE", "").await;
+    fixture.answer(&done, &done_token, 7, false, false).await;
+    let (going, going_token) = fixture.join("PID-REAL-GOING", "").await;
+    fixture.answer(&going, &going_token, 2, false, false).await;
+    // a pilot through a preview link, finished
+    let url = fixture.admin(Method::POST, &format!("/api/admin/studies/{STUDY}/preview"), None).await.json()["url"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let preview = url.split("preview=").nth(1).unwrap().to_string();
+    let joined = call(
+        &fixture.app,
+        Method::POST,
+        &format!("/api/studies/{STUDY}/participants"),
+        None,
+        Some(json!({
+            "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"},
+            "url_params": {}, "preview": preview,
+        })),
+    )
+    .await
+    .json();
+    let (pilot, pilot_token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    fixture.answer(pilot, pilot_token, 7, false, false).await;
+    // an excluded participant, finished
+    let (gone, gone_token) = fixture.join("PID-EXCLUDED", "").await;
+    fixture.answer(&gone, &gone_token, 7, false, false).await;
+    let excluded = fixture
+        .admin(Method::POST, &format!("/api/admin/participants/{gone}/exclude"), Some(json!({"reason": "asleep"})))
+        .await;
+    assert_eq!(excluded.status, StatusCode::OK, "{}", excluded.text());
+    // a pilot's phone screened out by the preview link, and a real visitor screened out
+    for (id, pilot) in [("a".repeat(32), 1), ("b".repeat(32), 0)] {
+        fixture
+            .sql(&format!(
+                "INSERT INTO screen_outs (id, study, reason, client, url_params, pilot, created_at)
+                 VALUES ('{id}', '{STUDY}', 'too small', '{{}}', '{{}}', {pilot}, '2026-01-01T00:00:00.000Z')"
+            ))
+            .await;
+    }
+
+    let stats = fixture.admin(Method::GET, &format!("/api/admin/studies/{STUDY}"), None).await.json();
+    assert_eq!(stats["started"], 2, "{stats}");
+    assert_eq!(stats["finished"], 1, "{stats}");
+    assert_eq!(stats["completion_rate"], 0.5, "{stats}");
+    assert_eq!(stats["reached"], json!([2, 2, 2, 1, 1, 1, 1, 1]), "{stats}");
+    assert_eq!(stats["stopped_after"], json!([0, 0, 1, 0, 0, 0, 0, 0]), "{stats}");
+    assert_eq!(stats["responses"], 9, "{stats}");
+    assert_eq!(stats["screened_out"], 1, "{stats}");
+    assert_eq!(
+        [&stats["pilots"], &stats["pilots_finished"], &stats["excluded"], &stats["excluded_finished"]],
+        [&json!(1), &json!(1), &json!(1), &json!(1)],
+        "{stats}"
+    );
+    let list = fixture.admin(Method::GET, "/api/admin/studies", None).await.json();
+    assert_eq!((&list[0]["started"], &list[0]["finished"]), (&json!(2), &json!(1)), "{list}");
+
+    // The pages say the same, with the pilots and the excluded beside.
+    let html = fixture.admin(Method::GET, &format!("/admin/studies/{STUDY}"), None).await.text();
+    assert!(html.contains(r#"<dd id="stat-started">2</dd>"#), "{html}");
+    assert!(html.contains(r#"<dd id="stat-finished">1</dd>"#), "{html}");
+    assert!(html.contains(r#"<dd id="stat-completion">50.0 %</dd>"#), "{html}");
+    assert!(html.contains(r#"<dd id="stat-left-out">1 pilot (1 finished) · 1 excluded (1 finished)</dd>"#), "{html}");
+    assert!(html.contains("visitors: 3, of whom 1 were screened out"), "{html}");
+    let overview = fixture.admin(Method::GET, "/admin", None).await.text();
+    assert!(overview.contains("<td>2</td>\n<td>1</td>\n<td>50 %</td>"), "{overview}");
+}
