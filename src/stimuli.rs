@@ -42,6 +42,10 @@ pub fn run(args: StimuliArgs) -> Result<()> {
     let progress = crate::progress::stimulus_bars();
     let slug = study.slug.clone();
     let plan = stimuli::StimulusPlan::of(&study)?;
+    // what loading each scene found (a light inside an object, …), once per scene configuration
+    for planned in plan.scenes.iter().flatten() {
+        planned.scene.warnings.iter().for_each(|warning| eprintln!("warning: {}: {warning}", planned.scene.name));
+    }
     if let Some(shard) = args.shard {
         eprintln!("{}", plan.shard_line(&study, shard));
     }
