@@ -42,6 +42,9 @@ pub enum ResponseRefused {
         chosen: String,
     },
     UnknownParticipant,
+    /// The participant no longer answers to this token (deleted, or the token is not theirs): the
+    /// database's word, whatever a server's memory says.
+    NotYours,
     /// The trial is not in the participant's schedule of `trials` trials.
     OutOfRange {
         trial: i64,

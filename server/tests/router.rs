@@ -777,40 +777,137 @@ async fn a_preview_link_makes_a_pilot_also_while_the_study_is_closed() {
     assert_eq!(pilots, vec![(joined.json()["participant"].as_str().unwrap().to_string(), 1)]);
 }
 
+/// A join to `app` with the given URL parameters and kept token (the page sends the token it kept
+/// for the study link).
+async fn join_with(app: &Router, url_params: Value, token: Option<&str>) -> Answer {
+    call(
+        app,
+        Method::POST,
+        "/api/studies/shadows-demo/participants",
+        None,
+        Some(match token {
+            Some(token) => json!({"demographics": demographics(), "url_params": url_params, "token": token}),
+            None => json!({"demographics": demographics(), "url_params": url_params}),
+        }),
+    )
+    .await
+}
+
+/// With `unique_external_id`, a second join with the same external id resumes the run only
+/// with that run's token (the page keeps it): without it the join is refused with 409 and one
+/// sentence, and the first run keeps its token. Fails on the code that resumed anyone with the
+/// id and gave them a new token (revoking the first run's).
 #[tokio::test]
-async fn one_run_per_external_id_a_second_join_resumes_the_first() {
+async fn one_run_per_external_id_resumes_only_with_the_runs_token() {
     let fixture = fixture_with("unique_external_id = true").await;
     let app = &fixture.app;
-    let join_as = |pid: &'static str| {
-        call(
-            app,
-            Method::POST,
-            "/api/studies/shadows-demo/participants",
-            None,
-            Some(json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": pid}})),
-        )
-    };
-    let first = join_as("PID-1").await;
+    let first = join_with(app, json!({"PROLIFIC_PID": "PID-1"}), None).await;
     assert_eq!(first.status, StatusCode::CREATED);
     let first = first.json();
-    let (id, old_token) = (first["participant"].as_str().unwrap(), first["token"].as_str().unwrap());
-    assert_eq!(answer_trial(app, id, old_token, 1, "left").await.status, StatusCode::CREATED);
-    let again = join_as("PID-1").await;
-    assert_eq!(again.status, StatusCode::OK, "{}", again.text());
-    let again = again.json();
-    assert_eq!(again["participant"], id, "the same run");
-    assert_eq!(again["resumed"], true);
-    let new_token = again["token"].as_str().unwrap();
-    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(new_token), None).await;
-    assert_eq!(next.json()["trial"], 2, "continues at its next unanswered trial");
-    let old = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(old_token), None).await;
-    assert_eq!(old.status, StatusCode::FORBIDDEN, "the old token no longer opens the run");
-    let other = join_as("PID-2").await;
-    assert_eq!(other.status, StatusCode::CREATED);
+    let (id, token) = (first["participant"].as_str().unwrap(), first["token"].as_str().unwrap());
+    assert_eq!(answer_trial(app, id, token, 1, "left").await.status, StatusCode::CREATED);
+    // someone else with the id: refused, one sentence, and the run is untouched
+    for stranger in [None, Some("0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef")] {
+        let again = join_with(app, json!({"PROLIFIC_PID": "PID-1"}), stranger).await;
+        assert_eq!(again.status, StatusCode::CONFLICT, "{}", again.text());
+        let sentence = again.error();
+        assert!(sentence.contains("already started with this ID") && sentence.matches(". ").count() == 0, "{sentence}");
+        assert!(again.json().get("participant").is_none() && again.json().get("token").is_none());
+    }
+    assert_eq!(answer_trial(app, id, token, 2, "left").await.status, StatusCode::CREATED, "the first run goes on");
+    // the page that joined first resumes with its token, which stays the run's token
+    let resumed = join_with(app, json!({"PROLIFIC_PID": "PID-1"}), Some(token)).await;
+    assert_eq!(resumed.status, StatusCode::OK, "{}", resumed.text());
+    let resumed = resumed.json();
+    assert_eq!((resumed["participant"].as_str(), resumed["token"].as_str()), (Some(id), Some(token)));
+    assert_eq!(resumed["resumed"], true);
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    assert_eq!(next.json()["trial"], 3, "continues at its next unanswered trial");
+    // another id is another run; a kept token of another run does not resume this one
+    let other = join_with(app, json!({"PROLIFIC_PID": "PID-2"}), Some(token)).await;
+    assert_eq!(other.status, StatusCode::CREATED, "{}", other.text());
     assert_ne!(other.json()["participant"], id);
     let db = database(&fixture).await;
     let count: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM participants").fetch_one(&db).await.unwrap();
     assert_eq!(count, 2);
+}
+
+/// External ids are compared after Unicode NFKC, without invisible characters, trimmed and in
+/// lower case: each spelling below is the first run's id (409 without its token, resumed with
+/// it). The key is the declared id parameter (`PROLIFIC_PID`, the first of `url_params`) only:
+/// two people sharing a `STUDY_ID` without an id of their own are two runs. Fails on the code
+/// that trimmed ASCII white space only and fell back to `STUDY_ID`.
+#[tokio::test]
+async fn external_ids_are_normalised_and_only_the_declared_parameter_is_the_key() {
+    let fixture = fixture_with("unique_external_id = true").await;
+    let app = &fixture.app;
+    let first = join_with(app, json!({"PROLIFIC_PID": "5f1a2B3c"}), None).await;
+    assert_eq!(first.status, StatusCode::CREATED);
+    let first = first.json();
+    let (id, token) = (first["participant"].as_str().unwrap(), first["token"].as_str().unwrap());
+    for spelling in [
+        "5f1a2B3c ",
+        "\t5f1a2B3c",
+        "5f1a2B3c\u{00A0}",
+        "5F1A2B3C",
+        "5f1a\u{200B}2B3c",
+        "\u{FEFF}5f1a2B3c\u{200D}",
+        "\u{FF15}\u{FF46}1a2B3c",
+    ] {
+        let refused = join_with(app, json!({"PROLIFIC_PID": spelling}), None).await;
+        assert_eq!(refused.status, StatusCode::CONFLICT, "{spelling:?}: {}", refused.text());
+        let resumed = join_with(app, json!({"PROLIFIC_PID": spelling}), Some(token)).await;
+        assert_eq!(resumed.status, StatusCode::OK, "{spelling:?}: {}", resumed.text());
+        assert_eq!(resumed.json()["participant"], id, "{spelling:?}");
+    }
+    // no fallback to another parameter: a shared STUDY_ID is no person's id
+    let shared = json!({"STUDY_ID": "study-7", "SESSION_ID": "session-1"});
+    let one = join_with(app, shared.clone(), None).await;
+    let two = join_with(app, shared, None).await;
+    assert_eq!((one.status, two.status), (StatusCode::CREATED, StatusCode::CREATED), "{}", two.text());
+    assert_ne!(one.json()["participant"], two.json()["participant"]);
+    // a blank or invisible id is no id
+    let blank = join_with(app, json!({"PROLIFIC_PID": " \u{200B}\u{00A0}"}), None).await;
+    assert_eq!(blank.status, StatusCode::CREATED, "{}", blank.text());
+}
+
+/// On two servers of one database: a run's token goes on working on both after a stranger's
+/// join with its id, and a participant deleted through one server is refused by the other at
+/// once (403), though that one had the credentials in memory. Fails on the code that resumed
+/// the stranger (the first run's token then still answered 201 on the server that had it in
+/// memory) and trusted its memory of credentials.
+#[tokio::test]
+async fn on_two_servers_a_deleted_participants_token_is_refused_by_both() {
+    let work = tempfile::tempdir().unwrap();
+    let studies = studies_dir(work.path());
+    let file = studies.join("shadows-demo.toml");
+    let text =
+        std::fs::read_to_string(&file).unwrap().replacen("\n[texts]", "\nunique_external_id = true\n\n[texts]", 1);
+    std::fs::write(&file, text).unwrap();
+    let data = work.path().join("data");
+    let database = test_database(&data).await;
+    let server = async || prepare_on(&database, &data, &studies).await.unwrap();
+    let (first, second) = (server().await, server().await);
+    let admin_token = first.admin_token.clone();
+    let (one, two) = (app(first.state), app(second.state));
+    let joined = join_with(&one, json!({"PROLIFIC_PID": "PID-9"}), None).await.json();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    // the second server learns the credentials (and keeps them in memory)
+    assert_eq!(answer_trial(&two, id, token, 1, "left").await.status, StatusCode::CREATED);
+    // a stranger's join on the first server changes nothing on either
+    assert_eq!(join_with(&one, json!({"PROLIFIC_PID": "PID-9"}), None).await.status, StatusCode::CONFLICT);
+    assert_eq!(answer_trial(&two, id, token, 2, "left").await.status, StatusCode::CREATED);
+    assert_eq!(answer_trial(&one, id, token, 3, "left").await.status, StatusCode::CREATED);
+    // deleted through the first server: refused by the second at once
+    let deleted = call(&one, Method::DELETE, &format!("/api/admin/participants/{id}"), Some(&admin_token), None).await;
+    assert!(deleted.status.is_success(), "{}", deleted.text());
+    let after = post_response(&two, id, token, 4, 900.0).await;
+    assert_eq!(after.status, StatusCode::FORBIDDEN, "{}", after.text());
+    let next = call(&two, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    assert_eq!(next.status, StatusCode::FORBIDDEN, "{}", next.text());
+    let db = support::connect(&database).await;
+    let stored: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM responses").fetch_one(&db).await.unwrap();
+    assert_eq!(stored, 0, "nothing of the participant is left, nor stored after the deletion");
 }
 
 #[tokio::test]

@@ -2,6 +2,7 @@
 // Stages: welcome and consent → demographics → instructions → trials → completion.
 // The participant's id and token are kept in localStorage (per study) and in the page's URL
 // fragment, so reloading or coming back with the same link resumes at the next unanswered trial.
+// A join sends the kept token: a study with one run per external id resumes that run only for it.
 // A response is sent until the server confirms it (201, or 200 for a repeat) before the next
 // trial or the completion page is shown, so no answer is lost to a reload or a redirect.
 //
@@ -110,6 +111,17 @@
     const fragment = new URLSearchParams({ p: session.participant, t: session.token });
     if (session.started) fragment.set("s", "1");
     history.replaceState(null, "", location.pathname + location.search + "#" + fragment.toString());
+  }
+
+  // The token this browser keeps for the study link (from a join in this tab or another), sent
+  // with a join: where a study keeps one run per external id, only that run's token resumes it.
+  function keptToken() {
+    if (session && session.token) return session.token;
+    try {
+      const stored = JSON.parse(localStorage.getItem(storageKey) || "null");
+      if (stored && stored.token) return stored.token;
+    } catch (error) { /* storage unavailable */ }
+    return undefined;
   }
 
   function forgetSession() {
@@ -241,7 +253,7 @@
     $("demographics-continue").disabled = true;
     try {
       const answer = await persistent("POST", "/api/studies/" + encodeURIComponent(slug) + "/participants",
-        { demographics, client: clientInfo(), url_params: urlParams(), preview, screen_out: screenOut });
+        { demographics, client: clientInfo(), url_params: urlParams(), preview, screen_out: screenOut, token: keptToken() });
       if (answer.status === 201 || answer.status === 200) {
         session = { participant: answer.data.participant, token: answer.data.token, started: false };
         try { sessionStorage.removeItem(storageKey + ":screen-out"); } catch (error) { /* none */ }

@@ -71,6 +71,10 @@ struct JoinBody {
     /// The id of this visitor's earlier screen-out, withdrawn now that the screen fits.
     #[serde(default)]
     screen_out: Option<String>,
+    /// The token the page kept from an earlier join to this study link, if any: with
+    /// `unique_external_id`, the proof that resumes the run of the same external id.
+    #[serde(default)]
+    token: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -78,8 +82,9 @@ struct Joined {
     participant: String,
     token: String,
     trials: usize,
-    /// True when the study keeps one run per external id and this id had joined before: the
-    /// earlier run continues (at its next unanswered trial).
+    /// True when the study keeps one run per external id, this id had joined before and the
+    /// join carried that run's token: the earlier run continues (at its next unanswered trial),
+    /// with the same token.
     resumed: bool,
 }
 
@@ -245,6 +250,9 @@ impl From<ResponseRefused> for AppError {
                 "Trial {trial} was already answered with \"{chosen}\"; an answer cannot be changed."
             )),
             ResponseRefused::UnknownParticipant => AppError::NotFound("There is no such participant.".into()),
+            ResponseRefused::NotYours => {
+                AppError::Forbidden("This token does not give access to this participant.".into())
+            }
             ResponseRefused::OutOfRange { trial, trials } => {
                 AppError::Unprocessable(format!("`trial` must be between 1 and {trials}, found {trial}."))
             }
@@ -275,15 +283,11 @@ async fn create_participant(
         record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
         return Err(AppError::Unprocessable(reason));
     }
-    // One run per external id: the first of the study's URL parameters that is present.
+    // One run per external id: the study's declared id parameter (its first URL parameter).
     let external_key = (prepared.study.participation.unique_external_id && !pilot)
-        .then(|| {
-            prepared.study.url_params.iter().find_map(|name| match url_params.get(name) {
-                Some(Value::String(value)) if !value.trim().is_empty() => Some(format!("{name}={}", value.trim())),
-                _ => None,
-            })
-        })
+        .then(|| external_key(&prepared.study, &url_params))
         .flatten();
+    let resume_token = body.token.as_deref().map(str::trim).filter(|token| !token.is_empty());
     let withdraw_screen_out = body.screen_out.filter(|id| id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()));
     let id = random_hex(16);
     let token = random_hex(32);
@@ -304,15 +308,53 @@ async fn create_participant(
             random_completion_code: random_hex(6).to_uppercase(),
             pilot,
             external_key,
+            resume_token_sha256: resume_token.map(|token| sha256(token.as_bytes()).to_vec()),
             withdraw_screen_out,
         })
         .await?;
-    let (status, id, trials, resumed) = match outcome {
-        JoinOutcome::Created => (StatusCode::CREATED, id, trials as i64, false),
-        JoinOutcome::Resumed { id, trials } => (StatusCode::OK, id, trials, true),
+    let (status, id, token, token_sha256, trials, resumed) = match outcome {
+        JoinOutcome::Created => (StatusCode::CREATED, id, token, token_sha256, trials as i64, false),
+        JoinOutcome::Resumed { id, trials } => {
+            let token = resume_token.expect("a run resumes only with its token").to_string();
+            let token_sha256 = sha256(token.as_bytes()).to_vec();
+            (StatusCode::OK, id, token, token_sha256, trials, true)
+        }
+        JoinOutcome::Taken => return Err(AppError::Conflict(TAKEN.into())),
     };
     state.cache_credentials(Credentials { id: id.clone(), study: slug.clone(), token_sha256, trials });
     Ok((status, Json(Joined { participant: id, token, trials: trials as usize, resumed })).into_response())
+}
+
+/// What a join with a known external id but without its run's token is told.
+pub const TAKEN: &str = "This study was already started with this ID in another browser or window; please continue it there (the same browser and link), or contact the researcher.";
+
+/// The key of one run per external id: the study's declared id parameter (its first URL
+/// parameter, never another) with its value normalised ([`normalise_external_id`]); None when
+/// the join does not carry it.
+fn external_key(study: &Study, url_params: &Map<String, Value>) -> Option<String> {
+    let name = study.url_params.first()?;
+    let Some(Value::String(value)) = url_params.get(name) else { return None };
+    let value = normalise_external_id(value);
+    (!value.is_empty()).then(|| format!("{name}={value}"))
+}
+
+/// An external id as it is compared: Unicode NFKC (full-width and other compatibility forms
+/// become their plain letters, a no-break space a space), without invisible format characters
+/// (zero-width spaces and joiners, word joiner, byte-order mark, soft hyphen, direction marks)
+/// or control characters anywhere, trimmed of white space, and in lower case: the ids of
+/// crowdsourcing platforms (Prolific's 24 hexadecimal digits, MTurk's upper-case worker ids)
+/// never differ by case alone, so `ABC` and `abc` are one person.
+pub fn normalise_external_id(value: &str) -> String {
+    use unicode_normalization::UnicodeNormalization;
+    let invisible = |c: char| {
+        c.is_control()
+            || matches!(c, '\u{00AD}' | '\u{034F}' | '\u{061C}' | '\u{115F}' | '\u{1160}' | '\u{17B4}' | '\u{17B5}'
+                | '\u{180B}'..='\u{180F}' | '\u{200B}'..='\u{200F}' | '\u{202A}'..='\u{202E}'
+                | '\u{2060}'..='\u{206F}' | '\u{3164}' | '\u{FE00}'..='\u{FE0F}' | '\u{FEFF}' | '\u{FFA0}'
+                | '\u{1D173}'..='\u{1D17A}' | '\u{E0000}'..='\u{E0FFF}')
+    };
+    let plain: String = value.nfkc().filter(|c| !invisible(*c)).collect();
+    plain.trim().to_lowercase()
 }
 
 fn validate_demographics(study: &Study, mut given: Map<String, Value>) -> AppResult<Map<String, Value>> {
@@ -423,10 +465,10 @@ fn validate_url_params(study: &Study, params: Map<String, Value>) -> AppResult<M
     Ok(kept)
 }
 
-/// The participant `id`, if the request carries its token; 401 without a token, 403 with a
-/// token that is not this participant's (whether or not `id` exists).
-/// What a response needs to know of its participant; it never changes after joining, so it is
-/// kept in memory after the first lookup.
+/// What a response needs to know of its participant, kept in memory after the first lookup.
+/// The token hash here only turns wrong tokens away early: the writer checks the token against
+/// the database again when it stores the response, so a participant deleted through another
+/// server is refused at once.
 #[derive(Debug, Clone)]
 pub(crate) struct Credentials {
     pub id: String,
@@ -439,8 +481,12 @@ pub(crate) struct Credentials {
 /// token that is not this participant's (whether or not `id` exists).
 async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult<Credentials> {
     let token = bearer(headers)?;
-    let credentials = match state.cached_credentials(id) {
+    let token_sha256 = sha256(token.as_bytes());
+    let cached =
+        state.cached_credentials(id).filter(|credentials| constant_time_eq(&credentials.token_sha256, &token_sha256));
+    let credentials = match cached {
         Some(credentials) => Some(credentials),
+        // not known here, or known with another token: the database says
         None if id.len() == 32 => state.storage().participant(id).await?.map(|participant| {
             let credentials = Credentials {
                 id: participant.id,
@@ -454,7 +500,7 @@ async fn authorize(state: &AppState, headers: &HeaderMap, id: &str) -> AppResult
         None => None,
     };
     match credentials {
-        Some(credentials) if constant_time_eq(&credentials.token_sha256, &sha256(token.as_bytes())) => Ok(credentials),
+        Some(credentials) if constant_time_eq(&credentials.token_sha256, &token_sha256) => Ok(credentials),
         _ => Err(forbidden(id)),
     }
 }
@@ -619,6 +665,7 @@ async fn create_response(
     let outcome = state
         .storage()
         .write(NewResponse {
+            token_sha256: participant.token_sha256,
             participant: participant.id,
             trial: body.trial,
             chosen: body.chosen,
@@ -626,7 +673,11 @@ async fn create_response(
             client: Value::Object(client).to_string(),
             min_response_ms,
         })
-        .await??;
+        .await?
+        .map_err(|refused| match refused {
+            ResponseRefused::NotYours => forbidden(&id),
+            refused => refused.into(),
+        })?;
     let status = match outcome {
         ResponseOutcome::Created => StatusCode::CREATED,
         ResponseOutcome::Repeated => StatusCode::OK,

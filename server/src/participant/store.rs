@@ -21,6 +21,9 @@ use crate::trial::{ResponseOutcome, ResponseRefused, Side};
 #[derive(Debug, Clone)]
 pub struct NewResponse {
     pub participant: String,
+    /// SHA-256 of the token the response came with: checked against the participant's row in
+    /// the same transaction, so a deleted participant's token is refused by every server.
+    pub token_sha256: Vec<u8>,
     pub trial: i64,
     pub chosen: Side,
     pub rt_ms: f64,
@@ -45,8 +48,11 @@ pub struct NewParticipant {
     /// Joined through an admin preview link.
     pub pilot: bool,
     /// The external id when the study keeps one run per external id: a participant already
-    /// stored with it is resumed (given this token) instead of created.
+    /// stored with it is resumed instead of created, if the join proves it is that run.
     pub external_key: Option<String>,
+    /// SHA-256 of the token the page kept from its earlier join, if any: the proof that resumes
+    /// the run of `external_key` (which keeps its token; nobody else's join changes it).
+    pub resume_token_sha256: Option<Vec<u8>>,
     /// A screen-out of this visitor to withdraw (they now meet the requirements and joined).
     pub withdraw_screen_out: Option<String>,
 }
@@ -56,9 +62,12 @@ pub struct NewParticipant {
 pub enum JoinOutcome {
     /// A new participant with the given id.
     Created,
-    /// The study keeps one run per external id and this one had joined before: that
-    /// participant (`id`) now answers to the new token.
+    /// The study keeps one run per external id, this one had joined before, and the join
+    /// carried that run's token: the run (`id`) continues, with the same token.
     Resumed { id: String, trials: i64 },
+    /// The study keeps one run per external id and this one had joined before, but the join
+    /// did not carry that run's token: refused, nothing changed.
+    Taken,
 }
 
 /// A visitor who does not meet the study's screen requirements.
@@ -151,17 +160,30 @@ async fn store_response(
 ) -> Result<Result<ResponseOutcome, ResponseRefused>, sqlx::Error> {
     // Only a trial that was served can be answered; the server's own time since serving it
     // (first serving, so a reload never shortens it) is stored beside the client's.
+    // The token is checked here, in the transaction that stores the response: the database is
+    // the truth on which participants exist and which token each answers to (a server's cache
+    // of credentials may be older than a deletion made by another server).
     let served = sqlx::query(
-        "SELECT CASE WHEN shown_at IS NULL THEN 0 ELSE 1 END AS served,
-                (julianday('now') - julianday(shown_at)) * 86400000.0 AS served_ms
-         FROM trials WHERE participant = $1 AND trial = $2",
+        "SELECT CASE WHEN trials.shown_at IS NULL THEN 0 ELSE 1 END AS served,
+                (julianday('now') - julianday(trials.shown_at)) * 86400000.0 AS served_ms
+         FROM trials JOIN participants ON participants.id = trials.participant
+         WHERE trials.participant = $1 AND trials.trial = $2 AND participants.token_sha256 = $3",
     )
     .bind(&response.participant)
     .bind(response.trial)
+    .bind(&response.token_sha256)
     .fetch_optional(&mut *connection)
     .await?;
     let Some(served) = &served else {
-        // No such trial: out of range, or (active designs) not chosen yet, so never served.
+        // No such trial: out of range, or (active designs) not chosen yet, so never served; or
+        // the participant does not answer to this token (any more).
+        let owner: Option<Vec<u8>> = sqlx::query_scalar("SELECT token_sha256 FROM participants WHERE id = $1")
+            .bind(&response.participant)
+            .fetch_optional(&mut *connection)
+            .await?;
+        if !owner.is_some_and(|owner| crate::auth::constant_time_eq(&owner, &response.token_sha256)) {
+            return Ok(Err(ResponseRefused::NotYours));
+        }
         let Some((answered, trials)) = progress(connection, &response.participant).await? else {
             return Ok(Err(ResponseRefused::UnknownParticipant));
         };
@@ -290,34 +312,45 @@ pub(crate) async fn insert_trial(
     Ok(())
 }
 
+/// Withdraws the screen-out the joining visitor had, if any.
+async fn withdraw_screen_out(connection: &mut Connection, participant: &NewParticipant) -> Result<(), sqlx::Error> {
+    if let Some(withdraw) = &participant.withdraw_screen_out {
+        sqlx::query("DELETE FROM screen_outs WHERE id = $1 AND study = $2")
+            .bind(withdraw)
+            .bind(&participant.study.study.slug)
+            .execute(&mut *connection)
+            .await?;
+    }
+    Ok(())
+}
+
 async fn insert_participant(
     connection: &mut Connection,
     participant: &NewParticipant,
 ) -> Result<JoinOutcome, sqlx::Error> {
     let study = &participant.study.study;
-    if let Some(withdraw) = &participant.withdraw_screen_out {
-        sqlx::query("DELETE FROM screen_outs WHERE id = $1 AND study = $2")
-            .bind(withdraw)
-            .bind(&study.slug)
-            .execute(&mut *connection)
-            .await?;
-    }
     if let Some(external_key) = &participant.external_key {
-        let existing = sqlx::query("SELECT id, trials FROM participants WHERE study = $1 AND external_key = $2")
-            .bind(&study.slug)
-            .bind(external_key)
-            .fetch_optional(&mut *connection)
-            .await?;
-        if let Some(existing) = existing {
-            let id: String = existing.try_get("id")?;
-            sqlx::query("UPDATE participants SET token_sha256 = $1 WHERE id = $2")
-                .bind(&participant.token_sha256)
-                .bind(&id)
-                .execute(&mut *connection)
+        let existing =
+            sqlx::query("SELECT id, trials, token_sha256 FROM participants WHERE study = $1 AND external_key = $2")
+                .bind(&study.slug)
+                .bind(external_key)
+                .fetch_optional(&mut *connection)
                 .await?;
-            return Ok(JoinOutcome::Resumed { id, trials: existing.try_get("trials")? });
+        if let Some(existing) = existing {
+            // only the run's own token resumes it, and nothing about the run changes
+            let token_sha256: Vec<u8> = existing.try_get("token_sha256")?;
+            let proven = participant
+                .resume_token_sha256
+                .as_deref()
+                .is_some_and(|given| crate::auth::constant_time_eq(given, &token_sha256));
+            if !proven {
+                return Ok(JoinOutcome::Taken);
+            }
+            withdraw_screen_out(connection, participant).await?;
+            return Ok(JoinOutcome::Resumed { id: existing.try_get("id")?, trials: existing.try_get("trials")? });
         }
     }
+    withdraw_screen_out(connection, participant).await?;
     let ordinal: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(ordinal) + 1, 0) FROM participants WHERE study = $1")
         .bind(&study.slug)
         .fetch_one(&mut *connection)

@@ -147,8 +147,9 @@ pub struct Participation {
     /// nor one before the next pair is painted: the second click of a slow double click, or a
     /// double tap, never answers the next trial.
     pub answer_lock_ms: u32,
-    /// One run per value of the study's first URL parameter that is present (e.g.
-    /// `PROLIFIC_PID`): a second join with the same value resumes the first run.
+    /// One run per value of the study's first URL parameter (its declared id, e.g.
+    /// `PROLIFIC_PID`; never another), normalised: a second join with the same value resumes the
+    /// first run only with that run's token, else it is refused.
     pub unique_external_id: bool,
     /// Smallest viewport in CSS pixels, `[width, height]`.
     pub min_viewport: Option<[u32; 2]>,
