@@ -58,7 +58,7 @@ pub fn render(
     Ok(layout(&tiles))
 }
 
-/// Lays display-encoded images of one size out in rows of [`COLUMNS`], each with its label above.
+/// Lays display-encoded images of one size out in rows of five, each with its label above.
 pub fn layout(tiles: &[(String, Image)]) -> Image {
     let (w, h) = tiles.first().map(|(_, image)| (image.width, image.height)).unwrap_or((1, 1));
     let columns = COLUMNS.min(tiles.len().max(1) as u32);
