@@ -522,7 +522,16 @@ pub fn render_missing_shard(
         // the photograph, and the ground truth with its masks where the scene is synthesised
         let (photo, linear, reference) = match &planned.ground_truth_key {
             Some(key) => {
-                let reference = plan.settings.reference(&planned.scene, &report).map_err(render_error)?;
+                let reference = match recent_reference(key) {
+                    Some(reference) => reference,
+                    None => {
+                        let reference = std::sync::Arc::new(
+                            plan.settings.reference(&planned.scene, &report).map_err(render_error)?,
+                        );
+                        keep_reference(key, &reference);
+                        reference
+                    }
+                };
                 let shown = quantized(&reference.ground_truth);
                 let name = store_ground_truth(store, key, &shown, &mut rendered)?;
                 (reference.photo.clone(), reference.hdr_real.clone(), Some((reference, shown, name)))
@@ -602,7 +611,7 @@ pub fn render_missing_shard(
             &planned.scene,
             &planned.stimuli,
             &photo,
-            reference.as_ref().map(|(reference, shown, name)| (reference, shown, name)),
+            reference.as_ref().map(|(reference, shown, name)| (&**reference, shown, name)),
             &mut rendered,
         )?;
         // further realisations: the same radiance through the camera with another noise seed
@@ -624,6 +633,31 @@ pub fn render_missing_shard(
         }
     }
     Ok(rendered)
+}
+
+/// Reference renders kept in memory after [`render_missing`] made them, by the key of their
+/// ground truth (realisation 0), the most recent last: when one study's stimuli were rendered
+/// and another study needs further realisations of the same scene configuration (the web survey
+/// renders first, having fewer stimuli; real-or-rendered's realisations follow), its radiance is
+/// not traced again. At most [`KEPT_REFERENCES`] (about 27 MB each at 800 × 600).
+static RECENT_REFERENCES: std::sync::Mutex<Vec<(String, std::sync::Arc<ReferenceOutput>)>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// How many reference renders [`RECENT_REFERENCES`] keeps: the web survey's scene configurations.
+const KEPT_REFERENCES: usize = 6;
+
+fn recent_reference(key: &str) -> Option<std::sync::Arc<ReferenceOutput>> {
+    let kept = RECENT_REFERENCES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    kept.iter().find(|(kept_key, _)| kept_key == key).map(|(_, reference)| reference.clone())
+}
+
+fn keep_reference(key: &str, reference: &std::sync::Arc<ReferenceOutput>) {
+    let mut kept = RECENT_REFERENCES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    kept.retain(|(kept_key, _)| kept_key != key);
+    if kept.len() >= KEPT_REFERENCES {
+        kept.remove(0);
+    }
+    kept.push((key.to_string(), reference.clone()));
 }
 
 /// The stored ground truth under `key`, storing `shown` first where it is not there yet.
@@ -836,5 +870,39 @@ scenes = "same"
             assert_ne!(lookup(&store, &zero.key), lookup(&store, &one.key), "{}", zero.condition);
             assert!(lookup_record(&store, one).is_some_and(|record| record.ground_truth == lookup(&store, &realisation.ground_truth_key).unwrap()));
         }
+    }
+
+    #[test]
+    fn further_realisations_of_a_scene_rendered_for_another_study_trace_no_radiance_again() {
+        if DirRenderer::new().is_err() {
+            eprintln!("skipped: no GPU adapter (not even a software one)");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let load = |name: &str, text: &str| {
+            let file = dir.path().join(name);
+            std::fs::write(&file, text).unwrap();
+            crate::study::load_study(&file).unwrap()
+        };
+        // the first study needs realisation 0 only (as the web survey), the second two
+        // (as real-or-rendered); a size of its own, so no other test's render is kept
+        let sized = REALISED.replace("size = [48, 36]", "size = [40, 30]");
+        let first = load("first.toml", &sized.replace("realisations = 2", "realisations = 1"));
+        let second = load("second.toml", &sized.replace("slug = \"realised\"", "slug = \"realised-2\""));
+        let store = dir.path().join("store");
+        let photos = std::sync::atomic::AtomicUsize::new(0);
+        let count = |step: Progress| {
+            if matches!(step, Progress::Photo { .. }) {
+                photos.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+        };
+        let first_plan = StimulusPlan::of(&first).unwrap();
+        assert_eq!(render_missing(&first, &first_plan, &store, &count).unwrap().stimuli, 2);
+        assert!(photos.load(std::sync::atomic::Ordering::Relaxed) > 0, "the first study traces its radiance");
+        photos.store(0, std::sync::atomic::Ordering::Relaxed);
+        let second_plan = StimulusPlan::of(&second).unwrap();
+        let rendered = render_missing(&second, &second_plan, &store, &count).unwrap();
+        assert_eq!(rendered, Rendered { stimuli: 2, ground_truths: 1, records: 2 });
+        assert_eq!(photos.load(std::sync::atomic::Ordering::Relaxed), 0, "the radiance was traced again");
     }
 }
