@@ -8,6 +8,8 @@ mod admin;
 mod analyze;
 #[path = "e2e/browser.rs"]
 mod browser;
+#[path = "e2e/first_start.rs"]
+mod first_start;
 #[path = "e2e/gi_methods.rs"]
 mod gi_methods;
 #[path = "e2e/ground_truth.rs"]
@@ -38,3 +40,5 @@ mod support;
 mod survey_input;
 #[path = "e2e/survey_intent.rs"]
 mod survey_intent;
+#[path = "e2e/survey_polish.rs"]
+mod survey_polish;

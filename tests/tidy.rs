@@ -354,6 +354,7 @@ fn run_serve_script(probe: &Path, dir: &Path) -> (std::process::Output, Option<S
         .env("MRSTUDY_VULKAN_PROBE", probe)
         .env("MRSTUDY_NO_INSTALL", "1")
         .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("MRSTUDY_ADAPTER")
         .env("TMPDIR", dir)
         .output()
         .unwrap();

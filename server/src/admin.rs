@@ -554,6 +554,50 @@ struct AdminPage {
     studies: Vec<StudyStats>,
     /// Lab task studies being served: (slug, title, frame-rate line, interactive).
     lab: Vec<(String, String, String, bool)>,
+    /// Studies whose stimuli are still being rendered (or could not be).
+    preparing: Vec<PreparingRow>,
+    /// Task studies whose lab is still starting: (slug, title).
+    lab_starting: Vec<(String, String)>,
+    /// Seconds after which the page reloads itself: while something is being prepared.
+    refresh: Option<u64>,
+}
+
+/// One study being prepared, as the admin page shows it ([`crate::preparing`]).
+pub struct PreparingRow {
+    pub slug: String,
+    pub title: String,
+    /// Done, in per cent (0 to 100).
+    pub percent: u32,
+    /// Counts and the estimate of the time left, or why it failed.
+    pub summary: String,
+    pub failed: bool,
+}
+
+impl AdminPage {
+    fn new(state: &AppState, studies: Vec<StudyStats>) -> AdminPage {
+        let now = std::time::Instant::now();
+        let preparing: Vec<PreparingRow> = state
+            .preparation()
+            .studies()
+            .iter()
+            .map(|study| PreparingRow {
+                slug: study.slug.clone(),
+                title: study.title.clone(),
+                percent: (study.fraction() * 100.0).floor() as u32,
+                summary: study.summary(now),
+                failed: matches!(study.stage, crate::preparing::Stage::Failed(_)),
+            })
+            .collect();
+        let lab_starting = state.preparation().lab();
+        let busy = preparing.iter().any(|row| !row.failed) || !lab_starting.is_empty();
+        AdminPage {
+            studies,
+            lab: crate::task::results::overview(state),
+            preparing,
+            lab_starting,
+            refresh: busy.then_some(10),
+        }
+    }
 }
 
 async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Response {
@@ -569,7 +613,7 @@ async fn admin_page(State(state): State<AppState>, headers: HeaderMap) -> Respon
     }
     .await;
     match result {
-        Ok(studies) => crate::pages::render(&AdminPage { studies, lab: crate::task::results::overview(&state) }),
+        Ok(studies) => crate::pages::render(&AdminPage::new(&state, studies)),
         Err(error) => error.into_response(),
     }
 }

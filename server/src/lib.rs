@@ -15,7 +15,9 @@
 //! drive it with `oneshot`.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
-//! the path tracer, frame by the GPU renderer) into the store, only those that are missing.
+//! the path tracer, frame by the GPU renderer) into the store, only those that are missing;
+//! `serve` does so in the background once listening, and [`preparing`] tracks those studies
+//! (progress, estimate) until [`AppState::install`] serves them.
 //! Task studies run in the lab against the live renderer ([`task`]): `serve` starts them in the
 //! background once listening.
 
@@ -34,6 +36,7 @@ pub mod limits;
 pub mod pages;
 pub mod participant;
 pub mod prepared;
+pub mod preparing;
 pub mod schedule;
 pub mod serve;
 pub mod simulate;
@@ -67,22 +70,40 @@ pub struct AppState {
 
 struct StateInner {
     storage: Storage,
-    studies: Studies,
-    /// Slugs in the order the studies were loaded.
+    /// Every study served or being prepared, by slug; a study is served once its slot holds it.
+    studies: std::collections::HashMap<String, StudySlot>,
+    /// Slugs in the order the studies were loaded (those being prepared last).
     order: Vec<String>,
+    /// The studies whose stimuli are still being rendered, and the lab while it starts.
+    preparation: preparing::Preparation,
     admin_token_sha256: [u8; 32],
     stimuli_dir: PathBuf,
     /// Participants' credentials by id, filled on first use (they never change).
     credentials: std::sync::Mutex<std::collections::HashMap<String, participant::Credentials>>,
     /// The lab (task studies and the live renderer), once started (see [`task::start`]).
     lab: std::sync::OnceLock<Arc<task::Lab>>,
-    /// The shared posterior of each study with an active design.
-    active: participant::active::ActiveStudies,
     /// What one client address may do, and how much it has done.
     limits: limits::Limits,
     buckets: limits::Buckets,
     /// One admin API call at a time ([`limits::limit`]).
     admin_work: tokio::sync::Semaphore,
+}
+
+/// A study served or being prepared: set once, when it is served ([`AppState::install`]).
+#[derive(Default)]
+struct StudySlot {
+    prepared: std::sync::OnceLock<Arc<PreparedStudy>>,
+    /// The shared posterior of a study with an active design (set before `prepared`).
+    active: std::sync::OnceLock<Option<tokio::sync::Mutex<participant::active::ActiveState>>>,
+}
+
+impl StudySlot {
+    fn served(prepared: Arc<PreparedStudy>) -> StudySlot {
+        let slot = StudySlot::default();
+        let _ = slot.active.set(participant::active::active_state(&prepared));
+        let _ = slot.prepared.set(prepared);
+        slot
+    }
 }
 
 impl AppState {
@@ -93,17 +114,19 @@ impl AppState {
         stimuli_dir: PathBuf,
     ) -> AppState {
         let order = studies.iter().map(|study| study.study.slug.clone()).collect();
-        let active = participant::active::active_studies(studies.iter().map(|study| study.as_ref()));
         AppState {
             inner: Arc::new(StateInner {
                 storage,
-                studies: studies.into_iter().map(|study| (study.study.slug.clone(), study)).collect(),
+                studies: studies
+                    .into_iter()
+                    .map(|study| (study.study.slug.clone(), StudySlot::served(study)))
+                    .collect(),
                 order,
+                preparation: Default::default(),
                 admin_token_sha256: auth::sha256(admin_token.as_bytes()),
                 stimuli_dir,
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
-                active,
                 limits: limits::Limits::default(),
                 buckets: Default::default(),
                 admin_work: tokio::sync::Semaphore::new(1),
@@ -115,6 +138,37 @@ impl AppState {
     pub fn with_limits(mut self, limits: limits::Limits) -> AppState {
         Arc::get_mut(&mut self.inner).expect("limits are set before the state is shared").limits = limits;
         self
+    }
+
+    /// This state with studies still to prepare: (slug, title, stimuli to render) each, served
+    /// once [`AppState::install`] is given them; only before it is shared (it panics after).
+    pub fn with_pending(mut self, pending: impl IntoIterator<Item = (String, String, usize)>) -> AppState {
+        let inner = Arc::get_mut(&mut self.inner).expect("pending studies are added before the state is shared");
+        for (slug, title, stimuli) in pending {
+            inner.preparation.add(&slug, &title, stimuli);
+            inner.studies.insert(slug.clone(), StudySlot::default());
+            inner.order.push(slug);
+        }
+        self
+    }
+
+    /// Serves a study added by [`AppState::with_pending`], now that its stimuli are complete;
+    /// false if it was not pending.
+    pub fn install(&self, prepared: Arc<PreparedStudy>) -> bool {
+        let slug = prepared.study.slug.clone();
+        let Some(slot) = self.inner.studies.get(&slug) else { return false };
+        if slot.prepared.get().is_some() {
+            return false;
+        }
+        let _ = slot.active.set(participant::active::active_state(&prepared));
+        let installed = slot.prepared.set(prepared).is_ok();
+        self.inner.preparation.remove(&slug);
+        installed
+    }
+
+    /// The studies being prepared (and the lab while it starts).
+    pub fn preparation(&self) -> &preparing::Preparation {
+        &self.inner.preparation
     }
 
     pub fn limits(&self) -> limits::Limits {
@@ -133,18 +187,31 @@ impl AppState {
         &self.inner.storage
     }
 
+    /// The study `slug` if it is served (not while its stimuli are being prepared).
     pub fn study(&self, slug: &str) -> Option<&Arc<PreparedStudy>> {
-        self.inner.studies.get(slug)
+        self.inner.studies.get(slug)?.prepared.get()
+    }
+
+    /// The served study `slug`: while its stimuli are being prepared a 503 saying it opens in
+    /// a few minutes ([`AppError::OpensSoon`]), else (not served) a 404.
+    pub fn served_study(&self, slug: &str) -> Result<Arc<PreparedStudy>, AppError> {
+        if let Some(prepared) = self.study(slug) {
+            return Ok(prepared.clone());
+        }
+        if self.inner.preparation.pending(slug).is_some() {
+            return Err(AppError::OpensSoon { retry_after_seconds: self.inner.preparation.retry_after(slug) });
+        }
+        Err(AppError::NotFound(format!("There is no study \"{slug}\".")))
     }
 
     /// The shared state of a study with an active design.
     pub fn active(&self, slug: &str) -> Option<&tokio::sync::Mutex<participant::active::ActiveState>> {
-        self.inner.active.get(slug)
+        self.inner.studies.get(slug)?.active.get()?.as_ref()
     }
 
     /// The served studies in load order.
     pub fn studies(&self) -> impl Iterator<Item = &Arc<PreparedStudy>> {
-        self.inner.order.iter().filter_map(|slug| self.inner.studies.get(slug))
+        self.inner.order.iter().filter_map(|slug| self.study(slug))
     }
 
     /// The lab, once it has started and serves at least one task study.

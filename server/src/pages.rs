@@ -20,6 +20,8 @@ pub fn router() -> Router<AppState> {
         .route("/", get(index))
         .route("/studies/{slug}", get(study_page))
         .route("/static/{file}", get(static_file))
+        // browsers ask for it whatever the page names: the same icon, never a 404
+        .route("/favicon.ico", get(|| static_file(Path("favicon.svg".to_string()))))
         .route("/stimuli/{name}", get(stimulus))
 }
 
@@ -29,6 +31,7 @@ const STATIC_FILES: &[(&str, &str, &str)] = &[
     ("admin.js", "text/javascript; charset=utf-8", include_str!("../../web/static/admin.js")),
     ("lab.js", "text/javascript; charset=utf-8", include_str!("../../web/static/lab.js")),
     ("style.css", "text/css; charset=utf-8", include_str!("../../web/static/style.css")),
+    ("favicon.svg", "image/svg+xml", include_str!("../../web/static/favicon.svg")),
 ];
 
 pub(crate) fn render<T: Template>(template: &T) -> Response {
@@ -54,6 +57,16 @@ pub(crate) fn message_page(status: StatusCode, title: &str, message: &str) -> Re
 
 pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
     if uri.path().starts_with("/api/") {
+/// The page of a study still being prepared: 503 with `Retry-After`, saying that it opens in a
+/// few minutes, and reloading itself after that many seconds.
+pub(crate) fn opens_soon_page(title: &str, retry_after_seconds: u64) -> Response {
+    let message = format!("{} This page reloads itself.", crate::preparing::OPENS_SOON);
+    let mut response = render(&MessagePage { title, message: &message, refresh: Some(retry_after_seconds) });
+    *response.status_mut() = StatusCode::SERVICE_UNAVAILABLE;
+    response.headers_mut().insert(header::RETRY_AFTER, retry_after_seconds.into());
+    response
+}
+
         AppError::NotFound(format!("There is no API call {}.", uri.path())).into_response()
     } else {
         message_page(StatusCode::NOT_FOUND, "Page not found", "There is no page at this address.")
@@ -139,6 +152,8 @@ struct StudyPage {
     min_response_ms: u32,
     /// `native` or `fit` (how stimuli are scaled).
     display: &'static str,
+    /// `answer_lock_ms`: after an answer the page takes no press that begins sooner.
+    answer_lock_ms: u32,
     /// `landscape`, `portrait` or empty: checked again during the trials.
     orientation: &'static str,
     /// `min_viewport` as `W,H`, or empty.
@@ -149,8 +164,6 @@ impl StudyPage {
     fn new(prepared: &PreparedStudy, open: bool) -> StudyPage {
         let study = &prepared.study;
         StudyPage {
-    /// `answer_lock_ms`: after an answer the page takes no press that begins sooner.
-    answer_lock_ms: u32,
             slug: study.slug.clone(),
             title: study.title.clone(),
             question: study.question.clone(),

@@ -2,13 +2,17 @@
 //!
 //! On start: create the data directory, open and migrate `mrstudy.db`, settle the admin token
 //! (`MRSTUDY_ADMIN_TOKEN`, else `<data-dir>/admin-token`, generated once), load and check every
-//! study file (an invalid one stops the start with its file, key and expectation), render the
-//! stimuli of studies that name scenes for the renderer and are not in the store yet
-//! ([`crate::stimuli`]; progress through [`ServeConfig::progress`]), copy each study's image
-//! stimuli into `<data-dir>/stimuli/`, record the studies in the database, bind, and print one
-//! participant link per study and the admin link. A study whose stimuli cannot be rendered here
-//! (no GPU adapter, a scene that fails) is skipped with one warning line naming it and
-//! why; the others are served. Task studies start in the background once listening
+//! study file (an invalid one stops the start with its file, key and expectation), copy each
+//! study's image stimuli into `<data-dir>/stimuli/`, record the studies whose stimuli are all in
+//! the store in the database ([`load`]), bind, and print one participant link per study and the
+//! admin link. Nothing is rendered before listening: the stimuli of studies that name scenes
+//! for the renderer and are not in the store yet render in the background afterwards, one study
+//! after another ([`prepare_pending`], [`crate::stimuli`]; progress through
+//! [`ServeConfig::progress`]); until a study's stimuli are complete its participants are told
+//! it opens in a few minutes and the admin page shows its progress ([`crate::preparing`]), and
+//! then it is served without a restart (one `study "…" is open` line). A study whose stimuli
+//! cannot be rendered here (no GPU adapter, a scene that fails) is not served, with one warning
+//! line naming it and why. Task studies start in the background before the stimuli render
 //! ([`start_lab`]): one line per study with its frame rate (a warning when too slow for
 //! interactive rates) and its `lab link:`, or one warning line naming why they are not served
 //! (no GPU adapter).
@@ -20,7 +24,7 @@ use std::sync::Arc;
 use crate::prepared::{PrepareError, PreparedStudy};
 use crate::storage::{Database, OpenError, Storage};
 use crate::study::TaskStudy;
-use crate::study::{LoadedStudy, StudyError, load_studies};
+use crate::study::{LoadedStudy, Study, StudyError, load_studies};
 use crate::{AppState, app};
 
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
@@ -222,9 +226,21 @@ pub struct Prepared {
     pub admin_token: String,
     /// One line per study that is not served, to print as a warning.
     pub skipped: Vec<String>,
+    /// The studies served now, in load order.
     pub slugs: Vec<String>,
+    /// Studies whose stimuli are still to render, to serve with [`prepare_pending`] (`state`
+    /// knows them as being prepared: their participants are told they open in a few minutes).
+    pub pending: Vec<PendingStudy>,
     /// Task studies, to start with [`start_lab`] once listening.
     pub tasks: Vec<TaskStudy>,
+}
+
+/// A study whose stimuli are not all in the store yet: its plan, and how many stimuli the
+/// scene configurations still to render have.
+pub struct PendingStudy {
+    pub study: Study,
+    pub plan: crate::stimuli::StimulusPlan,
+    pub stimuli: usize,
 }
 
 /// Opens the data directory and loads the studies (see the module doc), rendering missing
@@ -238,7 +254,8 @@ pub async fn prepare_on(database: &Database, data_dir: &Path, studies_dir: &Path
     prepare_with_progress(database, data_dir, studies_dir, None, None).await
 }
 
-/// [`prepare`], telling `progress` how rendering missing stimuli goes.
+/// [`prepare`], telling `progress` how rendering missing stimuli goes: [`load`], then
+/// [`prepare_pending`] before returning (`serve` itself listens in between).
 pub async fn prepare_with_progress(
     database: &Database,
     data_dir: &Path,
@@ -246,12 +263,36 @@ pub async fn prepare_with_progress(
     stimuli_dir: Option<&Path>,
     progress: Option<&RenderProgress>,
 ) -> Result<Prepared, ServeError> {
+    let mut prepared = load(database, data_dir, studies_dir, stimuli_dir).await?;
+    let pending = std::mem::take(&mut prepared.pending);
+    let mut skipped = Vec::new();
+    prepare_pending(&prepared.state, pending, progress.cloned(), |outcome| {
+        if let Err(line) = outcome {
+            skipped.push(line);
+        }
+    })
+    .await;
+    prepared.skipped.extend(skipped);
+    prepared.slugs = prepared.state.studies().map(|study| study.study.slug.clone()).collect();
+    Ok(prepared)
+}
+
+/// Opens the data directory and loads the studies without rendering anything: a study whose
+/// stimuli are all in the store (or that shows image files) is served at once, one with
+/// stimuli still to render is left in [`Prepared::pending`] for [`prepare_pending`].
+pub async fn load(
+    database: &Database,
+    data_dir: &Path,
+    studies_dir: &Path,
+    stimuli_dir: Option<&Path>,
+) -> Result<Prepared, ServeError> {
     std::fs::create_dir_all(data_dir).map_err(|source| ServeError::DataDir { path: data_dir.to_path_buf(), source })?;
     let storage = Storage::open(database).await?;
     let admin_token = admin_token(data_dir)?;
     let studies = load_studies(studies_dir)?;
     let stimuli_dir = stimuli_dir.map(Path::to_path_buf).unwrap_or_else(|| data_dir.join("stimuli"));
     let mut prepared = Vec::new();
+    let mut pending = Vec::new();
     let mut skipped = Vec::new();
     let mut tasks = Vec::new();
     for study in studies {
@@ -270,15 +311,10 @@ pub async fn prepare_with_progress(
             }
         };
         if study.needs_renderer() {
-            // start-up work: rendering blocks this task, nothing is being served yet
-            let slug = study.slug.clone();
-            let report = |step: crate::stimuli::Progress| {
-                if let Some(progress) = progress {
-                    progress(&slug, &step);
-                }
-            };
-            if let Err(error) = crate::stimuli::render_missing(&study, &plan, &stimuli_dir, &report) {
-                skipped.push(format!("{error}; not serving it"));
+            let incomplete = plan.incomplete(&stimuli_dir);
+            if !incomplete.is_empty() {
+                let stimuli = plan.stimuli_in(&incomplete);
+                pending.push(PendingStudy { study, plan, stimuli });
                 continue;
             }
         }
@@ -301,13 +337,59 @@ pub async fn prepare_with_progress(
             .map_err(|source| ServeError::RecordStudy { slug: study.study.slug.clone(), source })?;
     }
     let slugs = prepared.iter().map(|study| study.study.slug.clone()).collect();
-    Ok(Prepared {
-        state: AppState::new(storage, prepared, &admin_token, stimuli_dir),
-        admin_token,
-        skipped,
-        slugs,
-        tasks,
-    })
+    // the fewest stimuli first: more studies open sooner
+    pending.sort_by_key(|study: &PendingStudy| study.stimuli);
+    let state = AppState::new(storage, prepared, &admin_token, stimuli_dir)
+        .with_pending(pending.iter().map(|study| (study.study.slug.clone(), study.study.title.clone(), study.stimuli)));
+    Ok(Prepared { state, admin_token, skipped, slugs, pending, tasks })
+}
+
+/// Renders the stimuli of the pending studies one study after another (each in a blocking task,
+/// its steps told to `state`'s preparation and to `progress`), and serves each as soon as all its
+/// stimuli are in the store: recorded in the database, then installed in `state`. `outcome` is
+/// told each study's end: `Ok(slug)` when it is served, `Err(line)` (a warning) when it is not
+/// (no GPU adapter, a scene that fails); such a study stays listed as failed, with the reason.
+pub async fn prepare_pending(
+    state: &AppState,
+    pending: Vec<PendingStudy>,
+    progress: Option<RenderProgress>,
+    mut outcome: impl FnMut(Result<&str, String>),
+) {
+    let store = state.stimuli_dir().to_path_buf();
+    for PendingStudy { study, plan, .. } in pending {
+        let slug = study.slug.clone();
+        let (state_for, progress, store) = (state.clone(), progress.clone(), store.clone());
+        let rendered = tokio::task::spawn_blocking(move || {
+            let slug = study.slug.clone();
+            let report = |step: crate::stimuli::Progress| {
+                state_for.preparation().record(&slug, &step);
+                if let Some(progress) = &progress {
+                    progress(&slug, &step);
+                }
+            };
+            crate::stimuli::render_missing(&study, &plan, &store, &report).map_err(|error| error.to_string())?;
+            PreparedStudy::prepare(study, &plan, &store).map_err(|error| error.to_string())
+        })
+        .await;
+        let served = match rendered {
+            Ok(Ok(prepared)) => match state.storage().upsert_study(&prepared.record()).await {
+                Ok(()) => {
+                    state.install(Arc::new(prepared));
+                    Ok(())
+                }
+                Err(source) => Err(ServeError::RecordStudy { slug: slug.clone(), source }.to_string()),
+            },
+            Ok(Err(reason)) => Err(reason),
+            Err(error) => Err(format!("study \"{slug}\": rendering its stimuli stopped ({error})")),
+        };
+        match served {
+            Ok(()) => outcome(Ok(&slug)),
+            Err(reason) => {
+                state.preparation().fail(&slug, reason.clone());
+                outcome(Err(format!("{reason}; not serving it")));
+            }
+        }
+    }
 }
 
 /// Starts the lab for the task studies (the renderer thread, scenes, photographs, frame-time
@@ -317,6 +399,7 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
     if let Some(lab) = start.lab {
         state.set_lab(lab);
     }
+    state.preparation().set_lab_starting(Vec::new());
     (start.info, start.warnings)
 }
 
@@ -326,20 +409,16 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
         let database = Database::choose(config.database.as_deref(), &config.data_dir).map_err(OpenError::Choose)?;
-        let mut prepared = prepare_with_progress(
-            &database,
-            &config.data_dir,
-            &config.studies_dir,
-            config.stimuli_dir.as_deref(),
-            config.progress.as_ref(),
-        )
-        .await?;
+        let started = std::time::Instant::now();
+        // nothing is rendered before listening: missing stimuli render in the background below
+        let mut prepared =
+            load(&database, &config.data_dir, &config.studies_dir, config.stimuli_dir.as_deref()).await?;
         // before the state is shared (the lab's start-up task holds a copy)
         prepared.state = prepared.state.with_limits(config.limits);
         for line in &prepared.skipped {
             eprintln!("warning: {line}");
         }
-        if prepared.slugs.is_empty() && prepared.tasks.is_empty() {
+        if prepared.slugs.is_empty() && prepared.pending.is_empty() && prepared.tasks.is_empty() {
             eprintln!("warning: no study to serve in {}", config.studies_dir.display());
         }
         let listener = tokio::net::TcpListener::bind(&config.addr)
@@ -359,9 +438,41 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         for slug in &prepared.slugs {
             println!("participant link: {base}/studies/{slug}");
         }
+        for pending in &prepared.pending {
+            let slug = &pending.study.slug;
+            println!(
+                "participant link: {base}/studies/{slug} (opens once its {} stimuli are rendered)",
+                pending.stimuli
+            );
+        }
         println!("admin link: {base}/admin/login?token={}", prepared.admin_token);
         use std::io::Write;
         let _ = std::io::stdout().flush();
+        // in the background the lab starts first (its renderer, scene and frame times: seconds),
+        // then the missing stimuli render: one after the other, as both render on the GPU
+        // (lavapipe's is the CPU) and the lab measures its frame times as it starts
+        let (lab_started, lab_done) = tokio::sync::oneshot::channel::<()>();
+        let lab_started = (!prepared.tasks.is_empty()).then_some(lab_started);
+        {
+            let pending = std::mem::take(&mut prepared.pending);
+            let (state, progress, base) = (prepared.state.clone(), config.progress.clone(), base.clone());
+            tokio::spawn(async move {
+                let _ = lab_done.await;
+                prepare_pending(&state, pending, progress, |outcome| match outcome {
+                    Ok(slug) => {
+                        let seconds = started.elapsed().as_secs();
+                        println!("study \"{slug}\" is open ({seconds} s after start): {base}/studies/{slug}");
+                        let _ = std::io::stdout().flush();
+                    }
+                    Err(line) => eprintln!("warning: {line}"),
+                })
+                .await;
+            });
+        }
+        prepared
+            .state
+            .preparation()
+            .set_lab_starting(prepared.tasks.iter().map(|task| (task.slug.clone(), task.title.clone())).collect());
         if !prepared.tasks.is_empty() {
             // the lab starts in the background: opening the GPU and path-tracing the photograph
             // must not keep the web survey from being served
@@ -373,6 +484,9 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
             tokio::spawn(async move {
                 let slugs: Vec<String> = tasks.iter().map(|task| task.slug.clone()).collect();
                 let (info, warnings) = start_lab(&state, tasks, &data_dir).await;
+                if let Some(started) = lab_started {
+                    let _ = started.send(());
+                }
                 if let Some(lab) = state.lab() {
                     lab.set_idle_timeout(idle_timeout);
                     lab.set_sessions_per_address(lab_config.sessions_per_address);

@@ -977,3 +977,98 @@ async fn screen_requirements_refuse_a_phone_and_a_small_window_and_count_the_scr
     assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
     assert_eq!(screen_outs().await, 3);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Listening at once (issue 47): a study whose stimuli are still to render is known but not
+// served until they are.
+
+/// A study of two conditions on a built-in scene, rendered tiny, with the demo study's texts.
+fn write_rendered_mini(dir: &Path) {
+    let demo = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
+    let texts = &demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()];
+    let study = format!(
+        "slug = \"rendered-mini\"\ntitle = \"Rendered\"\nkind = \"paired-comparison\"\nquestion = \"Which fits better?\"\n\n{texts}\n\
+         [[factors]]\nname = \"gi\"\n\n[[conditions]]\nname = \"LQ\"\nlevels = {{ gi = 0 }}\n\n\
+         [[conditions]]\nname = \"GI\"\nlevels = {{ gi = 1 }}\n\n[render]\nsize = [48, 36]\nspp = 2\nvpls = 16\n\n\
+         [[scenes]]\nname = \"box\"\nrender = \"dir-lamp-box\"\n\n[design]\npairs = \"all\"\nrepetitions = 1\nscenes = \"same\"\n\n\
+         [completion]\ncode = \"MINI\"\n"
+    );
+    std::fs::write(dir.join("rendered-mini.toml"), study).unwrap();
+}
+
+/// `serve::load` serves the demo study at once and leaves the rendered study pending: the list
+/// of open studies answers without it, joining it (and its screen check) answers 503 "This study
+/// opens in a few minutes." with `Retry-After`, its page says so with the same status, and the
+/// admin page shows it with a progress bar. Once `prepare_pending` has rendered its stimuli the
+/// same router serves it (no restart). Fails where `serve` renders before it serves (the study
+/// is then either served at once or not at all).
+#[tokio::test]
+async fn a_study_still_being_prepared_opens_in_a_few_minutes_then_is_served_without_a_restart() {
+    let work = tempfile::tempdir().unwrap();
+    let studies = work.path().join("studies");
+    copy_demo_study(&studies);
+    write_rendered_mini(&studies);
+    let data = work.path().join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, slugs, pending, skipped, .. } =
+        mrstudy_server::serve::load(&database, &data, &studies, None).await.unwrap();
+    assert_eq!((slugs, skipped), (vec!["shadows-demo".to_string()], Vec::<String>::new()));
+    assert_eq!(pending.iter().map(|study| study.study.slug.as_str()).collect::<Vec<_>>(), ["rendered-mini"]);
+    assert!(!data.join("stimuli/rendered").exists(), "load renders nothing");
+    let app = app(state.clone());
+    let open_slugs = async || -> Vec<String> {
+        let listed = call(&app, Method::GET, "/api/studies", None, None).await;
+        assert_eq!(listed.status, StatusCode::OK);
+        listed.json().as_array().unwrap().iter().map(|study| study["slug"].as_str().unwrap().to_string()).collect()
+    };
+    assert_eq!(open_slugs().await, ["shadows-demo"]);
+    for (uri, body) in [
+        ("/api/studies/rendered-mini/participants", json!({"demographics": {}})),
+        ("/api/studies/rendered-mini/screen", json!({"client": {}})),
+    ] {
+        let refused = call(&app, Method::POST, uri, None, Some(body)).await;
+        assert_eq!(refused.status, StatusCode::SERVICE_UNAVAILABLE, "{uri}: {}", refused.text());
+        assert_eq!(refused.error(), "This study opens in a few minutes.");
+        let retry: u64 = refused.headers[header::RETRY_AFTER].to_str().unwrap().parse().unwrap();
+        assert!((10..=120).contains(&retry), "{retry}");
+    }
+    let page = call(&app, Method::GET, "/studies/rendered-mini", None, None).await;
+    assert_eq!(page.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(page.headers.contains_key(header::RETRY_AFTER));
+    assert!(
+        page.text().contains("This study opens in a few minutes.") && page.text().contains("http-equiv=\"refresh\"")
+    );
+    let cookie = support::admin_session_cookie(&app, &admin_token).await;
+    let admin_page = async || {
+        let request = Request::builder().uri("/admin").header(header::COOKIE, &cookie).body(Body::empty()).unwrap();
+        send(&app, request).await.text()
+    };
+    let overview = admin_page().await;
+    assert!(overview.contains("Being prepared") && overview.contains("<progress"), "{overview}");
+    assert!(overview.contains("waiting to render its 2 stimuli"), "{overview}");
+    // a study that is neither served nor prepared is still a 404
+    let unknown =
+        call(&app, Method::POST, "/api/studies/nope/participants", None, Some(json!({"demographics": {}}))).await;
+    assert_eq!(unknown.status, StatusCode::NOT_FOUND);
+
+    let mut outcomes = Vec::new();
+    mrstudy_server::serve::prepare_pending(&state, pending, None, |outcome| {
+        outcomes.push(outcome.map(str::to_string));
+    })
+    .await;
+    if let [Err(warning)] = outcomes.as_slice()
+        && warning.contains("adapter")
+    {
+        eprintln!("skipping the rest: no GPU adapter ({warning})");
+        assert!(admin_page().await.contains("not served: "));
+        return;
+    }
+    assert_eq!(outcomes, [Ok("rendered-mini".to_string())]);
+    assert_eq!(open_slugs().await, ["shadows-demo", "rendered-mini"]);
+    let joined =
+        call(&app, Method::POST, "/api/studies/rendered-mini/participants", None, Some(json!({"demographics": {}})))
+            .await;
+    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
+    assert_eq!(call(&app, Method::GET, "/studies/rendered-mini", None, None).await.status, StatusCode::OK);
+    assert!(!admin_page().await.contains("Being prepared"));
+}

@@ -188,6 +188,33 @@ impl Server {
         }
     }
 
+    /// Waits until `slug` is among the open studies (its stimuli render in the background after
+    /// the server listens), at most `wait`; `Err` with the server's warning lines about it when
+    /// it is not served (e.g. no GPU adapter), or when the time is up.
+    pub fn wait_open(&self, slug: &str, wait: Duration) -> Result<(), String> {
+        let deadline = Instant::now() + wait;
+        let http = client();
+        loop {
+            let listed: Value = http
+                .get(format!("{}/api/studies", self.base))
+                .send()
+                .and_then(|response| response.json())
+                .map_err(|error| error.to_string())?;
+            if listed.as_array().is_some_and(|studies| studies.iter().any(|study| study["slug"] == slug)) {
+                return Ok(());
+            }
+            let warnings: Vec<String> =
+                self.stderr.try_iter().filter(|line| line.starts_with("warning") && line.contains(slug)).collect();
+            if !warnings.is_empty() {
+                return Err(warnings.join(" | "));
+            }
+            if Instant::now() >= deadline {
+                return Err(format!("study \"{slug}\" did not open within {wait:?}"));
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
     pub fn kill(&mut self) {
         let _ = self.child.kill(); // SIGKILL on Unix
         let _ = self.child.wait();

@@ -452,5 +452,9 @@
   $("retry").addEventListener("click", () => { if (session && session.started) nextTrial(); else if (session) show("instructions"); else show("welcome"); });
 
   if (preview) $("preview-note").hidden = false;
+  // A touch screen without a mouse (a phone, most tablets) is told to tap: it has no mouse to
+  // click with and mostly no arrow keys.
+  const touchOnly = window.matchMedia && matchMedia("(pointer: coarse)").matches && !matchMedia("(any-pointer: fine)").matches;
+  if (touchOnly || deviceKind() === "phone") $("choice-hint").textContent = "Tap an image.";
   start().catch((error) => fatal("The study could not start: " + error));
 })();

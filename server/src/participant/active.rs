@@ -16,8 +16,6 @@
 //! falls back to its fixed design ([`schedule::fallback_batch`]) from then on, `chosen_by`
 //! says why, and the admin page shows the warning.
 
-use std::collections::HashMap;
-
 use sqlx::Row;
 
 use crate::storage::Connection;
@@ -48,21 +46,15 @@ impl ActiveState {
     }
 }
 
-/// The active states of the served studies that have an active design.
-pub type ActiveStudies = HashMap<String, Mutex<ActiveState>>;
-
-/// A fresh state per active study (a posterior the study file's checks already accepted).
-pub fn active_studies<'a>(studies: impl Iterator<Item = &'a PreparedStudy>) -> ActiveStudies {
-    studies
-        .filter_map(|prepared| {
-            let posterior = schedule::active_posterior(&prepared.study)?;
-            let (posterior, failure) = match posterior {
-                Ok(posterior) => (Some(posterior), None),
-                Err(error) => (None, Some(format!("the posterior could not be set up: {error}"))),
-            };
-            Some((prepared.study.slug.clone(), Mutex::new(ActiveState { posterior, absorbed_seq: 0, failure })))
-        })
-        .collect()
+/// A fresh state for a study with an active design (a posterior the study file's checks already
+/// accepted); `None` for a fixed design.
+pub fn active_state(prepared: &PreparedStudy) -> Option<Mutex<ActiveState>> {
+    let posterior = schedule::active_posterior(&prepared.study)?;
+    let (posterior, failure) = match posterior {
+        Ok(posterior) => (Some(posterior), None),
+        Err(error) => (None, Some(format!("the posterior could not be set up: {error}"))),
+    };
+    Some(Mutex::new(ActiveState { posterior, absorbed_seq: 0, failure }))
 }
 
 /// Absorbs the judgments committed since the last call, in commit order.

@@ -196,8 +196,7 @@ async fn check_screen(
     Path(slug): Path<String>,
     Json(body): Json<ScreenBody>,
 ) -> AppResult<Response> {
-    let prepared =
-        state.study(&slug).ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?.clone();
+    let prepared = state.served_study(&slug)?;
     let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
     let client = validate_client(body.client)?;
     let Some(reason) = screen_refusal(&prepared.study.participation, &client) else {
@@ -268,8 +267,7 @@ async fn create_participant(
     Path(slug): Path<String>,
     Json(body): Json<JoinBody>,
 ) -> AppResult<Response> {
-    let prepared =
-        state.study(&slug).ok_or_else(|| AppError::NotFound(format!("There is no study \"{slug}\".")))?.clone();
+    let prepared = state.served_study(&slug)?;
     let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
     // A preview runs the study as a participant would, also before the study is opened.
     if !pilot && !state.storage().is_open(&slug).await? {

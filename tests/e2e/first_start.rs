@@ -1,0 +1,121 @@
+//! `mrstudy serve` on a first start (issue 47): it listens before the missing stimuli are
+//! rendered, tells the participants of a study still being prepared that it opens in a few
+//! minutes, and opens the study once its stimuli are in the store, without a restart.
+
+use std::path::Path;
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+use super::support::{Server, client, copy_demo_study, demo_texts};
+
+/// A study of two conditions on a built-in scene whose reference render (photograph and
+/// ground truth, path-traced) takes a few seconds: long enough that the server answers before
+/// it is done, short enough for a test.
+fn write_slow_study(dir: &Path) {
+    let texts = demo_texts();
+    let study = format!(
+        r#"slug = "slow-mini"
+title = "Rendered slowly"
+kind = "paired-comparison"
+question = "Which fits better?"
+
+{texts}
+[[factors]]
+name = "gi"
+
+[[conditions]]
+name = "LQ"
+levels = {{ gi = 0 }}
+
+[[conditions]]
+name = "GI"
+levels = {{ gi = 1 }}
+
+[render]
+size = [160, 120]
+spp = 256
+vpls = 16
+
+[[scenes]]
+name = "box"
+render = "dir-lamp-box"
+
+[design]
+pairs = "all"
+repetitions = 1
+scenes = "same"
+
+[completion]
+code = "SLOW"
+"#
+    );
+    std::fs::write(dir.join("slow-mini.toml"), study).unwrap();
+}
+
+/// Index entries in the data directory's stimulus store (none before anything is rendered).
+fn rendered_entries(data_dir: &Path) -> usize {
+    std::fs::read_dir(data_dir.join("stimuli/rendered")).map_or(0, |entries| entries.count())
+}
+
+/// On a fresh data directory the server prints its links and answers at once: the demo study
+/// (image files) is open, the rendered study is not listed, joining it answers 503 "This study
+/// opens in a few minutes." with `Retry-After` and its page says the same, all while its
+/// stimuli are not yet in the store; then it opens by itself and takes a participant. Fails
+/// where `serve` renders before it listens (the links come after the render; the study is open
+/// from the first answer).
+#[test]
+fn serve_listens_while_a_study_is_prepared_and_opens_it_once_its_stimuli_are_rendered() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    copy_demo_study(studies.path());
+    write_slow_study(studies.path());
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    let http = client();
+    let base = &server.base;
+    let listed: Value = http.get(format!("{base}/api/studies")).send().unwrap().json().unwrap();
+    let joined = http
+        .post(format!("{base}/api/studies/slow-mini/participants"))
+        .json(&json!({"demographics": {}}))
+        .send()
+        .unwrap();
+    let (join_status, retry_after) = (joined.status(), joined.headers().get("retry-after").cloned());
+    let join_body: Value = joined.json().unwrap();
+    let page = http.get(format!("{base}/studies/slow-mini")).send().unwrap();
+    let page_status = page.status();
+    let page = page.text().unwrap();
+    // the answers above came while the store still lacked some of the study's stimuli
+    let entries_then = rendered_entries(data_dir.path());
+
+    match server.wait_open("slow-mini", Duration::from_secs(300)) {
+        Err(warning) if warning.contains("adapter") => {
+            eprintln!("skipping the rest: no GPU adapter ({warning})");
+            return;
+        }
+        result => result.unwrap(),
+    }
+    let entries_now = rendered_entries(data_dir.path());
+    assert!(
+        entries_then < entries_now,
+        "the store was complete ({entries_then} of {entries_now} entries) when the server first answered"
+    );
+    let slugs: Vec<&str> = listed.as_array().unwrap().iter().map(|study| study["slug"].as_str().unwrap()).collect();
+    assert_eq!(slugs, ["shadows-demo"], "only the demo study is open at first");
+    assert_eq!(join_status, 503, "{join_body}");
+    assert_eq!(join_body, json!({"error": "This study opens in a few minutes."}));
+    assert!(retry_after.is_some_and(|seconds| seconds.to_str().unwrap().parse::<u64>().is_ok()));
+    assert_eq!(page_status, 503);
+    assert!(page.contains("This study opens in a few minutes."), "{page}");
+
+    // open now, without a restart, and the server says so on stdout
+    let joined = http
+        .post(format!("{base}/api/studies/slow-mini/participants"))
+        .json(&json!({"demographics": {}}))
+        .send()
+        .unwrap();
+    assert_eq!(joined.status(), 201);
+    assert_eq!(http.get(format!("{base}/studies/slow-mini")).send().unwrap().status(), 200);
+    let said = std::iter::from_fn(|| server.stdout.recv_timeout(Duration::from_secs(10)).ok())
+        .find(|line| line.starts_with("study \"slow-mini\" is open ("));
+    assert!(said.is_some_and(|line| line.ends_with("/studies/slow-mini")));
+}
