@@ -66,9 +66,19 @@ impl Blockage {
 
 /// The share of each light's emission that is blocked at once, for every light that has any
 /// blocked (none: an empty list). `area_lights` are the indices into `objects` of the area
-/// lights' emitters (which are not checked against themselves).
-pub fn blockages(objects: &[SceneObject], spots: &[SpotLight], area_lights: &[usize]) -> Vec<Blockage> {
-    let bounds: Vec<Aabb> = objects.iter().map(|o| grown(object_bounds(&o.prims), CONTACT)).collect();
+/// lights' emitters (which are not checked against themselves); `enclosure` names an object
+/// the camera is inside (a room modelled as a closed box), whose inside a light may light as
+/// the camera sees it, so it blocks nothing.
+pub fn blockages(
+    objects: &[SceneObject],
+    spots: &[SpotLight],
+    area_lights: &[usize],
+    enclosure: Option<&str>,
+) -> Vec<Blockage> {
+    let bounds: Vec<Aabb> = objects
+        .iter()
+        .map(|o| if enclosure == Some(o.name.as_str()) { Aabb::EMPTY } else { grown(object_bounds(&o.prims), CONTACT) })
+        .collect();
     let mut found = Vec::new();
     for spot in spots {
         let near: Vec<usize> = (0..objects.len()).filter(|&i| contains(&bounds[i], spot.position)).collect();
@@ -127,8 +137,13 @@ pub fn blockages(objects: &[SceneObject], spots: &[SpotLight], area_lights: &[us
 }
 
 /// The warnings of [`blockages`] whose share reaches [`WARN_FRACTION`].
-pub fn warnings(objects: &[SceneObject], spots: &[SpotLight], area_lights: &[usize]) -> Vec<String> {
-    blockages(objects, spots, area_lights)
+pub fn warnings(
+    objects: &[SceneObject],
+    spots: &[SpotLight],
+    area_lights: &[usize],
+    enclosure: Option<&str>,
+) -> Vec<String> {
+    blockages(objects, spots, area_lights, enclosure)
         .into_iter()
         .filter(|b| b.fraction >= WARN_FRACTION)
         .map(|b| b.warning())
@@ -343,7 +358,7 @@ intensity = 1.0"#,
 position = [0.0, 0.1, 0.0]
 intensity = 1.0"#,
         );
-        let found = blockages(&on_top.objects, &on_top.spots, &[]);
+        let found = blockages(&on_top.objects, &on_top.spots, &[], None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].object, "crate");
         assert!((found[0].fraction - 0.5).abs() < 0.02, "{found:?}");
@@ -363,7 +378,7 @@ intensity = 5.0"#,
         let warning = only_warning(&into);
         assert!(warning.starts_with("area light `lamp` faces into object `crate`"), "{warning}");
         let emitter = into.objects.len() - 1;
-        let found = blockages(&into.objects, &into.spots, &[emitter]);
+        let found = blockages(&into.objects, &into.spots, &[emitter], None);
         assert!((found[0].fraction - 0.75).abs() < 0.03, "{found:?}");
         let away = reloaded(&into, |l| l.direction = Some([0.0, 1.0, 0.0]));
         assert!(away.is_empty(), "{away:?}");
@@ -379,5 +394,26 @@ size = [0.1, 0.1]
 intensity = 5.0"#,
         );
         assert!(only_warning(&wall).contains("`wall`"));
+    }
+
+    #[test]
+    fn a_light_in_the_room_the_camera_is_in_is_not_warned_about() {
+        // a closed box around camera and light is a room: only the camera's own warning
+        let mut desc = scene(
+            r#"kind = "point"
+position = [0.0, 0.6, 0.0]
+intensity = 1.0"#,
+        )
+        .desc;
+        desc.objects.push(crate::scene::ObjectDesc {
+            name: "room".into(),
+            role: Some(crate::scene::Role::Real),
+            shape: "box".into(),
+            size: Some(vec![3.0, 3.0, 3.0]),
+            ..Default::default()
+        });
+        let room = Scene::from_desc(desc, std::path::Path::new("."), "light-check").unwrap();
+        assert_eq!(room.warnings.len(), 1, "{:?}", room.warnings);
+        assert!(room.warnings[0].contains("the camera is inside object `room`"), "{:?}", room.warnings);
     }
 }

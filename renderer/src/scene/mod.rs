@@ -291,8 +291,9 @@ impl Scene {
             warnings: ctx.warnings,
             desc,
         };
-        scene.warnings.extend(light_check::warnings(&scene.objects, &scene.spots, &area_lights));
-        if let Some(inside) = scene.object_containing_camera() {
+        let enclosure = scene.object_containing_camera();
+        scene.warnings.extend(light_check::warnings(&scene.objects, &scene.spots, &area_lights, enclosure.as_deref()));
+        if let Some(inside) = enclosure {
             scene.warnings.push(format!(
                 "the camera is inside object `{inside}`; its view is blocked by that object's inner faces"
             ));
