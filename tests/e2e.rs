@@ -42,3 +42,5 @@ mod survey_input;
 mod survey_intent;
 #[path = "e2e/survey_polish.rs"]
 mod survey_polish;
+#[path = "e2e/survey_return.rs"]
+mod survey_return;

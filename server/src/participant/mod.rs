@@ -185,12 +185,52 @@ struct ScreenAnswer {
     reason: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     screen_out: Option<String>,
+    /// A returning participant: the study keeps one run per external id and this one finished;
+    /// the page shows the completion page instead of asking anything again.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    completed: Option<Completed>,
+}
+
+/// What the completion page shows (as `…/next` answers once every trial is answered).
+#[derive(Serialize)]
+struct Completed {
+    done: bool,
+    completion_code: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    redirect: Option<String>,
+}
+
+/// The finished run of this external id, if the study keeps one run per external id.
+async fn finished_run(
+    state: &AppState,
+    study: &Study,
+    url_params: &Map<String, Value>,
+) -> AppResult<Option<Completed>> {
+    if !study.participation.unique_external_id {
+        return Ok(None);
+    }
+    let Some(key) = external_key(study, url_params) else { return Ok(None) };
+    let id: Option<String> = sqlx::query_scalar(
+        "SELECT id FROM participants WHERE study = $1 AND external_key = $2 AND completed_at IS NOT NULL",
+    )
+    .bind(&study.slug)
+    .bind(&key)
+    .fetch_optional(&state.storage().read)
+    .await?;
+    let Some(id) = id else { return Ok(None) };
+    Ok(state.storage().participant(&id).await?.map(|participant| Completed {
+        done: true,
+        redirect: redirect_url(study, &participant),
+        completion_code: participant.completion_code,
+    }))
 }
 
 /// Checks a visitor's screen against the study's requirements before anything is asked of
 /// them: `200 {meets: true}`, or `201 {meets: false, reason, screen_out}` with the visitor
 /// recorded as screened out (counted in the funnel; the same visitor checking again updates
-/// that record, and joining later withdraws it).
+/// that record, and joining later withdraws it). A visitor whose external id already finished
+/// the study (`unique_external_id`) gets `200 {meets: true, completed: {done, completion_code,
+/// redirect}}`, whatever the screen: a returning participant sees the completion page again.
 async fn check_screen(
     State(state): State<AppState>,
     Path(slug): Path<String>,
@@ -199,16 +239,23 @@ async fn check_screen(
     let prepared = state.served_study(&slug)?;
     let pilot = pilot(&state, &slug, body.preview.as_deref()).await?;
     let client = validate_client(body.client)?;
+    let url_params = validate_url_params(&prepared.study, body.url_params)?;
+    if !pilot && let Some(completed) = finished_run(&state, &prepared.study, &url_params).await? {
+        let answer = ScreenAnswer { meets: true, reason: None, screen_out: None, completed: Some(completed) };
+        return Ok(Json(answer).into_response());
+    }
     let Some(reason) = screen_refusal(&prepared.study.participation, &client) else {
-        return Ok(Json(ScreenAnswer { meets: true, reason: None, screen_out: None }).into_response());
+        return Ok(Json(ScreenAnswer { meets: true, reason: None, screen_out: None, completed: None }).into_response());
     };
     let id = match body.screen_out {
         Some(id) if id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()) => id,
         _ => random_hex(16),
     };
-    let url_params = validate_url_params(&prepared.study, body.url_params)?;
     record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
-    Ok((StatusCode::CREATED, Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id) }))
+    Ok((
+        StatusCode::CREATED,
+        Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id), completed: None }),
+    )
         .into_response())
 }
 
