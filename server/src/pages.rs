@@ -46,17 +46,17 @@ pub(crate) fn render<T: Template>(template: &T) -> Response {
 struct MessagePage<'a> {
     title: &'a str,
     message: &'a str,
+    /// Seconds after which the page reloads itself, if it should.
+    refresh: Option<u64>,
 }
 
 /// A plain page with a title and one sentence, with a status code.
 pub(crate) fn message_page(status: StatusCode, title: &str, message: &str) -> Response {
-    let mut response = render(&MessagePage { title, message });
+    let mut response = render(&MessagePage { title, message, refresh: None });
     *response.status_mut() = status;
     response
 }
 
-pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
-    if uri.path().starts_with("/api/") {
 /// The page of a study still being prepared: 503 with `Retry-After`, saying that it opens in a
 /// few minutes, and reloading itself after that many seconds.
 pub(crate) fn opens_soon_page(title: &str, retry_after_seconds: u64) -> Response {
@@ -67,6 +67,8 @@ pub(crate) fn opens_soon_page(title: &str, retry_after_seconds: u64) -> Response
     response
 }
 
+pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
+    if uri.path().starts_with("/api/") {
         AppError::NotFound(format!("There is no API call {}.", uri.path())).into_response()
     } else {
         message_page(StatusCode::NOT_FOUND, "Page not found", "There is no page at this address.")
@@ -150,10 +152,10 @@ struct StudyPage {
     fields: Vec<FieldView>,
     /// `min_response_ms`: the page accepts no answer sooner after a pair is on screen.
     min_response_ms: u32,
-    /// `native` or `fit` (how stimuli are scaled).
-    display: &'static str,
     /// `answer_lock_ms`: after an answer the page takes no press that begins sooner.
     answer_lock_ms: u32,
+    /// `native` or `fit` (how stimuli are scaled).
+    display: &'static str,
     /// `landscape`, `portrait` or empty: checked again during the trials.
     orientation: &'static str,
     /// `min_viewport` as `W,H`, or empty.
@@ -175,6 +177,7 @@ impl StudyPage {
             thanks: paragraphs(&study.texts.thanks),
             fields: study.demographics.iter().map(FieldView::from).collect(),
             min_response_ms: study.participation.min_response_ms,
+            answer_lock_ms: study.participation.answer_lock_ms,
             display: match study.participation.display {
                 crate::study::Display::Native => "native",
                 crate::study::Display::Fit => "fit",
@@ -187,11 +190,13 @@ impl StudyPage {
             min_viewport: study.participation.min_viewport.map(|[w, h]| format!("{w},{h}")).unwrap_or_default(),
         }
     }
-            answer_lock_ms: study.participation.answer_lock_ms,
 }
 
 async fn study_page(State(state): State<AppState>, Path(slug): Path<String>) -> Response {
     let Some(prepared) = state.study(&slug) else {
+        if let Some(pending) = state.preparation().pending(&slug) {
+            return opens_soon_page(&pending.title, state.preparation().retry_after(&slug));
+        }
         return message_page(StatusCode::NOT_FOUND, "No such study", "There is no study at this address.");
     };
     match state.storage().is_open(&slug).await {
