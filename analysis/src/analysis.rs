@@ -281,6 +281,59 @@ pub struct NotEstimable {
     pub reason: String,
 }
 
+/// An optional part of the analysis (or of its `metrics` section) that can fail to be
+/// estimable on the data so far while everything else is reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Part {
+    FactorModel,
+    ObserverScreening,
+    Bootstrap,
+    /// The likelihood-ratio test of equal effects across the groups of `--group-by`.
+    GroupTest,
+    /// The whole stimulus-metrics analysis (`--stimuli`).
+    Metrics,
+    /// The log-worth per stimulus of the metrics analysis (it then falls back to conditions).
+    StimulusModel,
+    /// Every correlation of a metric with the perceived log-worth.
+    MetricCorrelations,
+}
+
+impl Part {
+    /// The part's name in a sentence.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Part::FactorModel => "factor model",
+            Part::ObserverScreening => "observer screening",
+            Part::Bootstrap => "bootstrap",
+            Part::GroupTest => "test of equal effects across groups",
+            Part::Metrics => "metrics analysis",
+            Part::StimulusModel => "stimulus model",
+            Part::MetricCorrelations => "metric correlations",
+        }
+    }
+}
+
+/// A part of the analysis that could not be estimated on these data, and why (JSON
+/// `not_estimable: [{"part": "observer_screening", "reason": "…"}]`).
+#[derive(Debug, Clone, Serialize)]
+pub struct NotEstimablePart {
+    pub part: Part,
+    pub reason: String,
+}
+
+/// Records a part as not estimable: in `list`, and as the sentence
+/// "`<part>` not estimable: `<reason>`" in `warnings`, which every reader of the analysis shows.
+pub(crate) fn not_estimable_part(
+    warnings: &mut Vec<String>,
+    list: &mut Vec<NotEstimablePart>,
+    part: Part,
+    reason: String,
+) {
+    warnings.push(format!("{} not estimable: {reason}", part.describe()));
+    list.push(NotEstimablePart { part, reason });
+}
+
 /// One group's result: its analysis, or why there is none.
 #[derive(Debug, Clone, Serialize)]
 #[serde(untagged)]
@@ -334,6 +387,11 @@ pub struct Analysis {
     pub bootstrap: Option<Bootstrap>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub observers: Option<ObserverScreening>,
+    /// Optional parts that could not be estimated on these data, each with its reason (also
+    /// said in `warnings`); everything else is reported. Groups that could not be estimated
+    /// are in `groups`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_estimable: Vec<NotEstimablePart>,
     pub warnings: Vec<String>,
 }
 
@@ -474,25 +532,31 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
             }
         }
         let n_estimable = estimable.iter().filter(|&&e| e).count();
+        let firth_reason = "a fit needed Firth's bias reduction, which has no likelihood-ratio test";
         if n_estimable < 2 {
-            analysis.warnings.push(format!(
-                "no test of equal effects across groups: it needs at least two estimable groups, and {n_estimable} of {} could be estimated",
+            let reason = format!(
+                "it needs at least two estimable groups, and {n_estimable} of {} could be estimated",
                 judgments.groups.len()
-            ));
+            );
+            not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::GroupTest, reason);
         } else if !valid {
-            analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
+            not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::GroupTest,
+                firth_reason.into(),
+            );
         } else {
             // The pooled model over the same judgments as the groups: all of them, or only the
             // estimable groups' (then refitted, without agreement simulation, screening or bootstrap).
-            let restricted;
-            let pooled = if left_out.is_empty() {
-                analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model)
+            let pooled: Option<ModelSummary> = if left_out.is_empty() {
+                Some(analysis.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&analysis.item_model).clone())
             } else {
                 let pooled_options =
                     Options { bootstrap: 0, screening: Screening::Off, agreement_simulations: 1, ..options.clone() };
                 let (own, active) = subset(&|group| estimable[group as usize]);
                 let pooled_tallies = own.as_ref().unwrap_or(&tallies);
-                restricted = analyze_subset(
+                match analyze_subset(
                     judgments,
                     table,
                     terms.as_ref(),
@@ -500,23 +564,43 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                     &pooled_options,
                     pooled_tallies,
                     &active,
-                )?;
-                restricted.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&restricted.item_model)
-            };
-            if pooled.method == Method::Ml {
-                // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
-                analysis.group_test = LrTest::new(
-                    2.0 * (grouped_ll - pooled.kernel_log_likelihood),
-                    grouped_parameters as i64 - pooled.parameters as i64,
-                );
-                if !left_out.is_empty() {
-                    analysis.warnings.push(format!(
-                        "the test of equal effects across groups uses only the estimable groups; left out: {}",
-                        left_out.iter().map(|name| format!("`{name}`")).collect::<Vec<_>>().join(", ")
-                    ));
+                ) {
+                    Ok(restricted) => {
+                        Some(restricted.covariate_model.map(|m| m.summary).unwrap_or(restricted.item_model))
+                    }
+                    Err(error) => {
+                        let reason = format!("the model pooled over the estimable groups could not be fitted: {error}");
+                        not_estimable_part(
+                            &mut analysis.warnings,
+                            &mut analysis.not_estimable,
+                            Part::GroupTest,
+                            reason,
+                        );
+                        None
+                    }
                 }
-            } else {
-                analysis.warnings.push("no test of equal effects across groups: a fit needed Firth's bias reduction, which has no likelihood-ratio test".into());
+            };
+            match pooled {
+                Some(pooled) if pooled.method == Method::Ml => {
+                    // Kernel log-likelihoods: the binomial constants depend on how judgments are pooled.
+                    analysis.group_test = LrTest::new(
+                        2.0 * (grouped_ll - pooled.kernel_log_likelihood),
+                        grouped_parameters as i64 - pooled.parameters as i64,
+                    );
+                    if !left_out.is_empty() {
+                        analysis.warnings.push(format!(
+                            "the test of equal effects across groups uses only the estimable groups; left out: {}",
+                            left_out.iter().map(|name| format!("`{name}`")).collect::<Vec<_>>().join(", ")
+                        ));
+                    }
+                }
+                Some(_) => not_estimable_part(
+                    &mut analysis.warnings,
+                    &mut analysis.not_estimable,
+                    Part::GroupTest,
+                    firth_reason.into(),
+                ),
+                None => {}
             }
         }
         analysis.group_test_left_out = if analysis.group_test.is_some() { left_out } else { Vec::new() };
@@ -580,6 +664,7 @@ fn analyze_subset(
     let names = &judgments.conditions;
     let pairs = tallies.pooled(n_conditions, active);
     let mut warnings = Vec::new();
+    let mut not_estimable = Vec::new();
 
     let mut wins = vec![0u64; n_conditions];
     let mut comparisons = vec![0u64; n_conditions];
@@ -707,50 +792,57 @@ fn analyze_subset(
                     other => other,
                 }
             }
-            .map_err(|f| failure_message("factor model", f))?;
-            let summary = ModelSummary::from_fits(&[&fit]);
-            let lr_vs_items = if summary.method == Method::Ml && item_model.method == Method::Ml {
-                LrTest::new(
-                    2.0 * (item_model.log_likelihood - summary.log_likelihood),
-                    item_model.parameters as i64 - summary.parameters as i64,
-                )
-            } else {
-                None
-            };
-            if multiple {
-                warnings.push("the factor model relates the disconnected components only through its factors".into());
+            .map_err(|f| failure_message("factor model", f).to_string());
+            match fit {
+                Err(reason) => not_estimable_part(&mut warnings, &mut not_estimable, Part::FactorModel, reason),
+                Ok(fit) => {
+                    let summary = ModelSummary::from_fits(&[&fit]);
+                    let lr_vs_items = if summary.method == Method::Ml && item_model.method == Method::Ml {
+                        LrTest::new(
+                            2.0 * (item_model.log_likelihood - summary.log_likelihood),
+                            item_model.parameters as i64 - summary.parameters as i64,
+                        )
+                    } else {
+                        None
+                    };
+                    if multiple {
+                        warnings.push(
+                            "the factor model relates the disconnected components only through its factors".into(),
+                        );
+                    }
+                    covariates = Some(
+                        kept.iter()
+                            .enumerate()
+                            .map(|(column, &k)| {
+                                let estimate = fit.beta[column];
+                                let se = fit.se(column);
+                                let z = if se > 0.0 { estimate / se } else { 0.0 };
+                                Covariate {
+                                    name: terms[k].name.clone(),
+                                    estimate,
+                                    se,
+                                    z,
+                                    p: PValue::normal_two_sided(z),
+                                    ci: None,
+                                }
+                            })
+                            .collect::<Vec<_>>(),
+                    );
+                    let reference_lambda = x.predict(reference, &fit.beta);
+                    let fitted: Vec<Option<f64>> = (0..n_conditions)
+                        .map(|c| (comparisons[c] > 0).then(|| x.predict(c, &fit.beta) - reference_lambda))
+                        .collect();
+                    let max = fitted.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
+                    let total: f64 = fitted.iter().flatten().map(|l| (l - max).exp()).sum();
+                    for (item, lambda) in items.iter_mut().zip(&fitted) {
+                        item.fitted_log_worth = *lambda;
+                        item.fitted_worth = lambda.map(|l| (l - max).exp() / total);
+                    }
+                    covariate_model =
+                        Some(CovariateModel { formula: formula.clone(), summary, lr_vs_items, dropped: dropped_terms });
+                    factor_fit = Some((fit, x));
+                }
             }
-            covariates = Some(
-                kept.iter()
-                    .enumerate()
-                    .map(|(column, &k)| {
-                        let estimate = fit.beta[column];
-                        let se = fit.se(column);
-                        let z = if se > 0.0 { estimate / se } else { 0.0 };
-                        Covariate {
-                            name: terms[k].name.clone(),
-                            estimate,
-                            se,
-                            z,
-                            p: PValue::normal_two_sided(z),
-                            ci: None,
-                        }
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            let reference_lambda = x.predict(reference, &fit.beta);
-            let fitted: Vec<Option<f64>> = (0..n_conditions)
-                .map(|c| (comparisons[c] > 0).then(|| x.predict(c, &fit.beta) - reference_lambda))
-                .collect();
-            let max = fitted.iter().flatten().cloned().fold(f64::NEG_INFINITY, f64::max);
-            let total: f64 = fitted.iter().flatten().map(|l| (l - max).exp()).sum();
-            for (item, lambda) in items.iter_mut().zip(&fitted) {
-                item.fitted_log_worth = *lambda;
-                item.fitted_worth = lambda.map(|l| (l - max).exp() / total);
-            }
-            covariate_model =
-                Some(CovariateModel { formula: formula.clone(), summary, lr_vs_items, dropped: dropped_terms });
-            factor_fit = Some((fit, x));
         }
     }
 
@@ -788,6 +880,7 @@ fn analyze_subset(
         left_out: None,
         bootstrap: None,
         observers: None,
+        not_estimable,
         warnings,
     };
 
@@ -803,12 +896,20 @@ fn analyze_subset(
         }
     };
     if screen {
-        if multiple || analysis.method != Method::Ml {
-            analysis.warnings.push(
-                "observer screening skipped: it needs a connected design with a maximum-likelihood item fit".into(),
-            );
+        let unscreenable = if multiple || analysis.method != Method::Ml {
+            Some("it needs a connected design with a maximum-likelihood item fit")
         } else if active.len() < 3 {
-            analysis.warnings.push("observer screening skipped: it needs at least three participants".into());
+            Some("it needs at least three participants")
+        } else {
+            None
+        };
+        if let Some(reason) = unscreenable {
+            not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::ObserverScreening,
+                reason.into(),
+            );
         } else {
             analysis.observers = Some(screen_observers(
                 &pairs,
@@ -822,7 +923,12 @@ fn analyze_subset(
     }
     if options.bootstrap > 0 {
         if active.len() < 2 {
-            analysis.warnings.push("bootstrap skipped: it needs at least two participants".into());
+            not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::Bootstrap,
+                "it needs at least two participants".into(),
+            );
         } else {
             run_bootstrap(
                 &mut analysis,
@@ -1188,7 +1294,14 @@ fn run_bootstrap(
         .collect();
     let successful: Vec<&(Vec<f64>, Option<Vec<f64>>)> = replicates.iter().flatten().collect();
     let failed = replicates.len() - successful.len();
-    if failed > 0 {
+    if failed == replicates.len() {
+        not_estimable_part(
+            &mut analysis.warnings,
+            &mut analysis.not_estimable,
+            Part::Bootstrap,
+            format!("none of its {failed} resamples had a finite fit (separation), so there are no intervals"),
+        );
+    } else if failed > 0 {
         analysis.warnings.push(format!(
             "bootstrap: {failed} of {} resamples had no finite fit (separation) and are left out of the intervals",
             replicates.len()

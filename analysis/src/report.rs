@@ -11,10 +11,10 @@
 
 use serde::Serialize;
 
-use crate::analysis::{Analysis, Options, analyze_judgments};
+use crate::analysis::{Analysis, Options, Part, analyze_judgments, not_estimable_part};
 use crate::data::{ConditionTable, GROUND_TRUTH, TrialsOptions};
 use crate::detection::{Detection, DetectionOptions, analyze_detection_by_scene};
-use crate::error::Result;
+use crate::error::{AnalysisError, Result};
 use crate::stimulus_metrics::{StimulusAnalysis, StimulusMetrics, StimulusOptions};
 
 /// Everything `mrstudy analyze` reports on a trials CSV.
@@ -90,12 +90,18 @@ pub fn analyze_with_table(
             }
             if let Some(stimuli) = stimuli {
                 let stimulus_options = StimulusOptions::from_analysis(options);
-                metrics = Some(crate::stimulus_metrics::analyze_judgments(
-                    judgments,
-                    scenes.as_ref(),
-                    stimuli,
-                    &stimulus_options,
-                )?);
+                match crate::stimulus_metrics::analyze_judgments(judgments, scenes.as_ref(), stimuli, &stimulus_options)
+                {
+                    Ok(section) => metrics = Some(section),
+                    // A wrong option is the caller's to fix; anything else is the data so far.
+                    Err(error @ AnalysisError::BadOption { .. }) => return Err(error),
+                    Err(error) => not_estimable_part(
+                        &mut analysis.warnings,
+                        &mut analysis.not_estimable,
+                        Part::Metrics,
+                        error.to_string(),
+                    ),
+                }
             }
             preference = Some(analysis);
         }

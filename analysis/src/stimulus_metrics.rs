@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::analysis::{Options, failure_message, fit_items};
+use crate::analysis::{NotEstimablePart, Options, Part, failure_message, fit_items, not_estimable_part};
 use crate::data::{Judgment, Judgments, TrialScenes, TrialsOptions};
 use crate::design::{self, ParticipantTallies};
 use crate::error::{AnalysisError, Result};
@@ -451,6 +451,10 @@ pub struct StimulusAnalysis {
     pub not_computed: Vec<NotComputed>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bootstrap: Option<MetricBootstrap>,
+    /// Parts that could not be estimated on these data (the stimulus model, the correlations,
+    /// the bootstrap), each with its reason; each is also said in `warnings`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_estimable: Vec<NotEstimablePart>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
 }
@@ -632,17 +636,65 @@ pub fn analyze_judgments(
         });
     }
     let mut warnings = Vec::new();
-    let (items, level_reason, averaging) = match stimulus_items(judgments, scenes, metrics) {
+    let mut not_estimable = Vec::new();
+    let fit_options =
+        Options { tolerance: options.tolerance, always_firth: options.always_firth, ..Options::default() };
+    let fit_of = |items: &Items| {
+        let n_items = items.condition.len();
+        let tallies = ParticipantTallies::new(judgments.participants.len(), n_items, items.rows.iter());
+        let active = tallies.present();
+        let pairs = tallies.pooled(n_items, &active);
+        let fit = fit_items(n_items, &pairs, 0, &fit_options);
+        (tallies, active, pairs, fit)
+    };
+    let scenes_named = scenes.is_some_and(|s| !s.rows.iter().any(|pair| pair.contains(&TrialScenes::EMPTY)));
+    let stimulus_level = match stimulus_items(judgments, scenes, metrics) {
         Ok(items) => {
+            let (tallies, active, pairs, fit) = fit_of(&items);
+            match fit {
+                Ok(item_fit) => Ok((items, tallies, active, pairs, item_fit)),
+                Err(failure) => Err(failure_message("stimulus model", failure).to_string()),
+            }
+        }
+        Err(why) => Err(why),
+    };
+    let (items, level_reason, averaging, tallies, active, pairs, item_fit) = match stimulus_level {
+        Ok((items, tallies, active, pairs, item_fit)) => {
             let reason = format!(
                 "per stimulus: every trial names its scenes, every stimulus has metrics and the comparisons connect all {} stimuli",
                 items.condition.len()
             );
-            (items, reason, None)
+            let shown: std::collections::HashSet<(&str, &str)> = (0..items.condition.len())
+                .map(|k| (items.scene[k].as_deref().unwrap_or_default(), items.condition[k].as_str()))
+                .collect();
+            let unjudged: Vec<String> = metrics
+                .stimuli
+                .iter()
+                .filter(|record| judgments.conditions.contains(&record.condition))
+                .filter(|record| !shown.contains(&(record.scene.as_str(), record.condition.as_str())))
+                .map(|record| format!("`{}/{}`", record.scene, record.condition))
+                .collect();
+            if !unjudged.is_empty() {
+                warnings.push(format!(
+                    "{} of the metrics CSV's stimuli of these conditions {} no judgment yet and {} left out of the stimulus model: {}",
+                    unjudged.len(),
+                    if unjudged.len() == 1 { "has" } else { "have" },
+                    if unjudged.len() == 1 { "is" } else { "are" },
+                    listed(&unjudged)
+                ));
+            }
+            (items, reason, None, tallies, active, pairs, item_fit)
         }
         Err(why) => {
+            if scenes_named {
+                // The trials name the stimuli shown, so a model per stimulus was meant.
+                not_estimable_part(&mut warnings, &mut not_estimable, Part::StimulusModel, why.clone());
+            }
             let (items, averaging) = condition_items(judgments, scenes, metrics);
-            (items, format!("per condition: {why}"), Some(averaging))
+            let (tallies, active, pairs, fit) = fit_of(&items);
+            let item_fit =
+                fit.map_err(|failure| failure_message("condition model of the metrics analysis", failure))?;
+            (items, format!("per condition: {why}"), Some(averaging), tallies, active, pairs, item_fit)
         }
     };
     let n_items = items.condition.len();
@@ -653,15 +705,6 @@ pub fn analyze_judgments(
     if !without.is_empty() {
         warnings.push(format!("no metrics for {}, left out of the correlations", without.join(", ")));
     }
-
-    let fit_options =
-        Options { tolerance: options.tolerance, always_firth: options.always_firth, ..Options::default() };
-    let tallies = ParticipantTallies::new(judgments.participants.len(), n_items, items.rows.iter());
-    let active = tallies.present();
-    let pairs = tallies.pooled(n_items, &active);
-    let item_fit = fit_items(n_items, &pairs, 0, &fit_options).map_err(|failure| {
-        failure_message(&format!("{} model of the metrics analysis", level_name(items.level)), failure)
-    })?;
     // The largest group of connected items (all of them, except at the condition level of a
     // disconnected design).
     let largest = (0..item_fit.components.len())
@@ -676,10 +719,37 @@ pub fn analyze_judgments(
         ));
     }
     let (members, reference, fit, separated) = &item_fit.components[largest];
+    let (mut wins, mut comparisons) = (vec![0u64; n_items], vec![0u64; n_items]);
+    for pair in &pairs {
+        wins[pair.i] += pair.wins_i;
+        wins[pair.j] += pair.wins_j;
+        comparisons[pair.i] += pair.n();
+        comparisons[pair.j] += pair.n();
+    }
     if separated.is_some() {
+        let what = if items.level == Level::Stimulus { "stimuli" } else { "conditions" };
+        let one_sided = |won: bool| -> Vec<String> {
+            members
+                .iter()
+                .filter(|&&m| comparisons[m] > 0 && (wins[m] == comparisons[m]) == won && (wins[m] == 0) != won)
+                .map(|&m| format!("`{}`", items.label(m)))
+                .collect()
+        };
+        let (only_won, only_lost) = (one_sided(true), one_sided(false));
+        let mut sides = Vec::new();
+        if !only_won.is_empty() {
+            sides.push(format!("{} only won ({})", only_won.len(), listed(&only_won)));
+        }
+        if !only_lost.is_empty() {
+            sides.push(format!("{} only lost ({})", only_lost.len(), listed(&only_lost)));
+        }
+        let sides = if sides.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} of the {} {})", sides.join(", "), members.len(), what)
+        };
         warnings.push(format!(
-            "separation among the {}: the maximum-likelihood estimate does not exist; the log-worths are Firth's bias-reduced estimate",
-            if items.level == Level::Stimulus { "stimuli" } else { "conditions" }
+            "separation among the {what}{sides}: the maximum-likelihood estimate does not exist; the log-worths are Firth's bias-reduced estimate"
         ));
     }
     let x = ModelMatrix::items(n_items, members, *reference);
@@ -688,13 +758,6 @@ pub fn analyze_judgments(
     for &m in members {
         log_worth[m] = Some(x.predict(m, &fit.beta) + 0.0);
         se[m] = Some(fit.variance_of(&x.rows[m]).sqrt());
-    }
-    let (mut wins, mut comparisons) = (vec![0u64; n_items], vec![0u64; n_items]);
-    for pair in &pairs {
-        wins[pair.i] += pair.wins_i;
-        wins[pair.j] += pair.wins_j;
-        comparisons[pair.i] += pair.n();
-        comparisons[pair.j] += pair.n();
     }
 
     // Correlations over the fitted items.
@@ -751,7 +814,12 @@ pub fn analyze_judgments(
     let mut bootstrap = None;
     if options.replicates > 0 && !correlations.is_empty() {
         if active.len() < 2 {
-            warnings.push("bootstrap skipped: it needs at least two participants".into());
+            not_estimable_part(
+                &mut warnings,
+                &mut not_estimable,
+                Part::Bootstrap,
+                "it needs at least two participants".into(),
+            );
         } else {
             let replicate_options = Options { tolerance: options.tolerance.max(1e-8), ..fit_options.clone() };
             let replicates: Vec<Option<Vec<(Option<f64>, Option<f64>)>>> = (0..options.replicates)
@@ -786,7 +854,16 @@ pub fn analyze_judgments(
                 .collect();
             let successful: Vec<&Vec<(Option<f64>, Option<f64>)>> = replicates.iter().flatten().collect();
             let failed = replicates.len() - successful.len();
-            if failed > 0 {
+            if failed == replicates.len() {
+                not_estimable_part(
+                    &mut warnings,
+                    &mut not_estimable,
+                    Part::Bootstrap,
+                    format!(
+                        "none of its {failed} resamples still connected the items, so the correlations have no intervals"
+                    ),
+                );
+            } else if failed > 0 {
                 warnings.push(format!(
                     "bootstrap: {failed} of {} resamples no longer connected the items and are left out of the intervals",
                     replicates.len()
@@ -814,6 +891,15 @@ pub fn analyze_judgments(
         correlation.rank = k + 1;
     }
     let best = correlations.first().map(|c| BestMetric { metric: c.metric, region: c.region, agreement: c.agreement });
+    if correlations.is_empty() {
+        not_estimable_part(
+            &mut warnings,
+            &mut not_estimable,
+            Part::MetricCorrelations,
+            "no metric × region has values, variance and at least 3 fitted items (each is in `not_computed` with its reason)"
+                .into(),
+        );
+    }
 
     let metric_items = (0..n_items)
         .map(|k| {
@@ -852,8 +938,15 @@ pub fn analyze_judgments(
         best,
         not_computed,
         bootstrap,
+        not_estimable,
         warnings,
     })
+}
+
+/// A list of names for a sentence: the first three, then how many more.
+fn listed(names: &[String]) -> String {
+    let more = if names.len() > 3 { format!(" and {} more", names.len() - 3) } else { String::new() };
+    format!("{}{more}", names[..names.len().min(3)].join(", "))
 }
 
 /// Every metric × region there can be: `render_ms` only for the whole image.
@@ -862,13 +955,6 @@ fn pairs_of_metric_and_region() -> impl Iterator<Item = (Metric, Region)> {
         .into_iter()
         .flat_map(|metric| Region::ALL.into_iter().map(move |region| (metric, region)))
         .filter(|&(metric, region)| metric != Metric::RenderMs || region == Region::Image)
-}
-
-fn level_name(level: Level) -> &'static str {
-    match level {
-        Level::Stimulus => "stimulus",
-        Level::Condition => "condition",
-    }
 }
 
 fn value(items: &Items, k: usize, metric: Metric, region: Region) -> f64 {

@@ -1,7 +1,7 @@
 //! The hard cases of a paired-comparison analysis: each must give an honest, finite answer
 //! that says what happened, never NaN, infinity or a runaway estimate.
 
-use mrstudy_analysis::analysis::{Analysis, Options, Screening, analyze};
+use mrstudy_analysis::analysis::{Analysis, Options, Part, Screening, analyze};
 use mrstudy_analysis::fit::Method;
 
 fn options() -> Options {
@@ -90,10 +90,16 @@ fn single_participant_is_analysed_and_screening_says_why_it_is_skipped() {
         analysis
             .warnings
             .iter()
-            .any(|w| w.contains("observer screening skipped: it needs at least three participants"))
+            .any(|w| w.contains("observer screening not estimable: it needs at least three participants"))
     );
-    assert!(analysis.warnings.iter().any(|w| w.contains("bootstrap skipped")));
-    json(&analysis);
+    assert!(
+        analysis.warnings.iter().any(|w| w.contains("bootstrap not estimable: it needs at least two participants"))
+    );
+    let parts: Vec<Part> = analysis.not_estimable.iter().map(|part| part.part).collect();
+    assert_eq!(parts, [Part::ObserverScreening, Part::Bootstrap]);
+    let value: serde_json::Value = serde_json::from_str(&json(&analysis)).unwrap();
+    assert_eq!(value["not_estimable"][0]["part"], "observer_screening");
+    assert_eq!(value["not_estimable"][1]["reason"], "it needs at least two participants");
 }
 
 #[test]
