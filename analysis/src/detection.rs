@@ -137,6 +137,13 @@ pub struct Detection {
     /// their scene configurations; absent otherwise.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub scenes: Vec<SceneDetection>,
+    /// The rate by showing: over the trials that showed a participant a scene configuration
+    /// for the first, second, … time (in the order of the file's rows, which the export writes
+    /// in each participant's trial order). Where no memory helps, the rate does not change with
+    /// the showing; a rising rate is learning (of the pictures, or of realism). Present with
+    /// `scenes`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub showings: Vec<ShowingDetection>,
     /// Participants left out before the analysis (pilots, excluded), where there is no
     /// preference analysis to carry them; absent when none were.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -162,6 +169,20 @@ pub struct SceneDetection {
     /// The configuration's trials per rendered condition, in the order of the data's
     /// conditions (conditions it never showed left out).
     pub conditions: Vec<SceneConditionCount>,
+}
+
+/// The detection trials that showed their participant a scene configuration for the
+/// `showing`-th time.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShowingDetection {
+    /// 1 for a participant's first trial of a scene configuration, 2 for the second, ….
+    pub showing: u64,
+    pub trials: u64,
+    pub correct: u64,
+    pub rate: f64,
+    pub ci: [f64; 2],
+    #[serde(flatten)]
+    pub p: PValue,
 }
 
 /// One condition's detection trials in one scene configuration.
@@ -249,8 +270,9 @@ pub fn analyze_detection_by_scene(
 ) -> crate::Result<Detection> {
     let mut detection = analyze_conditions(judgments, options)?;
     if let Some(scenes) = scenes.filter(|scenes| scenes.rows.len() == judgments.rows.len()) {
-        let (rows, unnamed) = scene_breakdown(judgments, scenes, options);
+        let (rows, showings, unnamed) = scene_breakdown(judgments, scenes, options);
         detection.scenes = rows;
+        detection.showings = showings;
         if unnamed > 0 {
             detection.warnings.push(format!(
                 "{} without a scene configuration (empty `scene_left`/`scene_right`) {} in no scene configuration's rate",
@@ -262,18 +284,22 @@ pub fn analyze_detection_by_scene(
     Ok(detection)
 }
 
-/// The rows of [`Detection::scenes`] and the number of detection trials without a scene.
+/// The rows of [`Detection::scenes`] and [`Detection::showings`], and the number of detection
+/// trials without a scene.
 fn scene_breakdown(
     judgments: &Judgments,
     scenes: &TrialScenes,
     options: &DetectionOptions,
-) -> (Vec<SceneDetection>, u64) {
+) -> (Vec<SceneDetection>, Vec<ShowingDetection>, u64) {
     let Some(ground_truth) = judgments.conditions.iter().position(|c| c == GROUND_TRUTH) else {
-        return (Vec::new(), 0);
+        return (Vec::new(), Vec::new(), 0);
     };
     let n = judgments.conditions.len();
     // [scene][condition] → (trials, correct)
     let mut counts = vec![vec![(0u64, 0u64); n]; scenes.names.len()];
+    // (participant, scene) → trials shown so far; [showing − 1] → (trials, correct)
+    let mut shown: std::collections::HashMap<(u32, u32), u64> = std::collections::HashMap::new();
+    let mut by_showing: Vec<(u64, u64)> = Vec::new();
     let mut unnamed = 0;
     for (row, &[left_scene, right_scene]) in judgments.rows.iter().zip(&scenes.rows) {
         let (left, right) = (row.left as usize, row.right as usize);
@@ -293,7 +319,30 @@ fn scene_breakdown(
         if truth_chosen {
             cell.1 += row.count;
         }
+        // a row standing for `count` identical trials: showings first + 1 … first + count
+        let first = shown.entry((row.participant, scene)).or_default();
+        for showing in *first..*first + row.count {
+            let showing = showing as usize;
+            if by_showing.len() <= showing {
+                by_showing.resize(showing + 1, (0, 0));
+            }
+            by_showing[showing].0 += 1;
+            by_showing[showing].1 += u64::from(truth_chosen);
+        }
+        *first += row.count;
     }
+    let showings = by_showing
+        .iter()
+        .enumerate()
+        .map(|(index, &(trials, correct))| ShowingDetection {
+            showing: index as u64 + 1,
+            trials,
+            correct,
+            rate: correct as f64 / trials as f64,
+            ci: clopper_pearson(correct, trials, options.level),
+            p: binomial_test(correct, trials, CHANCE),
+        })
+        .collect();
     let rows = scenes
         .names
         .iter()
@@ -322,7 +371,7 @@ fn scene_breakdown(
             })
         })
         .collect();
-    (rows, unnamed)
+    (rows, showings, unnamed)
 }
 
 fn analyze_conditions(judgments: &Judgments, options: &DetectionOptions) -> crate::Result<Detection> {
@@ -363,6 +412,7 @@ fn analyze_conditions(judgments: &Judgments, options: &DetectionOptions) -> crat
         level: options.level,
         conditions,
         scenes: Vec::new(),
+        showings: Vec::new(),
         left_out: None,
         warnings: Vec::new(),
     })
@@ -770,7 +820,13 @@ mod tests {
             "{:?}",
             detection.warnings
         );
+        // p1 saw s1 and s2 twice each, p2 s1 once and s2 once: first showings 4 (s1 2 of 2
+        // told apart, s2 0 of 2), second showings 2 (s1 1 of 1, s2 0 of 1)
+        let showings: Vec<(u64, u64, u64)> =
+            detection.showings.iter().map(|s| (s.showing, s.correct, s.trials)).collect();
+        assert_eq!(showings, [(1, 2, 4), (2, 1, 2)]);
         let json = serde_json::to_value(&detection).unwrap();
+        assert_eq!(json["showings"][0]["showing"], 1);
         assert_eq!(json["scenes"][1]["scene"], "s2");
         assert_eq!(json["scenes"][1]["rate"], 0.0);
         assert_eq!(json["scenes"][0]["conditions"][0]["condition"], "HQ");
@@ -800,6 +856,8 @@ mod tests {
         assert!(text.contains("per scene configuration"), "{text}");
         let line = text.lines().find(|line| line.starts_with("s2 ")).unwrap();
         assert!(line.contains("HQ 0/2, LQ 0/1") && line.contains("0.000"), "{line}");
+        let line = text.lines().find(|line| line.starts_with("showing 2")).unwrap();
+        assert!(line.contains("0.500"), "{line}");
     }
 
     #[test]

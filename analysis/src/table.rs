@@ -305,7 +305,7 @@ fn render_detection(out: &mut String, detection: &crate::detection::Detection) {
 fn render_detection_scenes(out: &mut String, detection: &crate::detection::Detection, level: &str) {
     let _ =
         writeln!(out, "per scene configuration (all conditions together; by condition: ground truth chosen / trials):");
-    let width = detection.scenes.iter().map(|s| s.scene.chars().count()).max().unwrap_or(5).max(5);
+    let width = detection.scenes.iter().map(|s| s.scene.chars().count()).max().unwrap_or(9).max(9);
     let _ = writeln!(
         out,
         "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}  by condition",
@@ -325,6 +325,24 @@ fn render_detection_scenes(out: &mut String, detection: &crate::detection::Detec
             scene.p.display(),
             by_condition.join(", ")
         );
+    }
+    if !detection.showings.is_empty() {
+        let _ = writeln!(
+            out,
+            "by showing (a participant's 1st, 2nd, … trial of a scene configuration, in file order; a rising rate is learning):"
+        );
+        for showing in &detection.showings {
+            let _ = writeln!(
+                out,
+                "{:<width$}  {:>7}  {:>7}  {:>6}  {:>16}  {:>10}",
+                format!("showing {}", showing.showing),
+                showing.trials,
+                showing.correct,
+                fixed(showing.rate, 3),
+                interval(showing.ci),
+                showing.p.display()
+            );
+        }
     }
 }
 
