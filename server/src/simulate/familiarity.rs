@@ -5,9 +5,9 @@
 //! ground truth, where the detection rate of an honest design is 0.5 — but a perfect picture
 //! memory: it counts every picture it has been shown (both sides of every earlier trial) and in
 //! each trial picks the picture it has seen more often, a coin flip on a tie. This is the
-//! familiarity heuristic in its strongest form (repetition makes a picture feel familiar and,
-//! misattributed, "real": the truth effect of Hasher, Goldstein & Toppino 1977; picture memory
-//! after one exposure: Standing 1973, Brady et al. 2008). Two memories:
+//! familiarity heuristic in its strongest form (picture memory after one exposure: Standing
+//! 1973, Brady et al. 2008; repetition taken for truth, for statements: Hasher, Goldstein &
+//! Toppino 1977; `docs/studies.md`). Two memories:
 //!
 //! - [`Memory::Exact`]: a picture is a file — scene configuration, sensor-noise realisation and
 //!   condition (or the ground truth); two realisations of one scene configuration are two
