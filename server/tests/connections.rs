@@ -1,7 +1,8 @@
 //! Issue 46's connection guards of `serve_connections`, on real loopback sockets: a request
 //! body that trickles in is cut off at its deadline however often its bytes come, a whole
 //! request (slow headers, then a slow body) at `--request-timeout`, a client that never reads
-//! its response is closed after `--write-timeout`, connections over the cap of one address are
+//! its response is closed after `--write-timeout` (or, when the response fit in the socket's
+//! buffers, once idle for `--header-timeout`), connections over the cap of one address are
 //! refused while another address is served, and a full server makes room for a newcomer by
 //! closing a connection of the address holding the most.
 //!
@@ -208,6 +209,22 @@ async fn a_client_that_never_reads_is_closed_after_the_write_timeout() {
         String::from_utf8_lossy(&received[..received.len().min(64)])
     );
     assert!(received.len() < SIZE, "the whole response came ({} bytes): the server waited", received.len());
+}
+
+/// A client that sends a request and never reads the (small) answer, which the socket's buffers
+/// take whole, is closed once it has been idle for `--header-timeout` after that response. (This
+/// held before issue 46 too, by hyper's header timeout; kept so the watchdog cannot lose it.)
+#[tokio::test]
+async fn a_client_idle_after_its_response_is_closed_after_the_header_timeout() {
+    let connections = Connections { header_timeout: Duration::from_secs(1), ..Connections::default() };
+    let server = serve_demo(connections).await;
+    let mut stream = connect_from("127.0.0.1", server.address).await;
+    stream.write_all(b"GET /api/studies HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let started = Instant::now();
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    let (received, closed) = read_until_closed(&mut stream, Duration::from_secs(5)).await;
+    assert!(received.starts_with(b"HTTP/1.1 200"), "{}", String::from_utf8_lossy(&received));
+    assert!(closed && started.elapsed() < Duration::from_secs(4), "still open after {:?}", started.elapsed());
 }
 
 /// Over `--max-connections-per-address`, a connection from that address is refused (503 with a
