@@ -451,6 +451,70 @@ fn write_detection_study(dir: &Path) {
 }
 
 #[test]
+fn a_detection_study_with_realisations_shows_each_ground_truth_picture_once() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_detection_study(studies.path());
+    let file = studies.path().join("real-mini.toml");
+    let study = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(
+        &file,
+        study.replace("reference = \"ground-truth\"\n", "reference = \"ground-truth\"\nrealisations = 4\n"),
+    )
+    .unwrap();
+    let started = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path());
+    if !gpu_available(&started) {
+        return;
+    }
+    let server = started.unwrap();
+    if !opened(&server, "real-mini") {
+        return;
+    }
+    let http = client();
+    let joined: Value = http
+        .post(format!("{}/api/studies/real-mini/participants", server.base))
+        .json(&json!({"demographics": {}}))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    for _ in 0..4 {
+        let next: Value = http
+            .get(format!("{}/api/participants/{id}/next", server.base))
+            .bearer_auth(token)
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        let posted = http
+            .post(format!("{}/api/participants/{id}/responses", server.base))
+            .bearer_auth(token)
+            .json(&json!({"trial": next["trial"], "chosen": "left", "rt_ms": 1500}))
+            .send()
+            .unwrap();
+        assert_eq!(posted.status(), 201);
+    }
+    let export: Value = serde_json::from_str(&export(data_dir.path(), "real-mini", "json")).unwrap();
+    let participant = &export["participants"][0];
+    assert_eq!(participant["schedule_version"], 2);
+    let (mut truths, mut rendered) = (std::collections::BTreeSet::new(), std::collections::BTreeSet::new());
+    for trial in participant["schedule"].as_array().unwrap() {
+        let (truth, stimulus) = if trial["left"] == "ground-truth" {
+            (&trial["left_stimulus"], &trial["right_stimulus"])
+        } else {
+            (&trial["right_stimulus"], &trial["left_stimulus"])
+        };
+        truths.insert(truth.as_str().unwrap().to_string());
+        rendered.insert(stimulus.as_str().unwrap().to_string());
+    }
+    // one scene configuration shown 4 times, each time in another realisation: 4 ground truths
+    // and 4 stimuli, none shown twice
+    assert_eq!((truths.len(), rendered.len()), (4, 4), "{participant}");
+    assert!(truths.is_disjoint(&rendered));
+}
+
+#[test]
 fn a_detection_study_shows_the_ground_truth_beside_each_condition_and_exports_it_by_name() {
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
