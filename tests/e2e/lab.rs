@@ -432,6 +432,38 @@ fn a_held_enter_key_skips_no_trial_and_acknowledges_no_instructions_in_chromium(
     let fits = phone.script("return document.documentElement.scrollWidth <= window.innerWidth && document.getElementById('lab-frame').getBoundingClientRect().right <= window.innerWidth;");
     phone.screenshot(&shot("lab-trial-390x844.png"));
     assert_eq!(fits, json!(true), "the lab page fits a phone's width");
+
+    // issue 45: the lab's admin page opens and closes the study, makes preview links, lists the
+    // participants with exclude / include / delete and counts progress as the survey does
+    let wide = super::browser::Driver::start_with(
+        1440,
+        900,
+        json!({"mobileEmulation": {"deviceMetrics": {"width": 1440, "height": 900, "pixelRatio": 2, "touch": false}}}),
+    );
+    for (browser, size) in [(&driver, "1280x800"), (&phone, "390x844"), (&wide, "1440x900-dpr2")] {
+        browser.go(&format!("{}/admin/login?token={}", server.base, server.admin_token));
+        browser.go(&format!("{}/admin/lab/lab", server.base));
+        browser.wait_visible("lab-participants");
+        let counts = browser.text("#lab-counts");
+        assert!(counts.starts_with("Started 2, finished 1 (50 %)"), "{counts}");
+        for control in ["#toggle-open", "#preview", "tr[data-participant] button[data-action='delete']"] {
+            browser.element(control);
+        }
+        browser.screenshot(&shot(&format!("admin-lab-{size}.png")));
+        browser.script("document.getElementById('lab-participants').scrollIntoView(); return null;");
+        browser.screenshot(&shot(&format!("admin-lab-participants-{size}.png")));
+    }
+    // closing from the page: the study then takes pilots only
+    driver.click("#toggle-open");
+    driver.wait_for(
+        "document.getElementById('lab-state') && document.getElementById('lab-state').textContent.includes('Closed')",
+    );
+    let refused = client()
+        .post(format!("{}/api/lab/lab/participants", server.base))
+        .json(&json!({"label": "late"}))
+        .send()
+        .unwrap();
+    assert_eq!(refused.status(), 403);
 }
 
 /// RFC 4180 records (quoted fields with doubled quotes, commas and newlines inside).

@@ -485,3 +485,26 @@ async fn lab_page(State(state): State<AppState>, UrlPath(slug): UrlPath<String>,
         Err(error) => AppError::Internal(format!("lab page: {error}")).into_response(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{LabConfig, normalise_origin};
+
+    #[test]
+    fn origins_are_compared_in_lower_case_without_a_trailing_slash_and_nothing_else_passes() {
+        assert_eq!(normalise_origin("HTTPS://Lab.Example.org/").as_deref(), Some("https://lab.example.org"));
+        assert_eq!(normalise_origin("http://192.0.2.7:8080").as_deref(), Some("http://192.0.2.7:8080"));
+        for bad in ["lab.example.org", "ftp://lab.example.org", "https://", "https://a/b", "https://u@a", "null", ""] {
+            assert_eq!(normalise_origin(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_allowed_origins_are_the_configured_ones_and_the_listening_address() {
+        let config = LabConfig { origins: vec!["https://lab.example.org".into()], sessions_per_address: 8 };
+        let loopback = config.allowed_origins("127.0.0.1:8080".parse().unwrap());
+        assert_eq!(loopback, ["http://127.0.0.1:8080", "http://localhost:8080", "https://lab.example.org"]);
+        let public = config.allowed_origins("192.0.2.7:80".parse().unwrap());
+        assert_eq!(public, ["http://192.0.2.7:80", "https://lab.example.org"]);
+    }
+}

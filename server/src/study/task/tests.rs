@@ -77,6 +77,17 @@ fn bad_values_name_the_key() {
     assert!(error.to_string().contains("juggling"), "{error}");
     let error = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nmax_cm = 80")).unwrap_err();
     assert_eq!(error.key, "tasks[1].min_cm");
+    // a held arrow key's steps per second: 1 to 60, for key tasks only, 10 by default
+    let study = load(MINIMAL).unwrap();
+    assert!(study.tasks.iter().all(|task| task.held_steps_per_second == DEFAULT_HELD_STEPS_PER_SECOND));
+    let error =
+        load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nheld_steps_per_second = 0")).unwrap_err();
+    assert_eq!(error.key, "tasks[1].held_steps_per_second");
+    let error =
+        load(&MINIMAL.replace("kind = \"distance\"", "kind = \"distance\"\nheld_steps_per_second = 5")).unwrap_err();
+    assert_eq!(error.key, "tasks[0].held_steps_per_second");
+    let fast = load(&MINIMAL.replace("kind = \"placement\"", "kind = \"placement\"\nheld_steps_per_second = 20"));
+    assert_eq!(fast.unwrap().tasks[1].held_steps_per_second, 20.0);
 }
 
 #[test]
