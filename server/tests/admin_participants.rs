@@ -20,11 +20,13 @@ use support::{Answer, call, copy_demo_study, send, test_database};
 
 const STUDY: &str = "shadows-demo";
 
-/// The demo study with a free-text demographic field `comment` appended.
-fn studies_dir(work: &Path) -> PathBuf {
+/// The demo study with a free-text demographic field `comment` appended, and `top_level` keys
+/// (lines) before its `[texts]`.
+fn studies_dir(work: &Path, top_level: &str) -> PathBuf {
     let dir = work.join("studies");
     copy_demo_study(&dir);
-    let mut text = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
+    let text = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
+    let mut text = text.replacen("\n[texts]", &format!("\n{top_level}\n[texts]"), 1);
     text.push_str(
         "\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n",
     );
@@ -42,8 +44,13 @@ struct Fixture {
 }
 
 async fn fixture() -> Fixture {
+    fixture_with("").await
+}
+
+/// The fixture with `top_level` keys in the study file.
+async fn fixture_with(top_level: &str) -> Fixture {
     let work = tempfile::tempdir().unwrap();
-    let studies = studies_dir(work.path());
+    let studies = studies_dir(work.path(), top_level);
     let data = work.path().join("data");
     let database = test_database(&data).await;
     let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
@@ -631,7 +638,7 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let database = runtime.block_on(async {
         let database = test_database(&data).await;
-        let Prepared { state, .. } = prepare_on(&database, &data, &studies_dir(work.path())).await.unwrap();
+        let Prepared { state, .. } = prepare_on(&database, &data, &studies_dir(work.path(), "")).await.unwrap();
         sqlx::query(
             "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
              VALUES ('lab', 'Cubes', 'task', 1, '{\"slug\": \"lab\"}', '00', '2026-11-23T00:00:00.000Z', '2026-11-23T00:00:00.000Z')",
@@ -670,7 +677,7 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     let (kept, pilot, database) = runtime.block_on(async {
         let database = test_database(&data).await;
         let Prepared { state, admin_token, .. } =
-            prepare_on(&database, &data, &studies_dir(work.path())).await.unwrap();
+            prepare_on(&database, &data, &studies_dir(work.path(), "")).await.unwrap();
         let fixture = Fixture {
             app: app(state.clone()),
             state,
@@ -782,4 +789,38 @@ async fn progress_funnel_and_completion_rate_count_only_real_participants() {
     assert!(html.contains("visitors: 3, of whom 1 were screened out"), "{html}");
     let overview = fixture.admin(Method::GET, "/admin", None).await.text();
     assert!(overview.contains("<td>2</td>\n<td>1</td>\n<td>50 %</td>"), "{overview}");
+}
+
+/// The screen check's answer for a visitor with `PROLIFIC_PID = pid` on a 1280×800 screen.
+async fn screen(fixture: &Fixture, pid: &str, preview: Option<&str>) -> Value {
+    let body = json!({
+        "client": {"viewport": [1280, 800], "devicePixelRatio": 1, "userAgent": "test"},
+        "url_params": {"PROLIFIC_PID": pid}, "preview": preview,
+    });
+    let answer = call(&fixture.app, Method::POST, &format!("/api/studies/{STUDY}/screen"), None, Some(body)).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    answer.json()
+}
+
+/// With one run per external id, a participant who finished and comes back (another browser,
+/// the same PROLIFIC_PID) is told so by the screen check, before anything is asked: the page
+/// shows the completion page (issue 45). An unfinished run, another id and a preview are asked.
+#[tokio::test]
+async fn the_screen_check_sends_a_returning_finisher_to_the_completion_page() {
+    let fixture = fixture_with("unique_external_id = true").await;
+    let (done, done_token) = fixture.join("PID-BACK", "").await;
+    fixture.answer(&done, &done_token, 7, false, false).await;
+    let (half, half_token) = fixture.join("PID-HALF", "").await;
+    fixture.answer(&half, &half_token, 3, false, false).await;
+    let back = screen(&fixture, "PID-BACK", None).await;
+    assert_eq!(back, json!({"meets": true, "completed": {"done": true, "completion_code": "DEMO-7F3A"}}));
+    for pid in ["PID-HALF", "PID-NEW", ""] {
+        assert_eq!(screen(&fixture, pid, None).await, json!({"meets": true}), "{pid}");
+    }
+    let url = fixture.admin(Method::POST, &format!("/api/admin/studies/{STUDY}/preview"), None).await.json()["url"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let preview = url.split("preview=").nth(1).unwrap().to_string();
+    assert_eq!(screen(&fixture, "PID-BACK", Some(&preview)).await, json!({"meets": true}), "a preview is a new pilot");
 }
