@@ -64,7 +64,7 @@ pub fn stimulus_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
 /// A plain line at most every [`LINE_EVERY`] and at each further 5 % of a study's stimuli.
 const LINE_EVERY: Duration = Duration::from_secs(10);
 
-/// Where the rendering of one study's stimuli stands, for [`stimulus_lines`].
+/// Where the rendering of one study's stimuli stands, for the plain lines of [`stimulus_bars`].
 #[derive(Default)]
 struct Lines {
     slug: String,
