@@ -560,6 +560,8 @@ struct AdminPage {
     lab_starting: Vec<(String, String)>,
     /// Seconds after which the page reloads itself: while something is being prepared.
     refresh: Option<u64>,
+    /// Refusals counted per status and route template ([`crate::logs`]).
+    refusals: Vec<crate::logs::Refusal>,
 }
 
 /// One study being prepared, as the admin page shows it ([`crate::preparing`]).
@@ -596,6 +598,7 @@ impl AdminPage {
             preparing,
             lab_starting,
             refresh: busy.then_some(10),
+            refusals: state.refusals().kinds(),
         }
     }
 }

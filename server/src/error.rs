@@ -68,7 +68,7 @@ impl IntoResponse for AppError {
     fn into_response(self) -> Response {
         let status = self.status();
         let message = if status.is_server_error() && status != StatusCode::SERVICE_UNAVAILABLE {
-            eprintln!("error: {self}");
+            tracing::error!(error = %self, "a request failed");
             "The server could not complete the request; the error has been logged.".to_string()
         } else {
             self.to_string()

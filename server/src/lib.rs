@@ -33,6 +33,7 @@ pub mod connections;
 pub mod error;
 pub mod export;
 pub mod limits;
+pub mod logs;
 pub mod pages;
 pub mod participant;
 pub mod prepared;
@@ -87,6 +88,8 @@ struct StateInner {
     buckets: limits::Buckets,
     /// One admin API call at a time ([`limits::limit`]).
     admin_work: tokio::sync::Semaphore,
+    /// Refusals counted per kind ([`logs`]).
+    refusals: logs::Refusals,
 }
 
 /// A study served or being prepared: set once, when it is served ([`AppState::install`]).
@@ -130,6 +133,7 @@ impl AppState {
                 limits: limits::Limits::default(),
                 buckets: Default::default(),
                 admin_work: tokio::sync::Semaphore::new(1),
+                refusals: Default::default(),
             }),
         }
     }
@@ -177,6 +181,11 @@ impl AppState {
 
     pub(crate) fn buckets(&self) -> &limits::Buckets {
         &self.inner.buckets
+    }
+
+    /// Refusals (4xx, 503) counted per status and route template since the start.
+    pub fn refusals(&self) -> &logs::Refusals {
+        &self.inner.refusals
     }
 
     pub(crate) fn admin_work(&self) -> &tokio::sync::Semaphore {
@@ -289,19 +298,21 @@ pub(crate) fn random_hex(n: usize) -> String {
 }
 
 /// The whole application: participant API and pages, admin API and pages, static files and
-/// stimuli, with security headers, the body size limit and the limits per client
-/// ([`limits`]).
+/// stimuli, with security headers, the body size limit, the limits per client ([`limits`]),
+/// refusals counted and one log line per request ([`logs`]).
 pub fn app(state: AppState) -> Router {
-    Router::new()
+    let router = Router::new()
         .merge(participant::router())
         .merge(admin::router())
         .merge(pages::router())
         .merge(task::router())
+        .merge(logs::router())
         .fallback(pages::not_found)
         .layer(DefaultBodyLimit::max(BODY_LIMIT_BYTES))
         .layer(middleware::from_fn_with_state(state.clone(), limits::limit))
         .layer(middleware::from_fn(security_headers))
-        .with_state(state)
+        .layer(middleware::from_fn_with_state(state.clone(), logs::count_refusals));
+    logs::trace(router).with_state(state)
 }
 
 /// Content-Security-Policy of every response: only this origin's scripts, styles and images,

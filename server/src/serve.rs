@@ -62,6 +62,11 @@ pub struct ServeConfig {
     /// The lab's origins and sessions per address.
     #[command(flatten)]
     pub lab: crate::task::LabConfig,
+    /// How the log on stderr (one line per request, warnings and errors) is written: text or
+    /// json (one object per line); `RUST_LOG` filters it (unset: info for mrstudy, warn for the
+    /// rest).
+    #[arg(long, value_enum, default_value_t = crate::logs::LogFormat::Text)]
+    pub log_format: crate::logs::LogFormat,
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
@@ -147,6 +152,8 @@ pub enum ServeError {
     Server(std::io::Error),
     #[error("cannot start the async runtime: {0}")]
     Runtime(std::io::Error),
+    #[error("{0}")]
+    Log(String),
 }
 
 /// The admin token: `MRSTUDY_ADMIN_TOKEN` if set, else the one kept in `<data-dir>/admin-token`,
@@ -406,6 +413,7 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 /// Runs `serve` to the end (Ctrl-C or SIGTERM): prints the warnings to stderr and the links to
 /// stdout once listening.
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
+    crate::logs::init(config.log_format).map_err(ServeError::Log)?;
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
     runtime.block_on(async {
         let database = Database::choose(config.database.as_deref(), &config.data_dir).map_err(OpenError::Choose)?;
@@ -538,7 +546,7 @@ pub async fn serve_connections(
                 Ok(accepted) => accepted,
                 Err(error) => {
                     // out of file descriptors and the like: wait, do not spin
-                    eprintln!("warning: cannot accept a connection: {error}");
+                    tracing::warn!(%error, "cannot accept a connection");
                     tokio::time::sleep(std::time::Duration::from_millis(100)).await;
                     continue;
                 }

@@ -596,7 +596,7 @@ async fn writer(pool: Pool, mut receiver: mpsc::Receiver<Box<dyn Queued>>, backe
                 }
             }
             Err(error) => {
-                eprintln!("error: a database write of {} jobs failed and was rolled back: {error}", batch.len());
+                tracing::error!(jobs = batch.len(), %error, "a database write failed and was rolled back");
                 for job in batch.drain(..) {
                     job.fail();
                 }
@@ -640,10 +640,10 @@ async fn bound_wal(pool: &Pool, wal: &Path) {
     match checkpoint.await {
         Ok(0) => {}
         Ok(_) if size > WAL_WARN_BYTES => {
-            eprintln!("warning: the WAL has grown to {} MB: readers keep it busy; will retry", size >> 20)
+            tracing::warn!(megabytes = size >> 20, "the WAL has grown: readers keep it busy; will retry")
         }
         Ok(_) => {}
-        Err(error) => eprintln!("warning: WAL checkpoint failed (will retry): {error}"),
+        Err(error) => tracing::warn!(%error, "WAL checkpoint failed (will retry)"),
     }
 }
 
@@ -662,7 +662,7 @@ async fn checkpointer(pool: Pool) {
     loop {
         interval.tick().await;
         if let Err(error) = sqlx::query("PRAGMA wal_checkpoint(PASSIVE)").execute(&pool).await {
-            eprintln!("warning: WAL checkpoint failed (will retry): {error}");
+            tracing::warn!(%error, "WAL checkpoint failed (will retry)");
         }
     }
 }

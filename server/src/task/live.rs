@@ -155,7 +155,7 @@ impl Drop for RendererThread {
         if let Some(handle) = self.handle.take()
             && handle.join().is_err()
         {
-            eprintln!("error: the lab renderer thread panicked");
+            tracing::error!("the lab renderer thread panicked");
         }
     }
 }

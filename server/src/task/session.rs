@@ -316,7 +316,7 @@ struct Refusal(String);
 impl From<AppError> for Refusal {
     fn from(error: AppError) -> Self {
         if error.status().is_server_error() {
-            eprintln!("error: lab session: {error}");
+            tracing::error!(%error, "a lab session message failed");
             Refusal("The server could not complete this; the error has been logged.".into())
         } else {
             Refusal(error.to_string())
@@ -424,7 +424,7 @@ impl Session {
                     let frame = match answer {
                         Ok(Ok(frame)) => frame,
                         Ok(Err(message)) => {
-                            eprintln!("error: lab study \"{}\": a frame failed: {message}", self.study.study.slug);
+                            tracing::error!(study = %self.study.study.slug, %message, "a lab frame failed");
                             let _ = self.send(json!({"type": "error", "message": format!("The renderer could not make a frame: {message}")})).await;
                             continue;
                         }
