@@ -10,6 +10,9 @@ use axum::extract::{FromRequest, Request};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
+/// What a participant of a study still being prepared is told ([`AppError::OpensSoon`]).
+pub const OPENS_SOON: &str = "This study opens in a few minutes.";
+
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum AppError {
@@ -37,7 +40,7 @@ pub enum AppError {
     Unavailable(String),
     /// The study's stimuli are still being rendered ([`crate::preparing`]): 503 with
     /// `Retry-After`.
-    #[error("{}", crate::preparing::OPENS_SOON)]
+    #[error("{}", OPENS_SOON)]
     OpensSoon { retry_after_seconds: u64 },
     #[error("database error: {0}")]
     Database(#[from] sqlx::Error),

@@ -60,7 +60,7 @@ pub(crate) fn message_page(status: StatusCode, title: &str, message: &str) -> Re
 /// The page of a study still being prepared: 503 with `Retry-After`, saying that it opens in a
 /// few minutes, and reloading itself after that many seconds.
 pub(crate) fn opens_soon_page(title: &str, retry_after_seconds: u64) -> Response {
-    let message = format!("{} This page reloads itself.", crate::preparing::OPENS_SOON);
+    let message = format!("{} This page reloads itself.", crate::error::OPENS_SOON);
     let mut response = render(&MessagePage { title, message: &message, refresh: Some(retry_after_seconds) });
     *response.status_mut() = StatusCode::SERVICE_UNAVAILABLE;
     response.headers_mut().insert(header::RETRY_AFTER, retry_after_seconds.into());

@@ -1,11 +1,12 @@
 //! The studies `serve` is still preparing. `serve` listens at once; the stimuli that are not in
 //! the store yet render in the background afterwards ([`crate::serve::prepare_pending`]), one
 //! study after another. Until a study's stimuli are complete its participant routes answer
-//! [`OPENS_SOON`] (503 with `Retry-After`; the participant page shows the sentence) and the
+//! [`crate::error::OPENS_SOON`] (503 with `Retry-After`; the participant page shows it) and the
 //! admin page shows its progress: counts, a bar and an estimate of the time left. The lab's task
 //! studies are listed here too while the lab starts (its renderer, scenes and frame times).
 //!
-//! Invariant: this module only tracks what is still to come; a study is served only once
+//! Invariant: this module only tracks what is still to come, and uses no module but
+//! [`crate::stimuli`] (no import cycle through the error type); a study is served only once
 //! [`crate::PreparedStudy::prepare`] has found every one of its stimuli in the store
 //! ([`crate::AppState::install`]), and then it is no longer here.
 
@@ -13,9 +14,6 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::stimuli::Progress;
-
-/// What a participant of a study still being prepared is told.
-pub const OPENS_SOON: &str = "This study opens in a few minutes.";
 
 /// Where a study being prepared stands.
 #[derive(Debug, Clone, PartialEq, Eq)]
