@@ -269,3 +269,44 @@ fn a_stimulus_model_with_one_sided_stimuli_converges() {
     assert!(separation.contains(" only won (`survey-") && separation.contains(" only lost (`survey-"), "{separation}");
     assert!(report.preference.as_ref().unwrap().not_estimable.is_empty());
 }
+
+/// The regression of issue 44 on a stimulus model small enough to be exact: seven stimuli,
+/// most judged once or twice and only winning or only losing, and an eighth in the metrics
+/// CSV that nobody judged yet. The old `fit_firth` took every step that did not lower the
+/// penalised likelihood by more than 1e-12 relative and circled its maximum: "the stimulus
+/// model of the metrics analysis did not converge in 200 iterations".
+#[test]
+fn a_stimulus_model_with_one_sided_and_unjudged_stimuli_is_fitted() {
+    let mut trials = String::from("participant,left,right,chosen,scene_left,scene_right\n");
+    // Stimulus k is scene `s{k}` (so the model's order is k) under a condition that differs
+    // between the two sides of each trial; (k, l, wins of k, wins of l) as in
+    // `fit::tests::firth_converges_with_one_sided_stimuli_of_one_judgment`.
+    let condition = ["A", "B", "B", "A", "A", "C", "B"];
+    let tallies = [(0, 1, 6, 4), (0, 2, 1, 0), (1, 3, 0, 1), (2, 4, 1, 0), (3, 5, 0, 2), (1, 5, 1, 0), (0, 6, 0, 1)];
+    for (n, &(k, l, wins_k, wins_l)) in tallies.iter().enumerate() {
+        for judgment in 0..wins_k + wins_l {
+            let chosen = if judgment < wins_k { condition[k] } else { condition[l] };
+            let participant = (n + judgment) % 3;
+            trials += &format!("p{participant},{},{},{chosen},s{k},s{l}\n", condition[k], condition[l]);
+        }
+    }
+    let mut metrics = String::from("stimulus,scene,condition,metric,region,value\n");
+    for (k, condition) in condition.iter().chain(["A"].iter()).enumerate() {
+        metrics += &format!("h{k},s{k},{condition},flip_mean,image,{}\n", 0.1 + 0.07 * k as f64);
+    }
+    let report = analyze_named(&trials, "t.csv", None, Some((&metrics, "m.csv")), &options())
+        .unwrap_or_else(|error| panic!("{error}"));
+    let section = report.metrics.as_ref().unwrap();
+    assert_eq!(section.level, Level::Stimulus, "{}", section.level_reason);
+    assert_eq!((section.method, section.items.len()), (Method::Firth, 7));
+    assert!(section.items.iter().all(|item| item.log_worth.is_some_and(|l| l.abs() < 10.0)));
+    assert!(
+        section.warnings.iter().any(|w| w.starts_with(
+            "1 of the metrics CSV's stimuli of these conditions has no judgment yet and is left out of the stimulus model: `s7/A`"
+        )),
+        "{:?}",
+        section.warnings
+    );
+    assert!(section.warnings.iter().any(|w| w.starts_with("separation among the stimuli (")), "{:?}", section.warnings);
+    assert_eq!(section.correlations.len(), 1);
+}
