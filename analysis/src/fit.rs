@@ -407,7 +407,7 @@ fn largest_magnitude(values: &[f64]) -> f64 {
 ///
 /// Step control: each iteration goes along the scoring step d = I⁻¹·U* (an ascent direction
 /// of the penalised log-likelihood ℓ*, as I is positive definite), halved until ℓ* rises by at
-/// least [`FIRTH_SUFFICIENT_INCREASE`] of its slope's promise. A step that does not improve ℓ*
+/// least 1e-4 of what its slope promises. A step that does not improve ℓ*
 /// is never taken: near the maximum, where ℓ* is flat to rounding, the rise is measured by
 /// the trapezoid rule on the directional derivative U*ᵀd at both ends (exact for a quadratic,
 /// which ℓ* is there). Convergence is judged on the gradient, not on a shrunken step: the fit
