@@ -229,3 +229,30 @@ async fn refusals_are_counted_per_status_and_route_template() {
         "the admin page has no row for the 429s:\n{page}"
     );
 }
+
+/// What a request line costs: `GET /api/studies` in-process, one after another, with the log on
+/// (JSON and text, written to a sink) and off. Prints the time per request; run by hand.
+#[tokio::test]
+#[ignore]
+async fn cost_of_a_request_line() {
+    let fixture = fixture(Limits::default()).await;
+    const REQUESTS: u32 = 4000;
+    let mut timings = Vec::new();
+    for (name, format, filter) in [
+        ("off", LogFormat::Text, "off"),
+        ("text", LogFormat::Text, DEFAULT_FILTER),
+        ("json", LogFormat::Json, DEFAULT_FILTER),
+        ("off again", LogFormat::Text, "off"),
+    ] {
+        let subscriber =
+            mrstudy_server::logs::subscriber(format, tracing_subscriber::EnvFilter::new(filter), std::io::sink, false);
+        let _guard = tracing::subscriber::set_default(subscriber);
+        let start = std::time::Instant::now();
+        for _ in 0..REQUESTS {
+            assert_eq!(call(&fixture.app, Method::GET, "/api/studies", None, None).await.status, StatusCode::OK);
+        }
+        timings
+            .push(format!("{name}: {:.1} µs per request", start.elapsed().as_secs_f64() * 1e6 / f64::from(REQUESTS)));
+    }
+    println!("{}", timings.join("\n"));
+}
