@@ -233,9 +233,13 @@ pub fn external_ids(definition: &Study, url_params: &str) -> Map<String, Value> 
 }
 
 /// A text cell made safe for spreadsheets: one starting with `=`, `+`, `-`, `@`, TAB or CR
-/// (a formula to Excel, LibreOffice, Google Sheets) gets a leading `'`.
+/// (a formula to Excel, LibreOffice, Google Sheets) gets a leading `'`, and so does one where
+/// such a character follows leading white space or control characters (space, LF, NBSP, NUL,
+/// VT, FF, a byte-order mark), which spreadsheets skip before reading a formula.
 pub fn text_cell(text: &str) -> String {
-    if text.starts_with(['=', '+', '-', '@', '\t', '\r']) { format!("'{text}") } else { text.to_string() }
+    const FORMULA: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];
+    let skipped = text.trim_start_matches(|c: char| c.is_whitespace() || c.is_control() || c == '\u{feff}');
+    if text.starts_with(FORMULA) || skipped.starts_with(FORMULA) { format!("'{text}") } else { text.to_string() }
 }
 
 /// A JSON value as a CSV cell: numbers and booleans as they are, text neutralised.

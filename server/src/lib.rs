@@ -35,6 +35,7 @@ pub mod export;
 pub mod limits;
 pub mod logs;
 pub mod pages;
+pub mod parse_errors;
 pub mod participant;
 pub mod prepared;
 pub mod preparing;

@@ -134,8 +134,9 @@ pub enum ServeError {
     DataDir { path: PathBuf, source: std::io::Error },
     #[error(transparent)]
     Open(#[from] OpenError),
+    /// Its sentence names the file and what is wrong, so it is no `source` (one sentence, printed once).
     #[error("invalid study file {0}")]
-    Study(#[from] StudyError),
+    Study(StudyError),
     #[error(transparent)]
     Prepare(PrepareError),
     #[error(
@@ -154,6 +155,12 @@ pub enum ServeError {
     Runtime(std::io::Error),
     #[error("{0}")]
     Log(String),
+}
+
+impl From<StudyError> for ServeError {
+    fn from(error: StudyError) -> ServeError {
+        ServeError::Study(error)
+    }
 }
 
 /// The admin token: `MRSTUDY_ADMIN_TOKEN` if set, else the one kept in `<data-dir>/admin-token`,
@@ -191,8 +198,10 @@ pub const ADMIN_TOKEN_BITS: f64 = 128.0;
 
 /// Whether an admin token set by hand is strong enough: only A-Z, a-z, 0-9, `-` and `_`, and at
 /// least [`ADMIN_TOKEN_BITS`] bits as a random string of its alphabet would have (hexadecimal:
-/// 32 characters; letters and digits: 22), and not a repetition (at least 8 different
-/// characters). Says why not.
+/// 32 characters; letters and digits: 22), at least 9 different characters (hexadecimal; 12
+/// otherwise), no repeated part (`Password1Password1`), and at most a third of it in runs along
+/// the alphabet, the digits or the keyboard (`0123456789abcdef…`, `qwertyuiop…`). A random token
+/// (`openssl rand -hex 16`) passes. Says why not.
 pub fn admin_token_strength(token: &str) -> Result<(), String> {
     if let Some(bad) = token.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '-' || *c == '_')) {
         return Err(format!("it may only hold A-Z, a-z, 0-9, - and _, not {bad:?}"));
@@ -221,10 +230,78 @@ pub fn admin_token_strength(token: &str) -> Result<(), String> {
         ));
     }
     let distinct = token.chars().collect::<std::collections::BTreeSet<_>>().len();
-    if distinct < 8 {
-        return Err(format!("it uses only {distinct} different characters"));
+    // a random token uses many: 32 random hex digits fewer than 9 about once in 10^8 draws
+    let fewest = if hex { 9 } else { 12 };
+    if distinct < fewest {
+        return Err(format!("it uses only {distinct} different characters (at least {fewest})"));
+    }
+    let lower = token.to_ascii_lowercase().into_bytes();
+    if let Some(period) = (1..=lower.len() / 2).find(|&p| (p..lower.len()).all(|i| lower[i] == lower[i - p])) {
+        return Err(format!("it repeats its first {period} characters"));
+    }
+    let walked = walked_characters(&lower);
+    if walked * 3 > lower.len() {
+        return Err(format!(
+            "{walked} of its {} characters are runs such as abcd, 4321 or a keyboard walk (qwerty, 1qaz)",
+            lower.len()
+        ));
     }
     Ok(())
+}
+
+/// How many characters of `token` (lower case) lie in runs of at least 3 that walk one way along
+/// a line: the alphabet, the digits, a keyboard row or column (`abc`, `987`, `qwer`, `1qaz`).
+/// Random tokens have few (32 random hex digits: under 1 on average).
+fn walked_characters(token: &[u8]) -> usize {
+    const LINES: [&[u8]; 16] = [
+        b"abcdefghijklmnopqrstuvwxyz",
+        b"0123456789",
+        b"1234567890-",
+        b"qwertyuiop",
+        b"asdfghjkl",
+        b"zxcvbnm",
+        b"1qaz",
+        b"2wsx",
+        b"3edc",
+        b"4rfv",
+        b"5tgb",
+        b"6yhn",
+        b"7ujm",
+        b"8ik",
+        b"9ol",
+        b"0p",
+    ];
+    // the step from `a` to `b` along some line: +1 or -1 (0: none)
+    let step = |a: u8, b: u8| -> Vec<(usize, isize)> {
+        LINES
+            .iter()
+            .enumerate()
+            .filter_map(|(line, text)| {
+                let i = text.iter().position(|&c| c == a)? as isize;
+                let j = text.iter().position(|&c| c == b)? as isize;
+                (j - i).abs().eq(&1).then_some((line, j - i))
+            })
+            .collect()
+    };
+    let mut walked = vec![false; token.len()];
+    let mut start = 0;
+    while start + 2 < token.len() {
+        let mut best = start + 1;
+        for (line, direction) in step(token[start], token[start + 1]) {
+            let mut end = start + 1;
+            while end + 1 < token.len() && step(token[end], token[end + 1]).contains(&(line, direction)) {
+                end += 1;
+            }
+            best = best.max(end);
+        }
+        if best - start >= 2 {
+            walked[start..=best].iter_mut().for_each(|w| *w = true);
+            start = best;
+        } else {
+            start += 1;
+        }
+    }
+    walked.iter().filter(|&&w| w).count()
 }
 
 /// A data directory opened and studies loaded: everything but the socket.
@@ -594,7 +671,11 @@ pub async fn serve_connections(
         tokio::spawn(async move {
             let mut builder = hyper::server::conn::http1::Builder::new();
             builder.timer(hyper_util::rt::TokioTimer::new()).header_read_timeout(header_timeout);
-            let io = hyper_util::rt::TokioIo::new(WriteDeadline::new(stream, write_timeout));
+            // hyper's own 400, 414 and 431 get the JSON error shape
+            let io = hyper_util::rt::TokioIo::new(crate::parse_errors::JsonParseErrors::new(WriteDeadline::new(
+                stream,
+                write_timeout,
+            )));
             let connection = builder.serve_connection(io, service).with_upgrades();
             tokio::pin!(connection);
             // between requests (and while one's headers come) the connection may wait

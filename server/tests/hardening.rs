@@ -384,9 +384,206 @@ fn an_admin_token_set_by_hand_needs_128_bits() {
     ] {
         assert!(admin_token_strength(weak).is_err(), "{weak} should be refused");
     }
-    for strong in ["3f9c2a7be14d5608f1c2e3d4a5b6c7d8", "Zq8kP2mW9xT4vN7rB3yL6h", &"0123456789abcdef".repeat(4)] {
+    for strong in ["3f9c2a7be14d5608f1c2e3d4a5b6c7d8", "Zq8kP2mW9xT4vN7rB3yL6h", "c81e728d9d4c2f636f067f89cc14862c"] {
         assert!(admin_token_strength(strong).is_ok(), "{strong}: {:?}", admin_token_strength(strong));
     }
     let why = admin_token_strength("aaaaaaaaaaaaaaaa").unwrap_err();
     assert!(why.contains("bits"), "{why}");
+}
+
+/// Issue 46: repeated halves, runs along the alphabet, the digits or the keyboard, and few
+/// different characters are refused although their length holds 128 bits; random tokens pass
+/// (`openssl rand -hex 16`, and 32 letters and digits).
+#[test]
+fn an_admin_token_with_a_pattern_is_refused_and_random_ones_pass() {
+    for weak in [
+        "Password1Password1",
+        "Password1Password1Password1",
+        "0123456789abcdef0123456789abcdef",
+        "qwertyuiopasdfghjklzxcvbnm1234567890",
+        "1qaz2wsx3edc4rfv5tgb6yhn7ujm8ik9ol",
+        "zyxwvutsrqponmlkjihgfedcba9876543210",
+        "abcdefghijklmnopqrstuvwxyz-Secret7",
+        "aabbaabbaabbccddaabbccddaabbccdd",
+    ] {
+        assert!(admin_token_strength(weak).is_err(), "{weak} should be refused");
+    }
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut next = move || {
+        // splitmix64: fixed seed, so the test does the same every time
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let alphanumeric = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+    for _ in 0..2000 {
+        let hex: String = (0..32).map(|_| char::from(b"0123456789abcdef"[(next() % 16) as usize])).collect();
+        assert!(admin_token_strength(&hex).is_ok(), "{hex}: {:?}", admin_token_strength(&hex));
+        let text: String = (0..32).map(|_| char::from(alphanumeric[(next() % 62) as usize])).collect();
+        assert!(admin_token_strength(&text).is_ok(), "{text}: {:?}", admin_token_strength(&text));
+    }
+}
+
+/// Issue 46: a formula character after leading white space or control characters (space, LF,
+/// NBSP, NUL, VT, FF) is a formula to spreadsheets too, so the cell is neutralised.
+#[test]
+fn a_formula_after_leading_white_space_or_controls_is_neutralised() {
+    use mrstudy_server::export::text_cell;
+    for lead in [" ", "\n", "\u{a0}", "\0", "\u{b}", "\u{c}", "  \n\u{a0}", "\u{feff}"] {
+        for formula in ["=1+1", "+1", "-1", "@SUM(A1)", "\t=1", "\r=1"] {
+            let text = format!("{lead}{formula}");
+            assert_eq!(text_cell(&text), format!("'{text}"), "{text:?}");
+        }
+    }
+    for safe in ["plain", " plain", "a=b", "\u{a0}x-1", ""] {
+        assert_eq!(text_cell(safe), safe, "{safe:?}");
+    }
+}
+
+/// Issue 46: a refused study file's sentence is said once: the error carries it, not also as its
+/// source (which `anyhow` prints after it).
+#[tokio::test]
+async fn a_refused_study_file_is_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let studies = dir.path().join("studies");
+    std::fs::create_dir_all(&studies).unwrap();
+    std::fs::write(studies.join("broken.toml"), "slug = \"broken\"\nbogus = 1\n").unwrap();
+    let data = dir.path().join("data");
+    let Err(error) = prepare_on(&test_database(&data).await, &data, &studies).await else {
+        panic!("a study file with an unknown key was accepted")
+    };
+    let mut said = error.to_string();
+    let mut source = std::error::Error::source(&error);
+    while let Some(cause) = source {
+        said.push_str(&format!(": {cause}"));
+        source = cause.source();
+    }
+    assert_eq!(said.matches("unknown field").count(), 1, "{said}");
+    assert!(said.contains("broken.toml"), "{said}");
+}
+
+/// Issue 46: an `rt_ms` out of range is refused with a short sentence (1e308 was echoed with
+/// its 309 digits).
+#[tokio::test]
+async fn an_absurd_response_time_is_refused_in_a_short_sentence() {
+    let fixture = fixture(None).await;
+    let app = &fixture.app;
+    let joined = join(app, "192.0.2.1").await.json();
+    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    for rt in [json!(1e308), json!(-1e-300), json!(-1), json!(3_600_001.0)] {
+        let body = json!({"trial": 1, "chosen": "left", "rt_ms": rt});
+        let answer =
+            call(app, Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body)).await;
+        assert_eq!(answer.status, StatusCode::UNPROCESSABLE_ENTITY, "{rt}: {}", answer.text());
+        let sentence = answer.error();
+        assert!(sentence.len() < 120 && sentence.contains("rt_ms"), "{rt}: {sentence}");
+    }
+}
+
+/// Issue 46: a study's image must be a regular image file inside the studies folder: a symbolic
+/// link to `/etc/passwd`, a `../` path out of the folder and a text file named `.png` are each
+/// refused at load with one sentence naming the study file, the key and the path (all three
+/// were served before, `/etc/passwd` as `image/png`).
+#[tokio::test]
+async fn a_study_image_must_be_an_image_file_inside_the_studies_folder() {
+    let refusal = |prepare: &dyn Fn(&std::path::Path, &std::path::Path)| {
+        let dir = tempfile::tempdir().unwrap();
+        let studies = dir.path().join("studies");
+        copy_demo_study(&studies);
+        prepare(dir.path(), &studies);
+        async move {
+            let data = dir.path().join("data");
+            let prepared = prepare_on(&test_database(&data).await, &data, &studies).await;
+            let Err(error) = prepared else { panic!("the study was accepted") };
+            let sentence = error.to_string();
+            assert!(std::error::Error::source(&error).is_none(), "{sentence}");
+            assert!(sentence.contains("shadows-demo.toml") && sentence.contains("scenes[0].images.LQ"), "{sentence}");
+            sentence
+        }
+    };
+    let demo = |studies: &std::path::Path, from: &str, to: &str| {
+        let file = studies.join("shadows-demo.toml");
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(text.contains(from));
+        std::fs::write(&file, text.replacen(from, to, 1)).unwrap();
+    };
+    #[cfg(unix)]
+    {
+        let sentence = refusal(&|_, studies| {
+            let link = studies.join("shadows-demo/view-left-LQ.png");
+            std::fs::remove_file(&link).unwrap();
+            std::os::unix::fs::symlink("/etc/passwd", &link).unwrap();
+        })
+        .await;
+        assert!(sentence.contains("view-left-LQ.png") && sentence.contains("inside"), "{sentence}");
+    }
+    let sentence = refusal(&|dir, studies| {
+        std::fs::copy(studies.join("shadows-demo/view-left-LQ.png"), dir.join("outside.png")).unwrap();
+        demo(studies, "shadows-demo/view-left-LQ.png", "../outside.png");
+    })
+    .await;
+    assert!(sentence.contains("outside.png") && sentence.contains("inside"), "{sentence}");
+    let sentence = refusal(&|_, studies| {
+        std::fs::write(studies.join("shadows-demo/view-left-LQ.png"), "root:x:0:0:root:/root:/bin/bash\n").unwrap();
+    })
+    .await;
+    assert!(sentence.contains("view-left-LQ.png") && sentence.contains("does not read as one"), "{sentence}");
+}
+
+/// What a real server answers on a raw socket to `request`, read until it closes (5 s at most).
+async fn raw_answer(server: std::net::SocketAddr, request: Vec<u8>) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut stream = tokio::net::TcpStream::connect(server).await.unwrap();
+    // hyper may answer and close before taking all of an oversized request
+    let _ = stream.write_all(&request).await;
+    let mut answer = Vec::new();
+    let _ = tokio::time::timeout(std::time::Duration::from_secs(5), stream.read_to_end(&mut answer)).await;
+    String::from_utf8_lossy(&answer).into_owned()
+}
+
+/// Issue 46: the 414 and 431 hyper gives by itself (an address over 64 KiB, headers over its
+/// buffer or more than 100 of them), and its 400 for what is not HTTP, have the JSON error shape
+/// with one sentence (their body was empty), on a real socket through `serve_connections`.
+#[tokio::test]
+async fn answers_hyper_gives_by_itself_have_the_json_error_shape() {
+    let fixture = fixture(None).await;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let server = listener.local_addr().unwrap();
+    let serving = tokio::spawn(mrstudy_server::serve::serve_connections(
+        listener,
+        fixture.app.clone(),
+        mrstudy_server::serve::Connections::default(),
+        std::future::pending(),
+    ));
+    let long_uri = format!("GET /api/studies/{} HTTP/1.1\r\nHost: x\r\n\r\n", "a".repeat(70_000)).into_bytes();
+    // never ended: hyper parses a whole head that came in one read whatever its size
+    let big_header = format!("GET /api/studies HTTP/1.1\r\nHost: x\r\nX-Big: {}", "b".repeat(500_000)).into_bytes();
+    let many_headers = format!(
+        "GET /api/studies HTTP/1.1\r\nHost: x\r\n{}\r\n",
+        (0..150).map(|i| format!("X-{i}: 1\r\n")).collect::<String>()
+    )
+    .into_bytes();
+    for (request, status) in [
+        (long_uri, "414"),
+        (big_header, "431"),
+        (many_headers, "431"),
+        (b"G@T /api/studies HTTP/1.1\r\n\r\n".to_vec(), "400"),
+    ] {
+        let answer = raw_answer(server, request).await;
+        let (head, body) = answer.split_once("\r\n\r\n").unwrap_or_else(|| panic!("no answer: {answer:?}"));
+        assert!(head.starts_with(&format!("HTTP/1.1 {status} ")), "expected {status}: {answer}");
+        assert!(head.to_ascii_lowercase().contains("content-type: application/json"), "{answer}");
+        let error: Value = serde_json::from_str(body).unwrap_or_else(|_| panic!("not JSON: {answer:?}"));
+        let sentence = error["error"].as_str().unwrap();
+        assert!(sentence.ends_with('.') && sentence.len() < 80, "{sentence}");
+        plain(sentence);
+    }
+    // an ordinary answer is untouched
+    let answer =
+        raw_answer(server, b"GET /api/studies HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n".to_vec()).await;
+    assert!(answer.starts_with("HTTP/1.1 200 "), "{answer}");
+    serving.abort();
 }

@@ -685,6 +685,12 @@ struct Stored {
 /// Longest response time accepted: one hour.
 pub const MAX_RT_MS: f64 = 3_600_000.0;
 
+/// A number as a short text for an error sentence: `1e308`, not its 309 digits (Rust's `{}`
+/// never writes an exponent).
+pub fn short_number(value: f64) -> String {
+    if value == 0.0 || (1e-3..1e9).contains(&value.abs()) { format!("{value}") } else { format!("{value:e}") }
+}
+
 async fn create_response(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -695,7 +701,7 @@ async fn create_response(
     if !(body.rt_ms.is_finite() && (0.0..=MAX_RT_MS).contains(&body.rt_ms)) {
         return Err(AppError::Unprocessable(format!(
             "`rt_ms` must be a number of milliseconds from 0 to {MAX_RT_MS}, found {}.",
-            body.rt_ms
+            short_number(body.rt_ms)
         )));
     }
     if body.trial < 1 || body.trial > participant.trials {

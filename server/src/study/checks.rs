@@ -105,7 +105,9 @@ pub(crate) fn resolve_scene(fail: Fail, key: &str, base: &Path, name: &str) -> R
 pub const IMAGE_TYPES: &[(&str, &str)] =
     &[("png", "image/png"), ("jpg", "image/jpeg"), ("jpeg", "image/jpeg"), ("webp", "image/webp")];
 
-/// An image file of the study, relative to its folder `base`: a known extension, and existing.
+/// An image file of the study, relative to its folder `base`: a known extension, existing, a
+/// regular file inside `base` once every link is followed (no `../`, no symbolic link leading
+/// out: such a file would be served to anyone), and an image of the kind its extension says.
 pub(crate) fn check_image(fail: Fail, key: &str, base: &Path, relative: &str) -> Result<PathBuf, StudyError> {
     let path = base.join(relative);
     let extension = path.extension().and_then(|ext| ext.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
@@ -115,7 +117,45 @@ pub(crate) fn check_image(fail: Fail, key: &str, base: &Path, relative: &str) ->
     if !path.is_file() {
         return Err(fail.at(key, format!("expected an existing image file, but {} does not exist", path.display())));
     }
+    let outside = || {
+        fail.at(
+            key,
+            format!(
+                "expected an image file inside the study's folder {}, but {} is not",
+                base.display(),
+                path.display()
+            ),
+        )
+    };
+    let (Ok(folder), Ok(resolved)) = (base.canonicalize(), path.canonicalize()) else { return Err(outside()) };
+    if !resolved.starts_with(&folder) {
+        return Err(outside());
+    }
+    if !std::fs::metadata(&resolved).is_ok_and(|meta| meta.file_type().is_file()) {
+        return Err(fail.at(key, format!("expected a regular image file, but {} is not one", path.display())));
+    }
+    if !is_image(&resolved, &extension) {
+        return Err(fail.at(key, format!("expected a .{extension} image, but {} does not read as one", path.display())));
+    }
     Ok(path)
+}
+
+/// Whether the file reads as an image of the kind `extension` says: its header decodes (PNG,
+/// JPEG: the `image` crate reads the dimensions) or, for WebP (which the server does not decode),
+/// its RIFF/WEBP signature.
+fn is_image(path: &Path, extension: &str) -> bool {
+    if extension == "webp" {
+        let mut head = [0u8; 12];
+        use std::io::Read;
+        return std::fs::File::open(path).and_then(|mut file| file.read_exact(&mut head)).is_ok()
+            && &head[0..4] == b"RIFF"
+            && &head[8..12] == b"WEBP";
+    }
+    let expected = if extension == "png" { image::ImageFormat::Png } else { image::ImageFormat::Jpeg };
+    let Ok(reader) = image::ImageReader::open(path).and_then(|reader| reader.with_guessed_format()) else {
+        return false;
+    };
+    reader.format() == Some(expected) && reader.into_dimensions().is_ok_and(|(width, height)| width > 0 && height > 0)
 }
 
 /// The response-time floor `min_response_ms`: 0 to 60 000 ms.
