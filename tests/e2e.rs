@@ -18,6 +18,8 @@ mod ground_truth;
 mod lab;
 #[path = "../server/tests/support/lab_study.rs"]
 mod lab_study;
+#[path = "e2e/logs.rs"]
+mod logs;
 #[path = "e2e/render.rs"]
 mod render;
 #[path = "e2e/render_gpu.rs"]
