@@ -155,6 +155,26 @@ pub fn is_refusal(status: StatusCode) -> bool {
     status.is_client_error() || status == StatusCode::SERVICE_UNAVAILABLE
 }
 
+/// The route of a connection refused before any request was read because its address holds
+/// `--max-connections-per-address` already (503).
+pub const CONNECTION_PER_ADDRESS: &str = "(connection: cap per address)";
+/// The route of a connection refused because the server was full (503).
+pub const CONNECTION_FULL: &str = "(connection: server full)";
+
+/// Connections refused before any request was read, in this process: (per address, full).
+static REFUSED_CONNECTIONS: [std::sync::atomic::AtomicU64; 2] =
+    [std::sync::atomic::AtomicU64::new(0), std::sync::atomic::AtomicU64::new(0)];
+
+/// Counts a connection refused with 503 before any request was read ([`crate::serve`]'s
+/// accept loop has no state); every [`Refusals`] of the process shows them.
+pub fn count_refused_connection(refused: crate::connections::Refused) {
+    let index = match refused {
+        crate::connections::Refused::PerAddress => 0,
+        crate::connections::Refused::Full => 1,
+    };
+    REFUSED_CONNECTIONS[index].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+}
+
 /// Refusals counted per kind since the server started (per process).
 #[derive(Debug, Default)]
 pub struct Refusals {
@@ -182,9 +202,16 @@ impl Refusals {
         }
     }
 
-    /// Every kind counted so far, by status code, then route.
+    /// Every kind counted so far, by status code, then route; with the connections of the
+    /// process refused before any request was read ([`count_refused_connection`]).
     pub fn kinds(&self) -> Vec<Refusal> {
-        let counts = self.counts.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let mut counts = self.counts.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).clone();
+        for (route, refused) in [CONNECTION_PER_ADDRESS, CONNECTION_FULL].iter().zip(&REFUSED_CONNECTIONS) {
+            let count = refused.load(std::sync::atomic::Ordering::Relaxed);
+            if count > 0 {
+                counts.insert((503, route.to_string()), count);
+            }
+        }
         counts
             .iter()
             .map(|((status, route), count)| Refusal { status: *status, route: route.clone(), count: *count })

@@ -633,6 +633,7 @@ pub async fn serve_connections(
         let mut admitted = match table.admit(peer.ip()) {
             Ok(admitted) => admitted,
             Err(refused) => {
+                crate::logs::count_refused_connection(refused);
                 // one try, never waiting on a client that does not read
                 let _ = stream.try_write(&refusal_response(refused));
                 continue;

@@ -207,7 +207,10 @@ async fn refusals_are_counted_per_status_and_route_template() {
         refusal(404, "(no route)", 1),
     ];
     expected.sort_by(|a, b| (a.status, &a.route).cmp(&(b.status, &b.route)));
-    assert_eq!(fixture.state.refusals().kinds(), expected);
+    // connections refused at the door are counted per process (another test here makes one)
+    let kinds: Vec<Refusal> =
+        fixture.state.refusals().kinds().into_iter().filter(|kind| !kind.route.starts_with("(connection")).collect();
+    assert_eq!(kinds, expected);
 
     // the admin's JSON and page show them
     let listed = call(app, Method::GET, "/api/admin/refusals", Some(&fixture.admin_token), None).await;
@@ -228,6 +231,32 @@ async fn refusals_are_counted_per_status_and_route_template() {
         page.contains("<td>429</td><td><code>/api/studies/{slug}/participants</code></td><td>1</td>"),
         "the admin page has no row for the 429s:\n{page}"
     );
+}
+
+/// A connection refused before any request is read (the cap per address: 503 written straight
+/// to the socket) is counted too, as a kind of its own.
+#[tokio::test]
+async fn connections_refused_at_the_door_are_counted() {
+    use mrstudy_server::serve::{Connections, serve_connections};
+    use tokio::io::AsyncReadExt;
+    let fixture = fixture(Limits::default()).await;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap();
+    let connections = Connections { max_connections_per_address: 1, ..Connections::default() };
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(serve_connections(listener, fixture.app.clone(), connections, async {
+        let _ = stopped.await;
+    }));
+    let held = tokio::net::TcpStream::connect(address).await.unwrap();
+    let mut over = tokio::net::TcpStream::connect(address).await.unwrap();
+    let mut answer = Vec::new();
+    tokio::time::timeout(std::time::Duration::from_secs(10), over.read_to_end(&mut answer)).await.unwrap().unwrap();
+    assert!(answer.starts_with(b"HTTP/1.1 503"), "{}", String::from_utf8_lossy(&answer));
+    let kinds = fixture.state.refusals().kinds();
+    assert!(kinds.contains(&refusal(503, mrstudy_server::logs::CONNECTION_PER_ADDRESS, 1)), "{kinds:?}");
+    drop(held);
+    stop.send(()).unwrap();
+    server.await.unwrap();
 }
 
 /// What a request line costs: `GET /api/studies` in-process, one after another, with the log on
