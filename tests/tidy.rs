@@ -385,3 +385,11 @@ fn the_serve_script_serves_when_the_drivers_are_there() {
     let runtime = cargo.split("XDG_RUNTIME_DIR=").nth(1).unwrap().trim();
     assert!(runtime.starts_with(&dir.path().display().to_string()), "XDG_RUNTIME_DIR not set: {cargo}");
 }
+
+#[test]
+fn the_code_map_stays_dense() {
+    let map = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    let long: Vec<&str> = map.lines().filter(|line| line.chars().count() > 100).collect();
+    assert!(long.is_empty(), "ARCHITECTURE.md has lines over 100 columns: {long:?}");
+    assert!(map.len() < 15_000, "ARCHITECTURE.md has {} bytes; keep it under 15 KB", map.len());
+}
