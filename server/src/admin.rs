@@ -40,7 +40,7 @@ pub fn router() -> Router<AppState> {
         .route("/api/admin/studies/{slug}/open", post(open_study))
         .route("/api/admin/studies/{slug}/close", post(close_study))
         .route("/api/admin/studies/{slug}/participants", get(list_participants))
-        .route("/api/admin/studies/{slug}/preview", post(create_preview))
+        .route("/api/admin/studies/{slug}/preview", post(create_preview).delete(revoke_previews))
         .route("/api/admin/participants/{id}/exclude", post(exclude_participant))
         .route("/api/admin/participants/{id}/include", post(include_participant))
         .route("/api/admin/participants/{id}", delete(delete_participant))
@@ -1155,7 +1155,35 @@ async fn create_preview(
             token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
         })
         .await??;
-    Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/{page}/{slug}?preview={token}") })))
+    let valid = std::time::Duration::from_secs(crate::storage::PREVIEW_LINK_DAYS * 86_400);
+    let expires_at = crate::storage::iso(std::time::SystemTime::now() + valid);
+    Ok((StatusCode::CREATED, Json(PreviewLink { url: format!("/{page}/{slug}?preview={token}"), expires_at })))
+}
+
+#[derive(Serialize)]
+struct Revoked {
+    revoked: u64,
+}
+
+/// Revokes every preview link of the study: joining with one is refused from now on (pilots who
+/// joined keep their run).
+async fn revoke_previews(
+    State(state): State<AppState>,
+    Path(slug): Path<String>,
+    headers: HeaderMap,
+) -> AppResult<Json<Revoked>> {
+    authorize_change(&state, &headers).await?;
+    let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = $1")
+        .bind(&slug)
+        .fetch_optional(&state.storage().admin)
+        .await?;
+    if known.is_none() {
+        return Err(AppError::NotFound(format!("There is no study \"{slug}\".")));
+    }
+    match state.storage().admin_write(crate::storage::AdminWrite::RevokePreviews { study: slug }).await?? {
+        crate::storage::AdminWritten::PreviewsRevoked(revoked) => Ok(Json(Revoked { revoked })),
+        _ => Err(AppError::Internal("a revocation had no revocation outcome".into())),
+    }
 }
 
 /// One row of the page's participants table, as text.

@@ -401,25 +401,17 @@ impl Storage {
         self.send(Box::new(Pending { job, outcome: None, reply: None })).await
     }
 
-    /// Queues `job` so that every later write of any server runs after it, without waiting when
-    /// that is already so: sqlite has one process, whose first-in-first-out queue commits it
-    /// before any job queued later ([`Storage::submit`]); on PostgreSQL another process may take
-    /// the next request, so this waits for the commit ([`Storage::write`]).
-    pub async fn submit_before_others<J: WriteJob<Outcome = ()>>(&self, job: J) -> Result<(), StorageError> {
-        match self.backend {
-            Backend::Sqlite => self.submit(job).await,
-            Backend::Postgres => self.write(job).await,
-        }
-    }
-
-    /// Whether `token_sha256` is a preview link of the study.
+    /// Whether `token_sha256` is a preview link of the study, made less than
+    /// [`PREVIEW_LINK_DAYS`] ago and not revoked.
     pub async fn is_preview(&self, study: &str, token_sha256: &[u8]) -> Result<bool, sqlx::Error> {
-        let found: Option<i64> = sqlx::query_scalar("SELECT 1 FROM previews WHERE study = $1 AND token_sha256 = $2")
-            .bind(study)
-            .bind(token_sha256)
-            .fetch_optional(&self.read)
-            .await?;
-        Ok(found.is_some())
+        let found: Option<String> =
+            sqlx::query_scalar("SELECT created_at FROM previews WHERE study = $1 AND token_sha256 = $2")
+                .bind(study)
+                .bind(token_sha256)
+                .fetch_optional(&self.read)
+                .await?;
+        // both ISO 8601 UTC with milliseconds: the text order is the time order
+        Ok(found.is_some_and(|created_at| created_at > preview_cutoff(std::time::SystemTime::now())))
     }
 
     pub async fn set_open(&self, slug: &str, open: bool) -> Written<(), AdminRefused> {
@@ -756,6 +748,35 @@ pub enum AdminWrite {
     Delete { id: String },
     /// Store a new preview link's token hash.
     Preview { study: String, token_sha256: Vec<u8> },
+    /// Revoke every preview link of the study.
+    RevokePreviews { study: String },
+}
+
+/// `at` as UTC ISO 8601 with milliseconds, as the database stores times.
+pub fn iso(at: std::time::SystemTime) -> String {
+    let since = at.duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let (secs, millis) = (since.as_secs() as i64, since.subsec_millis());
+    let (days, rest) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // civil from days (Howard Hinnant's algorithm)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + if month <= 2 { 1 } else { 0 };
+    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z", rest / 3600, rest % 3600 / 60, rest % 60)
+}
+
+/// How long a preview link lets pilots join: 14 days from its making.
+pub const PREVIEW_LINK_DAYS: u64 = 14;
+
+/// The making time (ISO 8601, as stored) before which a preview link has expired at `now`.
+pub fn preview_cutoff(now: std::time::SystemTime) -> String {
+    let valid = Duration::from_secs(PREVIEW_LINK_DAYS * 86_400);
+    iso(now.checked_sub(valid).unwrap_or(std::time::UNIX_EPOCH))
 }
 
 /// What an admin write did.
@@ -774,6 +795,8 @@ pub enum AdminWritten {
     /// row was deleted.
     Deleted(Deletion),
     PreviewStored,
+    /// This many preview links were revoked.
+    PreviewsRevoked(u64),
 }
 
 /// A deletion, as the audit line records it (no personal data).
@@ -950,6 +973,11 @@ async fn execute_admin(
             .execute(&mut *connection)
             .await?;
             Ok(Ok(AdminWritten::PreviewStored))
+        }
+        AdminWrite::RevokePreviews { study } => {
+            let revoked =
+                sqlx::query("DELETE FROM previews WHERE study = $1").bind(study).execute(&mut *connection).await?;
+            Ok(Ok(AdminWritten::PreviewsRevoked(revoked.rows_affected())))
         }
     }
 }

@@ -484,9 +484,9 @@ async fn an_absurd_response_time_is_refused_in_a_short_sentence() {
 }
 
 /// Issue 46: a study's image must be a regular image file inside the studies folder: a symbolic
-/// link to `/etc/passwd`, a `../` path out of the folder and a text file named `.png` are each
-/// refused at load with one sentence naming the study file, the key and the path (all three
-/// were served before, `/etc/passwd` as `image/png`).
+/// link to `/etc/passwd`, a link to a real image outside, a `../` path out of the folder and a
+/// text file named `.png` are each refused at load with one sentence naming the study file, the
+/// key and the path (all were served before, `/etc/passwd` as `image/png`).
 #[tokio::test]
 async fn a_study_image_must_be_an_image_file_inside_the_studies_folder() {
     let refusal = |prepare: &dyn Fn(&std::path::Path, &std::path::Path)| {
@@ -518,14 +518,22 @@ async fn a_study_image_must_be_an_image_file_inside_the_studies_folder() {
             std::os::unix::fs::symlink("/etc/passwd", &link).unwrap();
         })
         .await;
-        assert!(sentence.contains("view-left-LQ.png") && sentence.contains("inside"), "{sentence}");
+        assert!(sentence.contains("view-left-LQ.png") && sentence.contains("does not read as one"), "{sentence}");
+        // a real image, but outside the folder: refused however the link reaches it
+        let sentence = refusal(&|dir, studies| {
+            let link = studies.join("shadows-demo/view-left-LQ.png");
+            std::fs::rename(&link, dir.join("outside.png")).unwrap();
+            std::os::unix::fs::symlink(dir.join("outside.png"), &link).unwrap();
+        })
+        .await;
+        assert!(sentence.contains("view-left-LQ.png") && sentence.contains("inside the studies folder"), "{sentence}");
     }
     let sentence = refusal(&|dir, studies| {
         std::fs::copy(studies.join("shadows-demo/view-left-LQ.png"), dir.join("outside.png")).unwrap();
         demo(studies, "shadows-demo/view-left-LQ.png", "../outside.png");
     })
     .await;
-    assert!(sentence.contains("outside.png") && sentence.contains("inside"), "{sentence}");
+    assert!(sentence.contains("outside.png") && sentence.contains("inside the studies folder"), "{sentence}");
     let sentence = refusal(&|_, studies| {
         std::fs::write(studies.join("shadows-demo/view-left-LQ.png"), "root:x:0:0:root:/root:/bin/bash\n").unwrap();
     })
@@ -586,4 +594,109 @@ async fn answers_hyper_gives_by_itself_have_the_json_error_shape() {
         raw_answer(server, b"GET /api/studies HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n".to_vec()).await;
     assert!(answer.starts_with("HTTP/1.1 200 "), "{answer}");
     serving.abort();
+}
+
+/// Issue 46: a preview link expires (`PREVIEW_LINK_DAYS` after it was made; the answer says
+/// when) and `DELETE /api/admin/studies/{slug}/preview` revokes the study's links; both are
+/// refused at the join with 403 (links were valid for ever, and could not be revoked).
+#[tokio::test]
+async fn preview_links_expire_and_can_be_revoked() {
+    use mrstudy_server::storage::PREVIEW_LINK_DAYS;
+    use mrstudy_server::storage::iso;
+    let dir = tempfile::tempdir().unwrap();
+    let studies = dir.path().join("studies");
+    copy_demo_study(&studies);
+    let data = dir.path().join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    let app = &mrstudy_server::app(state);
+    let admin = Some(admin_token.as_str());
+    let link = || async {
+        let made = call(app, Method::POST, "/api/admin/studies/shadows-demo/preview", admin, None).await;
+        assert_eq!(made.status, StatusCode::CREATED, "{}", made.text());
+        let made = made.json();
+        let token = made["url"].as_str().unwrap().split("preview=").nth(1).unwrap().to_string();
+        (token, made["expires_at"].as_str().unwrap().to_string())
+    };
+    let join_with = |token: String| async move {
+        let body = json!({"demographics": demographics(), "preview": token});
+        call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body)).await
+    };
+    let days = |n: u64| std::time::Duration::from_secs(n * 86_400);
+    let now = std::time::SystemTime::now();
+
+    let (token, expires_at) = link().await;
+    assert!(expires_at > iso(now + days(PREVIEW_LINK_DAYS) - days(1)), "{expires_at}");
+    assert!(expires_at < iso(now + days(PREVIEW_LINK_DAYS + 1)), "{expires_at}");
+    let joined = join_with(token.clone()).await;
+    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
+
+    // made a day less than the validity ago: still valid; a day more: expired
+    let pool = support::connect(&database).await;
+    let made_at = |ago: std::time::Duration| {
+        let pool = pool.clone();
+        async move {
+            sqlx::query("UPDATE previews SET created_at = $1").bind(iso(now - ago)).execute(&pool).await.unwrap();
+        }
+    };
+    made_at(days(PREVIEW_LINK_DAYS - 1)).await;
+    assert_eq!(join_with(token.clone()).await.status, StatusCode::CREATED);
+    made_at(days(PREVIEW_LINK_DAYS + 1)).await;
+    let refused = join_with(token.clone()).await;
+    assert_eq!(refused.status, StatusCode::FORBIDDEN, "{}", refused.text());
+    assert!(refused.error().contains("preview link"), "{}", refused.text());
+
+    // revoking: every link of the study, the answer counts them
+    let (first, _) = link().await;
+    let (second, _) = link().await;
+    assert_eq!(join_with(first.clone()).await.status, StatusCode::CREATED);
+    let revoked = call(app, Method::DELETE, "/api/admin/studies/shadows-demo/preview", admin, None).await;
+    assert_eq!(revoked.status, StatusCode::OK, "{}", revoked.text());
+    assert_eq!(revoked.json(), json!({"revoked": 3}));
+    for token in [first, second] {
+        assert_eq!(join_with(token).await.status, StatusCode::FORBIDDEN);
+    }
+    // only the admin revokes, and only a known study's links
+    let anonymous = call(app, Method::DELETE, "/api/admin/studies/shadows-demo/preview", None, None).await;
+    assert_eq!(anonymous.status, StatusCode::UNAUTHORIZED, "{}", anonymous.text());
+    let unknown = call(app, Method::DELETE, "/api/admin/studies/nope/preview", admin, None).await;
+    assert_eq!(unknown.status, StatusCode::NOT_FOUND, "{}", unknown.text());
+}
+
+/// Issue 46: `GET …/next` answers only once the "served" record is committed, so a kill right
+/// after a trial was sent cannot leave its answer "never served" (409). Deterministic: a second
+/// connection holds sqlite's write lock, and the trial must not come while it does (before, the
+/// record was queued and the trial sent at once; 71 answers got 409 after kills).
+#[tokio::test]
+async fn a_trial_is_sent_only_after_its_served_record_is_durable() {
+    let dir = tempfile::tempdir().unwrap();
+    let studies = dir.path().join("studies");
+    copy_demo_study(&studies);
+    let data = dir.path().join("data");
+    let database = mrstudy_server::storage::Database::in_data_dir(&data);
+    let Prepared { state, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    let app = mrstudy_server::app(state);
+    let joined = join(&app, "192.0.2.7").await.json();
+    let (id, token) =
+        (joined["participant"].as_str().unwrap().to_string(), joined["token"].as_str().unwrap().to_string());
+    let pool = support::connect(&database).await;
+    let mut lock = pool.acquire().await.unwrap();
+    sqlx::query("BEGIN IMMEDIATE").execute(&mut *lock).await.unwrap();
+    let next = tokio::spawn({
+        let (app, id, token) = (app.clone(), id.clone(), token.clone());
+        async move { call(&app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await }
+    });
+    tokio::time::sleep(std::time::Duration::from_millis(500)).await;
+    assert!(!next.is_finished(), "the trial was sent before its served record could be committed");
+    sqlx::query("ROLLBACK").execute(&mut *lock).await.unwrap();
+    drop(lock);
+    let next = tokio::time::timeout(std::time::Duration::from_secs(20), next).await.unwrap().unwrap();
+    assert_eq!(next.status, StatusCode::OK, "{}", next.text());
+    assert_eq!(next.json()["trial"], json!(1));
+    let shown: Option<String> = sqlx::query_scalar("SELECT shown_at FROM trials WHERE participant = $1 AND trial = 1")
+        .bind(&id)
+        .fetch_one(&pool)
+        .await
+        .unwrap();
+    assert!(shown.is_some(), "trial 1 was sent but is not recorded as served");
 }

@@ -635,11 +635,9 @@ async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
         "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
     );
     assert!(text.contains("redirect ="));
-    std::fs::write(
-        studies.path().join("demo.toml"),
-        text.replace("\"shadows-demo/", &format!("\"{}/", repo_studies_dir().join("shadows-demo").display())),
-    )
-    .unwrap();
+    // its images beside it: a study's images must lie inside the studies folder
+    copy_demo_study(studies.path());
+    std::fs::write(studies.path().join("shadows-demo.toml"), text).unwrap();
     let data_dir = tempfile::tempdir().unwrap();
     let database = test_database(data_dir.path()).await;
     let Prepared { state, .. } = prepare_on(&database, data_dir.path(), studies.path()).await.unwrap();

@@ -625,8 +625,9 @@ async fn next_trial(
         .ok_or_else(|| AppError::Internal(format!("trial {number} of participant {} is missing", participant.id)))?;
     let following = trials.next();
     if !trial.shown {
-        // the response may reach another server (PostgreSQL): it must find the trial served
-        state.storage().submit_before_others(Shown { participant: participant.id.clone(), trial: number }).await?;
+        // durable before the trial is sent: after a crash (or on another server) its answer
+        // must still find the trial served
+        state.storage().write(Shown { participant: participant.id.clone(), trial: number }).await?;
     }
     Ok(Json(Next::Trial {
         trial: trial.trial,

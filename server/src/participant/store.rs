@@ -121,10 +121,10 @@ impl WriteJob for ScreenOutWrite {
     }
 }
 
-/// Records that a trial was served, if it had not been. It is [`Storage::submit`]ted, not
-/// awaited: the queue is first in, first out, so the record is committed no later than any
-/// response to the trial, which can only be sent after the trial was served (a response to a
-/// trial never served is refused).
+/// Records that a trial was served, if it had not been. It is awaited ([`Storage::write`])
+/// before the trial is sent, so that a response to the trial finds it served even after the
+/// server was killed or on another server of the database (a response to a trial never served
+/// is refused).
 pub struct Shown {
     pub participant: String,
     pub trial: i64,

@@ -106,8 +106,8 @@ pub const IMAGE_TYPES: &[(&str, &str)] =
     &[("png", "image/png"), ("jpg", "image/jpeg"), ("jpeg", "image/jpeg"), ("webp", "image/webp")];
 
 /// An image file of the study, relative to its folder `base`: a known extension, existing, a
-/// regular file inside `base` once every link is followed (no `../`, no symbolic link leading
-/// out: such a file would be served to anyone), and an image of the kind its extension says.
+/// regular file once every link is followed, and an image of the kind its extension says.
+/// Where it may lie is checked by [`check_inside`] when `serve` loads a studies folder.
 pub(crate) fn check_image(fail: Fail, key: &str, base: &Path, relative: &str) -> Result<PathBuf, StudyError> {
     let path = base.join(relative);
     let extension = path.extension().and_then(|ext| ext.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
@@ -117,27 +117,30 @@ pub(crate) fn check_image(fail: Fail, key: &str, base: &Path, relative: &str) ->
     if !path.is_file() {
         return Err(fail.at(key, format!("expected an existing image file, but {} does not exist", path.display())));
     }
-    let outside = || {
-        fail.at(
-            key,
-            format!(
-                "expected an image file inside the study's folder {}, but {} is not",
-                base.display(),
-                path.display()
-            ),
-        )
-    };
-    let (Ok(folder), Ok(resolved)) = (base.canonicalize(), path.canonicalize()) else { return Err(outside()) };
-    if !resolved.starts_with(&folder) {
-        return Err(outside());
-    }
-    if !std::fs::metadata(&resolved).is_ok_and(|meta| meta.file_type().is_file()) {
+    if !std::fs::metadata(&path).is_ok_and(|meta| meta.file_type().is_file()) {
         return Err(fail.at(key, format!("expected a regular image file, but {} is not one", path.display())));
     }
-    if !is_image(&resolved, &extension) {
+    if !is_image(&path, &extension) {
         return Err(fail.at(key, format!("expected a .{extension} image, but {} does not read as one", path.display())));
     }
     Ok(path)
+}
+
+/// Refuses an image file `path` of the study unless it lies inside `folder` once every `..` and
+/// symbolic link is followed: `serve` would hand it to anyone (a link to `/etc/passwd` was served
+/// as `image/png`).
+pub(crate) fn check_inside(fail: Fail, key: &str, path: &Path, folder: &Path) -> Result<(), StudyError> {
+    match (folder.canonicalize(), path.canonicalize()) {
+        (Ok(folder), Ok(resolved)) if resolved.starts_with(&folder) => Ok(()),
+        _ => Err(fail.at(
+            key,
+            format!(
+                "expected an image file inside the studies folder {}, but {} is not",
+                folder.display(),
+                path.display()
+            ),
+        )),
+    }
 }
 
 /// Whether the file reads as an image of the kind `extension` says: its header decodes (PNG,

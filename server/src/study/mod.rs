@@ -133,7 +133,8 @@ pub fn load_study(file: &Path) -> Result<Study, StudyError> {
 }
 
 /// Loads every `*.toml` directly under `dir`, sorted by file name; stops at the first invalid
-/// file. Two files with the same slug are refused.
+/// file. Two files with the same slug are refused, and so is an image file outside `dir`
+/// ([`Study::check_images_inside`]): `serve` hands these to anyone.
 pub fn load_studies(dir: &Path) -> Result<Vec<LoadedStudy>, StudyError> {
     let entries = std::fs::read_dir(dir).map_err(|error| StudyError {
         file: dir.to_path_buf(),
@@ -148,6 +149,9 @@ pub fn load_studies(dir: &Path) -> Result<Vec<LoadedStudy>, StudyError> {
     let mut studies: Vec<LoadedStudy> = Vec::new();
     for file in files {
         let study = load_any(&file)?;
+        if let LoadedStudy::Survey(survey) = &study {
+            survey.check_images_inside(dir)?;
+        }
         if let Some(other) = studies.iter().find(|other| other.slug() == study.slug()) {
             return Err(StudyError {
                 file,

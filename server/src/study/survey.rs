@@ -16,8 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use super::StudyError;
 use super::checks::{
-    Fail, check_image, check_min_response_ms, check_name, check_slug, check_texts, is_condition_name, is_identifier,
-    resolve_scene,
+    Fail, check_image, check_inside, check_min_response_ms, check_name, check_slug, check_texts, is_condition_name,
+    is_identifier, resolve_scene,
 };
 
 /// What kind of study a file describes.
@@ -1291,6 +1291,26 @@ fn listed_pairs(fail: Fail, list: &[Vec<String>], conditions: &[Condition]) -> R
         pairs.push((first, second));
     }
     Ok(pairs)
+}
+
+impl Study {
+    /// Refuses an image file of the study (its scene configurations' and catch trials') that is
+    /// not inside `folder` once `..` and symbolic links are followed.
+    pub fn check_images_inside(&self, folder: &Path) -> Result<(), StudyError> {
+        let fail = Fail(&self.file);
+        for (index, scene) in self.scenes.iter().enumerate() {
+            if let StimulusSource::Images(paths) = &scene.source {
+                for (condition, path) in self.conditions.iter().zip(paths) {
+                    check_inside(fail, &format!("scenes[{index}].images.{}", condition.name), path, folder)?;
+                }
+            }
+        }
+        for (index, catch) in self.catch.iter().enumerate() {
+            check_inside(fail, &format!("catch[{index}].better"), &catch.better, folder)?;
+            check_inside(fail, &format!("catch[{index}].worse"), &catch.worse, folder)?;
+        }
+        Ok(())
+    }
 }
 
 /// Catch trials: unique names, repetitions, and their two image files.
