@@ -362,6 +362,8 @@ fn serve_refuses_an_invalid_study_file_naming_file_and_key() {
         stderr.contains("broken.toml") && stderr.contains("design.repetitions") && stderr.contains("expected 1 to 100"),
         "{stderr}"
     );
+    // said once (issue 46: the error was also its own cause, so it was printed twice)
+    assert_eq!(stderr.matches("expected 1 to 100").count(), 1, "{stderr}");
 }
 
 #[test]
