@@ -656,6 +656,10 @@ async fn preview_links_expire_and_can_be_revoked() {
     for token in [first, second] {
         assert_eq!(join_with(token).await.status, StatusCode::FORBIDDEN);
     }
+    // the admin page has the control
+    let page = call(app, Method::GET, "/admin/studies/shadows-demo", admin, None).await;
+    assert_eq!(page.status, StatusCode::OK, "{}", page.text());
+    assert!(page.text().contains(r#"id="revoke-previews""#));
     // only the admin revokes, and only a known study's links
     let anonymous = call(app, Method::DELETE, "/api/admin/studies/shadows-demo/preview", None, None).await;
     assert_eq!(anonymous.status, StatusCode::UNAUTHORIZED, "{}", anonymous.text());

@@ -1,6 +1,6 @@
-// Admin study page: open/close the study, optional auto-refresh, preview links, and exclude /
-// include / delete of participants. The admin cookie authenticates; changes also send
-// X-Requested-With, which the server requires of cookie-authenticated changes.
+// Admin study page: open/close the study, optional auto-refresh, preview links (made and
+// revoked), and exclude / include / delete of participants. The admin cookie authenticates;
+// changes also send X-Requested-With, which the server requires of cookie-authenticated changes.
 "use strict";
 
 (function () {
@@ -41,12 +41,35 @@
         const link = document.getElementById("preview-url");
         link.href = answer.url;
         link.textContent = new URL(answer.url, location.href).href;
+        document.getElementById("preview-expiry").textContent =
+          " (valid until " + new Date(answer.expires_at).toLocaleString() + ")";
         document.getElementById("preview-link").hidden = false;
+        document.getElementById("previews-revoked").hidden = true;
         window.open(answer.url, "_blank", "noopener");
       } catch (error) {
         showProblem(error.message);
       } finally {
         preview.disabled = false;
+      }
+    });
+  }
+
+  // every preview link of the study stops working; pilots who joined keep their runs
+  const revoke = document.getElementById("revoke-previews");
+  if (revoke) {
+    revoke.addEventListener("click", async () => {
+      if (!confirm("Revoke every preview link of this study? Pilots who joined keep their runs.")) return;
+      revoke.disabled = true;
+      try {
+        const answer = await change("DELETE", "/api/admin/studies/" + encodeURIComponent(slug) + "/preview");
+        const note = document.getElementById("previews-revoked");
+        note.textContent = answer.revoked === 1 ? "1 preview link revoked." : answer.revoked + " preview links revoked.";
+        note.hidden = false;
+        document.getElementById("preview-link").hidden = true;
+      } catch (error) {
+        showProblem(error.message);
+      } finally {
+        revoke.disabled = false;
       }
     });
   }
