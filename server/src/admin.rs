@@ -1127,10 +1127,13 @@ async fn delete_participant(
 #[derive(Serialize)]
 struct PreviewLink {
     url: String,
+    /// When the link stops letting pilots join ([`crate::storage::PREVIEW_LINK_DAYS`] from now).
+    expires_at: String,
 }
 
 /// A new preview link: a random 256-bit token, stored as its SHA-256 in `previews`; a participant
-/// who joins with it (`preview` in the join body) is a pilot.
+/// who joins with it (`preview` in the join body) is a pilot, for
+/// [`crate::storage::PREVIEW_LINK_DAYS`] days or until the study's links are revoked.
 async fn create_preview(
     State(state): State<AppState>,
     Path(slug): Path<String>,
