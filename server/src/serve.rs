@@ -649,13 +649,9 @@ pub async fn serve_connections(
                 // the whole request by `request_timeout` from its start, its body by `body_timeout`
                 let whole = clock.since() + connections.request_timeout;
                 let body = tokio::time::Instant::now() + connections.body_timeout;
-                let (deadline, allowed) = if whole <= body {
-                    (whole, connections.request_timeout)
-                } else {
-                    (body, connections.body_timeout)
-                };
-                let mut request =
-                    request.map(|body| axum::body::Body::new(DeadlineBody::new(body, deadline, allowed)));
+                let (deadline, allowed) =
+                    if whole <= body { (whole, connections.request_timeout) } else { (body, connections.body_timeout) };
+                let mut request = request.map(|body| axum::body::Body::new(DeadlineBody::new(body, deadline, allowed)));
                 request.extensions_mut().insert(crate::limits::ClientAddr(peer.ip()));
                 let clock = clock.clone();
                 let response = router.clone().oneshot(request);

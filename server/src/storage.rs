@@ -909,7 +909,7 @@ async fn execute_admin(
             let Some(row) = row else {
                 // a lab participant (task studies keep theirs in task_participants)
                 let Some((study, ordinal, excluded_at)) =
-                    crate::task::store::set_excluded(connection, participant, reason.as_deref()).await?
+                    set_lab_excluded(connection, participant, reason.as_deref()).await?
                 else {
                     return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
                 };
@@ -1045,6 +1045,76 @@ impl Storage {
     }
 }
 
+/// Deletes a lab participant and every datum of theirs — their trials (schedule, answers, key
+/// logs, frame times) and their row (code, token hash, seed) — inside the admin's write; the
+/// participant who took an abandoned participant's slot is no longer named there
+/// (`slot_taken_by`). None when no lab participant has this id. [`Storage::delete`] then
+/// rewrites the database files, as for a survey participant.
+async fn delete_lab_participant(connection: &mut Connection, id: &str) -> Result<Option<Deletion>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(row) = row else { return Ok(None) };
+    let study: String = row.try_get("study")?;
+    let ordinal: i64 = row.try_get("ordinal")?;
+    let answered: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = $1 AND answered_at IS NOT NULL")
+            .bind(id)
+            .fetch_one(&mut *connection)
+            .await?;
+    let trials =
+        sqlx::query("DELETE FROM task_trials WHERE participant = $1").bind(id).execute(&mut *connection).await?;
+    sqlx::query("UPDATE task_participants SET slot_taken_by = NULL WHERE slot_taken_by = $1")
+        .bind(id)
+        .execute(&mut *connection)
+        .await?;
+    sqlx::query("DELETE FROM task_participants WHERE id = $1").bind(id).execute(&mut *connection).await?;
+    Ok(Some(Deletion {
+        study,
+        kind: "lab-participant",
+        ordinal: Some(ordinal),
+        trials: trials.rows_affected() as i64,
+        responses: answered,
+    }))
+}
+
+/// Excludes a lab participant with `reason`, or (None) includes them again, inside the admin's
+/// write: (study, ordinal, excluded_at), or None when no lab participant has this id.
+async fn set_lab_excluded(
+    connection: &mut Connection,
+    id: &str,
+    reason: Option<&str>,
+) -> Result<Option<(String, i64, Option<String>)>, sqlx::Error> {
+    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
+        .bind(id)
+        .fetch_optional(&mut *connection)
+        .await?;
+    let Some(row) = row else { return Ok(None) };
+    let excluded_at: Option<String> = match reason {
+        Some(reason) => {
+            sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+                "UPDATE task_participants SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
+                 WHERE id = $2 RETURNING excluded_at"
+            )))
+            .bind(reason)
+            .bind(id)
+            .fetch_one(&mut *connection)
+            .await?
+        }
+        None => {
+            sqlx::query(
+                "UPDATE task_participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1",
+            )
+            .bind(id)
+            .execute(&mut *connection)
+            .await?;
+            None
+        }
+    };
+    Ok(Some((row.try_get("study")?, row.try_get("ordinal")?, excluded_at)))
+}
+
 /// Deletes a participant and all their data, or a screen-out row, by id, with an audit line.
 async fn delete_rows(connection: &mut Connection, id: &str) -> Result<Result<Deletion, AdminRefused>, sqlx::Error> {
     let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = $1")
@@ -1070,7 +1140,7 @@ async fn delete_rows(connection: &mut Connection, id: &str) -> Result<Result<Del
         audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
         return Ok(Ok(deletion));
     }
-    if let Some(deletion) = crate::task::store::delete_participant(connection, id).await? {
+    if let Some(deletion) = delete_lab_participant(connection, id).await? {
         audit(connection, "delete", &deletion.study, serde_json::to_value(&deletion).expect("serialises")).await?;
         return Ok(Ok(deletion));
     }
