@@ -700,7 +700,13 @@ fn owner_only(path: &Path) -> std::io::Result<()> {
 /// back and the jobs stay in `batch` to be failed. On PostgreSQL the transaction first waits for
 /// [`WRITER_LOCK`], so the batches of several processes take turns.
 async fn run_batch(pool: &Pool, backend: Backend, batch: &mut [Box<dyn Queued>]) -> Result<(), sqlx::Error> {
-    let mut transaction = pool.begin().await?;
+    let mut transaction = match backend {
+        // sqlite: the write lock at the start, where a lock held elsewhere (an operator's
+        // `sqlite3`, a backup) is waited for (busy timeout); a deferred transaction that has
+        // read first cannot wait for it and fails at its first write ("database is locked")
+        Backend::Sqlite => pool.begin_with("BEGIN IMMEDIATE").await?,
+        Backend::Postgres => pool.begin().await?,
+    };
     if backend == Backend::Postgres {
         sqlx::query("SELECT pg_advisory_xact_lock($1)").bind(WRITER_LOCK).execute(&mut *transaction).await?;
     }
@@ -824,8 +830,13 @@ impl Storage {
     /// copies of keys that b-tree interior pages may keep after their row is gone (the
     /// `WITHOUT ROWID` tables `trials` and `responses` keep whole rows there, the external-id
     /// index the external id); the truncating checkpoint copies the new pages over the old ones
-    /// in the main file and empties the WAL, which still held the old versions. The writer's
-    /// connection runs the `VACUUM`, so participants' writes wait for it (deletions are rare).
+    /// in the main file and empties the WAL, which still held the old versions.
+    ///
+    /// Both run on the writer's only connection, between its batches, never beside them: a
+    /// checkpoint on another connection takes sqlite's write lock, and a batch that already
+    /// began reading cannot wait for that lock (sqlite refuses at once, "database is locked"),
+    /// so the whole group commit was rolled back (issue 46). Participants' writes wait for the
+    /// `VACUUM` instead (about a second per 40 MB; deletions are rare).
     pub async fn delete(&self, id: &str) -> Written<Deletion, AdminRefused> {
         let deletion = match self.write(Delete { id: id.to_string() }).await? {
             Ok(deletion) => deletion,
@@ -834,7 +845,7 @@ impl Storage {
         match self.backend {
             Backend::Sqlite => {
                 sqlx::query("VACUUM").execute(&self.write).await?;
-                self.truncate_wal().await?;
+                truncate_wal_between_batches(&self.write).await?;
             }
             // A full vacuum rewrites the tables into new files without the dead rows (the old
             // files are removed); PostgreSQL's own WAL keeps the old rows until it is recycled.
@@ -847,26 +858,44 @@ impl Storage {
         Ok(Ok(deletion))
     }
 
-    /// `PRAGMA wal_checkpoint(TRUNCATE)`, retried while readers or the writer keep it busy
-    /// (sqlite; nothing to do on PostgreSQL).
+    /// `PRAGMA wal_checkpoint(TRUNCATE)` between the writer's batches, retried while readers
+    /// keep it busy (sqlite; nothing to do on PostgreSQL).
     pub async fn truncate_wal(&self) -> Result<(), StorageError> {
         if self.backend == Backend::Postgres {
             return Ok(());
         }
-        for _ in 0..WAL_TRUNCATE_TRIES {
-            let row = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)").fetch_one(&self.read).await?;
-            let busy: i64 = row.try_get(0)?;
-            if busy == 0 {
-                return Ok(());
-            }
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
-        Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
+        truncate_wal_between_batches(&self.write).await
     }
 }
 
 /// How often [`Storage::truncate_wal`] tries before giving up (50 ms apart).
 const WAL_TRUNCATE_TRIES: usize = 200;
+
+/// `PRAGMA wal_checkpoint(TRUNCATE)` on the writer's connection (`write`, a pool of one), so
+/// that it runs between group commits and never takes the write lock from a batch in flight.
+/// Each try waits [`WAL_TRUNCATE_WAIT`] at most for readers of the old WAL and then gives the
+/// connection back, so participants' batches go on between tries.
+async fn truncate_wal_between_batches(write: &Pool) -> Result<(), StorageError> {
+    for _ in 0..WAL_TRUNCATE_TRIES {
+        let mut connection = write.acquire().await?;
+        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
+            .execute(&mut *connection)
+            .await?;
+        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
+            .fetch_one(&mut *connection)
+            .await
+            .and_then(|row| row.try_get::<i64, _>(0));
+        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
+            .execute(&mut *connection)
+            .await?;
+        drop(connection);
+        if busy? == 0 {
+            return Ok(());
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
+}
 
 async fn audit(
     connection: &mut Connection,

@@ -824,3 +824,102 @@ async fn the_screen_check_sends_a_returning_finisher_to_the_completion_page() {
     let preview = url.split("preview=").nth(1).unwrap().to_string();
     assert_eq!(screen(&fixture, "PID-BACK", Some(&preview)).await, json!({"meets": true}), "a preview is a new pilot");
 }
+
+/// Issue 46: a deletion's rewrite of the database (`VACUUM`, then a truncating checkpoint that
+/// copies the new pages over the old) ran beside the writer, on another connection, and took
+/// sqlite's write lock while participants' group commits were mid-transaction; those could not
+/// wait for it ("database is locked") and were rolled back, so joins and answers got 500. Here
+/// 8 participants join and answer without pause on a database of some megabytes while the
+/// researcher deletes participants one after another: every join and answer must succeed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn deletions_under_load_never_fail_a_participants_join_or_answer() {
+    let fixture = fixture().await;
+    if fixture.database.backend() == Backend::Sqlite {
+        // megabytes for the rewrite and the checkpoint to copy, as a real study's database has
+        fixture.sql("CREATE TABLE padding (bytes BLOB)").await;
+        fixture.sql("WITH RECURSIVE n(i) AS (SELECT 1 UNION ALL SELECT i + 1 FROM n WHERE i < 2000) INSERT INTO padding SELECT randomblob(4000) FROM n").await;
+    }
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut writers = Vec::new();
+    for writer in 0..8 {
+        let app = fixture.app.clone();
+        let stop = stop.clone();
+        writers.push(tokio::spawn(async move {
+            let (mut done, mut failures) = (0usize, Vec::new());
+            let mut round = 0;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                round += 1;
+                let joined = join_quietly(&app, &format!("PID-LOAD-{writer}-{round}")).await;
+                let Ok((id, token)) = joined else {
+                    failures.push(joined.unwrap_err());
+                    continue;
+                };
+                done += 1;
+                for _ in 0..7 {
+                    let next =
+                        call(&app, Method::GET, &format!("/api/participants/{id}/next"), Some(&token), None).await;
+                    let Some(trial) = next.json()["trial"].as_i64() else { break };
+                    let answer = call(
+                        &app,
+                        Method::POST,
+                        &format!("/api/participants/{id}/responses"),
+                        Some(&token),
+                        Some(json!({"trial": trial, "chosen": "left", "rt_ms": 900.0, "client": {}})),
+                    )
+                    .await;
+                    if answer.status == StatusCode::CREATED {
+                        done += 1;
+                    } else {
+                        failures.push(format!("answer: {} {}", answer.status, answer.text()));
+                    }
+                }
+            }
+            (done, failures)
+        }));
+    }
+    let mut deleted = 0;
+    for round in 0..12 {
+        let (id, token) = fixture.join(&format!("PID-DELETE-{round}"), "please delete me").await;
+        fixture.answer(&id, &token, 2, false, false).await;
+        let answer = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{id}"), None).await;
+        assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        deleted += 1;
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (mut done, mut failures) = (0, Vec::new());
+    for writer in writers {
+        let (writer_done, writer_failures) = writer.await.unwrap();
+        done += writer_done;
+        failures.extend(writer_failures);
+    }
+    assert_eq!(deleted, 12);
+    assert!(done > 50, "the writers made progress: {done} joins and answers");
+    assert!(
+        failures.is_empty(),
+        "{} of {} joins and answers failed: {:?}",
+        failures.len(),
+        done + failures.len(),
+        &failures[..failures.len().min(5)]
+    );
+}
+
+/// A join as [`Fixture::join`] makes it, with the failure as text instead of a panic.
+async fn join_quietly(app: &Router, pid: &str) -> Result<(String, String), String> {
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/studies/{STUDY}/participants"),
+        None,
+        Some(json!({
+            "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"},
+            "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"},
+            "url_params": {"PROLIFIC_PID": pid},
+        })),
+    )
+    .await;
+    if answer.status != StatusCode::CREATED {
+        return Err(format!("join: {} {}", answer.status, answer.text()));
+    }
+    let json = answer.json();
+    Ok((json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string()))
+}
