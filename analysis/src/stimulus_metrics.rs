@@ -17,8 +17,10 @@
 //!    a correlation by the noise of the estimated log-worths (see `basic_interval` for why not
 //!    the percentile interval). Pairs that cannot be computed are listed with the reason.
 //! 4. A ranking by *agreement*, the correlation signed so that higher means "predicts preference
-//!    better": −ρ for the errors (higher error, less preferred), +ρ for `ssim` (a similarity),
-//!    |ρ| for `render_ms`, which has no direction.
+//!    better": −ρ for the errors (higher error, less preferred), +ρ for `ssim` (a similarity).
+//!    Only image metrics are ranked ([`MetricKind::ImageError`]): a timing such as `render_ms`
+//!    is a cost of making the image, not an error of it, so its correlation is listed apart
+//!    (`timings`), unranked, and is never the best predictor.
 //!
 //! Pure: text and typed values in, a serialisable [`StimulusAnalysis`] out (the `metrics`
 //! section of the Analysis JSON), and scatter plots as SVG text ([`StimulusAnalysis::scatter_plots`]).
@@ -51,6 +53,17 @@ pub enum Metric {
     #[serde(rename = "ciede2000_p95")]
     Ciede2000P95,
     RenderMs,
+}
+
+/// What a metric measures: an image error (or similarity) against the ground truth, which the
+/// ranking compares, or a cost of making the image (a timing), which it lists apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MetricKind {
+    /// An image error or similarity against the ground truth: ranked.
+    ImageError,
+    /// A cost such as a time in milliseconds (`render_ms`): listed apart, never ranked.
+    Timing,
 }
 
 /// Which way a metric points.
@@ -94,6 +107,12 @@ impl Metric {
 
     pub fn parse(name: &str) -> Option<Metric> {
         Metric::ALL.into_iter().find(|metric| metric.name() == name)
+    }
+
+    /// Its kind, by name: a name ending in `_ms` (`render_ms`) is a timing, every other metric
+    /// an image error.
+    pub fn kind(self) -> MetricKind {
+        if self.name().ends_with("_ms") { MetricKind::Timing } else { MetricKind::ImageError }
     }
 
     pub fn direction(self) -> Direction {
@@ -378,6 +397,8 @@ pub struct MetricItem {
 pub struct MetricCorrelation {
     pub metric: Metric,
     pub region: Region,
+    /// `image_error` (ranked, in `correlations`) or `timing` (in `timings`, unranked).
+    pub kind: MetricKind,
     pub direction: Direction,
     /// Items with both a value and a log-worth.
     pub items: usize,
@@ -391,8 +412,9 @@ pub struct MetricCorrelation {
     pub kendall_ci: Option<[f64; 2]>,
     /// ρ signed to "predicts preference": −ρ for errors, +ρ for `ssim`, |ρ| for `render_ms`.
     pub agreement: f64,
-    /// 1 for the best predictor.
-    pub rank: usize,
+    /// 1 for the best predictor; omitted for a timing, which is not ranked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rank: Option<usize>,
 }
 
 /// A metric × region without correlation, and why.
@@ -425,7 +447,7 @@ pub struct MetricBootstrap {
 }
 
 /// How ranks are made, as said in the JSON.
-pub const RANKED_BY: &str = "agreement: −ρ for errors (higher error, less preferred), +ρ for ssim (a similarity), |ρ| for render_ms (no direction)";
+pub const RANKED_BY: &str = "agreement: −ρ for image errors (higher error, less preferred), +ρ for ssim (a similarity); timings (render_ms) are costs, not image errors: listed apart in `timings`, not ranked";
 
 /// The `metrics` section of the Analysis JSON.
 #[derive(Debug, Clone, Serialize)]
@@ -442,8 +464,12 @@ pub struct StimulusAnalysis {
     /// The item with log-worth 0.
     pub reference: String,
     pub items: Vec<MetricItem>,
-    /// Best predictor first.
+    /// The image metrics (errors and `ssim`), best predictor first.
     pub correlations: Vec<MetricCorrelation>,
+    /// The timings (`render_ms`): correlated the same way, but costs rather than image errors,
+    /// so listed apart and never ranked.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub timings: Vec<MetricCorrelation>,
     pub ranked_by: &'static str,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub best: Option<BestMetric>,
@@ -789,6 +815,7 @@ pub fn analyze_judgments(
                     correlations.push(MetricCorrelation {
                         metric,
                         region,
+                        kind: metric.kind(),
                         direction: metric.direction(),
                         items: with_value.len(),
                         spearman_rho: rho,
@@ -796,7 +823,7 @@ pub fn analyze_judgments(
                         kendall_tau_b: tau,
                         kendall_ci: None,
                         agreement: metric.agreement(rho),
-                        rank: 0,
+                        rank: None,
                     });
                     computed.push((metric, region, with_value));
                     None
@@ -885,10 +912,13 @@ pub fn analyze_judgments(
         }
     }
 
-    // Ranking: best agreement first; ties keep docs/design.md's order.
+    // Timings apart; ranking of the image metrics: best agreement first; ties keep
+    // docs/design.md's order.
+    let (mut correlations, timings): (Vec<MetricCorrelation>, Vec<MetricCorrelation>) =
+        correlations.into_iter().partition(|c| c.kind == MetricKind::ImageError);
     correlations.sort_by(|a, b| b.agreement.total_cmp(&a.agreement));
     for (k, correlation) in correlations.iter_mut().enumerate() {
-        correlation.rank = k + 1;
+        correlation.rank = Some(k + 1);
     }
     let best = correlations.first().map(|c| BestMetric { metric: c.metric, region: c.region, agreement: c.agreement });
     if correlations.is_empty() {
@@ -896,7 +926,7 @@ pub fn analyze_judgments(
             &mut warnings,
             &mut not_estimable,
             Part::MetricCorrelations,
-            "no metric × region has values, variance and at least 3 fitted items (each is in `not_computed` with its reason)"
+            "no image metric × region has values, variance and at least 3 fitted items (each is in `not_computed` with its reason)"
                 .into(),
         );
     }
@@ -934,6 +964,7 @@ pub fn analyze_judgments(
         reference: items.label(*reference),
         items: metric_items,
         correlations,
+        timings,
         ranked_by: RANKED_BY,
         best,
         not_computed,
@@ -1084,10 +1115,11 @@ fn merge_count(values: &mut [f64], buffer: &mut [f64]) -> u64 {
 impl StimulusAnalysis {
     /// One scatter plot per correlation (metric × region): the metric against the perceived
     /// log-worth, each point labelled, with ρ and τ in the title. File names
-    /// `metric-<metric>-<region>.svg` with their SVG text, in ranking order.
+    /// `metric-<metric>-<region>.svg` with their SVG text, in ranking order, the timings last.
     pub fn scatter_plots(&self) -> Vec<(String, String)> {
         self.correlations
             .iter()
+            .chain(&self.timings)
             .map(|correlation| {
                 let (metric, region) = (correlation.metric, correlation.region);
                 let points = self
@@ -1127,13 +1159,18 @@ impl StimulusAnalysis {
                     y_label: format!("perceived log-worth λ ({} = 0)", self.reference),
                     points,
                     note: Some(format!(
-                        "rank {} of {} by {}{}; level: {}",
-                        correlation.rank,
-                        self.correlations.len(),
-                        match metric.direction() {
-                            Direction::Error => "−ρ (an error)",
-                            Direction::Similarity => "+ρ (a similarity)",
-                            Direction::None => "|ρ| (no direction)",
+                        "{}{}; level: {}",
+                        match correlation.rank {
+                            Some(rank) => format!(
+                                "rank {rank} of {} image metrics by {}",
+                                self.correlations.len(),
+                                match metric.direction() {
+                                    Direction::Error => "−ρ (an error)",
+                                    Direction::Similarity => "+ρ (a similarity)",
+                                    Direction::None => "|ρ| (no direction)",
+                                }
+                            ),
+                            None => "a timing (a cost of the image, not an error of it): not ranked".to_string(),
                         },
                         match &self.bootstrap {
                             Some(b) => format!(

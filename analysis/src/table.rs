@@ -384,7 +384,7 @@ fn render_metrics(out: &mut String, metrics: &crate::stimulus_metrics::StimulusA
             let _ = writeln!(
                 out,
                 "{:>4}  {:<14}  {:<8}  {:>5}  {:>9}  {:>16}  {:>9}  {:>16}  {:>9}",
-                c.rank,
+                c.rank.unwrap_or_default(),
                 c.metric.name(),
                 c.region.name(),
                 c.items,
@@ -393,6 +393,23 @@ fn render_metrics(out: &mut String, metrics: &crate::stimulus_metrics::StimulusA
                 fixed(c.kendall_tau_b, 3),
                 ci(c.kendall_ci),
                 fixed(c.agreement, 3)
+            );
+        }
+    }
+    if !metrics.timings.is_empty() {
+        let _ = writeln!(out, "timings (costs of making the image, not image errors; not ranked):");
+        for c in &metrics.timings {
+            let ci = |ci: Option<[f64; 2]>| ci.map(interval).unwrap_or_else(|| "—".to_string());
+            let _ = writeln!(
+                out,
+                "      {:<14}  {:<8}  {:>5}  ρ {:>7} {:>16}  τb {:>7} {:>16}",
+                c.metric.name(),
+                c.region.name(),
+                c.items,
+                fixed(c.spearman_rho, 3),
+                ci(c.spearman_ci),
+                fixed(c.kendall_tau_b, 3),
+                ci(c.kendall_ci)
             );
         }
     }

@@ -7,7 +7,8 @@
 use mrstudy_analysis::analysis::{Options, Screening};
 use mrstudy_analysis::report::{Report, analyze_named};
 use mrstudy_analysis::stimulus_metrics::{
-    Level, Metric, Region, StimulusOptions, analyze_stimuli, kendall_tau_b, parse_stimulus_metrics, spearman_rho,
+    Level, Metric, MetricKind, Region, StimulusOptions, analyze_stimuli, kendall_tau_b, parse_stimulus_metrics,
+    spearman_rho,
 };
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -129,11 +130,13 @@ fn the_metric_preference_follows_comes_out_best() {
     let [low, high] = top.spearman_ci.unwrap();
     assert!(low == -1.0 && high < top.spearman_rho, "{top:?}");
     assert!(top.kendall_ci.unwrap()[1] < 0.0, "{top:?}");
-    // 8 metrics × 3 regions, render_ms only for the image: 22 pairs, all computed.
-    assert_eq!(analysis.correlations.len(), 22);
+    // 8 metrics × 3 regions, render_ms only for the image: 22 pairs, all computed; the 21 image
+    // metrics ranked, the timing listed apart.
+    assert_eq!(analysis.correlations.len(), 21);
     assert!(analysis.not_computed.is_empty());
-    let render = analysis.correlations.iter().find(|c| c.metric == Metric::RenderMs).unwrap();
-    assert_eq!(render.agreement, render.spearman_rho.abs());
+    assert!(analysis.correlations.iter().all(|c| c.metric != Metric::RenderMs));
+    let render = &analysis.timings[0];
+    assert_eq!((analysis.timings.len(), render.metric, render.rank), (1, Metric::RenderMs, None));
     let ssim = analysis.correlations.iter().find(|c| c.metric == Metric::Ssim).unwrap();
     assert_eq!(ssim.agreement, ssim.spearman_rho);
     assert!(analysis.correlations.windows(2).all(|w| w[0].agreement >= w[1].agreement));
@@ -147,9 +150,11 @@ fn the_metric_preference_follows_comes_out_best() {
     let table = mrstudy_analysis::table::render_report(&report);
     assert!(table.contains("best predictor of preference: flip_mean (affected region)"), "{table}");
 
-    // One scatter plot per pair, valid SVG, each point labelled.
+    // One scatter plot per pair, valid SVG, each point labelled; the timing's last.
     let plots = analysis.scatter_plots();
     assert_eq!(plots.len(), 22);
+    assert_eq!(plots[21].0, "metric-render_ms-image.svg");
+    assert!(plots[21].1.contains("a timing (a cost of the image, not an error of it): not ranked"));
     assert_eq!(plots[0].0, "metric-flip_mean-affected.svg");
     let document = roxmltree::Document::parse(&plots[0].1).unwrap();
     let labels = document
@@ -157,6 +162,58 @@ fn the_metric_preference_follows_comes_out_best() {
         .filter(|n| n.has_tag_name("text") && n.text().is_some_and(|t| t.contains("/GI+CA")))
         .count();
     assert_eq!(labels, SCENES);
+}
+
+/// The walkthrough's defect: a render time that follows the preference more closely than any
+/// image error (slower renders were the better images) was ranked the "best predictor of
+/// preference". It is a cost, not an image error: listed apart, never ranked, never best.
+#[test]
+fn render_ms_is_listed_apart_and_never_the_best_predictor() {
+    let mut rng = ChaCha8Rng::seed_from_u64(45);
+    let (metrics, truth) = metrics_csv(&mut rng);
+    // render_ms exactly in the true worth's order; flip_mean (affected) with noise added, so
+    // that the render time follows the preference more closely than any image error.
+    let mut text = String::new();
+    for line in metrics.lines() {
+        let cells: Vec<&str> = line.split(',').collect();
+        let value = match (cells[3], cells[4]) {
+            ("render_ms", _) => {
+                let scene: usize = cells[1][1..].parse().unwrap();
+                let condition = CONDITIONS.iter().position(|c| *c == cells[2]).unwrap();
+                Some(100.0 + 50.0 * truth[scene][condition])
+            }
+            ("flip_mean", "affected") => Some(cells[5].parse::<f64>().unwrap() + 0.25 * rng.random::<f64>()),
+            _ => None,
+        };
+        match value {
+            Some(value) => text += &format!("{},{value}\n", cells[..5].join(",")),
+            None => {
+                text += line;
+                text.push('\n');
+            }
+        }
+    }
+    let trials = trials_csv(&truth, 40, 60, false, &mut rng);
+    let report = analyze_named(&trials, "trials.csv", None, Some((&text, "metrics.csv")), &options()).unwrap();
+    let analysis = report.metrics.as_ref().unwrap();
+    let timing = &analysis.timings[0];
+    assert_eq!((timing.metric, timing.kind, timing.rank), (Metric::RenderMs, MetricKind::Timing, None));
+    // It does follow the preference better than the best image metric …
+    assert!(timing.agreement > analysis.correlations[0].agreement, "{timing:?} vs {:?}", analysis.correlations[0]);
+    // … but the ranking holds image metrics only, and the best is an image error.
+    let best = analysis.best.as_ref().unwrap();
+    assert_eq!((best.metric, best.region), (Metric::FlipMean, Region::Affected));
+    assert!(analysis.correlations.iter().all(|c| c.kind == MetricKind::ImageError && c.rank.is_some()));
+    let value = serde_json::to_value(&report).unwrap();
+    assert_eq!(value["metrics"]["best"]["metric"], "flip_mean");
+    assert_eq!(value["metrics"]["correlations"][0]["rank"], 1);
+    assert_eq!(value["metrics"]["timings"][0]["metric"], "render_ms");
+    assert_eq!(value["metrics"]["timings"][0]["kind"], "timing");
+    assert!(value["metrics"]["timings"][0].get("rank").is_none());
+    let table = mrstudy_analysis::table::render_report(&report);
+    assert!(table.contains("best predictor of preference: flip_mean (affected region)"), "{table}");
+    let timings_at = table.find("timings (costs of making the image, not image errors; not ranked):").expect(&table);
+    assert!(table[timings_at..].contains("render_ms"), "{table}");
 }
 
 #[test]

@@ -6,7 +6,7 @@ use super::descriptives::{describe, mean};
 use super::friedman::{friedman_test, rank_sums};
 use super::parse::MeasureData;
 use super::posthoc::{holm_adjust, wilcoxon_signed_rank_paired};
-use super::{AveragedCell, ConditionSummary, MeasureAnalysis, WilcoxonPair};
+use super::{AveragedCell, ConditionSummary, MeasureAnalysis, POST_HOC_ALPHA, WilcoxonPair};
 use crate::pvalue::PValue;
 
 pub(super) fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
@@ -142,12 +142,32 @@ pub(super) fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
         for idx_b in idx_a + 1..n_conditions {
             let (x, y): (Vec<f64>, Vec<f64>) = table.iter().filter_map(|row| Some((row[idx_a]?, row[idx_b]?))).unzip();
             let (condition_a, condition_b) = (&data.conditions[idx_a], &data.conditions[idx_b]);
-            let test = wilcoxon_signed_rank_paired(&x, &y);
+            let mut test = wilcoxon_signed_rank_paired(&x, &y);
+            let mut not_estimable = None;
+            if let Some(test) = test.as_mut()
+                && let Some(min_p) = test.min_p
+                && min_p.p > POST_HOC_ALPHA
+            {
+                let differences = test.n_nonzero;
+                let reason = format!(
+                    "with {differences} non-zero difference{} the smallest two-sided p any outcome could give is {} > α = \
+                    {POST_HOC_ALPHA}, so the test cannot find a difference (it needs at least 6)",
+                    plural(differences),
+                    min_p.display(),
+                );
+                warnings.push(format!(
+                    "Wilcoxon {condition_a} vs {condition_b} not estimable: {reason}; no p-value is reported and the \
+                    pair is left out of the Holm adjustment."
+                ));
+                test.p = None;
+                test.z = None;
+                not_estimable = Some(reason);
+            }
             match &test {
                 None => warnings.push(format!(
                     "Wilcoxon {condition_a} vs {condition_b} omitted: no participant has both conditions."
                 )),
-                Some(test) if test.p.is_none() => warnings.push(format!(
+                Some(test) if test.p.is_none() && not_estimable.is_none() => warnings.push(format!(
                     "Wilcoxon {condition_a} vs {condition_b}: all {} differences are zero, so there is no \
                     test (R reports p = NA); the pair is left out of the Holm adjustment.",
                     x.len()
@@ -160,6 +180,7 @@ pub(super) fn analyze_measure(data: &MeasureData) -> MeasureAnalysis {
                 n: x.len(),
                 test,
                 p_holm: None,
+                not_estimable,
             });
         }
     }

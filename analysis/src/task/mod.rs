@@ -26,6 +26,9 @@
 //!
 //! Where a test is undefined (fewer than two conditions, one participant, all values tied, all
 //! differences zero) it is omitted with a warning saying why; nothing is ever NaN or infinite.
+//! A post hoc pair whose smallest attainable two-sided p exceeds [`POST_HOC_ALPHA`] (fewer than
+//! 6 non-zero differences for the exact test: 2/2⁵ = 0.0625) is reported as not estimable, with
+//! the reason and V but no p-value, and is left out of the Holm adjustment.
 //! Reference values come from R 4.2.2, by `analysis/tests/reference/task_stats.R`.
 //!
 //! The sections live in submodules: `parse` (the CSV into groups of measurements), `measure`
@@ -66,6 +69,10 @@ pub const AUTO_GROUP_COLUMNS: [&str; 2] = ["task", "measure"];
 /// R's `wilcox.test` default: the exact null distribution is used below this many non-zero
 /// differences (when there are no ties and no zeros).
 pub const WILCOXON_EXACT_BELOW: usize = 50;
+/// The significance level a post hoc test must be able to reach: a Wilcoxon test whose smallest
+/// attainable two-sided p (`min_p`) exceeds it is reported as not estimable, without a p-value,
+/// and left out of the Holm adjustment (exactly: fewer than 6 non-zero differences).
+pub const POST_HOC_ALPHA: f64 = 0.05;
 
 // ---------------------------------------------------------------------------------------------
 // Result types
@@ -231,9 +238,14 @@ pub struct WilcoxonTest {
     /// The standardised statistic of the normal approximation, after continuity correction.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub z: Option<f64>,
-    /// Two-sided p-value; omitted when all differences are zero (R reports `NA`).
+    /// Two-sided p-value; omitted when all differences are zero (R reports `NA`), and in a post
+    /// hoc pair that is not estimable (see [`WilcoxonPair::not_estimable`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub p: Option<PValue>,
+    /// The smallest two-sided p these differences could give by the same method (all of one
+    /// sign): 2/2ⁿ when exact; omitted when all differences are zero.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_p: Option<PValue>,
 }
 
 /// A post hoc comparison of two conditions over the participants who have both.
@@ -249,6 +261,10 @@ pub struct WilcoxonPair {
     /// Holm-adjusted p over the pairs of this measure that have a p-value.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub p_holm: Option<PValue>,
+    /// Why the pair has no p-value although it has non-zero differences: too few participants
+    /// for any outcome to reach [`POST_HOC_ALPHA`]. Omitted where the test is estimable.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_estimable: Option<String>,
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -12,6 +12,12 @@ use crate::pvalue::PValue;
 /// magnitudes and no zeros, p comes from the exact distribution of V; otherwise from the normal
 /// approximation with tie-corrected variance and continuity correction. `None` when x and y are
 /// empty or differ in length. When every difference is zero, V = 0 and there is no p.
+///
+/// `min_p` is the smallest two-sided p that any signs of these n non-zero differences could give
+/// under the exact (sign-flip) null distribution: all of one sign, probability 2⁻ⁿ, so 2/2ⁿ
+/// whatever the ties. R's normal approximation can go below it with ties (five equal differences
+/// give p = 0.037 against 2/2⁵ = 0.0625), an artefact of the approximation at tiny n. The post
+/// hoc table reports a test whose `min_p` exceeds α as not estimable.
 pub fn wilcoxon_signed_rank_paired(x: &[f64], y: &[f64]) -> Option<WilcoxonTest> {
     if x.is_empty() || x.len() != y.len() {
         return None;
@@ -21,21 +27,29 @@ pub fn wilcoxon_signed_rank_paired(x: &[f64], y: &[f64]) -> Option<WilcoxonTest>
     let zeros = differences.len() < all_differences.len();
     let n = differences.len();
     if n == 0 {
-        return Some(WilcoxonTest { n_nonzero: 0, v: 0.0, method: None, z: None, p: None });
+        return Some(WilcoxonTest { n_nonzero: 0, v: 0.0, method: None, z: None, p: None, min_p: None });
     }
     let magnitudes: Vec<f64> = differences.iter().map(|d| d.abs()).collect();
     let (ranks, tie_sizes) = average_ranks(&magnitudes);
     let v: f64 = ranks.iter().zip(&differences).filter(|(_, d)| **d > 0.0).map(|(rank, _)| rank).sum();
     let ties = tie_sizes.len() < n;
     let nf = n as f64;
+    let min_p = PValue::from_ln(((1.0 - nf) * std::f64::consts::LN_2).min(0.0));
 
     if n < WILCOXON_EXACT_BELOW && !ties && !zeros {
         let p = signed_rank_two_sided_exact(v.round() as usize, n);
-        return Some(WilcoxonTest { n_nonzero: n, v, method: Some(WilcoxonMethod::Exact), z: None, p: Some(p) });
+        return Some(WilcoxonTest {
+            n_nonzero: n,
+            v,
+            method: Some(WilcoxonMethod::Exact),
+            z: None,
+            p: Some(p),
+            min_p: Some(min_p),
+        });
     }
-    let centred = v - nf * (nf + 1.0) / 4.0;
     let tie_term: f64 = tie_sizes.iter().map(|&t| (t as f64).powi(3) - t as f64).sum();
     let sigma = (nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - tie_term / 48.0).sqrt();
+    let centred = v - nf * (nf + 1.0) / 4.0;
     let correction = if centred > 0.0 {
         0.5
     } else if centred < 0.0 {
@@ -50,6 +64,7 @@ pub fn wilcoxon_signed_rank_paired(x: &[f64], y: &[f64]) -> Option<WilcoxonTest>
         method: Some(WilcoxonMethod::Normal),
         z: Some(z),
         p: Some(PValue::normal_two_sided(z)),
+        min_p: Some(min_p),
     })
 }
 

@@ -80,7 +80,11 @@ pub fn render_table(analysis: &TaskAnalysis) -> String {
                             Some(WilcoxonMethod::Normal) => "normal".to_string(),
                             None => "–".to_string(),
                         },
-                        test.and_then(|test| test.p).map_or_else(|| "–".to_string(), |p| p.display()),
+                        match (test.and_then(|test| test.p), &pair.not_estimable) {
+                            (Some(p), _) => p.display(),
+                            (None, Some(_)) => "not estimable".to_string(),
+                            (None, None) => "–".to_string(),
+                        },
                         pair.p_holm.map_or_else(|| "–".to_string(), |p| p.display()),
                     ]
                 })

@@ -27,6 +27,7 @@ const ROUNDING_TIMES: &str = include_str!("../../tests/reference/task_stats_frie
 const FRIEDMAN_TIES: &str = include_str!("../../tests/reference/task_stats_friedman_ties.json");
 const WILCOXON_EXACT: &str = include_str!("../../tests/reference/task_stats_wilcoxon_exact.json");
 const WILCOXON_NORMAL: &str = include_str!("../../tests/reference/task_stats_wilcoxon_normal.json");
+const WILCOXON_MIN_P: &str = include_str!("../../tests/reference/task_stats_wilcoxon_min_p.json");
 const HOLM: &str = include_str!("../../tests/reference/task_stats_holm.json");
 const PIPELINE: &str = include_str!("../../tests/reference/task_stats_pipeline.json");
 
@@ -244,10 +245,17 @@ fn single_participant_gives_descriptives_and_no_friedman() {
     assert!(measure.warnings.iter().any(|w| w.contains("only one participant (solo)")));
     assert_eq!(measure.conditions[0].sd, None);
     assert_eq!(measure.conditions[0].q3, 3.5);
-    // R 4.2.2: wilcox.test(3.5, 2, paired = TRUE) gives V = 1, p-value = 1 (exact).
-    let first = measure.post_hoc[0].test.as_ref().unwrap();
-    assert_eq!((first.v, first.method, first.p.unwrap().p), (1.0, Some(WilcoxonMethod::Exact), 1.0));
-    to_json_checked(&analysis);
+    // R 4.2.2: wilcox.test(3.5, 2, paired = TRUE) gives V = 1, p-value = 1 (exact): no outcome
+    // of one pair can be significant, so the pair is not estimable and shows no p.
+    let first = &measure.post_hoc[0];
+    let test = first.test.as_ref().unwrap();
+    assert_eq!((test.v, test.method, test.p, first.p_holm), (1.0, Some(WilcoxonMethod::Exact), None, None));
+    assert_eq!(test.min_p.unwrap().p, 1.0);
+    assert!(first.not_estimable.as_ref().unwrap().contains("1 non-zero difference the smallest two-sided p"));
+    let text = to_json_checked(&analysis);
+    assert!(text.contains("\"not_estimable\"") && !text.contains("\"p\":{"), "{text}");
+    let table = render_table(&analysis);
+    assert!(table.contains("not estimable") && table.contains("Wilcoxon LQ vs GI not estimable"), "{table}");
 }
 
 #[test]
@@ -268,13 +276,15 @@ fn wilcoxon_all_differences_zero_has_no_p() {
     assert_eq!((test.n_nonzero, test.v, test.method, test.p), (0, 0.0, None, None));
 
     // In an analysis, the all-zero pair is reported and left out of the Holm family.
+    // Six participants, so that the A–C and B–C tests can reach α (2/2⁶ < 0.05).
     let csv = "participant,condition,value\n\
-               a,A,1\na,B,1\na,C,3\nb,A,2\nb,B,2\nb,C,5\nc,A,4\nc,B,4\nc,C,4.5\n";
+               a,A,1\na,B,1\na,C,3\nb,A,2\nb,B,2\nb,C,5\nc,A,4\nc,B,4\nc,C,4.5\n\
+               d,A,5\nd,B,5\nd,C,5.25\ne,A,6\ne,B,6\ne,C,10\nf,A,7\nf,B,7\nf,C,6\n";
     let analysis = analyze_task_csv(csv, "zeros.csv").unwrap();
     let measure = &analysis.measures[0];
     let ab = &measure.post_hoc[0];
     assert!(ab.test.as_ref().unwrap().p.is_none() && ab.p_holm.is_none());
-    assert!(measure.warnings.iter().any(|w| w.contains("Wilcoxon A vs B: all 3 differences are zero")));
+    assert!(measure.warnings.iter().any(|w| w.contains("Wilcoxon A vs B: all 6 differences are zero")));
     // Two tested pairs: Holm multiplies the smaller p by 2.
     let (ac, bc) = (&measure.post_hoc[1], &measure.post_hoc[2]);
     let p_ac = ac.test.as_ref().unwrap().p.unwrap().p;
@@ -400,4 +410,73 @@ fn render_table_shows_tests_and_warnings() {
     assert_eq!(analysis.warnings().len(), 2);
     assert!(analysis.warnings()[0].starts_with("task placement, measure time_s: "));
     to_json_checked(&analysis);
+}
+
+/// R 4.2.2: `wilcox.test(x, 0, paired = TRUE)` with every difference positive gives the smallest
+/// p of n differences, 2/2ⁿ exactly without ties; `min_p` is that bound.
+#[test]
+fn smallest_attainable_p_matches_r_4_2_2_all_differences_positive() {
+    let reference = json(WILCOXON_MIN_P);
+    let mut checked_exact = 0;
+    for case in reference["cases"].as_array().expect("cases") {
+        let (x, y) = (numbers(&case["x"]), numbers(&case["y"]));
+        let test = wilcoxon_signed_rank_paired(&x, &y).expect("a test");
+        let what = format!("wilcox.test({x:?}, {y:?}, paired = TRUE)");
+        let n = x.len();
+        assert_close(test.min_p.unwrap().p, (2.0 / 2.0_f64.powi(n as i32)).min(1.0), REL_TOL_P, &what);
+        if case["method"] == "exact" {
+            // All positive: the p is the smallest there is, and equals R's.
+            assert_close(test.p.unwrap().p, number(&case["p"]), REL_TOL_P, &format!("{what}: p"));
+            assert_close(test.min_p.unwrap().p, number(&case["p"]), REL_TOL_P, &format!("{what}: min p"));
+            checked_exact += 1;
+        }
+    }
+    assert_eq!(checked_exact, 7);
+}
+
+/// A pair is estimable exactly when some outcome could reach α: from 6 non-zero differences on.
+/// Each n from 1 to 7 in an analysis, every difference positive (the most extreme outcome).
+#[test]
+fn wilcoxon_with_fewer_than_six_differences_is_not_estimable_and_left_out_of_holm() {
+    for n in 1..=7_usize {
+        let mut csv = String::from("participant,condition,value\n");
+        for k in 0..n {
+            csv.push_str(&format!("p{k},A,{}\np{k},B,0\np{k},C,{}\n", 1.0 + k as f64 * 1.1, -(k as f64) - 0.5));
+        }
+        let analysis = analyze_task_csv(&csv, "small.csv").unwrap();
+        let measure = &analysis.measures[0];
+        let table = render_table(&analysis);
+        for pair in &measure.post_hoc {
+            let test = pair.test.as_ref().unwrap();
+            assert_eq!(test.n_nonzero, n);
+            if n < 6 {
+                assert_eq!((test.p, pair.p_holm), (None, None), "n = {n}");
+                let reason = pair.not_estimable.as_ref().expect("a reason");
+                assert!(reason.contains(&format!("{} > α = 0.05", test.min_p.unwrap().display())), "{reason}");
+            } else {
+                assert!(test.p.unwrap().p <= POST_HOC_ALPHA && pair.p_holm.is_some(), "n = {n}: {pair:?}");
+                assert_eq!(pair.not_estimable, None);
+            }
+        }
+        assert_eq!(table.contains("not estimable"), n < 6, "n = {n}: {table}");
+        to_json_checked(&analysis);
+    }
+}
+
+/// With ties R switches to the normal approximation, which gives five equal differences
+/// p = 0.0369 (R 4.2.2, `task_stats_wilcoxon_min_p.json`) although under the exact sign-flip
+/// distribution no outcome of five differences goes below 2/2⁵ = 0.0625: not estimable.
+#[test]
+fn five_tied_differences_are_not_estimable_although_r_prints_p_below_alpha() {
+    let reference = json(WILCOXON_MIN_P);
+    let case =
+        reference["cases"].as_array().unwrap().iter().find(|c| c["x"] == serde_json::json!([1, 1, 1, 1, 1])).unwrap();
+    assert!(number(&case["p"]) < POST_HOC_ALPHA);
+    let test = wilcoxon_signed_rank_paired(&numbers(&case["x"]), &numbers(&case["y"])).unwrap();
+    assert_close(test.p.unwrap().p, number(&case["p"]), REL_TOL_P_NORMAL, "normal approximation p");
+    assert_eq!(test.min_p.unwrap().p, 0.0625);
+    let csv = "participant,condition,value\na,A,2\na,B,1\nb,A,2\nb,B,1\nc,A,2\nc,B,1\nd,A,2\nd,B,1\ne,A,2\ne,B,1\n";
+    let analysis = analyze_task_csv(csv, "ties.csv").unwrap();
+    let pair = &analysis.measures[0].post_hoc[0];
+    assert!(pair.not_estimable.is_some() && pair.test.as_ref().unwrap().p.is_none());
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env Rscript
-# Reference values for analysis/src/task.rs (lab-task statistics: Friedman test, Kendall's W,
+# Reference values for analysis/src/task/ (task.rs before it was split) (lab-task statistics: Friedman test, Kendall's W,
 # paired Wilcoxon signed-rank post hoc tests, Holm adjustment, descriptives).
 #
 # Produced with R 4.2.2 (stats package) and jsonlite 1.8.4. Run from anywhere:
@@ -135,6 +135,21 @@ write_reference(list(
   cases = lapply(normal_cases, function(case) c(list(x = I(case$x), y = I(case$y)),
                                           wilcoxon_reference(case$x, case$y)))
 ), "task_stats_wilcoxon_normal.json")
+
+# --- 4b. The smallest attainable two-sided p: every difference of one sign (V = n(n+1)/2).
+#         Exact for n = 1..7 without ties (2/2^n: above 0.05 for n < 6). With tied magnitudes
+#         R uses the normal approximation, which goes below 2/2^n (five equal differences:
+#         0.037 < 0.0625); the Rust side keeps 2/2^n, the exact sign-flip bound, and calls a
+#         pair whose bound exceeds 0.05 not estimable.
+min_p_cases <- c(
+  lapply(1:7, function(n) list(x = round(seq_len(n) * 1.1 + 0.3, 3), y = rep(0, n))),
+  list(list(x = c(2, 2, 3, 4, 4, 5), y = c(1, 1, 1, 1, 1, 1)),
+       list(x = c(1, 1, 1, 1, 1), y = c(0, 0, 0, 0, 0))))
+write_reference(list(
+  description = "wilcox.test(x, y, paired = TRUE) with every difference positive: the smallest p",
+  cases = lapply(min_p_cases, function(case) c(list(x = I(case$x), y = I(case$y)),
+                                         wilcoxon_reference(case$x, case$y)))
+), "task_stats_wilcoxon_min_p.json")
 
 # --- 5. Holm adjustment (p.adjust(method = "holm")), including tied p and values that cap at 1.
 holm_p <- c(0.01, 0.04, 0.03, 0.005, 0.04, 0.5, 1e-12)

@@ -577,7 +577,11 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
                     let (v, p) = match &pair.test {
                         Some(test) => (
                             format!("V = {}", test.v),
-                            test.p.as_ref().map(|p| p.display()).unwrap_or_else(|| "–".into()),
+                            match (&test.p, &pair.not_estimable) {
+                                (Some(p), _) => p.display(),
+                                (None, Some(_)) => "not estimable (see the warning)".into(),
+                                (None, None) => "–".into(),
+                            },
                         ),
                         None => ("–".into(), "–".into()),
                     };
