@@ -212,9 +212,89 @@ async fn joining_and_answering_are_limited_per_client_address_with_429() {
         from(app, "192.0.2.7", Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body))
             .await;
     assert_eq!(answer.status, StatusCode::TOO_MANY_REQUESTS);
-    assert!(answer.error().contains("Too many answers"));
+    assert!(answer.error().contains("Too many answers from this participant"), "{}", answer.error());
+    let retry_after: u64 = answer.headers[header::RETRY_AFTER].to_str().unwrap().parse().unwrap();
+    assert!((1..=20).contains(&retry_after), "a token every 20 s: {retry_after}");
     let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
     assert_eq!(next["trial"], 7, "the refused answer was not stored: {next}");
+
+    // the answers' bucket is the participant's (issue 46): another person behind the same
+    // address answers on
+    let (other, other_token) = (joined[1]["participant"].as_str().unwrap(), joined[1]["token"].as_str().unwrap());
+    from(app, "192.0.2.7", Method::GET, &format!("/api/participants/{other}/next"), Some(other_token), None).await;
+    let body = json!({"trial": 1, "chosen": "left", "rt_ms": 900});
+    let answer = from(
+        app,
+        "192.0.2.7",
+        Method::POST,
+        &format!("/api/participants/{other}/responses"),
+        Some(other_token),
+        Some(body),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    // a stranger guessing tokens for that participant's id is limited per address and never
+    // drains the participant's own bucket
+    for guess in 0..6 {
+        let body = json!({"trial": 2, "chosen": "left", "rt_ms": 900});
+        let answer = from(
+            app,
+            "198.51.100.66",
+            Method::POST,
+            &format!("/api/participants/{other}/responses"),
+            Some(&format!("guess-{guess}")),
+            Some(body),
+        )
+        .await;
+        assert!(
+            answer.status == StatusCode::FORBIDDEN || answer.status == StatusCode::UNAUTHORIZED,
+            "{}",
+            answer.text()
+        );
+    }
+    let body = json!({"trial": 2, "chosen": "left", "rt_ms": 900});
+    let answer = from(
+        app,
+        "198.51.100.66",
+        Method::POST,
+        &format!("/api/participants/{other}/responses"),
+        Some("guess-7"),
+        Some(body),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(answer.error().contains("without a valid participant token"), "{}", answer.error());
+}
+
+/// Issue 46: 200 people behind one address (a lab, a university's NAT) join and answer under
+/// the default limits without a single 429 (before, the 61st join was refused).
+#[tokio::test]
+async fn two_hundred_people_behind_one_address_join_and_answer_under_the_default_limits() {
+    let fixture = fixture(Some(Limits::default())).await;
+    let app = &fixture.app;
+    let mut people = Vec::new();
+    for person in 0..200 {
+        let answer = join(app, "203.0.113.50").await;
+        assert_eq!(answer.status, StatusCode::CREATED, "person {person}: {}", answer.text());
+        people.push(answer.json());
+    }
+    for (person, joined) in people.iter().enumerate() {
+        let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+        for trial in 1..=2 {
+            from(app, "203.0.113.50", Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+            let body = json!({"trial": trial, "chosen": "left", "rt_ms": 900});
+            let answer = from(
+                app,
+                "203.0.113.50",
+                Method::POST,
+                &format!("/api/participants/{id}/responses"),
+                Some(token),
+                Some(body),
+            )
+            .await;
+            assert_eq!(answer.status, StatusCode::CREATED, "person {person}, trial {trial}: {}", answer.text());
+        }
+    }
 }
 
 #[tokio::test]
@@ -228,13 +308,23 @@ async fn wrong_admin_tokens_are_throttled_per_address() {
     }
     let login = from(app, "198.51.100.1", Method::GET, "/admin/login?token=guess", None, None).await;
     assert_eq!(login.status, StatusCode::FORBIDDEN);
-    // the fourth try is refused before the token is looked at, even the right one
-    let answer = from(app, "198.51.100.1", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
+    // the fourth wrong try is refused before the token is looked at, with the wait
+    let answer = from(app, "198.51.100.1", Method::GET, "/api/admin/studies", Some("guess"), None).await;
     assert_eq!(answer.status, StatusCode::TOO_MANY_REQUESTS);
     assert!(answer.error().contains("wrong admin tokens"));
+    let retry_after: u64 = answer.headers[header::RETRY_AFTER].to_str().unwrap().parse().unwrap();
+    assert!((1..=300).contains(&retry_after), "a try every 5 minutes: {retry_after}");
     let page = from(app, "198.51.100.1", Method::GET, "/admin/login?token=guess", None, None).await;
     assert_eq!(page.status, StatusCode::TOO_MANY_REQUESTS);
     assert!(page.text().contains("<html") || page.text().contains("<!DOCTYPE"), "a page, not JSON");
+    // ... but the right token is never locked out (issue 46): header, login link, and the
+    // session's change refused for a missing X-Requested-With is not counted as a wrong token
+    let answer = from(app, "198.51.100.1", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    let login =
+        from(app, "198.51.100.1", Method::GET, &format!("/admin/login?token={}", fixture.admin_token), None, None)
+            .await;
+    assert!(login.status.is_redirection() || login.status == StatusCode::OK, "{}", login.status);
     let other = from(app, "198.51.100.2", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
     assert_eq!(other.status, StatusCode::OK);
 }

@@ -866,7 +866,7 @@ async fn a_websocket_alone_creates_no_participant_and_one_address_holds_at_most_
     let (status, _) = post_json(&url, "/api/lab/lab/participants", json!({"label": "x", "preview": "f00"})).await;
     assert_eq!(status, 403);
     storage.set_open("lab", true).await.unwrap().unwrap();
-    // joins of one address are limited as the survey's (30 a minute, bursts of 60)
+    // joins of one address are limited as the survey's (120 a minute, bursts of 240)
     let mut created = 1;
     let refused_at = loop {
         let (status, answer) =
@@ -877,7 +877,7 @@ async fn a_websocket_alone_creates_no_participant_and_one_address_holds_at_most_
         }
         assert_eq!(status, 201, "{answer}");
         created += 1;
-        assert!(created <= 100, "no join limit");
+        assert!(created <= 300, "no join limit");
     };
     let stored: i64 =
         sqlx::query_scalar("SELECT COUNT(*) FROM task_participants").fetch_one(&storage.read).await.unwrap();
