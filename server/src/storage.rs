@@ -849,10 +849,14 @@ impl Storage {
             }
             // A full vacuum rewrites the tables into new files without the dead rows (the old
             // files are removed); PostgreSQL's own WAL keeps the old rows until it is recycled.
+            // `ANALYZE` replaces the tables' statistics (`pg_stats`: most common values and
+            // histogram bounds are copies of column values), which still held the deleted
+            // participant's from the last analyze, autovacuum's or anyone's (issue 46).
             Backend::Postgres => {
-                sqlx::query("VACUUM FULL responses, trials, participants, screen_outs, task_trials, task_participants")
+                sqlx::query(sqlx::AssertSqlSafe(format!("VACUUM (FULL, ANALYZE) {}", PERSONAL_TABLES.join(", "))))
                     .execute(&self.admin)
                     .await?;
+                forget_statistics_of_empty_tables(&self.admin).await?;
             }
         }
         Ok(Ok(deletion))
@@ -866,6 +870,43 @@ impl Storage {
         }
         truncate_wal_between_batches(&self.write).await
     }
+}
+
+/// The tables that hold a participant's data, which a deletion rewrites (PostgreSQL).
+const PERSONAL_TABLES: [&str; 6] =
+    ["responses", "trials", "participants", "screen_outs", "task_trials", "task_participants"];
+
+/// PostgreSQL's `ANALYZE` of an empty table keeps the statistics it had (found by issue 46's
+/// test: the last participant's answers deleted, `pg_stats` still showed their id): for each of
+/// [`PERSONAL_TABLES`] that is now empty, every column with statistics is altered to its own
+/// type, which drops the column's `pg_statistic` row (an empty table: no rewrite to speak of;
+/// reading or writing `pg_statistic` directly needs a superuser).
+async fn forget_statistics_of_empty_tables(pool: &Pool) -> Result<(), sqlx::Error> {
+    for table in PERSONAL_TABLES {
+        let empty: bool = sqlx::query_scalar(sqlx::AssertSqlSafe(format!("SELECT NOT EXISTS (SELECT 1 FROM {table})")))
+            .fetch_one(pool)
+            .await?;
+        if !empty {
+            continue;
+        }
+        let columns: Vec<(String, String)> = sqlx::query_as(
+            "SELECT a.attname::text, format_type(a.atttypid, a.atttypmod)
+             FROM pg_stats s JOIN pg_attribute a ON a.attrelid = $1::regclass AND a.attname = s.attname
+             WHERE s.schemaname = current_schema() AND s.tablename = $1",
+        )
+        .bind(table)
+        .fetch_all(pool)
+        .await?;
+        for (column, column_type) in columns {
+            let column = column.replace('"', "\"\"");
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "ALTER TABLE {table} ALTER COLUMN \"{column}\" TYPE {column_type}"
+            )))
+            .execute(pool)
+            .await?;
+        }
+    }
+    Ok(())
 }
 
 /// How often [`Storage::truncate_wal`] tries before giving up (50 ms apart).

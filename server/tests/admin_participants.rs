@@ -923,3 +923,40 @@ async fn join_quietly(app: &Router, pid: &str) -> Result<(String, String), Strin
     let json = answer.json();
     Ok((json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string()))
 }
+
+/// Issue 46: on PostgreSQL a deleted participant stayed in the tables' statistics (`pg_stats`
+/// keeps copies of column values: most common values, histogram bounds) until the next
+/// analyze; the deletion now analyzes the tables it rewrote. (sqlite keeps no such copies.)
+#[tokio::test]
+async fn on_postgres_a_deleted_participant_leaves_nothing_in_the_table_statistics() {
+    let fixture = fixture().await;
+    if fixture.database.backend() != Backend::Postgres {
+        return;
+    }
+    let (keep, _) = fixture.join("PPID-KEEP-STATS-1", "a comment that stays").await;
+    let (gone, gone_token) = fixture.join("PPID-STATS-GONE-4711", "my own remark 4711zz").await;
+    fixture.answer(&gone, &gone_token, 2, false, false).await;
+    fixture.sql("ANALYZE").await;
+    let statistics = || async {
+        sqlx::query_scalar::<_, String>(
+            "SELECT concat_ws(' ', tablename, attname, most_common_vals::text, histogram_bounds::text)
+             FROM pg_stats WHERE schemaname = current_schema()",
+        )
+        .fetch_all(&fixture.state.storage().read)
+        .await
+        .unwrap()
+        .join("\n")
+    };
+    let before = statistics().await;
+    for needle in ["PPID-STATS-GONE-4711", "4711zz"] {
+        assert!(before.contains(needle), "\"{needle}\" is in the statistics before: {before}");
+    }
+    let answer = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{gone}"), None).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    let after = statistics().await;
+    for needle in ["PPID-STATS-GONE-4711", "4711zz", gone.as_str()] {
+        assert!(!after.contains(needle), "\"{needle}\" is still in pg_stats after the deletion: {after}");
+    }
+    // (the kept participant's 7 trials make their id the trials' most common value)
+    assert!(after.contains(keep.as_str()), "the tables were analyzed again: {after}");
+}
