@@ -140,7 +140,7 @@
     });
     let data = null;
     try { data = await response.json(); } catch (error) { /* no body */ }
-    return { status: response.status, data };
+    return { status: response.status, data, retryAfter: Number(response.headers.get("Retry-After")) || 0 };
   }
 
   // A message on the stage in view (null clears it).
@@ -152,12 +152,20 @@
 
   const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
-  // Retries network failures and 5xx answers with backoff; returns the first other answer.
+  // Retries network failures and 5xx answers with backoff, and a 429 (over a limit: many people
+  // behind one address) after the server's Retry-After, the same request with the same answer;
+  // returns the first other answer.
   async function persistent(method, path, payload) {
     let delay = 500;
     for (let attempt = 0; ; attempt++) {
       try {
         const answer = await api(method, path, payload);
+        if (answer.status === 429) {
+          const seconds = Math.min(Math.max(answer.retryAfter, 1), 300);
+          notice("Many people are taking part at once: nothing is lost, sending again in " + seconds + " s…");
+          await sleep(seconds * 1000);
+          continue;
+        }
         if (answer.status < 500) { notice(null); return answer; }
       } catch (error) { /* network error: retry */ }
       if (attempt >= 1) notice("Connection problem: your answers are being saved, please wait…");
