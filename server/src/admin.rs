@@ -852,9 +852,14 @@ async fn admin_study_page(State(state): State<AppState>, Path(slug): Path<String
                     }
                     _ => String::new(),
                 };
-                for row in metrics["correlations"].as_array().into_iter().flatten() {
+                // The ranked image metrics, then the timings (costs, not image errors: unranked).
+                let timings = metrics["timings"].as_array().into_iter().flatten();
+                for row in metrics["correlations"].as_array().into_iter().flatten().chain(timings) {
                     page.metric_rows.push(MetricRow {
-                        rank: format_number(&row["rank"], 0),
+                        rank: match row.get("rank") {
+                            Some(rank) => format_number(rank, 0),
+                            None => "timing, not ranked".to_string(),
+                        },
                         metric: row["metric"].as_str().unwrap_or_default().to_string(),
                         region: row["region"].as_str().unwrap_or_default().to_string(),
                         spearman: format!(
