@@ -480,3 +480,47 @@ fn an_active_study_stores_the_side_chosen_once_per_trial_through_double_clicks_a
     assert!(chosen.windows(2).all(|w| w[0].1 <= w[1].1) && chosen[0].1 == 0, "{trials:?}");
     assert!(chosen.iter().any(|&(trial, absorbed)| trial == 4 && absorbed > 0), "{trials:?}");
 }
+
+/// Issue 46: an answer refused with 429 (a limit: many people behind one address) is sent again
+/// after the server's `Retry-After`, the same answer, and stored once; the page shows a notice
+/// meanwhile instead of an error. The 429 is the page's first answer POST, made by the browser
+/// (a wrapped `fetch`), so the test needs no limit small enough to reach.
+#[test]
+fn an_answer_refused_with_429_is_sent_again_after_retry_after_and_stored_once() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let server = Server::start(data_dir.path(), "127.0.0.1:0");
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &server.base, "");
+    driver.script(
+        "const real = window.fetch; window.refusedAt = null;
+         window.fetch = (url, options) => {
+           if (String(url).endsWith('/responses') && window.refusedAt === null) {
+             window.refusedAt = performance.now();
+             const body = JSON.stringify({error: 'Too many answers from this participant (at most 120 in a minute); wait a little and try again.'});
+             return Promise.resolve(new Response(body, {status: 429, headers: {'Retry-After': '2', 'Content-Type': 'application/json'}}));
+           }
+           return real(url, options);
+         };
+         return true;",
+    );
+    driver.click("#start");
+    driver.wait_trial("1");
+    driver.click("#choose-right");
+    driver.wait_for("window.refusedAt !== null");
+    // the notice while it waits; nothing stored yet
+    driver.wait_for("!document.getElementById('trial-error').hidden");
+    assert!(driver.text("#trial-error").contains("nothing is lost"), "{}", driver.text("#trial-error"));
+    assert_eq!(answered(data_dir.path()), 0);
+    driver.wait_trial("2");
+    let waited = driver.script("return performance.now() - window.refusedAt;").as_f64().unwrap();
+    assert!(waited >= 1900.0, "sent again after Retry-After (2 s), not before: {waited} ms");
+    let rows = query(data_dir.path(), "SELECT trial, chosen FROM responses");
+    assert_eq!(rows, vec![vec!["1".to_string(), "right".to_string()]], "the answer given, stored once");
+    assert!(
+        driver.script("return document.getElementById('trial-error').hidden;") == json!(true),
+        "the notice is gone"
+    );
+}
