@@ -877,12 +877,14 @@ async fn deletions_under_load_never_fail_a_participants_join_or_answer() {
             (done, failures)
         }));
     }
-    let mut deleted = 0;
+    let (mut deleted, mut deletion_ms) = (0, Vec::new());
     for round in 0..12 {
         let (id, token) = fixture.join(&format!("PID-DELETE-{round}"), "please delete me").await;
         fixture.answer(&id, &token, 2, false, false).await;
+        let started = std::time::Instant::now();
         let answer = fixture.admin(Method::DELETE, &format!("/api/admin/participants/{id}"), None).await;
         assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        deletion_ms.push(started.elapsed().as_secs_f64() * 1000.0);
         deleted += 1;
     }
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
@@ -893,6 +895,11 @@ async fn deletions_under_load_never_fail_a_participants_join_or_answer() {
         failures.extend(writer_failures);
     }
     assert_eq!(deleted, 12);
+    let slowest = deletion_ms.iter().copied().fold(0.0, f64::max);
+    eprintln!(
+        "{done} joins and answers by 8 writers, {} failed; 12 deletions, slowest {slowest:.0} ms",
+        failures.len()
+    );
     assert!(done > 50, "the writers made progress: {done} joins and answers");
     assert!(
         failures.is_empty(),
