@@ -794,3 +794,20 @@ async fn a_trial_is_sent_only_after_its_served_record_is_durable() {
         .unwrap();
     assert!(shown.is_some(), "trial 1 was sent but is not recorded as served");
 }
+
+/// Issue 46, with the default limits: after 10 wrong admin tokens from an address the right one
+/// still works (before, it was refused for up to 15 minutes), and the 11th wrong one is refused.
+#[tokio::test]
+async fn after_ten_wrong_admin_tokens_the_right_one_still_works() {
+    let fixture = fixture(Some(Limits::default())).await;
+    let app = &fixture.app;
+    for guess in 0..10 {
+        let answer =
+            from(app, "198.51.100.9", Method::GET, "/api/admin/studies", Some(&format!("g{guess}")), None).await;
+        assert_eq!(answer.status, StatusCode::FORBIDDEN);
+    }
+    let right = from(app, "198.51.100.9", Method::GET, "/api/admin/studies", Some(&fixture.admin_token), None).await;
+    assert_eq!(right.status, StatusCode::OK, "{}", right.text());
+    let wrong = from(app, "198.51.100.9", Method::GET, "/api/admin/studies", Some("g10"), None).await;
+    assert_eq!(wrong.status, StatusCode::TOO_MANY_REQUESTS);
+}
