@@ -811,3 +811,27 @@ async fn after_ten_wrong_admin_tokens_the_right_one_still_works() {
     let wrong = from(app, "198.51.100.9", Method::GET, "/api/admin/studies", Some("g10"), None).await;
     assert_eq!(wrong.status, StatusCode::TOO_MANY_REQUESTS);
 }
+
+/// Issue 46: screen checks (each a screen-out row when the screen does not fit) are limited
+/// per client address like joins, in a bucket of their own; before, one address made 300
+/// screen-outs in 0.9 s.
+#[tokio::test]
+async fn screen_checks_are_limited_per_client_address() {
+    let limits = Limits { joins_per_minute: 2, responses_per_minute: 0, admin_failures: 0, behind_tls: false };
+    let fixture = fixture(Some(limits)).await;
+    let app = &fixture.app;
+    // a window too small for the study: each check stores a screen-out
+    let body =
+        json!({"client": {"viewport": [200, 150], "devicePixelRatio": 1, "userAgent": "test"}, "url_params": {}});
+    for _ in 0..4 {
+        let answer =
+            from(app, "192.0.2.30", Method::POST, "/api/studies/shadows-demo/screen", None, Some(body.clone())).await;
+        assert!(answer.status.is_success(), "{}", answer.text());
+    }
+    let refused =
+        from(app, "192.0.2.30", Method::POST, "/api/studies/shadows-demo/screen", None, Some(body.clone())).await;
+    assert_eq!(refused.status, StatusCode::TOO_MANY_REQUESTS);
+    assert!(refused.error().contains("Too many screen checks"), "{}", refused.error());
+    // the joins' bucket is apart: the same address still joins
+    assert_eq!(join(app, "192.0.2.30").await.status, StatusCode::CREATED);
+}
