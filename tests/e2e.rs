@@ -42,6 +42,8 @@ mod support;
 mod survey_input;
 #[path = "e2e/survey_intent.rs"]
 mod survey_intent;
+#[path = "e2e/survey_page.rs"]
+mod survey_page;
 #[path = "e2e/survey_polish.rs"]
 mod survey_polish;
 #[path = "e2e/survey_return.rs"]

@@ -4,11 +4,13 @@
 //! Trials CSV: one row per answered paired-comparison trial (a judgment between two of the
 //! study's conditions), participants in the order they joined, trials in schedule order.
 //! Columns: `study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,
-//! answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,completed,status,
-//! completion_code,pilot,excluded,too_fast`, then one column per external id (the study's
-//! `url_params`, header = the parameter's name), then one column per demographic field.
-//! `viewport` (`WxH`) and `device_pixel_ratio` are those the browser sent with the response, else
-//! when the participant joined; `completed` is 1 when the participant finished the study;
+//! answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,display_css,display_device,
+//! completed,status,completion_code,pilot,excluded,too_fast`, then one column per external id
+//! (header = the parameter's name; see [`url_param_columns`]), then one column per demographic
+//! field. `viewport` (`WxH`) and `device_pixel_ratio` are those the browser sent with the
+//! response, else when the participant joined; `display_css` and `display_device` (`WxH`) the
+//! size one image of the pair was shown at, in CSS and in device pixels, as the page measured it
+//! (empty when the page did not say); `completed` is 1 when the participant finished the study;
 //! `status` is the participant's (`completed`, `started`, `abandoned`: unfinished and no
 //! activity for the study's `abandon_after_minutes`); `pilot`, `excluded` and the per-trial
 //! `too_fast` are `true`/`false`. Text cells never start with `=`, `+`, `-`, `@`, TAB or CR: such
@@ -258,7 +260,7 @@ fn true_false(value: bool) -> String {
 const TRIAL_ROWS: &str = "
     SELECT p.id AS participant, p.demographics, p.completed_at, p.client AS participant_client, t.trial, t.left_condition, t.right_condition,
            t.left_scene, t.right_scene, t.left_stimulus, t.right_stimulus, t.catch_expected, t.shown_at, t.chosen_by,
-           r.chosen, r.rt_ms, r.answered_at, r.client, r.too_fast, r.served_ms
+           r.chosen, r.rt_ms, r.answered_at, r.client, r.too_fast, r.served_ms, r.display_css, r.display_device
     FROM participants p
     JOIN trials t ON t.participant = p.id
     LEFT JOIN responses r ON r.participant = t.participant AND r.trial = t.trial
@@ -297,7 +299,8 @@ fn write_trial_rows(
 ) -> Result<String, ExportError> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = crate::study::TRIALS_CSV_COLUMNS.iter().map(|column| column.to_string()).collect();
-    header.extend(definition.url_params.iter().cloned());
+    let url_columns = url_param_columns(definition, kept.values());
+    header.extend(url_columns.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
     for row in rows {
@@ -337,6 +340,8 @@ fn write_trial_rows(
             record.catch_failed.to_string(),
             viewport,
             value_cell(client.get("devicePixelRatio")),
+            text_cell(&row.try_get::<Option<String>, _>("display_css")?.unwrap_or_default()),
+            text_cell(&row.try_get::<Option<String>, _>("display_device")?.unwrap_or_default()),
             if row.try_get::<Option<String>, _>("completed_at")?.is_some() { "1" } else { "0" }.to_string(),
             record.status.to_string(),
             text_cell(&record.completion_code),
@@ -344,7 +349,7 @@ fn write_trial_rows(
             true_false(record.excluded),
             true_false(row.try_get::<Option<i64>, _>("too_fast")?.unwrap_or(0) == 1),
         ];
-        for name in &definition.url_params {
+        for name in &url_columns {
             record_cells.push(value_cell(record.external_ids.get(name)));
         }
         for field in &definition.demographics {
@@ -353,6 +358,27 @@ fn write_trial_rows(
         writer.write_record(&record_cells).expect("writing to memory");
     }
     Ok(String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8"))
+}
+
+/// The external-id columns of the trials CSV, in the study's order: every `url_params` entry the
+/// study file declares (empty cells where a participant arrived without it), and for a study that
+/// declares none only those of the default platform ids that at least one exported participant
+/// arrived with (a non-empty value), so a study that never asked for MTurk's `workerId` gets no empty column for it.
+pub fn url_param_columns<'a>(
+    definition: &Study,
+    exported: impl IntoIterator<Item = &'a ParticipantRecord> + Clone,
+) -> Vec<String> {
+    definition
+        .url_params
+        .iter()
+        .filter(|name| {
+            definition.url_params_declared
+                || exported.clone().into_iter().any(|record| {
+                    record.external_ids.get(name.as_str()).is_some_and(|value| value.as_str() != Some(""))
+                })
+        })
+        .cloned()
+        .collect()
 }
 
 /// The JSON export: the study, and per participant their stored data, status, flags and whole
@@ -401,6 +427,8 @@ pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Exp
                 "answered_at": row.try_get::<String, _>("answered_at")?,
                 "too_fast": row.try_get::<Option<i64>, _>("too_fast")?.unwrap_or(0) == 1,
                 "served_ms": row.try_get::<Option<f64>, _>("served_ms")?.filter(|ms| ms.is_finite()),
+                "display_css": row.try_get::<Option<String>, _>("display_css")?,
+                "display_device": row.try_get::<Option<String>, _>("display_device")?,
                 "client": serde_json::from_str::<Value>(&row.try_get::<String, _>("client")?).unwrap_or(Value::Null),
             }),
             None => Value::Null,

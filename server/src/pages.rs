@@ -180,6 +180,7 @@ impl StudyPage {
             answer_lock_ms: study.participation.answer_lock_ms,
             display: match study.participation.display {
                 crate::study::Display::Native => "native",
+                crate::study::Display::Css => "css",
                 crate::study::Display::Fit => "fit",
             },
             orientation: match study.participation.orientation {

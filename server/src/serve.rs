@@ -310,6 +310,9 @@ pub struct Prepared {
     pub admin_token: String,
     /// One line per study that is not served, to print as a warning.
     pub skipped: Vec<String>,
+    /// One line per study served whose stimuli are smaller than its `min_viewport` would show
+    /// them ([`small_stimuli`]), to print as a warning.
+    pub small: Vec<String>,
     /// The studies served now, in load order.
     pub slugs: Vec<String>,
     /// Studies whose stimuli are still to render, to serve with [`prepare_pending`] (`state`
@@ -379,6 +382,7 @@ pub async fn load(
     let mut pending = Vec::new();
     let mut skipped = Vec::new();
     let mut tasks = Vec::new();
+    let mut small = Vec::new();
     for study in studies {
         let study = match study {
             LoadedStudy::Survey(study) => study,
@@ -387,6 +391,7 @@ pub async fn load(
                 continue;
             }
         };
+        small.extend(small_stimuli(&study));
         let plan = match crate::stimuli::StimulusPlan::of(&study) {
             Ok(plan) => plan,
             Err(error) => {
@@ -425,7 +430,55 @@ pub async fn load(
     pending.sort_by_key(|study: &PendingStudy| study.stimuli);
     let state = AppState::new(storage, prepared, &admin_token, stimuli_dir)
         .with_pending(pending.iter().map(|study| (study.study.slug.clone(), study.study.title.clone(), study.stimuli)));
-    Ok(Prepared { state, admin_token, skipped, slugs, pending, tasks })
+    Ok(Prepared { state, admin_token, skipped, small, slugs, pending, tasks })
+}
+
+/// A warning when a study's stimuli are smaller than the smallest window it admits
+/// (`min_viewport`) has room for: with `display = "native"` or `"css"` the page never enlarges
+/// them, so on every admitted screen part of the space stays empty. The room is estimated from
+/// the trial page's layout (two images side by side under the question, with the hints below:
+/// about 60 CSS pixels of width and 190 of height go to margins, borders and text). None for
+/// `display = "fit"`, without `min_viewport`, or when the stimulus size cannot be read.
+pub fn small_stimuli(study: &Study) -> Option<String> {
+    use crate::study::{Display, StimulusSource};
+    if study.participation.display == Display::Fit {
+        return None;
+    }
+    let [min_width, min_height] = study.participation.min_viewport?;
+    let mut largest: Option<[u32; 2]> = None;
+    for scene in &study.scenes {
+        let sizes: Vec<[u32; 2]> = match &scene.source {
+            StimulusSource::Images(paths) => paths
+                .iter()
+                .filter_map(|path| image::image_dimensions(path).ok())
+                .map(|(width, height)| [width, height])
+                .collect(),
+            StimulusSource::Render(_) => study.render.as_ref().map(|render| render.size).into_iter().collect(),
+        };
+        for [width, height] in sizes {
+            let [w, h] = largest.get_or_insert([width, height]);
+            *w = (*w).max(width);
+            *h = (*h).max(height);
+        }
+    }
+    let [width, height] = largest?;
+    let room = [(f64::from(min_width) - 60.0) / 2.0, f64::from(min_height) - 190.0];
+    let scale = (room[0] / f64::from(width)).min(room[1] / f64::from(height));
+    if scale <= 1.0 {
+        return None;
+    }
+    let shown = |scale: f64| format!("{}×{}", (f64::from(width) * scale) as u32, (f64::from(height) * scale) as u32);
+    let display = match study.participation.display {
+        Display::Native => {
+            "\"native\" never enlarges them (at device pixel ratio 2 they take half that size in CSS pixels)"
+        }
+        _ => "\"css\" never enlarges them beyond one image pixel per CSS pixel",
+    };
+    Some(format!(
+        "study \"{}\": its stimuli ({width}×{height} pixels) are smaller than its min_viewport ({min_width} × {min_height}) has room for (about {} CSS pixels each); display = {display}: render larger stimuli, lower min_viewport or set display = \"fit\"",
+        study.slug,
+        shown(scale)
+    ))
 }
 
 /// Renders the stimuli of the pending studies one study after another (each in a blocking task,
@@ -500,7 +553,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
             load(&database, &config.data_dir, &config.studies_dir, config.stimuli_dir.as_deref()).await?;
         // before the state is shared (the lab's start-up task holds a copy)
         prepared.state = prepared.state.with_limits(config.limits);
-        for line in &prepared.skipped {
+        for line in prepared.skipped.iter().chain(&prepared.small) {
             eprintln!("warning: {line}");
         }
         if prepared.slugs.is_empty() && prepared.pending.is_empty() && prepared.tasks.is_empty() {

@@ -287,7 +287,8 @@ async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code()
     assert_eq!(answer.status, StatusCode::OK, "repeating the last answer after the end");
 
     // The export has one row per answer, with the kept crowdsourcing parameters as external-id
-    // columns (the study's url_params) and in the JSON export.
+    // columns (the demo study declares no url_params: only the ids a participant brought, not
+    // five empty ones) and in the JSON export.
     let csv =
         call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None).await;
     assert_eq!(csv.status, StatusCode::OK);
@@ -296,18 +297,18 @@ async fn responses_are_idempotent_conflicts_are_409_and_the_end_gives_the_code()
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
-        "study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,completed,status,completion_code,pilot,excluded,too_fast,PROLIFIC_PID,STUDY_ID,SESSION_ID,workerId,assignmentId,hitId,gender,age,cg_experience,vision"
+        "study,participant,trial,left,right,chosen,scene_left,scene_right,rt_ms,shown_at,answered_at,catch_answered,catch_failed,viewport,device_pixel_ratio,display_css,display_device,completed,status,completion_code,pilot,excluded,too_fast,PROLIFIC_PID,gender,age,cg_experience,vision"
     );
     assert_eq!(lines.len(), 7, "six judgments; the catch trial is not a row:\n{text}");
     assert!(!text.contains("catch:"));
     for line in &lines[1..] {
         assert!(
-            line.contains(",1,0,1280x800,2,1,") || line.contains(",1,1,1280x800,2,1,"),
-            "catch columns, client, completed: {line}"
+            line.contains(",1,0,1280x800,2,,,1,") || line.contains(",1,1,1280x800,2,,,1,"),
+            "catch columns, client, display (not sent: empty), completed: {line}"
         );
         // answered within milliseconds of being served: too fast by the server's clock
         assert!(
-            line.contains(",1,completed,DEMO-7F3A,false,false,true,abc123,,,,,,female,31,"),
+            line.contains(",1,completed,DEMO-7F3A,false,false,true,abc123,female,31,"),
             "status, code, flags, external ids: {line}"
         );
     }

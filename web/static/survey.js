@@ -1,7 +1,8 @@
 // The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md).
 // Stages: welcome and consent → demographics → instructions → trials → completion.
-// The participant's id and token are kept in localStorage (per study) and in the page's URL
-// fragment, so reloading or coming back with the same link resumes at the next unanswered trial.
+// The participant's id and token are kept in localStorage (per study; a preview's pilot in the
+// tab's sessionStorage), never in the address bar, so reloading or coming back with the same link
+// resumes at the next unanswered trial.
 // A join sends the kept token: a study with one run per external id resumes that run only for it.
 // A response is sent until the server confirms it (201, or 200 for a repeat) before the next
 // trial or the completion page is shown, so no answer is lost to a reload or a redirect.
@@ -27,7 +28,7 @@
   const display = body.dataset.display || "native";
   const query = new URLSearchParams(location.search);
   // An admin preview link (`?preview=TOKEN`): the participant is a pilot, kept apart, and only
-  // in the page's URL fragment: opening a preview link again always starts a fresh pilot.
+  // for reloads of this tab: opening a preview link again always starts a fresh pilot.
   const preview = query.get("preview") || null;
   const storageKey = "mrstudy:" + slug + (preview ? ":preview" : "");
   const $ = (id) => document.getElementById(id);
@@ -65,6 +66,15 @@
     show("error");
   }
 
+  // Whether the kind of device comes from the user agent or the pointer (a phone stays a phone),
+  // not from the window's size alone (a window made larger stops counting as a phone).
+  function deviceKindFixed() {
+    const ua = navigator.userAgent || "";
+    const coarseOnly = window.matchMedia && matchMedia("(pointer: coarse)").matches && !matchMedia("(any-pointer: fine)").matches;
+    return coarseOnly || /iPhone|iPod|Android|Mobile.*Firefox|Windows Phone|iPad|Tablet/i.test(ua)
+      || (/Macintosh/.test(ua) && navigator.maxTouchPoints > 1);
+  }
+
   // The kind of device, from the user agent, the pointer and the screen's short side.
   function deviceKind() {
     const ua = navigator.userAgent || "";
@@ -89,12 +99,27 @@
     };
   }
 
+  // Whether this page was reloaded (or came back by Back/Forward) rather than opened afresh.
+  function reopened() {
+    const entry = performance.getEntriesByType && performance.getEntriesByType("navigation")[0];
+    return !!entry && (entry.type === "reload" || entry.type === "back_forward");
+  }
+
+  // The session is kept in the browser's storage, never in the address bar (where it would be
+  // copied with the link, shared in a screenshot or kept in the history): a participant's in
+  // localStorage per study (another tab or a later visit resumes it), a preview's pilot in this
+  // tab's sessionStorage per preview link, read only when the page is reloaded, so that opening
+  // a preview link again (even in this tab) starts a fresh pilot. An address with the old
+  // `#p=…&t=…` fragment (a page from before) is read once, kept, and taken off the address.
+  const previewKey = storageKey + ":" + (preview || "");
   function loadSession() {
     const fragment = new URLSearchParams(location.hash.slice(1));
     let stored = null;
-    if (!preview) {
-      try { stored = JSON.parse(localStorage.getItem(storageKey) || "null"); } catch (error) { /* storage unavailable */ }
-    }
+    try {
+      stored = preview
+        ? (reopened() ? JSON.parse(sessionStorage.getItem(previewKey) || "null") : null)
+        : JSON.parse(localStorage.getItem(storageKey) || "null");
+    } catch (error) { /* storage unavailable */ }
     if (fragment.get("p") && fragment.get("t")) {
       const same = stored && stored.participant === fragment.get("p");
       return { participant: fragment.get("p"), token: fragment.get("t"),
@@ -105,9 +130,17 @@
   }
 
   function saveSession() {
-    if (!preview) {
-      try { localStorage.setItem(storageKey, JSON.stringify(session)); } catch (error) { /* private mode */ }
+    let kept = false;
+    try {
+      if (preview) sessionStorage.setItem(previewKey, JSON.stringify(session));
+      else localStorage.setItem(storageKey, JSON.stringify(session));
+      kept = true;
+    } catch (error) { /* private mode without storage */ }
+    if (kept) {
+      if (location.hash) history.replaceState(null, "", location.pathname + location.search);
+      return;
     }
+    // Without any storage the fragment is the only place a reload can find the session.
     const fragment = new URLSearchParams({ p: session.participant, t: session.token });
     if (session.started) fragment.set("s", "1");
     history.replaceState(null, "", location.pathname + location.search + "#" + fragment.toString());
@@ -125,7 +158,7 @@
   }
 
   function forgetSession() {
-    try { localStorage.removeItem(storageKey); } catch (error) { /* ignore */ }
+    try { if (preview) sessionStorage.removeItem(previewKey); else localStorage.removeItem(storageKey); } catch (error) { /* ignore */ }
     history.replaceState(null, "", location.pathname + location.search);
     session = null;
   }
@@ -200,6 +233,11 @@
           screenOut = answer.data.screen_out;
           try { sessionStorage.setItem(storageKey + ":screen-out", screenOut); } catch (error) { /* none */ }
           $("screen-reason").textContent = answer.data.reason;
+          // Only a window's size or orientation can change on this page (the check runs again
+          // when it does); a device of the wrong kind stays one.
+          $("screen-hint").textContent = answer.data.fixable === false && deviceKindFixed()
+            ? "The study cannot be done on this device; you can close this page."
+            : "If you change this (a larger window, turning the device), this page goes on by itself.";
           show("screen");
           return;
         }
@@ -362,8 +400,12 @@
     let scale = Math.max(0.05, Math.min(
       width / left.naturalWidth, width / right.naturalWidth,
       height / left.naturalHeight, height / right.naturalHeight));
-    // `display = "native"`: never more than one image pixel per device pixel (no upscaling).
+    // `display = "native"`: never more than one image pixel per device pixel (no resampling
+    // upward: at a device pixel ratio of 2 an image takes half its pixel size in CSS pixels);
+    // `display = "css"`: never more than one image pixel per CSS pixel (the same CSS size on
+    // every screen, enlarged by the browser on HiDPI screens); `fit`: as large as there is room.
     if (display === "native") scale = Math.min(scale, 1 / (window.devicePixelRatio || 1));
+    else if (display === "css") scale = Math.min(scale, 1);
     for (const image of [left, right]) {
       image.style.width = Math.floor(image.naturalWidth * scale) + "px";
       image.style.height = Math.floor(image.naturalHeight * scale) + "px";
@@ -389,6 +431,14 @@
     return !warning;
   }
 
+  // The size the left image is shown at (both are at one scale), in CSS and device pixels.
+  function shownSize() {
+    const box = $("image-left").getBoundingClientRect();
+    const ratio = window.devicePixelRatio || 1;
+    const css = [Math.round(box.width * 100) / 100, Math.round(box.height * 100) / 100];
+    return { css, device: [Math.round(box.width * ratio), Math.round(box.height * ratio)] };
+  }
+
   // `at`: the time of the event that answers (its timeStamp), from which the answer lock runs.
   async function choose(side, pressed, at) {
     if (!accepting || !current || answered.has(current.trial)) return;
@@ -398,24 +448,35 @@
     accepting = false;
     lock(at);
     const rtMs = Math.round((performance.now() - shownAt) * 10) / 10;
+    const shown = shownSize();
     const trial = current;
     answered.add(trial.trial);
     $("choose-left").disabled = true; $("choose-right").disabled = true;
     // No focus or highlight carries over to the next pair (on touch screens the tapped side
-    // would look pre-selected).
-    if (document.activeElement && document.activeElement.blur) document.activeElement.blur();
+    // would look pre-selected); the focus goes to the question above the pair (no ring), so
+    // that Tab moves to the left image next, after a mouse answer as after a keyboard one (a
+    // plain blur left the Tab starting point at the clicked image: from the right one, Tab left
+    // the page and Enter answered nothing).
+    const question = $("trial-question");
+    question.tabIndex = -1;
+    question.focus({ preventScroll: true });
     $("choose-" + side).classList.add("chosen");
     const answer = await persistent("POST", "/api/participants/" + encodeURIComponent(session.participant) + "/responses",
-      { trial: trial.trial, chosen: side, rt_ms: rtMs, client: clientInfo() });
+      { trial: trial.trial, chosen: side, rt_ms: rtMs, client: clientInfo(), display: shown });
     $("choose-" + side).classList.remove("chosen");
     if (answer.status === 201 || answer.status === 200 || answer.status === 409) {
       if (answer.status === 409) answered.delete(trial.trial);
       // 409: this trial was answered in another tab; continue where the server is.
       await nextTrial();
+    } else if (answer.status === 403) {
+      // This page's token no longer answers for the participant (the run goes on elsewhere with
+      // its own token, or the researcher removed it): say so in words, not the server's.
+      fatal(GONE_ELSEWHERE);
     } else {
       fatal((answer.data && answer.data.error) || "The answer could not be saved.");
     }
   }
+  const GONE_ELSEWHERE = "This page can no longer save your answers. If you resumed the study in another tab or window, it continues there: please go on there and close this one. Otherwise, please contact the researcher.";
 
   for (const side of ["left", "right"]) {
     const button = $("choose-" + side);
@@ -446,7 +507,17 @@
     }
   }, true);
 
+  // Leaving mid-study (Back, closing the tab, another address) asks first: from "Start" until
+  // the completion page, not before (nothing to lose) nor after (the redirect must not ask).
+  let finished = false;
+  window.addEventListener("beforeunload", (event) => {
+    if (!session || !session.started || finished) return;
+    event.preventDefault();
+    event.returnValue = "";
+  });
+
   function finish(done) {
+    finished = true;
     body.dataset.trial = "done";
     $("completion-code").textContent = done.completion_code;
     show("done");

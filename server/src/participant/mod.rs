@@ -115,13 +115,16 @@ fn reported_viewport(client: &Map<String, Value>) -> Option<[f64; 2]> {
     }
 }
 
+/// The kind of device the page reported, when the study does not admit it.
+fn refused_device(participation: &Participation, client: &Map<String, Value>) -> Option<Device> {
+    let device = reported_device(client)?;
+    (!participation.devices.is_empty() && !participation.devices.contains(&device)).then_some(device)
+}
+
 /// Why a visitor's screen does not meet the study's requirements, as the one sentence shown
 /// to them; None when it does (or when the client did not say: API clients without a page).
 pub(crate) fn screen_refusal(participation: &Participation, client: &Map<String, Value>) -> Option<String> {
-    if !participation.devices.is_empty()
-        && let Some(device) = reported_device(client)
-        && !participation.devices.contains(&device)
-    {
+    if let Some(device) = refused_device(participation, client) {
         let allowed: Vec<&str> = participation.devices.iter().map(|device| device.described()).collect();
         let allowed = match allowed.as_slice() {
             [one] => one.to_string(),
@@ -185,6 +188,10 @@ struct ScreenAnswer {
     reason: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     screen_out: Option<String>,
+    /// With a refusal: true when it is about the window (its size or orientation), which the
+    /// visitor can change on this page; false when it is about the kind of device.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fixable: Option<bool>,
     /// A returning participant: the study keeps one run per external id and this one finished;
     /// the page shows the completion page instead of asking anything again.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -226,7 +233,8 @@ async fn finished_run(
 }
 
 /// Checks a visitor's screen against the study's requirements before anything is asked of
-/// them: `200 {meets: true}`, or `201 {meets: false, reason, screen_out}` with the visitor
+/// them: `200 {meets: true}`, or `201 {meets: false, reason, screen_out, fixable}` (`fixable`:
+/// the refusal is about the window, not the kind of device) with the visitor
 /// recorded as screened out (counted in the funnel; the same visitor checking again updates
 /// that record, and joining later withdraws it). A visitor whose external id already finished
 /// the study (`unique_external_id`) gets `200 {meets: true, completed: {done, completion_code,
@@ -241,20 +249,29 @@ async fn check_screen(
     let client = validate_client(body.client)?;
     let url_params = validate_url_params(&prepared.study, body.url_params)?;
     if !pilot && let Some(completed) = finished_run(&state, &prepared.study, &url_params).await? {
-        let answer = ScreenAnswer { meets: true, reason: None, screen_out: None, completed: Some(completed) };
+        let answer =
+            ScreenAnswer { meets: true, reason: None, screen_out: None, fixable: None, completed: Some(completed) };
         return Ok(Json(answer).into_response());
     }
     let Some(reason) = screen_refusal(&prepared.study.participation, &client) else {
-        return Ok(Json(ScreenAnswer { meets: true, reason: None, screen_out: None, completed: None }).into_response());
+        let answer = ScreenAnswer { meets: true, reason: None, screen_out: None, fixable: None, completed: None };
+        return Ok(Json(answer).into_response());
     };
     let id = match body.screen_out {
         Some(id) if id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit()) => id,
         _ => random_hex(16),
     };
     record_screen_out(&state, &slug, &id, &reason, &client, &url_params, pilot).await?;
+    let fixable = refused_device(&prepared.study.participation, &client).is_none();
     Ok((
         StatusCode::CREATED,
-        Json(ScreenAnswer { meets: false, reason: Some(reason), screen_out: Some(id), completed: None }),
+        Json(ScreenAnswer {
+            meets: false,
+            reason: Some(reason),
+            screen_out: Some(id),
+            fixable: Some(fixable),
+            completed: None,
+        }),
     )
         .into_response())
 }
@@ -675,6 +692,30 @@ struct ResponseBody {
     rt_ms: f64,
     #[serde(default)]
     client: Map<String, Value>,
+    /// The size one image of the pair was shown at, as the page measured it.
+    #[serde(default)]
+    display: Option<ShownSize>,
+}
+
+/// The size an image was shown at: `[width, height]` in CSS pixels and in device pixels.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShownSize {
+    css: [f64; 2],
+    device: [f64; 2],
+}
+
+/// `WxH` of a size in whole pixels (rounded), refused when it is not a plausible screen size.
+fn size_text(key: &str, [width, height]: [f64; 2]) -> AppResult<String> {
+    let plausible = |value: f64| value.is_finite() && (0.0..=100_000.0).contains(&value);
+    if !(plausible(width) && plausible(height)) {
+        return Err(AppError::Unprocessable(format!(
+            "`display.{key}` must be [width, height] in pixels from 0 to 100000, found [{}, {}].",
+            short_number(width),
+            short_number(height)
+        )));
+    }
+    Ok(format!("{}x{}", width.round() as u32, height.round() as u32))
 }
 
 #[derive(Serialize)]
@@ -712,6 +753,10 @@ async fn create_response(
         )));
     }
     let client = validate_client(body.client)?;
+    let (display_css, display_device) = match &body.display {
+        Some(shown) => (Some(size_text("css", shown.css)?), Some(size_text("device", shown.device)?)),
+        None => (None, None),
+    };
     let min_response_ms =
         state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
     let outcome = state
@@ -723,6 +768,8 @@ async fn create_response(
             chosen: body.chosen,
             rt_ms: body.rt_ms,
             client: Value::Object(client).to_string(),
+            display_css,
+            display_device,
             min_response_ms,
         })
         .await?

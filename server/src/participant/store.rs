@@ -28,6 +28,10 @@ pub struct NewResponse {
     pub chosen: Side,
     pub rt_ms: f64,
     pub client: String,
+    /// The size one image of the pair was shown at, `WxH` in CSS pixels and in device pixels
+    /// (as the page measured it), if the page said.
+    pub display_css: Option<String>,
+    pub display_device: Option<String>,
     /// The study's `min_response_ms`: a faster response is stored flagged `too_fast`.
     pub min_response_ms: u32,
 }
@@ -217,8 +221,9 @@ async fn store_response(
     .await?;
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq)
-             VALUES ($1, $2, $3, $4, $5, {NOW}, $6, $7, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses))"
+            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq,
+                 display_css, display_device)
+             VALUES ($1, $2, $3, $4, $5, {NOW}, $6, $7, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses), $8, $9)"
         )))
         .bind(&response.participant)
         .bind(response.trial)
@@ -227,6 +232,8 @@ async fn store_response(
         .bind(&response.client)
         .bind(too_fast as i64)
         .bind(OptionalF64(served_ms))
+        .bind(&response.display_css)
+        .bind(&response.display_device)
         .execute(&mut *connection)
         .await?;
         return Ok(Ok(ResponseOutcome::Created));

@@ -54,8 +54,9 @@ pub(super) struct StudyFile {
     texts: TextsFile,
     #[serde(default)]
     demographics: Vec<DemographicField>,
-    #[serde(default = "default_url_params")]
-    url_params: Vec<String>,
+    /// `None` when the file does not declare them: [`default_url_params`] are kept then.
+    #[serde(default)]
+    url_params: Option<Vec<String>>,
     factors: Vec<Factor>,
     conditions: Vec<ConditionFile>,
     #[serde(default)]
@@ -125,13 +126,17 @@ pub enum Orientation {
     Portrait,
 }
 
-/// How stimuli are scaled on screen: `native` never enlarges them beyond one image pixel per
-/// CSS pixel (they may shrink to fit); `fit` scales them to the space available.
+/// How stimuli are scaled on screen: `native` never shows an image larger than one image pixel
+/// per device pixel (CSS size = image size / devicePixelRatio at most, so no resampling upward; on
+/// a screen of device pixel ratio 2 that is half the CSS size), `css` never larger than one image
+/// pixel per CSS pixel (the same CSS size on every screen, enlarged by the browser on HiDPI
+/// screens), `fit` scaled to the space available. All shrink to fit the window.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Display {
     #[default]
     Native,
+    Css,
     Fit,
 }
 
@@ -181,6 +186,7 @@ fn default_true() -> bool {
     true
 }
 
+/// The URL parameters kept when a study file declares none: the crowdsourcing platforms' ids.
 fn default_url_params() -> Vec<String> {
     ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "workerId", "assignmentId", "hitId"]
         .iter()
@@ -520,8 +526,14 @@ pub struct Study {
     pub texts: Texts,
     #[serde(default)]
     pub demographics: Vec<DemographicField>,
+    /// The URL parameters kept with a participant: the declared ones, else the platforms' ids.
     #[serde(default)]
     pub url_params: Vec<String>,
+    /// Whether the study file declared `url_params`: then the trials CSV has a column for each,
+    /// else only for those some exported participant arrived with (no empty MTurk columns for a
+    /// study that never asked for them). `false` for definitions stored before this field.
+    #[serde(default)]
+    pub url_params_declared: bool,
     pub factors: Vec<Factor>,
     pub conditions: Vec<Condition>,
     pub render: Option<RenderDefaults>,
@@ -601,7 +613,9 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
         ],
     )?;
     let field_names = check_demographics(fail, &raw.demographics)?;
-    check_url_params(fail, &raw.url_params, &field_names)?;
+    let url_params_declared = raw.url_params.is_some();
+    let url_params = raw.url_params.clone().unwrap_or_else(default_url_params);
+    check_url_params(fail, &url_params, &field_names)?;
     let mut factors = raw.factors.clone();
     let conditions = check_conditions(fail, &mut factors, &raw.conditions)?;
     let scenes = check_scenes(fail, base, &raw.scenes, &conditions)?;
@@ -641,7 +655,8 @@ pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: Strin
             thanks: raw.texts.thanks,
         },
         demographics: raw.demographics,
-        url_params: raw.url_params,
+        url_params,
+        url_params_declared,
         factors,
         conditions,
         render: raw.render,
@@ -1379,6 +1394,8 @@ pub const TRIALS_CSV_COLUMNS: &[&str] = &[
     "catch_failed",
     "viewport",
     "device_pixel_ratio",
+    "display_css",
+    "display_device",
     "completed",
     "status",
     "completion_code",
@@ -1401,7 +1418,7 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
             format!("expected [width, height] in CSS pixels from 1 to 10000, found [{width}, {height}]"),
         ));
     }
-    if raw.unique_external_id && raw.url_params.is_empty() {
+    if raw.unique_external_id && raw.url_params.as_ref().is_some_and(Vec::is_empty) {
         return Err(fail.at(
             "unique_external_id",
             "expected `url_params` to name the external id (e.g. \"PROLIFIC_PID\"), found none",
