@@ -69,7 +69,7 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
     assert_eq!(over_http, from_cli);
     assert_eq!(from_cli.lines().count(), 7, "six judgments and the header:\n{from_cli}");
     assert!(
-        from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,1,completed,DEMO-7F3A,false,false,true,"),
+        from_cli.lines().nth(1).unwrap().contains(",800x600,1.5,,,1,completed,DEMO-7F3A,false,false,true,"),
         "answered at once: too fast by the server's clock {from_cli}"
     );
     assert!(from_cli.lines().nth(1).unwrap().contains(",male,44,"), "{from_cli}");
