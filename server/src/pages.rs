@@ -7,7 +7,7 @@
 use askama::Template;
 use axum::Router;
 use axum::extract::{Path, State};
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 
@@ -218,20 +218,71 @@ async fn static_file(Path(file): Path<String>) -> Response {
     }
 }
 
-async fn stimulus(State(state): State<AppState>, Path(name): Path<String>) -> Response {
+async fn stimulus(State(state): State<AppState>, Path(name): Path<String>, headers: HeaderMap) -> Response {
     let Some(content_type) = stimulus_content_type(&name) else {
         return AppError::NotFound("There is no such stimulus.".into()).into_response();
     };
-    match tokio::fs::read(state.stimuli_dir().join(&name)).await {
-        Ok(bytes) => {
-            let mut response = bytes.into_response();
-            let headers = response.headers_mut();
-            headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-            headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("public, max-age=31536000, immutable"));
-            response
-        }
-        Err(_) => AppError::NotFound("There is no such stimulus.".into()).into_response(),
+    let path = state.stimuli_dir().join(&name);
+    let is_png = content_type == "image/png";
+    let wants_webp = is_png
+        && headers
+            .get_all(header::ACCEPT)
+            .iter()
+            .filter_map(|value| value.to_str().ok())
+            .any(|value| value.contains("image/webp"));
+    let webp = if wants_webp { webp_beside(path.clone()).await } else { None };
+    let (bytes, content_type) = match webp {
+        Some(bytes) => (bytes, "image/webp"),
+        None => match tokio::fs::read(&path).await {
+            Ok(bytes) => (bytes, content_type),
+            Err(_) => return AppError::NotFound("There is no such stimulus.".into()).into_response(),
+        },
+    };
+    let mut response = bytes.into_response();
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("public, max-age=31536000, immutable"));
+    if is_png {
+        headers.insert(header::VARY, HeaderValue::from_static("Accept"));
     }
+    response
+}
+
+/// The lossless WebP copy of the PNG stimulus at `png`: `<sha256>.webp` beside it, made on the
+/// first request (off the async threads) and read from the store after that. `None` (the PNG is
+/// served) when the PNG is not in the store, cannot be decoded or has more than 8 bits a channel.
+async fn webp_beside(png: std::path::PathBuf) -> Option<Vec<u8>> {
+    let webp = png.with_extension("webp");
+    if let Ok(bytes) = tokio::fs::read(&webp).await {
+        return Some(bytes);
+    }
+    tokio::task::spawn_blocking(move || {
+        let bytes = lossless_webp(&std::fs::read(&png).ok()?)?;
+        // written under a unique name and renamed, so a concurrent request never reads half a file
+        let partial = webp.with_extension(format!("webp.{}.part", std::process::id()));
+        if std::fs::write(&partial, &bytes).is_ok() && std::fs::rename(&partial, &webp).is_err() {
+            let _ = std::fs::remove_file(&partial);
+        }
+        Some(bytes)
+    })
+    .await
+    .ok()
+    .flatten()
+}
+
+/// `png` re-encoded as lossless WebP: the same pixels, fewer bytes. `None` for a PNG that WebP
+/// cannot hold exactly (more than 8 bits a channel) or that does not decode.
+pub fn lossless_webp(png: &[u8]) -> Option<Vec<u8>> {
+    use image::DynamicImage::{ImageLuma8, ImageLumaA8, ImageRgb8, ImageRgba8};
+    let image = match image::load_from_memory_with_format(png, image::ImageFormat::Png).ok()? {
+        image @ (ImageRgb8(_) | ImageRgba8(_)) => image,
+        image @ ImageLuma8(_) => ImageRgb8(image.to_rgb8()),
+        image @ ImageLumaA8(_) => ImageRgba8(image.to_rgba8()),
+        _ => return None,
+    };
+    let mut bytes = Vec::new();
+    image.write_with_encoder(image::codecs::webp::WebPEncoder::new_lossless(&mut bytes)).ok()?;
+    Some(bytes)
 }
 
 /// A file to download: `body` with its content type, saved as `file_name`.

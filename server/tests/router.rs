@@ -235,6 +235,27 @@ async fn next_needs_the_participants_own_token() {
         assert_eq!(image.headers.get(header::CONTENT_TYPE).unwrap(), "image/png");
         assert_eq!(image.headers.get(header::CACHE_CONTROL).unwrap(), "public, max-age=31536000, immutable");
         assert_eq!(&image.bytes[1..4], b"PNG");
+        assert_eq!(image.headers.get(header::VARY).unwrap(), "Accept");
+        // A browser that accepts WebP gets the lossless WebP copy: the same pixels, fewer bytes,
+        // made once and kept beside the PNG in the store.
+        for _ in 0..2 {
+            let request = Request::builder()
+                .uri(url)
+                .header(header::ACCEPT, "image/avif,image/webp,image/apng,image/*,*/*;q=0.8")
+                .body(Body::empty())
+                .unwrap();
+            let webp = send(app, request).await;
+            assert_eq!(webp.status, StatusCode::OK);
+            assert_eq!(webp.headers.get(header::CONTENT_TYPE).unwrap(), "image/webp");
+            assert_eq!(webp.headers.get(header::VARY).unwrap(), "Accept");
+            assert_eq!(&webp.bytes[8..12], b"WEBP");
+            assert!(webp.bytes.len() < image.bytes.len(), "{} >= {}", webp.bytes.len(), image.bytes.len());
+            let png = image::load_from_memory_with_format(&image.bytes, image::ImageFormat::Png).unwrap();
+            let decoded = image::load_from_memory_with_format(&webp.bytes, image::ImageFormat::WebP).unwrap();
+            assert_eq!(decoded.to_rgba8(), png.to_rgba8(), "lossless: the same pixels");
+        }
+        let cached = fixture._data_dir.path().join("data").join(url.trim_start_matches('/').replace(".png", ".webp"));
+        assert!(cached.is_file(), "{}", cached.display());
     }
 }
 
@@ -1070,4 +1091,33 @@ async fn a_study_still_being_prepared_opens_in_a_few_minutes_then_is_served_with
     assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
     assert_eq!(call(&app, Method::GET, "/studies/rendered-mini", None, None).await.status, StatusCode::OK);
     assert!(!admin_page().await.contains("Being prepared"));
+}
+
+/// Bytes saved by serving lossless WebP: total PNG bytes against lossless WebP bytes over the
+/// stimuli in `$MRSTUDY_STIMULI` (a data directory's `stimuli/`), checking every copy is exact.
+/// `MRSTUDY_STIMULI=/path/to/data/stimuli cargo test -p mrstudy-server --test router -- --ignored webp_bytes --nocapture`
+#[test]
+#[ignore = "measurement over a data directory's stimuli"]
+fn webp_bytes_saved_on_stored_stimuli() {
+    let dir = PathBuf::from(std::env::var("MRSTUDY_STIMULI").expect("MRSTUDY_STIMULI"));
+    let (mut count, mut png_bytes, mut webp_bytes) = (0, 0, 0);
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|extension| extension != "png") {
+            continue;
+        }
+        let png = std::fs::read(&path).unwrap();
+        let webp = mrstudy_server::pages::lossless_webp(&png).expect("an 8-bit PNG");
+        let decoded = image::load_from_memory_with_format(&webp, image::ImageFormat::WebP).unwrap();
+        let original = image::load_from_memory_with_format(&png, image::ImageFormat::Png).unwrap();
+        assert_eq!(decoded.to_rgba8(), original.to_rgba8(), "{}", path.display());
+        count += 1;
+        png_bytes += png.len();
+        webp_bytes += webp.len();
+    }
+    assert!(count > 0, "no PNG in {}", dir.display());
+    println!(
+        "{count} stimuli: PNG {png_bytes} bytes, lossless WebP {webp_bytes} bytes ({:.1} % of the PNG bytes)",
+        100.0 * webp_bytes as f64 / png_bytes as f64
+    );
 }
