@@ -331,6 +331,12 @@ fn a_page_whose_token_no_longer_answers_says_where_the_study_continues() {
     driver.screenshot(&screenshot_path("page-token-gone-1280x800.png"));
     assert!(!message.contains("does not give access"), "{message}");
     assert!(message.starts_with("This page can no longer save your answers."), "{message}");
+    // loading the next trial (a reload mid-study) gets the same 403 and the same sentence, not
+    // the welcome page
+    driver.go(&format!("{}/studies/shadows-demo", server.base));
+    driver.wait_visible("stage-error");
+    let message = driver.text("#fatal-error");
+    assert!(message.starts_with("This page can no longer save your answers."), "after a reload: {message}");
 }
 
 /// Screenshots of the changed stages at 1280×800, 390×844 (DPR 3, touch) and 1440×900 (DPR 2),

@@ -328,7 +328,13 @@
     accepting = false;
     shownAt = Infinity;
     const answer = await persistent("GET", "/api/participants/" + encodeURIComponent(session.participant) + "/next");
-    if (answer.status === 401 || answer.status === 403 || answer.status === 404) {
+    if (answer.status === 403) {
+      // This page's token no longer answers for the participant, as for an answer (below): the
+      // same words, and the kept session stays (another tab may be going on with it).
+      fatal(GONE_ELSEWHERE);
+      return;
+    }
+    if (answer.status === 401 || answer.status === 404) {
       forgetSession();
       if (studyOpen) show("welcome"); else show("closed");
       return;
