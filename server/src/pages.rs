@@ -258,9 +258,12 @@ async fn webp_beside(png: std::path::PathBuf) -> Option<Vec<u8>> {
     }
     tokio::task::spawn_blocking(move || {
         let bytes = lossless_webp(&std::fs::read(&png).ok()?)?;
-        // written under a unique name and renamed, so a concurrent request never reads half a file
-        let partial = webp.with_extension(format!("webp.{}.part", std::process::id()));
-        if std::fs::write(&partial, &bytes).is_ok() && std::fs::rename(&partial, &webp).is_err() {
+        // written under a name of its own (per process and request) and renamed, so a concurrent
+        // request never reads half a file
+        static PARTIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = PARTIAL.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let partial = webp.with_extension(format!("webp.{}-{n}.part", std::process::id()));
+        if std::fs::write(&partial, &bytes).is_err() || std::fs::rename(&partial, &webp).is_err() {
             let _ = std::fs::remove_file(&partial);
         }
         Some(bytes)
