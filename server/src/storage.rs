@@ -972,49 +972,16 @@ async fn execute_admin(
 ) -> Result<Result<AdminWritten, AdminRefused>, sqlx::Error> {
     match write {
         AdminWrite::SetExcluded { participant, reason } => {
-            let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = $1")
-                .bind(participant)
-                .fetch_optional(&mut *connection)
-                .await?;
-            let Some(row) = row else {
-                // a lab participant (task studies keep theirs in task_participants)
-                let Some((study, ordinal, excluded_at)) =
-                    set_lab_excluded(connection, participant, reason.as_deref()).await?
-                else {
-                    return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
-                };
-                let action = if reason.is_some() { "exclude" } else { "include" };
-                audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
-                return Ok(Ok(AdminWritten::Excluded {
-                    study,
-                    ordinal,
-                    excluded: reason.is_some(),
-                    reason: reason.clone(),
-                    excluded_at,
-                }));
-            };
-            let study: String = row.try_get("study")?;
-            let ordinal: i64 = row.try_get("ordinal")?;
-            let excluded_at: Option<String> = match reason {
-                Some(reason) => {
-                    sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
-                        "UPDATE participants SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
-                     WHERE id = $2 RETURNING excluded_at"
-                    )))
-                    .bind(reason)
-                    .bind(participant)
-                    .fetch_one(&mut *connection)
-                    .await?
+            // a survey participant, else a lab participant (task studies keep theirs apart)
+            let mut set = None;
+            for table in ["participants", "task_participants"] {
+                set = set_excluded(connection, table, participant, reason.as_deref()).await?;
+                if set.is_some() {
+                    break;
                 }
-                None => {
-                    sqlx::query(
-                        "UPDATE participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1",
-                    )
-                    .bind(participant)
-                    .execute(&mut *connection)
-                    .await?;
-                    None
-                }
+            }
+            let Some((study, ordinal, excluded_at)) = set else {
+                return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
             };
             let action = if reason.is_some() { "exclude" } else { "include" };
             audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
@@ -1149,14 +1116,16 @@ async fn delete_lab_participant(connection: &mut Connection, id: &str) -> Result
     }))
 }
 
-/// Excludes a lab participant with `reason`, or (None) includes them again, inside the admin's
-/// write: (study, ordinal, excluded_at), or None when no lab participant has this id.
-async fn set_lab_excluded(
+/// Excludes a participant of `table` (`participants` for surveys, `task_participants` for the
+/// lab) with `reason`, or (None) includes them again, inside the admin's write:
+/// (study, ordinal, excluded_at), or None when that table has no participant with this id.
+async fn set_excluded(
     connection: &mut Connection,
+    table: &'static str,
     id: &str,
     reason: Option<&str>,
 ) -> Result<Option<(String, i64, Option<String>)>, sqlx::Error> {
-    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
+    let row = sqlx::query(sqlx::AssertSqlSafe(format!("SELECT study, ordinal FROM {table} WHERE id = $1")))
         .bind(id)
         .fetch_optional(&mut *connection)
         .await?;
@@ -1164,7 +1133,7 @@ async fn set_lab_excluded(
     let excluded_at: Option<String> = match reason {
         Some(reason) => {
             sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
-                "UPDATE task_participants SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
+                "UPDATE {table} SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
                  WHERE id = $2 RETURNING excluded_at"
             )))
             .bind(reason)
@@ -1173,9 +1142,9 @@ async fn set_lab_excluded(
             .await?
         }
         None => {
-            sqlx::query(
-                "UPDATE task_participants SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1",
-            )
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "UPDATE {table} SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1"
+            )))
             .bind(id)
             .execute(&mut *connection)
             .await?;
