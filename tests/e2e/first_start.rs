@@ -7,50 +7,13 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-use super::support::{Server, client, copy_demo_study, demo_texts};
+use super::support::{Server, client, copy_demo_study, write_rendered_study};
 
 /// A study of two conditions on a built-in scene whose reference render (photograph and
 /// ground truth, path-traced) takes a few seconds: long enough that the server answers before
 /// it is done, short enough for a test.
 fn write_slow_study(dir: &Path) {
-    let texts = demo_texts();
-    let study = format!(
-        r#"slug = "slow-mini"
-title = "Rendered slowly"
-kind = "paired-comparison"
-question = "Which fits better?"
-
-{texts}
-[[factors]]
-name = "gi"
-
-[[conditions]]
-name = "LQ"
-levels = {{ gi = 0 }}
-
-[[conditions]]
-name = "GI"
-levels = {{ gi = 1 }}
-
-[render]
-size = [160, 120]
-spp = 256
-vpls = 16
-
-[[scenes]]
-name = "box"
-render = "dir-lamp-box"
-
-[design]
-pairs = "all"
-repetitions = 1
-scenes = "same"
-
-[completion]
-code = "SLOW"
-"#
-    );
-    std::fs::write(dir.join("slow-mini.toml"), study).unwrap();
+    write_rendered_study(dir, "slow-mini", "Rendered slowly", [160, 120], 256, "SLOW");
 }
 
 /// Index entries in the data directory's stimulus store (none before anything is rendered).

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-use super::support::{Server, binary, client, copy_demo_study, demo_texts, demographics, export, repo_studies_dir};
+use super::support::{Server, binary, client, copy_demo_study, demographics, export, repo_studies_dir};
 
 #[test]
 fn a_participant_completes_the_demo_study_over_a_real_socket() {
@@ -88,44 +88,7 @@ fn a_participant_completes_the_demo_study_over_a_real_socket() {
 
 /// A study of two conditions (gi off and on) on one built-in scene, rendered tiny.
 fn write_rendered_study(dir: &Path) {
-    let texts = demo_texts();
-    let study = format!(
-        r#"slug = "rendered-mini"
-title = "Rendered"
-kind = "paired-comparison"
-question = "Which fits better?"
-
-{texts}
-[[factors]]
-name = "gi"
-
-[[conditions]]
-name = "LQ"
-levels = {{ gi = 0 }}
-
-[[conditions]]
-name = "GI"
-levels = {{ gi = 1 }}
-
-[render]
-size = [48, 36]
-spp = 2
-vpls = 16
-
-[[scenes]]
-name = "box"
-render = "dir-lamp-box"
-
-[design]
-pairs = "all"
-repetitions = 1
-scenes = "same"
-
-[completion]
-code = "MINI"
-"#
-    );
-    std::fs::write(dir.join("rendered-mini.toml"), study).unwrap();
+    super::support::write_rendered_study(dir, "rendered-mini", "Rendered", [48, 36], 2, "MINI");
 }
 
 /// Waits until `slug` is open (its stimuli rendered in the background); false, after saying so,

@@ -55,6 +55,50 @@ pub fn repo_studies_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")
 }
 
+/// A study `slug` of two conditions (gi off and on) on the built-in scene `dir-lamp-box`,
+/// rendered at `size` with `spp` samples per pixel, written into `dir` as `<slug>.toml`.
+pub fn write_rendered_study(dir: &Path, slug: &str, title: &str, size: [u32; 2], spp: u32, code: &str) {
+    let texts = demo_texts();
+    let [width, height] = size;
+    let study = format!(
+        r#"slug = "{slug}"
+title = "{title}"
+kind = "paired-comparison"
+question = "Which fits better?"
+
+{texts}
+[[factors]]
+name = "gi"
+
+[[conditions]]
+name = "LQ"
+levels = {{ gi = 0 }}
+
+[[conditions]]
+name = "GI"
+levels = {{ gi = 1 }}
+
+[render]
+size = [{width}, {height}]
+spp = {spp}
+vpls = 16
+
+[[scenes]]
+name = "box"
+render = "dir-lamp-box"
+
+[design]
+pairs = "all"
+repetitions = 1
+scenes = "same"
+
+[completion]
+code = "{code}"
+"#
+    );
+    std::fs::write(dir.join(format!("{slug}.toml")), study).unwrap();
+}
+
 /// The demo study's `[texts]` section (welcome, consent, instructions, thanks), for the study
 /// files the tests write.
 pub fn demo_texts() -> String {
