@@ -814,6 +814,20 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
             "expected `url_params` to name the external id (e.g. \"PROLIFIC_PID\"), found none",
         ));
     }
+    if raw.allow_tie
+        && let Some(index) = raw.conditions.iter().position(|condition| condition.name == "tie")
+    {
+        return Err(fail.at(
+            &format!("conditions[{index}].name"),
+            "expected a name other than \"tie\": with `allow_tie` the export's `chosen` says \"tie\" for \"not sure\"",
+        ));
+    }
+    if raw.allow_tie && raw.design.reference.is_some() {
+        return Err(fail.at(
+            "allow_tie",
+            "expected a paired comparison of conditions: a detection design (`design.reference`) asks which image is the real one, and has no \"not sure\"",
+        ));
+    }
     if raw.abandon_after_minutes == 0 {
         return Err(fail.at("abandon_after_minutes", "expected at least 1 minute, found 0"));
     }
@@ -827,6 +841,7 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
     Ok(Participation {
         min_response_ms,
         answer_lock_ms: raw.answer_lock_ms as u32,
+        allow_tie: raw.allow_tie,
         unique_external_id: raw.unique_external_id,
         min_viewport: raw.min_viewport,
         devices,

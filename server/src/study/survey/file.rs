@@ -42,6 +42,9 @@ pub(super) struct StudyFile {
     pub(super) answer_lock_ms: i64,
     #[serde(default)]
     pub(super) unique_external_id: bool,
+    /// A third answer, "not sure", in paired comparisons (stored as `tie`).
+    #[serde(default)]
+    pub(super) allow_tie: bool,
     #[serde(default)]
     pub(super) min_viewport: Option<[u32; 2]>,
     #[serde(default)]

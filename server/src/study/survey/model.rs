@@ -97,6 +97,9 @@ pub struct Participation {
     /// nor one before the next pair is painted: the second click of a slow double click, or a
     /// double tap, never answers the next trial.
     pub answer_lock_ms: u32,
+    /// `allow_tie`: paired comparisons offer a third answer, "not sure" (↓ or its button),
+    /// stored and exported as `chosen = "tie"`; off by default (forced choice).
+    pub allow_tie: bool,
     /// One run per value of the study's first URL parameter (its declared id, e.g.
     /// `PROLIFIC_PID`; never another), normalised: a second join with the same value resumes the
     /// first run only with that run's token, else it is refused.
@@ -117,6 +120,7 @@ impl Default for Participation {
         Participation {
             min_response_ms: default_min_response_ms() as u32,
             answer_lock_ms: default_answer_lock_ms() as u32,
+            allow_tie: false,
             unique_external_id: false,
             min_viewport: None,
             devices: Vec::new(),
