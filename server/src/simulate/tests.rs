@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use super::*;
-use crate::study::load_study;
+use crate::study::{ActiveTarget, PairsRule, load_study};
 
 /// A 2 × 2 factorial (gi, ca), anchored on LQ and HQ, 2 repetitions: 5 pairs × 2 = 10 trials,
 /// plus one catch trial when `catch`.
@@ -160,8 +160,8 @@ fn design_variants_keep_the_study_and_change_only_the_design() {
     let anchored = design_variant(&study, DesignChoice::Anchored).unwrap();
     assert_eq!(
         anchored.design.pairs,
-        vec![(0, 3), (0, 1), (1, 3), (0, 2), (2, 3)],
-        "first and last condition as anchors"
+        vec![(0, 3), (0, 1), (0, 2), (3, 1), (3, 2)],
+        "first and last condition as anchors, by the study's own anchored rule (anchors = [\"LQ\", \"HQ\"])"
     );
     let active = design_variant(&study, DesignChoice::Active).unwrap();
     let design = active.design.active.as_ref().unwrap();

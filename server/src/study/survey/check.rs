@@ -688,18 +688,24 @@ fn anchored_pairs(fail: Fail, names: &[String], conditions: &[Condition]) -> Res
         }
         anchors.push(anchor);
     }
+    Ok(anchored_pair_indices(&anchors, conditions.len()))
+}
+
+/// `pairs = "anchored"` on condition indices: every anchor with every other anchor, then every
+/// other of the `count` conditions with each anchor.
+pub fn anchored_pair_indices(anchors: &[usize], count: usize) -> Vec<(usize, usize)> {
     let mut pairs = Vec::new();
     for (position, &first) in anchors.iter().enumerate() {
         for &second in &anchors[position + 1..] {
             pairs.push((first, second));
         }
     }
-    for &anchor in &anchors {
-        for other in (0..conditions.len()).filter(|other| !anchors.contains(other)) {
+    for &anchor in anchors {
+        for other in (0..count).filter(|other| !anchors.contains(other)) {
             pairs.push((anchor, other));
         }
     }
-    Ok(pairs)
+    pairs
 }
 
 /// `pairs = "list"`: the pairs listed, each once.

@@ -7,8 +7,8 @@ mod check;
 mod file;
 mod model;
 
-pub(crate) use check::all_pairs;
 pub(super) use check::parse;
+pub(crate) use check::{all_pairs, anchored_pair_indices};
 pub(crate) use model::format_number;
 pub use model::{
     ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, DesignReference, Device,

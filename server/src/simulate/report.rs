@@ -1,0 +1,270 @@
+//! The report of a simulation: rows of means with their Monte-Carlo errors, as JSON, a text
+//! table and a plot.
+
+use crate::study::{PairsRule, Study};
+use mrstudy_analysis::plot::{LinePlot, LineSeries};
+use mrstudy_analysis::table::fixed;
+use serde::Serialize;
+
+use super::design::DesignChoice;
+use super::truth::Truth;
+use super::{ALPHA, Config};
+
+/// A mean over runs and its Monte-Carlo standard error (absent with fewer than two runs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Estimate {
+    pub mean: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mcse: Option<f64>,
+}
+
+impl Estimate {
+    pub(super) fn of(values: &[f64]) -> Option<Estimate> {
+        let n = values.len();
+        if n == 0 {
+            return None;
+        }
+        let mean = values.iter().sum::<f64>() / n as f64;
+        let mcse = (n > 1)
+            .then(|| (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64 / n as f64).sqrt());
+        Some(Estimate { mean, mcse })
+    }
+}
+
+/// Power of one factor: the fraction of runs with p < [`ALPHA`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FactorPower {
+    pub factor: String,
+    /// The true effect.
+    pub effect: f64,
+    pub power: f64,
+    /// √(power (1 − power) / runs).
+    pub mcse: f64,
+}
+
+/// One design × participant count.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Row {
+    pub design: DesignChoice,
+    pub pairs: PairsRule,
+    pub participants: usize,
+    pub runs: usize,
+    pub failed: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+    pub judgments_per_participant: Estimate,
+    /// participants × mean judgments per participant.
+    pub trials: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rmse_log_worth: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rmse_effects: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_log_worth: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_effects: Option<Estimate>,
+    pub power: Vec<FactorPower>,
+}
+
+/// The simulation's settings as reported.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Settings {
+    pub observer_sd: f64,
+    pub lapse: f64,
+    pub dropout: f64,
+    pub runs: usize,
+    pub seed: u64,
+    pub bootstrap: usize,
+    pub alpha: f64,
+}
+
+/// Everything `mrstudy simulate` reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    pub study: String,
+    pub reference: String,
+    pub truth: Truth,
+    pub settings: Settings,
+    pub rows: Vec<Row>,
+}
+
+pub(super) fn summarise(
+    (choice, variant): &(DesignChoice, Study),
+    participants: usize,
+    runs: &[RunOutcome],
+    config: &Config,
+) -> Row {
+    let values = |pick: fn(&RunOutcome) -> Option<f64>| Estimate::of(&runs.iter().filter_map(pick).collect::<Vec<_>>());
+    let per_participant: Vec<f64> = runs.iter().map(|run| run.judgments as f64 / run.participants as f64).collect();
+    let judgments_per_participant = Estimate::of(&per_participant).expect("at least one run");
+    let n = runs.len() as f64;
+    let power = config
+        .truth
+        .effects
+        .iter()
+        .enumerate()
+        .map(|(k, effect)| {
+            let power = runs.iter().filter(|run| run.significant[k]).count() as f64 / n;
+            FactorPower {
+                factor: effect.factor.clone(),
+                effect: effect.effect,
+                power,
+                mcse: (power * (1.0 - power) / n).sqrt(),
+            }
+        })
+        .collect();
+    Row {
+        design: *choice,
+        pairs: variant.design.pairs_rule,
+        participants,
+        runs: runs.len(),
+        failed: runs.iter().filter(|run| run.failure.is_some()).count(),
+        failure: runs.iter().find_map(|run| run.failure.clone()),
+        trials: participants as f64 * judgments_per_participant.mean,
+        judgments_per_participant,
+        rmse_log_worth: values(|run| run.rmse_log_worth),
+        rmse_effects: values(|run| run.rmse_effects),
+        coverage_log_worth: values(|run| run.coverage_log_worth),
+        coverage_effects: values(|run| run.coverage_effects),
+        power,
+    }
+}
+
+/// A mean ± its Monte-Carlo standard error, or `—` when no run gave it.
+pub(super) fn cell(estimate: Option<Estimate>, digits: usize) -> String {
+    match estimate {
+        Some(Estimate { mean, mcse: Some(mcse) }) => format!("{} ± {}", fixed(mean, digits), fixed(mcse, digits)),
+        Some(Estimate { mean, mcse: None }) => fixed(mean, digits),
+        None => "—".into(),
+    }
+}
+
+impl Report {
+    /// The plain-text table: one line per design × participant count, then notes on failures.
+    pub fn table(&self) -> String {
+        let mut header = vec![
+            "design".to_string(),
+            "participants".into(),
+            "trials/participant".into(),
+            "trials".into(),
+            "RMSE log-worth".into(),
+            "RMSE effects".into(),
+            "coverage log-worth".into(),
+            "coverage effects".into(),
+        ];
+        header.extend(self.truth.effects.iter().map(|effect| format!("power {}", effect.factor)));
+        let mut lines = vec![header];
+        for row in &self.rows {
+            let mut line = vec![
+                row.design.name().to_string(),
+                row.participants.to_string(),
+                fixed(row.judgments_per_participant.mean, 1),
+                fixed(row.trials, 0),
+                cell(row.rmse_log_worth, 3),
+                cell(row.rmse_effects, 3),
+                cell(row.coverage_log_worth, 3),
+                cell(row.coverage_effects, 3),
+            ];
+            line.extend(row.power.iter().map(|power| format!("{} ± {}", fixed(power.power, 2), fixed(power.mcse, 2))));
+            lines.push(line);
+        }
+        let widths: Vec<usize> =
+            (0..lines[0].len()).map(|c| lines.iter().map(|line| line[c].chars().count()).max().unwrap_or(0)).collect();
+        let mut text = String::new();
+        for line in &lines {
+            let cells: Vec<String> = line.iter().zip(&widths).map(|(cell, &width)| format!("{cell:>width$}")).collect();
+            text += cells.join("  ").trim_end();
+            text.push('\n');
+        }
+        text += &format!(
+            "log-worths as differences to {} (the analysis's reference); ± is the Monte-Carlo standard error over {} runs; power: p < {ALPHA}\n",
+            self.reference, self.settings.runs
+        );
+        for row in &self.rows {
+            if row.failed == row.runs {
+                text += &format!(
+                    "{} with {} participants: every run failed, so there is no RMSE, coverage or power ({})\n",
+                    row.design.name(),
+                    row.participants,
+                    row.failure.as_deref().unwrap_or("no reason given")
+                );
+            } else if row.failed > 0 {
+                text += &format!(
+                    "{} with {} participants: {} of {} runs failed and have no scores, e.g. {}\n",
+                    row.design.name(),
+                    row.participants,
+                    row.failed,
+                    row.runs,
+                    row.failure.as_deref().unwrap_or("no reason given")
+                );
+            }
+        }
+        text
+    }
+
+    /// The plots: RMSE of the log-worths against trials per study, one series per design; and,
+    /// where the study has factors, power per factor against participants.
+    pub fn plots(&self) -> Vec<(String, LinePlot)> {
+        let mut designs: Vec<DesignChoice> = Vec::new();
+        for row in &self.rows {
+            if !designs.contains(&row.design) {
+                designs.push(row.design);
+            }
+        }
+        let series =
+            |pick: &dyn Fn(&Row) -> Option<(f64, f64)>, name: &dyn Fn(DesignChoice) -> String| -> Vec<LineSeries> {
+                designs
+                    .iter()
+                    .map(|&design| LineSeries {
+                        name: name(design),
+                        points: self.rows.iter().filter(|row| row.design == design).filter_map(pick).collect(),
+                    })
+                    .collect()
+            };
+        let mut plots = vec![(
+            "simulate-rmse.svg".to_string(),
+            LinePlot {
+                title: format!("{}: RMSE of the log-worths against trials per study", self.study),
+                x_label: "trials per study (participants × judgments per participant)".into(),
+                y_label: format!("RMSE of log-worths (differences to {})", self.reference),
+                x_log: true,
+                y_log: true,
+                series: series(&|row| Some((row.trials, row.rmse_log_worth?.mean)), &|design| design.name().into()),
+            },
+        )];
+        if !self.truth.effects.is_empty() {
+            let mut power_series = Vec::new();
+            for (k, effect) in self.truth.effects.iter().enumerate() {
+                power_series.extend(series(&|row| Some((row.participants as f64, row.power[k].power)), &|design| {
+                    format!("{} {}", design.name(), effect.factor)
+                }));
+            }
+            plots.push((
+                "simulate-power.svg".to_string(),
+                LinePlot {
+                    title: format!("{}: power per factor (p < {ALPHA}) against participants", self.study),
+                    x_label: "participants".into(),
+                    y_label: "power".into(),
+                    x_log: true,
+                    y_log: false,
+                    series: power_series,
+                },
+            ));
+        }
+        plots
+    }
+}
+
+/// One run's scores (absent where the analysis gave none).
+#[derive(Debug, Clone, Default)]
+pub(super) struct RunOutcome {
+    pub(super) judgments: usize,
+    pub(super) participants: usize,
+    pub(super) failure: Option<String>,
+    pub(super) rmse_log_worth: Option<f64>,
+    pub(super) coverage_log_worth: Option<f64>,
+    pub(super) rmse_effects: Option<f64>,
+    pub(super) coverage_effects: Option<f64>,
+    /// Per truth factor: p < α.
+    pub(super) significant: Vec<bool>,
+}

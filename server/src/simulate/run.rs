@@ -1,0 +1,169 @@
+//! One run (one simulated study) and the runs of every design × participant count: the real
+//! analysis on the simulated judgments, scored against the truth.
+
+use crate::schedule::derived_seed;
+use crate::study::Study;
+use mrstudy_analysis::analysis::{self, Analysis, Screening, analyze_judgments};
+use mrstudy_analysis::data::{ConditionTable, Judgment, Judgments};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use super::design::{DesignChoice, design_variant};
+use super::observer::collect_judgments;
+use super::report::{Report, RunOutcome, Settings, summarise};
+use super::{ALPHA, Config, SimulateError, Z_95};
+
+/// Scores one analysis against the truth.
+pub(super) fn score(analysis: &Analysis, config: &Config, outcome: &mut RunOutcome) {
+    let truth = &config.truth;
+    let reference = truth.log_worths[0].log_worth;
+    // Disconnected: log-worths are relative to each component's reference (`component` set).
+    // Under separation alone the analysis reports Firth's estimates, which count.
+    if analysis.items.iter().all(|item| item.component.is_none()) {
+        let mut squares = Vec::new();
+        let mut covered = 0usize;
+        for (item, true_worth) in analysis.items.iter().zip(&truth.log_worths).skip(1) {
+            let (Some(estimate), Some(se)) = (item.log_worth, item.se) else { continue };
+            let target = true_worth.log_worth - reference;
+            squares.push((estimate - target).powi(2));
+            let [low, high] = item.ci.unwrap_or([estimate - Z_95 * se, estimate + Z_95 * se]);
+            covered += usize::from(low <= target && target <= high);
+        }
+        if squares.len() + 1 == truth.log_worths.len() && !squares.is_empty() {
+            outcome.rmse_log_worth = Some((squares.iter().sum::<f64>() / squares.len() as f64).sqrt());
+            outcome.coverage_log_worth = Some(covered as f64 / squares.len() as f64);
+        }
+    }
+    if let Some(covariates) = &analysis.covariates {
+        let mut squares = Vec::new();
+        let mut covered = 0usize;
+        for (k, effect) in truth.effects.iter().enumerate() {
+            let Some(covariate) = covariates.iter().find(|c| c.name == effect.factor) else { continue };
+            outcome.significant[k] = covariate.p.p < ALPHA;
+            squares.push((covariate.estimate - effect.effect).powi(2));
+            let [low, high] = covariate
+                .ci
+                .unwrap_or([covariate.estimate - Z_95 * covariate.se, covariate.estimate + Z_95 * covariate.se]);
+            covered += usize::from(low <= effect.effect && effect.effect <= high);
+        }
+        if !squares.is_empty() {
+            outcome.rmse_effects = Some((squares.iter().sum::<f64>() / squares.len() as f64).sqrt());
+            outcome.coverage_effects = Some(covered as f64 / squares.len() as f64);
+        }
+    }
+}
+
+/// One simulated study and its analysis.
+pub(super) fn run_once(
+    study: &Study,
+    table: Option<&ConditionTable>,
+    config: &Config,
+    participants: usize,
+    run_seed: u64,
+) -> RunOutcome {
+    let mut outcome =
+        RunOutcome { participants, significant: vec![false; config.truth.effects.len()], ..Default::default() };
+    let rows = match collect_judgments(study, config, participants, run_seed) {
+        Ok(rows) => rows,
+        Err(message) => {
+            outcome.failure = Some(message);
+            return outcome;
+        }
+    };
+    outcome.judgments = rows.len();
+    // Participants with no judgment (a dropout before their first pair) are not in the data.
+    let mut index = vec![u32::MAX; participants];
+    let mut names = Vec::new();
+    let rows: Vec<Judgment> = rows
+        .into_iter()
+        .map(|mut row| {
+            let slot = &mut index[row.participant as usize];
+            if *slot == u32::MAX {
+                *slot = names.len() as u32;
+                names.push(format!("p{}", row.participant + 1));
+            }
+            row.participant = *slot;
+            row
+        })
+        .collect();
+    let judgments = Judgments {
+        conditions: study.conditions.iter().map(|condition| condition.name.clone()).collect(),
+        participants: names,
+        groups: Vec::new(),
+        rows,
+    };
+    let options = analysis::Options {
+        bootstrap: config.options.bootstrap,
+        seed: run_seed,
+        screening: Screening::Off,
+        agreement_simulations: 1,
+        ..analysis::Options::default()
+    };
+    match analyze_judgments(&judgments, table, &options) {
+        Ok(analysis) => score(&analysis, config, &mut outcome),
+        Err(error) => outcome.failure = Some(error.to_string()),
+    }
+    outcome
+}
+
+/// The conditions table of the study for the analysis (none without factors).
+pub(super) fn condition_table(study: &Study) -> Option<ConditionTable> {
+    (!study.factors.is_empty()).then(|| crate::analysis::condition_table(study))
+}
+
+/// Runs the simulation; `progress(done, total)` is called after each run, from any thread.
+pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + Sync)) -> Result<Report, SimulateError> {
+    if study.design.reference.is_some() {
+        return Err(SimulateError::Detection { slug: study.slug.clone() });
+    }
+    config.check(study)?;
+    let variants: Vec<(DesignChoice, Study)> = config
+        .options
+        .designs
+        .iter()
+        .map(|&choice| design_variant(study, choice).map(|variant| (choice, variant)))
+        .collect::<Result<_, _>>()?;
+    let table = condition_table(study);
+    let jobs: Vec<(usize, usize, u64)> = (0..variants.len())
+        .flat_map(|v| {
+            config
+                .participants
+                .iter()
+                .enumerate()
+                .flat_map(move |(p, _)| (0..config.options.runs as u64).map(move |r| (v, p, r)))
+        })
+        .collect();
+    let total = jobs.len() as u64;
+    let done = AtomicU64::new(0);
+    let outcomes: Vec<RunOutcome> = jobs
+        .par_iter()
+        .map(|&(v, p, run)| {
+            let (choice, variant) = &variants[v];
+            let participants = config.participants[p];
+            let seed =
+                derived_seed(derived_seed(derived_seed(config.options.seed, choice.code()), participants as u64), run);
+            let outcome = run_once(variant, table.as_ref(), config, participants, seed);
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            outcome
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for (chunk, &(v, p, _)) in outcomes.chunks(config.options.runs).zip(jobs.iter().step_by(config.options.runs)) {
+        rows.push(summarise(&variants[v], config.participants[p], chunk, config));
+    }
+    Ok(Report {
+        study: study.slug.clone(),
+        reference: study.conditions[0].name.clone(),
+        truth: config.truth.clone(),
+        settings: Settings {
+            observer_sd: config.options.observer_sd,
+            lapse: config.options.lapse,
+            dropout: config.options.dropout,
+            runs: config.options.runs,
+            seed: config.options.seed,
+            bootstrap: config.options.bootstrap,
+            alpha: ALPHA,
+        },
+        rows,
+    })
+}
