@@ -187,7 +187,7 @@ pub async fn analysis_json(
     let served = state.study(slug);
     let stimuli = served.and_then(|study| study.stimulus_metrics.as_ref()).filter(|_| metrics == Metrics::Set);
     let mut analysis =
-        crate::analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
+        crate::live_analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
             match (error, &left_out) {
                 (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
                     "{}; {}",
@@ -227,7 +227,7 @@ pub(super) async fn worth_svg(
     let pool = &state.storage().admin;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
-    Ok(svg_response(crate::analysis::worth_svg(&trials.content, &definition, include)?))
+    Ok(svg_response(crate::live_analysis::worth_svg(&trials.content, &definition, include)?))
 }
 
 /// The scatter plot of the image metric that predicts preference best.
@@ -244,7 +244,7 @@ pub(super) async fn metric_svg(
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
     })?;
     let trials = export::trials_csv(&state.storage().admin, &slug, include).await?;
-    Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, include, stimuli)?))
+    Ok(svg_response(crate::live_analysis::best_metric_svg(&trials.content, include, stimuli)?))
 }
 
 pub(super) fn svg_response(svg: String) -> Response {
