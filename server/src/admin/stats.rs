@@ -53,15 +53,6 @@ pub struct StudyStats {
     pub excluded_finished: i64,
 }
 
-pub(super) fn median(mut values: Vec<f64>) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let middle = values.len() / 2;
-    Some(if values.len() % 2 == 1 { values[middle] } else { (values[middle - 1] + values[middle]) / 2.0 })
-}
-
 /// A study's progress. Pilots (preview links) and excluded participants are counted apart, as
 /// the analysis and the exports leave them out: a participant both pilot and excluded counts as
 /// a pilot.
@@ -121,8 +112,8 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         reached,
         stopped_after,
         responses,
-        median_rt_ms: median(rts),
-        median_total_s: median(totals),
+        median_rt_ms: mrstudy_analysis::quantile::median(rts),
+        median_total_s: mrstudy_analysis::quantile::median(totals),
         catch_responses: catch.responses,
         catch_failures: catch.failures,
         participants_failing_catch: catch.failing,
