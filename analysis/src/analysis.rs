@@ -1249,8 +1249,8 @@ fn bootstrap_interval(mut values: Vec<f64>, level: f64, estimate: f64, n_partici
     let z = Normal::standard().inverse_cdf(1.0 - alpha);
     let t = StudentsT::new(0.0, 1.0, n - 1.0).map_or(z, |t| t.inverse_cdf(1.0 - alpha));
     let widen = (n / (n - 1.0)).sqrt() * t / z;
-    let low = crate::task::quantile_type7(&values, alpha);
-    let high = crate::task::quantile_type7(&values, 1.0 - alpha);
+    let low = crate::quantile::type7(&values, alpha);
+    let high = crate::quantile::type7(&values, 1.0 - alpha);
     Some([estimate - widen * (estimate - low), estimate + widen * (high - estimate)])
 }
 

@@ -32,6 +32,7 @@ pub mod figures;
 pub mod fit;
 pub mod plot;
 pub mod pvalue;
+pub mod quantile;
 pub mod report;
 pub mod screening;
 pub mod stimulus_metrics;

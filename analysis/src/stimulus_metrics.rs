@@ -1013,7 +1013,7 @@ fn basic_interval(mut values: Vec<f64>, level: f64, estimate: f64) -> Option<[f6
     }
     values.sort_by(f64::total_cmp);
     let alpha = (1.0 - level) / 2.0;
-    let (low, high) = (crate::task::quantile_type7(&values, alpha), crate::task::quantile_type7(&values, 1.0 - alpha));
+    let (low, high) = (crate::quantile::type7(&values, alpha), crate::quantile::type7(&values, 1.0 - alpha));
     Some([(2.0 * estimate - high).max(-1.0), (2.0 * estimate - low).min(1.0)])
 }
 

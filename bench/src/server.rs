@@ -29,6 +29,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use serde_json::json;
 
+use mrstudy_analysis::quantile::nearest_rank;
 use mrstudy_server::serve::prepare_on;
 use mrstudy_server::storage::{self, Database};
 
@@ -264,14 +265,6 @@ fn write_bench_study(dir: &Path) -> std::io::Result<()> {
     std::fs::write(dir.join("bench.toml"), toml)
 }
 
-fn percentile(sorted: &[f64], quantile: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let rank = ((quantile * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
-    sorted[rank - 1]
-}
-
 #[derive(Default)]
 struct Tally {
     response_ms: Vec<f64>,
@@ -426,16 +419,16 @@ pub fn run(config: BenchConfig) -> Result<BenchReport, String> {
         database: config.database.name(),
         processes: config.processes,
         participants: config.participants,
-        ms: percentile(&response_ms, 0.50),
+        ms: nearest_rank(&response_ms, 0.50),
         seconds,
         responses: response_ms.len() as u64,
         responses_per_s: response_ms.len() as f64 / seconds,
-        response_p50_ms: percentile(&response_ms, 0.50),
-        response_p90_ms: percentile(&response_ms, 0.90),
-        response_p99_ms: percentile(&response_ms, 0.99),
+        response_p50_ms: nearest_rank(&response_ms, 0.50),
+        response_p90_ms: nearest_rank(&response_ms, 0.90),
+        response_p99_ms: nearest_rank(&response_ms, 0.99),
         response_max_ms: response_ms.last().copied().unwrap_or(0.0),
-        next_p50_ms: percentile(&next_ms, 0.50),
-        next_p99_ms: percentile(&next_ms, 0.99),
+        next_p50_ms: nearest_rank(&next_ms, 0.50),
+        next_p99_ms: nearest_rank(&next_ms, 0.99),
         joins: tally.joins,
         errors: tally.errors,
         exports: config.exports,

@@ -8,7 +8,7 @@
 //! schedule from a stored seed; [`prepared`] copies stimuli into the content-addressed store;
 //! [`storage`] is the database (migrations, the group-committing writer, reads); [`participant`]
 //! and [`admin`] are the two areas of the HTTP API, each with its own `router()`, and [`pages`]
-//! the HTML pages built on them; [`task`] the lab task studies (live renderer, WebSocket
+//! the HTML pages built on them; [`lab`] the lab runtime of task studies (live renderer, WebSocket
 //! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
 //! everything from a data directory; [`simulate`] plans a study by running its scheduler and
 //! analysis on simulated observers. [`app`] builds the router apart from any socket, so tests
@@ -18,7 +18,7 @@
 //! the path tracer, frame by the GPU renderer) into the store, only those that are missing;
 //! `serve` does so in the background once listening, and [`preparing`] tracks those studies
 //! (progress, estimate) until [`AppState::install`] serves them.
-//! Task studies run in the lab against the live renderer ([`task`]): `serve` starts them in the
+//! Task studies run in the lab against the live renderer ([`lab`]): `serve` starts them in the
 //! background once listening.
 
 // the live renderer's GPU types (wgpu-core's, through the renderer's pool of buffers and
@@ -27,12 +27,13 @@
 #![recursion_limit = "256"]
 
 pub mod admin;
-pub mod analysis;
 pub mod auth;
 pub mod connections;
 pub mod error;
 pub mod export;
+pub mod lab;
 pub mod limits;
+pub mod live_analysis;
 pub mod logs;
 pub mod pages;
 pub mod parse_errors;
@@ -45,7 +46,6 @@ pub mod simulate;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
-pub mod task;
 pub mod trial;
 
 use std::path::PathBuf;
@@ -82,8 +82,8 @@ struct StateInner {
     stimuli_dir: PathBuf,
     /// Participants' credentials by id, filled on first use (they never change).
     credentials: std::sync::Mutex<std::collections::HashMap<String, participant::Credentials>>,
-    /// The lab (task studies and the live renderer), once started (see [`task::start`]).
-    lab: std::sync::OnceLock<Arc<task::Lab>>,
+    /// The lab (task studies and the live renderer), once started (see [`lab::start`]).
+    lab: std::sync::OnceLock<Arc<lab::Lab>>,
     /// What one client address may do, and how much it has done.
     limits: limits::Limits,
     buckets: limits::Buckets,
@@ -230,12 +230,12 @@ impl AppState {
     }
 
     /// The lab, once it has started and serves at least one task study.
-    pub fn lab(&self) -> Option<Arc<task::Lab>> {
+    pub fn lab(&self) -> Option<Arc<lab::Lab>> {
         self.inner.lab.get().cloned()
     }
 
     /// Installs the started lab; false if one was installed before.
-    pub fn set_lab(&self, lab: task::Lab) -> bool {
+    pub fn set_lab(&self, lab: lab::Lab) -> bool {
         self.inner.lab.set(Arc::new(lab)).is_ok()
     }
 
@@ -311,7 +311,7 @@ pub fn app(state: AppState) -> Router {
         .merge(participant::router())
         .merge(admin::router())
         .merge(pages::router())
-        .merge(task::router())
+        .merge(lab::router())
         .merge(logs::router())
         .fallback(pages::not_found)
         .layer(DefaultBodyLimit::max(BODY_LIMIT_BYTES))

@@ -61,7 +61,7 @@ pub struct ServeConfig {
     pub connections: Connections,
     /// The lab's origins and sessions per address.
     #[command(flatten)]
-    pub lab: crate::task::LabConfig,
+    pub lab: crate::lab::LabConfig,
     /// How the log on stderr (one line per request, warnings and errors) is written: text or
     /// json (one object per line); `RUST_LOG` filters it (unset: info for mrstudy, warn for the
     /// rest).
@@ -121,7 +121,7 @@ impl Default for Connections {
             write_timeout: std::time::Duration::from_secs(20),
             max_connections: 4096,
             max_connections_per_address: 512,
-            lab_idle_timeout: crate::task::session::IDLE_TIMEOUT,
+            lab_idle_timeout: crate::lab::session::IDLE_TIMEOUT,
         }
     }
 }
@@ -532,7 +532,7 @@ pub async fn prepare_pending(
 /// Starts the lab for the task studies (the renderer thread, scenes, photographs, frame-time
 /// measurement) and installs it in `state`. Returns the lines to print: (information, warnings).
 pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path) -> (Vec<String>, Vec<String>) {
-    let start = crate::task::start(tasks, data_dir, state.storage()).await;
+    let start = crate::lab::start(tasks, data_dir, state.storage()).await;
     if let Some(lab) = start.lab {
         state.set_lab(lab);
     }
@@ -843,8 +843,8 @@ pub fn export(
                 left_out: export.left_out.sentence(HINT),
             }),
             ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| plain(definition.conditions_csv())),
-            ExportFormat::Task => return crate::task::results::task_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
-            ExportFormat::TaskTrials => return crate::task::results::trials_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
+            ExportFormat::Task => return crate::lab::results::task_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
+            ExportFormat::TaskTrials => return crate::lab::results::trials_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
         };
         output.map_err(|error| error.to_string())
     })
@@ -859,7 +859,7 @@ pub enum ExportFormat {
     Json,
     /// The conditions CSV of docs/design.md.
     Conditions,
-    /// A task study's long CSV for `mrstudy analyze` (see [`crate::task::results`]).
+    /// A task study's long CSV for `mrstudy analyze` (see [`crate::lab::results`]).
     Task,
     /// A task study's trials, one row per answered trial.
     TaskTrials,

@@ -403,14 +403,14 @@ async fn a_websocket_client_runs_distance_placement_and_contact_trials() {
     assert_eq!(answered, 6);
 
     // the task CSV is what the analysis reads
-    let csv = mrstudy_server::task::results::task_csv(&storage.read, "lab").await.unwrap();
+    let csv = mrstudy_server::lab::results::task_csv(&storage.read, "lab").await.unwrap();
     assert!(csv.starts_with("participant,task,measure,condition,value,trials,label\n"), "{csv}");
     let analysis = mrstudy_analysis::task::analyze_task_csv(&csv, "lab-task.csv").unwrap();
     assert_eq!(analysis.grouped_by, vec!["task", "measure"]);
     let labels: Vec<String> = analysis.measures.iter().map(|m| m.group.label()).collect();
     assert!(labels.contains(&"task distance, measure error_cm".to_string()), "{labels:?}");
     assert!(labels.contains(&"task contact, measure signed_error_cm".to_string()), "{labels:?}");
-    let trials = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
+    let trials = mrstudy_server::lab::results::trials_csv(&storage.read, "lab").await.unwrap();
     assert_eq!(trials.lines().count(), 7, "{trials}");
 }
 
@@ -608,7 +608,7 @@ async fn an_abandoned_participants_counterbalancing_slot_goes_to_the_next_partic
     refused(&mut socket, json!({"type": "resume", "participant": a, "token": token_a}), "given to another participant")
         .await;
     // the admin report says so
-    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    let report = mrstudy_server::lab::results::report(&state, "lab").await.unwrap();
     let states: Vec<(i64, bool)> = report.participants.iter().map(|p| (p.slot, p.abandoned)).collect();
     assert_eq!(states, vec![(0, true), (1, false), (0, false), (2, false)]);
 }
@@ -662,7 +662,7 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
             .fetch_one(&storage.read)
             .await
             .unwrap();
-    let kept = mrstudy_server::task::results::pace_kept(Some(rows[0].3), frames, late);
+    let kept = mrstudy_server::lab::results::pace_kept(Some(rows[0].3), frames, late);
     eprintln!("frames {frames}, late {late}: pace kept {kept:?}");
     assert!(
         slowest / fastest - 1.0 < PACE_PARITY || kept == Some(false),
@@ -673,7 +673,7 @@ async fn with_pace_equal_every_conditions_frames_reach_the_participant_after_the
         assert!(row.1 >= row.2, "a frame is never sent before it is rendered: {row:?}");
         assert!(row.1 >= 0.95 * row.3, "every frame is held to about the pace: {row:?}");
     }
-    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    let report = mrstudy_server::lab::results::report(&state, "lab").await.unwrap();
     assert!(report.pace_ms.is_some() && report.frame_times.len() == 2);
 }
 
@@ -1083,7 +1083,7 @@ async fn a_participants_pace_is_fixed_at_the_start_and_late_frames_are_flagged_o
             .await
             .unwrap();
     assert!(row.0 >= 1 && row.1 == row.0, "every frame of the late participant is late: {row:?}");
-    let csv = mrstudy_server::task::results::trials_csv(&storage.read, "lab").await.unwrap();
+    let csv = mrstudy_server::lab::results::trials_csv(&storage.read, "lab").await.unwrap();
     let late_rows: Vec<&str> = csv.lines().filter(|line| line.starts_with(late.as_str())).collect();
     assert!(!late_rows.is_empty() && late_rows.iter().all(|line| line.ends_with(",false,false,false")), "{csv}");
     let header = csv.lines().next().unwrap();
@@ -1106,7 +1106,7 @@ async fn a_participants_pace_is_fixed_at_the_start_and_late_frames_are_flagged_o
     )
     .await;
     assert_eq!(answer.status, 200, "{}", answer.text());
-    let report = mrstudy_server::task::results::report(&state, "lab").await.unwrap();
+    let report = mrstudy_server::lab::results::report(&state, "lab").await.unwrap();
     let counts = serde_json::to_value(&report.counts).unwrap();
     assert_eq!(counts["started"], 2, "steady and late: {counts}");
     assert_eq!(counts["finished"], 1, "{counts}");

@@ -4,6 +4,7 @@
 use std::cmp::Ordering;
 
 use super::ConditionSummary;
+use crate::quantile::type7;
 
 /// Descriptives of one condition's values (at least one value).
 pub(super) fn describe(condition: &str, values: &[f64], mean_rank: Option<f64>) -> ConditionSummary {
@@ -15,9 +16,9 @@ pub(super) fn describe(condition: &str, values: &[f64], mean_rank: Option<f64>) 
         n: values.len(),
         mean,
         sd: sample_sd(values, mean),
-        median: quantile_type7(&sorted, 0.5),
-        q1: quantile_type7(&sorted, 0.25),
-        q3: quantile_type7(&sorted, 0.75),
+        median: type7(&sorted, 0.5),
+        q1: type7(&sorted, 0.25),
+        q3: type7(&sorted, 0.75),
         min: sorted.first().copied().unwrap_or(0.0),
         max: sorted.last().copied().unwrap_or(0.0),
         mean_rank,
@@ -48,26 +49,6 @@ fn sample_sd(values: &[f64], mean: f64) -> Option<f64> {
     let scaled_mean = scaled.iter().sum::<f64>() / values.len() as f64;
     let scaled_sd = (scaled.iter().map(|value| (value - scaled_mean).powi(2)).sum::<f64>() / denominator).sqrt();
     Some(scaled_sd * scale).filter(|sd| sd.is_finite())
-}
-
-/// Quantile of sorted values as R's `quantile(x, prob, type = 7)`: linear interpolation between
-/// order statistics at (n − 1)·prob, written as R writes it.
-pub fn quantile_type7(sorted: &[f64], prob: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let index = (sorted.len() - 1) as f64 * prob;
-    let lo = index.floor();
-    let hi = index.ceil() as usize;
-    let low_value = sorted[lo as usize];
-    let high_value = sorted[hi.min(sorted.len() - 1)];
-    if index > lo && high_value != low_value {
-        let h = index - lo;
-        // A convex combination: it cannot overflow.
-        (1.0 - h) * low_value + h * high_value
-    } else {
-        low_value
-    }
 }
 
 pub(super) fn compare(a: &f64, b: &f64) -> Ordering {

@@ -45,7 +45,6 @@ mod report;
 #[cfg(test)]
 mod tests;
 
-pub use descriptives::quantile_type7;
 pub use friedman::{average_ranks, friedman_test};
 pub use posthoc::{holm_adjust, wilcoxon_signed_rank_paired};
 pub use report::render_table;

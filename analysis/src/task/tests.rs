@@ -124,17 +124,6 @@ fn holm_keeps_tiny_p_exact() {
 }
 
 #[test]
-fn quantile_type7_matches_r_4_2_2() {
-    // R: quantile(c(1, 2, 4, 7, 11), c(.25, .5, .75), type = 7) = 2, 4, 7;
-    //    quantile(c(1, 2, 4, 7), c(.25, .75)) = 1.75, 4.75.
-    assert_eq!(quantile_type7(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.25), 2.0);
-    assert_eq!(quantile_type7(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.5), 4.0);
-    assert_eq!(quantile_type7(&[1.0, 2.0, 4.0, 7.0], 0.25), 1.75);
-    assert_eq!(quantile_type7(&[1.0, 2.0, 4.0, 7.0], 0.75), 4.75);
-    assert_eq!(quantile_type7(&[3.0], 0.75), 3.0);
-}
-
-#[test]
 fn pipeline_matches_r_4_2_2_per_measure() {
     let reference = json(PIPELINE);
     let csv = reference["csv"].as_str().expect("csv text");

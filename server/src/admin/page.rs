@@ -70,7 +70,7 @@ impl AdminPage {
         let busy = preparing.iter().any(|row| !row.failed) || !lab_starting.is_empty();
         AdminPage {
             studies,
-            lab: crate::task::results::overview(state),
+            lab: crate::lab::results::overview(state),
             preparing,
             lab_starting,
             refresh: busy.then_some(10),

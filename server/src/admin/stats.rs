@@ -53,15 +53,6 @@ pub struct StudyStats {
     pub excluded_finished: i64,
 }
 
-pub(super) fn median(mut values: Vec<f64>) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let middle = values.len() / 2;
-    Some(if values.len() % 2 == 1 { values[middle] } else { (values[middle - 1] + values[middle]) / 2.0 })
-}
-
 /// A study's progress. Pilots (preview links) and excluded participants are counted apart, as
 /// the analysis and the exports leave them out: a participant both pilot and excluded counts as
 /// a pilot.
@@ -121,8 +112,8 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         reached,
         stopped_after,
         responses,
-        median_rt_ms: median(rts),
-        median_total_s: median(totals),
+        median_rt_ms: mrstudy_analysis::quantile::median(rts),
+        median_total_s: mrstudy_analysis::quantile::median(totals),
         catch_responses: catch.responses,
         catch_failures: catch.failures,
         participants_failing_catch: catch.failing,
@@ -187,7 +178,7 @@ pub async fn analysis_json(
     let served = state.study(slug);
     let stimuli = served.and_then(|study| study.stimulus_metrics.as_ref()).filter(|_| metrics == Metrics::Set);
     let mut analysis =
-        crate::analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
+        crate::live_analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
             match (error, &left_out) {
                 (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
                     "{}; {}",
@@ -227,7 +218,7 @@ pub(super) async fn worth_svg(
     let pool = &state.storage().admin;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
-    Ok(svg_response(crate::analysis::worth_svg(&trials.content, &definition, include)?))
+    Ok(svg_response(crate::live_analysis::worth_svg(&trials.content, &definition, include)?))
 }
 
 /// The scatter plot of the image metric that predicts preference best.
@@ -244,7 +235,7 @@ pub(super) async fn metric_svg(
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
     })?;
     let trials = export::trials_csv(&state.storage().admin, &slug, include).await?;
-    Ok(svg_response(crate::analysis::best_metric_svg(&trials.content, include, stimuli)?))
+    Ok(svg_response(crate::live_analysis::best_metric_svg(&trials.content, include, stimuli)?))
 }
 
 pub(super) fn svg_response(svg: String) -> Response {

@@ -108,7 +108,7 @@ pub(super) fn run_once(
 
 /// The conditions table of the study for the analysis (none without factors).
 pub(super) fn condition_table(study: &Study) -> Option<ConditionTable> {
-    (!study.factors.is_empty()).then(|| crate::analysis::condition_table(study))
+    (!study.factors.is_empty()).then(|| crate::live_analysis::condition_table(study))
 }
 
 /// Runs the simulation; `progress(done, total)` is called after each run, from any thread.

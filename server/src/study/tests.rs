@@ -276,7 +276,7 @@ fn named_gi_levels_are_coded_against_off_and_resolve_to_their_methods() {
     assert_eq!(factors[1].label(), "none");
     assert_eq!(factors[2].label(), "gi+ca");
     // the analysis reads the same columns
-    let table = crate::analysis::condition_table(&study);
+    let table = crate::live_analysis::condition_table(&study);
     assert_eq!(table.factors, study.design_columns());
     // a file's own order chooses the reference level; a quality suffix becomes `_` in the column
     let ordered = named_gi()

@@ -60,12 +60,7 @@ pub struct FrameTimes {
 fn quantile<'a>(values: impl IntoIterator<Item = &'a f64>, q: f64) -> f64 {
     let mut sorted: Vec<f64> = values.into_iter().copied().collect();
     sorted.sort_by(f64::total_cmp);
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    // nearest rank
-    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
-    sorted[rank - 1]
+    mrstudy_analysis::quantile::nearest_rank(&sorted, q)
 }
 
 impl FrameTimes {
