@@ -526,3 +526,50 @@ fn no_source_file_is_over_900_lines() {
         .collect();
     assert!(long.is_empty(), "files over {LIMIT} lines (split them by concept):\n{}", long.join("\n"));
 }
+
+/// Every public function has a caller outside tests: its name appears again in the non-test code
+/// of some crate (an inline `mod tests` and test-only files left out) or in a template, or it is
+/// listed below with the reason it stays.
+#[test]
+fn every_public_function_has_a_caller_outside_tests() {
+    const UNCALLED: &[(&str, &str)] = &[
+        ("judgment_log", "analysis/examples/active.rs prints it"),
+        // issue 51: the renderer's helper decides on these GPU read-backs (tests and debugging)
+        ("has_gpu_timer", "renderer: its GPU tests ask it"),
+        ("read_texture_rgba32", "renderer: a debugging read-back"),
+        ("read_indirect", "renderer: gpu::invariants reads the indirect buffer"),
+    ];
+    let mut code = String::new();
+    let mut definitions = Vec::new();
+    for path in sources().into_iter().filter(|path| !test_only(path)) {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = non_test_code(&text);
+        for line in text.lines() {
+            let trimmed = line.trim_start();
+            for prefix in ["pub fn ", "pub async fn ", "pub const fn "] {
+                if let Some(rest) = trimmed.strip_prefix(prefix) {
+                    let name: String = rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+                    definitions.push((name, relative(&path)));
+                }
+            }
+        }
+        code.push_str(text);
+        code.push('\n');
+    }
+    for entry in std::fs::read_dir(root().join("web/templates")).unwrap() {
+        code.push_str(&std::fs::read_to_string(entry.unwrap().path()).unwrap_or_default());
+    }
+    let word = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    let uncalled: Vec<String> = definitions
+        .into_iter()
+        .filter(|(name, _)| {
+            let uses = code
+                .match_indices(name.as_str())
+                .filter(|(at, _)| !code[..*at].ends_with(word) && !code[at + name.len()..].starts_with(word))
+                .count();
+            uses < 2 && !UNCALLED.iter().any(|(listed, _)| listed == name)
+        })
+        .map(|(name, file)| format!("{file}: {name}"))
+        .collect();
+    assert!(uncalled.is_empty(), "public functions without a caller outside tests:\n{}", uncalled.join("\n"));
+}
