@@ -1,8 +1,9 @@
 //! Tidy checks of the source tree (as rust-analyzer's `tidy` test): every Rust module opens
 //! with a `//!` doc saying what it holds, and every crate and module appears in
 //! ARCHITECTURE.md's code map, so the map cannot drift from the tree; no crate has a cycle
-//! between its modules at any depth, and no source file is over 900 lines. (The WGSL shaders are
-//! found by walking their folder and validated by naga in `mrstudy-renderer`'s
+//! between its modules at any depth, no source file is over 900 lines, and every public
+//! function has a caller outside tests. (The WGSL shaders are found by walking their folder
+//! and validated by naga in `mrstudy-renderer`'s
 //! `gpu::tests::every_shader_parses_and_validates_with_naga`.)
 
 use std::path::{Path, PathBuf};
