@@ -135,11 +135,6 @@ impl ParticipantTallies {
         &self.pairs[start..end]
     }
 
-    /// Whether participant `p` made any judgment (has any row).
-    pub fn is_present(&self, participant: usize) -> bool {
-        self.present[participant]
-    }
-
     /// The participants with any judgment, in index order.
     pub fn present(&self) -> Vec<usize> {
         (0..self.present.len()).filter(|&p| self.present[p]).collect()

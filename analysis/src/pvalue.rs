@@ -66,11 +66,6 @@ impl PValue {
         PValue::from_ln(std::f64::consts::LN_2 + ln_normal_upper(z.abs()))
     }
 
-    /// One-sided lower-tail p-value of a standard-normal statistic: P(Z ≤ z).
-    pub fn normal_lower(z: f64) -> PValue {
-        PValue::from_ln(ln_normal_upper(-z))
-    }
-
     /// Upper-tail p-value of a χ² statistic with `df` degrees of freedom: P(X ≥ x).
     pub fn chi2_upper(x: f64, df: f64) -> PValue {
         PValue::from_ln(ln_chi2_upper(x, df))

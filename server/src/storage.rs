@@ -727,13 +727,12 @@ pub fn preview_cutoff(now: std::time::SystemTime) -> String {
 }
 
 impl Storage {
-    /// After a deletion ([`Storage::delete`]): rewrites the database and truncates the WAL, so
-    /// that none of the deleted rows' bytes remain in the database's files. `secure_delete` zeroes
-    /// the freed cells in the new page versions; `VACUUM` rewrites every page, which also drops
-    /// copies of keys that b-tree interior pages may keep after their row is gone (the
-    /// `WITHOUT ROWID` tables `trials` and `responses` keep whole rows there, the external-id
-    /// index the external id); the truncating checkpoint copies the new pages over the old ones
-    /// in the main file and empties the WAL, which still held the old versions.
+    /// After a deletion ([`Storage::delete`]): rewrites the database and truncates the WAL so that
+    /// no deleted row's bytes remain in its files. `secure_delete` zeroes the freed cells in the
+    /// new page versions; `VACUUM` rewrites every page, which also drops copies of keys that
+    /// b-tree interior pages may keep after their row is gone (the `WITHOUT ROWID` tables
+    /// `trials` and `responses` keep whole rows there, the external-id index the external id);
+    /// the truncating checkpoint copies the new pages over the old ones and empties the WAL.
     ///
     /// Both run on the writer's only connection, between its batches, never beside them: a
     /// checkpoint on another connection takes sqlite's write lock, and a batch that already

@@ -14,12 +14,6 @@ pub struct ConditionTable {
     pub levels: Vec<Vec<f64>>,
 }
 
-impl ConditionTable {
-    pub fn index_of(&self, condition: &str) -> Option<usize> {
-        self.conditions.iter().position(|c| c == condition)
-    }
-}
-
 /// Parses a conditions CSV. The first column is the condition name; every further column is a
 /// factor with numeric levels.
 pub fn parse_conditions(text: &str, source_name: &str) -> Result<ConditionTable> {

@@ -70,13 +70,6 @@ pub struct PlannedTaskTrial {
     pub target: [f64; 3],
 }
 
-impl PlannedTaskTrial {
-    /// `distance`: the true centre-to-centre distance in cm.
-    pub fn true_distance_cm(&self, layout: &Layout) -> f64 {
-        (DVec3::from(self.start) - DVec3::from(layout.real_centre)).length() * 100.0
-    }
-}
-
 /// The condition order (indices into the study's conditions) of the participant in this
 /// counterbalancing slot (the participant's `slot`, see [`super::store`]).
 pub fn condition_order(study: &TaskStudy, slot: u64) -> Vec<usize> {

@@ -93,11 +93,6 @@ impl TaskKind {
         }
     }
 
-    /// Whether the participant moves the cube with keys in this task.
-    pub fn uses_keys(self) -> bool {
-        !matches!(self, TaskKind::Distance)
-    }
-
     /// The axes along which targets vary, so along which per-axis errors are measured.
     pub fn axes(self) -> &'static [char] {
         match self {
