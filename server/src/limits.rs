@@ -139,11 +139,6 @@ impl Buckets {
         }
     }
 
-    /// Whether the buckets are the database's (shared by processes) rather than this process's.
-    pub fn are_shared(&self) -> bool {
-        self.shared.is_some()
-    }
-
     /// Takes a token from the bucket of `key`; when it is empty, how long until it has one.
     async fn take(&self, which: Which, key: &[u8], rate: Rate, now: Instant) -> Result<(), Duration> {
         if let Some(shared) = &self.shared {
