@@ -17,6 +17,9 @@ pub mod survey;
 pub mod task;
 #[cfg(test)]
 mod tests;
+pub mod threshold;
+#[cfg(test)]
+pub(crate) mod threshold_tests;
 
 pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
@@ -26,6 +29,7 @@ pub use survey::{
     StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
 };
 pub use task::TaskStudy;
+pub use threshold::ThresholdDesign;
 
 /// Why a study file was refused: the file, the key (a dotted path such as `design.pairs`) and
 /// what was expected there.
@@ -110,6 +114,9 @@ pub fn load_any(file: &Path) -> Result<LoadedStudy, StudyError> {
     })?;
     if table.get("kind").and_then(|kind| kind.as_str()) == Some("task") {
         return task::parse(&text, file, base, sha256_hex(&bytes)).map(LoadedStudy::Task);
+    }
+    if table.get("kind").and_then(|kind| kind.as_str()) == Some("threshold") {
+        return threshold::parse(table, file, base, sha256_hex(&bytes)).map(LoadedStudy::Survey);
     }
     let raw: survey::StudyFile = toml::from_str(&text).map_err(|error| StudyError {
         file: file.to_path_buf(),
