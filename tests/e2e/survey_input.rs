@@ -524,3 +524,51 @@ fn an_answer_refused_with_429_is_sent_again_after_retry_after_and_stored_once() 
         "the notice is gone"
     );
 }
+
+/// Issue 49, item 3: in a study with `allow_tie = true` the page offers "Not sure" under the
+/// pair; its button and ↓ (held: one answer) store `tie`, an image still stores its side; the
+/// forced-choice demo has no such button, and ↓ answers nothing there.
+#[test]
+fn not_sure_is_answered_by_its_button_or_the_down_arrow_only_where_the_study_allows_it() {
+    if !browser_available() {
+        return;
+    }
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    demo_with(studies.path(), "allow_tie = true");
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &server.base, "");
+    driver.click("#start");
+    // each press after the answer lock (500 ms) and `min_response_ms` (300 ms) have passed
+    let past_the_lock = || std::thread::sleep(Duration::from_millis(700));
+    ready(&driver, "1");
+    past_the_lock();
+    driver.screenshot(&screenshot_path("survey-not-sure-desktop.png"));
+    driver.click("#choose-tie");
+    ready(&driver, "2");
+    past_the_lock();
+    hold_key(&driver, "ArrowDown", 40, Duration::from_millis(600));
+    ready(&driver, "3");
+    past_the_lock();
+    driver.click("#choose-left");
+    driver.wait_trial("4");
+    std::thread::sleep(Duration::from_millis(600));
+    let stored = query(data_dir.path(), "SELECT trial, chosen FROM responses ORDER BY trial");
+    let expected = [("1", "tie"), ("2", "tie"), ("3", "left")];
+    assert_eq!(stored, expected.map(|(trial, chosen)| vec![trial.to_string(), chosen.to_string()]).to_vec());
+
+    // the forced-choice demo: no button, and ↓ is no answer
+    let forced_dir = tempfile::tempdir().unwrap();
+    let forced = Server::start(forced_dir.path(), "127.0.0.1:0");
+    let driver = Driver::start(1280, 800);
+    enter(&driver, &forced.base, "");
+    driver.click("#start");
+    ready(&driver, "1");
+    past_the_lock();
+    assert_eq!(driver.script("return document.getElementById('choose-tie') === null;"), json!(true));
+    key(&driver, "keyDown", "ArrowDown", 40, false);
+    key(&driver, "keyUp", "ArrowDown", 40, false);
+    std::thread::sleep(Duration::from_millis(800));
+    assert_eq!(answered(forced_dir.path()), 0, "↓ answered a forced-choice trial");
+}
