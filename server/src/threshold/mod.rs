@@ -21,8 +21,8 @@
 
 use mrstudy_analysis::stimulus_metrics::{Metric, Region, StimulusMetrics};
 
-// mod next;
-// pub use next::{next_level, next_trial, quest_config};
+mod next;
+pub use next::{domain, next_level, next_trial, quest_config};
 
 use crate::schedule::{self, PlannedTrial};
 use crate::study::threshold::{Intensity, ThresholdDesign};
@@ -109,22 +109,6 @@ pub fn csv_cells(design: &ThresholdDesign, left: &str, right: &str, chosen: &str
         design.scale.name().to_string(),
         crate::study::format_number(design.guess),
     ]
-}
-
-/// QUEST+'s stimulus values: each level's x on the study's scale.
-pub fn xs(design: &ThresholdDesign, intensities: &[f64]) -> Result<Vec<f64>, String> {
-    intensities
-        .iter()
-        .zip(&design.levels)
-        .map(|(&intensity, value)| {
-            design.scale.x(intensity).ok_or_else(|| {
-                format!(
-                    "level {value} has intensity {intensity}, which has no value on scale \"{}\"",
-                    design.scale.name()
-                )
-            })
-        })
-        .collect()
 }
 
 #[cfg(test)]
