@@ -99,7 +99,8 @@ pub fn csv_cells(design: &ThresholdDesign, left: &str, right: &str, chosen: &str
     let x = intensity.and_then(|intensity| design.scale.x(intensity));
     let number = |value: Option<f64>| value.map(crate::study::format_number).unwrap_or_default();
     vec![
-        crate::export::text_cell(scene),
+        // a scene configuration's name never starts like a spreadsheet formula (`is_condition_name`)
+        scene.to_string(),
         design.knob.name().to_string(),
         level.map(|level| design.levels[level].to_string()).unwrap_or_default(),
         number(intensity),
