@@ -48,3 +48,5 @@ mod survey_page;
 mod survey_polish;
 #[path = "e2e/survey_return.rs"]
 mod survey_return;
+#[path = "e2e/threshold.rs"]
+mod threshold;

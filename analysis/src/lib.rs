@@ -38,6 +38,7 @@ pub mod screening;
 pub mod stimulus_metrics;
 pub mod table;
 pub mod task;
+pub mod threshold;
 
 pub use analysis::{Analysis, Options, analyze};
 pub use error::{AnalysisError, Result};

@@ -47,6 +47,7 @@ pub mod error;
 pub mod geometry;
 pub mod gpu;
 pub mod image;
+pub mod knob;
 pub mod light;
 pub mod material;
 pub mod math;

@@ -34,6 +34,7 @@ use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::{RenderError, Result};
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
 use crate::image::Image;
+use crate::knob::{Knob, KnobSetting};
 use crate::reference::{ReferenceOutput, ReferenceParams, RenderStats, render_photo};
 use crate::scene::Scene;
 use serde::Serialize;
@@ -249,15 +250,30 @@ pub struct StimulusSettings {
     pub spp: u32,
     pub seed: u64,
     pub vpls: u32,
+    /// A threshold study's level: one knob of the GPU or the path tracer at one value
+    /// ([`crate::knob`]); `None` for every other stimulus (and absent from its fingerprint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub knob: Option<KnobSetting>,
 }
 
 impl Default for StimulusSettings {
     fn default() -> Self {
-        StimulusSettings { width: 1024, height: 768, spp: 64, seed: 1, vpls: 256 }
+        StimulusSettings { width: 1024, height: 768, spp: 64, seed: 1, vpls: 256, knob: None }
     }
 }
 
 impl StimulusSettings {
+    /// These settings at one level of a threshold study: the `vpls` knob sets the VPL budget
+    /// itself (so the stimulus is the one any study with that budget renders), every other
+    /// knob is kept as [`StimulusSettings::knob`]; `None` leaves the settings as they are.
+    pub fn with_knob(&self, knob: Option<KnobSetting>) -> StimulusSettings {
+        match knob {
+            None => self.clone(),
+            Some(KnobSetting { knob: Knob::Vpls, value }) => StimulusSettings { vpls: value, ..self.clone() },
+            Some(setting) => StimulusSettings { knob: Some(setting), ..self.clone() },
+        }
+    }
+
     /// The scene at the stimulus size.
     pub fn sized(&self, scene: Scene) -> Scene {
         if scene.camera.width == self.width && scene.camera.height == self.height {
@@ -278,8 +294,10 @@ impl StimulusSettings {
         if factors.coherent.is_some() {
             specular.push_str(&format!("coherent v{COHERENT_VERSION}\n"));
         }
+        // a knob's line only where one is set, so every other stimulus keeps its fingerprint
+        let knob = self.knob.map(|setting| format!("knob {} {}\n", setting.knob, setting.value)).unwrap_or_default();
         format!(
-            "mrstudy stimulus v{STIMULUS_VERSION}\n{specular}size {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{}",
+            "mrstudy stimulus v{STIMULUS_VERSION}\n{specular}size {}x{}\nspp {}\nseed {}\nvpls {}\nfactors {}\n{knob}{}",
             self.width,
             self.height,
             self.spp,
@@ -346,6 +364,9 @@ impl StimulusSettings {
         if !factors.caustics {
             params.specular.caustic_map_size = 0;
         }
+        if let Some(knob) = self.knob {
+            knob.apply(&mut params);
+        }
         params
     }
 
@@ -368,6 +389,9 @@ impl StimulusSettings {
         factors: &Factors,
         captured: &mut Option<CapturedScene>,
     ) -> Result<StimulusFrame> {
+        if let Some(KnobSetting { knob: Knob::Spp, value }) = self.knob {
+            return self.path_traced_stimulus(scene, value);
+        }
         match factors.coherent {
             None => {
                 let frame = self.render(renderer, scene, photo, factors)?;
@@ -398,6 +422,23 @@ impl StimulusSettings {
                 })
             }
         }
+    }
+}
+
+impl StimulusSettings {
+    /// The `spp` knob's stimulus: the whole scene (real and virtual objects) path-traced at
+    /// `spp` samples per pixel through the same simulated camera as the ground truth (the same
+    /// sensor noise), with the path tracer's own random numbers drawn from another seed than
+    /// the ground truth's, so that only the sampling noise of fewer samples differs.
+    fn path_traced_stimulus(&self, scene: &Scene, spp: u32) -> Result<StimulusFrame> {
+        let seed = self.seed ^ 0x9E37_79B9_7F4A_7C15;
+        let params = ReferenceParams { spp, seed, ..ReferenceParams::default() };
+        let output = crate::reference::render_reference(scene, &params, &|_, _| {})?;
+        Ok(StimulusFrame {
+            composite: output.ground_truth,
+            ms: output.stats.seconds * 1000.0,
+            adapter: "CPU path tracer".into(),
+        })
     }
 }
 

@@ -300,6 +300,9 @@ fn write_trial_rows(
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = crate::study::TRIALS_CSV_COLUMNS.iter().map(|column| column.to_string()).collect();
     let url_columns = url_param_columns(definition, kept.values());
+    if definition.threshold.is_some() {
+        header.extend(crate::study::threshold::CSV_COLUMNS.iter().map(|column| column.to_string()));
+    }
     header.extend(url_columns.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
@@ -354,6 +357,10 @@ fn write_trial_rows(
             true_false(record.excluded),
             true_false(row.try_get::<Option<i64>, _>("too_fast")?.unwrap_or(0) == 1),
         ];
+        if let Some(design) = &definition.threshold {
+            let scene: String = row.try_get("left_scene")?;
+            record_cells.extend(crate::threshold::csv_cells(design, &left, &right, &chosen, &scene));
+        }
         for name in &url_columns {
             record_cells.push(value_cell(record.external_ids.get(name)));
         }

@@ -46,6 +46,7 @@ pub mod simulate;
 pub mod stimuli;
 pub mod storage;
 pub mod study;
+pub mod threshold;
 pub mod trial;
 
 use std::path::PathBuf;

@@ -30,6 +30,9 @@ pub enum PrepareError {
         "study \"{slug}\" ({file}) is a task study, which runs in the lab against the live renderer, not in the web survey"
     )]
     TaskStudy { slug: String, file: PathBuf },
+    /// A threshold study's levels have no usable intensities (`crate::threshold::prepare`).
+    #[error("study \"{slug}\": {reason}")]
+    Threshold { slug: String, reason: String },
     #[error("cannot copy stimulus {path} into {store}: {source}")]
     Io { path: PathBuf, store: PathBuf, source: std::io::Error },
 }
@@ -175,6 +178,9 @@ impl PreparedStudy {
                 }
                 None => None,
             };
+        let mut study = study;
+        crate::threshold::prepare(&mut study, stimulus_metrics.as_ref())
+            .map_err(|reason| PrepareError::Threshold { slug: study.slug.clone(), reason })?;
         Ok(PreparedStudy {
             study,
             stimuli,

@@ -117,6 +117,11 @@ impl Stream {
 
 /// The schedule of one participant.
 pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
+    if study.threshold.is_some() {
+        // a threshold study plans nothing at join: each trial is chosen when it is reached
+        // (`crate::threshold`)
+        return Vec::new();
+    }
     if study.design.reference.is_some() {
         return plan_detection(study, seed);
     }

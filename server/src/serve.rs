@@ -412,7 +412,8 @@ pub async fn load(
             Err(
                 error @ (PrepareError::NeedsRendering { .. }
                 | PrepareError::TaskStudy { .. }
-                | PrepareError::Stimuli(_)),
+                | PrepareError::Stimuli(_)
+                | PrepareError::Threshold { .. }),
             ) => {
                 skipped.push(format!("{error}; not serving it"));
             }

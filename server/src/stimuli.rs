@@ -78,6 +78,16 @@ pub struct PlannedStimulus {
     pub key: String,
     /// The sensor-noise realisation (0: the scene's own noise seed).
     pub realisation: usize,
+    /// A threshold study's level: the knob value the stimulus is rendered with
+    /// ([`crate::study::Condition::knob`]).
+    pub knob: Option<mrstudy_renderer::knob::KnobSetting>,
+}
+
+impl PlannedStimulus {
+    /// The render settings of this stimulus: the plan's, with its knob set.
+    pub fn settings(&self, plan: &StimulusPlan) -> StimulusSettings {
+        plan.settings.with_knob(self.knob)
+    }
 }
 
 impl PlannedStimulus {
@@ -239,8 +249,9 @@ impl StimulusPlan {
                         scene: scene.name.clone(),
                         condition: condition.name.clone(),
                         factors,
-                        key: sha256_hex(settings.fingerprint(loaded, &factors).as_bytes()),
+                        key: sha256_hex(settings.with_knob(condition.knob).fingerprint(loaded, &factors).as_bytes()),
                         realisation,
+                        knob: condition.knob,
                     });
                 }
                 Ok::<_, StimuliError>(stimuli)
@@ -408,6 +419,7 @@ pub fn settings(study: &Study) -> StimulusSettings {
             spp: render.spp.unwrap_or(defaults.spp),
             seed: render.seed.unwrap_or(defaults.seed),
             vpls: render.vpls.unwrap_or(defaults.vpls),
+            knob: None,
         },
         None => defaults,
     }
@@ -560,8 +572,8 @@ pub fn render_missing_shard(
                     });
                     continue;
                 }
-                let frame = plan
-                    .settings
+                let frame = stimulus
+                    .settings(plan)
                     .render_stimulus(&renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
                     .map_err(render_error)?;
                 let (name, shown) = match stored {
@@ -583,7 +595,7 @@ pub fn render_missing_shard(
                         stimulus: name,
                         ground_truth: ground_truth_name.clone(),
                         factors: stimulus.factors.label(),
-                        settings: plan.settings.clone(),
+                        settings: stimulus.settings(plan),
                         render_ms: frame.ms,
                         adapter: frame.adapter.clone(),
                         reference_seconds: reference.stats.seconds,

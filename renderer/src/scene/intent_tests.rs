@@ -104,7 +104,7 @@ fn removing_any_builtin_light_darkens_the_region_it_is_meant_to_light() {
 
 /// The HQ stimuli's size and the photograph's samples in [`hq_stimulus_agrees_with_the_ground_truth_in_each_survey_scene`].
 const HQ_TEST_SETTINGS: crate::stimulus::StimulusSettings =
-    crate::stimulus::StimulusSettings { width: 160, height: 120, spp: 16, seed: 1, vpls: 256 };
+    crate::stimulus::StimulusSettings { width: 160, height: 120, spp: 16, seed: 1, vpls: 256, knob: None };
 
 /// Per survey scene, the bound on the mean FLIP of the HQ stimulus (gi, cm, ca) against the
 /// ground truth in the affected region, at [`HQ_TEST_SETTINGS`]: the value measured on lavapipe

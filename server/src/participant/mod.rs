@@ -8,6 +8,7 @@
 
 pub mod active;
 pub mod store;
+pub mod threshold;
 
 use axum::Router;
 use axum::extract::{Path, State};
@@ -632,6 +633,11 @@ async fn next_trial(
     if trials.first().is_none_or(|trial| trial.trial != number) && prepared.study.design.active.is_some() {
         // an active design: the next batch is chosen now, from every judgment so far
         active::extend(&state, prepared, &participant.id).await?;
+        trials =
+            state.storage().participant_with_next(&participant.id).await?.map(|(_, trials)| trials).unwrap_or_default();
+    } else if trials.first().is_none_or(|trial| trial.trial != number) && prepared.study.threshold.is_some() {
+        // a threshold study: the next level is chosen now, from the participant's own answers
+        threshold::extend(&state, prepared, &participant.id).await?;
         trials =
             state.storage().participant_with_next(&participant.id).await?.map(|(_, trials)| trials).unwrap_or_default();
     }

@@ -17,6 +17,9 @@ pub mod survey;
 pub mod task;
 #[cfg(test)]
 mod tests;
+pub mod threshold;
+#[cfg(test)]
+pub(crate) mod threshold_tests;
 
 pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
@@ -26,6 +29,7 @@ pub use survey::{
     SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
 };
 pub use task::TaskStudy;
+pub use threshold::ThresholdDesign;
 
 /// Why a study file was refused: the file, the key (a dotted path such as `design.pairs`) and
 /// what was expected there.
@@ -112,6 +116,7 @@ pub fn load_any(file: &Path) -> Result<LoadedStudy, StudyError> {
     let file_sha256 = sha256_hex(&bytes);
     match table.get("kind").and_then(|kind| kind.as_str()) {
         Some("task") => task::parse(&text, file, base, file_sha256).map(LoadedStudy::Task),
+        Some("threshold") => threshold::parse(table, file, base, file_sha256).map(LoadedStudy::Survey),
         _ => survey::parse(&text, file, base, file_sha256).map(LoadedStudy::Survey),
     }
 }

@@ -96,6 +96,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         participation,
         file: file.to_path_buf(),
         file_sha256,
+        threshold: None,
     })
 }
 
@@ -249,7 +250,7 @@ fn check_conditions(fail: Fail, factors: &mut [Factor], raw: &[ConditionFile]) -
         let resolved = Factors::from_study_levels(
             factors.iter().map(|factor| (factor.name.as_str(), &condition.levels[&factor.name])),
         );
-        conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved });
+        conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved, knob: None });
     }
     let columns: Vec<String> = factors.iter().flat_map(Factor::columns).collect();
     if let Some(column) = columns.iter().enumerate().find(|(k, column)| columns[..*k].contains(column)).map(|(_, c)| c)

@@ -16,6 +16,9 @@ pub enum StudyKind {
     PairedComparison,
     /// Timed task trials in the lab against the live renderer (not served by the web survey).
     Task,
+    /// How much of a rendering knob is enough: each trial a level beside the ground truth, the
+    /// level chosen by QUEST+ (`crate::study::threshold`).
+    Threshold,
 }
 
 impl StudyKind {
@@ -23,6 +26,7 @@ impl StudyKind {
         match self {
             StudyKind::PairedComparison => "paired-comparison",
             StudyKind::Task => "task",
+            StudyKind::Threshold => "threshold",
         }
     }
 }
@@ -225,6 +229,9 @@ pub struct Condition {
     /// the database has none.
     #[serde(skip, default = "unresolved")]
     pub factors: Result<Factors, String>,
+    /// A threshold study's level: the knob value its stimuli are rendered with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub knob: Option<mrstudy_renderer::knob::KnobSetting>,
 }
 
 fn unresolved() -> Result<Factors, String> {
@@ -440,12 +447,19 @@ pub struct Study {
     pub file: PathBuf,
     /// SHA-256 of the file's bytes, hex; stored with each participant.
     pub file_sha256: String,
+    /// `kind = "threshold"`: the `[threshold]` table; the conditions are its levels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<crate::study::threshold::ThresholdDesign>,
 }
 
 impl Study {
     /// Trials per participant: pairs × repetitions (for an active design: its warm-up and its
     /// actively chosen trials), plus the catch trials.
     pub fn trial_count(&self) -> usize {
+        if let Some(threshold) = &self.threshold {
+            return threshold.trials as usize
+                + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>();
+        }
         self.design.pairs.len() * self.design.repetitions as usize
             + self.design.active.as_ref().map_or(0, |active| active.trials as usize)
             + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()

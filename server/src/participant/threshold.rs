@@ -1,0 +1,83 @@
+//! Threshold studies in the web survey (`kind = "threshold"`): a participant's next trial is
+//! chosen when they reach it, by [`crate::threshold::next_trial`] from their seed and their own
+//! answers so far, replayed from the database through a fresh QUEST+ — so the posterior is as
+//! durable as the answers (each committed before its 201), and a reload, a second server or a
+//! restart computes the same level. The chosen trial is stored by the active designs' write job
+//! ([`super::active::ActiveBatch`]: nothing is added if another request stored it first), with
+//! `chosen_by` = `quest+ <answers replayed>` and the trial's position as its batch.
+
+use sqlx::Row;
+
+use super::active::ActiveBatch;
+use crate::AppState;
+use crate::error::{AppError, AppResult};
+use crate::prepared::PreparedStudy;
+use crate::study::GROUND_TRUTH;
+use crate::threshold::Answer;
+
+fn internal(error: sqlx::Error) -> AppError {
+    AppError::Internal(format!("cannot read the participant's answers: {error}"))
+}
+
+/// The participant's answered threshold trials, in trial order (catch trials left out).
+pub async fn answers(state: &AppState, prepared: &PreparedStudy, participant: &str) -> AppResult<Vec<Answer>> {
+    let design = prepared.study.threshold.as_ref().ok_or_else(|| AppError::Internal("not a threshold study".into()))?;
+    let rows = sqlx::query(
+        "SELECT t.left_condition, t.right_condition, r.chosen FROM trials t
+         JOIN responses r ON r.participant = t.participant AND r.trial = t.trial
+         WHERE t.participant = $1 AND t.catch_expected IS NULL ORDER BY t.trial",
+    )
+    .bind(participant)
+    .fetch_all(&state.storage().read)
+    .await
+    .map_err(internal)?;
+    let mut answers = Vec::with_capacity(rows.len());
+    for row in rows {
+        let left: String = row.try_get("left_condition").map_err(internal)?;
+        let right: String = row.try_get("right_condition").map_err(internal)?;
+        let chosen: String = row.try_get("chosen").map_err(internal)?;
+        let (shown, truth_side) = if left == GROUND_TRUTH { (right, "left") } else { (left, "right") };
+        let Some(level) = design.level_of(&shown) else { continue };
+        answers.push(Answer { level, correct: chosen == truth_side });
+    }
+    Ok(answers)
+}
+
+/// Chooses and stores the participant's next trial if it (`answered + 1`) has not been chosen
+/// yet and they have trials left.
+pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participant: &str) -> AppResult<()> {
+    let study = &prepared.study;
+    let read = &state.storage().read;
+    let header = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
+        .bind(participant)
+        .fetch_optional(read)
+        .await
+        .map_err(internal)?
+        .ok_or_else(|| AppError::Internal(format!("participant {participant} is gone")))?;
+    let seed = header.try_get::<i64, _>("seed").map_err(internal)? as u64;
+    let total: i64 = header.try_get("trials").map_err(internal)?;
+    let answered: i64 = header.try_get("answered").map_err(internal)?;
+    let existing: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM trials WHERE participant = $1")
+        .bind(participant)
+        .fetch_one(read)
+        .await
+        .map_err(internal)?;
+    if existing > answered || existing >= total {
+        return Ok(()); // chosen already (another request), or nothing left to choose
+    }
+    let answers = answers(state, prepared, participant).await?;
+    let chosen = crate::threshold::intensities(study, prepared.stimulus_metrics.as_ref())
+        .and_then(|intensities| crate::threshold::next_trial(study, seed, existing as usize, &intensities, &answers))
+        .map_err(|reason| AppError::Internal(format!("the next level cannot be chosen: {reason}")))?;
+    state
+        .storage()
+        .write(ActiveBatch {
+            participant: participant.to_string(),
+            first: existing + 1,
+            trials: vec![prepared.scheduled(&chosen)],
+            chosen_by: format!("quest+ {}", answers.len()),
+            batch: existing,
+        })
+        .await?;
+    Ok(())
+}

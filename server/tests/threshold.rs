@@ -1,0 +1,231 @@
+//! Threshold studies (`kind = "threshold"`) through `app(state)` with `oneshot` on a real sqlite
+//! database, their levels rendered by the renderer (the software adapter; skipped without one):
+//! a participant's trials follow the seed's skeleton (sides and scene configurations balanced,
+//! the catch trial placed), each stored level is QUEST+'s after the answers before it (replayed
+//! from the database), a server restarted mid-run continues with the level the stored answers
+//! give, and the export has the threshold columns.
+
+use std::path::Path;
+
+use axum::Router;
+use axum::http::{Method, StatusCode};
+use mrstudy_server::export::{Include, trials_csv};
+use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::threshold::{Answer, intensities, next_level};
+use mrstudy_server::{AppState, app};
+use serde_json::json;
+use sqlx::Row;
+
+mod support;
+use support::{call, repo_studies_dir, test_database};
+
+const STUDY: &str = "vpls-tiny";
+
+fn write_study(studies: &Path) {
+    std::fs::create_dir_all(studies.join("img")).unwrap();
+    for (name, from) in [("good.png", "catch-good.png"), ("broken.png", "catch-bad.png")] {
+        std::fs::copy(repo_studies_dir().join("shadows-demo").join(from), studies.join("img").join(name)).unwrap();
+    }
+    let text = format!(
+        r#"slug = "{STUDY}"
+title = "How many VPLs?"
+kind = "threshold"
+question = "In which image was nothing added afterwards?"
+[texts]
+welcome = "w"
+consent = "c"
+instructions = "i"
+[[scenes]]
+name = "one"
+render = "survey-1"
+[[scenes]]
+name = "two"
+render = "survey-2"
+[render]
+size = [32, 24]
+spp = 1
+[[catch]]
+name = "obvious"
+better = "img/good.png"
+worse = "img/broken.png"
+[threshold]
+knob = "vpls"
+levels = [1, 4, 16, 64]
+intensity = "inverse-knob"
+scale = "log10"
+function = "weibull"
+threshold = [-2.0, -1.5, -1.0, -0.5, 0.0]
+slope = [2.0, 3.5]
+lapse = [0.0, 0.02]
+guess = 0.5
+trials = 10
+"#
+    );
+    std::fs::write(studies.join("threshold.toml"), text).unwrap();
+}
+
+async fn start(work: &Path) -> Option<(Router, AppState)> {
+    let studies = work.join("studies");
+    let data = work.join("data");
+    let Prepared { state, skipped, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
+    if !skipped.is_empty() {
+        assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
+        eprintln!("skipped: no GPU adapter (not even a software one): {skipped:?}");
+        return None;
+    }
+    Some((app(state.clone()), state))
+}
+
+async fn join(app: &Router) -> (String, String) {
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/studies/{STUDY}/participants"),
+        None,
+        Some(json!({"demographics": {}, "client": {"viewport": [1280, 800], "devicePixelRatio": 1}})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let json = answer.json();
+    (json["participant"].as_str().unwrap().into(), json["token"].as_str().unwrap().into())
+}
+
+/// Asks for the next trial and returns its number and stored conditions (None when done).
+async fn next(app: &Router, state: &AppState, id: &str, token: &str) -> Option<(i64, String, String, Option<String>)> {
+    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    assert_eq!(next.status, StatusCode::OK, "{}", next.text());
+    let next = next.json();
+    if next["done"] == true {
+        return None;
+    }
+    let trial = next["trial"].as_i64().unwrap();
+    let row = sqlx::query(
+        "SELECT left_condition, right_condition, catch_expected FROM trials WHERE participant = $1 AND trial = $2",
+    )
+    .bind(id)
+    .bind(trial)
+    .fetch_one(&state.storage().read)
+    .await
+    .unwrap();
+    Some((trial, row.get("left_condition"), row.get("right_condition"), row.get("catch_expected")))
+}
+
+/// Answers the trial as an observer who sees 1 and 4 VPLs and guesses (left) above.
+async fn answer(app: &Router, id: &str, token: &str, trial: (i64, String, String, Option<String>)) {
+    let (number, left, right, catch) = trial;
+    let chosen = match catch {
+        Some(expected) => expected,
+        None => {
+            let shown = if left == "ground-truth" { &right } else { &left };
+            if shown == "vpls-1" || shown == "vpls-4" {
+                if left == "ground-truth" { "left" } else { "right" }.to_string()
+            } else {
+                "left".to_string()
+            }
+        }
+    };
+    let stored = call(
+        app,
+        Method::POST,
+        &format!("/api/participants/{id}/responses"),
+        Some(token),
+        Some(json!({"trial": number, "chosen": chosen, "rt_ms": 900.0, "client": {"viewport": [1280, 800]}})),
+    )
+    .await;
+    assert_eq!(stored.status, StatusCode::CREATED, "{}", stored.text());
+}
+
+/// The participant's stored threshold trials in order: (level, ground truth on the left,
+/// answered correctly if answered), and their scene configurations.
+async fn stored(state: &AppState, id: &str) -> Vec<(usize, bool, Option<bool>, String)> {
+    let prepared = state.study(STUDY).unwrap();
+    let design = prepared.study.threshold.as_ref().unwrap();
+    let rows = sqlx::query(
+        "SELECT t.left_condition, t.right_condition, t.left_scene, r.chosen FROM trials t
+         LEFT JOIN responses r ON r.participant = t.participant AND r.trial = t.trial
+         WHERE t.participant = $1 AND t.catch_expected IS NULL ORDER BY t.trial",
+    )
+    .bind(id)
+    .fetch_all(&state.storage().read)
+    .await
+    .unwrap();
+    rows.iter()
+        .map(|row| {
+            let (left, right): (String, String) = (row.get("left_condition"), row.get("right_condition"));
+            let truth_left = left == "ground-truth";
+            let level = design.level_of(if truth_left { &right } else { &left }).unwrap();
+            let chosen: Option<String> = row.get("chosen");
+            let correct = chosen.map(|chosen| (chosen == "left") == truth_left);
+            (level, truth_left, correct, row.get("left_scene"))
+        })
+        .collect()
+}
+
+/// Every stored level is QUEST+'s next one after the answers before it.
+fn assert_levels_replay(state: &AppState, trials: &[(usize, bool, Option<bool>, String)]) {
+    let prepared = state.study(STUDY).unwrap();
+    let study = &prepared.study;
+    let design = study.threshold.as_ref().unwrap();
+    let intensities = intensities(study, None).unwrap();
+    let mut answers = Vec::new();
+    for (index, (level, _, correct, _)) in trials.iter().enumerate() {
+        assert_eq!(*level, next_level(design, &intensities, &answers).unwrap(), "trial {index} of {trials:?}");
+        if let Some(correct) = correct {
+            answers.push(Answer { level: *level, correct: *correct });
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_restart_mid_run_continues_with_the_level_the_stored_answers_give() {
+    let work = tempfile::tempdir().unwrap();
+    write_study(&work.path().join("studies"));
+    let Some((app_one, state_one)) = start(work.path()).await else { return };
+    let (id, token) = join(&app_one).await;
+    for _ in 0..5 {
+        let trial = next(&app_one, &state_one, &id, &token).await.unwrap();
+        answer(&app_one, &id, &token, trial).await;
+    }
+    let before = stored(&state_one, &id).await;
+    drop(app_one);
+    drop(state_one);
+    // a new server on the same database and store: the next level is chosen by it
+    let (app, state) = start(work.path()).await.unwrap();
+    let mut total = 5;
+    while let Some(trial) = next(&app, &state, &id, &token).await {
+        answer(&app, &id, &token, trial).await;
+        total += 1;
+    }
+    assert_eq!(total, 11, "10 threshold trials and 1 catch trial");
+    let trials = stored(&state, &id).await;
+    assert_eq!(trials.len(), 10);
+    assert_eq!(&trials[..before.len()], &before[..], "the trials before the restart are kept");
+    assert_levels_replay(&state, &trials);
+    // the observer tells 1 and 4 VPLs apart: QUEST+ moves between levels
+    let levels: std::collections::BTreeSet<usize> = trials.iter().map(|t| t.0).collect();
+    assert!(levels.len() >= 2, "{trials:?}");
+    // the skeleton: ground truth on the left in half the trials, each scene configuration 5 times
+    assert_eq!(trials.iter().filter(|t| t.1).count(), 5, "{trials:?}");
+    assert_eq!(trials.iter().filter(|t| t.3 == "one").count(), 5, "{trials:?}");
+    // the export: the threshold columns on every row, the catch trial not a row
+    let csv = trials_csv(&state.storage().read, STUDY, Include::default()).await.unwrap().content;
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    for column in ["participant", "scene", "level", "intensity", "x", "correct", "function", "scale", "guess"] {
+        assert!(header.iter().any(|h| h == column), "{column} missing from {header:?}");
+    }
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 10);
+    for (row, trial) in rows.iter().zip(&trials) {
+        let level = [1, 4, 16, 64][trial.0];
+        assert_eq!(&row[column("level")], level.to_string());
+        assert_eq!(&row[column("correct")], trial.2.unwrap().to_string());
+        let x: f64 = row[column("x")].parse().unwrap();
+        assert!((x - (1.0 / f64::from(level)).log10()).abs() < 1e-12, "{x}");
+        assert_eq!(&row[column("function")], "weibull");
+        assert_eq!(&row[column("scale")], "log10");
+        assert_eq!(&row[column("guess")], "0.5");
+        assert_eq!(&row[column("scene")], trial.3);
+    }
+}
