@@ -98,11 +98,6 @@ impl Knob {
             Knob::Vpls | Knob::IsmSize | Knob::IsmPoints | Knob::RsmSize | Knob::Bounces | Knob::BounceCandidates
         )
     }
-
-    /// Whether the knob is the CPU path tracer's (the others are the GPU's).
-    pub fn path_traced(self) -> bool {
-        self == Knob::Spp
-    }
 }
 
 impl std::fmt::Display for Knob {

@@ -18,6 +18,7 @@ pub mod task;
 #[cfg(test)]
 mod tests;
 pub mod threshold;
+pub mod threshold_design;
 #[cfg(test)]
 pub(crate) mod threshold_tests;
 

@@ -449,7 +449,7 @@ pub struct Study {
     pub file_sha256: String,
     /// `kind = "threshold"`: the `[threshold]` table; the conditions are its levels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub threshold: Option<crate::study::threshold::ThresholdDesign>,
+    pub threshold: Option<crate::study::threshold_design::ThresholdDesign>,
 }
 
 impl Study {
