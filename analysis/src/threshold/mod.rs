@@ -7,6 +7,7 @@
 //!
 //! The crate's rule holds: no IO; bad input is a [`ThresholdError`] naming the offending value.
 
+pub mod fit;
 pub mod quest;
 
 pub use quest::{IntensityRule, Params, PsychFunction, QuestPlus, QuestPlusConfig, StimScale, StimulusDomain};
@@ -57,5 +58,7 @@ pub enum ThresholdError {
     PosteriorMismatch { answers: usize },
 }
 
+#[cfg(test)]
+mod fit_tests;
 #[cfg(test)]
 mod tests;
