@@ -309,7 +309,12 @@ fn write_trial_rows(
         let chosen_side: String = row.try_get("chosen")?;
         let left: String = row.try_get("left_condition")?;
         let right: String = row.try_get("right_condition")?;
-        let chosen = if chosen_side == "left" { left.clone() } else { right.clone() };
+        // a condition's name, or `tie` for "not sure" (allow_tie; no condition is named so)
+        let chosen = match chosen_side.as_str() {
+            "left" => left.clone(),
+            "right" => right.clone(),
+            _ => "tie".to_string(),
+        };
         let demographics: Map<String, Value> =
             serde_json::from_str(&row.try_get::<String, _>("demographics")?).unwrap_or_default();
         // The client details sent with the response, else those sent when the participant joined.
@@ -422,7 +427,11 @@ pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Exp
         let response = match &chosen {
             Some(side) => json!({
                 "chosen": side,
-                "chosen_condition": if side == "left" { &left } else { &right },
+                "chosen_condition": match side.as_str() {
+                    "left" => Some(&left),
+                    "right" => Some(&right),
+                    _ => None,
+                },
                 "rt_ms": row.try_get::<f64, _>("rt_ms")?,
                 "answered_at": row.try_get::<String, _>("answered_at")?,
                 "too_fast": row.try_get::<Option<i64>, _>("too_fast")?.unwrap_or(0) == 1,

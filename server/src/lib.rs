@@ -118,6 +118,11 @@ impl AppState {
         stimuli_dir: PathBuf,
     ) -> AppState {
         let order = studies.iter().map(|study| study.study.slug.clone()).collect();
+        // on PostgreSQL every process of the database counts against the same buckets
+        let buckets = match storage.backend() {
+            storage::Backend::Postgres => limits::Buckets::shared(storage.read.clone()),
+            storage::Backend::Sqlite => limits::Buckets::default(),
+        };
         AppState {
             inner: Arc::new(StateInner {
                 storage,
@@ -132,7 +137,7 @@ impl AppState {
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
                 limits: limits::Limits::default(),
-                buckets: Default::default(),
+                buckets,
                 admin_work: tokio::sync::Semaphore::new(1),
                 refusals: Default::default(),
             }),

@@ -15,8 +15,15 @@
 //! The client address is the socket's peer ([`ClientAddr`], put on each request by
 //! [`crate::serve`]), or behind a TLS proxy (`serve --behind-tls`) the last address of
 //! `X-Forwarded-For`, the one the proxy added. A request without a [`ClientAddr`] (the router
-//! driven in-process, as the tests do) is not limited. The buckets are each process's own: N
-//! `serve` processes behind one balancer allow N times the numbers.
+//! driven in-process, as the tests do) is not limited.
+//!
+//! On PostgreSQL the buckets live in the database (table `rate_limit_buckets`, unlogged), so N
+//! `serve` processes of one database allow the numbers once, not N times: each take is one
+//! atomic upsert timed by the database's clock. The keys there are SHA-256 digests of a random
+//! salt kept in the database and the address or the participant's credentials, never the
+//! address itself; rows are dropped half an hour after their last use. Should the database not
+//! answer, the process's own buckets decide (and a warning is logged). On sqlite (one process)
+//! the buckets are the process's own.
 //!
 //! Admin API calls run one at a time (see [`limit`]).
 
@@ -71,18 +78,170 @@ impl Default for Limits {
     }
 }
 
-/// The buckets of each limit: by client address, or for answers by participant.
+/// Which bucket a take counts against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Which {
+    Joins,
+    Screens,
+    /// By the participant's id and the credentials the request carries (a stranger guessing
+    /// tokens for someone's id never drains that participant's bucket).
+    Responses,
+    /// Answers without credentials, or refused for them, by client address.
+    AnonymousResponses,
+    AdminFailures,
+}
+
+impl Which {
+    /// The name in `rate_limit_buckets.bucket`.
+    fn name(self) -> &'static str {
+        match self {
+            Which::Joins => "joins",
+            Which::Screens => "screens",
+            Which::Responses => "responses",
+            Which::AnonymousResponses => "anonymous_responses",
+            Which::AdminFailures => "admin_failures",
+        }
+    }
+}
+
+/// The bytes that key an address's bucket.
+fn address_key(address: IpAddr) -> Vec<u8> {
+    match address {
+        IpAddr::V4(v4) => v4.octets().to_vec(),
+        IpAddr::V6(v6) => v6.octets().to_vec(),
+    }
+}
+
+/// The bytes that key a participant's answers: their id and the credentials they sent.
+fn participant_key(participant: &str, credentials: &[u8]) -> Vec<u8> {
+    let mut key = Vec::with_capacity(participant.len() + 1 + credentials.len());
+    key.extend_from_slice(participant.as_bytes());
+    key.push(0);
+    key.extend_from_slice(credentials);
+    key
+}
+
+/// The buckets of each limit: the process's own, and on PostgreSQL the database's, which every
+/// process of the database shares (see the module doc).
 #[derive(Debug, Default)]
 pub struct Buckets {
-    joins: Mutex<HashMap<IpAddr, Bucket>>,
-    screens: Mutex<HashMap<IpAddr, Bucket>>,
-    /// By a hash of the participant's id and the credentials the request carries (a stranger
-    /// guessing tokens for someone's id never drains that participant's bucket).
-    responses: Mutex<HashMap<u64, Bucket>>,
-    /// Answers without credentials, or refused for them, by client address.
-    anonymous_responses: Mutex<HashMap<IpAddr, Bucket>>,
-    admin_failures: Mutex<HashMap<IpAddr, Bucket>>,
+    local: Mutex<HashMap<(Which, u64), Bucket>>,
     hasher: RandomState,
+    shared: Option<Shared>,
+}
+
+impl Buckets {
+    /// Buckets kept in the database of `pool` (PostgreSQL), shared by every process using it.
+    pub fn shared(pool: crate::storage::Pool) -> Buckets {
+        Buckets {
+            shared: Some(Shared { pool, salt: Default::default(), takes: Default::default() }),
+            ..Default::default()
+        }
+    }
+
+    /// Whether the buckets are the database's (shared by processes) rather than this process's.
+    pub fn are_shared(&self) -> bool {
+        self.shared.is_some()
+    }
+
+    /// Takes a token from the bucket of `key`; when it is empty, how long until it has one.
+    async fn take(&self, which: Which, key: &[u8], rate: Rate, now: Instant) -> Result<(), Duration> {
+        if let Some(shared) = &self.shared {
+            match shared.take(which, key, rate).await {
+                Ok(taken) => return taken,
+                Err(error) => {
+                    tracing::warn!(%error, bucket = which.name(), "the shared rate limit did not answer; this process's own bucket decides")
+                }
+            }
+        }
+        take(&self.local, (which, self.hasher.hash_one(key)), rate, now)
+    }
+
+    /// Whether the bucket of `key` has a token, without taking it; if not, how long until it has.
+    async fn has_token(&self, which: Which, key: &[u8], rate: Rate, now: Instant) -> Result<(), Duration> {
+        if let Some(shared) = &self.shared {
+            match shared.has_token(which, key, rate).await {
+                Ok(has) => return has,
+                Err(error) => {
+                    tracing::warn!(%error, bucket = which.name(), "the shared rate limit did not answer; this process's own bucket decides")
+                }
+            }
+        }
+        has_token(&self.local, &(which, self.hasher.hash_one(key)), rate, now)
+    }
+}
+
+/// Buckets in the database (`rate_limit_buckets`), timed by the database's clock.
+#[derive(Debug)]
+struct Shared {
+    pool: crate::storage::Pool,
+    /// `rate_limit_salt.salt`, read on first use.
+    salt: tokio::sync::OnceCell<Vec<u8>>,
+    /// Takes so far; every 1024th also drops the rows unused for half an hour.
+    takes: std::sync::atomic::AtomicU64,
+}
+
+/// The statements of [`Shared`]; `now` is the database's clock in Unix seconds.
+const PRUNE: &str =
+    "DELETE FROM rate_limit_buckets WHERE at < EXTRACT(EPOCH FROM clock_timestamp())::DOUBLE PRECISION - 1800";
+const TAKE: &str = "WITH clock AS (SELECT EXTRACT(EPOCH FROM clock_timestamp())::DOUBLE PRECISION AS now), \
+     taken AS (INSERT INTO rate_limit_buckets AS b (bucket, key, tokens, at) \
+               SELECT $1, $2, $3 - 1, now FROM clock \
+               ON CONFLICT (bucket, key) DO UPDATE \
+               SET tokens = LEAST($3, b.tokens + (EXCLUDED.at - b.at) * $4) - 1, at = EXCLUDED.at \
+               WHERE LEAST($3, b.tokens + (EXCLUDED.at - b.at) * $4) >= 1 \
+               RETURNING 1) \
+     SELECT (SELECT COUNT(*) FROM taken), \
+            (SELECT LEAST($3, b.tokens + (clock.now - b.at) * $4) \
+             FROM rate_limit_buckets b, clock WHERE b.bucket = $1 AND b.key = $2)";
+const TOKENS: &str = "SELECT LEAST($3, tokens + (EXTRACT(EPOCH FROM clock_timestamp())::DOUBLE PRECISION - at) * $4) \
+     FROM rate_limit_buckets WHERE bucket = $1 AND key = $2";
+
+impl Shared {
+    async fn key(&self, key: &[u8]) -> Result<Vec<u8>, sqlx::Error> {
+        use sha2::Digest;
+        let salt = self
+            .salt
+            .get_or_try_init(|| async {
+                sqlx::query_scalar::<_, Vec<u8>>("SELECT salt FROM rate_limit_salt").fetch_one(&self.pool).await
+            })
+            .await?;
+        let mut digest = sha2::Sha256::new();
+        digest.update(salt);
+        digest.update(key);
+        Ok(digest.finalize().to_vec())
+    }
+
+    /// One atomic upsert: the bucket refilled since its last take, less one token if it has one.
+    /// The CTE's outer query sees the row as it was, so when nothing was taken it reads the
+    /// tokens the bucket holds.
+    async fn take(&self, which: Which, key: &[u8], rate: Rate) -> Result<Result<(), Duration>, sqlx::Error> {
+        let key = self.key(key).await?;
+        if self.takes.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 1024 == 1023 {
+            sqlx::query(PRUNE).execute(&self.pool).await?;
+        }
+        let (taken, tokens): (i64, Option<f64>) = sqlx::query_as(TAKE)
+            .bind(which.name())
+            .bind(key)
+            .bind(rate.burst)
+            .bind(rate.per_second)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(if taken > 0 { Ok(()) } else { Err(rate.wait(tokens.unwrap_or(0.0))) })
+    }
+
+    async fn has_token(&self, which: Which, key: &[u8], rate: Rate) -> Result<Result<(), Duration>, sqlx::Error> {
+        let key = self.key(key).await?;
+        let tokens: Option<f64> = sqlx::query_scalar(TOKENS)
+            .bind(which.name())
+            .bind(key)
+            .bind(rate.burst)
+            .bind(rate.per_second)
+            .fetch_optional(&self.pool)
+            .await?;
+        let tokens = tokens.unwrap_or(rate.burst);
+        Ok(if tokens >= 1.0 { Ok(()) } else { Err(rate.wait(tokens)) })
+    }
 }
 
 /// A bucket's size and refill.
@@ -221,9 +380,11 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
     let now = Instant::now();
     match kind {
         Kind::Join | Kind::Screen if limits.joins_per_minute > 0 => {
-            let (map, what) =
-                if kind == Kind::Join { (&buckets.joins, "joins") } else { (&buckets.screens, "screen checks") };
-            if let Err(wait) = take(map, client, Rate::per_minute(limits.joins_per_minute), now) {
+            let (which, what) =
+                if kind == Kind::Join { (Which::Joins, "joins") } else { (Which::Screens, "screen checks") };
+            if let Err(wait) =
+                buckets.take(which, &address_key(client), Rate::per_minute(limits.joins_per_minute), now).await
+            {
                 return too_many(
                     is_api,
                     &format!("{what} from this address"),
@@ -245,17 +406,18 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
                     wait,
                 )
             };
-            if let Err(wait) = has_token(&buckets.anonymous_responses, &client, rate, now) {
+            let address = address_key(client);
+            if let Err(wait) = buckets.has_token(Which::AnonymousResponses, &address, rate, now).await {
                 return anonymous(wait);
             }
             let Some(credentials) = request.headers().get(header::AUTHORIZATION) else {
-                if let Err(wait) = take(&buckets.anonymous_responses, client, rate, now) {
+                if let Err(wait) = buckets.take(Which::AnonymousResponses, &address, rate, now).await {
                     return anonymous(wait);
                 }
                 return next.run(request).await;
             };
-            let key = buckets.hasher.hash_one((participant, credentials.as_bytes()));
-            if let Err(wait) = take(&buckets.responses, key, rate, now) {
+            let key = participant_key(participant, credentials.as_bytes());
+            if let Err(wait) = buckets.take(Which::Responses, &key, rate, now).await {
                 return too_many(
                     is_api,
                     "answers from this participant",
@@ -266,7 +428,7 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
             }
             let response = next.run(request).await;
             if matches!(response.status(), StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN | StatusCode::NOT_FOUND) {
-                let _ = take(&buckets.anonymous_responses, client, rate, Instant::now());
+                let _ = buckets.take(Which::AnonymousResponses, &address, rate, Instant::now()).await;
             }
             response
         }
@@ -275,7 +437,8 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
         Kind::Admin if limits.admin_failures > 0 && !admin => {
             let burst = limits.admin_failures as f64;
             let rate = Rate { burst, per_second: burst / ADMIN_WINDOW.as_secs_f64() };
-            if let Err(wait) = has_token(&buckets.admin_failures, &client, rate, now) {
+            let address = address_key(client);
+            if let Err(wait) = buckets.has_token(Which::AdminFailures, &address, rate, now).await {
                 return too_many(
                     is_api,
                     "wrong admin tokens from this address",
@@ -286,7 +449,7 @@ pub async fn limit(State(state): State<AppState>, request: Request, next: Next) 
             }
             let response = next.run(request).await;
             if response.status() == StatusCode::FORBIDDEN {
-                let _ = take(&buckets.admin_failures, client, rate, Instant::now());
+                let _ = buckets.take(Which::AdminFailures, &address, rate, Instant::now()).await;
             }
             response
         }
@@ -356,7 +519,12 @@ mod tests {
     #[test]
     fn two_hundred_people_behind_one_address_at_two_seconds_an_answer_are_never_refused() {
         let limits = Limits::default();
-        let buckets = Buckets::default();
+        let (joins, screens, responses, anonymous) = (
+            Mutex::new(HashMap::new()),
+            Mutex::new(HashMap::new()),
+            Mutex::new(HashMap::new()),
+            Mutex::new(HashMap::new()),
+        );
         let address: IpAddr = "203.0.113.9".parse().unwrap();
         let start = Instant::now();
         let people = 200u64;
@@ -364,23 +532,23 @@ mod tests {
         for person in 0..people {
             // the class starts together: everyone joins within the first minute
             let at = start + Duration::from_millis(person * 300);
-            refused += take(&buckets.screens, address, Rate::per_minute(limits.joins_per_minute), at).is_err() as u32;
-            refused += take(&buckets.joins, address, Rate::per_minute(limits.joins_per_minute), at).is_err() as u32;
+            refused += take(&screens, address, Rate::per_minute(limits.joins_per_minute), at).is_err() as u32;
+            refused += take(&joins, address, Rate::per_minute(limits.joins_per_minute), at).is_err() as u32;
         }
         let rate = Rate::per_minute(limits.responses_per_minute);
         for step in 0..300u64 {
             for person in 0..people {
                 let at = start + Duration::from_secs(60) + Duration::from_millis(step * 2000 + person * 7);
-                let key = buckets.hasher.hash_one((format!("participant-{person}").as_str(), b"Bearer t".as_slice()));
-                assert_eq!(has_token(&buckets.anonymous_responses, &address, rate, at), Ok(()));
-                refused += take(&buckets.responses, key, rate, at).is_err() as u32;
+                let key = participant_key(&format!("participant-{person}"), b"Bearer t");
+                assert_eq!(has_token(&anonymous, &address, rate, at), Ok(()));
+                refused += take(&responses, key, rate, at).is_err() as u32;
             }
         }
         assert_eq!(refused, 0);
         // one script answering without pause as one participant is refused after its burst
-        let key = buckets.hasher.hash_one(("script", b"Bearer s".as_slice()));
+        let key = participant_key("script", b"Bearer s");
         let at = start + Duration::from_secs(700);
-        let allowed = (0..1000).filter(|_| take(&buckets.responses, key, rate, at).is_ok()).count();
+        let allowed = (0..1000).filter(|_| take(&responses, key.clone(), rate, at).is_ok()).count();
         assert_eq!(allowed, 2 * limits.responses_per_minute as usize);
     }
 

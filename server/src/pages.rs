@@ -154,6 +154,8 @@ struct StudyPage {
     min_response_ms: u32,
     /// `answer_lock_ms`: after an answer the page takes no press that begins sooner.
     answer_lock_ms: u32,
+    /// `allow_tie`: a third answer, "Not sure" (↓ or its button).
+    allow_tie: bool,
     /// `native` or `fit` (how stimuli are scaled).
     display: &'static str,
     /// `landscape`, `portrait` or empty: checked again during the trials.
@@ -178,6 +180,7 @@ impl StudyPage {
             fields: study.demographics.iter().map(FieldView::from).collect(),
             min_response_ms: study.participation.min_response_ms,
             answer_lock_ms: study.participation.answer_lock_ms,
+            allow_tie: study.participation.allow_tie,
             display: match study.participation.display {
                 crate::study::Display::Native => "native",
                 crate::study::Display::Css => "css",

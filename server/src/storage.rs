@@ -258,19 +258,6 @@ pub struct Storage {
     backend: Backend,
 }
 
-/// Why an admin write was refused; nothing was written.
-#[derive(Debug, Clone, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum AdminRefused {
-    /// No participant (or screen-out) has this id.
-    UnknownParticipant {
-        id: String,
-    },
-    UnknownStudy {
-        slug: String,
-    },
-}
-
 /// A write that runs in the writer's group commit. The area that owns the tables writes the
 /// job; storage only runs it inside the batch's transaction and answers with its outcome after
 /// the commit. A refusal is part of the outcome (nothing written, the transaction goes on); a
@@ -412,10 +399,6 @@ impl Storage {
                 .await?;
         // both ISO 8601 UTC with milliseconds: the text order is the time order
         Ok(found.is_some_and(|created_at| created_at > preview_cutoff(std::time::SystemTime::now())))
-    }
-
-    pub async fn set_open(&self, slug: &str, open: bool) -> Written<(), AdminRefused> {
-        self.write(SetOpen { slug: slug.to_string(), open }).await
     }
 
     /// The write connection, for start-up writes before participants arrive.
@@ -716,48 +699,6 @@ async fn run_batch(pool: &Pool, backend: Backend, batch: &mut [Box<dyn Queued>])
     transaction.commit().await
 }
 
-/// Opens or closes a study (the admin's open/close).
-struct SetOpen {
-    slug: String,
-    open: bool,
-}
-
-impl WriteJob for SetOpen {
-    type Outcome = Result<(), AdminRefused>;
-
-    async fn run(&self, connection: &mut Connection) -> Result<Self::Outcome, sqlx::Error> {
-        let result = sqlx::query("UPDATE studies SET open = $1 WHERE slug = $2")
-            .bind(self.open as i64)
-            .bind(&self.slug)
-            .execute(&mut *connection)
-            .await?;
-        Ok(if result.rows_affected() == 1 {
-            Ok(())
-        } else {
-            Err(AdminRefused::UnknownStudy { slug: self.slug.clone() })
-        })
-    }
-}
-
-// ------------------------------------------------------------------------------------------
-// The researcher's changes to participants' data (issue 12, "Trustworthy responses"): exclude
-// and include (kept, with reason and time), delete (every datum of the participant, leaving an
-// audit line without personal data), preview links. Each runs in the writer's group commit.
-
-/// A researcher's change to participants' data.
-#[derive(Debug)]
-#[non_exhaustive]
-pub enum AdminWrite {
-    /// Exclude the participant with this reason, or (`None`) include them again.
-    SetExcluded { participant: String, reason: Option<String> },
-    /// Delete a participant and all their data, or a screen-out row, by id.
-    Delete { id: String },
-    /// Store a new preview link's token hash.
-    Preview { study: String, token_sha256: Vec<u8> },
-    /// Revoke every preview link of the study.
-    RevokePreviews { study: String },
-}
-
 /// `at` as UTC ISO 8601 with milliseconds, as the database stores times.
 pub fn iso(at: std::time::SystemTime) -> String {
     let since = at.duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
@@ -785,47 +726,9 @@ pub fn preview_cutoff(now: std::time::SystemTime) -> String {
     iso(now.checked_sub(valid).unwrap_or(std::time::UNIX_EPOCH))
 }
 
-/// What an admin write did.
-#[derive(Debug, Clone, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum AdminWritten {
-    /// The participant is now excluded or included.
-    Excluded {
-        study: String,
-        ordinal: i64,
-        excluded: bool,
-        reason: Option<String>,
-        excluded_at: Option<String>,
-    },
-    /// A participant (with `trials` schedule rows and `responses` responses) or a screen-out
-    /// row was deleted.
-    Deleted(Deletion),
-    PreviewStored,
-    /// This many preview links were revoked.
-    PreviewsRevoked(u64),
-}
-
-/// A deletion, as the audit line records it (no personal data).
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
-pub struct Deletion {
-    pub study: String,
-    /// `participant`, `lab-participant` or `screen-out`.
-    pub kind: &'static str,
-    /// The participant's ordinal within the study (absent for a screen-out).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ordinal: Option<i64>,
-    pub trials: i64,
-    pub responses: i64,
-}
-
 impl Storage {
-    /// Runs an admin write in the next group commit and answers after it is durable.
-    pub async fn admin_write(&self, write: AdminWrite) -> Written<AdminWritten, AdminRefused> {
-        self.write(write).await
-    }
-
-    /// Deletes a participant (or a screen-out row), then rewrites the database and truncates the
-    /// WAL, so that none of their bytes remain in the database's files. `secure_delete` zeroes
+    /// After a deletion ([`Storage::delete`]): rewrites the database and truncates the WAL, so
+    /// that none of the deleted rows' bytes remain in the database's files. `secure_delete` zeroes
     /// the freed cells in the new page versions; `VACUUM` rewrites every page, which also drops
     /// copies of keys that b-tree interior pages may keep after their row is gone (the
     /// `WITHOUT ROWID` tables `trials` and `responses` keep whole rows there, the external-id
@@ -837,11 +740,7 @@ impl Storage {
     /// began reading cannot wait for that lock (sqlite refuses at once, "database is locked"),
     /// so the whole group commit was rolled back (issue 46). Participants' writes wait for the
     /// `VACUUM` instead (about a second per 40 MB; deletions are rare).
-    pub async fn delete(&self, id: &str) -> Written<Deletion, AdminRefused> {
-        let deletion = match self.write(Delete { id: id.to_string() }).await? {
-            Ok(deletion) => deletion,
-            Err(refused) => return Ok(Err(refused)),
-        };
+    pub(crate) async fn forget_deleted(&self) -> Result<(), StorageError> {
         match self.backend {
             Backend::Sqlite => {
                 sqlx::query("VACUUM").execute(&self.write).await?;
@@ -859,7 +758,7 @@ impl Storage {
                 forget_statistics_of_empty_tables(&self.admin).await?;
             }
         }
-        Ok(Ok(deletion))
+        Ok(())
     }
 
     /// `PRAGMA wal_checkpoint(TRUNCATE)` between the writer's batches, retried while readers
@@ -938,87 +837,6 @@ async fn truncate_wal_between_batches(write: &Pool) -> Result<(), StorageError> 
     Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
 }
 
-async fn audit(
-    connection: &mut Connection,
-    action: &str,
-    study: &str,
-    detail: serde_json::Value,
-) -> Result<(), sqlx::Error> {
-    sqlx::query(sqlx::AssertSqlSafe(format!(
-        "INSERT INTO audit (at, action, study, detail) VALUES ({NOW}, $1, $2, $3)"
-    )))
-    .bind(action)
-    .bind(study)
-    .bind(detail.to_string())
-    .execute(&mut *connection)
-    .await?;
-    Ok(())
-}
-
-impl WriteJob for AdminWrite {
-    type Outcome = Result<AdminWritten, AdminRefused>;
-
-    fn run(
-        &self,
-        connection: &mut Connection,
-    ) -> impl std::future::Future<Output = Result<Self::Outcome, sqlx::Error>> + Send {
-        execute_admin(connection, self)
-    }
-}
-
-async fn execute_admin(
-    connection: &mut Connection,
-    write: &AdminWrite,
-) -> Result<Result<AdminWritten, AdminRefused>, sqlx::Error> {
-    match write {
-        AdminWrite::SetExcluded { participant, reason } => {
-            // a survey participant, else a lab participant (task studies keep theirs apart)
-            let mut set = None;
-            for table in ["participants", "task_participants"] {
-                set = set_excluded(connection, table, participant, reason.as_deref()).await?;
-                if set.is_some() {
-                    break;
-                }
-            }
-            let Some((study, ordinal, excluded_at)) = set else {
-                return Ok(Err(AdminRefused::UnknownParticipant { id: participant.clone() }));
-            };
-            let action = if reason.is_some() { "exclude" } else { "include" };
-            audit(connection, action, &study, serde_json::json!({ "ordinal": ordinal })).await?;
-            Ok(Ok(AdminWritten::Excluded {
-                study,
-                ordinal,
-                excluded: reason.is_some(),
-                reason: reason.clone(),
-                excluded_at,
-            }))
-        }
-        AdminWrite::Delete { id } => Ok(delete_rows(connection, id).await?.map(AdminWritten::Deleted)),
-        AdminWrite::Preview { study, token_sha256 } => {
-            let known: Option<String> = sqlx::query_scalar("SELECT slug FROM studies WHERE slug = $1")
-                .bind(study)
-                .fetch_optional(&mut *connection)
-                .await?;
-            if known.is_none() {
-                return Ok(Err(AdminRefused::UnknownStudy { slug: study.clone() }));
-            }
-            sqlx::query(sqlx::AssertSqlSafe(format!(
-                "INSERT INTO previews (token_sha256, study, created_at) VALUES ($1, $2, {NOW})"
-            )))
-            .bind(token_sha256)
-            .bind(study)
-            .execute(&mut *connection)
-            .await?;
-            Ok(Ok(AdminWritten::PreviewStored))
-        }
-        AdminWrite::RevokePreviews { study } => {
-            let revoked =
-                sqlx::query("DELETE FROM previews WHERE study = $1").bind(study).execute(&mut *connection).await?;
-            Ok(Ok(AdminWritten::PreviewsRevoked(revoked.rows_affected())))
-        }
-    }
-}
-
 /// An admin session's row: started (with its expiry, the expired rows deleted) or ended.
 enum AdminSession {
     Start { id_sha256: [u8; 32], expires_unix: i64, now_unix: i64 },
@@ -1079,131 +897,5 @@ impl Storage {
                 .fetch_optional(&self.read)
                 .await?;
         Ok(found.is_some())
-    }
-}
-
-/// Deletes a lab participant and every datum of theirs — their trials (schedule, answers, key
-/// logs, frame times) and their row (code, token hash, seed) — inside the admin's write; the
-/// participant who took an abandoned participant's slot is no longer named there
-/// (`slot_taken_by`). None when no lab participant has this id. [`Storage::delete`] then
-/// rewrites the database files, as for a survey participant.
-async fn delete_lab_participant(connection: &mut Connection, id: &str) -> Result<Option<Deletion>, sqlx::Error> {
-    let row = sqlx::query("SELECT study, ordinal FROM task_participants WHERE id = $1")
-        .bind(id)
-        .fetch_optional(&mut *connection)
-        .await?;
-    let Some(row) = row else { return Ok(None) };
-    let study: String = row.try_get("study")?;
-    let ordinal: i64 = row.try_get("ordinal")?;
-    let answered: i64 =
-        sqlx::query_scalar("SELECT COUNT(*) FROM task_trials WHERE participant = $1 AND answered_at IS NOT NULL")
-            .bind(id)
-            .fetch_one(&mut *connection)
-            .await?;
-    let trials =
-        sqlx::query("DELETE FROM task_trials WHERE participant = $1").bind(id).execute(&mut *connection).await?;
-    sqlx::query("UPDATE task_participants SET slot_taken_by = NULL WHERE slot_taken_by = $1")
-        .bind(id)
-        .execute(&mut *connection)
-        .await?;
-    sqlx::query("DELETE FROM task_participants WHERE id = $1").bind(id).execute(&mut *connection).await?;
-    Ok(Some(Deletion {
-        study,
-        kind: "lab-participant",
-        ordinal: Some(ordinal),
-        trials: trials.rows_affected() as i64,
-        responses: answered,
-    }))
-}
-
-/// Excludes a participant of `table` (`participants` for surveys, `task_participants` for the
-/// lab) with `reason`, or (None) includes them again, inside the admin's write:
-/// (study, ordinal, excluded_at), or None when that table has no participant with this id.
-async fn set_excluded(
-    connection: &mut Connection,
-    table: &'static str,
-    id: &str,
-    reason: Option<&str>,
-) -> Result<Option<(String, i64, Option<String>)>, sqlx::Error> {
-    let row = sqlx::query(sqlx::AssertSqlSafe(format!("SELECT study, ordinal FROM {table} WHERE id = $1")))
-        .bind(id)
-        .fetch_optional(&mut *connection)
-        .await?;
-    let Some(row) = row else { return Ok(None) };
-    let excluded_at: Option<String> = match reason {
-        Some(reason) => {
-            sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
-                "UPDATE {table} SET excluded = 1, exclusion_reason = $1, excluded_at = {NOW}
-                 WHERE id = $2 RETURNING excluded_at"
-            )))
-            .bind(reason)
-            .bind(id)
-            .fetch_one(&mut *connection)
-            .await?
-        }
-        None => {
-            sqlx::query(sqlx::AssertSqlSafe(format!(
-                "UPDATE {table} SET excluded = 0, exclusion_reason = NULL, excluded_at = NULL WHERE id = $1"
-            )))
-            .bind(id)
-            .execute(&mut *connection)
-            .await?;
-            None
-        }
-    };
-    Ok(Some((row.try_get("study")?, row.try_get("ordinal")?, excluded_at)))
-}
-
-/// Deletes a participant and all their data, or a screen-out row, by id, with an audit line.
-async fn delete_rows(connection: &mut Connection, id: &str) -> Result<Result<Deletion, AdminRefused>, sqlx::Error> {
-    let row = sqlx::query("SELECT study, ordinal FROM participants WHERE id = $1")
-        .bind(id)
-        .fetch_optional(&mut *connection)
-        .await?;
-    if let Some(row) = row {
-        let study: String = row.try_get("study")?;
-        let ordinal: i64 = row.try_get("ordinal")?;
-        let responses = sqlx::query("DELETE FROM responses WHERE participant = $1")
-            .bind(id)
-            .execute(&mut *connection)
-            .await?
-            .rows_affected() as i64;
-        let trials = sqlx::query("DELETE FROM trials WHERE participant = $1")
-            .bind(id)
-            .execute(&mut *connection)
-            .await?
-            .rows_affected() as i64;
-        sqlx::query("DELETE FROM participants WHERE id = $1").bind(id).execute(&mut *connection).await?;
-        let deletion =
-            Deletion { study: study.clone(), kind: "participant", ordinal: Some(ordinal), trials, responses };
-        audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
-        return Ok(Ok(deletion));
-    }
-    if let Some(deletion) = delete_lab_participant(connection, id).await? {
-        audit(connection, "delete", &deletion.study, serde_json::to_value(&deletion).expect("serialises")).await?;
-        return Ok(Ok(deletion));
-    }
-    let study: Option<String> = sqlx::query_scalar("DELETE FROM screen_outs WHERE id = $1 RETURNING study")
-        .bind(id)
-        .fetch_optional(&mut *connection)
-        .await?;
-    let Some(study) = study else {
-        return Ok(Err(AdminRefused::UnknownParticipant { id: id.to_string() }));
-    };
-    let deletion = Deletion { study: study.clone(), kind: "screen-out", ordinal: None, trials: 0, responses: 0 };
-    audit(connection, "delete", &study, serde_json::to_value(&deletion).expect("serialises")).await?;
-    Ok(Ok(deletion))
-}
-
-/// [`AdminWrite::Delete`] with the deletion as its outcome, for [`Storage::delete`].
-struct Delete {
-    id: String,
-}
-
-impl WriteJob for Delete {
-    type Outcome = Result<Deletion, AdminRefused>;
-
-    async fn run(&self, connection: &mut Connection) -> Result<Self::Outcome, sqlx::Error> {
-        delete_rows(connection, &self.id).await
     }
 }

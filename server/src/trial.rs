@@ -1,7 +1,7 @@
 //! Trial concepts shared by the schedule, storage and the participant API: the two sides of a
 //! paired-comparison trial, and what answering a trial did or why it was refused.
 
-/// A side of a paired-comparison trial: where a stimulus is shown, and what a response chose.
+/// A side of a paired-comparison trial: where a stimulus is shown (an answer is a [`Choice`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Side {
@@ -14,6 +14,26 @@ impl Side {
         match self {
             Side::Left => "left",
             Side::Right => "right",
+        }
+    }
+}
+
+/// A participant's answer to a paired comparison: one side, or "not sure" where the study
+/// allows it (`allow_tie = true`; stored and exported as `tie`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Choice {
+    Left,
+    Right,
+    Tie,
+}
+
+impl Choice {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Choice::Left => "left",
+            Choice::Right => "right",
+            Choice::Tie => "tie",
         }
     }
 }

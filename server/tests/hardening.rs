@@ -835,3 +835,43 @@ async fn screen_checks_are_limited_per_client_address() {
     // the joins' bucket is apart: the same address still joins
     assert_eq!(join(app, "192.0.2.30").await.status, StatusCode::CREATED);
 }
+
+/// Issue 46, item 4: on PostgreSQL the limits are the database's, so two server processes of
+/// one database allow one address the numbers once, not twice; the buckets hold digests, never
+/// the address. On sqlite (one process per database) each process keeps its own.
+#[tokio::test]
+async fn limits_hold_across_the_servers_of_one_database() {
+    use mrstudy_server::storage::Database;
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = data_dir.path().join("studies");
+    copy_demo_study(&studies);
+    let data = data_dir.path().join("data");
+    let database = test_database(&data).await;
+    let limits = Limits { joins_per_minute: 2, responses_per_minute: 0, admin_failures: 0, behind_tls: false };
+    let server =
+        async || mrstudy_server::app(prepare_on(&database, &data, &studies).await.unwrap().state.with_limits(limits));
+    let servers = [server().await, server().await];
+    // joins from one address, alternating between the two servers, until each refuses
+    let mut created = 0;
+    for attempt in 0..12 {
+        let answer = join(&servers[attempt % 2], "192.0.2.44").await;
+        match answer.status {
+            StatusCode::CREATED => created += 1,
+            StatusCode::TOO_MANY_REQUESTS => assert!(answer.error().contains("Too many joins"), "{}", answer.text()),
+            other => panic!("join {attempt}: {other} {}", answer.text()),
+        }
+    }
+    match &database {
+        Database::Postgres(_) => {
+            assert_eq!(created, 4, "a burst of 4 joins in all, whichever server takes them");
+            let pool = support::connect(&database).await;
+            let rows: Vec<(String, Vec<u8>)> =
+                sqlx::query_as("SELECT bucket, key FROM rate_limit_buckets").fetch_all(&pool).await.unwrap();
+            assert_eq!(rows.len(), 1, "{rows:?}");
+            assert_eq!(rows[0].0, "joins");
+            assert_eq!(rows[0].1.len(), 32, "a SHA-256 digest");
+            assert!(!rows[0].1.windows(4).any(|bytes| bytes == [192, 0, 2, 44]), "the address is not stored");
+        }
+        Database::Sqlite(_) => assert_eq!(created, 8, "each process of a sqlite database has its own buckets"),
+    }
+}

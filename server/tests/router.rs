@@ -1121,3 +1121,50 @@ fn webp_bytes_saved_on_stored_stimuli() {
         100.0 * webp_bytes as f64 / png_bytes as f64
     );
 }
+
+/// Issue 49, item 3: "not sure" is an answer only where the study says `allow_tie = true`; it
+/// is stored and exported as `chosen = "tie"` (JSON: `chosen_condition` null), is an answer
+/// like the others (a different one after it is a 409).
+#[tokio::test]
+async fn a_not_sure_answer_is_a_tie_only_where_the_study_allows_it() {
+    let forced = fixture().await;
+    let (id, token) = join(&forced.app).await;
+    let refused = answer_trial(&forced.app, &id, &token, 1, "tie").await;
+    assert_eq!(refused.status, StatusCode::UNPROCESSABLE_ENTITY, "{}", refused.text());
+    assert!(refused.error().contains("no \"not sure\" answer"), "{}", refused.error());
+    assert_eq!(answer_trial(&forced.app, &id, &token, 1, "left").await.status, StatusCode::CREATED);
+
+    let fixture = fixture_with("allow_tie = true").await;
+    let app = &fixture.app;
+    let page = call(app, Method::GET, "/studies/shadows-demo", None, None).await.text();
+    assert!(page.contains("id=\"choose-tie\""), "the page offers \"Not sure\"");
+    assert!(!call(&forced.app, Method::GET, "/studies/shadows-demo", None, None).await.text().contains("choose-tie"));
+    let (id, token) = join(app).await;
+    let tie = answer_trial(app, &id, &token, 1, "tie").await;
+    assert_eq!(tie.status, StatusCode::CREATED, "{}", tie.text());
+    assert_eq!(tie.json(), json!({"trial": 1, "chosen": "tie"}));
+    assert_eq!(answer_trial(app, &id, &token, 1, "tie").await.status, StatusCode::OK);
+    assert_eq!(answer_trial(app, &id, &token, 1, "left").await.status, StatusCode::CONFLICT);
+    // (one of the seven trials is a catch trial, which the CSV leaves out: three ties give rows)
+    for trial in 2..=3 {
+        assert_eq!(answer_trial(app, &id, &token, trial, "tie").await.status, StatusCode::CREATED);
+    }
+    assert_eq!(answer_trial(app, &id, &token, 4, "right").await.status, StatusCode::CREATED);
+    let csv = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(&fixture.admin_token), None)
+        .await
+        .text();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let chosen = header.iter().position(|column| *column == "chosen").unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
+    let ties = rows.iter().filter(|row| row[chosen] == "tie").count();
+    let trial_of = |row: &Vec<&str>| row[header.iter().position(|column| *column == "trial").unwrap()].to_string();
+    assert!(ties >= 2, "{csv}");
+    assert!(rows.iter().all(|row| (row[chosen] == "tie") == (trial_of(row) != "4")), "{csv}");
+    let json = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.json", Some(&fixture.admin_token), None)
+        .await
+        .json();
+    let first = &json["participants"][0]["schedule"][0]["response"];
+    assert_eq!(first["chosen"], "tie", "{json}");
+    assert_eq!(first["chosen_condition"], Value::Null);
+}

@@ -32,6 +32,12 @@
   const preview = query.get("preview") || null;
   const storageKey = "mrstudy:" + slug + (preview ? ":preview" : "");
   const $ = (id) => document.getElementById(id);
+  // The answers this study offers: the two images, and "Not sure" where it allows ties
+  // (`allow_tie`: the page then has a #choose-tie button; ↓ answers it too).
+  const CHOICES = $("choose-tie") ? ["left", "right", "tie"] : ["left", "right"];
+  function enableChoices(enabled) {
+    for (const choice of CHOICES) $("choose-" + choice).disabled = !enabled;
+  }
 
   let session = null; // {participant, token, started}
   let current = null; // the trial shown
@@ -361,7 +367,7 @@
     const left = $("image-left"), right = $("image-right");
     $("pair").classList.add("loading");
     const loadingNote = setTimeout(() => { if (current === trial) $("pair-loading").hidden = false; }, 150);
-    $("choose-left").disabled = true; $("choose-right").disabled = true;
+    enableChoices(false);
     $("trial-progress").textContent = "Trial " + trial.trial + " of " + trial.total;
     $("trial-question").textContent = trial.question;
     $("progress-fill").style.width = (100 * (trial.trial - 1) / trial.total) + "%";
@@ -380,7 +386,7 @@
     layout();
     $("pair-loading").hidden = true;
     $("pair").classList.remove("loading");
-    $("choose-left").disabled = false; $("choose-right").disabled = false;
+    enableChoices(true);
     // Both images are painted after the next frame: the response time counts from there.
     requestAnimationFrame(() => requestAnimationFrame(() => {
       if (current !== trial) return;
@@ -400,7 +406,7 @@
     const border = 8; // the buttons' borders, both sides
     const gap = parseFloat(getComputedStyle(pair).columnGap) || 0;
     let below = 0;
-    for (const hint of document.querySelectorAll("#stage-trial .hint")) below += hint.offsetHeight;
+    for (const hint of document.querySelectorAll("#stage-trial .hint, #stage-trial .tie-row")) below += hint.offsetHeight;
     const width = (pair.clientWidth - gap) / 2 - border;
     const height = window.innerHeight - pair.getBoundingClientRect().top - below - border - 12;
     let scale = Math.max(0.05, Math.min(
@@ -457,7 +463,7 @@
     const shown = shownSize();
     const trial = current;
     answered.add(trial.trial);
-    $("choose-left").disabled = true; $("choose-right").disabled = true;
+    enableChoices(false);
     // No focus or highlight carries over to the next pair (on touch screens the tapped side
     // would look pre-selected); the focus goes to the question above the pair (no ring), so
     // that Tab moves to the left image next, after a mouse answer as after a keyboard one (a
@@ -484,7 +490,7 @@
   }
   const GONE_ELSEWHERE = "This page can no longer save your answers. If you resumed the study in another tab or window, it continues there: please go on there and close this one. Otherwise, please contact the researcher.";
 
-  for (const side of ["left", "right"]) {
+  for (const side of CHOICES) {
     const button = $("choose-" + side);
     button.addEventListener("pointerdown", (event) => { pressedAt = event.timeStamp; });
     // A click from the keyboard (Enter or Space on the focused image) has no pointerdown: its
@@ -499,7 +505,8 @@
   }
   document.addEventListener("keydown", (event) => {
     if ($("stage-trial").hidden || event.altKey || event.ctrlKey || event.metaKey) return;
-    const arrow = event.key === "ArrowLeft" ? "left" : event.key === "ArrowRight" ? "right" : null;
+    const arrow = event.key === "ArrowLeft" ? "left" : event.key === "ArrowRight" ? "right"
+      : event.key === "ArrowDown" && CHOICES.includes("tie") ? "tie" : null;
     if (arrow || event.key === "Enter" || event.key === " ") {
       // A held key repeats: only its first press counts, and only once.
       if (event.repeat) { event.preventDefault(); return; }

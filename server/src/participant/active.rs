@@ -82,7 +82,12 @@ async fn absorb(state: &AppState, prepared: &PreparedStudy, active: &mut ActiveS
             row.try_get("chosen").map_err(internal)?,
         );
         let (Some(left), Some(right)) = (index(&left), index(&right)) else { continue };
-        let (winner, loser) = if chosen == "left" { (left, right) } else { (right, left) };
+        // a "not sure" (allow_tie) informs no Bradley–Terry direction: the posterior skips it
+        let (winner, loser) = match chosen.as_str() {
+            "left" => (left, right),
+            "right" => (right, left),
+            _ => continue,
+        };
         if let Some(posterior) = &mut active.posterior
             && let Err(error) = posterior.update(winner, loser)
         {

@@ -21,7 +21,7 @@ use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
 use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
-use crate::trial::{ResponseOutcome, ResponseRefused, Side};
+use crate::trial::{Choice, ResponseOutcome, ResponseRefused};
 use crate::{AppState, random_hex};
 use store::{JoinOutcome, NewParticipant, NewResponse, ScreenOut, ScreenOutWrite, Shown};
 
@@ -688,7 +688,7 @@ fn percent_encode(text: &str) -> String {
 #[serde(deny_unknown_fields)]
 struct ResponseBody {
     trial: i64,
-    chosen: Side,
+    chosen: Choice,
     rt_ms: f64,
     #[serde(default)]
     client: Map<String, Value>,
@@ -721,7 +721,7 @@ fn size_text(key: &str, [width, height]: [f64; 2]) -> AppResult<String> {
 #[derive(Serialize)]
 struct Stored {
     trial: i64,
-    chosen: Side,
+    chosen: Choice,
 }
 
 /// Longest response time accepted: one hour.
@@ -757,8 +757,15 @@ async fn create_response(
         Some(shown) => (Some(size_text("css", shown.css)?), Some(size_text("device", shown.device)?)),
         None => (None, None),
     };
-    let min_response_ms =
-        state.study(&participant.study).map_or(0, |prepared| prepared.study.participation.min_response_ms);
+    let (min_response_ms, allow_tie) = state.study(&participant.study).map_or((0, false), |prepared| {
+        (prepared.study.participation.min_response_ms, prepared.study.participation.allow_tie)
+    });
+    if body.chosen == Choice::Tie && !allow_tie {
+        return Err(AppError::Unprocessable(
+            "`chosen` must be \"left\" or \"right\": this study has no \"not sure\" answer (`allow_tie` is off)."
+                .to_string(),
+        ));
+    }
     let outcome = state
         .storage()
         .write(NewResponse {

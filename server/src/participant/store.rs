@@ -15,7 +15,7 @@ use crate::schedule;
 #[cfg(doc)]
 use crate::storage::Storage;
 use crate::storage::{NOW, OptionalF64, WriteJob};
-use crate::trial::{ResponseOutcome, ResponseRefused, Side};
+use crate::trial::{Choice, ResponseOutcome, ResponseRefused, Side};
 
 /// A new response as received.
 #[derive(Debug, Clone)]
@@ -25,7 +25,7 @@ pub struct NewResponse {
     /// the same transaction, so a deleted participant's token is refused by every server.
     pub token_sha256: Vec<u8>,
     pub trial: i64,
-    pub chosen: Side,
+    pub chosen: Choice,
     pub rt_ms: f64,
     pub client: String,
     /// The size one image of the pair was shown at, `WxH` in CSS pixels and in device pixels

@@ -64,7 +64,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use crate::schedule::{ActiveHistory, PlannedKind, active_batch, active_posterior, derived_seed, plan};
-use crate::study::{ActiveDesign, ActiveTarget, Study, active_target};
+use crate::study::{ActiveDesign, ActiveTarget, PairsRule, Study, active_target};
 
 /// The significance level of the power.
 pub const ALPHA: f64 = 0.05;
@@ -346,16 +346,16 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
         DesignChoice::Study => {}
         DesignChoice::All => {
             variant.design.pairs = crate::study::survey::all_pairs(n);
-            variant.design.pairs_rule = "all".into();
+            variant.design.pairs_rule = PairsRule::All;
             variant.design.repetitions = repetitions;
             variant.design.active = None;
         }
         DesignChoice::Anchored => {
-            if study.design.pairs_rule != "anchored" {
+            if study.design.pairs_rule != PairsRule::Anchored {
                 variant.design.pairs = anchored_pairs(study);
                 variant.design.repetitions = repetitions;
             }
-            variant.design.pairs_rule = "anchored".into();
+            variant.design.pairs_rule = PairsRule::Anchored;
             variant.design.active = None;
         }
         DesignChoice::Active | DesignChoice::ActiveWorths => {
@@ -387,7 +387,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                     variant.design.pairs = anchored_pairs(study);
                     active.trials = (active.trials as usize).saturating_sub(variant.design.pairs.len()).max(1) as u32;
                 }
-                variant.design.pairs_rule = "active".into();
+                variant.design.pairs_rule = PairsRule::Active;
                 variant.design.repetitions = 1;
                 variant.design.active = Some(active);
             }
@@ -398,7 +398,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
 
 /// The study's anchored pairs, or with another design the first and last condition as anchors.
 fn anchored_pairs(study: &Study) -> Vec<(usize, usize)> {
-    if study.design.pairs_rule == "anchored" {
+    if study.design.pairs_rule == PairsRule::Anchored {
         return study.design.pairs.clone();
     }
     let (first, last) = (0, study.conditions.len() - 1);
@@ -513,7 +513,7 @@ pub struct FactorPower {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Row {
     pub design: DesignChoice,
-    pub pairs: String,
+    pub pairs: PairsRule,
     pub participants: usize,
     pub runs: usize,
     pub failed: usize,
@@ -867,7 +867,7 @@ fn summarise(
         .collect();
     Row {
         design: *choice,
-        pairs: variant.design.pairs_rule.clone(),
+        pairs: variant.design.pairs_rule,
         participants,
         runs: runs.len(),
         failed: runs.iter().filter(|run| run.failure.is_some()).count(),

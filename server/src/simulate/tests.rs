@@ -170,7 +170,7 @@ fn design_variants_keep_the_study_and_change_only_the_design() {
     assert_eq!(active.design.pairs, anchored.design.pairs);
     let report = simulate(&study, &config(&study, &[DesignChoice::Active], &[6], 2), &quiet).unwrap();
     assert_eq!(report.rows[0].judgments_per_participant.mean, 9.0, "active at the study's pair trials");
-    assert_eq!(report.rows[0].pairs, "active");
+    assert_eq!(report.rows[0].pairs, PairsRule::Active);
 }
 
 #[test]

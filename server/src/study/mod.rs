@@ -22,8 +22,8 @@ pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
 pub use survey::{
     ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, DesignReference, Device,
-    Display, Factor, FieldType, GROUND_TRUTH, Orientation, Participation, RenderDefaults, Scene, SceneDraw,
-    StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
+    Display, Factor, FieldType, GROUND_TRUTH, Orientation, PairsRule, Participation, RenderDefaults,
+    SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
 };
 pub use task::TaskStudy;
 
@@ -108,15 +108,12 @@ pub fn load_any(file: &Path) -> Result<LoadedStudy, StudyError> {
         key: String::new(),
         expected: one_line(&error.to_string()),
     })?;
-    if table.get("kind").and_then(|kind| kind.as_str()) == Some("task") {
-        return task::parse(&text, file, base, sha256_hex(&bytes)).map(LoadedStudy::Task);
+    // One arm per kind; each kind's module parses and checks its own file shape.
+    let file_sha256 = sha256_hex(&bytes);
+    match table.get("kind").and_then(|kind| kind.as_str()) {
+        Some("task") => task::parse(&text, file, base, file_sha256).map(LoadedStudy::Task),
+        _ => survey::parse(&text, file, base, file_sha256).map(LoadedStudy::Survey),
     }
-    let raw: survey::StudyFile = toml::from_str(&text).map_err(|error| StudyError {
-        file: file.to_path_buf(),
-        key: String::new(),
-        expected: one_line(&error.to_string()),
-    })?;
-    survey::check(raw, file, base, sha256_hex(&bytes)).map(LoadedStudy::Survey)
 }
 
 /// Reads and checks one paired-comparison study file (a task study is refused: see

@@ -338,3 +338,27 @@ fn answer_lock_ms_defaults_to_500_and_is_refused_outside_0_to_10000_naming_the_k
         assert!(message.contains("answer_lock_ms") && message.contains("0 to 10000"), "{message}");
     }
 }
+
+#[test]
+fn allow_tie_is_off_by_default_and_refused_with_a_condition_named_tie_or_a_detection_design() {
+    let dir = tempfile::tempdir().unwrap();
+    let with = |body: &str, line: &str| body.replace("question = \"Q?\"", &format!("question = \"Q?\"\n{line}"));
+    assert!(!load_study(&write_study(dir.path(), MINIMAL)).unwrap().participation.allow_tie);
+    let study = load_study(&write_study(dir.path(), &with(MINIMAL, "allow_tie = true"))).unwrap();
+    assert!(study.participation.allow_tie);
+    assert_eq!(serde_json::to_value(&study).unwrap()["participation"]["allow_tie"], true);
+    let named_tie = with(&MINIMAL.replace("name = \"GI\"", "name = \"tie\""), "allow_tie = true");
+    let error = load_study(&write_study(dir.path(), &named_tie)).unwrap_err();
+    assert_eq!(error.key, "conditions[1].name", "{error}");
+    assert!(error.expected.contains("\"tie\""), "{error}");
+    let detection = with(
+        &MINIMAL.replace(
+            "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\nscenes = \"different\"\n",
+            "[design]\nreference = \"ground-truth\"\nrepetitions = 2\nscenes = \"same\"\n",
+        ),
+        "allow_tie = true",
+    );
+    let error = load_study(&write_study(dir.path(), &detection)).unwrap_err();
+    assert_eq!(error.key, "allow_tie", "{error}");
+    assert!(error.expected.contains("detection"), "{error}");
+}

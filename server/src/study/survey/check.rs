@@ -1,605 +1,34 @@
-//! Web-survey study files (`kind = "paired-comparison"`): the raw TOML shape (`StudyFile`,
-//! unknown keys refused) and its checks, one named function per part of the file, resolving it
-//! into a [`Study`]: condition names are unique, every condition gives a level for every factor
-//! and carries the renderer's [`Factors`] for them, every scene configuration has a stimulus for
-//! every condition, the design names only defined conditions, and image files exist.
-//!
-//! [`Study`] is also the schema of the definition stored in the database: serialised when the
-//! study is recorded, read back by the export and the admin pages. Keys added after the first
-//! stored definitions have serde defaults, so older databases still read.
+//! The checks of a web-survey study file, one named function per part of the file, resolving
+//! the raw shape ([`file`](super::file)) into a [`Study`]: condition names are unique, every
+//! condition gives a level for every factor and carries the renderer's [`Factors`] for them,
+//! every scene configuration has a stimulus for every condition, the design names only defined
+//! conditions, and image files exist. The design's pair rules are here too.
 
-use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::collections::BTreeSet;
+use std::path::Path;
 
 use mrstudy_renderer::stimulus::{FactorLevel, Factors};
-use serde::{Deserialize, Serialize};
 
-use super::StudyError;
-use super::checks::{
+use super::file::{CatchFile, ConditionFile, DesignFile, SceneFile, StudyFile};
+use super::model::*;
+use crate::study::checks::{
     Fail, check_image, check_inside, check_min_response_ms, check_name, check_slug, check_texts, is_condition_name,
     is_identifier, resolve_scene,
 };
+use crate::study::{StudyError, one_line};
 
-/// What kind of study a file describes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum StudyKind {
-    /// Forced-choice paired comparisons on the web.
-    PairedComparison,
-    /// Timed task trials in the lab against the live renderer (not served by the web survey).
-    Task,
-}
-
-impl StudyKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            StudyKind::PairedComparison => "paired-comparison",
-            StudyKind::Task => "task",
-        }
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The raw file shape.
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct StudyFile {
-    slug: String,
-    title: String,
-    kind: StudyKind,
-    question: String,
-    #[serde(default = "default_true")]
-    open: bool,
-    texts: TextsFile,
-    #[serde(default)]
-    demographics: Vec<DemographicField>,
-    /// `None` when the file does not declare them: [`default_url_params`] are kept then.
-    #[serde(default)]
-    url_params: Option<Vec<String>>,
-    factors: Vec<Factor>,
-    conditions: Vec<ConditionFile>,
-    #[serde(default)]
-    render: Option<RenderDefaults>,
-    scenes: Vec<SceneFile>,
-    design: DesignFile,
-    #[serde(default)]
-    catch: Vec<CatchFile>,
-    #[serde(default)]
-    completion: Completion,
-    #[serde(default = "default_min_response_ms")]
-    min_response_ms: i64,
-    #[serde(default = "default_answer_lock_ms")]
-    answer_lock_ms: i64,
-    #[serde(default)]
-    unique_external_id: bool,
-    #[serde(default)]
-    min_viewport: Option<[u32; 2]>,
-    #[serde(default)]
-    devices: Option<Vec<Device>>,
-    #[serde(default)]
-    orientation: Option<Orientation>,
-    #[serde(default)]
-    display: Display,
-    #[serde(default = "default_abandon_after_minutes")]
-    abandon_after_minutes: u32,
-}
-
-fn default_min_response_ms() -> i64 {
-    300
-}
-
-fn default_answer_lock_ms() -> i64 {
-    500
-}
-
-fn default_abandon_after_minutes() -> u32 {
-    30
-}
-
-/// A kind of device a participant may use (`devices = ["desktop"]`); told apart on the client by
-/// its pointer and screen (see `web/static/survey.js`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Device {
-    Desktop,
-    Tablet,
-    Phone,
-}
-
-impl Device {
-    /// The device as a participant reads it ("a desktop or laptop computer").
-    pub fn described(self) -> &'static str {
-        match self {
-            Device::Desktop => "a desktop or laptop computer",
-            Device::Tablet => "a tablet",
-            Device::Phone => "a phone",
-        }
-    }
-}
-
-/// The screen orientation a study requires.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Orientation {
-    Landscape,
-    Portrait,
-}
-
-/// How stimuli are scaled on screen: `native` never shows an image larger than one image pixel
-/// per device pixel (CSS size = image size / devicePixelRatio at most, so no resampling upward; on
-/// a screen of device pixel ratio 2 that is half the CSS size), `css` never larger than one image
-/// pixel per CSS pixel (the same CSS size on every screen, enlarged by the browser on HiDPI
-/// screens), `fit` scaled to the space available. All shrink to fit the window.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Display {
-    #[default]
-    Native,
-    Css,
-    Fit,
-}
-
-/// Who may take part and how answers are checked: the response-time floor, one run per
-/// external id, the screen requirements, and when an unfinished participant counts as abandoned.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(default)]
-pub struct Participation {
-    /// Responses faster than this (client response time or server time since serving the trial)
-    /// are stored and flagged `too_fast`; the page accepts no answer before it.
-    pub min_response_ms: u32,
-    /// After an answer (and after "Start") the page takes no press that begins sooner than this,
-    /// nor one before the next pair is painted: the second click of a slow double click, or a
-    /// double tap, never answers the next trial.
-    pub answer_lock_ms: u32,
-    /// One run per value of the study's first URL parameter (its declared id, e.g.
-    /// `PROLIFIC_PID`; never another), normalised: a second join with the same value resumes the
-    /// first run only with that run's token, else it is refused.
-    pub unique_external_id: bool,
-    /// Smallest viewport in CSS pixels, `[width, height]`.
-    pub min_viewport: Option<[u32; 2]>,
-    /// Devices allowed (all when empty).
-    pub devices: Vec<Device>,
-    pub orientation: Option<Orientation>,
-    pub display: Display,
-    /// An unfinished participant with no activity for this long counts as abandoned.
-    pub abandon_after_minutes: u32,
-}
-
-impl Default for Participation {
-    /// The defaults of a study file that gives none of the keys.
-    fn default() -> Self {
-        Participation {
-            min_response_ms: default_min_response_ms() as u32,
-            answer_lock_ms: default_answer_lock_ms() as u32,
-            unique_external_id: false,
-            min_viewport: None,
-            devices: Vec::new(),
-            orientation: None,
-            display: Display::Native,
-            abandon_after_minutes: default_abandon_after_minutes(),
-        }
-    }
-}
-
-fn default_true() -> bool {
-    true
-}
-
-/// The URL parameters kept when a study file declares none: the crowdsourcing platforms' ids.
-fn default_url_params() -> Vec<String> {
-    ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "workerId", "assignmentId", "hitId"]
-        .iter()
-        .map(|name| name.to_string())
-        .collect()
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TextsFile {
-    welcome: String,
-    consent: String,
-    instructions: String,
-    #[serde(default = "default_thanks")]
-    thanks: String,
-}
-
-fn default_thanks() -> String {
-    "Thank you for taking part.".to_string()
-}
-
-/// The texts shown on the participant pages; blank lines separate paragraphs.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Texts {
-    pub welcome: String,
-    pub consent: String,
-    pub instructions: String,
-    pub thanks: String,
-}
-
-/// One demographic question on the entry screen.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DemographicField {
-    /// Column name in the export, `[a-z][a-z0-9_]*`.
-    pub name: String,
-    /// The question as shown.
-    pub label: String,
-    /// `choice`, `integer` or `text`.
-    #[serde(rename = "type")]
-    pub field_type: FieldType,
-    /// For `choice`: the options, shown in this order.
-    #[serde(default)]
-    pub options: Vec<String>,
-    /// For `integer`: the inclusive bounds.
-    #[serde(default)]
-    pub min: Option<i64>,
-    #[serde(default)]
-    pub max: Option<i64>,
-    #[serde(default = "default_true")]
-    pub required: bool,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum FieldType {
-    Choice,
-    Integer,
-    Text,
-}
-
-/// A rendering feature that the study switches on or off, or (named levels) sets to one of
-/// several methods.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Factor {
-    pub name: String,
-    #[serde(default)]
-    pub label: String,
-    /// The names of the levels, when the conditions name them (`gi = "dit"`) instead of giving
-    /// numbers; the first is the reference level the others' effects are measured from. A study
-    /// file may list them to choose the order; by default the names in the order the conditions
-    /// first use them, with `off` first where a condition uses it. Empty: numeric levels.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub levels: Vec<String>,
-}
-
-impl Factor {
-    /// The factor's columns in the design matrix: its name for numeric levels, else one
-    /// indicator `<name>_<level>` per level after the reference (treatment coding; a `-` in
-    /// the level's name becomes `_`: `gi_dit_high`).
-    pub fn columns(&self) -> Vec<String> {
-        if self.levels.is_empty() {
-            vec![self.name.clone()]
-        } else {
-            self.levels[1..].iter().map(|level| format!("{}_{}", self.name, level.replace('-', "_"))).collect()
-        }
-    }
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ConditionFile {
-    name: String,
-    levels: BTreeMap<String, FactorLevel>,
-}
-
-/// One combination of factor levels.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Condition {
-    pub name: String,
-    /// The condition's row of the design matrix: one value per column of
-    /// [`Study::design_columns`] (a numeric factor's level; 0/1 indicators for a factor with
-    /// named levels).
-    pub levels: Vec<f64>,
-    /// The levels as the renderer renders them, or why it cannot (a study whose stimuli are all
-    /// image files may use levels the renderer has not). Not stored: a definition read back from
-    /// the database has none.
-    #[serde(skip, default = "unresolved")]
-    pub factors: Result<Factors, String>,
-}
-
-fn unresolved() -> Result<Factors, String> {
-    Err("the condition was read back from the database, not resolved from a study file".into())
-}
-
-/// Defaults for scene configurations rendered by the renderer.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RenderDefaults {
-    /// Stimulus size in pixels, `[width, height]`.
-    pub size: [u32; 2],
-    /// Samples per pixel for path-traced parts, if the renderer needs them.
-    #[serde(default)]
-    pub spp: Option<u32>,
-    /// Seed of the path-traced photograph (and its camera noise).
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// VPL budget of the gi factor.
-    #[serde(default)]
-    pub vpls: Option<u32>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneFile {
-    name: String,
-    #[serde(default)]
-    description: String,
-    /// Rendered: a scene file (relative to the study file) or a built-in scene name.
-    #[serde(default)]
-    render: Option<String>,
-    /// Image files: condition name → image path relative to the study file.
-    #[serde(default)]
-    images: Option<BTreeMap<String, String>>,
-}
-
-/// Where the stimuli of one scene configuration come from.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum StimulusSource {
-    /// One image file per condition, index-aligned with [`Study::conditions`].
-    Images(Vec<PathBuf>),
-    /// A scene for the renderer: a built-in scene name, or a scene file's path (joined to the
-    /// study file's folder).
-    Render(String),
-}
-
-/// One scene configuration: an arrangement of real and virtual objects with one camera pose.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Scene {
-    pub name: String,
-    pub description: String,
-    pub source: StimulusSource,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct DesignFile {
-    /// Required unless `reference` is given.
-    #[serde(default)]
-    pairs: Option<String>,
-    /// `"ground-truth"`: the detection design ("real or rendered?").
-    #[serde(default)]
-    reference: Option<String>,
-    /// Detection designs only: sensor-noise realisations per scene configuration (default 1).
-    #[serde(default)]
-    realisations: Option<u32>,
-    /// Detection designs only: what the reference image is, in words for the participant pages
-    /// and the admin (default: "a path-traced render of the whole scene").
-    #[serde(default)]
-    reference_label: Option<String>,
-    #[serde(default)]
-    anchors: Vec<String>,
-    #[serde(default)]
-    list: Vec<Vec<String>>,
-    /// Required for fixed designs; for `pairs = "active"` it repeats the warm-up (default 1).
-    #[serde(default)]
-    repetitions: Option<u32>,
-    scenes: String,
-    #[serde(default)]
-    seed: Option<u64>,
-    // `pairs = "active"` only:
-    #[serde(default)]
-    trials: Option<u32>,
-    #[serde(default)]
-    batch: Option<u32>,
-    #[serde(default)]
-    target: Option<String>,
-    #[serde(default)]
-    warmup: Option<String>,
-    #[serde(default)]
-    prior_sd: Option<f64>,
-}
-
-/// What an active design learns about: every condition's log-worth, or the factor effects.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ActiveTarget {
-    Worths,
-    Factors,
-}
-
-/// `pairs = "active"`: after an optional warm-up of a fixed design ([`Design::pairs`] ×
-/// [`Design::repetitions`], empty without one), each participant's trials are chosen `batch`
-/// at a time by the expected information gain about the target, from every judgment so far
-/// (`mrstudy_analysis::active`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct ActiveDesign {
-    /// Trials chosen by the posterior per participant (after the warm-up).
-    pub trials: u32,
-    /// Trials chosen at a time for one participant.
-    pub batch: u32,
-    pub target: ActiveTarget,
-    /// Prior standard deviation of each log-worth or factor effect (logit scale).
-    pub prior_sd: f64,
-}
-
-/// How scene configurations are drawn for the two sides of a trial.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SceneDraw {
-    /// Two different scene configurations, so the images are never directly comparable.
-    Different,
-    /// The same scene configuration on both sides.
-    Same,
-}
-
-/// The condition name of the ground-truth composite in a detection design's trials (and in
-/// the export's `left`/`right`/`chosen` columns); no condition may take it.
-pub const GROUND_TRUTH: &str = "ground-truth";
-
-/// What a design pairs each condition with when it is not another condition.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DesignReference {
-    /// The path-traced ground-truth composite of the same scene configuration ("real or
-    /// rendered?"): each trial shows a condition's stimulus beside it.
-    GroundTruth,
-}
-
-/// The design: condition pairs (indices into [`Study::conditions`]), repetitions, scene draw.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Design {
-    /// `all`, `anchored`, `list`, `active`, or `ground-truth` for a detection design.
-    pub pairs_rule: String,
-    /// The fixed design's pairs; for `active`, those of its warm-up (`warmup`, none by default).
-    /// In a detection design each condition is paired with the index `conditions.len()`, which
-    /// stands for the scene configuration's ground truth ([`GROUND_TRUTH`]).
-    pub pairs: Vec<(usize, usize)>,
-    pub repetitions: u32,
-    pub scenes: SceneDraw,
-    /// Study seed: when set, participant seeds are derived from it and the participant's
-    /// ordinal, so a whole run of the study can be reproduced; when absent they are random.
-    /// Either way each participant's seed is stored.
-    pub seed: Option<u64>,
-    /// Set for `pairs = "active"`.
-    #[serde(default)]
-    pub active: Option<ActiveDesign>,
-    /// Set for `reference = "ground-truth"`.
-    #[serde(default)]
-    pub reference: Option<DesignReference>,
-    /// Sensor-noise realisations of each scene configuration (1 unless a detection design asks
-    /// for more): realisation k > 0 is the same path-traced radiance through the same simulated
-    /// camera with another noise seed, with its own ground truth and its own stimuli rendered
-    /// over its own photograph, so no ground-truth picture need be shown twice.
-    #[serde(default = "default_realisations")]
-    pub realisations: u32,
-    /// What the reference of a detection design is, in words (`reference_label`): shown to
-    /// researchers and available to the texts; never "a photograph" unless it is one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reference_label: Option<String>,
-}
-
-fn default_realisations() -> u32 {
-    1
-}
-
-/// The most sensor-noise realisations a detection design may ask for per scene configuration.
-pub const MAX_REALISATIONS: u32 = 16;
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CatchFile {
-    name: String,
-    better: String,
-    worse: String,
-    #[serde(default = "default_one")]
-    repetitions: u32,
-}
-
-fn default_one() -> u32 {
-    1
-}
-
-/// A catch trial: a pair of images with a known answer (`better` should be chosen).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct CatchTrial {
-    pub name: String,
-    pub better: PathBuf,
-    pub worse: PathBuf,
-    pub repetitions: u32,
-}
-
-/// The completion page: a fixed code (as crowdsourcing sites want), or a random code per
-/// participant when absent, and an optional redirect URL. In `redirect`, `{code}` is replaced
-/// by the completion code and `{NAME}` by the kept URL parameter `NAME`.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Completion {
-    #[serde(default)]
-    pub code: Option<String>,
-    #[serde(default)]
-    pub redirect: Option<String>,
-}
-
-/// A checked study definition, resolved once from its file (and the schema of the definition
-/// stored in the database).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Study {
-    pub slug: String,
-    pub title: String,
-    pub kind: StudyKind,
-    pub question: String,
-    /// Whether the study accepts participants when it is first loaded (the admin can change it).
-    pub open: bool,
-    pub texts: Texts,
-    #[serde(default)]
-    pub demographics: Vec<DemographicField>,
-    /// The URL parameters kept with a participant: the declared ones, else the platforms' ids.
-    #[serde(default)]
-    pub url_params: Vec<String>,
-    /// Whether the study file declared `url_params`: then the trials CSV has a column for each,
-    /// else only for those some exported participant arrived with (no empty MTurk columns for a
-    /// study that never asked for them). `false` for definitions stored before this field.
-    #[serde(default)]
-    pub url_params_declared: bool,
-    pub factors: Vec<Factor>,
-    pub conditions: Vec<Condition>,
-    pub render: Option<RenderDefaults>,
-    pub scenes: Vec<Scene>,
-    pub design: Design,
-    #[serde(default)]
-    pub catch: Vec<CatchTrial>,
-    #[serde(default)]
-    pub completion: Completion,
-    #[serde(default)]
-    pub participation: Participation,
-    /// The file it was read from.
-    pub file: PathBuf,
-    /// SHA-256 of the file's bytes, hex; stored with each participant.
-    pub file_sha256: String,
-}
-
-impl Study {
-    /// Trials per participant: pairs × repetitions (for an active design: its warm-up and its
-    /// actively chosen trials), plus the catch trials.
-    pub fn trial_count(&self) -> usize {
-        self.design.pairs.len() * self.design.repetitions as usize
-            + self.design.active.as_ref().map_or(0, |active| active.trials as usize)
-            + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
-    }
-
-    /// The index of the condition called `name`.
-    pub fn condition_index(&self, name: &str) -> Option<usize> {
-        self.conditions.iter().position(|condition| condition.name == name)
-    }
-
-    /// Whether any stimulus must come from the renderer.
-    pub fn needs_renderer(&self) -> bool {
-        self.scenes.iter().any(|scene| matches!(scene.source, StimulusSource::Render(_)))
-    }
-
-    /// The design matrix's columns, in the order of [`Condition::levels`]: each numeric
-    /// factor's name, and for a factor with named levels one indicator per level after its
-    /// reference ([`Factor::columns`], e.g. `gi_dit`).
-    pub fn design_columns(&self) -> Vec<String> {
-        self.factors.iter().flat_map(Factor::columns).collect()
-    }
-
-    /// The conditions CSV of docs/design.md: `condition,<factor>,…`, one row per condition (a
-    /// factor with named levels as its indicator columns, [`Study::design_columns`]).
-    pub fn conditions_csv(&self) -> String {
-        let mut writer = csv::Writer::from_writer(Vec::new());
-        let mut header = vec!["condition".to_string()];
-        header.extend(self.design_columns());
-        writer.write_record(&header).expect("writing to memory");
-        for condition in &self.conditions {
-            let mut row = vec![condition.name.clone()];
-            row.extend(condition.levels.iter().map(|level| format_number(*level)));
-            writer.write_record(&row).expect("writing to memory");
-        }
-        String::from_utf8(writer.into_inner().expect("writing to memory")).expect("UTF-8")
-    }
-}
-
-/// A number as CSV text: whole numbers without a decimal point.
-pub(crate) fn format_number(value: f64) -> String {
-    if value.fract() == 0.0 && value.abs() < 1e15 { format!("{}", value as i64) } else { format!("{value}") }
+/// Reads and checks the text of a web-survey study file (`kind = "paired-comparison"`).
+pub(in crate::study) fn parse(text: &str, file: &Path, base: &Path, file_sha256: String) -> Result<Study, StudyError> {
+    let raw: StudyFile = toml::from_str(text).map_err(|error| StudyError {
+        file: file.to_path_buf(),
+        key: String::new(),
+        expected: one_line(&error.to_string()),
+    })?;
+    check(raw, file, base, file_sha256)
 }
 
 /// Checks the raw file and resolves it into a [`Study`], part by part.
-pub(super) fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Result<Study, StudyError> {
+fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Result<Study, StudyError> {
     let fail = Fail(file);
     check_slug(fail, "slug", &raw.slug)?;
     check_texts(
@@ -943,11 +372,11 @@ fn check_scenes(
     base: &Path,
     raw: &[SceneFile],
     conditions: &[Condition],
-) -> Result<Vec<Scene>, StudyError> {
+) -> Result<Vec<SceneConfiguration>, StudyError> {
     if raw.is_empty() {
         return Err(fail.at("scenes", "expected at least one scene configuration"));
     }
-    let mut scenes: Vec<Scene> = Vec::new();
+    let mut scenes: Vec<SceneConfiguration> = Vec::new();
     for (index, scene) in raw.iter().enumerate() {
         let key = format!("scenes[{index}]");
         check_name(fail, &key, &scene.name, scenes.iter().map(|other| other.name.as_str()))?;
@@ -978,7 +407,7 @@ fn check_scenes(
                 ));
             }
         };
-        scenes.push(Scene { name: scene.name.clone(), description: scene.description.clone(), source });
+        scenes.push(SceneConfiguration { name: scene.name.clone(), description: scene.description.clone(), source });
     }
     Ok(scenes)
 }
@@ -1004,7 +433,7 @@ fn check_design(
     fail: Fail,
     design: &DesignFile,
     conditions: &[Condition],
-    scenes: &[Scene],
+    scenes: &[SceneConfiguration],
 ) -> Result<Design, StudyError> {
     let scene_count = scenes.len();
     if let Some(reference) = &design.reference {
@@ -1019,11 +448,11 @@ fn check_design(
     let active = pairs_rule == "active";
     let rule = if active { design.warmup.as_deref().unwrap_or("none") } else { pairs_rule.as_str() };
     let rule_key = if active { "design.warmup" } else { "design.pairs" };
-    let pairs = match rule {
-        "all" => all_pairs(conditions.len()),
-        "anchored" => anchored_pairs(fail, &design.anchors, conditions)?,
-        "list" => listed_pairs(fail, &design.list, conditions)?,
-        "none" if active => Vec::new(),
+    let (pairs, fixed_rule) = match rule {
+        "all" => (all_pairs(conditions.len()), PairsRule::All),
+        "anchored" => (anchored_pairs(fail, &design.anchors, conditions)?, PairsRule::Anchored),
+        "list" => (listed_pairs(fail, &design.list, conditions)?, PairsRule::List),
+        "none" if active => (Vec::new(), PairsRule::Active),
         other if active => {
             return Err(
                 fail.at(rule_key, format!("expected \"none\", \"all\", \"anchored\" or \"list\", found \"{other}\""))
@@ -1076,7 +505,7 @@ fn check_design(
         }
     }
     Ok(Design {
-        pairs_rule: pairs_rule.clone(),
+        pairs_rule: if active.is_some() { PairsRule::Active } else { fixed_rule },
         pairs,
         repetitions,
         scenes,
@@ -1107,7 +536,7 @@ fn check_detection(
     design: &DesignFile,
     reference: &str,
     conditions: &[Condition],
-    scenes: &[Scene],
+    scenes: &[SceneConfiguration],
 ) -> Result<Design, StudyError> {
     if reference != GROUND_TRUTH {
         return Err(fail.at("design.reference", format!("expected \"{GROUND_TRUTH}\", found \"{reference}\"")));
@@ -1162,7 +591,7 @@ fn check_detection(
     }
     let truth = conditions.len();
     Ok(Design {
-        pairs_rule: GROUND_TRUTH.into(),
+        pairs_rule: PairsRule::GroundTruth,
         pairs: (0..truth).map(|condition| (condition, truth)).collect(),
         repetitions,
         scenes: SceneDraw::Same,
@@ -1235,17 +664,6 @@ fn connects(pairs: &[(usize, usize)], count: usize) -> bool {
         }
     }
     groups <= 1
-}
-
-/// The posterior's target of an active design: the log-worths of the conditions, or the
-/// effects of the study's factors (each condition's levels as the design matrix's row).
-pub fn active_target(active: &ActiveDesign, conditions: &[Condition]) -> mrstudy_analysis::active::Target {
-    match active.target {
-        ActiveTarget::Worths => mrstudy_analysis::active::Target::Worths { conditions: conditions.len() },
-        ActiveTarget::Factors => mrstudy_analysis::active::Target::Factors {
-            design: conditions.iter().map(|condition| condition.levels.clone()).collect(),
-        },
-    }
 }
 
 /// `pairs = "all"`: every pair of `count` conditions, `(i, j)` with i < j.
@@ -1376,34 +794,6 @@ fn check_completion(fail: Fail, completion: &Completion) -> Result<(), StudyErro
     Ok(())
 }
 
-/// The trials CSV's own columns, in order (docs/design.md); the external ids and the demographic
-/// fields follow them, so neither may be named like one. `export` writes this header.
-pub const TRIALS_CSV_COLUMNS: &[&str] = &[
-    "study",
-    "participant",
-    "trial",
-    "left",
-    "right",
-    "chosen",
-    "scene_left",
-    "scene_right",
-    "rt_ms",
-    "shown_at",
-    "answered_at",
-    "catch_answered",
-    "catch_failed",
-    "viewport",
-    "device_pixel_ratio",
-    "display_css",
-    "display_device",
-    "completed",
-    "status",
-    "completion_code",
-    "pilot",
-    "excluded",
-    "too_fast",
-];
-
 /// The participation keys: response-time floor, external ids, screen requirements.
 fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, StudyError> {
     let min_response_ms = check_min_response_ms(fail, raw.min_response_ms)?;
@@ -1424,6 +814,20 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
             "expected `url_params` to name the external id (e.g. \"PROLIFIC_PID\"), found none",
         ));
     }
+    if raw.allow_tie
+        && let Some(index) = raw.conditions.iter().position(|condition| condition.name == "tie")
+    {
+        return Err(fail.at(
+            &format!("conditions[{index}].name"),
+            "expected a name other than \"tie\": with `allow_tie` the export's `chosen` says \"tie\" for \"not sure\"",
+        ));
+    }
+    if raw.allow_tie && raw.design.reference.is_some() {
+        return Err(fail.at(
+            "allow_tie",
+            "expected a paired comparison of conditions: a detection design (`design.reference`) asks which image is the real one, and has no \"not sure\"",
+        ));
+    }
     if raw.abandon_after_minutes == 0 {
         return Err(fail.at("abandon_after_minutes", "expected at least 1 minute, found 0"));
     }
@@ -1437,6 +841,7 @@ fn check_participation(fail: Fail, raw: &StudyFile) -> Result<Participation, Stu
     Ok(Participation {
         min_response_ms,
         answer_lock_ms: raw.answer_lock_ms as u32,
+        allow_tie: raw.allow_tie,
         unique_external_id: raw.unique_external_id,
         min_viewport: raw.min_viewport,
         devices,

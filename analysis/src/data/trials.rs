@@ -1,111 +1,12 @@
-//! Reading the two inputs of a paired-comparison analysis from text: the trials CSV (one row
-//! per judgment, docs/design.md's long format) and the optional conditions CSV (factor levels per
-//! condition). Every error names the source, the line and the column.
-//!
-//! Trials CSV: required columns `participant,left,right,chosen`; `chosen` equals `left` or
-//! `right`. An optional column `count` (a positive integer) makes a row stand for that many
-//! identical judgments, so aggregated tallies (up to 10⁹ and more per pair) can be analysed
-//! without expanding them. Other columns are ignored, except the one named for grouping.
-//!
-//! Pilot and excluded participants: where the trials CSV has the columns `pilot` and
-//! `excluded` (`true`/`false`, as `mrstudy export` writes them), every judgment of a
-//! participant marked `true` in either is left out unless [`TrialsOptions`] asks to keep them,
-//! and [`LeftOut`] says how many participants and judgments went and why. A file without these
-//! columns is read as it is. Any other value in them is an error naming line and column.
-//!
-//! Scenes: asked for by [`TrialsOptions::scenes`], the columns `scene_left` and `scene_right`
-//! (the scene configuration of each side, as `mrstudy export` writes them) are read per row
-//! into [`TrialScenes`], beside the judgments; a file without them is read as it is.
-//!
-//! The reserved condition [`GROUND_TRUTH`] (the path-traced composite a detection study
-//! shows beside a rendered condition) is accepted where [`TrialsOptions::allow_ground_truth`]
-//! says so even when a conditions file does not list it; it then comes after the file's
-//! conditions.
-//!
-//! Conditions CSV: `condition,<factor>,<factor>,…`, one row per condition, numeric levels.
+//! The trials CSV: one row per judgment (see the module above for its columns), read into
+//! [`Judgments`](super::Judgments) with the participants left out and, where asked for, each row's scenes.
 
 use std::collections::HashMap;
 
+use super::conditions::ConditionTable;
+use super::csv::{Field, Records, ShortNames, csv_error, header_index, parse_flag, read_unquoted, reader};
+use super::{GROUND_TRUTH, Judgment, Judgments};
 use crate::error::{AnalysisError, Result};
-
-/// The reserved condition name of the ground truth: the path-traced composite of a scene
-/// configuration, shown beside a rendered condition in a detection study ("which is real?").
-pub const GROUND_TRUTH: &str = "ground-truth";
-
-/// One row of the trials CSV after validation (conditions and participant as indices).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Judgment {
-    pub participant: u32,
-    pub left: u32,
-    pub right: u32,
-    /// True when the left condition was chosen.
-    pub left_chosen: bool,
-    /// How many identical judgments this row stands for (1 unless a `count` column is given).
-    pub count: u64,
-    /// Index into [`Judgments::groups`] when grouping was asked for.
-    pub group: u32,
-}
-
-/// All judgments of a data set.
-#[derive(Debug, Clone, Default)]
-pub struct Judgments {
-    /// Condition names; indices into this list are used everywhere else.
-    pub conditions: Vec<String>,
-    pub participants: Vec<String>,
-    /// Distinct values of the grouping column in order of first appearance (empty if none).
-    pub groups: Vec<String>,
-    pub rows: Vec<Judgment>,
-}
-
-impl Judgments {
-    /// Total number of judgments (rows weighted by `count`).
-    pub fn n_judgments(&self) -> u64 {
-        self.rows.iter().map(|row| row.count).sum()
-    }
-
-    /// Some of this data set's rows as a data set of their own: participants and groups without
-    /// rows among them are left out and the rest renumbered in order of first appearance;
-    /// conditions keep their order, except those `keep_condition` refuses (by index), which no
-    /// row in `rows` may name.
-    pub fn subset(
-        &self,
-        rows: impl IntoIterator<Item = Judgment>,
-        keep_condition: impl Fn(usize) -> bool,
-    ) -> Judgments {
-        let mut condition_map = vec![u32::MAX; self.conditions.len()];
-        let mut conditions = Vec::new();
-        for (c, name) in self.conditions.iter().enumerate() {
-            if keep_condition(c) {
-                condition_map[c] = conditions.len() as u32;
-                conditions.push(name.clone());
-            }
-        }
-        let mut participant_map = vec![u32::MAX; self.participants.len()];
-        let mut group_map = vec![u32::MAX; self.groups.len()];
-        let mut subset = Judgments { conditions, ..Judgments::default() };
-        for mut row in rows {
-            let p = row.participant as usize;
-            if participant_map[p] == u32::MAX {
-                participant_map[p] = subset.participants.len() as u32;
-                subset.participants.push(self.participants[p].clone());
-            }
-            row.participant = participant_map[p];
-            if !self.groups.is_empty() {
-                let g = row.group as usize;
-                if group_map[g] == u32::MAX {
-                    group_map[g] = subset.groups.len() as u32;
-                    subset.groups.push(self.groups[g].clone());
-                }
-                row.group = group_map[g];
-            }
-            row.left = condition_map[row.left as usize];
-            row.right = condition_map[row.right as usize];
-            debug_assert!(row.left != u32::MAX && row.right != u32::MAX, "a row names a condition left out");
-            subset.rows.push(row);
-        }
-        subset
-    }
-}
 
 /// How to read a trials CSV. `Default` is the documented default: no grouping, pilot and
 /// excluded participants left out.
@@ -208,121 +109,6 @@ pub struct ParsedTrials {
     pub scenes: Option<TrialScenes>,
 }
 
-/// Factor levels per condition, from a conditions CSV.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ConditionTable {
-    pub conditions: Vec<String>,
-    pub factors: Vec<String>,
-    /// `levels[condition][factor]`.
-    pub levels: Vec<Vec<f64>>,
-}
-
-impl ConditionTable {
-    pub fn index_of(&self, condition: &str) -> Option<usize> {
-        self.conditions.iter().position(|c| c == condition)
-    }
-}
-
-pub(crate) fn csv_error(source_name: &str, error: csv::Error) -> AnalysisError {
-    let line = error.position().map(|p| p.line()).unwrap_or(0);
-    let message = match error.kind() {
-        csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
-            format!("the row has {len} fields but the header has {expected_len}")
-        }
-        csv::ErrorKind::Utf8 { .. } => "the text is not valid UTF-8".to_string(),
-        _ => error.to_string(),
-    };
-    AnalysisError::MalformedCsv { source_name: source_name.to_string(), line, message }
-}
-
-pub(crate) fn header_index(source_name: &str, headers: &csv::StringRecord, column: &str) -> Result<usize> {
-    headers.iter().position(|h| h.trim() == column).ok_or_else(|| AnalysisError::MissingColumn {
-        source_name: source_name.to_string(),
-        column: column.to_string(),
-        found: headers.iter().map(|h| h.trim()).collect::<Vec<_>>().join(", "),
-    })
-}
-
-pub(crate) fn reader(text: &str) -> csv::Reader<&[u8]> {
-    csv::ReaderBuilder::new().has_headers(true).flexible(false).from_reader(text.as_bytes())
-}
-
-/// Parses a conditions CSV. The first column is the condition name; every further column is a
-/// factor with numeric levels.
-pub fn parse_conditions(text: &str, source_name: &str) -> Result<ConditionTable> {
-    let mut reader = reader(text);
-    let headers = reader.headers().map_err(|e| csv_error(source_name, e))?.clone();
-    let first = headers.get(0).map(str::trim).unwrap_or("");
-    if first != "condition" {
-        return Err(AnalysisError::MissingColumn {
-            source_name: source_name.to_string(),
-            column: "condition (as the first column)".to_string(),
-            found: headers.iter().collect::<Vec<_>>().join(", "),
-        });
-    }
-    let factors: Vec<String> = headers.iter().skip(1).map(|h| h.trim().to_string()).collect();
-    for (k, factor) in factors.iter().enumerate() {
-        if factor.is_empty() {
-            return Err(AnalysisError::BadValue {
-                source_name: source_name.to_string(),
-                line: 1,
-                column: format!("#{}", k + 2),
-                message: "the factor column has no name".to_string(),
-            });
-        }
-        if factors[..k].contains(factor) {
-            return Err(AnalysisError::BadValue {
-                source_name: source_name.to_string(),
-                line: 1,
-                column: factor.clone(),
-                message: "the factor is named twice in the header".to_string(),
-            });
-        }
-    }
-    let mut table = ConditionTable { conditions: Vec::new(), factors, levels: Vec::new() };
-    let mut first_lines: HashMap<String, u64> = HashMap::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| csv_error(source_name, e))?;
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
-        let name = record.get(0).unwrap_or("").trim().to_string();
-        if name.is_empty() {
-            return Err(AnalysisError::BadValue {
-                source_name: source_name.to_string(),
-                line,
-                column: "condition".to_string(),
-                message: "the condition name is empty".to_string(),
-            });
-        }
-        if let Some(&first_line) = first_lines.get(&name) {
-            return Err(AnalysisError::DuplicateCondition {
-                source_name: source_name.to_string(),
-                line,
-                condition: name,
-                first_line,
-            });
-        }
-        first_lines.insert(name.clone(), line);
-        let mut levels = Vec::with_capacity(table.factors.len());
-        for (k, factor) in table.factors.iter().enumerate() {
-            let cell = record.get(k + 1).unwrap_or("").trim();
-            let value: f64 =
-                cell.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| AnalysisError::BadValue {
-                    source_name: source_name.to_string(),
-                    line,
-                    column: factor.clone(),
-                    message: format!("the factor level `{cell}` is not a finite number"),
-                })?;
-            levels.push(value);
-        }
-        table.conditions.push(name);
-        table.levels.push(levels);
-    }
-    if table.conditions.is_empty() {
-        return Err(AnalysisError::Empty(format!("{source_name}: there are no conditions in the file")));
-    }
-    Ok(table)
-}
-
 /// Parses a trials CSV. Conditions are indexed in the order of `conditions` when it is given
 /// (and every condition of the trials must be in it); otherwise sorted by name. Pilot and
 /// excluded participants are left out (see [`parse_trials_with`] to keep them or to learn how
@@ -335,20 +121,6 @@ pub fn parse_trials(
 ) -> Result<Judgments> {
     let options = TrialsOptions { group_by: group_by.map(str::to_string), ..TrialsOptions::default() };
     Ok(parse_trials_with(text, source_name, conditions, &options)?.judgments)
-}
-
-/// A `true`/`false` cell (ASCII case ignored, as spreadsheets write `TRUE`).
-#[inline]
-fn parse_flag(cell: Field) -> Option<bool> {
-    const FALSE: u64 = u64::from_le_bytes(*b"false\0\0\0");
-    const TRUE: u64 = u64::from_le_bytes(*b"true\0\0\0\0");
-    match (cell.text.len(), cell.word) {
-        (5, FALSE) => Some(false),
-        (4, TRUE) => Some(true),
-        _ if cell.text.eq_ignore_ascii_case("true") => Some(true),
-        _ if cell.text.eq_ignore_ascii_case("false") => Some(false),
-        _ => None,
-    }
 }
 
 /// Where the columns the analysis reads are in the trials CSV.
@@ -398,7 +170,7 @@ struct RowReader<'a> {
     short_names: ShortNames,
     participant_index: FnvMap<u32>,
     group_index: FnvMap<u32>,
-    /// The last participant and group seen: name, [`short_word`] (where short), index.
+    /// The last participant and group seen: name, [`short_word`](super::csv::short_word) (where short), index.
     last_participant: Option<(String, u64, u32)>,
     last_group: Option<(String, u64, u32)>,
     /// Per participant (by index): marked pilot, marked excluded, in any of their rows.
@@ -628,294 +400,15 @@ impl<'a> RowReader<'a> {
     }
 }
 
-/// A field of a record, trimmed, with its bytes as one integer where it has at most eight
-/// (for comparisons without a loop or a call).
-#[derive(Clone, Copy)]
-struct Field<'f> {
-    text: &'f str,
-    /// [`short_word`] of `text` where it has at most eight bytes, else 0.
-    word: u64,
-}
-
-impl<'f> Field<'f> {
-    fn new(text: &'f str) -> Field<'f> {
-        let word = if text.len() <= 8 { short_word(text.as_bytes()) } else { 0 };
-        Field { text, word }
-    }
-
-    /// Field `data[start..end]`, trimmed. Where it has at most eight bytes, its word is read
-    /// as one load of the eight bytes at `start` (masked to its length) when the text goes on
-    /// that far.
+impl Records for RowReader<'_> {
     #[inline]
-    fn at(data: &'f str, start: usize, end: usize) -> Field<'f> {
-        let bytes = data.as_bytes();
-        let printable = |byte: u8| (b'!'..=b'~').contains(&byte);
-        if !(end > start && printable(bytes[start]) && printable(bytes[end - 1])) {
-            return Field::new(data[start..end].trim());
-        }
-        let length = end - start;
-        let word = match bytes.get(start..start + 8) {
-            Some(eight) if length <= 8 => {
-                u64::from_le_bytes(eight.try_into().expect("eight bytes")) & (u64::MAX >> (64 - 8 * length))
-            }
-            _ if length <= 8 => short_word(&bytes[start..end]),
-            _ => 0,
-        };
-        Field { text: &data[start..end], word }
+    fn reserve(&mut self, additional: usize) {
+        self.judgments.rows.reserve(additional);
     }
 
     #[inline]
-    fn is_short(&self) -> bool {
-        self.text.len() <= 8
-    }
-
-    /// Whether the two fields have the same text.
-    #[inline]
-    fn same(&self, other: Field) -> bool {
-        self.text.len() == other.text.len()
-            && if self.is_short() { self.word == other.word } else { self.text == other.text }
-    }
-}
-
-/// Reads the records of `data` (the text after the header, whose first line is `first_line`)
-/// in one pass over its bytes: the separators (`,` and `\n`) are found eight bytes at a time
-/// ([`Separators`]), each field is a slice of `data` (validated as UTF-8 once, as a whole), and
-/// only the columns the analysis reads are looked at. The whole reading where the file has no
-/// quote and no `\r` but before a `\n`; returns `Ok(false)` where it has (the caller then reads
-/// the file with the csv crate instead). Empty lines are skipped (and not counted in line
-/// numbers) and rows of the wrong length refused, all as the csv crate does.
-fn read_unquoted(data: &str, first_line: u64, n_columns: usize, rows: &mut RowReader) -> Result<bool> {
-    let bytes = data.as_bytes();
-    // One search for either; where a `\r` comes first, the rest is checked more closely.
-    let crlf = match memchr::memchr2(b'"', b'\r', bytes) {
-        None => false,
-        Some(at) if bytes[at] == b'"' => return Ok(false),
-        Some(at) => {
-            if memchr::memchr(b'"', &bytes[at..]).is_some()
-                || !memchr::memchr_iter(b'\r', &bytes[at..]).all(|k| bytes.get(at + k + 1) == Some(&b'\n'))
-            {
-                return Ok(false);
-            }
-            true
-        }
-    };
-    // Room for every row, from the length of the first.
-    let first_length = memchr::memchr(b'\n', bytes).unwrap_or(bytes.len()) + 1;
-    rows.judgments.rows.reserve(bytes.len() / first_length.max(8) + 1);
-    // starts[k]: where field k of the line begins; field k ends one byte before starts[k + 1].
-    let mut starts = vec![0usize; n_columns + 1];
-    let mut line_number = first_line;
-    let mut line_end = |line_start: usize, end: usize, n_fields: usize, starts: &mut [usize]| -> Result<()> {
-        // Empty lines are skipped and, as the csv crate counts, not counted.
-        if end > line_start {
-            if n_fields != n_columns {
-                return Err(AnalysisError::MalformedCsv {
-                    source_name: rows.source_name.to_string(),
-                    line: line_number,
-                    message: format!("the row has {n_fields} fields but the header has {n_columns}"),
-                });
-            }
-            starts[0] = line_start;
-            starts[n_columns] = end + 1;
-            rows.row(line_number, |k| Field::at(data, starts[k], starts[k + 1] - 1))?;
-            line_number += 1;
-        }
-        Ok(())
-    };
-    let mut separators = Separators::new(bytes);
-    let mut line_start = 0;
-    loop {
-        // A line as expected has n_columns − 1 commas, then a `\n` (or the end of the text):
-        // the loop over them ends where the count says, with few mispredicted branches.
-        let mut n_fields = 1;
-        let mut next = separators.next();
-        while n_fields < n_columns {
-            match next {
-                Some((at, false)) => {
-                    starts[n_fields] = at + 1;
-                    n_fields += 1;
-                    next = separators.next();
-                }
-                _ => break,
-            }
-        }
-        // Fields beyond the header's, counted for the error.
-        while let Some((_, false)) = next {
-            n_fields += 1;
-            next = separators.next();
-        }
-        let end = match next {
-            Some((at, _)) => at,
-            None if line_start < bytes.len() => bytes.len(),
-            None => break,
-        };
-        let content_end = if crlf && end > line_start && bytes[end - 1] == b'\r' { end - 1 } else { end };
-        line_end(line_start, content_end, n_fields, &mut starts)?;
-        if next.is_none() {
-            break;
-        }
-        line_start = end + 1;
-    }
-    Ok(true)
-}
-
-/// The positions of `,` and `\n` in a text, in order, each with whether it is a `\n`. Sixty-four
-/// bytes at a time become one bit mask (eight bytes tested at once as one integer: a byte
-/// equal to a separator becomes zero after an exclusive or, and zero bytes are found exactly
-/// by Mycroft's test; a multiplication gathers their high bits), so the cost is a few
-/// operations per eight bytes and a bit scan and a byte read per separator.
-struct Separators<'a> {
-    bytes: &'a [u8],
-    /// Where the current block starts.
-    base: usize,
-    /// Bit k: byte `base + k` is a `,` or `\n` (found, not yet returned).
-    separators: u64,
-}
-
-impl<'a> Separators<'a> {
-    const BLOCK: usize = 64;
-
-    fn new(bytes: &'a [u8]) -> Separators<'a> {
-        let mut separators = Separators { bytes, base: 0, separators: 0 };
-        separators.load();
-        separators
-    }
-
-    /// The high bit of every byte of `word` that equals `byte`.
-    #[inline]
-    fn equal(word: u64, byte: u8) -> u64 {
-        const LOW: u64 = 0x7f7f_7f7f_7f7f_7f7f;
-        let x = word ^ (0x0101_0101_0101_0101 * u64::from(byte));
-        !(((x & LOW) + LOW) | x | LOW)
-    }
-
-    /// Byte k's high bit (of a mask with only high bits set) as bit k.
-    #[inline]
-    fn gather(high_bits: u64) -> u64 {
-        (high_bits >> 7).wrapping_mul(0x0102_0408_1020_4080) >> 56
-    }
-
-    #[inline]
-    fn load(&mut self) {
-        let mut separators = 0;
-        match self.bytes.get(self.base..self.base + Self::BLOCK) {
-            Some(block) => {
-                for (k, chunk) in block.chunks_exact(8).enumerate() {
-                    let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
-                    separators |= Self::gather(Self::equal(word, b'\n') | Self::equal(word, b',')) << (8 * k);
-                }
-            }
-            None => {
-                for (k, &byte) in self.bytes[self.base.min(self.bytes.len())..].iter().enumerate() {
-                    separators |= u64::from(byte == b'\n' || byte == b',') << k;
-                }
-            }
-        }
-        self.separators = separators;
-    }
-}
-
-impl Iterator for Separators<'_> {
-    type Item = (usize, bool);
-
-    #[inline]
-    fn next(&mut self) -> Option<(usize, bool)> {
-        while self.separators == 0 {
-            self.base += Self::BLOCK;
-            if self.base >= self.bytes.len() {
-                return None;
-            }
-            self.load();
-        }
-        let bit = self.separators.trailing_zeros();
-        self.separators &= self.separators - 1;
-        let at = self.base + bit as usize;
-        Some((at, self.bytes[at] == b'\n'))
-    }
-}
-
-/// A name of up to eight bytes as an integer (little-endian, zero-padded). With the length, it
-/// tells any two such names apart.
-/// Built from two overlapping loads (no copy through memory, which would stall the load after it).
-#[inline]
-fn short_word(name: &[u8]) -> u64 {
-    let length = name.len();
-    debug_assert!(length <= 8);
-    if length >= 4 {
-        let low = u32::from_le_bytes(name[..4].try_into().expect("four bytes"));
-        let high = u32::from_le_bytes(name[length - 4..length].try_into().expect("four bytes"));
-        u64::from(low) | u64::from(high) << (8 * (length - 4))
-    } else if length > 0 {
-        let byte = |k: usize| u64::from(name[k]) << (8 * k);
-        byte(0) | byte(length / 2) | byte(length - 1)
-    } else {
-        0
-    }
-}
-
-/// A perfect hash of the condition names of up to eight bytes: slot
-/// `((word + length) · multiplier) >> shift` of a table four times as long as the names holds
-/// the name's word, length and index, and no two names share a slot (a multiplier is searched
-/// for when the table is built: a few tries for a study's handful of conditions). `complete` is
-/// false where there are more than [`ShortNames::MAX_NAMES`] short names or no multiplier was
-/// found; then every name goes through the hash map.
-struct ShortNames {
-    multiplier: u64,
-    shift: u32,
-    /// `(word, length, index)`; an empty slot has length `u32::MAX`.
-    slots: Vec<(u64, u32, u32)>,
-    complete: bool,
-}
-
-impl ShortNames {
-    /// Odd constants (SplitMix64 outputs) tried in turn as the multiplier.
-    const TRIES: usize = 64;
-    const MAX_NAMES: usize = 32;
-
-    fn new(names: &[String]) -> ShortNames {
-        let short: Vec<(u64, u32, u32)> = names
-            .iter()
-            .enumerate()
-            .filter(|(_, name)| name.len() <= 8)
-            .map(|(k, name)| (short_word(name.as_bytes()), name.len() as u32, k as u32))
-            .collect();
-        let bits = (4 * short.len()).next_power_of_two().max(4).trailing_zeros();
-        let shift = 64 - bits;
-        if short.len() > Self::MAX_NAMES {
-            return ShortNames { multiplier: 1, shift, slots: Vec::new(), complete: false };
-        }
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        for _ in 0..Self::TRIES {
-            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            let multiplier = (z ^ (z >> 31)) | 1;
-            let mut slots = vec![(0, u32::MAX, 0); 1 << bits];
-            let placed = short.iter().all(|&(word, length, index)| {
-                let slot = &mut slots[Self::slot(word, length, multiplier, shift)];
-                let free = slot.1 == u32::MAX;
-                *slot = (word, length, index);
-                free
-            });
-            if placed {
-                return ShortNames { multiplier, shift, slots, complete: true };
-            }
-        }
-        ShortNames { multiplier: 1, shift, slots: Vec::new(), complete: false }
-    }
-
-    #[inline]
-    fn slot(word: u64, length: u32, multiplier: u64, shift: u32) -> usize {
-        (word.wrapping_add(u64::from(length)).wrapping_mul(multiplier) >> shift) as usize
-    }
-
-    /// The index of a name of up to eight bytes, if it is a known condition.
-    #[inline]
-    fn find(&self, name: Field) -> Option<u32> {
-        let (word, length) = (name.word, name.text.len() as u32);
-        let (slot_word, slot_length, index) = self.slots[Self::slot(word, length, self.multiplier, self.shift)];
-        (slot_word == word && slot_length == length).then_some(index)
+    fn record<'f>(&mut self, line: u64, field: impl Fn(usize) -> Field<'f>) -> Result<()> {
+        self.row(line, field)
     }
 }
 
@@ -961,7 +454,7 @@ pub fn parse_trials_with(
     let mut rows = RowReader::new(source_name, conditions, columns, options.allow_ground_truth);
     // The fast path reads the common file (no quotes, `\n` or `\r\n` line ends) by splitting
     // bytes; a file it cannot read that way is read again, from the start, by the csv crate.
-    if !read_unquoted(&text[data_start.byte() as usize..], data_start.line(), n_columns, &mut rows)? {
+    if !read_unquoted(&text[data_start.byte() as usize..], source_name, data_start.line(), n_columns, &mut rows)? {
         rows = RowReader::new(source_name, conditions, columns, options.allow_ground_truth);
         let mut record = csv::StringRecord::new();
         loop {
@@ -1078,6 +571,7 @@ pub fn parse_trials_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::parse_conditions;
 
     #[test]
     fn reads_trials_and_sorts_conditions_by_name() {
@@ -1121,16 +615,6 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert_eq!(message, "t.csv: line 2: condition `HQ` is not in the conditions file");
-    }
-
-    #[test]
-    fn duplicate_and_non_numeric_conditions() {
-        let message = parse_conditions("condition,gi\nLQ,0\nGI,1\nLQ,1\n", "c.csv").unwrap_err().to_string();
-        assert_eq!(message, "c.csv: line 4: condition `LQ` is listed twice (first on line 2)");
-        let message = parse_conditions("condition,gi\nLQ,off\n", "c.csv").unwrap_err().to_string();
-        assert_eq!(message, "c.csv: line 2, column `gi`: the factor level `off` is not a finite number");
-        let message = parse_conditions("condition,gi\nLQ,NaN\n", "c.csv").unwrap_err().to_string();
-        assert!(message.contains("not a finite number"));
     }
 
     #[test]
@@ -1185,43 +669,6 @@ mod tests {
         let subset = judgments.subset(judgments.rows[..1].iter().copied(), |c| c < 2);
         assert_eq!((subset.conditions.len(), subset.participants.len(), subset.rows[0].left), (2, 1, 0));
     }
-
-    /// The separators found a block at a time are those a byte-by-byte scan finds, for every
-    /// byte value and text length (blocks and their tails).
-    #[test]
-    fn separators_are_those_a_byte_scan_finds() {
-        let bytes: Vec<u8> = (0..300u32)
-            .map(|k| [b',', b'\n', b'a', 0x80 | b',', 0x80 | b'\n', (k * 37) as u8][k as usize % 6])
-            .collect();
-        for length in 0..bytes.len() {
-            let text = &bytes[..length];
-            let found: Vec<(usize, bool)> = Separators::new(text).collect();
-            let expected: Vec<(usize, bool)> = text
-                .iter()
-                .enumerate()
-                .filter(|&(_, &b)| b == b',' || b == b'\n')
-                .map(|(k, &b)| (k, b == b'\n'))
-                .collect();
-            assert_eq!(found, expected, "length {length}");
-        }
-    }
-
-    #[test]
-    fn short_names_find_every_condition_and_nothing_else() {
-        let names: Vec<String> =
-            ["LQ", "GI", "CM", "GI+CM", "CA", "GI+CA", "CM+CA", "HQ", "", "A\0"].map(String::from).to_vec();
-        let table = ShortNames::new(&names);
-        assert!(table.complete);
-        for (k, name) in names.iter().enumerate() {
-            assert_eq!(table.find(Field::new(name)), Some(k as u32), "{name:?}");
-        }
-        for other in ["A", "HQ ", "GI+C", "CM+CA+", "lq"] {
-            assert_eq!(table.find(Field::new(other)), None, "{other:?}");
-        }
-        let many: Vec<String> = (0..40).map(|k| format!("C{k}")).collect();
-        assert!(!ShortNames::new(&many).complete, "more than MAX_NAMES go through the hash map");
-    }
-
     /// The byte-splitting fast path and the csv crate (which reads any file with a quote) agree
     /// on line ends, empty lines, white space, a missing last newline and the line of an error.
     #[test]
