@@ -82,6 +82,19 @@ pub struct Options {
     /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
     #[arg(long)]
     pub include_excluded: bool,
+    /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals.
+    #[arg(long, value_enum, default_value = "bt")]
+    pub scale: Scale,
+}
+
+/// The scale `--scale` asks for besides the Bradley–Terry log-worths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Scale {
+    /// Bradley–Terry log-worths only.
+    #[default]
+    Bt,
+    /// Also pwcmp's JOD ([`crate::scales::jod`]).
+    Jod,
 }
 
 impl Default for Options {
@@ -99,6 +112,7 @@ impl Default for Options {
             always_firth: false,
             include_pilots: false,
             include_excluded: false,
+            scale: Scale::Bt,
         }
     }
 }
@@ -128,6 +142,12 @@ pub struct Item {
     /// Bootstrap interval of `log_worth` (95 %; percentile, widened for few participants).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci: Option<[f64; 2]>,
+    /// JOD (`--scale jod`): pwcmp's `pw_scale`, mean about 0.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod: Option<f64>,
+    /// `pw_scale_bootstrp`'s 95 % percentile interval of `jod` (`--scale jod --bootstrap N`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod_ci: Option<[f64; 2]>,
 }
 
 /// A connected component of the comparison graph.
@@ -297,6 +317,8 @@ pub enum Part {
     StimulusModel,
     /// Every correlation of a metric with the perceived log-worth.
     MetricCorrelations,
+    /// The JOD scale of `--scale jod`.
+    JodScale,
 }
 
 impl Part {
@@ -310,6 +332,7 @@ impl Part {
             Part::Metrics => "metrics analysis",
             Part::StimulusModel => "stimulus model",
             Part::MetricCorrelations => "metric correlations",
+            Part::JodScale => "JOD scale",
         }
     }
 }
@@ -387,6 +410,10 @@ pub struct Analysis {
     pub bootstrap: Option<Bootstrap>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub observers: Option<ObserverScreening>,
+    /// `--scale jod`: pwcmp's outlier analysis and the significance of neighbouring JODs (the
+    /// JODs themselves are on `items`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod_scale: Option<crate::scales::jod::JodSection>,
     /// Optional parts that could not be estimated on these data, each with its reason (also
     /// said in `warnings`); everything else is reported. Groups that could not be estimated
     /// are in `groups`.
@@ -717,6 +744,8 @@ fn analyze_subset(
             fitted_log_worth: None,
             fitted_worth: None,
             ci: None,
+            jod: None,
+            jod_ci: None,
         })
         .collect();
     let mut components = Vec::new();
@@ -880,10 +909,29 @@ fn analyze_subset(
         left_out: None,
         bootstrap: None,
         observers: None,
+        jod_scale: None,
         not_estimable,
         warnings,
     };
 
+    if options.scale == Scale::Jod {
+        let ties: &[crate::data::Judgment] = &[];
+        match crate::scales::jod::analyze(tallies, ties, active, names, &judgments.participants, options) {
+            Ok((values, intervals, section)) => {
+                for (c, item) in analysis.items.iter_mut().enumerate() {
+                    if item.comparisons > 0 {
+                        item.jod = Some(values[c]);
+                        item.jod_ci = intervals.as_ref().map(|i| i[c]);
+                    }
+                }
+                analysis.warnings.extend(section.warnings.iter().cloned());
+                analysis.jod_scale = Some(section);
+            }
+            Err(reason) => {
+                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::JodScale, reason)
+            }
+        }
+    }
     let screen = match options.screening {
         Screening::On => true,
         Screening::Off => false,

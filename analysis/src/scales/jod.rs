@@ -24,8 +24,16 @@
 //! random to integers, which this module does not: the likelihood takes the half votes as they
 //! are (equal to pwcmp wherever the ties of a pair are even in number).
 
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
 use statrs::function::erf::erfc;
 use statrs::function::gamma::ln_gamma;
+
+use crate::analysis::Options;
+use crate::data::Judgment;
+use crate::design::ParticipantTallies;
 
 /// σ of pwcmp's cumulative normal: Φ(1/σ) = 0.75.
 pub const SIGMA: f64 = 1.4826;
@@ -348,7 +356,7 @@ fn minimise(problem: &Problem) -> Result<Vec<f64>, JodFailure> {
 pub fn bootstrap(observers: &[Matrix], resamples: &[Vec<usize>], alpha: f64) -> Option<Bootstrapped> {
     let n = observers.first()?.n;
     let replicates: Vec<Vec<f64>> = resamples
-        .iter()
+        .par_iter()
         .filter_map(|sample| {
             let mut sum = Matrix::zeros(n);
             for &o in sample {
@@ -469,6 +477,164 @@ pub fn difference_p(jod: &[f64], covariance: &[f64], i: usize, j: usize) -> f64 
     }
     let z = (jod[i] - jod[j]).abs() / variance.sqrt();
     (erfc(z / std::f64::consts::SQRT_2)).min(1.0)
+}
+
+/// pwcmp's outlier analysis of one participant.
+#[derive(Debug, Clone, Serialize)]
+pub struct JodObserver {
+    pub participant: String,
+    /// `pw_outlier_analysis`'s L: log10 likelihood per compared pair under the others' JOD.
+    pub log10_likelihood: f64,
+    /// Distance below the lower quartile of L, in interquartile ranges (0 above it).
+    pub dist_l: f64,
+    /// dist_L > 1.5 (pwcmp's example's cut-off); nobody is dropped.
+    pub outlier: bool,
+}
+
+/// Two conditions next to each other in the JOD ranking.
+#[derive(Debug, Clone, Serialize)]
+pub struct JodNeighbour {
+    pub lower: String,
+    pub upper: String,
+    /// JOD of `upper` minus JOD of `lower`.
+    pub difference: f64,
+    /// Two-sided p of the difference under the bootstrap's covariance (`pw_significance_matrix`);
+    /// absent without `--bootstrap`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub significant: Option<bool>,
+}
+
+/// The `jod_scale` section of the Analysis JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct JodSection {
+    /// σ of the cumulative normal (1 JOD = 75 %).
+    pub sigma: f64,
+    /// Ties counted as half a vote each way.
+    pub ties: u64,
+    /// `pw_outlier_analysis` per participant (absent with fewer than three participants).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub observers: Vec<JodObserver>,
+    /// Participants with dist_L > 1.5.
+    pub outliers: Vec<String>,
+    /// The compared conditions by JOD, lowest first, with each neighbour's difference.
+    pub ranking: Vec<JodNeighbour>,
+    /// Bootstrap resamples whose scaling failed (left out of the intervals).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bootstrap_failed: Option<usize>,
+    #[serde(skip)]
+    pub warnings: Vec<String>,
+}
+
+/// Per-condition JOD, their bootstrap intervals (where `options.bootstrap` > 0) and the
+/// `jod_scale` section, from the active participants' tallies and their ties (half a vote each
+/// way). An error is the sentence saying why there is no JOD scale.
+pub type JodAnalysis = (Vec<f64>, Option<Vec<[f64; 2]>>, JodSection);
+
+pub fn analyze(
+    tallies: &ParticipantTallies,
+    ties: &[Judgment],
+    active: &[usize],
+    condition_names: &[String],
+    participant_names: &[String],
+    options: &Options,
+) -> Result<JodAnalysis, String> {
+    let n_conditions = condition_names.len();
+    let mut position = vec![usize::MAX; participant_names.len()];
+    let mut observers: Vec<Matrix> = active
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| {
+            position[p] = k;
+            let mut m = Matrix::zeros(n_conditions);
+            for pair in tallies.of(p) {
+                m.wins[pair.i * n_conditions + pair.j] += pair.wins_i as f64;
+                m.wins[pair.j * n_conditions + pair.i] += pair.wins_j as f64;
+            }
+            m
+        })
+        .collect();
+    let mut tie_count = 0;
+    for tie in ties {
+        let Some(&k) = position.get(tie.participant as usize).filter(|&&k| k != usize::MAX) else { continue };
+        let (i, j, half) = (tie.left as usize, tie.right as usize, 0.5 * tie.count as f64);
+        observers[k].wins[i * n_conditions + j] += half;
+        observers[k].wins[j * n_conditions + i] += half;
+        tie_count += tie.count;
+    }
+    let mut pooled = Matrix::zeros(n_conditions);
+    for m in &observers {
+        pooled.add(m);
+    }
+    let jod = scale(&pooled).map_err(|e| e.to_string())?;
+    let mut warnings = Vec::new();
+    let compared: Vec<usize> =
+        (0..n_conditions).filter(|&c| (0..n_conditions).any(|d| pooled.get(c, d) + pooled.get(d, c) > 0.0)).collect();
+    let (mut records, mut outliers) = (Vec::new(), Vec::new());
+    if observers.len() >= 3 {
+        match self::outliers(&[observers.iter().cloned().map(Some).collect()]) {
+            Ok((l, dist)) => {
+                for (k, &p) in active.iter().enumerate() {
+                    let outlier = dist[k] > 1.5;
+                    if outlier {
+                        outliers.push(participant_names[p].clone());
+                    }
+                    records.push(JodObserver {
+                        participant: participant_names[p].clone(),
+                        log10_likelihood: l[k],
+                        dist_l: dist[k],
+                        outlier,
+                    });
+                }
+            }
+            Err(e) => warnings.push(format!("JOD outlier analysis not estimable: {e} for some participant's others")),
+        }
+    }
+    let mut intervals = None;
+    let mut covariance = None;
+    let mut bootstrap_failed = None;
+    if options.bootstrap > 0 && observers.len() >= 2 {
+        let resamples: Vec<Vec<usize>> = (0..options.bootstrap)
+            .map(|b| {
+                let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+                rng.set_stream(b as u64 + 1);
+                (0..observers.len()).map(|_| rng.random_range(0..observers.len())).collect()
+            })
+            .collect();
+        match bootstrap(&observers, &resamples, 0.05) {
+            Some(found) => {
+                if found.failed > 0 {
+                    warnings.push(format!(
+                        "JOD bootstrap: {} of {} resamples could not be scaled and are left out",
+                        found.failed, options.bootstrap
+                    ));
+                }
+                intervals = Some((0..n_conditions).map(|c| [found.low[c], found.high[c]]).collect());
+                covariance = Some(found.covariance);
+                bootstrap_failed = Some(found.failed);
+            }
+            None => warnings.push("JOD bootstrap: fewer than two resamples could be scaled; no intervals".into()),
+        }
+    }
+    let mut order = compared.clone();
+    order.sort_by(|&a, &b| jod[a].total_cmp(&jod[b]));
+    let ranking = order
+        .windows(2)
+        .map(|w| {
+            let p = covariance.as_ref().map(|c| difference_p(&jod, c, w[1], w[0]));
+            JodNeighbour {
+                lower: condition_names[w[0]].clone(),
+                upper: condition_names[w[1]].clone(),
+                difference: jod[w[1]] - jod[w[0]],
+                p,
+                significant: p.map(|p| p < 0.05),
+            }
+        })
+        .collect();
+    let section =
+        JodSection { sigma: SIGMA, ties: tie_count, observers: records, outliers, ranking, bootstrap_failed, warnings };
+    Ok((jod, intervals, section))
 }
 
 #[cfg(test)]

@@ -147,3 +147,48 @@ fn quantile_is_matlabs() {
     assert_eq!(quantile_method5(&x, 0.025), 1.0);
     assert_eq!(quantile_method5(&x, 0.75), 5.5);
 }
+
+/// `mrstudy analyze --scale jod` on pwcmp's ex3 data (all scenes) written as a trials CSV: the
+/// items' `jod` and the participants' dist_L are pwcmp's.
+#[test]
+fn analyze_scale_jod_reports_pwcmps_values() {
+    let set = sets().into_iter().find(|s| s.name == "ex3/all").unwrap();
+    let json: serde_json::Value = serde_json::from_str(REFERENCE).unwrap();
+    let names: Vec<String> =
+        json["sets"][0]["conditions"].as_array().unwrap().iter().map(|c| c.as_str().unwrap().to_string()).collect();
+    let participants: Vec<String> =
+        json["sets"][0]["observers"].as_array().unwrap().iter().map(|c| c.as_str().unwrap().to_string()).collect();
+    let mut csv = String::from("participant,left,right,chosen,count\n");
+    for (o, m) in set.observers.iter().enumerate() {
+        for i in 0..m.n {
+            for j in 0..m.n {
+                if m.get(i, j) > 0.0 {
+                    csv += &format!("{},{},{},{},{}\n", participants[o], names[i], names[j], names[i], m.get(i, j));
+                }
+            }
+        }
+    }
+    let options = crate::analysis::Options {
+        scale: crate::analysis::Scale::Jod,
+        screening: crate::analysis::Screening::Off,
+        bootstrap: 20,
+        ..crate::analysis::Options::default()
+    };
+    let analysis = crate::analysis::analyze(&csv, None, &options).unwrap();
+    assert_eq!(analysis.items.iter().map(|i| i.condition.clone()).collect::<Vec<_>>(), names);
+    let jod: Vec<f64> = analysis.items.iter().map(|i| i.jod.unwrap()).collect();
+    assert_close("analyze ex3/all", "jod", &jod, &set.jod, 1e-3);
+    let section = analysis.jod_scale.as_ref().unwrap();
+    let dist: Vec<f64> =
+        participants.iter().map(|p| section.observers.iter().find(|o| &o.participant == p).unwrap().dist_l).collect();
+    assert_close("analyze ex3/all", "dist_L", &dist, &set.dist_l, 1e-3);
+    assert_eq!(section.outliers.len(), set.dist_l.iter().filter(|&&d| d > 1.5).count());
+    assert_eq!(section.ranking.len(), names.len() - 1);
+    assert!(section.ranking.iter().all(|n| n.difference >= 0.0 && n.p.is_some()));
+    for item in &analysis.items {
+        let [low, high] = item.jod_ci.unwrap();
+        assert!(low <= item.jod.unwrap() + 1e-9 && item.jod.unwrap() <= high + 1e-9, "{item:?}");
+    }
+    let text = serde_json::to_string(&analysis).unwrap();
+    assert!(text.contains("\"jod\":") && text.contains("\"jod_ci\":") && text.contains("\"jod_scale\":"));
+}
