@@ -23,7 +23,7 @@ use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 use crate::agreement::{self, Agreement, AgreementOptions};
-use crate::data::{ConditionTable, Judgments, LeftOut, TrialsOptions};
+use crate::data::{ConditionTable, Judgment, Judgments, LeftOut, TrialsOptions};
 use crate::design::{self, Dropped, PairTally, ParticipantTallies, Term};
 use crate::fit::{self, Fit, FitFailure, FitOptions, Method, ModelMatrix};
 use crate::pvalue::PValue;
@@ -319,6 +319,8 @@ pub enum Part {
     MetricCorrelations,
     /// The JOD scale of `--scale jod`.
     JodScale,
+    /// The Davidson fit of the judgments with ties.
+    Davidson,
 }
 
 impl Part {
@@ -333,6 +335,7 @@ impl Part {
             Part::StimulusModel => "stimulus model",
             Part::MetricCorrelations => "metric correlations",
             Part::JodScale => "JOD scale",
+            Part::Davidson => "Davidson tie model",
         }
     }
 }
@@ -414,6 +417,10 @@ pub struct Analysis {
     /// JODs themselves are on `items`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub jod_scale: Option<crate::scales::jod::JodSection>,
+    /// Where some judgments are ties: Davidson's tie model over all judgments (the item model
+    /// above is the Bradley–Terry fit of the judgments without ties).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub davidson: Option<crate::scales::davidson::DavidsonSection>,
     /// Optional parts that could not be estimated on these data, each with its reason (also
     /// said in `warnings`); everything else is reported. Groups that could not be estimated
     /// are in `groups`.
@@ -453,7 +460,7 @@ pub fn analyze_with_table(
         ..TrialsOptions::default()
     };
     let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
-    let mut analysis = analyze_judgments(&parsed.judgments, table, options)?;
+    let mut analysis = analyze_judgments_with_ties(&parsed.judgments, &parsed.ties, table, options)?;
     if !parsed.left_out.is_empty() {
         analysis.warnings.insert(0, parsed.left_out.describe());
         analysis.left_out = Some(parsed.left_out);
@@ -463,6 +470,18 @@ pub fn analyze_with_table(
 
 /// Analyses parsed judgments.
 pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, options: &Options) -> Result<Analysis> {
+    analyze_judgments_with_ties(judgments, &[], table, options)
+}
+
+/// As [`analyze_judgments`], with the judgments answered `tie` (numbered as `judgments`, not
+/// among its rows): where there are any, the `davidson` section, and half a vote each way on
+/// the JOD scale.
+pub fn analyze_judgments_with_ties(
+    judgments: &Judgments,
+    ties: &[Judgment],
+    table: Option<&ConditionTable>,
+    options: &Options,
+) -> Result<Analysis> {
     if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
         return Err(AnalysisError::BadOption {
             option: "tolerance".into(),
@@ -499,7 +518,16 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
     let n_conditions = judgments.conditions.len();
     let tallies = ParticipantTallies::new(n_participants, n_conditions, judgments.rows.iter());
     let everyone = tallies.present();
-    let mut analysis = analyze_subset(judgments, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
+    let mut analysis = analyze_subset(judgments, ties, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
+    if !ties.is_empty() {
+        let reference = judgments.conditions.iter().position(|c| *c == analysis.reference).unwrap_or(reference);
+        match crate::scales::davidson::section(&tallies, ties, &everyone, &judgments.conditions, reference, options) {
+            Ok(section) => analysis.davidson = Some(section),
+            Err(reason) => {
+                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::Davidson, reason)
+            }
+        }
+    }
 
     if !judgments.groups.is_empty() {
         // Where every participant's judgments are in one group (a column such as gender), a
@@ -532,7 +560,17 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         for (g, name) in judgments.groups.iter().enumerate() {
             let (own, active) = subset(&|group| group == g as u32);
             let group_tallies = own.as_ref().unwrap_or(&tallies);
-            match analyze_subset(judgments, table, terms.as_ref(), reference, options, group_tallies, &active) {
+            let group_ties: Vec<Judgment> = ties.iter().filter(|t| t.group == g as u32).copied().collect();
+            match analyze_subset(
+                judgments,
+                &group_ties,
+                table,
+                terms.as_ref(),
+                reference,
+                options,
+                group_tallies,
+                &active,
+            ) {
                 Ok(sub) => {
                     let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
                     valid &= model.method == Method::Ml;
@@ -585,6 +623,7 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                 let pooled_tallies = own.as_ref().unwrap_or(&tallies);
                 match analyze_subset(
                     judgments,
+                    &[],
                     table,
                     terms.as_ref(),
                     reference,
@@ -678,8 +717,10 @@ pub(crate) fn failure_message(what: &str, failure: FitFailure) -> AnalysisError 
     AnalysisError::Empty(message)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn analyze_subset(
     judgments: &Judgments,
+    ties: &[Judgment],
     table: Option<&ConditionTable>,
     terms: Option<&(String, Vec<Term>)>,
     reference: usize,
@@ -910,12 +951,12 @@ fn analyze_subset(
         bootstrap: None,
         observers: None,
         jod_scale: None,
+        davidson: None,
         not_estimable,
         warnings,
     };
 
     if options.scale == Scale::Jod {
-        let ties: &[crate::data::Judgment] = &[];
         match crate::scales::jod::analyze(tallies, ties, active, names, &judgments.participants, options) {
             Ok((values, intervals, section)) => {
                 for (c, item) in analysis.items.iter_mut().enumerate() {

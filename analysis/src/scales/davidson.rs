@@ -249,5 +249,82 @@ pub fn fit(
     Err(DavidsonFailure::NotConverged)
 }
 
+/// One condition in the `davidson` section.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct DavidsonItem {
+    pub condition: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub log_worth: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub se: Option<f64>,
+}
+
+/// The `davidson` section of the Analysis JSON.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct DavidsonSection {
+    pub items: Vec<DavidsonItem>,
+    pub nu: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nu_se: Option<f64>,
+    /// Judgments answered `tie`.
+    pub ties: u64,
+    pub log_likelihood: f64,
+}
+
+/// The Davidson fit of the active participants' choices and ties over the compared conditions,
+/// `reference` at 0; an error is the sentence saying why it could not be fitted.
+pub fn section(
+    tallies: &crate::design::ParticipantTallies,
+    ties: &[crate::data::Judgment],
+    active: &[usize],
+    condition_names: &[String],
+    reference: usize,
+    options: &crate::analysis::Options,
+) -> Result<DavidsonSection, String> {
+    let n = condition_names.len();
+    let mut table = vec![[0.0f64; 3]; n * n];
+    for pair in tallies.pooled(n, active) {
+        let cell = &mut table[pair.i * n + pair.j];
+        cell[0] += pair.wins_i as f64;
+        cell[1] += pair.wins_j as f64;
+    }
+    let mut tie_count = 0;
+    for tie in ties {
+        let (i, j) = (tie.left.min(tie.right) as usize, tie.left.max(tie.right) as usize);
+        table[i * n + j][2] += tie.count as f64;
+        tie_count += tie.count;
+    }
+    let compared: Vec<usize> =
+        (0..n).filter(|&c| (0..n).any(|d| table[c.min(d) * n + c.max(d)].iter().sum::<f64>() > 0.0)).collect();
+    let mut local = vec![usize::MAX; n];
+    for (k, &c) in compared.iter().enumerate() {
+        local[c] = k;
+    }
+    let pairs: Vec<TiePair> = (0..n)
+        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+        .filter(|&(i, j)| table[i * n + j].iter().sum::<f64>() > 0.0)
+        .map(|(i, j)| {
+            let [a, b, t] = table[i * n + j];
+            TiePair { i: local[i], j: local[j], wins_i: a, wins_j: b, ties: t }
+        })
+        .collect();
+    let reference = if local[reference] == usize::MAX { compared[0] } else { reference };
+    let fitted = fit(compared.len(), &pairs, local[reference], options.tolerance).map_err(|e| e.to_string())?;
+    let items = (0..n)
+        .map(|c| DavidsonItem {
+            condition: condition_names[c].clone(),
+            log_worth: (local[c] != usize::MAX).then(|| fitted.log_worth[local[c]]),
+            se: (local[c] != usize::MAX).then(|| fitted.se[local[c]]),
+        })
+        .collect();
+    Ok(DavidsonSection {
+        items,
+        nu: fitted.nu,
+        nu_se: fitted.nu_se,
+        ties: tie_count,
+        log_likelihood: fitted.log_likelihood,
+    })
+}
+
 #[cfg(test)]
 mod tests;

@@ -67,3 +67,50 @@ fn never_winning_nor_tying_is_separation_and_gaps_are_refused() {
     assert_eq!(fit(3, &pairs, 0, 1e-10), Err(DavidsonFailure::Separation));
     assert_eq!(fit(4, &pairs, 0, 1e-10), Err(DavidsonFailure::Disconnected));
 }
+
+/// `mrstudy analyze` on a trials CSV with `chosen = tie` rows: the item model is the BT fit of
+/// the rows without ties, and the `davidson` section is the Davidson fit of all of them.
+#[test]
+fn analyze_reports_davidson_beside_bradley_terry_without_ties() {
+    let mut with_ties = String::from("participant,left,right,chosen\n");
+    let mut without = with_ties.clone();
+    let counts = [("A", "B", 12, 8, 5), ("A", "C", 5, 15, 3), ("B", "C", 9, 11, 6)];
+    for (k, &(l, r, a, b, t)) in counts.iter().enumerate() {
+        for (chosen, times) in [(l, a), (r, b), ("tie", t)] {
+            for n in 0..times {
+                let row = format!("p{},{l},{r},{chosen}\n", (k + n) % 4);
+                with_ties += &row;
+                if chosen != "tie" {
+                    without += &row;
+                }
+            }
+        }
+    }
+    let options = crate::analysis::Options {
+        screening: crate::analysis::Screening::Off,
+        scale: crate::analysis::Scale::Jod,
+        ..crate::analysis::Options::default()
+    };
+    let tied = crate::analysis::analyze(&with_ties, None, &options).unwrap();
+    let plain = crate::analysis::analyze(&without, None, &options).unwrap();
+    for (a, b) in tied.items.iter().zip(&plain.items) {
+        assert_eq!(a.log_worth, b.log_worth, "BT on the judgments without ties");
+    }
+    assert!(plain.davidson.is_none());
+    let section = tied.davidson.as_ref().unwrap();
+    assert_eq!(section.ties, 14);
+    let pairs: Vec<TiePair> = [(0, 1, 12.0, 8.0, 5.0), (0, 2, 5.0, 15.0, 3.0), (1, 2, 9.0, 11.0, 6.0)]
+        .iter()
+        .map(|&(i, j, wins_i, wins_j, ties)| TiePair { i, j, wins_i, wins_j, ties })
+        .collect();
+    let direct = fit(3, &pairs, 0, 1e-10).unwrap();
+    for (item, lambda) in section.items.iter().zip(&direct.log_worth) {
+        assert!((item.log_worth.unwrap() - lambda).abs() < 1e-9);
+    }
+    assert!((section.nu - direct.nu).abs() < 1e-9 && section.nu > 0.0);
+    // JOD: ties are half a vote each way, so the JOD differ from those without ties
+    assert_ne!(tied.items[1].jod, plain.items[1].jod);
+    assert_eq!(tied.jod_scale.as_ref().unwrap().ties, 14);
+    let json = serde_json::to_string(&tied).unwrap();
+    assert!(json.contains("\"davidson\":{\"items\":[{\"condition\":\"A\",\"log_worth\":0.0,\"se\":0.0}"), "{json}");
+}
