@@ -521,7 +521,14 @@ pub fn analyze_judgments_with_ties(
     let mut analysis = analyze_subset(judgments, ties, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
     if !ties.is_empty() {
         let reference = judgments.conditions.iter().position(|c| *c == analysis.reference).unwrap_or(reference);
-        match crate::scales::davidson::section(&tallies, ties, &everyone, &judgments.conditions, reference, options) {
+        match crate::scales::davidson::section(
+            &tallies,
+            ties,
+            &everyone,
+            &judgments.conditions,
+            reference,
+            options.tolerance,
+        ) {
             Ok(section) => analysis.davidson = Some(section),
             Err(reason) => {
                 not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::Davidson, reason)
@@ -957,7 +964,15 @@ fn analyze_subset(
     };
 
     if options.scale == Scale::Jod {
-        match crate::scales::jod::analyze(tallies, ties, active, names, &judgments.participants, options) {
+        match crate::scales::jod::analyze(
+            tallies,
+            ties,
+            active,
+            names,
+            &judgments.participants,
+            options.bootstrap,
+            options.seed,
+        ) {
             Ok((values, intervals, section)) => {
                 for (c, item) in analysis.items.iter_mut().enumerate() {
                     if item.comparisons > 0 {

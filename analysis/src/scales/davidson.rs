@@ -279,7 +279,7 @@ pub fn section(
     active: &[usize],
     condition_names: &[String],
     reference: usize,
-    options: &crate::analysis::Options,
+    tolerance: f64,
 ) -> Result<DavidsonSection, String> {
     let n = condition_names.len();
     let mut table = vec![[0.0f64; 3]; n * n];
@@ -309,7 +309,7 @@ pub fn section(
         })
         .collect();
     let reference = if local[reference] == usize::MAX { compared[0] } else { reference };
-    let fitted = fit(compared.len(), &pairs, local[reference], options.tolerance).map_err(|e| e.to_string())?;
+    let fitted = fit(compared.len(), &pairs, local[reference], tolerance).map_err(|e| e.to_string())?;
     let items = (0..n)
         .map(|c| DavidsonItem {
             condition: condition_names[c].clone(),

@@ -31,7 +31,6 @@ use serde::Serialize;
 use statrs::function::erf::erfc;
 use statrs::function::gamma::ln_gamma;
 
-use crate::analysis::Options;
 use crate::data::Judgment;
 use crate::design::ParticipantTallies;
 
@@ -527,7 +526,8 @@ pub struct JodSection {
     pub warnings: Vec<String>,
 }
 
-/// Per-condition JOD, their bootstrap intervals (where `options.bootstrap` > 0) and the
+/// Per-condition JOD, their bootstrap intervals (`bootstrap_replicates` resamples of the
+/// participants, seeded as the log-worth bootstrap, where more than 0) and the
 /// `jod_scale` section, from the active participants' tallies and their ties (half a vote each
 /// way). An error is the sentence saying why there is no JOD scale.
 pub type JodAnalysis = (Vec<f64>, Option<Vec<[f64; 2]>>, JodSection);
@@ -538,7 +538,8 @@ pub fn analyze(
     active: &[usize],
     condition_names: &[String],
     participant_names: &[String],
-    options: &Options,
+    bootstrap_replicates: usize,
+    seed: u64,
 ) -> Result<JodAnalysis, String> {
     let n_conditions = condition_names.len();
     let mut position = vec![usize::MAX; participant_names.len()];
@@ -594,10 +595,10 @@ pub fn analyze(
     let mut intervals = None;
     let mut covariance = None;
     let mut bootstrap_failed = None;
-    if options.bootstrap > 0 && observers.len() >= 2 {
-        let resamples: Vec<Vec<usize>> = (0..options.bootstrap)
+    if bootstrap_replicates > 0 && observers.len() >= 2 {
+        let resamples: Vec<Vec<usize>> = (0..bootstrap_replicates)
             .map(|b| {
-                let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rng.set_stream(b as u64 + 1);
                 (0..observers.len()).map(|_| rng.random_range(0..observers.len())).collect()
             })
@@ -607,7 +608,7 @@ pub fn analyze(
                 if found.failed > 0 {
                     warnings.push(format!(
                         "JOD bootstrap: {} of {} resamples could not be scaled and are left out",
-                        found.failed, options.bootstrap
+                        found.failed, bootstrap_replicates
                     ));
                 }
                 intervals = Some((0..n_conditions).map(|c| [found.low[c], found.high[c]]).collect());

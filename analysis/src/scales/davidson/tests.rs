@@ -1,3 +1,6 @@
+//! Tests of the Davidson tie model against a direct SciPy fit (`tests/reference/davidson.py`),
+//! against the Bradley–Terry item fit without ties, and through `analyze` on a CSV with ties.
+
 use super::*;
 use crate::design::PairTally;
 use crate::fit::{FitOptions, ModelMatrix};

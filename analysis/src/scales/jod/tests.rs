@@ -1,3 +1,7 @@
+//! Tests of the JOD scale against pwcmp 07876b2 run by GNU Octave 7.3.0
+//! (`tests/reference/pwcmp_jod.m`): scaling, bootstrap on the same resamples, outlier analysis,
+//! and `analyze --scale jod` on pwcmp's ex3 data; the gradient against finite differences.
+
 use super::*;
 
 /// pwcmp 07876b2 under GNU Octave 7.3.0 (analysis/tests/reference/pwcmp_jod.m).
