@@ -23,7 +23,7 @@ use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 use crate::agreement::{self, Agreement, AgreementOptions};
-use crate::data::{ConditionTable, Judgments, LeftOut, TrialsOptions};
+use crate::data::{ConditionTable, Judgment, Judgments, LeftOut, TrialsOptions};
 use crate::design::{self, Dropped, PairTally, ParticipantTallies, Term};
 use crate::fit::{self, Fit, FitFailure, FitOptions, Method, ModelMatrix};
 use crate::pvalue::PValue;
@@ -82,6 +82,19 @@ pub struct Options {
     /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
     #[arg(long)]
     pub include_excluded: bool,
+    /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals.
+    #[arg(long, value_enum, default_value = "bt")]
+    pub scale: Scale,
+}
+
+/// The scale `--scale` asks for besides the Bradley–Terry log-worths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Scale {
+    /// Bradley–Terry log-worths only.
+    #[default]
+    Bt,
+    /// Also pwcmp's JOD ([`crate::scales::jod`]).
+    Jod,
 }
 
 impl Default for Options {
@@ -99,6 +112,7 @@ impl Default for Options {
             always_firth: false,
             include_pilots: false,
             include_excluded: false,
+            scale: Scale::Bt,
         }
     }
 }
@@ -128,6 +142,12 @@ pub struct Item {
     /// Bootstrap interval of `log_worth` (95 %; percentile, widened for few participants).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci: Option<[f64; 2]>,
+    /// JOD (`--scale jod`): pwcmp's `pw_scale`, mean about 0.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod: Option<f64>,
+    /// `pw_scale_bootstrp`'s 95 % percentile interval of `jod` (`--scale jod --bootstrap N`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod_ci: Option<[f64; 2]>,
 }
 
 /// A connected component of the comparison graph.
@@ -297,6 +317,10 @@ pub enum Part {
     StimulusModel,
     /// Every correlation of a metric with the perceived log-worth.
     MetricCorrelations,
+    /// The JOD scale of `--scale jod`.
+    JodScale,
+    /// The Davidson fit of the judgments with ties.
+    Davidson,
 }
 
 impl Part {
@@ -310,6 +334,8 @@ impl Part {
             Part::Metrics => "metrics analysis",
             Part::StimulusModel => "stimulus model",
             Part::MetricCorrelations => "metric correlations",
+            Part::JodScale => "JOD scale",
+            Part::Davidson => "Davidson tie model",
         }
     }
 }
@@ -387,6 +413,14 @@ pub struct Analysis {
     pub bootstrap: Option<Bootstrap>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub observers: Option<ObserverScreening>,
+    /// `--scale jod`: pwcmp's outlier analysis and the significance of neighbouring JODs (the
+    /// JODs themselves are on `items`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jod_scale: Option<crate::scales::jod::JodSection>,
+    /// Where some judgments are ties: Davidson's tie model over all judgments (the item model
+    /// above is the Bradley–Terry fit of the judgments without ties).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub davidson: Option<crate::scales::davidson::DavidsonSection>,
     /// Optional parts that could not be estimated on these data, each with its reason (also
     /// said in `warnings`); everything else is reported. Groups that could not be estimated
     /// are in `groups`.
@@ -426,7 +460,7 @@ pub fn analyze_with_table(
         ..TrialsOptions::default()
     };
     let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
-    let mut analysis = analyze_judgments(&parsed.judgments, table, options)?;
+    let mut analysis = analyze_judgments_with_ties(&parsed.judgments, &parsed.ties, table, options)?;
     if !parsed.left_out.is_empty() {
         analysis.warnings.insert(0, parsed.left_out.describe());
         analysis.left_out = Some(parsed.left_out);
@@ -436,6 +470,18 @@ pub fn analyze_with_table(
 
 /// Analyses parsed judgments.
 pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, options: &Options) -> Result<Analysis> {
+    analyze_judgments_with_ties(judgments, &[], table, options)
+}
+
+/// As [`analyze_judgments`], with the judgments answered `tie` (numbered as `judgments`, not
+/// among its rows): where there are any, the `davidson` section, and half a vote each way on
+/// the JOD scale.
+pub fn analyze_judgments_with_ties(
+    judgments: &Judgments,
+    ties: &[Judgment],
+    table: Option<&ConditionTable>,
+    options: &Options,
+) -> Result<Analysis> {
     if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
         return Err(AnalysisError::BadOption {
             option: "tolerance".into(),
@@ -472,7 +518,23 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
     let n_conditions = judgments.conditions.len();
     let tallies = ParticipantTallies::new(n_participants, n_conditions, judgments.rows.iter());
     let everyone = tallies.present();
-    let mut analysis = analyze_subset(judgments, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
+    let mut analysis = analyze_subset(judgments, ties, table, terms.as_ref(), reference, options, &tallies, &everyone)?;
+    if !ties.is_empty() {
+        let reference = judgments.conditions.iter().position(|c| *c == analysis.reference).unwrap_or(reference);
+        match crate::scales::davidson::section(
+            &tallies,
+            ties,
+            &everyone,
+            &judgments.conditions,
+            reference,
+            options.tolerance,
+        ) {
+            Ok(section) => analysis.davidson = Some(section),
+            Err(reason) => {
+                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::Davidson, reason)
+            }
+        }
+    }
 
     if !judgments.groups.is_empty() {
         // Where every participant's judgments are in one group (a column such as gender), a
@@ -505,7 +567,17 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
         for (g, name) in judgments.groups.iter().enumerate() {
             let (own, active) = subset(&|group| group == g as u32);
             let group_tallies = own.as_ref().unwrap_or(&tallies);
-            match analyze_subset(judgments, table, terms.as_ref(), reference, options, group_tallies, &active) {
+            let group_ties: Vec<Judgment> = ties.iter().filter(|t| t.group == g as u32).copied().collect();
+            match analyze_subset(
+                judgments,
+                &group_ties,
+                table,
+                terms.as_ref(),
+                reference,
+                options,
+                group_tallies,
+                &active,
+            ) {
                 Ok(sub) => {
                     let model = sub.covariate_model.as_ref().map(|m| &m.summary).unwrap_or(&sub.item_model);
                     valid &= model.method == Method::Ml;
@@ -558,6 +630,7 @@ pub fn analyze_judgments(judgments: &Judgments, table: Option<&ConditionTable>, 
                 let pooled_tallies = own.as_ref().unwrap_or(&tallies);
                 match analyze_subset(
                     judgments,
+                    &[],
                     table,
                     terms.as_ref(),
                     reference,
@@ -651,8 +724,10 @@ pub(crate) fn failure_message(what: &str, failure: FitFailure) -> AnalysisError 
     AnalysisError::Empty(message)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn analyze_subset(
     judgments: &Judgments,
+    ties: &[Judgment],
     table: Option<&ConditionTable>,
     terms: Option<&(String, Vec<Term>)>,
     reference: usize,
@@ -717,6 +792,8 @@ fn analyze_subset(
             fitted_log_worth: None,
             fitted_worth: None,
             ci: None,
+            jod: None,
+            jod_ci: None,
         })
         .collect();
     let mut components = Vec::new();
@@ -880,10 +957,37 @@ fn analyze_subset(
         left_out: None,
         bootstrap: None,
         observers: None,
+        jod_scale: None,
+        davidson: None,
         not_estimable,
         warnings,
     };
 
+    if options.scale == Scale::Jod {
+        match crate::scales::jod::analyze(
+            tallies,
+            ties,
+            active,
+            names,
+            &judgments.participants,
+            options.bootstrap,
+            options.seed,
+        ) {
+            Ok((values, intervals, section)) => {
+                for (c, item) in analysis.items.iter_mut().enumerate() {
+                    if item.comparisons > 0 {
+                        item.jod = Some(values[c]);
+                        item.jod_ci = intervals.as_ref().map(|i| i[c]);
+                    }
+                }
+                analysis.warnings.extend(section.warnings.iter().cloned());
+                analysis.jod_scale = Some(section);
+            }
+            Err(reason) => {
+                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::JodScale, reason)
+            }
+        }
+    }
     let screen = match options.screening {
         Screening::On => true,
         Screening::Off => false,

@@ -34,6 +34,7 @@ pub mod plot;
 pub mod pvalue;
 pub mod quantile;
 pub mod report;
+pub mod scales;
 pub mod screening;
 pub mod stimulus_metrics;
 pub mod table;

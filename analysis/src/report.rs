@@ -11,7 +11,7 @@
 
 use serde::Serialize;
 
-use crate::analysis::{Analysis, Options, Part, analyze_judgments, not_estimable_part};
+use crate::analysis::{Analysis, Options, Part, analyze_judgments_with_ties, not_estimable_part};
 use crate::data::{ConditionTable, GROUND_TRUTH, TrialsOptions};
 use crate::detection::{Detection, DetectionOptions, analyze_detection_by_scene};
 use crate::error::{AnalysisError, Result};
@@ -63,8 +63,9 @@ pub fn analyze_with_table(
         scenes: true,
         allow_ground_truth: true,
     };
-    let parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
+    let mut parsed = crate::data::parse_trials_with(trials_csv, trials_name, table, &trials_options)?;
     let left_out = parsed.left_out.clone();
+    let ties = std::mem::take(&mut parsed.ties);
     let split = crate::detection::split(parsed, table.map(|t| t.conditions.len()));
     let mut detection = split
         .detection
@@ -75,7 +76,16 @@ pub fn analyze_with_table(
     let mut metrics = None;
     match &split.preference {
         Some((judgments, scenes)) => {
-            let mut analysis = analyze_judgments(judgments, table, options)?;
+            // Detection trials renumber the preference trials' conditions: ties are analysed
+            // only in a file without them.
+            let tie_rows: &[crate::data::Judgment] = if detection.is_none() { &ties } else { &[] };
+            let mut analysis = analyze_judgments_with_ties(judgments, tie_rows, table, options)?;
+            if detection.is_some() && !ties.is_empty() {
+                analysis.warnings.push(format!(
+                    "{} ties (`chosen` = `tie`) are left out: a file with detection trials is analysed without its ties",
+                    ties.len()
+                ));
+            }
             if let Some(detection) = &detection {
                 analysis.warnings.push(format!(
                     "{} detection {} (one side `{GROUND_TRUTH}`) {} analysed apart, in `detection`",

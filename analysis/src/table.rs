@@ -82,6 +82,8 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
     let width = analysis.items.iter().map(|i| i.condition.chars().count()).max().unwrap_or(9).max(9);
     let fitted = analysis.items.iter().any(|i| i.fitted_log_worth.is_some());
     let ci = analysis.items.iter().any(|i| i.ci.is_some());
+    let jod = analysis.items.iter().any(|i| i.jod.is_some());
+    let jod_ci = analysis.items.iter().any(|i| i.jod_ci.is_some());
     let _ = write!(
         out,
         "\n{:<width$}  {:>9}  {:>7}  {:>7}  {:>9}  {:>11}",
@@ -92,6 +94,12 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
     }
     if fitted {
         let _ = write!(out, "  {:>12}  {:>7}", "fitted λ", "fitted π");
+    }
+    if jod {
+        let _ = write!(out, "  {:>7}", "JOD");
+    }
+    if jod_ci {
+        let _ = write!(out, "  {:>19}", "JOD 95 %");
     }
     out.push('\n');
     for item in &analysis.items {
@@ -112,10 +120,33 @@ fn render_into(out: &mut String, analysis: &Analysis, _indent: &str) {
         if fitted {
             let _ = write!(out, "  {:>12}  {:>7}", optional(item.fitted_log_worth, 4), optional(item.fitted_worth, 4));
         }
+        if jod {
+            let _ = write!(out, "  {:>7}", optional(item.jod, 3));
+        }
+        if jod_ci {
+            let text = item.jod_ci.map(interval).unwrap_or_else(|| "—".into());
+            let _ = write!(out, "  {text:>19}");
+        }
         if let Some(component) = item.component {
             let _ = write!(out, "  (component {})", component + 1);
         }
         out.push('\n');
+    }
+    if let Some(section) = &analysis.jod_scale {
+        let outliers = if section.outliers.is_empty() { "none".to_string() } else { section.outliers.join(", ") };
+        let _ = writeln!(out, "JOD (pwcmp, 1 JOD = 75 %): outliers by dist_L > 1.5: {outliers}");
+    }
+    if let Some(davidson) = &analysis.davidson {
+        let se = davidson.nu_se.map(|se| format!(" (se {})", fixed(se, 4))).unwrap_or_default();
+        let worths: Vec<String> =
+            davidson.items.iter().map(|item| format!("{} {}", item.condition, optional(item.log_worth, 4))).collect();
+        let _ = writeln!(
+            out,
+            "Davidson tie model over {} ties: ν = {}{se}; log-worth {}",
+            davidson.ties,
+            fixed(davidson.nu, 4),
+            worths.join(", ")
+        );
     }
     let m = &analysis.item_model;
     let _ = writeln!(

@@ -107,6 +107,10 @@ pub struct ParsedTrials {
     /// Each judgment's scenes, where [`TrialsOptions::scenes`] asked for them and the file has
     /// the columns `scene_left` and `scene_right`.
     pub scenes: Option<TrialScenes>,
+    /// The rows answered `chosen = tie` ("not sure", a study with `allow_tie = true`), numbered
+    /// as `judgments` (their `left_chosen` is meaningless). They are not in `judgments.rows`, so
+    /// every analysis of choices leaves them out; the Davidson fit and the JOD scale read them.
+    pub ties: Vec<Judgment>,
 }
 
 /// Parses a trials CSV. Conditions are indexed in the order of `conditions` when it is given
@@ -180,6 +184,8 @@ struct RowReader<'a> {
     allow_ground_truth: bool,
     scene_index: FnvMap<u32>,
     scenes: TrialScenes,
+    /// Indices into `judgments.rows` of the rows answered `tie`.
+    tie_rows: Vec<usize>,
 }
 
 impl<'a> RowReader<'a> {
@@ -213,6 +219,7 @@ impl<'a> RowReader<'a> {
             allow_ground_truth,
             scene_index: FnvMap::default(),
             scenes: TrialScenes::default(),
+            tie_rows: Vec::new(),
         }
     }
 
@@ -326,6 +333,9 @@ impl<'a> RowReader<'a> {
         let left_chosen = if chosen.same(left_name) {
             true
         } else if chosen.same(right_name) {
+            false
+        } else if chosen.text == "tie" {
+            self.tie_rows.push(self.judgments.rows.len());
             false
         } else {
             return Err(self.bad(
@@ -467,7 +477,14 @@ pub fn parse_trials_with(
             rows.row(line, |k| Field::new(record.get(k).unwrap_or("").trim()))?;
         }
     }
-    let RowReader { mut judgments, marks, mut condition_names, scenes, .. } = rows;
+    let RowReader { mut judgments, marks, mut condition_names, scenes, tie_rows, .. } = rows;
+    let mut is_tie: Option<Vec<bool>> = (!tie_rows.is_empty()).then(|| {
+        let mut flags = vec![false; judgments.rows.len()];
+        for k in tie_rows {
+            flags[k] = true;
+        }
+        flags
+    });
     let mut scenes = scene_columns.map(|_| scenes);
     if judgments.rows.is_empty() {
         return Err(AnalysisError::Empty(format!("{source_name}: there are no trials in the file")));
@@ -503,6 +520,7 @@ pub fn parse_trials_with(
     if !left_out.is_empty() {
         let all_rows = std::mem::take(&mut judgments.rows);
         let all_scenes = scenes.as_mut().map(|scenes| std::mem::take(&mut scenes.rows));
+        let all_ties = is_tie.as_mut().map(std::mem::take);
         for (k, row) in all_rows.into_iter().enumerate() {
             match reason[row.participant as usize] {
                 Some(Reason::Pilot) => left_out.pilot_judgments += row.count,
@@ -511,6 +529,9 @@ pub fn parse_trials_with(
                     judgments.rows.push(row);
                     if let (Some(kept), Some(all)) = (scenes.as_mut(), all_scenes.as_ref()) {
                         kept.rows.push(all[k]);
+                    }
+                    if let (Some(kept), Some(all)) = (is_tie.as_mut(), all_ties.as_ref()) {
+                        kept.push(all[k]);
                     }
                 }
             }
@@ -565,7 +586,27 @@ pub fn parse_trials_with(
         condition_names = order.iter().map(|&old| condition_names[old].clone()).collect();
     }
     judgments.conditions = condition_names;
-    Ok(ParsedTrials { judgments, left_out, scenes })
+    let mut ties = Vec::new();
+    if let Some(is_tie) = is_tie {
+        let all_rows = std::mem::take(&mut judgments.rows);
+        let all_scenes = scenes.as_mut().map(|scenes| std::mem::take(&mut scenes.rows));
+        for (k, row) in all_rows.into_iter().enumerate() {
+            if is_tie[k] {
+                ties.push(row);
+            } else {
+                judgments.rows.push(row);
+                if let (Some(kept), Some(all)) = (scenes.as_mut(), all_scenes.as_ref()) {
+                    kept.rows.push(all[k]);
+                }
+            }
+        }
+        if judgments.rows.is_empty() {
+            return Err(AnalysisError::Empty(format!(
+                "{source_name}: every trial is a tie (`chosen` = `tie`), so there is no choice to analyse"
+            )));
+        }
+    }
+    Ok(ParsedTrials { judgments, left_out, scenes, ties })
 }
 
 #[cfg(test)]
@@ -583,6 +624,20 @@ mod tests {
             Judgment { participant: 0, left: 2, right: 1, left_chosen: false, count: 1, group: 0 }
         );
         assert_eq!(judgments.n_judgments(), 2);
+    }
+
+    #[test]
+    fn ties_are_read_apart_from_the_choices() {
+        let text = "participant,left,right,chosen,pilot\np1,A,B,tie,false\np1,A,B,A,false\np2,B,C,tie,true\n\
+                    p3,C,A,C,false\np3,A,C,tie,false\n";
+        let parsed = parse_trials_with(text, "t.csv", None, &TrialsOptions::default()).unwrap();
+        assert_eq!(parsed.judgments.rows.len(), 2);
+        assert_eq!(parsed.judgments.participants, ["p1", "p3"]);
+        let ties: Vec<(u32, u32, u32)> = parsed.ties.iter().map(|t| (t.participant, t.left, t.right)).collect();
+        assert_eq!(ties, [(0, 0, 1), (1, 0, 2)], "the pilot's tie goes with the pilot; indices renumbered");
+        let message =
+            parse_trials("participant,left,right,chosen\np,A,B,tie\n", "t.csv", None, None).unwrap_err().to_string();
+        assert_eq!(message, "t.csv: every trial is a tie (`chosen` = `tie`), so there is no choice to analyse");
     }
 
     #[test]
