@@ -5,12 +5,24 @@
 
 use super::context::GpuContext;
 use crate::cm::Composition;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("compose.wgsl");
 
 pub struct Compose {
     pipeline: wgpu::ComputePipeline,
+}
+
+/// What the composition reads: the mapped buffers over the photograph (and CI_std where mirrors
+/// and glass are), at `width`×`height`, in the linear domain where the mapping says so.
+#[derive(Clone, Copy)]
+pub struct ComposeInputs<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub linear_domain: bool,
+    pub composition: Composition,
+    pub mapped: &'a wgpu::Buffer,
+    pub photo: &'a wgpu::Buffer,
+    pub specular_base: Option<&'a wgpu::Buffer>,
 }
 
 impl Compose {
@@ -23,26 +35,15 @@ impl Compose {
     /// composite buffer (one vec4 per pixel, display-encoded). `specular_base` (from
     /// [`super::specular`]) replaces the photograph at the pixels of mirrors and glass by
     /// CI_std (eq. 5.23), over which the differential is added as at a real pixel (5.22).
-    #[allow(clippy::too_many_arguments)]
-    pub fn run(
-        &self,
-        ctx: &GpuContext,
-        width: u32,
-        height: u32,
-        linear_domain: bool,
-        composition: Composition,
-        mapped: &wgpu::Buffer,
-        photo: &wgpu::Buffer,
-        specular_base: Option<&wgpu::Buffer>,
-    ) -> std::sync::Arc<wgpu::Buffer> {
-        let device = &ctx.device;
+    pub fn run(&self, ctx: &GpuContext, inputs: &ComposeInputs) -> std::sync::Arc<wgpu::Buffer> {
+        let ComposeInputs { width, height, linear_domain, composition, mapped, photo, specular_base } = *inputs;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
         let options = [specular_base.is_some() as u32, 0, 0, 0];
         let placeholder;
         let specular_base = match specular_base {
             Some(buffer) => buffer,
             None => {
-                placeholder = device.create_buffer(&wgpu::BufferDescriptor {
+                placeholder = ctx.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("no specular base"),
                     size: 16,
                     usage: wgpu::BufferUsages::STORAGE,
@@ -51,7 +52,7 @@ impl Compose {
                 &placeholder
             }
         };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("compose params"),
             contents: bytemuck::cast_slice(&[size, options]),
             usage: wgpu::BufferUsages::UNIFORM,

@@ -5,9 +5,11 @@
 use super::pool::Contents;
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
+use serde::Serialize;
 use std::fmt;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
 
 /// The features GPU pass timing needs: timestamp queries written between command buffers.
 const TIMESTAMPS: wgpu::Features =
@@ -73,6 +75,49 @@ pub struct GpuContext {
     timer: Mutex<Option<GpuTimer>>,
     /// Buffers and textures kept from frame to frame ([`GpuContext::buffer`]).
     pub(super) pool: super::pool::Pool,
+    /// What the host asked of the device since [`GpuContext::reset_counters`].
+    counters: CounterCells,
+}
+
+/// The structure of the work the host gave the device, counted where it happens (every
+/// submission, wait, read-back, upload and allocation of this crate goes through the context),
+/// so the counts are exact on any adapter, lavapipe included (issue 50, Deliver 3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrameCounters {
+    /// Queue submissions.
+    pub submits: u64,
+    /// Blocking waits of the host for the device (a poll that waits, a buffer mapped for reading).
+    pub host_waits: u64,
+    /// Bytes mapped and copied back to the host.
+    pub readback_bytes: u64,
+    /// Bytes written from the host into buffers and textures (`write_buffer`, `write_texture`,
+    /// buffers made with contents).
+    pub upload_bytes: u64,
+    /// Buffers and textures made anew (not taken from the pool), including uniform buffers.
+    pub allocations: u64,
+    /// Host time of the frame spent recording, on CPU steps and waiting for the device: the
+    /// frame's wall-clock time on the host (see `wait_ms` for the part spent blocked).
+    pub cpu_ms: f64,
+    /// Of `cpu_ms`, the time blocked in host waits (on a software adapter this is the device's
+    /// own work, run on the host's cores).
+    pub wait_ms: f64,
+}
+
+impl FrameCounters {
+    /// `cpu_ms` less `wait_ms`: the host's own work (recording, CPU steps, copies).
+    pub fn record_ms(&self) -> f64 {
+        (self.cpu_ms - self.wait_ms).max(0.0)
+    }
+}
+
+#[derive(Default)]
+struct CounterCells {
+    submits: AtomicU64,
+    host_waits: AtomicU64,
+    readback_bytes: AtomicU64,
+    upload_bytes: AtomicU64,
+    allocations: AtomicU64,
+    wait_ns: AtomicU64,
 }
 
 /// Timestamp queries written before and after each command buffer submitted since the last
@@ -156,6 +201,7 @@ impl GpuContext {
             pass_waits: AtomicBool::new(true),
             timer: Mutex::new(None),
             pool: Default::default(),
+            counters: Default::default(),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -204,6 +250,7 @@ impl GpuContext {
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let commands = encoder.finish();
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
+        self.count_submit();
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
             drop(guard);
             self.queue.submit([commands]);
@@ -246,6 +293,7 @@ impl GpuContext {
         encoder.resolve_query_set(&timer.queries, 0..written, &timer.resolve, 0);
         encoder.copy_buffer_to_buffer(&timer.resolve, 0, &staging, 0, written as u64 * 8);
         // not through `submit`: this copy is no pass's work (and the timer is locked)
+        self.count_submit();
         self.queue.submit([encoder.finish()]);
         let ticks: Vec<u64> = self.mapped(&staging, |bytes| {
             bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect()
@@ -337,9 +385,85 @@ impl GpuContext {
         self.pass_waits.load(Ordering::Relaxed)
     }
 
-    /// Blocks until the GPU has finished all submitted work.
+    /// Blocks until the GPU has finished all submitted work (counted as a host wait).
     pub fn wait(&self) {
+        let start = Instant::now();
         let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+        self.counters.host_waits.fetch_add(1, Ordering::Relaxed);
+        self.counters.wait_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    }
+
+    /// Counts one queue submission made outside [`GpuContext::submit`].
+    pub(super) fn count_submit(&self) {
+        self.counters.submits.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Forgets the counts ([`GpuContext::counters`]); each frame starts with it.
+    pub fn reset_counters(&self) {
+        let c = &self.counters;
+        for cell in [&c.submits, &c.host_waits, &c.readback_bytes, &c.upload_bytes, &c.allocations, &c.wait_ns] {
+            cell.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// What the host asked of the device since [`GpuContext::reset_counters`] (`cpu_ms` is
+    /// left 0: the frame fills it in).
+    pub fn counters(&self) -> FrameCounters {
+        let c = &self.counters;
+        FrameCounters {
+            submits: c.submits.load(Ordering::Relaxed),
+            host_waits: c.host_waits.load(Ordering::Relaxed),
+            readback_bytes: c.readback_bytes.load(Ordering::Relaxed),
+            upload_bytes: c.upload_bytes.load(Ordering::Relaxed),
+            allocations: c.allocations.load(Ordering::Relaxed),
+            cpu_ms: 0.0,
+            wait_ms: c.wait_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        }
+    }
+
+    /// A buffer made anew (counted as an allocation; see [`GpuContext::buffer`] for one from
+    /// the pool).
+    pub fn create_buffer(&self, desc: &wgpu::BufferDescriptor) -> wgpu::Buffer {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.device.create_buffer(desc)
+    }
+
+    /// A buffer made anew with `desc.contents` (counted as an allocation and an upload).
+    pub fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.counters.upload_bytes.fetch_add(desc.contents.len() as u64, Ordering::Relaxed);
+        self.device.create_buffer_init(desc)
+    }
+
+    /// A texture made anew (counted as an allocation; see [`GpuContext::texture`] for one from
+    /// the pool).
+    pub fn create_texture(&self, desc: &wgpu::TextureDescriptor) -> wgpu::Texture {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.device.create_texture(desc)
+    }
+
+    /// `queue.write_buffer`, counted as an upload.
+    pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.queue.write_buffer(buffer, offset, data);
+    }
+
+    /// `queue.write_texture`, counted as an upload.
+    pub fn write_texture(
+        &self,
+        texture: wgpu::TexelCopyTextureInfo,
+        data: &[u8],
+        layout: wgpu::TexelCopyBufferLayout,
+        size: wgpu::Extent3d,
+    ) {
+        self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.queue.write_texture(texture, data, layout, size);
+    }
+
+    /// Counts one pooled resource made anew ([`super::pool`]).
+    pub(super) fn count_allocation(&self) {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU (copied once,
@@ -354,6 +478,7 @@ impl GpuContext {
         let slice = buffer.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
         self.wait();
+        self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
         let out = slice.get_mapped_range().ok().map(|view| read(&view));
         buffer.unmap();
         out

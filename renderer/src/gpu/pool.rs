@@ -141,7 +141,7 @@ impl Pool {
         (buffer, false)
     }
 
-    fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
+    fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> (Arc<wgpu::Texture>, bool) {
         let key = TextureKey {
             size: desc.size,
             format: desc.format,
@@ -155,7 +155,7 @@ impl Pool {
         if let Some((texture, bytes)) = take(&mut inner.textures, &key, frame) {
             inner.stats.reused_count += 1;
             inner.stats.reused_bytes += bytes;
-            return texture;
+            return (texture, true);
         }
         let texture = Arc::new(device.create_texture(desc));
         let texel = desc.format.block_copy_size(None).unwrap_or(4) as u64;
@@ -163,7 +163,7 @@ impl Pool {
         inner.stats.new_count += 1;
         inner.stats.new_bytes += bytes;
         inner.textures.push(Entry { key, item: texture.clone(), bytes, last_frame: frame });
-        texture
+        (texture, false)
     }
 }
 
@@ -175,11 +175,15 @@ impl GpuContext {
         let usage = usage | wgpu::BufferUsages::COPY_DST;
         let key = BufferKey { size, usage };
         let (buffer, reused) = self.pool.buffer(&self.device, label, key);
+        if !reused {
+            self.count_allocation();
+        }
         if reused {
             match contents {
                 Contents::Zeroed => {
                     let mut encoder = self.device.create_command_encoder(&Default::default());
                     encoder.clear_buffer(&buffer, 0, None);
+                    self.count_submit();
                     self.queue.submit([encoder.finish()]);
                 }
                 #[cfg(test)]
@@ -197,12 +201,18 @@ impl GpuContext {
     /// A texture of `desc` from the pool (see the module documentation), as its last user left
     /// it: the caller renders every layer it reads with a clear first.
     pub fn texture(&self, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
-        self.pool.texture(&self.device, desc)
+        let (texture, reused) = self.pool.texture(&self.device, desc);
+        if !reused {
+            self.count_allocation();
+        }
+        texture
     }
 
-    /// Starts a frame in the pool ([`Pool::begin_frame`]).
+    /// Starts a frame in the pool ([`Pool::begin_frame`]) and its counters
+    /// ([`GpuContext::reset_counters`]).
     pub fn begin_frame(&self) {
         self.pool.begin_frame();
+        self.reset_counters();
     }
 
     /// What frames took from the pool since [`GpuContext::begin_frame`].

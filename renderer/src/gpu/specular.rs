@@ -63,7 +63,6 @@ use crate::scene::Scene;
 use glam::{Mat4, Vec3, Vec4};
 use serde::Serialize;
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("specular.wgsl"));
 
@@ -223,6 +222,37 @@ pub struct Traced {
     pub eye: Vec3,
 }
 
+/// The scene as a frame's specular passes see it: the description, its triangles and their
+/// GPU buffers.
+#[derive(Clone, Copy)]
+pub struct FrameScene<'a> {
+    pub scene: &'a Scene,
+    pub mesh: &'a GpuMesh,
+    pub buffers: &'a SceneBuffers,
+}
+
+/// What the camera's ray search reads: the impostors and the camera's G-buffer and view.
+#[derive(Clone, Copy)]
+pub struct RayInputs<'a> {
+    pub impostors: &'a Impostors,
+    pub gbuffer: &'a SurfaceTargets,
+    pub view: &'a ViewUniform,
+    pub view_proj: Mat4,
+}
+
+/// What L'_rv, L'_r and CI_std are combined from ([`Specular::combine`]): the camera's
+/// G-buffer and solutions, the shaded reflected and refracted hits, the photograph.
+#[derive(Clone, Copy)]
+pub struct CombineInputs<'a> {
+    pub gbuffer: &'a SurfaceTargets,
+    pub solutions: &'a wgpu::Buffer,
+    pub reflected: &'a wgpu::Buffer,
+    pub refracted: &'a wgpu::Buffer,
+    pub photo: &'a wgpu::Buffer,
+    pub width: u32,
+    pub height: u32,
+}
+
 /// The forward axis of cube face `f` (+x, −x, +y, −y, +z, −z), as `specular.wgsl` reads it.
 fn face_forward(f: u32) -> Vec3 {
     let mut forward = Vec3::ZERO;
@@ -246,17 +276,15 @@ impl Specular {
     }
 
     /// The distance impostors of the scene's mirrors and glass (step 1), one pass.
-    #[allow(clippy::too_many_arguments)]
     pub fn impostors(
         &self,
         ctx: &GpuContext,
         raster: &Raster,
         passes: &mut Vec<super::PassTime>,
-        scene: &Scene,
-        mesh: &GpuMesh,
-        buffers: &SceneBuffers,
+        at: FrameScene,
         params: &SpecularParams,
     ) -> Impostors {
+        let FrameScene { scene, mesh, buffers } = at;
         let device = &ctx.device;
         let objects = &mesh.specular;
         let max_dimension = device.limits().max_texture_dimension_2d;
@@ -297,7 +325,7 @@ impl Specular {
         };
         let gpu_objects: Vec<GpuSpecularObject> = objects.iter().map(gpu_object).collect();
         let storage = |label: &str, bytes: &[u8]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
@@ -354,7 +382,6 @@ impl Specular {
         height: u32,
         params: &SpecularParams,
     ) -> Search {
-        let device = &ctx.device;
         let stride = row_stride(width);
         let (centre, radius) = impostors.bounds;
         let uniform = Params {
@@ -365,7 +392,7 @@ impl Specular {
             env: [impostors.env_rotation, impostors.has_environment as u32 as f32, radius, 0.0],
             scene: centre.extend(0.0).to_array(),
         };
-        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let params_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("specular params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -402,21 +429,17 @@ impl Specular {
     }
 
     /// Back faces and the ray search from the camera (steps 2–3); `passes` gets one entry each.
-    #[allow(clippy::too_many_arguments)]
     pub fn trace(
         &self,
         ctx: &GpuContext,
         raster: &Raster,
         passes: &mut Vec<super::PassTime>,
-        scene: &Scene,
-        mesh: &GpuMesh,
-        buffers: &SceneBuffers,
-        impostors: &Impostors,
-        gbuffer: &SurfaceTargets,
-        camera_view: &ViewUniform,
-        camera_view_proj: Mat4,
+        at: FrameScene,
+        rays: &RayInputs,
         params: &SpecularParams,
     ) -> Traced {
+        let FrameScene { scene, mesh, buffers } = at;
+        let RayInputs { impostors, gbuffer, view: camera_view, view_proj: camera_view_proj } = *rays;
         let device = &ctx.device;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let glass: Vec<std::ops::Range<u32>> = mesh
@@ -488,18 +511,16 @@ impl Specular {
     /// it lights, the object's G-buffer from the light (PGBuf) and its photons traced through
     /// the impostor like the camera's rays. [`Specular::caustic_vpls`] makes VPLs of them,
     /// [`Specular::splat`] the caustic buffer.
-    #[allow(clippy::too_many_arguments)]
     pub fn photon_maps(
         &self,
         ctx: &GpuContext,
         raster: &Raster,
         passes: &mut Vec<super::PassTime>,
-        scene: &Scene,
-        mesh: &GpuMesh,
-        buffers: &SceneBuffers,
+        at: FrameScene,
         impostors: &Impostors,
         params: &SpecularParams,
     ) -> PhotonMaps {
+        let FrameScene { scene, mesh, buffers } = at;
         let map_size = params.caustic_map_size.clamp(8, ctx.device.limits().max_texture_dimension_2d);
         let mut maps = PhotonMaps { map_size, maps: Vec::new(), skipped: Vec::new() };
         let everything = 0..mesh.vertices.len() as u32;
@@ -641,7 +662,6 @@ impl Specular {
         gbuffer: &SurfaceTargets,
         camera_view_proj: Mat4,
     ) -> (Arc<wgpu::Buffer>, CausticReport) {
-        let device = &ctx.device;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let caustic = ctx.buffer(
             "caustic buffer",
@@ -649,7 +669,7 @@ impl Specular {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             Contents::Zeroed,
         );
-        let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let counts = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("photon counts"),
             contents: &[0u8; 16],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
@@ -667,7 +687,7 @@ impl Specular {
                 map: [map.tan_half, maps.map_size as f32, map.object as f32, if map.object_real { 1.0 } else { 0.0 }],
                 size: [width, height, MAX_SPLAT_REACH, 0],
             };
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("photons"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -710,9 +730,8 @@ impl Specular {
         width: u32,
         height: u32,
     ) {
-        let device = &ctx.device;
         let uniform = PhotonUniform { size: [width, height, 0, 0], ..bytemuck::Zeroable::zeroed() };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("caustics apply"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -729,27 +748,23 @@ impl Specular {
 
     /// L'_rv, L'_r and CI_std (step 5): rewrites `solutions` at the specular pixels and returns
     /// the base buffer [`super::compose`] reads (CI_std, w = 1 at a specular pixel).
-    #[allow(clippy::too_many_arguments)]
-    pub fn combine(
-        &self,
-        ctx: &GpuContext,
-        traced: &mut Traced,
-        gbuffer: &SurfaceTargets,
-        solutions: &wgpu::Buffer,
-        refl_solutions: &wgpu::Buffer,
-        refr_solutions: &wgpu::Buffer,
-        photo: &wgpu::Buffer,
-        width: u32,
-        height: u32,
-    ) -> Arc<wgpu::Buffer> {
-        let device = &ctx.device;
+    pub fn combine(&self, ctx: &GpuContext, traced: &mut Traced, inputs: &CombineInputs) -> Arc<wgpu::Buffer> {
+        let CombineInputs {
+            gbuffer,
+            solutions,
+            reflected: refl_solutions,
+            refracted: refr_solutions,
+            photo,
+            width,
+            height,
+        } = *inputs;
         let base = ctx.buffer(
             "specular base",
             width as u64 * height as u64 * 16,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             Contents::Zeroed,
         );
-        let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let counts = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("specular counts"),
             contents: &[0u8; 32],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
