@@ -178,7 +178,7 @@ impl<'a> FrameTargets<'a> {
 }
 
 impl DirRenderer {
-    /// 1. Shadow maps: per spot light a real-only and (with virtual shadows) a virtual-only map,
+    /// Step 1: Shadow maps: per spot light a real-only and (with virtual shadows) a virtual-only map,
     /// layers 2i and 2i+1; the environment as directional lights (Hammersley points through the
     /// map's importance sampler, each carrying E = L / (N · pdf); they are real, r(pl) = 1),
     /// each with its orthographic maps, all in one submission.
@@ -288,7 +288,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 1c. Mirrors and glass (5.3): their impostors, and the photons of their caustic maps
+    /// Step 1c: Mirrors and glass (5.3): their impostors, and the photons of their caustic maps
     /// (with the conditions that show virtual objects' shadows).
     fn pass_specular_maps(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
@@ -310,7 +310,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 2. RSMs and VPLs (gi only): every RSM rendered first, then all read at once — by the
+    /// Step 2: RSMs and VPLs (gi only): every RSM rendered first, then all read at once — by the
     /// GPU's VPL sampler, or read back for the CPU's reference (one wait, not four per map) —
     /// with the reflected and refracted VPLs where the caustics land (Figure 5.23).
     fn pass_vpls(&self, f: &mut FrameTargets) -> Result<()> {
@@ -414,7 +414,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 2a. The multiple-bounce light source (5.2.7), once per further bounce: a pilot over the
+    /// Step 2a: The multiple-bounce light source (5.2.7), once per further bounce: a pilot over the
     /// whole budget measures the bounce's flux; the budget is then split by flux over the
     /// primary lights and the bounces (the third distribution mode) — the thesis takes those
     /// fluxes from the previous frame, a single stimulus frame measures them first.
@@ -434,8 +434,10 @@ impl DirRenderer {
                 cone_degrees: params.bounce_cone_degrees,
                 seed: b.wrapping_mul(0x9e37_79b9),
             };
-            let label =
-                format!("bounce {b} ({budget} slots, {} candidates each, cone {}°)", search.candidates, search.cone_degrees);
+            let label = format!(
+                "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
+                search.candidates, search.cone_degrees
+            );
             let at = bounce::BounceInputs {
                 scene: &bounce_scene,
                 mesh: &f.mesh,
@@ -482,7 +484,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 2b. Imperfect shadow maps: VPL visibility from the real and the virtual point clouds.
+    /// Step 2b: Imperfect shadow maps: VPL visibility from the real and the virtual point clouds.
     fn pass_isms(&self, f: &mut FrameTargets) -> Result<()> {
         let params = f.params;
         if f.vpls.is_empty() || params.ism_size == 0 || params.ism_points == 0 {
@@ -507,7 +509,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 3. The camera's G-buffer.
+    /// Step 3: The camera's G-buffer.
     fn pass_gbuffer(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let (scene, mesh) = (f.scene, &f.mesh);
@@ -523,7 +525,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 3a. Mirrors and glass (5.3): back faces, reflected and refracted rays; 3b. the caustics'
+    /// Step 3a: Mirrors and glass (5.3): back faces, reflected and refracted rays; 3b. the caustics'
     /// photons splatted into the camera's pixels.
     fn pass_specular_rays(&self, f: &mut FrameTargets) -> Result<()> {
         let Some(impostors) = &f.impostors else { return Ok(()) };
@@ -552,7 +554,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 4. Shading: L_rv and L_r by equations 5.1–5.8.
+    /// Step 4: Shading: L_rv and L_r by equations 5.1–5.8.
     fn pass_shading(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let (scene, params) = (f.scene, f.params);
@@ -585,7 +587,7 @@ impl DirRenderer {
         };
         let inputs = shade::ShadeInputs {
             gbuffer: ran(&f.gbuffer, "g-buffer"),
-            shadow_maps: ran(&f.shadow_maps, "shadow maps"),
+            shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
             lights: &f.lights,
             vpls: &f.vpls,
             scene: &f.buffers,
@@ -597,7 +599,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 4b. The indirect light: merge of the interleaved classes, temporal smoothing (live
+    /// Step 4b: The indirect light: merge of the interleaved classes, temporal smoothing (live
     /// frames), sum with the direct light.
     fn pass_indirect(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
@@ -639,7 +641,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 4c. The caustics into L_rv and L_r.
+    /// Step 4c: The caustics into L_rv and L_r.
     fn pass_caustics(&self, f: &mut FrameTargets) -> Result<()> {
         let Some(caustic) = &f.caustic_buffer else { return Ok(()) };
         let ctx = &self.ctx;
@@ -665,7 +667,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 4d. The hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv,
+    /// Step 4d: The hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv,
     /// L'_r and the photograph's part CI_std.
     fn pass_specular_hits(&self, f: &mut FrameTargets) -> Result<()> {
         let Some(mut traced) = f.traced.take() else { return Ok(()) };
@@ -675,7 +677,7 @@ impl DirRenderer {
         for (name, targets) in [("reflected", &traced.refl), ("refracted", &traced.refr)] {
             let inputs = shade::ShadeInputs {
                 gbuffer: targets,
-                shadow_maps: ran(&f.shadow_maps, "shadow maps"),
+                shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
                 lights: &f.lights,
                 vpls: &f.vpls,
                 scene: &f.buffers,
@@ -717,7 +719,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 5. Colour mapping of both buffers (the cm factor).
+    /// Step 5: Colour mapping of both buffers (the cm factor).
     fn pass_colour_mapping(&self, f: &mut FrameTargets) -> Result<()> {
         let cm_buffers = cm::CmBuffers {
             width: f.width,
@@ -738,7 +740,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 6. Composition over the photograph.
+    /// Step 6: Composition over the photograph.
     fn pass_composition(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let inputs = compose::ComposeInputs {
@@ -746,7 +748,7 @@ impl DirRenderer {
             height: f.height,
             linear_domain: ran(&f.cm_report, "colour mapping").mapping.linear_domain(),
             composition: f.params.composition,
-            mapped: ran(&f.mapped, "colour mapping"),
+            mapped: f.mapped.as_deref().expect("the colour mapping ran"),
             photo: ran(&f.photo_buffer, "photograph"),
             specular_base: f.specular_base.as_deref(),
         };
@@ -792,7 +794,7 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// 7. Camera artifacts (the ca factor) on the virtual layers of the composite.
+    /// Step 7: Camera artifacts (the ca factor) on the virtual layers of the composite.
     fn pass_camera_artifacts(&self, f: &mut FrameTargets) -> Result<()> {
         let Some(ca) = &f.params.camera_artifacts else { return Ok(()) };
         let ctx = &self.ctx;

@@ -448,7 +448,7 @@ mod tests {
         assert_eq!(vpls.len(), 7);
         let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
         let pieces = variant(Ism::new(&r.ctx));
-        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, splatting));
+        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
         (one, other)
     }
 
@@ -526,8 +526,9 @@ mod tests {
             let scene = crate::scene::load(name).unwrap();
             let mesh = crate::gpu::mesh::build(&scene);
             let vpls = surface_vpls(&mesh, 64);
-            let render =
-                |splatting| r.ism.render(&r.ctx, &mesh, &vpls, &settings(1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting));
+            let render = |splatting| {
+                r.ism.render(&r.ctx, &mesh, &vpls, &settings(1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting))
+            };
             let (compute, raster) = (render(IsmSplatting::Compute), render(IsmSplatting::Raster));
             assert_eq!((compute.tile_size, compute.tiles_per_row), (raster.tile_size, raster.tiles_per_row));
             let (c, g) = (read_atlas(&r.ctx, &compute), read_atlas(&r.ctx, &raster));

@@ -127,7 +127,12 @@ mod on_gpu {
         ];
         let (vpls, found, real_only) = r.bounce.spawn(
             &r.ctx,
-            &BounceInputs { scene: &bounce_scene, mesh: &mesh, materials: &scene.materials, scene_radius: mesh.bounds_radius },
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &sources,
             512,
             &search(16384),
@@ -160,7 +165,12 @@ mod on_gpu {
         let real_source = [source(Vec3::ZERO, Vec3::Y, true, false)];
         let (vpls, found, real_only) = r.bounce.spawn(
             &r.ctx,
-            &BounceInputs { scene: &bounce_scene, mesh: &mesh, materials: &scene.materials, scene_radius: mesh.bounds_radius },
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &real_source,
             512,
             &search(16384),
@@ -195,7 +205,12 @@ mod on_gpu {
         // an ir = 1 source (a real surface behind a virtual one) only reaches real surfaces
         let (vpls, _, _) = r.bounce.spawn(
             &r.ctx,
-            &BounceInputs { scene: &bounce_scene, mesh: &mesh, materials: &scene.materials, scene_radius: mesh.bounds_radius },
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &[source(Vec3::ZERO, Vec3::Y, true, true)],
             256,
             &search(16384),
@@ -215,7 +230,12 @@ mod on_gpu {
         let bounce_scene = BounceScene::new(&r.ctx, &mesh).unwrap();
         let (vpls, found, _) = r.bounce.spawn(
             &r.ctx,
-            &BounceInputs { scene: &bounce_scene, mesh: &mesh, materials: &scene.materials, scene_radius: mesh.bounds_radius },
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &[source(Vec3::new(0.0, 0.01, 0.0), Vec3::Y, true, false)],
             128,
             &search(4096),
