@@ -28,6 +28,7 @@
 use super::context::GpuContext;
 use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
+use std::sync::Arc;
 // the PCG hash of common.wgsl, written once in Rust
 use crate::material::Material;
 use crate::math::luminance;
@@ -73,8 +74,8 @@ pub struct BounceReport {
 
 /// The scene's triangles as the bounce pass reads them, uploaded once per frame.
 pub struct BounceScene {
-    positions: wgpu::Buffer,
-    cdf: wgpu::Buffer,
+    positions: Arc<wgpu::Buffer>,
+    cdf: Arc<wgpu::Buffer>,
     triangles: u32,
     real_triangles: u32,
 }
@@ -86,12 +87,12 @@ impl BounceScene {
         let triangles = mesh.vertices.len() / 3;
         let (cdf, _) = super::ism::area_cdf(&positions, 0..triangles)?;
         Some(BounceScene {
-            positions: ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            positions: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("bounce positions"),
                 contents: bytemuck::cast_slice(&positions),
                 usage: wgpu::BufferUsages::STORAGE,
             }),
-            cdf: ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            cdf: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("bounce cdf"),
                 contents: bytemuck::cast_slice(&cdf),
                 usage: wgpu::BufferUsages::STORAGE,
@@ -238,12 +239,12 @@ impl Bounce {
             counts: [search.candidates.max(1), n, scene.real_triangles, scene.triangles],
             cone: [search.cone_degrees.clamp(0.01, 90.0).to_radians().cos(), min_distance, 0.01, 0.0],
         };
-        let uniform_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("bounce params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let slot_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let slot_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("bounce slots"),
             contents: bytemuck::cast_slice(&gpu_slots),
             usage: wgpu::BufferUsages::STORAGE,

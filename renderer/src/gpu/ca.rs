@@ -148,13 +148,13 @@ impl Artifacts {
             img.pixels.iter().enumerate().map(|(i, q)| [q.x, q.y, q.z, alpha.map_or(0.0, |a| a[i])]).collect()
         };
         let init = |label: &str, bytes: &[u8]| {
-            ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("artifact params"),
             contents: bytemuck::bytes_of(&params),
             usage: wgpu::BufferUsages::UNIFORM,

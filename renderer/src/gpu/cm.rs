@@ -99,8 +99,8 @@ impl CmPasses {
         ctx.dispatch("cm", pipeline, &entries, [groups.0, groups.1]);
     }
 
-    fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> wgpu::Buffer {
-        ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> std::sync::Arc<wgpu::Buffer> {
+        ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("cm params"),
             contents: bytemuck::bytes_of(uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -153,7 +153,7 @@ impl CmPasses {
         let pixels = buffers.width * buffers.height;
         let groups = pixels.div_ceil(GROUP).clamp(1, 64);
         let texels: Vec<[f32; 4]> = colours.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
-        let colour_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let colour_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("cm colours"),
             contents: bytemuck::cast_slice(&texels),
             usage: wgpu::BufferUsages::STORAGE,

@@ -10,6 +10,7 @@ pub const SHADER: &str = include_str!("compose.wgsl");
 
 pub struct Compose {
     pipeline: wgpu::ComputePipeline,
+    pack: wgpu::ComputePipeline,
 }
 
 /// What the composition reads: the mapped buffers over the photograph (and CI_std where mirrors
@@ -27,8 +28,8 @@ pub struct ComposeInputs<'a> {
 
 impl Compose {
     pub fn new(ctx: &GpuContext) -> Self {
-        let [pipeline] = ctx.compute_pipelines("compose.wgsl", SHADER, ["cs_compose"]);
-        Compose { pipeline }
+        let [pipeline, pack] = ctx.compute_pipelines("compose.wgsl", SHADER, ["cs_compose", "cs_pack"]);
+        Compose { pipeline, pack }
     }
 
     /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
@@ -43,16 +44,16 @@ impl Compose {
         let specular_base = match specular_base {
             Some(buffer) => buffer,
             None => {
-                placeholder = ctx.create_buffer(&wgpu::BufferDescriptor {
+                // from the pool (a new buffer each frame would be an allocation each frame)
+                placeholder = ctx.upload(&wgpu::util::BufferInitDescriptor {
                     label: Some("no specular base"),
-                    size: 16,
+                    contents: &[0u8; 16],
                     usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
                 });
                 &placeholder
             }
         };
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("compose params"),
             contents: bytemuck::cast_slice(&[size, options]),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -72,5 +73,36 @@ impl Compose {
         ];
         ctx.dispatch("compose", &self.pipeline, &entries, [width.div_ceil(8), height.div_ceil(8)]);
         composite
+    }
+
+    /// The composite (`width`×`height` vec4s) packed to 8-bit RGBA, one `u32` a pixel, each
+    /// channel rounded as [`crate::image::Image::to_rgb8`] rounds: what a frame that is only
+    /// shown reads back.
+    pub fn pack(
+        &self,
+        ctx: &GpuContext,
+        composite: &wgpu::Buffer,
+        width: u32,
+        height: u32,
+    ) -> std::sync::Arc<wgpu::Buffer> {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
+            label: Some("pack params"),
+            contents: bytemuck::cast_slice(&[[width, height, 0, 0], [0; 4]]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        // from the pool: the pass writes every pixel
+        let packed = ctx.buffer(
+            "composite rgba8",
+            width as u64 * height as u64 * 4,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Overwritten,
+        );
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: packed.as_entire_binding() },
+        ];
+        ctx.dispatch("pack rgba8", &self.pack, &entries, [width.div_ceil(8), height.div_ceil(8)]);
+        packed
     }
 }

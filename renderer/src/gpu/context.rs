@@ -15,6 +15,9 @@ use std::time::Instant;
 const TIMESTAMPS: wgpu::Features =
     wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
 
+/// Uploads held at most outside frames ([`GpuContext::upload`]).
+const MAX_HELD_UPLOADS: usize = 4096;
+
 /// Bytes of mapped memory one thread copies at a time when a buffer is read back.
 const READ_BLOCK: usize = 1 << 18;
 
@@ -77,6 +80,10 @@ pub struct GpuContext {
     pub(super) pool: super::pool::Pool,
     /// What the host asked of the device since [`GpuContext::reset_counters`].
     counters: CounterCells,
+    /// The buffers [`GpuContext::upload`] handed out since the frame began: held until the
+    /// next frame begins, so that no later pass of the same frame gets one of them from the
+    /// pool and overwrites it before the commands reading it have run.
+    uploads: Mutex<Vec<std::sync::Arc<wgpu::Buffer>>>,
 }
 
 /// The structure of the work the host gave the device, counted where it happens (every
@@ -202,6 +209,7 @@ impl GpuContext {
             timer: Mutex::new(None),
             pool: Default::default(),
             counters: Default::default(),
+            uploads: Mutex::new(Vec::new()),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -434,6 +442,36 @@ impl GpuContext {
         self.counters.allocations.fetch_add(1, Ordering::Relaxed);
         self.counters.upload_bytes.fetch_add(desc.contents.len() as u64, Ordering::Relaxed);
         self.device.create_buffer_init(desc)
+    }
+
+    /// A buffer holding `desc.contents` (zero-padded to a multiple of 4 bytes, as
+    /// `create_buffer_init` pads), taken from the pool and written by `write_buffer` (counted as
+    /// an upload; as an allocation only where the pool had none of its size and usage): after a
+    /// scene's first frame, uniforms and per-frame data allocate nothing. It is held until the
+    /// next [`GpuContext::begin_frame`] (see `uploads`).
+    pub fn upload(&self, desc: &wgpu::util::BufferInitDescriptor) -> std::sync::Arc<wgpu::Buffer> {
+        let size =
+            (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
+        let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
+        if desc.contents.len() as u64 == size {
+            self.write_buffer(&buffer, 0, desc.contents);
+        } else {
+            let mut padded = desc.contents.to_vec();
+            padded.resize(size as usize, 0);
+            self.write_buffer(&buffer, 0, &padded);
+        }
+        let mut uploads = self.uploads.lock().unwrap_or_else(|e| e.into_inner());
+        if uploads.len() >= MAX_HELD_UPLOADS {
+            // work that never begins a frame (tests of single passes): the oldest are long submitted
+            uploads.drain(..MAX_HELD_UPLOADS / 2);
+        }
+        uploads.push(buffer.clone());
+        buffer
+    }
+
+    /// Lets the last frame's uploads go back to the pool ([`GpuContext::upload`]).
+    pub(super) fn release_uploads(&self) {
+        self.uploads.lock().unwrap_or_else(|e| e.into_inner()).clear();
     }
 
     /// A texture made anew (counted as an allocation; see [`GpuContext::texture`] for one from

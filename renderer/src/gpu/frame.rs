@@ -96,7 +96,7 @@ pub(super) struct FrameTargets<'a> {
     pub shade_params: Option<ShadeParams>,
     pub output: Option<shade::ShadeOutput>,
     pub smoothed: bool,
-    pub photo_buffer: Option<wgpu::Buffer>,
+    pub photo_buffer: Option<Arc<wgpu::Buffer>>,
     pub specular_base: Option<Arc<wgpu::Buffer>>,
     pub mapped: Option<Arc<wgpu::Buffer>>,
     pub cm_report: Option<CmReport>,
@@ -658,7 +658,7 @@ impl DirRenderer {
         let ctx = &self.ctx;
         let photo_texels: Vec<[f32; 4]> = f.photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
         f.photo_buffer = Some(f.timed(ctx, "upload photograph".into(), || {
-            ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("photo"),
                 contents: bytemuck::cast_slice(&photo_texels),
                 usage: wgpu::BufferUsages::STORAGE,
@@ -709,7 +709,7 @@ impl DirRenderer {
             solutions: &ran(&f.output, "shading").solutions,
             reflected: &shaded[0],
             refracted: &shaded[1],
-            photo: ran(&f.photo_buffer, "photograph"),
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
             width: f.width,
             height: f.height,
         };
@@ -725,7 +725,7 @@ impl DirRenderer {
             width: f.width,
             height: f.height,
             solutions: &ran(&f.output, "shading").solutions,
-            photo: ran(&f.photo_buffer, "photograph"),
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
         };
         let (mapped, report) = self.cm.run(
             &self.ctx,
@@ -749,7 +749,7 @@ impl DirRenderer {
             linear_domain: ran(&f.cm_report, "colour mapping").mapping.linear_domain(),
             composition: f.params.composition,
             mapped: f.mapped.as_deref().expect("the colour mapping ran"),
-            photo: ran(&f.photo_buffer, "photograph"),
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
             specular_base: f.specular_base.as_deref(),
         };
         f.composite_buffer = Some(timed(ctx, &mut f.passes, "composition".into(), || self.compose.run(ctx, &inputs)));
@@ -757,13 +757,38 @@ impl DirRenderer {
     }
 
     /// The read-back, in two timed steps: the GPU's copies into staging buffers, then the
-    /// host's map and copy; a frame only shown needs the radiance buffers only for the ca
-    /// pass's mask.
+    /// host's map and copy. A frame only shown (without the ca factor, which needs the
+    /// radiance buffers for the virtual objects' mask and works on the composite in floats)
+    /// reads back only the composite packed to 8-bit RGBA: one wait, 4 bytes a pixel; its
+    /// image holds those bytes / 255, which `Image::to_rgb8` turns back into the same bytes.
     fn pass_readback(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let (width, height) = (f.width, f.height);
+        let composite = ran(&f.composite_buffer, "composition");
+        if f.mode == Frame::Display && f.params.camera_artifacts.is_none() {
+            let staged =
+                timed(ctx, &mut f.passes, "readback: packed to 8 bits, copied to staging (GPU)".into(), || {
+                    ctx.stage(&self.compose.pack(ctx, composite, width, height))
+                });
+            let bytes = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                ctx.read_buffer(&staged)
+            });
+            let start = Instant::now();
+            let composite = {
+                use rayon::prelude::*;
+                let channel = |b: u8| b as f32 / 255.0;
+                let pixels = bytes.par_chunks_exact(4).map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
+                Image { width, height, pixels: pixels.collect() }
+            };
+            f.passes.push(PassTime::new("image from the read-back bytes (CPU)", start.elapsed().as_secs_f64() * 1e3));
+            let empty = Image::filled(0, 0, Vec3::ZERO);
+            let virtual_mask = Mask { width, height, values: Vec::new() };
+            f.images =
+                Some(FrameImages { composite, l_rv: empty.clone(), l_r: empty, virtual_mask, flags: Vec::new() });
+            return Ok(());
+        }
         let radiance = f.mode != Frame::Display || f.params.camera_artifacts.is_some();
-        let (composite, output) = (ran(&f.composite_buffer, "composition"), ran(&f.output, "shading"));
+        let output = ran(&f.output, "shading");
         let staged = timed(ctx, &mut f.passes, "readback: copies to staging (GPU)".into(), || {
             (ctx.stage(composite), radiance.then(|| ctx.stage(&output.solutions)))
         });

@@ -126,3 +126,48 @@ fn counters_at_the_thesis_setting() {
         r.ctx.set_pass_waits(true);
     }
 }
+
+/// A live frame that is only shown, after its first: nothing allocated, the composite read back
+/// once as 8-bit RGBA besides the VPLs, and the host waits the frame still has (the VPLs drawn
+/// on the GPU are read back for the bounces and the ISMs; each bounce's VPLs; the specular
+/// passes' counts; the read-back). A device of its
+/// own, so that no other test's work is counted.
+#[test]
+fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
+    let r = match DirRenderer::new() {
+        Ok(r) => r,
+        Err(why) => return eprintln!("skipping: no GPU adapter opens ({why})"),
+    };
+    r.ctx.set_pass_waits(false);
+    for (name, bounces, waits) in [("dir-lamp-box", 1, 2), ("dir-lamp-box", 3, 5), ("glass-figure", 1, 4)] {
+        let scene = crate::scene::load(name).unwrap().with_size(64, 48);
+        let photo = crate::test_support::grey_photo(&scene);
+        let params = DirParams {
+            vpls: 32,
+            rsm_size: 32,
+            ism_size: 32,
+            ism_points: 256,
+            interleave: 4,
+            bounces,
+            bounce_candidates: 512,
+            specular: specular::SpecularParams { impostor_size: 32, caustic_map_size: 32, ..Default::default() },
+            ..DirParams::default()
+        };
+        let mut state = LiveState::default();
+        for frame in 0..4 {
+            let c = r.render_display(&scene, &photo, &params, &mut state).unwrap().report.counters;
+            eprintln!("{name}, {bounces} bounces, frame {frame}: {}", crate::bench::frame_rate::counter_cells(&c));
+            // the composite as 8-bit RGBA, and the VPLs drawn on the GPU (48 bytes each, and their
+            // count) that the bounces and the ISMs still take from the host
+            let vpl_bytes = 4 + 48 * params.vpls as u64;
+            // (further bounces read back each bounce's VPLs, the specular passes their counts)
+            if bounces == 1 && name == "dir-lamp-box" {
+                assert!(c.readback_bytes <= 64 * 48 * 4 + vpl_bytes, "{name}: {} bytes read back", c.readback_bytes);
+            }
+            if frame > 0 {
+                assert_eq!(c.allocations, 0, "{name}, frame {frame}: allocated after the first frame");
+            }
+            assert!(c.host_waits <= waits, "{name}, {bounces} bounces: {} host waits", c.host_waits);
+        }
+    }
+}

@@ -126,7 +126,7 @@ impl IndirectPass {
             camera: [inputs.camera.x, inputs.camera.y, inputs.camera.z, 0.0],
             prev_view_proj: prev_view_proj.to_cols_array_2d(),
         };
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("indirect params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,

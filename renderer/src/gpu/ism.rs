@@ -108,6 +108,18 @@ pub struct IsmSettings {
     pub splatting: IsmSplatting,
 }
 
+/// What the raster splatting draws: the atlas `buffer` it fills (`atlas` texels across), each
+/// layer's (cloud, its CDF and uniform), the point positions and the VPLs, `splats` quads.
+#[derive(Clone, Copy)]
+struct RasterSplats<'a> {
+    buffer: &'a wgpu::Buffer,
+    atlas: u32,
+    layers: &'a [(usize, std::sync::Arc<wgpu::Buffer>, std::sync::Arc<wgpu::Buffer>)],
+    position_buffer: &'a wgpu::Buffer,
+    vpl_buffer: &'a wgpu::Buffer,
+    splats: u32,
+}
+
 pub struct Ism {
     pipeline: wgpu::RenderPipeline,
     splat: wgpu::ComputePipeline,
@@ -198,6 +210,7 @@ impl Ism {
             return buffer.clone();
         }
         let indices: Vec<u32> = (0..splats).flat_map(|s| [0, 1, 2, 2, 1, 3].map(|k| 4 * s + k)).collect();
+        // made once and kept (not from the pool)
         let buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("ism splat indices"),
             contents: bytemuck::cast_slice(&indices),
@@ -239,12 +252,12 @@ impl Ism {
         // every splat's four vertices are numbered in one draw's vertex_index (a base vertex is
         // an i32): at most MAX_SPLATS splats in all
         let points_per_vpl = points_per_vpl.clamp(1, (MAX_SPLATS / n_vpls as u64).max(1) as u32);
-        let position_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let position_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism positions"),
             contents: bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let vpl_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism vpls"),
             contents: bytemuck::cast_slice(if vpls.is_empty() {
                 &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..]
@@ -273,12 +286,12 @@ impl Ism {
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
                 layer: [layer as u32, 0, 0, 0],
             };
-            let cdf_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let cdf_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism cdf"),
                 contents: bytemuck::cast_slice(&cdf),
                 usage: wgpu::BufferUsages::STORAGE,
             });
-            let uniform_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism params"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -308,7 +321,15 @@ impl Ism {
                 }
             }
             IsmSplatting::Raster => {
-                self.rasterise(ctx, &mut encoder, &buffer, atlas, &layers, &position_buffer, &vpl_buffer, splats)
+                let inputs = RasterSplats {
+                    buffer: &buffer,
+                    atlas,
+                    layers: &layers,
+                    position_buffer: &position_buffer,
+                    vpl_buffer: &vpl_buffer,
+                    splats,
+                };
+                self.rasterise(ctx, &mut encoder, &inputs)
             }
         }
         ctx.submit(encoder);
@@ -317,18 +338,8 @@ impl Ism {
 
     /// The raster splatting: both layers' quads into a depth texture (cleared to the far plane),
     /// then copied into `buffer`.
-    #[allow(clippy::too_many_arguments)]
-    fn rasterise(
-        &self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        buffer: &wgpu::Buffer,
-        atlas: u32,
-        layers: &[(usize, wgpu::Buffer, wgpu::Buffer)],
-        position_buffer: &wgpu::Buffer,
-        vpl_buffer: &wgpu::Buffer,
-        splats: u32,
-    ) {
+    fn rasterise(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, inputs: &RasterSplats) {
+        let RasterSplats { buffer, atlas, layers, position_buffer, vpl_buffer, splats } = *inputs;
         let device = &ctx.device;
         // from the pool: both layers are rendered with a clear below
         let texture = ctx.texture(&wgpu::TextureDescriptor {
@@ -384,7 +395,7 @@ impl Ism {
             }
         }
         // the copy reads only the atlas size from its uniform
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism params"),
             contents: bytemuck::bytes_of(&IsmUniform {
                 counts: [0, 0, 0, atlas],

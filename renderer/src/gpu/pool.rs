@@ -211,6 +211,7 @@ impl GpuContext {
     /// Starts a frame in the pool ([`Pool::begin_frame`]) and its counters
     /// ([`GpuContext::reset_counters`]).
     pub fn begin_frame(&self) {
+        self.release_uploads();
         self.pool.begin_frame();
         self.reset_counters();
     }

@@ -49,8 +49,8 @@ pub enum Subset {
 
 /// The scene's geometry and materials on the GPU.
 pub struct SceneBuffers {
-    pub vertices: wgpu::Buffer,
-    pub materials: wgpu::Buffer,
+    pub vertices: std::sync::Arc<wgpu::Buffer>,
+    pub materials: std::sync::Arc<wgpu::Buffer>,
     pub real_count: u32,
     pub total_count: u32,
 }
@@ -64,12 +64,12 @@ impl SceneBuffers {
         let vertices = if mesh.vertices.is_empty() { &zero_vertex[..] } else { &mesh.vertices[..] };
         let materials = if mesh.materials.is_empty() { &zero_material[..] } else { &mesh.materials[..] };
         SceneBuffers {
-            vertices: ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            vertices: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
                 contents: bytemuck::cast_slice(vertices),
                 usage: wgpu::BufferUsages::VERTEX,
             }),
-            materials: ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            materials: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("materials"),
                 contents: bytemuck::cast_slice(materials),
                 usage: wgpu::BufferUsages::STORAGE,
@@ -228,7 +228,7 @@ impl Raster {
         scene: &SceneBuffers,
         view: &ViewUniform,
     ) -> wgpu::BindGroup {
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("view"),
             contents: bytemuck::bytes_of(view),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -390,7 +390,7 @@ impl Raster {
             let at = k * stride as usize;
             contents[at..at + std::mem::size_of::<ViewUniform>()].copy_from_slice(bytemuck::bytes_of(view));
         }
-        let views = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let views = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("views"),
             contents: &contents,
             usage: wgpu::BufferUsages::UNIFORM,

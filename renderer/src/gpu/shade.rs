@@ -67,7 +67,7 @@ impl Shade {
     pub fn run(&self, ctx: &GpuContext, params: &ShadeParams, inputs: &ShadeInputs) -> ShadeOutput {
         let ShadeInputs { gbuffer, shadow_maps, lights, vpls, scene, ism } = *inputs;
         let storage = |label: &str, bytes: &[u8]| {
-            ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
@@ -87,7 +87,7 @@ impl Shade {
         };
         let solutions = output("solutions", 2 * pixels);
         let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("shade params"),
             contents: bytemuck::bytes_of(params),
             usage: wgpu::BufferUsages::UNIFORM,

@@ -191,8 +191,8 @@ pub struct Specular {
 pub struct Impostors {
     targets: SurfaceTargets,
     size: u32,
-    objects: wgpu::Buffer,
-    environment: wgpu::Buffer,
+    objects: Arc<wgpu::Buffer>,
+    environment: Arc<wgpu::Buffer>,
     env_size: [u32; 2],
     env_rotation: f32,
     has_environment: bool,
@@ -202,7 +202,7 @@ pub struct Impostors {
 
 /// One ray search's output: hits (six planes) and weights.
 struct Search {
-    params: wgpu::Buffer,
+    params: Arc<wgpu::Buffer>,
     hits: Arc<wgpu::Buffer>,
     info: Arc<wgpu::Buffer>,
     stride: u32,
@@ -213,7 +213,7 @@ pub struct Traced {
     /// GBuf_refl and GBuf_refr, in the camera's pixels.
     pub refl: SurfaceTargets,
     pub refr: SurfaceTargets,
-    params: wgpu::Buffer,
+    params: Arc<wgpu::Buffer>,
     hits: Arc<wgpu::Buffer>,
     info: Arc<wgpu::Buffer>,
     pub report: SpecularReport,
@@ -325,7 +325,7 @@ impl Specular {
         };
         let gpu_objects: Vec<GpuSpecularObject> = objects.iter().map(gpu_object).collect();
         let storage = |label: &str, bytes: &[u8]| {
-            ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
@@ -392,7 +392,7 @@ impl Specular {
             env: [impostors.env_rotation, impostors.has_environment as u32 as f32, radius, 0.0],
             scene: centre.extend(0.0).to_array(),
         };
-        let params_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let params_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("specular params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -669,7 +669,7 @@ impl Specular {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             Contents::Zeroed,
         );
-        let counts = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let counts = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("photon counts"),
             contents: &[0u8; 16],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
@@ -687,7 +687,7 @@ impl Specular {
                 map: [map.tan_half, maps.map_size as f32, map.object as f32, if map.object_real { 1.0 } else { 0.0 }],
                 size: [width, height, MAX_SPLAT_REACH, 0],
             };
-            let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("photons"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -731,7 +731,7 @@ impl Specular {
         height: u32,
     ) {
         let uniform = PhotonUniform { size: [width, height, 0, 0], ..bytemuck::Zeroable::zeroed() };
-        let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("caustics apply"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -764,7 +764,7 @@ impl Specular {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             Contents::Zeroed,
         );
-        let counts = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let counts = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("specular counts"),
             contents: &[0u8; 32],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,

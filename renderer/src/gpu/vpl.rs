@@ -473,7 +473,7 @@ impl VplSampler {
                 offset: [offset, 0, 0, 0],
                 light: LightRows::spot(light, map.tan_half),
             };
-            let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vpl caustic map"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -509,7 +509,7 @@ impl VplSampler {
                 light,
                 area: [area, 0.0, 0.0, 0.0],
             };
-            let uniform = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vpl map"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -532,7 +532,7 @@ impl VplSampler {
             ctx.record_dispatch(&mut encoder, "vpl candidates", &self.candidates, &entries, [groups, groups]);
             offset += 2 * map.size * map.size;
         }
-        let sizes = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("vpl cdf sizes"),
             contents: bytemuck::bytes_of(&[slots, blocks, 0, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -568,7 +568,7 @@ impl VplSampler {
         let drawn =
             ctx.buffer("vpls drawn", vpl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, zeroed);
         let staging = ctx.buffer("vpls drawn read back", vpl_bytes + 4, wgpu::BufferUsages::MAP_READ, zeroed);
-        let sizes = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("vpl draw sizes"),
             contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
