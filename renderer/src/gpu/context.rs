@@ -2,13 +2,13 @@
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 
-use super::pool::Contents;
+use super::pool::{BufferKey, Contents, PoolStats};
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt;
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// The features GPU pass timing needs: timestamp queries written between command buffers.
@@ -83,7 +83,7 @@ pub struct GpuContext {
     /// The buffers [`GpuContext::upload`] handed out since the frame began: held until the
     /// next frame begins, so that no later pass of the same frame gets one of them from the
     /// pool and overwrites it before the commands reading it have run.
-    uploads: Mutex<Vec<std::sync::Arc<wgpu::Buffer>>>,
+    uploads: Mutex<Vec<Arc<wgpu::Buffer>>>,
 }
 
 /// The structure of the work the host gave the device, counted where it happens (every
@@ -449,7 +449,7 @@ impl GpuContext {
     /// an upload; as an allocation only where the pool had none of its size and usage): after a
     /// scene's first frame, uniforms and per-frame data allocate nothing. It is held until the
     /// next [`GpuContext::begin_frame`] (see `uploads`).
-    pub fn upload(&self, desc: &wgpu::util::BufferInitDescriptor) -> std::sync::Arc<wgpu::Buffer> {
+    pub fn upload(&self, desc: &wgpu::util::BufferInitDescriptor) -> Arc<wgpu::Buffer> {
         let size =
             (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
         let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
@@ -534,7 +534,7 @@ impl GpuContext {
 
     /// Submits the copy of a storage buffer into a staging buffer from the pool (`MAP_READ`) and
     /// returns the staging buffer, without waiting: [`GpuContext::read_staged_f32`] reads it.
-    pub fn stage(&self, source: &wgpu::Buffer) -> std::sync::Arc<wgpu::Buffer> {
+    pub fn stage(&self, source: &wgpu::Buffer) -> Arc<wgpu::Buffer> {
         // from the pool: the copy below writes all of it
         let staging = self.buffer("readback", source.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
         let mut encoder = self.device.create_command_encoder(&Default::default());
@@ -643,4 +643,60 @@ fn enumerate(backends: wgpu::Backends) -> Vec<wgpu::Adapter> {
 
 fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {})", info.name, info.backend, AdapterKind::of(info))
+}
+
+/// The pool's side of the context ([`super::pool`]): the pool knows nothing of the context.
+impl GpuContext {
+    /// A buffer of `size` bytes and `usage` from the pool (see the module
+    /// documentation): a free one of the same size and usage, or a new one. With
+    /// [`Contents::Zeroed`] it reads as zeros. It gets `COPY_DST` besides `usage`, to be cleared.
+    pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages, contents: Contents) -> Arc<wgpu::Buffer> {
+        let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let key = BufferKey { size, usage };
+        let (buffer, reused) = self.pool.buffer(&self.device, label, key);
+        if !reused {
+            self.count_allocation();
+        }
+        if reused {
+            match contents {
+                Contents::Zeroed => {
+                    let mut encoder = self.device.create_command_encoder(&Default::default());
+                    encoder.clear_buffer(&buffer, 0, None);
+                    self.count_submit();
+                    self.queue.submit([encoder.finish()]);
+                }
+                #[cfg(test)]
+                Contents::Overwritten => {
+                    // old contents read by mistake show as NaNs
+                    self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
+                }
+                #[cfg(not(test))]
+                Contents::Overwritten => {}
+            }
+        }
+        buffer
+    }
+
+    /// A texture of `desc` from the pool (see the module documentation), as its last user left
+    /// it: the caller renders every layer it reads with a clear first.
+    pub fn texture(&self, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
+        let (texture, reused) = self.pool.texture(&self.device, desc);
+        if !reused {
+            self.count_allocation();
+        }
+        texture
+    }
+
+    /// Starts a frame in the pool ([`super::pool::Pool::begin_frame`]) and its counters
+    /// ([`GpuContext::reset_counters`]).
+    pub fn begin_frame(&self) {
+        self.release_uploads();
+        self.pool.begin_frame();
+        self.reset_counters();
+    }
+
+    /// What frames took from the pool since [`GpuContext::begin_frame`].
+    pub fn pool_stats(&self) -> PoolStats {
+        self.pool.stats()
+    }
 }

@@ -22,7 +22,6 @@
 //! [`KEPT_FRAMES`] frames, so frames of another size or scene do not pile up, and counts what
 //! the frame took new and reused ([`PoolStats`], in each frame's report).
 
-use super::context::GpuContext;
 use serde::Serialize;
 use std::sync::{Arc, Mutex};
 
@@ -51,9 +50,9 @@ pub struct PoolStats {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct BufferKey {
-    size: u64,
-    usage: wgpu::BufferUsages,
+pub(super) struct BufferKey {
+    pub(super) size: u64,
+    pub(super) usage: wgpu::BufferUsages,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -121,7 +120,7 @@ impl Pool {
         PoolStats { held_bytes: held(&inner.buffers) + held(&inner.textures), ..inner.stats }
     }
 
-    fn buffer(&self, device: &wgpu::Device, label: &str, key: BufferKey) -> (Arc<wgpu::Buffer>, bool) {
+    pub(super) fn buffer(&self, device: &wgpu::Device, label: &str, key: BufferKey) -> (Arc<wgpu::Buffer>, bool) {
         let mut inner = self.lock();
         let frame = inner.frame;
         if let Some((buffer, bytes)) = take(&mut inner.buffers, &key, frame) {
@@ -141,7 +140,7 @@ impl Pool {
         (buffer, false)
     }
 
-    fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> (Arc<wgpu::Texture>, bool) {
+    pub(super) fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> (Arc<wgpu::Texture>, bool) {
         let key = TextureKey {
             size: desc.size,
             format: desc.format,
@@ -164,60 +163,5 @@ impl Pool {
         inner.stats.new_bytes += bytes;
         inner.textures.push(Entry { key, item: texture.clone(), bytes, last_frame: frame });
         (texture, false)
-    }
-}
-
-impl GpuContext {
-    /// A buffer of `size` bytes and `usage` from the pool (see the module
-    /// documentation): a free one of the same size and usage, or a new one. With
-    /// [`Contents::Zeroed`] it reads as zeros. It gets `COPY_DST` besides `usage`, to be cleared.
-    pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages, contents: Contents) -> Arc<wgpu::Buffer> {
-        let usage = usage | wgpu::BufferUsages::COPY_DST;
-        let key = BufferKey { size, usage };
-        let (buffer, reused) = self.pool.buffer(&self.device, label, key);
-        if !reused {
-            self.count_allocation();
-        }
-        if reused {
-            match contents {
-                Contents::Zeroed => {
-                    let mut encoder = self.device.create_command_encoder(&Default::default());
-                    encoder.clear_buffer(&buffer, 0, None);
-                    self.count_submit();
-                    self.queue.submit([encoder.finish()]);
-                }
-                #[cfg(test)]
-                Contents::Overwritten => {
-                    // old contents read by mistake show as NaNs
-                    self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
-                }
-                #[cfg(not(test))]
-                Contents::Overwritten => {}
-            }
-        }
-        buffer
-    }
-
-    /// A texture of `desc` from the pool (see the module documentation), as its last user left
-    /// it: the caller renders every layer it reads with a clear first.
-    pub fn texture(&self, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
-        let (texture, reused) = self.pool.texture(&self.device, desc);
-        if !reused {
-            self.count_allocation();
-        }
-        texture
-    }
-
-    /// Starts a frame in the pool ([`Pool::begin_frame`]) and its counters
-    /// ([`GpuContext::reset_counters`]).
-    pub fn begin_frame(&self) {
-        self.release_uploads();
-        self.pool.begin_frame();
-        self.reset_counters();
-    }
-
-    /// What frames took from the pool since [`GpuContext::begin_frame`].
-    pub fn pool_stats(&self) -> PoolStats {
-        self.pool.stats()
     }
 }
