@@ -35,6 +35,9 @@
 //!   shading pass writing L_rv and L_r, interleaved-sampling merge and temporal smoothing, the cm
 //!   passes, differential composition (WGSL beside the Rust that drives it).
 
+/// The renderer's benchmark experiments (`mrstudy bench render`), behind the `bench` feature so
+/// they are not part of the library's default API; `mrstudy-bench` turns it on.
+#[cfg(feature = "bench")]
 pub mod bench;
 pub mod bvh;
 pub mod ca;

@@ -137,7 +137,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         "fps",
         "live ms",
         "fps",
-        COUNTER_HEADER
+        FrameCounters::HEADER
     ));
     let mut rows = Vec::new();
     for name in &names {
@@ -287,30 +287,13 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 row.pipelined_fps,
                 row.live_median_ms,
                 row.live_fps,
-                counter_cells(&row.live_counters),
+                row.live_counters.cells(),
                 slowest.join("; ")
             ));
             rows.push(row);
         }
     }
     Ok(Report { adapter, rows, plots: Vec::new() })
-}
-
-/// The header of the live frame's counters in the table ([`counter_cells`]).
-pub const COUNTER_HEADER: &str = "submits waits readback MB upload MB allocs  cpu ms  wait ms";
-
-/// A frame's counters as table cells under [`COUNTER_HEADER`].
-pub fn counter_cells(c: &FrameCounters) -> String {
-    format!(
-        "{:>7} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2}",
-        c.submits,
-        c.host_waits,
-        c.readback_bytes as f64 / 1e6,
-        c.upload_bytes as f64 / 1e6,
-        c.allocations,
-        c.cpu_ms,
-        c.wait_ms
-    )
 }
 
 /// The `q` quantile of `values` (nearest rank; sorts them); 0 for none.

@@ -103,7 +103,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         "FLIP",
         "RMSE",
         "FLIPvirt",
-        super::frame_rate::COUNTER_HEADER
+        FrameCounters::HEADER
     ));
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut plots = Vec::new();
@@ -232,7 +232,7 @@ fn print_row(observer: &dyn Observer, row: &MethodRow) {
         row.flip,
         row.rmse,
         optional(row.flip_virtual, 4),
-        super::frame_rate::counter_cells(&row.counters),
+        row.counters.cells(),
     ));
 }
 

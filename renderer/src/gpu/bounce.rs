@@ -36,7 +36,7 @@ use crate::math::pcg_hash as hash;
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 
-pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("bounce.wgsl"));
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cdf.wgsl"), include_str!("bounce.wgsl"));
 
 /// Matches `BounceParams` in bounce.wgsl.
 #[repr(C)]

@@ -111,6 +111,23 @@ pub struct FrameCounters {
 }
 
 impl FrameCounters {
+    /// The header of a table of counters ([`FrameCounters::cells`]).
+    pub const HEADER: &str = "submits waits readback MB upload MB allocs  cpu ms  wait ms";
+
+    /// The counters as table cells under [`FrameCounters::HEADER`].
+    pub fn cells(&self) -> String {
+        format!(
+            "{:>7} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2}",
+            self.submits,
+            self.host_waits,
+            self.readback_bytes as f64 / 1e6,
+            self.upload_bytes as f64 / 1e6,
+            self.allocations,
+            self.cpu_ms,
+            self.wait_ms
+        )
+    }
+
     /// `cpu_ms` less `wait_ms`: the host's own work (recording, CPU steps, copies).
     pub fn record_ms(&self) -> f64 {
         (self.cpu_ms - self.wait_ms).max(0.0)

@@ -110,9 +110,8 @@ fn counters_at_the_thesis_setting() {
             specular: specular::SpecularParams { caustic_map_size: 512, ..Default::default() },
             ..DirParams::default()
         };
-        let print = |series: &str, c: &context::FrameCounters| {
-            println!("{name} {} {series}: {}", condition.name(), crate::bench::frame_rate::counter_cells(c))
-        };
+        let print =
+            |series: &str, c: &context::FrameCounters| println!("{name} {} {series}: {}", condition.name(), c.cells());
         r.ctx.set_pass_waits(true);
         r.render(&scene, &photo, &params).unwrap();
         print("timed", &r.render(&scene, &photo, &params).unwrap().report.counters);
@@ -156,7 +155,7 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
         let mut state = LiveState::default();
         for frame in 0..4 {
             let c = r.render_display(&scene, &photo, &params, &mut state).unwrap().report.counters;
-            eprintln!("{name}, {bounces} bounces, frame {frame}: {}", crate::bench::frame_rate::counter_cells(&c));
+            eprintln!("{name}, {bounces} bounces, frame {frame}: {}", c.cells());
             // the composite as 8-bit RGBA, and the VPLs drawn on the GPU (48 bytes each, and their
             // count) that the bounces and the ISMs still take from the host
             let vpl_bytes = 4 + 48 * params.vpls as u64;

@@ -27,7 +27,7 @@ use super::pool::Contents;
 use super::vpl::GpuVpl;
 use serde::Serialize;
 
-pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("ism.wgsl"));
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cdf.wgsl"), include_str!("ism.wgsl"));
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Splats per indexed draw: the index buffer holds this many (24 MB), larger clouds take
 /// several draws.
