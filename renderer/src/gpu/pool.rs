@@ -1,5 +1,5 @@
-//! GPU buffers and textures kept from frame to frame ([`GpuContext::buffer`],
-//! [`GpuContext::texture`]): a frame's large resources — per-pixel buffers, G-buffers, shadow
+//! GPU buffers and textures kept from frame to frame ([`GpuContext::buffer`](super::context::GpuContext::buffer),
+//! [`GpuContext::texture`](super::context::GpuContext::texture)): a frame's large resources — per-pixel buffers, G-buffers, shadow
 //! maps, read-back staging — are taken from the pool instead of made anew, and go back to it when
 //! the last handle to them is dropped. A frame of 1024×768 with gi makes several hundred MB of
 //! them; made and freed every frame, the allocator makes and frees whole memory blocks (128–256
@@ -18,7 +18,7 @@
 //! such a buffer is first filled with NaNs, so a read of old contents shows. Textures are
 //! handed out as they are: every caller renders each layer it reads with a clear first.
 //!
-//! Each frame ([`GpuContext::begin_frame`]) drops the free resources no frame took in the last
+//! Each frame ([`GpuContext::begin_frame`](super::context::GpuContext::begin_frame)) drops the free resources no frame took in the last
 //! [`KEPT_FRAMES`] frames, so frames of another size or scene do not pile up, and counts what
 //! the frame took new and reused ([`PoolStats`], in each frame's report).
 
@@ -28,7 +28,7 @@ use std::sync::{Arc, Mutex};
 /// Frames a free resource stays in the pool without being taken.
 pub const KEPT_FRAMES: u64 = 2;
 
-/// What a caller needs of a buffer's contents when it gets it ([`GpuContext::buffer`]).
+/// What a caller needs of a buffer's contents when it gets it ([`GpuContext::buffer`](super::context::GpuContext::buffer)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Contents {
     /// Zeros, as a new buffer (a reused one is cleared).
@@ -37,7 +37,7 @@ pub enum Contents {
     Overwritten,
 }
 
-/// What frames took from the pool since [`GpuContext::begin_frame`]: made anew and reused
+/// What frames took from the pool since [`GpuContext::begin_frame`](super::context::GpuContext::begin_frame): made anew and reused
 /// (counts and bytes), and what the pool holds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct PoolStats {
@@ -80,7 +80,7 @@ struct Inner {
     stats: PoolStats,
 }
 
-/// The pool a [`GpuContext`] keeps.
+/// The pool a [`GpuContext`](super::context::GpuContext) keeps.
 #[derive(Default)]
 pub struct Pool {
     inner: Mutex<Inner>,
