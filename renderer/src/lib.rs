@@ -6,7 +6,7 @@
 //! images, masks, timings and errors.
 //!
 //! Code map:
-//! - [`bench`](mod@bench): the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
+//! - `bench` (feature `bench`): the benchmarks behind `mrstudy bench render` (GPU frame time and error, the
 //!   path tracer's convergence, ca and cm accuracy), each a typed report.
 //! - [`scene`]: the scene file (TOML) schema and its resolution into world-space [`scene::Scene`];
 //!   [`scene::desc`] is the schema, [`builtin`] (`scene::builtin`) the built-in scenes (survey set, DIR test scenes, lab task scene).
@@ -35,6 +35,9 @@
 //!   shading pass writing L_rv and L_r, interleaved-sampling merge and temporal smoothing, the cm
 //!   passes, differential composition (WGSL beside the Rust that drives it).
 
+// The renderer's benchmark experiments (`mrstudy bench render`), behind the `bench` feature so
+// they are not part of the library's default API; `mrstudy-bench` turns it on.
+#[cfg(feature = "bench")]
 pub mod bench;
 pub mod bvh;
 pub mod ca;

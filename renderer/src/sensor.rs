@@ -397,20 +397,28 @@ pub(crate) fn disc_blur(img: &Image, radius: f32) -> Image {
 }
 
 fn gaussian3(img: &Image) -> Image {
-    let k = [1.0f32, 2.0, 1.0];
     let mut out = Image::new(img.width, img.height);
     for y in 0..img.height as i64 {
         for x in 0..img.width as i64 {
-            let mut s = Vec3::ZERO;
-            for (j, ky) in k.iter().enumerate() {
-                for (i, kx) in k.iter().enumerate() {
-                    s += img.get_clamped(x + i as i64 - 1, y + j as i64 - 1) * (kx * ky);
-                }
-            }
-            out.set(x as u32, y as u32, s / 16.0);
+            out.set(x as u32, y as u32, binomial3(img, x, y));
         }
     }
     out
+}
+
+/// The 3×3 binomial blur ([1 2 1]ᵀ[1 2 1] / 16, edges clamped) of `img` at (x, y): the one
+/// kernel of the camera's unsharp mask, here and in the `ca` chain's sharpening
+/// ([`crate::ca`]). The sum is in row order and scaled by 1/16 (a power of two: the same bits
+/// as dividing by 16).
+pub(crate) fn binomial3(img: &Image, x: i64, y: i64) -> Vec3 {
+    let k = [1.0f32, 2.0, 1.0];
+    let mut s = Vec3::ZERO;
+    for (j, ky) in k.iter().enumerate() {
+        for (i, kx) in k.iter().enumerate() {
+            s += img.get_clamped(x + i as i64 - 1, y + j as i64 - 1) * (kx * ky);
+        }
+    }
+    s * (1.0 / 16.0)
 }
 
 /// Brown–Conrady forward model on normalised coordinates.

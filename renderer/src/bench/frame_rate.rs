@@ -26,6 +26,7 @@ use serde::Serialize;
 
 use super::{Observer, Report, load_sized};
 use crate::error::Result;
+use crate::gpu::context::FrameCounters;
 use crate::gpu::ism::IsmSplatting;
 use crate::gpu::{DirParams, DirRenderer, GiLevel, PassTime, specular::SpecularParams};
 use crate::reference::{ReferenceParams, render_photo};
@@ -83,9 +84,31 @@ pub struct FrameRateRow {
     pub first_frame_new_mb: f64,
     pub new_mb: f64,
     pub reused_mb: f64,
+    /// The frame's structure, counted by the renderer itself ([`FrameCounters`]), per series:
+    /// the frames timed pass by pass, the pipelined frames and the live (shown) frames. Counts
+    /// are medians over the series' frames except `allocations`, the most any frame of the
+    /// series made anew (0: nothing allocated after the warm-up frames); `cpu_ms` and
+    /// `wait_ms` are medians.
+    pub counters: FrameCounters,
+    pub pipelined_counters: FrameCounters,
+    pub live_counters: FrameCounters,
     /// Each pass's median over the timed frames, in the frame's order (with its GPU time's
     /// median, `gpu_ms`, where the context takes GPU times).
     pub passes: Vec<PassTime>,
+}
+
+/// The counters of a series of frames: medians of the counts and times, the most allocations.
+pub fn summarise(frames: &[FrameCounters]) -> FrameCounters {
+    let median = |f: &dyn Fn(&FrameCounters) -> f64| quantile(&mut frames.iter().map(f).collect::<Vec<_>>(), 0.5);
+    FrameCounters {
+        submits: median(&|c| c.submits as f64) as u64,
+        host_waits: median(&|c| c.host_waits as f64) as u64,
+        readback_bytes: median(&|c| c.readback_bytes as f64) as u64,
+        upload_bytes: median(&|c| c.upload_bytes as f64) as u64,
+        allocations: frames.iter().map(|c| c.allocations).max().unwrap_or(0),
+        cpu_ms: median(&|c| c.cpu_ms),
+        wait_ms: median(&|c| c.wait_ms),
+    }
 }
 
 /// The scenes measured by default: DIR's thesis scene, the glass figure and the metal bottle.
@@ -103,8 +126,18 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
     let adapter = renderer.ctx.adapter_name();
     observer.note(&format!("bench render --frame-rate on {adapter}: {width}×{height}, {frames} frames per row"));
     observer.line(&format!(
-        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8} {:>12} {:>8} {:>8} {:>8}   slowest passes (median ms)",
-        "scene", "cond", "median ms", "p10 ms", "p90 ms", "fps", "pipelined ms", "fps", "live ms", "fps"
+        "{:<14} {:<8} {:>9} {:>9} {:>9} {:>8} {:>12} {:>8} {:>8} {:>8} {}   slowest passes (median ms)",
+        "scene",
+        "cond",
+        "median ms",
+        "p10 ms",
+        "p90 ms",
+        "fps",
+        "pipelined ms",
+        "fps",
+        "live ms",
+        "fps",
+        FrameCounters::HEADER
     ));
     let mut rows = Vec::new();
     for name in &names {
@@ -139,6 +172,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             }
             let mut memory = crate::gpu::pool::PoolStats::default();
             let mut times = Vec::with_capacity(frames as usize);
+            let (mut timed_counters, mut pipelined_counters, mut live_counters) = (Vec::new(), Vec::new(), Vec::new());
             // per pass: its wall-clock times and its GPU times (where the adapter times them)
             let mut pass_times: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
             for _ in 0..frames {
@@ -146,6 +180,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 let frame = renderer.render(&scene, &photo, &params)?;
                 times.push(start.elapsed().as_secs_f64() * 1e3);
                 memory = frame.report.memory;
+                timed_counters.push(frame.report.counters);
                 for (k, pass) in frame.report.passes.iter().enumerate() {
                     match pass_times.get_mut(k) {
                         Some((name, list, gpu)) if *name == pass.pass => {
@@ -175,15 +210,17 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 renderer.render(&scene, &photo, &params)?;
                 for _ in 0..frames {
                     let start = Instant::now();
-                    renderer.render(&scene, &photo, &params)?;
+                    let frame = renderer.render(&scene, &photo, &params)?;
                     pipelined.push(start.elapsed().as_secs_f64() * 1e3);
+                    pipelined_counters.push(frame.report.counters);
                 }
                 let mut state = crate::gpu::LiveState::default();
                 renderer.render_display(&scene, &photo, &params, &mut state)?;
                 for _ in 0..frames {
                     let start = Instant::now();
-                    renderer.render_display(&scene, &photo, &params, &mut state)?;
+                    let frame = renderer.render_display(&scene, &photo, &params, &mut state)?;
                     live.push(start.elapsed().as_secs_f64() * 1e3);
+                    live_counters.push(frame.report.counters);
                 }
                 Ok::<(), crate::error::RenderError>(())
             })();
@@ -218,6 +255,9 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 first_frame_new_mb,
                 new_mb: memory.new_bytes as f64 / 1e6,
                 reused_mb: memory.reused_bytes as f64 / 1e6,
+                counters: summarise(&timed_counters),
+                pipelined_counters: summarise(&pipelined_counters),
+                live_counters: summarise(&live_counters),
                 passes_ms: passes.iter().map(|p| p.ms).sum(),
                 gpu_ms: passes.iter().any(|p| p.gpu_ms.is_some()).then(|| passes.iter().filter_map(|p| p.gpu_ms).sum()),
                 passes,
@@ -233,7 +273,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 })
                 .collect();
             observer.line(&format!(
-                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1} {:>8.2} {:>8.1}   {}",
+                "{:<14} {:<8} {:>9.2} {:>9.2} {:>9.2} {:>8.1} {:>12.2} {:>8.1} {:>8.2} {:>8.1} {}   {}",
                 row.scene,
                 match row.ism_splatting {
                     Some(IsmSplatting::Raster) => "gi/rast".to_string(),
@@ -247,6 +287,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 row.pipelined_fps,
                 row.live_median_ms,
                 row.live_fps,
+                row.live_counters.cells(),
                 slowest.join("; ")
             ));
             rows.push(row);

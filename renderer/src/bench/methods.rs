@@ -23,6 +23,7 @@ use crate::coherent::render::{CapturedScene, render_over};
 use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::Result;
 use crate::gpu::PassTime;
+use crate::gpu::context::FrameCounters;
 use crate::gpu::{DirParams, DirRenderer, GiLevel};
 use crate::metrics::{self, stimulus_errors};
 use crate::reference::ReferenceParams;
@@ -65,6 +66,10 @@ pub struct MethodRow {
     pub width: u32,
     pub height: u32,
     pub reference_spp: u32,
+    /// The frame's structure as the GPU context counted it ([`FrameCounters`]): DIR's frame;
+    /// for the coherent methods, the representation build and the frame (their GPU work is the
+    /// representation), `cpu_ms` their wall-clock time.
+    pub counters: FrameCounters,
     pub passes: Vec<PassTime>,
 }
 
@@ -85,8 +90,20 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         "DIR on {adapter}; the coherent methods' representations on {adapter}, their frames on the {cpu}"
     ));
     observer.line(&format!(
-        "{:<17} {:<4} {:<5} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7}",
-        "scene", "gi", "set", "capture", "repr.", "object", "backgr.", "frame ms", "ms", "FLIP", "RMSE", "FLIPvirt"
+        "{:<17} {:<4} {:<5} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7} {}",
+        "scene",
+        "gi",
+        "set",
+        "capture",
+        "repr.",
+        "object",
+        "backgr.",
+        "frame ms",
+        "ms",
+        "FLIP",
+        "RMSE",
+        "FLIPvirt",
+        FrameCounters::HEADER
     ));
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut plots = Vec::new();
@@ -125,6 +142,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 width: w,
                 height: h,
                 reference_spp: ref_spp,
+                counters: frame.report.counters,
                 passes: frame.report.passes,
             });
             print_row(observer, rows.last().expect("a row"));
@@ -138,6 +156,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         }
         for (method, quality) in settings {
             let params = CoherentParams::new(method, quality);
+            renderer.ctx.reset_counters();
             let (build, frame, _, errors) =
                 render_over(&scene, &captured, &params, &reference, Some(&renderer), &|done, total| {
                     observer.progress("coherent", done, total)
@@ -146,6 +165,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let capture_ms = captured.ms;
             let representation_ms = build.iter().skip(1).map(|p| p.ms).fold(0.0, |a, b| a + b);
             let frame_ms = frame.report.total_ms();
+            let counters = FrameCounters { cpu_ms: representation_ms + frame_ms, ..renderer.ctx.counters() };
             rows.push(MethodRow {
                 scene: name.clone(),
                 method: method.name().into(),
@@ -167,6 +187,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
                 width: w,
                 height: h,
                 reference_spp: ref_spp,
+                counters,
                 passes: build.into_iter().chain(frame.report.passes).collect(),
             });
             print_row(observer, rows.last().expect("a row"));
@@ -198,7 +219,7 @@ fn print_row(observer: &dyn Observer, row: &MethodRow) {
     };
     let optional = |value: Option<f64>, digits: usize| value.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     observer.line(&format!(
-        "{:<17} {:<4} {:<5} {:>8.1} {:>8.1} {:>8} {:>8} {:>9.1} {:>9.1} {:>7.4} {:>7.4} {:>7}",
+        "{:<17} {:<4} {:<5} {:>8.1} {:>8.1} {:>8} {:>8} {:>9.1} {:>9.1} {:>7.4} {:>7.4} {:>7} {}",
         row.scene,
         row.method,
         setting,
@@ -211,6 +232,7 @@ fn print_row(observer: &dyn Observer, row: &MethodRow) {
         row.flip,
         row.rmse,
         optional(row.flip_virtual, 4),
+        row.counters.cells(),
     ));
 }
 
@@ -294,6 +316,7 @@ mod tests {
             width: 1,
             height: 1,
             reference_spp: 1,
+            counters: FrameCounters::default(),
             passes: Vec::new(),
         };
         let rows = vec![

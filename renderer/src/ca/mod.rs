@@ -409,18 +409,11 @@ fn demosaic(raw: &[f32], w: u32, h: u32) -> Image {
 }
 
 fn sharpen(img: &Image, amount: f32, clip: bool) -> Image {
-    let k = [1.0f32, 2.0, 1.0];
     let mut out = Image::new(img.width, img.height);
     for y in 0..img.height as i64 {
         for x in 0..img.width as i64 {
-            let mut s = Vec3::ZERO;
-            for (j, ky) in k.iter().enumerate() {
-                for (i, kx) in k.iter().enumerate() {
-                    s += img.get_clamped(x + i as i64 - 1, y + j as i64 - 1) * (kx * ky);
-                }
-            }
             let c = img.get(x as u32, y as u32);
-            let v = c + (c - s * (1.0 / 16.0)) * amount;
+            let v = c + (c - sensor::binomial3(img, x, y)) * amount;
             out.set(x as u32, y as u32, if clip { v.clamp(Vec3::ZERO, Vec3::ONE) } else { v });
         }
     }

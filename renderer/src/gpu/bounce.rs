@@ -28,15 +28,15 @@
 use super::context::GpuContext;
 use super::mesh::GpuMesh;
 use super::vpl::GpuVpl;
+use std::sync::Arc;
 // the PCG hash of common.wgsl, written once in Rust
 use crate::material::Material;
 use crate::math::luminance;
 use crate::math::pcg_hash as hash;
 use glam::{Vec2, Vec3};
 use serde::Serialize;
-use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("bounce.wgsl"));
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cdf.wgsl"), include_str!("bounce.wgsl"));
 
 /// Matches `BounceParams` in bounce.wgsl.
 #[repr(C)]
@@ -74,8 +74,8 @@ pub struct BounceReport {
 
 /// The scene's triangles as the bounce pass reads them, uploaded once per frame.
 pub struct BounceScene {
-    positions: wgpu::Buffer,
-    cdf: wgpu::Buffer,
+    positions: Arc<wgpu::Buffer>,
+    cdf: Arc<wgpu::Buffer>,
     triangles: u32,
     real_triangles: u32,
 }
@@ -86,14 +86,13 @@ impl BounceScene {
         let positions = mesh.positions_with_role();
         let triangles = mesh.vertices.len() / 3;
         let (cdf, _) = super::ism::area_cdf(&positions, 0..triangles)?;
-        let device = &ctx.device;
         Some(BounceScene {
-            positions: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            positions: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("bounce positions"),
                 contents: bytemuck::cast_slice(&positions),
                 usage: wgpu::BufferUsages::STORAGE,
             }),
-            cdf: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            cdf: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("bounce cdf"),
                 contents: bytemuck::cast_slice(&cdf),
                 usage: wgpu::BufferUsages::STORAGE,
@@ -162,6 +161,16 @@ fn link_slots(sources: &[GpuVpl], slots: u32, seed: u32) -> Vec<SlotSource> {
     out
 }
 
+/// The scene a bounce searches: its candidate points on the GPU, its triangles and materials
+/// (for the new VPLs' albedo) and its bounding radius.
+#[derive(Clone, Copy)]
+pub struct BounceInputs<'a> {
+    pub scene: &'a BounceScene,
+    pub mesh: &'a GpuMesh,
+    pub materials: &'a [Material],
+    pub scene_radius: f32,
+}
+
 impl Bounce {
     pub fn new(ctx: &GpuContext) -> Self {
         let [pipeline] = ctx.compute_pipelines("bounce.wgsl", SHADER, ["cs_nearest"]);
@@ -171,18 +180,15 @@ impl Bounce {
     /// One additional bounce: `slots` new VPL slots spawned from `sources`. Returns the new
     /// VPLs (up to two per slot, see the module notes) and the number of slots that found a
     /// surface.
-    #[allow(clippy::too_many_arguments)]
     pub fn spawn(
         &self,
         ctx: &GpuContext,
-        scene: &BounceScene,
-        mesh: &GpuMesh,
-        materials: &[Material],
+        at: &BounceInputs,
         sources: &[GpuVpl],
         slots: u32,
         search: &BounceSearch,
-        scene_radius: f32,
     ) -> (Vec<GpuVpl>, u32, u32) {
+        let BounceInputs { scene, mesh, materials, scene_radius } = *at;
         let linked = link_slots(sources, slots, search.seed);
         if linked.is_empty() {
             return (Vec::new(), 0, 0);
@@ -213,7 +219,6 @@ impl Bounce {
         search: &BounceSearch,
         scene_radius: f32,
     ) -> Vec<f32> {
-        let device = &ctx.device;
         let gpu_slots: Vec<SlotGpu> = slots
             .iter()
             .enumerate()
@@ -234,12 +239,12 @@ impl Bounce {
             counts: [search.candidates.max(1), n, scene.real_triangles, scene.triangles],
             cone: [search.cone_degrees.clamp(0.01, 90.0).to_radians().cos(), min_distance, 0.01, 0.0],
         };
-        let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("bounce params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let slot_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let slot_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("bounce slots"),
             contents: bytemuck::cast_slice(&gpu_slots),
             usage: wgpu::BufferUsages::STORAGE,

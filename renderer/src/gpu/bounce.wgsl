@@ -51,16 +51,7 @@ fn cs_nearest(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation
         for (var k = lid; k < per_slot; k += WORKGROUP) {
             // the k-th of this slot's stratified area samples
             let u = fract((f32(k) + 0.5) / f32(per_slot) + rotation);
-            var lo = 0u;
-            var hi = params.counts.w - 1u;
-            while lo < hi {
-                let mid = (lo + hi) / 2u;
-                if cdf[mid] < u {
-                    lo = mid + 1u;
-                } else {
-                    hi = mid;
-                }
-            }
+            let lo = cdf_search(u, params.counts.w);
             let a = positions[3u * lo].xyz;
             let b = positions[3u * lo + 1u].xyz;
             let c = positions[3u * lo + 2u].xyz;

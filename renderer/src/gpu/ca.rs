@@ -12,7 +12,6 @@ use crate::camera::Camera;
 use crate::error::{RenderError, Result};
 use crate::image::{Image, Mask};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("ca.wgsl");
 
@@ -149,13 +148,13 @@ impl Artifacts {
             img.pixels.iter().enumerate().map(|(i, q)| [q.x, q.y, q.z, alpha.map_or(0.0, |a| a[i])]).collect()
         };
         let init = |label: &str, bytes: &[u8]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("artifact params"),
             contents: bytemuck::bytes_of(&params),
             usage: wgpu::BufferUsages::UNIFORM,

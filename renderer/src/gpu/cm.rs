@@ -9,7 +9,6 @@ use super::{PassTime, timed};
 use crate::cm::{CmInput, CmMethod, CmParams, CmReport, CmState, Mapping, rohmer, samples, statistics};
 use glam::{Mat3, Vec3};
 use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cm.wgsl"));
 
@@ -73,6 +72,13 @@ pub struct CmBuffers<'a> {
     pub photo: &'a wgpu::Buffer,
 }
 
+/// The colour mapping's parameters and the exposure applied before its tone mapping.
+#[derive(Clone, Copy)]
+pub struct CmSettings<'a> {
+    pub params: &'a CmParams,
+    pub exposure: f32,
+}
+
 impl CmPasses {
     pub fn new(ctx: &GpuContext) -> Self {
         let [reduce, matcher, map] = ctx.compute_pipelines("cm.wgsl", SHADER, ["cs_reduce", "cs_match", "cs_map"]);
@@ -93,8 +99,8 @@ impl CmPasses {
         ctx.dispatch("cm", pipeline, &entries, [groups.0, groups.1]);
     }
 
-    fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> wgpu::Buffer {
-        ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    fn uniform_buffer(ctx: &GpuContext, uniform: &CmUniform) -> std::sync::Arc<wgpu::Buffer> {
+        ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("cm params"),
             contents: bytemuck::bytes_of(uniform),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -147,7 +153,7 @@ impl CmPasses {
         let pixels = buffers.width * buffers.height;
         let groups = pixels.div_ceil(GROUP).clamp(1, 64);
         let texels: Vec<[f32; 4]> = colours.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
-        let colour_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let colour_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("cm colours"),
             contents: bytemuck::cast_slice(&texels),
             usage: wgpu::BufferUsages::STORAGE,
@@ -191,17 +197,16 @@ impl CmPasses {
 
     /// The whole colour mapping of a frame: estimate (updating `state`), then map. `photo` is
     /// the photograph on the CPU (the sample-based method reads its pairs from it).
-    #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
         ctx: &GpuContext,
         passes: &mut Vec<PassTime>,
         buffers: &CmBuffers,
         photo: &[Vec3],
-        params: &CmParams,
-        exposure: f32,
+        settings: &CmSettings,
         state: &mut CmState,
     ) -> (std::sync::Arc<wgpu::Buffer>, CmReport) {
+        let CmSettings { params, exposure } = *settings;
         let (w, h) = (buffers.width, buffers.height);
         let base = |mode: u32, m: [[f32; 4]; 3]| CmUniform::new(params, exposure, w, h, mode, m);
         let name = params.method.name();

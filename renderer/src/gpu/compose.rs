@@ -5,53 +5,55 @@
 
 use super::context::GpuContext;
 use crate::cm::Composition;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("compose.wgsl");
 
 pub struct Compose {
     pipeline: wgpu::ComputePipeline,
+    pack: wgpu::ComputePipeline,
+}
+
+/// What the composition reads: the mapped buffers over the photograph (and CI_std where mirrors
+/// and glass are), at `width`×`height`, in the linear domain where the mapping says so.
+#[derive(Clone, Copy)]
+pub struct ComposeInputs<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub linear_domain: bool,
+    pub composition: Composition,
+    pub mapped: &'a wgpu::Buffer,
+    pub photo: &'a wgpu::Buffer,
+    pub specular_base: Option<&'a wgpu::Buffer>,
 }
 
 impl Compose {
     pub fn new(ctx: &GpuContext) -> Self {
-        let [pipeline] = ctx.compute_pipelines("compose.wgsl", SHADER, ["cs_compose"]);
-        Compose { pipeline }
+        let [pipeline, pack] = ctx.compute_pipelines("compose.wgsl", SHADER, ["cs_compose", "cs_pack"]);
+        Compose { pipeline, pack }
     }
 
     /// Composes `mapped` (τ(L_rv) with the flag in w, then τ(L_r)) over `photo`; returns the
     /// composite buffer (one vec4 per pixel, display-encoded). `specular_base` (from
     /// [`super::specular`]) replaces the photograph at the pixels of mirrors and glass by
     /// CI_std (eq. 5.23), over which the differential is added as at a real pixel (5.22).
-    #[allow(clippy::too_many_arguments)]
-    pub fn run(
-        &self,
-        ctx: &GpuContext,
-        width: u32,
-        height: u32,
-        linear_domain: bool,
-        composition: Composition,
-        mapped: &wgpu::Buffer,
-        photo: &wgpu::Buffer,
-        specular_base: Option<&wgpu::Buffer>,
-    ) -> std::sync::Arc<wgpu::Buffer> {
-        let device = &ctx.device;
+    pub fn run(&self, ctx: &GpuContext, inputs: &ComposeInputs) -> std::sync::Arc<wgpu::Buffer> {
+        let ComposeInputs { width, height, linear_domain, composition, mapped, photo, specular_base } = *inputs;
         let size = [width, height, linear_domain as u32, (composition == Composition::Scaled) as u32];
         let options = [specular_base.is_some() as u32, 0, 0, 0];
         let placeholder;
         let specular_base = match specular_base {
             Some(buffer) => buffer,
             None => {
-                placeholder = device.create_buffer(&wgpu::BufferDescriptor {
+                // from the pool (a new buffer each frame would be an allocation each frame)
+                placeholder = ctx.upload(&wgpu::util::BufferInitDescriptor {
                     label: Some("no specular base"),
-                    size: 16,
+                    contents: &[0u8; 16],
                     usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
                 });
                 &placeholder
             }
         };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("compose params"),
             contents: bytemuck::cast_slice(&[size, options]),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -71,5 +73,36 @@ impl Compose {
         ];
         ctx.dispatch("compose", &self.pipeline, &entries, [width.div_ceil(8), height.div_ceil(8)]);
         composite
+    }
+
+    /// The composite (`width`×`height` vec4s) packed to 8-bit RGBA, one `u32` a pixel, each
+    /// channel rounded as [`crate::image::Image::to_rgb8`] rounds: what a frame that is only
+    /// shown reads back.
+    pub fn pack(
+        &self,
+        ctx: &GpuContext,
+        composite: &wgpu::Buffer,
+        width: u32,
+        height: u32,
+    ) -> std::sync::Arc<wgpu::Buffer> {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
+            label: Some("pack params"),
+            contents: bytemuck::cast_slice(&[[width, height, 0, 0], [0; 4]]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        // from the pool: the pass writes every pixel
+        let packed = ctx.buffer(
+            "composite rgba8",
+            width as u64 * height as u64 * 4,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Overwritten,
+        );
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: composite.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: packed.as_entire_binding() },
+        ];
+        ctx.dispatch("pack rgba8", &self.pack, &entries, [width.div_ceil(8), height.div_ceil(8)]);
+        packed
     }
 }

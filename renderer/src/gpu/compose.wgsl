@@ -81,3 +81,25 @@ fn cs_compose(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     composite[pixel] = vec4<f32>(out, 1.0);
 }
+
+// The composite packed to 8-bit RGBA for display (one read-back of 4 bytes a pixel): each
+// channel as Image::to_rgb8 makes it, clamped to [0, 1], times 255, rounded half away from zero
+// (WGSL's round() rounds half to even), alpha 255.
+@group(0) @binding(5) var<storage, read_write> packed: array<u32>;
+
+fn to_byte(c: f32) -> u32 {
+    let v = clamp(c, 0.0, 1.0) * 255.0;
+    let r = floor(v);
+    return u32(select(r, r + 1.0, v - r >= 0.5));
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_pack(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = params.size.x;
+    if id.x >= width || id.y >= params.size.y {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let c = composite[pixel];
+    packed[pixel] = to_byte(c.x) | (to_byte(c.y) << 8u) | (to_byte(c.z) << 16u) | (255u << 24u);
+}

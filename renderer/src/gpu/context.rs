@@ -2,16 +2,21 @@
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 
-use super::pool::Contents;
+use super::pool::{BufferKey, Contents, PoolStats};
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
+use serde::Serialize;
 use std::fmt;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 /// The features GPU pass timing needs: timestamp queries written between command buffers.
 const TIMESTAMPS: wgpu::Features =
     wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+
+/// Uploads held at most outside frames ([`GpuContext::upload`]).
+const MAX_HELD_UPLOADS: usize = 4096;
 
 /// Bytes of mapped memory one thread copies at a time when a buffer is read back.
 const READ_BLOCK: usize = 1 << 18;
@@ -73,6 +78,70 @@ pub struct GpuContext {
     timer: Mutex<Option<GpuTimer>>,
     /// Buffers and textures kept from frame to frame ([`GpuContext::buffer`]).
     pub(super) pool: super::pool::Pool,
+    /// What the host asked of the device since [`GpuContext::reset_counters`].
+    counters: CounterCells,
+    /// The buffers [`GpuContext::upload`] handed out since the frame began: held until the
+    /// next frame begins, so that no later pass of the same frame gets one of them from the
+    /// pool and overwrites it before the commands reading it have run.
+    uploads: Mutex<Vec<Arc<wgpu::Buffer>>>,
+}
+
+/// The structure of the work the host gave the device, counted where it happens (every
+/// submission, wait, read-back, upload and allocation of this crate goes through the context),
+/// so the counts are exact on any adapter, lavapipe included (issue 50, Deliver 3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrameCounters {
+    /// Queue submissions.
+    pub submits: u64,
+    /// Blocking waits of the host for the device (a poll that waits, a buffer mapped for reading).
+    pub host_waits: u64,
+    /// Bytes mapped and copied back to the host.
+    pub readback_bytes: u64,
+    /// Bytes written from the host into buffers and textures (`write_buffer`, `write_texture`,
+    /// buffers made with contents).
+    pub upload_bytes: u64,
+    /// Buffers and textures made anew (not taken from the pool), including uniform buffers.
+    pub allocations: u64,
+    /// Host time of the frame spent recording, on CPU steps and waiting for the device: the
+    /// frame's wall-clock time on the host (see `wait_ms` for the part spent blocked).
+    pub cpu_ms: f64,
+    /// Of `cpu_ms`, the time blocked in host waits (on a software adapter this is the device's
+    /// own work, run on the host's cores).
+    pub wait_ms: f64,
+}
+
+impl FrameCounters {
+    /// The header of a table of counters ([`FrameCounters::cells`]).
+    pub const HEADER: &str = "submits waits readback MB upload MB allocs  cpu ms  wait ms";
+
+    /// The counters as table cells under [`FrameCounters::HEADER`].
+    pub fn cells(&self) -> String {
+        format!(
+            "{:>7} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2}",
+            self.submits,
+            self.host_waits,
+            self.readback_bytes as f64 / 1e6,
+            self.upload_bytes as f64 / 1e6,
+            self.allocations,
+            self.cpu_ms,
+            self.wait_ms
+        )
+    }
+
+    /// `cpu_ms` less `wait_ms`: the host's own work (recording, CPU steps, copies).
+    pub fn record_ms(&self) -> f64 {
+        (self.cpu_ms - self.wait_ms).max(0.0)
+    }
+}
+
+#[derive(Default)]
+struct CounterCells {
+    submits: AtomicU64,
+    host_waits: AtomicU64,
+    readback_bytes: AtomicU64,
+    upload_bytes: AtomicU64,
+    allocations: AtomicU64,
+    wait_ns: AtomicU64,
 }
 
 /// Timestamp queries written before and after each command buffer submitted since the last
@@ -156,6 +225,8 @@ impl GpuContext {
             pass_waits: AtomicBool::new(true),
             timer: Mutex::new(None),
             pool: Default::default(),
+            counters: Default::default(),
+            uploads: Mutex::new(Vec::new()),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -204,6 +275,7 @@ impl GpuContext {
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let commands = encoder.finish();
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
+        self.count_submit();
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
             drop(guard);
             self.queue.submit([commands]);
@@ -246,6 +318,7 @@ impl GpuContext {
         encoder.resolve_query_set(&timer.queries, 0..written, &timer.resolve, 0);
         encoder.copy_buffer_to_buffer(&timer.resolve, 0, &staging, 0, written as u64 * 8);
         // not through `submit`: this copy is no pass's work (and the timer is locked)
+        self.count_submit();
         self.queue.submit([encoder.finish()]);
         let ticks: Vec<u64> = self.mapped(&staging, |bytes| {
             bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect()
@@ -337,9 +410,115 @@ impl GpuContext {
         self.pass_waits.load(Ordering::Relaxed)
     }
 
-    /// Blocks until the GPU has finished all submitted work.
+    /// Blocks until the GPU has finished all submitted work (counted as a host wait).
     pub fn wait(&self) {
+        let start = Instant::now();
         let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+        self.counters.host_waits.fetch_add(1, Ordering::Relaxed);
+        self.counters.wait_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    }
+
+    /// Counts one queue submission made outside [`GpuContext::submit`].
+    pub(super) fn count_submit(&self) {
+        self.counters.submits.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Forgets the counts ([`GpuContext::counters`]); each frame starts with it.
+    pub fn reset_counters(&self) {
+        let c = &self.counters;
+        for cell in [&c.submits, &c.host_waits, &c.readback_bytes, &c.upload_bytes, &c.allocations, &c.wait_ns] {
+            cell.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// What the host asked of the device since [`GpuContext::reset_counters`] (`cpu_ms` is
+    /// left 0: the frame fills it in).
+    pub fn counters(&self) -> FrameCounters {
+        let c = &self.counters;
+        FrameCounters {
+            submits: c.submits.load(Ordering::Relaxed),
+            host_waits: c.host_waits.load(Ordering::Relaxed),
+            readback_bytes: c.readback_bytes.load(Ordering::Relaxed),
+            upload_bytes: c.upload_bytes.load(Ordering::Relaxed),
+            allocations: c.allocations.load(Ordering::Relaxed),
+            cpu_ms: 0.0,
+            wait_ms: c.wait_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        }
+    }
+
+    /// A buffer made anew (counted as an allocation; see [`GpuContext::buffer`] for one from
+    /// the pool).
+    pub fn create_buffer(&self, desc: &wgpu::BufferDescriptor) -> wgpu::Buffer {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.device.create_buffer(desc)
+    }
+
+    /// A buffer made anew with `desc.contents` (counted as an allocation and an upload).
+    pub fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.counters.upload_bytes.fetch_add(desc.contents.len() as u64, Ordering::Relaxed);
+        self.device.create_buffer_init(desc)
+    }
+
+    /// A buffer holding `desc.contents` (zero-padded to a multiple of 4 bytes, as
+    /// `create_buffer_init` pads), taken from the pool and written by `write_buffer` (counted as
+    /// an upload; as an allocation only where the pool had none of its size and usage): after a
+    /// scene's first frame, uniforms and per-frame data allocate nothing. It is held until the
+    /// next [`GpuContext::begin_frame`] (see `uploads`).
+    pub fn upload(&self, desc: &wgpu::util::BufferInitDescriptor) -> Arc<wgpu::Buffer> {
+        let size =
+            (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
+        let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
+        if desc.contents.len() as u64 == size {
+            self.write_buffer(&buffer, 0, desc.contents);
+        } else {
+            let mut padded = desc.contents.to_vec();
+            padded.resize(size as usize, 0);
+            self.write_buffer(&buffer, 0, &padded);
+        }
+        let mut uploads = self.uploads.lock().unwrap_or_else(|e| e.into_inner());
+        if uploads.len() >= MAX_HELD_UPLOADS {
+            // work that never begins a frame (tests of single passes): the oldest are long submitted
+            uploads.drain(..MAX_HELD_UPLOADS / 2);
+        }
+        uploads.push(buffer.clone());
+        buffer
+    }
+
+    /// Lets the last frame's uploads go back to the pool ([`GpuContext::upload`]).
+    pub(super) fn release_uploads(&self) {
+        self.uploads.lock().unwrap_or_else(|e| e.into_inner()).clear();
+    }
+
+    /// A texture made anew (counted as an allocation; see [`GpuContext::texture`] for one from
+    /// the pool).
+    pub fn create_texture(&self, desc: &wgpu::TextureDescriptor) -> wgpu::Texture {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
+        self.device.create_texture(desc)
+    }
+
+    /// `queue.write_buffer`, counted as an upload.
+    pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.queue.write_buffer(buffer, offset, data);
+    }
+
+    /// `queue.write_texture`, counted as an upload.
+    pub fn write_texture(
+        &self,
+        texture: wgpu::TexelCopyTextureInfo,
+        data: &[u8],
+        layout: wgpu::TexelCopyBufferLayout,
+        size: wgpu::Extent3d,
+    ) {
+        self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.queue.write_texture(texture, data, layout, size);
+    }
+
+    /// Counts one pooled resource made anew ([`super::pool`]).
+    pub(super) fn count_allocation(&self) {
+        self.counters.allocations.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU (copied once,
@@ -354,6 +533,7 @@ impl GpuContext {
         let slice = buffer.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
         self.wait();
+        self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
         let out = slice.get_mapped_range().ok().map(|view| read(&view));
         buffer.unmap();
         out
@@ -371,7 +551,7 @@ impl GpuContext {
 
     /// Submits the copy of a storage buffer into a staging buffer from the pool (`MAP_READ`) and
     /// returns the staging buffer, without waiting: [`GpuContext::read_staged_f32`] reads it.
-    pub fn stage(&self, source: &wgpu::Buffer) -> std::sync::Arc<wgpu::Buffer> {
+    pub fn stage(&self, source: &wgpu::Buffer) -> Arc<wgpu::Buffer> {
         // from the pool: the copy below writes all of it
         let staging = self.buffer("readback", source.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
         let mut encoder = self.device.create_command_encoder(&Default::default());
@@ -480,4 +660,60 @@ fn enumerate(backends: wgpu::Backends) -> Vec<wgpu::Adapter> {
 
 fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {})", info.name, info.backend, AdapterKind::of(info))
+}
+
+/// The pool's side of the context ([`super::pool`]): the pool knows nothing of the context.
+impl GpuContext {
+    /// A buffer of `size` bytes and `usage` from the pool (see the module
+    /// documentation): a free one of the same size and usage, or a new one. With
+    /// [`Contents::Zeroed`] it reads as zeros. It gets `COPY_DST` besides `usage`, to be cleared.
+    pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages, contents: Contents) -> Arc<wgpu::Buffer> {
+        let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let key = BufferKey { size, usage };
+        let (buffer, reused) = self.pool.buffer(&self.device, label, key);
+        if !reused {
+            self.count_allocation();
+        }
+        if reused {
+            match contents {
+                Contents::Zeroed => {
+                    let mut encoder = self.device.create_command_encoder(&Default::default());
+                    encoder.clear_buffer(&buffer, 0, None);
+                    self.count_submit();
+                    self.queue.submit([encoder.finish()]);
+                }
+                #[cfg(test)]
+                Contents::Overwritten => {
+                    // old contents read by mistake show as NaNs
+                    self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
+                }
+                #[cfg(not(test))]
+                Contents::Overwritten => {}
+            }
+        }
+        buffer
+    }
+
+    /// A texture of `desc` from the pool (see the module documentation), as its last user left
+    /// it: the caller renders every layer it reads with a clear first.
+    pub fn texture(&self, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
+        let (texture, reused) = self.pool.texture(&self.device, desc);
+        if !reused {
+            self.count_allocation();
+        }
+        texture
+    }
+
+    /// Starts a frame in the pool ([`super::pool::Pool::begin_frame`]) and its counters
+    /// ([`GpuContext::reset_counters`]).
+    pub fn begin_frame(&self) {
+        self.release_uploads();
+        self.pool.begin_frame();
+        self.reset_counters();
+    }
+
+    /// What frames took from the pool since [`GpuContext::begin_frame`].
+    pub fn pool_stats(&self) -> PoolStats {
+        self.pool.stats()
+    }
 }

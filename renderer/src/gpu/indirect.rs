@@ -15,7 +15,6 @@ use super::raster::SurfaceTargets;
 use glam::{Mat4, Vec3};
 use serde::Serialize;
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("indirect.wgsl");
 
@@ -95,7 +94,6 @@ impl IndirectPass {
         inputs: &IndirectInputs,
         temporal: Option<(&TemporalParams, &mut Option<TemporalState>)>,
     ) {
-        let device = &ctx.device;
         let pixels = (inputs.width * inputs.height) as u64;
         let buffer = |label: &str| {
             ctx.buffer(
@@ -128,7 +126,7 @@ impl IndirectPass {
             camera: [inputs.camera.x, inputs.camera.y, inputs.camera.z, 0.0],
             prev_view_proj: prev_view_proj.to_cols_array_2d(),
         };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("indirect params"),
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,

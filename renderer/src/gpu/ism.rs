@@ -26,9 +26,8 @@ use super::mesh::GpuMesh;
 use super::pool::Contents;
 use super::vpl::GpuVpl;
 use serde::Serialize;
-use wgpu::util::DeviceExt;
 
-pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("ism.wgsl"));
+pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("cdf.wgsl"), include_str!("ism.wgsl"));
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Splats per indexed draw: the index buffer holds this many (24 MB), larger clouds take
 /// several draws.
@@ -97,6 +96,28 @@ impl IsmAtlas {
     pub fn width(&self) -> u32 {
         self.tiles_per_row * self.tile_size
     }
+}
+
+/// How a frame's ISMs are made: points per cloud, each VPL's tile size, the largest
+/// VPL-to-surface distance, and how the splats are drawn.
+#[derive(Clone, Copy, Debug)]
+pub struct IsmSettings {
+    pub points_per_vpl: u32,
+    pub tile_size: u32,
+    pub max_distance: f32,
+    pub splatting: IsmSplatting,
+}
+
+/// What the raster splatting draws: the atlas `buffer` it fills (`atlas` texels across), each
+/// layer's (cloud, its CDF and uniform), the point positions and the VPLs, `splats` quads.
+#[derive(Clone, Copy)]
+struct RasterSplats<'a> {
+    buffer: &'a wgpu::Buffer,
+    atlas: u32,
+    layers: &'a [(usize, std::sync::Arc<wgpu::Buffer>, std::sync::Arc<wgpu::Buffer>)],
+    position_buffer: &'a wgpu::Buffer,
+    vpl_buffer: &'a wgpu::Buffer,
+    splats: u32,
 }
 
 pub struct Ism {
@@ -189,7 +210,8 @@ impl Ism {
             return buffer.clone();
         }
         let indices: Vec<u32> = (0..splats).flat_map(|s| [0, 1, 2, 2, 1, 3].map(|k| 4 * s + k)).collect();
-        let buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        // made once and kept (not from the pool)
+        let buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("ism splat indices"),
             contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
@@ -200,17 +222,8 @@ impl Ism {
 
     /// Renders both atlases for `vpls` by `splatting`. `max_distance` bounds every
     /// VPL-to-surface distance.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render(
-        &self,
-        ctx: &GpuContext,
-        mesh: &GpuMesh,
-        vpls: &[GpuVpl],
-        points_per_vpl: u32,
-        tile_size: u32,
-        max_distance: f32,
-        splatting: IsmSplatting,
-    ) -> IsmAtlas {
+    pub fn render(&self, ctx: &GpuContext, mesh: &GpuMesh, vpls: &[GpuVpl], settings: &IsmSettings) -> IsmAtlas {
+        let IsmSettings { points_per_vpl, tile_size, max_distance, splatting } = *settings;
         let device = &ctx.device;
         let limits = device.limits();
         let n_vpls = vpls.len().max(1) as u32;
@@ -239,12 +252,12 @@ impl Ism {
         // every splat's four vertices are numbered in one draw's vertex_index (a base vertex is
         // an i32): at most MAX_SPLATS splats in all
         let points_per_vpl = points_per_vpl.clamp(1, (MAX_SPLATS / n_vpls as u64).max(1) as u32);
-        let position_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let position_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism positions"),
             contents: bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let vpl_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism vpls"),
             contents: bytemuck::cast_slice(if vpls.is_empty() {
                 &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..]
@@ -273,12 +286,12 @@ impl Ism {
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
                 layer: [layer as u32, 0, 0, 0],
             };
-            let cdf_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let cdf_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism cdf"),
                 contents: bytemuck::cast_slice(&cdf),
                 usage: wgpu::BufferUsages::STORAGE,
             });
-            let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism params"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -308,7 +321,15 @@ impl Ism {
                 }
             }
             IsmSplatting::Raster => {
-                self.rasterise(ctx, &mut encoder, &buffer, atlas, &layers, &position_buffer, &vpl_buffer, splats)
+                let inputs = RasterSplats {
+                    buffer: &buffer,
+                    atlas,
+                    layers: &layers,
+                    position_buffer: &position_buffer,
+                    vpl_buffer: &vpl_buffer,
+                    splats,
+                };
+                self.rasterise(ctx, &mut encoder, &inputs)
             }
         }
         ctx.submit(encoder);
@@ -317,18 +338,8 @@ impl Ism {
 
     /// The raster splatting: both layers' quads into a depth texture (cleared to the far plane),
     /// then copied into `buffer`.
-    #[allow(clippy::too_many_arguments)]
-    fn rasterise(
-        &self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        buffer: &wgpu::Buffer,
-        atlas: u32,
-        layers: &[(usize, wgpu::Buffer, wgpu::Buffer)],
-        position_buffer: &wgpu::Buffer,
-        vpl_buffer: &wgpu::Buffer,
-        splats: u32,
-    ) {
+    fn rasterise(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, inputs: &RasterSplats) {
+        let RasterSplats { buffer, atlas, layers, position_buffer, vpl_buffer, splats } = *inputs;
         let device = &ctx.device;
         // from the pool: both layers are rendered with a clear below
         let texture = ctx.texture(&wgpu::TextureDescriptor {
@@ -384,7 +395,7 @@ impl Ism {
             }
         }
         // the copy reads only the atlas size from its uniform
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism params"),
             contents: bytemuck::bytes_of(&IsmUniform {
                 counts: [0, 0, 0, atlas],
@@ -416,6 +427,10 @@ impl Ism {
 mod tests {
     use super::*;
 
+    fn settings(points_per_vpl: u32, tile_size: u32, max_distance: f32, splatting: IsmSplatting) -> IsmSettings {
+        IsmSettings { points_per_vpl, tile_size, max_distance, splatting }
+    }
+
     /// VPLs on dir-lamp-box's surfaces: every fifth triangle's centroid, facing its normal.
     fn surface_vpls(mesh: &GpuMesh, count: usize) -> Vec<GpuVpl> {
         mesh.positions_with_role()
@@ -442,9 +457,9 @@ mod tests {
         let mesh = crate::gpu::mesh::build(&scene);
         let vpls = surface_vpls(&mesh, 7);
         assert_eq!(vpls.len(), 7);
-        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, splatting));
+        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
         let pieces = variant(Ism::new(&r.ctx));
-        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, 100, 32, 20.0, splatting));
+        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
         (one, other)
     }
 
@@ -490,8 +505,8 @@ mod tests {
             let mut vpls = good.clone();
             vpls[1].position = [bad, 0.0, bad, 1.0];
             for splatting in IsmSplatting::ALL {
-                let atlas = r.ism.render(&r.ctx, &mesh, &vpls, 100, 16, 20.0, splatting);
-                let reference = r.ism.render(&r.ctx, &mesh, &good, 100, 16, 20.0, splatting);
+                let atlas = r.ism.render(&r.ctx, &mesh, &vpls, &settings(100, 16, 20.0, splatting));
+                let reference = r.ism.render(&r.ctx, &mesh, &good, &settings(100, 16, 20.0, splatting));
                 let (with_bad, without) = (read_atlas(&r.ctx, &atlas), read_atlas(&r.ctx, &reference));
                 let width = atlas.width() as usize;
                 let tile_of = |i: usize| {
@@ -522,8 +537,9 @@ mod tests {
             let scene = crate::scene::load(name).unwrap();
             let mesh = crate::gpu::mesh::build(&scene);
             let vpls = surface_vpls(&mesh, 64);
-            let render =
-                |splatting| r.ism.render(&r.ctx, &mesh, &vpls, 1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting);
+            let render = |splatting| {
+                r.ism.render(&r.ctx, &mesh, &vpls, &settings(1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting))
+            };
             let (compute, raster) = (render(IsmSplatting::Compute), render(IsmSplatting::Raster));
             assert_eq!((compute.tile_size, compute.tiles_per_row), (raster.tile_size, raster.tiles_per_row));
             let (c, g) = (read_atlas(&r.ctx, &compute), read_atlas(&r.ctx, &raster));

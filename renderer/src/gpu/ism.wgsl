@@ -64,16 +64,7 @@ fn splat_point(instance: u32) -> Splat {
     // the k-th of this VPL's stratified area samples
     let rotation = unit(pcg(s.vpl_index * 2654435761u + 1u));
     let u = fract((f32(k) + 0.5) / f32(per_vpl) + rotation);
-    var lo = 0u;
-    var hi = params.subset.y - 1u;
-    while lo < hi {
-        let mid = (lo + hi) / 2u;
-        if cdf[mid] < u {
-            lo = mid + 1u;
-        } else {
-            hi = mid;
-        }
-    }
+    let lo = cdf_search(u, params.subset.y);
     let triangle = params.subset.x + lo;
     let a = positions[3u * triangle].xyz;
     let b = positions[3u * triangle + 1u].xyz;

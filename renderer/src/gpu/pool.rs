@@ -1,5 +1,5 @@
-//! GPU buffers and textures kept from frame to frame ([`GpuContext::buffer`],
-//! [`GpuContext::texture`]): a frame's large resources — per-pixel buffers, G-buffers, shadow
+//! GPU buffers and textures kept from frame to frame ([`GpuContext::buffer`](super::context::GpuContext::buffer),
+//! [`GpuContext::texture`](super::context::GpuContext::texture)): a frame's large resources — per-pixel buffers, G-buffers, shadow
 //! maps, read-back staging — are taken from the pool instead of made anew, and go back to it when
 //! the last handle to them is dropped. A frame of 1024×768 with gi makes several hundred MB of
 //! them; made and freed every frame, the allocator makes and frees whole memory blocks (128–256
@@ -18,18 +18,17 @@
 //! such a buffer is first filled with NaNs, so a read of old contents shows. Textures are
 //! handed out as they are: every caller renders each layer it reads with a clear first.
 //!
-//! Each frame ([`GpuContext::begin_frame`]) drops the free resources no frame took in the last
+//! Each frame ([`GpuContext::begin_frame`](super::context::GpuContext::begin_frame)) drops the free resources no frame took in the last
 //! [`KEPT_FRAMES`] frames, so frames of another size or scene do not pile up, and counts what
 //! the frame took new and reused ([`PoolStats`], in each frame's report).
 
-use super::context::GpuContext;
 use serde::Serialize;
 use std::sync::{Arc, Mutex};
 
 /// Frames a free resource stays in the pool without being taken.
 pub const KEPT_FRAMES: u64 = 2;
 
-/// What a caller needs of a buffer's contents when it gets it ([`GpuContext::buffer`]).
+/// What a caller needs of a buffer's contents when it gets it ([`GpuContext::buffer`](super::context::GpuContext::buffer)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Contents {
     /// Zeros, as a new buffer (a reused one is cleared).
@@ -38,7 +37,7 @@ pub enum Contents {
     Overwritten,
 }
 
-/// What frames took from the pool since [`GpuContext::begin_frame`]: made anew and reused
+/// What frames took from the pool since [`GpuContext::begin_frame`](super::context::GpuContext::begin_frame): made anew and reused
 /// (counts and bytes), and what the pool holds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct PoolStats {
@@ -51,9 +50,9 @@ pub struct PoolStats {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct BufferKey {
-    size: u64,
-    usage: wgpu::BufferUsages,
+pub(super) struct BufferKey {
+    pub(super) size: u64,
+    pub(super) usage: wgpu::BufferUsages,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,7 +80,7 @@ struct Inner {
     stats: PoolStats,
 }
 
-/// The pool a [`GpuContext`] keeps.
+/// The pool a [`GpuContext`](super::context::GpuContext) keeps.
 #[derive(Default)]
 pub struct Pool {
     inner: Mutex<Inner>,
@@ -121,7 +120,7 @@ impl Pool {
         PoolStats { held_bytes: held(&inner.buffers) + held(&inner.textures), ..inner.stats }
     }
 
-    fn buffer(&self, device: &wgpu::Device, label: &str, key: BufferKey) -> (Arc<wgpu::Buffer>, bool) {
+    pub(super) fn buffer(&self, device: &wgpu::Device, label: &str, key: BufferKey) -> (Arc<wgpu::Buffer>, bool) {
         let mut inner = self.lock();
         let frame = inner.frame;
         if let Some((buffer, bytes)) = take(&mut inner.buffers, &key, frame) {
@@ -141,7 +140,7 @@ impl Pool {
         (buffer, false)
     }
 
-    fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
+    pub(super) fn texture(&self, device: &wgpu::Device, desc: &wgpu::TextureDescriptor) -> (Arc<wgpu::Texture>, bool) {
         let key = TextureKey {
             size: desc.size,
             format: desc.format,
@@ -155,7 +154,7 @@ impl Pool {
         if let Some((texture, bytes)) = take(&mut inner.textures, &key, frame) {
             inner.stats.reused_count += 1;
             inner.stats.reused_bytes += bytes;
-            return texture;
+            return (texture, true);
         }
         let texture = Arc::new(device.create_texture(desc));
         let texel = desc.format.block_copy_size(None).unwrap_or(4) as u64;
@@ -163,50 +162,6 @@ impl Pool {
         inner.stats.new_count += 1;
         inner.stats.new_bytes += bytes;
         inner.textures.push(Entry { key, item: texture.clone(), bytes, last_frame: frame });
-        texture
-    }
-}
-
-impl GpuContext {
-    /// A buffer of `size` bytes and `usage` from the pool (see the module
-    /// documentation): a free one of the same size and usage, or a new one. With
-    /// [`Contents::Zeroed`] it reads as zeros. It gets `COPY_DST` besides `usage`, to be cleared.
-    pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages, contents: Contents) -> Arc<wgpu::Buffer> {
-        let usage = usage | wgpu::BufferUsages::COPY_DST;
-        let key = BufferKey { size, usage };
-        let (buffer, reused) = self.pool.buffer(&self.device, label, key);
-        if reused {
-            match contents {
-                Contents::Zeroed => {
-                    let mut encoder = self.device.create_command_encoder(&Default::default());
-                    encoder.clear_buffer(&buffer, 0, None);
-                    self.queue.submit([encoder.finish()]);
-                }
-                #[cfg(test)]
-                Contents::Overwritten => {
-                    // old contents read by mistake show as NaNs
-                    self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
-                }
-                #[cfg(not(test))]
-                Contents::Overwritten => {}
-            }
-        }
-        buffer
-    }
-
-    /// A texture of `desc` from the pool (see the module documentation), as its last user left
-    /// it: the caller renders every layer it reads with a clear first.
-    pub fn texture(&self, desc: &wgpu::TextureDescriptor) -> Arc<wgpu::Texture> {
-        self.pool.texture(&self.device, desc)
-    }
-
-    /// Starts a frame in the pool ([`Pool::begin_frame`]).
-    pub fn begin_frame(&self) {
-        self.pool.begin_frame();
-    }
-
-    /// What frames took from the pool since [`GpuContext::begin_frame`].
-    pub fn pool_stats(&self) -> PoolStats {
-        self.pool.stats()
+        (texture, false)
     }
 }

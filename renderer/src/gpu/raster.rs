@@ -6,7 +6,6 @@ use super::context::GpuContext;
 use super::mesh::{GpuMaterial, GpuMesh, GpuVertex};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// G-buffer and RSM attachments: position+flag, normal+exponent, albedo+ks.
 pub const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -50,8 +49,8 @@ pub enum Subset {
 
 /// The scene's geometry and materials on the GPU.
 pub struct SceneBuffers {
-    pub vertices: wgpu::Buffer,
-    pub materials: wgpu::Buffer,
+    pub vertices: std::sync::Arc<wgpu::Buffer>,
+    pub materials: std::sync::Arc<wgpu::Buffer>,
     pub real_count: u32,
     pub total_count: u32,
 }
@@ -65,12 +64,12 @@ impl SceneBuffers {
         let vertices = if mesh.vertices.is_empty() { &zero_vertex[..] } else { &mesh.vertices[..] };
         let materials = if mesh.materials.is_empty() { &zero_material[..] } else { &mesh.materials[..] };
         SceneBuffers {
-            vertices: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            vertices: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
                 contents: bytemuck::cast_slice(vertices),
                 usage: wgpu::BufferUsages::VERTEX,
             }),
-            materials: ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            materials: ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("materials"),
                 contents: bytemuck::cast_slice(materials),
                 usage: wgpu::BufferUsages::STORAGE,
@@ -106,9 +105,8 @@ impl SurfaceTargets {
     /// Targets of one texel, zero, never rendered (not from the pool, where another user could
     /// leave something in them): bound where a pass reads no surface.
     pub fn placeholder(ctx: &GpuContext, label: &str) -> Self {
-        let make = |what: &str| {
-            Arc::new(ctx.device.create_texture(&target_2d(1, 1, SURFACE_FORMAT, &format!("{label} {what}"))))
-        };
+        let make =
+            |what: &str| Arc::new(ctx.create_texture(&target_2d(1, 1, SURFACE_FORMAT, &format!("{label} {what}"))));
         SurfaceTargets { position: make("position"), normal: make("normal"), albedo: make("albedo") }
     }
 }
@@ -230,7 +228,7 @@ impl Raster {
         scene: &SceneBuffers,
         view: &ViewUniform,
     ) -> wgpu::BindGroup {
-        let uniform = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("view"),
             contents: bytemuck::bytes_of(view),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -261,7 +259,6 @@ impl Raster {
             return view.clone();
         }
         let view = ctx
-            .device
             .create_texture(&wgpu::TextureDescriptor {
                 label: Some("depth"),
                 size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
@@ -393,7 +390,7 @@ impl Raster {
             let at = k * stride as usize;
             contents[at..at + std::mem::size_of::<ViewUniform>()].copy_from_slice(bytemuck::bytes_of(view));
         }
-        let views = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let views = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("views"),
             contents: &contents,
             usage: wgpu::BufferUsages::UNIFORM,

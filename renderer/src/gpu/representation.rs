@@ -46,7 +46,6 @@ use crate::geometry::{Aabb, Primitive};
 use crate::material::Texture;
 use glam::{UVec3, Vec3};
 use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = include_str!("representation.wgsl");
 pub const SOLID_SHADER: &str = include_str!("solid.wgsl");
@@ -196,7 +195,7 @@ fn sample_buffer(ctx: &GpuContext, samples: &[EnvironmentSample]) -> wgpu::Buffe
     if data.is_empty() {
         data.resize(3, [0.0; 4]);
     }
-    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("environment samples"),
         contents: bytemuck::cast_slice(&data),
         usage: wgpu::BufferUsages::STORAGE,
@@ -204,7 +203,7 @@ fn sample_buffer(ctx: &GpuContext, samples: &[EnvironmentSample]) -> wgpu::Buffe
 }
 
 fn uniform_buffer(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
-    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: data,
         usage: wgpu::BufferUsages::UNIFORM,
@@ -212,7 +211,7 @@ fn uniform_buffer(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
 }
 
 fn storage(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+    ctx.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: bytes.max(16),
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
@@ -304,7 +303,7 @@ impl RepresentationBuilder {
         if data.is_empty() {
             data.resize(8, [0.0; 4]);
         }
-        let prim_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let prim_buffer = ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("solid primitives"),
             contents: bytemuck::cast_slice(&data),
             usage: wgpu::BufferUsages::STORAGE,
@@ -332,7 +331,7 @@ impl RepresentationBuilder {
             gpu_bytes += 4 * (offsets.len() + indices.len()) as u64;
             let list = |label: &str, values: &[u32]| {
                 let values = if values.is_empty() { &[0u32][..] } else { values };
-                ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                ctx.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
                     contents: bytemuck::cast_slice(values),
                     usage: wgpu::BufferUsages::STORAGE,
@@ -435,7 +434,7 @@ impl RepresentationBuilder {
         let radiance = storage(ctx, "impostor radiance", texels * 16);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         // 0xffffffff: no sample (the bits of a NaN, above every distance's bits)
-        ctx.queue.write_buffer(&depth, 0, &vec![0xffu8; texels as usize * 4]);
+        ctx.write_buffer(&depth, 0, &vec![0xffu8; texels as usize * 4]);
         encoder.clear_buffer(&radiance, 0, None);
         ctx.submit(encoder);
         // both passes run the one splat function, so both bind all four

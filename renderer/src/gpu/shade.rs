@@ -6,7 +6,6 @@ use super::context::GpuContext;
 use super::pool::Contents;
 use super::raster::{SceneBuffers, SurfaceTargets};
 use super::vpl::GpuVpl;
-use wgpu::util::DeviceExt;
 
 pub const SHADER: &str = concat!(include_str!("common.wgsl"), include_str!("shade.wgsl"));
 
@@ -45,27 +44,30 @@ pub struct ShadeOutput {
     pub indirect: Option<std::sync::Arc<wgpu::Buffer>>,
 }
 
+/// What shading reads besides its parameters: a G-buffer (the camera's or a specular hit
+/// G-buffer) lit by the frame's lights and VPLs.
+#[derive(Clone, Copy)]
+pub struct ShadeInputs<'a> {
+    pub gbuffer: &'a SurfaceTargets,
+    pub shadow_maps: &'a wgpu::Texture,
+    pub lights: &'a [GpuLight],
+    pub vpls: &'a [GpuVpl],
+    pub scene: &'a SceneBuffers,
+    /// The ISM atlas (None: VPLs unshadowed).
+    pub ism: Option<&'a wgpu::Buffer>,
+}
+
 impl Shade {
     pub fn new(ctx: &GpuContext) -> Self {
         let [pipeline] = ctx.compute_pipelines("shade.wgsl", SHADER, ["cs_shade"]);
         Shade { pipeline }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    pub fn run(
-        &self,
-        ctx: &GpuContext,
-        params: &ShadeParams,
-        gbuffer: &SurfaceTargets,
-        shadow_maps: &wgpu::Texture,
-        lights: &[GpuLight],
-        vpls: &[GpuVpl],
-        scene: &SceneBuffers,
-        ism: Option<&wgpu::Buffer>,
-    ) -> ShadeOutput {
-        let device = &ctx.device;
+    /// Shades `inputs.gbuffer` by `params`: L_rv and L_r, and the raw indirect light.
+    pub fn run(&self, ctx: &GpuContext, params: &ShadeParams, inputs: &ShadeInputs) -> ShadeOutput {
+        let ShadeInputs { gbuffer, shadow_maps, lights, vpls, scene, ism } = *inputs;
         let storage = |label: &str, bytes: &[u8]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
                 usage: wgpu::BufferUsages::STORAGE,
@@ -85,7 +87,7 @@ impl Shade {
         };
         let solutions = output("solutions", 2 * pixels);
         let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("shade params"),
             contents: bytemuck::bytes_of(params),
             usage: wgpu::BufferUsages::UNIFORM,

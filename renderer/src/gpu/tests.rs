@@ -5,8 +5,8 @@
 use super::*;
 
 /// Every WGSL file of the GPU renderer, found by walking `src/gpu/` (no list to forget),
-/// parsed and validated by naga as the renderer compiles it: with `common.wgsl` in front
-/// where the Rust beside it puts it there. A shader no Rust file includes is an error.
+/// parsed and validated by naga as the renderer compiles it: with the files the Rust beside it
+/// puts in front (`common.wgsl`, `cdf.wgsl`). A shader no Rust file includes is an error.
 #[test]
 fn every_shader_parses_and_validates_with_naga() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu");
@@ -16,7 +16,6 @@ fn every_shader_parses_and_validates_with_naga() {
         .filter(|path| path.extension().is_some_and(|extension| extension == "rs"))
         .map(|path| std::fs::read_to_string(path).unwrap())
         .collect();
-    let common = std::fs::read_to_string(dir.join("common.wgsl")).unwrap();
     let mut validated = Vec::new();
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
@@ -24,14 +23,18 @@ fn every_shader_parses_and_validates_with_naga() {
             continue;
         }
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        let own = std::fs::read_to_string(&path).unwrap();
         let include = format!("include_str!(\"{name}\")");
         let lines: Vec<&str> =
             rust.iter().flat_map(|text| text.lines()).filter(|line| line.contains(&include)).collect();
         assert!(!lines.is_empty(), "{name} is included by no Rust file in src/gpu");
-        let with_common =
-            lines.iter().any(|line| line.contains("include_str!(\"common.wgsl\")")) && name != "common.wgsl";
-        let source = if with_common { format!("{common}{own}") } else { own };
+        // the shader as the first Rust line including it builds it: every `include_str!` of that
+        // line, in order (`common.wgsl` and `cdf.wgsl` in front of their users)
+        let source: String = lines[0]
+            .split("include_str!(\"")
+            .skip(1)
+            .map(|rest| rest.split('"').next().unwrap())
+            .map(|file| std::fs::read_to_string(dir.join(file)).unwrap())
+            .collect();
         let module =
             naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
         let mut validator =
@@ -43,6 +46,7 @@ fn every_shader_parses_and_validates_with_naga() {
     for expected in [
         "bounce.wgsl",
         "ca.wgsl",
+        "cdf.wgsl",
         "cm.wgsl",
         "compose.wgsl",
         "indirect.wgsl",
@@ -251,7 +255,19 @@ fn a_frame_only_shown_is_the_live_frame_without_its_radiance_buffers() {
         for frame in 0..2 {
             let full = r.render_with_state(&scene, &photo, &params, &mut live).unwrap();
             let display = r.render_display(&scene, &photo, &params, &mut shown).unwrap();
-            assert!(full.composite.pixels == display.composite.pixels, "ca {ca}, frame {frame}: the composites differ");
+            // without ca the shown frame is read back in 8 bits: the same bytes as the full frame's
+            // composite made 8-bit (as the lab encodes it); with ca, the same floats
+            if ca {
+                assert!(
+                    full.composite.pixels == display.composite.pixels,
+                    "ca {ca}, frame {frame}: the composites differ"
+                );
+            } else {
+                assert!(
+                    full.composite.to_rgb8() == display.composite.to_rgb8(),
+                    "frame {frame}: the composites differ"
+                );
+            }
             assert_eq!(display.report.camera_artifacts.is_some(), ca);
             // the first frame has no history to smooth against; the second does
             assert_eq!((full.report.temporal_smoothing, display.report.temporal_smoothing), (frame > 0, frame > 0));

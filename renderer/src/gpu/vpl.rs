@@ -440,7 +440,6 @@ impl VplSampler {
         caustics: &[CausticMap],
         maps: &[RsmMaps],
     ) -> GpuCandidates {
-        use wgpu::util::DeviceExt;
         let device = &ctx.device;
         let slots = u32::try_from(Self::slots(extra.len(), caustics, maps)).expect("candidate slots fit in u32");
         let blocks = slots.div_ceil(BLOCK).max(1);
@@ -462,8 +461,8 @@ impl VplSampler {
         };
         if !extra.is_empty() {
             let weights: Vec<f32> = extra.iter().map(|v| Candidate::of(v).map_or(0.0, |c| c.weight)).collect();
-            ctx.queue.write_buffer(&out.candidates, 0, bytemuck::cast_slice(extra));
-            ctx.queue.write_buffer(&out.weights, 0, bytemuck::cast_slice(&weights));
+            ctx.write_buffer(&out.candidates, 0, bytemuck::cast_slice(extra));
+            ctx.write_buffer(&out.weights, 0, bytemuck::cast_slice(&weights));
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         let mut offset = extra.len() as u32;
@@ -474,7 +473,7 @@ impl VplSampler {
                 offset: [offset, 0, 0, 0],
                 light: LightRows::spot(light, map.tan_half),
             };
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vpl caustic map"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -510,7 +509,7 @@ impl VplSampler {
                 light,
                 area: [area, 0.0, 0.0, 0.0],
             };
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("vpl map"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -533,7 +532,7 @@ impl VplSampler {
             ctx.record_dispatch(&mut encoder, "vpl candidates", &self.candidates, &entries, [groups, groups]);
             offset += 2 * map.size * map.size;
         }
-        let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("vpl cdf sizes"),
             contents: bytemuck::bytes_of(&[slots, blocks, 0, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -560,7 +559,6 @@ impl VplSampler {
     /// flux / (count · p)); empty when no candidate has flux. Waits for the device to read
     /// back the drawn VPLs.
     pub fn draw(&self, ctx: &super::context::GpuContext, candidates: &GpuCandidates, count: u32) -> Vec<GpuVpl> {
-        use wgpu::util::DeviceExt;
         if count == 0 || candidates.slots == 0 {
             return Vec::new();
         }
@@ -570,7 +568,7 @@ impl VplSampler {
         let drawn =
             ctx.buffer("vpls drawn", vpl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, zeroed);
         let staging = ctx.buffer("vpls drawn read back", vpl_bytes + 4, wgpu::BufferUsages::MAP_READ, zeroed);
-        let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("vpl draw sizes"),
             contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
@@ -729,7 +727,7 @@ mod tests {
             let quads = |f: &dyn Fn(&RsmTexel) -> [f32; 4]| -> Vec<f32> { texels.iter().flat_map(f).collect() };
             let upload = |data: Vec<f32>, format: wgpu::TextureFormat, texel_bytes: u32| {
                 let texture = crate::gpu::raster::texture_2d(ctx, size, size, format, "test rsm");
-                ctx.queue.write_texture(
+                ctx.write_texture(
                     texture.as_image_copy(),
                     bytemuck::cast_slice(&data),
                     wgpu::TexelCopyBufferLayout {

@@ -127,13 +127,15 @@ mod on_gpu {
         ];
         let (vpls, found, real_only) = r.bounce.spawn(
             &r.ctx,
-            &bounce_scene,
-            &mesh,
-            &scene.materials,
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &sources,
             512,
             &search(16384),
-            mesh.bounds_radius,
         );
         let flux = crate::gpu::vpl::luminance_flux(&vpls);
         eprintln!("found {found} of 512, flux {flux:.4} of 1.6");
@@ -163,13 +165,15 @@ mod on_gpu {
         let real_source = [source(Vec3::ZERO, Vec3::Y, true, false)];
         let (vpls, found, real_only) = r.bounce.spawn(
             &r.ctx,
-            &bounce_scene,
-            &mesh,
-            &scene.materials,
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &real_source,
             512,
             &search(16384),
-            mesh.bounds_radius,
         );
         let y = |v: &GpuVpl| v.position[1];
         let on_blocker = vpls.iter().filter(|v| (0.45..0.55).contains(&y(v))).count();
@@ -201,13 +205,15 @@ mod on_gpu {
         // an ir = 1 source (a real surface behind a virtual one) only reaches real surfaces
         let (vpls, _, _) = r.bounce.spawn(
             &r.ctx,
-            &bounce_scene,
-            &mesh,
-            &scene.materials,
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &[source(Vec3::ZERO, Vec3::Y, true, true)],
             256,
             &search(16384),
-            mesh.bounds_radius,
         );
         assert!(
             !vpls.is_empty() && vpls.iter().all(|v| v.position[3] == 1.0 && v.normal[3] == 1.0 && y(v) > 0.9),
@@ -224,13 +230,15 @@ mod on_gpu {
         let bounce_scene = BounceScene::new(&r.ctx, &mesh).unwrap();
         let (vpls, found, _) = r.bounce.spawn(
             &r.ctx,
-            &bounce_scene,
-            &mesh,
-            &scene.materials,
+            &BounceInputs {
+                scene: &bounce_scene,
+                mesh: &mesh,
+                materials: &scene.materials,
+                scene_radius: mesh.bounds_radius,
+            },
             &[source(Vec3::new(0.0, 0.01, 0.0), Vec3::Y, true, false)],
             128,
             &search(4096),
-            mesh.bounds_radius,
         );
         assert_eq!((vpls.len(), found), (0, 0));
     }

@@ -1,0 +1,896 @@
+//! One GPU frame as an explicit, ordered list of passes ([`PASSES`]), each a function over the
+//! frame's resources ([`FrameTargets`]): what a pass makes it leaves in the targets for the
+//! passes after it. A pass records and submits its GPU work and returns; it waits for the
+//! device only where it needs data on the host (the VPLs drawn, a colour mapping's sums, the
+//! final read-back), and, while the context times passes ([`GpuContext::set_pass_waits`]),
+//! after itself to be timed.
+//!
+//! The order is the thesis's (Figure 5.3; the module documentation of [`super`] says what each
+//! pass computes): [`FrameTargets::new`] builds the scene's mesh and uploads it, then
+//! shadow maps, the mirrors' and glass's impostors and caustic maps, RSMs and VPLs, further
+//! bounces, ISMs, the camera's G-buffer, the specular rays and caustic splats, shading, the
+//! indirect light, caustics into L_rv and L_r, the photograph, the specular hits, colour
+//! mapping, composition, read-back and camera artifacts.
+
+use super::*;
+use crate::ca::CaReport;
+
+/// A pass of the frame: reads what the passes before it left in the targets, adds its own.
+type Pass = fn(&DirRenderer, &mut FrameTargets) -> Result<()>;
+
+/// The frame's passes, in order ([`DirRenderer::render_frame`] runs them all; each decides from
+/// the scene and the parameters whether it has anything to do).
+pub(super) const PASSES: [(&str, Pass); 16] = [
+    ("shadow maps", DirRenderer::pass_shadow_maps),
+    ("impostors and caustic maps", DirRenderer::pass_specular_maps),
+    ("RSMs and VPLs", DirRenderer::pass_vpls),
+    ("further bounces", DirRenderer::pass_bounces),
+    ("imperfect shadow maps", DirRenderer::pass_isms),
+    ("g-buffer", DirRenderer::pass_gbuffer),
+    ("specular rays and caustic splats", DirRenderer::pass_specular_rays),
+    ("shading", DirRenderer::pass_shading),
+    ("indirect light", DirRenderer::pass_indirect),
+    ("caustics into L_rv and L_r", DirRenderer::pass_caustics),
+    ("photograph", DirRenderer::pass_photo),
+    ("specular hits", DirRenderer::pass_specular_hits),
+    ("colour mapping", DirRenderer::pass_colour_mapping),
+    ("composition", DirRenderer::pass_composition),
+    ("read-back", DirRenderer::pass_readback),
+    ("camera artifacts", DirRenderer::pass_camera_artifacts),
+];
+
+/// The environment's orthographic views: centre, radius across and depth along the light.
+#[derive(Clone, Copy)]
+pub(super) struct EnvView {
+    centre: Vec3,
+    radius: f32,
+    depth: f32,
+}
+
+/// The frame's images on the host, after the read-back.
+pub(super) struct FrameImages {
+    pub composite: Image,
+    pub l_rv: Image,
+    pub l_r: Image,
+    pub virtual_mask: Mask,
+    pub flags: Vec<u32>,
+}
+
+/// Everything a frame's passes read and write, filled in pass by pass ([`PASSES`]).
+pub(super) struct FrameTargets<'a> {
+    pub scene: &'a Scene,
+    pub photo: &'a Image,
+    pub params: &'a DirParams,
+    /// VPLs given instead of made (tests of eqs. 5.6–5.7).
+    pub given_vpls: Option<&'a [vpl::GpuVpl]>,
+    pub state: &'a mut LiveState,
+    pub mode: Frame,
+    pub width: u32,
+    pub height: u32,
+    pub passes: Vec<PassTime>,
+    pub mesh: mesh::GpuMesh,
+    pub buffers: SceneBuffers,
+    pub has_virtual: bool,
+    /// Whether virtual objects cast shadows (the condition shows them and there are some).
+    pub virtual_maps: bool,
+    /// Shadow maps: their size, the environment's directions (towards the light, irradiance),
+    /// the lights (spot lights, then the environment's), each spot's view.
+    pub shadow_size: u32,
+    pub env_dirs: Vec<(Vec3, Vec3)>,
+    pub n_lights: u32,
+    pub shadow_maps: Option<Arc<wgpu::Texture>>,
+    pub lights: Vec<GpuLight>,
+    pub spot_views: Vec<(ViewUniform, f32)>,
+    pub env_view: Option<EnvView>,
+    pub impostors: Option<specular::Impostors>,
+    pub photon_maps: std::result::Result<specular::PhotonMaps, &'static str>,
+    pub vpls: Vec<vpl::GpuVpl>,
+    pub first_bounce: Option<FirstBounce>,
+    pub bounce_reports: Vec<bounce::BounceReport>,
+    pub ism_atlas: Option<ism::IsmAtlas>,
+    pub gbuffer: Option<SurfaceTargets>,
+    pub camera_view_proj: Mat4,
+    pub camera_view: Option<ViewUniform>,
+    pub traced: Option<specular::Traced>,
+    pub caustic_buffer: Option<Arc<wgpu::Buffer>>,
+    pub shade_params: Option<ShadeParams>,
+    pub output: Option<shade::ShadeOutput>,
+    pub smoothed: bool,
+    pub photo_buffer: Option<Arc<wgpu::Buffer>>,
+    pub specular_base: Option<Arc<wgpu::Buffer>>,
+    pub mapped: Option<Arc<wgpu::Buffer>>,
+    pub cm_report: Option<CmReport>,
+    pub composite_buffer: Option<Arc<wgpu::Buffer>>,
+    pub images: Option<FrameImages>,
+    pub ca_report: Option<CaReport>,
+}
+
+/// What a pass needs from an earlier one (the order of [`PASSES`] guarantees it).
+fn ran<'t, T>(value: &'t Option<T>, what: &str) -> &'t T {
+    value.as_ref().unwrap_or_else(|| panic!("the frame's passes are out of order: no {what} yet"))
+}
+
+impl<'a> FrameTargets<'a> {
+    /// Starts a frame: the scene's mesh (CPU) and its upload, before the first pass.
+    pub fn new(
+        ctx: &GpuContext,
+        scene: &'a Scene,
+        photo: &'a Image,
+        params: &'a DirParams,
+        state: &'a mut LiveState,
+        mode: Frame,
+    ) -> FrameTargets<'a> {
+        let mut passes = Vec::new();
+        let start = Instant::now();
+        let mesh = mesh::build(scene);
+        passes.push(PassTime::new("scene mesh (CPU)", start.elapsed().as_secs_f64() * 1e3));
+        let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
+        let has_virtual = mesh.virtual_count() > 0;
+        FrameTargets {
+            scene,
+            photo,
+            params,
+            given_vpls: None,
+            state,
+            mode,
+            width: scene.camera.width,
+            height: scene.camera.height,
+            passes,
+            virtual_maps: params.condition != GiLevel::None && has_virtual,
+            has_virtual,
+            mesh,
+            buffers,
+            shadow_size: params.shadow_map_size.max(16),
+            env_dirs: Vec::new(),
+            n_lights: 0,
+            shadow_maps: None,
+            lights: Vec::new(),
+            spot_views: Vec::new(),
+            env_view: None,
+            impostors: None,
+            photon_maps: Err("no mirror or glass"),
+            vpls: Vec::new(),
+            first_bounce: None,
+            bounce_reports: Vec::new(),
+            ism_atlas: None,
+            gbuffer: None,
+            camera_view_proj: Mat4::IDENTITY,
+            camera_view: None,
+            traced: None,
+            caustic_buffer: None,
+            shade_params: None,
+            output: None,
+            smoothed: false,
+            photo_buffer: None,
+            specular_base: None,
+            mapped: None,
+            cm_report: None,
+            composite_buffer: None,
+            images: None,
+            ca_report: None,
+        }
+    }
+
+    /// Records a pass's time under `name` (see [`timed`]).
+    fn timed<T>(&mut self, ctx: &GpuContext, name: String, f: impl FnOnce() -> T) -> T {
+        timed(ctx, &mut self.passes, name, f)
+    }
+}
+
+impl DirRenderer {
+    /// Step 1: Shadow maps: per spot light a real-only and (with virtual shadows) a virtual-only map,
+    /// layers 2i and 2i+1; the environment as directional lights (Hammersley points through the
+    /// map's importance sampler, each carrying E = L / (N · pdf); they are real, r(pl) = 1),
+    /// each with its orthographic maps, all in one submission.
+    fn pass_shadow_maps(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let (scene, params, size) = (f.scene, f.params, f.shadow_size);
+        if let Some(env) = scene.environment.as_ref().filter(|_| params.env_lights > 0) {
+            let n = params.env_lights;
+            for k in 0..n {
+                if let Some((dir, radiance, pdf)) = env.sample((k as f32 + 0.5) / n as f32, radical_inverse(k))
+                    && pdf > 0.0
+                    && radiance.max_element() > 0.0
+                {
+                    f.env_dirs.push((-dir, radiance / (n as f32 * pdf)));
+                }
+            }
+        }
+        f.n_lights = (scene.spots.len() + f.env_dirs.len()) as u32;
+        // from the pool: every layer the shaders read is rendered with a clear below (the
+        // virtual layers are read only where they are drawn: `virtual_maps`)
+        let shadow_maps = ctx.texture(&wgpu::TextureDescriptor {
+            label: Some("shadow maps"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: (2 * f.n_lights).max(2) },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: raster::DISTANCE_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let layer_view = |layer: u32| {
+            shadow_maps.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            })
+        };
+        let (mesh, buffers, virtual_maps) = (&f.mesh, &f.buffers, f.virtual_maps);
+        for (i, spot) in scene.spots.iter().enumerate() {
+            let (matrix, tan_half) =
+                spot_view(spot.position, spot.direction, spot.cos_outer, mesh.bounds_centre, mesh.bounds_radius);
+            let view = ViewUniform::perspective(matrix, spot.position, spot.direction);
+            let layer = 2 * i as u32;
+            timed(ctx, &mut f.passes, format!("shadow map {} real", spot.name), || {
+                self.raster.shadow_map(ctx, buffers, &view, Subset::Real, &layer_view(layer), size)
+            });
+            if virtual_maps {
+                timed(ctx, &mut f.passes, format!("shadow map {} virtual", spot.name), || {
+                    self.raster.shadow_map(ctx, buffers, &view, Subset::Virtual, &layer_view(layer + 1), size)
+                });
+            }
+            f.lights.push(GpuLight {
+                view_proj: matrix.to_cols_array_2d(),
+                position: [spot.position.x, spot.position.y, spot.position.z, if spot.real { 1.0 } else { 0.0 }],
+                direction: [spot.direction.x, spot.direction.y, spot.direction.z, spot.cos_outer],
+                intensity: [spot.intensity.x, spot.intensity.y, spot.intensity.z, spot.cos_inner],
+                info: [0.0, layer as f32, 2.0 * tan_half / size as f32, 0.0],
+            });
+            f.spot_views.push((view, tan_half));
+        }
+        // the environment's maps cover where virtual objects can change anything: around them (3×
+        // their bounding radius, where their shadows fall), or everything without them
+        let (centre, radius) = match mesh.virtual_bounds {
+            Some((c, r)) => (c, (3.0 * r).min(mesh.bounds_radius)),
+            None => (mesh.bounds_centre, mesh.bounds_radius),
+        };
+        let depth = (mesh.bounds_centre - centre).length() + mesh.bounds_radius + 1e-3;
+        f.env_view = Some(EnvView { centre, radius, depth });
+        if !f.env_dirs.is_empty() {
+            let first = f.lights.len() as u32;
+            let (env_dirs, lights) = (&f.env_dirs, &mut f.lights);
+            timed(
+                ctx,
+                &mut f.passes,
+                format!(
+                    "shadow maps environment ({} directions{})",
+                    env_dirs.len(),
+                    if virtual_maps { ", real and virtual" } else { ", real" }
+                ),
+                || {
+                    // every direction's maps in one submission
+                    let mut maps = Vec::new();
+                    for (k, (forward, irradiance)) in env_dirs.iter().enumerate() {
+                        let (matrix, eye) = directional_view(*forward, centre, radius, depth);
+                        let view = ViewUniform::orthographic(matrix, eye, *forward);
+                        let layer = 2 * (first + k as u32);
+                        maps.push((view, Subset::Real, layer_view(layer)));
+                        if virtual_maps {
+                            maps.push((view, Subset::Virtual, layer_view(layer + 1)));
+                        }
+                        lights.push(GpuLight {
+                            view_proj: matrix.to_cols_array_2d(),
+                            position: [eye.x, eye.y, eye.z, 1.0],
+                            direction: [forward.x, forward.y, forward.z, 0.0],
+                            intensity: [irradiance.x, irradiance.y, irradiance.z, 0.0],
+                            info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
+                        });
+                    }
+                    let maps: Vec<(ViewUniform, Subset, &wgpu::TextureView)> =
+                        maps.iter().map(|(view, subset, target)| (*view, *subset, target)).collect();
+                    self.raster.shadow_maps(ctx, buffers, &maps, size);
+                },
+            );
+        }
+        f.shadow_maps = Some(shadow_maps);
+        Ok(())
+    }
+
+    /// Step 1c: Mirrors and glass (5.3): their impostors, and the photons of their caustic maps
+    /// (with the conditions that show virtual objects' shadows).
+    fn pass_specular_maps(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let at = specular::FrameScene { scene: f.scene, mesh: &f.mesh, buffers: &f.buffers };
+        let params = f.params;
+        f.impostors = (!f.mesh.specular.is_empty())
+            .then(|| self.specular.impostors(ctx, &self.raster, &mut f.passes, at, &params.specular));
+        f.photon_maps = match &f.impostors {
+            None => Err("no mirror or glass"),
+            Some(_) if params.condition == GiLevel::None => {
+                Err("the none condition: virtual objects cast neither shadows nor caustics")
+            }
+            Some(_) if params.specular.caustic_map_size == 0 => Err("caustic_map_size is 0 (caustics off)"),
+            Some(_) if f.scene.spots.is_empty() => Err("no spot or point light (caustic maps are made from those)"),
+            Some(impostors) => {
+                Ok(self.specular.photon_maps(ctx, &self.raster, &mut f.passes, at, impostors, &params.specular))
+            }
+        };
+        Ok(())
+    }
+
+    /// Step 2: RSMs and VPLs (gi only): every RSM rendered first, then all read at once — by the
+    /// GPU's VPL sampler, or read back for the CPU's reference (one wait, not four per map) —
+    /// with the reflected and refracted VPLs where the caustics land (Figure 5.23).
+    fn pass_vpls(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let params = f.params;
+        if params.condition == GiLevel::Gi && f.n_lights > 0 && params.vpls > 0 {
+            let rsm_size = params.rsm_size.max(4);
+            let env = *ran(&f.env_view, "environment view");
+            let (buffers, has_virtual) = (&f.buffers, f.has_virtual);
+            // (their targets from the pool: each RSM pass clears them)
+            let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
+                let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
+                let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
+                let label = if subset == Subset::Real { "real" } else { "virtual" };
+                timed(ctx, passes, format!("RSM {name} {label}"), || {
+                    self.raster.rsm(ctx, buffers, view, subset, &distance.create_view(&Default::default()), &targets)
+                });
+                (targets, distance)
+            };
+            let render_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
+                let real = render_rsm(passes, view, name, Subset::Real);
+                let virt = has_virtual.then(|| render_rsm(passes, view, name, Subset::Virtual));
+                (real, virt)
+            };
+            let mut rendered = Vec::new();
+            for (spot, (view, tan_half)) in f.scene.spots.iter().zip(&f.spot_views) {
+                rendered.push((vpl::RsmLight::Spot(spot), *tan_half, render_pair(&mut f.passes, view, &spot.name)));
+            }
+            // the environment's light bounces too: orthographic RSMs along a subset of its
+            // directions (evenly spread over the importance-sampled ones), each standing for
+            // n / k of them
+            let k = (params.env_vpl_directions as usize).min(f.env_dirs.len());
+            for j in 0..k {
+                let (forward, irradiance) = f.env_dirs[j * f.env_dirs.len() / k];
+                let (matrix, eye) = directional_view(forward, env.centre, env.radius, env.depth);
+                let view = ViewUniform::orthographic(matrix, eye, forward);
+                let light = vpl::RsmLight::Directional {
+                    irradiance: irradiance * (f.env_dirs.len() as f32 / k as f32),
+                    texel_area: (2.0 * env.radius / rsm_size as f32).powi(2),
+                };
+                rendered.push((light, 0.0, render_pair(&mut f.passes, &view, &format!("environment {}", j + 1))));
+            }
+            let maps: Vec<vpl::RsmMaps> = rendered
+                .iter()
+                .map(|(light, tan_half_fov, (real, virt))| {
+                    fn textures((t, d): &(SurfaceTargets, Arc<wgpu::Texture>)) -> [&wgpu::Texture; 4] {
+                        [&t.position, &t.normal, &t.albedo, d]
+                    }
+                    vpl::RsmMaps {
+                        light: *light,
+                        tan_half_fov: *tan_half_fov,
+                        size: rsm_size,
+                        real: textures(real),
+                        virt: virt.as_ref().map(textures),
+                    }
+                })
+                .collect();
+            let caustics =
+                f.photon_maps.as_ref().map_or_else(|_| Vec::new(), |maps| self.specular.caustic_sources(maps));
+            let slots = vpl::VplSampler::slots(0, &caustics, &maps);
+            let candidates =
+                if !self.cpu_vpls.load(std::sync::atomic::Ordering::Relaxed) && vpl::VplSampler::fits(ctx, slots) {
+                    let label = format!(
+                        "VPL candidates and their CDF ({slots} slots: {} RSMs, {} caustic maps; GPU)",
+                        rendered.iter().map(|(_, _, (_, virt))| 1 + virt.is_some() as usize).sum::<usize>(),
+                        caustics.len()
+                    );
+                    FirstBounce::Gpu(timed(ctx, &mut f.passes, label, || {
+                        self.vpl_sampler.candidates(ctx, &[], &caustics, &maps)
+                    }))
+                } else {
+                    let caustic_candidates = match &f.photon_maps {
+                        Ok(maps) => timed(ctx, &mut f.passes, "caustic VPL candidates (read back)".into(), || {
+                            self.specular.caustic_vpls(ctx, maps)
+                        }),
+                        Err(_) => Vec::new(),
+                    };
+                    FirstBounce::Cpu(self.cpu_candidates(ctx, &mut f.passes, &rendered, rsm_size, &caustic_candidates))
+                };
+            drop(maps);
+            // the RSM targets go back to the pool for the next frame (the passes reading them are
+            // submitted, so the next frame's RSM passes are queued after those)
+            drop(rendered);
+            f.vpls = match &candidates {
+                // a GPU pass: reported only while passes are timed
+                FirstBounce::Gpu(_) => timed(ctx, &mut f.passes, "VPLs drawn (GPU, read back)".into(), || {
+                    candidates.draw(self, params.vpls)
+                }),
+                FirstBounce::Cpu(_) => {
+                    let start = Instant::now();
+                    let drawn = candidates.draw(self, params.vpls);
+                    f.passes.push(PassTime::new("VPLs drawn (CPU)", start.elapsed().as_secs_f64() * 1e3));
+                    drawn
+                }
+            };
+            f.first_bounce = Some(candidates);
+        }
+        if let Some(given) = f.given_vpls {
+            f.vpls = given.to_vec();
+        }
+        Ok(())
+    }
+
+    /// Step 2a: The multiple-bounce light source (5.2.7), once per further bounce: a pilot over the
+    /// whole budget measures the bounce's flux; the budget is then split by flux over the
+    /// primary lights and the bounces (the third distribution mode) — the thesis takes those
+    /// fluxes from the previous frame, a single stimulus frame measures them first.
+    fn pass_bounces(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let params = f.params;
+        if params.condition != GiLevel::Gi || params.bounces <= 1 || f.vpls.is_empty() {
+            return Ok(());
+        }
+        let Some(bounce_scene) = bounce::BounceScene::new(ctx, &f.mesh) else { return Ok(()) };
+        let budget = params.vpls.max(1);
+        let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
+        let mut sources = f.vpls.clone();
+        for b in 2..=params.bounces.min(MAX_BOUNCES) {
+            let search = bounce::BounceSearch {
+                candidates: params.bounce_candidates,
+                cone_degrees: params.bounce_cone_degrees,
+                seed: b.wrapping_mul(0x9e37_79b9),
+            };
+            let label = format!(
+                "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
+                search.candidates, search.cone_degrees
+            );
+            let at = bounce::BounceInputs {
+                scene: &bounce_scene,
+                mesh: &f.mesh,
+                materials: &f.scene.materials,
+                scene_radius: f.mesh.bounds_radius,
+            };
+            let (next, found, real_only) =
+                timed(ctx, &mut f.passes, label, || self.bounce.spawn(ctx, &at, &sources, budget, &search));
+            f.bounce_reports.push(bounce::BounceReport {
+                bounce: b,
+                slots: budget,
+                found,
+                real_only,
+                flux: vpl::luminance_flux(&next) as f32,
+                vpls: 0,
+            });
+            if next.is_empty() {
+                break;
+            }
+            pilots.push(next.clone());
+            sources = next;
+        }
+        let start = Instant::now();
+        let mut fluxes = vec![vpl::luminance_flux(&f.vpls)];
+        fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
+        let counts = vpl::split_budget(budget, &fluxes);
+        if f.given_vpls.is_none() {
+            // no first-bounce candidates: no RSMs were drawn, so there is nothing to draw from
+            f.vpls = f.first_bounce.as_ref().map_or_else(Vec::new, |candidates| candidates.draw(self, counts[0]));
+        }
+        for (k, pilot) in pilots.iter().enumerate() {
+            let drawn = vpl::resample(pilot, counts[k + 1]);
+            f.bounce_reports[k].vpls = drawn.len();
+            f.vpls.extend(drawn);
+        }
+        let drawn_where = match &f.first_bounce {
+            Some(FirstBounce::Gpu(_)) => "; the first bounce's share drawn on the GPU",
+            _ => "",
+        };
+        f.passes.push(PassTime::new(
+            format!("VPL budget split by flux over {} sources (CPU{drawn_where})", fluxes.len()),
+            start.elapsed().as_secs_f64() * 1e3,
+        ));
+        Ok(())
+    }
+
+    /// Step 2b: Imperfect shadow maps: VPL visibility from the real and the virtual point clouds.
+    fn pass_isms(&self, f: &mut FrameTargets) -> Result<()> {
+        let params = f.params;
+        if f.vpls.is_empty() || params.ism_size == 0 || params.ism_points == 0 {
+            return Ok(());
+        }
+        let ctx = &self.ctx;
+        let settings = ism::IsmSettings {
+            points_per_vpl: params.ism_points,
+            tile_size: params.ism_size,
+            max_distance: 2.0 * f.mesh.bounds_radius * 1.01,
+            splatting: params.ism_splatting,
+        };
+        let label = format!(
+            "ISMs ({} VPLs, {}² each, {} points per cloud, {} splatting)",
+            f.vpls.len(),
+            params.ism_size,
+            params.ism_points,
+            params.ism_splatting.name()
+        );
+        let (mesh, vpls) = (&f.mesh, &f.vpls);
+        f.ism_atlas = Some(timed(ctx, &mut f.passes, label, || self.ism.render(ctx, mesh, vpls, &settings)));
+        Ok(())
+    }
+
+    /// Step 3: The camera's G-buffer.
+    fn pass_gbuffer(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let (scene, mesh) = (f.scene, &f.mesh);
+        let gbuffer = SurfaceTargets::new(ctx, f.width, f.height, "g-buffer");
+        let far = (scene.camera.position - mesh.bounds_centre).length() + 2.0 * mesh.bounds_radius;
+        f.camera_view_proj = camera_matrix(&scene.camera, (far * 1e-5).max(1e-4), far);
+        let camera_view =
+            ViewUniform::perspective(f.camera_view_proj, scene.camera.position, -scene.camera.rotation.z_axis);
+        let buffers = &f.buffers;
+        timed(ctx, &mut f.passes, "g-buffer".into(), || self.raster.gbuffer(ctx, buffers, &camera_view, &gbuffer));
+        f.gbuffer = Some(gbuffer);
+        f.camera_view = Some(camera_view);
+        Ok(())
+    }
+
+    /// Step 3a: Mirrors and glass (5.3): back faces, reflected and refracted rays; 3b. the caustics'
+    /// photons splatted into the camera's pixels.
+    fn pass_specular_rays(&self, f: &mut FrameTargets) -> Result<()> {
+        let Some(impostors) = &f.impostors else { return Ok(()) };
+        let ctx = &self.ctx;
+        let gbuffer = ran(&f.gbuffer, "g-buffer");
+        let at = specular::FrameScene { scene: f.scene, mesh: &f.mesh, buffers: &f.buffers };
+        let rays = specular::RayInputs {
+            impostors,
+            gbuffer,
+            view: ran(&f.camera_view, "camera view"),
+            view_proj: f.camera_view_proj,
+        };
+        let mut traced = self.specular.trace(ctx, &self.raster, &mut f.passes, at, &rays, &f.params.specular);
+        match &f.photon_maps {
+            Ok(maps) => {
+                let (buffer, mut report) = timed(ctx, &mut f.passes, "caustic splats".into(), || {
+                    self.specular.splat(ctx, maps, f.scene, gbuffer, f.camera_view_proj)
+                });
+                report.vpls = f.vpls.iter().filter(|v| v.flux[3] > 0.5).count();
+                f.caustic_buffer = Some(buffer);
+                traced.report.caustics = Some(report);
+            }
+            Err(reason) => traced.report.caustics_skipped = Some(reason.to_string()),
+        }
+        f.traced = Some(traced);
+        Ok(())
+    }
+
+    /// Step 4: Shading: L_rv and L_r by equations 5.1–5.8.
+    fn pass_shading(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let (scene, params) = (f.scene, f.params);
+        let condition_code = match params.condition {
+            GiLevel::None => 0,
+            GiLevel::Shadows => 1,
+            GiLevel::Gi => 2,
+        };
+        let ism_atlas = f.ism_atlas.as_ref();
+        let shade_params = ShadeParams {
+            camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
+            size: [f.width, f.height, f.n_lights, f.vpls.len() as u32],
+            mode: [
+                if f.virtual_maps { condition_code } else { 0 },
+                f.shadow_size,
+                ism_atlas.map_or(0, |a| a.tile_size),
+                ism_atlas.map_or(1, |a| a.tiles_per_row),
+            ],
+            tone: [
+                params.interleave.max(1) as f32,
+                params.vpl_clamp_distance * params.vpl_clamp_distance,
+                ism_atlas.map_or(0.0, |a| a.inv_max_distance),
+                0.0,
+            ],
+        };
+        let label = if params.interleave > 1 && !f.vpls.is_empty() {
+            format!("shading (VPLs interleaved {0}×{0})", params.interleave)
+        } else {
+            "shading".to_string()
+        };
+        let inputs = shade::ShadeInputs {
+            gbuffer: ran(&f.gbuffer, "g-buffer"),
+            shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
+            lights: &f.lights,
+            vpls: &f.vpls,
+            scene: &f.buffers,
+            ism: ism_atlas.map(|a| &*a.buffer),
+        };
+        let output = timed(ctx, &mut f.passes, label, || self.shade.run(ctx, &shade_params, &inputs));
+        f.shade_params = Some(shade_params);
+        f.output = Some(output);
+        Ok(())
+    }
+
+    /// Step 4b: The indirect light: merge of the interleaved classes, temporal smoothing (live
+    /// frames), sum with the direct light.
+    fn pass_indirect(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let output = ran(&f.output, "shading");
+        let Some(raw) = &output.indirect else { return Ok(()) };
+        let params = f.params;
+        let temporal = f.mode != Frame::Stimulus;
+        let split = params.interleave.max(1);
+        let inputs = indirect::IndirectInputs {
+            width: f.width,
+            height: f.height,
+            split,
+            gbuffer: ran(&f.gbuffer, "g-buffer"),
+            raw,
+            solutions: &output.solutions,
+            camera: f.scene.camera.position,
+            view_proj: f.camera_view_proj,
+            scene_radius: f.mesh.bounds_radius,
+        };
+        let mut steps = Vec::new();
+        if split > 1 {
+            steps.push(format!("merge {split}×{split}"));
+        }
+        if temporal {
+            // the history is used only at this frame's size (`IndirectPass::run`)
+            f.smoothed = f.state.temporal.as_ref().is_some_and(|t| t.fits(f.width, f.height));
+            steps.push(if f.smoothed {
+                "temporal smoothing".to_string()
+            } else {
+                "temporal smoothing (first frame)".to_string()
+            });
+        }
+        steps.push("sum".into());
+        let label = format!("indirect light ({})", steps.join(", "));
+        let state = &mut f.state.temporal;
+        timed(ctx, &mut f.passes, label, || {
+            self.indirect.run(ctx, &inputs, temporal.then_some((&params.temporal, state)))
+        });
+        Ok(())
+    }
+
+    /// Step 4c: The caustics into L_rv and L_r.
+    fn pass_caustics(&self, f: &mut FrameTargets) -> Result<()> {
+        let Some(caustic) = &f.caustic_buffer else { return Ok(()) };
+        let ctx = &self.ctx;
+        let (gbuffer, output) = (ran(&f.gbuffer, "g-buffer"), ran(&f.output, "shading"));
+        let (width, height) = (f.width, f.height);
+        timed(ctx, &mut f.passes, "caustics into L_rv and L_r".into(), || {
+            self.specular.apply_caustics(ctx, caustic, gbuffer, &output.solutions, width, height)
+        });
+        Ok(())
+    }
+
+    /// The photograph uploaded for the specular passes, the colour mapping and the composition.
+    fn pass_photo(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let photo_texels: Vec<[f32; 4]> = f.photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
+        f.photo_buffer = Some(f.timed(ctx, "upload photograph".into(), || {
+            ctx.upload(&wgpu::util::BufferInitDescriptor {
+                label: Some("photo"),
+                contents: bytemuck::cast_slice(&photo_texels),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        }));
+        Ok(())
+    }
+
+    /// Step 4d: The hit G-buffers of mirrors and glass shaded by every light and VPL, then L'_rv,
+    /// L'_r and the photograph's part CI_std.
+    fn pass_specular_hits(&self, f: &mut FrameTargets) -> Result<()> {
+        let Some(mut traced) = f.traced.take() else { return Ok(()) };
+        let ctx = &self.ctx;
+        let hit_params = ShadeParams { camera: traced.eye.extend(0.0).to_array(), ..*ran(&f.shade_params, "shading") };
+        let mut shaded = Vec::new();
+        for (name, targets) in [("reflected", &traced.refl), ("refracted", &traced.refr)] {
+            let inputs = shade::ShadeInputs {
+                gbuffer: targets,
+                shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
+                lights: &f.lights,
+                vpls: &f.vpls,
+                scene: &f.buffers,
+                ism: f.ism_atlas.as_ref().map(|a| &*a.buffer),
+            };
+            let hit = timed(ctx, &mut f.passes, format!("shading the {name} hits"), || {
+                self.shade.run(ctx, &hit_params, &inputs)
+            });
+            if let Some(raw) = &hit.indirect {
+                let inputs = indirect::IndirectInputs {
+                    width: f.width,
+                    height: f.height,
+                    split: f.params.interleave.max(1),
+                    gbuffer: targets,
+                    raw,
+                    solutions: &hit.solutions,
+                    camera: traced.eye,
+                    view_proj: f.camera_view_proj,
+                    scene_radius: f.mesh.bounds_radius,
+                };
+                timed(ctx, &mut f.passes, format!("indirect light of the {name} hits"), || {
+                    self.indirect.run(ctx, &inputs, None)
+                });
+            }
+            shaded.push(hit.solutions);
+        }
+        let inputs = specular::CombineInputs {
+            gbuffer: ran(&f.gbuffer, "g-buffer"),
+            solutions: &ran(&f.output, "shading").solutions,
+            reflected: &shaded[0],
+            refracted: &shaded[1],
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
+            width: f.width,
+            height: f.height,
+        };
+        let label = "mirrors and glass: L'_rv, L'_r and the photograph's part".into();
+        f.specular_base = Some(timed(ctx, &mut f.passes, label, || self.specular.combine(ctx, &mut traced, &inputs)));
+        f.traced = Some(traced);
+        Ok(())
+    }
+
+    /// Step 5: Colour mapping of both buffers (the cm factor).
+    fn pass_colour_mapping(&self, f: &mut FrameTargets) -> Result<()> {
+        let cm_buffers = cm::CmBuffers {
+            width: f.width,
+            height: f.height,
+            solutions: &ran(&f.output, "shading").solutions,
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
+        };
+        let (mapped, report) = self.cm.run(
+            &self.ctx,
+            &mut f.passes,
+            &cm_buffers,
+            &f.photo.pixels,
+            &cm::CmSettings { params: &f.params.cm, exposure: f.params.exposure },
+            &mut f.state.cm,
+        );
+        f.mapped = Some(mapped);
+        f.cm_report = Some(report);
+        Ok(())
+    }
+
+    /// Step 6: Composition over the photograph.
+    fn pass_composition(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let inputs = compose::ComposeInputs {
+            width: f.width,
+            height: f.height,
+            linear_domain: ran(&f.cm_report, "colour mapping").mapping.linear_domain(),
+            composition: f.params.composition,
+            mapped: f.mapped.as_deref().expect("the colour mapping ran"),
+            photo: f.photo_buffer.as_deref().expect("the photograph ran"),
+            specular_base: f.specular_base.as_deref(),
+        };
+        f.composite_buffer = Some(timed(ctx, &mut f.passes, "composition".into(), || self.compose.run(ctx, &inputs)));
+        Ok(())
+    }
+
+    /// The read-back, in two timed steps: the GPU's copies into staging buffers, then the
+    /// host's map and copy. A frame only shown (without the ca factor, which needs the
+    /// radiance buffers for the virtual objects' mask and works on the composite in floats)
+    /// reads back only the composite packed to 8-bit RGBA: one wait, 4 bytes a pixel; its
+    /// image holds those bytes / 255, which `Image::to_rgb8` turns back into the same bytes.
+    fn pass_readback(&self, f: &mut FrameTargets) -> Result<()> {
+        let ctx = &self.ctx;
+        let (width, height) = (f.width, f.height);
+        let composite = ran(&f.composite_buffer, "composition");
+        if f.mode == Frame::Display && f.params.camera_artifacts.is_none() {
+            let staged =
+                timed(ctx, &mut f.passes, "readback: packed to 8 bits, copied to staging (GPU)".into(), || {
+                    ctx.stage(&self.compose.pack(ctx, composite, width, height))
+                });
+            let bytes = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                ctx.read_buffer(&staged)
+            });
+            let start = Instant::now();
+            let composite = {
+                use rayon::prelude::*;
+                let channel = |b: u8| b as f32 / 255.0;
+                let pixels = bytes.par_chunks_exact(4).map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
+                Image { width, height, pixels: pixels.collect() }
+            };
+            f.passes.push(PassTime::new("image from the read-back bytes (CPU)", start.elapsed().as_secs_f64() * 1e3));
+            let empty = Image::filled(0, 0, Vec3::ZERO);
+            let virtual_mask = Mask { width, height, values: Vec::new() };
+            f.images =
+                Some(FrameImages { composite, l_rv: empty.clone(), l_r: empty, virtual_mask, flags: Vec::new() });
+            return Ok(());
+        }
+        let radiance = f.mode != Frame::Display || f.params.camera_artifacts.is_some();
+        let output = ran(&f.output, "shading");
+        let staged = timed(ctx, &mut f.passes, "readback: copies to staging (GPU)".into(), || {
+            (ctx.stage(composite), radiance.then(|| ctx.stage(&output.solutions)))
+        });
+        let (composite, solutions) =
+            timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                (ctx.read_staged_f32(&staged.0), staged.1.as_ref().map_or_else(Vec::new, |s| ctx.read_staged_f32(s)))
+            });
+        let start = Instant::now();
+        let half = solutions.len() / 2;
+        let composite = to_image(width, height, &composite);
+        let virtual_mask = Mask {
+            width,
+            height,
+            values: solutions[..half].chunks_exact(4).map(|c| if c[3] > 1.5 { 1.0 } else { 0.0 }).collect(),
+        };
+        let (l_rv, l_r, flags) = if f.mode == Frame::Display {
+            (Image::filled(0, 0, Vec3::ZERO), Image::filled(0, 0, Vec3::ZERO), Vec::new())
+        } else {
+            use rayon::prelude::*;
+            (
+                to_image(width, height, &solutions[..half]),
+                to_image(width, height, &solutions[half..]),
+                solutions[..half].par_chunks_exact(4).map(|c| (c[3] + 0.5) as u32).collect(),
+            )
+        };
+        f.passes.push(PassTime::new("images from the read-back buffers (CPU)", start.elapsed().as_secs_f64() * 1e3));
+        f.images = Some(FrameImages { composite, l_rv, l_r, virtual_mask, flags });
+        Ok(())
+    }
+
+    /// Step 7: Camera artifacts (the ca factor) on the virtual layers of the composite.
+    fn pass_camera_artifacts(&self, f: &mut FrameTargets) -> Result<()> {
+        let Some(ca) = &f.params.camera_artifacts else { return Ok(()) };
+        let ctx = &self.ctx;
+        let images = f.images.as_mut().expect("the read-back ran");
+        let (out, report) = timed(ctx, &mut f.passes, "camera artifacts (ca)".into(), || {
+            self.artifacts.run(ctx, &images.composite, f.photo, &images.virtual_mask, &f.scene.camera, ca)
+        })?;
+        images.composite = out;
+        f.ca_report = Some(report);
+        Ok(())
+    }
+
+    /// [`DirRenderer::render`], with the VPLs given instead of created (tests of eqs. 5.6–5.7),
+    /// temporal smoothing against `state` in live frames, and the read-back `mode` asks for:
+    /// [`FrameTargets::new`], then every pass of [`PASSES`] in order.
+    pub(super) fn render_frame(
+        &self,
+        scene: &Scene,
+        photo: &Image,
+        params: &DirParams,
+        given_vpls: Option<&[vpl::GpuVpl]>,
+        state: &mut LiveState,
+        mode: Frame,
+    ) -> Result<GpuRender> {
+        let ctx = &self.ctx;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        if photo.width != width || photo.height != height {
+            return Err(RenderError::SizeMismatch {
+                a_width: width,
+                a_height: height,
+                b_width: photo.width,
+                b_height: photo.height,
+            });
+        }
+        let frame_start = Instant::now();
+        ctx.begin_frame();
+        let mut f = FrameTargets::new(ctx, scene, photo, params, state, mode);
+        f.given_vpls = given_vpls;
+        for (_, pass) in PASSES {
+            pass(self, &mut f)?;
+        }
+        let images = f.images.take().expect("the read-back ran");
+        let ms = f.passes.iter().map(|p| p.ms).sum();
+        Ok(GpuRender {
+            composite: images.composite,
+            l_rv: images.l_rv,
+            l_r: images.l_r,
+            virtual_mask: images.virtual_mask,
+            flags: images.flags,
+            report: GpuReport {
+                adapter: ctx.adapter_name(),
+                scene: scene.name.clone(),
+                condition: params.condition,
+                width,
+                height,
+                vpls: f.vpls.len(),
+                params: params.clone(),
+                passes: std::mem::take(&mut f.passes),
+                ms,
+                cm: f.cm_report.take().expect("the colour mapping ran"),
+                camera_artifacts: f.ca_report.take(),
+                bounces: std::mem::take(&mut f.bounce_reports),
+                temporal_smoothing: f.smoothed,
+                memory: ctx.pool_stats(),
+                counters: context::FrameCounters {
+                    cpu_ms: frame_start.elapsed().as_secs_f64() * 1e3,
+                    ..ctx.counters()
+                },
+                specular: f.traced.take().map(|traced| traced.report),
+            },
+            vpls: std::mem::take(&mut f.vpls),
+        })
+    }
+}
