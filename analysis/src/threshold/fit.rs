@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::quest::{Params, PsychFunction, StimScale};
-use crate::task::quantile_type7;
+use crate::quantile::type7 as quantile_type7;
 
 /// The psychometric model: shape, scale and the fixed guess rate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

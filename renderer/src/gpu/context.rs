@@ -127,11 +127,6 @@ impl FrameCounters {
             self.wait_ms
         )
     }
-
-    /// `cpu_ms` less `wait_ms`: the host's own work (recording, CPU steps, copies).
-    pub fn record_ms(&self) -> f64 {
-        (self.cpu_ms - self.wait_ms).max(0.0)
-    }
 }
 
 #[derive(Default)]

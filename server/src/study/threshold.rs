@@ -9,7 +9,7 @@
 //! (stimuli, preparing, joining, answers, catch trials, screen requirements, pilots, exclusion,
 //! deletion, export, the admin page) is the paired comparisons' own code: its conditions are the
 //! levels (`vpls-64`: the base condition's factor levels, rendered with the knob at that value,
-//! [`Condition::knob`]), its design is a detection design against the ground truth
+//! [`Condition::knob`](super::survey::Condition::knob)), its design is a detection design against the ground truth
 //! (`reference = "ground-truth"`, `scenes = "same"`), and [`Study::threshold`] keeps the
 //! [`ThresholdDesign`] that chooses each trial's level (`crate::participant::threshold`).
 
