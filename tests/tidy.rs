@@ -535,9 +535,6 @@ fn every_public_function_has_a_caller_outside_tests() {
         ("has_gpu_timer", "renderer: its GPU tests ask it"),
         ("read_texture_rgba32", "renderer: a debugging read-back"),
         ("read_indirect", "renderer: gpu::invariants reads the indirect buffer"),
-        // issue 48 item 3: `mrstudy analyze` does not read threshold exports yet; the fit and its
-        // tests are built, its caller in the report is not
-        ("aggregate", "analysis::threshold::fit: the threshold analysis is not wired yet"),
     ];
     let mut code = String::new();
     let mut definitions = Vec::new();

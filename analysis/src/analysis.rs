@@ -82,9 +82,15 @@ pub struct Options {
     /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
     #[arg(long)]
     pub include_excluded: bool,
-    /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals.
+    /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals; for a threshold export `log10`, `dB` or `linear` fits on that stimulus scale instead of the export's.
     #[arg(long, value_enum, default_value = "bt")]
     pub scale: Scale,
+    /// Threshold exports: the psychometric function to fit (`weibull`, `logistic`, `normal`) instead of the export's `function`.
+    #[arg(long)]
+    pub function: Option<String>,
+    /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
+    #[arg(long)]
+    pub guess: Option<f64>,
 }
 
 /// The scale `--scale` asks for besides the Bradley–Terry log-worths.
@@ -95,6 +101,25 @@ pub enum Scale {
     Bt,
     /// Also pwcmp's JOD ([`crate::scales::jod`]).
     Jod,
+    /// A threshold export fitted with x = log10 intensity ([`crate::threshold::report`]).
+    Log10,
+    /// A threshold export fitted with x = 20·log10 intensity.
+    #[value(name = "dB")]
+    Db,
+    /// A threshold export fitted with x = intensity.
+    Linear,
+}
+
+impl Scale {
+    /// The stimulus scale a threshold export is fitted on instead of its own, if this names one.
+    pub fn stimulus_scale(self) -> Option<crate::threshold::StimScale> {
+        match self {
+            Scale::Bt | Scale::Jod => None,
+            Scale::Log10 => Some(crate::threshold::StimScale::Log10),
+            Scale::Db => Some(crate::threshold::StimScale::Db),
+            Scale::Linear => Some(crate::threshold::StimScale::Linear),
+        }
+    }
 }
 
 impl Default for Options {
@@ -113,6 +138,8 @@ impl Default for Options {
             include_pilots: false,
             include_excluded: false,
             scale: Scale::Bt,
+            function: None,
+            guess: None,
         }
     }
 }

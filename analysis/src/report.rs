@@ -30,6 +30,9 @@ pub struct Report {
     /// The stimuli's image metrics against the perceived preference (`--stimuli`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metrics: Option<StimulusAnalysis>,
+    /// A threshold export's psychometric fits ([`crate::threshold::report`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<crate::threshold::report::ThresholdAnalysis>,
 }
 
 /// Parses the trials, conditions and stimulus metrics CSV text and analyses them; the names
@@ -129,7 +132,37 @@ pub fn analyze_with_table(
             }
         }
     }
-    Ok(Report { preference, detection, metrics })
+    let threshold = if crate::threshold::report::is_threshold_csv(trials_csv) {
+        let function = options
+            .function
+            .as_deref()
+            .map(|text| {
+                text.parse::<crate::threshold::PsychFunction>().map_err(|_| crate::error::AnalysisError::BadOption {
+                    option: "--function".to_string(),
+                    message: format!("expected weibull, logistic or normal, found \"{text}\""),
+                })
+            })
+            .transpose()?;
+        let overrides = crate::threshold::report::Overrides {
+            function,
+            scale: options.scale.stimulus_scale(),
+            guess: options.guess,
+        };
+        let bootstrap =
+            if options.bootstrap > 0 { options.bootstrap } else { crate::threshold::report::DEFAULT_BOOTSTRAP };
+        Some(crate::threshold::report::analyze_threshold_csv(
+            trials_csv,
+            trials_name,
+            overrides,
+            options.include_pilots,
+            options.include_excluded,
+            bootstrap,
+            options.seed,
+        )?)
+    } else {
+        None
+    };
+    Ok(Report { preference, detection, metrics, threshold })
 }
 
 #[cfg(test)]

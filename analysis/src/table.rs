@@ -276,7 +276,65 @@ pub fn render_report(report: &crate::report::Report) -> String {
         }
         render_metrics(&mut out, metrics);
     }
+    if let Some(threshold) = &report.threshold {
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        render_threshold(&mut out, threshold);
+    }
     out
+}
+
+/// The threshold fits: pooled, per scene configuration, per participant (x units; the knob
+/// value at the threshold; the reason where a fit is degenerate).
+fn render_threshold(out: &mut String, analysis: &crate::threshold::report::ThresholdAnalysis) {
+    let _ = writeln!(
+        out,
+        "threshold ({} on {}, guess {}; 95 % intervals from {} parametric bootstrap replicates)",
+        analysis.function, analysis.scale, analysis.guess, analysis.bootstrap
+    );
+    let _ = writeln!(
+        out,
+        "{:<24}  {:>6}  {:>9}  {:>19}  {:>7}  {:>6}  {:>10}  {:>6}",
+        "fit", "trials", "threshold", "interval", "slope", "lapse", "knob there", "p_fit"
+    );
+    let rows = std::iter::once(("pooled".to_string(), &analysis.pooled))
+        .chain(analysis.scenes.iter().map(|fit| (format!("scene {}", fit.scene.as_deref().unwrap_or("")), fit)))
+        .chain(
+            analysis
+                .participants
+                .iter()
+                .map(|fit| (format!("participant {}", fit.participant.as_deref().unwrap_or("")), fit)),
+        );
+    for (name, fit) in rows {
+        let name: String = name.chars().take(24).collect();
+        match (fit.threshold, fit.degenerate) {
+            (Some(threshold), _) => {
+                let interval = fit
+                    .threshold_ci
+                    .map(|[low, high]| format!("[{}, {}]", fixed(low, 3), fixed(high, 3)))
+                    .unwrap_or_else(|| "-".to_string());
+                let _ = writeln!(
+                    out,
+                    "{:<24}  {:>6}  {:>9}  {:>19}  {:>7}  {:>6}  {:>10}  {:>6}",
+                    name,
+                    fit.trials,
+                    fixed(threshold, 3),
+                    interval,
+                    fit.slope.map_or("-".to_string(), |slope| fixed(slope, 2)),
+                    fit.lapse.map_or("-".to_string(), |lapse| fixed(lapse, 3)),
+                    fit.knob_at_threshold.map_or("-".to_string(), |knob| fixed(knob, 1)),
+                    fit.p_fit.map_or("-".to_string(), |p| fixed(p, 3)),
+                );
+                if let Some(note) = fit.note {
+                    let _ = writeln!(out, "{:<24}  note: {note}", "");
+                }
+            }
+            (None, reason) => {
+                let _ = writeln!(out, "{:<24}  {:>6}  no fit: {}", name, fit.trials, reason.unwrap_or("not estimable"));
+            }
+        }
+    }
 }
 
 fn render_detection(out: &mut String, detection: &crate::detection::Detection) {

@@ -9,6 +9,7 @@
 
 pub mod fit;
 pub mod quest;
+pub mod report;
 
 pub use quest::{IntensityRule, Params, PsychFunction, QuestPlus, QuestPlusConfig, StimScale, StimulusDomain};
 

@@ -1,0 +1,344 @@
+//! The analysis of a threshold study's export (`kind = "threshold"`, issue 48 item 3): the
+//! trials CSV with the columns `participant,scene,level,intensity,x,correct` (`correct` is
+//! `true`/`false`) and the model's `function,scale,guess`, the same on every row. The
+//! psychometric function is fitted by maximum likelihood ([`super::fit`]) per participant, per
+//! scene configuration and pooled, each with its bootstrap interval, deviance and goodness of
+//! fit; a degenerate set of answers (all correct, all wrong, one level) is reported with its
+//! reason and never fails the run. The threshold is given in x units (as the export's `x`) and
+//! as the knob value there (`knob_at_threshold`: log10 of the knob interpolated linearly in x
+//! between the levels shown, so it is exact for `inverse-knob` and `knob` intensities on a log
+//! scale; absent outside the levels). The render time at the threshold needs the stimulus
+//! records, which the export does not carry: `render_ms_at_threshold` is not computed yet.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::fit::{FitOptions, Model, aggregate, fit};
+use super::{PsychFunction, StimScale};
+use crate::error::{AnalysisError, Result};
+
+/// The columns that make a trials CSV a threshold export.
+pub const COLUMNS: [&str; 6] = ["participant", "scene", "level", "intensity", "x", "correct"];
+
+/// Bootstrap replicates per fit unless `--bootstrap` says otherwise.
+pub const DEFAULT_BOOTSTRAP: usize = 200;
+
+/// Whether a trials CSV's header has every threshold column.
+pub fn is_threshold_csv(text: &str) -> bool {
+    let header = text.lines().next().unwrap_or("");
+    let columns: Vec<&str> = header.split(',').map(|c| c.trim().trim_matches('"')).collect();
+    COLUMNS.iter().all(|column| columns.contains(column))
+}
+
+/// The model given on the command line instead of the export's (`--function`, `--scale` as
+/// log10|dB|linear, `--guess`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Overrides {
+    pub function: Option<PsychFunction>,
+    pub scale: Option<StimScale>,
+    pub guess: Option<f64>,
+}
+
+/// One fit: of a participant, a scene configuration, or all trials.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ThresholdFit {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub participant: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
+    pub trials: u32,
+    pub correct: u32,
+    /// The fitted parameters (x units); absent when the fit is degenerate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slope: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lapse: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold_ci: Option<[f64; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slope_ci: Option<[f64; 2]>,
+    /// The knob value at the threshold (absent outside the levels shown).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub knob_at_threshold: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deviance: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p_fit: Option<f64>,
+    /// Why there is no fit (all correct, all wrong, one level, …).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub degenerate: Option<&'static str>,
+    /// A remark on the fit (e.g. the slope at its search bound).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<&'static str>,
+}
+
+/// The JSON section `threshold`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ThresholdAnalysis {
+    pub function: PsychFunction,
+    pub scale: StimScale,
+    pub guess: f64,
+    pub bootstrap: usize,
+    pub pooled: ThresholdFit,
+    pub participants: Vec<ThresholdFit>,
+    pub scenes: Vec<ThresholdFit>,
+}
+
+struct Row {
+    participant: String,
+    scene: String,
+    level: f64,
+    x: f64,
+    correct: bool,
+}
+
+/// Reads the threshold columns of `text` (pilots and excluded participants left out unless
+/// kept) and fits every group.
+pub fn analyze_threshold_csv(
+    text: &str,
+    name: &str,
+    overrides: Overrides,
+    include_pilots: bool,
+    include_excluded: bool,
+    bootstrap: usize,
+    seed: u64,
+) -> Result<ThresholdAnalysis> {
+    let bad = |line: usize, message: String| AnalysisError::MalformedCsv {
+        source_name: name.to_string(),
+        line: line as u64,
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new().flexible(false).from_reader(text.as_bytes());
+    let headers = reader.headers().map_err(|error| bad(1, format!("cannot read the header: {error}")))?.clone();
+    let column = |name: &str| headers.iter().position(|header| header == name);
+    let required = |wanted: &str| {
+        column(wanted).ok_or_else(|| AnalysisError::MissingColumn {
+            source_name: name.to_string(),
+            column: wanted.to_string(),
+            found: headers.iter().collect::<Vec<_>>().join(", "),
+        })
+    };
+    let [participant, scene, level, x, correct] = ["participant", "scene", "level", "x", "correct"].map(required);
+    let (participant, scene, level, x, correct) = (participant?, scene?, level?, x?, correct?);
+    let (function_column, scale_column, guess_column) = (column("function"), column("scale"), column("guess"));
+    let (pilot_column, excluded_column) = (column("pilot"), column("excluded"));
+    let mut rows = Vec::new();
+    let mut model: Option<(String, String, String)> = None;
+    for (index, record) in reader.records().enumerate() {
+        let line = index + 2;
+        let record = record.map_err(|error| bad(line, format!("cannot read the row: {error}")))?;
+        let cell = |column: usize| record.get(column).unwrap_or("").trim();
+        let flag = |column: Option<usize>| column.is_some_and(|column| cell(column) == "true");
+        if (flag(pilot_column) && !include_pilots) || (flag(excluded_column) && !include_excluded) {
+            continue;
+        }
+        if cell(x).is_empty() {
+            continue; // not a threshold trial
+        }
+        let number = |column: usize, what: &str| -> Result<f64> {
+            cell(column)
+                .parse::<f64>()
+                .ok()
+                .filter(|value| value.is_finite())
+                .ok_or_else(|| bad(line, format!("`{what}` must be a finite number, found \"{}\"", cell(column))))
+        };
+        let answer = match cell(correct) {
+            "true" => true,
+            "false" => false,
+            other => return Err(bad(line, format!("`correct` must be true or false, found \"{other}\""))),
+        };
+        let this_model = (
+            function_column.map(|c| cell(c).to_string()).unwrap_or_default(),
+            scale_column.map(|c| cell(c).to_string()).unwrap_or_default(),
+            guess_column.map(|c| cell(c).to_string()).unwrap_or_default(),
+        );
+        match &model {
+            None => model = Some(this_model),
+            Some(first) if *first != this_model => {
+                return Err(bad(
+                    line,
+                    format!(
+                        "`function,scale,guess` must be the same on every row: {},{},{} here, {},{},{} on the first",
+                        this_model.0, this_model.1, this_model.2, first.0, first.1, first.2
+                    ),
+                ));
+            }
+            Some(_) => {}
+        }
+        rows.push(Row {
+            participant: cell(participant).to_string(),
+            scene: cell(scene).to_string(),
+            level: number(level, "level")?,
+            x: number(x, "x")?,
+            correct: answer,
+        });
+    }
+    let (function_text, scale_text, guess_text) = model.unwrap_or_default();
+    let from_file = |what: &str, value: &str, flag: &str| AnalysisError::BadOption {
+        option: flag.to_string(),
+        message: format!("{name}: the export's `{what}` is \"{value}\"; give {flag} to say which to fit"),
+    };
+    let function = match overrides.function {
+        Some(function) => function,
+        None => function_text.parse().map_err(|_| from_file("function", &function_text, "--function"))?,
+    };
+    let scale = match overrides.scale {
+        Some(scale) => scale,
+        None => scale_text.parse().map_err(|_| from_file("scale", &scale_text, "--scale"))?,
+    };
+    let guess = match overrides.guess {
+        Some(guess) => guess,
+        None => guess_text.parse::<f64>().map_err(|_| from_file("guess", &guess_text, "--guess"))?,
+    };
+    if !(0.0..1.0).contains(&guess) {
+        return Err(AnalysisError::BadOption {
+            option: "--guess".to_string(),
+            message: format!("the guess rate must be from 0 to below 1, found {guess}"),
+        });
+    }
+    let model = Model { function, scale, guess };
+    let options = FitOptions { bootstrap, seed, ..FitOptions::default() };
+    // the levels shown: x → log10(knob), for the knob value at the threshold
+    let mut levels: Vec<(f64, f64)> = rows.iter().map(|row| (row.x, row.level)).collect();
+    levels.sort_by(|a, b| a.0.total_cmp(&b.0));
+    levels.dedup_by(|a, b| a.0 == b.0);
+    let fit_of = |participant: Option<&str>, scene: Option<&str>, selected: Vec<&Row>| -> ThresholdFit {
+        let trials = selected.len() as u32;
+        let correct = selected.iter().filter(|row| row.correct).count() as u32;
+        let points = aggregate(selected.iter().map(|row| (row.x, row.correct)));
+        let mut entry = ThresholdFit {
+            participant: participant.map(str::to_string),
+            scene: scene.map(str::to_string),
+            trials,
+            correct,
+            threshold: None,
+            slope: None,
+            lapse: None,
+            threshold_ci: None,
+            slope_ci: None,
+            knob_at_threshold: None,
+            deviance: None,
+            p_fit: None,
+            degenerate: None,
+            note: None,
+        };
+        match fit(model, &points, &options) {
+            Ok(found) => {
+                entry.knob_at_threshold = knob_at(&levels, found.threshold);
+                entry.threshold = Some(found.threshold);
+                entry.slope = Some(found.slope);
+                entry.lapse = Some(found.lapse);
+                entry.threshold_ci = found.threshold_ci;
+                entry.slope_ci = found.slope_ci;
+                entry.deviance = Some(found.deviance);
+                entry.p_fit = found.p_fit;
+                entry.note = found.note;
+            }
+            Err(degenerate) => entry.degenerate = Some(degenerate.reason()),
+        }
+        entry
+    };
+    let mut by_participant: BTreeMap<&str, Vec<&Row>> = BTreeMap::new();
+    let mut by_scene: BTreeMap<&str, Vec<&Row>> = BTreeMap::new();
+    for row in &rows {
+        by_participant.entry(&row.participant).or_default().push(row);
+        by_scene.entry(&row.scene).or_default().push(row);
+    }
+    Ok(ThresholdAnalysis {
+        function,
+        scale,
+        guess,
+        bootstrap,
+        pooled: fit_of(None, None, rows.iter().collect()),
+        participants: by_participant.into_iter().map(|(id, rows)| fit_of(Some(id), None, rows)).collect(),
+        scenes: by_scene.into_iter().map(|(scene, rows)| fit_of(None, Some(scene), rows)).collect(),
+    })
+}
+
+/// The knob value at `x`: log10 of the knob interpolated linearly in x between the two levels
+/// around it (levels sorted by x); `None` outside the levels or for a knob value ≤ 0.
+fn knob_at(levels: &[(f64, f64)], x: f64) -> Option<f64> {
+    let at = levels.windows(2).find(|pair| pair[0].0 <= x && x <= pair[1].0)?;
+    let [(x0, k0), (x1, k1)] = [at[0], at[1]];
+    if k0 <= 0.0 || k1 <= 0.0 {
+        return None;
+    }
+    let t = if x1 > x0 { (x - x0) / (x1 - x0) } else { 0.0 };
+    Some(10f64.powf(k0.log10() + t * (k1.log10() - k0.log10())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An export of two participants on a 1…512 VPL grid (inverse-knob, log10: x = −log10
+    /// knob) answering by a known Weibull, one of them always right.
+    fn export() -> String {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut text =
+            String::from("participant,scene,level,intensity,x,correct,function,scale,guess,pilot,excluded\n");
+        let levels = [1.0f64, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0];
+        let (t, b, g) = (-1.5f64, 3.5f64, 0.5f64);
+        for participant in ["p1", "p2"] {
+            for trial in 0..200 {
+                let level = levels[trial % levels.len()];
+                let x = -level.log10();
+                let p = 1.0 - (1.0 - g) * (-(10f64.powf(b * (x - t)))).exp();
+                let correct = participant == "p2" || rng.random::<f64>() < p;
+                let scene = if trial % 2 == 0 { "survey-1" } else { "survey-2" };
+                text.push_str(&format!(
+                    "{participant},{scene},{level},{},{x},{correct},weibull,log10,0.5,false,false\n",
+                    1.0 / level
+                ));
+            }
+        }
+        text.push_str("pilot,survey-1,1,1,0,false,weibull,log10,0.5,true,false\n");
+        text
+    }
+
+    #[test]
+    fn a_threshold_export_is_fitted_pooled_per_participant_and_per_scene_and_a_perfect_participant_is_degenerate() {
+        let text = export();
+        assert!(is_threshold_csv(&text));
+        let analysis = analyze_threshold_csv(&text, "t.csv", Overrides::default(), false, false, 50, 1).unwrap();
+        assert_eq!(
+            (analysis.function, analysis.scale, analysis.guess),
+            (PsychFunction::Weibull, StimScale::Log10, 0.5)
+        );
+        assert_eq!(analysis.participants.len(), 2, "the pilot is left out");
+        let p1 = &analysis.participants[0];
+        let threshold = p1.threshold.unwrap();
+        assert!((threshold + 1.5).abs() < 0.3, "{p1:?}");
+        let knob = p1.knob_at_threshold.unwrap();
+        assert!((knob - 10f64.powf(-threshold)).abs() < 1e-9 * knob, "inverse-knob on log10 is exact: {knob}");
+        let [low, high] = p1.threshold_ci.unwrap();
+        assert!(low <= threshold && threshold <= high);
+        let p2 = &analysis.participants[1];
+        assert_eq!(p2.degenerate, Some(super::super::fit::Degenerate::AllCorrect.reason()));
+        assert!(p2.threshold.is_none());
+        assert_eq!(analysis.scenes.len(), 2);
+        assert_eq!(analysis.pooled.trials, 400);
+        // the JSON never holds NaN or infinity
+        let json = serde_json::to_string(&analysis).unwrap();
+        assert!(!json.contains("NaN") && !json.contains("inf"), "{json}");
+    }
+
+    #[test]
+    fn a_bad_cell_or_a_changing_model_is_one_sentence_naming_the_line() {
+        let text = export().replacen(",true,weibull", ",yes,weibull", 1);
+        let error = analyze_threshold_csv(&text, "t.csv", Overrides::default(), false, false, 0, 1).unwrap_err();
+        assert!(error.to_string().contains("`correct` must be true or false"), "{error}");
+        let text = export().replacen("weibull,log10,0.5,false,false\n", "weibull,dB,0.5,false,false\n", 2);
+        let error = analyze_threshold_csv(&text, "t.csv", Overrides::default(), false, false, 0, 1).unwrap_err();
+        assert!(error.to_string().contains("the same on every row"), "{error}");
+        let text = export().replace("weibull,log10", "gompertz,log10");
+        let error = analyze_threshold_csv(&text, "t.csv", Overrides::default(), false, false, 0, 1).unwrap_err();
+        assert!(error.to_string().contains("--function"), "{error}");
+        let overrides = Overrides { function: Some(PsychFunction::Logistic), ..Overrides::default() };
+        assert!(analyze_threshold_csv(&text, "t.csv", overrides, false, false, 0, 1).is_ok());
+    }
+}
