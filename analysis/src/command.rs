@@ -71,10 +71,12 @@ pub fn analyze_files(
         };
         return Ok(Printed { text, ..Printed::default() });
     }
-    if drawings.scatter && stimuli.is_none() {
+    let threshold_export = crate::threshold::report::is_threshold_csv(trials_csv);
+    if drawings.scatter && stimuli.is_none() && !threshold_export {
         return Err(refuse(
             "--plot-dir",
-            "it holds the metric scatter plots: give --stimuli with a stimulus metrics CSV".to_string(),
+            "it holds the metric scatter plots (or a threshold export's fits): give --stimuli with a stimulus metrics CSV"
+                .to_string(),
         ));
     }
     let report = analyze_named(trials_csv, trials_name, conditions, stimuli, options)?;
@@ -102,14 +104,19 @@ pub fn analyze_files(
             refuse("--effect-plot", "it needs a factor model: give --conditions with factor columns".to_string())
         })?);
     }
-    if drawings.scatter {
+    if drawings.scatter
+        && let Some(threshold) = &report.threshold
+    {
+        printed.scatter_plots.extend(threshold.plots());
+    }
+    if drawings.scatter && stimuli.is_some() {
         let metrics = report.metrics.as_ref().ok_or_else(|| {
             refuse(
                 "--plot-dir",
                 format!("{trials_name} has no preference trials to set the stimulus metrics beside: no scatter plots"),
             )
         })?;
-        printed.scatter_plots = metrics.scatter_plots();
+        printed.scatter_plots.extend(metrics.scatter_plots());
     }
     Ok(printed)
 }

@@ -14,8 +14,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::fit::{FitOptions, Model, aggregate, fit};
-use super::{PsychFunction, StimScale};
+use super::fit::{FitOptions, Model, Point, aggregate, fit};
+use super::{Params, PsychFunction, StimScale};
 use crate::error::{AnalysisError, Result};
 
 /// The columns that make a trials CSV a threshold export.
@@ -49,6 +49,8 @@ pub struct ThresholdFit {
     pub scene: Option<String>,
     pub trials: u32,
     pub correct: u32,
+    /// Trials (`n`) and correct answers (`k`) at each x shown.
+    pub points: Vec<Point>,
     /// The fitted parameters (x units); absent when the fit is degenerate.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub threshold: Option<f64>,
@@ -214,6 +216,7 @@ pub fn analyze_threshold_csv(
             scene: scene.map(str::to_string),
             trials,
             correct,
+            points: points.clone(),
             threshold: None,
             slope: None,
             lapse: None,
@@ -256,6 +259,80 @@ pub fn analyze_threshold_csv(
         participants: by_participant.into_iter().map(|(id, rows)| fit_of(Some(id), None, rows)).collect(),
         scenes: by_scene.into_iter().map(|(scene, rows)| fit_of(None, Some(scene), rows)).collect(),
     })
+}
+
+impl ThresholdAnalysis {
+    /// One SVG per fit (`threshold-pooled.svg`, `threshold-scene-<name>.svg`,
+    /// `threshold-participant-<id>.svg`): the proportion correct at each x with its 95 %
+    /// Clopper–Pearson interval, the fitted function and the threshold; a degenerate fit shows
+    /// its points and says why there is no curve.
+    pub fn plots(&self) -> Vec<(String, String)> {
+        let file = |kind: &str, name: &str| {
+            let safe: String =
+                name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
+            format!("threshold-{kind}-{safe}.svg")
+        };
+        let mut plots = vec![("threshold-pooled.svg".to_string(), self.plot(&self.pooled, "all participants"))];
+        for fit in &self.scenes {
+            let name = fit.scene.as_deref().unwrap_or("");
+            plots.push((file("scene", name), self.plot(fit, &format!("scene configuration {name}"))));
+        }
+        for fit in &self.participants {
+            let name = fit.participant.as_deref().unwrap_or("");
+            plots.push((file("participant", name), self.plot(fit, &format!("participant {name}"))));
+        }
+        plots
+    }
+
+    fn plot(&self, fit: &ThresholdFit, what: &str) -> String {
+        use crate::plot::{LinePlot, LineSeries, line_plot};
+        let observed: Vec<(f64, f64)> =
+            fit.points.iter().map(|point| (point.x, f64::from(point.k) / f64::from(point.n))).collect();
+        let intervals: Vec<[f64; 2]> = fit
+            .points
+            .iter()
+            .map(|point| crate::detection::clopper_pearson(u64::from(point.k), u64::from(point.n), 0.95))
+            .collect();
+        let mut series = vec![
+            LineSeries { name: "proportion correct".to_string(), points: observed },
+            LineSeries {
+                name: "95 % interval, lower".to_string(),
+                points: fit.points.iter().zip(&intervals).map(|(point, ci)| (point.x, ci[0])).collect(),
+            },
+            LineSeries {
+                name: "95 % interval, upper".to_string(),
+                points: fit.points.iter().zip(&intervals).map(|(point, ci)| (point.x, ci[1])).collect(),
+            },
+        ];
+        let title = match (fit.threshold, fit.degenerate) {
+            (Some(threshold), _) => {
+                let params = Params { threshold, slope: fit.slope.unwrap_or(1.0), lapse: fit.lapse.unwrap_or(0.0) };
+                let (low, high) = fit.points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(low, high), point| {
+                    (low.min(point.x), high.max(point.x))
+                });
+                let curve = (0..=80)
+                    .map(|step| low + (high - low) * f64::from(step) / 80.0)
+                    .map(|x| (x, self.function.prob(self.scale, x, params, self.guess)))
+                    .filter(|(_, p)| p.is_finite())
+                    .collect();
+                series.push(LineSeries { name: format!("{} fit", self.function), points: curve });
+                series.push(LineSeries {
+                    name: format!("threshold {}", crate::table::fixed(threshold, 3)),
+                    points: vec![(threshold, self.guess), (threshold, 1.0)],
+                });
+                format!("Threshold, {what}")
+            }
+            (None, reason) => format!("Threshold, {what}: no fit ({})", reason.unwrap_or("not estimable")),
+        };
+        line_plot(&LinePlot {
+            title,
+            x_label: format!("x ({} of the intensity)", self.scale),
+            y_label: "proportion correct".to_string(),
+            x_log: false,
+            y_log: false,
+            series,
+        })
+    }
 }
 
 /// The knob value at `x`: log10 of the knob interpolated linearly in x between the two levels
@@ -322,6 +399,13 @@ mod tests {
         assert!(p2.threshold.is_none());
         assert_eq!(analysis.scenes.len(), 2);
         assert_eq!(analysis.pooled.trials, 400);
+        // one plot per fit; the degenerate participant's says why it has no curve
+        let plots = analysis.plots();
+        assert_eq!(plots.len(), 1 + 2 + 2);
+        assert_eq!(plots[0].0, "threshold-pooled.svg");
+        let p2_plot = &plots.iter().find(|(name, _)| name == "threshold-participant-p2.svg").unwrap().1;
+        assert!(p2_plot.contains("no fit") && !p2_plot.contains("weibull fit"), "{p2_plot}");
+        assert!(plots[0].1.contains("weibull fit") && plots[0].1.contains("<svg"));
         // the JSON never holds NaN or infinity
         let json = serde_json::to_string(&analysis).unwrap();
         assert!(!json.contains("NaN") && !json.contains("inf"), "{json}");
