@@ -317,7 +317,7 @@ impl ThresholdAnalysis {
                     .collect();
                 series.push(LineSeries { name: format!("{} fit", self.function), points: curve });
                 series.push(LineSeries {
-                    name: format!("threshold {}", crate::table::fixed(threshold, 3)),
+                    name: format!("threshold {threshold:.3}"),
                     points: vec![(threshold, self.guess), (threshold, 1.0)],
                 });
                 format!("Threshold, {what}")
