@@ -29,8 +29,7 @@ pub struct Printed {
 
 /// A task CSV (lab tasks) has a `value` and a `condition` column and no `left`.
 pub fn is_task_csv(text: &str) -> bool {
-    let header = text.lines().next().unwrap_or("");
-    let columns: Vec<&str> = header.split(',').map(|c| c.trim().trim_matches('"')).collect();
+    let columns = crate::data::header_columns(text);
     columns.contains(&"value") && columns.contains(&"condition") && !columns.contains(&"left")
 }
 

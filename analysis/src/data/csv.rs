@@ -348,6 +348,13 @@ impl ShortNames {
     }
 }
 
+/// The column names of a CSV text's header line (trimmed, quotes removed), to tell one kind of
+/// file from another before it is read (a task CSV, a threshold export).
+pub fn header_columns(text: &str) -> Vec<&str> {
+    let header = text.lines().next().unwrap_or("");
+    header.split(',').map(|c| c.trim().trim_matches('"')).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

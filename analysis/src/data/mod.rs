@@ -33,6 +33,7 @@ mod csv;
 mod trials;
 
 pub use conditions::{ConditionTable, parse_conditions};
+pub use csv::header_columns;
 pub(crate) use csv::{csv_error, header_index, reader};
 pub use trials::{LeftOut, ParsedTrials, TrialScenes, TrialsOptions, parse_trials, parse_trials_with};
 

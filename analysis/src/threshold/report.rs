@@ -26,8 +26,7 @@ pub const DEFAULT_BOOTSTRAP: usize = 200;
 
 /// Whether a trials CSV's header has every threshold column.
 pub fn is_threshold_csv(text: &str) -> bool {
-    let header = text.lines().next().unwrap_or("");
-    let columns: Vec<&str> = header.split(',').map(|c| c.trim().trim_matches('"')).collect();
+    let columns = crate::data::header_columns(text);
     COLUMNS.iter().all(|column| columns.contains(column))
 }
 
