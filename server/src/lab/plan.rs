@@ -178,25 +178,18 @@ mod tests {
     use mrstudy_renderer::gpu::GiLevel;
     use std::path::Path;
 
+    /// The test lab study with the thesis's three conditions, two trials per condition, one
+    /// practice trial and all three tasks.
     fn study() -> TaskStudy {
-        let text = r#"
-slug = "lab"
-title = "Lab"
-kind = "task"
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[design]
-trials_per_condition = 2
-practice = 1
-[[tasks]]
-kind = "distance"
-[[tasks]]
-kind = "placement"
-[[tasks]]
-kind = "contact"
-"#;
-        crate::study::task::parse(text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
+        let text = crate::lab_study_fixture::LabStudy {
+            conditions: &["none", "shadows", "gi"],
+            trials_per_condition: 2,
+            practice: 1,
+            tasks: &["kind = \"distance\"", "kind = \"placement\"", "kind = \"contact\""],
+            ..Default::default()
+        }
+        .toml();
+        crate::study::task::parse(&text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
     }
 
     const LAYOUT: Layout = Layout { real_centre: [0.0, 0.025, 0.0], half_height: 0.025, reach: [0.3; 4] };
