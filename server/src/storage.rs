@@ -598,21 +598,7 @@ async fn bound_wal(pool: &Pool, wal: &Path) {
     }
     // Wait for readers briefly, not for the connection's busy timeout: participants' next
     // batch waits meanwhile; if readers still hold the old WAL, the next batch tries again.
-    let checkpoint = async {
-        let mut connection = pool.acquire().await?;
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
-            .fetch_one(&mut *connection)
-            .await
-            .map(|row| row.try_get::<i64, _>(0));
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        busy?
-    };
-    match checkpoint.await {
+    match try_truncate_wal(pool).await {
         Ok(0) => {}
         Ok(_) if size > WAL_WARN_BYTES => {
             tracing::warn!(megabytes = size >> 20, "the WAL has grown: readers keep it busy; will retry")
@@ -816,24 +802,31 @@ const WAL_TRUNCATE_TRIES: usize = 200;
 /// connection back, so participants' batches go on between tries.
 async fn truncate_wal_between_batches(write: &Pool) -> Result<(), StorageError> {
     for _ in 0..WAL_TRUNCATE_TRIES {
-        let mut connection = write.acquire().await?;
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
-            .fetch_one(&mut *connection)
-            .await
-            .and_then(|row| row.try_get::<i64, _>(0));
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        drop(connection);
-        if busy? == 0 {
+        if try_truncate_wal(write).await? == 0 {
             return Ok(());
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
+}
+
+/// One try of `PRAGMA wal_checkpoint(TRUNCATE)` on a connection of `pool`, waiting
+/// [`WAL_TRUNCATE_WAIT`] at most for readers of the old WAL (the connection's busy timeout is
+/// set back afterwards, also when the checkpoint failed): its `busy` column, 0 when the WAL was
+/// emptied. The connection goes back to the pool before this returns.
+async fn try_truncate_wal(pool: &Pool) -> Result<i64, sqlx::Error> {
+    let mut connection = pool.acquire().await?;
+    sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
+        .execute(&mut *connection)
+        .await?;
+    let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
+        .fetch_one(&mut *connection)
+        .await
+        .and_then(|row| row.try_get::<i64, _>(0));
+    sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
+        .execute(&mut *connection)
+        .await?;
+    busy
 }
 
 /// An admin session's row: started (with its expiry, the expired rows deleted) or ended.

@@ -34,6 +34,7 @@ use sqlx::Row;
 use crate::storage::Pool;
 
 use crate::AppState;
+use crate::auth::Admin;
 use crate::error::{AppError, AppResult, Json};
 use crate::study::task::TaskKind;
 
@@ -267,26 +268,12 @@ pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     Ok(String::from_utf8(writer.into_inner().expect("memory")).expect("UTF-8"))
 }
 
-async fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    crate::auth::authorize_admin(state, headers).await
-}
-
-async fn task_csv_download(
-    State(state): State<AppState>,
-    Path(slug): Path<String>,
-    headers: HeaderMap,
-) -> AppResult<Response> {
-    admin(&state, &headers).await?;
+async fn task_csv_download(State(state): State<AppState>, Path(slug): Path<String>, _: Admin) -> AppResult<Response> {
     let csv = task_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
 
-async fn trials_csv_download(
-    State(state): State<AppState>,
-    Path(slug): Path<String>,
-    headers: HeaderMap,
-) -> AppResult<Response> {
-    admin(&state, &headers).await?;
+async fn trials_csv_download(State(state): State<AppState>, Path(slug): Path<String>, _: Admin) -> AppResult<Response> {
     let csv = trials_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
 }
@@ -521,9 +508,8 @@ pub fn counts(participants: &[ParticipantProgress]) -> LabCounts {
 async fn analysis_json(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Json<LabReport>> {
-    admin(&state, &headers).await?;
     Ok(Json(report(&state, &slug).await?))
 }
 
@@ -601,7 +587,7 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
 }
 
 async fn admin_lab_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
-    if let Err(error) = admin(&state, &headers).await {
+    if let Err(error) = crate::auth::authorize_admin(&state, &headers).await {
         return crate::pages::message_page(
             error.status(),
             "Admin token needed",

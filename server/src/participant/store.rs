@@ -10,12 +10,46 @@ use sqlx::Row;
 
 use crate::storage::Connection;
 
+use crate::error::{AppError, AppResult};
 use crate::prepared::{PreparedStudy, ScheduledTrial};
 use crate::schedule;
 #[cfg(doc)]
 use crate::storage::Storage;
 use crate::storage::{NOW, OptionalF64, WriteJob};
 use crate::trial::{Choice, ResponseOutcome, ResponseRefused, Side};
+
+/// Where a participant stands in their schedule, as stored.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Position {
+    /// The seed their schedule (and a threshold study's levels) come from.
+    pub seed: u64,
+    /// Trials in their schedule.
+    pub trials: i64,
+    /// Trials they answered.
+    pub answered: i64,
+}
+
+impl Position {
+    /// The participant's position; a database error becomes `internal(error)`, a participant
+    /// not found an internal error saying so.
+    pub(crate) async fn read(
+        read: &crate::storage::Pool,
+        participant: &str,
+        internal: fn(sqlx::Error) -> AppError,
+    ) -> AppResult<Position> {
+        let row = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
+            .bind(participant)
+            .fetch_optional(read)
+            .await
+            .map_err(internal)?
+            .ok_or_else(|| AppError::Internal(format!("participant {participant} is gone")))?;
+        Ok(Position {
+            seed: row.try_get::<i64, _>("seed").map_err(internal)? as u64,
+            trials: row.try_get("trials").map_err(internal)?,
+            answered: row.try_get("answered").map_err(internal)?,
+        })
+    }
+}
 
 /// A new response as received.
 #[derive(Debug, Clone)]
