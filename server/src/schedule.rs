@@ -33,31 +33,15 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
 use crate::study::{SceneDraw, Study};
+// Where the schedule's trials are defined; named here too, as the schedule's output, for the
+// designs built on it (simulate, threshold).
+pub use crate::trial::{PlannedKind, PlannedTrial};
 
 pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 
 /// Version of the scheduling algorithm, stored with each participant. Version 2 changed the
 /// detection designs only ([`plan_detection`]); other designs are scheduled as in version 1.
 pub const SCHEDULE_VERSION: i64 = 2;
-
-/// One scheduled trial, before stimuli are attached.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct PlannedTrial {
-    pub kind: PlannedKind,
-    pub left_scene: usize,
-    pub right_scene: usize,
-    /// The sensor-noise realisation of the scene configuration shown (both sides): 0 except in
-    /// a detection design with `realisations` > 1.
-    pub realisation: usize,
-}
-
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PlannedKind {
-    /// Condition indices shown left and right.
-    Pair { left: usize, right: usize },
-    /// Catch trial `index`; `better_left` says on which side the better image is.
-    Catch { index: usize, better_left: bool },
-}
 
 struct Stream(ChaCha8Rng);
 

@@ -37,6 +37,8 @@ use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
 use sqlx::{AnyConnection, AnyPool, ConnectOptions, Executor, Row};
 use tokio::sync::{mpsc, oneshot};
 
+use crate::trial::TrialRow;
+
 /// A connection of either database (what a [`WriteJob`] runs on).
 pub type Connection = AnyConnection;
 /// A pool of either database's connections.
@@ -517,15 +519,6 @@ pub struct ParticipantRow {
     pub completion_code: String,
     pub completed: bool,
     pub url_params: String,
-}
-
-#[derive(Debug, Clone)]
-pub struct TrialRow {
-    pub trial: i64,
-    pub left_stimulus: String,
-    pub right_stimulus: String,
-    /// Whether the trial has been served (its `shown_at` is set).
-    pub shown: bool,
 }
 
 /// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or

@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::williams;
 use crate::study::task::{Counterbalance, Directions, TaskKind, TaskStudy};
+use crate::trial::PlannedTaskTrial;
 
 /// Version of the task scheduling algorithm, stored with each participant.
 pub const TASK_SCHEDULE_VERSION: i64 = 1;
@@ -53,22 +54,6 @@ impl Layout {
 
 /// Draws per position before giving up and clamping the last draw into reach.
 pub const MAX_DRAWS: usize = 1000;
-
-/// One planned trial.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PlannedTaskTrial {
-    /// 1-based position in the schedule.
-    pub trial: u32,
-    pub task: String,
-    pub kind: TaskKind,
-    pub condition: Condition,
-    pub practice: bool,
-    /// The virtual cube's centre when the trial starts (metres).
-    pub start: [f64; 3],
-    /// Where the virtual cube's centre should end (`placement`, `contact`); for `distance` the
-    /// cube does not move and this is its position.
-    pub target: [f64; 3],
-}
 
 /// The condition order (indices into the study's conditions) of the participant in this
 /// counterbalancing slot (the participant's `slot`, see [`super::store`]).

@@ -53,12 +53,12 @@ use serde_json::{Value, json};
 use tokio::sync::oneshot;
 
 use super::live::{Frame, FrameJob, SessionRenderState};
-use super::plan::PlannedTaskTrial;
-use super::store::{self, TaskRefused, TaskWrite, TaskWritten, TrialResult};
+use super::store::{self, TaskRefused, TaskWrite, TaskWritten};
 use super::{Lab, LabStudy};
 use crate::AppState;
 use crate::error::AppError;
 use crate::study::task::TaskKind;
+use crate::trial::{PlannedTaskTrial, TrialResult};
 
 /// Largest text message accepted from a client, in bytes.
 pub const MAX_MESSAGE_BYTES: usize = 4096;

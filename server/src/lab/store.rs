@@ -20,9 +20,10 @@ use sqlx::Row;
 
 use crate::storage::Connection;
 
-use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
+use super::plan::{self, Layout, TASK_SCHEDULE_VERSION};
 use crate::storage::{NOW, OptionalF64, Storage, StudyRecord, WriteJob};
 use crate::study::task::TaskStudy;
+use crate::trial::{PlannedTaskTrial, TrialResult};
 
 /// A participant to create.
 pub struct NewTaskParticipant {
@@ -46,42 +47,6 @@ pub use crate::storage::iso;
 fn abandon_cutoff(minutes: f64) -> String {
     let ago = std::time::Duration::try_from_secs_f64(minutes * 60.0).unwrap_or(std::time::Duration::ZERO);
     iso(std::time::SystemTime::now().checked_sub(ago).unwrap_or(std::time::UNIX_EPOCH))
-}
-
-/// The result of one trial, as measured by the session.
-#[derive(Debug, Clone)]
-pub struct TrialResult {
-    pub participant: String,
-    pub trial: u32,
-    pub answer_cm: Option<f64>,
-    pub final_position: Option<[f64; 3]>,
-    pub error_cm: f64,
-    pub signed_error_cm: Option<f64>,
-    /// Signed per-axis error (x, y, z) in cm.
-    pub error_axes_cm: [f64; 3],
-    pub completion_ms: f64,
-    /// JSON array.
-    pub key_log: String,
-    pub frames: u32,
-    pub frame_ms_mean: Option<f64>,
-    pub frame_ms_max: Option<f64>,
-    /// Frames the page reported shown.
-    pub frames_shown: u32,
-    /// Per frame, request → sent (rendering, queueing, pacing), mean over the trial, ms.
-    pub shown_frame_ms_mean: Option<f64>,
-    /// The frame time frames were paced to (`pace = "equal"`), ms.
-    pub paced_ms: Option<f64>,
-    /// Frames that reached the participant more than [`super::session::LATE_TOLERANCE`] later
-    /// than the pace (0 when not paced).
-    pub frames_late: u32,
-    /// When the page reported the trial's first frame shown (UTC, ISO 8601 with ms).
-    pub shown_at: String,
-    pub latency_ms_mean: Option<f64>,
-    pub latency_ms_p95: Option<f64>,
-    pub smoothing: bool,
-    pub adapter: String,
-    /// When the trial's first frame was sent (UTC, ISO 8601 with ms).
-    pub started_at: String,
 }
 
 pub enum TaskWrite {

@@ -24,9 +24,10 @@ use tokio::sync::Mutex;
 use super::store::{Position, insert_trial};
 use crate::AppState;
 use crate::error::{AppError, AppResult};
-use crate::prepared::{PreparedStudy, ScheduledTrial};
+use crate::prepared::PreparedStudy;
 use crate::schedule::{self, ActiveHistory, Posterior};
 use crate::storage::WriteJob;
+use crate::trial::ScheduledTrial;
 
 /// One active study's shared state.
 #[derive(Debug)]

@@ -11,12 +11,12 @@ use sqlx::Row;
 use crate::storage::Connection;
 
 use crate::error::{AppError, AppResult};
-use crate::prepared::{PreparedStudy, ScheduledTrial};
+use crate::prepared::PreparedStudy;
 use crate::schedule;
 #[cfg(doc)]
 use crate::storage::Storage;
 use crate::storage::{NOW, OptionalF64, WriteJob};
-use crate::trial::{Choice, ResponseOutcome, ResponseRefused, Side};
+use crate::trial::{Choice, ResponseOutcome, ResponseRefused, ScheduledTrial, Side};
 
 /// Where a participant stands in their schedule, as stored.
 #[derive(Debug, Clone, Copy)]
