@@ -37,8 +37,6 @@ use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
 use sqlx::{AnyConnection, AnyPool, ConnectOptions, Executor, Row};
 use tokio::sync::{mpsc, oneshot};
 
-use crate::trial::TrialRow;
-
 /// A connection of either database (what a [`WriteJob`] runs on).
 pub type Connection = AnyConnection;
 /// A pool of either database's connections.
@@ -420,105 +418,10 @@ impl Storage {
             .await?;
         Ok(open == Some(1))
     }
-
-    pub async fn participant(&self, id: &str) -> Result<Option<ParticipantRow>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT id, study, token_sha256, trials, answered, completion_code, completed_at, url_params
-             FROM participants WHERE id = $1",
-        )
-        .bind(id)
-        .fetch_optional(&self.read)
-        .await?;
-        row.map(|row| {
-            Ok(ParticipantRow {
-                id: row.try_get("id")?,
-                study: row.try_get("study")?,
-                token_sha256: row.try_get("token_sha256")?,
-                trials: row.try_get("trials")?,
-                answered: row.try_get("answered")?,
-                completion_code: row.try_get("completion_code")?,
-                completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
-                url_params: row.try_get("url_params")?,
-            })
-        })
-        .transpose()
-    }
-
-    /// The participant with its next unanswered trial and the one after it (for preloading), in
-    /// one query.
-    pub async fn participant_with_next(
-        &self,
-        id: &str,
-    ) -> Result<Option<(ParticipantRow, Vec<TrialRow>)>, sqlx::Error> {
-        let rows = sqlx::query(
-            "SELECT p.id, p.study, p.token_sha256, p.trials, p.answered, p.completion_code, p.completed_at,
-                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus, t.shown_at
-             FROM participants p
-             LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
-             WHERE p.id = $1 ORDER BY t.trial",
-        )
-        .bind(id)
-        .fetch_all(&self.read)
-        .await?;
-        let Some(first) = rows.first() else { return Ok(None) };
-        let participant = ParticipantRow {
-            id: first.try_get("id")?,
-            study: first.try_get("study")?,
-            token_sha256: first.try_get("token_sha256")?,
-            trials: first.try_get("trials")?,
-            answered: first.try_get("answered")?,
-            completion_code: first.try_get("completion_code")?,
-            completed: first.try_get::<Option<String>, _>("completed_at")?.is_some(),
-            url_params: first.try_get("url_params")?,
-        };
-        let mut trials = Vec::new();
-        for row in &rows {
-            if let Some(trial) = row.try_get::<Option<i64>, _>("trial")? {
-                trials.push(TrialRow {
-                    trial,
-                    left_stimulus: row.try_get("left_stimulus")?,
-                    right_stimulus: row.try_get("right_stimulus")?,
-                    shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
-                });
-            }
-        }
-        Ok(Some((participant, trials)))
-    }
-
-    pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT trial, left_stimulus, right_stimulus, shown_at FROM trials WHERE participant = $1 AND trial = $2",
-        )
-        .bind(participant)
-        .bind(trial)
-        .fetch_optional(&self.read)
-        .await?;
-        row.map(|row| {
-            Ok(TrialRow {
-                trial: row.try_get("trial")?,
-                left_stimulus: row.try_get("left_stimulus")?,
-                right_stimulus: row.try_get("right_stimulus")?,
-                shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
-            })
-        })
-        .transpose()
-    }
 }
 
 fn writer_gone() -> StorageError {
     StorageError::WriterStopped
-}
-
-#[derive(Debug, Clone)]
-pub struct ParticipantRow {
-    pub id: String,
-    pub study: String,
-    pub token_sha256: Vec<u8>,
-    pub trials: i64,
-    pub answered: i64,
-    pub completion_code: String,
-    pub completed: bool,
-    pub url_params: String,
 }
 
 /// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or

@@ -31,6 +31,7 @@ use axum::routing::get;
 use mrstudy_analysis::task::{TaskAnalysis, analyze_task_csv};
 use sqlx::Row;
 
+use crate::participant::model::ParticipantProgress;
 use crate::storage::Pool;
 
 use crate::AppState;
@@ -327,34 +328,6 @@ pub struct LabCounts {
     pub excluded: i64,
     /// Real participants who did not keep their pace (see [`ParticipantProgress::pace_kept`]).
     pub pace_not_kept: i64,
-}
-
-#[derive(serde::Serialize)]
-pub struct ParticipantProgress {
-    pub participant: String,
-    pub label: String,
-    pub ordinal: i64,
-    /// Counterbalancing slot (the row of the design the condition order comes from).
-    pub slot: i64,
-    pub condition_order: String,
-    pub answered: i64,
-    pub trials: i64,
-    pub completed: bool,
-    /// The slot was given to another participant after `abandon_after_minutes` without activity.
-    pub abandoned: bool,
-    /// Joined through a preview link.
-    pub pilot: bool,
-    pub excluded: bool,
-    pub exclusion_reason: Option<String>,
-    /// The frame time this participant's frames are held to (`pace = "equal"`), ms.
-    pub pace_ms: Option<f64>,
-    /// Frames of answered trials, and those that reached the participant late (more than
-    /// `session::LATE_TOLERANCE` after the pace).
-    pub frames: i64,
-    pub frames_late: i64,
-    /// Whether at most `session::LATE_SHARE` of the frames were late; None when not paced or
-    /// no frame yet.
-    pub pace_kept: Option<bool>,
 }
 
 /// Whether a participant kept their pace: None when not paced or without frames.

@@ -14,32 +14,15 @@
 //! that participant is marked abandoned and can no longer resume or answer. Otherwise the new
 //! participant takes the next unused slot. `ordinal` stays unique, in order of joining.
 
-use std::sync::Arc;
-
 use sqlx::Row;
 
 use crate::storage::Connection;
 
 use super::plan::{self, Layout, TASK_SCHEDULE_VERSION};
+use crate::participant::model::{NewTaskParticipant, TaskParticipantRow};
 use crate::storage::{NOW, OptionalF64, Storage, StudyRecord, WriteJob};
 use crate::study::task::TaskStudy;
 use crate::trial::{PlannedTaskTrial, TrialResult};
-
-/// A participant to create.
-pub struct NewTaskParticipant {
-    pub study: Arc<TaskStudy>,
-    pub layout: Layout,
-    pub id: String,
-    pub label: String,
-    pub token_sha256: Vec<u8>,
-    /// Used when the study has no seed.
-    pub random_seed: u64,
-    /// Joined through an admin preview link.
-    pub pilot: bool,
-    /// The frame time every frame of this participant is held to (`pace = "equal"`), fixed now
-    /// for all its sessions; None when not paced.
-    pub pace_ms: Option<f64>,
-}
 
 pub use crate::storage::iso;
 
@@ -50,7 +33,11 @@ fn abandon_cutoff(minutes: f64) -> String {
 }
 
 pub enum TaskWrite {
-    Participant(NewTaskParticipant),
+    /// A new participant, their trials planned in the scene `layout` measured at start-up.
+    Participant {
+        participant: NewTaskParticipant,
+        layout: Layout,
+    },
     Result(TrialResult),
     /// A participant resumes: refused when their slot was given away, else their last activity
     /// is now.
@@ -116,7 +103,9 @@ async fn execute(
     write: &TaskWrite,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     match write {
-        TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
+        TaskWrite::Participant { participant, layout } => {
+            insert_participant(connection, participant, layout).await.map(Ok)
+        }
         TaskWrite::Result(result) => store_result(connection, result).await,
         TaskWrite::Resume { participant } => resume(connection, participant).await,
     }
@@ -149,6 +138,7 @@ async fn resume(
 async fn insert_participant(
     connection: &mut Connection,
     participant: &NewTaskParticipant,
+    layout: &Layout,
 ) -> Result<TaskWritten, sqlx::Error> {
     let study = &participant.study;
     let ordinal: i64 =
@@ -180,7 +170,7 @@ async fn insert_participant(
             (next, None)
         }
     };
-    let trials = plan::plan(study, &participant.layout, seed, slot as u64);
+    let trials = plan::plan(study, layout, seed, slot as u64);
     let order: Vec<String> =
         plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
     if let Some(previous) = &took_over {
@@ -347,24 +337,6 @@ pub async fn record_frame_times(
             .await?;
     }
     Ok(())
-}
-
-/// A stored task participant.
-#[derive(Debug, Clone)]
-pub struct TaskParticipantRow {
-    pub id: String,
-    pub study: String,
-    pub ordinal: i64,
-    pub slot: i64,
-    pub label: String,
-    pub token_sha256: Vec<u8>,
-    pub trials: i64,
-    pub answered: i64,
-    pub completed: bool,
-    pub abandoned: bool,
-    pub pilot: bool,
-    /// The participant's fixed pace (see [`NewTaskParticipant::pace_ms`]).
-    pub pace_ms: Option<f64>,
 }
 
 pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParticipantRow>, sqlx::Error> {
