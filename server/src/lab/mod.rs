@@ -1,7 +1,8 @@
 //! Lab task studies (`kind = "task"`, the thesis's Section 6.3 study in a browser): study files
 //! (`crate::study::task`), counterbalanced condition orders ([`williams`]), per-participant schedules
 //! ([`plan`]), the live renderer thread ([`live`]), the WebSocket session that runs trials
-//! ([`session`]), storage ([`store`]), and the export and admin page ([`results`]).
+//! ([`session`]) and who may open one ([`admission`]), storage ([`store`]), and the export and
+//! admin page ([`results`]).
 //!
 //! `serve` starts the lab when the studies directory has task studies: [`start`] opens the GPU
 //! on the renderer thread, prepares each study's scene and photograph, measures the frame time
@@ -11,6 +12,7 @@
 //! Without a GPU adapter the task studies are not served and one warning line says why; the
 //! other studies are served as usual.
 
+pub mod admission;
 pub mod join;
 pub mod live;
 pub mod plan;
@@ -223,11 +225,11 @@ pub struct Lab {
     pub studies: HashMap<String, Arc<LabStudy>>,
     /// Slugs in load order.
     pub order: Vec<String>,
-    /// Live WebSocket sessions, at most [`session::MAX_SESSIONS`].
+    /// Live WebSocket sessions, at most [`admission::MAX_SESSIONS`].
     pub sessions: Arc<std::sync::atomic::AtomicUsize>,
     /// A session without a message for this long is closed, in ms (see [`Lab::idle_timeout`]).
     idle_timeout_ms: std::sync::atomic::AtomicU64,
-    /// Open sessions per client address (see [`session::SessionSlot`]).
+    /// Open sessions per client address (see [`admission::SessionSlot`]).
     pub(crate) by_address: Mutex<HashMap<std::net::IpAddr, usize>>,
     /// At most this many open sessions per client address; 0: no cap.
     sessions_per_address: std::sync::atomic::AtomicUsize,

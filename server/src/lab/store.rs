@@ -19,6 +19,7 @@ use sqlx::Row;
 use crate::storage::Connection;
 
 use super::plan::{self, Layout, TASK_SCHEDULE_VERSION};
+use crate::error::AppError;
 use crate::participant::model::{NewTaskParticipant, TaskParticipantRow};
 use crate::storage::{NOW, OptionalF64, Storage, StudyRecord, WriteJob};
 use crate::study::task::TaskStudy;
@@ -388,4 +389,25 @@ pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<
             })
         })
         .collect()
+}
+
+/// A refused task write, as the experimenter reads it.
+impl From<TaskRefused> for AppError {
+    fn from(refused: TaskRefused) -> Self {
+        match refused {
+            TaskRefused::UnknownParticipant { id } => {
+                AppError::NotFound(format!("There is no task participant \"{id}\"."))
+            }
+            TaskRefused::Abandoned => AppError::Conflict(
+                "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.".into(),
+            ),
+            TaskRefused::NoTrial { trial, trials } => {
+                AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))
+            }
+            TaskRefused::AlreadyAnswered { trial } => AppError::Conflict(format!("Trial {trial} is already answered.")),
+            TaskRefused::NotNext { trial, next } => {
+                AppError::Conflict(format!("Trial {trial} is not the next trial; trial {next} is."))
+            }
+        }
+    }
 }
