@@ -69,16 +69,14 @@ fn value_text(value: Option<&Value>) -> String {
 }
 
 /// Which participants an export or analysis keeps besides the default ones.
-/// Also `mrstudy export`'s flags (the doc comments are their help).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, clap::Args)]
+/// Also `mrstudy export`'s flags (the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 pub struct Include {
     /// Keep pilot participants (joined through an admin preview link); left out by default.
     #[serde(default, rename = "include_pilots")]
-    #[arg(long = "include-pilots")]
     pub pilots: bool,
     /// Keep participants the researcher excluded; left out by default.
     #[serde(default, rename = "include_excluded")]
-    #[arg(long = "include-excluded")]
     pub excluded: bool,
 }
 

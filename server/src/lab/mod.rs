@@ -237,18 +237,16 @@ pub struct Lab {
     origins: std::sync::RwLock<Vec<String>>,
 }
 
-/// The lab's settings on the open internet: `mrstudy serve`'s flags (the doc comments are its
-/// help).
-#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
+/// The lab's settings on the open internet: `mrstudy serve`'s flags (the binary holds their
+/// clap definitions).
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LabConfig {
     /// An origin (`https://lab.example.org`, `http://192.0.2.7:8080`) whose pages may open lab
     /// sessions, besides the address serve listens on (and, on a loopback or wildcard address,
     /// `http://localhost:PORT` and `http://127.0.0.1:PORT`); repeat for more. A browser's
     /// WebSocket from any other origin is refused (403), whatever its Host.
-    #[arg(long = "origin", value_parser = origin_flag)]
     pub origins: Vec<String>,
     /// Open lab sessions per client address; 0: no cap.
-    #[arg(long = "lab-sessions-per-address", default_value_t = session::SESSIONS_PER_ADDRESS)]
     pub sessions_per_address: usize,
 }
 
@@ -268,13 +266,6 @@ pub fn normalise_origin(origin: &str) -> Option<String> {
         && !rest.contains(['/', '?', '#', '@'])
         && !rest.chars().any(|c| c.is_whitespace() || c.is_control());
     fine.then_some(origin)
-}
-
-/// `--origin`'s value, normalised ([`normalise_origin`]).
-fn origin_flag(text: &str) -> Result<String, String> {
-    normalise_origin(text).ok_or_else(|| {
-        format!("`{text}` is not an origin: expected http:// or https://, a host, an optional port, and nothing after")
-    })
 }
 
 impl LabConfig {
