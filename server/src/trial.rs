@@ -38,6 +38,24 @@ impl Choice {
     }
 }
 
+/// What a response answers: a paired comparison's [`Choice`], or a rating study's rating (1 to 5,
+/// 5 the best; `crate::rating`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Answer {
+    Choice(Choice),
+    Rating(u8),
+}
+
+impl Answer {
+    /// `responses.chosen` and `responses.rating`: exactly one is set.
+    pub fn columns(self) -> (Option<&'static str>, Option<i64>) {
+        match self {
+            Answer::Choice(choice) => (Some(choice.as_str()), None),
+            Answer::Rating(rating) => (None, Some(i64::from(rating))),
+        }
+    }
+}
+
 /// What storing a response did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ResponseOutcome {
