@@ -82,8 +82,9 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
     std::thread::sleep(Duration::from_millis(800));
     assert_eq!(answered(data_dir.path()), 1, "the double click's second click rated trial 2");
 
-    // trial 2: the key 3 held for half a second, with auto-repeat: one rating
-    hold_key(&driver, "3", 51, Duration::from_millis(500));
+    // trial 2: the key 3 held for a second and a half, with auto-repeat: one rating (the
+    // repeats go on long after trial 3 takes answers)
+    hold_key(&driver, "3", 51, Duration::from_millis(1500));
     gave.push(3);
     driver.wait_trial("3");
     std::thread::sleep(Duration::from_millis(800));
@@ -117,8 +118,11 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
 
     // every stored answer is one the participant gave, in order, and nothing else
     let stored = query(data_dir.path(), "SELECT trial, rating, COALESCE(chosen, '') FROM responses ORDER BY trial");
-    let expected: Vec<Vec<String>> =
-        gave.iter().enumerate().map(|(i, rating)| vec![(i + 1).to_string(), rating.to_string(), String::new()]).collect();
+    let expected: Vec<Vec<String>> = gave
+        .iter()
+        .enumerate()
+        .map(|(i, rating)| vec![(i + 1).to_string(), rating.to_string(), String::new()])
+        .collect();
     assert_eq!(stored, expected, "stored ratings against what the participant did");
 
     // the export: one row per rating, the catch trial's flagged with its expected rating

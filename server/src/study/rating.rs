@@ -319,17 +319,3 @@ fn check_catch(
     }
     Ok(catch)
 }
-
-/// Refuses a catch trial's image file that is not inside `folder` (as
-/// [`Study::check_images_inside`] does for the others).
-pub(crate) fn check_catch_inside(fail: Fail, rating: &RatingDesign, folder: &Path) -> Result<(), StudyError> {
-    for (index, catch) in rating.catch.iter().enumerate() {
-        if let CatchSource::Image { image, reference } = &catch.source {
-            super::checks::check_inside(fail, &format!("rating.catch[{index}].image"), image, folder)?;
-            if let Some(reference) = reference {
-                super::checks::check_inside(fail, &format!("rating.catch[{index}].reference"), reference, folder)?;
-            }
-        }
-    }
-    Ok(())
-}

@@ -165,3 +165,23 @@ impl RatingDesign {
             + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>()
     }
 }
+
+impl RatingDesign {
+    /// Refuses a catch trial's image file that is not inside `folder` once `..` and symbolic
+    /// links are followed (as `Study::check_images_inside` does for the others).
+    pub(crate) fn check_images_inside(
+        &self,
+        fail: super::checks::Fail,
+        folder: &std::path::Path,
+    ) -> Result<(), super::StudyError> {
+        for (index, catch) in self.catch.iter().enumerate() {
+            if let CatchSource::Image { image, reference } = &catch.source {
+                super::checks::check_inside(fail, &format!("rating.catch[{index}].image"), image, folder)?;
+                if let Some(reference) = reference {
+                    super::checks::check_inside(fail, &format!("rating.catch[{index}].reference"), reference, folder)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -174,3 +174,42 @@ fn each_bad_rating_key_is_one_sentence_naming_the_file_and_the_key() {
     );
     assert_eq!(load_study(&file).unwrap_err().key, "rating.catch[0].reference");
 }
+
+#[test]
+fn the_shipped_rating_example_renders_nothing_the_other_shipped_studies_do_not() {
+    use crate::stimuli::StimulusPlan;
+    let studies = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
+    let keys = |file: &str| -> std::collections::BTreeSet<String> {
+        let study = load_study(&studies.join(file)).unwrap();
+        let plan = StimulusPlan::of(&study).unwrap();
+        let mut keys: std::collections::BTreeSet<String> =
+            plan.stimuli().map(|stimulus| stimulus.key.clone()).collect();
+        for planned in plan.scenes.iter().flatten() {
+            keys.extend(planned.ground_truth_key.iter().cloned());
+        }
+        keys
+    };
+    let example = keys("rating-acr.toml");
+    let study = load_study(&studies.join("rating-acr.toml")).unwrap();
+    assert_eq!(study.trial_count(), 16);
+    assert_eq!(example.len(), 3 * 4 + 3, "four conditions and the ground truth of three scene configurations");
+    let mut others = keys("web-survey.toml");
+    others.extend(keys("real-or-rendered.toml"));
+    let missing: Vec<&String> = example.difference(&others).collect();
+    assert!(missing.is_empty(), "the rating example renders stimuli of its own: {missing:?}");
+}
+
+#[test]
+fn a_catch_image_outside_the_studies_folder_is_refused() {
+    let root = tempfile::tempdir().unwrap();
+    let studies = root.path().join("studies");
+    std::fs::create_dir_all(&studies).unwrap();
+    let file = image_study(
+        &studies,
+        "[rating]\nmethod = \"acr\"\n[[rating.catch]]\nname = \"out\"\nimage = \"../outside.png\"\nexpected = 1\n",
+    );
+    std::fs::copy(studies.join("shadows-demo/catch-bad.png"), root.path().join("outside.png")).unwrap();
+    assert!(load_study(&file).is_ok(), "the file alone is fine");
+    let error = load_studies(&studies).unwrap_err();
+    assert_eq!(error.key, "rating.catch[0].image", "{error}");
+}

@@ -751,7 +751,7 @@ impl Study {
             check_inside(fail, &format!("catch[{index}].worse"), &catch.worse, folder)?;
         }
         if let Some(rating) = &self.rating {
-            crate::study::rating::check_catch_inside(fail, rating, folder)?;
+            rating.check_images_inside(fail, folder)?;
         }
         Ok(())
     }
