@@ -167,3 +167,142 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
     phone.wait_trial("2");
     assert_eq!(answered(data_dir.path()), 14);
 }
+
+/// A DCR study of two conditions on a rendered scene configuration, shown in sequence with
+/// P.910's grey and the vote after the stimulus; its catch trial is the ground truth after itself.
+fn write_dcr_study(dir: &Path) {
+    let texts = super::support::demo_texts();
+    let study = format!(
+        r#"slug = "dcr-browser"
+title = "Impairments"
+kind = "rating"
+question = "How much is the second image impaired, compared with the first?"
+
+{texts}
+[[factors]]
+name = "gi"
+
+[[conditions]]
+name = "LQ"
+levels = {{ gi = 0 }}
+
+[[conditions]]
+name = "GI"
+levels = {{ gi = 1 }}
+
+[render]
+size = [96, 72]
+spp = 1
+vpls = 16
+
+[[scenes]]
+name = "box"
+render = "dir-lamp-box"
+
+[rating]
+method = "dcr"
+stimulus_ms = 700
+grey_ms = 500
+vote_after = true
+
+[[rating.catch]]
+name = "same"
+scene = "box"
+expected = 5
+
+[completion]
+code = "DCR-1"
+"#
+    );
+    std::fs::write(dir.join("dcr-browser.toml"), study).unwrap();
+}
+
+/// Sequential DCR with `vote_after`: the reference, grey, the stimulus, grey, and only then the
+/// scale takes a rating (a key pressed while the images are shown is no answer); the export has
+/// the impairment scale and the ground truth as reference. Rendered on the software adapter
+/// (skipped without one). Screenshots: `rating-dcr-reference.png`, `rating-dcr-vote.png`.
+#[test]
+fn sequential_dcr_shows_reference_grey_stimulus_grey_and_takes_the_vote_only_after() {
+    if !browser_available() {
+        return;
+    }
+    let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    write_dcr_study(studies.path());
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    match server.wait_open("dcr-browser", Duration::from_secs(300)) {
+        Err(warning) if warning.contains("adapter") => {
+            eprintln!("skipping: no GPU adapter ({warning})");
+            return;
+        }
+        result => result.unwrap(),
+    }
+    let driver = Driver::start(1280, 800);
+    driver.go(&format!("{}/studies/dcr-browser", server.base));
+    driver.wait_visible("stage-welcome");
+    driver.click("#consent");
+    driver.click("#consent-continue");
+    driver.wait_visible("stage-demographics");
+    driver.click("#demographics-continue");
+    driver.wait_visible("stage-instructions");
+    // every phase the page shows, in order, with the trial on screen
+    driver.script(
+        "window.phases = []; new MutationObserver(() => window.phases.push(document.body.dataset.phase)).observe(document.body, {attributes: true, attributeFilter: ['data-phase']}); return null;",
+    );
+    driver.click("#start");
+    driver.wait_for("document.body.dataset.phase === 'reference'");
+    driver.screenshot(&screenshot_path("rating-dcr-reference.png"));
+    driver.type_into("body", "2"); // while the reference is shown: no answer
+    driver.wait_for("document.body.dataset.phase === 'stimulus'");
+    driver.type_into("body", "2"); // while the stimulus is shown (vote_after): no answer
+    driver.wait_trial("1");
+    assert_eq!(answered(data_dir.path()), 0, "a key pressed before the vote answered");
+    assert_eq!(
+        driver.script("return window.phases;"),
+        serde_json::json!(["reference", "grey", "stimulus", "grey"]),
+        "P.910's sequence"
+    );
+    let labels = driver.script("return [...document.querySelectorAll('#scale .rate-label')].map(b => b.textContent);");
+    assert_eq!(
+        labels,
+        serde_json::json!([
+            "Imperceptible",
+            "Perceptible but not annoying",
+            "Slightly annoying",
+            "Annoying",
+            "Very annoying"
+        ])
+    );
+    driver.screenshot(&screenshot_path("rating-dcr-vote.png"));
+    let mut gave = Vec::new();
+    for trial in 1..=3u8 {
+        driver.wait_trial(&trial.to_string());
+        let rating = 6 - trial;
+        driver.click(&format!("#rate-{rating}"));
+        gave.push(rating);
+        let next = if trial == 3 { "done".to_string() } else { (trial + 1).to_string() };
+        driver.wait_trial(&next);
+    }
+    driver.wait_visible("stage-done");
+    let stored = query(data_dir.path(), "SELECT rating FROM responses ORDER BY trial");
+    assert_eq!(stored, gave.iter().map(|rating| vec![rating.to_string()]).collect::<Vec<_>>());
+
+    let csv = export(data_dir.path(), "dcr-browser", "csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
+    let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    for row in &rows {
+        assert_eq!(
+            (row[column("method")], row[column("reference")], row[column("scale")]),
+            ("dcr", "ground-truth", "impairment")
+        );
+        assert_eq!(row[column("scene")], "box", "{csv}");
+        if row[column("catch")] == "true" {
+            assert_eq!((row[column("condition")], row[column("expected")]), ("catch:same", "5"), "{csv}");
+        } else {
+            assert!(["LQ", "GI"].contains(&row[column("condition")]), "{csv}");
+            assert_eq!(row[column("right")], "ground-truth", "{csv}");
+        }
+    }
+}

@@ -546,6 +546,8 @@
     $("rated-reference-figure").hidden = !(what === "reference" || what === "both");
     $("rated-stimulus-figure").hidden = !(what === "stimulus" || what === "both");
     $("rated-grey").hidden = what !== "grey";
+    // the grey keeps the caption's room, so the scale does not move between the phases
+    $("rated-grey").classList.toggle("captioned", !!(current && current.reference));
     body.dataset.phase = what;
     layoutRated();
   }
