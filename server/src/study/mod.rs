@@ -16,7 +16,7 @@ pub mod checks;
 pub mod rating;
 pub mod rating_design;
 #[cfg(test)]
-mod rating_tests;
+pub mod rating_tests;
 pub mod survey;
 pub mod task;
 #[cfg(test)]

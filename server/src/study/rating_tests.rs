@@ -7,7 +7,7 @@ use super::rating::{CatchSource, Layout, Method, RatingScale};
 use super::*;
 
 /// A rating study of the demo study's image files: `[rating]` and anything after it from `tail`.
-fn image_study(dir: &Path, tail: &str) -> PathBuf {
+pub(crate) fn image_study(dir: &Path, tail: &str) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
     let demo = std::fs::read_to_string(repo.join("shadows-demo.toml")).unwrap();
     let start = demo.find("[texts]").unwrap();
