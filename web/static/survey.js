@@ -1,4 +1,5 @@
-// The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md).
+// The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md);
+// a rating study (`kind = "rating"`) shows one image and a 5-point scale instead (`showRating`).
 // Stages: welcome and consent → demographics → instructions → trials → completion.
 // The participant's id and token are kept in localStorage (per study; a preview's pilot in the
 // tab's sessionStorage), never in the address bar, so reloading or coming back with the same link

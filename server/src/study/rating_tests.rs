@@ -197,6 +197,9 @@ fn the_shipped_rating_example_renders_nothing_the_other_shipped_studies_do_not()
     others.extend(keys("real-or-rendered.toml"));
     let missing: Vec<&String> = example.difference(&others).collect();
     assert!(missing.is_empty(), "the rating example renders stimuli of its own: {missing:?}");
+    // and `serve` loads it beside the others (its catch image inside the folder)
+    let loaded = load_studies(&studies).unwrap();
+    assert!(loaded.iter().any(|study| study.slug() == "rating-acr"));
 }
 
 #[test]
