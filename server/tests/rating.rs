@@ -125,6 +125,8 @@ async fn a_rating_is_served_stored_once_and_exported_with_its_columns() {
     assert_eq!(labels, [(5, "Excellent"), (4, "Good"), (3, "Fair"), (2, "Poor"), (1, "Bad")]);
     assert_eq!(trial["rating"]["stimulus_ms"], 0);
     assert_eq!(trial["rating"]["vote_after"], false);
+    // the next trial's image (ACR: no reference) is preloaded
+    assert_eq!(trial["preload"].as_array().unwrap().len(), 1, "{trial}");
 
     // a paired comparison's answer, a rating out of range, trial 2 (never served): refused
     let (status, body) = respond(app, &id, &token, json!({"trial": 1, "chosen": "left", "rt_ms": 900})).await;

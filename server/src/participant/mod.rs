@@ -656,7 +656,12 @@ async fn next_trial(
         state.storage().write(Shown { participant: participant.id.clone(), trial: number }).await?;
     }
     if let Some(design) = &prepared.study.rating {
-        let preload = following.map(|following| vec![stimulus_url(&following.left_stimulus)]).unwrap_or_default();
+        let preload = following
+            .iter()
+            .flat_map(|following| [&following.left_stimulus, &following.right_stimulus])
+            .filter(|name| !name.is_empty())
+            .map(|name| stimulus_url(name))
+            .collect();
         let (stimulus, reference) = (&trial.left_stimulus, &trial.right_stimulus);
         let shown = rating::trial(&prepared.study, design, (number, participant.trials), stimulus, reference, preload);
         return Ok(Json(Next::Rating(shown)));
