@@ -170,7 +170,7 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
 
 /// A DCR study of two conditions on a rendered scene configuration, shown in sequence with
 /// P.910's grey and the vote after the stimulus; its catch trial is the ground truth after itself.
-fn write_dcr_study(dir: &Path) {
+fn write_dcr_study(dir: &Path, presentation: &str) {
     let texts = super::support::demo_texts();
     let study = format!(
         r#"slug = "dcr-browser"
@@ -201,9 +201,7 @@ render = "dir-lamp-box"
 
 [rating]
 method = "dcr"
-stimulus_ms = 700
-grey_ms = 500
-vote_after = true
+{presentation}
 
 [[rating.catch]]
 name = "same"
@@ -227,7 +225,7 @@ fn sequential_dcr_shows_reference_grey_stimulus_grey_and_takes_the_vote_only_aft
         return;
     }
     let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    write_dcr_study(studies.path());
+    write_dcr_study(studies.path(), "stimulus_ms = 700\ngrey_ms = 500\nvote_after = true");
     let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
     match server.wait_open("dcr-browser", Duration::from_secs(300)) {
         Err(warning) if warning.contains("adapter") => {
@@ -305,4 +303,50 @@ fn sequential_dcr_shows_reference_grey_stimulus_grey_and_takes_the_vote_only_aft
             assert_eq!(row[column("right")], "ground-truth", "{csv}");
         }
     }
+}
+
+/// DCR side by side on a phone: the reference (left) and the stimulus (right) at one size, both
+/// on screen with the scale under them, and a tap rates. Screenshot: `rating-dcr-side-by-side-phone.png`.
+#[test]
+fn side_by_side_dcr_shows_both_images_at_one_size_on_a_phone() {
+    if !browser_available() {
+        return;
+    }
+    let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    write_dcr_study(studies.path(), "layout = \"side-by-side\"");
+    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    match server.wait_open("dcr-browser", Duration::from_secs(300)) {
+        Err(warning) if warning.contains("adapter") => {
+            eprintln!("skipping: no GPU adapter ({warning})");
+            return;
+        }
+        result => result.unwrap(),
+    }
+    let phone = phone();
+    phone.go(&format!("{}/studies/dcr-browser", server.base));
+    phone.wait_visible("stage-welcome");
+    phone.click("#consent");
+    phone.click("#consent-continue");
+    phone.wait_visible("stage-demographics");
+    phone.click("#demographics-continue");
+    phone.wait_visible("stage-instructions");
+    phone.click("#start");
+    phone.wait_trial("1");
+    assert_eq!(phone.script("return document.body.dataset.phase;"), "both");
+    let sizes = phone.script(
+        "return ['rated-reference', 'rated-stimulus'].map(id => { const r = document.getElementById(id).getBoundingClientRect(); return [Math.round(r.width), Math.round(r.height), r.left < window.innerWidth / 2]; });",
+    );
+    let sizes = sizes.as_array().unwrap();
+    assert_eq!(sizes[0][0], sizes[1][0], "one width: {sizes:?}");
+    assert!(sizes[0][0].as_f64().unwrap() > 0.0, "{sizes:?}");
+    assert_eq!((sizes[0][2].as_bool(), sizes[1][2].as_bool()), (Some(true), Some(false)), "reference left: {sizes:?}");
+    let (_, bottom) = phone.centre("#rate-1");
+    assert!(bottom < phone.script("return window.innerHeight;").as_f64().unwrap(), "the scale is below the screen");
+    phone.screenshot(&screenshot_path("rating-dcr-side-by-side-phone.png"));
+    phone.click("#rate-3");
+    phone.wait_trial("2");
+    assert_eq!(
+        query(data_dir.path(), "SELECT trial, rating FROM responses"),
+        vec![vec!["1".to_string(), "3".to_string()]]
+    );
 }
