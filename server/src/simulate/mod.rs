@@ -28,7 +28,7 @@
 //! reports the mean over runs with its Monte-Carlo standard error (sd / √runs; for a power
 //! √(p(1 − p)/runs)); a mean over no run is absent, never NaN.
 //!
-//! **Rating studies** (`kind = "rating"`) are simulated by [`rating`]: SUREAL's observers (bias,
+//! **Rating studies** (`kind = "rating"`) are simulated by `simulate::rating`: SUREAL's observers (bias,
 //! inconsistency) rate the study's own plan, and each factor is tested within participants.
 //!
 //! **Reproducible.** Run r of design d at n participants has the seed
