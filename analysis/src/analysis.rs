@@ -30,7 +30,7 @@ use crate::pvalue::PValue;
 use crate::{AnalysisError, Result};
 
 /// When to run observer screening.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Screening {
     /// On for designs up to [`SCREENING_AUTO_LIMIT`] conditions.
     Auto,
@@ -43,58 +43,43 @@ pub enum Screening {
 pub const SCREENING_AUTO_LIMIT: usize = 200;
 
 /// Options of an analysis. `Default` gives the documented defaults; they are also
-/// `mrstudy analyze`'s flags (the doc comments are its help).
-#[derive(Debug, Clone, clap::Args)]
+/// `mrstudy analyze`'s flags (the binary's clap definitions default to this `Default`).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     /// Reference condition (log-worth 0); default: first of the conditions file, else first by name.
-    #[arg(long)]
     pub reference: Option<String>,
     /// Factor-model formula, e.g. `gi+cm+ca+gi:ca` or `gi*ca+cm`; default: all factors, main effects.
-    #[arg(long)]
     pub model: Option<String>,
     /// Fit everything per value of this column (e.g. `gender`) and test whether effects differ.
-    #[arg(long)]
     pub group_by: Option<String>,
     /// Convergence tolerance (largest parameter change).
-    #[arg(long, default_value_t = Options::default().tolerance)]
     pub tolerance: f64,
     /// Monte-Carlo replicates for the agreement p-value where no closed form applies.
-    #[arg(skip = Options::default().agreement_simulations)]
     pub agreement_simulations: usize,
     /// Bootstrap replicates over participants for intervals (0: none; with --stimuli the metric correlations use 1000 unless given).
-    #[arg(long, default_value_t = Options::default().bootstrap)]
     pub bootstrap: usize,
     /// Seed for the bootstrap and the agreement simulation.
-    #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
     /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
-    #[arg(long = "screen", value_enum, default_value = "auto")]
     pub screening: Screening,
     /// Participants whose leave-one-out p-value is below this are flagged.
-    #[arg(skip = Options::default().screening_alpha)]
     pub screening_alpha: f64,
     /// Use Firth's bias-reduced estimate for every model, not only under separation.
-    #[arg(long = "firth")]
     pub always_firth: bool,
     /// Keep participants marked `pilot = true` in the trials CSV (default: left out, and said so).
-    #[arg(long)]
     pub include_pilots: bool,
     /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
-    #[arg(long)]
     pub include_excluded: bool,
     /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals; for a threshold export `log10`, `dB` or `linear` fits on that stimulus scale instead of the export's.
-    #[arg(long, value_enum, default_value = "bt")]
     pub scale: Scale,
     /// Threshold exports: the psychometric function to fit (`weibull`, `logistic`, `normal`) instead of the export's `function`.
-    #[arg(long)]
     pub function: Option<String>,
     /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
-    #[arg(long)]
     pub guess: Option<f64>,
 }
 
 /// The scale `--scale` asks for besides the Bradley–Terry log-worths.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Scale {
     /// Bradley–Terry log-worths only.
     #[default]
@@ -104,7 +89,6 @@ pub enum Scale {
     /// A threshold export fitted with x = log10 intensity ([`crate::threshold::report`]).
     Log10,
     /// A threshold export fitted with x = 20·log10 intensity.
-    #[value(name = "dB")]
     Db,
     /// A threshold export fitted with x = intensity.
     Linear,

@@ -31,6 +31,7 @@ use serde::Deserialize;
 use serde_json::{Map, Value, json};
 use sqlx::Row;
 
+use crate::participant::model::ParticipantRecord;
 use crate::storage::Pool;
 
 use crate::study::Study;
@@ -69,16 +70,14 @@ fn value_text(value: Option<&Value>) -> String {
 }
 
 /// Which participants an export or analysis keeps besides the default ones.
-/// Also `mrstudy export`'s flags (the doc comments are their help).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, clap::Args)]
+/// Also `mrstudy export`'s flags (the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 pub struct Include {
     /// Keep pilot participants (joined through an admin preview link); left out by default.
     #[serde(default, rename = "include_pilots")]
-    #[arg(long = "include-pilots")]
     pub pilots: bool,
     /// Keep participants the researcher excluded; left out by default.
     #[serde(default, rename = "include_excluded")]
-    #[arg(long = "include-excluded")]
     pub excluded: bool,
 }
 
@@ -135,32 +134,6 @@ impl LeftOut {
 pub struct Export<T> {
     pub content: T,
     pub left_out: LeftOut,
-}
-
-/// A participant as the admin list and the exports see them.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct ParticipantRecord {
-    pub participant: String,
-    pub ordinal: i64,
-    /// `completed`, `started` or `abandoned`.
-    pub status: &'static str,
-    pub trials: i64,
-    pub answered: i64,
-    pub completion_code: String,
-    pub pilot: bool,
-    pub excluded: bool,
-    pub exclusion_reason: Option<String>,
-    pub excluded_at: Option<String>,
-    /// The study's `url_params` the participant arrived with, in the study's order.
-    pub external_ids: Map<String, Value>,
-    pub joined_at: String,
-    pub completed_at: Option<String>,
-    /// The last join, trial served or response.
-    pub last_activity_at: String,
-    /// Responses flagged `too_fast`.
-    pub too_fast: i64,
-    pub catch_answered: i64,
-    pub catch_failed: i64,
 }
 
 /// Every participant of a study in joining order, with status, external ids and flags.

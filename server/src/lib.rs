@@ -50,6 +50,10 @@ pub mod study;
 pub mod threshold;
 pub mod trial;
 
+#[cfg(test)]
+#[path = "../tests/support/lab_study.rs"]
+mod lab_study_fixture;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 

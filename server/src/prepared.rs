@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
 
 use crate::rating::RatedTrial;
-use crate::schedule::{self, PlannedKind, PlannedTrial};
+use crate::schedule;
 use crate::stimuli::StimulusPlan;
 use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
-use crate::trial::Side;
+use crate::trial::{PlannedKind, PlannedTrial, ScheduledTrial, Side};
 
 /// Why a study could not be made ready.
 #[derive(Debug, thiserror::Error)]
@@ -61,20 +61,6 @@ pub struct PreparedStudy {
     pub metrics_notes: Vec<String>,
     /// `metrics_csv` as the analysis reads it, parsed once here rather than per admin request.
     pub stimulus_metrics: Option<StimulusMetrics>,
-}
-
-/// One trial of a participant's schedule, as stored.
-#[derive(Debug, Clone)]
-pub struct ScheduledTrial {
-    pub left_condition: String,
-    pub right_condition: String,
-    pub left_scene: String,
-    pub right_scene: String,
-    pub left_stimulus: String,
-    pub right_stimulus: String,
-    pub catch_expected: Option<Side>,
-    /// A rating study's catch trial: its expected rating (`crate::rating`).
-    pub catch_rating: Option<u8>,
 }
 
 /// Label of a catch trial's images in the export's `left`/`right`/`chosen` columns.

@@ -5,8 +5,12 @@
 //! token, of which only the SHA-256 is stored. A token opens only its own participant: any other
 //! id answers 403, a missing token 401. Every body is validated before anything is written, and
 //! a refused request changes nothing.
+//!
+//! The participant's types in each stage (joining, stored, listed, exported; survey and lab) are
+//! in [`model`].
 
 pub mod active;
+pub mod model;
 pub mod rating;
 pub mod store;
 pub mod threshold;
@@ -21,11 +25,11 @@ use serde_json::{Map, Value};
 
 use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
 use crate::trial::{Answer, Choice, ResponseOutcome, ResponseRefused};
 use crate::{AppState, random_hex};
-use store::{JoinOutcome, NewParticipant, NewResponse, ScreenOut, ScreenOutWrite, Shown};
+use model::{NewParticipant, ParticipantRow};
+use store::{JoinOutcome, NewResponse, ScreenOut, ScreenOutWrite, Shown};
 
 pub fn router() -> Router<AppState> {
     Router::new()

@@ -119,31 +119,22 @@ pub struct Config {
     pub options: Options,
 }
 
-/// The simulated observers and runs: `mrstudy simulate`'s and `power`'s flags (the doc
-/// comments are their help).
-#[derive(Debug, Clone, PartialEq, clap::Args)]
+/// The simulated observers and runs: `mrstudy simulate`'s and `power`'s flags (the binary
+/// holds their clap definitions and defaults).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths).
-    #[arg(long, value_delimiter = ',', default_value = "study", value_parser = |text: &str| {
-        DesignChoice::parse(text).ok_or_else(|| format!("`{text}` is not one of study, all, anchored, active, active-worths"))
-    })]
     pub designs: Vec<DesignChoice>,
     /// Per-participant taste noise: sd of each condition's log-worth.
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub observer_sd: f64,
     /// Probability that an answer is a coin flip.
-    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub lapse: f64,
     /// Probability that a participant stops after each trial.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dropout: f64,
     /// Simulated studies per design and participant count.
-    #[arg(long, default_value_t = 200)]
     pub runs: usize,
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Bootstrap replicates per analysis for the intervals (0: Wald intervals).
-    #[arg(long, default_value_t = 0)]
     pub bootstrap: usize,
 }
 
