@@ -40,6 +40,7 @@ pub mod parse_errors;
 pub mod participant;
 pub mod prepared;
 pub mod preparing;
+pub mod rating;
 pub mod schedule;
 pub mod serve;
 pub mod simulate;

@@ -43,10 +43,16 @@ pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 /// detection designs only ([`plan_detection`]); other designs are scheduled as in version 1.
 pub const SCHEDULE_VERSION: i64 = 2;
 
-struct Stream(ChaCha8Rng);
+/// The schedules' random stream: ChaCha8 from one seed, with the draws written out here.
+pub(crate) struct Stream(ChaCha8Rng);
 
 impl Stream {
-    fn below(&mut self, bound: usize) -> usize {
+    /// The stream of `seed` (`crate::rating` plans its trials from it too).
+    pub(crate) fn seeded(seed: u64) -> Stream {
+        Stream(ChaCha8Rng::seed_from_u64(seed))
+    }
+
+    pub(crate) fn below(&mut self, bound: usize) -> usize {
         // Lemire's nearly divisionless method, with rejection: uniform on 0..bound.
         let bound = bound as u64;
         assert!(bound > 0);
@@ -63,7 +69,7 @@ impl Stream {
         self.0.next_u64() >> 63 == 1
     }
 
-    fn shuffle<T>(&mut self, items: &mut [T]) {
+    pub(crate) fn shuffle<T>(&mut self, items: &mut [T]) {
         for index in (1..items.len()).rev() {
             let other = self.below(index + 1);
             items.swap(index, other);

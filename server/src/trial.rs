@@ -53,6 +53,24 @@ impl Choice {
     }
 }
 
+/// What a response answers: a paired comparison's [`Choice`], or a rating study's rating (1 to 5,
+/// 5 the best; `crate::rating`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Answer {
+    Choice(Choice),
+    Rating(u8),
+}
+
+impl Answer {
+    /// `responses.chosen` and `responses.rating`: exactly one is set.
+    pub fn columns(self) -> (Option<&'static str>, Option<i64>) {
+        match self {
+            Answer::Choice(choice) => (Some(choice.as_str()), None),
+            Answer::Rating(rating) => (None, Some(i64::from(rating))),
+        }
+    }
+}
+
 /// What storing a response did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ResponseOutcome {
@@ -125,6 +143,9 @@ pub struct ScheduledTrial {
     pub left_stimulus: String,
     pub right_stimulus: String,
     pub catch_expected: Option<Side>,
+    /// A rating study's catch trial: its expected rating (`crate::rating`; a rating trial keeps
+    /// the rated stimulus on the left, DCR's reference on the right, empty without one).
+    pub catch_rating: Option<u8>,
 }
 
 /// Stored, read back: a trial of the `trials` table as the participant API serves it again

@@ -12,7 +12,7 @@ use super::model::{NewParticipant, ParticipantRow};
 use crate::error::{AppError, AppResult};
 use crate::schedule;
 use crate::storage::{NOW, OptionalF64, Storage, WriteJob};
-use crate::trial::{Choice, ResponseOutcome, ResponseRefused, ScheduledTrial, Side, TrialRow};
+use crate::trial::{Answer, ResponseOutcome, ResponseRefused, ScheduledTrial, Side, TrialRow};
 
 /// Where a participant stands in their schedule, as stored.
 #[derive(Debug, Clone, Copy)]
@@ -55,7 +55,7 @@ pub struct NewResponse {
     /// the same transaction, so a deleted participant's token is refused by every server.
     pub token_sha256: Vec<u8>,
     pub trial: i64,
-    pub chosen: Choice,
+    pub answer: Answer,
     pub rt_ms: f64,
     pub client: String,
     /// The size one image of the pair was shown at, `WxH` in CSS pixels and in device pixels
@@ -284,15 +284,17 @@ async fn store_response(
     .bind(response.trial)
     .execute(&mut *connection)
     .await?;
+    let (chosen, rating) = response.answer.columns();
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq,
-                 display_css, display_device)
-             VALUES ($1, $2, $3, $4, $5, {NOW}, $6, $7, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses), $8, $9)"
+            "INSERT INTO responses (participant, trial, chosen, rating, rt_ms, client, answered_at, too_fast, served_ms,
+                 seq, display_css, display_device)
+             VALUES ($1, $2, $3, $4, $5, $6, {NOW}, $7, $8, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses), $9, $10)"
         )))
         .bind(&response.participant)
         .bind(response.trial)
-        .bind(response.chosen.as_str())
+        .bind(chosen)
+        .bind(rating)
         .bind(response.rt_ms)
         .bind(&response.client)
         .bind(too_fast as i64)
@@ -304,17 +306,18 @@ async fn store_response(
         return Ok(Ok(ResponseOutcome::Created));
     }
     // Not the next trial: a repeat, a changed answer, or out of order.
-    let existing: Option<String> =
-        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = $1 AND trial = $2")
-            .bind(&response.participant)
-            .bind(response.trial)
-            .fetch_optional(&mut *connection)
-            .await?;
+    let existing = sqlx::query("SELECT chosen, rating FROM responses WHERE participant = $1 AND trial = $2")
+        .bind(&response.participant)
+        .bind(response.trial)
+        .fetch_optional(&mut *connection)
+        .await?;
     if let Some(existing) = existing {
-        return Ok(if existing == response.chosen.as_str() {
+        let stored: (Option<String>, Option<i64>) = (existing.try_get("chosen")?, existing.try_get("rating")?);
+        return Ok(if stored.0.as_deref() == chosen && stored.1 == rating {
             Ok(ResponseOutcome::Repeated)
         } else {
-            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen: existing })
+            let chosen = stored.0.or(stored.1.map(|rating| rating.to_string())).unwrap_or_default();
+            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen })
         });
     }
     let Some((answered, trials)) = progress(connection, &response.participant).await? else {
@@ -365,8 +368,8 @@ pub(crate) async fn insert_trial(
 ) -> Result<(), sqlx::Error> {
     sqlx::query(
         "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
-             left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch)
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+             left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch, catch_rating)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
     )
     .bind(participant)
     .bind(number)
@@ -379,6 +382,7 @@ pub(crate) async fn insert_trial(
     .bind(trial.catch_expected.map(Side::as_str))
     .bind(chosen.map(|(state, _)| state))
     .bind(chosen.map(|(_, batch)| batch))
+    .bind(trial.catch_rating.map(i64::from))
     .execute(&mut *connection)
     .await?;
     Ok(())

@@ -28,6 +28,9 @@
 //! reports the mean over runs with its Monte-Carlo standard error (sd / √runs; for a power
 //! √(p(1 − p)/runs)); a mean over no run is absent, never NaN.
 //!
+//! **Rating studies** (`kind = "rating"`) are simulated by `simulate::rating`: SUREAL's observers (bias,
+//! inconsistency) rate the study's own plan, and each factor is tested within participants.
+//!
 //! **Reproducible.** Run r of design d at n participants has the seed
 //! `derived_seed(derived_seed(derived_seed(seed, d), n), r)` (d: 0 study, 1 all, 2 anchored,
 //! 3 active, 4 active-worths); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
@@ -50,6 +53,7 @@ mod design;
 pub mod familiarity;
 mod observer;
 mod power;
+mod rating;
 mod report;
 mod run;
 #[cfg(test)]
