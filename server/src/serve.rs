@@ -142,7 +142,7 @@ pub enum ServeError {
     #[error(
         "MRSTUDY_ADMIN_TOKEN is too weak: {0}; leave it unset and mrstudy makes a random one, or use e.g. `openssl rand -hex 32`"
     )]
-    WeakAdminToken(String),
+    WeakAdminToken(WeakToken),
     #[error("cannot read or write the admin token file {path}: {source}")]
     AdminToken { path: PathBuf, source: std::io::Error },
     #[error("cannot record study \"{slug}\" in the database: {source}")]
@@ -153,8 +153,8 @@ pub enum ServeError {
     Server(std::io::Error),
     #[error("cannot start the async runtime: {0}")]
     Runtime(std::io::Error),
-    #[error("{0}")]
-    Log(String),
+    #[error(transparent)]
+    Log(crate::logs::LogFilterError),
 }
 
 impl From<StudyError> for ServeError {
@@ -202,9 +202,9 @@ pub const ADMIN_TOKEN_BITS: f64 = 128.0;
 /// otherwise), no repeated part (`Password1Password1`), and at most a third of it in runs along
 /// the alphabet, the digits or the keyboard (`0123456789abcdef…`, `qwertyuiop…`). A random token
 /// (`openssl rand -hex 16`) passes. Says why not.
-pub fn admin_token_strength(token: &str) -> Result<(), String> {
+pub fn admin_token_strength(token: &str) -> Result<(), WeakToken> {
     if let Some(bad) = token.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '-' || *c == '_')) {
-        return Err(format!("it may only hold A-Z, a-z, 0-9, - and _, not {bad:?}"));
+        return Err(WeakToken::Character { character: bad });
     }
     let hex = token.chars().all(|c| c.is_ascii_hexdigit()) && !token.chars().any(|c| c.is_ascii_uppercase());
     let alphabet = if hex {
@@ -223,30 +223,41 @@ pub fn admin_token_strength(token: &str) -> Result<(), String> {
     };
     let bits = token.len() as f64 * f64::log2(alphabet.max(1.0));
     if bits < ADMIN_TOKEN_BITS {
-        return Err(format!(
-            "{} characters of {} kinds hold at most {bits:.0} bits, fewer than {ADMIN_TOKEN_BITS:.0}",
-            token.len(),
-            alphabet
-        ));
+        return Err(WeakToken::Bits { characters: token.len(), kinds: alphabet, bits });
     }
     let distinct = token.chars().collect::<std::collections::BTreeSet<_>>().len();
     // a random token uses many: 32 random hex digits fewer than 9 about once in 10^8 draws
     let fewest = if hex { 9 } else { 12 };
     if distinct < fewest {
-        return Err(format!("it uses only {distinct} different characters (at least {fewest})"));
+        return Err(WeakToken::Distinct { distinct, fewest });
     }
     let lower = token.to_ascii_lowercase().into_bytes();
     if let Some(period) = (1..=lower.len() / 2).find(|&p| (p..lower.len()).all(|i| lower[i] == lower[i - p])) {
-        return Err(format!("it repeats its first {period} characters"));
+        return Err(WeakToken::Repeats { period });
     }
     let walked = walked_characters(&lower);
     if walked * 3 > lower.len() {
-        return Err(format!(
-            "{walked} of its {} characters are runs such as abcd, 4321 or a keyboard walk (qwerty, 1qaz)",
-            lower.len()
-        ));
+        return Err(WeakToken::Runs { walked, characters: lower.len() });
     }
     Ok(())
+}
+
+/// Why an admin token set by hand is too weak (the clause after "MRSTUDY_ADMIN_TOKEN is too
+/// weak:").
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum WeakToken {
+    #[error("it may only hold A-Z, a-z, 0-9, - and _, not {character:?}")]
+    Character { character: char },
+    /// `characters` of an alphabet of `kinds` characters hold `bits` bits.
+    #[error("{characters} characters of {kinds} kinds hold at most {bits:.0} bits, fewer than {ADMIN_TOKEN_BITS:.0}")]
+    Bits { characters: usize, kinds: f64, bits: f64 },
+    #[error("it uses only {distinct} different characters (at least {fewest})")]
+    Distinct { distinct: usize, fewest: usize },
+    #[error("it repeats its first {period} characters")]
+    Repeats { period: usize },
+    #[error("{walked} of its {characters} characters are runs such as abcd, 4321 or a keyboard walk (qwerty, 1qaz)")]
+    Runs { walked: usize, characters: usize },
 }
 
 /// How many characters of `token` (lower case) lie in runs of at least 3 that walk one way along
@@ -804,7 +815,7 @@ pub fn export(
     format: ExportFormat,
     include: crate::export::Include,
 ) -> Result<ExportOutput, String> {
-    let database = Database::choose(database, data_dir)?;
+    let database = Database::choose(database, data_dir).map_err(|error| error.to_string())?;
     if let Database::Sqlite(path) = &database
         && !path.is_file()
     {
