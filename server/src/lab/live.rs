@@ -209,11 +209,13 @@ impl LabRenderer {
         trial: u32,
         centre: [f64; 3],
         state: SessionRenderState,
-    ) -> Result<Frame, String> {
+    ) -> Result<Frame, LiveError> {
         let (reply, answer) = oneshot::channel();
-        self.submit(FrameJob { study: study.to_string(), condition, trial, centre, state, reply })
-            .map_err(|error| error.to_string())?;
-        answer.await.map_err(|_| "the renderer thread stopped during a frame".to_string())?
+        self.submit(FrameJob { study: study.to_string(), condition, trial, centre, state, reply })?;
+        answer
+            .await
+            .map_err(|_| LiveError::StoppedDuringFrame)?
+            .map_err(|reason| LiveError::Frame { study: study.to_string(), reason })
     }
 }
 
@@ -308,6 +310,11 @@ pub enum LiveError {
     StoppedOpening,
     #[error("the renderer thread has stopped")]
     Stopped,
+    #[error("the renderer thread stopped during a frame")]
+    StoppedDuringFrame,
+    /// A frame of study `study` could not be rendered: the renderer's reason.
+    #[error("{reason}")]
+    Frame { study: String, reason: String },
     #[error("cannot encode a frame as JPEG: {reason}")]
     Jpeg { reason: String },
     /// Task study `study`'s scene or photograph could not be prepared: `reason` is the sentence,
@@ -514,7 +521,7 @@ pub async fn measure(
     study: &TaskStudy,
     centre: [f64; 3],
     frames: usize,
-) -> Result<Vec<(Condition, Vec<f64>)>, String> {
+) -> Result<Vec<(Condition, Vec<f64>)>, LiveError> {
     let mut measured = Vec::new();
     for (index, &condition) in study.conditions.iter().enumerate() {
         let mut state = SessionRenderState::default();
