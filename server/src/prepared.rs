@@ -172,7 +172,7 @@ impl PreparedStudy {
         let rating_catch_stimuli = rating_catch_stimuli(&study, &ground_truths, store)?;
         let mut study = study;
         crate::threshold::prepare(&mut study, stimulus_metrics.as_ref())
-            .map_err(|reason| PrepareError::Threshold { slug: study.slug.clone(), reason })?;
+            .map_err(|reason| PrepareError::Threshold { slug: study.slug.clone(), reason: reason.to_string() })?;
         Ok(PreparedStudy {
             study,
             stimuli,

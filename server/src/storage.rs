@@ -72,28 +72,39 @@ pub enum Backend {
     Postgres,
 }
 
+/// Why `--database` was refused; the URL's password is never in it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ChooseError {
+    #[error("--database (or MRSTUDY_DATABASE_URL) is empty; give a postgres:// URL or a sqlite file's path")]
+    Empty,
+    /// A `postgres://` URL that does not parse (`url` without its password).
+    #[error("--database {url} is not a usable PostgreSQL URL: {reason}")]
+    PostgresUrl { url: String, reason: String },
+    /// A URL of another database (`url` without its password).
+    #[error(
+        "--database {url}: mrstudy keeps its data in sqlite (a file's path) or PostgreSQL (postgres://…), not {scheme}"
+    )]
+    Scheme { url: String, scheme: String },
+}
+
 impl Database {
     /// `serve --database`'s value: a `postgres://` (or `postgresql://`) URL, or a sqlite file's
     /// path (`sqlite://` in front optional); `None`: the sqlite file in the data directory.
-    pub fn choose(flag: Option<&str>, data_dir: &Path) -> Result<Database, String> {
+    pub fn choose(flag: Option<&str>, data_dir: &Path) -> Result<Database, ChooseError> {
         let Some(text) = flag.map(str::trim) else { return Ok(Database::in_data_dir(data_dir)) };
         if text.is_empty() {
-            return Err(
-                "--database (or MRSTUDY_DATABASE_URL) is empty; give a postgres:// URL or a sqlite file's path".into(),
-            );
+            return Err(ChooseError::Empty);
         }
         if text.starts_with("postgres://") || text.starts_with("postgresql://") {
             AnyConnectOptions::from_str(text)
-                .map_err(|error| format!("--database {} is not a usable PostgreSQL URL: {error}", redact(text)))?;
+                .map_err(|error| ChooseError::PostgresUrl { url: redact(text), reason: error.to_string() })?;
             return Ok(Database::Postgres(text.to_string()));
         }
         if let Some((scheme, _)) = text.split_once("://")
             && scheme != "sqlite"
         {
-            return Err(format!(
-                "--database {}: mrstudy keeps its data in sqlite (a file's path) or PostgreSQL (postgres://…), not {scheme}",
-                redact(text)
-            ));
+            return Err(ChooseError::Scheme { url: redact(text), scheme: scheme.to_string() });
         }
         Ok(Database::Sqlite(PathBuf::from(text.strip_prefix("sqlite://").unwrap_or(text))))
     }
@@ -203,8 +214,8 @@ impl<'q> sqlx::Encode<'q, sqlx::Any> for OptionalF64 {
 pub enum OpenError {
     #[error("cannot open the database {path}: {source}")]
     Connect { path: String, source: sqlx::Error },
-    #[error("{0}")]
-    Choose(String),
+    #[error(transparent)]
+    Choose(ChooseError),
     #[error("cannot migrate the database {path}: {source}")]
     Migrate { path: String, source: sqlx::migrate::MigrateError },
     #[error("cannot make the database {path} readable by its owner only: {source}")]

@@ -637,6 +637,8 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     let database = flag(&database);
     for format in [mrstudy_server::serve::ExportFormat::Csv, mrstudy_server::serve::ExportFormat::Json] {
         let error = mrstudy_server::serve::export(&data, database, "lab", format, Default::default()).unwrap_err();
+        assert!(matches!(error, mrstudy_server::serve::ExportCommandError::TaskStudy { ref slug } if slug == "lab"));
+        let error = error.to_string();
         assert!(error.contains("task study") && error.contains("--format task"), "{error}");
         assert!(!error.contains('\n') && !error.contains("internal"), "{error}");
     }

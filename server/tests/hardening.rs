@@ -10,8 +10,9 @@ use std::net::IpAddr;
 use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
+use mrstudy_server::auth::admin_token_strength;
 use mrstudy_server::limits::{ClientAddr, Limits};
-use mrstudy_server::serve::{Prepared, admin_token_strength, prepare_on};
+use mrstudy_server::serve::{Prepared, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
@@ -475,7 +476,8 @@ fn an_admin_token_set_by_hand_needs_128_bits() {
         assert!(admin_token_strength(strong).is_ok(), "{strong}: {:?}", admin_token_strength(strong));
     }
     let why = admin_token_strength("aaaaaaaaaaaaaaaa").unwrap_err();
-    assert!(why.contains("bits"), "{why}");
+    assert!(matches!(why, mrstudy_server::auth::WeakToken::Bits { characters: 16, .. }), "{why:?}");
+    assert!(why.to_string().contains("16 characters of 16 kinds hold at most 64 bits"), "{why}");
 }
 
 /// Issue 46: repeated halves, runs along the alphabet, the digits or the keyboard, and few

@@ -636,7 +636,7 @@ impl Session {
                 state: self.render_state.clone(),
                 reply,
             })
-            .map_err(AppError::Internal)?;
+            .map_err(|error| AppError::Internal(error.to_string()))?;
         active.dirty = false;
         self.pending = Some(Pending {
             trial: active.planned.trial,

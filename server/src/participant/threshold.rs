@@ -60,7 +60,11 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     }
     let answers = answers(state, prepared, participant).await?;
     let chosen = crate::threshold::intensities(study, prepared.stimulus_metrics.as_ref())
-        .and_then(|intensities| crate::threshold::next_trial(study, seed, existing as usize, &intensities, &answers))
+        .map_err(|error| error.to_string())
+        .and_then(|intensities| {
+            crate::threshold::next_trial(study, seed, existing as usize, &intensities, &answers)
+                .map_err(|error| error.to_string())
+        })
         .map_err(|reason| AppError::Internal(format!("the next level cannot be chosen: {reason}")))?;
     state
         .storage()

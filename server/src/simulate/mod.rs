@@ -61,7 +61,7 @@ mod tests;
 mod truth;
 
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
-pub use power::{PowerAt, PowerNeed, parse_target, power_lines, power_needs, power_report};
+pub use power::{PowerAt, PowerNeed, TargetError, parse_target, power_lines, power_needs, power_report};
 pub use report::{Estimate, FactorPower, Report, Row, Settings};
 pub use run::simulate;
 pub use truth::{
