@@ -28,6 +28,7 @@
 //! `Method::Off` is the baseline without coherent rendering: the object lit by the known lights
 //! and the light probe with no occlusion at all, and no differential background.
 
+pub mod evaluation;
 pub mod query;
 pub mod render;
 pub mod solid;
