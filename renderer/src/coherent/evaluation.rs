@@ -10,9 +10,9 @@ use std::time::Instant;
 
 use glam::Vec3;
 
+use super::impostor::{self, DistanceImpostor, ImpostorReport};
 use super::query::Representation;
 use super::{Coherent, CoherentParams, Method, PROBE_PATHS, PROBE_WIDTH, Quality, light_probe, virtual_bounds};
-use crate::capture::impostor::{self, DistanceImpostor, ImpostorReport};
 use crate::capture::{CaptureParams, CaptureReport, Spread, capture};
 use crate::pathtracer::{Subset, World};
 use crate::scene::Scene;

@@ -29,16 +29,18 @@
 //! and the light probe with no occlusion at all, and no differential background.
 
 pub mod evaluation;
+pub mod impostor;
 pub mod query;
 pub mod render;
 pub mod solid;
+pub mod voxel;
 
 #[cfg(test)]
 mod tests;
 
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::impostor::DistanceImpostor;
-use crate::capture::voxel::VoxelVolume;
+use crate::coherent::impostor::DistanceImpostor;
+use crate::coherent::voxel::VoxelVolume;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
 use crate::gpu::PassTime;

@@ -10,9 +10,9 @@
 use super::query::Representation;
 use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_since};
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::voxel::VoxelVolume;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::coherent::solid::SolidVolume;
+use crate::coherent::voxel::VoxelVolume;
 use crate::error::Result;
 use crate::gpu::DirRenderer;
 use crate::gpu::PassTime;

@@ -393,7 +393,7 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         // 256² as the pipeline's high quality; up to the spring of this issue the GPU lost
         // splats of disks near the centre there (0.5 % of texels at 128², 1.3 % at 256²)
         for size in [64u32, 128, 256] {
-            let cpu = crate::capture::impostor::DistanceImpostor::build(&samples, centre, size, cell);
+            let cpu = crate::coherent::impostor::DistanceImpostor::build(&samples, centre, size, cell);
             let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
             let gpu = &built.value;
             assert!(built.gpu_bytes > 0 && built.gpu_ms.is_finite());
@@ -427,7 +427,7 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
     }
     // the clipped lamp core: no voxel above RADIANCE_MAX on either side
     let brightest = gpu.level(0).iter().map(|v| v[0]).fold(0.0f32, f32::max);
-    assert!(brightest > 1000.0 && brightest <= crate::capture::voxel::RADIANCE_MAX, "{brightest}");
+    assert!(brightest > 1000.0 && brightest <= crate::coherent::voxel::RADIANCE_MAX, "{brightest}");
 }
 
 #[test]

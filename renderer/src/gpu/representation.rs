@@ -40,8 +40,8 @@
 
 use super::context::GpuContext;
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::impostor::{DistanceImpostor, SPLAT_RADIUS};
-use crate::capture::voxel::VoxelVolume;
+use crate::coherent::impostor::{DistanceImpostor, SPLAT_RADIUS};
+use crate::coherent::voxel::VoxelVolume;
 use crate::geometry::{Aabb, Primitive};
 use crate::material::Texture;
 use glam::{UVec3, Vec3};
