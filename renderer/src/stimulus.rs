@@ -405,11 +405,9 @@ impl StimulusSettings {
                 let frame = crate::coherent::render::render_stimulus(
                     scene,
                     captured,
-                    photo,
-                    linear,
+                    (photo, linear),
                     &params,
-                    &dir.cm,
-                    dir.camera_artifacts.as_ref(),
+                    (&dir.cm, dir.camera_artifacts.as_ref()),
                     Some(renderer),
                 )?;
                 Ok(StimulusFrame {
