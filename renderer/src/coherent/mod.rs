@@ -506,7 +506,10 @@ struct GpuBuilds {
 
 impl GpuBuilds {
     /// The built value, counted, or None (and the reason kept) where the GPU could not build it.
-    fn add<T>(&mut self, built: std::result::Result<crate::gpu::representation::Built<T>, String>) -> Option<T> {
+    fn add<T>(
+        &mut self,
+        built: std::result::Result<crate::gpu::representation::Built<T>, crate::gpu::representation::BuildRefused>,
+    ) -> Option<T> {
         match built {
             Ok(built) => {
                 self.gpu_ms += built.gpu_ms;
@@ -515,7 +518,7 @@ impl GpuBuilds {
                 Some(built.value)
             }
             Err(reason) => {
-                self.fallback = Some(reason);
+                self.fallback = Some(reason.to_string());
                 None
             }
         }
