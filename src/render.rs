@@ -85,25 +85,10 @@ flags! {
     }
 }
 
-/// The web survey's conditions (`studies/web-survey.toml`): every combination of gi, cm, ca.
-const SURVEY_CONDITIONS: [(&str, &str); 8] = [
-    ("LQ", ""),
-    ("GI", "gi"),
-    ("CM", "cm"),
-    ("CA", "ca"),
-    ("GI+CM", "gi,cm"),
-    ("GI+CA", "gi,ca"),
-    ("CM+CA", "cm,ca"),
-    ("HQ", "gi,cm,ca"),
-];
-
 /// `--contact-sheet`: the ground truth and every condition of `--study` (or the web survey's).
 fn contact_sheet(args: &RenderArgs, name: &str, out: &std::path::Path) -> Result<()> {
     let conditions: Vec<(String, Factors)> = match &args.study {
-        None => SURVEY_CONDITIONS
-            .iter()
-            .map(|(label, factors)| (label.to_string(), Factors::parse_list(factors).expect("a known factor list")))
-            .collect(),
+        None => contact_sheet::rmc_conditions(),
         Some(file) => match mrstudy_server::study::load_any(file)? {
             mrstudy_server::study::LoadedStudy::Survey(study) => study
                 .conditions

@@ -33,6 +33,8 @@
 //! renames a uniquely named partial file into place), and a merged store holds the same images,
 //! ground truths and index entries as one rendered on a single machine.
 
+pub mod lines;
+
 use std::path::{Path, PathBuf};
 
 use mrstudy_renderer::gpu::DirRenderer;

@@ -250,7 +250,8 @@ fn check_conditions(fail: Fail, factors: &mut [Factor], raw: &[ConditionFile]) -
         }
         let resolved = Factors::from_study_levels(
             factors.iter().map(|factor| (factor.name.as_str(), &condition.levels[&factor.name])),
-        );
+        )
+        .map_err(|error| error.to_string());
         conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved, knob: None });
     }
     let columns: Vec<String> = factors.iter().flat_map(Factor::columns).collect();
