@@ -253,9 +253,12 @@ pub fn analyze_judgments_with_ties(
             options.tolerance,
         ) {
             Ok(section) => analysis.davidson = Some(section),
-            Err(reason) => {
-                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::Davidson, reason)
-            }
+            Err(failure) => not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::Davidson,
+                failure.to_string(),
+            ),
         }
     }
 

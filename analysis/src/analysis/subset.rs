@@ -332,9 +332,12 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
                 analysis.warnings.extend(section.warnings.iter().cloned());
                 analysis.jod_scale = Some(section);
             }
-            Err(reason) => {
-                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::JodScale, reason)
-            }
+            Err(failure) => not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::JodScale,
+                failure.to_string(),
+            ),
         }
     }
     let screen = match options.screening {

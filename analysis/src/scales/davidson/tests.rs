@@ -68,7 +68,7 @@ fn never_winning_nor_tying_is_separation_and_gaps_are_refused() {
         TiePair { i: 1, j: 2, wins_i: 3.0, wins_j: 2.0, ties: 1.0 },
     ];
     assert_eq!(fit(3, &pairs, 0, 1e-10), Err(DavidsonFailure::Separation));
-    assert_eq!(fit(4, &pairs, 0, 1e-10), Err(DavidsonFailure::Disconnected));
+    assert_eq!(fit(4, &pairs, 0, 1e-10), Err(DavidsonFailure::Disconnected { condition: 3 }));
 }
 
 /// `mrstudy analyze` on a trials CSV with `chosen = tie` rows: the item model is the BT fit of
