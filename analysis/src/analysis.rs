@@ -226,22 +226,6 @@ pub fn analyze_judgments_with_ties(
     let everyone = tallies.present();
     let inputs = Inputs { judgments, table, terms: terms.as_ref(), reference, options };
     let mut analysis = analyze_subset(&inputs, &Subset { tallies: &tallies, active: &everyone, ties })?;
-    if !ties.is_empty() {
-        let reference = judgments.conditions.iter().position(|c| *c == analysis.reference).unwrap_or(reference);
-        match crate::scales::davidson::section(
-            &tallies,
-            ties,
-            &everyone,
-            &judgments.conditions,
-            reference,
-            options.tolerance,
-        ) {
-            Ok(section) => analysis.davidson = Some(section),
-            Err(reason) => {
-                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::Davidson, reason)
-            }
-        }
-    }
 
     if !judgments.groups.is_empty() {
         groups::analyze_groups(&inputs, &tallies, &everyone, ties, &mut analysis);

@@ -57,46 +57,6 @@ fn item_score_information_with(
     }
 }
 
-/// Solves `A x = b` for a symmetric positive-definite `A` given by its lower triangle (row-major
-/// q×q), in place (`A` becomes its Cholesky factor, `b` the solution). False if not positive
-/// definite.
-fn cholesky_solve(a: &mut [f64], b: &mut [f64]) -> bool {
-    let q = b.len();
-    for j in 0..q {
-        let mut diagonal = a[j * q + j];
-        for k in 0..j {
-            diagonal -= a[j * q + k] * a[j * q + k];
-        }
-        if !(diagonal > 0.0) {
-            return false;
-        }
-        let diagonal = diagonal.sqrt();
-        a[j * q + j] = diagonal;
-        for i in j + 1..q {
-            let mut value = a[i * q + j];
-            for k in 0..j {
-                value -= a[i * q + k] * a[j * q + k];
-            }
-            a[i * q + j] = value / diagonal;
-        }
-    }
-    for i in 0..q {
-        let mut value = b[i];
-        for k in 0..i {
-            value -= a[i * q + k] * b[k];
-        }
-        b[i] = value / a[i * q + i];
-    }
-    for i in (0..q).rev() {
-        let mut value = b[i];
-        for k in i + 1..q {
-            value -= a[k * q + i] * b[k];
-        }
-        b[i] = value / a[i * q + i];
-    }
-    true
-}
-
 /// The item model's parameters above which the leave-one-out fit takes one step with the whole
 /// data's information instead of refactorising the others' (q³ per participant).
 const SCREENING_EXACT_STEP_PARAMETERS: usize = 48;
@@ -191,7 +151,14 @@ pub(super) fn screen_observers(
                         }
                     }
                     let solved = if exact_step {
-                        cholesky_solve(information, score)
+                        match crate::newton::cholesky(information, q) {
+                            Some(l) => {
+                                let step = crate::newton::solve(&l, score);
+                                score.copy_from_slice(&step);
+                                true
+                            }
+                            None => false,
+                        }
                     } else {
                         let step: Vec<f64> =
                             (0..q).map(|a| (0..q).map(|b| full_fit.covariance[(a, b)] * score[b]).sum()).collect();

@@ -332,9 +332,24 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
                 analysis.warnings.extend(section.warnings.iter().cloned());
                 analysis.jod_scale = Some(section);
             }
-            Err(reason) => {
-                not_estimable_part(&mut analysis.warnings, &mut analysis.not_estimable, Part::JodScale, reason)
-            }
+            Err(failure) => not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::JodScale,
+                failure.to_string(),
+            ),
+        }
+    }
+    if !ties.is_empty() {
+        // Davidson's tie model over all the subset's judgments (each group's, with --group-by).
+        match crate::scales::davidson::section(tallies, ties, active, names, reference, options.tolerance) {
+            Ok(section) => analysis.davidson = Some(section),
+            Err(failure) => not_estimable_part(
+                &mut analysis.warnings,
+                &mut analysis.not_estimable,
+                Part::Davidson,
+                failure.to_string(),
+            ),
         }
     }
     let screen = match options.screening {
