@@ -54,6 +54,7 @@ mod report;
 mod run;
 #[cfg(test)]
 mod tests;
+pub mod threshold;
 mod truth;
 
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
