@@ -46,6 +46,7 @@
 //! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
 //! `[{factor, effect, power, mcse}]`.
 
+mod compare;
 mod design;
 pub mod familiarity;
 mod observer;
@@ -57,6 +58,7 @@ mod tests;
 pub mod threshold;
 mod truth;
 
+pub use compare::{Comparison, Versus};
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
 pub use power::{PowerAt, PowerNeed, parse_target, power_lines, power_needs, power_report};
 pub use report::{Estimate, FactorPower, Report, Row, Settings};
