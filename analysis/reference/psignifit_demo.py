@@ -35,7 +35,20 @@ for name, fixed in [("lapse fixed at 0", {"eta": 0.0, "lambda": 0.0}), ("lapse f
     est = res.parameter_estimate_MAP
     fits.append({"name": name, "threshold": est["threshold"], "width": est["width"],
                  "sd": est["width"] / span, "lapse": est["lambda"]})
+# the ML of the same model (lapse 0) by scipy's Nelder–Mead, for the record: mrstudy's fit gives it
+from scipy.optimize import minimize  # noqa: E402
+
+
+def nll(params):
+    t, log_sd = params
+    p = np.clip(0.5 + 0.5 * norm.cdf((data[:, 0] - t) / np.exp(log_sd)), 1e-12, 1 - 1e-12)
+    return -(data[:, 1] * np.log(p) + (data[:, 2] - data[:, 1]) * np.log(1 - p)).sum()
+
+
+ml = minimize(nll, [0.0046, np.log(0.0014)], method="Nelder-Mead",
+              options={"xatol": 1e-12, "fatol": 1e-12, "maxiter": 20000})
 print(json.dumps({
+    "scipy_ml_lapse_0": {"threshold": ml.x[0], "sd": float(np.exp(ml.x[1]))},
     "tool": f"psignifit {version('psignifit')}", "sigmoid": "norm", "experiment_type": "2AFC",
     "x": data[:, 0].tolist(), "k": data[:, 1].astype(int).tolist(), "n": data[:, 2].astype(int).tolist(),
     "fits": fits,

@@ -160,11 +160,18 @@ fn bootstrap_coverage_fast() {
 
 #[derive(Deserialize)]
 struct PsignifitDemo {
+    scipy_ml_lapse_0: ScipyMl,
     tool: String,
     x: Vec<f64>,
     k: Vec<u32>,
     n: Vec<u32>,
     fits: Vec<PsignifitFit>,
+}
+
+#[derive(Deserialize)]
+struct ScipyMl {
+    threshold: f64,
+    sd: f64,
 }
 
 #[derive(Deserialize)]
@@ -188,6 +195,8 @@ fn ml_fit_agrees_with_psignifit_on_its_demo_data() {
     let model = Model { function: PsychFunction::Normal, scale: StimScale::Linear, guess: 0.5 };
     let ml = ml_fit(model, &points, 0.1).unwrap();
     assert!(ml.lapse < 1e-6, "the ML lapse is at 0 as psignifit's MAP: {}", ml.lapse);
+    let scipy = &demo.scipy_ml_lapse_0;
+    assert!((ml.threshold / scipy.threshold - 1.0).abs() < 1e-6 && (ml.slope / scipy.sd - 1.0).abs() < 1e-6);
     for fit in &demo.fits {
         assert!(fit.lapse < 1e-6, "{}: psignifit's lapse {}", fit.name, fit.lapse);
         let threshold = (ml.threshold - fit.threshold).abs() / fit.threshold;
