@@ -10,6 +10,8 @@ use mrstudy_server::simulate::{self, Config, DesignChoice, Options, Report};
 use crate::Format;
 use crate::progress::progress_bar;
 
+mod threshold;
+
 flags! {
     /// What `simulate` and `power` share: the study, the truth, the observers, the runs.
     StudyArgs {
@@ -20,6 +22,8 @@ flags! {
         /// True log-worths: a CSV `condition,log_worth` with every condition of the study.
         #[arg(long)] truth_worth: Option<PathBuf>,
         #[command(flatten)] options: OptionsFlags,
+        /// Threshold studies: trials per participant to simulate (QUEST+ and constant stimuli at each).
+        #[arg(long, value_delimiter = ',', default_value = "10,20,40,80,160", value_parser = clap::value_parser!(u32).range(1..))] trials_per_participant: Vec<u32>,
     }
 }
 
@@ -80,6 +84,9 @@ fn run_simulation(args: StudyArgs, participants: &[u32]) -> Result<Report> {
 }
 
 pub fn run_simulate(args: SimulateArgs) -> Result<()> {
+    if let Some(study) = threshold::threshold_study(&args.study)? {
+        return threshold::run_simulate(&args, &study);
+    }
     let report = run_simulation(args.study, &args.participants)?;
     match args.format {
         Format::Table => print!("{}", report.table()),
@@ -92,6 +99,9 @@ pub fn run_simulate(args: SimulateArgs) -> Result<()> {
 }
 
 pub fn run_power(args: PowerArgs) -> Result<()> {
+    if let Some(study) = threshold::threshold_study(&args.study)? {
+        return threshold::run_power(&args, &study);
+    }
     let report = run_simulation(args.study, &args.participants)?;
     simulate::power_report(&report, args.target_power)?.iter().for_each(|line| println!("{line}"));
     Ok(())

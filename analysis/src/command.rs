@@ -108,7 +108,7 @@ pub fn analyze_files(
     {
         printed.scatter_plots.extend(threshold.plots());
     }
-    if drawings.scatter && stimuli.is_some() {
+    if drawings.scatter && stimuli.is_some() && !threshold_export {
         let metrics = report.metrics.as_ref().ok_or_else(|| {
             refuse(
                 "--plot-dir",

@@ -24,6 +24,18 @@ const STUDY: &str = "shadows-demo";
 /// design of `trials` trials in batches of `batch` after the warm-up that the TOML lines
 /// `warmup` give.
 async fn fixture(work: &Path, target: &str, warmup: &str, trials: u32, batch: u32) -> (Router, AppState) {
+    let (app, state, _) = fixture_with_admin(work, target, warmup, trials, batch).await;
+    (app, state)
+}
+
+/// [`fixture`], with the admin token.
+async fn fixture_with_admin(
+    work: &Path,
+    target: &str,
+    warmup: &str,
+    trials: u32,
+    batch: u32,
+) -> (Router, AppState, String) {
     let design = format!(
         "[design]\npairs = \"active\"\ntrials = {trials}\nbatch = {batch}\ntarget = \"{target}\"\n{warmup}\nscenes = \"different\"\n"
     );
@@ -32,9 +44,23 @@ async fn fixture(work: &Path, target: &str, warmup: &str, trials: u32, batch: u3
         assert!(text.contains("pairs = \"active\""), "the demo study's design changed; update this fixture");
         text
     });
-    let Started { app, state, skipped, .. } = start(work, &studies).await;
+    let Started { app, state, skipped, admin_token, .. } = start(work, &studies).await;
     assert!(skipped.is_empty(), "{skipped:?}");
-    (app, state)
+    (app, state, admin_token)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_admin_page_says_what_the_active_design_optimises() {
+    for (target, optimises) in [("effects", "the factor effects"), ("worths", "every condition&#39;s log-worth")] {
+        let work = tempfile::tempdir().unwrap();
+        let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]";
+        let (app, _, admin_token) = fixture_with_admin(work.path(), target, warmup, 6, 2).await;
+        let page = call(&app, Method::GET, &format!("/admin/studies/{STUDY}"), Some(&admin_token), None).await;
+        assert_eq!(page.status, StatusCode::OK, "{}", page.text());
+        let text = page.text();
+        let note = text.lines().find(|line| line.contains("Active design")).unwrap_or_default();
+        assert!(note.contains(target) && note.contains(optimises), "target {target}: {note}");
+    }
 }
 
 async fn join(app: &Router) -> (String, String, i64) {

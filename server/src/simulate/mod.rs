@@ -49,6 +49,7 @@
 //! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
 //! `[{factor, effect, power, mcse}]`.
 
+mod compare;
 mod design;
 pub mod familiarity;
 mod observer;
@@ -58,8 +59,10 @@ mod report;
 mod run;
 #[cfg(test)]
 mod tests;
+pub mod threshold;
 mod truth;
 
+pub use compare::{Comparison, Versus};
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
 pub use power::{PowerAt, PowerNeed, TargetError, parse_target, power_lines, power_needs, power_report};
 pub use report::{Estimate, FactorPower, Report, Row, Settings};

@@ -90,6 +90,7 @@ pub(super) fn simulate(
             alpha: ALPHA,
         },
         rows,
+        comparisons: Vec::new(),
     })
 }
 

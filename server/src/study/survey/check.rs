@@ -626,8 +626,14 @@ fn check_active(
     }
     let target = match design.target.as_deref().unwrap_or("worths") {
         "worths" => ActiveTarget::Worths,
-        "factors" => ActiveTarget::Factors,
-        other => return Err(fail.at("design.target", format!("expected \"worths\" or \"factors\", found \"{other}\""))),
+        // `effects` is the issue-48 name; `factors` the first spelling, still accepted
+        "effects" | "factors" => ActiveTarget::Factors,
+        other => {
+            return Err(fail.at(
+                "design.target",
+                format!("expected \"worths\" or \"effects\" (also spelt \"factors\"), found \"{other}\""),
+            ));
+        }
     };
     let prior_sd = design.prior_sd.unwrap_or(mrstudy_analysis::active::DEFAULT_PRIOR_SD);
     if !(prior_sd.is_finite() && (0.05..=10.0).contains(&prior_sd)) {
@@ -636,7 +642,7 @@ fn check_active(
     if target == ActiveTarget::Factors && !connects(warmup, conditions.len()) {
         return Err(fail.at(
             "design.warmup",
-            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"factors\": \
+            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"effects\" (or \"factors\"): \
              pairs chosen for the factor effects alone leave the per-condition model of the analysis without a fit \
              (every simulated study of the thesis design failed; `mrstudy simulate`)",
         ));

@@ -286,6 +286,16 @@ pub enum ActiveTarget {
     Factors,
 }
 
+impl ActiveTarget {
+    /// The study-file name (`effects`, also spelt `factors`) and what the design optimises, in words.
+    pub fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            ActiveTarget::Worths => ("worths", "every condition's log-worth"),
+            ActiveTarget::Factors => ("effects", "the factor effects (not the individual log-worths)"),
+        }
+    }
+}
+
 /// `pairs = "active"`: after an optional warm-up of a fixed design ([`Design::pairs`] ×
 /// [`Design::repetitions`], empty without one), each participant's trials are chosen `batch`
 /// at a time by the expected information gain about the target, from every judgment so far
