@@ -33,6 +33,7 @@ pub mod fit;
 pub mod plot;
 pub mod pvalue;
 pub mod quantile;
+pub mod ratings;
 pub mod report;
 pub mod scales;
 pub mod screening;
