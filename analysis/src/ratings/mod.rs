@@ -167,7 +167,9 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
         .collect();
     let kept = |participant: &str| !options.screening || screens[participant].reason.is_none();
     if !options.screening {
-        warnings.push("screening is off: P.910's rules are reported but nobody and no vote is left out".into());
+        warnings.push(
+            "screening is off (--screen off): P.910's rules are reported but nobody and no vote is left out".into(),
+        );
     }
     // 3. scores, outlier votes, MOS
     let data: Vec<&parse::Row> =
