@@ -213,6 +213,12 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
     }
     let analysis = summarise(&scores);
     let model = fit_model(&scores);
+    if model.summary.not_estimable.is_none() && !model.summary.converged {
+        warnings.push(format!(
+            "MLE_CO did not converge in {} iterations: its estimates are those of the last step",
+            model.summary.iterations
+        ));
+    }
     let participants = by_participant
         .iter()
         .map(|(participant, (ratings, _))| {
@@ -227,10 +233,10 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
             ParticipantRating {
                 participant: participant.to_string(),
                 ratings: ratings.len(),
-                bias: fitted.map(|f| f[0]),
-                bias_se: fitted.map(|f| f[1]),
-                inconsistency: fitted.map(|f| f[2]),
-                inconsistency_se: fitted.map(|f| f[3]),
+                bias: fitted.and_then(|f| finite(f[0])),
+                bias_se: fitted.and_then(|f| finite(f[1])),
+                inconsistency: fitted.and_then(|f| finite(f[2])),
+                inconsistency_se: fitted.and_then(|f| finite(f[3])),
                 screened: options.screening && screen.reason.is_some(),
                 reason: screen.reason.clone(),
                 golden_answered: screen.golden_answered,
@@ -245,8 +251,8 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
         .into_iter()
         .map(|mut stimulus| {
             if let Some(&(quality, se)) = model.stimuli.get(&(stimulus.scene.clone(), stimulus.condition.clone())) {
-                stimulus.quality = Some(quality);
-                stimulus.quality_se = Some(se);
+                stimulus.quality = finite(quality);
+                stimulus.quality_se = finite(se);
             }
             stimulus
         })
@@ -263,6 +269,12 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
         full_model: FULL_MODEL,
         warnings,
     })
+}
+
+/// A value for the JSON: never NaN or infinity (a standard error of a fit stopped before
+/// converging can be).
+fn finite(value: f64) -> Option<f64> {
+    value.is_finite().then_some(value)
 }
 
 const ONE_SCORE: &str = "one score: no interval";
@@ -345,7 +357,7 @@ fn fit_model(scores: &[mos::Score]) -> Model {
     };
     match sureal::fit_content_oblivious(stimulus_index.len(), subjects.len(), &observations) {
         Ok(fit) => {
-            model.summary.log_likelihood = Some(fit.log_likelihood);
+            model.summary.log_likelihood = finite(fit.log_likelihood);
             model.summary.iterations = fit.iterations;
             model.summary.converged = fit.converged;
             for ((scene, condition), &e) in &stimulus_index {

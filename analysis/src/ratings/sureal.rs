@@ -50,7 +50,7 @@ pub struct ContentObliviousFit {
     /// Log-likelihood of all the ratings at the estimate.
     pub log_likelihood: f64,
     pub iterations: usize,
-    /// False when [`MAX_ITERATIONS`] ran out before the step fell below [`DELTA`].
+    /// False when 10 000 steps (SUREAL's `MAX_ITR`) ran out before the step fell below [`DELTA`].
     pub converged: bool,
 }
 
