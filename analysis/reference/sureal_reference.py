@@ -14,6 +14,10 @@ fixed point is the same maximum-likelihood estimate. Standard errors as SUREAL r
 (`*_std`): 1/sqrt of the diagonal of the observed information, per parameter.
 Subject biases have mean 0 over subjects (force_subjbias_zeromean, SUREAL's default).
 
+The full model (MaximumLikelihoodEstimationModel, TYPE 'MLE', content ambiguity a_c per content
+id) is run too; the fixture's `full` keeps its quality, bias and their standard errors, which
+depend on v_s^2 + a_c^2 only (see sureal_full_ridge.py for why the split is not identifiable).
+
 Sets (subsets keep the fixture small; the subset is taken before the fit):
 - nflx_subset: NFLX_dataset_public_raw.py, the distorted videos of content ids 0-3
   (BigBuckBunny, BirdsInCage, CrowdRun, ElFuente1), all 26 subjects, ratings 1-5.
@@ -40,7 +44,8 @@ import types
 import numpy as np
 import sureal
 from sureal.dataset_reader import RawDatasetReader
-from sureal.subjective_model import MaximumLikelihoodEstimationModelContentOblivious
+from sureal.subjective_model import (MaximumLikelihoodEstimationModel,
+                                     MaximumLikelihoodEstimationModelContentOblivious)
 from sureal.tools.misc import import_python_file
 
 
@@ -93,6 +98,26 @@ def fit(dataset, delta_thr):
         'inconsistency': [float(v) for v in result['observer_inconsistency']],
         'inconsistency_se': [float(v) for v in result['observer_inconsistency_std']],
         'iterations': int(result['num_iter']),
+        'content': [int(c) for c in reader.content_id_of_dis_videos],
+    }
+
+
+def fit_full(dataset, delta_thr):
+    """The full model (TYPE 'MLE'): only the parts that do not depend on where on the ridge of
+    equal likelihood the iteration ends (quality, bias and their standard errors depend on
+    v_s^2 + a_c^2 only); inconsistency and ambiguity are recorded for information."""
+    reader = RawDatasetReader(dataset)
+    with contextlib.redirect_stdout(io.StringIO()):
+        result = MaximumLikelihoodEstimationModel(reader).run_modeling(delta_thr=delta_thr)
+    return {
+        'quality': [float(v) for v in result['quality_scores']],
+        'quality_se': [float(v) for v in result['quality_scores_std']],
+        'bias': [float(v) for v in result['observer_bias']],
+        'bias_se': [float(v) for v in result['observer_bias_std']],
+        'inconsistency': [float(v) for v in result['observer_inconsistency']],
+        # a content id without stimuli in the subset has no ambiguity (SUREAL: NaN)
+        'ambiguity': [float(v) if np.isfinite(v) else None for v in result['content_ambiguity']],
+        'iterations': int(result['num_iter']),
     }
 
 
@@ -115,6 +140,8 @@ def main():
     }
     for name, dataset in sets.items():
         out['sets'][name] = fit(dataset, 1e-13)
+        if name != 'simulated_degenerate':
+            out['sets'][name]['full'] = fit_full(dataset, 1e-13)
         # how far SUREAL's default stop (1e-8) is from the converged fit, for the record
         default = fit(dataset, 1e-8)
         out['sets'][name]['default_stop_max_quality_difference'] = float(

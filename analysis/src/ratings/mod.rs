@@ -19,6 +19,7 @@ pub mod parse;
 pub mod report;
 pub mod screening;
 pub mod sureal;
+pub mod sureal_full;
 #[cfg(test)]
 mod sureal_tests;
 #[cfg(test)]
@@ -63,8 +64,8 @@ pub struct RatingsAnalysis {
     pub conditions: Vec<ConditionRating>,
     pub participants: Vec<ParticipantRating>,
     pub model: ModelSummary,
-    /// Why the full SUREAL model (with content ambiguity) is not reported.
-    pub full_model: &'static str,
+    /// SUREAL's full model (with content ambiguity): its identifiable part.
+    pub full_model: FullModel,
     pub warnings: Vec<String>,
 }
 
@@ -139,8 +140,45 @@ pub struct ModelSummary {
     pub not_estimable: Option<String>,
 }
 
-/// Why the full model is not fitted.
-pub const FULL_MODEL: &str = "not fitted: SUREAL's full model gives a rating the variance v_s² + a_c² (inconsistency of the participant, ambiguity of the scene configuration); adding a constant to every v_s² and taking it from every a_c² leaves the likelihood unchanged, so inconsistency and ambiguity are not identifiable apart (only their sums are) unless both reach 0 at once, and with integer ratings the likelihood can also grow without bound";
+/// What the full model reports and why not more.
+pub const FULL_MODEL: &str = "SUREAL's full model gives a score the variance v_s² + a_c² (inconsistency of the participant, ambiguity of the scene configuration); moving a constant from every a_c² to every v_s² leaves the likelihood unchanged, so inconsistency and ambiguity are not identifiable apart and are not reported; quality and bias depend only on the sums and are reported";
+
+/// SUREAL's full model (`MLE`), its identifiable part: quality and bias with standard errors.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FullModel {
+    /// `MLE`.
+    pub name: &'static str,
+    pub note: &'static str,
+    pub iterations: usize,
+    pub converged: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_estimable: Option<String>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stimuli: Vec<FullStimulus>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub participants: Vec<FullParticipant>,
+}
+
+/// A stimulus' quality under the full model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FullStimulus {
+    pub scene: String,
+    pub condition: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality_se: Option<f64>,
+}
+
+/// A participant's bias under the full model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FullParticipant {
+    pub participant: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_se: Option<f64>,
+}
 
 /// Analyses a rating export's text (`name` for messages).
 pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Result<RatingsAnalysis> {
@@ -266,7 +304,7 @@ pub fn analyze_rating_csv(text: &str, name: &str, options: RatingOptions) -> Res
         conditions: analysis.1,
         participants,
         model: model.summary,
-        full_model: FULL_MODEL,
+        full_model: model.full,
         warnings,
     })
 }
@@ -326,6 +364,7 @@ struct Model {
     stimuli: BTreeMap<(String, String), (f64, f64)>,
     /// participant → [bias, bias_se, inconsistency, inconsistency_se].
     subjects: BTreeMap<String, [f64; 4]>,
+    full: FullModel,
 }
 
 /// Fits MLE_CO to the scores of participants with at least two.
@@ -354,6 +393,15 @@ fn fit_model(scores: &[mos::Score]) -> Model {
         },
         stimuli: BTreeMap::new(),
         subjects: BTreeMap::new(),
+        full: FullModel {
+            name: "MLE",
+            note: FULL_MODEL,
+            iterations: 0,
+            converged: false,
+            not_estimable: None,
+            stimuli: Vec::new(),
+            participants: Vec::new(),
+        },
     };
     match sureal::fit_content_oblivious(stimulus_index.len(), subjects.len(), &observations) {
         Ok(fit) => {
@@ -377,6 +425,51 @@ fn fit_model(scores: &[mos::Score]) -> Model {
             model.summary.iterations = iterations;
             model.summary.not_estimable = Some(format!(
                 "participant {}'s inconsistency goes to 0 (after {iterations} iterations): the likelihood grows without bound, so MLE_CO has no estimate for these data",
+                subjects[subject]
+            ));
+        }
+    }
+    // the full model: contents are the scene configurations
+    let mut scenes: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut content = vec![0; stimulus_index.len()];
+    for (&(scene, _), &e) in &stimulus_index {
+        let next = scenes.len();
+        content[e] = *scenes.entry(scene).or_insert(next);
+    }
+    let data = sureal_full::FullData {
+        stimuli: stimulus_index.len(),
+        subjects: subjects.len(),
+        content: &content,
+        observations: &observations,
+    };
+    match sureal_full::fit_full(data) {
+        Ok(fit) => {
+            model.full.iterations = fit.iterations;
+            model.full.converged = fit.converged;
+            model.full.stimuli = stimulus_index
+                .iter()
+                .map(|(&(scene, condition), &e)| FullStimulus {
+                    scene: scene.to_string(),
+                    condition: condition.to_string(),
+                    quality: finite(fit.quality[e]),
+                    quality_se: finite(fit.quality_se[e]),
+                })
+                .collect();
+            model.full.participants = subjects
+                .iter()
+                .enumerate()
+                .map(|(s, participant)| FullParticipant {
+                    participant: participant.to_string(),
+                    bias: finite(fit.bias[s]),
+                    bias_se: finite(fit.bias_se[s]),
+                })
+                .collect();
+        }
+        Err(sureal::Degenerate::TooFew { message }) => model.full.not_estimable = Some(message),
+        Err(sureal::Degenerate::Unbounded { subject, iterations }) => {
+            model.full.iterations = iterations;
+            model.full.not_estimable = Some(format!(
+                "the score variance of participant {} goes to 0 (after {iterations} iterations): the likelihood grows without bound",
                 subjects[subject]
             ));
         }

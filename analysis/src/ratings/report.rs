@@ -1,5 +1,5 @@
 //! What `mrstudy analyze` prints and draws for a rating export: the text table (conditions,
-//! stimuli, participants, the model) and, with `--plot-dir`, `ratings-mos.svg`: the MOS per
+//! stimuli with MLE_CO's and the full model's quality, participants, the models) and, with `--plot-dir`, `ratings-mos.svg`: the MOS per
 //! condition and per stimulus with their 95 % intervals. Numbers are formatted here (not by
 //! `crate::table`, which calls this: no module cycle).
 
@@ -57,13 +57,18 @@ pub fn render_table(analysis: &RatingsAnalysis) -> String {
     out.push('\n');
     let _ = writeln!(
         out,
-        "{:<16} {:<16} {:>5} {:>7} {:>16} {:>8} {:>7}",
-        "scene", "condition", "n", "MOS", "95 % interval", "quality", "se"
+        "{:<16} {:<16} {:>5} {:>7} {:>16} {:>8} {:>7} {:>8} {:>7}",
+        "scene", "condition", "n", "MOS", "95 % interval", "quality", "se", "MLE q", "se"
     );
     for stimulus in &analysis.stimuli {
+        let full = analysis
+            .full_model
+            .stimuli
+            .iter()
+            .find(|full| full.scene == stimulus.scene && full.condition == stimulus.condition);
         let _ = writeln!(
             out,
-            "{:<16} {:<16} {:>5} {:>7} {:>16} {:>8} {:>7}{}",
+            "{:<16} {:<16} {:>5} {:>7} {:>16} {:>8} {:>7} {:>8} {:>7}{}",
             stimulus.scene,
             stimulus.condition,
             stimulus.ratings,
@@ -71,6 +76,8 @@ pub fn render_table(analysis: &RatingsAnalysis) -> String {
             interval(stimulus.mos_ci),
             optional(stimulus.quality, 3),
             optional(stimulus.quality_se, 3),
+            optional(full.and_then(|f| f.quality), 3),
+            optional(full.and_then(|f| f.quality_se), 3),
             stimulus.note.map(|n| format!("  ({n})")).unwrap_or_default()
         );
     }
@@ -116,7 +123,26 @@ pub fn render_table(analysis: &RatingsAnalysis) -> String {
         }
         (None, None) => {}
     }
-    let _ = writeln!(out, "full model with content ambiguity: {}", analysis.full_model);
+    let full = &analysis.full_model;
+    match &full.not_estimable {
+        Some(reason) => {
+            let _ = writeln!(
+                out,
+                "SUREAL {} (content ambiguity per scene configuration): no estimate: {reason}",
+                full.name
+            );
+        }
+        None => {
+            let _ = writeln!(
+                out,
+                "SUREAL {} (content ambiguity per scene configuration; `MLE q` above): {} iterations{}; {}",
+                full.name,
+                full.iterations,
+                if full.converged { "" } else { ", NOT converged" },
+                full.note
+            );
+        }
+    }
     for warning in &analysis.warnings {
         let _ = writeln!(out, "warning: {warning}");
     }

@@ -3,6 +3,7 @@
 //! sets with missing cells and repetitions; equal within 1e-6.
 
 use super::sureal::{Degenerate, Observation, fit_content_oblivious};
+use super::sureal_full::{FullData, fit_full};
 
 const REFERENCE: &str = include_str!("../../tests/reference/sureal_mle_co.json");
 const TOLERANCE: f64 = 1e-6;
@@ -49,6 +50,25 @@ fn mle_co_equals_sureal_on_its_data_sets_and_simulated_ones() {
         assert_close(name, "bias_se", &fit.bias_se, &numbers(&reference["bias_se"]));
         assert_close(name, "inconsistency", &fit.inconsistency, &numbers(&reference["inconsistency"]));
         assert_close(name, "inconsistency_se", &fit.inconsistency_se, &numbers(&reference["inconsistency_se"]));
+    }
+}
+
+/// The full model's quality, bias and their standard errors (which depend on v_s² + a_c²
+/// only) equal SUREAL's `MaximumLikelihoodEstimationModel`'s within 1e-6.
+#[test]
+fn the_full_model_s_identifiable_part_equals_sureal() {
+    for name in ["nflx_subset", "vqeg_525_low_subset", "simulated"] {
+        let reference = set(name);
+        let (stimuli, subjects, ratings) = observations(&reference);
+        let content: Vec<usize> = numbers(&reference["content"]).iter().map(|&c| c as usize).collect();
+        let data = FullData { stimuli, subjects, content: &content, observations: &ratings };
+        let fit = fit_full(data).unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        let full = &reference["full"];
+        assert!(fit.converged, "{name}");
+        assert_close(name, "full quality", &fit.quality, &numbers(&full["quality"]));
+        assert_close(name, "full quality_se", &fit.quality_se, &numbers(&full["quality_se"]));
+        assert_close(name, "full bias", &fit.bias, &numbers(&full["bias"]));
+        assert_close(name, "full bias_se", &fit.bias_se, &numbers(&full["bias_se"]));
     }
 }
 

@@ -155,6 +155,9 @@ fn straight_lining_and_zero_variance_screen_a_participant_and_one_rating_does_no
     assert!(analysis.model.not_estimable.is_none(), "{:?}", analysis.model);
     assert!(p("p1").bias.is_some() && p("p1").inconsistency_se.is_some());
     assert!(analysis.stimuli.iter().all(|s| s.quality.is_some() && s.quality_se.is_some()));
+    let full = &analysis.full_model;
+    assert!(full.not_estimable.is_none() && full.stimuli.len() == 9 && full.participants.len() == 16, "{full:?}");
+    assert!(full.stimuli.iter().all(|s| s.quality.is_some() && s.quality_se.is_some()));
     // screening off: reported, nobody left out
     let off =
         analyze_rating_csv(&csv("acr", &rows), "r.csv", RatingOptions { screening: false, ..RatingOptions::default() })
