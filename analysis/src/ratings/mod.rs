@@ -9,7 +9,9 @@
 //!    (|z| ≥ 3.29 within a stimulus) left out, and the MOS with its 95 % t-interval per
 //!    stimulus (scene configuration × condition) and per condition;
 //! 4. [`sureal`]: SUREAL's content-oblivious maximum-likelihood model MLE_CO on the same
-//!    scores: quality per stimulus, bias and inconsistency per participant, standard errors.
+//!    scores: quality per stimulus, bias and inconsistency per participant, standard errors;
+//!    [`sureal_full`]: the full model's identifiable part (quality, bias) with an ambiguity per
+//!    scene configuration.
 //!
 //! [`report`] prints it as a table and draws the MOS plot. JSON: the `ratings` section of the
 //! Analysis JSON (docs/design.md).
