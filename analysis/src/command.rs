@@ -71,11 +71,20 @@ pub fn analyze_files(
         return Ok(Printed { text, ..Printed::default() });
     }
     let threshold_export = crate::threshold::report::is_threshold_csv(trials_csv);
-    if drawings.scatter && stimuli.is_none() && !threshold_export {
+    let rating_export = crate::ratings::is_rating_csv(trials_csv);
+    if drawings.scatter && stimuli.is_none() && !threshold_export && !rating_export {
         return Err(refuse(
             "--plot-dir",
-            "it holds the metric scatter plots (or a threshold export's fits): give --stimuli with a stimulus metrics CSV"
+            "it holds the metric scatter plots (or a threshold export's fits, a rating export's MOS plot): give --stimuli with a stimulus metrics CSV"
                 .to_string(),
+        ));
+    }
+    if rating_export && (drawings.worth || drawings.effects || stimuli.is_some() || conditions.is_some()) {
+        return Err(refuse(
+            "--trials",
+            format!(
+                "{trials_name} is a rating export (participant,scene,condition,rating,method): --conditions, --stimuli, --plot and --effect-plot apply to paired comparisons; --plot-dir draws its MOS plot"
+            ),
         ));
     }
     let report = analyze_named(trials_csv, trials_name, conditions, stimuli, options)?;
@@ -107,6 +116,11 @@ pub fn analyze_files(
         && let Some(threshold) = &report.threshold
     {
         printed.scatter_plots.extend(threshold.plots());
+    }
+    if drawings.scatter
+        && let Some(ratings) = &report.ratings
+    {
+        printed.scatter_plots.extend(ratings.plots());
     }
     if drawings.scatter && stimuli.is_some() && !threshold_export {
         let metrics = report.metrics.as_ref().ok_or_else(|| {

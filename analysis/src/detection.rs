@@ -851,8 +851,13 @@ mod tests {
 
     #[test]
     fn the_table_prints_the_scene_breakdown() {
-        let report =
-            crate::report::Report { preference: None, detection: Some(by_scene()), metrics: None, threshold: None };
+        let report = crate::report::Report {
+            preference: None,
+            detection: Some(by_scene()),
+            metrics: None,
+            threshold: None,
+            ratings: None,
+        };
         let text = crate::table::render_report(&report);
         assert!(text.contains("per scene configuration"), "{text}");
         let line = text.lines().find(|line| line.starts_with("s2 ")).unwrap();

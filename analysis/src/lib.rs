@@ -34,6 +34,7 @@ mod newton;
 pub mod plot;
 pub mod pvalue;
 pub mod quantile;
+pub mod ratings;
 pub mod report;
 pub mod scales;
 pub mod screening;

@@ -182,6 +182,30 @@ pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> 
     })
 }
 
+/// Mean opinion scores with 95 % intervals (rating studies, [`crate::ratings`]): one row per
+/// label in the order of `rows`, one series per [`EffectSeries`] (its `factor` the row label,
+/// `estimate` the MOS); `value_label` names the scale.
+#[must_use]
+pub fn mos_plot(title: &str, value_label: &str, rows: &[String], series: &[EffectSeries]) -> String {
+    let labelled = series
+        .iter()
+        .map(|series| {
+            let points =
+                series.points.iter().map(|p| (p.factor.clone(), Estimate::new(p.estimate, p.low, p.high))).collect();
+            Labelled { name: series.name.clone(), points }
+        })
+        .collect();
+    let (rows, series) = forest::assemble(rows, labelled);
+    forest::render(&forest::Spec {
+        title: title.to_owned(),
+        rows,
+        series,
+        value_label: value_label.to_owned(),
+        symbol: "MOS",
+        annotation: None,
+    })
+}
+
 /// Series of (x, y) points as markers joined by lines, on linear or log10 axes.
 #[must_use]
 pub fn line_plot(spec: &LinePlot) -> String {

@@ -33,6 +33,9 @@ pub struct Report {
     /// A threshold export's psychometric fits ([`crate::threshold::report`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub threshold: Option<crate::threshold::report::ThresholdAnalysis>,
+    /// A rating export's MOS, screening and SUREAL model ([`crate::ratings`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratings: Option<crate::ratings::RatingsAnalysis>,
 }
 
 /// Parses the trials, conditions and stimulus metrics CSV text and analyses them; the names
@@ -58,6 +61,21 @@ pub fn analyze_with_table(
     stimuli: Option<&StimulusMetrics>,
     options: &Options,
 ) -> Result<Report> {
+    if crate::ratings::is_rating_csv(trials_csv) {
+        let rating_options = crate::ratings::RatingOptions {
+            include_pilots: options.include_pilots,
+            include_excluded: options.include_excluded,
+            screening: options.screening != crate::analysis::Screening::Off,
+        };
+        let ratings = crate::ratings::analyze_rating_csv(trials_csv, trials_name, rating_options)?;
+        return Ok(Report {
+            preference: None,
+            detection: None,
+            metrics: None,
+            threshold: None,
+            ratings: Some(ratings),
+        });
+    }
     let trials_options = TrialsOptions {
         group_by: options.group_by.clone(),
         include_pilots: options.include_pilots,
@@ -167,7 +185,7 @@ pub fn analyze_with_table(
     } else {
         None
     };
-    Ok(Report { preference, detection, metrics, threshold })
+    Ok(Report { preference, detection, metrics, threshold, ratings: None })
 }
 
 /// Each stimulus record's render time and mean FLIP in the affected region, for the values at a

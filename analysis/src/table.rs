@@ -282,6 +282,9 @@ pub fn render_report(report: &crate::report::Report) -> String {
         }
         render_threshold(&mut out, threshold);
     }
+    if let Some(ratings) = &report.ratings {
+        out.push_str(&crate::ratings::report::render_table(ratings));
+    }
     out
 }
 
