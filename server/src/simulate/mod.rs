@@ -54,6 +54,7 @@ mod report;
 mod run;
 #[cfg(test)]
 mod tests;
+mod ties;
 mod truth;
 
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
@@ -133,6 +134,9 @@ pub struct Options {
     /// Probability that a participant stops after each trial.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dropout: f64,
+    /// Studies with `allow_tie = true`: Davidson's ν of the simulated observers ("not sure" is ν/(2 + ν) of the answers between equal conditions).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    pub tie_nu: f64,
     /// Simulated studies per design and participant count.
     #[arg(long, default_value_t = 200)]
     pub runs: usize,
@@ -166,6 +170,9 @@ impl Config {
         }
         if !(0.0..1.0).contains(&self.options.dropout) {
             return Err(bad("--dropout", format!("must be in [0, 1), found {}", self.options.dropout)));
+        }
+        if !(self.options.tie_nu >= 0.0 && self.options.tie_nu.is_finite()) {
+            return Err(bad("--tie-nu", format!("must be finite and not negative, found {}", self.options.tie_nu)));
         }
         if self.truth.log_worths.len() != study.conditions.len() {
             return Err(bad(
