@@ -38,6 +38,8 @@ flags! {
         #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)] lapse: f64,
         /// Probability that a participant stops after each trial.
         #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)] dropout: f64,
+        /// Studies with `allow_tie = true`: Davidson's ν of the simulated observers ("not sure" is ν/(2 + ν) of the answers between equal conditions).
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)] tie_nu: f64,
         /// Simulated studies per design and participant count.
         #[arg(long, default_value_t = 200)] runs: usize,
         #[arg(long, default_value_t = 1)] seed: u64,

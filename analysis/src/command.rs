@@ -13,7 +13,8 @@ pub struct Drawings {
     pub worth: bool,
     /// The factor-effect plot (`--effect-plot`).
     pub effects: bool,
-    /// One scatter plot per metric × region (`--plot-dir`).
+    /// One scatter plot per metric × region, a threshold export's fits, the JOD ranking
+    /// (`--plot-dir`).
     pub scatter: bool,
 }
 
@@ -23,7 +24,7 @@ pub struct Printed {
     pub text: String,
     pub worth_plot: Option<String>,
     pub effect_plot: Option<String>,
-    /// (file name, SVG) of each metric scatter plot.
+    /// (file name, SVG) of each plot of `--plot-dir`.
     pub scatter_plots: Vec<(String, String)>,
 }
 
@@ -72,10 +73,11 @@ pub fn analyze_files(
     }
     let threshold_export = crate::threshold::report::is_threshold_csv(trials_csv);
     let rating_export = crate::ratings::is_rating_csv(trials_csv);
-    if drawings.scatter && stimuli.is_none() && !threshold_export && !rating_export {
+    let jod = options.scale == crate::analysis::Scale::Jod;
+    if drawings.scatter && stimuli.is_none() && !threshold_export && !rating_export && !jod {
         return Err(refuse(
             "--plot-dir",
-            "it holds the metric scatter plots (or a threshold export's fits, a rating export's MOS plot): give --stimuli with a stimulus metrics CSV"
+            "it holds the metric scatter plots (or a threshold export's fits, a rating export's MOS plot, or the JOD ranking): give --stimuli with a stimulus metrics CSV, or --scale jod"
                 .to_string(),
         ));
     }
@@ -121,6 +123,12 @@ pub fn analyze_files(
         && let Some(ratings) = &report.ratings
     {
         printed.scatter_plots.extend(ratings.plots());
+    }
+    if drawings.scatter
+        && jod
+        && let Some(ranking) = report.preference.as_ref().and_then(|analysis| analysis.jod_ranking_plot())
+    {
+        printed.scatter_plots.push(("jod-ranking.svg".to_owned(), ranking));
     }
     if drawings.scatter && stimuli.is_some() && !threshold_export {
         let metrics = report.metrics.as_ref().ok_or_else(|| {

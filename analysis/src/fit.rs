@@ -328,7 +328,7 @@ impl crate::newton::Concave for Likelihood<'_> {
     }
 }
 
-/// Maximum-likelihood fit by Newton–Raphson with step halving ([`crate::newton::maximise`]),
+/// Maximum-likelihood fit by Newton–Raphson with step halving (the crate's `newton::maximise`),
 /// from `start` (or zeros). Fails with [`FitFailure::Separation`] when the estimate runs off to
 /// infinity.
 pub fn fit_ml(

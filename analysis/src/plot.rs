@@ -5,6 +5,8 @@
 //!   π beside it (the thesis' Figures 6.14(a) and 6.16(a));
 //! - [`effect_plot`]: factor estimates (`gi`, `cm`, `ca`, interactions) with 95 % intervals
 //!   per group (Figure 6.14(b));
+//! - [`ranking_plot`]: values ranked best first with 95 % intervals and, beside each row, how
+//!   it differs from the row below (the JOD ranking of `--scale jod`);
 //! - [`line_plot`]: benchmark series of (x, y) points on linear or log10 axes;
 //! - [`scatter`]: labelled (x, y) points, optionally coloured by group (an image metric of
 //!   each stimulus or condition against its perceived log-worth).
@@ -203,6 +205,37 @@ pub fn mos_plot(title: &str, value_label: &str, rows: &[String], series: &[Effec
         value_label: value_label.to_owned(),
         symbol: "MOS",
         annotation: None,
+    })
+}
+
+/// One row of a [`ranking_plot`]: a condition's value with its 95 % interval, and a note on its
+/// difference from the next row down (none on the last row).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RankingPoint {
+    pub condition: String,
+    pub value: f64,
+    pub low: Option<f64>,
+    pub high: Option<f64>,
+    pub step: Option<String>,
+}
+
+/// A ranking: one row per point in the order given (best first), the value with its interval
+/// on the horizontal axis, and the notes on neighbouring differences in a column headed
+/// `step_header` beside the plot.
+#[must_use]
+pub fn ranking_plot(title: &str, value_label: &str, step_header: &str, points: &[RankingPoint]) -> String {
+    let rows: Vec<String> = points.iter().map(|p| p.condition.clone()).collect();
+    let estimates = points.iter().map(|p| (p.condition.clone(), Estimate::new(p.value, p.low, p.high))).collect();
+    let (rows, series) = forest::assemble(&rows, vec![Labelled { name: "all".to_owned(), points: estimates }]);
+    let annotation =
+        Annotation { header: step_header.to_owned(), cells: vec![points.iter().map(|p| p.step.clone()).collect()] };
+    forest::render(&forest::Spec {
+        title: title.to_owned(),
+        rows,
+        series,
+        value_label: value_label.to_owned(),
+        symbol: "JOD",
+        annotation: Some(annotation),
     })
 }
 

@@ -6,7 +6,7 @@
 //!
 //! with λᵢ = ln πᵢ (0 at the reference condition, as the item model's log-worth) and ν ≥ 0.
 //! Without ties ν = 0 and the model is Bradley–Terry. Maximum likelihood by Newton–Raphson
-//! ([`crate::newton`], the loop of the Bradley–Terry fit too) in
+//! (the crate's `newton`, the loop of the Bradley–Terry fit too) in
 //! (λ, θ = ln ν): with dᵢⱼ = (λᵢ − λⱼ)/2 a pair's log-likelihood is
 //! (wᵢ − wⱼ)·dᵢⱼ + t·θ − n·ln(2 cosh dᵢⱼ + e^θ), concave, and its Hessian depends on the data only
 //! through n, so observed and expected information agree. Standard errors from the inverse

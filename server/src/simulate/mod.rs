@@ -60,6 +60,7 @@ mod run;
 #[cfg(test)]
 mod tests;
 pub mod threshold;
+mod ties;
 mod truth;
 
 pub use compare::{Comparison, Versus};
@@ -134,6 +135,8 @@ pub struct Options {
     pub lapse: f64,
     /// Probability that a participant stops after each trial.
     pub dropout: f64,
+    /// Studies with `allow_tie = true`: Davidson's ν of the simulated observers ("not sure" is ν/(2 + ν) of the answers between equal conditions).
+    pub tie_nu: f64,
     /// Simulated studies per design and participant count.
     pub runs: usize,
     pub seed: u64,
@@ -164,6 +167,9 @@ impl Config {
         }
         if !(0.0..1.0).contains(&self.options.dropout) {
             return Err(bad("--dropout", format!("must be in [0, 1), found {}", self.options.dropout)));
+        }
+        if !(self.options.tie_nu >= 0.0 && self.options.tie_nu.is_finite()) {
+            return Err(bad("--tie-nu", format!("must be finite and not negative, found {}", self.options.tie_nu)));
         }
         if self.truth.log_worths.len() != study.conditions.len() {
             return Err(bad(

@@ -9,6 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
 use super::Config;
+use super::ties::{Answer, davidson_answer};
 
 /// Uniform in [0, 1) from 53 bits.
 pub(super) fn uniform(rng: &mut ChaCha8Rng) -> f64 {
@@ -38,6 +39,20 @@ impl Observer<'_> {
         uniform(&mut self.rng) < 1.0 / (1.0 + (self.worths[right] - self.worths[left]).exp())
     }
 
+    /// The answer to a pair: [`Observer::judge`] (the same random stream) where the study has
+    /// no "not sure", else Davidson's model with ν = `--tie-nu` ([`super::ties`]); a lapse is a
+    /// coin flip between the sides.
+    pub(super) fn answer(&mut self, left: usize, right: usize, allow_tie: bool) -> Answer {
+        if !allow_tie {
+            return if self.judge(left, right) { Answer::Left } else { Answer::Right };
+        }
+        if uniform(&mut self.rng) < self.config.options.lapse {
+            return if uniform(&mut self.rng) < 0.5 { Answer::Left } else { Answer::Right };
+        }
+        let u = uniform(&mut self.rng);
+        davidson_answer(u, self.worths[left], self.worths[right], self.config.options.tie_nu)
+    }
+
     /// A catch trial: right unless lapsing (nothing recorded).
     pub(super) fn catch(&mut self) {
         if uniform(&mut self.rng) < self.config.options.lapse {
@@ -50,19 +65,21 @@ impl Observer<'_> {
     }
 }
 
-/// The judgments of one simulated study (each participant's pair trials in order).
+/// The judgments of one simulated study (each participant's pair trials in order), and apart
+/// those answered "not sure" (`allow_tie`; numbered as the others, as the analysis takes them).
 pub(super) fn collect_judgments(
     study: &Study,
     config: &Config,
     participants: usize,
     run_seed: u64,
-) -> Result<Vec<Judgment>, String> {
+) -> Result<(Vec<Judgment>, Vec<Judgment>), String> {
     let truth: Vec<f64> = config.truth.log_worths.iter().map(|w| w.log_worth).collect();
     let mut posterior = match active_posterior(study) {
         Some(posterior) => Some(posterior.map_err(|error| error.to_string())?),
         None => None,
     };
     let mut judgments = Vec::new();
+    let mut ties = Vec::new();
     for participant in 0..participants {
         let seed = derived_seed(run_seed, participant as u64);
         let mut rng = ChaCha8Rng::seed_from_u64(derived_seed(seed, 1));
@@ -71,15 +88,22 @@ pub(super) fn collect_judgments(
         let mut shown: Vec<(usize, usize)> = Vec::new();
         let mut stopped = false;
         let mut answer = |left: usize, right: usize, observer: &mut Observer, posterior: &mut Option<Posterior>| {
-            let left_chosen = observer.judge(left, right);
-            judgments.push(Judgment {
+            let answer = observer.answer(left, right, study.participation.allow_tie);
+            let left_chosen = answer == Answer::Left;
+            let judgment = Judgment {
                 participant: participant as u32,
                 left: left as u32,
                 right: right as u32,
                 left_chosen,
                 count: 1,
                 group: 0,
-            });
+            };
+            if answer == Answer::Tie {
+                // a "not sure" informs no Bradley–Terry direction: the posterior skips it
+                ties.push(judgment);
+                return Ok(());
+            }
+            judgments.push(judgment);
             if let Some(posterior) = posterior {
                 let (winner, loser) = if left_chosen { (left, right) } else { (right, left) };
                 posterior.update(winner, loser).map_err(|error| error.to_string())?;
@@ -123,5 +147,5 @@ pub(super) fn collect_judgments(
             }
         }
     }
-    Ok(judgments)
+    Ok((judgments, ties))
 }

@@ -230,6 +230,7 @@ mod tests {
                 observer_sd: 0.3,
                 lapse: 0.02,
                 dropout: 0.0,
+                tie_nu: 0.5,
                 runs: 200,
                 seed: 3,
                 bootstrap: 0,

@@ -3,7 +3,7 @@
 
 use crate::schedule::derived_seed;
 use crate::study::Study;
-use mrstudy_analysis::analysis::{self, Analysis, Screening, analyze_judgments};
+use mrstudy_analysis::analysis::{self, Analysis, Screening, analyze_judgments_with_ties};
 use mrstudy_analysis::data::{ConditionTable, Judgment, Judgments};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -63,29 +63,28 @@ pub(super) fn run_once(
 ) -> RunOutcome {
     let mut outcome =
         RunOutcome { participants, significant: vec![false; config.truth.effects.len()], ..Default::default() };
-    let rows = match collect_judgments(study, config, participants, run_seed) {
-        Ok(rows) => rows,
+    let (rows, ties) = match collect_judgments(study, config, participants, run_seed) {
+        Ok(collected) => collected,
         Err(message) => {
             outcome.failure = Some(message);
             return outcome;
         }
     };
-    outcome.judgments = rows.len();
+    outcome.judgments = rows.len() + ties.len();
     // Participants with no judgment (a dropout before their first pair) are not in the data.
     let mut index = vec![u32::MAX; participants];
     let mut names = Vec::new();
-    let rows: Vec<Judgment> = rows
-        .into_iter()
-        .map(|mut row| {
-            let slot = &mut index[row.participant as usize];
-            if *slot == u32::MAX {
-                *slot = names.len() as u32;
-                names.push(format!("p{}", row.participant + 1));
-            }
-            row.participant = *slot;
-            row
-        })
-        .collect();
+    let mut renumber = |mut row: Judgment| {
+        let slot = &mut index[row.participant as usize];
+        if *slot == u32::MAX {
+            *slot = names.len() as u32;
+            names.push(format!("p{}", row.participant + 1));
+        }
+        row.participant = *slot;
+        row
+    };
+    let rows: Vec<Judgment> = rows.into_iter().map(&mut renumber).collect();
+    let ties: Vec<Judgment> = ties.into_iter().map(&mut renumber).collect();
     let judgments = Judgments {
         conditions: study.conditions.iter().map(|condition| condition.name.clone()).collect(),
         participants: names,
@@ -99,7 +98,7 @@ pub(super) fn run_once(
         agreement_simulations: 1,
         ..analysis::Options::default()
     };
-    match analyze_judgments(&judgments, table, &options) {
+    match analyze_judgments_with_ties(&judgments, &ties, table, &options) {
         Ok(analysis) => score(&analysis, config, &mut outcome),
         Err(error) => outcome.failure = Some(error.to_string()),
     }

@@ -8,7 +8,7 @@ use crate::study::{ActiveTarget, PairsRule, load_study};
 
 /// A 2 × 2 factorial (gi, ca), anchored on LQ and HQ, 2 repetitions: 5 pairs × 2 = 10 trials,
 /// plus one catch trial when `catch`.
-fn factorial_study(dir: &Path, design: &str) -> Study {
+pub(super) fn factorial_study(dir: &Path, design: &str) -> Study {
     let body = format!(
         r#"
 slug = "sim"
@@ -51,9 +51,9 @@ scenes = "different"
     load_study(&file).unwrap()
 }
 
-const ANCHORED: &str = "pairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2";
+pub(super) const ANCHORED: &str = "pairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2";
 
-fn config(study: &Study, designs: &[DesignChoice], participants: &[usize], runs: usize) -> Config {
+pub(super) fn config(study: &Study, designs: &[DesignChoice], participants: &[usize], runs: usize) -> Config {
     let effects = vec![("gi".to_string(), 0.6), ("ca".to_string(), 0.3)];
     Config {
         truth: truth_from_effects(study, &effects).unwrap(),
@@ -63,6 +63,7 @@ fn config(study: &Study, designs: &[DesignChoice], participants: &[usize], runs:
             observer_sd: 0.3,
             lapse: 0.02,
             dropout: 0.0,
+            tie_nu: 0.5,
             runs,
             seed: 7,
             bootstrap: 0,
@@ -241,6 +242,7 @@ fn the_twenty_condition_example_loads_with_its_true_log_worths() {
             observer_sd: 0.3,
             lapse: 0.02,
             dropout: 0.0,
+            tie_nu: 0.5,
             runs: 2,
             seed: 1,
             bootstrap: 0,

@@ -196,3 +196,53 @@ fn analyze_scale_jod_reports_pwcmps_values() {
     let text = serde_json::to_string(&analysis).unwrap();
     assert!(text.contains("\"jod\":") && text.contains("\"jod_ci\":") && text.contains("\"jod_scale\":"));
 }
+
+/// `analyze --scale jod --bootstrap N --plot-dir DIR` draws `jod-ranking.svg`: the conditions by
+/// JOD, highest first, each with its difference from the next lower one marked significant or
+/// not as `jod_scale.ranking` says.
+#[test]
+fn the_ranking_plot_orders_by_jod_and_marks_each_neighbouring_difference() {
+    let truth = [("A", 0.0), ("B", 0.0), ("C", 1.5), ("D", 3.0)];
+    let mut csv = String::from("participant,left,right,chosen,count\n");
+    for p in 0..10 {
+        for (i, &(a, qa)) in truth.iter().enumerate() {
+            for (j, &(b, qb)) in truth.iter().enumerate().skip(i + 1) {
+                let share = 0.5 * statrs::function::erf::erfc(-(qa - qb) / SIGMA / std::f64::consts::SQRT_2);
+                let jitter = ((p * 7 + i * 3 + j) % 5) as f64 / 5.0;
+                let wins = ((6.0 * share + 2.0 * jitter - 0.5).floor().max(0.0) as u32).min(6);
+                csv += &format!("p{p},{a},{b},{a},{wins}\np{p},{a},{b},{b},{}\n", 6 - wins);
+            }
+        }
+    }
+    let csv = csv.lines().filter(|line| !line.ends_with(",0")).collect::<Vec<_>>().join("\n") + "\n";
+    let options = crate::analysis::Options {
+        scale: crate::analysis::Scale::Jod,
+        screening: crate::analysis::Screening::Off,
+        bootstrap: 100,
+        ..crate::analysis::Options::default()
+    };
+    let drawings = crate::command::Drawings { scatter: true, ..crate::command::Drawings::default() };
+    let printed = crate::command::analyze_files((&csv, "t.csv"), None, None, &options, true, drawings).unwrap();
+    let [(name, svg)] = &printed.scatter_plots[..] else { panic!("{:?}", printed.scatter_plots) };
+    assert_eq!(name, "jod-ranking.svg");
+    let analysis = crate::analysis::analyze(&csv, None, &options).unwrap();
+    let section = analysis.jod_scale.as_ref().unwrap();
+    // rows top to bottom: highest JOD first
+    let mut by_jod: Vec<(&str, f64)> = analysis.items.iter().map(|i| (i.condition.as_str(), i.jod.unwrap())).collect();
+    by_jod.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let at =
+        |condition: &str| svg.find(&format!(">{condition}</text>")).unwrap_or_else(|| panic!("no row {condition}"));
+    for pair in by_jod.windows(2) {
+        assert!(at(pair[0].0) < at(pair[1].0), "{} is drawn below {}", pair[0].0, pair[1].0);
+    }
+    let significant = section.ranking.iter().filter(|n| n.significant == Some(true)).count();
+    let not_significant = section.ranking.iter().filter(|n| n.significant == Some(false)).count();
+    assert!(significant >= 2 && not_significant >= 1, "{:?}", section.ranking);
+    assert_eq!(svg.matches("  significant").count(), significant, "{svg}");
+    assert_eq!(svg.matches("  n.s.").count(), not_significant);
+    assert!(!svg.contains("NaN") && !svg.contains("inf"));
+    // without --scale jod (and without --stimuli) the folder has nothing to hold
+    let bt = crate::analysis::Options { scale: crate::analysis::Scale::Bt, ..options };
+    let refused = crate::command::analyze_files((&csv, "t.csv"), None, None, &bt, true, drawings).unwrap_err();
+    assert!(refused.to_string().contains("--scale jod"), "{refused}");
+}
