@@ -450,51 +450,47 @@ pub struct StimulusFrame {
 }
 
 /// What a render of one condition outside a study may change from a stimulus's parameters:
-/// `mrstudy render --condition/--factors`'s GPU flags (the doc comments are their help).
-#[derive(Clone, Debug, clap::Args)]
+/// `mrstudy render --condition/--factors`'s GPU flags (the binary's clap definitions default to
+/// this `Default`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct RenderKnobs {
-    /// GPU: the VPL budget of the `gi` condition.
-    #[arg(long, default_value_t = 256)]
+    /// The VPL budget of the `gi` condition.
     pub vpls: u32,
-    /// GPU: resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
-    #[arg(long, default_value_t = 128)]
+    /// Resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
     pub ism_size: u32,
-    /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
-    #[arg(long, default_value_t = 1024)]
+    /// Points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
     pub ism_points: u32,
-    /// GPU: how the imperfect shadow maps' splats are drawn: `compute` (a compute pass, atomics)
-    /// or `raster` (the rasteriser, depth test).
-    #[arg(long, default_value = "compute", value_parser = |text: &str| {
-        crate::gpu::ism::IsmSplatting::parse(text).ok_or_else(|| format!("`{text}` is not one of compute, raster"))
-    })]
+    /// How the imperfect shadow maps' splats are drawn.
     pub ism_splatting: crate::gpu::ism::IsmSplatting,
-    /// GPU: bounces of indirect light in the `gi` condition (1: the single bounce of the RSM
-    /// VPLs; more add the multiple-bounce light source of thesis 5.2.7, at most 8).
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
+    /// Bounces of indirect light in the `gi` condition (1..=8).
     pub bounces: u32,
-    /// GPU: candidate points each multiple-bounce slot searches.
-    #[arg(long, default_value_t = 4096)]
+    /// Candidate points each multiple-bounce slot searches.
     pub bounce_candidates: u32,
-    /// GPU: the composition: additive (default) or scaled (Debevec: α = L'_cam / τ(L_r)).
-    #[arg(long, default_value = "additive", value_parser = |text: &str| {
-        crate::cm::Composition::parse(text).ok_or_else(|| format!("`{text}` is not one of additive, scaled"))
-    })]
+    /// The composition: additive or scaled (Debevec).
     pub composition: crate::cm::Composition,
-    /// GPU: the colour mapping of the GI buffers: off (Reinhard), statistics, samples or rohmer
-    /// (overrides what the `cm` factor implies).
-    #[arg(long, value_parser = |text: &str| {
-        CmMethod::parse(text).ok_or_else(|| format!("`{text}` is not one of off, statistics, samples, rohmer"))
-    })]
+    /// The colour mapping of the GI buffers, overriding what the `cm` factor implies.
     pub cm: Option<CmMethod>,
-    /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
-    /// `estimate` (noise, blur and JPEG quality measured on the photograph).
-    #[arg(long = "ca-params", default_value = "scene", value_parser = |text: &str| {
-        crate::ca::ParamSource::parse(text).ok_or_else(|| format!("`{text}` is not one of scene, estimate"))
-    })]
+    /// Where the `ca` factor takes its parameters.
     pub ca_source: crate::ca::ParamSource,
-    /// GPU: resolution of each caustic map of a mirror or glass object (0: no caustics).
-    #[arg(long, default_value_t = 256)]
+    /// Resolution of each caustic map of a mirror or glass object (0: no caustics).
     pub caustic_map_size: u32,
+}
+
+impl Default for RenderKnobs {
+    fn default() -> RenderKnobs {
+        RenderKnobs {
+            vpls: 256,
+            ism_size: 128,
+            ism_points: 1024,
+            ism_splatting: crate::gpu::ism::IsmSplatting::Compute,
+            bounces: 3,
+            bounce_candidates: 4096,
+            composition: crate::cm::Composition::Additive,
+            cm: None,
+            ca_source: crate::ca::ParamSource::Scene,
+            caustic_map_size: 256,
+        }
+    }
 }
 
 /// One condition rendered over a photograph, with the parameters it was rendered by and, when

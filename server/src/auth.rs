@@ -9,6 +9,8 @@
 //! session is valid on every server process sharing the database and survives a restart;
 //! `POST /admin/logout` ends it.
 
+use axum::extract::FromRequestParts;
+use axum::http::request::Parts;
 use axum::http::{HeaderMap, header};
 
 use crate::AppState;
@@ -90,6 +92,30 @@ pub(crate) fn session_set_cookie(id: Option<&str>, secure: bool) -> String {
 /// Checks the admin token (header or cookie), for read-only admin calls of other modules.
 pub(crate) async fn authorize_admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
     authorize_admin_via(state, headers).await.map(|_| ())
+}
+
+/// A handler's argument that lets only the admin in ([`authorize_admin_via`]: the admin token
+/// by header, or a live admin session by cookie) before the handler runs.
+pub(crate) struct Admin;
+
+impl FromRequestParts<AppState> for Admin {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> AppResult<Admin> {
+        authorize_admin_via(state, &parts.headers).await.map(|_| Admin)
+    }
+}
+
+/// A handler's argument that lets only the admin make a change ([`authorize_admin_change`]: by
+/// cookie, only with `X-Requested-With: mrstudy`) before the handler runs.
+pub(crate) struct AdminChange;
+
+impl FromRequestParts<AppState> for AdminChange {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> AppResult<AdminChange> {
+        authorize_admin_change(state, &parts.headers).await.map(|_| AdminChange)
+    }
 }
 
 /// Checks the admin token sent as a bearer token, or the admin session of the cookie; says which.

@@ -31,7 +31,7 @@ pub const DEFAULT_FILTER: &str =
 pub const NO_ROUTE: &str = "(no route)";
 
 /// How the log is written (`serve --log-format`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LogFormat {
     /// One human-readable line per event.
     #[default]

@@ -30,86 +30,61 @@ use crate::{AppState, app};
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
 pub type RenderProgress = Arc<dyn Fn(&str, &crate::stimuli::Progress) + Send + Sync>;
 
-/// Where and what to serve: `mrstudy serve`'s flags (the doc comments are its help).
-#[derive(Clone, clap::Args)]
+/// Where and what to serve: `mrstudy serve`'s flags (the binary holds their clap definitions).
+#[derive(Clone)]
 pub struct ServeConfig {
     /// Address to listen on (port 0: any free port).
-    #[arg(long, default_value = "127.0.0.1:8080")]
     pub addr: String,
     /// Data directory: mrstudy.db, stimuli/, admin-token.
-    #[arg(long, default_value = "./mrstudy-data")]
     pub data_dir: PathBuf,
     /// The database: a PostgreSQL URL (postgres://user:password@host:port/database), which
     /// several servers may share, or a sqlite file (default: mrstudy.db in the data directory).
-    #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
     pub database: Option<String>,
     /// Directory of study files (*.toml).
-    #[arg(long = "studies", default_value = "./studies")]
     pub studies_dir: PathBuf,
     /// A stimulus store shared by several servers (default: `<data-dir>/stimuli`), rendered
     /// beforehand by `mrstudy stimuli` (with --shard on a cluster; docs/cluster.md).
-    #[arg(long)]
     pub stimuli_dir: Option<PathBuf>,
     /// Called while missing stimuli are rendered at start-up (None: quietly).
-    #[arg(skip)]
     pub progress: Option<RenderProgress>,
     /// What one client address may do ([`crate::limits`]).
-    #[command(flatten)]
     pub limits: crate::limits::Limits,
     /// How long the server waits for a client, and for how many at once.
-    #[command(flatten)]
     pub connections: Connections,
     /// The lab's origins and sessions per address.
-    #[command(flatten)]
     pub lab: crate::lab::LabConfig,
     /// How the log on stderr (one line per request, warnings and errors) is written: text or
     /// json (one object per line); `RUST_LOG` filters it (unset: info for mrstudy, warn for the
     /// rest).
-    #[arg(long, value_enum, default_value_t = crate::logs::LogFormat::Text)]
     pub log_format: crate::logs::LogFormat,
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
 /// idle, slow-header (slowloris), slow-body and never-reading clients cannot hold its
 /// connections, and one address cannot take them all ([`crate::connections`]). Also
-/// `mrstudy serve`'s flags (the doc comments are its help; times in whole seconds).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+/// `mrstudy serve`'s flags (times in whole seconds; the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Connections {
     /// Seconds a connection may take to send a request's headers, from its start or the end of
     /// its last response (also how long an idle keep-alive connection is kept).
-    #[arg(long, default_value = "20", value_parser = seconds)]
     pub header_timeout: std::time::Duration,
     /// Seconds a request may take to send its whole body after the headers (else 400, and the
     /// connection closes).
-    #[arg(long, default_value = "30", value_parser = seconds)]
     pub body_timeout: std::time::Duration,
     /// Seconds a whole request (headers and body together) may take, from the connection's
     /// start or the end of its last response; a slower one is cut off and its connection closed.
-    #[arg(long, default_value = "30", value_parser = seconds)]
     pub request_timeout: std::time::Duration,
     /// Seconds a response may wait for the client to read any of it before the connection is
     /// closed.
-    #[arg(long, default_value = "20", value_parser = seconds)]
     pub write_timeout: std::time::Duration,
     /// Connections served at once; when full, a new one takes the place of the oldest
     /// connection of the address holding the most (if it holds more than the newcomer's).
-    #[arg(long, default_value_t = Connections::default().max_connections)]
     pub max_connections: usize,
     /// Connections one client address (an IPv6 /64) may hold at once; more are refused with 503
     /// (0: no cap; behind a reverse proxy every connection comes from the proxy, so there is none).
-    #[arg(long, default_value_t = Connections::default().max_connections_per_address)]
     pub max_connections_per_address: usize,
     /// Seconds a lab WebSocket session may go without a message before it is closed.
-    #[arg(long, default_value = "600", value_parser = seconds)]
     pub lab_idle_timeout: std::time::Duration,
-}
-
-/// A timeout in whole seconds, at least 1.
-fn seconds(text: &str) -> Result<std::time::Duration, String> {
-    match text.trim().parse::<u64>() {
-        Ok(seconds) if seconds >= 1 => Ok(std::time::Duration::from_secs(seconds)),
-        _ => Err(format!("`{text}` is not a whole number of seconds, at least 1")),
-    }
 }
 
 impl Default for Connections {

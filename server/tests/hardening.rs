@@ -15,7 +15,10 @@ use mrstudy_server::serve::{Prepared, admin_token_strength, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, admin_session_cookie, call, copy_demo_study, demographics, send, test_database};
+use support::{
+    Answer, Started, admin_session_cookie, call, copy_demo_study, demo_studies, demographics, send, start,
+    start_limited, test_database,
+};
 
 struct Fixture {
     app: Router,
@@ -25,15 +28,9 @@ struct Fixture {
 
 async fn fixture(limits: Option<Limits>) -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
-    let studies = data_dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = data_dir.path().join("data");
-    let Prepared { state, admin_token, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
-    let state = match limits {
-        Some(limits) => state.with_limits(limits),
-        None => state,
-    };
-    Fixture { app: mrstudy_server::app(state), admin_token, _data_dir: data_dir }
+    let studies = demo_studies(data_dir.path(), |text| text);
+    let Started { app, admin_token, .. } = start_limited(data_dir.path(), &studies, limits).await;
+    Fixture { app, admin_token, _data_dir: data_dir }
 }
 
 /// A request from `client` with an optional bearer token and JSON body.
@@ -694,12 +691,9 @@ async fn preview_links_expire_and_can_be_revoked() {
     use mrstudy_server::storage::PREVIEW_LINK_DAYS;
     use mrstudy_server::storage::iso;
     let dir = tempfile::tempdir().unwrap();
-    let studies = dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = dir.path().join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, .. } = prepare_on(&database, &data, &studies).await.unwrap();
-    let app = &mrstudy_server::app(state);
+    let studies = demo_studies(dir.path(), |text| text);
+    let Started { app, admin_token, database, .. } = start(dir.path(), &studies).await;
+    let app = &app;
     let admin = Some(admin_token.as_str());
     let link = || async {
         let made = call(app, Method::POST, "/api/admin/studies/shadows-demo/preview", admin, None).await;

@@ -14,9 +14,10 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
 
-use super::store::{NewTaskParticipant, TaskWrite, TaskWritten};
+use super::store::{TaskWrite, TaskWritten};
 use crate::AppState;
 use crate::error::{AppError, AppResult, Json};
+use crate::participant::model::NewTaskParticipant;
 
 /// Longest participant code, in characters.
 pub const MAX_LABEL_CHARS: usize = 64;
@@ -86,16 +87,18 @@ pub(crate) async fn create_participant(
     getrandom::fill(&mut seed_bytes).map_err(|error| AppError::Internal(format!("no random seed: {error}")))?;
     let written = state
         .storage()
-        .write(TaskWrite::Participant(NewTaskParticipant {
-            study: study.study.clone(),
+        .write(TaskWrite::Participant {
+            participant: NewTaskParticipant {
+                study: study.study.clone(),
+                id: id.clone(),
+                label,
+                token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
+                random_seed: u64::from_le_bytes(seed_bytes),
+                pilot,
+                pace_ms: study.pace_ms(),
+            },
             layout: study.layout,
-            id: id.clone(),
-            label,
-            token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
-            random_seed: u64::from_le_bytes(seed_bytes),
-            pilot,
-            pace_ms: study.pace_ms(),
-        }))
+        })
         .await??;
     let TaskWritten::Participant { trials, .. } = written else {
         return Err(AppError::Internal("creating a lab participant wrote something else".into()));

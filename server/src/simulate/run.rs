@@ -113,6 +113,9 @@ pub(super) fn condition_table(study: &Study) -> Option<ConditionTable> {
 
 /// Runs the simulation; `progress(done, total)` is called after each run, from any thread.
 pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + Sync)) -> Result<Report, SimulateError> {
+    if study.rating.is_some() {
+        return super::rating::simulate(study, config, progress);
+    }
     if study.design.reference.is_some() {
         return Err(SimulateError::Detection { slug: study.slug.clone() });
     }

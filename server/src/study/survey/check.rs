@@ -97,6 +97,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         file: file.to_path_buf(),
         file_sha256,
         threshold: None,
+        rating: None,
     })
 }
 
@@ -754,6 +755,9 @@ impl Study {
         for (index, catch) in self.catch.iter().enumerate() {
             check_inside(fail, &format!("catch[{index}].better"), &catch.better, folder)?;
             check_inside(fail, &format!("catch[{index}].worse"), &catch.worse, folder)?;
+        }
+        if let Some(rating) = &self.rating {
+            rating.check_images_inside(fail, folder)?;
         }
         Ok(())
     }
