@@ -57,6 +57,6 @@ cargo test --workspace --locked "$@"
 if (($# == 0)); then
   echo "the router and serving end-to-end tests against PostgreSQL" >&2
   MRSTUDY_TEST_DATABASE=postgres cargo test --locked -p mrstudy-server \
-    --test router --test active --test hardening --test admin_participants --test lab_ws
+    --test router --test active --test hardening --test admin_participants --test lab_ws --test rating
   MRSTUDY_TEST_DATABASE=postgres cargo test --locked --test e2e -- serve:: serve_durability admin:: lab::three_participants
 fi

@@ -6,37 +6,75 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::Args;
-use mrstudy_analysis::analysis::Options;
+use mrstudy_analysis::analysis::{Options, Scale, Screening};
 use mrstudy_analysis::command::{Drawings, analyze_files};
 
 use crate::Format;
 
-#[derive(Args)]
-pub struct AnalyzeArgs {
-    /// Trials CSV (`participant,left,right,chosen`, as `mrstudy export` writes) or a task CSV (`participant,condition,value`).
-    #[arg(long)]
-    trials: PathBuf,
-    /// Conditions CSV (`condition,<factor>,…`) for the factor model.
-    #[arg(long)]
-    conditions: Option<PathBuf>,
-    /// Stimulus metrics CSV (`stimulus,scene,condition,metric,region,value`, as `mrstudy stimuli --metrics` writes): which image error predicts preference.
-    #[arg(long)]
-    stimuli: Option<PathBuf>,
-    #[arg(long, value_enum, default_value = "table")]
-    format: Format,
-    /// Write the worth plot (SVG) here.
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Write the factor-effect plot (SVG) here.
-    #[arg(long)]
-    effect_plot: Option<PathBuf>,
-    /// With --stimuli: write one scatter plot per metric × region (`metric-<metric>-<region>.svg`) into this folder.
-    #[arg(long)]
-    plot_dir: Option<PathBuf>,
-    #[command(flatten)]
-    options: Options,
+flags! {
+    AnalyzeArgs {
+        /// Trials CSV (`participant,left,right,chosen`, as `mrstudy export` writes) or a task CSV (`participant,condition,value`).
+        #[arg(long)] trials: PathBuf,
+        /// Conditions CSV (`condition,<factor>,…`) for the factor model.
+        #[arg(long)] conditions: Option<PathBuf>,
+        /// Stimulus metrics CSV (`stimulus,scene,condition,metric,region,value`, as `mrstudy stimuli --metrics` writes): which image error predicts preference.
+        #[arg(long)] stimuli: Option<PathBuf>,
+        #[arg(long, value_enum, default_value = "table")] format: Format,
+        /// Write the worth plot (SVG) here.
+        #[arg(long)] plot: Option<PathBuf>,
+        /// Write the factor-effect plot (SVG) here.
+        #[arg(long)] effect_plot: Option<PathBuf>,
+        /// With --stimuli: write one scatter plot per metric × region (`metric-<metric>-<region>.svg`) into this folder.
+        #[arg(long)] plot_dir: Option<PathBuf>,
+        #[command(flatten)] options: OptionsFlags,
+    }
 }
+
+flags! {
+    /// [`Options`]' flags; their defaults are its `Default`.
+    OptionsFlags => Options { ..Options::default() } {
+        /// Reference condition (log-worth 0); default: first of the conditions file, else first by name.
+        #[arg(long)] reference: Option<String>,
+        /// Factor-model formula, e.g. `gi+cm+ca+gi:ca` or `gi*ca+cm`; default: all factors, main effects.
+        #[arg(long)] model: Option<String>,
+        /// Fit everything per value of this column (e.g. `gender`) and test whether effects differ.
+        #[arg(long)] group_by: Option<String>,
+        /// Convergence tolerance (largest parameter change).
+        #[arg(long, default_value_t = Options::default().tolerance)] tolerance: f64,
+        /// Bootstrap replicates over participants for intervals (0: none; with --stimuli the metric correlations use 1000 unless given).
+        #[arg(long, default_value_t = Options::default().bootstrap)] bootstrap: usize,
+        /// Seed for the bootstrap and the agreement simulation.
+        #[arg(long, default_value_t = Options::default().seed)] seed: u64,
+        /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
+        #[arg(long = "screen", default_value = "auto", value_parser = crate::values(SCREENING))] screening: Screening,
+        /// Use Firth's bias-reduced estimate for every model, not only under separation.
+        #[arg(long = "firth")] always_firth: bool,
+        /// Keep participants marked `pilot = true` in the trials CSV (default: left out, and said so).
+        #[arg(long)] include_pilots: bool,
+        /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
+        #[arg(long)] include_excluded: bool,
+        /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals; for a threshold export `log10`, `dB` or `linear` fits on that stimulus scale instead of the export's.
+        #[arg(long, default_value = "bt", value_parser = crate::values(SCALES))] scale: Scale,
+        /// Threshold exports: the psychometric function to fit (`weibull`, `logistic`, `normal`) instead of the export's `function`.
+        #[arg(long)] function: Option<String>,
+        /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
+        #[arg(long)] guess: Option<f64>,
+    }
+}
+
+const SCREENING: &[(&str, &str, Screening)] = &[
+    ("auto", "On for designs up to 200 conditions", Screening::Auto),
+    ("on", "", Screening::On),
+    ("off", "", Screening::Off),
+];
+
+const SCALES: &[(&str, &str, Scale)] = &[
+    ("bt", "Bradley–Terry log-worths only", Scale::Bt),
+    ("jod", "Also pwcmp's JOD", Scale::Jod),
+    ("log10", "A threshold export fitted with x = log10 intensity", Scale::Log10),
+    ("dB", "A threshold export fitted with x = 20·log10 intensity", Scale::Db),
+    ("linear", "A threshold export fitted with x = intensity", Scale::Linear),
+];
 
 fn as_pair(file: &(String, String)) -> (&str, &str) {
     (&file.0, &file.1)
@@ -52,7 +90,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         (&trials, &trials_name),
         conditions.as_ref().map(as_pair),
         stimuli.as_ref().map(as_pair),
-        &args.options,
+        &args.options.into(),
         args.format == Format::Json,
         drawings,
     )?;

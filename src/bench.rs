@@ -5,21 +5,17 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::Args;
 use mrstudy_bench::{Options, Target};
 
-#[derive(Args)]
-pub struct BenchArgs {
-    #[arg(value_enum)]
-    target: Target,
-    /// Write the rows as JSON here.
-    #[arg(long)]
-    json: Option<PathBuf>,
-    /// Write SVG plots of the curves into this directory.
-    #[arg(long)]
-    plot_dir: Option<PathBuf>,
-    #[command(flatten)]
-    options: Options,
+flags! {
+    BenchArgs {
+        #[arg(value_enum)] target: Target,
+        /// Write the rows as JSON here.
+        #[arg(long)] json: Option<PathBuf>,
+        /// Write SVG plots of the curves into this directory.
+        #[arg(long)] plot_dir: Option<PathBuf>,
+        #[command(flatten)] options: Options,
+    }
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {

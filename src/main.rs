@@ -1,4 +1,5 @@
-//! `mrstudy`: the command line. Thin by design: it parses arguments, reads and writes files,
+//! `mrstudy`: the command line. Thin by design: it parses arguments (the clap definitions of
+//! every command live here, the libraries take plain option structs), reads and writes files,
 //! calls the library crates and turns one `anyhow::Result` into an exit code. Errors are printed
 //! to stderr as one sentence.
 
@@ -6,8 +7,29 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
-use mrstudy_server::serve::ServeConfig;
+
+/// A clap struct written compactly (one line per flag under its help: rustfmt leaves a braced
+/// macro call as written), and with `=> Target { … }` its conversion into the library's plain
+/// struct of the same field names: each field by `Into` (a nested flag struct converts the same
+/// way), then what the braces add (the fields without a flag).
+macro_rules! flags {
+    ($(#[$meta:meta])* $name:ident { $($(#[$field_meta:meta])* $field:ident: $ty:ty,)* }) => {
+        $(#[$meta])*
+        #[derive(clap::Args)]
+        pub struct $name { $($(#[$field_meta])* pub $field: $ty,)* }
+    };
+    ($(#[$meta:meta])* $name:ident => $target:ident { $($rest:tt)* } { $($(#[$field_meta:meta])* $field:ident: $ty:ty,)* }) => {
+        flags! { $(#[$meta])* $name { $($(#[$field_meta])* $field: $ty,)* } }
+        impl From<$name> for $target {
+            #[allow(clippy::needless_update, clippy::useless_conversion)]
+            fn from(flags: $name) -> $target {
+                $target { $($field: flags.$field.into(),)* $($rest)* }
+            }
+        }
+    };
+}
 
 mod analyze;
 mod bench;
@@ -15,6 +37,7 @@ mod capture;
 mod export;
 mod progress;
 mod render;
+mod serve;
 mod simulate;
 mod stimuli;
 
@@ -40,7 +63,7 @@ enum Command {
     /// Render a scene: the reference photograph or ground-truth composite (CPU path tracer); `--list` names the built-in scenes.
     Render(render::RenderArgs),
     /// Run the web survey server: migrate the database, load the studies, print the participant and admin links.
-    Serve(ServeConfig),
+    Serve(serve::ServeFlags),
     /// Render every stimulus a study needs (the photograph by the path tracer, each condition on the GPU), with a progress bar.
     Stimuli(stimuli::StimuliArgs),
     /// Write a study's trials CSV (or JSON, or conditions CSV) from the database.
@@ -57,6 +80,18 @@ fn choice<T: Clone + Send + Sync + 'static>(
     names: &'static str,
 ) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
     move |text| parse(text).ok_or_else(|| format!("`{text}` is not one of {names}"))
+}
+
+/// A clap value parser over (name, help, value): `--help` lists each name with its help.
+fn values<T: Copy + Send + Sync + 'static>(
+    values: &'static [(&'static str, &'static str, T)],
+) -> impl TypedValueParser<Value = T> {
+    let names = values.iter().map(|&(name, help, _)| match help {
+        "" => PossibleValue::new(name),
+        help => PossibleValue::new(name).help(help),
+    });
+    let value = |name: String| values.iter().find(|(known, _, _)| *known == name).map(|(_, _, value)| *value);
+    PossibleValuesParser::new(names).map(move |name| value(name).expect("clap accepts only the names listed"))
 }
 
 /// How `analyze` and `simulate` print their result.
@@ -89,10 +124,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Render(args) => render::run(args),
         Command::Capture(args) => capture::run(args),
-        Command::Serve(config) => {
-            let progress = Some(progress::stimulus_bars());
-            mrstudy_server::serve::run(ServeConfig { progress, ..config }).map_err(Into::into)
-        }
+        Command::Serve(flags) => serve::run(flags),
         Command::Export(args) => export::run(args),
         Command::Stimuli(args) => stimuli::run(args),
         Command::Simulate(args) => simulate::run_simulate(args),
@@ -106,5 +138,48 @@ fn main() -> ExitCode {
             eprintln!("error: {}", causes.join(": "));
             ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    /// Each command's flags, parsed from `args` after the command's name.
+    fn parse(args: &[&str]) -> super::Command {
+        super::Cli::try_parse_from(std::iter::once("mrstudy").chain(args.iter().copied())).unwrap().command
+    }
+
+    /// The libraries' `Default`s are the flags' defaults: an empty command line gives them.
+    #[test]
+    fn an_empty_command_line_gives_the_libraries_defaults() {
+        use super::Command;
+        let Command::Analyze(analyze) = parse(&["analyze", "--trials", "t.csv"]) else { unreachable!() };
+        assert_eq!(mrstudy_analysis::analysis::Options::from(analyze.options), Default::default());
+        let Command::Render(render) = parse(&["render"]) else { unreachable!() };
+        assert_eq!(mrstudy_renderer::stimulus::RenderKnobs::from(render.knobs), Default::default());
+        let Command::Export(export) = parse(&["export", "--study", "s"]) else { unreachable!() };
+        assert_eq!(mrstudy_server::export::Include::from(export.include), Default::default());
+        let Command::Serve(serve) = parse(&["serve"]) else { unreachable!() };
+        let config = mrstudy_server::serve::ServeConfig::from(serve);
+        assert_eq!(config.limits, Default::default());
+        assert_eq!(config.connections, Default::default());
+        assert_eq!(config.lab, Default::default());
+        assert_eq!(config.log_format, Default::default());
+    }
+
+    #[test]
+    fn serve_refuses_zero_seconds_and_a_path_as_origin() {
+        let flags = ["serve", "--join-limit", "0", "--header-timeout", "5", "--origin", "HTTPS://Lab.Example.org/"];
+        let super::Command::Serve(serve) = parse(&flags) else { unreachable!() };
+        let config = mrstudy_server::serve::ServeConfig::from(serve);
+        assert_eq!(config.limits.joins_per_minute, 0);
+        assert_eq!(config.connections.header_timeout, std::time::Duration::from_secs(5));
+        assert_eq!(config.lab.origins, ["https://lab.example.org"]);
+        let refused = |args: &[&str]| super::Cli::try_parse_from(args).map(|_| ()).unwrap_err().to_string();
+        let error = refused(&["mrstudy", "serve", "--body-timeout", "0"]);
+        assert!(error.contains("`0` is not a whole number of seconds"), "{error}");
+        let error = refused(&["mrstudy", "serve", "--origin", "https://a.org/path"]);
+        assert!(error.contains("is not an origin"), "{error}");
     }
 }

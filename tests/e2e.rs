@@ -20,6 +20,8 @@ mod lab;
 mod lab_study;
 #[path = "e2e/logs.rs"]
 mod logs;
+#[path = "e2e/rating.rs"]
+mod rating;
 #[path = "e2e/render.rs"]
 mod render;
 #[path = "e2e/render_gpu.rs"]

@@ -506,10 +506,6 @@ fn no_source_file_is_over_900_lines() {
         // issue 51: the renderer's helper is splitting these
         ("renderer/src/coherent/mod.rs", "issue 51, renderer helper"),
         ("renderer/src/pathtracer.rs", "issue 51, renderer helper"),
-        // issue 51: not split yet (the first pass split data, survey, admin and simulate)
-        ("analysis/src/analysis.rs", "issue 51, to split: separation, groups, bootstrap, JSON"),
-        ("analysis/src/stimulus_metrics.rs", "issue 51, to split: the CSV, the correlations"),
-        ("server/src/lab/session.rs", "issue 51, to split: the WebSocket loop and its messages"),
     ];
     let long: Vec<String> = sources()
         .into_iter()

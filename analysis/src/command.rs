@@ -122,7 +122,7 @@ pub fn analyze_files(
     {
         printed.scatter_plots.extend(ratings.plots());
     }
-    if drawings.scatter && stimuli.is_some() {
+    if drawings.scatter && stimuli.is_some() && !threshold_export {
         let metrics = report.metrics.as_ref().ok_or_else(|| {
             refuse(
                 "--plot-dir",

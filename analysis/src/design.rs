@@ -66,6 +66,11 @@ where
         let (winner, loser) = if left_chosen { (left, right) } else { (right, left) };
         wins[winner as usize * t + loser as usize] += count;
     }
+    from_dense(&wins, t)
+}
+
+/// The pairs judged in a dense t×t table (`wins[i·t + j]`: i chosen over j), sorted by `(i, j)`.
+fn from_dense(wins: &[u64], t: usize) -> Vec<PairTally> {
     let mut pairs = Vec::new();
     for i in 0..t {
         for j in i + 1..t {
@@ -151,16 +156,7 @@ impl ParticipantTallies {
                 wins[pair.i * t + pair.j] += pair.wins_i;
                 wins[pair.j * t + pair.i] += pair.wins_j;
             }
-            let mut pairs = Vec::new();
-            for i in 0..t {
-                for j in i + 1..t {
-                    let (wins_i, wins_j) = (wins[i * t + j], wins[j * t + i]);
-                    if wins_i + wins_j > 0 {
-                        pairs.push(PairTally { i, j, wins_i, wins_j });
-                    }
-                }
-            }
-            pairs
+            from_dense(&wins, t)
         } else {
             let mut keyed: Vec<PairTally> = pairs_of().copied().collect();
             keyed.sort_unstable_by_key(|pair| (pair.i, pair.j));

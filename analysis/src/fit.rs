@@ -306,52 +306,59 @@ fn finish(method: Method, observations: &[Observation], beta: Vec<f64>, iteratio
     })
 }
 
-/// Maximum-likelihood fit by Newton–Raphson with step halving, from `start` (or zeros).
-/// Fails with [`FitFailure::Separation`] when the estimate runs off to infinity.
+/// The kernel log-likelihood of the observations as [`crate::newton`]'s objective.
+struct Likelihood<'a> {
+    observations: &'a [Observation],
+    p: usize,
+}
+
+impl crate::newton::Concave for Likelihood<'_> {
+    type Failure = FitFailure;
+
+    fn value(&self, beta: &[f64]) -> f64 {
+        kernel_log_likelihood(self.observations, beta)
+    }
+
+    fn step(&self, beta: &[f64]) -> Result<Vec<f64>, FitFailure> {
+        let (score, information, max_eta) = score_and_information(self.observations, beta, self.p);
+        if max_eta > SEPARATION_ETA {
+            return Err(FitFailure::Separation);
+        }
+        solve(&information, &score).ok_or(FitFailure::Singular)
+    }
+}
+
+/// Maximum-likelihood fit by Newton–Raphson with step halving ([`crate::newton::maximise`]),
+/// from `start` (or zeros). Fails with [`FitFailure::Separation`] when the estimate runs off to
+/// infinity.
 pub fn fit_ml(
     pairs: &[PairTally],
     x: &ModelMatrix,
     start: Option<&[f64]>,
     options: FitOptions,
 ) -> Result<Fit, FitFailure> {
+    use crate::newton::{Settings, Stop, maximise};
     let observations = observations(pairs, x);
     let p = x.n_params;
-    let mut beta = start.map(<[f64]>::to_vec).unwrap_or_else(|| vec![0.0; p]);
+    let beta = start.map(<[f64]>::to_vec).unwrap_or_else(|| vec![0.0; p]);
     if p == 0 {
         return finish(Method::Ml, &observations, beta, 0);
     }
-    let mut log_likelihood = kernel_log_likelihood(&observations, &beta);
-    let mut last_change = f64::INFINITY;
-    for iteration in 1..=options.max_iterations {
-        let (score, information, max_eta) = score_and_information(&observations, &beta, p);
-        if max_eta > SEPARATION_ETA {
-            return Err(FitFailure::Separation);
-        }
-        let step = solve(&information, &score).ok_or(FitFailure::Singular)?;
-        let mut scale = 1.0;
-        let mut candidate;
-        let mut candidate_ll;
-        loop {
-            candidate = beta.iter().zip(&step).map(|(b, s)| b + scale * s).collect::<Vec<_>>();
-            candidate_ll = kernel_log_likelihood(&observations, &candidate);
-            if candidate_ll >= log_likelihood - 1e-12 * log_likelihood.abs().max(1.0) || scale < 1e-6 {
-                break;
+    let settings = Settings { tolerance: options.tolerance, max_iterations: options.max_iterations, min_scale: 1e-6 };
+    match maximise(&Likelihood { observations: &observations, p }, beta, settings) {
+        Ok(maximum) => finish(Method::Ml, &observations, maximum.beta, maximum.iterations),
+        Err(Stop::Failed(failure)) => Err(failure),
+        // A step is finite where the information could be solved.
+        Err(Stop::NotFinite) => Err(FitFailure::Singular),
+        Err(Stop::NotConverged { beta, iterations, last_change }) => {
+            // A fit whose predictor keeps growing without converging is separated.
+            let max_eta = observations.iter().map(|o| eta(o, &beta).abs()).fold(0.0, f64::max);
+            if max_eta > SEPARATION_ETA / 2.0 {
+                return Err(FitFailure::Separation);
             }
-            scale *= 0.5;
-        }
-        last_change = step.iter().map(|s| (scale * s).abs()).fold(0.0, f64::max);
-        beta = candidate;
-        log_likelihood = candidate_ll;
-        if last_change < options.tolerance {
-            return finish(Method::Ml, &observations, beta, iteration);
+            Err(FitFailure::NotConverged { iterations, last_change })
         }
     }
-    // A fit whose predictor keeps growing without converging is separated.
-    let max_eta = observations.iter().map(|o| eta(o, &beta).abs()).fold(0.0, f64::max);
-    if max_eta > SEPARATION_ETA / 2.0 {
-        return Err(FitFailure::Separation);
-    }
-    Err(FitFailure::NotConverged { iterations: options.max_iterations, last_change })
 }
 
 /// Firth's scoring direction at β: the modified score U*(β) (the gradient of the penalised

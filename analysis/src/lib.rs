@@ -30,6 +30,7 @@ pub mod detection;
 pub mod error;
 pub mod figures;
 pub mod fit;
+mod newton;
 pub mod plot;
 pub mod pvalue;
 pub mod quantile;

@@ -142,7 +142,7 @@ pub fn analyze_with_table(
                 detection.warnings.insert(0, left_out.describe());
                 detection.left_out = Some(left_out);
             }
-            if stimuli.is_some() {
+            if stimuli.is_some() && !crate::threshold::report::is_threshold_csv(trials_csv) {
                 detection.warnings.push(
                     "the stimulus metrics are set beside preference trials, and every trial is a detection trial: no `metrics` section"
                         .to_string(),
@@ -168,7 +168,7 @@ pub fn analyze_with_table(
         };
         let bootstrap =
             if options.bootstrap > 0 { options.bootstrap } else { crate::threshold::report::DEFAULT_BOOTSTRAP };
-        Some(crate::threshold::report::analyze_threshold_csv(
+        let mut analysis = crate::threshold::report::analyze_threshold_csv(
             trials_csv,
             trials_name,
             overrides,
@@ -176,11 +176,32 @@ pub fn analyze_with_table(
             options.include_excluded,
             bootstrap,
             options.seed,
-        )?)
+        )?;
+        if let Some(stimuli) = stimuli {
+            let costs = stimulus_costs(stimuli);
+            crate::threshold::at_threshold::fill_at_threshold(&mut analysis, &costs, "the --stimuli metrics CSV")?;
+        }
+        Some(analysis)
     } else {
         None
     };
     Ok(Report { preference, detection, metrics, threshold, ratings: None })
+}
+
+/// Each stimulus record's render time and mean FLIP in the affected region, for the values at a
+/// threshold ([`crate::threshold::at_threshold`]).
+fn stimulus_costs(metrics: &StimulusMetrics) -> Vec<crate::threshold::at_threshold::StimulusCost> {
+    use crate::stimulus_metrics::{Metric, Region};
+    metrics
+        .stimuli
+        .iter()
+        .map(|record| crate::threshold::at_threshold::StimulusCost {
+            scene: record.scene.clone(),
+            condition: record.condition.clone(),
+            render_ms: record.value(Metric::RenderMs, Region::Image),
+            flip_mean: record.value(Metric::FlipMean, Region::Affected),
+        })
+        .collect()
 }
 
 #[cfg(test)]

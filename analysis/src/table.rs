@@ -329,6 +329,16 @@ fn render_threshold(out: &mut String, analysis: &crate::threshold::report::Thres
                     fit.knob_at_threshold.map_or("-".to_string(), |knob| fixed(knob, 1)),
                     fit.p_fit.map_or("-".to_string(), |p| fixed(p, 3)),
                 );
+                if fit.render_ms_at_threshold.is_some() || fit.flip_mean_at_threshold.is_some() {
+                    let at = |value: Option<f64>, digits: usize| value.map_or("-".to_string(), |v| fixed(v, digits));
+                    let _ = writeln!(
+                        out,
+                        "{:<24}  there (--stimuli): render {} ms, FLIP mean (affected) {}",
+                        "",
+                        at(fit.render_ms_at_threshold, 1),
+                        at(fit.flip_mean_at_threshold, 4)
+                    );
+                }
                 if let Some(note) = fit.note {
                     let _ = writeln!(out, "{:<24}  note: {note}", "");
                 }

@@ -18,6 +18,15 @@ const GAP: u32 = 4;
 const FONT_SCALE: u32 = 2;
 const LABEL_HEIGHT: u32 = 7 * FONT_SCALE + 6;
 
+/// The thesis's eight rendering mode compositions, LQ … HQ: every combination of the factors
+/// gi, cm and ca (the conditions the web survey compares); a contact sheet's default conditions.
+pub fn rmc_conditions() -> Vec<(String, Factors)> {
+    let rmcs = [("LQ", ""), ("GI", "gi"), ("CM", "cm"), ("CA", "ca"), ("GI+CM", "gi,cm")];
+    let rmcs = rmcs.into_iter().chain([("GI+CA", "gi,ca"), ("CM+CA", "cm,ca"), ("HQ", "gi,cm,ca")]);
+    rmcs.map(|(label, factors)| (label.to_string(), Factors::parse_list(factors).expect("a known factor list")))
+        .collect()
+}
+
 /// Renders the ground truth, the photograph and `conditions` (label, factors) of `scene` (at the
 /// size and samples of `settings`) and lays them out as a sheet. `progress(done, total)` counts
 /// the path tracer's samples, then one step per condition.

@@ -62,22 +62,28 @@ fn outward_normal(s: &SurfaceHit) -> Vec3 {
     if s.shading_normal.dot(s.geometric_normal) < 0.0 { -s.shading_normal } else { s.shading_normal }
 }
 
-/// A path's bounce off a mirror or glass hit at distance `t` from direction `-wo`, `front`
-/// telling whether it came from outside and `ng` the geometric normal on its side: the Beer–Lambert loss of a segment
-/// that ran inside, the sampled direction's weight, and the next ray, started on the side the
-/// path leaves to.
-#[allow(clippy::too_many_arguments)]
+/// How a path arrives at a surface: `wo` the direction back along it, `front` whether it came
+/// from outside, `ng` the geometric normal on its side.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Arrival {
+    pub wo: Vec3,
+    pub front: bool,
+    pub ng: Vec3,
+}
+
+/// A path's bounce off a mirror or glass hit at distance `t`, arriving as `arrival` says: the
+/// Beer–Lambert loss of a segment that ran inside, the sampled direction's weight, and the next
+/// ray, started on the side the path leaves to.
 pub(crate) fn delta_bounce(
     delta: &DeltaBsdf,
     s: &SurfaceHit,
     t: f32,
-    wo: Vec3,
-    front: bool,
-    ng: Vec3,
+    arrival: Arrival,
     u: f32,
     transport: Transport,
     beta: &mut Vec3,
 ) -> Ray {
+    let Arrival { wo, front, ng } = arrival;
     if !front {
         *beta *= delta.inside_transmittance(t);
     }
@@ -390,7 +396,7 @@ impl World {
             let front = s.geometric_normal.dot(wo) > 0.0;
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
             if let Some(delta) = &mat.delta {
-                ray = delta_bounce(delta, &s, hit.t, wo, front, ng, u[4], Transport::Importance, &mut beta);
+                ray = delta_bounce(delta, &s, hit.t, Arrival { wo, front, ng }, u[4], Transport::Importance, &mut beta);
                 through_specular = true;
             } else {
                 // the camera tracer's next-event estimation has every path whose first
@@ -553,7 +559,7 @@ impl World {
             let ng = if front { s.geometric_normal } else { -s.geometric_normal };
             if let Some(delta) = &mat.delta {
                 // a mirror or glass: no light reaches it by NEE; the path goes on sampled
-                ray = delta_bounce(delta, &s, hit.t, wo, front, ng, u[4], Transport::Radiance, &mut beta);
+                ray = delta_bounce(delta, &s, hit.t, Arrival { wo, front, ng }, u[4], Transport::Radiance, &mut beta);
                 prev_delta = true;
                 if !survives_roulette(depth, &mut beta, u[7]) {
                     break;
@@ -564,7 +570,7 @@ impl World {
             let Some((ns, bsdf, p)) = shade(mat, &s, ng) else { break };
 
             // next-event estimation
-            if let Some((term, shadow, t_max)) = self.next_event(&bsdf, p, ns, ng, wo, beta, &u) {
+            if let Some((term, shadow, t_max)) = self.next_event(&bsdf, (p, ns, ng), wo, beta, &u) {
                 if !self.bvh.occluded(&shadow, RAY_EPSILON, t_max) {
                     l += term;
                     if shared {
@@ -593,17 +599,14 @@ impl World {
         (l, l_twin, first)
     }
 
-    /// Next-event estimation at a diffuse or glossy point `p`: the contribution of one light
-    /// sample if nothing blocks it, the shadow ray and its length; `None` when the sample
-    /// cannot contribute.
-    #[allow(clippy::too_many_arguments)]
+    /// Next-event estimation at a diffuse or glossy point `p` (shading normal `ns`, geometric
+    /// normal `ng`, both on the side of `wo`): the contribution of one light sample if nothing
+    /// blocks it, the shadow ray and its length; `None` when the sample cannot contribute.
     #[inline(always)]
     fn next_event(
         &self,
         bsdf: &Bsdf,
-        p: Vec3,
-        ns: Vec3,
-        ng: Vec3,
+        (p, ns, ng): (Vec3, Vec3, Vec3),
         wo: Vec3,
         beta: Vec3,
         u: &[f32; 8],

@@ -177,7 +177,7 @@ pub fn render_photo(
     let start = Instant::now();
     if let Some(bg) = &scene.background {
         let display = bg.linear_to_srgb();
-        let stats = stats_for(scene, params, 0.0, 0, 0, 0, 0.0, 0.0);
+        let stats = stats_for(scene, params, 0.0, Counted::default());
         return Ok((bg.clone(), display, stats));
     }
     let world = World::new(scene, Subset::RealOnly);
@@ -186,23 +186,30 @@ pub fn render_photo(
     let hdr = acc.image();
     let photo = sensor::apply(&hdr, &scene.camera, &scene.sensor);
     let secs = start.elapsed().as_secs_f64();
-    let mut stats =
-        stats_for(scene, params, secs, acc.count_fireflies(params.firefly_factor), 0, acc.invalid_samples, 0.0, 0.0);
+    let counted = Counted {
+        fireflies_photo: acc.count_fireflies(params.firefly_factor),
+        invalid: acc.invalid_samples,
+        ..Counted::default()
+    };
+    let mut stats = stats_for(scene, params, secs, counted);
     stats.light_paths = acc.light_paths;
     Ok((hdr, photo, stats))
 }
 
-#[allow(clippy::too_many_arguments)]
-fn stats_for(
-    scene: &Scene,
-    params: &ReferenceParams,
-    secs: f64,
-    ff_photo: usize,
-    ff_gt: usize,
+/// What a reference render counted, for its [`RenderStats`]: firefly pixels of the photograph
+/// and of the ground truth, invalid samples, the virtual objects' coverage and the affected
+/// region's fraction.
+#[derive(Clone, Copy, Debug, Default)]
+struct Counted {
+    fireflies_photo: usize,
+    fireflies_ground_truth: usize,
     invalid: u64,
     coverage: f32,
     affected: f32,
-) -> RenderStats {
+}
+
+fn stats_for(scene: &Scene, params: &ReferenceParams, secs: f64, counted: Counted) -> RenderStats {
+    let Counted { fireflies_photo: ff_photo, fireflies_ground_truth: ff_gt, invalid, coverage, affected } = counted;
     let renders = if ff_gt > 0 || coverage > 0.0 || affected > 0.0 { 2.0 } else { 1.0 };
     let samples = scene.camera.width as f64 * scene.camera.height as f64 * params.spp as f64 * renders;
     let mut warnings = scene.warnings.clone();
@@ -279,16 +286,14 @@ pub fn render_reference(
         .collect();
     let affected_mask = affected_region(&hdr_real, &hdr_full, &virtual_mask, params.affected_threshold, &noise);
     let secs = start.elapsed().as_secs_f64();
-    let mut stats = stats_for(
-        scene,
-        params,
-        secs,
-        acc_real.count_fireflies(params.firefly_factor),
-        acc_full.count_fireflies(params.firefly_factor),
-        acc_real.invalid_samples + acc_full.invalid_samples,
-        virtual_mask.coverage(),
-        0.0,
-    );
+    let counted = Counted {
+        fireflies_photo: acc_real.count_fireflies(params.firefly_factor),
+        fireflies_ground_truth: acc_full.count_fireflies(params.firefly_factor),
+        invalid: acc_real.invalid_samples + acc_full.invalid_samples,
+        coverage: virtual_mask.coverage(),
+        affected: 0.0,
+    };
+    let mut stats = stats_for(scene, params, secs, counted);
     stats.samples_per_second = (hdr_full.pixels.len() as f64 * params.spp as f64 * 2.0) / secs.max(1e-9);
     stats.affected_fraction = affected_mask.coverage();
     stats.light_paths = acc_real.light_paths + acc_full.light_paths;

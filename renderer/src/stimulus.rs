@@ -101,7 +101,7 @@ pub const GI_NAMES: &str =
     "\"off\", \"shadows\", \"dir\", \"em\", \"dit\", \"vct\" (a coherent method may end in -low, -med or -high)";
 
 /// The `gi` factor's level named `name`: DIR's mode, or a coherent method.
-fn gi_by_name(name: &str) -> std::result::Result<(GiLevel, Option<CoherentLevel>), String> {
+fn gi_by_name(name: &str) -> std::result::Result<(GiLevel, Option<CoherentLevel>), FactorsError> {
     let dir = match name {
         "off" => Some(GiLevel::None),
         "shadows" => Some(GiLevel::Shadows),
@@ -111,9 +111,39 @@ fn gi_by_name(name: &str) -> std::result::Result<(GiLevel, Option<CoherentLevel>
     if let Some(level) = dir {
         return Ok((level, None));
     }
-    CoherentLevel::parse(name).map(|level| (GiLevel::Gi, Some(level))).ok_or_else(|| {
-        format!("factor `gi` has level \"{name}\"; the renderer knows the numbers 0 and 1 and the names {GI_NAMES}")
-    })
+    CoherentLevel::parse(name)
+        .map(|level| (GiLevel::Gi, Some(level)))
+        .ok_or_else(|| FactorsError::GiName { level: name.to_string() })
+}
+
+/// Factor levels the renderer cannot render; each displays as one sentence naming the factor
+/// and its level.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FactorsError {
+    #[error("factor `gi` has level \"{level}\"; the renderer knows the numbers 0 and 1 and the names {GI_NAMES}")]
+    GiName { level: String },
+    #[error(
+        "factor `{factor}` has level \"{level}\"; the renderer knows the levels 0 (off) and 1 (on) for it (only `gi` takes names)"
+    )]
+    Name { factor: String, level: String },
+    #[error("factor `{factor}` has level {level}; the renderer knows the levels 0 (off) and 1 (on)")]
+    Level { factor: String, level: f64 },
+    #[error("the renderer knows no factor `{factor}` (it renders gi, shadows, cm, ca and caustics)")]
+    Unknown { factor: String },
+    #[error(
+        "factor `shadows` is 1 while `gi` is \"{gi}\"; shadows alone is a mode of differential instant radiosity (write gi = \"shadows\")"
+    )]
+    ShadowsWithCoherent { gi: String },
+    #[error("factor `caustics` is 1 while `gi` is \"{gi}\"; the coherent methods render no caustics")]
+    CausticsWithCoherent { gi: String },
+    #[error(
+        "factor `caustics` is 1 while `gi` and `shadows` are 0; caustics are light through a virtual object's shadow and come only with gi or shadows"
+    )]
+    CausticsWithoutGi,
+    /// A factor list (`--factors gi,cm`) naming something else.
+    #[error("{0}; name them as gi, cm, ca, shadows or caustics")]
+    List(Box<FactorsError>),
 }
 
 /// The factors a stimulus is rendered under.
@@ -135,14 +165,15 @@ pub struct Factors {
 
 impl Factors {
     /// The factors named in a comma-separated list (`gi,cm`) switched on, the others off.
-    pub fn parse_list(text: &str) -> std::result::Result<Factors, String> {
+    pub fn parse_list(text: &str) -> std::result::Result<Factors, FactorsError> {
         let names = text.split(',').map(str::trim).filter(|name| !name.is_empty());
-        Factors::from_levels(names.map(|name| (name, 1.0)))
-            .map_err(|reason| format!("{reason}; name them as gi, cm, ca, shadows or caustics"))
+        Factors::from_levels(names.map(|name| (name, 1.0))).map_err(|reason| FactorsError::List(Box::new(reason)))
     }
 
     /// Factors from numeric `(name, level)` pairs. Factors not named are off.
-    pub fn from_levels<'a>(levels: impl IntoIterator<Item = (&'a str, f64)>) -> std::result::Result<Factors, String> {
+    pub fn from_levels<'a>(
+        levels: impl IntoIterator<Item = (&'a str, f64)>,
+    ) -> std::result::Result<Factors, FactorsError> {
         let levels: Vec<(&str, FactorLevel)> =
             levels.into_iter().map(|(name, level)| (name, FactorLevel::Number(level))).collect();
         Factors::from_study_levels(levels.iter().map(|(name, level)| (*name, level)))
@@ -152,7 +183,7 @@ impl Factors {
     /// `gi`) names. Factors not named are off.
     pub fn from_study_levels<'a>(
         levels: impl IntoIterator<Item = (&'a str, &'a FactorLevel)>,
-    ) -> std::result::Result<Factors, String> {
+    ) -> std::result::Result<Factors, FactorsError> {
         let (mut gi, mut shadows, mut cm, mut ca) = (false, false, false, false);
         let (mut caustics, mut named_gi) = (None, None);
         for (name, level) in levels {
@@ -163,9 +194,7 @@ impl Factors {
                     continue;
                 }
                 FactorLevel::Name(text) => {
-                    return Err(format!(
-                        "factor `{name}` has level \"{text}\"; the renderer knows the levels 0 (off) and 1 (on) for it (only `gi` takes names)"
-                    ));
+                    return Err(FactorsError::Name { factor: name.to_string(), level: text.clone() });
                 }
             };
             let on = if level == 0.0 {
@@ -173,9 +202,7 @@ impl Factors {
             } else if level == 1.0 {
                 true
             } else {
-                return Err(format!(
-                    "factor `{name}` has level {level}; the renderer knows the levels 0 (off) and 1 (on)"
-                ));
+                return Err(FactorsError::Level { factor: name.to_string(), level });
             };
             match name {
                 "gi" => gi = on,
@@ -183,19 +210,12 @@ impl Factors {
                 "cm" => cm = on,
                 "ca" => ca = on,
                 "caustics" => caustics = Some(on),
-                other => {
-                    return Err(format!(
-                        "the renderer knows no factor `{other}` (it renders gi, shadows, cm, ca and caustics)"
-                    ));
-                }
+                other => return Err(FactorsError::Unknown { factor: other.to_string() }),
             }
         }
         let (gi, coherent) = match (named_gi, gi, shadows) {
             (Some((_, Some(coherent))), _, true) => {
-                return Err(format!(
-                    "factor `shadows` is 1 while `gi` is \"{}\"; shadows alone is a mode of differential instant radiosity (write gi = \"shadows\")",
-                    coherent.name()
-                ));
+                return Err(FactorsError::ShadowsWithCoherent { gi: coherent.name() });
             }
             (Some((level, coherent)), _, shadows) => {
                 (if shadows && level == GiLevel::None { GiLevel::Shadows } else { level }, coherent)
@@ -205,15 +225,10 @@ impl Factors {
             (None, false, false) => (GiLevel::None, None),
         };
         if let (Some(coherent), Some(true)) = (coherent, caustics) {
-            return Err(format!(
-                "factor `caustics` is 1 while `gi` is \"{}\"; the coherent methods render no caustics",
-                coherent.name()
-            ));
+            return Err(FactorsError::CausticsWithCoherent { gi: coherent.name() });
         }
         if caustics == Some(true) && gi == GiLevel::None {
-            return Err("factor `caustics` is 1 while `gi` and `shadows` are 0; caustics are light through a \
-                        virtual object's shadow and come only with gi or shadows"
-                .into());
+            return Err(FactorsError::CausticsWithoutGi);
         }
         Ok(Factors { gi, coherent, cm, ca, caustics: coherent.is_none() && caustics.unwrap_or(true) })
     }
@@ -405,11 +420,9 @@ impl StimulusSettings {
                 let frame = crate::coherent::render::render_stimulus(
                     scene,
                     captured,
-                    photo,
-                    linear,
+                    (photo, linear),
                     &params,
-                    &dir.cm,
-                    dir.camera_artifacts.as_ref(),
+                    (&dir.cm, dir.camera_artifacts.as_ref()),
                     Some(renderer),
                 )?;
                 Ok(StimulusFrame {
@@ -450,51 +463,47 @@ pub struct StimulusFrame {
 }
 
 /// What a render of one condition outside a study may change from a stimulus's parameters:
-/// `mrstudy render --condition/--factors`'s GPU flags (the doc comments are their help).
-#[derive(Clone, Debug, clap::Args)]
+/// `mrstudy render --condition/--factors`'s GPU flags (the binary's clap definitions default to
+/// this `Default`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct RenderKnobs {
-    /// GPU: the VPL budget of the `gi` condition.
-    #[arg(long, default_value_t = 256)]
+    /// The VPL budget of the `gi` condition.
     pub vpls: u32,
-    /// GPU: resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
-    #[arg(long, default_value_t = 128)]
+    /// Resolution of each VPL's imperfect shadow map (0: VPLs unshadowed).
     pub ism_size: u32,
-    /// GPU: points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
-    #[arg(long, default_value_t = 1024)]
+    /// Points per cloud (real, virtual) splatted into each VPL's imperfect shadow map.
     pub ism_points: u32,
-    /// GPU: how the imperfect shadow maps' splats are drawn: `compute` (a compute pass, atomics)
-    /// or `raster` (the rasteriser, depth test).
-    #[arg(long, default_value = "compute", value_parser = |text: &str| {
-        crate::gpu::ism::IsmSplatting::parse(text).ok_or_else(|| format!("`{text}` is not one of compute, raster"))
-    })]
+    /// How the imperfect shadow maps' splats are drawn.
     pub ism_splatting: crate::gpu::ism::IsmSplatting,
-    /// GPU: bounces of indirect light in the `gi` condition (1: the single bounce of the RSM
-    /// VPLs; more add the multiple-bounce light source of thesis 5.2.7, at most 8).
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
+    /// Bounces of indirect light in the `gi` condition (1..=8).
     pub bounces: u32,
-    /// GPU: candidate points each multiple-bounce slot searches.
-    #[arg(long, default_value_t = 4096)]
+    /// Candidate points each multiple-bounce slot searches.
     pub bounce_candidates: u32,
-    /// GPU: the composition: additive (default) or scaled (Debevec: α = L'_cam / τ(L_r)).
-    #[arg(long, default_value = "additive", value_parser = |text: &str| {
-        crate::cm::Composition::parse(text).ok_or_else(|| format!("`{text}` is not one of additive, scaled"))
-    })]
+    /// The composition: additive or scaled (Debevec).
     pub composition: crate::cm::Composition,
-    /// GPU: the colour mapping of the GI buffers: off (Reinhard), statistics, samples or rohmer
-    /// (overrides what the `cm` factor implies).
-    #[arg(long, value_parser = |text: &str| {
-        CmMethod::parse(text).ok_or_else(|| format!("`{text}` is not one of off, statistics, samples, rohmer"))
-    })]
+    /// The colour mapping of the GI buffers, overriding what the `cm` factor implies.
     pub cm: Option<CmMethod>,
-    /// Where the `ca` factor takes its parameters: `scene` (the scene's simulated camera) or
-    /// `estimate` (noise, blur and JPEG quality measured on the photograph).
-    #[arg(long = "ca-params", default_value = "scene", value_parser = |text: &str| {
-        crate::ca::ParamSource::parse(text).ok_or_else(|| format!("`{text}` is not one of scene, estimate"))
-    })]
+    /// Where the `ca` factor takes its parameters.
     pub ca_source: crate::ca::ParamSource,
-    /// GPU: resolution of each caustic map of a mirror or glass object (0: no caustics).
-    #[arg(long, default_value_t = 256)]
+    /// Resolution of each caustic map of a mirror or glass object (0: no caustics).
     pub caustic_map_size: u32,
+}
+
+impl Default for RenderKnobs {
+    fn default() -> RenderKnobs {
+        RenderKnobs {
+            vpls: 256,
+            ism_size: 128,
+            ism_points: 1024,
+            ism_splatting: crate::gpu::ism::IsmSplatting::Compute,
+            bounces: 3,
+            bounce_candidates: 4096,
+            composition: crate::cm::Composition::Additive,
+            cm: None,
+            ca_source: crate::ca::ParamSource::Scene,
+            caustic_map_size: 256,
+        }
+    }
 }
 
 /// One condition rendered over a photograph, with the parameters it was rendered by and, when
@@ -592,7 +601,7 @@ mod tests {
     use super::*;
 
     fn levels(pairs: &[(&'static str, f64)]) -> std::result::Result<Factors, String> {
-        Factors::from_levels(pairs.iter().copied())
+        Factors::from_levels(pairs.iter().copied()).map_err(|error| error.to_string())
     }
 
     #[test]
@@ -636,7 +645,7 @@ mod tests {
     fn named(pairs: &[(&'static str, &str)]) -> std::result::Result<Factors, String> {
         let levels: Vec<(&str, FactorLevel)> =
             pairs.iter().map(|(name, level)| (*name, FactorLevel::Name(level.to_string()))).collect();
-        Factors::from_study_levels(levels.iter().map(|(name, level)| (*name, level)))
+        Factors::from_study_levels(levels.iter().map(|(name, level)| (*name, level))).map_err(|error| error.to_string())
     }
 
     #[test]
@@ -660,11 +669,11 @@ mod tests {
         assert!(error.contains("`cm`") && error.contains("only `gi`"), "{error}");
         let mixed: Vec<(&str, FactorLevel)> =
             vec![("gi", FactorLevel::Name("dit".into())), ("caustics", FactorLevel::Number(1.0))];
-        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err();
+        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err().to_string();
         assert!(error.contains("no caustics"), "{error}");
         let mixed: Vec<(&str, FactorLevel)> =
             vec![("gi", FactorLevel::Name("vct".into())), ("shadows", FactorLevel::Number(1.0))];
-        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err();
+        let error = Factors::from_study_levels(mixed.iter().map(|(n, l)| (*n, l))).unwrap_err().to_string();
         assert!(error.contains("`shadows`") && error.contains("\"vct\""), "{error}");
     }
 

@@ -31,9 +31,11 @@ use serde::Deserialize;
 use serde_json::{Map, Value, json};
 use sqlx::Row;
 
+use crate::participant::model::ParticipantRecord;
 use crate::storage::Pool;
 
 use crate::study::Study;
+use crate::study::rating::CATCH_TOLERANCE;
 
 /// Export failures.
 #[derive(Debug, thiserror::Error)]
@@ -68,16 +70,14 @@ fn value_text(value: Option<&Value>) -> String {
 }
 
 /// Which participants an export or analysis keeps besides the default ones.
-/// Also `mrstudy export`'s flags (the doc comments are their help).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, clap::Args)]
+/// Also `mrstudy export`'s flags (the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 pub struct Include {
     /// Keep pilot participants (joined through an admin preview link); left out by default.
     #[serde(default, rename = "include_pilots")]
-    #[arg(long = "include-pilots")]
     pub pilots: bool,
     /// Keep participants the researcher excluded; left out by default.
     #[serde(default, rename = "include_excluded")]
-    #[arg(long = "include-excluded")]
     pub excluded: bool,
 }
 
@@ -136,39 +136,13 @@ pub struct Export<T> {
     pub left_out: LeftOut,
 }
 
-/// A participant as the admin list and the exports see them.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct ParticipantRecord {
-    pub participant: String,
-    pub ordinal: i64,
-    /// `completed`, `started` or `abandoned`.
-    pub status: &'static str,
-    pub trials: i64,
-    pub answered: i64,
-    pub completion_code: String,
-    pub pilot: bool,
-    pub excluded: bool,
-    pub exclusion_reason: Option<String>,
-    pub excluded_at: Option<String>,
-    /// The study's `url_params` the participant arrived with, in the study's order.
-    pub external_ids: Map<String, Value>,
-    pub joined_at: String,
-    pub completed_at: Option<String>,
-    /// The last join, trial served or response.
-    pub last_activity_at: String,
-    /// Responses flagged `too_fast`.
-    pub too_fast: i64,
-    pub catch_answered: i64,
-    pub catch_failed: i64,
-}
-
 /// Every participant of a study in joining order, with status, external ids and flags.
 pub async fn participant_records(
     pool: &Pool,
     slug: &str,
     definition: &Study,
 ) -> Result<Vec<ParticipantRecord>, ExportError> {
-    let rows = sqlx::query(
+    let rows = sqlx::query(sqlx::AssertSqlSafe(format!(
         "SELECT *, (julianday('now') - julianday(last_activity)) * 1440.0 AS idle_minutes FROM (
              SELECT p.id, p.ordinal, p.trials, p.answered, p.completion_code, p.completed_at, p.created_at,
                     p.pilot, p.excluded, p.exclusion_reason, p.excluded_at, p.url_params,
@@ -179,13 +153,15 @@ pub async fn participant_records(
                         AS last_activity,
                     (SELECT COUNT(*) FROM responses r WHERE r.participant = p.id AND r.too_fast = 1) AS too_fast,
                     (SELECT COUNT(*) FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
-                     WHERE r.participant = p.id AND t.catch_expected IS NOT NULL) AS catch_answered,
+                     WHERE r.participant = p.id AND (t.catch_expected IS NOT NULL OR t.catch_rating IS NOT NULL))
+                        AS catch_answered,
                     (SELECT COUNT(*) FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
-                     WHERE r.participant = p.id AND t.catch_expected IS NOT NULL AND r.chosen != t.catch_expected)
+                     WHERE r.participant = p.id AND (r.chosen != t.catch_expected
+                         OR ABS(r.rating - t.catch_rating) > {CATCH_TOLERANCE}))
                         AS catch_failed
              FROM participants p WHERE p.study = $1) AS activity
-         ORDER BY ordinal",
-    )
+         ORDER BY ordinal"
+    )))
     .bind(slug)
     .fetch_all(pool)
     .await?;
@@ -260,7 +236,8 @@ fn true_false(value: bool) -> String {
 const TRIAL_ROWS: &str = "
     SELECT p.id AS participant, p.demographics, p.completed_at, p.client AS participant_client, t.trial, t.left_condition, t.right_condition,
            t.left_scene, t.right_scene, t.left_stimulus, t.right_stimulus, t.catch_expected, t.shown_at, t.chosen_by,
-           r.chosen, r.rt_ms, r.answered_at, r.client, r.too_fast, r.served_ms, r.display_css, r.display_device
+           r.chosen, r.rt_ms, r.answered_at, r.client, r.too_fast, r.served_ms, r.display_css, r.display_device,
+           r.rating, t.catch_rating
     FROM participants p
     JOIN trials t ON t.participant = p.id
     LEFT JOIN responses r ON r.participant = t.participant AND r.trial = t.trial
@@ -277,12 +254,16 @@ pub async fn trials_csv(pool: &Pool, slug: &str, include: Include) -> Result<Exp
             kept.insert(record.participant.clone(), record);
         }
     }
-    let rows = sqlx::query(sqlx::AssertSqlSafe(format!(
-        "{TRIAL_ROWS} AND r.chosen IS NOT NULL AND t.catch_expected IS NULL ORDER BY p.ordinal, t.trial"
-    )))
-    .bind(slug)
-    .fetch_all(pool)
-    .await?;
+    // a rating study's rows are its ratings, catch trials included (flagged `catch`)
+    let answered = if definition.rating.is_some() {
+        "r.rating IS NOT NULL"
+    } else {
+        "r.chosen IS NOT NULL AND t.catch_expected IS NULL"
+    };
+    let rows = sqlx::query(sqlx::AssertSqlSafe(format!("{TRIAL_ROWS} AND {answered} ORDER BY p.ordinal, t.trial")))
+        .bind(slug)
+        .fetch_all(pool)
+        .await?;
     // Writing the rows is the export's long work: on a blocking thread, so the async workers
     // that serve participants stay free.
     let content = tokio::task::spawn_blocking(move || write_trial_rows(&definition, &kept, rows))
@@ -303,20 +284,25 @@ fn write_trial_rows(
     if definition.threshold.is_some() {
         header.extend(crate::study::threshold::CSV_COLUMNS.iter().map(|column| column.to_string()));
     }
+    if definition.rating.is_some() {
+        header.extend(crate::study::rating::CSV_COLUMNS.iter().map(|column| column.to_string()));
+    }
     header.extend(url_columns.iter().cloned());
     header.extend(definition.demographics.iter().map(|field| field.name.clone()));
     writer.write_record(&header).expect("writing to memory");
     for row in rows {
         let participant: String = row.try_get("participant")?;
         let Some(record) = kept.get(&participant) else { continue };
-        let chosen_side: String = row.try_get("chosen")?;
+        let chosen_side: Option<String> = row.try_get("chosen")?;
         let left: String = row.try_get("left_condition")?;
         let right: String = row.try_get("right_condition")?;
-        // a condition's name, or `tie` for "not sure" (allow_tie; no condition is named so)
-        let chosen = match chosen_side.as_str() {
-            "left" => left.clone(),
-            "right" => right.clone(),
-            _ => "tie".to_string(),
+        // a condition's name, or `tie` for "not sure" (allow_tie; no condition is named so);
+        // empty for a rating
+        let chosen = match chosen_side.as_deref() {
+            Some("left") => left.clone(),
+            Some("right") => right.clone(),
+            Some(_) => "tie".to_string(),
+            None => String::new(),
         };
         let demographics: Map<String, Value> =
             serde_json::from_str(&row.try_get::<String, _>("demographics")?).unwrap_or_default();
@@ -360,6 +346,13 @@ fn write_trial_rows(
         if let Some(design) = &definition.threshold {
             let scene: String = row.try_get("left_scene")?;
             record_cells.extend(crate::threshold::csv_cells(design, &left, &right, &chosen, &scene));
+        }
+        if let Some(design) = &definition.rating {
+            let scene: String = row.try_get("left_scene")?;
+            let rating: Option<i64> = row.try_get("rating")?;
+            let catch_rating: Option<i64> = row.try_get("catch_rating")?;
+            let cells = crate::rating::csv_cells(design, &scene, &left, rating.unwrap_or_default(), catch_rating);
+            record_cells.extend(cells.iter().map(|cell| text_cell(cell)));
         }
         for name in &url_columns {
             record_cells.push(value_cell(record.external_ids.get(name)));
@@ -429,16 +422,19 @@ pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Exp
             continue;
         }
         let chosen: Option<String> = row.try_get("chosen")?;
+        let rating: Option<i64> = row.try_get("rating")?;
         let left: String = row.try_get("left_condition")?;
         let right: String = row.try_get("right_condition")?;
-        let response = match &chosen {
-            Some(side) => json!({
-                "chosen": side,
-                "chosen_condition": match side.as_str() {
-                    "left" => Some(&left),
-                    "right" => Some(&right),
+        let answered = chosen.is_some() || rating.is_some();
+        let response = match answered {
+            true => json!({
+                "chosen": chosen,
+                "chosen_condition": match chosen.as_deref() {
+                    Some("left") => Some(&left),
+                    Some("right") => Some(&right),
                     _ => None,
                 },
+                "rating": rating,
                 "rt_ms": row.try_get::<f64, _>("rt_ms")?,
                 "answered_at": row.try_get::<String, _>("answered_at")?,
                 "too_fast": row.try_get::<Option<i64>, _>("too_fast")?.unwrap_or(0) == 1,
@@ -447,8 +443,14 @@ pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Exp
                 "display_device": row.try_get::<Option<String>, _>("display_device")?,
                 "client": serde_json::from_str::<Value>(&row.try_get::<String, _>("client")?).unwrap_or(Value::Null),
             }),
-            None => Value::Null,
+            false => Value::Null,
         };
+        let mut response = response;
+        if rating.is_none()
+            && let Some(fields) = response.as_object_mut()
+        {
+            fields.remove("rating"); // a paired comparison's response as before
+        }
         by_participant.entry(participant).or_default().push(json!({
             "trial": row.try_get::<i64, _>("trial")?,
             "left": left,
@@ -458,6 +460,7 @@ pub async fn study_json(pool: &Pool, slug: &str, include: Include) -> Result<Exp
             "left_stimulus": row.try_get::<String, _>("left_stimulus")?,
             "right_stimulus": row.try_get::<String, _>("right_stimulus")?,
             "catch_expected": row.try_get::<Option<String>, _>("catch_expected")?,
+            "catch_rating": row.try_get::<Option<i64>, _>("catch_rating")?,
             "shown_at": row.try_get::<Option<String>, _>("shown_at")?,
             "chosen_by": row.try_get::<Option<String>, _>("chosen_by")?,
             "response": response,

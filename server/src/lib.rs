@@ -40,6 +40,7 @@ pub mod parse_errors;
 pub mod participant;
 pub mod prepared;
 pub mod preparing;
+pub mod rating;
 pub mod schedule;
 pub mod serve;
 pub mod simulate;
@@ -48,6 +49,10 @@ pub mod storage;
 pub mod study;
 pub mod threshold;
 pub mod trial;
+
+#[cfg(test)]
+#[path = "../tests/support/lab_study.rs"]
+mod lab_study_fixture;
 
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -46,24 +46,20 @@ use crate::error::AppError;
 pub struct ClientAddr(pub IpAddr);
 
 /// How much one participant or client address may do; 0 turns a limit off. Also `mrstudy
-/// serve`'s flags (the doc comments are its help).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+/// serve`'s flags (the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Limits {
     /// Joins (new participants), and screen checks, per client address per minute, with bursts
     /// of twice that; 0: no limit.
-    #[arg(long = "join-limit", default_value_t = Limits::default().joins_per_minute)]
     pub joins_per_minute: u32,
     /// Responses per participant per minute, with bursts of twice that (and per client address
     /// for answers without valid credentials); 0: no limit.
-    #[arg(long = "response-limit", default_value_t = Limits::default().responses_per_minute)]
     pub responses_per_minute: u32,
     /// Wrong admin tokens (and admin calls refused with 403) per client address per 15 minutes
     /// before more are refused (429; the right token still works); 0: no limit.
-    #[arg(long = "admin-failure-limit", default_value_t = Limits::default().admin_failures)]
     pub admin_failures: u32,
     /// Behind a TLS-terminating reverse proxy: the client address is the last X-Forwarded-For
     /// address, and the admin cookie is Secure.
-    #[arg(long)]
     pub behind_tls: bool,
 }
 
@@ -468,27 +464,6 @@ fn too_many(is_api: bool, what: &str, limit: u32, window: &str, wait: Duration) 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[derive(clap::Parser)]
-    struct Flags {
-        #[command(flatten)]
-        limits: Limits,
-        #[command(flatten)]
-        connections: crate::serve::Connections,
-    }
-
-    #[test]
-    fn the_flags_default_to_the_defaults_and_refuse_zero_seconds() {
-        use clap::Parser;
-        let flags = Flags::try_parse_from(["serve"]).unwrap();
-        assert_eq!(flags.limits, Limits::default());
-        assert_eq!(flags.connections, crate::serve::Connections::default());
-        let flags = Flags::try_parse_from(["serve", "--join-limit", "0", "--header-timeout", "5"]).unwrap();
-        assert_eq!(flags.limits.joins_per_minute, 0);
-        assert_eq!(flags.connections.header_timeout, Duration::from_secs(5));
-        let error = Flags::try_parse_from(["serve", "--body-timeout", "0"]).map(|_| ()).unwrap_err().to_string();
-        assert!(error.contains("`0` is not a whole number of seconds"), "{error}");
-    }
 
     #[test]
     fn a_bucket_allows_its_burst_then_refuses_with_the_wait_then_refills() {

@@ -32,8 +32,15 @@ fn report(
     include: Include,
     stimuli: Option<&StimulusMetrics>,
 ) -> Result<Report, AppError> {
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include))
-        .map_err(cannot_run)
+    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include)).map_err(
+        |error| match study.rating {
+            // until the analysis reads rating exports (mean opinion scores, issue 49)
+            Some(_) => AppError::Unprocessable(format!(
+                "The live analysis fits paired comparisons; a rating study's ratings are in its trials CSV (columns scene, condition, rating, method, reference, scale), for `mrstudy analyze` ({error})."
+            )),
+            None => cannot_run(error),
+        },
+    )
 }
 
 fn options(include: Include) -> Options {

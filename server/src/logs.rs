@@ -31,7 +31,7 @@ pub const DEFAULT_FILTER: &str =
 pub const NO_ROUTE: &str = "(no route)";
 
 /// How the log is written (`serve --log-format`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LogFormat {
     /// One human-readable line per event.
     #[default]
@@ -40,12 +40,21 @@ pub enum LogFormat {
     Json,
 }
 
+/// Why the log could not be set up.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LogFilterError {
+    /// `RUST_LOG` holds `directives` that are no log filter.
+    #[error("RUST_LOG=\"{directives}\" is not a log filter: {reason}")]
+    RustLog { directives: String, reason: String },
+}
+
 /// The filter of `RUST_LOG`, or [`DEFAULT_FILTER`] when it is unset or empty; a `RUST_LOG` that
 /// does not parse is an error naming it.
-pub fn filter_from_env() -> Result<tracing_subscriber::EnvFilter, String> {
+pub fn filter_from_env() -> Result<tracing_subscriber::EnvFilter, LogFilterError> {
     match std::env::var("RUST_LOG") {
         Ok(directives) if !directives.trim().is_empty() => tracing_subscriber::EnvFilter::try_new(&directives)
-            .map_err(|error| format!("RUST_LOG=\"{directives}\" is not a log filter: {error}")),
+            .map_err(|error| LogFilterError::RustLog { directives: directives.clone(), reason: error.to_string() }),
         _ => Ok(tracing_subscriber::EnvFilter::new(DEFAULT_FILTER)),
     }
 }
@@ -77,7 +86,7 @@ where
 }
 
 /// Installs the process's log on stderr (`RUST_LOG`, `format`); a second call changes nothing.
-pub fn init(format: LogFormat) -> Result<(), String> {
+pub fn init(format: LogFormat) -> Result<(), LogFilterError> {
     use std::io::IsTerminal;
     use tracing_subscriber::util::SubscriberInitExt;
     let filter = filter_from_env()?;

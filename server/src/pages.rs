@@ -156,6 +156,9 @@ struct StudyPage {
     answer_lock_ms: u32,
     /// `allow_tie`: a third answer, "Not sure" (↓ or its button).
     allow_tie: bool,
+    /// A rating study (`kind = "rating"`): one image (DCR: after its reference) and a 5-point
+    /// scale instead of a pair.
+    rating: bool,
     /// `native` or `fit` (how stimuli are scaled).
     display: &'static str,
     /// `landscape`, `portrait` or empty: checked again during the trials.
@@ -181,6 +184,7 @@ impl StudyPage {
             min_response_ms: study.participation.min_response_ms,
             answer_lock_ms: study.participation.answer_lock_ms,
             allow_tie: study.participation.allow_tie,
+            rating: study.rating.is_some(),
             display: match study.participation.display {
                 crate::study::Display::Native => "native",
                 crate::study::Display::Css => "css",

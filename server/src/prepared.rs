@@ -7,10 +7,11 @@ use std::path::{Path, PathBuf};
 
 use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
 
-use crate::schedule::{self, PlannedKind, PlannedTrial};
+use crate::rating::RatedTrial;
+use crate::schedule;
 use crate::stimuli::StimulusPlan;
 use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
-use crate::trial::Side;
+use crate::trial::{PlannedKind, PlannedTrial, ScheduledTrial, Side};
 
 /// Why a study could not be made ready.
 #[derive(Debug, thiserror::Error)]
@@ -48,6 +49,8 @@ pub struct PreparedStudy {
     pub realisation_stimuli: Vec<Vec<Vec<String>>>,
     /// `[catch trial]` → (better, worse) stimulus file names.
     pub catch_stimuli: Vec<(String, String)>,
+    /// A rating study's `[catch trial]` → (stimulus, reference) file names (`crate::rating`).
+    pub rating_catch_stimuli: Vec<(String, Option<String>)>,
     /// `[scene][realisation]` → the ground truth's file name, for a detection design (empty
     /// otherwise).
     pub ground_truths: Vec<Vec<String>>,
@@ -58,18 +61,6 @@ pub struct PreparedStudy {
     pub metrics_notes: Vec<String>,
     /// `metrics_csv` as the analysis reads it, parsed once here rather than per admin request.
     pub stimulus_metrics: Option<StimulusMetrics>,
-}
-
-/// One trial of a participant's schedule, as stored.
-#[derive(Debug, Clone)]
-pub struct ScheduledTrial {
-    pub left_condition: String,
-    pub right_condition: String,
-    pub left_scene: String,
-    pub right_scene: String,
-    pub left_stimulus: String,
-    pub right_stimulus: String,
-    pub catch_expected: Option<Side>,
 }
 
 /// Label of a catch trial's images in the export's `left`/`right`/`chosen` columns.
@@ -178,14 +169,16 @@ impl PreparedStudy {
                 }
                 None => None,
             };
+        let rating_catch_stimuli = rating_catch_stimuli(&study, &ground_truths, store)?;
         let mut study = study;
         crate::threshold::prepare(&mut study, stimulus_metrics.as_ref())
-            .map_err(|reason| PrepareError::Threshold { slug: study.slug.clone(), reason })?;
+            .map_err(|reason| PrepareError::Threshold { slug: study.slug.clone(), reason: reason.to_string() })?;
         Ok(PreparedStudy {
             study,
             stimuli,
             realisation_stimuli,
             catch_stimuli,
+            rating_catch_stimuli,
             ground_truths,
             metrics_csv,
             metrics_notes,
@@ -196,7 +189,15 @@ impl PreparedStudy {
     /// The schedule of the participant with this seed (for an active design: the trials
     /// planned at join, its warm-up and catch trials).
     pub fn schedule(&self, seed: u64) -> Vec<ScheduledTrial> {
+        if self.study.rating.is_some() {
+            return crate::rating::plan(&self.study, seed).iter().map(|rated| self.rated(rated)).collect();
+        }
         schedule::plan(&self.study, seed).iter().map(|planned| self.scheduled(planned)).collect()
+    }
+
+    /// A planned rating trial with its condition, scene and stimulus names.
+    pub fn rated(&self, rated: &RatedTrial) -> ScheduledTrial {
+        rated_trial(self, rated)
     }
 
     /// A planned trial with its condition, scene and stimulus names.
@@ -226,6 +227,7 @@ impl PreparedStudy {
                     left_stimulus,
                     right_stimulus,
                     catch_expected: None,
+                    catch_rating: None,
                 }
             }
             PlannedKind::Catch { index, better_left } => {
@@ -246,10 +248,75 @@ impl PreparedStudy {
                     left_stimulus,
                     right_stimulus,
                     catch_expected: Some(if better_left { Side::Left } else { Side::Right }),
+                    catch_rating: None,
                 }
             }
         }
     }
+}
+
+/// A rating trial with its condition, scene and stimulus names: the stimulus rated on the left
+/// side, the reference (DCR) on the right, empty without one (docs/design.md).
+fn rated_trial(prepared: &PreparedStudy, rated: &RatedTrial) -> ScheduledTrial {
+    let study = &prepared.study;
+    let dcr = study.rating.as_ref().is_some_and(|design| design.method == crate::study::rating::Method::Dcr);
+    let truth = |scene: usize| (GROUND_TRUTH.to_string(), prepared.ground_truths[scene][0].clone());
+    let ((condition, stimulus), scene, reference, catch_rating) = match *rated {
+        RatedTrial::Condition { scene, condition } => (
+            (study.conditions[condition].name.clone(), prepared.stimuli[scene][condition].clone()),
+            study.scenes[scene].name.clone(),
+            dcr.then(|| (truth(scene), study.scenes[scene].name.clone())),
+            None,
+        ),
+        RatedTrial::HiddenReference { scene } => (truth(scene), study.scenes[scene].name.clone(), None, None),
+        RatedTrial::Catch { index } => {
+            let design = study.rating.as_ref().expect("a rating study");
+            let catch = &design.catch[index];
+            let (image, reference) = &prepared.rating_catch_stimuli[index];
+            let scene = match catch.source {
+                crate::study::rating::CatchSource::GroundTruth { scene } => study.scenes[scene].name.clone(),
+                crate::study::rating::CatchSource::Image { .. } => catch.name.clone(),
+            };
+            let label = format!("catch:{}", catch.name);
+            let reference = reference.clone().map(|file| ((format!("{label}:reference"), file), scene.clone()));
+            ((label, image.clone()), scene, reference, Some(catch.expected))
+        }
+    };
+    let ((right_condition, right_stimulus), right_scene) = reference.unwrap_or_default();
+    ScheduledTrial {
+        left_condition: condition,
+        right_condition,
+        left_scene: scene,
+        right_scene,
+        left_stimulus: stimulus,
+        right_stimulus,
+        catch_expected: None,
+        catch_rating,
+    }
+}
+
+/// A rating study's catch trials' (stimulus, reference) file names: image files copied into the
+/// store, or a scene configuration's ground truth (in DCR its own reference as well).
+fn rating_catch_stimuli(
+    study: &Study,
+    ground_truths: &[Vec<String>],
+    store: &Path,
+) -> Result<Vec<(String, Option<String>)>, PrepareError> {
+    use crate::study::rating::{CatchSource, Method};
+    let Some(design) = &study.rating else { return Ok(Vec::new()) };
+    let mut stimuli = Vec::with_capacity(design.catch.len());
+    for catch in &design.catch {
+        stimuli.push(match &catch.source {
+            CatchSource::Image { image, reference } => {
+                (store_image(image, store)?, reference.as_deref().map(|path| store_image(path, store)).transpose()?)
+            }
+            CatchSource::GroundTruth { scene } => {
+                let truth = ground_truths[*scene][0].clone();
+                (truth.clone(), (design.method == Method::Dcr).then_some(truth))
+            }
+        });
+    }
+    Ok(stimuli)
 }
 
 fn store_image(path: &Path, store: &Path) -> Result<String, PrepareError> {

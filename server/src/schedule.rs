@@ -33,6 +33,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
 use crate::study::{SceneDraw, Study};
+// Where the schedule's trials are defined; named here too, as the schedule's output, for the
+// designs built on it (simulate, threshold).
+pub use crate::trial::{PlannedKind, PlannedTrial};
 
 pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 
@@ -40,29 +43,16 @@ pub use mrstudy_analysis::active::{ActiveError, Posterior, SideBalance};
 /// detection designs only ([`plan_detection`]); other designs are scheduled as in version 1.
 pub const SCHEDULE_VERSION: i64 = 2;
 
-/// One scheduled trial, before stimuli are attached.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct PlannedTrial {
-    pub kind: PlannedKind,
-    pub left_scene: usize,
-    pub right_scene: usize,
-    /// The sensor-noise realisation of the scene configuration shown (both sides): 0 except in
-    /// a detection design with `realisations` > 1.
-    pub realisation: usize,
-}
-
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PlannedKind {
-    /// Condition indices shown left and right.
-    Pair { left: usize, right: usize },
-    /// Catch trial `index`; `better_left` says on which side the better image is.
-    Catch { index: usize, better_left: bool },
-}
-
-struct Stream(ChaCha8Rng);
+/// The schedules' random stream: ChaCha8 from one seed, with the draws written out here.
+pub(crate) struct Stream(ChaCha8Rng);
 
 impl Stream {
-    fn below(&mut self, bound: usize) -> usize {
+    /// The stream of `seed` (`crate::rating` plans its trials from it too).
+    pub(crate) fn seeded(seed: u64) -> Stream {
+        Stream(ChaCha8Rng::seed_from_u64(seed))
+    }
+
+    pub(crate) fn below(&mut self, bound: usize) -> usize {
         // Lemire's nearly divisionless method, with rejection: uniform on 0..bound.
         let bound = bound as u64;
         assert!(bound > 0);
@@ -79,7 +69,7 @@ impl Stream {
         self.0.next_u64() >> 63 == 1
     }
 
-    fn shuffle<T>(&mut self, items: &mut [T]) {
+    pub(crate) fn shuffle<T>(&mut self, items: &mut [T]) {
         for index in (1..items.len()).rev() {
             let other = self.below(index + 1);
             items.swap(index, other);
@@ -126,24 +116,24 @@ pub fn plan(study: &Study, seed: u64) -> Vec<PlannedTrial> {
         return plan_detection(study, seed);
     }
     let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
-    let scene_count = study.scenes.len();
     let repetitions = study.design.repetitions as usize;
     let mut trials = Vec::with_capacity(study.trial_count());
     for &(first, second) in &study.design.pairs {
         for first_left in stream.balanced_sides(repetitions) {
-            let (left, right) = if first_left { (first, second) } else { (second, first) };
-            let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
-            trials.push(PlannedTrial {
-                kind: PlannedKind::Pair { left, right },
-                left_scene,
-                right_scene,
-                realisation: 0,
-            });
+            trials.push(pair_trial(study, &mut stream, (first, second), first_left));
         }
     }
     push_catch_trials(study, &mut stream, &mut trials);
     stream.shuffle(&mut trials);
     trials
+}
+
+/// A trial of the condition pair `(first, second)`, `first` on the left when `first_left`, its
+/// scene configurations drawn from `stream` (realisation 0).
+fn pair_trial(study: &Study, stream: &mut Stream, (first, second): (usize, usize), first_left: bool) -> PlannedTrial {
+    let (left, right) = if first_left { (first, second) } else { (second, first) };
+    let (left_scene, right_scene) = stream.scenes(study.design.scenes, study.scenes.len());
+    PlannedTrial { kind: PlannedKind::Pair { left, right }, left_scene, right_scene, realisation: 0 }
 }
 
 fn push_catch_trials(study: &Study, stream: &mut Stream, trials: &mut Vec<PlannedTrial>) {
@@ -269,21 +259,13 @@ fn order_without_repeats(stream: &mut Stream, mut trials: Vec<PlannedTrial>, sce
 /// reproduce version-1 schedules and as the baseline of `crate::simulate::familiarity`.
 pub fn plan_detection_v1(study: &Study, seed: u64) -> Vec<PlannedTrial> {
     let mut stream = Stream(ChaCha8Rng::seed_from_u64(seed));
-    let scene_count = study.scenes.len();
     let repetitions = study.design.repetitions as usize;
     let mut trials = Vec::with_capacity(study.trial_count());
     let count = study.design.pairs.len() * repetitions;
     let mut sides = stream.balanced_sides(count).into_iter();
     for &(condition, truth) in &study.design.pairs {
         for truth_left in sides.by_ref().take(repetitions) {
-            let (left, right) = if truth_left { (truth, condition) } else { (condition, truth) };
-            let (left_scene, right_scene) = stream.scenes(study.design.scenes, scene_count);
-            trials.push(PlannedTrial {
-                kind: PlannedKind::Pair { left, right },
-                left_scene,
-                right_scene,
-                realisation: 0,
-            });
+            trials.push(pair_trial(study, &mut stream, (truth, condition), truth_left));
         }
     }
     push_catch_trials(study, &mut stream, &mut trials);

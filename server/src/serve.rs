@@ -21,6 +21,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::auth::{WeakToken, admin_token_strength};
 use crate::prepared::{PrepareError, PreparedStudy};
 use crate::storage::{Database, OpenError, Storage};
 use crate::study::TaskStudy;
@@ -30,86 +31,61 @@ use crate::{AppState, app};
 /// Told how rendering a study's stimuli goes: the study's slug and the step.
 pub type RenderProgress = Arc<dyn Fn(&str, &crate::stimuli::Progress) + Send + Sync>;
 
-/// Where and what to serve: `mrstudy serve`'s flags (the doc comments are its help).
-#[derive(Clone, clap::Args)]
+/// Where and what to serve: `mrstudy serve`'s flags (the binary holds their clap definitions).
+#[derive(Clone)]
 pub struct ServeConfig {
     /// Address to listen on (port 0: any free port).
-    #[arg(long, default_value = "127.0.0.1:8080")]
     pub addr: String,
     /// Data directory: mrstudy.db, stimuli/, admin-token.
-    #[arg(long, default_value = "./mrstudy-data")]
     pub data_dir: PathBuf,
     /// The database: a PostgreSQL URL (postgres://user:password@host:port/database), which
     /// several servers may share, or a sqlite file (default: mrstudy.db in the data directory).
-    #[arg(long, env = "MRSTUDY_DATABASE_URL", hide_env_values = true)]
     pub database: Option<String>,
     /// Directory of study files (*.toml).
-    #[arg(long = "studies", default_value = "./studies")]
     pub studies_dir: PathBuf,
     /// A stimulus store shared by several servers (default: `<data-dir>/stimuli`), rendered
     /// beforehand by `mrstudy stimuli` (with --shard on a cluster; docs/cluster.md).
-    #[arg(long)]
     pub stimuli_dir: Option<PathBuf>,
     /// Called while missing stimuli are rendered at start-up (None: quietly).
-    #[arg(skip)]
     pub progress: Option<RenderProgress>,
     /// What one client address may do ([`crate::limits`]).
-    #[command(flatten)]
     pub limits: crate::limits::Limits,
     /// How long the server waits for a client, and for how many at once.
-    #[command(flatten)]
     pub connections: Connections,
     /// The lab's origins and sessions per address.
-    #[command(flatten)]
     pub lab: crate::lab::LabConfig,
     /// How the log on stderr (one line per request, warnings and errors) is written: text or
     /// json (one object per line); `RUST_LOG` filters it (unset: info for mrstudy, warn for the
     /// rest).
-    #[arg(long, value_enum, default_value_t = crate::logs::LogFormat::Text)]
     pub log_format: crate::logs::LogFormat,
 }
 
 /// How long the server waits for a client and how many connections it keeps at once, so that
 /// idle, slow-header (slowloris), slow-body and never-reading clients cannot hold its
 /// connections, and one address cannot take them all ([`crate::connections`]). Also
-/// `mrstudy serve`'s flags (the doc comments are its help; times in whole seconds).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+/// `mrstudy serve`'s flags (times in whole seconds; the binary holds their clap definitions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Connections {
     /// Seconds a connection may take to send a request's headers, from its start or the end of
     /// its last response (also how long an idle keep-alive connection is kept).
-    #[arg(long, default_value = "20", value_parser = seconds)]
     pub header_timeout: std::time::Duration,
     /// Seconds a request may take to send its whole body after the headers (else 400, and the
     /// connection closes).
-    #[arg(long, default_value = "30", value_parser = seconds)]
     pub body_timeout: std::time::Duration,
     /// Seconds a whole request (headers and body together) may take, from the connection's
     /// start or the end of its last response; a slower one is cut off and its connection closed.
-    #[arg(long, default_value = "30", value_parser = seconds)]
     pub request_timeout: std::time::Duration,
     /// Seconds a response may wait for the client to read any of it before the connection is
     /// closed.
-    #[arg(long, default_value = "20", value_parser = seconds)]
     pub write_timeout: std::time::Duration,
     /// Connections served at once; when full, a new one takes the place of the oldest
     /// connection of the address holding the most (if it holds more than the newcomer's).
-    #[arg(long, default_value_t = Connections::default().max_connections)]
     pub max_connections: usize,
     /// Connections one client address (an IPv6 /64) may hold at once; more are refused with 503
     /// (0: no cap; behind a reverse proxy every connection comes from the proxy, so there is none).
-    #[arg(long, default_value_t = Connections::default().max_connections_per_address)]
     pub max_connections_per_address: usize,
     /// Seconds a lab WebSocket session may go without a message before it is closed.
-    #[arg(long, default_value = "600", value_parser = seconds)]
     pub lab_idle_timeout: std::time::Duration,
-}
-
-/// A timeout in whole seconds, at least 1.
-fn seconds(text: &str) -> Result<std::time::Duration, String> {
-    match text.trim().parse::<u64>() {
-        Ok(seconds) if seconds >= 1 => Ok(std::time::Duration::from_secs(seconds)),
-        _ => Err(format!("`{text}` is not a whole number of seconds, at least 1")),
-    }
 }
 
 impl Default for Connections {
@@ -142,7 +118,7 @@ pub enum ServeError {
     #[error(
         "MRSTUDY_ADMIN_TOKEN is too weak: {0}; leave it unset and mrstudy makes a random one, or use e.g. `openssl rand -hex 32`"
     )]
-    WeakAdminToken(String),
+    WeakAdminToken(WeakToken),
     #[error("cannot read or write the admin token file {path}: {source}")]
     AdminToken { path: PathBuf, source: std::io::Error },
     #[error("cannot record study \"{slug}\" in the database: {source}")]
@@ -153,8 +129,8 @@ pub enum ServeError {
     Server(std::io::Error),
     #[error("cannot start the async runtime: {0}")]
     Runtime(std::io::Error),
-    #[error("{0}")]
-    Log(String),
+    #[error(transparent)]
+    Log(crate::logs::LogFilterError),
 }
 
 impl From<StudyError> for ServeError {
@@ -191,117 +167,6 @@ pub fn admin_token(data_dir: &Path) -> Result<String, ServeError> {
     file.write_all(format!("{token}\n").as_bytes()).map_err(io_error)?;
     file.sync_all().map_err(io_error)?;
     Ok(token)
-}
-
-/// Bits of a random token drawn from the characters `token` uses, if it was random.
-pub const ADMIN_TOKEN_BITS: f64 = 128.0;
-
-/// Whether an admin token set by hand is strong enough: only A-Z, a-z, 0-9, `-` and `_`, and at
-/// least [`ADMIN_TOKEN_BITS`] bits as a random string of its alphabet would have (hexadecimal:
-/// 32 characters; letters and digits: 22), at least 9 different characters (hexadecimal; 12
-/// otherwise), no repeated part (`Password1Password1`), and at most a third of it in runs along
-/// the alphabet, the digits or the keyboard (`0123456789abcdef…`, `qwertyuiop…`). A random token
-/// (`openssl rand -hex 16`) passes. Says why not.
-pub fn admin_token_strength(token: &str) -> Result<(), String> {
-    if let Some(bad) = token.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '-' || *c == '_')) {
-        return Err(format!("it may only hold A-Z, a-z, 0-9, - and _, not {bad:?}"));
-    }
-    let hex = token.chars().all(|c| c.is_ascii_hexdigit()) && !token.chars().any(|c| c.is_ascii_uppercase());
-    let alphabet = if hex {
-        16.0
-    } else {
-        [
-            (token.chars().any(|c| c.is_ascii_lowercase()), 26.0),
-            (token.chars().any(|c| c.is_ascii_uppercase()), 26.0),
-            (token.chars().any(|c| c.is_ascii_digit()), 10.0),
-            (token.chars().any(|c| c == '-' || c == '_'), 2.0),
-        ]
-        .iter()
-        .filter(|(used, _)| *used)
-        .map(|(_, size)| size)
-        .sum::<f64>()
-    };
-    let bits = token.len() as f64 * f64::log2(alphabet.max(1.0));
-    if bits < ADMIN_TOKEN_BITS {
-        return Err(format!(
-            "{} characters of {} kinds hold at most {bits:.0} bits, fewer than {ADMIN_TOKEN_BITS:.0}",
-            token.len(),
-            alphabet
-        ));
-    }
-    let distinct = token.chars().collect::<std::collections::BTreeSet<_>>().len();
-    // a random token uses many: 32 random hex digits fewer than 9 about once in 10^8 draws
-    let fewest = if hex { 9 } else { 12 };
-    if distinct < fewest {
-        return Err(format!("it uses only {distinct} different characters (at least {fewest})"));
-    }
-    let lower = token.to_ascii_lowercase().into_bytes();
-    if let Some(period) = (1..=lower.len() / 2).find(|&p| (p..lower.len()).all(|i| lower[i] == lower[i - p])) {
-        return Err(format!("it repeats its first {period} characters"));
-    }
-    let walked = walked_characters(&lower);
-    if walked * 3 > lower.len() {
-        return Err(format!(
-            "{walked} of its {} characters are runs such as abcd, 4321 or a keyboard walk (qwerty, 1qaz)",
-            lower.len()
-        ));
-    }
-    Ok(())
-}
-
-/// How many characters of `token` (lower case) lie in runs of at least 3 that walk one way along
-/// a line: the alphabet, the digits, a keyboard row or column (`abc`, `987`, `qwer`, `1qaz`).
-/// Random tokens have few (32 random hex digits: under 1 on average).
-fn walked_characters(token: &[u8]) -> usize {
-    const LINES: [&[u8]; 16] = [
-        b"abcdefghijklmnopqrstuvwxyz",
-        b"0123456789",
-        b"1234567890-",
-        b"qwertyuiop",
-        b"asdfghjkl",
-        b"zxcvbnm",
-        b"1qaz",
-        b"2wsx",
-        b"3edc",
-        b"4rfv",
-        b"5tgb",
-        b"6yhn",
-        b"7ujm",
-        b"8ik",
-        b"9ol",
-        b"0p",
-    ];
-    // the step from `a` to `b` along some line: +1 or -1 (0: none)
-    let step = |a: u8, b: u8| -> Vec<(usize, isize)> {
-        LINES
-            .iter()
-            .enumerate()
-            .filter_map(|(line, text)| {
-                let i = text.iter().position(|&c| c == a)? as isize;
-                let j = text.iter().position(|&c| c == b)? as isize;
-                (j - i).abs().eq(&1).then_some((line, j - i))
-            })
-            .collect()
-    };
-    let mut walked = vec![false; token.len()];
-    let mut start = 0;
-    while start + 2 < token.len() {
-        let mut best = start + 1;
-        for (line, direction) in step(token[start], token[start + 1]) {
-            let mut end = start + 1;
-            while end + 1 < token.len() && step(token[end], token[end + 1]).contains(&(line, direction)) {
-                end += 1;
-            }
-            best = best.max(end);
-        }
-        if best - start >= 2 {
-            walked[start..=best].iter_mut().for_each(|w| *w = true);
-            start = best;
-        } else {
-            start += 1;
-        }
-    }
-    walked.iter().filter(|&&w| w).count()
 }
 
 /// A data directory opened and studies loaded: everything but the socket.
@@ -803,35 +668,28 @@ pub fn export(
     slug: &str,
     format: ExportFormat,
     include: crate::export::Include,
-) -> Result<ExportOutput, String> {
+) -> Result<ExportOutput, ExportCommandError> {
     let database = Database::choose(database, data_dir)?;
     if let Database::Sqlite(path) = &database
         && !path.is_file()
     {
-        return Err(format!(
-            "there is no database at {}; pass the --data-dir (or --database) that mrstudy serve used",
-            path.display()
-        ));
+        return Err(ExportCommandError::NoDatabase { path: path.clone() });
     }
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .map_err(|error| format!("cannot start the async runtime: {error}"))?;
+    let runtime =
+        tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(ExportCommandError::Runtime)?;
     runtime.block_on(async {
-        let storage = Storage::open(&database).await.map_err(|error| error.to_string())?;
+        let storage = Storage::open(&database).await?;
         let name = database.describe();
         let pool = &storage.read;
         let kind: Option<String> = sqlx::query_scalar("SELECT kind FROM studies WHERE slug = $1")
             .bind(slug)
             .fetch_optional(pool)
             .await
-            .map_err(|error| format!("cannot read the database {name}: {error}"))?;
+            .map_err(|source| ExportCommandError::Read { name, source })?;
         if kind.as_deref() == Some("task")
             && matches!(format, ExportFormat::Csv | ExportFormat::Json | ExportFormat::Conditions)
         {
-            return Err(format!(
-                "study \"{slug}\" is a lab task study, which has no paired-comparison trials; export it with --format task (or --format task-trials)"
-            ));
+            return Err(ExportCommandError::TaskStudy { slug: slug.to_string() });
         }
         const HINT: &str = "pass --include-pilots or --include-excluded to keep them";
         let plain = |text: String| ExportOutput { text, left_out: None };
@@ -843,12 +701,45 @@ pub fn export(
                 text: serde_json::to_string_pretty(&export.content).expect("JSON serialises") + "\n",
                 left_out: export.left_out.sentence(HINT),
             }),
-            ExportFormat::Conditions => crate::export::definition(pool, slug).await.map(|definition| plain(definition.conditions_csv())),
-            ExportFormat::Task => return crate::lab::results::task_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
-            ExportFormat::TaskTrials => return crate::lab::results::trials_csv(pool, slug).await.map(plain).map_err(|error| error.to_string()),
+            ExportFormat::Conditions => {
+                crate::export::definition(pool, slug).await.map(|definition| plain(definition.conditions_csv()))
+            }
+            ExportFormat::Task => {
+                return crate::lab::results::task_csv(pool, slug).await.map(plain).map_err(ExportCommandError::Lab);
+            }
+            ExportFormat::TaskTrials => {
+                return crate::lab::results::trials_csv(pool, slug).await.map(plain).map_err(ExportCommandError::Lab);
+            }
         };
-        output.map_err(|error| error.to_string())
+        Ok(output?)
     })
+}
+
+/// Why `mrstudy export` wrote nothing.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExportCommandError {
+    #[error(transparent)]
+    Choose(#[from] crate::storage::ChooseError),
+    /// The sqlite file at `path` does not exist.
+    #[error("there is no database at {}; pass the --data-dir (or --database) that mrstudy serve used", path.display())]
+    NoDatabase { path: PathBuf },
+    #[error("cannot start the async runtime: {0}")]
+    Runtime(std::io::Error),
+    #[error(transparent)]
+    Open(#[from] OpenError),
+    /// The database `name` (as [`Database::describe`] gives it) could not be read.
+    #[error("cannot read the database {name}: {source}")]
+    Read { name: String, source: sqlx::Error },
+    #[error(
+        "study \"{slug}\" is a lab task study, which has no paired-comparison trials; export it with --format task (or --format task-trials)"
+    )]
+    TaskStudy { slug: String },
+    #[error(transparent)]
+    Export(#[from] crate::export::ExportError),
+    /// A lab export failed (its sentence).
+    #[error("{0}")]
+    Lab(crate::error::AppError),
 }
 
 /// What `mrstudy export` writes.

@@ -33,6 +33,8 @@
 //! renames a uniquely named partial file into place), and a merged store holds the same images,
 //! ground truths and index entries as one rendered on a single machine.
 
+pub mod lines;
+
 use std::path::{Path, PathBuf};
 
 use mrstudy_renderer::gpu::DirRenderer;
@@ -296,6 +298,18 @@ impl StimulusPlan {
     }
 }
 
+/// Why a `--shard K/N` was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ShardError {
+    #[error("`{text}` is not K/N (e.g. 3/8: the third of eight shares)")]
+    NotKOfN { text: String },
+    #[error("`{part}` in `{text}` is not a whole number")]
+    NotANumber { part: String, text: String },
+    #[error("`{text}`: K must be 1 to N and N at least 1")]
+    OutOfRange { text: String },
+}
+
 /// A share of a study's rendering: the `index`-th (1-based) of `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shard {
@@ -305,15 +319,16 @@ pub struct Shard {
 
 impl Shard {
     /// Parses `K/N` with 1 ≤ K ≤ N; says what is wrong otherwise.
-    pub fn parse(text: &str) -> Result<Shard, String> {
-        let (index, count) =
-            text.split_once('/').ok_or_else(|| format!("`{text}` is not K/N (e.g. 3/8: the third of eight shares)"))?;
+    pub fn parse(text: &str) -> Result<Shard, ShardError> {
+        let (index, count) = text.split_once('/').ok_or_else(|| ShardError::NotKOfN { text: text.to_string() })?;
         let number = |part: &str| {
-            part.trim().parse::<usize>().map_err(|_| format!("`{part}` in `{text}` is not a whole number"))
+            part.trim()
+                .parse::<usize>()
+                .map_err(|_| ShardError::NotANumber { part: part.to_string(), text: text.to_string() })
         };
         let (index, count) = (number(index)?, number(count)?);
         if count == 0 || index == 0 || index > count {
-            return Err(format!("`{text}`: K must be 1 to N and N at least 1"));
+            return Err(ShardError::OutOfRange { text: text.to_string() });
         }
         Ok(Shard { index, count })
     }

@@ -72,28 +72,39 @@ pub enum Backend {
     Postgres,
 }
 
+/// Why `--database` was refused; the URL's password is never in it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ChooseError {
+    #[error("--database (or MRSTUDY_DATABASE_URL) is empty; give a postgres:// URL or a sqlite file's path")]
+    Empty,
+    /// A `postgres://` URL that does not parse (`url` without its password).
+    #[error("--database {url} is not a usable PostgreSQL URL: {reason}")]
+    PostgresUrl { url: String, reason: String },
+    /// A URL of another database (`url` without its password).
+    #[error(
+        "--database {url}: mrstudy keeps its data in sqlite (a file's path) or PostgreSQL (postgres://…), not {scheme}"
+    )]
+    Scheme { url: String, scheme: String },
+}
+
 impl Database {
     /// `serve --database`'s value: a `postgres://` (or `postgresql://`) URL, or a sqlite file's
     /// path (`sqlite://` in front optional); `None`: the sqlite file in the data directory.
-    pub fn choose(flag: Option<&str>, data_dir: &Path) -> Result<Database, String> {
+    pub fn choose(flag: Option<&str>, data_dir: &Path) -> Result<Database, ChooseError> {
         let Some(text) = flag.map(str::trim) else { return Ok(Database::in_data_dir(data_dir)) };
         if text.is_empty() {
-            return Err(
-                "--database (or MRSTUDY_DATABASE_URL) is empty; give a postgres:// URL or a sqlite file's path".into(),
-            );
+            return Err(ChooseError::Empty);
         }
         if text.starts_with("postgres://") || text.starts_with("postgresql://") {
             AnyConnectOptions::from_str(text)
-                .map_err(|error| format!("--database {} is not a usable PostgreSQL URL: {error}", redact(text)))?;
+                .map_err(|error| ChooseError::PostgresUrl { url: redact(text), reason: error.to_string() })?;
             return Ok(Database::Postgres(text.to_string()));
         }
         if let Some((scheme, _)) = text.split_once("://")
             && scheme != "sqlite"
         {
-            return Err(format!(
-                "--database {}: mrstudy keeps its data in sqlite (a file's path) or PostgreSQL (postgres://…), not {scheme}",
-                redact(text)
-            ));
+            return Err(ChooseError::Scheme { url: redact(text), scheme: scheme.to_string() });
         }
         Ok(Database::Sqlite(PathBuf::from(text.strip_prefix("sqlite://").unwrap_or(text))))
     }
@@ -203,8 +214,8 @@ impl<'q> sqlx::Encode<'q, sqlx::Any> for OptionalF64 {
 pub enum OpenError {
     #[error("cannot open the database {path}: {source}")]
     Connect { path: String, source: sqlx::Error },
-    #[error("{0}")]
-    Choose(String),
+    #[error(transparent)]
+    Choose(ChooseError),
     #[error("cannot migrate the database {path}: {source}")]
     Migrate { path: String, source: sqlx::migrate::MigrateError },
     #[error("cannot make the database {path} readable by its owner only: {source}")]
@@ -418,114 +429,10 @@ impl Storage {
             .await?;
         Ok(open == Some(1))
     }
-
-    pub async fn participant(&self, id: &str) -> Result<Option<ParticipantRow>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT id, study, token_sha256, trials, answered, completion_code, completed_at, url_params
-             FROM participants WHERE id = $1",
-        )
-        .bind(id)
-        .fetch_optional(&self.read)
-        .await?;
-        row.map(|row| {
-            Ok(ParticipantRow {
-                id: row.try_get("id")?,
-                study: row.try_get("study")?,
-                token_sha256: row.try_get("token_sha256")?,
-                trials: row.try_get("trials")?,
-                answered: row.try_get("answered")?,
-                completion_code: row.try_get("completion_code")?,
-                completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
-                url_params: row.try_get("url_params")?,
-            })
-        })
-        .transpose()
-    }
-
-    /// The participant with its next unanswered trial and the one after it (for preloading), in
-    /// one query.
-    pub async fn participant_with_next(
-        &self,
-        id: &str,
-    ) -> Result<Option<(ParticipantRow, Vec<TrialRow>)>, sqlx::Error> {
-        let rows = sqlx::query(
-            "SELECT p.id, p.study, p.token_sha256, p.trials, p.answered, p.completion_code, p.completed_at,
-                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus, t.shown_at
-             FROM participants p
-             LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
-             WHERE p.id = $1 ORDER BY t.trial",
-        )
-        .bind(id)
-        .fetch_all(&self.read)
-        .await?;
-        let Some(first) = rows.first() else { return Ok(None) };
-        let participant = ParticipantRow {
-            id: first.try_get("id")?,
-            study: first.try_get("study")?,
-            token_sha256: first.try_get("token_sha256")?,
-            trials: first.try_get("trials")?,
-            answered: first.try_get("answered")?,
-            completion_code: first.try_get("completion_code")?,
-            completed: first.try_get::<Option<String>, _>("completed_at")?.is_some(),
-            url_params: first.try_get("url_params")?,
-        };
-        let mut trials = Vec::new();
-        for row in &rows {
-            if let Some(trial) = row.try_get::<Option<i64>, _>("trial")? {
-                trials.push(TrialRow {
-                    trial,
-                    left_stimulus: row.try_get("left_stimulus")?,
-                    right_stimulus: row.try_get("right_stimulus")?,
-                    shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
-                });
-            }
-        }
-        Ok(Some((participant, trials)))
-    }
-
-    pub async fn trial(&self, participant: &str, trial: i64) -> Result<Option<TrialRow>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT trial, left_stimulus, right_stimulus, shown_at FROM trials WHERE participant = $1 AND trial = $2",
-        )
-        .bind(participant)
-        .bind(trial)
-        .fetch_optional(&self.read)
-        .await?;
-        row.map(|row| {
-            Ok(TrialRow {
-                trial: row.try_get("trial")?,
-                left_stimulus: row.try_get("left_stimulus")?,
-                right_stimulus: row.try_get("right_stimulus")?,
-                shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
-            })
-        })
-        .transpose()
-    }
 }
 
 fn writer_gone() -> StorageError {
     StorageError::WriterStopped
-}
-
-#[derive(Debug, Clone)]
-pub struct ParticipantRow {
-    pub id: String,
-    pub study: String,
-    pub token_sha256: Vec<u8>,
-    pub trials: i64,
-    pub answered: i64,
-    pub completion_code: String,
-    pub completed: bool,
-    pub url_params: String,
-}
-
-#[derive(Debug, Clone)]
-pub struct TrialRow {
-    pub trial: i64,
-    pub left_stimulus: String,
-    pub right_stimulus: String,
-    /// Whether the trial has been served (its `shown_at` is set).
-    pub shown: bool,
 }
 
 /// Sets up a new connection: sqlite's durability, locking and WAL settings (per connection), or
@@ -598,21 +505,7 @@ async fn bound_wal(pool: &Pool, wal: &Path) {
     }
     // Wait for readers briefly, not for the connection's busy timeout: participants' next
     // batch waits meanwhile; if readers still hold the old WAL, the next batch tries again.
-    let checkpoint = async {
-        let mut connection = pool.acquire().await?;
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
-            .fetch_one(&mut *connection)
-            .await
-            .map(|row| row.try_get::<i64, _>(0));
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        busy?
-    };
-    match checkpoint.await {
+    match try_truncate_wal(pool).await {
         Ok(0) => {}
         Ok(_) if size > WAL_WARN_BYTES => {
             tracing::warn!(megabytes = size >> 20, "the WAL has grown: readers keep it busy; will retry")
@@ -816,24 +709,31 @@ const WAL_TRUNCATE_TRIES: usize = 200;
 /// connection back, so participants' batches go on between tries.
 async fn truncate_wal_between_batches(write: &Pool) -> Result<(), StorageError> {
     for _ in 0..WAL_TRUNCATE_TRIES {
-        let mut connection = write.acquire().await?;
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
-            .fetch_one(&mut *connection)
-            .await
-            .and_then(|row| row.try_get::<i64, _>(0));
-        sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
-            .execute(&mut *connection)
-            .await?;
-        drop(connection);
-        if busy? == 0 {
+        if try_truncate_wal(write).await? == 0 {
             return Ok(());
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     Err(StorageError::WalBusy { tries: WAL_TRUNCATE_TRIES })
+}
+
+/// One try of `PRAGMA wal_checkpoint(TRUNCATE)` on a connection of `pool`, waiting
+/// [`WAL_TRUNCATE_WAIT`] at most for readers of the old WAL (the connection's busy timeout is
+/// set back afterwards, also when the checkpoint failed): its `busy` column, 0 when the WAL was
+/// emptied. The connection goes back to the pool before this returns.
+async fn try_truncate_wal(pool: &Pool) -> Result<i64, sqlx::Error> {
+    let mut connection = pool.acquire().await?;
+    sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", WAL_TRUNCATE_WAIT.as_millis())))
+        .execute(&mut *connection)
+        .await?;
+    let busy = sqlx::query("PRAGMA wal_checkpoint(TRUNCATE)")
+        .fetch_one(&mut *connection)
+        .await
+        .and_then(|row| row.try_get::<i64, _>(0));
+    sqlx::query(sqlx::AssertSqlSafe(format!("PRAGMA busy_timeout = {}", BUSY_TIMEOUT.as_millis())))
+        .execute(&mut *connection)
+        .await?;
+    busy
 }
 
 /// An admin session's row: started (with its expiry, the expired rows deleted) or ended.

@@ -10,14 +10,13 @@ use std::path::Path;
 
 use axum::Router;
 use axum::http::{Method, StatusCode};
+use mrstudy_server::AppState;
 use mrstudy_server::schedule::{self, ActiveHistory, PlannedKind};
-use mrstudy_server::serve::{Prepared, prepare_on};
-use mrstudy_server::{AppState, app};
 use serde_json::json;
 use sqlx::Row;
 
 mod support;
-use support::{call, copy_demo_study, test_database};
+use support::{Started, call, demo_studies, demographics, start};
 
 const STUDY: &str = "shadows-demo";
 
@@ -25,41 +24,49 @@ const STUDY: &str = "shadows-demo";
 /// design of `trials` trials in batches of `batch` after the warm-up that the TOML lines
 /// `warmup` give.
 async fn fixture(work: &Path, target: &str, warmup: &str, trials: u32, batch: u32) -> (Router, AppState) {
-    let studies = work.join("studies");
-    copy_demo_study(&studies);
-    let file = studies.join("shadows-demo.toml");
-    let text = std::fs::read_to_string(&file).unwrap();
+    let (app, state, _) = fixture_with_admin(work, target, warmup, trials, batch).await;
+    (app, state)
+}
+
+/// [`fixture`], with the admin token.
+async fn fixture_with_admin(
+    work: &Path,
+    target: &str,
+    warmup: &str,
+    trials: u32,
+    batch: u32,
+) -> (Router, AppState, String) {
     let design = format!(
         "[design]\npairs = \"active\"\ntrials = {trials}\nbatch = {batch}\ntarget = \"{target}\"\n{warmup}\nscenes = \"different\"\n"
     );
-    let text = text.replace("[design]\npairs = \"all\"\nrepetitions = 1\nscenes = \"different\"\n", &design);
-    assert!(text.contains("pairs = \"active\""), "the demo study's design changed; update this fixture");
-    std::fs::write(&file, text).unwrap();
-    let data = work.join("data");
-    let Prepared { state, skipped, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
+    let studies = demo_studies(work, |text| {
+        let text = text.replace("[design]\npairs = \"all\"\nrepetitions = 1\nscenes = \"different\"\n", &design);
+        assert!(text.contains("pairs = \"active\""), "the demo study's design changed; update this fixture");
+        text
+    });
+    let Started { app, state, skipped, admin_token, .. } = start(work, &studies).await;
     assert!(skipped.is_empty(), "{skipped:?}");
-    (app(state.clone()), state)
+    (app, state, admin_token)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_admin_page_says_what_the_active_design_optimises() {
+    for (target, optimises) in [("effects", "the factor effects"), ("worths", "every condition&#39;s log-worth")] {
+        let work = tempfile::tempdir().unwrap();
+        let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]";
+        let (app, _, admin_token) = fixture_with_admin(work.path(), target, warmup, 6, 2).await;
+        let page = call(&app, Method::GET, &format!("/admin/studies/{STUDY}"), Some(&admin_token), None).await;
+        assert_eq!(page.status, StatusCode::OK, "{}", page.text());
+        let text = page.text();
+        let note = text.lines().find(|line| line.contains("Active design")).unwrap_or_default();
+        assert!(note.contains(target) && note.contains(optimises), "target {target}: {note}");
+    }
 }
 
 async fn join(app: &Router) -> (String, String, i64) {
-    let answer = call(
-        app,
-        Method::POST,
-        &format!("/api/studies/{STUDY}/participants"),
-        None,
-        Some(json!({
-            "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"},
-            "client": {"viewport": [1280, 800], "devicePixelRatio": 1},
-        })),
-    )
-    .await;
-    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
-    let json = answer.json();
-    (
-        json["participant"].as_str().unwrap().into(),
-        json["token"].as_str().unwrap().into(),
-        json["trials"].as_i64().unwrap(),
-    )
+    let body = json!({"demographics": demographics(), "client": {"viewport": [1280, 800], "devicePixelRatio": 1}});
+    let (id, token, json) = support::join(app, STUDY, body).await;
+    (id, token, json["trials"].as_i64().unwrap())
 }
 
 /// Serves and answers one trial (the shadow preferred, camera artifacts disliked; the catch

@@ -10,28 +10,22 @@ use std::path::{Path, PathBuf};
 use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
-use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::AppState;
 use mrstudy_server::storage::{Backend, Database};
-use mrstudy_server::{AppState, app};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, call, copy_demo_study, send, test_database};
+use support::{Answer, Started, before_texts, call, demo_studies, demographics, join, send, start};
 
 const STUDY: &str = "shadows-demo";
 
 /// The demo study with a free-text demographic field `comment` appended, and `top_level` keys
 /// (lines) before its `[texts]`.
 fn studies_dir(work: &Path, top_level: &str) -> PathBuf {
-    let dir = work.join("studies");
-    copy_demo_study(&dir);
-    let text = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
-    let mut text = text.replacen("\n[texts]", &format!("\n{top_level}\n[texts]"), 1);
-    text.push_str(
-        "\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n",
-    );
-    std::fs::write(dir.join("shadows-demo.toml"), text).unwrap();
-    dir
+    demo_studies(work, |text| {
+        before_texts(&text, top_level)
+            + "\n[[demographics]]\nname = \"comment\"\nlabel = \"Anything to add?\"\ntype = \"text\"\nrequired = false\n"
+    })
 }
 
 struct Fixture {
@@ -51,11 +45,9 @@ async fn fixture() -> Fixture {
 async fn fixture_with(top_level: &str) -> Fixture {
     let work = tempfile::tempdir().unwrap();
     let studies = studies_dir(work.path(), top_level);
-    let data = work.path().join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    let Started { app, state, admin_token, skipped, database, data } = start(work.path(), &studies).await;
     assert!(skipped.is_empty(), "{skipped:?}");
-    Fixture { app: app(state.clone()), state, admin_token, data, database, _work: work }
+    Fixture { app, state, admin_token, data, database, _work: work }
 }
 
 impl Fixture {
@@ -65,21 +57,15 @@ impl Fixture {
 
     /// Joins with `PROLIFIC_PID = pid` and `comment`; returns (id, token).
     async fn join(&self, pid: &str, comment: &str) -> (String, String) {
-        let answer = call(
-            &self.app,
-            Method::POST,
-            &format!("/api/studies/{STUDY}/participants"),
-            None,
-            Some(json!({
-                "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal", "comment": comment},
-                "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"},
-                "url_params": {"PROLIFIC_PID": pid},
-            })),
-        )
-        .await;
-        assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
-        let json = answer.json();
-        (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
+        let mut demographics = demographics();
+        demographics["comment"] = json!(comment);
+        let body = json!({
+            "demographics": demographics,
+            "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"},
+            "url_params": {"PROLIFIC_PID": pid},
+        });
+        let (id, token, _) = join(&self.app, STUDY, body).await;
+        (id, token)
     }
 
     /// Serves and answers the participant's next `count` trials: the catch trial as expected
@@ -637,8 +623,7 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     let data = work.path().join("data");
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let database = runtime.block_on(async {
-        let database = test_database(&data).await;
-        let Prepared { state, .. } = prepare_on(&database, &data, &studies_dir(work.path(), "")).await.unwrap();
+        let Started { state, database, .. } = start(work.path(), &studies_dir(work.path(), "")).await;
         sqlx::query(
             "INSERT INTO studies (slug, title, kind, open, definition, file_sha256, first_loaded_at, loaded_at)
              VALUES ('lab', 'Cubes', 'task', 1, '{\"slug\": \"lab\"}', '00', '2026-11-23T00:00:00.000Z', '2026-11-23T00:00:00.000Z')",
@@ -652,6 +637,8 @@ fn export_of_a_task_study_as_trials_says_to_use_format_task() {
     let database = flag(&database);
     for format in [mrstudy_server::serve::ExportFormat::Csv, mrstudy_server::serve::ExportFormat::Json] {
         let error = mrstudy_server::serve::export(&data, database, "lab", format, Default::default()).unwrap_err();
+        assert!(matches!(error, mrstudy_server::serve::ExportCommandError::TaskStudy { ref slug } if slug == "lab"));
+        let error = error.to_string();
         assert!(error.contains("task study") && error.contains("--format task"), "{error}");
         assert!(!error.contains('\n') && !error.contains("internal"), "{error}");
     }
@@ -675,11 +662,9 @@ fn export_leaves_out_pilots_unless_include_pilots() {
     let data = work.path().join("data");
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let (kept, pilot, database) = runtime.block_on(async {
-        let database = test_database(&data).await;
-        let Prepared { state, admin_token, .. } =
-            prepare_on(&database, &data, &studies_dir(work.path(), "")).await.unwrap();
+        let Started { app, state, admin_token, database, .. } = start(work.path(), &studies_dir(work.path(), "")).await;
         let fixture = Fixture {
-            app: app(state.clone()),
+            app,
             state,
             admin_token,
             data: data.clone(),
@@ -918,7 +903,7 @@ async fn join_quietly(app: &Router, pid: &str) -> Result<(String, String), Strin
         &format!("/api/studies/{STUDY}/participants"),
         None,
         Some(json!({
-            "demographics": {"gender": "female", "age": 31, "cg_experience": "none", "vision": "normal"},
+            "demographics": demographics(),
             "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"},
             "url_params": {"PROLIFIC_PID": pid},
         })),

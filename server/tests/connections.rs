@@ -13,12 +13,12 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use mrstudy_server::limits::Limits;
-use mrstudy_server::serve::{Connections, Prepared, prepare_on, serve_connections};
+use mrstudy_server::serve::{Connections, serve_connections};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
 mod support;
-use support::{copy_demo_study, test_database};
+use support::{Started, demo_studies, start_limited};
 
 /// A server of the demo study on a free loopback port with `connections`, and no limits per
 /// address on joins and answers (the slow clients below join, and must reach the body).
@@ -38,12 +38,10 @@ impl Drop for Served {
 
 async fn serve_demo(connections: Connections) -> Served {
     let data_dir = tempfile::tempdir().unwrap();
-    let studies = data_dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = data_dir.path().join("data");
-    let Prepared { state, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
-    let state = state.with_limits(Limits { joins_per_minute: 0, responses_per_minute: 0, ..Limits::default() });
-    serve_router(mrstudy_server::app(state), connections, data_dir).await
+    let studies = demo_studies(data_dir.path(), |text| text);
+    let limits = Limits { joins_per_minute: 0, responses_per_minute: 0, ..Limits::default() };
+    let Started { app, .. } = start_limited(data_dir.path(), &studies, Some(limits)).await;
+    serve_router(app, connections, data_dir).await
 }
 
 async fn serve_router(router: axum::Router, connections: Connections, data_dir: tempfile::TempDir) -> Served {

@@ -8,43 +8,27 @@ use std::path::Path;
 
 use axum::Router;
 use axum::http::{Method, StatusCode};
-use mrstudy_server::app;
-use mrstudy_server::serve::{Prepared, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
-use support::{call, copy_demo_study, demographics, test_database};
+use support::{Started, before_texts, call, demo_studies, demographics, join, start};
 
 const STUDY: &str = "shadows-demo";
 const PLATFORM_IDS: [&str; 6] = ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID", "workerId", "assignmentId", "hitId"];
 
 /// The demo study with `top_level` lines before its `[texts]`; the app and the admin token.
 async fn server(work: &Path, top_level: &str) -> (Router, String) {
-    let studies = work.join("studies");
-    copy_demo_study(&studies);
-    let file = studies.join("shadows-demo.toml");
-    let text = std::fs::read_to_string(&file).unwrap().replacen("\n[texts]", &format!("\n{top_level}\n[texts]"), 1);
-    std::fs::write(&file, text).unwrap();
-    let data = work.join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    let studies = demo_studies(work, |text| before_texts(&text, top_level));
+    let Started { app, admin_token, skipped, .. } = start(work, &studies).await;
     assert!(skipped.is_empty(), "{skipped:?}");
-    (app(state), admin_token)
+    (app, admin_token)
 }
 
 /// Joins with `url_params` and answers `count` trials (the left image each time).
 async fn take_part(app: &Router, url_params: Value, count: usize) {
-    let joined = call(
-        app,
-        Method::POST,
-        &format!("/api/studies/{STUDY}/participants"),
-        None,
-        Some(json!({"demographics": demographics(), "url_params": url_params, "client": {}})),
-    )
-    .await;
-    assert_eq!(joined.status, StatusCode::CREATED, "{}", joined.text());
-    let joined = joined.json();
-    let (id, token) = (joined["participant"].as_str().unwrap(), joined["token"].as_str().unwrap());
+    let body = json!({"demographics": demographics(), "url_params": url_params, "client": {}});
+    let (id, token, _) = join(app, STUDY, body).await;
+    let token = token.as_str();
     for _ in 0..count {
         let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await.json();
         let trial = next["trial"].as_i64().unwrap_or_else(|| panic!("no next trial: {next}"));

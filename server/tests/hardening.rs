@@ -10,12 +10,16 @@ use std::net::IpAddr;
 use axum::Router;
 use axum::body::Body;
 use axum::http::{Method, Request, StatusCode, header};
+use mrstudy_server::auth::admin_token_strength;
 use mrstudy_server::limits::{ClientAddr, Limits};
-use mrstudy_server::serve::{Prepared, admin_token_strength, prepare_on};
+use mrstudy_server::serve::{Prepared, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, admin_session_cookie, call, copy_demo_study, demographics, send, test_database};
+use support::{
+    Answer, Started, admin_session_cookie, call, copy_demo_study, demo_studies, demographics, send, start,
+    start_limited, test_database,
+};
 
 struct Fixture {
     app: Router,
@@ -25,15 +29,9 @@ struct Fixture {
 
 async fn fixture(limits: Option<Limits>) -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
-    let studies = data_dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = data_dir.path().join("data");
-    let Prepared { state, admin_token, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
-    let state = match limits {
-        Some(limits) => state.with_limits(limits),
-        None => state,
-    };
-    Fixture { app: mrstudy_server::app(state), admin_token, _data_dir: data_dir }
+    let studies = demo_studies(data_dir.path(), |text| text);
+    let Started { app, admin_token, .. } = start_limited(data_dir.path(), &studies, limits).await;
+    Fixture { app, admin_token, _data_dir: data_dir }
 }
 
 /// A request from `client` with an optional bearer token and JSON body.
@@ -478,7 +476,8 @@ fn an_admin_token_set_by_hand_needs_128_bits() {
         assert!(admin_token_strength(strong).is_ok(), "{strong}: {:?}", admin_token_strength(strong));
     }
     let why = admin_token_strength("aaaaaaaaaaaaaaaa").unwrap_err();
-    assert!(why.contains("bits"), "{why}");
+    assert!(matches!(why, mrstudy_server::auth::WeakToken::Bits { characters: 16, .. }), "{why:?}");
+    assert!(why.to_string().contains("16 characters of 16 kinds hold at most 64 bits"), "{why}");
 }
 
 /// Issue 46: repeated halves, runs along the alphabet, the digits or the keyboard, and few
@@ -694,12 +693,9 @@ async fn preview_links_expire_and_can_be_revoked() {
     use mrstudy_server::storage::PREVIEW_LINK_DAYS;
     use mrstudy_server::storage::iso;
     let dir = tempfile::tempdir().unwrap();
-    let studies = dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = dir.path().join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, .. } = prepare_on(&database, &data, &studies).await.unwrap();
-    let app = &mrstudy_server::app(state);
+    let studies = demo_studies(dir.path(), |text| text);
+    let Started { app, admin_token, database, .. } = start(dir.path(), &studies).await;
+    let app = &app;
     let admin = Some(admin_token.as_str());
     let link = || async {
         let made = call(app, Method::POST, "/api/admin/studies/shadows-demo/preview", admin, None).await;

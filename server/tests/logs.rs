@@ -12,11 +12,10 @@ use axum::http::{Method, Request, StatusCode, header};
 use mrstudy_server::AppState;
 use mrstudy_server::limits::{ClientAddr, Limits};
 use mrstudy_server::logs::{DEFAULT_FILTER, LogFormat, Refusal};
-use mrstudy_server::serve::{Prepared, prepare_on};
 use serde_json::{Value, json};
 
 mod support;
-use support::{call, copy_demo_study, demographics, send, test_database};
+use support::{Started, call, demo_studies, demographics, send, start_limited};
 
 struct Fixture {
     app: Router,
@@ -27,20 +26,15 @@ struct Fixture {
 
 async fn fixture(limits: Limits) -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
-    let studies = data_dir.path().join("studies");
-    copy_demo_study(&studies);
-    let data = data_dir.path().join("data");
-    let Prepared { state, admin_token, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
-    let state = state.with_limits(limits);
-    Fixture { app: mrstudy_server::app(state.clone()), state, admin_token, _data_dir: data_dir }
+    let studies = demo_studies(data_dir.path(), |text| text);
+    let Started { app, state, admin_token, .. } = start_limited(data_dir.path(), &studies, Some(limits)).await;
+    Fixture { app, state, admin_token, _data_dir: data_dir }
 }
 
 async fn join(app: &Router) -> (String, String) {
     let body = json!({"demographics": demographics(), "url_params": {"PROLIFIC_PID": "pid-in-the-url"}});
-    let answer = call(app, Method::POST, "/api/studies/shadows-demo/participants", None, Some(body)).await;
-    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
-    let json = answer.json();
-    (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
+    let (id, token, _) = support::join(app, "shadows-demo", body).await;
+    (id, token)
 }
 
 /// The log's output, kept in memory.

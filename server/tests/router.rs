@@ -13,14 +13,16 @@ use mrstudy_server::storage::Database;
 use serde_json::{Value, json};
 
 mod support;
-use support::{Answer, call, copy_demo_study, demographics, repo_studies_dir, send, test_database};
+use support::{
+    Answer, Started, before_texts, call, copy_demo_study, demo_studies, demographics, repo_studies_dir, send, start,
+    test_database,
+};
 
 /// The demo study and the thesis survey, whose first scene is a scene file that does not parse:
 /// `serve` skips the survey (its stimuli cannot be rendered) without opening the GPU, where the
 /// repository's survey would have its 48 stimuli rendered by `prepare`.
-fn studies_dir(work: &Path) -> PathBuf {
-    let dir = work.join("studies");
-    copy_demo_study(&dir);
+fn studies_dir(work: &Path, edit_demo: impl FnOnce(String) -> String) -> PathBuf {
+    let dir = demo_studies(work, edit_demo);
     let survey = std::fs::read_to_string(repo_studies_dir().join("web-survey.toml")).unwrap();
     std::fs::write(
         dir.join("web-survey.toml"),
@@ -41,26 +43,21 @@ struct Fixture {
 }
 
 async fn fixture() -> Fixture {
+    fixture_with_demo(|text| text).await
+}
+
+/// The fixture with the demo study's text changed by `edit_demo`.
+async fn fixture_with_demo(edit_demo: impl FnOnce(String) -> String) -> Fixture {
     let data_dir = tempfile::tempdir().unwrap();
-    let studies = studies_dir(data_dir.path());
-    let data = data_dir.path().join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
-    Fixture { app: app(state), admin_token, skipped, database, _data_dir: data_dir }
+    let studies = studies_dir(data_dir.path(), edit_demo);
+    let Started { app, admin_token, skipped, database, .. } = start(data_dir.path(), &studies).await;
+    Fixture { app, admin_token, skipped, database, _data_dir: data_dir }
 }
 
 async fn join(app: &Router) -> (String, String) {
-    let answer = call(
-        app,
-        Method::POST,
-        "/api/studies/shadows-demo/participants",
-        None,
-        Some(json!({"demographics": demographics(), "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"}, "url_params": {"PROLIFIC_PID": "abc123", "other": "dropped"}})),
-    )
-    .await;
-    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
-    let json = answer.json();
-    (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
+    let body = json!({"demographics": demographics(), "client": {"viewport": [1280, 800], "devicePixelRatio": 2, "userAgent": "test"}, "url_params": {"PROLIFIC_PID": "abc123", "other": "dropped"}});
+    let (id, token, _) = support::join(app, "shadows-demo", body).await;
+    (id, token)
 }
 
 /// Answers `trial` as a page would: it first gets the next trial (which the server records as
@@ -650,20 +647,16 @@ async fn the_database_is_wal_with_full_sync() {
 #[tokio::test]
 async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
     // The demo study, with a crowdsourcing redirect, in a studies directory of its own.
-    let studies = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(repo_studies_dir().join("shadows-demo.toml")).unwrap();
-    let text = text.replace(
-        "[completion]\ncode = \"DEMO-7F3A\"",
-        "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
-    );
-    assert!(text.contains("redirect ="));
-    // its images beside it: a study's images must lie inside the studies folder
-    copy_demo_study(studies.path());
-    std::fs::write(studies.path().join("shadows-demo.toml"), text).unwrap();
-    let data_dir = tempfile::tempdir().unwrap();
-    let database = test_database(data_dir.path()).await;
-    let Prepared { state, .. } = prepare_on(&database, data_dir.path(), studies.path()).await.unwrap();
-    let app = app(state);
+    let work = tempfile::tempdir().unwrap();
+    let studies = demo_studies(work.path(), |text| {
+        let text = text.replace(
+            "[completion]\ncode = \"DEMO-7F3A\"",
+            "[completion]\ncode = \"DEMO-7F3A\"\nredirect = \"https://app.prolific.com/submissions/complete?cc={code}&pid={PROLIFIC_PID}\"",
+        );
+        assert!(text.contains("redirect ="));
+        text
+    });
+    let Started { app, .. } = start(work.path(), &studies).await;
     let (id, token) = join(&app).await; // with PROLIFIC_PID = abc123
     for trial in 1..=7 {
         assert_eq!(answer_trial(&app, &id, &token, trial, "left").await.status, StatusCode::CREATED);
@@ -681,16 +674,7 @@ async fn completion_redirect_fills_in_the_code_and_the_prolific_id() {
 
 /// The demo study with extra top-level keys (participation keys), in a fresh data directory.
 async fn fixture_with(extra: &str) -> Fixture {
-    let data_dir = tempfile::tempdir().unwrap();
-    let studies = studies_dir(data_dir.path());
-    let file = studies.join("shadows-demo.toml");
-    let text = std::fs::read_to_string(&file).unwrap();
-    let text = text.replacen("\n[texts]", &format!("\n{extra}\n\n[texts]"), 1);
-    std::fs::write(&file, text).unwrap();
-    let data = data_dir.path().join("data");
-    let database = test_database(&data).await;
-    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
-    Fixture { app: app(state), admin_token, skipped, database, _data_dir: data_dir }
+    fixture_with_demo(|text| before_texts(&text, extra)).await
 }
 
 async fn database(fixture: &Fixture) -> sqlx::AnyPool {
@@ -899,7 +883,7 @@ async fn external_ids_are_normalised_and_only_the_declared_parameter_is_the_key(
 #[tokio::test]
 async fn on_two_servers_a_deleted_participants_token_is_refused_by_both() {
     let work = tempfile::tempdir().unwrap();
-    let studies = studies_dir(work.path());
+    let studies = studies_dir(work.path(), |text| text);
     let file = studies.join("shadows-demo.toml");
     let text =
         std::fs::read_to_string(&file).unwrap().replacen("\n[texts]", "\nunique_external_id = true\n\n[texts]", 1);

@@ -9,15 +9,14 @@ use std::path::Path;
 
 use axum::Router;
 use axum::http::{Method, StatusCode};
+use mrstudy_server::AppState;
 use mrstudy_server::export::{Include, trials_csv};
-use mrstudy_server::serve::{Prepared, prepare_on};
 use mrstudy_server::threshold::{Answer, intensities, next_level};
-use mrstudy_server::{AppState, app};
 use serde_json::json;
 use sqlx::Row;
 
 mod support;
-use support::{call, repo_studies_dir, test_database};
+use support::{Started, call, repo_studies_dir};
 
 const STUDY: &str = "vpls-tiny";
 
@@ -65,29 +64,19 @@ trials = 10
 }
 
 async fn start(work: &Path) -> Option<(Router, AppState)> {
-    let studies = work.join("studies");
-    let data = work.join("data");
-    let Prepared { state, skipped, .. } = prepare_on(&test_database(&data).await, &data, &studies).await.unwrap();
+    let Started { app, state, skipped, .. } = support::start(work, &work.join("studies")).await;
     if !skipped.is_empty() {
         assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
         eprintln!("skipped: no GPU adapter (not even a software one): {skipped:?}");
         return None;
     }
-    Some((app(state.clone()), state))
+    Some((app, state))
 }
 
 async fn join(app: &Router) -> (String, String) {
-    let answer = call(
-        app,
-        Method::POST,
-        &format!("/api/studies/{STUDY}/participants"),
-        None,
-        Some(json!({"demographics": {}, "client": {"viewport": [1280, 800], "devicePixelRatio": 1}})),
-    )
-    .await;
-    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
-    let json = answer.json();
-    (json["participant"].as_str().unwrap().into(), json["token"].as_str().unwrap().into())
+    let body = json!({"demographics": {}, "client": {"viewport": [1280, 800], "devicePixelRatio": 1}});
+    let (id, token, _) = support::join(app, STUDY, body).await;
+    (id, token)
 }
 
 /// Asks for the next trial and returns its number and stored conditions (None when done).

@@ -65,7 +65,7 @@ fn mouse_click(driver: &Driver, (x, y): (f64, f64), count: u32) {
     }
 }
 
-fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
+pub(super) fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
     driver.cdp(
         "Input.dispatchKeyEvent",
         json!({"type": kind, "key": name, "code": name, "windowsVirtualKeyCode": code, "nativeVirtualKeyCode": code, "autoRepeat": repeat}),
@@ -74,7 +74,7 @@ fn key(driver: &Driver, kind: &str, name: &str, code: u32, repeat: bool) {
 
 /// A key held down for `held`: one press, then auto-repeat keydowns every 33 ms (as an OS
 /// sends them), then the release.
-fn hold_key(driver: &Driver, name: &str, code: u32, held: Duration) {
+pub(super) fn hold_key(driver: &Driver, name: &str, code: u32, held: Duration) {
     key(driver, "keyDown", name, code, false);
     let until = std::time::Instant::now() + held;
     while std::time::Instant::now() < until {
@@ -85,7 +85,7 @@ fn hold_key(driver: &Driver, name: &str, code: u32, held: Duration) {
 }
 
 /// A double click at `at`: a click, and 120 ms later the second click of a double click.
-fn double_click(driver: &Driver, at: (f64, f64)) {
+pub(super) fn double_click(driver: &Driver, at: (f64, f64)) {
     mouse_click(driver, at, 1);
     std::thread::sleep(Duration::from_millis(120));
     mouse_click(driver, at, 2);

@@ -1,4 +1,5 @@
-// The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md).
+// The participant flow of a paired-comparison study, on top of the JSON API (docs/design.md);
+// a rating study (`kind = "rating"`) shows one image and a 5-point scale instead (`showRating`).
 // Stages: welcome and consent → demographics → instructions → trials → completion.
 // The participant's id and token are kept in localStorage (per study; a preview's pilot in the
 // tab's sessionStorage), never in the address bar, so reloading or coming back with the same link
@@ -34,9 +35,13 @@
   const $ = (id) => document.getElementById(id);
   // The answers this study offers: the two images, and "Not sure" where it allows ties
   // (`allow_tie`: the page then has a #choose-tie button; ↓ answers it too).
-  const CHOICES = $("choose-tie") ? ["left", "right", "tie"] : ["left", "right"];
+  // A rating study (`kind = "rating"`) shows one image (DCR: after its reference) and a 5-point
+  // scale instead (its buttons come with the first trial; the keys 1 to 5 answer too).
+  const RATING = body.dataset.rating === "true";
+  const CHOICES = RATING ? [] : $("choose-tie") ? ["left", "right", "tie"] : ["left", "right"];
   function enableChoices(enabled) {
     for (const choice of CHOICES) $("choose-" + choice).disabled = !enabled;
+    for (const button of document.querySelectorAll("#scale .rate")) button.disabled = !enabled;
   }
 
   let session = null; // {participant, token, started}
@@ -361,6 +366,7 @@
   }
 
   async function showTrial(trial) {
+    if (trial.rating) { await showRating(trial); return; }
     current = trial;
     pressedAt = -Infinity;
     show("trial");
@@ -400,6 +406,7 @@
   // Both images at one scale (the same on-screen size for equal image sizes), as large as the
   // viewport allows side by side, without scrolling.
   function layout() {
+    if (RATING) { layoutRated(); return; }
     const left = $("image-left"), right = $("image-right");
     if (!left.naturalWidth || !right.naturalWidth) return;
     const pair = $("pair");
@@ -445,14 +452,19 @@
 
   // The size the left image is shown at (both are at one scale), in CSS and device pixels.
   function shownSize() {
-    const box = $("image-left").getBoundingClientRect();
+    const box = $(RATING ? "rated-stimulus" : "image-left").getBoundingClientRect();
     const ratio = window.devicePixelRatio || 1;
     const css = [Math.round(box.width * 100) / 100, Math.round(box.height * 100) / 100];
     return { css, device: [Math.round(box.width * ratio), Math.round(box.height * ratio)] };
   }
 
   // `at`: the time of the event that answers (its timeStamp), from which the answer lock runs.
-  async function choose(side, pressed, at) {
+  function choose(side, pressed, at) {
+    return send({ chosen: side }, $("choose-" + side), pressed, at);
+  }
+
+  // Sends the answer `fields` (`{chosen}` or `{rating}`) given by a press on `button`.
+  async function send(fields, button, pressed, at) {
     if (!accepting || !current || answered.has(current.trial)) return;
     if (!checkScreenDuringTrials()) return;
     if (!(pressed >= shownAt) || !(pressed >= lockedUntil)) return;
@@ -472,10 +484,10 @@
     const question = $("trial-question");
     question.tabIndex = -1;
     question.focus({ preventScroll: true });
-    $("choose-" + side).classList.add("chosen");
+    button.classList.add("chosen");
     const answer = await persistent("POST", "/api/participants/" + encodeURIComponent(session.participant) + "/responses",
-      { trial: trial.trial, chosen: side, rt_ms: rtMs, client: clientInfo(), display: shown });
-    $("choose-" + side).classList.remove("chosen");
+      Object.assign({ trial: trial.trial }, fields, { rt_ms: rtMs, client: clientInfo(), display: shown }));
+    button.classList.remove("chosen");
     if (answer.status === 201 || answer.status === 200 || answer.status === 409) {
       if (answer.status === 409) answered.delete(trial.trial);
       // 409: this trial was answered in another tab; continue where the server is.
@@ -489,6 +501,146 @@
     }
   }
   const GONE_ELSEWHERE = "This page can no longer save your answers. If you resumed the study in another tab or window, it continues there: please go on there and close this one. Otherwise, please contact the researcher.";
+
+
+  // ---- Rating trials (`kind = "rating"`, ITU-T P.910) ----
+  // The scale's buttons, best first, each with its number (its key) and its standard label;
+  // made once from the first trial's scale.
+  function buildScale(points) {
+    const scale = $("scale");
+    if (scale.childElementCount) return;
+    for (const point of points) {
+      const button = document.createElement("button");
+      button.type = "button";
+      button.className = "rate";
+      button.id = "rate-" + point.rating;
+      button.disabled = true;
+      button.setAttribute("aria-keyshortcuts", String(point.rating));
+      const value = document.createElement("span");
+      value.className = "rate-value";
+      value.textContent = String(point.rating);
+      const label = document.createElement("span");
+      label.className = "rate-label";
+      label.textContent = point.label;
+      button.append(value, label);
+      button.addEventListener("pointerdown", (event) => { pressedAt = event.timeStamp; });
+      button.addEventListener("click", (event) => {
+        const pressed = pressedAt;
+        pressedAt = -Infinity;
+        if (event.detail > 1) return; // the second click of a double click never answers
+        rate(point.rating, pressed, event.timeStamp);
+      });
+      scale.appendChild(button);
+    }
+  }
+
+  function rate(rating, pressed, at) {
+    const button = $("rate-" + rating);
+    if (button) send({ rating }, button, pressed, at);
+  }
+
+  // Which part of a rating trial is on screen: "reference", "stimulus", "both" (DCR side by
+  // side) or "grey" (P.910's mid-grey between and after the images).
+  let ratedPhase = "stimulus";
+  function phase(what) {
+    ratedPhase = what;
+    $("rated-reference-figure").hidden = !(what === "reference" || what === "both");
+    $("rated-stimulus-figure").hidden = !(what === "stimulus" || what === "both");
+    $("rated-grey").hidden = what !== "grey";
+    // the grey keeps the caption's room, so the scale does not move between the phases
+    $("rated-grey").classList.toggle("captioned", !!(current && current.reference));
+    body.dataset.phase = what;
+    layoutRated();
+  }
+
+  // The image (and DCR's reference) at one scale, as large as the window allows above the scale.
+  function layoutRated() {
+    const stimulus = $("rated-stimulus"), reference = $("rated-reference");
+    if (!stimulus.naturalWidth) return;
+    const both = ratedPhase === "both";
+    const rated = $("rated");
+    const gap = both ? 16 : 0;
+    let below = $("scale").offsetHeight + 24;
+    for (const hint of document.querySelectorAll("#stage-trial .hint")) below += hint.offsetHeight;
+    const captions = current && current.reference ? 24 : 0;
+    const width = (rated.clientWidth - gap) / (both ? 2 : 1);
+    const height = window.innerHeight - rated.getBoundingClientRect().top - below - captions;
+    const images = reference.naturalWidth && current && current.reference ? [stimulus, reference] : [stimulus];
+    let scale = Math.max(0.05, Math.min(...images.map((image) => Math.min(width / image.naturalWidth, height / image.naturalHeight))));
+    if (display === "native") scale = Math.min(scale, 1 / (window.devicePixelRatio || 1));
+    else if (display === "css") scale = Math.min(scale, 1);
+    for (const image of images) {
+      image.style.width = Math.floor(image.naturalWidth * scale) + "px";
+      image.style.height = Math.floor(image.naturalHeight * scale) + "px";
+    }
+    $("rated-grey").style.width = stimulus.style.width;
+    $("rated-grey").style.height = stimulus.style.height;
+  }
+
+  // A rating trial as P.910 presents it: in sequential DCR the reference for `stimulus_ms`, the
+  // grey for `grey_ms`, then the stimulus; the stimulus for `stimulus_ms` (0: until the vote),
+  // then the grey. The scale takes answers from the stimulus's onset, or with `vote_after` only
+  // once it has gone; the response time counts from then.
+  async function showRating(trial) {
+    current = trial;
+    pressedAt = -Infinity;
+    accepting = false;
+    show("trial");
+    buildScale(trial.rating.points);
+    enableChoices(false);
+    $("trial-progress").textContent = "Trial " + trial.trial + " of " + trial.total;
+    $("trial-question").textContent = trial.question;
+    $("progress-fill").style.width = (100 * (trial.trial - 1) / trial.total) + "%";
+    const rated = $("rated");
+    rated.classList.add("loading");
+    const loadingNote = setTimeout(() => { if (current === trial) $("pair-loading").hidden = false; }, 150);
+    const stimulus = $("rated-stimulus"), reference = $("rated-reference");
+    stimulus.alt = trial.stimulus.alt;
+    $("rated-stimulus-caption").hidden = !trial.reference;
+    const loads = [decode(stimulus, trial.stimulus.url)];
+    if (trial.reference) { reference.alt = trial.reference.alt; loads.push(decode(reference, trial.reference.url)); }
+    else reference.removeAttribute("src");
+    const loaded = await Promise.all(loads);
+    clearTimeout(loadingNote);
+    if (current !== trial) return;
+    if (loaded.includes(false)) {
+      notice("The image could not be loaded; trying again…");
+      await sleep(1500);
+      if (current === trial) { stimulus.removeAttribute("src"); reference.removeAttribute("src"); await nextTrial(); }
+      return;
+    }
+    notice(null);
+    $("pair-loading").hidden = true;
+    const rule = trial.rating;
+    const sequential = !!trial.reference && rule.layout === "sequential";
+    const still = () => current === trial && !answered.has(trial.trial);
+    const wait = (ms) => sleep(ms).then(still);
+    const painted = () => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve)));
+    if (sequential) {
+      phase("reference");
+      rated.classList.remove("loading");
+      await painted();
+      if (!(await wait(rule.stimulus_ms))) return;
+      if (rule.grey_ms > 0) { phase("grey"); if (!(await wait(rule.grey_ms))) return; }
+    }
+    phase(trial.reference && !sequential ? "both" : "stimulus");
+    rated.classList.remove("loading");
+    await painted();
+    if (!still()) return;
+    const open = () => {
+      enableChoices(true);
+      shownAt = performance.now();
+      accepting = true;
+      body.dataset.trial = String(trial.trial);
+    };
+    if (!rule.vote_after) open();
+    for (const url of trial.preload || []) { const image = new Image(); image.src = url; }
+    if (rule.stimulus_ms > 0) {
+      if (!(await wait(rule.stimulus_ms))) return;
+      phase("grey");
+      if (rule.vote_after) { await painted(); if (still()) open(); }
+    }
+  }
 
   for (const side of CHOICES) {
     const button = $("choose-" + side);
@@ -505,9 +657,10 @@
   }
   document.addEventListener("keydown", (event) => {
     if ($("stage-trial").hidden || event.altKey || event.ctrlKey || event.metaKey) return;
-    const arrow = event.key === "ArrowLeft" ? "left" : event.key === "ArrowRight" ? "right"
+    const arrow = RATING ? null : event.key === "ArrowLeft" ? "left" : event.key === "ArrowRight" ? "right"
       : event.key === "ArrowDown" && CHOICES.includes("tie") ? "tie" : null;
-    if (arrow || event.key === "Enter" || event.key === " ") {
+    const digit = RATING && /^[1-5]$/.test(event.key) ? Number(event.key) : null;
+    if (arrow || digit || event.key === "Enter" || event.key === " ") {
       // A held key repeats: only its first press counts, and only once.
       if (event.repeat) { event.preventDefault(); return; }
       pressedAt = event.timeStamp;
@@ -517,6 +670,12 @@
       const pressed = pressedAt;
       pressedAt = -Infinity;
       choose(arrow, pressed, event.timeStamp);
+    }
+    if (digit) {
+      event.preventDefault();
+      const pressed = pressedAt;
+      pressedAt = -Infinity;
+      rate(digit, pressed, event.timeStamp);
     }
   }, true);
 
@@ -547,6 +706,6 @@
   // A touch screen without a mouse (a phone, most tablets) is told to tap: it has no mouse to
   // click with and mostly no arrow keys.
   const touchOnly = window.matchMedia && matchMedia("(pointer: coarse)").matches && !matchMedia("(any-pointer: fine)").matches;
-  if (touchOnly || deviceKind() === "phone") $("choice-hint").textContent = "Tap an image.";
+  if (touchOnly || deviceKind() === "phone") $("choice-hint").textContent = RATING ? "Tap a rating." : "Tap an image.";
   start().catch((error) => fatal("The study could not start: " + error));
 })();

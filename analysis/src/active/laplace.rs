@@ -5,6 +5,7 @@
 //! update avoids; the benchmark times it.
 
 use super::{ActiveError, Link, Result, Target};
+use crate::newton::{Settings, Stop, cholesky, inverse, maximise, solve};
 
 /// A Laplace fit: MAP and the inverse Hessian there (row-major p × p).
 #[derive(Debug, Clone)]
@@ -12,40 +13,6 @@ pub struct LaplaceFit {
     pub mean: Vec<f64>,
     pub covariance: Vec<f64>,
     pub iterations: usize,
-}
-
-/// Cholesky factor L (row-major, lower) of a symmetric positive definite matrix, or `None`.
-pub(crate) fn cholesky(a: &[f64], p: usize) -> Option<Vec<f64>> {
-    let mut l = vec![0.0; p * p];
-    for i in 0..p {
-        for j in 0..=i {
-            let sum: f64 = (0..j).map(|k| l[i * p + k] * l[j * p + k]).sum();
-            if i == j {
-                let d = a[i * p + i] - sum;
-                if !(d > 0.0 && d.is_finite()) {
-                    return None;
-                }
-                l[i * p + i] = d.sqrt();
-            } else {
-                l[i * p + j] = (a[i * p + j] - sum) / l[j * p + j];
-            }
-        }
-    }
-    Some(l)
-}
-
-/// Solves L·Lᵀ·x = b.
-fn solve(l: &[f64], p: usize, b: &[f64]) -> Vec<f64> {
-    let mut y = b.to_vec();
-    for i in 0..p {
-        let sum: f64 = (0..i).map(|k| l[i * p + k] * y[k]).sum();
-        y[i] = (y[i] - sum) / l[i * p + i];
-    }
-    for i in (0..p).rev() {
-        let sum: f64 = (i + 1..p).map(|k| l[k * p + i] * y[k]).sum();
-        y[i] = (y[i] - sum) / l[i * p + i];
-    }
-    y
 }
 
 /// The MAP and Laplace covariance of `target` under `link` and prior N(0, prior_sd²·I) given
@@ -115,40 +82,40 @@ pub fn refit(target: &Target, link: Link, prior_sd: f64, judgments: &[(usize, us
         }
         (gradient, hessian)
     };
-    let mut theta = vec![0.0; p];
-    let mut value = objective(&theta);
-    for iteration in 1..=200 {
-        let (gradient, hessian) = hessian_at(&theta);
-        let l = cholesky(&hessian, p).ok_or_else(|| degenerate("the Hessian is not positive definite".into()))?;
-        let step = solve(&l, p, &gradient);
-        let mut scale = 1.0;
-        loop {
-            let candidate: Vec<f64> = theta.iter().zip(&step).map(|(t, s)| t + scale * s).collect();
-            let candidate_value = objective(&candidate);
-            if candidate_value >= value - 1e-12 * value.abs().max(1.0) || scale < 1e-8 {
-                theta = candidate;
-                value = candidate_value;
-                break;
-            }
-            scale *= 0.5;
-        }
-        let change = step.iter().map(|s| (scale * s).abs()).fold(0.0, f64::max);
-        if !change.is_finite() {
-            return Err(degenerate("the Newton step is not finite".into()));
-        }
-        if change < 1e-11 {
-            let (_, hessian) = hessian_at(&theta);
-            let l = cholesky(&hessian, p).ok_or_else(|| degenerate("the Hessian is not positive definite".into()))?;
-            let mut covariance = vec![0.0; p * p];
-            for c in 0..p {
-                let mut unit = vec![0.0; p];
-                unit[c] = 1.0;
-                for (r, x) in solve(&l, p, &unit).into_iter().enumerate() {
-                    covariance[r * p + c] = x;
-                }
-            }
-            return Ok(LaplaceFit { mean: theta, covariance, iterations: iteration });
-        }
+    let hessian_not_positive = || degenerate("the Hessian is not positive definite".into());
+    let problem = Posterior {
+        value: &objective,
+        step: &|theta: &[f64]| {
+            let (gradient, hessian) = hessian_at(theta);
+            let l = cholesky(&hessian, p).ok_or_else(hessian_not_positive)?;
+            Ok(solve(&l, &gradient))
+        },
+    };
+    let settings = Settings { tolerance: 1e-11, max_iterations: 200, min_scale: 1e-8 };
+    let maximum = maximise(&problem, vec![0.0; p], settings).map_err(|stop| match stop {
+        Stop::Failed(error) => error,
+        Stop::NotFinite => degenerate("the Newton step is not finite".into()),
+        Stop::NotConverged { .. } => degenerate("Newton's method did not converge in 200 iterations".into()),
+    })?;
+    let (_, hessian) = hessian_at(&maximum.beta);
+    let l = cholesky(&hessian, p).ok_or_else(hessian_not_positive)?;
+    Ok(LaplaceFit { mean: maximum.beta, covariance: inverse(&l, p), iterations: maximum.iterations })
+}
+
+/// The log-posterior and its Newton step as [`crate::newton`]'s objective.
+struct Posterior<'a> {
+    value: &'a dyn Fn(&[f64]) -> f64,
+    step: &'a dyn Fn(&[f64]) -> Result<Vec<f64>>,
+}
+
+impl crate::newton::Concave for Posterior<'_> {
+    type Failure = ActiveError;
+
+    fn value(&self, beta: &[f64]) -> f64 {
+        (self.value)(beta)
     }
-    Err(degenerate("Newton's method did not converge in 200 iterations".into()))
+
+    fn step(&self, beta: &[f64]) -> Result<Vec<f64>> {
+        (self.step)(beta)
+    }
 }

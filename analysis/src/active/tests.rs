@@ -6,10 +6,11 @@
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
-use super::laplace::{cholesky, refit};
+use super::laplace::refit;
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES, binary_entropy, normal_pdf};
 use super::simulate::{Design, SimulationConfig, centred_rmse, factorial, judgment_log, normal, simulate, uniform};
 use super::*;
+use crate::newton::cholesky;
 
 /// EIG by the 20-point rule against the dense trapezoid rule, for v ≤ 2 (a pair at the default
 /// prior) and for 2 < v ≤ 4.5 (a pair at prior sd 1.5).

@@ -5,7 +5,8 @@
 //! P(i over j) = πᵢ / (πᵢ + πⱼ + ν√(πᵢπⱼ)), P(tie) = ν√(πᵢπⱼ) / (πᵢ + πⱼ + ν√(πᵢπⱼ)),
 //!
 //! with λᵢ = ln πᵢ (0 at the reference condition, as the item model's log-worth) and ν ≥ 0.
-//! Without ties ν = 0 and the model is Bradley–Terry. Maximum likelihood by Newton–Raphson in
+//! Without ties ν = 0 and the model is Bradley–Terry. Maximum likelihood by Newton–Raphson
+//! ([`crate::newton`], the loop of the Bradley–Terry fit too) in
 //! (λ, θ = ln ν): with dᵢⱼ = (λᵢ − λⱼ)/2 a pair's log-likelihood is
 //! (wᵢ − wⱼ)·dᵢⱼ + t·θ − n·ln(2 cosh dᵢⱼ + e^θ), concave, and its Hessian depends on the data only
 //! through n, so observed and expected information agree. Standard errors from the inverse
@@ -36,26 +37,20 @@ pub struct DavidsonFit {
     pub iterations: usize,
 }
 
-/// Why the Davidson model could not be fitted.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Why the Davidson model could not be fitted, with the values that show it.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DavidsonFailure {
-    /// The comparison graph is not connected, or a condition is never compared.
-    Disconnected,
+    /// The comparison graph is not connected, or a condition is never compared: `condition`
+    /// (an index of the fit's conditions) is not reached from the reference.
+    #[error("the comparison graph is not connected")]
+    Disconnected { condition: usize },
     /// A condition never won and never tied (or always won), so λ is infinite.
+    #[error("a set of conditions never lost (or never won), so the maximum-likelihood estimate does not exist")]
     Separation,
-    NotConverged,
-}
-
-impl std::fmt::Display for DavidsonFailure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            DavidsonFailure::Disconnected => "the comparison graph is not connected",
-            DavidsonFailure::Separation => {
-                "a set of conditions never lost (or never won), so the maximum-likelihood estimate does not exist"
-            }
-            DavidsonFailure::NotConverged => "Newton–Raphson did not converge",
-        })
-    }
+    /// No convergence within `iterations`; the last step moved a parameter by `last_change`.
+    #[error("Newton–Raphson did not converge")]
+    NotConverged { iterations: usize, last_change: f64 },
 }
 
 /// Log-likelihood (without multinomial constants) and, where asked, score and information of
@@ -118,50 +113,31 @@ fn evaluate(
     log_likelihood
 }
 
-/// Inverts a symmetric positive-definite matrix (row-major) by Cholesky; `None` if it is not.
-fn invert(a: &[f64], q: usize) -> Option<Vec<f64>> {
-    let mut l = vec![0.0; q * q];
-    for j in 0..q {
-        let mut diagonal = a[j * q + j];
-        for k in 0..j {
-            diagonal -= l[j * q + k] * l[j * q + k];
-        }
-        if !(diagonal > 0.0) {
-            return None;
-        }
-        let diagonal = diagonal.sqrt();
-        l[j * q + j] = diagonal;
-        for i in j + 1..q {
-            let mut value = a[i * q + j];
-            for k in 0..j {
-                value -= l[i * q + k] * l[j * q + k];
-            }
-            l[i * q + j] = value / diagonal;
-        }
+/// The Davidson log-likelihood as [`crate::newton`]'s objective.
+struct Likelihood<'a> {
+    pairs: &'a [TiePair],
+    column: &'a [Option<usize>],
+    with_nu: bool,
+}
+
+impl crate::newton::Concave for Likelihood<'_> {
+    type Failure = DavidsonFailure;
+
+    fn value(&self, beta: &[f64]) -> f64 {
+        evaluate(self.pairs, self.column, beta, self.with_nu, None)
     }
-    let mut inverse = vec![0.0; q * q];
-    for column in 0..q {
-        let mut x = vec![0.0; q];
-        x[column] = 1.0;
-        for i in 0..q {
-            let mut value = x[i];
-            for k in 0..i {
-                value -= l[i * q + k] * x[k];
-            }
-            x[i] = value / l[i * q + i];
+
+    /// I⁻¹U; an estimate beyond |40| is running off to infinity (separation).
+    fn step(&self, beta: &[f64]) -> Result<Vec<f64>, DavidsonFailure> {
+        if beta.iter().any(|b| b.abs() > 40.0) {
+            return Err(DavidsonFailure::Separation);
         }
-        for i in (0..q).rev() {
-            let mut value = x[i];
-            for k in i + 1..q {
-                value -= l[k * q + i] * x[k];
-            }
-            x[i] = value / l[i * q + i];
-        }
-        for i in 0..q {
-            inverse[i * q + column] = x[i];
-        }
+        let q = beta.len();
+        let (mut score, mut information) = (vec![0.0; q], vec![0.0; q * q]);
+        evaluate(self.pairs, self.column, beta, self.with_nu, Some((&mut score, &mut information)));
+        let l = crate::newton::cholesky(&information, q).ok_or(DavidsonFailure::Separation)?;
+        Ok(crate::newton::solve(&l, &score))
     }
-    Some(inverse)
 }
 
 /// Fits the Davidson model to the pairs of `n_conditions` conditions (each compared at least
@@ -187,8 +163,8 @@ pub fn fit(
             }
         }
     }
-    if seen.iter().any(|s| !s) {
-        return Err(DavidsonFailure::Disconnected);
+    if let Some(condition) = seen.iter().position(|s| !s) {
+        return Err(DavidsonFailure::Disconnected { condition });
     }
     let total_ties: f64 = pairs.iter().map(|p| p.ties).sum();
     let total: f64 = pairs.iter().map(|p| p.wins_i + p.wins_j + p.ties).sum();
@@ -208,45 +184,32 @@ pub fn fit(
         let decided = (total - total_ties).max(0.5);
         beta[q - 1] = (2.0 * total_ties / decided).ln();
     }
-    let (mut score, mut information) = (vec![0.0; q], vec![0.0; q * q]);
-    let mut log_likelihood = evaluate(pairs, &column, &beta, with_nu, Some((&mut score, &mut information)));
-    for iteration in 1..=200 {
-        let inverse = invert(&information, q).ok_or(DavidsonFailure::Separation)?;
-        let step: Vec<f64> = (0..q).map(|a| (0..q).map(|b| inverse[a * q + b] * score[b]).sum()).collect();
-        let mut factor = 1.0;
-        let mut next = beta.clone();
-        let mut next_ll = f64::NEG_INFINITY;
-        for _ in 0..40 {
-            for k in 0..q {
-                next[k] = beta[k] + factor * step[k];
-            }
-            next_ll = evaluate(pairs, &column, &next, with_nu, None);
-            if next_ll >= log_likelihood - 1e-12 * log_likelihood.abs() {
-                break;
-            }
-            factor *= 0.5;
+    let problem = Likelihood { pairs, column: &column, with_nu };
+    let settings = crate::newton::Settings { tolerance, max_iterations: 200, min_scale: 1e-6 };
+    let maximum = crate::newton::maximise(&problem, beta, settings).map_err(|stop| match stop {
+        crate::newton::Stop::Failed(failure) => failure,
+        crate::newton::Stop::NotFinite => DavidsonFailure::Separation,
+        crate::newton::Stop::NotConverged { iterations, last_change, .. } => {
+            DavidsonFailure::NotConverged { iterations, last_change }
         }
-        let largest = (0..q).map(|k| (next[k] - beta[k]).abs()).fold(0.0f64, f64::max);
-        beta = next;
-        log_likelihood = evaluate(pairs, &column, &beta, with_nu, Some((&mut score, &mut information)));
-        if beta.iter().any(|b| b.abs() > 40.0) {
-            return Err(DavidsonFailure::Separation);
-        }
-        let _ = next_ll;
-        if largest < tolerance {
-            let inverse = invert(&information, q).ok_or(DavidsonFailure::Separation)?;
-            let log_worth = (0..n_conditions).map(|c| column[c].map_or(0.0, |k| beta[k]) + 0.0).collect();
-            let se = (0..n_conditions).map(|c| column[c].map_or(0.0, |k| inverse[k * q + k].sqrt())).collect();
-            let (nu, nu_se) = if with_nu {
-                let nu = beta[q - 1].exp();
-                (nu, Some(nu * inverse[(q - 1) * q + q - 1].sqrt()))
-            } else {
-                (0.0, None)
-            };
-            return Ok(DavidsonFit { log_worth, se, nu, nu_se, log_likelihood, iterations: iteration });
-        }
+    })?;
+    let beta = maximum.beta;
+    if beta.iter().any(|b| b.abs() > 40.0) {
+        return Err(DavidsonFailure::Separation);
     }
-    Err(DavidsonFailure::NotConverged)
+    let (mut score, mut information) = (vec![0.0; q], vec![0.0; q * q]);
+    evaluate(pairs, &column, &beta, with_nu, Some((&mut score, &mut information)));
+    let l = crate::newton::cholesky(&information, q).ok_or(DavidsonFailure::Separation)?;
+    let inverse = crate::newton::inverse(&l, q);
+    let log_worth = (0..n_conditions).map(|c| column[c].map_or(0.0, |k| beta[k]) + 0.0).collect();
+    let se = (0..n_conditions).map(|c| column[c].map_or(0.0, |k| inverse[k * q + k].sqrt())).collect();
+    let (nu, nu_se) = if with_nu {
+        let nu = beta[q - 1].exp();
+        (nu, Some(nu * inverse[(q - 1) * q + q - 1].sqrt()))
+    } else {
+        (0.0, None)
+    };
+    Ok(DavidsonFit { log_worth, se, nu, nu_se, log_likelihood: maximum.value, iterations: maximum.iterations })
 }
 
 /// One condition in the `davidson` section.
@@ -272,7 +235,7 @@ pub struct DavidsonSection {
 }
 
 /// The Davidson fit of the active participants' choices and ties over the compared conditions,
-/// `reference` at 0; an error is the sentence saying why it could not be fitted.
+/// `reference` at 0, or why it could not be fitted.
 pub fn section(
     tallies: &crate::design::ParticipantTallies,
     ties: &[crate::data::Judgment],
@@ -280,7 +243,7 @@ pub fn section(
     condition_names: &[String],
     reference: usize,
     tolerance: f64,
-) -> Result<DavidsonSection, String> {
+) -> Result<DavidsonSection, DavidsonFailure> {
     let n = condition_names.len();
     let mut table = vec![[0.0f64; 3]; n * n];
     for pair in tallies.pooled(n, active) {
@@ -309,7 +272,7 @@ pub fn section(
         })
         .collect();
     let reference = if local[reference] == usize::MAX { compared[0] } else { reference };
-    let fitted = fit(compared.len(), &pairs, local[reference], tolerance).map_err(|e| e.to_string())?;
+    let fitted = fit(compared.len(), &pairs, local[reference], tolerance)?;
     let items = (0..n)
         .map(|c| DavidsonItem {
             condition: condition_names[c].clone(),

@@ -62,25 +62,19 @@ impl Matrix {
     }
 }
 
-/// Why a JOD scale could not be computed.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// Why a JOD scale could not be computed, with the values that show it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum JodFailure {
-    /// A count is negative or not finite.
-    BadCount,
-    /// Nothing was compared.
-    NoComparisons,
-    /// The minimisation did not converge.
-    NotConverged,
-}
-
-impl std::fmt::Display for JodFailure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            JodFailure::BadCount => "a comparison count is negative or not finite",
-            JodFailure::NoComparisons => "no pair of conditions was compared",
-            JodFailure::NotConverged => "the JOD scaling did not converge",
-        })
-    }
+    /// The count of condition `i` chosen over `j` is negative or not finite.
+    #[error("a comparison count is negative or not finite")]
+    BadCount { i: usize, j: usize, count: f64 },
+    /// Nothing was compared among the `conditions`.
+    #[error("no pair of conditions was compared")]
+    NoComparisons { conditions: usize },
+    /// The minimisation did not converge; its gradient's largest component was `gradient`.
+    #[error("the JOD scaling did not converge")]
+    NotConverged { gradient: f64 },
 }
 
 /// ln Φ(x) and Φ'(x)/Φ(x), accurate far into the lower tail.
@@ -261,12 +255,12 @@ impl Problem {
 /// pwcmp's `pw_scale(D)` with its defaults (`prior` "gaussian", `regularization` "mean0"):
 /// the JOD of each condition, mean about 0.
 pub fn scale(matrix: &Matrix) -> Result<Vec<f64>, JodFailure> {
-    if matrix.wins.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
-        return Err(JodFailure::BadCount);
+    if let Some(at) = matrix.wins.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(JodFailure::BadCount { i: at / matrix.n, j: at % matrix.n, count: matrix.wins[at] });
     }
     let problem = Problem::new(matrix);
     if problem.pairs.is_empty() {
-        return Err(JodFailure::NoComparisons);
+        return Err(JodFailure::NoComparisons { conditions: matrix.n });
     }
     minimise(&problem)
 }
@@ -325,7 +319,11 @@ fn minimise(problem: &Problem) -> Result<Vec<f64>, JodFailure> {
             // no decrease found at double precision (the objective sums hundreds of terms):
             // converged as far as it goes where the quasi-Newton step is already tiny
             let largest = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            return if largest < 1e-4 || longest < 1e-6 { Ok(q) } else { Err(JodFailure::NotConverged) };
+            return if largest < 1e-4 || longest < 1e-6 {
+                Ok(q)
+            } else {
+                Err(JodFailure::NotConverged { gradient: largest })
+            };
         }
         let s: Vec<f64> = (0..n).map(|k| q_new[k] - q[k]).collect();
         let y: Vec<f64> = (0..n).map(|k| g_new[k] - g[k]).collect();
@@ -345,7 +343,7 @@ fn minimise(problem: &Problem) -> Result<Vec<f64>, JodFailure> {
             return Ok(q);
         }
     }
-    Err(JodFailure::NotConverged)
+    Err(JodFailure::NotConverged { gradient: g.iter().fold(0.0f64, |m, x| m.max(x.abs())) })
 }
 
 /// The bootstrap of `pw_scale_bootstrp`: pw_scale of the summed matrices of each resample of
@@ -529,7 +527,7 @@ pub struct JodSection {
 /// Per-condition JOD, their bootstrap intervals (`bootstrap_replicates` resamples of the
 /// participants, seeded as the log-worth bootstrap, where more than 0) and the
 /// `jod_scale` section, from the active participants' tallies and their ties (half a vote each
-/// way). An error is the sentence saying why there is no JOD scale.
+/// way), or why there is no JOD scale.
 pub type JodAnalysis = (Vec<f64>, Option<Vec<[f64; 2]>>, JodSection);
 
 pub fn analyze(
@@ -540,7 +538,7 @@ pub fn analyze(
     participant_names: &[String],
     bootstrap_replicates: usize,
     seed: u64,
-) -> Result<JodAnalysis, String> {
+) -> Result<JodAnalysis, JodFailure> {
     let n_conditions = condition_names.len();
     let mut position = vec![usize::MAX; participant_names.len()];
     let mut observers: Vec<Matrix> = active
@@ -568,7 +566,7 @@ pub fn analyze(
     for m in &observers {
         pooled.add(m);
     }
-    let jod = scale(&pooled).map_err(|e| e.to_string())?;
+    let jod = scale(&pooled)?;
     let mut warnings = Vec::new();
     let compared: Vec<usize> =
         (0..n_conditions).filter(|&c| (0..n_conditions).any(|d| pooled.get(c, d) + pooled.get(d, c) > 0.0)).collect();

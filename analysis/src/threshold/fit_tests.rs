@@ -1,5 +1,6 @@
 //! Tests of the psychometric fit: against scipy's direct ML fit (fixture written by
-//! `analysis/reference/psychometric_fit_reference.py`), degenerate data, the bootstrap.
+//! `analysis/reference/psychometric_fit_reference.py`) and psignifit 4.3 on its demo data
+//! (`analysis/reference/psignifit_demo.py`), degenerate data, the bootstrap.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -155,4 +156,59 @@ fn bootstrap_coverage_is_95_percent() {
 fn bootstrap_coverage_fast() {
     let c = coverage(100, 100);
     assert!((0.91..=0.985).contains(&c), "coverage {c}");
+}
+
+#[derive(Deserialize)]
+struct PsignifitDemo {
+    scipy_ml_lapse_0: ScipyMl,
+    tool: String,
+    x: Vec<f64>,
+    k: Vec<u32>,
+    n: Vec<u32>,
+    fits: Vec<PsignifitFit>,
+}
+
+#[derive(Deserialize)]
+struct ScipyMl {
+    threshold: f64,
+    sd: f64,
+}
+
+#[derive(Deserialize)]
+struct PsignifitFit {
+    name: String,
+    threshold: f64,
+    sd: f64,
+    lapse: f64,
+}
+
+/// psignifit 4.3 on its demo data (`analysis/reference/psignifit_demo.py`): its `norm` sigmoid,
+/// 2AFC, binomial (eta 0) is the `normal` function on the linear scale with guess 0.5. Its MAP
+/// under flat priors on threshold and width is the ML where the lapse sits at 0 (both put it
+/// there on these data); it agrees with ours within psignifit's own optimiser tolerance (its
+/// two fits differ from each other by up to 7e-4 relative): 1e-3 relative.
+#[test]
+fn ml_fit_agrees_with_psignifit_on_its_demo_data() {
+    let demo: PsignifitDemo = serde_json::from_str(include_str!("../../tests/reference/psignifit_demo.json")).unwrap();
+    assert_eq!(demo.tool, "psignifit 4.3");
+    let points: Vec<Point> = demo.x.iter().zip(&demo.k).zip(&demo.n).map(|((&x, &k), &n)| Point { x, n, k }).collect();
+    let model = Model { function: PsychFunction::Normal, scale: StimScale::Linear, guess: 0.5 };
+    let ml = ml_fit(model, &points, 0.1).unwrap();
+    assert!(ml.lapse < 1e-6, "the ML lapse is at 0 as psignifit's MAP: {}", ml.lapse);
+    let scipy = &demo.scipy_ml_lapse_0;
+    assert!((ml.threshold / scipy.threshold - 1.0).abs() < 1e-6 && (ml.slope / scipy.sd - 1.0).abs() < 1e-6);
+    for fit in &demo.fits {
+        assert!(fit.lapse < 1e-6, "{}: psignifit's lapse {}", fit.name, fit.lapse);
+        let threshold = (ml.threshold - fit.threshold).abs() / fit.threshold;
+        let sd = (ml.slope - fit.sd).abs() / fit.sd;
+        assert!(
+            threshold < 1e-3 && sd < 1e-3,
+            "{}: threshold {} against {} ({threshold:.1e}), sd {} against {} ({sd:.1e})",
+            fit.name,
+            ml.threshold,
+            fit.threshold,
+            ml.slope,
+            fit.sd
+        );
+    }
 }

@@ -7,6 +7,7 @@
 //!
 //! The crate's rule holds: no IO; bad input is a [`ThresholdError`] naming the offending value.
 
+pub mod at_threshold;
 pub mod fit;
 pub mod quest;
 pub mod report;

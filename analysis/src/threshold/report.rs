@@ -7,8 +7,9 @@
 //! reason and never fails the run. The threshold is given in x units (as the export's `x`) and
 //! as the knob value there (`knob_at_threshold`: log10 of the knob interpolated linearly in x
 //! between the levels shown, so it is exact for `inverse-knob` and `knob` intensities on a log
-//! scale; absent outside the levels). The render time at the threshold needs the stimulus
-//! records, which the export does not carry: `render_ms_at_threshold` is not computed yet.
+//! scale; absent outside the levels). Given the stimulus metrics CSV (`--stimuli`), the render
+//! time and the FLIP error at the threshold come from the levels' stimulus records
+//! ([`super::at_threshold`]).
 
 use std::collections::BTreeMap;
 
@@ -64,6 +65,12 @@ pub struct ThresholdFit {
     /// The knob value at the threshold (absent outside the levels shown).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub knob_at_threshold: Option<f64>,
+    /// The stimuli's render time (ms) and mean FLIP in the region `affected` at the threshold,
+    /// interpolated between the levels' stimulus records (`--stimuli`; [`super::at_threshold`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub render_ms_at_threshold: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flip_mean_at_threshold: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub deviance: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -86,6 +93,18 @@ pub struct ThresholdAnalysis {
     pub pooled: ThresholdFit,
     pub participants: Vec<ThresholdFit>,
     pub scenes: Vec<ThresholdFit>,
+    /// The levels shown, sorted by x (not in the JSON: each fit's `points` hold the x).
+    #[serde(skip)]
+    pub levels: Vec<LevelShown>,
+}
+
+/// A level of the export: its x, its knob value and its condition (`<knob>-<value>`, from the
+/// `knob` column, else the non-ground-truth side of `left,right`; absent without either).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LevelShown {
+    pub x: f64,
+    pub level: f64,
+    pub condition: Option<String>,
 }
 
 struct Row {
@@ -94,6 +113,7 @@ struct Row {
     level: f64,
     x: f64,
     correct: bool,
+    condition: Option<String>,
 }
 
 /// Reads the threshold columns of `text` (pilots and excluded participants left out unless
@@ -126,6 +146,7 @@ pub fn analyze_threshold_csv(
     let (participant, scene, level, x, correct) = (participant?, scene?, level?, x?, correct?);
     let (function_column, scale_column, guess_column) = (column("function"), column("scale"), column("guess"));
     let (pilot_column, excluded_column) = (column("pilot"), column("excluded"));
+    let (knob_column, left_column, right_column) = (column("knob"), column("left"), column("right"));
     let mut rows = Vec::new();
     let mut model: Option<(String, String, String)> = None;
     for (index, record) in reader.records().enumerate() {
@@ -169,12 +190,22 @@ pub fn analyze_threshold_csv(
             }
             Some(_) => {}
         }
+        let level = number(level, "level")?;
+        let condition = match (knob_column, left_column, right_column) {
+            (Some(knob), _, _) if !cell(knob).is_empty() => Some(format!("{}-{level}", cell(knob))),
+            (_, Some(left), Some(right)) => {
+                let shown = if cell(left) == crate::data::GROUND_TRUTH { cell(right) } else { cell(left) };
+                (!shown.is_empty()).then(|| shown.to_string())
+            }
+            _ => None,
+        };
         rows.push(Row {
             participant: cell(participant).to_string(),
             scene: cell(scene).to_string(),
-            level: number(level, "level")?,
+            level,
             x: number(x, "x")?,
             correct: answer,
+            condition,
         });
     }
     let (function_text, scale_text, guess_text) = model.unwrap_or_default();
@@ -203,9 +234,11 @@ pub fn analyze_threshold_csv(
     let model = Model { function, scale, guess };
     let options = FitOptions { bootstrap, seed, ..FitOptions::default() };
     // the levels shown: x → log10(knob), for the knob value at the threshold
-    let mut levels: Vec<(f64, f64)> = rows.iter().map(|row| (row.x, row.level)).collect();
-    levels.sort_by(|a, b| a.0.total_cmp(&b.0));
-    levels.dedup_by(|a, b| a.0 == b.0);
+    let mut shown: Vec<LevelShown> =
+        rows.iter().map(|row| LevelShown { x: row.x, level: row.level, condition: row.condition.clone() }).collect();
+    shown.sort_by(|a, b| a.x.total_cmp(&b.x));
+    shown.dedup_by(|a, b| a.x == b.x);
+    let levels: Vec<(f64, f64)> = shown.iter().map(|level| (level.x, level.level)).collect();
     let fit_of = |participant: Option<&str>, scene: Option<&str>, selected: Vec<&Row>| -> ThresholdFit {
         let trials = selected.len() as u32;
         let correct = selected.iter().filter(|row| row.correct).count() as u32;
@@ -222,6 +255,8 @@ pub fn analyze_threshold_csv(
             threshold_ci: None,
             slope_ci: None,
             knob_at_threshold: None,
+            render_ms_at_threshold: None,
+            flip_mean_at_threshold: None,
             deviance: None,
             p_fit: None,
             degenerate: None,
@@ -257,6 +292,7 @@ pub fn analyze_threshold_csv(
         pooled: fit_of(None, None, rows.iter().collect()),
         participants: by_participant.into_iter().map(|(id, rows)| fit_of(Some(id), None, rows)).collect(),
         scenes: by_scene.into_iter().map(|(scene, rows)| fit_of(None, Some(scene), rows)).collect(),
+        levels: shown,
     })
 }
 

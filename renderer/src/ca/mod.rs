@@ -149,28 +149,47 @@ impl CaParams {
         taps.iter().map(|&(dx, dy, w)| (dx as i32, dy as i32, w / total)).collect()
     }
 
-    /// One sentence naming the first unusable value, if any.
-    pub fn check(&self) -> std::result::Result<(), String> {
+    /// The first unusable value, if any.
+    pub fn check(&self) -> std::result::Result<(), CaParamsError> {
         if self.distortion.iter().any(|k| !k.is_finite())
             || !self.chromatic_aberration.is_finite()
             || self.chromatic_aberration.abs() >= 0.5
         {
-            return Err("ca: distortion and chromatic aberration must be finite (|aberration| < 0.5)".into());
+            return Err(CaParamsError::Distortion {
+                distortion: self.distortion.to_vec(),
+                aberration: self.chromatic_aberration,
+            });
         }
         if !(self.defocus_px >= 0.0 && self.defocus_px <= 32.0) {
-            return Err(format!("ca: the defocus radius must lie in [0, 32] pixels, not {}", self.defocus_px));
+            return Err(CaParamsError::Defocus(self.defocus_px));
         }
         if self.noise_variance.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-            return Err("ca: every noise variance must be finite and ≥ 0".into());
+            return Err(CaParamsError::NoiseVariance(self.noise_variance.to_vec()));
         }
         if !(self.sharpen.is_finite() && self.sharpen >= 0.0) {
-            return Err(format!("ca: the sharpening amount must be finite and ≥ 0, not {}", self.sharpen));
+            return Err(CaParamsError::Sharpen(self.sharpen));
         }
-        if self.jpeg_quality.is_some_and(|q| q == 0 || q > 100) {
-            return Err("ca: the JPEG quality must lie in 1..=100".into());
+        if let Some(quality) = self.jpeg_quality.filter(|&q| q == 0 || q > 100) {
+            return Err(CaParamsError::JpegQuality(quality));
         }
         Ok(())
     }
+}
+
+/// An unusable value of [`CaParams`], with the value; each displays as one sentence.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CaParamsError {
+    #[error("ca: distortion and chromatic aberration must be finite (|aberration| < 0.5)")]
+    Distortion { distortion: Vec<f32>, aberration: f32 },
+    #[error("ca: the defocus radius must lie in [0, 32] pixels, not {0}")]
+    Defocus(f32),
+    #[error("ca: every noise variance must be finite and ≥ 0")]
+    NoiseVariance(Vec<f32>),
+    #[error("ca: the sharpening amount must be finite and ≥ 0, not {0}")]
+    Sharpen(f32),
+    #[error("ca: the JPEG quality must lie in 1..=100")]
+    JpegQuality(u8),
 }
 
 /// The grey-value display curve of the simulated camera: response, then contrast (saturation
@@ -440,7 +459,7 @@ pub(crate) fn checked_inputs(
             return Err(RenderError::SizeMismatch { a_width: w, a_height: h, b_width, b_height });
         }
     }
-    p.check().map_err(RenderError::Unsupported)?;
+    p.check().map_err(|error| RenderError::Unsupported(error.to_string()))?;
     let (mut comp, mut photo, mut mask) = (composite.clone(), photo.clone(), mask.clone());
     let invalid_inputs = sanitize(&mut comp, &mut photo, &mut mask);
     Ok((comp, photo, mask, invalid_inputs))

@@ -20,9 +20,7 @@
 //! and albedo are known, and [`CaptureReport`] gives the capture's error against them.
 
 pub mod hashgrid;
-pub mod impostor;
 pub mod plane;
-pub mod voxel;
 
 use crate::camera::Camera;
 use crate::image::Image;

@@ -28,16 +28,19 @@
 //! `Method::Off` is the baseline without coherent rendering: the object lit by the known lights
 //! and the light probe with no occlusion at all, and no differential background.
 
+pub mod evaluation;
+pub mod impostor;
 pub mod query;
 pub mod render;
 pub mod solid;
+pub mod voxel;
 
 #[cfg(test)]
 mod tests;
 
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::impostor::DistanceImpostor;
-use crate::capture::voxel::VoxelVolume;
+use crate::coherent::impostor::DistanceImpostor;
+use crate::coherent::voxel::VoxelVolume;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Aabb, Ray, SurfaceHit};
 use crate::gpu::PassTime;
@@ -45,7 +48,7 @@ use crate::image::{Image, Mask};
 use crate::light::{Environment, SpotLight, equirect_dir};
 use crate::material::{DeltaBsdf, Material, Transport};
 use crate::math::{Frame, Rng, sample_cosine_hemisphere};
-use crate::pathtracer::{Subset, TraceParams, World, delta_bounce, shade};
+use crate::pathtracer::{Arrival, Subset, TraceParams, World, delta_bounce, shade};
 use crate::scene::{Role, Scene};
 use glam::Vec3;
 use query::{Query, Representation};
@@ -318,9 +321,20 @@ pub fn build_representation(
     let probe = light_probe(real, centre, PROBE_WIDTH, PROBE_PATHS, params.seed);
     let size = format!("{PROBE_WIDTH}×{}, {PROBE_PATHS} paths per texel", PROBE_WIDTH / 2);
     let mut passes = vec![PassTime::new(format!("light probe ({size})"), ms_since(start))];
-    let (rep, built) = build_queries(scene, samples, footprint, params, gpu, Arc::new(probe), None, None);
+    let prebuilt = Prebuilt { sky: Arc::new(probe), voxels: None, solids: None };
+    let (rep, built) = build_queries(scene, samples, footprint, params, gpu, prebuilt);
     passes.extend(built);
     (rep, passes)
+}
+
+/// What [`build_queries`] takes ready-made: `sky`, the light probe for what the capture missed;
+/// `voxels`, a scene voxel volume built before from the same samples at the settings' size;
+/// `solids`, the virtual objects' solid volumes already placed.
+#[derive(Clone, Debug)]
+pub struct Prebuilt {
+    pub sky: Arc<Environment>,
+    pub voxels: Option<Arc<VoxelVolume>>,
+    pub solids: Option<Vec<SolidVolume>>,
 }
 
 /// What `params.method` queries, built from the captured `samples` around the virtual objects
@@ -330,17 +344,15 @@ pub fn build_representation(
 /// the settings' size, is reused — and, where self-shadows are tested, each virtual object's
 /// solid volume ([`solid`]), unless `solids` brings them already placed. With
 /// `gpu`, built as [`build_representation`] says.
-#[allow(clippy::too_many_arguments)]
 pub fn build_queries(
     scene: &Scene,
     samples: &[EnvironmentSample],
     footprint: f32,
     params: &CoherentParams,
     gpu: Option<&crate::gpu::DirRenderer>,
-    sky: Arc<Environment>,
-    voxels: Option<Arc<VoxelVolume>>,
-    solids: Option<Vec<SolidVolume>>,
+    prebuilt: Prebuilt,
 ) -> (Representation, Vec<PassTime>) {
+    let Prebuilt { sky, voxels, solids } = prebuilt;
     let mut passes = Vec::new();
     let mut rep = Representation { sky: Some(sky), ..Representation::default() };
     if params.method == Method::Off {
@@ -494,7 +506,10 @@ struct GpuBuilds {
 
 impl GpuBuilds {
     /// The built value, counted, or None (and the reason kept) where the GPU could not build it.
-    fn add<T>(&mut self, built: std::result::Result<crate::gpu::representation::Built<T>, String>) -> Option<T> {
+    fn add<T>(
+        &mut self,
+        built: std::result::Result<crate::gpu::representation::Built<T>, crate::gpu::representation::BuildRefused>,
+    ) -> Option<T> {
         match built {
             Ok(built) => {
                 self.gpu_ms += built.gpu_ms;
@@ -503,7 +518,7 @@ impl GpuBuilds {
                 Some(built.value)
             }
             Err(reason) => {
-                self.fallback = Some(reason);
+                self.fallback = Some(reason.to_string());
                 None
             }
         }
@@ -905,7 +920,7 @@ impl<'a> Coherent<'a> {
     ) -> Vec3 {
         let mut weight = Vec3::ONE;
         let u = rng.next_f32();
-        let ray = delta_bounce(delta, hit, hit.t, wo, front, ng, u, Transport::Radiance, &mut weight);
+        let ray = delta_bounce(delta, hit, hit.t, Arrival { wo, front, ng }, u, Transport::Radiance, &mut weight);
         weight * self.rep.incident(self.params.method.query(), ray.origin, ray.dir, 0.0).radiance
     }
 

@@ -7,8 +7,8 @@
 //! scene's environment light, as the thesis's fish-eye capture of the surroundings would.
 
 use super::solid::{SolidHit, SolidVolume};
-use crate::capture::impostor::DistanceImpostor;
-use crate::capture::voxel::VoxelVolume;
+use crate::coherent::impostor::DistanceImpostor;
+use crate::coherent::voxel::VoxelVolume;
 use crate::light::Environment;
 use glam::Vec3;
 use std::sync::Arc;

@@ -10,9 +10,9 @@
 use super::query::Representation;
 use super::{Coherent, CoherentFrame, CoherentParams, build_representation, ms_since};
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::voxel::VoxelVolume;
 use crate::capture::{CaptureParams, CaptureReport, capture};
 use crate::coherent::solid::SolidVolume;
+use crate::coherent::voxel::VoxelVolume;
 use crate::error::Result;
 use crate::gpu::DirRenderer;
 use crate::gpu::PassTime;
@@ -180,11 +180,9 @@ pub struct CoherentStimulus {
 pub fn render_stimulus(
     scene: &Scene,
     captured: &CapturedScene,
-    photo: &Image,
-    linear: &Image,
+    (photo, linear): (&Image, &Image),
     params: &CoherentParams,
-    cm: &crate::cm::CmParams,
-    ca: Option<&crate::ca::CaParams>,
+    (cm, ca): (&crate::cm::CmParams, Option<&crate::ca::CaParams>),
     gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
     let start = Instant::now();
@@ -344,16 +342,9 @@ impl LiveCoherent {
                 volumes.iter().zip(then.iter().zip(&centres)).map(|(v, (then, now))| v.moved(*now - *then)).collect()
             });
         let reused = placed.is_some();
-        let (rep, mut passes) = super::build_queries(
-            scene,
-            &self.captured.samples,
-            self.captured.cell,
-            params,
-            gpu,
-            Arc::clone(&self.probe),
-            kept.clone(),
-            placed,
-        );
+        let prebuilt = super::Prebuilt { sky: Arc::clone(&self.probe), voxels: kept.clone(), solids: placed };
+        let (rep, mut passes) =
+            super::build_queries(scene, &self.captured.samples, self.captured.cell, params, gpu, prebuilt);
         if let (None, Some(built)) = (kept, &rep.voxels) {
             self.voxels.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(Arc::clone(built));
         }

@@ -329,7 +329,7 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
+    let shown = render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&off, None), None).unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -360,7 +360,8 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, &display, &linear, &p, &statistics, Some(&ca), None).unwrap();
+    let shown =
+        render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&statistics, Some(&ca)), None).unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
 
@@ -393,7 +394,7 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         // 256² as the pipeline's high quality; up to the spring of this issue the GPU lost
         // splats of disks near the centre there (0.5 % of texels at 128², 1.3 % at 256²)
         for size in [64u32, 128, 256] {
-            let cpu = crate::capture::impostor::DistanceImpostor::build(&samples, centre, size, cell);
+            let cpu = crate::coherent::impostor::DistanceImpostor::build(&samples, centre, size, cell);
             let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
             let gpu = &built.value;
             assert!(built.gpu_bytes > 0 && built.gpu_ms.is_finite());
@@ -427,7 +428,7 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
     }
     // the clipped lamp core: no voxel above RADIANCE_MAX on either side
     let brightest = gpu.level(0).iter().map(|v| v[0]).fold(0.0f32, f32::max);
-    assert!(brightest > 1000.0 && brightest <= crate::capture::voxel::RADIANCE_MAX, "{brightest}");
+    assert!(brightest > 1000.0 && brightest <= crate::coherent::voxel::RADIANCE_MAX, "{brightest}");
 }
 
 #[test]
@@ -452,7 +453,7 @@ fn a_live_frame_of_the_unmoved_scene_is_its_stimulus_and_follows_the_object_when
     for method in [Method::Em, Method::Dit, Method::Vct] {
         let p = CoherentParams::new(method, Quality::Low);
         let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-        let stimulus = render::render_stimulus(&scene, &capture, &display, &linear, &p, &off, None, None).unwrap();
+        let stimulus = render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&off, None), None).unwrap();
         let frame = live.frame(&scene, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();
         assert_eq!(frame.composite.pixels, stimulus.composite.pixels, "{}", method.name());
         let after = live.frame(&moved, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();
@@ -687,7 +688,8 @@ fn the_gpu_sweeps_build_the_solid_volumes_as_the_cpu_does() {
     let p = CoherentParams::new(Method::Dit, Quality::Med);
     let built_by = |scene: &Scene| {
         let sky = Arc::new(crate::light::Environment::uniform(Vec3::splat(0.5)));
-        let (_, passes) = build_queries(scene, &[], 0.03, &p, Some(renderer), sky, None, None);
+        let (_, passes) =
+            build_queries(scene, &[], 0.03, &p, Some(renderer), Prebuilt { sky, voxels: None, solids: None });
         passes.into_iter().map(|pass| pass.pass).find(|pass| pass.starts_with("object solid volumes")).unwrap()
     };
     let plain = built_by(&scenes[1]);

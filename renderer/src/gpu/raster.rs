@@ -156,6 +156,15 @@ pub struct Raster {
 
 pub const SHADER: &str = include_str!("raster.wgsl");
 
+/// What one pass of [`Raster::draw`] draws and into what: the objects of `subset`, at `size`,
+/// into `targets` (each a view and the value it is cleared to).
+#[derive(Clone, Copy)]
+struct Pass<'a> {
+    subset: Subset,
+    size: (u32, u32),
+    targets: &'a [(&'a wgpu::TextureView, f64)],
+}
+
 impl Raster {
     pub fn new(ctx: &GpuContext) -> Self {
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -274,25 +283,21 @@ impl Raster {
         view
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn draw(
         &self,
         ctx: &GpuContext,
         pipeline: &wgpu::RenderPipeline,
         scene: &SceneBuffers,
         view: &ViewUniform,
-        subset: Subset,
-        size: (u32, u32),
-        targets: &[(&wgpu::TextureView, f64)],
+        pass: Pass,
     ) {
         let bind_group = self.bind_group(ctx, pipeline, scene, view);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.record(ctx, &mut encoder, pipeline, &bind_group, scene, subset, size, targets);
+        self.record(ctx, &mut encoder, pipeline, &bind_group, scene, pass);
         ctx.submit(encoder);
     }
 
     /// Records one pass of [`Raster::draw`] into `encoder`.
-    #[allow(clippy::too_many_arguments)]
     fn record(
         &self,
         ctx: &GpuContext,
@@ -300,10 +305,9 @@ impl Raster {
         pipeline: &wgpu::RenderPipeline,
         bind_group: &wgpu::BindGroup,
         scene: &SceneBuffers,
-        subset: Subset,
-        size: (u32, u32),
-        targets: &[(&wgpu::TextureView, f64)],
+        pass: Pass,
     ) {
+        let Pass { subset, size, targets } = pass;
         let depth = self.depth(ctx, size.0, size.1);
         let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
             .iter()
@@ -346,15 +350,8 @@ impl Raster {
     pub fn gbuffer(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, targets: &SurfaceTargets) {
         let size = (targets.position.width(), targets.position.height());
         let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        self.draw(
-            ctx,
-            &self.gbuffer,
-            scene,
-            view,
-            Subset::All,
-            size,
-            &[(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)],
-        );
+        let targets = [(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        self.draw(ctx, &self.gbuffer, scene, view, Pass { subset: Subset::All, size, targets: &targets });
     }
 
     /// A shadow map of `subset` into `distance` (a layer view); empty texels hold 1e30.
@@ -367,7 +364,7 @@ impl Raster {
         distance: &wgpu::TextureView,
         size: u32,
     ) {
-        self.draw(ctx, &self.shadow, scene, view, subset, (size, size), &[(distance, 1e30)]);
+        self.draw(ctx, &self.shadow, scene, view, Pass { subset, size: (size, size), targets: &[(distance, 1e30)] });
     }
 
     /// Several shadow maps of one size (each a view, a subset and a target), recorded into one
@@ -403,16 +400,8 @@ impl Raster {
                 size: std::num::NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
             };
             let bind_group = self.bind_group_with(ctx, &self.shadow, scene, wgpu::BindingResource::Buffer(binding));
-            self.record(
-                ctx,
-                &mut encoder,
-                &self.shadow,
-                &bind_group,
-                scene,
-                *subset,
-                (size, size),
-                &[(*distance, 1e30)],
-            );
+            let pass = Pass { subset: *subset, size: (size, size), targets: &[(*distance, 1e30)] };
+            self.record(ctx, &mut encoder, &self.shadow, &bind_group, scene, pass);
         }
         ctx.submit(encoder);
     }
@@ -430,15 +419,8 @@ impl Raster {
     ) {
         let size = (targets.position.width(), targets.position.height());
         let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        self.draw(
-            ctx,
-            &self.rsm,
-            scene,
-            view,
-            subset,
-            size,
-            &[(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)],
-        );
+        let targets = [(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        self.draw(ctx, &self.rsm, scene, view, Pass { subset, size, targets: &targets });
     }
 
     /// G-buffer draws into parts of one set of targets, in one render pass: each draw its own

@@ -40,8 +40,8 @@
 
 use super::context::GpuContext;
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::impostor::{DistanceImpostor, SPLAT_RADIUS};
-use crate::capture::voxel::VoxelVolume;
+use crate::coherent::impostor::{DistanceImpostor, SPLAT_RADIUS};
+use crate::coherent::voxel::VoxelVolume;
 use crate::geometry::{Aabb, Primitive};
 use crate::material::Texture;
 use glam::{UVec3, Vec3};
@@ -226,6 +226,28 @@ fn params(point: Vec3, radius: f32, counts: [u32; 4]) -> Vec<u8> {
     bytes
 }
 
+/// Why the GPU does not build a representation (the CPU builds it instead), with the sizes;
+/// each displays as one sentence.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BuildRefused {
+    #[error(
+        "a {}×{}×{} solid volume of {primitives} primitives needs more than the {limit_mb:.0} MB the adapter binds",
+        .dims.x, .dims.y, .dims.z
+    )]
+    SolidTooLarge { dims: UVec3, primitives: usize, limit_mb: f64 },
+    #[error("an image texture on a virtual object, which the GPU's sweeps do not evaluate")]
+    ImageTexture,
+    #[error(
+        "a voxel column meets {primitives} primitives, more than the {MAX_COLUMN_PRIMITIVES} one GPU invocation walks"
+    )]
+    CrowdedColumn { primitives: usize },
+    #[error("a 6×{size}² impostor of {samples} samples needs more than the {limit_mb:.0} MB the adapter binds")]
+    ImpostorTooLarge { size: u32, samples: usize, limit_mb: f64 },
+    #[error("{res}³ voxels need a {needed_mb:.0} MB buffer, more than the {limit_mb:.0} MB the adapter binds")]
+    VoxelsTooLarge { res: u32, needed_mb: f64, limit_mb: f64 },
+}
+
 impl RepresentationBuilder {
     pub fn new(ctx: &GpuContext) -> Self {
         let [impostor_depth, impostor_radiance, voxel_splat, voxel_resolve, voxel_mip] = ctx.compute_pipelines(
@@ -257,21 +279,14 @@ impl RepresentationBuilder {
         bounds: Aabb,
         voxel: Vec3,
         dims: UVec3,
-    ) -> std::result::Result<Built<SolidSweeps>, String> {
+    ) -> std::result::Result<Built<SolidSweeps>, BuildRefused> {
         let start = Instant::now();
         let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
         let levels = mip_dims(dims);
         let (level_offsets, total) = level_offsets(levels.iter().map(|d| d.x as u64 * d.y as u64 * d.z as u64));
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if count * 16 > limit || total * 4 > limit || prims.len() as u64 * 128 > limit {
-            return Err(format!(
-                "a {}×{}×{} solid volume of {} primitives needs more than the {:.0} MB the adapter binds",
-                dims.x,
-                dims.y,
-                dims.z,
-                prims.len(),
-                limit as f64 / 1e6
-            ));
+            return Err(BuildRefused::SolidTooLarge { dims, primitives: prims.len(), limit_mb: limit as f64 / 1e6 });
         }
         let mut data: Vec<[f32; 4]> = Vec::with_capacity(8 * prims.len().max(1));
         for p in prims {
@@ -292,7 +307,7 @@ impl RepresentationBuilder {
                 Some(Texture::Checker { a, b, squares }) => (2.0, *squares, *a, *b),
                 Some(Texture::Stripes { a, b, count }) => (3.0, *count, *a, *b),
                 Some(Texture::Image(_)) => {
-                    return Err("an image texture on a virtual object, which the GPU's sweeps do not evaluate".into());
+                    return Err(BuildRefused::ImageTexture);
                 }
             };
             data.push([uv[0].x, uv[0].y, uv[1].x, uv[1].y]);
@@ -324,9 +339,7 @@ impl RepresentationBuilder {
             if let Some(most) = offsets.windows(2).map(|w| (w[1] - w[0]) as usize).max()
                 && most > MAX_COLUMN_PRIMITIVES
             {
-                return Err(format!(
-                    "a voxel column meets {most} primitives, more than the {MAX_COLUMN_PRIMITIVES} one GPU invocation walks"
-                ));
+                return Err(BuildRefused::CrowdedColumn { primitives: most });
             }
             gpu_bytes += 4 * (offsets.len() + indices.len()) as u64;
             let list = |label: &str, values: &[u32]| {
@@ -414,17 +427,13 @@ impl RepresentationBuilder {
         centre: Vec3,
         size: u32,
         footprint: f32,
-    ) -> std::result::Result<Built<DistanceImpostor>, String> {
+    ) -> std::result::Result<Built<DistanceImpostor>, BuildRefused> {
         let start = Instant::now();
         let size = size.max(1);
         let texels = 6 * size as u64 * size as u64;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if texels * 16 > limit || samples.len() as u64 * 48 > limit {
-            return Err(format!(
-                "a 6×{size}² impostor of {} samples needs more than the {:.0} MB the adapter binds",
-                samples.len(),
-                limit as f64 / 1e6
-            ));
+            return Err(BuildRefused::ImpostorTooLarge { size, samples: samples.len(), limit_mb: limit as f64 / 1e6 });
         }
         let count = samples.len() as u32;
         let uniform =
@@ -468,18 +477,18 @@ impl RepresentationBuilder {
         samples: &[EnvironmentSample],
         res: u32,
         footprint: f32,
-    ) -> std::result::Result<Built<VoxelVolume>, String> {
+    ) -> std::result::Result<Built<VoxelVolume>, BuildRefused> {
         let start = Instant::now();
         let (origin, voxel, res) = VoxelVolume::frame(samples, res, footprint);
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         // level 0's sums, and every level together (8/7 of level 0)
         let needed = (res as u64).pow(3) * 16 * 8 / 7;
         if needed > limit || samples.len() as u64 * 48 > limit {
-            return Err(format!(
-                "{res}³ voxels need a {:.0} MB buffer, more than the {:.0} MB the adapter binds",
-                needed as f64 / 1e6,
-                limit as f64 / 1e6
-            ));
+            return Err(BuildRefused::VoxelsTooLarge {
+                res,
+                needed_mb: needed as f64 / 1e6,
+                limit_mb: limit as f64 / 1e6,
+            });
         }
         let count = samples.len() as u32;
         let radius = (SPLAT_RADIUS * footprint).max(0.5 * voxel);

@@ -1,6 +1,6 @@
 // Rohmer et al.'s scene representations built from the captured environment samples (Sec. 6.1):
 // the distance impostor (radiance and distance cube map) and the mip-mapped scene voxel volume.
-// The GPU twin of `capture::impostor::DistanceImpostor::build` and `coherent::voxel::VoxelVolume::
+// The GPU twin of `coherent::impostor::DistanceImpostor::build` and `coherent::voxel::VoxelVolume::
 // build`, splat for splat: each sample is a disk in its tangent plane.
 
 struct Sample {

@@ -87,14 +87,29 @@ pub fn load_as(name_or_path: &str, size: Option<(u32, u32)>, sensor: Option<Sens
 
 /// An image size `WxH` (or `WXH`), from 1x1 to 16384x16384; the refusal is one sentence
 /// about `text`.
-pub fn parse_size(text: &str) -> std::result::Result<(u32, u32), String> {
-    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("`{text}` is not of the form WxH"))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("`{text}`: the width is not a whole number"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("`{text}`: the height is not a whole number"))?;
+pub fn parse_size(text: &str) -> std::result::Result<(u32, u32), SizeError> {
+    let text_of = || text.to_string();
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| SizeError::NotWxH(text_of()))?;
+    let w: u32 = w.trim().parse().map_err(|_| SizeError::Width(text_of()))?;
+    let h: u32 = h.trim().parse().map_err(|_| SizeError::Height(text_of()))?;
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
-        return Err(format!("`{text}` must be between 1x1 and 16384x16384"));
+        return Err(SizeError::OutOfRange(text_of()));
     }
     Ok((w, h))
+}
+
+/// An image size [`parse_size`] refused, with the text it was given.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SizeError {
+    #[error("`{0}` is not of the form WxH")]
+    NotWxH(String),
+    #[error("`{0}`: the width is not a whole number")]
+    Width(String),
+    #[error("`{0}`: the height is not a whole number")]
+    Height(String),
+    #[error("`{0}` must be between 1x1 and 16384x16384")]
+    OutOfRange(String),
 }
 
 struct Ctx<'a> {
@@ -713,7 +728,7 @@ mod tests {
         assert_eq!(parse_size("64x48"), Ok((64, 48)));
         assert_eq!(parse_size(" 64 X 48 "), Ok((64, 48)));
         for bad in ["64", "0x48", "64x", "x48", "-1x2", "16385x2", "axb"] {
-            let error = parse_size(bad).unwrap_err();
+            let error = parse_size(bad).unwrap_err().to_string();
             assert!(error.contains(&format!("`{bad}`")), "{bad}: {error}");
         }
     }

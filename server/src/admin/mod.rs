@@ -21,12 +21,13 @@ mod stats;
 pub mod store;
 
 use crate::AppState;
-use crate::auth::{authorize_admin_change as authorize_change, authorize_admin_via as authorize};
+use crate::auth::{Admin, AdminChange};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, ExportError, Include, LeftOut};
 use crate::pages::download;
 use axum::Router;
-use axum::extract::{Path, Query, RawQuery, State};
+use axum::extract::{FromRequestParts, Path, Query, State};
+use axum::http::request::Parts;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{delete, get, post};
@@ -72,6 +73,19 @@ impl From<ExportError> for AppError {
     }
 }
 
+/// A handler's argument for an admin read of participants' data: the admin let in ([`Admin`]),
+/// then whom the read includes, from the query ([`include_from_query`]).
+pub(super) struct AdminInclude(pub Include);
+
+impl FromRequestParts<AppState> for AdminInclude {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> AppResult<AdminInclude> {
+        Admin::from_request_parts(parts, state).await?;
+        include_from_query(parts.uri.query().map(str::to_string)).map(AdminInclude)
+    }
+}
+
 /// `?include_pilots=true&include_excluded=true` (each `true` or `false`; other keys are ignored).
 pub(super) fn include_from_query(query: Option<String>) -> AppResult<Include> {
     let mut include = Include::default();
@@ -113,11 +127,8 @@ pub(super) fn with_left_out(mut response: Response, left_out: LeftOut) -> Respon
 pub(super) async fn export_csv(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
+    AdminInclude(include): AdminInclude,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
-    let include = include_from_query(query)?;
     let csv = export::trials_csv(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(download("text/csv; charset=utf-8", format!("{slug}-trials.csv"), csv.content), csv.left_out))
 }
@@ -125,11 +136,8 @@ pub(super) async fn export_csv(
 pub(super) async fn export_json(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
+    AdminInclude(include): AdminInclude,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
-    let include = include_from_query(query)?;
     let json = export::study_json(&state.storage().admin, &slug, include).await?;
     Ok(with_left_out(
         download(
@@ -144,9 +152,8 @@ pub(super) async fn export_json(
 pub(super) async fn conditions_csv(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
     let definition = export::definition(&state.storage().admin, &slug).await?;
     Ok(download("text/csv; charset=utf-8", format!("{slug}-conditions.csv"), definition.conditions_csv()))
 }
@@ -156,9 +163,8 @@ pub(super) async fn conditions_csv(
 pub(super) async fn stimuli_csv(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
     let study = state.study(&slug).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" is not served by this server, so its stimuli are not known here"))
     })?;
@@ -181,13 +187,7 @@ pub(super) struct OpenState {
     open: bool,
 }
 
-pub(super) async fn set_open(
-    state: AppState,
-    slug: String,
-    headers: HeaderMap,
-    open: bool,
-) -> AppResult<Json<OpenState>> {
-    authorize_change(&state, &headers).await?;
+pub(super) async fn set_open(state: AppState, slug: String, open: bool) -> AppResult<Json<OpenState>> {
     state.storage().set_open(&slug, open).await??;
     Ok(Json(OpenState { slug, open }))
 }
@@ -195,17 +195,17 @@ pub(super) async fn set_open(
 pub(super) async fn open_study(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<Json<OpenState>> {
-    set_open(state, slug, headers, true).await
+    set_open(state, slug, true).await
 }
 
 pub(super) async fn close_study(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<Json<OpenState>> {
-    set_open(state, slug, headers, false).await
+    set_open(state, slug, false).await
 }
 
 // ------------------------------------------------------------------------------------------

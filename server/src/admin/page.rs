@@ -261,9 +261,13 @@ pub(super) async fn admin_study_page(
         metrics_note: None,
     };
     if let Some(active) = state.active(&slug) {
+        let (target, optimises) = state
+            .study(&slug)
+            .and_then(|prepared| prepared.study.design.active.as_ref().map(|design| design.target.describe()))
+            .unwrap_or(("worths", "every condition's log-worth"));
         let active = active.lock().await;
         page.active_note = Some(format!(
-            "Active design: each participant's trials are chosen by expected information gain from every judgment so far ({} absorbed when a batch was last chosen).",
+            "Active design (target = \"{target}\"): each participant's trials are chosen by expected information gain about {optimises}, from every judgment so far ({} absorbed when a batch was last chosen); `mrstudy simulate --designs study,active` measures what it trades against the fixed design.",
             active.judgments()
         ));
         page.active_warning = active.failure.clone();

@@ -4,11 +4,11 @@
 use super::stats::{Metrics, analysis_json};
 use super::store;
 use crate::AppState;
-use crate::auth::{authorize_admin_change as authorize_change, authorize_admin_via as authorize};
+use crate::auth::{Admin, AdminChange};
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, Include};
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
 
 /// A participant's progress: answered trials of their schedule.
@@ -125,9 +125,8 @@ pub async fn participants(
 pub(super) async fn list_participants(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Json<Vec<ParticipantEntry>>> {
-    authorize(&state, &headers).await?;
     // The observer flags come from the default analysis; a study whose data cannot be analysed
     // yet still lists its participants, without those flags.
     let analysis = match analysis_json(&state, &slug, Include::default(), Metrics::Skip).await {
@@ -187,10 +186,9 @@ pub(super) async fn set_excluded(
 pub(super) async fn exclude_participant(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
     Json(body): Json<ReasonBody>,
 ) -> AppResult<Json<ExclusionState>> {
-    authorize_change(&state, &headers).await?;
     let reason = body.reason.map(|reason| reason.trim().to_string()).unwrap_or_default();
     if reason.is_empty() {
         return Err(AppError::Unprocessable(
@@ -210,18 +208,16 @@ pub(super) async fn exclude_participant(
 pub(super) async fn include_participant(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<Json<ExclusionState>> {
-    authorize_change(&state, &headers).await?;
     set_excluded(&state, id, None).await
 }
 
 pub(super) async fn delete_participant(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<Json<store::Deletion>> {
-    authorize_change(&state, &headers).await?;
     let deletion = state.storage().delete(&id).await??;
     state.forget_credentials(&id);
     Ok(Json(deletion))
@@ -240,9 +236,8 @@ pub(super) struct PreviewLink {
 pub(super) async fn create_preview(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<(StatusCode, Json<PreviewLink>)> {
-    authorize_change(&state, &headers).await?;
     let kind = store::study_kind(&state.storage().admin, &slug).await?;
     // a lab task study's preview opens its lab page; its participants are pilots too
     let page = match kind.as_deref() {
@@ -273,9 +268,8 @@ pub(super) struct Revoked {
 pub(super) async fn revoke_previews(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: AdminChange,
 ) -> AppResult<Json<Revoked>> {
-    authorize_change(&state, &headers).await?;
     if store::study_kind(&state.storage().admin, &slug).await?.is_none() {
         return Err(AppError::NotFound(format!("There is no study \"{slug}\".")));
     }

@@ -1,13 +1,13 @@
 //! A study's progress and dropout (`GET /api/admin/studies…`) and its live analysis, worth plot
 //! and metric plot.
 
-use super::{QUERY_HINT, include_from_query, store};
+use super::{AdminInclude, QUERY_HINT, store};
 use crate::AppState;
-use crate::auth::authorize_admin_via as authorize;
+use crate::auth::Admin;
 use crate::error::{AppError, AppResult, Json};
 use crate::export::{self, Include};
-use axum::extract::{Path, RawQuery, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::extract::{Path, State};
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
@@ -129,11 +129,7 @@ pub(super) async fn all_slugs(state: &AppState) -> AppResult<Vec<String>> {
     Ok(store::survey_slugs(&state.storage().admin).await?)
 }
 
-pub(super) async fn list_studies(
-    State(state): State<AppState>,
-    headers: HeaderMap,
-) -> AppResult<Json<Vec<StudyStats>>> {
-    authorize(&state, &headers).await?;
+pub(super) async fn list_studies(State(state): State<AppState>, _: Admin) -> AppResult<Json<Vec<StudyStats>>> {
     let mut all = Vec::new();
     for slug in all_slugs(&state).await? {
         all.push(stats(&state, &slug).await?);
@@ -144,9 +140,8 @@ pub(super) async fn list_studies(
 pub(super) async fn study_stats(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Json<StudyStats>> {
-    authorize(&state, &headers).await?;
     Ok(Json(stats(&state, &slug).await?))
 }
 
@@ -199,22 +194,16 @@ pub async fn analysis_json(
 pub(super) async fn analysis(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
+    AdminInclude(include): AdminInclude,
 ) -> AppResult<Json<serde_json::Value>> {
-    authorize(&state, &headers).await?;
-    let include = include_from_query(query)?;
     Ok(Json(analysis_json(&state, &slug, include, Metrics::Set).await?))
 }
 
 pub(super) async fn worth_svg(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
+    AdminInclude(include): AdminInclude,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
-    let include = include_from_query(query)?;
     let pool = &state.storage().admin;
     let definition = export::definition(pool, &slug).await?;
     let trials = export::trials_csv(pool, &slug, include).await?;
@@ -225,11 +214,8 @@ pub(super) async fn worth_svg(
 pub(super) async fn metric_svg(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
+    AdminInclude(include): AdminInclude,
 ) -> AppResult<Response> {
-    authorize(&state, &headers).await?;
-    let include = include_from_query(query)?;
     let served = state.study(&slug);
     let stimuli = served.as_ref().and_then(|study| study.stimulus_metrics.as_ref()).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))

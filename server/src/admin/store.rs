@@ -429,13 +429,19 @@ pub(super) struct CatchCounts {
 }
 
 pub(super) async fn catch_counts(pool: &Pool, slug: &str) -> Result<CatchCounts, sqlx::Error> {
-    let row = sqlx::query(
-        "SELECT COUNT(*) AS n, COALESCE(SUM(CASE WHEN r.chosen != t.catch_expected THEN 1 ELSE 0 END), 0) AS failures,
-                COUNT(DISTINCT CASE WHEN r.chosen != t.catch_expected THEN r.participant END) AS failing
+    // a rating catch trial fails more than CATCH_TOLERANCE categories from its expected rating
+    let failed = format!(
+        "(r.chosen != t.catch_expected OR ABS(r.rating - t.catch_rating) > {})",
+        crate::study::rating::CATCH_TOLERANCE
+    );
+    let row = sqlx::query(sqlx::AssertSqlSafe(format!(
+        "SELECT COUNT(*) AS n, COALESCE(SUM(CASE WHEN {failed} THEN 1 ELSE 0 END), 0) AS failures,
+                COUNT(DISTINCT CASE WHEN {failed} THEN r.participant END) AS failing
          FROM responses r JOIN trials t ON t.participant = r.participant AND t.trial = r.trial
          JOIN participants p ON p.id = r.participant
-         WHERE p.study = $1 AND p.pilot = 0 AND p.excluded = 0 AND t.catch_expected IS NOT NULL",
-    )
+         WHERE p.study = $1 AND p.pilot = 0 AND p.excluded = 0
+             AND (t.catch_expected IS NOT NULL OR t.catch_rating IS NOT NULL)"
+    )))
     .bind(slug)
     .fetch_one(pool)
     .await?;

@@ -14,9 +14,10 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
 
-use super::store::{NewTaskParticipant, TaskWrite, TaskWritten};
+use super::store::{TaskWrite, TaskWritten};
 use crate::AppState;
 use crate::error::{AppError, AppResult, Json};
+use crate::participant::model::NewTaskParticipant;
 
 /// Longest participant code, in characters.
 pub const MAX_LABEL_CHARS: usize = 64;
@@ -39,18 +40,27 @@ pub(crate) struct Joined {
     pilot: bool,
 }
 
-/// The participant code, trimmed, or the sentence that refuses it.
-pub fn check_label(label: &str) -> Result<String, String> {
+/// The participant code, trimmed, or why it is refused.
+pub fn check_label(label: &str) -> Result<String, LabelError> {
     let label = label.trim();
     if label.is_empty() {
-        return Err("The participant code is empty; type the code the experimenter gave you, then start.".into());
+        return Err(LabelError::Empty);
     }
     if label.chars().count() > MAX_LABEL_CHARS || label.chars().any(char::is_control) {
-        return Err(format!(
-            "The participant code must be at most {MAX_LABEL_CHARS} characters without control characters."
-        ));
+        return Err(LabelError::Unusable { chars: label.chars().count() });
     }
     Ok(label.to_string())
+}
+
+/// Why a participant code was refused (the sentence the lab page shows).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabelError {
+    #[error("The participant code is empty; type the code the experimenter gave you, then start.")]
+    Empty,
+    /// Longer than [`MAX_LABEL_CHARS`] (`chars` long), or with control characters.
+    #[error("The participant code must be at most {MAX_LABEL_CHARS} characters without control characters.")]
+    Unusable { chars: usize },
 }
 
 pub(crate) async fn create_participant(
@@ -79,23 +89,25 @@ pub(crate) async fn create_participant(
     if !pilot && !state.storage().is_open(&slug).await? {
         return Err(AppError::Forbidden(format!("The study \"{slug}\" is closed and accepts no new participants.")));
     }
-    let label = check_label(&body.label).map_err(AppError::Unprocessable)?;
+    let label = check_label(&body.label).map_err(|error| AppError::Unprocessable(error.to_string()))?;
     let token = crate::random_hex(32);
     let id = crate::random_hex(16);
     let mut seed_bytes = [0u8; 8];
     getrandom::fill(&mut seed_bytes).map_err(|error| AppError::Internal(format!("no random seed: {error}")))?;
     let written = state
         .storage()
-        .write(TaskWrite::Participant(NewTaskParticipant {
-            study: study.study.clone(),
+        .write(TaskWrite::Participant {
+            participant: NewTaskParticipant {
+                study: study.study.clone(),
+                id: id.clone(),
+                label,
+                token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
+                random_seed: u64::from_le_bytes(seed_bytes),
+                pilot,
+                pace_ms: study.pace_ms(),
+            },
             layout: study.layout,
-            id: id.clone(),
-            label,
-            token_sha256: crate::auth::sha256(token.as_bytes()).to_vec(),
-            random_seed: u64::from_le_bytes(seed_bytes),
-            pilot,
-            pace_ms: study.pace_ms(),
-        }))
+        })
         .await??;
     let TaskWritten::Participant { trials, .. } = written else {
         return Err(AppError::Internal("creating a lab participant wrote something else".into()));

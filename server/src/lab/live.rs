@@ -142,9 +142,8 @@ struct RendererThread {
 }
 
 impl RendererThread {
-    fn send(&self, request: Request) -> Result<(), String> {
-        let stopped = || "the renderer thread has stopped".to_string();
-        self.sender.as_ref().ok_or_else(stopped)?.send(request).map_err(|_| stopped())
+    fn send(&self, request: Request) -> Result<(), LiveError> {
+        self.sender.as_ref().ok_or(LiveError::Stopped)?.send(request).map_err(|_| LiveError::Stopped)
     }
 }
 
@@ -163,16 +162,16 @@ impl Drop for RendererThread {
 impl LabRenderer {
     /// Starts the renderer thread and opens the GPU on it; the error says why no adapter could
     /// be opened.
-    pub fn start() -> Result<LabRenderer, String> {
+    pub fn start() -> Result<LabRenderer, LiveError> {
         let (sender, receiver) = mpsc::channel::<Request>();
-        let (ready, started) = mpsc::channel::<Result<AdapterInfo, String>>();
+        let (ready, started) = mpsc::channel::<Result<AdapterInfo, LiveError>>();
         let handle = std::thread::Builder::new()
             .name("mrstudy-lab-renderer".into())
             .spawn(move || {
                 let renderer = match DirRenderer::new() {
                     Ok(renderer) => renderer,
                     Err(error) => {
-                        let _ = ready.send(Err(error.to_string()));
+                        let _ = ready.send(Err(LiveError::NoAdapter { reason: error.to_string() }));
                         return;
                     }
                 };
@@ -186,19 +185,19 @@ impl LabRenderer {
                 }));
                 run(renderer, receiver);
             })
-            .map_err(|error| format!("cannot start the renderer thread: {error}"))?;
+            .map_err(|error| LiveError::Thread { reason: error.to_string() })?;
         let thread = std::sync::Arc::new(RendererThread { sender: Some(sender), handle: Some(handle) });
-        let adapter = started.recv().map_err(|_| "the renderer thread stopped while opening the GPU".to_string())??;
+        let adapter = started.recv().map_err(|_| LiveError::StoppedOpening)??;
         Ok(LabRenderer { thread, adapter })
     }
 
     /// Hands a prepared scene to the renderer thread.
-    pub fn register(&self, scene: LabScene) -> Result<(), String> {
+    pub fn register(&self, scene: LabScene) -> Result<(), LiveError> {
         self.thread.send(Request::Register(Box::new(scene)))
     }
 
     /// Queues a frame; the answer comes on `job.reply`.
-    pub fn submit(&self, job: FrameJob) -> Result<(), String> {
+    pub fn submit(&self, job: FrameJob) -> Result<(), LiveError> {
         self.thread.send(Request::Frame(job))
     }
 
@@ -210,10 +209,13 @@ impl LabRenderer {
         trial: u32,
         centre: [f64; 3],
         state: SessionRenderState,
-    ) -> Result<Frame, String> {
+    ) -> Result<Frame, LiveError> {
         let (reply, answer) = oneshot::channel();
         self.submit(FrameJob { study: study.to_string(), condition, trial, centre, state, reply })?;
-        answer.await.map_err(|_| "the renderer thread stopped during a frame".to_string())?
+        answer
+            .await
+            .map_err(|_| LiveError::StoppedDuringFrame)?
+            .map_err(|reason| LiveError::Frame { study: study.to_string(), reason })
     }
 }
 
@@ -277,7 +279,7 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
     };
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
     let encode_start = Instant::now();
-    let jpeg = encode_jpeg(&composite, lab.jpeg_quality)?;
+    let jpeg = encode_jpeg(&composite, lab.jpeg_quality).map_err(|error| error.to_string())?;
     let encode_ms = encode_start.elapsed().as_secs_f64() * 1e3;
     state.frames += 1;
     state.last = Some((job.trial, job.condition));
@@ -286,17 +288,48 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
 }
 
 /// A display-encoded image as baseline JPEG.
-pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, String> {
+pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, LiveError> {
     let mut bytes = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality.clamp(1, 100))
         .encode(&image.to_rgb8(), image.width, image.height, image::ExtendedColorType::Rgb8)
-        .map_err(|error| format!("cannot encode a frame as JPEG: {error}"))?;
+        .map_err(|error| LiveError::Jpeg { reason: error.to_string() })?;
     Ok(bytes)
+}
+
+/// Why the lab's renderer could not start, take a scene or a frame, or encode one; or why a
+/// task study's scene could not be prepared.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LiveError {
+    /// No GPU adapter could be opened: the renderer's reason.
+    #[error("{reason}")]
+    NoAdapter { reason: String },
+    #[error("cannot start the renderer thread: {reason}")]
+    Thread { reason: String },
+    #[error("the renderer thread stopped while opening the GPU")]
+    StoppedOpening,
+    #[error("the renderer thread has stopped")]
+    Stopped,
+    #[error("the renderer thread stopped during a frame")]
+    StoppedDuringFrame,
+    /// A frame of study `study` could not be rendered: the renderer's reason.
+    #[error("{reason}")]
+    Frame { study: String, reason: String },
+    #[error("cannot encode a frame as JPEG: {reason}")]
+    Jpeg { reason: String },
+    /// Task study `study`'s scene or photograph could not be prepared: `reason` is the sentence,
+    /// which names the study, the scene file or the cache file at fault.
+    #[error("{reason}")]
+    Scene { study: String, reason: String },
 }
 
 /// Loads a task study's scene at the live size, turns the virtual cube to the real cube's
 /// orientation, and renders (or reads from the cache under `cache_dir`) its photograph.
-pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, String> {
+pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, LiveError> {
+    scene_of(study, software, cache_dir).map_err(|reason| LiveError::Scene { study: study.slug.clone(), reason })
+}
+
+fn scene_of(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, String> {
     let context = |what: &str| format!("study \"{}\": {what}", study.slug);
     let mut desc = match mrstudy_renderer::builtin::get(&study.scene) {
         Some(desc) => desc,
@@ -488,7 +521,7 @@ pub async fn measure(
     study: &TaskStudy,
     centre: [f64; 3],
     frames: usize,
-) -> Result<Vec<(Condition, Vec<f64>)>, String> {
+) -> Result<Vec<(Condition, Vec<f64>)>, LiveError> {
     let mut measured = Vec::new();
     for (index, &condition) in study.conditions.iter().enumerate() {
         let mut state = SessionRenderState::default();

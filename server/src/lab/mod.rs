@@ -1,7 +1,8 @@
 //! Lab task studies (`kind = "task"`, the thesis's Section 6.3 study in a browser): study files
 //! (`crate::study::task`), counterbalanced condition orders ([`williams`]), per-participant schedules
 //! ([`plan`]), the live renderer thread ([`live`]), the WebSocket session that runs trials
-//! ([`session`]), storage ([`store`]), and the export and admin page ([`results`]).
+//! ([`session`]) and who may open one ([`admission`]), storage ([`store`]), and the export and
+//! admin page ([`results`]).
 //!
 //! `serve` starts the lab when the studies directory has task studies: [`start`] opens the GPU
 //! on the renderer thread, prepares each study's scene and photograph, measures the frame time
@@ -11,6 +12,7 @@
 //! Without a GPU adapter the task studies are not served and one warning line says why; the
 //! other studies are served as usual.
 
+pub mod admission;
 pub mod join;
 pub mod live;
 pub mod plan;
@@ -223,11 +225,11 @@ pub struct Lab {
     pub studies: HashMap<String, Arc<LabStudy>>,
     /// Slugs in load order.
     pub order: Vec<String>,
-    /// Live WebSocket sessions, at most [`session::MAX_SESSIONS`].
+    /// Live WebSocket sessions, at most [`admission::MAX_SESSIONS`].
     pub sessions: Arc<std::sync::atomic::AtomicUsize>,
     /// A session without a message for this long is closed, in ms (see [`Lab::idle_timeout`]).
     idle_timeout_ms: std::sync::atomic::AtomicU64,
-    /// Open sessions per client address (see [`session::SessionSlot`]).
+    /// Open sessions per client address (see [`admission::SessionSlot`]).
     pub(crate) by_address: Mutex<HashMap<std::net::IpAddr, usize>>,
     /// At most this many open sessions per client address; 0: no cap.
     sessions_per_address: std::sync::atomic::AtomicUsize,
@@ -235,18 +237,16 @@ pub struct Lab {
     origins: std::sync::RwLock<Vec<String>>,
 }
 
-/// The lab's settings on the open internet: `mrstudy serve`'s flags (the doc comments are its
-/// help).
-#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
+/// The lab's settings on the open internet: `mrstudy serve`'s flags (the binary holds their
+/// clap definitions).
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LabConfig {
     /// An origin (`https://lab.example.org`, `http://192.0.2.7:8080`) whose pages may open lab
     /// sessions, besides the address serve listens on (and, on a loopback or wildcard address,
     /// `http://localhost:PORT` and `http://127.0.0.1:PORT`); repeat for more. A browser's
     /// WebSocket from any other origin is refused (403), whatever its Host.
-    #[arg(long = "origin", value_parser = origin_flag)]
     pub origins: Vec<String>,
     /// Open lab sessions per client address; 0: no cap.
-    #[arg(long = "lab-sessions-per-address", default_value_t = session::SESSIONS_PER_ADDRESS)]
     pub sessions_per_address: usize,
 }
 
@@ -266,13 +266,6 @@ pub fn normalise_origin(origin: &str) -> Option<String> {
         && !rest.contains(['/', '?', '#', '@'])
         && !rest.chars().any(|c| c.is_whitespace() || c.is_control());
     fine.then_some(origin)
-}
-
-/// `--origin`'s value, normalised ([`normalise_origin`]).
-fn origin_flag(text: &str) -> Result<String, String> {
-    normalise_origin(text).ok_or_else(|| {
-        format!("`{text}` is not an origin: expected http:// or https://, a host, an optional port, and nothing after")
-    })
 }
 
 impl LabConfig {

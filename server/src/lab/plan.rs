@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::williams;
 use crate::study::task::{Counterbalance, Directions, TaskKind, TaskStudy};
+use crate::trial::PlannedTaskTrial;
 
 /// Version of the task scheduling algorithm, stored with each participant.
 pub const TASK_SCHEDULE_VERSION: i64 = 1;
@@ -53,22 +54,6 @@ impl Layout {
 
 /// Draws per position before giving up and clamping the last draw into reach.
 pub const MAX_DRAWS: usize = 1000;
-
-/// One planned trial.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PlannedTaskTrial {
-    /// 1-based position in the schedule.
-    pub trial: u32,
-    pub task: String,
-    pub kind: TaskKind,
-    pub condition: Condition,
-    pub practice: bool,
-    /// The virtual cube's centre when the trial starts (metres).
-    pub start: [f64; 3],
-    /// Where the virtual cube's centre should end (`placement`, `contact`); for `distance` the
-    /// cube does not move and this is its position.
-    pub target: [f64; 3],
-}
 
 /// The condition order (indices into the study's conditions) of the participant in this
 /// counterbalancing slot (the participant's `slot`, see [`super::store`]).
@@ -178,25 +163,18 @@ mod tests {
     use mrstudy_renderer::gpu::GiLevel;
     use std::path::Path;
 
+    /// The test lab study with the thesis's three conditions, two trials per condition, one
+    /// practice trial and all three tasks.
     fn study() -> TaskStudy {
-        let text = r#"
-slug = "lab"
-title = "Lab"
-kind = "task"
-[texts]
-welcome = "Hello."
-instructions = "Do the tasks."
-[design]
-trials_per_condition = 2
-practice = 1
-[[tasks]]
-kind = "distance"
-[[tasks]]
-kind = "placement"
-[[tasks]]
-kind = "contact"
-"#;
-        crate::study::task::parse(text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
+        let text = crate::lab_study_fixture::LabStudy {
+            conditions: &["none", "shadows", "gi"],
+            trials_per_condition: 2,
+            practice: 1,
+            tasks: &["kind = \"distance\"", "kind = \"placement\"", "kind = \"contact\""],
+            ..Default::default()
+        }
+        .toml();
+        crate::study::task::parse(&text, Path::new("lab.toml"), Path::new("."), String::new()).unwrap()
     }
 
     const LAYOUT: Layout = Layout { real_centre: [0.0, 0.025, 0.0], half_height: 0.025, reach: [0.3; 4] };

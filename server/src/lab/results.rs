@@ -31,9 +31,11 @@ use axum::routing::get;
 use mrstudy_analysis::task::{TaskAnalysis, analyze_task_csv};
 use sqlx::Row;
 
+use crate::participant::model::ParticipantProgress;
 use crate::storage::Pool;
 
 use crate::AppState;
+use crate::auth::Admin;
 use crate::error::{AppError, AppResult, Json};
 use crate::study::task::TaskKind;
 
@@ -267,26 +269,12 @@ pub async fn trials_csv(pool: &Pool, slug: &str) -> AppResult<String> {
     Ok(String::from_utf8(writer.into_inner().expect("memory")).expect("UTF-8"))
 }
 
-async fn admin(state: &AppState, headers: &HeaderMap) -> AppResult<()> {
-    crate::auth::authorize_admin(state, headers).await
-}
-
-async fn task_csv_download(
-    State(state): State<AppState>,
-    Path(slug): Path<String>,
-    headers: HeaderMap,
-) -> AppResult<Response> {
-    admin(&state, &headers).await?;
+async fn task_csv_download(State(state): State<AppState>, Path(slug): Path<String>, _: Admin) -> AppResult<Response> {
     let csv = task_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task.csv"), csv))
 }
 
-async fn trials_csv_download(
-    State(state): State<AppState>,
-    Path(slug): Path<String>,
-    headers: HeaderMap,
-) -> AppResult<Response> {
-    admin(&state, &headers).await?;
+async fn trials_csv_download(State(state): State<AppState>, Path(slug): Path<String>, _: Admin) -> AppResult<Response> {
     let csv = trials_csv(&state.storage().admin, &slug).await?;
     Ok(crate::pages::download("text/csv; charset=utf-8", format!("{slug}-task-trials.csv"), csv))
 }
@@ -340,34 +328,6 @@ pub struct LabCounts {
     pub excluded: i64,
     /// Real participants who did not keep their pace (see [`ParticipantProgress::pace_kept`]).
     pub pace_not_kept: i64,
-}
-
-#[derive(serde::Serialize)]
-pub struct ParticipantProgress {
-    pub participant: String,
-    pub label: String,
-    pub ordinal: i64,
-    /// Counterbalancing slot (the row of the design the condition order comes from).
-    pub slot: i64,
-    pub condition_order: String,
-    pub answered: i64,
-    pub trials: i64,
-    pub completed: bool,
-    /// The slot was given to another participant after `abandon_after_minutes` without activity.
-    pub abandoned: bool,
-    /// Joined through a preview link.
-    pub pilot: bool,
-    pub excluded: bool,
-    pub exclusion_reason: Option<String>,
-    /// The frame time this participant's frames are held to (`pace = "equal"`), ms.
-    pub pace_ms: Option<f64>,
-    /// Frames of answered trials, and those that reached the participant late (more than
-    /// `session::LATE_TOLERANCE` after the pace).
-    pub frames: i64,
-    pub frames_late: i64,
-    /// Whether at most `session::LATE_SHARE` of the frames were late; None when not paced or
-    /// no frame yet.
-    pub pace_kept: Option<bool>,
 }
 
 /// Whether a participant kept their pace: None when not paced or without frames.
@@ -521,9 +481,8 @@ pub fn counts(participants: &[ParticipantProgress]) -> LabCounts {
 async fn analysis_json(
     State(state): State<AppState>,
     Path(slug): Path<String>,
-    headers: HeaderMap,
+    _: Admin,
 ) -> AppResult<Json<LabReport>> {
-    admin(&state, &headers).await?;
     Ok(Json(report(&state, &slug).await?))
 }
 
@@ -601,7 +560,7 @@ fn measure_views(analysis: &TaskAnalysis) -> Vec<MeasureView> {
 }
 
 async fn admin_lab_page(State(state): State<AppState>, Path(slug): Path<String>, headers: HeaderMap) -> Response {
-    if let Err(error) = admin(&state, &headers).await {
+    if let Err(error) = crate::auth::authorize_admin(&state, &headers).await {
         return crate::pages::message_page(
             error.status(),
             "Admin token needed",

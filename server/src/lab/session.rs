@@ -52,21 +52,20 @@ use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::sync::oneshot;
 
+use super::admission::{Full, MAX_SESSIONS, SessionSlot, client_address};
 use super::live::{Frame, FrameJob, SessionRenderState};
-use super::plan::PlannedTaskTrial;
-use super::store::{self, TaskRefused, TaskWrite, TaskWritten, TrialResult};
+use super::store::{self, TaskRefused, TaskWrite, TaskWritten};
 use super::{Lab, LabStudy};
 use crate::AppState;
 use crate::error::AppError;
 use crate::study::task::TaskKind;
+use crate::trial::{PlannedTaskTrial, TrialResult};
 
 /// Largest text message accepted from a client, in bytes.
 pub const MAX_MESSAGE_BYTES: usize = 4096;
 /// Largest message read at all: one between this and [`MAX_MESSAGE_BYTES`] is answered with an
 /// `error` and the connection closed; a larger one closes it at once.
 const MAX_READ_BYTES: usize = 1 << 20;
-/// Lab sessions at once, over all task studies.
-pub const MAX_SESSIONS: usize = 64;
 /// A session without any message from its client for this long is closed (the default of
 /// [`Lab::idle_timeout`]).
 pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10 * 60);
@@ -83,73 +82,6 @@ pub const LATE_TOLERANCE: f64 = 0.10;
 /// keep the pace (flagged in the export and on the admin page).
 pub const LATE_SHARE: f64 = 0.05;
 
-/// Counts a live session, in all and for its client address; uncounts it when dropped.
-pub(crate) struct SessionSlot {
-    lab: Arc<Lab>,
-    address: Option<std::net::IpAddr>,
-}
-
-/// Why no session slot was free.
-enum Full {
-    Lab,
-    Address(usize),
-}
-
-impl SessionSlot {
-    fn take(lab: &Arc<Lab>, address: Option<std::net::IpAddr>) -> Result<SessionSlot, Full> {
-        use std::sync::atomic::Ordering;
-        lab.sessions
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < MAX_SESSIONS).then_some(n + 1))
-            .map_err(|_| Full::Lab)?;
-        if let Some(address) = address {
-            let cap = lab.sessions_per_address();
-            let mut open = lab.by_address.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-            let count = open.entry(address).or_insert(0);
-            if cap > 0 && *count >= cap {
-                lab.sessions.fetch_sub(1, Ordering::AcqRel);
-                return Err(Full::Address(cap));
-            }
-            *count += 1;
-        }
-        Ok(SessionSlot { lab: lab.clone(), address })
-    }
-}
-
-impl Drop for SessionSlot {
-    fn drop(&mut self) {
-        self.lab.sessions.fetch_sub(1, std::sync::atomic::Ordering::AcqRel);
-        if let Some(address) = self.address {
-            let mut open = self.lab.by_address.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-            if let Some(count) = open.get_mut(&address) {
-                *count = count.saturating_sub(1);
-                if *count == 0 {
-                    open.remove(&address);
-                }
-            }
-        }
-    }
-}
-
-/// The client address of an upgrade: the socket's peer, or behind a TLS proxy the last
-/// `X-Forwarded-For` address (as [`crate::limits::client`] finds it).
-fn client_address(
-    peer: Option<crate::limits::ClientAddr>,
-    headers: &axum::http::HeaderMap,
-    behind_tls: bool,
-) -> Option<std::net::IpAddr> {
-    let peer = peer?.0;
-    if !behind_tls {
-        return Some(peer);
-    }
-    let forwarded = headers
-        .get_all("x-forwarded-for")
-        .iter()
-        .filter_map(|value| value.to_str().ok())
-        .flat_map(|value| value.split(','))
-        .next_back()
-        .and_then(|address| address.trim().parse().ok());
-    Some(forwarded.unwrap_or(peer))
-}
 /// Keys kept in one trial's key log; further keys are refused.
 pub const MAX_KEYS_PER_TRIAL: usize = 5000;
 
@@ -333,27 +265,6 @@ impl From<crate::storage::StorageError> for Refusal {
 impl From<TaskRefused> for Refusal {
     fn from(refused: TaskRefused) -> Self {
         AppError::from(refused).into()
-    }
-}
-
-/// A refused task write, as the experimenter reads it.
-impl From<TaskRefused> for AppError {
-    fn from(refused: TaskRefused) -> Self {
-        match refused {
-            TaskRefused::UnknownParticipant { id } => {
-                AppError::NotFound(format!("There is no task participant \"{id}\"."))
-            }
-            TaskRefused::Abandoned => AppError::Conflict(
-                "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.".into(),
-            ),
-            TaskRefused::NoTrial { trial, trials } => {
-                AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))
-            }
-            TaskRefused::AlreadyAnswered { trial } => AppError::Conflict(format!("Trial {trial} is already answered.")),
-            TaskRefused::NotNext { trial, next } => {
-                AppError::Conflict(format!("Trial {trial} is not the next trial; trial {next} is."))
-            }
-        }
     }
 }
 
@@ -725,7 +636,7 @@ impl Session {
                 state: self.render_state.clone(),
                 reply,
             })
-            .map_err(AppError::Internal)?;
+            .map_err(|error| AppError::Internal(error.to_string()))?;
         active.dirty = false;
         self.pending = Some(Pending {
             trial: active.planned.trial,

@@ -14,31 +14,16 @@
 //! that participant is marked abandoned and can no longer resume or answer. Otherwise the new
 //! participant takes the next unused slot. `ordinal` stays unique, in order of joining.
 
-use std::sync::Arc;
-
 use sqlx::Row;
 
 use crate::storage::Connection;
 
-use super::plan::{self, Layout, PlannedTaskTrial, TASK_SCHEDULE_VERSION};
+use super::plan::{self, Layout, TASK_SCHEDULE_VERSION};
+use crate::error::AppError;
+use crate::participant::model::{NewTaskParticipant, TaskParticipantRow};
 use crate::storage::{NOW, OptionalF64, Storage, StudyRecord, WriteJob};
 use crate::study::task::TaskStudy;
-
-/// A participant to create.
-pub struct NewTaskParticipant {
-    pub study: Arc<TaskStudy>,
-    pub layout: Layout,
-    pub id: String,
-    pub label: String,
-    pub token_sha256: Vec<u8>,
-    /// Used when the study has no seed.
-    pub random_seed: u64,
-    /// Joined through an admin preview link.
-    pub pilot: bool,
-    /// The frame time every frame of this participant is held to (`pace = "equal"`), fixed now
-    /// for all its sessions; None when not paced.
-    pub pace_ms: Option<f64>,
-}
+use crate::trial::{PlannedTaskTrial, TrialResult};
 
 pub use crate::storage::iso;
 
@@ -48,44 +33,12 @@ fn abandon_cutoff(minutes: f64) -> String {
     iso(std::time::SystemTime::now().checked_sub(ago).unwrap_or(std::time::UNIX_EPOCH))
 }
 
-/// The result of one trial, as measured by the session.
-#[derive(Debug, Clone)]
-pub struct TrialResult {
-    pub participant: String,
-    pub trial: u32,
-    pub answer_cm: Option<f64>,
-    pub final_position: Option<[f64; 3]>,
-    pub error_cm: f64,
-    pub signed_error_cm: Option<f64>,
-    /// Signed per-axis error (x, y, z) in cm.
-    pub error_axes_cm: [f64; 3],
-    pub completion_ms: f64,
-    /// JSON array.
-    pub key_log: String,
-    pub frames: u32,
-    pub frame_ms_mean: Option<f64>,
-    pub frame_ms_max: Option<f64>,
-    /// Frames the page reported shown.
-    pub frames_shown: u32,
-    /// Per frame, request → sent (rendering, queueing, pacing), mean over the trial, ms.
-    pub shown_frame_ms_mean: Option<f64>,
-    /// The frame time frames were paced to (`pace = "equal"`), ms.
-    pub paced_ms: Option<f64>,
-    /// Frames that reached the participant more than [`super::session::LATE_TOLERANCE`] later
-    /// than the pace (0 when not paced).
-    pub frames_late: u32,
-    /// When the page reported the trial's first frame shown (UTC, ISO 8601 with ms).
-    pub shown_at: String,
-    pub latency_ms_mean: Option<f64>,
-    pub latency_ms_p95: Option<f64>,
-    pub smoothing: bool,
-    pub adapter: String,
-    /// When the trial's first frame was sent (UTC, ISO 8601 with ms).
-    pub started_at: String,
-}
-
 pub enum TaskWrite {
-    Participant(NewTaskParticipant),
+    /// A new participant, their trials planned in the scene `layout` measured at start-up.
+    Participant {
+        participant: NewTaskParticipant,
+        layout: Layout,
+    },
     Result(TrialResult),
     /// A participant resumes: refused when their slot was given away, else their last activity
     /// is now.
@@ -151,7 +104,9 @@ async fn execute(
     write: &TaskWrite,
 ) -> Result<Result<TaskWritten, TaskRefused>, sqlx::Error> {
     match write {
-        TaskWrite::Participant(participant) => insert_participant(connection, participant).await.map(Ok),
+        TaskWrite::Participant { participant, layout } => {
+            insert_participant(connection, participant, layout).await.map(Ok)
+        }
         TaskWrite::Result(result) => store_result(connection, result).await,
         TaskWrite::Resume { participant } => resume(connection, participant).await,
     }
@@ -184,6 +139,7 @@ async fn resume(
 async fn insert_participant(
     connection: &mut Connection,
     participant: &NewTaskParticipant,
+    layout: &Layout,
 ) -> Result<TaskWritten, sqlx::Error> {
     let study = &participant.study;
     let ordinal: i64 =
@@ -215,7 +171,7 @@ async fn insert_participant(
             (next, None)
         }
     };
-    let trials = plan::plan(study, &participant.layout, seed, slot as u64);
+    let trials = plan::plan(study, layout, seed, slot as u64);
     let order: Vec<String> =
         plan::condition_order(study, slot as u64).into_iter().map(|index| study.conditions[index].name()).collect();
     if let Some(previous) = &took_over {
@@ -384,24 +340,6 @@ pub async fn record_frame_times(
     Ok(())
 }
 
-/// A stored task participant.
-#[derive(Debug, Clone)]
-pub struct TaskParticipantRow {
-    pub id: String,
-    pub study: String,
-    pub ordinal: i64,
-    pub slot: i64,
-    pub label: String,
-    pub token_sha256: Vec<u8>,
-    pub trials: i64,
-    pub answered: i64,
-    pub completed: bool,
-    pub abandoned: bool,
-    pub pilot: bool,
-    /// The participant's fixed pace (see [`NewTaskParticipant::pace_ms`]).
-    pub pace_ms: Option<f64>,
-}
-
 pub async fn participant(storage: &Storage, id: &str) -> Result<Option<TaskParticipantRow>, sqlx::Error> {
     let row = sqlx::query("SELECT id, study, ordinal, slot, label, token_sha256, trials, answered, completed_at, abandoned_at, pilot, pace_ms FROM task_participants WHERE id = $1")
         .bind(id)
@@ -451,4 +389,25 @@ pub async fn planned_trials(storage: &Storage, participant: &str) -> Result<Vec<
             })
         })
         .collect()
+}
+
+/// A refused task write, as the experimenter reads it.
+impl From<TaskRefused> for AppError {
+    fn from(refused: TaskRefused) -> Self {
+        match refused {
+            TaskRefused::UnknownParticipant { id } => {
+                AppError::NotFound(format!("There is no task participant \"{id}\"."))
+            }
+            TaskRefused::Abandoned => AppError::Conflict(
+                "This participant's place in the counterbalancing was given to another participant after a long pause; ask the experimenter to start a new session.".into(),
+            ),
+            TaskRefused::NoTrial { trial, trials } => {
+                AppError::NotFound(format!("There is no trial {trial}; the schedule has {trials}."))
+            }
+            TaskRefused::AlreadyAnswered { trial } => AppError::Conflict(format!("Trial {trial} is already answered.")),
+            TaskRefused::NotNext { trial, next } => {
+                AppError::Conflict(format!("Trial {trial} is not the next trial; trial {next} is."))
+            }
+        }
+    }
 }

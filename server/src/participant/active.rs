@@ -21,12 +21,13 @@ use sqlx::Row;
 use crate::storage::Connection;
 use tokio::sync::Mutex;
 
-use super::store::insert_trial;
+use super::store::{Position, insert_trial};
 use crate::AppState;
 use crate::error::{AppError, AppResult};
-use crate::prepared::{PreparedStudy, ScheduledTrial};
+use crate::prepared::PreparedStudy;
 use crate::schedule::{self, ActiveHistory, Posterior};
 use crate::storage::WriteJob;
+use crate::trial::ScheduledTrial;
 
 /// One active study's shared state.
 #[derive(Debug)]
@@ -112,15 +113,7 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     let mut active = lock.lock().await;
     let study = &prepared.study;
     let read = &state.storage().read;
-    let header = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
-        .bind(participant)
-        .fetch_optional(read)
-        .await
-        .map_err(internal)?
-        .ok_or_else(|| AppError::Internal(format!("participant {participant} is gone")))?;
-    let seed = header.try_get::<i64, _>("seed").map_err(internal)? as u64;
-    let total: i64 = header.try_get("trials").map_err(internal)?;
-    let answered: i64 = header.try_get("answered").map_err(internal)?;
+    let Position { seed, trials: total, answered } = Position::read(read, participant, internal).await?;
     let rows = sqlx::query(
         "SELECT left_condition, right_condition, catch_expected, active_batch FROM trials
          WHERE participant = $1 ORDER BY trial",

@@ -5,8 +5,13 @@
 //! token, of which only the SHA-256 is stored. A token opens only its own participant: any other
 //! id answers 403, a missing token 401. Every body is validated before anything is written, and
 //! a refused request changes nothing.
+//!
+//! The participant's types in each stage (joining, stored, listed, exported; survey and lab) are
+//! in [`model`].
 
 pub mod active;
+pub mod model;
+pub mod rating;
 pub mod store;
 pub mod threshold;
 
@@ -20,11 +25,11 @@ use serde_json::{Map, Value};
 
 use crate::auth::{bearer, constant_time_eq, sha256};
 use crate::error::{AppError, AppResult, Json};
-use crate::storage::ParticipantRow;
 use crate::study::{Device, FieldType, Orientation, Participation, Study};
-use crate::trial::{Choice, ResponseOutcome, ResponseRefused};
+use crate::trial::{Answer, Choice, ResponseOutcome, ResponseRefused};
 use crate::{AppState, random_hex};
-use store::{JoinOutcome, NewParticipant, NewResponse, ScreenOut, ScreenOutWrite, Shown};
+use model::{NewParticipant, ParticipantRow};
+use store::{JoinOutcome, NewResponse, ScreenOut, ScreenOutWrite, Shown};
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -593,6 +598,8 @@ enum Next {
         /// Stimulus URLs of the trial after this one, to preload.
         preload: Vec<String>,
     },
+    /// A rating study's trial (`kind = "rating"`).
+    Rating(rating::RatingTrial),
     Done {
         done: bool,
         completion_code: String,
@@ -652,6 +659,17 @@ async fn next_trial(
         // must still find the trial served
         state.storage().write(Shown { participant: participant.id.clone(), trial: number }).await?;
     }
+    if let Some(design) = &prepared.study.rating {
+        let preload = following
+            .iter()
+            .flat_map(|following| [&following.left_stimulus, &following.right_stimulus])
+            .filter(|name| !name.is_empty())
+            .map(|name| stimulus_url(name))
+            .collect();
+        let (stimulus, reference) = (&trial.left_stimulus, &trial.right_stimulus);
+        let shown = rating::trial(&prepared.study, design, (number, participant.trials), stimulus, reference, preload);
+        return Ok(Json(Next::Rating(shown)));
+    }
     Ok(Json(Next::Trial {
         trial: trial.trial,
         total: participant.trials,
@@ -694,7 +712,12 @@ fn percent_encode(text: &str) -> String {
 #[serde(deny_unknown_fields)]
 struct ResponseBody {
     trial: i64,
-    chosen: Choice,
+    /// A paired comparison's answer.
+    #[serde(default)]
+    chosen: Option<Choice>,
+    /// A rating study's answer, 1 to 5.
+    #[serde(default)]
+    rating: Option<i64>,
     rt_ms: f64,
     #[serde(default)]
     client: Map<String, Value>,
@@ -727,7 +750,10 @@ fn size_text(key: &str, [width, height]: [f64; 2]) -> AppResult<String> {
 #[derive(Serialize)]
 struct Stored {
     trial: i64,
-    chosen: Choice,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    chosen: Option<Choice>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rating: Option<u8>,
 }
 
 /// Longest response time accepted: one hour.
@@ -766,7 +792,9 @@ async fn create_response(
     let (min_response_ms, allow_tie) = state.study(&participant.study).map_or((0, false), |prepared| {
         (prepared.study.participation.min_response_ms, prepared.study.participation.allow_tie)
     });
-    if body.chosen == Choice::Tie && !allow_tie {
+    let answer =
+        rating::answer(state.study(&participant.study).map(|prepared| &prepared.study), body.chosen, body.rating)?;
+    if body.chosen == Some(Choice::Tie) && !allow_tie {
         return Err(AppError::Unprocessable(
             "`chosen` must be \"left\" or \"right\": this study has no \"not sure\" answer (`allow_tie` is off)."
                 .to_string(),
@@ -778,7 +806,7 @@ async fn create_response(
             token_sha256: participant.token_sha256,
             participant: participant.id,
             trial: body.trial,
-            chosen: body.chosen,
+            answer,
             rt_ms: body.rt_ms,
             client: Value::Object(client).to_string(),
             display_css,
@@ -794,5 +822,9 @@ async fn create_response(
         ResponseOutcome::Created => StatusCode::CREATED,
         ResponseOutcome::Repeated => StatusCode::OK,
     };
-    Ok((status, Json(Stored { trial: body.trial, chosen: body.chosen })).into_response())
+    let (chosen, rating) = match answer {
+        Answer::Choice(chosen) => (Some(chosen), None),
+        Answer::Rating(rating) => (None, Some(rating)),
+    };
+    Ok((status, Json(Stored { trial: body.trial, chosen, rating })).into_response())
 }

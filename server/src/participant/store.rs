@@ -1,21 +1,51 @@
 //! Storage of paired-comparison participants (tables `participants`, `trials`, `responses` and
 //! `screen_outs`): the writes that go through the server's one writer with group commit
-//! ([`Storage::write`]). A participant is stored with its whole schedule in one transaction; a
+//! ([`Storage::write`]), and the participant API's reads of a participant and their next trials. A participant is stored with its whole schedule in one transaction; a
 //! response only to a served trial that is the participant's next one (a repeat of the same
 //! answer is reported, a different one refused).
-
-use std::sync::Arc;
 
 use sqlx::Row;
 
 use crate::storage::Connection;
 
-use crate::prepared::{PreparedStudy, ScheduledTrial};
+use super::model::{NewParticipant, ParticipantRow};
+use crate::error::{AppError, AppResult};
 use crate::schedule;
-#[cfg(doc)]
-use crate::storage::Storage;
-use crate::storage::{NOW, OptionalF64, WriteJob};
-use crate::trial::{Choice, ResponseOutcome, ResponseRefused, Side};
+use crate::storage::{NOW, OptionalF64, Storage, WriteJob};
+use crate::trial::{Answer, ResponseOutcome, ResponseRefused, ScheduledTrial, Side, TrialRow};
+
+/// Where a participant stands in their schedule, as stored.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Position {
+    /// The seed their schedule (and a threshold study's levels) come from.
+    pub seed: u64,
+    /// Trials in their schedule.
+    pub trials: i64,
+    /// Trials they answered.
+    pub answered: i64,
+}
+
+impl Position {
+    /// The participant's position; a database error becomes `internal(error)`, a participant
+    /// not found an internal error saying so.
+    pub(crate) async fn read(
+        read: &crate::storage::Pool,
+        participant: &str,
+        internal: fn(sqlx::Error) -> AppError,
+    ) -> AppResult<Position> {
+        let row = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
+            .bind(participant)
+            .fetch_optional(read)
+            .await
+            .map_err(internal)?
+            .ok_or_else(|| AppError::Internal(format!("participant {participant} is gone")))?;
+        Ok(Position {
+            seed: row.try_get::<i64, _>("seed").map_err(internal)? as u64,
+            trials: row.try_get("trials").map_err(internal)?,
+            answered: row.try_get("answered").map_err(internal)?,
+        })
+    }
+}
 
 /// A new response as received.
 #[derive(Debug, Clone)]
@@ -25,7 +55,7 @@ pub struct NewResponse {
     /// the same transaction, so a deleted participant's token is refused by every server.
     pub token_sha256: Vec<u8>,
     pub trial: i64,
-    pub chosen: Choice,
+    pub answer: Answer,
     pub rt_ms: f64,
     pub client: String,
     /// The size one image of the pair was shown at, `WxH` in CSS pixels and in device pixels
@@ -36,29 +66,64 @@ pub struct NewResponse {
     pub min_response_ms: u32,
 }
 
-/// A participant to create, with the parts that do not depend on the seed.
-#[derive(Debug)]
-pub struct NewParticipant {
-    pub study: Arc<PreparedStudy>,
-    pub id: String,
-    pub token_sha256: Vec<u8>,
-    /// A random seed, used when the study has no study seed.
-    pub random_seed: u64,
-    pub demographics: String,
-    pub client: String,
-    pub url_params: String,
-    /// Used when the study has no fixed completion code.
-    pub random_completion_code: String,
-    /// Joined through an admin preview link.
-    pub pilot: bool,
-    /// The external id when the study keeps one run per external id: a participant already
-    /// stored with it is resumed instead of created, if the join proves it is that run.
-    pub external_key: Option<String>,
-    /// SHA-256 of the token the page kept from its earlier join, if any: the proof that resumes
-    /// the run of `external_key` (which keeps its token; nobody else's join changes it).
-    pub resume_token_sha256: Option<Vec<u8>>,
-    /// A screen-out of this visitor to withdraw (they now meet the requirements and joined).
-    pub withdraw_screen_out: Option<String>,
+/// Reads of the participant API (`participants`, `trials`) on the read pool.
+impl Storage {
+    pub async fn participant(&self, id: &str) -> Result<Option<ParticipantRow>, sqlx::Error> {
+        let row = sqlx::query(
+            "SELECT id, study, token_sha256, trials, answered, completion_code, completed_at, url_params
+             FROM participants WHERE id = $1",
+        )
+        .bind(id)
+        .fetch_optional(&self.read)
+        .await?;
+        row.as_ref().map(participant_row).transpose()
+    }
+
+    /// The participant with its next unanswered trial and the one after it (for preloading), in
+    /// one query.
+    pub async fn participant_with_next(
+        &self,
+        id: &str,
+    ) -> Result<Option<(ParticipantRow, Vec<TrialRow>)>, sqlx::Error> {
+        let rows = sqlx::query(
+            "SELECT p.id, p.study, p.token_sha256, p.trials, p.answered, p.completion_code, p.completed_at,
+                    p.url_params, t.trial, t.left_stimulus, t.right_stimulus, t.shown_at
+             FROM participants p
+             LEFT JOIN trials t ON t.participant = p.id AND t.trial IN (p.answered + 1, p.answered + 2)
+             WHERE p.id = $1 ORDER BY t.trial",
+        )
+        .bind(id)
+        .fetch_all(&self.read)
+        .await?;
+        let Some(first) = rows.first() else { return Ok(None) };
+        let participant = participant_row(first)?;
+        let mut trials = Vec::new();
+        for row in &rows {
+            if let Some(trial) = row.try_get::<Option<i64>, _>("trial")? {
+                trials.push(TrialRow {
+                    trial,
+                    left_stimulus: row.try_get("left_stimulus")?,
+                    right_stimulus: row.try_get("right_stimulus")?,
+                    shown: row.try_get::<Option<String>, _>("shown_at")?.is_some(),
+                });
+            }
+        }
+        Ok(Some((participant, trials)))
+    }
+}
+
+/// A [`ParticipantRow`] from a row with the `participants` columns it reads.
+fn participant_row(row: &sqlx::any::AnyRow) -> Result<ParticipantRow, sqlx::Error> {
+    Ok(ParticipantRow {
+        id: row.try_get("id")?,
+        study: row.try_get("study")?,
+        token_sha256: row.try_get("token_sha256")?,
+        trials: row.try_get("trials")?,
+        answered: row.try_get("answered")?,
+        completion_code: row.try_get("completion_code")?,
+        completed: row.try_get::<Option<String>, _>("completed_at")?.is_some(),
+        url_params: row.try_get("url_params")?,
+    })
 }
 
 /// What joining did.
@@ -219,15 +284,17 @@ async fn store_response(
     .bind(response.trial)
     .execute(&mut *connection)
     .await?;
+    let (chosen, rating) = response.answer.columns();
     if advanced.rows_affected() == 1 {
         sqlx::query(sqlx::AssertSqlSafe(format!(
-            "INSERT INTO responses (participant, trial, chosen, rt_ms, client, answered_at, too_fast, served_ms, seq,
-                 display_css, display_device)
-             VALUES ($1, $2, $3, $4, $5, {NOW}, $6, $7, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses), $8, $9)"
+            "INSERT INTO responses (participant, trial, chosen, rating, rt_ms, client, answered_at, too_fast, served_ms,
+                 seq, display_css, display_device)
+             VALUES ($1, $2, $3, $4, $5, $6, {NOW}, $7, $8, (SELECT COALESCE(MAX(seq), 0) + 1 FROM responses), $9, $10)"
         )))
         .bind(&response.participant)
         .bind(response.trial)
-        .bind(response.chosen.as_str())
+        .bind(chosen)
+        .bind(rating)
         .bind(response.rt_ms)
         .bind(&response.client)
         .bind(too_fast as i64)
@@ -239,17 +306,18 @@ async fn store_response(
         return Ok(Ok(ResponseOutcome::Created));
     }
     // Not the next trial: a repeat, a changed answer, or out of order.
-    let existing: Option<String> =
-        sqlx::query_scalar("SELECT chosen FROM responses WHERE participant = $1 AND trial = $2")
-            .bind(&response.participant)
-            .bind(response.trial)
-            .fetch_optional(&mut *connection)
-            .await?;
+    let existing = sqlx::query("SELECT chosen, rating FROM responses WHERE participant = $1 AND trial = $2")
+        .bind(&response.participant)
+        .bind(response.trial)
+        .fetch_optional(&mut *connection)
+        .await?;
     if let Some(existing) = existing {
-        return Ok(if existing == response.chosen.as_str() {
+        let stored: (Option<String>, Option<i64>) = (existing.try_get("chosen")?, existing.try_get("rating")?);
+        return Ok(if stored.0.as_deref() == chosen && stored.1 == rating {
             Ok(ResponseOutcome::Repeated)
         } else {
-            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen: existing })
+            let chosen = stored.0.or(stored.1.map(|rating| rating.to_string())).unwrap_or_default();
+            Err(ResponseRefused::AlreadyAnswered { trial: response.trial, chosen })
         });
     }
     let Some((answered, trials)) = progress(connection, &response.participant).await? else {
@@ -300,8 +368,8 @@ pub(crate) async fn insert_trial(
 ) -> Result<(), sqlx::Error> {
     sqlx::query(
         "INSERT INTO trials (participant, trial, left_condition, right_condition, left_scene, right_scene,
-             left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch)
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+             left_stimulus, right_stimulus, catch_expected, chosen_by, active_batch, catch_rating)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
     )
     .bind(participant)
     .bind(number)
@@ -314,6 +382,7 @@ pub(crate) async fn insert_trial(
     .bind(trial.catch_expected.map(Side::as_str))
     .bind(chosen.map(|(state, _)| state))
     .bind(chosen.map(|(_, batch)| batch))
+    .bind(trial.catch_rating.map(i64::from))
     .execute(&mut *connection)
     .await?;
     Ok(())

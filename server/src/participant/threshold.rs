@@ -9,6 +9,7 @@
 use sqlx::Row;
 
 use super::active::ActiveBatch;
+use super::store::Position;
 use crate::AppState;
 use crate::error::{AppError, AppResult};
 use crate::prepared::PreparedStudy;
@@ -48,15 +49,7 @@ pub async fn answers(state: &AppState, prepared: &PreparedStudy, participant: &s
 pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participant: &str) -> AppResult<()> {
     let study = &prepared.study;
     let read = &state.storage().read;
-    let header = sqlx::query("SELECT seed, trials, answered FROM participants WHERE id = $1")
-        .bind(participant)
-        .fetch_optional(read)
-        .await
-        .map_err(internal)?
-        .ok_or_else(|| AppError::Internal(format!("participant {participant} is gone")))?;
-    let seed = header.try_get::<i64, _>("seed").map_err(internal)? as u64;
-    let total: i64 = header.try_get("trials").map_err(internal)?;
-    let answered: i64 = header.try_get("answered").map_err(internal)?;
+    let Position { seed, trials: total, answered } = Position::read(read, participant, internal).await?;
     let existing: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM trials WHERE participant = $1")
         .bind(participant)
         .fetch_one(read)
@@ -67,7 +60,11 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
     }
     let answers = answers(state, prepared, participant).await?;
     let chosen = crate::threshold::intensities(study, prepared.stimulus_metrics.as_ref())
-        .and_then(|intensities| crate::threshold::next_trial(study, seed, existing as usize, &intensities, &answers))
+        .map_err(|error| error.to_string())
+        .and_then(|intensities| {
+            crate::threshold::next_trial(study, seed, existing as usize, &intensities, &answers)
+                .map_err(|error| error.to_string())
+        })
         .map_err(|reason| AppError::Internal(format!("the next level cannot be chosen: {reason}")))?;
     state
         .storage()

@@ -28,6 +28,9 @@
 //! reports the mean over runs with its Monte-Carlo standard error (sd / √runs; for a power
 //! √(p(1 − p)/runs)); a mean over no run is absent, never NaN.
 //!
+//! **Rating studies** (`kind = "rating"`) are simulated by `simulate::rating`: SUREAL's observers (bias,
+//! inconsistency) rate the study's own plan, and each factor is tested within participants.
+//!
 //! **Reproducible.** Run r of design d at n participants has the seed
 //! `derived_seed(derived_seed(derived_seed(seed, d), n), r)` (d: 0 study, 1 all, 2 anchored,
 //! 3 active, 4 active-worths); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
@@ -46,18 +49,22 @@
 //! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
 //! `[{factor, effect, power, mcse}]`.
 
+mod compare;
 mod design;
 pub mod familiarity;
 mod observer;
 mod power;
+mod rating;
 mod report;
 mod run;
 #[cfg(test)]
 mod tests;
+pub mod threshold;
 mod truth;
 
+pub use compare::{Comparison, Versus};
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
-pub use power::{PowerAt, PowerNeed, parse_target, power_lines, power_needs, power_report};
+pub use power::{PowerAt, PowerNeed, TargetError, parse_target, power_lines, power_needs, power_report};
 pub use report::{Estimate, FactorPower, Report, Row, Settings};
 pub use run::simulate;
 pub use truth::{
@@ -115,31 +122,22 @@ pub struct Config {
     pub options: Options,
 }
 
-/// The simulated observers and runs: `mrstudy simulate`'s and `power`'s flags (the doc
-/// comments are their help).
-#[derive(Debug, Clone, PartialEq, clap::Args)]
+/// The simulated observers and runs: `mrstudy simulate`'s and `power`'s flags (the binary
+/// holds their clap definitions and defaults).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths).
-    #[arg(long, value_delimiter = ',', default_value = "study", value_parser = |text: &str| {
-        DesignChoice::parse(text).ok_or_else(|| format!("`{text}` is not one of study, all, anchored, active, active-worths"))
-    })]
     pub designs: Vec<DesignChoice>,
     /// Per-participant taste noise: sd of each condition's log-worth.
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub observer_sd: f64,
     /// Probability that an answer is a coin flip.
-    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub lapse: f64,
     /// Probability that a participant stops after each trial.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dropout: f64,
     /// Simulated studies per design and participant count.
-    #[arg(long, default_value_t = 200)]
     pub runs: usize,
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Bootstrap replicates per analysis for the intervals (0: Wald intervals).
-    #[arg(long, default_value_t = 0)]
     pub bootstrap: usize,
 }
 

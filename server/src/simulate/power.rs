@@ -29,11 +29,20 @@ pub struct PowerAt {
 }
 
 /// A target power, strictly between 0 and 1 (`mrstudy power --target`).
-pub fn parse_target(text: &str) -> Result<f64, String> {
+pub fn parse_target(text: &str) -> Result<f64, TargetError> {
     match text.trim().parse::<f64>() {
         Ok(target) if target > 0.0 && target < 1.0 => Ok(target),
-        _ => Err(format!("`{text}` is not a power between 0 and 1 (e.g. 0.8)")),
+        _ => Err(TargetError::NotAPower { text: text.to_string() }),
     }
+}
+
+/// Why a target power was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TargetError {
+    /// Not a number strictly between 0 and 1.
+    #[error("`{text}` is not a power between 0 and 1 (e.g. 0.8)")]
+    NotAPower { text: String },
 }
 
 /// `mrstudy power`'s answer: one sentence per design and factor ([`power_needs`],

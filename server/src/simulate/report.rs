@@ -6,6 +6,7 @@ use mrstudy_analysis::plot::{LinePlot, LineSeries};
 use mrstudy_analysis::table::fixed;
 use serde::Serialize;
 
+use super::compare::{Comparison, versus};
 use super::design::DesignChoice;
 use super::truth::Truth;
 use super::{ALPHA, Config};
@@ -47,6 +48,9 @@ pub struct FactorPower {
 pub struct Row {
     pub design: DesignChoice,
     pub pairs: PairsRule,
+    /// What an active design optimises: `worths` or `effects` (absent for a fixed design).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target: Option<&'static str>,
     pub participants: usize,
     pub runs: usize,
     pub failed: usize,
@@ -86,6 +90,9 @@ pub struct Report {
     pub truth: Truth,
     pub settings: Settings,
     pub rows: Vec<Row>,
+    /// Each active design against the study's fixed design ([`super::compare`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub comparisons: Vec<Comparison>,
 }
 
 pub(super) fn summarise(
@@ -116,6 +123,7 @@ pub(super) fn summarise(
     Row {
         design: *choice,
         pairs: variant.design.pairs_rule,
+        target: variant.design.active.as_ref().map(|active| active.target.describe().0),
         participants,
         runs: runs.len(),
         failed: runs.iter().filter(|run| run.failure.is_some()).count(),
@@ -140,6 +148,41 @@ pub(super) fn cell(estimate: Option<Estimate>, digits: usize) -> String {
 }
 
 impl Report {
+    /// Each active row against the study's fixed design at the same participant count (none
+    /// unless the study's own design is fixed and both were simulated).
+    pub(super) fn compare_with_study(&self) -> Vec<Comparison> {
+        let study_rows: Vec<&Row> = self.rows.iter().filter(|row| row.design == DesignChoice::Study).collect();
+        if study_rows.is_empty() || study_rows[0].pairs == PairsRule::Active {
+            return Vec::new();
+        }
+        let curve = |pick: fn(&Row) -> Option<f64>| -> Vec<(f64, f64)> {
+            let mut points: Vec<(f64, f64)> =
+                study_rows.iter().filter_map(|row| Some((row.trials, pick(row)?))).filter(|p| p.1 > 0.0).collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            points
+        };
+        let worth: fn(&Row) -> Option<f64> = |row| row.rmse_log_worth.map(|e| e.mean);
+        let effects: fn(&Row) -> Option<f64> = |row| row.rmse_effects.map(|e| e.mean);
+        let (worth_curve, effects_curve) = (curve(worth), curve(effects));
+        let mut out = Vec::new();
+        for row in self.rows.iter().filter(|row| row.pairs == PairsRule::Active && row.design != DesignChoice::Study) {
+            let Some(study) = study_rows.iter().find(|study| study.participants == row.participants) else { continue };
+            let compare = |pick: fn(&Row) -> Option<f64>, curve: &[(f64, f64)]| {
+                versus(pick(study)?, pick(row)?, row.trials, curve)
+            };
+            out.push(Comparison {
+                design: row.design,
+                target: row.target.unwrap_or("worths"),
+                participants: row.participants,
+                trials: row.trials,
+                study_trials: study.trials,
+                rmse_log_worth: compare(worth, &worth_curve),
+                rmse_effects: compare(effects, &effects_curve),
+            });
+        }
+        out
+    }
+
     /// The plain-text table: one line per design × participant count, then notes on failures.
     pub fn table(&self) -> String {
         let mut header = vec![
@@ -156,7 +199,10 @@ impl Report {
         let mut lines = vec![header];
         for row in &self.rows {
             let mut line = vec![
-                row.design.name().to_string(),
+                match row.target {
+                    Some(target) => format!("{} (target {target})", row.design.name()),
+                    None => row.design.name().to_string(),
+                },
                 row.participants.to_string(),
                 fixed(row.judgments_per_participant.mean, 1),
                 fixed(row.trials, 0),
@@ -180,6 +226,7 @@ impl Report {
             "log-worths as differences to {} (the analysis's reference); ± is the Monte-Carlo standard error over {} runs; power: p < {ALPHA}\n",
             self.reference, self.settings.runs
         );
+        text += &super::compare::comparison_lines(&self.comparisons);
         for row in &self.rows {
             if row.failed == row.runs {
                 text += &format!(

@@ -113,6 +113,9 @@ pub(super) fn condition_table(study: &Study) -> Option<ConditionTable> {
 
 /// Runs the simulation; `progress(done, total)` is called after each run, from any thread.
 pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + Sync)) -> Result<Report, SimulateError> {
+    if study.rating.is_some() {
+        return super::rating::simulate(study, config, progress);
+    }
     if study.design.reference.is_some() {
         return Err(SimulateError::Detection { slug: study.slug.clone() });
     }
@@ -151,7 +154,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
     for (chunk, &(v, p, _)) in outcomes.chunks(config.options.runs).zip(jobs.iter().step_by(config.options.runs)) {
         rows.push(summarise(&variants[v], config.participants[p], chunk, config));
     }
-    Ok(Report {
+    let mut report = Report {
         study: study.slug.clone(),
         reference: study.conditions[0].name.clone(),
         truth: config.truth.clone(),
@@ -165,5 +168,8 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
             alpha: ALPHA,
         },
         rows,
-    })
+        comparisons: Vec::new(),
+    };
+    report.comparisons = report.compare_with_study();
+    Ok(report)
 }

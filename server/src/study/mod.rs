@@ -13,6 +13,10 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub mod checks;
+pub mod rating;
+pub mod rating_design;
+#[cfg(test)]
+pub mod rating_tests;
 pub mod survey;
 pub mod task;
 #[cfg(test)]
@@ -118,6 +122,7 @@ pub fn load_any(file: &Path) -> Result<LoadedStudy, StudyError> {
     match table.get("kind").and_then(|kind| kind.as_str()) {
         Some("task") => task::parse(&text, file, base, file_sha256).map(LoadedStudy::Task),
         Some("threshold") => threshold::parse(table, file, base, file_sha256).map(LoadedStudy::Survey),
+        Some("rating") => rating::parse(table, file, base, file_sha256).map(LoadedStudy::Survey),
         _ => survey::parse(&text, file, base, file_sha256).map(LoadedStudy::Survey),
     }
 }

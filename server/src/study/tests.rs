@@ -176,6 +176,18 @@ fn an_active_design_the_posterior_cannot_learn_is_refused_naming_the_target() {
     }
 }
 
+#[test]
+fn target_effects_is_the_factor_target_also_spelt_factors_and_the_default_is_worths() {
+    let target = |key: &str| {
+        active(&format!("pairs = \"active\"\ntrials = 4\n{key}warmup = \"all\"")).unwrap().design.active.unwrap().target
+    };
+    assert_eq!(target("target = \"effects\"\n"), ActiveTarget::Factors);
+    assert_eq!(target("target = \"factors\"\n"), ActiveTarget::Factors);
+    assert_eq!(target(""), ActiveTarget::Worths);
+    let error = active("pairs = \"active\"\ntrials = 4\ntarget = \"both\"").unwrap_err();
+    assert!(error.expected.contains("\"effects\" (also spelt \"factors\")"), "{error}");
+}
+
 fn detection(design: &str) -> Result<Study, StudyError> {
     let dir = tempfile::tempdir().unwrap();
     let body = MINIMAL.replace(

@@ -22,7 +22,7 @@
 use mrstudy_analysis::stimulus_metrics::{Metric, Region, StimulusMetrics};
 
 mod next;
-pub use next::{domain, next_level, next_trial, quest_config};
+pub use next::{NextError, domain, next_level, next_trial, quest_config};
 
 use crate::schedule::{self, PlannedTrial};
 use crate::study::threshold::{Intensity, ThresholdDesign};
@@ -50,22 +50,26 @@ pub fn skeleton(study: &Study, seed: u64) -> Vec<PlannedTrial> {
 /// Each level's intensity: from the knob value (`knob`, `inverse-knob`), or the mean over the
 /// study's scene configurations of the metric of the level's stimuli (`metric:<m>:<region>`,
 /// realisation 0's records). An error names what is missing.
-pub fn intensities(study: &Study, metrics: Option<&StimulusMetrics>) -> Result<Vec<f64>, String> {
-    let design = study.threshold.as_ref().ok_or("not a threshold study")?;
+pub fn intensities(study: &Study, metrics: Option<&StimulusMetrics>) -> Result<Vec<f64>, ThresholdStudyError> {
+    let design = study.threshold.as_ref().ok_or(ThresholdStudyError::NotThreshold)?;
     if let Some(intensities) = design.intensities.clone().or_else(|| design.knob_intensities()) {
         return Ok(intensities);
     }
     let Intensity::Metric { metric, region } = &design.intensity else { unreachable!("knob intensities above") };
     let (Some(metric_kind), Some(region_kind)) = (Metric::parse(metric), Region::parse(region)) else {
-        return Err(format!("the metric \"{metric}\" in region \"{region}\" is not one the stimulus records keep"));
+        return Err(ThresholdStudyError::UnknownMetric { metric: metric.clone(), region: region.clone() });
     };
-    let metrics = metrics.ok_or("the stimuli have no records of their errors against the ground truth")?;
+    let metrics = metrics.ok_or(ThresholdStudyError::NoRecords)?;
     let mut intensities = Vec::with_capacity(design.levels.len());
     for condition in &study.conditions {
         let values: Vec<f64> =
             metrics.of_condition(&condition.name).filter_map(|record| record.value(metric_kind, region_kind)).collect();
         if values.is_empty() {
-            return Err(format!("no stimulus of level \"{}\" has a {metric} in region {region}", condition.name));
+            return Err(ThresholdStudyError::NoStimulus {
+                level: condition.name.clone(),
+                metric: metric.clone(),
+                region: region.clone(),
+            });
         }
         intensities.push(values.iter().sum::<f64>() / values.len() as f64);
     }
@@ -75,17 +79,39 @@ pub fn intensities(study: &Study, metrics: Option<&StimulusMetrics>) -> Result<V
 /// Fills in a threshold study's intensities (a metric intensity's from the stimulus records)
 /// and checks that every level has an x and the threshold grid reaches into their range: the
 /// check a metric intensity could not have when the file was loaded. One sentence on failure.
-pub fn prepare(study: &mut Study, metrics: Option<&StimulusMetrics>) -> Result<(), String> {
+pub fn prepare(study: &mut Study, metrics: Option<&StimulusMetrics>) -> Result<(), ThresholdStudyError> {
     if study.threshold.is_none() {
         return Ok(());
     }
-    let intensities = intensities(study, metrics)
-        .map_err(|reason| format!("the intensities of its levels cannot be found: {reason}"))?;
+    let intensities =
+        intensities(study, metrics).map_err(|reason| ThresholdStudyError::Intensities(Box::new(reason)))?;
     let fail = crate::study::checks::Fail(&study.file);
     let design = study.threshold.as_mut().expect("a threshold study");
-    crate::study::threshold::check_grid_covers(fail, design, &intensities).map_err(|error| error.to_string())?;
+    crate::study::threshold::check_grid_covers(fail, design, &intensities)
+        .map_err(|error| ThresholdStudyError::Grid(Box::new(error)))?;
     design.intensities = Some(intensities);
     Ok(())
+}
+
+/// Why a threshold study's intensities cannot be found, or its grid does not fit them.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ThresholdStudyError {
+    #[error("not a threshold study")]
+    NotThreshold,
+    #[error("the metric \"{metric}\" in region \"{region}\" is not one the stimulus records keep")]
+    UnknownMetric { metric: String, region: String },
+    #[error("the stimuli have no records of their errors against the ground truth")]
+    NoRecords,
+    /// No stimulus of level (condition) `level` has the metric.
+    #[error("no stimulus of level \"{level}\" has a {metric} in region {region}")]
+    NoStimulus { level: String, metric: String, region: String },
+    /// [`prepare`]: the intensities are missing for this reason.
+    #[error("the intensities of its levels cannot be found: {0}")]
+    Intensities(Box<ThresholdStudyError>),
+    /// [`prepare`]: the threshold grid does not reach into the levels' x range.
+    #[error("{0}")]
+    Grid(Box<crate::study::StudyError>),
 }
 
 /// The threshold export's cells ([`crate::study::threshold::CSV_COLUMNS`]) of one answered

@@ -11,9 +11,30 @@ use crate::study::threshold::{Function, Scale, ThresholdDesign};
 
 /// QUEST+'s stimulus domain of the study: its levels with their `intensities`, sorted by
 /// intensity, lowest first (so QUEST+'s ties go to the lowest intensity).
-pub fn domain(design: &ThresholdDesign, intensities: &[f64]) -> Result<StimulusDomain, String> {
+pub fn domain(design: &ThresholdDesign, intensities: &[f64]) -> Result<StimulusDomain, NextError> {
     let levels: Vec<f64> = design.levels.iter().map(|&value| f64::from(value)).collect();
-    StimulusDomain::from_intensities(&levels, intensities, stim_scale(design.scale)).map_err(|error| error.to_string())
+    Ok(StimulusDomain::from_intensities(&levels, intensities, stim_scale(design.scale))?)
+}
+
+/// Why a threshold participant's next level or trial cannot be chosen.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NextError {
+    #[error("not a threshold study")]
+    NotThreshold,
+    /// The skeleton has no trial `trial` (1-based).
+    #[error("the participant has no trial {trial}")]
+    NoTrial { trial: usize },
+    /// An answer names level index `level`, which the study does not have.
+    #[error("no level {level}")]
+    NoLevel { level: usize },
+    #[error("level {value} is not in the domain")]
+    NotInDomain { value: u32 },
+    #[error("QUEST+ chose {chosen}, which is not a level")]
+    NotALevel { chosen: f64 },
+    /// QUEST+ refused the domain or the replay.
+    #[error(transparent)]
+    Quest(#[from] mrstudy_analysis::threshold::ThresholdError),
 }
 
 fn stim_scale(scale: Scale) -> StimScale {
@@ -43,23 +64,18 @@ pub fn quest_config(design: &ThresholdDesign, domain: &StimulusDomain) -> QuestP
 
 /// The level (index into the study's levels) QUEST+ shows after `answers`, replayed in order
 /// through a fresh posterior; the levels' intensities are `intensities`.
-pub fn next_level(design: &ThresholdDesign, intensities: &[f64], answers: &[Answer]) -> Result<usize, String> {
+pub fn next_level(design: &ThresholdDesign, intensities: &[f64], answers: &[Answer]) -> Result<usize, NextError> {
     let domain = domain(design, intensities)?;
     let config = quest_config(design, &domain);
     let mut replayed = Vec::with_capacity(answers.len());
     for answer in answers {
-        let value = design.levels.get(answer.level).ok_or_else(|| format!("no level {}", answer.level))?;
-        let index =
-            domain.index_of_level(f64::from(*value)).ok_or_else(|| format!("level {value} is not in the domain"))?;
+        let value = design.levels.get(answer.level).ok_or(NextError::NoLevel { level: answer.level })?;
+        let index = domain.index_of_level(f64::from(*value)).ok_or(NextError::NotInDomain { value: *value })?;
         replayed.push((index, answer.correct));
     }
-    let quest = QuestPlus::replay(&config, &replayed).map_err(|error| error.to_string())?;
+    let quest = QuestPlus::replay(&config, &replayed)?;
     let chosen = domain.levels[quest.next_index()];
-    design
-        .levels
-        .iter()
-        .position(|&value| f64::from(value) == chosen)
-        .ok_or_else(|| format!("QUEST+ chose {chosen}, which is not a level"))
+    design.levels.iter().position(|&value| f64::from(value) == chosen).ok_or(NextError::NotALevel { chosen })
 }
 
 /// Trial `position` (0-based) of the participant with `seed`, whose answered threshold trials so
@@ -70,12 +86,10 @@ pub fn next_trial(
     position: usize,
     intensities: &[f64],
     answers: &[Answer],
-) -> Result<PlannedTrial, String> {
-    let design = study.threshold.as_ref().ok_or("not a threshold study")?;
-    let mut trial = skeleton(study, seed)
-        .into_iter()
-        .nth(position)
-        .ok_or_else(|| format!("the participant has no trial {}", position + 1))?;
+) -> Result<PlannedTrial, NextError> {
+    let design = study.threshold.as_ref().ok_or(NextError::NotThreshold)?;
+    let mut trial =
+        skeleton(study, seed).into_iter().nth(position).ok_or(NextError::NoTrial { trial: position + 1 })?;
     if let PlannedKind::Pair { left, right } = &mut trial.kind {
         let level = next_level(design, intensities, answers)?;
         let truth = study.conditions.len();

@@ -1,5 +1,6 @@
 //! What the router-level test binaries share: the demo study copied into a test's studies
-//! folder, and requests through `app(state)` with `oneshot` with their answers read back.
+//! folder (and changed), a server prepared on it ([`start`]), joining, and requests through
+//! `app(state)` with `oneshot` with their answers read back. The lab study is in `lab_study.rs`.
 // Each test binary includes this module and uses a different part of it.
 #![allow(dead_code)]
 
@@ -9,6 +10,10 @@ use axum::Router;
 use axum::body::Body;
 use axum::http::{HeaderMap, Method, Request, StatusCode, header};
 use http_body_util::BodyExt;
+use mrstudy_server::AppState;
+use mrstudy_server::limits::Limits;
+use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::storage::Database;
 use serde_json::Value;
 use tower::ServiceExt;
 
@@ -59,6 +64,60 @@ pub fn copy_demo_study(dir: &Path) {
         let path = entry.unwrap().path();
         std::fs::copy(&path, dir.join("shadows-demo").join(path.file_name().unwrap())).unwrap();
     }
+}
+
+/// The demo study copied into `work/studies`, its file's text changed by `edit`: the studies
+/// folder.
+pub fn demo_studies(work: &Path, edit: impl FnOnce(String) -> String) -> PathBuf {
+    let dir = work.join("studies");
+    copy_demo_study(&dir);
+    let file = dir.join("shadows-demo.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, edit(text)).unwrap();
+    dir
+}
+
+/// A study file's `text` with `lines` (top-level keys) put before its `[texts]` table.
+pub fn before_texts(text: &str, lines: &str) -> String {
+    text.replacen("\n[texts]", &format!("\n{lines}\n[texts]"), 1)
+}
+
+/// A server prepared on the studies in `studies`, its data in `work/data` on the test's
+/// database ([`test_database`]): the router on its state and what `prepare_on` said.
+pub struct Started {
+    pub app: Router,
+    pub state: AppState,
+    pub admin_token: String,
+    /// The studies not served, one line each.
+    pub skipped: Vec<String>,
+    pub database: Database,
+    pub data: PathBuf,
+}
+
+/// [`Started`] under the default limits.
+pub async fn start(work: &Path, studies: &Path) -> Started {
+    start_limited(work, studies, None).await
+}
+
+/// [`Started`] under `limits` (the state's own when `None`).
+pub async fn start_limited(work: &Path, studies: &Path, limits: Option<Limits>) -> Started {
+    let data = work.join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, studies).await.unwrap();
+    let state = match limits {
+        Some(limits) => state.with_limits(limits),
+        None => state,
+    };
+    Started { app: mrstudy_server::app(state.clone()), state, admin_token, skipped, database, data }
+}
+
+/// Joins study `slug` with the JSON `body` and expects 201: the participant's id and token and
+/// the whole answer.
+pub async fn join(app: &Router, slug: &str, body: Value) -> (String, String, Value) {
+    let answer = call(app, Method::POST, &format!("/api/studies/{slug}/participants"), None, Some(body)).await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let json = answer.json();
+    (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string(), json)
 }
 
 /// An answer of the router: status, headers and body.

@@ -68,7 +68,7 @@ fn never_winning_nor_tying_is_separation_and_gaps_are_refused() {
         TiePair { i: 1, j: 2, wins_i: 3.0, wins_j: 2.0, ties: 1.0 },
     ];
     assert_eq!(fit(3, &pairs, 0, 1e-10), Err(DavidsonFailure::Separation));
-    assert_eq!(fit(4, &pairs, 0, 1e-10), Err(DavidsonFailure::Disconnected));
+    assert_eq!(fit(4, &pairs, 0, 1e-10), Err(DavidsonFailure::Disconnected { condition: 3 }));
 }
 
 /// `mrstudy analyze` on a trials CSV with `chosen = tie` rows: the item model is the BT fit of
@@ -116,4 +116,51 @@ fn analyze_reports_davidson_beside_bradley_terry_without_ties() {
     assert_eq!(tied.jod_scale.as_ref().unwrap().ties, 14);
     let json = serde_json::to_string(&tied).unwrap();
     assert!(json.contains("\"davidson\":{\"items\":[{\"condition\":\"A\",\"log_worth\":0.0,\"se\":0.0}"), "{json}");
+}
+
+/// `--group-by`: each group's analysis has its own `davidson` section, the Davidson fit of that
+/// group's judgments and ties alone; a group without ties has none.
+#[test]
+fn each_group_has_the_davidson_fit_of_its_own_judgments() {
+    let groups = [
+        ("f", [("A", "B", 12, 8, 5), ("A", "C", 5, 15, 3), ("B", "C", 9, 11, 6)]),
+        ("m", [("A", "B", 4, 14, 2), ("A", "C", 10, 6, 7), ("B", "C", 13, 5, 1)]),
+        ("x", [("A", "B", 6, 5, 0), ("A", "C", 4, 7, 0), ("B", "C", 5, 6, 0)]),
+    ];
+    let mut csv = String::from("participant,left,right,chosen,gender\n");
+    for (g, (gender, counts)) in groups.iter().enumerate() {
+        for (k, &(l, r, a, b, t)) in counts.iter().enumerate() {
+            for (chosen, times) in [(l, a), (r, b), ("tie", t)] {
+                for n in 0..times {
+                    csv += &format!("{gender}{},{l},{r},{chosen},{gender}\n", (k + n + g) % 3);
+                }
+            }
+        }
+    }
+    let options = crate::analysis::Options {
+        screening: crate::analysis::Screening::Off,
+        group_by: Some("gender".into()),
+        ..crate::analysis::Options::default()
+    };
+    let analysis = crate::analysis::analyze(&csv, None, &options).unwrap();
+    let groups_found = analysis.groups.as_ref().unwrap();
+    for (gender, counts) in &groups[..2] {
+        let pairs: Vec<TiePair> = [(0, 1), (0, 2), (1, 2)]
+            .iter()
+            .zip(counts)
+            .map(|(&(i, j), &(_, _, a, b, t))| TiePair { i, j, wins_i: a as f64, wins_j: b as f64, ties: t as f64 })
+            .collect();
+        let direct = fit(3, &pairs, 0, 1e-10).unwrap();
+        let section = groups_found[*gender].analysis().unwrap().davidson.as_ref().expect("a davidson section");
+        assert_eq!(section.ties, counts.iter().map(|c| c.4 as u64).sum::<u64>());
+        for (item, lambda) in section.items.iter().zip(&direct.log_worth) {
+            assert!((item.log_worth.unwrap() - lambda).abs() < 1e-9, "{gender}: {item:?} against {lambda}");
+        }
+        assert!((section.nu - direct.nu).abs() < 1e-9, "{gender}: ν {} against {}", section.nu, direct.nu);
+    }
+    assert!(groups_found["x"].analysis().unwrap().davidson.is_none(), "group x has no ties");
+    // the whole data's section pools the groups
+    assert_eq!(analysis.davidson.as_ref().unwrap().ties, 24);
+    let json = serde_json::to_string(&analysis).unwrap();
+    assert!(json.contains("\"groups\":{\"f\":{"), "{json}");
 }

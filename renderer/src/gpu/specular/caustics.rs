@@ -43,9 +43,10 @@ impl Specular {
                         DeltaBsdf::Dielectric { .. } => vec![object.range.clone()],
                         DeltaBsdf::Mirror { .. } => Vec::new(),
                     };
-                    let back = self.back_faces(ctx, raster, buffers, &glass, &view, map_size, map_size);
-                    let search =
-                        self.search(ctx, impostors, &pgbuf, &back, matrix, light.position, map_size, map_size, params);
+                    let back = self.back_faces(ctx, raster, buffers, &glass, &view, (map_size, map_size));
+                    let eye =
+                        super::rays::Eye { view_proj: matrix, position: light.position, size: (map_size, map_size) };
+                    let search = self.search(ctx, impostors, &pgbuf, &back, eye, params);
                     (pgbuf, search)
                 });
                 maps.maps.push(PhotonMap {

@@ -4,11 +4,19 @@
 
 use super::*;
 
+/// Where the rays of a search start: the eye's view-projection, its position and the image
+/// size (width, height) of the G-buffer seen from it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Eye {
+    pub view_proj: Mat4,
+    pub position: Vec3,
+    pub size: (u32, u32),
+}
+
 impl Specular {
     /// The back faces of the glass objects among `ranges` seen from `view` (step 2): the
     /// farthest surfaces, for the exit of two-sided refraction; 1×1 without glass (the shader
     /// reads none, but the binding must exist).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn back_faces(
         &self,
         ctx: &GpuContext,
@@ -16,8 +24,7 @@ impl Specular {
         buffers: &SceneBuffers,
         glass: &[std::ops::Range<u32>],
         view: &ViewUniform,
-        width: u32,
-        height: u32,
+        (width, height): (u32, u32),
     ) -> SurfaceTargets {
         if glass.is_empty() {
             return SurfaceTargets::placeholder(ctx, "no back faces");
@@ -28,21 +35,18 @@ impl Specular {
         back
     }
 
-    /// The ray search (step 3) for every pixel of `gbuffer` (width × height, seen from `eye`
-    /// through `view_proj`) on a mirror or glass: hits and weights, submitted.
-    #[allow(clippy::too_many_arguments)]
+    /// The ray search (step 3) for every pixel of `gbuffer` (seen from `eye`) on a mirror or
+    /// glass: hits and weights, submitted.
     pub(super) fn search(
         &self,
         ctx: &GpuContext,
         impostors: &Impostors,
         gbuffer: &SurfaceTargets,
         back: &SurfaceTargets,
-        view_proj: Mat4,
-        eye: Vec3,
-        width: u32,
-        height: u32,
+        eye: Eye,
         params: &SpecularParams,
     ) -> Search {
+        let Eye { view_proj, position: eye, size: (width, height) } = eye;
         let stride = row_stride(width);
         let (centre, radius) = impostors.bounds;
         let uniform = Params {
@@ -110,10 +114,10 @@ impl Specular {
             .map(|o| o.range.clone())
             .collect();
         let back = if glass.is_empty() {
-            self.back_faces(ctx, raster, buffers, &glass, camera_view, width, height)
+            self.back_faces(ctx, raster, buffers, &glass, camera_view, (width, height))
         } else {
             crate::gpu::timed(ctx, passes, "back faces of glass".into(), || {
-                self.back_faces(ctx, raster, buffers, &glass, camera_view, width, height)
+                self.back_faces(ctx, raster, buffers, &glass, camera_view, (width, height))
             })
         };
         let label = format!(
@@ -124,17 +128,8 @@ impl Specular {
         let refl = SurfaceTargets::new(ctx, width, height, "GBuf_refl");
         let refr = SurfaceTargets::new(ctx, width, height, "GBuf_refr");
         let search = crate::gpu::timed(ctx, passes, label, || {
-            let search = self.search(
-                ctx,
-                impostors,
-                gbuffer,
-                &back,
-                camera_view_proj,
-                scene.camera.position,
-                width,
-                height,
-                params,
-            );
+            let eye = Eye { view_proj: camera_view_proj, position: scene.camera.position, size: (width, height) };
+            let search = self.search(ctx, impostors, gbuffer, &back, eye, params);
             let plane_texels = search.stride as u64 * height as u64;
             let mut encoder = device.create_command_encoder(&Default::default());
             let targets = [&refl.position, &refl.normal, &refl.albedo, &refr.position, &refr.normal, &refr.albedo];

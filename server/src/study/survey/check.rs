@@ -97,6 +97,7 @@ fn check(raw: StudyFile, file: &Path, base: &Path, file_sha256: String) -> Resul
         file: file.to_path_buf(),
         file_sha256,
         threshold: None,
+        rating: None,
     })
 }
 
@@ -249,7 +250,8 @@ fn check_conditions(fail: Fail, factors: &mut [Factor], raw: &[ConditionFile]) -
         }
         let resolved = Factors::from_study_levels(
             factors.iter().map(|factor| (factor.name.as_str(), &condition.levels[&factor.name])),
-        );
+        )
+        .map_err(|error| error.to_string());
         conditions.push(Condition { name: condition.name.clone(), levels, factors: resolved, knob: None });
     }
     let columns: Vec<String> = factors.iter().flat_map(Factor::columns).collect();
@@ -624,8 +626,14 @@ fn check_active(
     }
     let target = match design.target.as_deref().unwrap_or("worths") {
         "worths" => ActiveTarget::Worths,
-        "factors" => ActiveTarget::Factors,
-        other => return Err(fail.at("design.target", format!("expected \"worths\" or \"factors\", found \"{other}\""))),
+        // `effects` is the issue-48 name; `factors` the first spelling, still accepted
+        "effects" | "factors" => ActiveTarget::Factors,
+        other => {
+            return Err(fail.at(
+                "design.target",
+                format!("expected \"worths\" or \"effects\" (also spelt \"factors\"), found \"{other}\""),
+            ));
+        }
     };
     let prior_sd = design.prior_sd.unwrap_or(mrstudy_analysis::active::DEFAULT_PRIOR_SD);
     if !(prior_sd.is_finite() && (0.05..=10.0).contains(&prior_sd)) {
@@ -634,7 +642,7 @@ fn check_active(
     if target == ActiveTarget::Factors && !connects(warmup, conditions.len()) {
         return Err(fail.at(
             "design.warmup",
-            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"factors\": \
+            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"effects\" (or \"factors\"): \
              pairs chosen for the factor effects alone leave the per-condition model of the analysis without a fit \
              (every simulated study of the thesis design failed; `mrstudy simulate`)",
         ));
@@ -748,6 +756,9 @@ impl Study {
         for (index, catch) in self.catch.iter().enumerate() {
             check_inside(fail, &format!("catch[{index}].better"), &catch.better, folder)?;
             check_inside(fail, &format!("catch[{index}].worse"), &catch.worse, folder)?;
+        }
+        if let Some(rating) = &self.rating {
+            rating.check_images_inside(fail, folder)?;
         }
         Ok(())
     }

@@ -19,6 +19,9 @@ pub enum StudyKind {
     /// How much of a rendering knob is enough: each trial a level beside the ground truth, the
     /// level chosen by QUEST+ (`crate::study::threshold`).
     Threshold,
+    /// Each stimulus rated on a 5-point scale (ITU-T P.910's ACR, DCR or ACR-HR;
+    /// `crate::study::rating`).
+    Rating,
 }
 
 impl StudyKind {
@@ -27,6 +30,7 @@ impl StudyKind {
             StudyKind::PairedComparison => "paired-comparison",
             StudyKind::Task => "task",
             StudyKind::Threshold => "threshold",
+            StudyKind::Rating => "rating",
         }
     }
 }
@@ -282,6 +286,16 @@ pub enum ActiveTarget {
     Factors,
 }
 
+impl ActiveTarget {
+    /// The study-file name (`effects`, also spelt `factors`) and what the design optimises, in words.
+    pub fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            ActiveTarget::Worths => ("worths", "every condition's log-worth"),
+            ActiveTarget::Factors => ("effects", "the factor effects (not the individual log-worths)"),
+        }
+    }
+}
+
 /// `pairs = "active"`: after an optional warm-up of a fixed design ([`Design::pairs`] ×
 /// [`Design::repetitions`], empty without one), each participant's trials are chosen `batch`
 /// at a time by the expected information gain about the target, from every judgment so far
@@ -450,12 +464,18 @@ pub struct Study {
     /// `kind = "threshold"`: the `[threshold]` table; the conditions are its levels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub threshold: Option<crate::study::threshold_design::ThresholdDesign>,
+    /// `kind = "rating"`: the `[rating]` table (method, presentation, repetitions, catch trials).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rating: Option<crate::study::rating_design::RatingDesign>,
 }
 
 impl Study {
     /// Trials per participant: pairs × repetitions (for an active design: its warm-up and its
     /// actively chosen trials), plus the catch trials.
     pub fn trial_count(&self) -> usize {
+        if let Some(rating) = &self.rating {
+            return rating.trial_count(self.scenes.len(), self.conditions.len());
+        }
         if let Some(threshold) = &self.threshold {
             return threshold.trials as usize
                 + self.catch.iter().map(|catch| catch.repetitions as usize).sum::<usize>();

@@ -4,7 +4,7 @@
 //! of half the cone's diameter, reading the level whose voxel matches the diameter.
 
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::capture::impostor::SPLAT_RADIUS;
+use crate::coherent::impostor::SPLAT_RADIUS;
 use crate::geometry::Aabb;
 use glam::Vec3;
 

@@ -13,7 +13,7 @@
 //! This is the CPU version, kept as the reference for a GPU build; the axes of the cube map are
 //! the world's (the paper aligns it with the world for easy access).
 
-use super::hashgrid::EnvironmentSample;
+use crate::capture::hashgrid::EnvironmentSample;
 use glam::Vec3;
 
 /// Radiance and distance per texel of six square faces (+x, −x, +y, −y, +z, −z).
@@ -296,8 +296,8 @@ pub struct ImpostorReport {
     pub em_answered: usize,
     pub dit_answered: usize,
     /// Distance from the true hit point (metres), median and 90th percentile, over answered rays.
-    pub em_error_m: super::Spread,
-    pub dit_error_m: super::Spread,
+    pub em_error_m: crate::capture::Spread,
+    pub dit_error_m: crate::capture::Spread,
     pub dit_ms_per_million: f64,
 }
 
@@ -340,8 +340,8 @@ pub fn evaluate(
             dit.push(((h.point - truth.point).length()) as f64);
         }
     }
-    report.em_error_m = super::Spread::of(em);
-    report.dit_error_m = super::Spread::of(dit);
+    report.em_error_m = crate::capture::Spread::of(em);
+    report.dit_error_m = crate::capture::Spread::of(dit);
     report.dit_ms_per_million = if report.rays > 0 { dit_time * 1e3 * 1e6 / report.rays as f64 } else { 0.0 };
     report
 }

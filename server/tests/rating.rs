@@ -1,0 +1,263 @@
+//! Rating studies (`kind = "rating"`, issue 49) through the router, on sqlite and (with
+//! `MRSTUDY_TEST_DATABASE=postgres`) PostgreSQL: a rating trial as `…/next` serves it, a rating
+//! stored once (the same again 200, another 409, a `chosen` or a rating out of 1–5 refused with
+//! 422), a paired comparison refusing a rating, the export's rating columns with the catch
+//! trial's row, catch failures counted, exclusion and deletion of a rating participant.
+
+use std::path::Path;
+
+use axum::Router;
+use axum::http::{Method, StatusCode};
+use mrstudy_server::app;
+use mrstudy_server::serve::{Prepared, prepare_on};
+use mrstudy_server::storage::Database;
+use serde_json::{Value, json};
+
+mod support;
+use support::{call, connect, copy_demo_study, demographics, test_database};
+
+const SLUG: &str = "rating-demo";
+
+/// The demo study (paired comparisons) and an ACR rating study of its images, with a catch
+/// trial expecting "Bad".
+fn studies_dir(work: &Path) -> std::path::PathBuf {
+    let dir = work.join("studies");
+    copy_demo_study(&dir);
+    let demo = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
+    let body = &demo[demo.find("[texts]").unwrap()..demo.find("[design]").unwrap()];
+    let study = format!(
+        "slug = \"{SLUG}\"\ntitle = \"Ratings\"\nkind = \"rating\"\nquestion = \"How good is this image?\"\n\
+         min_response_ms = 0\n{body}\n[rating]\nmethod = \"acr\"\nseed = 1\n\n[[rating.catch]]\nname = \"broken\"\n\
+         image = \"shadows-demo/catch-bad.png\"\nexpected = 1\n\n[completion]\ncode = \"R-1\"\n"
+    );
+    std::fs::write(dir.join("rating-demo.toml"), study).unwrap();
+    dir
+}
+
+struct Fixture {
+    app: Router,
+    admin_token: String,
+    database: Database,
+    _data_dir: tempfile::TempDir,
+}
+
+async fn fixture() -> Fixture {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = studies_dir(data_dir.path());
+    let data = data_dir.path().join("data");
+    let database = test_database(&data).await;
+    let Prepared { state, admin_token, skipped, .. } = prepare_on(&database, &data, &studies).await.unwrap();
+    assert!(skipped.is_empty(), "{skipped:?}");
+    Fixture { app: app(state), admin_token, database, _data_dir: data_dir }
+}
+
+async fn join(app: &Router, slug: &str) -> (String, String) {
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/studies/{slug}/participants"),
+        None,
+        Some(json!({"demographics": demographics(), "client": {"viewport": [1280, 800]}})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.text());
+    let json = answer.json();
+    (json["participant"].as_str().unwrap().to_string(), json["token"].as_str().unwrap().to_string())
+}
+
+async fn next(app: &Router, id: &str, token: &str) -> Value {
+    let answer = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    answer.json()
+}
+
+async fn respond(app: &Router, id: &str, token: &str, body: Value) -> (StatusCode, Value) {
+    let answer = call(app, Method::POST, &format!("/api/participants/{id}/responses"), Some(token), Some(body)).await;
+    let status = answer.status;
+    (status, answer.json())
+}
+
+/// Rates every trial: the catch trial with `catch_rating`, the others `4`; returns the ratings.
+async fn rate_all(app: &Router, id: &str, token: &str, catch_rating: i64) -> Vec<i64> {
+    let mut given = Vec::new();
+    loop {
+        let trial = next(app, id, token).await;
+        if trial["done"] == true {
+            return given;
+        }
+        let is_catch = trial["stimulus"]["url"].as_str().unwrap().ends_with(CATCH_SUFFIX.get().unwrap());
+        let rating = if is_catch { catch_rating } else { 4 };
+        let (status, _) =
+            respond(app, id, token, json!({"trial": trial["trial"], "rating": rating, "rt_ms": 900})).await;
+        assert_eq!(status, StatusCode::CREATED);
+        given.push(rating);
+    }
+}
+
+/// The stimulus file name of the catch image (its content hash), set once it is known.
+static CATCH_SUFFIX: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+fn catch_name() -> String {
+    use sha2::Digest;
+    let bytes = std::fs::read(support::repo_studies_dir().join("shadows-demo/catch-bad.png")).unwrap();
+    format!("{}.png", hex::encode(sha2::Sha256::digest(bytes)))
+}
+
+#[tokio::test]
+async fn a_rating_is_served_stored_once_and_exported_with_its_columns() {
+    let _ = CATCH_SUFFIX.set(catch_name());
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let (id, token) = join(app, SLUG).await;
+    let trial = next(app, &id, &token).await;
+    assert_eq!(trial["trial"], 1);
+    assert_eq!(trial["total"], 13);
+    assert!(trial["stimulus"]["url"].as_str().unwrap().starts_with("/stimuli/"), "{trial}");
+    assert!(trial.get("reference").is_none() && trial.get("left").is_none(), "{trial}");
+    assert_eq!(trial["rating"]["method"], "acr");
+    assert_eq!(trial["rating"]["scale"], "quality");
+    let labels: Vec<(i64, &str)> = trial["rating"]["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|point| (point["rating"].as_i64().unwrap(), point["label"].as_str().unwrap()))
+        .collect();
+    assert_eq!(labels, [(5, "Excellent"), (4, "Good"), (3, "Fair"), (2, "Poor"), (1, "Bad")]);
+    assert_eq!(trial["rating"]["stimulus_ms"], 0);
+    assert_eq!(trial["rating"]["vote_after"], false);
+    // the next trial's image (ACR: no reference) is preloaded
+    assert_eq!(trial["preload"].as_array().unwrap().len(), 1, "{trial}");
+
+    // a paired comparison's answer, a rating out of range, trial 2 (never served): refused
+    let (status, body) = respond(app, &id, &token, json!({"trial": 1, "chosen": "left", "rt_ms": 900})).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
+    assert!(body["error"].as_str().unwrap().contains("rating study"), "{body}");
+    for rating in [0, 6, -1] {
+        let (status, body) = respond(app, &id, &token, json!({"trial": 1, "rating": rating, "rt_ms": 900})).await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
+        assert!(body["error"].as_str().unwrap().contains("from 1 to 5"), "{body}");
+    }
+    let (status, _) = respond(app, &id, &token, json!({"trial": 2, "rating": 3, "rt_ms": 900})).await;
+    assert_eq!(status, StatusCode::CONFLICT, "trial 2 was never served");
+    // the rating, the same again (a double click that got through), another one
+    let (status, body) = respond(app, &id, &token, json!({"trial": 1, "rating": 4, "rt_ms": 900})).await;
+    assert_eq!((status, body), (StatusCode::CREATED, json!({"trial": 1, "rating": 4})));
+    let (status, _) = respond(app, &id, &token, json!({"trial": 1, "rating": 4, "rt_ms": 950})).await;
+    assert_eq!(status, StatusCode::OK);
+    let (status, body) = respond(app, &id, &token, json!({"trial": 1, "rating": 2, "rt_ms": 950})).await;
+    assert_eq!(status, StatusCode::CONFLICT, "{body}");
+    assert!(body["error"].as_str().unwrap().contains("already answered with \"4\""), "{body}");
+    // the demo study takes no rating
+    let (paired, paired_token) = join(app, "shadows-demo").await;
+    next(app, &paired, &paired_token).await;
+    let (status, body) = respond(app, &paired, &paired_token, json!({"trial": 1, "rating": 3, "rt_ms": 900})).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
+
+    // the rest: the catch trial rated 3 (two categories from Bad: failed)
+    let mut given = vec![4];
+    given.extend(rate_all(app, &id, &token, 3).await);
+    assert_eq!(given.len(), 13);
+    let pool = connect(&fixture.database).await;
+    let stored: Vec<(i64, Option<i64>, Option<String>)> =
+        sqlx::query_as("SELECT trial, rating, chosen FROM responses WHERE participant = $1 ORDER BY trial")
+            .bind(&id)
+            .fetch_all(&pool)
+            .await
+            .unwrap();
+    let expected: Vec<(i64, Option<i64>, Option<String>)> =
+        given.iter().enumerate().map(|(index, &rating)| (index as i64 + 1, Some(rating), None)).collect();
+    assert_eq!(stored, expected);
+
+    // the export: every rating a row, the catch trial's flagged, the participant's catch failure counted
+    let csv =
+        call(app, Method::GET, &format!("/api/admin/studies/{SLUG}/export.csv"), Some(&fixture.admin_token), None)
+            .await
+            .text();
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header: Vec<String> = reader.headers().unwrap().iter().map(str::to_string).collect();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
+    let scene = column("scene");
+    assert_eq!(
+        header[scene..scene + 8],
+        ["scene", "condition", "rating", "method", "reference", "scale", "catch", "expected"].map(String::from)
+    );
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 13, "{csv}");
+    let catch_rows: Vec<&csv::StringRecord> = rows.iter().filter(|row| &row[column("catch")] == "true").collect();
+    assert_eq!(catch_rows.len(), 1, "{csv}");
+    assert_eq!(
+        (&catch_rows[0][column("condition")], &catch_rows[0][column("expected")], &catch_rows[0][column("rating")]),
+        ("catch:broken", "1", "3")
+    );
+    for row in &rows {
+        assert_eq!((&row[column("method")], &row[column("reference")], &row[column("scale")]), ("acr", "", "quality"));
+        assert_eq!((&row[column("catch_answered")], &row[column("catch_failed")]), ("1", "1"), "{csv}");
+        assert_eq!(&row[column("chosen")], "");
+        assert_eq!(row[column("left")], row[column("condition")]);
+    }
+    let stats =
+        call(app, Method::GET, &format!("/api/admin/studies/{SLUG}"), Some(&fixture.admin_token), None).await.json();
+    assert_eq!(stats["finished"], 1, "{stats}");
+    let json =
+        call(app, Method::GET, &format!("/api/admin/studies/{SLUG}/export.json"), Some(&fixture.admin_token), None)
+            .await
+            .json();
+    let schedule = json["participants"][0]["schedule"].as_array().unwrap();
+    assert_eq!(schedule[0]["response"]["rating"], 4, "{}", schedule[0]);
+    assert!(schedule.iter().any(|trial| trial["catch_rating"] == 1));
+    let analysis =
+        call(app, Method::GET, &format!("/api/admin/studies/{SLUG}/analysis"), Some(&fixture.admin_token), None).await;
+    // the live analysis fits paired comparisons: it says where the ratings are
+    assert_eq!(analysis.status, StatusCode::UNPROCESSABLE_ENTITY);
+    assert!(analysis.error().contains("rating study's ratings are in its trials CSV"), "{}", analysis.text());
+    let cookie = support::admin_session_cookie(app, &fixture.admin_token).await;
+    let request = axum::http::Request::builder()
+        .uri(format!("/admin/studies/{SLUG}"))
+        .header(axum::http::header::COOKIE, cookie)
+        .body(axum::body::Body::empty())
+        .unwrap();
+    let page = support::send(app, request).await;
+    assert_eq!(page.status, StatusCode::OK, "the admin page of a rating study");
+}
+
+#[tokio::test]
+async fn a_passed_catch_an_excluded_and_a_deleted_rating_participant() {
+    let _ = CATCH_SUFFIX.set(catch_name());
+    let fixture = fixture().await;
+    let app = &fixture.app;
+    let admin = Some(fixture.admin_token.as_str());
+    let (kept, kept_token) = join(app, SLUG).await;
+    rate_all(app, &kept, &kept_token, 2).await; // one category from Bad: passed
+    let (excluded, excluded_token) = join(app, SLUG).await;
+    rate_all(app, &excluded, &excluded_token, 1).await;
+    let (deleted, deleted_token) = join(app, SLUG).await;
+    rate_all(app, &deleted, &deleted_token, 5).await;
+
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/admin/participants/{excluded}/exclude"),
+        admin,
+        Some(json!({"reason": "test"})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+    let answer = call(app, Method::DELETE, &format!("/api/admin/participants/{deleted}"), admin, None).await;
+    assert!(answer.status.is_success(), "{}", answer.text());
+    let pool = connect(&fixture.database).await;
+    let left: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM responses WHERE participant = $1")
+        .bind(&deleted)
+        .fetch_one(&pool)
+        .await
+        .unwrap();
+    assert_eq!(left, 0, "the deleted participant's ratings are gone");
+
+    let csv = call(app, Method::GET, &format!("/api/admin/studies/{SLUG}/export.csv"), admin, None).await.text();
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header: Vec<String> = reader.headers().unwrap().iter().map(str::to_string).collect();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 13, "only the kept participant's ratings: {csv}");
+    assert!(rows.iter().all(|row| &row[column("participant")] == kept.as_str()));
+    assert!(rows.iter().all(|row| &row[column("catch_failed")] == "0"), "a rating one category off passes");
+}
