@@ -90,7 +90,7 @@ pub struct Report {
     pub truth: Truth,
     pub settings: Settings,
     pub rows: Vec<Row>,
-    /// Each active design against the study's fixed design ([`super::compare`]).
+    /// Each active design against the study's fixed design (see [`Comparison`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub comparisons: Vec<Comparison>,
 }
