@@ -73,19 +73,19 @@ impl AutoSize {
             .probes
             .iter()
             .map(|probe| {
-                format!("{}×{} {:.1} ms ({:.1} frames/s)", probe.size[0], probe.size[1], probe.ms, probe.fps())
+                format!("{}×{} {:.1} ms ({:.2} frames/s)", probe.size[0], probe.size[1], probe.ms, probe.fps())
             })
             .collect::<Vec<_>>()
             .join(", ");
         let fps = self.probes.iter().find(|probe| probe.size == self.size).map_or(0.0, Probe::fps);
         let choice = if self.reached() {
             format!(
-                "chose {}×{}, the largest size at which the slowest condition keeps {} frames/s (measured {fps:.1} frames/s)",
-                self.size[0], self.size[1], self.target_fps
+                "chose {}×{}, the largest size at which the slowest condition keeps {} frames/s (measured {fps:.2} frames/s; measured anew at each start: set render.size = [{}, {}] to keep it)",
+                self.size[0], self.size[1], self.target_fps, self.size[0], self.size[1]
             )
         } else {
             format!(
-                "chose {}×{}, the smallest size, where the slowest condition reaches only {fps:.1} frames/s (target {} frames/s)",
+                "chose {}×{}, the smallest size, where the slowest condition reaches only {fps:.2} frames/s (target {} frames/s)",
                 self.size[0], self.size[1], self.target_fps
             )
         };
