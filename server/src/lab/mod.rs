@@ -369,7 +369,7 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
             None if adapter.is_software() => {
                 match size::auto_size(&renderer, &study, &size::LADDER, size::LADDER_FRAMES).await {
                     Ok(auto) => {
-                        let line = auto.line(&study.slug, &adapter);
+                        let line = auto.line(&study.slug, &adapter, study.render.pace);
                         if auto.reached() {
                             start.info.push(line)
                         } else {

@@ -7,14 +7,17 @@
 //! few frames of every condition at the smallest size of [`LADDER`] to find the slowest
 //! condition, then only that condition at each larger size until it falls below the target
 //! (`render.min_fps`, default 10 frames/s), and [`choose`] takes the largest size that kept the
-//! target (the smallest when none did). The ladder's scenes use a 1-sample photograph, rendered
+//! target (the smallest when none did). A condition's frame time is its median, or with
+//! `pace = "equal"` the pace its frames would be held to (1.5 × the 90th percentile), which is
+//! what every condition's participant then sees. The ladder's scenes use a 1-sample photograph, rendered
 //! and not cached: their frames cost what the study's frames cost, and the study's own
 //! photograph is path-traced (and cached) once, at the chosen size.
 
 use std::path::Path;
 
 use super::live::{self, LabRenderer, LiveError};
-use crate::study::task::{Condition, TaskStudy};
+use super::timing;
+use crate::study::task::{Condition, Pace, TaskStudy};
 
 /// The live size on a hardware adapter when `render.size` is not given.
 pub const HARDWARE_SIZE: [u32; 2] = [320, 240];
@@ -29,7 +32,7 @@ pub const DISPLAY_FPS: f64 = 60.0;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Probe {
     pub size: [u32; 2],
-    /// Median frame time (render and JPEG encoding), ms.
+    /// Frame time (render and JPEG encoding), ms: the median, or the pace with `pace = "equal"`.
     pub ms: f64,
 }
 
@@ -68,7 +71,7 @@ impl AutoSize {
     }
 
     /// The console line: the adapter, each size's frame rate, the size chosen.
-    pub fn line(&self, slug: &str, adapter: &live::AdapterInfo) -> String {
+    pub fn line(&self, slug: &str, adapter: &live::AdapterInfo, pace: Pace) -> String {
         let measured = self
             .probes
             .iter()
@@ -90,8 +93,11 @@ impl AutoSize {
             )
         };
         format!(
-            "lab study \"{slug}\": render.size not set; adapter {} ({}), slowest condition {}: {measured}; {choice}",
-            adapter.adapter, adapter.kind, self.condition
+            "lab study \"{slug}\": render.size not set; adapter {} ({}), slowest condition {}{}: {measured}; {choice}",
+            adapter.adapter,
+            adapter.kind,
+            self.condition,
+            if pace == Pace::Equal { ", paced (pace = \"equal\")" } else { "" }
         )
     }
 }
@@ -127,7 +133,7 @@ pub async fn auto_size(
         let measured = live::measure(renderer, &measured_study, centre, frames).await?;
         let Some((condition, ms)) = measured
             .into_iter()
-            .map(|(condition, times)| (condition, super::timing::quantile(&times, 0.5)))
+            .map(|(condition, times)| (condition, frame_ms(&times, study.render.pace)))
             .max_by(|a, b| a.1.total_cmp(&b.1))
         else {
             break;
@@ -141,6 +147,15 @@ pub async fn auto_size(
     }
     let size = choose(&probes, target_fps).unwrap_or(LADDER[0]);
     Ok(AutoSize { size, condition: slowest.unwrap_or(study.conditions[0]), probes, target_fps })
+}
+
+/// The frame time a participant sees: the median of `times`, or with `pace = "equal"` the pace
+/// these times would set (see [`super::timing`]), so the target holds for paced frames too.
+fn frame_ms(times: &[f64], pace: Pace) -> f64 {
+    match pace {
+        Pace::None => timing::quantile(times, 0.5),
+        Pace::Equal => timing::PACE_HEADROOM * timing::quantile(times, timing::PACE_QUANTILE),
+    }
 }
 
 /// On a hardware adapter: whether every condition reaches [`DISPLAY_FPS`] at the live size,
@@ -193,6 +208,14 @@ mod tests {
     fn when_no_size_keeps_the_target_the_smallest_is_chosen() {
         assert_eq!(choose(&probes(&[(128, 6.0), (96, 8.0)]), 10.0), Some([96, 72]));
         assert_eq!(choose(&[], 10.0), None);
+    }
+
+    #[test]
+    fn a_paced_study_is_measured_at_its_pace() {
+        let times: Vec<f64> = (1..=10).map(|ms| f64::from(ms) * 10.0).collect();
+        assert_eq!(frame_ms(&times, Pace::None), 50.0);
+        // 1.5 × the 90th percentile (nearest rank: 90 ms)
+        assert_eq!(frame_ms(&times, Pace::Equal), 135.0);
     }
 
     #[test]
