@@ -1132,3 +1132,41 @@ async fn a_participants_pace_is_fixed_at_the_start_and_late_frames_are_flagged_o
     }
     assert!(html.contains(&format!(r#"data-participant="{late}""#)));
 }
+
+/// Issue 50, item 5: without `render.size`, the lab measures its slowest condition at start-up
+/// on a software adapter and says on the console which size it chose and at what frame rate;
+/// on a hardware adapter it says whether every condition reaches the display's 60 frames/s.
+/// `min_fps = 240` keeps the measurement to the ladder's smallest size on lavapipe.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_render_size_the_lab_measures_its_size_at_start_up_and_says_so() {
+    let _alone = RENDERING.lock().await;
+    let text = study().replace("size = [96, 72]\n", "min_fps = 240\n");
+    assert!(!text.contains("size = ["), "{text}");
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    std::fs::write(studies.path().join("lab.toml"), text).unwrap();
+    let Prepared { state, tasks, .. } =
+        prepare_on(&test_database(data_dir.path()).await, data_dir.path(), studies.path()).await.unwrap();
+    let (info, warnings) = start_lab(&state, tasks, data_dir.path()).await;
+    let Some(lab) = state.lab() else {
+        assert!(warnings.iter().any(|w| w.contains("GPU adapter")), "{warnings:?}");
+        eprintln!("skipping: {warnings:?}");
+        return;
+    };
+    let lines: Vec<&String> = info.iter().chain(&warnings).collect();
+    eprintln!("{lines:#?}");
+    let served = lab.studies.get("lab").expect("the study is served");
+    if lab.adapter.is_software() {
+        let line = warnings.iter().find(|line| line.contains("render.size not set")).expect("the size line");
+        assert!(line.contains(&lab.adapter.adapter), "{line}");
+        assert!(line.contains("96×72") && line.contains("frames/s"), "{line}");
+        assert!(line.contains("chose 96×72, the smallest size"), "{line}");
+        assert_eq!(served.size, [96, 72]);
+    } else {
+        let line = info.iter().find(|line| line.contains("hardware adapter")).expect("the display-rate line");
+        assert!(line.contains("320×240") && line.contains("none ") && line.contains("gi "), "{line}");
+        assert_eq!(served.size, [320, 240]);
+    }
+    // the ladder's photographs are not cached: only the study's own (PNG and EXR)
+    assert!(std::fs::read_dir(data_dir.path().join("lab")).unwrap().count() <= 2);
+}

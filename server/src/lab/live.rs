@@ -32,11 +32,6 @@ use tokio::sync::oneshot;
 use super::plan::Layout;
 use crate::study::task::{Condition, TaskStudy};
 
-/// Default live resolution on a software adapter (lavapipe, llvmpipe).
-pub const SOFTWARE_SIZE: [u32; 2] = [160, 120];
-/// Default live resolution on a GPU.
-pub const HARDWARE_SIZE: [u32; 2] = [320, 240];
-
 /// The adapter the renderer thread opened.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct AdapterInfo {
@@ -323,13 +318,15 @@ pub enum LiveError {
     Scene { study: String, reason: String },
 }
 
-/// Loads a task study's scene at the live size, turns the virtual cube to the real cube's
-/// orientation, and renders (or reads from the cache under `cache_dir`) its photograph.
-pub fn prepare_scene(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, LiveError> {
-    scene_of(study, software, cache_dir).map_err(|reason| LiveError::Scene { study: study.slug.clone(), reason })
+/// Loads a task study's scene at the live size `size` (see [`super::size`]), turns the virtual
+/// cube to the real cube's orientation, and renders (or reads from the cache under `cache_dir`)
+/// its photograph; without a cache directory the photograph is rendered and not stored (the
+/// start-up size ladder's scenes).
+pub fn prepare_scene(study: &TaskStudy, size: [u32; 2], cache_dir: Option<&Path>) -> Result<LabScene, LiveError> {
+    scene_of(study, size, cache_dir).map_err(|reason| LiveError::Scene { study: study.slug.clone(), reason })
 }
 
-fn scene_of(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabScene, String> {
+fn scene_of(study: &TaskStudy, size: [u32; 2], cache_dir: Option<&Path>) -> Result<LabScene, String> {
     let context = |what: &str| format!("study \"{}\": {what}", study.slug);
     let mut desc = match mrstudy_renderer::builtin::get(&study.scene) {
         Some(desc) => desc,
@@ -354,7 +351,7 @@ fn scene_of(study: &TaskStudy, software: bool, cache_dir: &Path) -> Result<LabSc
         )));
     };
     virtual_desc.rotate_deg = real_rotation;
-    let [width, height] = study.render.size.unwrap_or(if software { SOFTWARE_SIZE } else { HARDWARE_SIZE });
+    let [width, height] = size;
     let base = Path::new(&study.scene).parent().unwrap_or(Path::new("."));
     let scene = Scene::from_desc(desc, base, &study.scene)
         .map_err(|error| context(&error.to_string()))?
@@ -463,9 +460,16 @@ fn reach(camera: &mrstudy_renderer::camera::Camera, real: glam::DVec3, half: f64
 fn cached_photo(
     scene: &Scene,
     study: &TaskStudy,
-    cache_dir: &Path,
+    cache_dir: Option<&Path>,
     linear: bool,
 ) -> Result<(Image, Option<Image>), String> {
+    let Some(cache_dir) = cache_dir else {
+        let params = ReferenceParams { spp: study.render.photo_spp, ..ReferenceParams::default() };
+        let (hdr, photo, _) = render_photo(scene, &params, &|_, _| {})
+            .map_err(|error| format!("study \"{}\": cannot render the photograph: {error}", study.slug))?;
+        let bytes = photo.to_rgb8();
+        return Ok((Image::from_rgb8(photo.width, photo.height, &bytes), linear.then_some(hdr)));
+    };
     let key = crate::study::sha256_hex(
         format!("{}\n{}x{}\n{}", scene.desc.to_toml(), scene.camera.width, scene.camera.height, study.render.photo_spp)
             .as_bytes(),

@@ -5,7 +5,8 @@
 //! admin page ([`results`]).
 //!
 //! `serve` starts the lab when the studies directory has task studies: [`start`] opens the GPU
-//! on the renderer thread, prepares each study's scene and photograph, measures the frame time
+//! on the renderer thread, chooses each study's live size ([`size`]: measured on a software
+//! adapter when `render.size` is not set), prepares its scene and photograph, measures the frame time
 //! of every condition ([`timing`]), and says in one line per study whether every condition is
 //! fast enough for interactive rates and whether the conditions' frame times are equal; when
 //! they differ by more than 20 % it adds one line per condition with its frame time.
@@ -18,6 +19,7 @@ pub mod live;
 pub mod plan;
 pub mod results;
 pub mod session;
+pub mod size;
 pub mod store;
 pub mod timing;
 pub mod williams;
@@ -362,10 +364,33 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
     let mut served = HashMap::new();
     let mut order = Vec::new();
     for study in studies {
-        let software = adapter.is_software();
+        let size = match study.render.size {
+            Some(size) => size,
+            None if adapter.is_software() => {
+                match size::auto_size(&renderer, &study, &size::LADDER, size::LADDER_FRAMES).await {
+                    Ok(auto) => {
+                        let line = auto.line(&study.slug, &adapter, study.render.pace);
+                        if auto.reached() {
+                            start.info.push(line)
+                        } else {
+                            start.warnings.push(line)
+                        }
+                        auto.size
+                    }
+                    Err(reason) => {
+                        start.warnings.push(format!(
+                            "study \"{}\": the renderer cannot make the frames that choose its size ({reason}); not serving it",
+                            study.slug
+                        ));
+                        continue;
+                    }
+                }
+            }
+            None => size::HARDWARE_SIZE,
+        };
         let cache_dir = cache.clone();
         let prepared = tokio::task::spawn_blocking(move || {
-            live::prepare_scene(&study, software, &cache_dir).map(|scene| (study, scene))
+            live::prepare_scene(&study, size, Some(&cache_dir)).map(|scene| (study, scene))
         })
         .await;
         let (study, scene) = match prepared {
@@ -415,11 +440,18 @@ pub async fn start(studies: Vec<TaskStudy>, data_dir: &Path, storage: &Storage) 
         }
         let mut lines = vec![lab_study.rate_line(&adapter)];
         lines.extend(lab_study.condition_lines());
+
         // unequal frame times are a warning unless frames are paced
         if lab_study.interactive() && (!lab_study.unequal() || lab_study.pace_ms().is_some()) {
             start.info.extend(lines);
         } else {
             start.warnings.extend(lines);
+        }
+        if !adapter.is_software() {
+            let named: Vec<(String, f64)> =
+                medians.iter().map(|(condition, ms)| (condition.to_string(), *ms)).collect();
+            // below the display's rate is said, not warned: render.min_fps is the warnings' threshold
+            start.info.push(size::display_rate_line(&lab_study.study.slug, &adapter, size, &named));
         }
         order.push(lab_study.study.slug.clone());
         served.insert(lab_study.study.slug.clone(), Arc::new(lab_study));

@@ -57,7 +57,7 @@ pub struct FrameTimes {
     conditions: Vec<ConditionTimes>,
 }
 
-fn quantile<'a>(values: impl IntoIterator<Item = &'a f64>, q: f64) -> f64 {
+pub(crate) fn quantile<'a>(values: impl IntoIterator<Item = &'a f64>, q: f64) -> f64 {
     let mut sorted: Vec<f64> = values.into_iter().copied().collect();
     sorted.sort_by(f64::total_cmp);
     mrstudy_analysis::quantile::nearest_rank(&sorted, q)

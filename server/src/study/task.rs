@@ -145,7 +145,8 @@ pub struct TaskSpec {
 /// Rendering settings of the live frames.
 #[derive(Debug, Clone, Serialize)]
 pub struct LabRender {
-    /// Frame size; `None`: 160×120 on a software adapter, 320×240 on a GPU.
+    /// Frame size; `None`: on a software adapter the largest size of a ladder at which the
+    /// slowest condition keeps `min_fps` (measured at start-up, `crate::lab::size`), 320×240 on a GPU.
     pub size: Option<[u32; 2]>,
     /// JPEG quality of the streamed frames (1–100).
     pub jpeg_quality: u8,
