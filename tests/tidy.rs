@@ -497,15 +497,11 @@ fn no_crate_has_an_import_cycle_between_modules_at_any_depth() {
 }
 
 /// No non-test Rust file is over 900 lines (an inline `mod tests` at its end not counted; the
-/// WGSL beside it is not Rust). The renderer's files listed are being split by its helper
-/// (issue 51); each entry is a file and the reason it may stay long for now.
+/// WGSL beside it is not Rust). Each entry is a file and the reason it may stay long for now.
 #[test]
 fn no_source_file_is_over_900_lines() {
     const LIMIT: usize = 900;
     const ALLOWED: &[(&str, &str)] = &[
-        // issue 51: the renderer's helper is splitting these
-        ("renderer/src/coherent/mod.rs", "issue 51, renderer helper"),
-        ("renderer/src/pathtracer.rs", "issue 51, renderer helper"),
         // issue 51: not split yet (the first pass split data, survey, admin and simulate)
         ("analysis/src/analysis.rs", "issue 51, to split: separation, groups, bootstrap, JSON"),
         ("analysis/src/stimulus_metrics.rs", "issue 51, to split: the CSV, the correlations"),

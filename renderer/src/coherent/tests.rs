@@ -395,7 +395,10 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         // splats of disks near the centre there (0.5 % of texels at 128², 1.3 % at 256²)
         for size in [64u32, 128, 256] {
             let cpu = crate::coherent::impostor::DistanceImpostor::build(&samples, centre, size, cell);
-            let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
+            let built = builder
+                .impostor(ctx, &samples, centre, size, super::impostor::SPLAT_RADIUS * cell)
+                .unwrap()
+                .map(DistanceImpostor::from);
             let gpu = &built.value;
             assert!(built.gpu_bytes > 0 && built.gpu_ms.is_finite());
             let ((cr, cd), (gr, gd)) = (cpu.maps(), gpu.maps());
@@ -414,7 +417,10 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         }
     }
     let cpu = VoxelVolume::build(&samples, 64, cell);
-    let built = builder.voxels(ctx, &samples, 64, cell).unwrap();
+    let built = builder
+        .voxels(ctx, &samples, VoxelVolume::frame(&samples, 64, cell), super::impostor::SPLAT_RADIUS * cell)
+        .unwrap()
+        .map(VoxelVolume::from);
     let gpu = &built.value;
     assert_eq!((gpu.origin, gpu.voxel, gpu.res), (cpu.origin, cpu.voxel, cpu.res));
     assert_eq!(gpu.level_count(), cpu.level_count());
@@ -618,7 +624,7 @@ fn the_gpu_sweeps_build_the_solid_volumes_as_the_cpu_does() {
     ];
     for scene in &scenes {
         let object = World::new(scene, Subset::VirtualOnly);
-        let prims = super::solid_primitives(scene).unwrap();
+        let prims = super::build::solid_primitives(scene).unwrap();
         for bounds in virtual_object_bounds(scene) {
             for longest in [16, 32] {
                 let (voxel, dims) = SolidVolume::frame(&bounds, longest);
