@@ -4,7 +4,6 @@
 //! closer to the ground truth than gi off.
 
 use super::*;
-use crate::capture::{CaptureParams, capture};
 use crate::test_support::scene_from_toml;
 
 /// A real grey floor under a sky with a bright window, a virtual box on it, a real spot light.
@@ -57,13 +56,7 @@ window_radiance = [4.0, 4.0, 4.2]
 /// The scene, its real world and a capture's samples (cell 0.03 m).
 fn captured(text: &str) -> (Scene, World, Vec<EnvironmentSample>) {
     let scene = scene_from_toml(text, "floor");
-    let real = World::new(&scene, Subset::RealOnly);
-    let mut params = CaptureParams::for_scene(&scene, &real, 2);
-    params.colour_spp = 4;
-    params.cell = 0.03;
-    params.grid_capacity = 1 << 16;
-    let cap = capture(&real, &params, |_, _| {});
-    let samples = cap.grid.samples().copied().collect();
+    let (real, samples) = crate::test_support::captured_samples(&scene, 0.03);
     (scene, real, samples)
 }
 
@@ -559,12 +552,7 @@ fn self_shadows_through_the_solid_volume_darken_the_object_as_a_fine_volume_does
     let scene = floor_with(
         "shape = \"box\"\nsize = [0.2, 0.1, 0.1]\ntranslate = [0.0, 0.05, 0.1]\nmaterial = \"box\"\n\n[[objects]]\nname = \"other\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.2, 0.4, 0.1]\ntranslate = [0.0, 0.2, -0.05]\nmaterial = \"box\"",
     );
-    let real = World::new(&scene, Subset::RealOnly);
-    let mut capture_params = CaptureParams::for_scene(&scene, &real, 2);
-    capture_params.colour_spp = 4;
-    capture_params.cell = 0.03;
-    capture_params.grid_capacity = 1 << 16;
-    let samples: Vec<EnvironmentSample> = capture(&real, &capture_params, |_, _| {}).grid.samples().copied().collect();
+    let (real, samples) = crate::test_support::captured_samples(&scene, 0.03);
     let photo = photo(&scene);
     let p = CoherentParams::new(Method::Dit, Quality::Med);
     let (rep, passes) = build_representation(&scene, &real, &samples, 0.03, &p, None);
