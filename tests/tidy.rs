@@ -497,16 +497,10 @@ fn no_crate_has_an_import_cycle_between_modules_at_any_depth() {
 }
 
 /// No non-test Rust file is over 900 lines (an inline `mod tests` at its end not counted; the
-/// WGSL beside it is not Rust). The renderer's files listed are being split by its helper
-/// (issue 51); each entry is a file and the reason it may stay long for now.
+/// WGSL beside it is not Rust). No file is exempt.
 #[test]
 fn no_source_file_is_over_900_lines() {
     const LIMIT: usize = 900;
-    const ALLOWED: &[(&str, &str)] = &[
-        // issue 51: the renderer's helper is splitting these
-        ("renderer/src/coherent/mod.rs", "issue 51, renderer helper"),
-        ("renderer/src/pathtracer.rs", "issue 51, renderer helper"),
-    ];
     let long: Vec<String> = sources()
         .into_iter()
         .filter(|path| !test_only(path))
@@ -514,7 +508,7 @@ fn no_source_file_is_over_900_lines() {
             let text = std::fs::read_to_string(&path).unwrap();
             let lines = non_test_code(&text).lines().count();
             let name = relative(&path);
-            (lines > LIMIT && !ALLOWED.iter().any(|(file, _)| *file == name)).then(|| format!("{name}: {lines} lines"))
+            (lines > LIMIT).then(|| format!("{name}: {lines} lines"))
         })
         .collect();
     assert!(long.is_empty(), "files over {LIMIT} lines (split them by concept):\n{}", long.join("\n"));

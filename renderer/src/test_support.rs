@@ -109,6 +109,34 @@ pub(crate) fn scene_from_toml(text: &str, name: &str) -> Scene {
     Scene::from_desc(desc, Path::new("."), name).unwrap()
 }
 
+/// The capture set-up the capture and coherent tests share: `scene`'s real world and capture
+/// parameters for `poses` poses from its camera, `colour_spp` colour samples per pixel and a
+/// hash grid of `grid_capacity` samples.
+pub(crate) fn capture_setup(
+    scene: &Scene,
+    poses: usize,
+    colour_spp: u32,
+    grid_capacity: usize,
+) -> (crate::pathtracer::World, crate::capture::CaptureParams) {
+    let real = crate::pathtracer::World::new(scene, crate::pathtracer::Subset::RealOnly);
+    let mut params = crate::capture::CaptureParams::for_scene(scene, &real, poses);
+    params.colour_spp = colour_spp;
+    params.grid_capacity = grid_capacity;
+    (real, params)
+}
+
+/// The coherent tests' capture of `scene`: two poses, 4 colour samples per pixel, a grid cell of
+/// `cell` metres; its real world and the environment samples the grid kept.
+pub(crate) fn captured_samples(
+    scene: &Scene,
+    cell: f32,
+) -> (crate::pathtracer::World, Vec<crate::capture::hashgrid::EnvironmentSample>) {
+    let (real, mut params) = capture_setup(scene, 2, 4, 1 << 16);
+    params.cell = cell;
+    let samples = crate::capture::capture(&real, &params, |_, _| {}).grid.samples().copied().collect();
+    (real, samples)
+}
+
 /// The GPU tests' scene ([`TestScene::new`]) with extra objects.
 pub(crate) fn scene_with(objects: &str) -> Scene {
     TestScene::new("gpu-test").objects(objects).build()

@@ -2,8 +2,7 @@
 //! sensor's noise, a box that moves away between poses, a sensor that sees nothing.
 
 use super::*;
-use crate::pathtracer::Subset;
-use crate::test_support::scene_from_toml;
+use crate::test_support::{capture_setup, scene_from_toml};
 
 /// A real floor and a real box under a real spot light, camera 2 m away.
 const ROOM: &str = r#"
@@ -46,15 +45,13 @@ intensity = 8.0
 /// The scene and its real world.
 fn scene(text: &str) -> (Scene, World) {
     let scene = scene_from_toml(text, "room");
-    let real = World::new(&scene, Subset::RealOnly);
+    let (real, _) = capture_setup(&scene, 1, 2, 1 << 14);
     (scene, real)
 }
 
-fn params((scene, real): &(Scene, World), poses: usize, noise: f32) -> CaptureParams {
-    let mut p = CaptureParams::for_scene(scene, real, poses);
+fn params((scene, _): &(Scene, World), poses: usize, noise: f32) -> CaptureParams {
+    let (_, mut p) = capture_setup(scene, poses, 2, 1 << 14);
     p.sensor.noise = noise;
-    p.colour_spp = 2;
-    p.grid_capacity = 1 << 14;
     p
 }
 

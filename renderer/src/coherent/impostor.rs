@@ -281,6 +281,12 @@ impl DistanceImpostor {
     }
 }
 
+impl From<crate::gpu::representation::ImpostorMaps> for DistanceImpostor {
+    fn from(maps: crate::gpu::representation::ImpostorMaps) -> DistanceImpostor {
+        DistanceImpostor::from_maps(maps.centre, maps.size, maps.radiance, maps.distance)
+    }
+}
+
 /// How well the impostor answers rays against the true real geometry.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ImpostorReport {

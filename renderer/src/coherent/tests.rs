@@ -4,7 +4,6 @@
 //! closer to the ground truth than gi off.
 
 use super::*;
-use crate::capture::{CaptureParams, capture};
 use crate::test_support::scene_from_toml;
 
 /// A real grey floor under a sky with a bright window, a virtual box on it, a real spot light.
@@ -57,13 +56,7 @@ window_radiance = [4.0, 4.0, 4.2]
 /// The scene, its real world and a capture's samples (cell 0.03 m).
 fn captured(text: &str) -> (Scene, World, Vec<EnvironmentSample>) {
     let scene = scene_from_toml(text, "floor");
-    let real = World::new(&scene, Subset::RealOnly);
-    let mut params = CaptureParams::for_scene(&scene, &real, 2);
-    params.colour_spp = 4;
-    params.cell = 0.03;
-    params.grid_capacity = 1 << 16;
-    let cap = capture(&real, &params, |_, _| {});
-    let samples = cap.grid.samples().copied().collect();
+    let (real, samples) = crate::test_support::captured_samples(&scene, 0.03);
     (scene, real, samples)
 }
 
@@ -395,7 +388,10 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         // splats of disks near the centre there (0.5 % of texels at 128², 1.3 % at 256²)
         for size in [64u32, 128, 256] {
             let cpu = crate::coherent::impostor::DistanceImpostor::build(&samples, centre, size, cell);
-            let built = builder.impostor(ctx, &samples, centre, size, cell).unwrap();
+            let built = builder
+                .impostor(ctx, &samples, centre, size, super::impostor::SPLAT_RADIUS * cell)
+                .unwrap()
+                .map(DistanceImpostor::from);
             let gpu = &built.value;
             assert!(built.gpu_bytes > 0 && built.gpu_ms.is_finite());
             let ((cr, cd), (gr, gd)) = (cpu.maps(), gpu.maps());
@@ -414,7 +410,10 @@ fn the_gpu_builds_the_impostors_and_the_voxel_volume_of_a_capture_as_the_cpu_doe
         }
     }
     let cpu = VoxelVolume::build(&samples, 64, cell);
-    let built = builder.voxels(ctx, &samples, 64, cell).unwrap();
+    let built = builder
+        .voxels(ctx, &samples, VoxelVolume::frame(&samples, 64, cell), super::impostor::SPLAT_RADIUS * cell)
+        .unwrap()
+        .map(VoxelVolume::from);
     let gpu = &built.value;
     assert_eq!((gpu.origin, gpu.voxel, gpu.res), (cpu.origin, cpu.voxel, cpu.res));
     assert_eq!(gpu.level_count(), cpu.level_count());
@@ -553,12 +552,7 @@ fn self_shadows_through_the_solid_volume_darken_the_object_as_a_fine_volume_does
     let scene = floor_with(
         "shape = \"box\"\nsize = [0.2, 0.1, 0.1]\ntranslate = [0.0, 0.05, 0.1]\nmaterial = \"box\"\n\n[[objects]]\nname = \"other\"\nrole = \"virtual\"\nshape = \"box\"\nsize = [0.2, 0.4, 0.1]\ntranslate = [0.0, 0.2, -0.05]\nmaterial = \"box\"",
     );
-    let real = World::new(&scene, Subset::RealOnly);
-    let mut capture_params = CaptureParams::for_scene(&scene, &real, 2);
-    capture_params.colour_spp = 4;
-    capture_params.cell = 0.03;
-    capture_params.grid_capacity = 1 << 16;
-    let samples: Vec<EnvironmentSample> = capture(&real, &capture_params, |_, _| {}).grid.samples().copied().collect();
+    let (real, samples) = crate::test_support::captured_samples(&scene, 0.03);
     let photo = photo(&scene);
     let p = CoherentParams::new(Method::Dit, Quality::Med);
     let (rep, passes) = build_representation(&scene, &real, &samples, 0.03, &p, None);
@@ -618,7 +612,7 @@ fn the_gpu_sweeps_build_the_solid_volumes_as_the_cpu_does() {
     ];
     for scene in &scenes {
         let object = World::new(scene, Subset::VirtualOnly);
-        let prims = super::solid_primitives(scene).unwrap();
+        let prims = super::build::solid_primitives(scene).unwrap();
         for bounds in virtual_object_bounds(scene) {
             for longest in [16, 32] {
                 let (voxel, dims) = SolidVolume::frame(&bounds, longest);

@@ -267,3 +267,9 @@ impl VoxelVolume {
         hit
     }
 }
+
+impl From<crate::gpu::representation::VoxelLevels> for VoxelVolume {
+    fn from(levels: crate::gpu::representation::VoxelLevels) -> VoxelVolume {
+        VoxelVolume::from_levels(levels.origin, levels.voxel, levels.levels)
+    }
+}

@@ -1,7 +1,8 @@
 //! Rohmer et al.'s scene representations built on the GPU (issue 18, Deliver 2; shader:
 //! `representation.wgsl`): the distance impostor and the mip-mapped scene voxel volume, splatted
-//! from the captured environment samples by compute passes, then read back into the CPU
-//! reference's types ([`DistanceImpostor`], [`VoxelVolume`]), which the CPU queries read.
+//! from the captured environment samples by compute passes, then read back as plain maps
+//! ([`ImpostorMaps`], [`VoxelLevels`]) that `coherent` turns into the CPU reference's types,
+//! which the CPU queries read (this module names none of `coherent`'s types: no module cycle).
 //!
 //! - **Impostor**: two passes over the samples — the nearest distance per texel by `atomicMin` on
 //!   the distance's bits (positive floats order as integers), then the radiance of the sample
@@ -11,7 +12,7 @@
 //!   pass per mip level. The volume's bounds — one reduction over the samples — are taken on
 //!   the CPU, as the CPU build takes them.
 //!
-//! Each splat is the CPU build's ([`SPLAT_RADIUS`]: a disk in the sample's tangent plane, on
+//! Each splat is the CPU build's (`coherent::impostor::SPLAT_RADIUS`: a disk in the sample's tangent plane, on
 //! each cube face the texels its bounding box projects onto); the impostor passes run one
 //! invocation per (sample, face). The tests (`coherent::tests`) compare the two texel for texel
 //! and voxel for voxel, and on lavapipe they agree exactly for survey-6's two impostors at 64²,
@@ -40,8 +41,6 @@
 
 use super::context::GpuContext;
 use crate::capture::hashgrid::EnvironmentSample;
-use crate::coherent::impostor::{DistanceImpostor, SPLAT_RADIUS};
-use crate::coherent::voxel::VoxelVolume;
 use crate::geometry::{Aabb, Primitive};
 use crate::material::Texture;
 use glam::{UVec3, Vec3};
@@ -62,6 +61,32 @@ pub struct Built<T> {
     pub readback_ms: f64,
     /// GPU memory the passes held (samples, maps or volume, fixed-point sums).
     pub gpu_bytes: u64,
+}
+
+impl<T> Built<T> {
+    /// The same build with its value turned into another type (the CPU's).
+    pub fn map<U>(self, into: impl FnOnce(T) -> U) -> Built<U> {
+        Built { value: into(self.value), gpu_ms: self.gpu_ms, readback_ms: self.readback_ms, gpu_bytes: self.gpu_bytes }
+    }
+}
+
+/// A distance impostor's maps as the GPU builds them: six faces of `size`² texels side by side,
+/// per texel the radiance and the distance from `centre` (infinity where nothing lies).
+#[derive(Clone, Debug)]
+pub struct ImpostorMaps {
+    pub centre: Vec3,
+    pub size: u32,
+    pub radiance: Vec<Vec3>,
+    pub distance: Vec<f32>,
+}
+
+/// A scene voxel volume's levels as the GPU builds them: from `origin`, voxels of edge `voxel`,
+/// level 0 first, premultiplied RGBA per voxel.
+#[derive(Clone, Debug)]
+pub struct VoxelLevels {
+    pub origin: Vec3,
+    pub voxel: f32,
+    pub levels: Vec<Vec<[f32; 4]>>,
 }
 
 /// The compiled passes.
@@ -418,16 +443,16 @@ impl RepresentationBuilder {
         Ok(Built { value, gpu_ms, readback_ms: start.elapsed().as_secs_f64() * 1e3, gpu_bytes })
     }
 
-    /// The distance impostor of `samples` at `centre`, `size`² texels per face, as
-    /// [`DistanceImpostor::build`] makes it.
+    /// The distance impostor of `samples` at `centre`, `size`² texels per face, each sample a
+    /// disk of `splat_radius`, as [`crate::coherent::impostor::DistanceImpostor::build`] makes it.
     pub fn impostor(
         &self,
         ctx: &GpuContext,
         samples: &[EnvironmentSample],
         centre: Vec3,
         size: u32,
-        footprint: f32,
-    ) -> std::result::Result<Built<DistanceImpostor>, BuildRefused> {
+        splat_radius: f32,
+    ) -> std::result::Result<Built<ImpostorMaps>, BuildRefused> {
         let start = Instant::now();
         let size = size.max(1);
         let texels = 6 * size as u64 * size as u64;
@@ -436,8 +461,7 @@ impl RepresentationBuilder {
             return Err(BuildRefused::ImpostorTooLarge { size, samples: samples.len(), limit_mb: limit as f64 / 1e6 });
         }
         let count = samples.len() as u32;
-        let uniform =
-            uniform_buffer(ctx, "impostor params", &params(centre, SPLAT_RADIUS * footprint, [count, size, 0, 0]));
+        let uniform = uniform_buffer(ctx, "impostor params", &params(centre, splat_radius, [count, size, 0, 0]));
         let samples_buffer = sample_buffer(ctx, samples);
         let depth = storage(ctx, "impostor distance", texels * 4);
         let radiance = storage(ctx, "impostor radiance", texels * 16);
@@ -463,23 +487,25 @@ impl RepresentationBuilder {
         let distance: Vec<f32> =
             bits.iter().map(|&b| if b == u32::MAX { f32::INFINITY } else { f32::from_bits(b) }).collect();
         let radiance: Vec<Vec3> = rgba.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
-        let value = DistanceImpostor::from_maps(centre, size, radiance, distance);
+        let value = ImpostorMaps { centre, size, radiance, distance };
         let gpu_bytes = texels * 20 + samples.len() as u64 * 48;
         Ok(Built { value, gpu_ms, readback_ms: start.elapsed().as_secs_f64() * 1e3, gpu_bytes })
     }
 
-    /// The scene voxel volume of `samples`, `res`³ voxels with mipmaps, as
-    /// [`VoxelVolume::build`] makes it; an error in words when a buffer it needs is larger than
-    /// the adapter lets a shader bind (256³ voxels need 268 MB; lavapipe binds 134 MB).
+    /// The scene voxel volume of `samples` in `frame` (origin, voxel edge, `res`³ voxels) with
+    /// mipmaps, each sample a disk of `splat_radius` (at least half a voxel), as
+    /// [`crate::coherent::voxel::VoxelVolume::build`] makes it; an error in words when a buffer it
+    /// needs is larger than the adapter lets a shader bind (256³ voxels need 268 MB; lavapipe
+    /// binds 134 MB).
     pub fn voxels(
         &self,
         ctx: &GpuContext,
         samples: &[EnvironmentSample],
-        res: u32,
-        footprint: f32,
-    ) -> std::result::Result<Built<VoxelVolume>, BuildRefused> {
+        frame: (Vec3, f32, u32),
+        splat_radius: f32,
+    ) -> std::result::Result<Built<VoxelLevels>, BuildRefused> {
         let start = Instant::now();
-        let (origin, voxel, res) = VoxelVolume::frame(samples, res, footprint);
+        let (origin, voxel, res) = frame;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         // level 0's sums, and every level together (8/7 of level 0)
         let needed = (res as u64).pow(3) * 16 * 8 / 7;
@@ -491,7 +517,7 @@ impl RepresentationBuilder {
             });
         }
         let count = samples.len() as u32;
-        let radius = (SPLAT_RADIUS * footprint).max(0.5 * voxel);
+        let radius = splat_radius.max(0.5 * voxel);
         let uniform = uniform_buffer(ctx, "voxel params", &params(origin, radius, [count, res, voxel.to_bits(), 0]));
         let samples_buffer = sample_buffer(ctx, samples);
         let mut sizes = vec![res];
@@ -540,7 +566,7 @@ impl RepresentationBuilder {
                 all[from..from + (r as usize).pow(3) * 4].chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect()
             })
             .collect();
-        let value = VoxelVolume::from_levels(origin, voxel, data);
+        let value = VoxelLevels { origin, voxel, levels: data };
         let gpu_bytes = base * 16 + total * 16 + samples.len() as u64 * 48;
         Ok(Built { value, gpu_ms, readback_ms: start.elapsed().as_secs_f64() * 1e3, gpu_bytes })
     }
