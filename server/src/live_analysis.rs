@@ -25,22 +25,18 @@ pub fn condition_table(study: &Study) -> ConditionTable {
 /// The analysis crate leaves pilot and excluded rows out by itself unless told to keep them;
 /// the export already left out what `include` does not keep, so the two agree. Detection trials
 /// (one side the ground truth) are analysed apart; with the study's stimulus metrics CSV the
-/// preference is set beside the stimuli's errors against the ground truth.
+/// preference is set beside the stimuli's errors against the ground truth. A rating study's
+/// export gets the rating analysis (`ratings`).
 fn report(
     trials_csv: &str,
     study: &Study,
     include: Include,
     stimuli: Option<&StimulusMetrics>,
 ) -> Result<Report, AppError> {
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include)).map_err(
-        |error| match study.rating {
-            // until the analysis reads rating exports (mean opinion scores, issue 49)
-            Some(_) => AppError::Unprocessable(format!(
-                "The live analysis fits paired comparisons; a rating study's ratings are in its trials CSV (columns scene, condition, rating, method, reference, scale), for `mrstudy analyze` ({error})."
-            )),
-            None => cannot_run(error),
-        },
-    )
+    // a rating study's export is analysed as ratings (MOS, P.910 screening, SUREAL's MLE_CO:
+    // the `ratings` section), as `mrstudy analyze` does; the condition table is not used there
+    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include))
+        .map_err(cannot_run)
 }
 
 fn options(include: Include) -> Options {
@@ -67,6 +63,10 @@ pub fn run(
 pub fn worth_svg(trials_csv: &str, study: &Study, include: Include) -> Result<String, AppError> {
     match report(trials_csv, study, include, None)?.preference {
         Some(analysis) => Ok(analysis.worth_plot()),
+        None if study.rating.is_some() => Err(AppError::Unprocessable(
+            "A rating study has no worth plot: its mean opinion scores are in the analysis' `ratings` section (`mrstudy analyze --plot-dir` draws them)."
+                .into(),
+        )),
         None => Err(AppError::Unprocessable(
             "The study has only detection trials (each condition beside the ground truth): there is no worth plot."
                 .into(),

@@ -183,8 +183,13 @@ pub async fn analysis_json(
                 (error, _) => error,
             }
         })?;
+    // a rating study's warnings are its `ratings` section's
+    let warnings = match analysis.get("ratings") {
+        Some(_) => analysis["ratings"].get_mut("warnings"),
+        None => analysis.get_mut("warnings"),
+    };
     if let Some(sentence) = left_out
-        && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
+        && let Some(warnings) = warnings.and_then(serde_json::Value::as_array_mut)
     {
         warnings.insert(0, serde_json::Value::String(sentence));
     }
