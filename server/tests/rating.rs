@@ -427,3 +427,161 @@ async fn a_rating_export_is_analysed_with_its_catch_rows_as_golden_questions_and
     assert!(html.contains(&format!("{careless}</td><td>screened")), "{html}");
     assert!(!html.contains("rating study's ratings are in its trials CSV"), "{html}");
 }
+
+/// An ACR-HR study of one rendered scene configuration under two conditions, each stimulus and
+/// the hidden reference (its ground truth) twice, and the catch image.
+fn acr_hr_studies(work: &Path) -> std::path::PathBuf {
+    let dir = work.join("studies");
+    std::fs::create_dir_all(dir.join("img")).unwrap();
+    std::fs::copy(support::repo_studies_dir().join("shadows-demo/catch-bad.png"), dir.join("img/broken.png")).unwrap();
+    let study = r#"slug = "acr-hr"
+title = "Ratings"
+kind = "rating"
+question = "How good is this image?"
+min_response_ms = 0
+[texts]
+welcome = "w"
+consent = "c"
+instructions = "i"
+[[factors]]
+name = "gi"
+[[factors]]
+name = "cm"
+[[conditions]]
+name = "LQ"
+levels = { gi = 0, cm = 0 }
+[[conditions]]
+name = "HQ"
+levels = { gi = 1, cm = 1 }
+[render]
+size = [32, 24]
+spp = 1
+[[scenes]]
+name = "one"
+render = "survey-1"
+[rating]
+method = "acr-hr"
+repetitions = 2
+seed = 3
+[[rating.catch]]
+name = "broken"
+image = "img/broken.png"
+expected = 1
+[completion]
+code = "R-2"
+"#;
+    std::fs::write(dir.join("acr-hr.toml"), study).unwrap();
+    dir
+}
+
+/// A join's body for a study that asks no demographics.
+fn no_demographics() -> Value {
+    json!({"demographics": {}, "client": {"viewport": [1280, 800]}})
+}
+
+#[tokio::test]
+async fn an_acr_hr_export_gives_dmos_against_the_hidden_reference_pilots_and_excluded_left_out() {
+    let _ = CATCH_SUFFIX.set(catch_name());
+    let work = tempfile::tempdir().unwrap();
+    let studies = acr_hr_studies(work.path());
+    let support::Started { app, admin_token, skipped, database, .. } = support::start(work.path(), &studies).await;
+    if !skipped.is_empty() {
+        assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
+        eprintln!("skipped: no GPU adapter (not even a software one): {skipped:?}");
+        return;
+    }
+    let app = &app;
+    let admin = Some(admin_token.as_str());
+    let slug = "acr-hr";
+    let (first, first_token, _) = support::join(app, slug, no_demographics()).await;
+    rate_with(app, &first, &first_token, |trial, catch| if catch { 1 } else { trial % 5 + 1 }).await;
+    let (second, second_token, _) = support::join(app, slug, no_demographics()).await;
+    rate_with(app, &second, &second_token, |trial, catch| if catch { 2 } else { (trial * 3) % 5 + 1 }).await;
+    let (pilot, pilot_token, _) = support::join(app, slug, no_demographics()).await;
+    rate_with(app, &pilot, &pilot_token, |trial, catch| if catch { 1 } else { (trial + 1) % 5 + 1 }).await;
+    let (excluded, excluded_token, _) = support::join(app, slug, no_demographics()).await;
+    rate_with(app, &excluded, &excluded_token, |trial, catch| if catch { 1 } else { (trial + 3) % 5 + 1 }).await;
+    // the pilot as a preview link's join marks it
+    sqlx::query("UPDATE participants SET pilot = 1 WHERE id = $1")
+        .bind(&pilot)
+        .execute(&connect(&database).await)
+        .await
+        .unwrap();
+    let answer = call(
+        app,
+        Method::POST,
+        &format!("/api/admin/participants/{excluded}/exclude"),
+        admin,
+        Some(json!({"reason": "test"})),
+    )
+    .await;
+    assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+
+    // the export with every participant, flagged; the analysis leaves the pilot and the excluded out
+    let csv = call(
+        app,
+        Method::GET,
+        &format!("/api/admin/studies/{slug}/export.csv?include_pilots=true&include_excluded=true"),
+        admin,
+        None,
+    )
+    .await
+    .text();
+    let rows = export_rows(&csv);
+    assert_eq!(rows.len(), 4 * 7, "{csv}");
+    assert!(rows.iter().any(|row| row["pilot"] == "true") && rows.iter().any(|row| row["excluded"] == "true"));
+    assert!(rows.iter().all(|row| row["reference"] == "ground-truth" && row["method"] == "acr-hr"), "{csv}");
+    let json = analyze_export(&csv);
+    let ratings = &json["ratings"];
+    assert_eq!((&ratings["method"], &ratings["scores"]), (&json!("acr-hr"), &json!("dv")), "{ratings}");
+    assert!(
+        ratings["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("left out 1 pilot and 1 excluded")),
+        "{ratings}"
+    );
+    // DMOS by direct computation: DV = rating − the participant's mean hidden-reference rating + 5
+    let mut data = Vec::new();
+    for participant in [&first, &second] {
+        let own: Vec<_> =
+            rows.iter().filter(|row| &row["participant"] == participant && row["catch"] == "false").collect();
+        let references: Vec<f64> = own
+            .iter()
+            .filter(|row| row["condition"] == "ground-truth")
+            .map(|row| row["rating"].parse().unwrap())
+            .collect();
+        assert_eq!(references.len(), 2, "the hidden reference rated twice: {csv}");
+        let reference = references.iter().sum::<f64>() / 2.0;
+        for row in own.iter().filter(|row| row["condition"] != "ground-truth") {
+            data.push((row["condition"].clone(), row["rating"].parse::<f64>().unwrap() - reference + 5.0));
+        }
+    }
+    assert_eq!(ratings["ratings"], 8, "{ratings}");
+    let expected = means(&data);
+    let found: Vec<(String, f64)> = ratings["conditions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| (c["condition"].as_str().unwrap().to_string(), c["mos"].as_f64().unwrap()))
+        .collect();
+    assert_eq!(found.len(), 2, "the hidden reference and the catch trial are not conditions: {found:?}");
+    for ((condition, dmos), (want, (mean, _))) in found.iter().zip(&expected) {
+        assert_eq!(condition, want);
+        assert!((dmos - mean).abs() < 1e-12, "{condition}: {dmos} against {mean}");
+    }
+    let mut participants: Vec<&str> =
+        ratings["participants"].as_array().unwrap().iter().map(|p| p["participant"].as_str().unwrap()).collect();
+    participants.sort();
+    let mut want = vec![first.as_str(), second.as_str()];
+    want.sort();
+    assert_eq!(participants, want);
+    assert!(
+        ratings["participants"].as_array().unwrap().iter().all(|p| p["golden_answered"] == 1 && p["screened"] == false)
+    );
+    // the live analysis (default: pilots and excluded left out by the export) agrees
+    let live = call(app, Method::GET, &format!("/api/admin/studies/{slug}/analysis"), admin, None).await;
+    assert_eq!(live.status, StatusCode::OK, "{}", live.text());
+    assert_eq!(live.json()["ratings"]["conditions"], ratings["conditions"]);
+}
