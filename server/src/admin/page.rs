@@ -10,6 +10,7 @@ use askama::Template;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
+use mrstudy_analysis::analysis::Scale;
 
 pub(super) async fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
     authorize(state, headers).await.map(|_| ()).map_err(|error| {
@@ -123,6 +124,8 @@ pub struct WorthRow {
     pub condition: String,
     pub worth: String,
     pub log_worth: String,
+    /// pwcmp's JOD (`--scale jod`), "–" where it has none.
+    pub jod: String,
     pub wins: String,
     pub comparisons: String,
 }
@@ -155,6 +158,8 @@ pub(super) struct AdminStudyPage {
     /// The image metrics against the preference, best predictor first.
     metric_rows: Vec<MetricRow>,
     metrics_note: Option<String>,
+    /// pwcmp's outlier analysis beside the JOD: the participants with dist_L > 1.5.
+    jod_note: Option<String>,
     /// A rating study: what the MOS are of, the MOS per condition, the screening per participant.
     ratings_note: Option<String>,
     mos_rows: Vec<MosRow>,
@@ -334,6 +339,7 @@ pub(super) async fn admin_study_page(
         detection_note: None,
         metric_rows: Vec::new(),
         metrics_note: None,
+        jod_note: None,
         ratings_note: None,
         mos_rows: Vec::new(),
         rating_screening: Vec::new(),
@@ -350,7 +356,7 @@ pub(super) async fn admin_study_page(
         ));
         page.active_warning = active.failure.clone();
     }
-    let analysis = analysis_json(&state, &slug, Include::default(), Metrics::Set).await;
+    let analysis = analysis_json(&state, &slug, Include::default(), Metrics::Set, Scale::Jod).await;
     page.participants = match participants(&state, &slug, analysis.as_ref().ok()).await {
         Ok(entries) => entries.iter().map(ParticipantLine::from).collect(),
         Err(error) => return error.into_response(),
@@ -436,6 +442,17 @@ pub(super) async fn admin_study_page(
                     });
                 }
             }
+            if let Some(section) = analysis.get("jod_scale") {
+                let outliers: Vec<&str> =
+                    section["outliers"].as_array().into_iter().flatten().filter_map(|p| p.as_str()).collect();
+                page.jod_note = Some(match (section["observers"].as_array(), outliers.is_empty()) {
+                    (None, _) => "pwcmp's outlier analysis needs three participants or more.".to_string(),
+                    (Some(_), true) => "pwcmp's outlier analysis: no participant with dist_L > 1.5.".to_string(),
+                    (Some(_), false) => {
+                        format!("pwcmp's outlier analysis: dist_L > 1.5 (not dropped): {}.", outliers.join(", "))
+                    }
+                });
+            }
             page.judgments = format_number(&analysis["judgments"], 0);
             page.agreement_u = analysis.get("agreement").map(|agreement| format_number(&agreement["u"], 3));
             for item in analysis["items"].as_array().into_iter().flatten() {
@@ -443,6 +460,10 @@ pub(super) async fn admin_study_page(
                     condition: item["condition"].as_str().unwrap_or_default().to_string(),
                     worth: format_number(&item["worth"], 3),
                     log_worth: format_number(&item["log_worth"], 3),
+                    jod: match item.get("jod") {
+                        Some(jod) => format_number(jod, 2),
+                        None => "–".to_string(),
+                    },
                     wins: format_number(&item["wins"], 0),
                     comparisons: format_number(&item["comparisons"], 0),
                 });
