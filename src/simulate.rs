@@ -17,7 +17,7 @@ flags! {
     StudyArgs {
         /// The study file (`studies/*.toml`); its scheduler and conditions are simulated.
         #[arg(long)] study: PathBuf,
-        /// True factor effects on the logit scale, e.g. `gi=0.3,cm=-0.2,ca=0.4` (a factor not named: 0). Default: the thesis's gi 0.27, cm −0.22, ca 0.43 for a study with factors gi, cm, ca.
+        /// True factor effects on the logit scale, e.g. `gi=0.3,cm=-0.2,ca=0.4` (a factor not named: 0). Default: the thesis's gi 0.27, cm −0.22, ca 0.43 for a study with factors gi, cm, ca. A threshold study: `threshold=T,slope=B` (x units) of the simulated observers' psychometric function.
         #[arg(long, conflicts_with = "truth_worth", allow_hyphen_values = true)] truth: Option<String>,
         /// True log-worths: a CSV `condition,log_worth` with every condition of the study.
         #[arg(long)] truth_worth: Option<PathBuf>,
@@ -32,7 +32,7 @@ flags! {
     OptionsFlags => Options {} {
         /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths).
         #[arg(long, value_delimiter = ',', default_value = "study", value_parser = crate::choice(DesignChoice::parse, "study, all, anchored, active, active-worths"))] designs: Vec<DesignChoice>,
-        /// Per-participant taste noise: sd of each condition's log-worth.
+        /// Per-participant taste noise: sd of each condition's log-worth (a threshold study: sd of a participant's threshold, x units).
         #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)] observer_sd: f64,
         /// Probability that an answer is a coin flip.
         #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)] lapse: f64,

@@ -162,11 +162,13 @@ pub fn parse(text: &str, name: &str, include_pilots: bool, include_excluded: boo
             }
             (false, _) => None,
         };
-        if cell(participant).is_empty() || cell(scene).is_empty() || cell(condition).is_empty() {
-            let which = [(participant, "participant"), (scene, "scene"), (condition, "condition")]
-                .into_iter()
-                .find(|(column, _)| cell(*column).is_empty())
-                .map_or("participant", |(_, what)| what);
+        // a golden question shown as an image has no scene configuration
+        let needed: &[(usize, &str)] = if is_catch {
+            &[(participant, "participant")]
+        } else {
+            &[(participant, "participant"), (scene, "scene"), (condition, "condition")]
+        };
+        if let Some((_, which)) = needed.iter().find(|(column, _)| cell(*column).is_empty()) {
             return Err(bad(line, which, "the cell is empty".into()));
         }
         rows.push(Row {

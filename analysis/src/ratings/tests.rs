@@ -246,3 +246,31 @@ fn analyze_reads_a_rating_export_by_its_header() {
         crate::command::analyze_files((&text, "r.csv"), None, None, &options, false, Default::default()).unwrap();
     assert!(table.text.starts_with("ratings (ACR, quality scale 1–5; 4 ratings"), "{}", table.text);
 }
+
+/// The header `mrstudy export` writes for a rating study (docs/design.md): the trials CSV's
+/// own columns, then the rating columns; a golden question shown as an image has no scene.
+#[test]
+fn the_export_s_own_layout_is_read_with_its_catch_rows() {
+    let text = "study,trial,participant,status,pilot,excluded,left,right,chosen,scene_left,catch_answered,catch_failed,scene,condition,rating,method,reference,scale,catch,expected\n\
+                s,1,p1,complete,false,false,A,,,x,1,0,x,A,5,dcr,ground-truth,impairment,false,\n\
+                s,2,p1,complete,false,false,B,,,x,1,0,x,B,2,dcr,ground-truth,impairment,false,\n\
+                s,3,p1,complete,false,false,catch:blur,,,,1,0,,catch:blur,2,dcr,ground-truth,impairment,true,1\n\
+                s,4,p2,complete,false,false,A,,,x,1,1,x,A,4,dcr,ground-truth,impairment,false,\n\
+                s,5,p2,complete,false,false,B,,,x,1,1,x,B,1,dcr,ground-truth,impairment,false,\n\
+                s,6,p2,complete,false,false,catch:blur,,,,1,1,,catch:blur,5,dcr,ground-truth,impairment,true,1\n";
+    let analysis = analyze(text);
+    assert_eq!((analysis.method, analysis.scale), (Method::Dcr, "impairment"));
+    assert!(analysis.stimuli.iter().all(|s| !s.condition.starts_with("catch:")));
+    let p2 = analysis.participants.iter().find(|p| p.participant == "p2").unwrap();
+    assert!(p2.screened && p2.golden_failed == 1);
+    assert_eq!(analysis.ratings, 2);
+    // the report path the admin's live analysis takes (a conditions table given) reads it too
+    let table = crate::data::ConditionTable {
+        conditions: vec!["A".into(), "B".into()],
+        factors: vec![],
+        levels: vec![vec![], vec![]],
+    };
+    let options = crate::analysis::Options::default();
+    let report = crate::report::analyze_with_table(text, "t.csv", Some(&table), None, &options).unwrap();
+    assert_eq!(report.ratings.map(|r| r.ratings), Some(2));
+}
