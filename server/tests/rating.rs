@@ -584,4 +584,14 @@ async fn an_acr_hr_export_gives_dmos_against_the_hidden_reference_pilots_and_exc
     let live = call(app, Method::GET, &format!("/api/admin/studies/{slug}/analysis"), admin, None).await;
     assert_eq!(live.status, StatusCode::OK, "{}", live.text());
     assert_eq!(live.json()["ratings"]["conditions"], ratings["conditions"]);
+    // the admin page says the MOS are DMOS against the hidden reference
+    let cookie = support::admin_session_cookie(app, &admin_token).await;
+    let request = axum::http::Request::builder()
+        .uri(format!("/admin/studies/{slug}"))
+        .header(axum::http::header::COOKIE, cookie)
+        .body(axum::body::Body::empty())
+        .unwrap();
+    let html = support::send(app, request).await.text();
+    assert!(html.contains("8 differential viewer scores against the hidden reference (DMOS, ACR-HR)"), "{html}");
+    assert!(!html.contains("<tr><td>ground-truth</td>"), "the hidden reference is no condition: {html}");
 }
