@@ -428,13 +428,14 @@ async fn a_rating_export_is_analysed_with_its_catch_rows_as_golden_questions_and
     assert!(!html.contains("rating study's ratings are in its trials CSV"), "{html}");
 }
 
-/// An ACR-HR study of one rendered scene configuration under two conditions, each stimulus and
-/// the hidden reference (its ground truth) twice, and the catch image.
-fn acr_hr_studies(work: &Path) -> std::path::PathBuf {
+/// A study (`method` = `acr-hr` or `dcr`, slug the method) of one rendered scene configuration
+/// under two conditions, each stimulus (ACR-HR: and the hidden reference, its ground truth)
+/// twice, and the catch image.
+fn rendered_studies(work: &Path, method: &str) -> std::path::PathBuf {
     let dir = work.join("studies");
     std::fs::create_dir_all(dir.join("img")).unwrap();
     std::fs::copy(support::repo_studies_dir().join("shadows-demo/catch-bad.png"), dir.join("img/broken.png")).unwrap();
-    let study = r#"slug = "acr-hr"
+    let study = r#"slug = "METHOD"
 title = "Ratings"
 kind = "rating"
 question = "How good is this image?"
@@ -460,7 +461,7 @@ spp = 1
 name = "one"
 render = "survey-1"
 [rating]
-method = "acr-hr"
+method = "METHOD"
 repetitions = 2
 seed = 3
 [[rating.catch]]
@@ -470,7 +471,16 @@ expected = 1
 [completion]
 code = "R-2"
 "#;
-    std::fs::write(dir.join("acr-hr.toml"), study).unwrap();
+    // DCR's catch trial shows an image before it: the demo's good catch image
+    std::fs::copy(support::repo_studies_dir().join("shadows-demo/catch-good.png"), dir.join("img/good.png")).unwrap();
+    let study = study.replace("METHOD", method);
+    let study = match method {
+        "dcr" => {
+            study.replace("image = \"img/broken.png\"", "image = \"img/broken.png\"\nreference = \"img/good.png\"")
+        }
+        _ => study,
+    };
+    std::fs::write(dir.join(format!("{method}.toml")), study).unwrap();
     dir
 }
 
@@ -483,7 +493,7 @@ fn no_demographics() -> Value {
 async fn an_acr_hr_export_gives_dmos_against_the_hidden_reference_pilots_and_excluded_left_out() {
     let _ = CATCH_SUFFIX.set(catch_name());
     let work = tempfile::tempdir().unwrap();
-    let studies = acr_hr_studies(work.path());
+    let studies = rendered_studies(work.path(), "acr-hr");
     let support::Started { app, admin_token, skipped, database, .. } = support::start(work.path(), &studies).await;
     if !skipped.is_empty() {
         assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
@@ -594,4 +604,53 @@ async fn an_acr_hr_export_gives_dmos_against_the_hidden_reference_pilots_and_exc
     let html = support::send(app, request).await.text();
     assert!(html.contains("8 differential viewer scores against the hidden reference (DMOS, ACR-HR)"), "{html}");
     assert!(!html.contains("<tr><td>ground-truth</td>"), "the hidden reference is no condition: {html}");
+}
+
+#[tokio::test]
+async fn a_dcr_export_gives_the_mos_of_its_impairment_ratings() {
+    let _ = CATCH_SUFFIX.set(catch_name());
+    let work = tempfile::tempdir().unwrap();
+    let studies = rendered_studies(work.path(), "dcr");
+    let support::Started { app, admin_token, skipped, .. } = support::start(work.path(), &studies).await;
+    if !skipped.is_empty() {
+        assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
+        eprintln!("skipped: no GPU adapter (not even a software one): {skipped:?}");
+        return;
+    }
+    let app = &app;
+    let slug = "dcr";
+    for step in [1, 3] {
+        let (id, token, _) = support::join(app, slug, no_demographics()).await;
+        rate_with(app, &id, &token, |trial, catch| if catch { 1 } else { (trial * step) % 5 + 1 }).await;
+    }
+    let csv =
+        call(app, Method::GET, &format!("/api/admin/studies/{slug}/export.csv"), Some(&admin_token), None).await.text();
+    let rows = export_rows(&csv);
+    assert_eq!(rows.len(), 2 * 5, "two conditions twice and the catch trial each: {csv}");
+    let data: Vec<(String, f64)> = rows
+        .iter()
+        .filter(|row| row["catch"] == "false")
+        .inspect(|row| {
+            assert_eq!((row["reference"].as_str(), row["right"].as_str()), ("ground-truth", "ground-truth"), "{csv}")
+        })
+        .map(|row| (row["condition"].clone(), row["rating"].parse().unwrap()))
+        .collect();
+    let ratings = &analyze_export(&csv)["ratings"];
+    assert_eq!(
+        (&ratings["method"], &ratings["scale"], &ratings["scores"]),
+        (&json!("dcr"), &json!("impairment"), &json!("rating"))
+    );
+    assert_eq!(ratings["ratings"], 8, "{ratings}");
+    let found: Vec<(String, f64)> = ratings["conditions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| (c["condition"].as_str().unwrap().to_string(), c["mos"].as_f64().unwrap()))
+        .collect();
+    let expected = means(&data);
+    assert_eq!(found.len(), expected.len(), "{found:?}");
+    for ((condition, mos), (want, (mean, _))) in found.iter().zip(&expected) {
+        assert_eq!(condition, want);
+        assert!((mos - mean).abs() < 1e-12, "{condition}: {mos} against {mean}");
+    }
 }
