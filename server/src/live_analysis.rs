@@ -4,7 +4,7 @@
 //! `mrstudy export` fed to `mrstudy analyze --conditions`.
 
 use mrstudy_analysis::AnalysisError;
-use mrstudy_analysis::analysis::Options;
+use mrstudy_analysis::analysis::{Options, Scale};
 use mrstudy_analysis::data::ConditionTable;
 use mrstudy_analysis::report::{Report, analyze_with_table};
 use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, StimulusOptions, analyze_stimuli};
@@ -25,26 +25,23 @@ pub fn condition_table(study: &Study) -> ConditionTable {
 /// The analysis crate leaves pilot and excluded rows out by itself unless told to keep them;
 /// the export already left out what `include` does not keep, so the two agree. Detection trials
 /// (one side the ground truth) are analysed apart; with the study's stimulus metrics CSV the
-/// preference is set beside the stimuli's errors against the ground truth.
+/// preference is set beside the stimuli's errors against the ground truth. A rating study's
+/// export gets the rating analysis (`ratings`).
 fn report(
     trials_csv: &str,
     study: &Study,
     include: Include,
     stimuli: Option<&StimulusMetrics>,
+    scale: Scale,
 ) -> Result<Report, AppError> {
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include)).map_err(
-        |error| match study.rating {
-            // until the analysis reads rating exports (mean opinion scores, issue 49)
-            Some(_) => AppError::Unprocessable(format!(
-                "The live analysis fits paired comparisons; a rating study's ratings are in its trials CSV (columns scene, condition, rating, method, reference, scale), for `mrstudy analyze` ({error})."
-            )),
-            None => cannot_run(error),
-        },
-    )
+    // a rating study's export is analysed as ratings (MOS, P.910 screening, SUREAL's MLE_CO:
+    // the `ratings` section), as `mrstudy analyze` does; the condition table is not used there
+    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include, scale))
+        .map_err(cannot_run)
 }
 
-fn options(include: Include) -> Options {
-    Options { include_pilots: include.pilots, include_excluded: include.excluded, ..Options::default() }
+fn options(include: Include, scale: Scale) -> Options {
+    Options { include_pilots: include.pilots, include_excluded: include.excluded, scale, ..Options::default() }
 }
 
 /// No judgments yet, or a design the models cannot fit: the researcher sees why.
@@ -52,21 +49,28 @@ fn cannot_run(error: AnalysisError) -> AppError {
     AppError::Unprocessable(format!("The analysis cannot be run on the data so far: {error}."))
 }
 
-/// The Analysis JSON of docs/design.md, with its `detection` and `metrics` sections where they apply.
+/// The Analysis JSON of docs/design.md, with its `detection` and `metrics` sections where they
+/// apply; with [`Scale::Jod`] also pwcmp's JOD (`mrstudy analyze --scale jod`, no bootstrap:
+/// no `jod_ci`), as the admin page shows it.
 pub fn run(
     trials_csv: &str,
     study: &Study,
     include: Include,
     stimuli: Option<&StimulusMetrics>,
+    scale: Scale,
 ) -> Result<serde_json::Value, AppError> {
-    let report = report(trials_csv, study, include, stimuli)?;
+    let report = report(trials_csv, study, include, stimuli, scale)?;
     serde_json::to_value(&report).map_err(|error| AppError::Internal(format!("analysis JSON: {error}")))
 }
 
 /// The worth plot as SVG, drawn as `mrstudy analyze --plot` draws it.
 pub fn worth_svg(trials_csv: &str, study: &Study, include: Include) -> Result<String, AppError> {
-    match report(trials_csv, study, include, None)?.preference {
+    match report(trials_csv, study, include, None, Scale::Bt)?.preference {
         Some(analysis) => Ok(analysis.worth_plot()),
+        None if study.rating.is_some() => Err(AppError::Unprocessable(
+            "A rating study has no worth plot: its mean opinion scores are in the analysis' `ratings` section (`mrstudy analyze --plot-dir` draws them)."
+                .into(),
+        )),
         None => Err(AppError::Unprocessable(
             "The study has only detection trials (each condition beside the ground truth): there is no worth plot."
                 .into(),
@@ -78,9 +82,13 @@ pub fn worth_svg(trials_csv: &str, study: &Study, include: Include) -> Result<St
 /// as `mrstudy analyze --stimuli … --plot-dir` draws it: the stimulus-metrics analysis alone,
 /// not the whole report.
 pub fn best_metric_svg(trials_csv: &str, include: Include, stimuli: &StimulusMetrics) -> Result<String, AppError> {
-    let metrics =
-        analyze_stimuli(trials_csv, "trials CSV", stimuli, &StimulusOptions::from_analysis(&options(include)))
-            .map_err(cannot_run)?;
+    let metrics = analyze_stimuli(
+        trials_csv,
+        "trials CSV",
+        stimuli,
+        &StimulusOptions::from_analysis(&options(include, Scale::Bt)),
+    )
+    .map_err(cannot_run)?;
     metrics.scatter_plots().into_iter().next().map(|(_, svg)| svg).ok_or_else(|| {
         AppError::Unprocessable("No image metric could be set beside the preference on the data so far.".into())
     })

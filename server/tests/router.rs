@@ -629,6 +629,36 @@ async fn live_analysis_runs_the_analysis_crate_on_the_export() {
     let html = page.text();
     assert!(html.contains("coefficient of agreement u ="), "{html}");
     assert!(html.contains("<td>shadow</td>"), "factor estimates table");
+    // the page's conditions table has pwcmp's JOD beside the log-worths, as `mrstudy analyze
+    // --scale jod` gives it on the export; the API's JSON stays the default analysis (no JOD)
+    assert!(analysis["items"].as_array().unwrap().iter().all(|item| item.get("jod").is_none()), "{analysis}");
+    let csv = call(app, Method::GET, "/api/admin/studies/shadows-demo/export.csv", Some(token), None).await.text();
+    let conditions =
+        call(app, Method::GET, "/api/admin/studies/shadows-demo/conditions.csv", Some(token), None).await.text();
+    let options = mrstudy_analysis::analysis::Options {
+        scale: mrstudy_analysis::analysis::Scale::Jod,
+        ..mrstudy_analysis::analysis::Options::default()
+    };
+    let printed = mrstudy_analysis::command::analyze_files(
+        (&csv, "trials.csv"),
+        Some((&conditions, "conditions.csv")),
+        None,
+        &options,
+        true,
+        mrstudy_analysis::command::Drawings::default(),
+    )
+    .unwrap();
+    let offline: serde_json::Value = serde_json::from_str(&printed.text).unwrap();
+    assert!(html.contains("<th scope=\"col\">JOD</th>"), "{html}");
+    for item in offline["items"].as_array().unwrap() {
+        let condition = item["condition"].as_str().unwrap();
+        let start = html.find(&format!("<tr><td>{condition}</td>")).unwrap_or_else(|| panic!("{condition}: {html}"));
+        let row = &html[start..start + html[start..].find("</tr>").unwrap()];
+        let jod = item["jod"].as_f64().unwrap_or_else(|| panic!("{item}"));
+        let log_worth = item["log_worth"].as_f64().unwrap();
+        assert!(row.contains(&format!("<td>{log_worth:.3}</td><td>{jod:.2}</td>")), "{condition}: {jod:.2} in {row}");
+    }
+    assert!(html.contains("id=\"jod-note\">pwcmp"), "pwcmp's outlier analysis beside the JOD: {html}");
 }
 
 #[tokio::test]

@@ -10,6 +10,7 @@ use askama::Template;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
+use mrstudy_analysis::analysis::Scale;
 
 pub(super) async fn page_authorize(state: &AppState, headers: &HeaderMap) -> Result<(), Box<Response>> {
     authorize(state, headers).await.map(|_| ()).map_err(|error| {
@@ -123,6 +124,8 @@ pub struct WorthRow {
     pub condition: String,
     pub worth: String,
     pub log_worth: String,
+    /// pwcmp's JOD (`--scale jod`), "–" where it has none.
+    pub jod: String,
     pub wins: String,
     pub comparisons: String,
 }
@@ -155,6 +158,83 @@ pub(super) struct AdminStudyPage {
     /// The image metrics against the preference, best predictor first.
     metric_rows: Vec<MetricRow>,
     metrics_note: Option<String>,
+    /// pwcmp's outlier analysis beside the JOD: the participants with dist_L > 1.5.
+    jod_note: Option<String>,
+    /// A rating study: what the MOS are of, the MOS per condition, the screening per participant.
+    ratings_note: Option<String>,
+    mos_rows: Vec<MosRow>,
+    rating_screening: Vec<RatingScreenRow>,
+}
+
+/// One condition's mean opinion score (a rating study).
+pub struct MosRow {
+    pub condition: String,
+    pub ratings: String,
+    pub mos: String,
+    pub ci: String,
+}
+
+/// One participant of a rating study: P.910's screening and MLE_CO's bias and inconsistency.
+pub struct RatingScreenRow {
+    pub participant: String,
+    pub verdict: String,
+    pub golden: String,
+    pub outlier_votes: String,
+    pub bias: String,
+    pub inconsistency: String,
+}
+
+/// The rating analysis (`ratings` of the Analysis JSON) as the page's rows.
+fn fill_ratings(page: &mut AdminStudyPage, ratings: &serde_json::Value) {
+    let scores = if ratings["scores"] == "dv" {
+        "differential viewer scores against the hidden reference (DMOS, ACR-HR)"
+    } else {
+        "ratings"
+    };
+    page.ratings_note = Some(format!(
+        "{} {} on the {} scale ({}); mean opinion score per condition over its scene configurations, with its 95 % t-interval; P.910's screening (golden questions, straight-lining) leaves a screened participant out, and votes with |z| ≥ 3.29 within their stimulus.",
+        format_number(&ratings["ratings"], 0),
+        scores,
+        ratings["scale"].as_str().unwrap_or_default(),
+        ratings["method"].as_str().unwrap_or_default()
+    ));
+    let plus_minus = |value: &serde_json::Value, se: &serde_json::Value| match value.as_f64() {
+        Some(_) => format!("{} ± {}", format_number(value, 2), format_number(se, 2)),
+        None => "–".to_string(),
+    };
+    for condition in ratings["conditions"].as_array().into_iter().flatten() {
+        page.mos_rows.push(MosRow {
+            condition: condition["condition"].as_str().unwrap_or_default().to_string(),
+            ratings: format_number(&condition["ratings"], 0),
+            mos: format_number(&condition["mos"], 2),
+            ci: match condition["mos_ci"].as_array() {
+                Some(ci) if ci.len() == 2 => format!("[{}, {}]", format_number(&ci[0], 2), format_number(&ci[1], 2)),
+                _ => condition["note"].as_str().unwrap_or("–").to_string(),
+            },
+        });
+    }
+    for participant in ratings["participants"].as_array().into_iter().flatten() {
+        let reason = participant["reason"].as_str();
+        page.rating_screening.push(RatingScreenRow {
+            participant: participant["participant"].as_str().unwrap_or_default().to_string(),
+            verdict: match (participant["screened"].as_bool() == Some(true), reason) {
+                (true, Some(reason)) => format!("screened: {reason}"),
+                (false, Some(reason)) => format!("kept (screening off; would be screened: {reason})"),
+                _ => "kept".to_string(),
+            },
+            golden: format!(
+                "{} of {}",
+                format_number(&participant["golden_failed"], 0),
+                format_number(&participant["golden_answered"], 0)
+            ),
+            outlier_votes: format_number(&participant["outlier_votes"], 0),
+            bias: plus_minus(&participant["bias"], &participant["bias_se"]),
+            inconsistency: plus_minus(&participant["inconsistency"], &participant["inconsistency_se"]),
+        });
+    }
+    page.warnings.extend(
+        ratings["warnings"].as_array().into_iter().flatten().filter_map(|warning| warning.as_str().map(str::to_string)),
+    );
 }
 
 /// One condition of the detection analysis.
@@ -259,6 +339,10 @@ pub(super) async fn admin_study_page(
         detection_note: None,
         metric_rows: Vec::new(),
         metrics_note: None,
+        jod_note: None,
+        ratings_note: None,
+        mos_rows: Vec::new(),
+        rating_screening: Vec::new(),
     };
     if let Some(active) = state.active(&slug) {
         let (target, optimises) = state
@@ -272,7 +356,7 @@ pub(super) async fn admin_study_page(
         ));
         page.active_warning = active.failure.clone();
     }
-    let analysis = analysis_json(&state, &slug, Include::default(), Metrics::Set).await;
+    let analysis = analysis_json(&state, &slug, Include::default(), Metrics::Set, Scale::Jod).await;
     page.participants = match participants(&state, &slug, analysis.as_ref().ok()).await {
         Ok(entries) => entries.iter().map(ParticipantLine::from).collect(),
         Err(error) => return error.into_response(),
@@ -280,6 +364,9 @@ pub(super) async fn admin_study_page(
     match analysis {
         Ok(analysis) => {
             page.has_preference = analysis.get("items").is_some();
+            if let Some(ratings) = analysis.get("ratings") {
+                fill_ratings(&mut page, ratings);
+            }
             if let Some(detection) = analysis.get("detection") {
                 page.detection_note = Some(format!(
                     "{} detection trials: how often the ground truth was taken for real (chance {}); exact binomial test at α = {}, power against a true rate of {}.",
@@ -355,6 +442,17 @@ pub(super) async fn admin_study_page(
                     });
                 }
             }
+            if let Some(section) = analysis.get("jod_scale") {
+                let outliers: Vec<&str> =
+                    section["outliers"].as_array().into_iter().flatten().filter_map(|p| p.as_str()).collect();
+                page.jod_note = Some(match (section["observers"].as_array(), outliers.is_empty()) {
+                    (None, _) => "pwcmp's outlier analysis needs three participants or more.".to_string(),
+                    (Some(_), true) => "pwcmp's outlier analysis: no participant with dist_L > 1.5.".to_string(),
+                    (Some(_), false) => {
+                        format!("pwcmp's outlier analysis: dist_L > 1.5 (not dropped): {}.", outliers.join(", "))
+                    }
+                });
+            }
             page.judgments = format_number(&analysis["judgments"], 0);
             page.agreement_u = analysis.get("agreement").map(|agreement| format_number(&agreement["u"], 3));
             for item in analysis["items"].as_array().into_iter().flatten() {
@@ -362,6 +460,10 @@ pub(super) async fn admin_study_page(
                     condition: item["condition"].as_str().unwrap_or_default().to_string(),
                     worth: format_number(&item["worth"], 3),
                     log_worth: format_number(&item["log_worth"], 3),
+                    jod: match item.get("jod") {
+                        Some(jod) => format_number(jod, 2),
+                        None => "–".to_string(),
+                    },
                     wins: format_number(&item["wins"], 0),
                     comparisons: format_number(&item["comparisons"], 0),
                 });

@@ -129,11 +129,14 @@ pub(super) async fn list_participants(
 ) -> AppResult<Json<Vec<ParticipantEntry>>> {
     // The observer flags come from the default analysis; a study whose data cannot be analysed
     // yet still lists its participants, without those flags.
-    let analysis = match analysis_json(&state, &slug, Include::default(), Metrics::Skip).await {
-        Ok(analysis) => Some(analysis),
-        Err(AppError::Unprocessable(_)) => None,
-        Err(error) => return Err(error),
-    };
+    let analysis =
+        match analysis_json(&state, &slug, Include::default(), Metrics::Skip, mrstudy_analysis::analysis::Scale::Bt)
+            .await
+        {
+            Ok(analysis) => Some(analysis),
+            Err(AppError::Unprocessable(_)) => None,
+            Err(error) => return Err(error),
+        };
     Ok(Json(participants(&state, &slug, analysis.as_ref()).await?))
 }
 

@@ -9,6 +9,7 @@ use crate::export::{self, Include};
 use axum::extract::{Path, State};
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use mrstudy_analysis::analysis::Scale;
 use serde::Serialize;
 
 /// Progress of one study.
@@ -165,6 +166,7 @@ pub async fn analysis_json(
     slug: &str,
     include: Include,
     metrics: Metrics,
+    scale: Scale,
 ) -> AppResult<serde_json::Value> {
     let pool = &state.storage().admin;
     let definition = export::definition(pool, slug).await?;
@@ -173,7 +175,7 @@ pub async fn analysis_json(
     let served = state.study(slug);
     let stimuli = served.and_then(|study| study.stimulus_metrics.as_ref()).filter(|_| metrics == Metrics::Set);
     let mut analysis =
-        crate::live_analysis::run(&trials.content, &definition, include, stimuli).map_err(|error| {
+        crate::live_analysis::run(&trials.content, &definition, include, stimuli, scale).map_err(|error| {
             match (error, &left_out) {
                 (AppError::Unprocessable(message), Some(_)) => AppError::Unprocessable(format!(
                     "{}; {}",
@@ -183,8 +185,13 @@ pub async fn analysis_json(
                 (error, _) => error,
             }
         })?;
+    // a rating study's warnings are its `ratings` section's
+    let warnings = match analysis.get("ratings") {
+        Some(_) => analysis["ratings"].get_mut("warnings"),
+        None => analysis.get_mut("warnings"),
+    };
     if let Some(sentence) = left_out
-        && let Some(warnings) = analysis.get_mut("warnings").and_then(serde_json::Value::as_array_mut)
+        && let Some(warnings) = warnings.and_then(serde_json::Value::as_array_mut)
     {
         warnings.insert(0, serde_json::Value::String(sentence));
     }
@@ -196,7 +203,7 @@ pub(super) async fn analysis(
     Path(slug): Path<String>,
     AdminInclude(include): AdminInclude,
 ) -> AppResult<Json<serde_json::Value>> {
-    Ok(Json(analysis_json(&state, &slug, include, Metrics::Set).await?))
+    Ok(Json(analysis_json(&state, &slug, include, Metrics::Set, Scale::Bt).await?))
 }
 
 pub(super) async fn worth_svg(
