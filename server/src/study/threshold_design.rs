@@ -89,6 +89,28 @@ impl Function {
     }
 }
 
+/// When a threshold study's levels are rendered (`[threshold] render`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RenderWhen {
+    /// Every level of every scene configuration before the study opens (`serve` at start-up).
+    #[default]
+    Ahead,
+    /// At start-up only the levels QUEST+ can choose in the first `render_ahead` trials; any
+    /// other level when a participant first needs it, through the server's render queue
+    /// (`crate::render_queue`).
+    OnDemand,
+}
+
+impl RenderWhen {
+    pub fn name(self) -> &'static str {
+        match self {
+            RenderWhen::Ahead => "ahead",
+            RenderWhen::OnDemand => "on-demand",
+        }
+    }
+}
+
 /// A checked `[threshold]` table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ThresholdDesign {
@@ -111,6 +133,20 @@ pub struct ThresholdDesign {
     /// records when it is prepared (`metric:…`); `None` until then.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intensities: Option<Vec<f64>>,
+    /// When the levels are rendered: all ahead (default) or on demand.
+    #[serde(default)]
+    pub render: RenderWhen,
+    /// With `render = "on-demand"`: the first trials whose every possible level is rendered at
+    /// start-up (default 3).
+    #[serde(default = "default_render_ahead")]
+    pub render_ahead: u32,
+}
+
+/// `render_ahead`'s default: the levels of the first three trials.
+pub const DEFAULT_RENDER_AHEAD: u32 = 3;
+
+fn default_render_ahead() -> u32 {
+    DEFAULT_RENDER_AHEAD
 }
 
 impl ThresholdDesign {
