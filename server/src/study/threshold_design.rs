@@ -103,11 +103,8 @@ pub enum RenderWhen {
 }
 
 impl RenderWhen {
-    pub fn name(self) -> &'static str {
-        match self {
-            RenderWhen::Ahead => "ahead",
-            RenderWhen::OnDemand => "on-demand",
-        }
+    fn is_ahead(&self) -> bool {
+        *self == RenderWhen::Ahead
     }
 }
 
@@ -133,12 +130,13 @@ pub struct ThresholdDesign {
     /// records when it is prepared (`metric:…`); `None` until then.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intensities: Option<Vec<f64>>,
-    /// When the levels are rendered: all ahead (default) or on demand.
-    #[serde(default)]
+    /// When the levels are rendered: all ahead (default) or on demand. (Left out of the stored
+    /// definition when default, so a study file without the key records as before.)
+    #[serde(default, skip_serializing_if = "RenderWhen::is_ahead")]
     pub render: RenderWhen,
     /// With `render = "on-demand"`: the first trials whose every possible level is rendered at
     /// start-up (default 3).
-    #[serde(default = "default_render_ahead")]
+    #[serde(default = "default_render_ahead", skip_serializing_if = "is_default_render_ahead")]
     pub render_ahead: u32,
 }
 
@@ -147,6 +145,10 @@ pub const DEFAULT_RENDER_AHEAD: u32 = 3;
 
 fn default_render_ahead() -> u32 {
     DEFAULT_RENDER_AHEAD
+}
+
+fn is_default_render_ahead(trials: &u32) -> bool {
+    *trials == DEFAULT_RENDER_AHEAD
 }
 
 impl ThresholdDesign {
