@@ -332,7 +332,8 @@ impl RenderQueue {
 
     /// The queue in one line for the admin page; `None` when no study renders on demand.
     pub fn summary_line(&self) -> Option<String> {
-        (!self.lock().studies.is_empty()).then(|| self.summary())
+        let any = !self.lock().studies.is_empty();
+        any.then(|| self.summary())
     }
 
     /// The queue in one line: what renders, how many wait, done, refused, failed.

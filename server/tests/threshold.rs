@@ -239,7 +239,12 @@ async fn a_restart_mid_run_continues_with_the_level_the_stored_answers_give() {
 async fn an_on_demand_level_missing_from_the_store_is_rendered_for_the_participant_who_needs_it() {
     let work = tempfile::tempdir().unwrap();
     write_study_rendered(&work.path().join("studies"), "render = \"on-demand\"\nrender_ahead = 1");
-    let Some((app, state)) = start(work.path()).await else { return };
+    let Started { app, state, skipped, admin_token, .. } =
+        support::start(work.path(), &work.path().join("studies")).await;
+    if !skipped.is_empty() {
+        assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
+        return;
+    }
     let prepared = state.study(STUDY).unwrap().clone();
     // start-up rendered the first trial's level only (and every ground truth)
     let rendered_at_start: Vec<usize> =
@@ -261,6 +266,17 @@ async fn an_on_demand_level_missing_from_the_store_is_rendered_for_the_participa
         trials.iter().filter(|t| !rendered_at_start.contains(&t.0)).map(|t| (t.0, t.3.as_str())).collect();
     assert_eq!(queue.rendered(), on_demand.len(), "{}", queue.summary());
     assert_eq!(queue.refused(), 0);
+    // the admin page shows the queue
+    let cookie = support::admin_session_cookie(&app, &admin_token).await;
+    let request = axum::http::Request::builder()
+        .uri("/admin")
+        .header(axum::http::header::COOKIE, cookie)
+        .body(axum::body::Body::empty())
+        .unwrap();
+    let page = support::send(&app, request).await;
+    assert_eq!(page.status, StatusCode::OK);
+    let line = format!("{} rendered", on_demand.len());
+    assert!(page.text().contains("Render queue") && page.text().contains(&line), "{}", page.text());
     let names = sqlx::query("SELECT left_stimulus, right_stimulus FROM trials WHERE participant = $1")
         .bind(&id)
         .fetch_all(&state.storage().read)
