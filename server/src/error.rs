@@ -10,6 +10,9 @@ use axum::extract::{FromRequest, Request};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
+/// What a participant whose next level is still rendering is told ([`AppError::Rendering`]).
+pub const RENDERING: &str = "The images of your next trial are being prepared; they follow in a moment.";
+
 /// What a participant of a study still being prepared is told ([`AppError::OpensSoon`]).
 pub const OPENS_SOON: &str = "This study opens in a few minutes.";
 
@@ -42,6 +45,10 @@ pub enum AppError {
     /// `Retry-After`.
     #[error("{}", OPENS_SOON)]
     OpensSoon { retry_after_seconds: u64 },
+    /// The participant's next level is still rendering, or the render queue is full
+    /// (`crate::render_queue`): 503 with `Retry-After`.
+    #[error("{}", RENDERING)]
+    Rendering { retry_after_seconds: u64 },
     #[error("database error: {0}")]
     Database(#[from] sqlx::Error),
     #[error("internal error: {0}")]
@@ -61,7 +68,9 @@ impl AppError {
             AppError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             AppError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             AppError::TooManyRequests(_) => StatusCode::TOO_MANY_REQUESTS,
-            AppError::Unavailable(_) | AppError::OpensSoon { .. } => StatusCode::SERVICE_UNAVAILABLE,
+            AppError::Unavailable(_) | AppError::OpensSoon { .. } | AppError::Rendering { .. } => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
             AppError::Database(_) | AppError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -82,7 +91,7 @@ impl IntoResponse for AppError {
                 .headers_mut()
                 .insert(axum::http::header::WWW_AUTHENTICATE, axum::http::HeaderValue::from_static("Bearer"));
         }
-        if let AppError::OpensSoon { retry_after_seconds } = self {
+        if let AppError::OpensSoon { retry_after_seconds } | AppError::Rendering { retry_after_seconds } = self {
             response.headers_mut().insert(axum::http::header::RETRY_AFTER, retry_after_seconds.into());
         }
         response

@@ -41,6 +41,7 @@ pub mod participant;
 pub mod prepared;
 pub mod preparing;
 pub mod rating;
+pub mod render_queue;
 pub mod schedule;
 pub mod serve;
 pub mod simulate;
@@ -97,6 +98,8 @@ struct StateInner {
     admin_work: tokio::sync::Semaphore,
     /// Refusals counted per kind ([`logs`]).
     refusals: logs::Refusals,
+    /// Levels of on-demand threshold studies rendered when first needed.
+    render_queue: render_queue::RenderQueue,
 }
 
 /// A study served or being prepared: set once, when it is served ([`AppState::install`]).
@@ -139,13 +142,14 @@ impl AppState {
                 order,
                 preparation: Default::default(),
                 admin_token_sha256: auth::sha256(admin_token.as_bytes()),
-                stimuli_dir,
+                stimuli_dir: stimuli_dir.clone(),
                 credentials: Default::default(),
                 lab: std::sync::OnceLock::new(),
                 limits: limits::Limits::default(),
                 buckets,
                 admin_work: tokio::sync::Semaphore::new(1),
                 refusals: Default::default(),
+                render_queue: render_queue::RenderQueue::new(stimuli_dir.clone()),
             }),
         }
     }
@@ -180,6 +184,11 @@ impl AppState {
         let installed = slot.prepared.set(prepared).is_ok();
         self.inner.preparation.remove(&slug);
         installed
+    }
+
+    /// The render queue of on-demand threshold studies ([`render_queue`]).
+    pub fn render_queue(&self) -> &render_queue::RenderQueue {
+        &self.inner.render_queue
     }
 
     /// The studies being prepared (and the lab while it starts).

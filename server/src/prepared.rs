@@ -42,7 +42,9 @@ pub enum PrepareError {
 #[derive(Debug)]
 pub struct PreparedStudy {
     pub study: Study,
-    /// `[scene][condition]` → stimulus file name (realisation 0).
+    /// `[scene][condition]` → stimulus file name (realisation 0); empty for a level of an
+    /// on-demand threshold study not rendered when the study was prepared
+    /// ([`crate::render_queue`] finds it then).
     pub stimuli: Vec<Vec<String>>,
     /// `[scene][realisation − 1][condition]` → stimulus file name of the further sensor-noise
     /// realisations of a detection design (empty otherwise).
@@ -87,7 +89,10 @@ impl PreparedStudy {
         if study.kind == crate::study::StudyKind::Task {
             return Err(PrepareError::TaskStudy { slug: study.slug, file: study.file });
         }
-        let missing = plan.missing(store);
+        // an on-demand threshold study's levels render when first needed (`crate::render_queue`):
+        // their names are empty here until then; ground truths and image files are needed now
+        let on_demand = crate::render_queue::on_demand(&study);
+        let missing = if on_demand { Vec::new() } else { plan.missing(store) };
         if let Some(first) = missing.first() {
             return Err(PrepareError::NeedsRendering {
                 slug: study.slug.clone(),
@@ -101,7 +106,7 @@ impl PreparedStudy {
             match (&scene.source, planned) {
                 (StimulusSource::Render(_), planned) => {
                     let names: Option<Vec<String>> = planned.as_ref().and_then(|planned| {
-                        planned.stimuli.iter().map(|stimulus| crate::stimuli::lookup(store, &stimulus.key)).collect()
+                        planned.stimuli.iter().map(|stimulus| level_name(store, &stimulus.key, on_demand)).collect()
                     });
                     let Some(names) = names else {
                         // not in this study's plan, or gone from the store since it was checked
@@ -147,7 +152,7 @@ impl PreparedStudy {
                     names.push(name);
                     if realisation > 0 {
                         let stimuli: Option<Vec<String>> =
-                            stimuli.iter().map(|stimulus| crate::stimuli::lookup(store, &stimulus.key)).collect();
+                            stimuli.iter().map(|stimulus| level_name(store, &stimulus.key, on_demand)).collect();
                         further.push(stimuli.ok_or_else(|| needs_rendering(study.conditions.len()))?);
                     }
                 }
@@ -155,10 +160,12 @@ impl PreparedStudy {
                 realisation_stimuli.push(further);
             }
         }
-        let (mut metrics_csv, mut metrics_notes) = match crate::stimuli::metrics_csv(&study, plan, store) {
-            Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
-            Err(error) => (None, vec![error.to_string()]),
-        };
+        let rendered_part = on_demand.then(|| crate::render_queue::rendered_part(plan, store));
+        let (mut metrics_csv, mut metrics_notes) =
+            match crate::stimuli::metrics_csv(&study, rendered_part.as_ref().unwrap_or(plan), store) {
+                Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
+                Err(error) => (None, vec![error.to_string()]),
+            };
         let stimulus_metrics =
             match metrics_csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
                 Some(Ok(metrics)) => Some(metrics),
@@ -317,6 +324,12 @@ fn rating_catch_stimuli(
         });
     }
     Ok(stimuli)
+}
+
+/// The stored name of the stimulus `key`; for an on-demand study an empty name while it is not
+/// rendered yet (`None` only where it must be there).
+fn level_name(store: &Path, key: &str, on_demand: bool) -> Option<String> {
+    crate::stimuli::lookup(store, key).or_else(|| on_demand.then(String::new))
 }
 
 fn store_image(path: &Path, store: &Path) -> Result<String, PrepareError> {

@@ -248,6 +248,7 @@ pub async fn load(
     let mut skipped = Vec::new();
     let mut tasks = Vec::new();
     let mut small = Vec::new();
+    let mut on_demand = Vec::new();
     for study in studies {
         let study = match study {
             LoadedStudy::Survey(study) => study,
@@ -265,15 +266,23 @@ pub async fn load(
             }
         };
         if study.needs_renderer() {
-            let incomplete = plan.incomplete(&stimuli_dir);
+            // an on-demand threshold study opens once what its first trials need is rendered
+            let startup = crate::render_queue::startup_plan(&study, &plan);
+            let incomplete = startup.incomplete(&stimuli_dir);
             if !incomplete.is_empty() {
-                let stimuli = plan.stimuli_in(&incomplete);
+                let stimuli = startup.stimuli_in(&incomplete);
                 pending.push(PendingStudy { study, plan, stimuli });
                 continue;
             }
         }
         match PreparedStudy::prepare(study, &plan, &stimuli_dir) {
-            Ok(study) => prepared.push(Arc::new(study)),
+            Ok(study) => {
+                let study = Arc::new(study);
+                if crate::render_queue::on_demand(&study.study) {
+                    on_demand.push((study.clone(), plan));
+                }
+                prepared.push(study);
+            }
             Err(
                 error @ (PrepareError::NeedsRendering { .. }
                 | PrepareError::TaskStudy { .. }
@@ -296,6 +305,9 @@ pub async fn load(
     pending.sort_by_key(|study: &PendingStudy| study.stimuli);
     let state = AppState::new(storage, prepared, &admin_token, stimuli_dir)
         .with_pending(pending.iter().map(|study| (study.study.slug.clone(), study.study.title.clone(), study.stimuli)));
+    for (study, plan) in on_demand {
+        state.render_queue().register(study, plan);
+    }
     Ok(Prepared { state, admin_token, skipped, small, slugs, pending, tasks })
 }
 
@@ -370,14 +382,17 @@ pub async fn prepare_pending(
                     progress(&slug, &step);
                 }
             };
-            crate::stimuli::render_missing(&study, &plan, &store, &report).map_err(|error| error.to_string())?;
-            PreparedStudy::prepare(study, &plan, &store).map_err(|error| error.to_string())
+            let startup = crate::render_queue::startup_plan(&study, &plan);
+            crate::stimuli::render_missing(&study, &startup, &store, &report).map_err(|error| error.to_string())?;
+            let prepared = PreparedStudy::prepare(study, &plan, &store).map_err(|error| error.to_string())?;
+            Ok((Arc::new(prepared), plan))
         })
         .await;
         let served = match rendered {
-            Ok(Ok(prepared)) => match state.storage().upsert_study(&prepared.record()).await {
+            Ok(Ok((prepared, plan))) => match state.storage().upsert_study(&prepared.record()).await {
                 Ok(()) => {
-                    state.install(Arc::new(prepared));
+                    state.render_queue().register(prepared.clone(), plan);
+                    state.install(prepared);
                     Ok(())
                 }
                 Err(source) => Err(ServeError::RecordStudy { slug: slug.clone(), source }.to_string()),

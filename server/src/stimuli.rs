@@ -520,15 +520,41 @@ pub fn render_missing_shard(
         let owned = plan.shard_scenes(shard);
         scenes.retain(|index| owned.contains(index));
     }
-    let mut rendered = Rendered::default();
     if scenes.is_empty() {
-        return Ok(rendered);
+        return Ok(Rendered::default());
     }
     let renderer = DirRenderer::new().map_err(|source| StimuliError::NoGpu {
         slug: study.slug.clone(),
         file: study.file.clone(),
         source,
     })?;
+    render_scenes(&renderer, study, plan, store, scenes, progress)
+}
+
+/// [`render_missing`] on a GPU renderer the caller keeps (the server's render queue,
+/// [`crate::render_queue`], renders level after level on one).
+pub fn render_missing_on(
+    renderer: &DirRenderer,
+    study: &Study,
+    plan: &StimulusPlan,
+    store: &Path,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Rendered, StimuliError> {
+    render_scenes(renderer, study, plan, store, plan.incomplete(store), progress)
+}
+
+fn render_scenes(
+    renderer: &DirRenderer,
+    study: &Study,
+    plan: &StimulusPlan,
+    store: &Path,
+    scenes: Vec<usize>,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Rendered, StimuliError> {
+    let mut rendered = Rendered::default();
+    if scenes.is_empty() {
+        return Ok(rendered);
+    }
     let frames = plan.stimuli_in(&scenes);
     progress(Progress::Start { photos: scenes.len(), stimuli: frames });
     let io = |path: &Path| {
@@ -589,7 +615,7 @@ pub fn render_missing_shard(
                 }
                 let frame = stimulus
                     .settings(plan)
-                    .render_stimulus(&renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
+                    .render_stimulus(renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
                     .map_err(render_error)?;
                 let (name, shown) = match stored {
                     Some(name) => {
@@ -673,12 +699,12 @@ static RECENT_REFERENCES: std::sync::Mutex<Vec<(String, std::sync::Arc<Reference
 /// How many reference renders [`RECENT_REFERENCES`] keeps: the web survey's scene configurations.
 const KEPT_REFERENCES: usize = 6;
 
-fn recent_reference(key: &str) -> Option<std::sync::Arc<ReferenceOutput>> {
+pub(crate) fn recent_reference(key: &str) -> Option<std::sync::Arc<ReferenceOutput>> {
     let kept = RECENT_REFERENCES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     kept.iter().find(|(kept_key, _)| kept_key == key).map(|(_, reference)| reference.clone())
 }
 
-fn keep_reference(key: &str, reference: &std::sync::Arc<ReferenceOutput>) {
+pub(crate) fn keep_reference(key: &str, reference: &std::sync::Arc<ReferenceOutput>) {
     let mut kept = RECENT_REFERENCES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     kept.retain(|(kept_key, _)| kept_key != key);
     if kept.len() >= KEPT_REFERENCES {

@@ -3,7 +3,9 @@
 //! a participant's trials follow the seed's skeleton (sides and scene configurations balanced,
 //! the catch trial placed), each stored level is QUEST+'s after the answers before it (replayed
 //! from the database), a server restarted mid-run continues with the level the stored answers
-//! give, and the export has the threshold columns.
+//! give, and the export has the threshold columns. With `render = "on-demand"` only the first
+//! trial's level is rendered at start-up, and a participant's `…/next` gets every later level
+//! after the server's render queue renders it: the level QUEST+ chose, never another.
 
 use std::path::Path;
 
@@ -21,6 +23,11 @@ use support::{Started, call, repo_studies_dir};
 const STUDY: &str = "vpls-tiny";
 
 fn write_study(studies: &Path) {
+    write_study_rendered(studies, "");
+}
+
+/// The study, with `render` lines added to its `[threshold]` table.
+fn write_study_rendered(studies: &Path, render: &str) {
     std::fs::create_dir_all(studies.join("img")).unwrap();
     for (name, from) in [("good.png", "catch-good.png"), ("broken.png", "catch-bad.png")] {
         std::fs::copy(repo_studies_dir().join("shadows-demo").join(from), studies.join("img").join(name)).unwrap();
@@ -58,6 +65,7 @@ slope = [2.0, 3.5]
 lapse = [0.0, 0.02]
 guess = 0.5
 trials = 10
+{render}
 "#
     );
     std::fs::write(studies.join("threshold.toml"), text).unwrap();
@@ -81,7 +89,15 @@ async fn join(app: &Router) -> (String, String) {
 
 /// Asks for the next trial and returns its number and stored conditions (None when done).
 async fn next(app: &Router, state: &AppState, id: &str, token: &str) -> Option<(i64, String, String, Option<String>)> {
-    let next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    let mut next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    for _ in 0..60 {
+        if next.status != StatusCode::SERVICE_UNAVAILABLE {
+            break;
+        }
+        // an on-demand level still rendering after the server's wait: asked again, as the page does
+        tokio::time::sleep(std::time::Duration::from_secs(2)).await;
+        next = call(app, Method::GET, &format!("/api/participants/{id}/next"), Some(token), None).await;
+    }
     assert_eq!(next.status, StatusCode::OK, "{}", next.text());
     let next = next.json();
     if next["done"] == true {
@@ -216,5 +232,60 @@ async fn a_restart_mid_run_continues_with_the_level_the_stored_answers_give() {
         assert_eq!(&row[column("scale")], "log10");
         assert_eq!(&row[column("guess")], "0.5");
         assert_eq!(&row[column("scene")], trial.3);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_on_demand_level_missing_from_the_store_is_rendered_for_the_participant_who_needs_it() {
+    let work = tempfile::tempdir().unwrap();
+    write_study_rendered(&work.path().join("studies"), "render = \"on-demand\"\nrender_ahead = 1");
+    let Started { app, state, skipped, admin_token, .. } =
+        support::start(work.path(), &work.path().join("studies")).await;
+    if !skipped.is_empty() {
+        assert!(skipped.iter().all(|line| line.contains("no adapter")), "{skipped:?}");
+        return;
+    }
+    let prepared = state.study(STUDY).unwrap().clone();
+    // start-up rendered the first trial's level only (and every ground truth)
+    let rendered_at_start: Vec<usize> =
+        (0..4).filter(|&level| prepared.stimuli.iter().all(|names| !names[level].is_empty())).collect();
+    assert_eq!(rendered_at_start.len(), 1, "{:?}", prepared.stimuli);
+    let (id, token) = join(&app).await;
+    while let Some(trial) = next(&app, &state, &id, &token).await {
+        answer(&app, &id, &token, trial).await;
+    }
+    let trials = stored(&state, &id).await;
+    assert_eq!(trials.len(), 10);
+    // every level shown is QUEST+'s after the answers before it
+    assert_levels_replay(&state, &trials);
+    let levels: std::collections::BTreeSet<usize> = trials.iter().map(|t| t.0).collect();
+    assert!(levels.iter().any(|level| !rendered_at_start.contains(level)), "{trials:?}");
+    // the queue rendered the others, each once; every stored stimulus is a file of the store
+    let queue = state.render_queue();
+    let on_demand: std::collections::BTreeSet<(usize, &str)> =
+        trials.iter().filter(|t| !rendered_at_start.contains(&t.0)).map(|t| (t.0, t.3.as_str())).collect();
+    assert_eq!(queue.rendered(), on_demand.len(), "{}", queue.summary());
+    assert_eq!(queue.refused(), 0);
+    // the admin page shows the queue
+    let cookie = support::admin_session_cookie(&app, &admin_token).await;
+    let request = axum::http::Request::builder()
+        .uri("/admin")
+        .header(axum::http::header::COOKIE, cookie)
+        .body(axum::body::Body::empty())
+        .unwrap();
+    let page = support::send(&app, request).await;
+    assert_eq!(page.status, StatusCode::OK);
+    let line = format!("{} rendered", on_demand.len());
+    assert!(page.text().contains("Render queue") && page.text().contains(&line), "{}", page.text());
+    let names = sqlx::query("SELECT left_stimulus, right_stimulus FROM trials WHERE participant = $1")
+        .bind(&id)
+        .fetch_all(&state.storage().read)
+        .await
+        .unwrap();
+    for row in names {
+        for column in ["left_stimulus", "right_stimulus"] {
+            let name: String = row.get(column);
+            assert!(!name.is_empty() && state.stimuli_dir().join(&name).is_file(), "{column} {name:?}");
+        }
     }
 }

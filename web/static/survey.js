@@ -210,6 +210,13 @@
           await sleep(seconds * 1000);
           continue;
         }
+        if (answer.status === 503 && answer.retryAfter) {
+          // the next trial's images are still being rendered (or the study opens soon): the
+          // server's own sentence, then the same request after its Retry-After
+          notice((answer.data && answer.data.error) || "Please wait a moment…");
+          await sleep(Math.min(Math.max(answer.retryAfter, 1), 300) * 1000);
+          continue;
+        }
         if (answer.status < 500) { notice(null); return answer; }
       } catch (error) { /* network error: retry */ }
       if (attempt >= 1) notice("Connection problem: your answers are being saved, please wait…");

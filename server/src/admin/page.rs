@@ -39,6 +39,8 @@ pub(super) struct AdminPage {
     refresh: Option<u64>,
     /// Refusals counted per status and route template ([`crate::logs`]).
     refusals: Vec<crate::logs::Refusal>,
+    /// The render queue of on-demand threshold levels in one line, when a study has them.
+    render_queue: Option<String>,
 }
 
 /// One study being prepared, as the admin page shows it ([`crate::preparing`]).
@@ -76,6 +78,7 @@ impl AdminPage {
             lab_starting,
             refresh: busy.then_some(10),
             refusals: state.refusals().kinds(),
+            render_queue: state.render_queue().summary_line(),
         }
     }
 }

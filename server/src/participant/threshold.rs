@@ -13,8 +13,19 @@ use super::store::Position;
 use crate::AppState;
 use crate::error::{AppError, AppResult};
 use crate::prepared::PreparedStudy;
+use crate::render_queue::Unready;
 use crate::study::GROUND_TRUTH;
 use crate::threshold::Answer;
+use crate::trial::PlannedKind;
+
+/// A level that is not there: 503 with `Retry-After` while it renders or the queue is full (the
+/// page asks again), a logged internal error when its render failed.
+fn unready(unready: Unready) -> AppError {
+    match unready.retry_after_seconds() {
+        Some(retry_after_seconds) => AppError::Rendering { retry_after_seconds },
+        None => AppError::Internal(unready.to_string()),
+    }
+}
 
 fn internal(error: sqlx::Error) -> AppError {
     AppError::Internal(format!("cannot read the participant's answers: {error}"))
@@ -66,12 +77,32 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
                 .map_err(|error| error.to_string())
         })
         .map_err(|reason| AppError::Internal(format!("the next level cannot be chosen: {reason}")))?;
+    let mut scheduled = prepared.scheduled(&chosen);
+    if let PlannedKind::Pair { left, right } = chosen.kind
+        && (scheduled.left_stimulus.is_empty() || scheduled.right_stimulus.is_empty())
+    {
+        // an on-demand level not rendered yet: the trial is stored only once its stimulus is
+        // there, so the level shown is QUEST+'s (a reload asks again and gets the same level)
+        let truth = study.conditions.len();
+        let (level, scene, on_left) =
+            if left == truth { (right, chosen.right_scene, false) } else { (left, chosen.left_scene, true) };
+        let name = state
+            .render_queue()
+            .stimulus(&study.slug, scene, chosen.realisation, level, crate::render_queue::WAIT)
+            .await
+            .map_err(unready)?;
+        if on_left {
+            scheduled.left_stimulus = name;
+        } else {
+            scheduled.right_stimulus = name;
+        }
+    }
     state
         .storage()
         .write(ActiveBatch {
             participant: participant.to_string(),
             first: existing + 1,
-            trials: vec![prepared.scheduled(&chosen)],
+            trials: vec![scheduled],
             chosen_by: format!("quest+ {}", answers.len()),
             batch: existing,
         })

@@ -25,7 +25,9 @@ use serde::Deserialize;
 use super::StudyError;
 use super::checks::Fail;
 use super::survey::{GROUND_TRUTH, Study, StudyKind};
-pub use super::threshold_design::{Function, Intensity, REGIONS, Scale, ThresholdDesign};
+pub use super::threshold_design::{
+    DEFAULT_RENDER_AHEAD, Function, Intensity, REGIONS, RenderWhen, Scale, ThresholdDesign,
+};
 
 /// The raw `[threshold]` table.
 #[derive(Debug, Deserialize)]
@@ -54,6 +56,12 @@ struct ThresholdFile {
     /// What the reference image is, in words, as a detection design's.
     #[serde(default)]
     reference_label: Option<String>,
+    /// `ahead` (default) or `on-demand`.
+    #[serde(default)]
+    render: Option<String>,
+    /// With `render = "on-demand"`: the first trials whose levels are rendered at start-up.
+    #[serde(default)]
+    render_ahead: Option<i64>,
 }
 
 /// The tables of a paired-comparison file a threshold study makes itself from `[threshold]`.
@@ -223,7 +231,41 @@ fn check(
             format!("expected \"{GROUND_TRUTH}\" (each level beside the ground truth of its scene configuration), found \"{reference}\""),
         ));
     }
+    let render = match raw.render.as_deref() {
+        None | Some("ahead") => RenderWhen::Ahead,
+        Some("on-demand") => RenderWhen::OnDemand,
+        Some(other) => {
+            return Err(fail.at("threshold.render", format!("expected \"ahead\" or \"on-demand\", found \"{other}\"")));
+        }
+    };
+    if render == RenderWhen::OnDemand && matches!(intensity, Intensity::Metric { .. }) {
+        return Err(fail.at(
+            "threshold.render",
+            format!(
+                "expected \"ahead\" with intensity \"{}\": a measured intensity needs every level's stimulus record before the first trial",
+                intensity.name()
+            ),
+        ));
+    }
+    let render_ahead = match raw.render_ahead {
+        None => DEFAULT_RENDER_AHEAD,
+        Some(trials) if render == RenderWhen::Ahead => {
+            return Err(fail.at(
+                "threshold.render_ahead",
+                format!("expected render_ahead only with render = \"on-demand\" (every level is rendered ahead), found {trials}"),
+            ));
+        }
+        Some(trials) if (1..=8).contains(&trials) => trials as u32,
+        Some(trials) => {
+            return Err(fail.at(
+                "threshold.render_ahead",
+                format!("expected 1 to 8 trials whose levels are rendered at start-up, found {trials}"),
+            ));
+        }
+    };
     let design = ThresholdDesign {
+        render,
+        render_ahead,
         knob,
         levels,
         intensity,

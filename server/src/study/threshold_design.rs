@@ -89,6 +89,25 @@ impl Function {
     }
 }
 
+/// When a threshold study's levels are rendered (`[threshold] render`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RenderWhen {
+    /// Every level of every scene configuration before the study opens (`serve` at start-up).
+    #[default]
+    Ahead,
+    /// At start-up only the levels QUEST+ can choose in the first `render_ahead` trials; any
+    /// other level when a participant first needs it, through the server's render queue
+    /// (`crate::render_queue`).
+    OnDemand,
+}
+
+impl RenderWhen {
+    fn is_ahead(&self) -> bool {
+        *self == RenderWhen::Ahead
+    }
+}
+
 /// A checked `[threshold]` table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ThresholdDesign {
@@ -111,6 +130,25 @@ pub struct ThresholdDesign {
     /// records when it is prepared (`metric:…`); `None` until then.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intensities: Option<Vec<f64>>,
+    /// When the levels are rendered: all ahead (default) or on demand. (Left out of the stored
+    /// definition when default, so a study file without the key records as before.)
+    #[serde(default, skip_serializing_if = "RenderWhen::is_ahead")]
+    pub render: RenderWhen,
+    /// With `render = "on-demand"`: the first trials whose every possible level is rendered at
+    /// start-up (default 3).
+    #[serde(default = "default_render_ahead", skip_serializing_if = "is_default_render_ahead")]
+    pub render_ahead: u32,
+}
+
+/// `render_ahead`'s default: the levels of the first three trials.
+pub const DEFAULT_RENDER_AHEAD: u32 = 3;
+
+fn default_render_ahead() -> u32 {
+    DEFAULT_RENDER_AHEAD
+}
+
+fn is_default_render_ahead(trials: &u32) -> bool {
+    *trials == DEFAULT_RENDER_AHEAD
 }
 
 impl ThresholdDesign {

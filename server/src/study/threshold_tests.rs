@@ -179,3 +179,25 @@ fn a_knob_of_the_indirect_light_needs_gi_and_the_survey_tables_are_refused() {
     let study = load_study(&write_study(dir.path(), &spp)).unwrap();
     assert_eq!(study.conditions[0].factors.as_ref().unwrap().label(), "gi+ca");
 }
+
+#[test]
+fn render_on_demand_is_refused_where_it_cannot_work() {
+    let with = |lines: &str| {
+        THRESHOLD.replace("reference = \"ground-truth\"", &format!("reference = \"ground-truth\"\n{lines}"))
+    };
+    let error = refusal(&with("render = \"later\""));
+    assert_eq!(error.key, "threshold.render");
+    let error = refusal(
+        &with("render = \"on-demand\"")
+            .replace("intensity = \"inverse-knob\"", "intensity = \"metric:flip_mean:affected\""),
+    );
+    assert!(error.key == "threshold.render" && error.to_string().contains("every level's stimulus record"), "{error}");
+    let error = refusal(&with("render_ahead = 2"));
+    assert_eq!(error.key, "threshold.render_ahead");
+    let error = refusal(&with("render = \"on-demand\"\nrender_ahead = 0"));
+    assert_eq!(error.key, "threshold.render_ahead");
+    let dir = tempfile::tempdir().unwrap();
+    let study = load_study(&write_study(dir.path(), &with("render = \"on-demand\""))).unwrap();
+    let design = study.threshold.unwrap();
+    assert_eq!((design.render, design.render_ahead), (super::threshold::RenderWhen::OnDemand, 3));
+}
