@@ -378,7 +378,11 @@ pub fn on_demand(study: &Study) -> bool {
 
 /// The levels (indices) QUEST+ can choose in the first `trials` trials of a participant,
 /// whatever their answers (every sequence of answers replayed).
-pub fn first_levels(design: &ThresholdDesign, intensities: &[f64], trials: u32) -> Result<BTreeSet<usize>, crate::threshold::NextError> {
+pub fn first_levels(
+    design: &ThresholdDesign,
+    intensities: &[f64],
+    trials: u32,
+) -> Result<BTreeSet<usize>, crate::threshold::NextError> {
     let mut levels = BTreeSet::new();
     let mut sequences: Vec<Vec<Answer>> = vec![Vec::new()];
     for _ in 0..trials.min(design.trials) {
