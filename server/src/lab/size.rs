@@ -23,8 +23,10 @@ use crate::study::task::{Condition, Pace, TaskStudy};
 pub const HARDWARE_SIZE: [u32; 2] = [320, 240];
 /// The sizes tried on a software adapter when `render.size` is not given, smallest first (4:3).
 pub const LADDER: [[u32; 2]; 6] = [[96, 72], [128, 96], [160, 120], [192, 144], [240, 180], [320, 240]];
-/// Frames measured per condition and ladder size (after one warm-up frame).
-pub const LADDER_FRAMES: usize = 5;
+/// Frames measured per condition and ladder size (after one warm-up frame): as many as the
+/// start-up measurement that follows takes, so that the two agree on a paced frame time (with
+/// fewer, the 90th percentile is the slowest frame, the one after a trial's fresh start).
+pub const LADDER_FRAMES: usize = super::STARTUP_FRAMES;
 /// The display's rate a hardware adapter should reach in every condition.
 pub const DISPLAY_FPS: f64 = 60.0;
 
