@@ -165,23 +165,7 @@ pub fn worth_plot_with(
 /// `factors` (factors only the series name follow, in order of appearance).
 #[must_use]
 pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> String {
-    let labelled = series
-        .iter()
-        .map(|series| {
-            let points =
-                series.points.iter().map(|p| (p.factor.clone(), Estimate::new(p.estimate, p.low, p.high))).collect();
-            Labelled { name: series.name.clone(), points }
-        })
-        .collect();
-    let (rows, series) = forest::assemble(factors, labelled);
-    forest::render(&forest::Spec {
-        title: title.to_owned(),
-        rows,
-        series,
-        value_label: "effect on log-worth (logit scale)".to_owned(),
-        symbol: "β",
-        annotation: None,
-    })
+    estimate_plot(title, factors, series, "effect on log-worth (logit scale)", "β")
 }
 
 /// Mean opinion scores with 95 % intervals (rating studies, [`crate::ratings`]): one row per
@@ -189,6 +173,18 @@ pub fn effect_plot(title: &str, factors: &[String], series: &[EffectSeries]) -> 
 /// `estimate` the MOS); `value_label` names the scale.
 #[must_use]
 pub fn mos_plot(title: &str, value_label: &str, rows: &[String], series: &[EffectSeries]) -> String {
+    estimate_plot(title, rows, series, value_label, "MOS")
+}
+
+/// Estimates with 95 % intervals, one row per label of `rows` (labels only a series names
+/// follow), one series per [`EffectSeries`]: the factor-effect and the MOS plots.
+fn estimate_plot(
+    title: &str,
+    rows: &[String],
+    series: &[EffectSeries],
+    value_label: &str,
+    symbol: &'static str,
+) -> String {
     let labelled = series
         .iter()
         .map(|series| {
@@ -203,7 +199,7 @@ pub fn mos_plot(title: &str, value_label: &str, rows: &[String], series: &[Effec
         rows,
         series,
         value_label: value_label.to_owned(),
-        symbol: "MOS",
+        symbol,
         annotation: None,
     })
 }
