@@ -17,6 +17,25 @@ impl Fail<'_> {
     }
 }
 
+/// A study kind's own table (`[threshold]`, `[rating]`): refuses the tables of a
+/// paired-comparison file the kind makes itself (`made`: each key and why), then takes `[kind]`
+/// out of `table` and reads it as `T`; `hint` is what the missing table should hold.
+pub(crate) fn kind_table<T: serde::de::DeserializeOwned>(
+    table: &mut toml::Table,
+    fail: Fail,
+    kind: &str,
+    made: &[(&str, &str)],
+    hint: &str,
+) -> Result<T, StudyError> {
+    for (key, why) in made {
+        if table.contains_key(*key) {
+            return Err(fail.at(key, format!("expected no `{key}` in a {kind} study: {why}")));
+        }
+    }
+    let raw = table.remove(kind).ok_or_else(|| fail.at(kind, format!("expected a [{kind}] table ({hint})")))?;
+    raw.try_into().map_err(|error: toml::de::Error| fail.at(kind, super::one_line(&error.to_string())))
+}
+
 /// A study slug: lower-case letters, digits and `-`, not first, at most 64 characters.
 pub(crate) fn is_slug(name: &str) -> bool {
     !name.is_empty()

@@ -18,7 +18,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::StudyError;
-use super::checks::{Fail, check_image, is_condition_name};
+use super::checks::{Fail, check_image, is_condition_name, kind_table};
 pub use super::rating_design::{
     CATCH_TOLERANCE, CatchSource, Layout, Method, Presentation, RatingCatch, RatingDesign, RatingScale,
 };
@@ -83,16 +83,8 @@ pub(super) fn parse(
     file_sha256: String,
 ) -> Result<Study, StudyError> {
     let fail = Fail(file);
-    for (key, why) in MADE_FROM_RATING {
-        if table.contains_key(key) {
-            return Err(fail.at(key, format!("expected no `{key}` in a rating study: {why}")));
-        }
-    }
-    let raw = table
-        .remove("rating")
-        .ok_or_else(|| fail.at("rating", "expected a [rating] table (method = \"acr\", \"dcr\" or \"acr-hr\", …)"))?;
     let raw: RatingFile =
-        raw.try_into().map_err(|error: toml::de::Error| fail.at("rating", super::one_line(&error.to_string())))?;
+        kind_table(&mut table, fail, "rating", &MADE_FROM_RATING, "method = \"acr\", \"dcr\" or \"acr-hr\", …")?;
     let method = Method::parse(&raw.method).ok_or_else(|| {
         fail.at("rating.method", format!("expected \"acr\", \"dcr\" or \"acr-hr\", found \"{}\"", raw.method))
     })?;

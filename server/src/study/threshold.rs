@@ -23,7 +23,7 @@ use mrstudy_renderer::stimulus::{FactorLevel, Factors};
 use serde::Deserialize;
 
 use super::StudyError;
-use super::checks::Fail;
+use super::checks::{Fail, kind_table};
 use super::survey::{GROUND_TRUTH, Study, StudyKind};
 pub use super::threshold_design::{
     DEFAULT_RENDER_AHEAD, Function, Intensity, REGIONS, RenderWhen, Scale, ThresholdDesign,
@@ -79,16 +79,8 @@ pub(super) fn parse(
     file_sha256: String,
 ) -> Result<Study, StudyError> {
     let fail = Fail(file);
-    for (key, why) in MADE_FROM_THRESHOLD {
-        if table.contains_key(key) {
-            return Err(fail.at(key, format!("expected no `{key}` in a threshold study: {why}")));
-        }
-    }
-    let raw = table
-        .remove("threshold")
-        .ok_or_else(|| fail.at("threshold", "expected a [threshold] table (knob, levels, intensity, …)"))?;
     let raw: ThresholdFile =
-        raw.try_into().map_err(|error: toml::de::Error| fail.at("threshold", super::one_line(&error.to_string())))?;
+        kind_table(&mut table, fail, "threshold", &MADE_FROM_THRESHOLD, "knob, levels, intensity, …")?;
     let made_keys = [
         ("realisations", raw.realisations.map(toml::Value::Integer)),
         ("reference_label", raw.reference_label.clone().map(toml::Value::String)),
