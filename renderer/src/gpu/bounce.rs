@@ -72,7 +72,7 @@ pub struct BounceReport {
     pub vpls: usize,
 }
 
-/// The scene's triangles as the bounce pass reads them, uploaded once per frame.
+/// The scene's triangles as the bounce pass reads them, uploaded once per scene.
 pub struct BounceScene {
     positions: Arc<wgpu::Buffer>,
     cdf: Arc<wgpu::Buffer>,
@@ -86,17 +86,10 @@ impl BounceScene {
         let positions = mesh.positions_with_role();
         let triangles = mesh.vertices.len() / 3;
         let (cdf, _) = super::ism::area_cdf(&positions, 0..triangles)?;
+        // kept from frame to frame while the scene is the same ([`GpuContext::resident`])
         Some(BounceScene {
-            positions: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("bounce positions"),
-                contents: bytemuck::cast_slice(&positions),
-                usage: wgpu::BufferUsages::STORAGE,
-            }),
-            cdf: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("bounce cdf"),
-                contents: bytemuck::cast_slice(&cdf),
-                usage: wgpu::BufferUsages::STORAGE,
-            }),
+            positions: ctx.resident("bounce positions", bytemuck::cast_slice(&positions), wgpu::BufferUsages::STORAGE),
+            cdf: ctx.resident("bounce cdf", bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE),
             triangles: triangles as u32,
             real_triangles: mesh.real_count / 3,
         })

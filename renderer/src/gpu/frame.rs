@@ -93,6 +93,8 @@ pub(super) struct FrameTargets<'a> {
     pub camera_view: Option<ViewUniform>,
     pub traced: Option<specular::Traced>,
     pub caustic_buffer: Option<Arc<wgpu::Buffer>>,
+    /// The caustic splats' counts, read back with the images into the specular report.
+    pub caustic_counts: Option<Arc<wgpu::Buffer>>,
     pub shade_params: Option<ShadeParams>,
     pub output: Option<shade::ShadeOutput>,
     pub smoothed: bool,
@@ -158,6 +160,7 @@ impl<'a> FrameTargets<'a> {
             camera_view: None,
             traced: None,
             caustic_buffer: None,
+            caustic_counts: None,
             shade_params: None,
             output: None,
             smoothed: false,
@@ -168,6 +171,30 @@ impl<'a> FrameTargets<'a> {
             composite_buffer: None,
             images: None,
             ca_report: None,
+        }
+    }
+
+    /// The specular passes' counts, read back with the images (the buffers `pass_readback`
+    /// staged, in its order: the combine pass's five, then the caustic splats' two), into
+    /// their reports.
+    fn take_counts(&mut self, words: &[u32]) {
+        let mut words = words.iter().copied();
+        let mut next = || words.next().unwrap_or(0);
+        if let Some(traced) = self.traced.as_mut() {
+            if traced.counts.is_some() {
+                let report = &mut traced.report;
+                (report.pixels, report.rays, report.back_projected, report.rendered, report.missed) =
+                    (next(), next(), next(), next(), next());
+                // the buffer holds eight words
+                for _ in 5..8 {
+                    next();
+                }
+            }
+            if self.caustic_counts.is_some()
+                && let Some(caustics) = traced.report.caustics.as_mut()
+            {
+                (caustics.photons, caustics.splatted) = (next(), next());
+            }
         }
     }
 
@@ -541,9 +568,10 @@ impl DirRenderer {
         let mut traced = self.specular.trace(ctx, &self.raster, &mut f.passes, at, &rays, &f.params.specular);
         match &f.photon_maps {
             Ok(maps) => {
-                let (buffer, mut report) = timed(ctx, &mut f.passes, "caustic splats".into(), || {
+                let (buffer, mut report, counts) = timed(ctx, &mut f.passes, "caustic splats".into(), || {
                     self.specular.splat(ctx, maps, f.scene, gbuffer, f.camera_view_proj)
                 });
+                f.caustic_counts = Some(counts);
                 report.vpls = f.vpls.iter().filter(|v| v.flux[3] > 0.5).count();
                 f.caustic_buffer = Some(buffer);
                 traced.report.caustics = Some(report);
@@ -657,12 +685,9 @@ impl DirRenderer {
     fn pass_photo(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let photo_texels: Vec<[f32; 4]> = f.photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
+        // kept from frame to frame: uploaded only when it changed
         f.photo_buffer = Some(f.timed(ctx, "upload photograph".into(), || {
-            ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("photo"),
-                contents: bytemuck::cast_slice(&photo_texels),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
+            ctx.resident("photo", bytemuck::cast_slice(&photo_texels), wgpu::BufferUsages::STORAGE)
         }));
         Ok(())
     }
@@ -765,14 +790,24 @@ impl DirRenderer {
         let ctx = &self.ctx;
         let (width, height) = (f.width, f.height);
         let composite = ran(&f.composite_buffer, "composition");
+        // the report's counts (specular passes) come back with the images, in the same wait
+        let counts: Vec<&wgpu::Buffer> =
+            [f.traced.as_ref().and_then(|t| t.counts.as_deref()), f.caustic_counts.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect();
         if f.mode == Frame::Display && f.params.camera_artifacts.is_none() {
             let staged =
                 timed(ctx, &mut f.passes, "readback: packed to 8 bits, copied to staging (GPU)".into(), || {
-                    ctx.stage(&self.compose.pack(ctx, composite, width, height))
+                    let mut staged = vec![ctx.stage(&self.compose.pack(ctx, composite, width, height))];
+                    staged.extend((!counts.is_empty()).then(|| ctx.stage_all(&counts)));
+                    staged
                 });
-            let bytes = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                ctx.read_buffer(&staged)
+            let words = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                ctx.read_staged(&staged.iter().map(|s| &**s).collect::<Vec<_>>())
             });
+            f.take_counts(words.get(1).map_or(&[], |w| w.as_slice()));
+            let bytes: &[u8] = bytemuck::cast_slice(&words[0]);
             let start = Instant::now();
             let composite = {
                 use rayon::prelude::*;
@@ -790,15 +825,20 @@ impl DirRenderer {
         let radiance = f.mode != Frame::Display || f.params.camera_artifacts.is_some();
         let output = ran(&f.output, "shading");
         let staged = timed(ctx, &mut f.passes, "readback: copies to staging (GPU)".into(), || {
-            (ctx.stage(composite), radiance.then(|| ctx.stage(&output.solutions)))
+            let mut staged = vec![ctx.stage(composite)];
+            staged.extend(radiance.then(|| ctx.stage(&output.solutions)));
+            staged.extend((!counts.is_empty()).then(|| ctx.stage_all(&counts)));
+            staged
         });
-        let (composite, solutions) =
-            timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                (ctx.read_staged_f32(&staged.0), staged.1.as_ref().map_or_else(Vec::new, |s| ctx.read_staged_f32(s)))
-            });
+        let words = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+            ctx.read_staged(&staged.iter().map(|s| &**s).collect::<Vec<_>>())
+        });
+        f.take_counts(words.get(1 + radiance as usize).map_or(&[], |w| w.as_slice()));
+        let composite: &[f32] = bytemuck::cast_slice(&words[0]);
+        let solutions: &[f32] = if radiance { bytemuck::cast_slice(&words[1]) } else { &[] };
         let start = Instant::now();
         let half = solutions.len() / 2;
-        let composite = to_image(width, height, &composite);
+        let composite = to_image(width, height, composite);
         let virtual_mask = Mask {
             width,
             height,

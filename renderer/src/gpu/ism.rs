@@ -252,11 +252,12 @@ impl Ism {
         // every splat's four vertices are numbered in one draw's vertex_index (a base vertex is
         // an i32): at most MAX_SPLATS splats in all
         let points_per_vpl = points_per_vpl.clamp(1, (MAX_SPLATS / n_vpls as u64).max(1) as u32);
-        let position_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-            label: Some("ism positions"),
-            contents: bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        // the scene's points and their distributions: kept while the scene is the same
+        let position_buffer = ctx.resident(
+            "ism positions",
+            bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
+            wgpu::BufferUsages::STORAGE,
+        );
         let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism vpls"),
             contents: bytemuck::cast_slice(if vpls.is_empty() {
@@ -286,11 +287,8 @@ impl Ism {
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
                 layer: [layer as u32, 0, 0, 0],
             };
-            let cdf_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("ism cdf"),
-                contents: bytemuck::cast_slice(&cdf),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+            let cdf_buffer =
+                ctx.resident(&format!("ism cdf {layer}"), bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE);
             let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism params"),
                 contents: bytemuck::bytes_of(&uniform),
