@@ -65,7 +65,12 @@ impl SceneBuffers {
         let materials = if mesh.materials.is_empty() { &zero_material[..] } else { &mesh.materials[..] };
         // kept from frame to frame while the scene is the same ([`GpuContext::resident`])
         SceneBuffers {
-            vertices: ctx.resident("vertices", bytemuck::cast_slice(vertices), wgpu::BufferUsages::VERTEX),
+            vertices: ctx.resident(
+                "vertices",
+                bytemuck::cast_slice(vertices),
+                // (storage too: a live frame's bounces read the hit triangles' attributes)
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            ),
             materials: ctx.resident("materials", bytemuck::cast_slice(materials), wgpu::BufferUsages::STORAGE),
             real_count: mesh.real_count,
             total_count: mesh.vertices.len() as u32,
@@ -147,7 +152,7 @@ pub struct Raster {
     depth_cache: std::sync::Mutex<Vec<((u32, u32), wgpu::TextureView)>>,
 }
 
-pub const SHADER: &str = include_str!("raster.wgsl");
+pub const SHADER: &str = concat!(include_str!("material.wgsl"), include_str!("raster.wgsl"));
 
 /// What one pass of [`Raster::draw`] draws and into what: the objects of `subset`, at `size`,
 /// into `targets` (each a view and the value it is cleared to).

@@ -381,6 +381,7 @@ pub struct VplSampler {
     scan_blocks: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     draw: wgpu::ComputePipeline,
+    draw_planned: wgpu::ComputePipeline,
 }
 
 /// A frame's candidate VPLs on the GPU and their CDF ([`VplSampler::candidates`]), drawn from
@@ -404,12 +405,21 @@ impl GpuCandidates {
 
 impl VplSampler {
     pub fn new(ctx: &super::context::GpuContext) -> VplSampler {
-        let [candidates, caustic_candidates, block_sums, scan_blocks, scan, draw] = ctx.compute_pipelines(
-            "vpl.wgsl",
-            SHADER,
-            ["cs_candidates", "cs_caustic_candidates", "cs_block_sums", "cs_scan_blocks", "cs_scan", "cs_draw"],
-        );
-        VplSampler { candidates, caustic_candidates, block_sums, scan_blocks, scan, draw }
+        let [candidates, caustic_candidates, block_sums, scan_blocks, scan, draw, draw_planned] = ctx
+            .compute_pipelines(
+                "vpl.wgsl",
+                SHADER,
+                [
+                    "cs_candidates",
+                    "cs_caustic_candidates",
+                    "cs_block_sums",
+                    "cs_scan_blocks",
+                    "cs_scan",
+                    "cs_draw",
+                    "cs_draw_planned",
+                ],
+            );
+        VplSampler { candidates, caustic_candidates, block_sums, scan_blocks, scan, draw, draw_planned }
     }
 
     /// The bytes of the candidates' buffer for `slots` slots: more than the device binds in one
@@ -555,6 +565,74 @@ impl VplSampler {
         out
     }
 
+    /// `count` VPL slots on the GPU (zeroed: a slot without flux is no VPL).
+    pub fn slots_buffer(ctx: &super::context::GpuContext, label: &str, count: u32) -> std::sync::Arc<wgpu::Buffer> {
+        let bytes = count.max(1) as u64 * std::mem::size_of::<GpuVpl>() as u64;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        ctx.buffer(label, bytes, usage, super::pool::Contents::Zeroed)
+    }
+
+    /// Records the draw of `count` VPLs into `drawn` (`cs_draw`), or of as many as `plan`'s first
+    /// word says (`cs_draw_planned`, `count` threads), as [`Candidates::draw`] draws them.
+    fn record_draw(
+        &self,
+        ctx: &super::context::GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        candidates: &GpuCandidates,
+        count: u32,
+        drawn: &wgpu::Buffer,
+        plan: Option<&wgpu::Buffer>,
+    ) {
+        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
+            label: Some("vpl draw sizes"),
+            contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut entries = vec![
+            wgpu::BindGroupEntry { binding: 0, resource: sizes.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: candidates.candidates.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: candidates.weights.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: candidates.cdf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: candidates.offsets.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: drawn.as_entire_binding() },
+        ];
+        entries.extend(plan.map(|p| wgpu::BindGroupEntry { binding: 6, resource: p.as_entire_binding() }));
+        let pipeline = if plan.is_some() { &self.draw_planned } else { &self.draw };
+        ctx.record_dispatch(encoder, "vpl draw", pipeline, &entries, [count.div_ceil(64).max(1), 1]);
+    }
+
+    /// [`VplSampler::draw`] left on the GPU (a live frame's VPLs, which the ISMs and the shading
+    /// read there): `count` slots, zero where no candidate has flux. Nothing waits.
+    pub fn draw_resident(
+        &self,
+        ctx: &super::context::GpuContext,
+        candidates: &GpuCandidates,
+        count: u32,
+    ) -> std::sync::Arc<wgpu::Buffer> {
+        let drawn = Self::slots_buffer(ctx, "vpls drawn", count);
+        if count > 0 && candidates.slots > 0 {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            self.record_draw(ctx, &mut encoder, candidates, count, &drawn, None);
+            ctx.submit(encoder);
+        }
+        drawn
+    }
+
+    /// The first bounce's share of a live frame's budget into the first slots of `out`: as many
+    /// VPLs as `plan`'s first word (bounce_chain.wgsl's `cs_split`), at most `capacity`.
+    pub fn draw_planned(
+        &self,
+        ctx: &super::context::GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        candidates: &GpuCandidates,
+        capacity: u32,
+        (plan, out): (&wgpu::Buffer, &wgpu::Buffer),
+    ) {
+        if capacity > 0 && candidates.slots > 0 {
+            self.record_draw(ctx, encoder, candidates, capacity, out, Some(plan));
+        }
+    }
+
     /// `count` VPLs drawn from `candidates` as [`Candidates::draw`] does (stratified, each carrying
     /// flux / (count · p)); empty when no candidate has flux. Waits for the device to read
     /// back the drawn VPLs.
@@ -568,26 +646,8 @@ impl VplSampler {
         let drawn =
             ctx.buffer("vpls drawn", vpl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, zeroed);
         let staging = ctx.buffer("vpls drawn read back", vpl_bytes + 4, wgpu::BufferUsages::MAP_READ, zeroed);
-        let sizes = ctx.upload(&wgpu::util::BufferInitDescriptor {
-            label: Some("vpl draw sizes"),
-            contents: bytemuck::bytes_of(&[candidates.slots, candidates.blocks, count, 0]),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let mut encoder = device.create_command_encoder(&Default::default());
-        ctx.record_dispatch(
-            &mut encoder,
-            "vpl draw",
-            &self.draw,
-            &[
-                wgpu::BindGroupEntry { binding: 0, resource: sizes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: candidates.candidates.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: candidates.weights.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: candidates.cdf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: candidates.offsets.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: drawn.as_entire_binding() },
-            ],
-            [count.div_ceil(64), 1],
-        );
+        self.record_draw(ctx, &mut encoder, candidates, count, &drawn, None);
         encoder.copy_buffer_to_buffer(&drawn, 0, &staging, 0, vpl_bytes);
         encoder.copy_buffer_to_buffer(&candidates.offsets, candidates.blocks as u64 * 4, &staging, vpl_bytes, 4);
         ctx.submit(encoder);
