@@ -221,8 +221,8 @@ pub struct Traced {
     info: Arc<wgpu::Buffer>,
     pub report: SpecularReport,
     /// The combine pass's counts still on the GPU (pixels, rays, back-projected, rendered,
-    /// missed: five `u32`s), read back with the frame's images into `report`
-    /// ([`SpecularReport::take_counts`]).
+    /// missed: five `u32`s), read back with the frame's images into `report` (the frame's
+    /// read-back pass).
     pub counts: Option<Arc<wgpu::Buffer>>,
     /// Where shading of the hit G-buffers looks from (Blinn–Phong's view direction): the
     /// first specular object's centre.
