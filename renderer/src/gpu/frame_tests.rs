@@ -216,3 +216,30 @@ fn a_live_frames_gpu_vpls_light_the_scene_as_the_stimulus_frames() {
         }
     }
 }
+
+/// A scene's buffer kept from frame to frame (`GpuContext::resident`): the same buffer while its
+/// contents are the same; changed contents written into it when nothing else holds it, else
+/// into a new one, leaving the held one as it was (a frame still recording reads it).
+#[test]
+fn a_resident_buffer_is_kept_while_its_contents_stay_and_never_changed_under_a_holder() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let ctx = &r.ctx;
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let key = "frame_tests resident";
+    let first = ctx.resident(key, &[1, 2, 3, 4, 5, 6, 7, 8], usage);
+    let again = ctx.resident(key, &[1, 2, 3, 4, 5, 6, 7, 8], usage);
+    assert!(Arc::ptr_eq(&first, &again), "the same contents: the same buffer");
+    drop(again);
+    // `first` is held: new contents go into a new buffer
+    let second = ctx.resident(key, &[9; 8], usage);
+    assert!(!Arc::ptr_eq(&first, &second));
+    assert_eq!(ctx.read_storage(&first), [1, 2, 3, 4, 5, 6, 7, 8]);
+    assert_eq!(ctx.read_storage(&second), [9; 8]);
+    drop(first);
+    // nothing holds the kept buffer: written in place
+    let kept = Arc::as_ptr(&second);
+    drop(second);
+    let third = ctx.resident(key, &[7; 8], usage);
+    assert_eq!(Arc::as_ptr(&third), kept);
+    assert_eq!(ctx.read_storage(&third), [7; 8]);
+}
