@@ -396,8 +396,8 @@ impl GpuContext {
 
     /// On (the default): every pass of a frame waits for the device and is timed, so a frame's
     /// report says where its time went. Off: passes are only submitted, in order, and the
-    /// frame waits where it needs data back (the RSMs for the VPLs, the caustic maps'
-    /// candidates, the composite) — a pipelined frame, whose report lists only its CPU steps. The
+    /// frame waits where it needs data back (a stimulus's VPLs and bounces, the composite; a
+    /// live frame only for its image) — a pipelined frame, whose report lists only its CPU steps. The
     /// images are the same either way (wgpu runs submissions in order); only the timing
     /// differs. `bench render --frame-rate` measures both.
     pub fn set_pass_waits(&self, on: bool) {

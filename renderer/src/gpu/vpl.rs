@@ -18,7 +18,9 @@
 //!
 //! Two implementations draw the same VPLs. [`VplSampler`] (shader `vpl.wgsl`) makes the
 //! candidates on the GPU from the RSM textures and the caustic maps' photons where they were
-//! rendered, sums their CDF there and reads back only the drawn VPLs; the renderer uses it. The
+//! rendered, sums their CDF there and reads back only the drawn VPLs (a stimulus frame), or
+//! leaves them there for a live frame's bounces, ISMs and shading (`draw_resident`,
+//! `draw_planned`; [`super::bounce_chain`]); the renderer uses it. The
 //! CPU's [`Candidates`] works on read-back texels ([`RsmTexels`]): the reference the sampler is
 //! tested against, and the renderer's fall-back when the candidates exceed one storage buffer.
 
