@@ -5,11 +5,11 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
+use mrstudy_analysis::stimulus_metrics::StimulusMetrics;
 
 use crate::rating::RatedTrial;
 use crate::schedule;
-use crate::stimuli::StimulusPlan;
+use crate::stimuli::{StimulusMetricsNow, StimulusPlan};
 use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
 use crate::trial::{PlannedKind, PlannedTrial, ScheduledTrial, Side};
 
@@ -36,39 +36,6 @@ pub enum PrepareError {
     Threshold { slug: String, reason: String },
     #[error("cannot copy stimulus {path} into {store}: {source}")]
     Io { path: PathBuf, store: PathBuf, source: std::io::Error },
-}
-
-/// The stimulus metrics of a study's rendered stimuli, read from their records in the store:
-/// when the study is prepared, and again for an on-demand threshold study after levels were
-/// rendered ([`crate::render_queue::RenderQueue::metrics`]).
-#[derive(Debug, Clone, Default)]
-pub struct StimulusMetricsNow {
-    /// The stimulus metrics CSV (docs/design.md); `None` when no stimulus has a ground truth.
-    pub csv: Option<String>,
-    /// Why a scene configuration has none, or why the records could not be read.
-    pub notes: Vec<String>,
-    /// The CSV parsed for the analysis.
-    pub metrics: Option<StimulusMetrics>,
-}
-
-impl StimulusMetricsNow {
-    /// The metrics of `plan`'s stimuli (those in `store`).
-    pub fn of(study: &Study, plan: &StimulusPlan, store: &Path) -> StimulusMetricsNow {
-        let (mut csv, mut notes) = match crate::stimuli::metrics_csv(study, plan, store) {
-            Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
-            Err(error) => (None, vec![error.to_string()]),
-        };
-        let metrics = match csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
-            Some(Ok(metrics)) => Some(metrics),
-            Some(Err(error)) => {
-                csv = None;
-                notes.push(format!("the stimulus metrics cannot be read: {error}"));
-                None
-            }
-            None => None,
-        };
-        StimulusMetricsNow { csv, notes, metrics }
-    }
 }
 
 /// A study whose every stimulus is in the stimulus store.

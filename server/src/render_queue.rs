@@ -26,7 +26,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::PreparedStudy;
-use crate::prepared::StimulusMetricsNow;
+use crate::stimuli::StimulusMetricsNow;
 use crate::stimuli::{PlannedScene, StimulusPlan};
 use crate::study::Study;
 use crate::study::threshold::{RenderWhen, ThresholdDesign};
