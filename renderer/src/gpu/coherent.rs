@@ -265,8 +265,9 @@ impl CoherentPasses {
         });
         let storage = |label: &str, bytes: &[u8]| {
             let padded;
+            // an empty list binds one zeroed element (the largest, a query, is 48 bytes)
             let contents = if bytes.is_empty() {
-                padded = [0u8; 16];
+                padded = [0u8; 48];
                 &padded[..]
             } else {
                 bytes
