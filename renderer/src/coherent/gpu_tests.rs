@@ -46,17 +46,29 @@ fn frames_agree(renderer: &crate::gpu::DirRenderer, scene: &str, solid: bool) {
     let real = World::new(&scene, Subset::RealOnly);
     let photo = photo(&scene);
     let mut composites = Vec::new();
-    for method in [Method::Em, Method::Dit, Method::Vct] {
-        let params = CoherentParams::new(method, Quality::Med);
+    // the three methods at med, then off (the object lit by the probe alone, no background)
+    // and DIT at low (no self-shadow tests)
+    let settings = [
+        (Method::Em, Quality::Med),
+        (Method::Dit, Quality::Med),
+        (Method::Vct, Quality::Med),
+        (Method::Off, Quality::Med),
+        (Method::Dit, Quality::Low),
+    ];
+    for (method, quality) in settings {
+        let params = CoherentParams::new(method, quality);
         let (rep, _) = captured.representation(&scene, &params, None);
-        assert_eq!(rep.exact_self_shadows, !solid, "{}", scene.name);
+        if method != Method::Off && quality == Quality::Med {
+            assert_eq!(rep.exact_self_shadows, !solid, "{}", scene.name);
+        }
         let coherent = Coherent::new(&scene, &real, &rep, params);
         let cpu = coherent.render(&photo, &|_, _| {}).unwrap();
         let gpu = coherent.render_gpu(&photo, renderer).unwrap().unwrap();
-        let name = format!("{} {}", scene.name, method.name());
+        let name = format!("{} {} {}", scene.name, method.name(), quality.name());
         let (c, g) = (&cpu.report, &gpu.report);
-        assert!(c.object_pixels > 40 && c.background_pixels > 100, "{name}: {c:?}");
-        assert!(cpu.differential.pixels.iter().any(|d| d.max_element() < -1e-3), "{name}: no shadow");
+        let off = method == Method::Off;
+        assert!(c.object_pixels > 40 && (off || c.background_pixels > 100), "{name}: {c:?}");
+        assert!(off || cpu.differential.pixels.iter().any(|d| d.max_element() < -1e-3), "{name}: no shadow");
         // the geometry and the random numbers are the CPU's own: exactly equal
         assert_eq!(cpu.coverage.values, gpu.coverage.values, "{name}");
         assert_eq!(cpu.flags, gpu.flags, "{name}");
@@ -76,18 +88,16 @@ fn frames_agree(renderer: &crate::gpu::DirRenderer, scene: &str, solid: bool) {
         ] {
             // float order and the GPU's own acos, atan2, tan, log2 and sqrt: a texel of the
             // impostor, the probe or a voxel level read on the other side of a boundary here and
-            // there (on lavapipe at most 0.26 % of pixels beyond 1e-4, the largest difference
-            // 0.013, on VCT's object)
+            // there, a pixel changed by up to one sample's share (on lavapipe at most 0.49 % of
+            // pixels beyond 1e-4, the largest difference 0.11)
             let (share, worst) = differ(a, b, 1e-4);
             eprintln!("{name} {buffer}: {share:.5} of pixels beyond 1e-4, largest difference {worst:.3e}");
-            assert!(
-                share < 0.005 && worst < 0.25,
-                "{name} {buffer}: {share:.5} of pixels beyond 1e-4, largest {worst}"
-            );
+            assert!(share < 0.01 && worst < 0.25, "{name} {buffer}: {share:.5} of pixels beyond 1e-4, largest {worst}");
         }
         queries_agree(&coherent, &photo, renderer, &name);
         composites.push(cpu.composite);
     }
+    composites.truncate(3);
     // the methods answer differently: the comparison above sees each one's own queries
     for (a, b) in [(0, 1), (1, 2), (0, 2)] {
         let (share, _) = differ(&composites[a].pixels, &composites[b].pixels, 1e-4);
@@ -153,5 +163,5 @@ fn queries_agree(coherent: &Coherent, photo: &Image, renderer: &crate::gpu::DirR
         recorded.queries.len()
     );
     assert!(recorded.queries.len() > 1000, "{name}: {} queries", recorded.queries.len());
-    assert!(share < 0.002, "{name}: {differ} of {} queries answered otherwise", recorded.queries.len());
+    assert!(share < 0.003, "{name}: {differ} of {} queries answered otherwise", recorded.queries.len());
 }
