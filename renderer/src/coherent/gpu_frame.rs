@@ -277,6 +277,7 @@ impl Coherent<'_> {
             }),
             pi_over_m: PI / self.params.settings.material_samples.max(1) as f32,
             read_queries: false,
+            chunk_bytes: None,
         }
     }
 

@@ -168,6 +168,9 @@ pub struct FrameInput<'a> {
     pub pi_over_m: f32,
     /// Read every query's answer back too ([`FrameOutput::answers`]; for tests).
     pub read_queries: bool,
+    /// Bytes a piece of the frame may bind at most (None: what the adapter binds); the frame
+    /// runs in as many pieces as that takes, one submission each (tests make it small).
+    pub chunk_bytes: Option<u64>,
 }
 
 /// The frame's buffers as the passes left them, with what the frame asked of the device.
@@ -220,7 +223,7 @@ impl CoherentPasses {
     }
 
     /// Runs the frame `input` describes: both passes in one submission, one wait, the four
-    /// buffers read back.
+    /// buffers read back (per piece, where the frame's lists exceed what the adapter binds).
     pub fn run(&self, ctx: &GpuContext, input: &FrameInput) -> Result<FrameOutput, FrameRefused> {
         let start = Instant::now();
         ctx.begin_frame();
@@ -241,15 +244,8 @@ impl CoherentPasses {
             tau.push(0.0);
         }
         let sky = vec4s(input.sky.iter().flat_map(|s| s.pixels.iter().map(|p| p.extend(0.0).to_array())));
-        let photo = vec4s(input.photo.iter().map(|p| p.extend(0.0).to_array()));
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
-        for (what, bytes) in [
-            ("queries", std::mem::size_of_val(input.queries)),
-            ("terms", std::mem::size_of_val(input.terms)),
-            ("impostor texels", impostor.len() * 16),
-            ("voxels", voxels.len() * 16),
-            ("frame buffers", n * 64),
-        ] {
+        for (what, bytes) in [("impostor texels", impostor.len() * 16), ("voxels", voxels.len() * 16)] {
             if bytes as u64 > limit {
                 return Err(FrameRefused::TooLarge {
                     what,
@@ -258,55 +254,78 @@ impl CoherentPasses {
                 });
             }
         }
+        let impostor = storage(ctx, "coherent impostors", bytemuck::cast_slice(&impostor));
+        let voxels = storage(ctx, "coherent voxels", bytemuck::cast_slice(&voxels));
+        let tau = storage(ctx, "coherent solids", bytemuck::cast_slice(&tau));
+        let sky = storage(ctx, "coherent probe", bytemuck::cast_slice(&sky));
+        let representation = [&*impostor, &*voxels, &*tau, &*sky];
+        let mut out = FrameOutput {
+            composite: Vec::with_capacity(n),
+            differential: Vec::with_capacity(n),
+            rho: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
+            answers: Vec::new(),
+            counters: FrameCounters::default(),
+        };
+        // the frame in as few pieces as the adapter binds (one at the sizes measured so far)
+        for chunk in chunks(input, input.chunk_bytes.unwrap_or(limit).min(limit)) {
+            self.run_chunk(ctx, input, &chunk, representation, &mut out);
+        }
+        out.counters = ctx.counters();
+        out.counters.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(out)
+    }
+
+    /// One piece of the frame: its pixels, their terms and queries; both passes in one
+    /// submission, one wait, its buffers appended to `out`.
+    fn run_chunk(
+        &self,
+        ctx: &GpuContext,
+        input: &FrameInput,
+        chunk: &Chunk,
+        [impostor, voxels, tau, sky]: [&wgpu::Buffer; 4],
+        out: &mut FrameOutput,
+    ) {
+        let n = chunk.pixels.len();
+        let queries = &input.queries[chunk.queries.clone()];
+        let pixels: Vec<PixelRecord> = input.pixels[chunk.pixels.clone()]
+            .iter()
+            .map(|p| PixelRecord {
+                terms: [p.terms[0] - chunk.terms.start as u32, p.terms[1], p.terms[2], p.terms[3]],
+                ..*p
+            })
+            .collect();
+        let photo = vec4s(input.photo[chunk.pixels.clone()].iter().map(|p| p.extend(0.0).to_array()));
+        let counts = [queries.len() as u32, n as u32, chunk.queries.start as u32];
         let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("coherent params"),
-            contents: &params(input, n as u32),
+            contents: &params(input, counts),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let storage = |label: &str, bytes: &[u8]| {
-            let padded;
-            // an empty list binds one zeroed element (the largest, a query, is 48 bytes)
-            let contents = if bytes.is_empty() {
-                padded = [0u8; 48];
-                &padded[..]
-            } else {
-                bytes
-            };
-            ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let queries = storage("coherent queries", bytemuck::cast_slice(input.queries));
-        let terms = storage("coherent terms", bytemuck::cast_slice(input.terms));
-        let pixels = storage("coherent pixels", bytemuck::cast_slice(input.pixels));
-        let impostor = storage("coherent impostors", bytemuck::cast_slice(&impostor));
-        let voxels = storage("coherent voxels", bytemuck::cast_slice(&voxels));
-        let tau = storage("coherent solids", bytemuck::cast_slice(&tau));
-        let sky = storage("coherent probe", bytemuck::cast_slice(&sky));
-        let photo = storage("coherent photo", bytemuck::cast_slice(&photo));
+        let queries_buffer = storage(ctx, "coherent queries", bytemuck::cast_slice(queries));
+        let terms = storage(ctx, "coherent terms", bytemuck::cast_slice(&input.terms[chunk.terms.clone()]));
+        let pixels = storage(ctx, "coherent pixels", bytemuck::cast_slice(&pixels));
+        let photo = storage(ctx, "coherent photo", bytemuck::cast_slice(&photo));
         let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         // every query and every pixel writes its own: nothing to clear
-        let results =
-            ctx.buffer("coherent results", (input.queries.len().max(1) * 16) as u64, usage, Contents::Overwritten);
+        let results = ctx.buffer("coherent results", (queries.len().max(1) * 16) as u64, usage, Contents::Overwritten);
         let frame = ctx.buffer("coherent frame", (n.max(1) * 64) as u64, usage, Contents::Overwritten);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let query_entries = [
             entry(0, &uniform),
-            entry(1, &queries),
+            entry(1, &queries_buffer),
             entry(2, &results),
-            entry(3, &impostor),
-            entry(4, &voxels),
-            entry(5, &tau),
-            entry(6, &sky),
+            entry(3, impostor),
+            entry(4, voxels),
+            entry(5, tau),
+            entry(6, sky),
         ];
         ctx.record_dispatch(
             &mut encoder,
             "coherent queries",
             &self.queries,
             &query_entries,
-            groups(input.queries.len() as u32),
+            groups(queries.len() as u32),
         );
         let combine_entries = [
             entry(0, &uniform),
@@ -322,26 +341,89 @@ impl CoherentPasses {
             ctx.buffer("coherent readback", frame.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
         encoder.copy_buffer_to_buffer(&frame, 0, &staging, 0, frame.size());
         ctx.submit(encoder);
-        let out = ctx.read_staged_f32(&staging);
-        let answers = if input.read_queries {
-            ctx.read_f32(&results).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect()
-        } else {
-            Vec::new()
-        };
-        let plane = |which: usize| -> Vec<Vec3> {
-            (0..n).map(|k| Vec3::from_slice(&out[(4 * k + which) * 4..(4 * k + which) * 4 + 3])).collect()
-        };
-        let mut counters = ctx.counters();
-        counters.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok(FrameOutput {
-            composite: plane(0),
-            differential: plane(1),
-            rho: plane(2),
-            object: plane(3),
-            answers,
-            counters,
-        })
+        let values = ctx.read_staged_f32(&staging);
+        if input.read_queries {
+            out.answers
+                .extend(ctx.read_f32(&results).chunks_exact(4).take(queries.len()).map(|c| [c[0], c[1], c[2], c[3]]));
+        }
+        let at = |k: usize, which: usize| Vec3::from_slice(&values[(4 * k + which) * 4..(4 * k + which) * 4 + 3]);
+        for k in 0..n {
+            out.composite.push(at(k, 0));
+            out.differential.push(at(k, 1));
+            out.rho.push(at(k, 2));
+            out.object.push(at(k, 3));
+        }
     }
+}
+
+/// A piece of the frame: pixels, and the terms and queries they read (ranges into the frame's).
+struct Chunk {
+    pixels: std::ops::Range<usize>,
+    terms: std::ops::Range<usize>,
+    queries: std::ops::Range<usize>,
+}
+
+/// The frame's pixels cut into pieces whose queries, terms and buffers each fit in `limit`
+/// bytes (a pixel's queries are its own and follow the previous pixel's).
+fn chunks(input: &FrameInput, limit: u64) -> Vec<Chunk> {
+    let query_span = |p: &PixelRecord| -> Option<(usize, usize)> {
+        let terms = &input.terms[p.terms[0] as usize..(p.terms[0] + p.terms[1]) as usize];
+        let mut span: Option<(usize, usize)> = None;
+        for t in terms.iter().filter(|t| t.code[0] != CONST) {
+            for q in [Some(t.code[2]), (t.code[0] == RAY_END && t.code[3] != NONE).then_some(t.code[3])]
+                .into_iter()
+                .flatten()
+            {
+                let q = q as usize;
+                span = Some(span.map_or((q, q + 1), |(a, b)| (a.min(q), b.max(q + 1))));
+            }
+        }
+        span
+    };
+    let fits = |queries: usize, terms: usize, pixels: usize| {
+        (queries * 48) as u64 <= limit && (terms * 32) as u64 <= limit && (pixels * 64) as u64 <= limit
+    };
+    let mut out: Vec<Chunk> = Vec::new();
+    let mut current = Chunk { pixels: 0..0, terms: 0..0, queries: 0..0 };
+    for (k, p) in input.pixels.iter().enumerate() {
+        let terms_end = (p.terms[0] + p.terms[1]) as usize;
+        let span = query_span(p);
+        let queries = match (span, current.queries.is_empty()) {
+            (Some((a, b)), true) => a..b,
+            (Some((_, b)), false) => current.queries.start..b,
+            (None, _) => current.queries.clone(),
+        };
+        let grown = (k + 1 - current.pixels.start, terms_end - current.terms.start, queries.len());
+        if !current.pixels.is_empty() && !fits(grown.2, grown.1, grown.0) {
+            let next = k;
+            let done = std::mem::replace(
+                &mut current,
+                Chunk { pixels: next..next, terms: p.terms[0] as usize..p.terms[0] as usize, queries: 0..0 },
+            );
+            out.push(done);
+            current.queries = span.map_or(0..0, |(a, b)| a..b);
+        } else {
+            current.queries = queries;
+        }
+        current.pixels.end = k + 1;
+        current.terms.end = terms_end;
+    }
+    if !current.pixels.is_empty() {
+        out.push(current);
+    }
+    out
+}
+
+fn storage(ctx: &GpuContext, label: &str, bytes: &[u8]) -> std::sync::Arc<wgpu::Buffer> {
+    let padded;
+    // an empty list binds one zeroed element (the largest, a query, is 48 bytes)
+    let contents = if bytes.is_empty() {
+        padded = [0u8; 48];
+        &padded[..]
+    } else {
+        bytes
+    };
+    ctx.upload(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage: wgpu::BufferUsages::STORAGE })
 }
 
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -349,11 +431,11 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 }
 
 /// The `Params` uniform (see `coherent.wgsl`).
-fn params(input: &FrameInput, pixels: u32) -> Vec<u8> {
+fn params(input: &FrameInput, [queries, pixels, first]: [u32; 3]) -> Vec<u8> {
     let mut words: Vec<u32> = Vec::with_capacity(240);
     let f = |x: f32| x.to_bits();
     let levels = input.voxels.as_ref().map_or(0, |v| v.levels.len());
-    words.extend([input.queries.len() as u32, input.impostors.len() as u32, input.solids.len() as u32, levels as u32]);
+    words.extend([queries, input.impostors.len() as u32, input.solids.len() as u32, levels as u32]);
     match &input.voxels {
         Some(v) => words.extend([f(v.origin.x), f(v.origin.y), f(v.origin.z), f(v.voxel)]),
         None => words.extend([0; 4]),
@@ -362,7 +444,7 @@ fn params(input: &FrameInput, pixels: u32) -> Vec<u8> {
         Some(s) => words.extend([s.width, s.height, f(s.rotation), f(input.pi_over_m)]),
         None => words.extend([0, 0, 0, f(input.pi_over_m)]),
     }
-    words.extend([pixels, 0, input.voxels.as_ref().map_or(0, |v| v.res), 0]);
+    words.extend([pixels, first, input.voxels.as_ref().map_or(0, |v| v.res), 0]);
     let mut first = 0u32;
     for k in 0..MAX_IMPOSTORS {
         match input.impostors.get(k) {
