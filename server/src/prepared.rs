@@ -38,6 +38,39 @@ pub enum PrepareError {
     Io { path: PathBuf, store: PathBuf, source: std::io::Error },
 }
 
+/// The stimulus metrics of a study's rendered stimuli, read from their records in the store:
+/// when the study is prepared, and again for an on-demand threshold study after levels were
+/// rendered ([`crate::render_queue::RenderQueue::metrics`]).
+#[derive(Debug, Clone, Default)]
+pub struct StimulusMetricsNow {
+    /// The stimulus metrics CSV (docs/design.md); `None` when no stimulus has a ground truth.
+    pub csv: Option<String>,
+    /// Why a scene configuration has none, or why the records could not be read.
+    pub notes: Vec<String>,
+    /// The CSV parsed for the analysis.
+    pub metrics: Option<StimulusMetrics>,
+}
+
+impl StimulusMetricsNow {
+    /// The metrics of `plan`'s stimuli (those in `store`).
+    pub fn of(study: &Study, plan: &StimulusPlan, store: &Path) -> StimulusMetricsNow {
+        let (mut csv, mut notes) = match crate::stimuli::metrics_csv(study, plan, store) {
+            Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
+            Err(error) => (None, vec![error.to_string()]),
+        };
+        let metrics = match csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
+            Some(Ok(metrics)) => Some(metrics),
+            Some(Err(error)) => {
+                csv = None;
+                notes.push(format!("the stimulus metrics cannot be read: {error}"));
+                None
+            }
+            None => None,
+        };
+        StimulusMetricsNow { csv, notes, metrics }
+    }
+}
+
 /// A study whose every stimulus is in the stimulus store.
 #[derive(Debug)]
 pub struct PreparedStudy {
@@ -161,21 +194,8 @@ impl PreparedStudy {
             }
         }
         let rendered_part = on_demand.then(|| crate::render_queue::rendered_part(plan, store));
-        let (mut metrics_csv, mut metrics_notes) =
-            match crate::stimuli::metrics_csv(&study, rendered_part.as_ref().unwrap_or(plan), store) {
-                Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
-                Err(error) => (None, vec![error.to_string()]),
-            };
-        let stimulus_metrics =
-            match metrics_csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
-                Some(Ok(metrics)) => Some(metrics),
-                Some(Err(error)) => {
-                    metrics_csv = None;
-                    metrics_notes.push(format!("the stimulus metrics cannot be read: {error}"));
-                    None
-                }
-                None => None,
-            };
+        let StimulusMetricsNow { csv: metrics_csv, notes: metrics_notes, metrics: stimulus_metrics } =
+            StimulusMetricsNow::of(&study, rendered_part.as_ref().unwrap_or(plan), store);
         let rating_catch_stimuli = rating_catch_stimuli(&study, &ground_truths, store)?;
         let mut study = study;
         crate::threshold::prepare(&mut study, stimulus_metrics.as_ref())

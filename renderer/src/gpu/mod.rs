@@ -46,6 +46,7 @@
 //! reflect diffusely).
 
 pub mod bounce;
+pub mod bounce_chain;
 pub mod ca;
 pub mod cm;
 pub mod coherent;
@@ -316,6 +317,8 @@ pub struct DirRenderer {
     indirect: indirect::IndirectPass,
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
+    /// A live frame's further bounces and budget split on the GPU.
+    bounce_chain: bounce_chain::BounceChain,
     specular: specular::Specular,
     /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
     representation: std::sync::OnceLock<representation::RepresentationBuilder>,
@@ -462,6 +465,7 @@ impl DirRenderer {
         let indirect = indirect::IndirectPass::new(&ctx);
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
+        let bounce_chain = bounce_chain::BounceChain::new(&ctx);
         let specular = specular::Specular::new(&ctx);
         let vpl_sampler = vpl::VplSampler::new(&ctx);
         DirRenderer {
@@ -474,6 +478,7 @@ impl DirRenderer {
             indirect,
             artifacts,
             bounce,
+            bounce_chain,
             specular,
             representation: std::sync::OnceLock::new(),
             coherent: std::sync::OnceLock::new(),
