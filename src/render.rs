@@ -149,11 +149,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
     if let Some(method) = args.gi_method {
         let coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(method, args.quality) };
-        // the representation is built on the GPU where one opens (the frame on the CPU)
+        // the representation and the frame run on the GPU where one opens (the CPU's otherwise)
         let renderer = match mrstudy_renderer::gpu::DirRenderer::new() {
             Ok(renderer) => Some(renderer),
             Err(e) => {
-                eprintln!("note: no GPU ({e}); the representation is built on the CPU");
+                eprintln!("note: no GPU ({e}); the representation and the frame run on the CPU");
                 None
             }
         };

@@ -49,6 +49,7 @@ pub mod bounce;
 pub mod bounce_chain;
 pub mod ca;
 pub mod cm;
+pub mod coherent;
 pub mod compose;
 pub mod context;
 mod frame;
@@ -321,6 +322,8 @@ pub struct DirRenderer {
     specular: specular::Specular,
     /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
     representation: std::sync::OnceLock<representation::RepresentationBuilder>,
+    /// Rohmer et al.'s frame (queries and shading), compiled when a coherent frame first asks.
+    coherent: std::sync::OnceLock<coherent::CoherentPasses>,
     /// VPL creation on the GPU from the RSMs where they were rendered.
     vpl_sampler: vpl::VplSampler,
     /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
@@ -478,6 +481,7 @@ impl DirRenderer {
             bounce_chain,
             specular,
             representation: std::sync::OnceLock::new(),
+            coherent: std::sync::OnceLock::new(),
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
         }
@@ -541,6 +545,12 @@ impl DirRenderer {
     /// ([`representation`]), compiled on first use.
     pub fn representation_builder(&self) -> &representation::RepresentationBuilder {
         self.representation.get_or_init(|| representation::RepresentationBuilder::new(&self.ctx))
+    }
+
+    /// The compute passes of Rohmer et al.'s frame on this GPU ([`coherent`]), compiled on
+    /// first use.
+    pub fn coherent_passes(&self) -> &coherent::CoherentPasses {
+        self.coherent.get_or_init(|| coherent::CoherentPasses::new(&self.ctx))
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real
