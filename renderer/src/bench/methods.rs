@@ -165,7 +165,7 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             let capture_ms = captured.ms;
             let representation_ms = build.iter().skip(1).map(|p| p.ms).fold(0.0, |a, b| a + b);
             let frame_ms = frame.report.total_ms();
-            let counters = FrameCounters { cpu_ms: representation_ms + frame_ms, ..renderer.ctx.counters() };
+            let counters = renderer.ctx.counters().with_cpu_ms(representation_ms + frame_ms);
             rows.push(MethodRow {
                 scene: name.clone(),
                 method: method.name().into(),

@@ -51,6 +51,7 @@ pub mod ca;
 pub mod cm;
 pub mod compose;
 pub mod context;
+mod counters;
 mod frame;
 pub mod indirect;
 pub mod ism;
