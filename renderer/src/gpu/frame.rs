@@ -72,7 +72,7 @@ pub(super) struct FrameTargets<'a> {
     pub width: u32,
     pub height: u32,
     pub passes: Vec<PassTime>,
-    pub mesh: mesh::GpuMesh,
+    pub mesh: Arc<mesh::GpuMesh>,
     pub buffers: SceneBuffers,
     pub has_virtual: bool,
     /// Whether virtual objects cast shadows (the condition shows them and there are some).
@@ -134,9 +134,11 @@ fn ran<'t, T>(value: &'t Option<T>, what: &str) -> &'t T {
 }
 
 impl<'a> FrameTargets<'a> {
-    /// Starts a frame: the scene's mesh (CPU) and its upload, before the first pass.
+    /// Starts a frame: the scene's mesh (CPU; kept in `meshes` while the scene's geometry stays)
+    /// and its upload, before the first pass.
     pub fn new(
         ctx: &GpuContext,
+        meshes: &mesh::MeshCache,
         scene: &'a Scene,
         photo: &'a Image,
         params: &'a DirParams,
@@ -145,7 +147,7 @@ impl<'a> FrameTargets<'a> {
     ) -> FrameTargets<'a> {
         let mut passes = Vec::new();
         let start = Instant::now();
-        let mesh = mesh::build(scene);
+        let mesh = meshes.get(scene);
         passes.push(PassTime::new("scene mesh (CPU)", start.elapsed().as_secs_f64() * 1e3));
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
@@ -761,7 +763,7 @@ impl DirRenderer {
         }
         let frame_start = Instant::now();
         ctx.begin_frame();
-        let mut f = FrameTargets::new(ctx, scene, photo, params, state, mode);
+        let mut f = FrameTargets::new(ctx, &self.meshes, scene, photo, params, state, mode);
         f.given_vpls = given_vpls;
         for (_, pass) in PASSES {
             pass(self, &mut f)?;

@@ -274,3 +274,34 @@ fn a_frames_host_time_is_split_and_the_photograph_kept_while_its_bits_stay() {
     let again = frame(&photo);
     assert!(again.upload_bytes < photo_bytes, "the photograph was uploaded twice: {again:?}");
 }
+
+/// The scene's mesh is kept from frame to frame while the scene's geometry stays (nothing of it
+/// uploaded again) and built again when the virtual object moves (as the lab moves it between
+/// live frames): the moved frame uploads its vertices and renders what a renderer that never
+/// kept a mesh renders, byte for byte. Devices of their own, so that no other test's work is
+/// counted.
+#[test]
+fn the_scene_mesh_is_kept_until_an_object_moves() {
+    let (r, fresh) = match (DirRenderer::new(), DirRenderer::new()) {
+        (Ok(r), Ok(fresh)) => (r, fresh),
+        (Err(why), _) | (_, Err(why)) => return eprintln!("skipping: no GPU adapter opens ({why})"),
+    };
+    r.ctx.set_pass_waits(false);
+    let mut scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = DirParams { vpls: 32, rsm_size: 32, ism_size: 32, ism_points: 256, ..DirParams::default() };
+    let vertex_bytes = (mesh::build(&scene).vertices.len() * std::mem::size_of::<mesh::GpuVertex>()) as u64;
+    r.render(&scene, &photo, &params).unwrap();
+    let kept = r.render(&scene, &photo, &params).unwrap().report.counters;
+    assert!(kept.upload_bytes < vertex_bytes, "the unchanged scene's vertices were uploaded again: {kept:?}");
+    let name = scene.objects.iter().find(|o| o.role == crate::scene::Role::Virtual).unwrap().name.clone();
+    assert!(scene.translate_object(&name, Vec3::new(0.05, 0.0, 0.02)));
+    let moved = r.render(&scene, &photo, &params).unwrap();
+    assert!(
+        moved.report.counters.upload_bytes >= vertex_bytes,
+        "the moved object's vertices were not uploaded: {:?}",
+        moved.report.counters
+    );
+    let expected = fresh.render(&scene, &photo, &params).unwrap();
+    assert!(moved.composite == expected.composite, "the moved frame differs from a fresh renderer's");
+}

@@ -327,6 +327,8 @@ pub struct DirRenderer {
     /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
     /// by itself when the candidates exceed one storage buffer).
     cpu_vpls: std::sync::atomic::AtomicBool,
+    /// The last scene's mesh, kept while its geometry stays ([`mesh::MeshCache`]).
+    meshes: mesh::MeshCache,
 }
 
 /// One light's rendered RSMs: the light, a spot's tan of half its field of view, and the
@@ -481,6 +483,7 @@ impl DirRenderer {
             representation: std::sync::OnceLock::new(),
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
+            meshes: Default::default(),
         }
     }
 
