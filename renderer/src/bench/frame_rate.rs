@@ -87,8 +87,9 @@ pub struct FrameRateRow {
     /// The frame's structure, counted by the renderer itself ([`FrameCounters`]), per series:
     /// the frames timed pass by pass, the pipelined frames and the live (shown) frames. Counts
     /// are medians over the series' frames except `allocations`, the most any frame of the
-    /// series made anew (0: nothing allocated after the warm-up frames); `cpu_ms` and
-    /// `wait_ms` are medians.
+    /// series made anew (0: nothing allocated after the warm-up frames); `cpu_ms`, `wait_ms`,
+    /// `record_ms`, `submit_ms` and `host_steps_ms` are medians (each on its own: they need not
+    /// add up).
     pub counters: FrameCounters,
     pub pipelined_counters: FrameCounters,
     pub live_counters: FrameCounters,
@@ -108,6 +109,9 @@ pub fn summarise(frames: &[FrameCounters]) -> FrameCounters {
         allocations: frames.iter().map(|c| c.allocations).max().unwrap_or(0),
         cpu_ms: median(&|c| c.cpu_ms),
         wait_ms: median(&|c| c.wait_ms),
+        record_ms: median(&|c| c.record_ms),
+        submit_ms: median(&|c| c.submit_ms),
+        host_steps_ms: median(&|c| c.host_steps_ms),
     }
 }
 

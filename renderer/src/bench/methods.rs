@@ -169,8 +169,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
             // after the representation's build), the host's time the whole frame's; on the CPU:
             // the representation's build
             let counters = match frame.report.counters {
-                Some(c) => FrameCounters { cpu_ms: frame_ms, ..c },
-                None => FrameCounters { cpu_ms: representation_ms + frame_ms, ..renderer.ctx.counters() },
+                Some(c) => c.with_cpu_ms(frame_ms),
+                None => renderer.ctx.counters().with_cpu_ms(representation_ms + frame_ms),
             };
             let device = if frame.report.counters.is_some() {
                 format!("representation and frame {adapter}")

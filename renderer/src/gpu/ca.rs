@@ -178,7 +178,7 @@ impl Artifacts {
         let mut encoder = device.create_command_encoder(&Default::default());
         let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
         let mut stage = |k: usize, src: &wgpu::Buffer, aux2: &wgpu::Buffer, dst: &wgpu::Buffer, groups: (u32, u32)| {
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            let bind_group = ctx.bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(STAGES[k]),
                 layout: &self.layout,
                 entries: &[

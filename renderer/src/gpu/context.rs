@@ -2,12 +2,13 @@
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and readback of buffers.
 
+pub use super::counters::FrameCounters;
+use super::counters::{CounterCells, add_elapsed};
 use super::pool::{BufferKey, Contents, PoolStats};
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
-use serde::Serialize;
 use std::fmt;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -85,61 +86,15 @@ pub struct GpuContext {
     /// pool and overwrites it before the commands reading it have run.
     uploads: Mutex<Vec<Arc<wgpu::Buffer>>>,
     /// Buffers of a scene's static data, kept from frame to frame ([`GpuContext::resident`]):
-    /// per key, the contents last written and the buffer holding them.
-    resident: Mutex<std::collections::HashMap<String, (Vec<u8>, Arc<wgpu::Buffer>)>>,
+    /// per key, what the contents last written were made from and the buffer holding them.
+    resident: Mutex<std::collections::HashMap<String, (Held, Arc<wgpu::Buffer>)>>,
 }
 
-/// The structure of the work the host gave the device, counted where it happens (every
-/// submission, wait, read-back, upload and allocation of this crate goes through the context),
-/// so the counts are exact on any adapter, lavapipe included (issue 50, Deliver 3).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct FrameCounters {
-    /// Queue submissions.
-    pub submits: u64,
-    /// Blocking waits of the host for the device (a poll that waits, a buffer mapped for reading).
-    pub host_waits: u64,
-    /// Bytes mapped and copied back to the host.
-    pub readback_bytes: u64,
-    /// Bytes written from the host into buffers and textures (`write_buffer`, `write_texture`,
-    /// buffers made with contents).
-    pub upload_bytes: u64,
-    /// Buffers and textures made anew (not taken from the pool), including uniform buffers.
-    pub allocations: u64,
-    /// Host time of the frame spent recording, on CPU steps and waiting for the device: the
-    /// frame's wall-clock time on the host (see `wait_ms` for the part spent blocked).
-    pub cpu_ms: f64,
-    /// Of `cpu_ms`, the time blocked in host waits (on a software adapter this is the device's
-    /// own work, run on the host's cores).
-    pub wait_ms: f64,
-}
-
-impl FrameCounters {
-    /// The header of a table of counters ([`FrameCounters::cells`]).
-    pub const HEADER: &str = "submits waits readback MB upload MB allocs  cpu ms  wait ms";
-
-    /// The counters as table cells under [`FrameCounters::HEADER`].
-    pub fn cells(&self) -> String {
-        format!(
-            "{:>7} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2}",
-            self.submits,
-            self.host_waits,
-            self.readback_bytes as f64 / 1e6,
-            self.upload_bytes as f64 / 1e6,
-            self.allocations,
-            self.cpu_ms,
-            self.wait_ms
-        )
-    }
-}
-
-#[derive(Default)]
-struct CounterCells {
-    submits: AtomicU64,
-    host_waits: AtomicU64,
-    readback_bytes: AtomicU64,
-    upload_bytes: AtomicU64,
-    allocations: AtomicU64,
-    wait_ns: AtomicU64,
+/// What a resident buffer's contents were made from ([`GpuContext::resident`],
+/// [`GpuContext::resident_for`]): the bytes themselves, or a value they are made of.
+enum Held {
+    Bytes(Vec<u8>),
+    Source(Box<dyn std::any::Any + Send>),
 }
 
 /// Timestamp queries written before and after each command buffer submitted since the last
@@ -272,28 +227,52 @@ impl GpuContext {
     /// and just after it (tiny command buffers in the same submission), for
     /// [`GpuContext::take_gpu_ms`].
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
-        let commands = encoder.finish();
+        let commands = self.finish(encoder);
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
         self.count_submit();
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
             drop(guard);
-            self.queue.submit([commands]);
+            self.queue_submit([commands]);
             return;
         };
         if timer.written + 2 > TIMER_QUERIES {
             // more submissions than queries: the pass's GPU time is not reported
             timer.written = TIMER_QUERIES + 1;
-            self.queue.submit([commands]);
+            self.queue_submit([commands]);
             return;
         }
         let marker = |index: u32| {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             encoder.write_timestamp(&timer.queries, index);
-            encoder.finish()
+            self.finish(encoder)
         };
         let (begin, end) = (marker(timer.written), marker(timer.written + 1));
         timer.written += 2;
-        self.queue.submit([begin, commands, end]);
+        self.queue_submit([begin, commands, end]);
+    }
+
+    /// `encoder.finish()`, its time counted as recording (`record_ms`).
+    fn finish(&self, encoder: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+        let start = Instant::now();
+        let commands = encoder.finish();
+        add_elapsed(&self.counters.record_ns, start);
+        commands
+    }
+
+    /// `queue.submit`, its time counted (`submit_ms`; the submission itself is counted by the
+    /// caller).
+    fn queue_submit<const N: usize>(&self, commands: [wgpu::CommandBuffer; N]) {
+        let start = Instant::now();
+        self.queue.submit(commands);
+        add_elapsed(&self.counters.submit_ns, start);
+    }
+
+    /// A bind group made anew, its time counted as recording (`record_ms`).
+    pub fn bind_group(&self, desc: &wgpu::BindGroupDescriptor) -> wgpu::BindGroup {
+        let start = Instant::now();
+        let bind_group = self.device.create_bind_group(desc);
+        add_elapsed(&self.counters.record_ns, start);
+        bind_group
     }
 
     /// The GPU's time in milliseconds over the command buffers [`GpuContext::submit`]ted since
@@ -318,7 +297,7 @@ impl GpuContext {
         encoder.copy_buffer_to_buffer(&timer.resolve, 0, &staging, 0, written as u64 * 8);
         // not through `submit`: this copy is no pass's work (and the timer is locked)
         self.count_submit();
-        self.queue.submit([encoder.finish()]);
+        self.queue_submit([self.finish(encoder)]);
         let ticks: Vec<u64> = self.mapped(&staging, |bytes| {
             bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect()
         })?;
@@ -378,6 +357,7 @@ impl GpuContext {
         entries: &[wgpu::BindGroupEntry],
         groups: [u32; 2],
     ) {
+        let start = Instant::now();
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
             layout: &pipeline.get_bind_group_layout(0),
@@ -387,6 +367,8 @@ impl GpuContext {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &bind_group, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], 1);
+        drop(pass);
+        add_elapsed(&self.counters.record_ns, start);
     }
 
     /// The adapter in words, for reports: name, backend and kind.
@@ -425,13 +407,22 @@ impl GpuContext {
     /// Forgets the counts ([`GpuContext::counters`]); each frame starts with it.
     pub fn reset_counters(&self) {
         let c = &self.counters;
-        for cell in [&c.submits, &c.host_waits, &c.readback_bytes, &c.upload_bytes, &c.allocations, &c.wait_ns] {
+        for cell in [
+            &c.submits,
+            &c.host_waits,
+            &c.readback_bytes,
+            &c.upload_bytes,
+            &c.allocations,
+            &c.wait_ns,
+            &c.record_ns,
+            &c.submit_ns,
+        ] {
             cell.store(0, Ordering::Relaxed);
         }
     }
 
-    /// What the host asked of the device since [`GpuContext::reset_counters`] (`cpu_ms` is
-    /// left 0: the frame fills it in).
+    /// What the host asked of the device since [`GpuContext::reset_counters`] (`cpu_ms` and
+    /// `host_steps_ms` are left 0: the frame fills them in, [`FrameCounters::with_cpu_ms`]).
     pub fn counters(&self) -> FrameCounters {
         let c = &self.counters;
         FrameCounters {
@@ -442,6 +433,9 @@ impl GpuContext {
             allocations: c.allocations.load(Ordering::Relaxed),
             cpu_ms: 0.0,
             wait_ms: c.wait_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+            record_ms: c.record_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+            submit_ms: c.submit_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+            host_steps_ms: 0.0,
         }
     }
 
@@ -494,18 +488,60 @@ impl GpuContext {
     /// that used it has submitted its work, which the write is queued after), else into a new
     /// one (an allocation; a frame still recording keeps the old one).
     pub fn resident(&self, key: &str, contents: &[u8], usage: wgpu::BufferUsages) -> Arc<wgpu::Buffer> {
+        let unchanged = |held: &Held| matches!(held, Held::Bytes(bytes) if bytes.as_slice() == contents);
+        self.resident_where(key, usage, unchanged, || {
+            (std::borrow::Cow::Borrowed(contents), Held::Bytes(contents.to_vec()))
+        })
+    }
+
+    /// As [`GpuContext::resident`], for contents made from `source` by `contents`, which runs
+    /// only when `source` is not `same` as the source of the contents last kept under `key`
+    /// (a copy of it is kept): a frame whose source did not change neither makes nor compares
+    /// the bytes (the photograph's texels: 12.6 MB at 1024×768).
+    pub fn resident_for<S: Clone + Send + 'static>(
+        &self,
+        key: &str,
+        source: &S,
+        same: fn(&S, &S) -> bool,
+        usage: wgpu::BufferUsages,
+        contents: impl FnOnce(&S) -> Vec<u8>,
+    ) -> Arc<wgpu::Buffer> {
+        let unchanged = |held: &Held| match held {
+            Held::Source(held) => held.downcast_ref::<S>().is_some_and(|held| same(held, source)),
+            Held::Bytes(_) => false,
+        };
+        self.resident_where(key, usage, unchanged, || {
+            (std::borrow::Cow::Owned(contents(source)), Held::Source(Box::new(source.clone())))
+        })
+    }
+
+    /// The buffer kept under `key` when `unchanged` says its contents are still wanted; else
+    /// the contents `make` returns written into it or into a new one ([`GpuContext::resident`]).
+    fn resident_where<'c>(
+        &self,
+        key: &str,
+        usage: wgpu::BufferUsages,
+        unchanged: impl Fn(&Held) -> bool,
+        make: impl FnOnce() -> (std::borrow::Cow<'c, [u8]>, Held),
+    ) -> Arc<wgpu::Buffer> {
         let usage = usage | wgpu::BufferUsages::COPY_DST;
-        let size = (contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
         let mut resident = self.resident.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((held, buffer)) = resident.get_mut(key) {
-            if held.as_slice() == contents && buffer.usage() == usage {
-                return buffer.clone();
-            }
-            if buffer.size() == size && buffer.usage() == usage && Arc::strong_count(buffer) == 1 {
-                self.write_padded(buffer, contents, size);
-                *held = contents.to_vec();
-                return buffer.clone();
-            }
+        if let Some((held, buffer)) = resident.get(key)
+            && buffer.usage() == usage
+            && unchanged(held)
+        {
+            return buffer.clone();
+        }
+        let (contents, held) = make();
+        let size = (contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
+        if let Some((kept, buffer)) = resident.get_mut(key)
+            && buffer.size() == size
+            && buffer.usage() == usage
+            && Arc::strong_count(buffer) == 1
+        {
+            self.write_padded(buffer, &contents, size);
+            *kept = held;
+            return buffer.clone();
         }
         let buffer = Arc::new(self.create_buffer(&wgpu::BufferDescriptor {
             label: Some(key),
@@ -513,8 +549,8 @@ impl GpuContext {
             usage,
             mapped_at_creation: false,
         }));
-        self.write_padded(&buffer, contents, size);
-        resident.insert(key.to_string(), (contents.to_vec(), buffer.clone()));
+        self.write_padded(&buffer, &contents, size);
+        resident.insert(key.to_string(), (held, buffer.clone()));
         buffer
     }
 
@@ -573,13 +609,8 @@ impl GpuContext {
     /// Maps a `MAP_READ` buffer (waiting for the device), hands its bytes to `read` and unmaps
     /// it; `None` when it cannot be mapped.
     fn mapped<R>(&self, buffer: &wgpu::Buffer, read: impl FnOnce(&[u8]) -> R) -> Option<R> {
-        let slice = buffer.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.wait();
-        self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
-        let out = slice.get_mapped_range().ok().map(|view| read(&view));
-        buffer.unmap();
-        out
+        self.map_all(&[buffer]);
+        self.take_mapped(buffer, read)
     }
 
     /// Copies a storage buffer to a staging buffer (from the pool) and reads it back as `f32`s.
@@ -624,19 +655,38 @@ impl GpuContext {
     /// blocks on all threads) as 32-bit words (`bytemuck::cast_slice` makes them `f32`s or
     /// bytes).
     pub fn read_staged(&self, staging: &[&wgpu::Buffer]) -> Vec<Vec<u32>> {
+        self.map_all(staging);
+        staging.iter().map(|buffer| self.take_mapped(buffer, copy_blocks::<u32>).unwrap_or_default()).collect()
+    }
+
+    /// As [`GpuContext::read_staged`], with the first staging buffer's mapped bytes handed to
+    /// `first` instead of copied (a live frame makes its image straight from them); `None`
+    /// for it when it cannot be mapped.
+    pub fn read_staged_with<R>(
+        &self,
+        first: &wgpu::Buffer,
+        rest: &[&wgpu::Buffer],
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> (Option<R>, Vec<Vec<u32>>) {
+        self.map_all(&[&[first], rest].concat());
+        let out = self.take_mapped(first, read);
+        (out, rest.iter().map(|buffer| self.take_mapped(buffer, copy_blocks::<u32>).unwrap_or_default()).collect())
+    }
+
+    /// Maps staging buffers for reading, with one wait for the device.
+    fn map_all(&self, staging: &[&wgpu::Buffer]) {
         for buffer in staging {
             buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
         }
         self.wait();
-        staging
-            .iter()
-            .map(|buffer| {
-                self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
-                let out = buffer.slice(..).get_mapped_range().ok().map(|view| copy_blocks::<u32>(&view));
-                buffer.unmap();
-                out.unwrap_or_default()
-            })
-            .collect()
+    }
+
+    /// A mapped buffer's bytes handed to `read`, then unmapped (counted as read back).
+    fn take_mapped<R>(&self, buffer: &wgpu::Buffer, read: impl FnOnce(&[u8]) -> R) -> Option<R> {
+        self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
+        let out = buffer.slice(..).get_mapped_range().ok().map(|view| read(&view));
+        buffer.unmap();
+        out
     }
 
     /// Maps a staging buffer (waiting for the device) and copies it once, straight into
@@ -759,7 +809,7 @@ impl GpuContext {
                     let mut encoder = self.device.create_command_encoder(&Default::default());
                     encoder.clear_buffer(&buffer, 0, None);
                     self.count_submit();
-                    self.queue.submit([encoder.finish()]);
+                    self.queue_submit([self.finish(encoder)]);
                 }
                 #[cfg(test)]
                 Contents::Overwritten => {

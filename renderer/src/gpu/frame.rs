@@ -72,7 +72,7 @@ pub(super) struct FrameTargets<'a> {
     pub width: u32,
     pub height: u32,
     pub passes: Vec<PassTime>,
-    pub mesh: mesh::GpuMesh,
+    pub mesh: Arc<mesh::GpuMesh>,
     pub buffers: SceneBuffers,
     pub has_virtual: bool,
     /// Whether virtual objects cast shadows (the condition shows them and there are some).
@@ -134,9 +134,11 @@ fn ran<'t, T>(value: &'t Option<T>, what: &str) -> &'t T {
 }
 
 impl<'a> FrameTargets<'a> {
-    /// Starts a frame: the scene's mesh (CPU) and its upload, before the first pass.
+    /// Starts a frame: the scene's mesh (CPU; kept in `meshes` while the scene's geometry stays)
+    /// and its upload, before the first pass.
     pub fn new(
         ctx: &GpuContext,
+        meshes: &mesh::MeshCache,
         scene: &'a Scene,
         photo: &'a Image,
         params: &'a DirParams,
@@ -145,7 +147,7 @@ impl<'a> FrameTargets<'a> {
     ) -> FrameTargets<'a> {
         let mut passes = Vec::new();
         let start = Instant::now();
-        let mesh = mesh::build(scene);
+        let mesh = meshes.get(scene);
         passes.push(PassTime::new("scene mesh (CPU)", start.elapsed().as_secs_f64() * 1e3));
         let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
         let has_virtual = mesh.virtual_count() > 0;
@@ -521,10 +523,20 @@ impl DirRenderer {
     /// The photograph uploaded for the specular passes, the colour mapping and the composition.
     fn pass_photo(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
-        let photo_texels: Vec<[f32; 4]> = f.photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
-        // kept from frame to frame: uploaded only when it changed
+        // kept from frame to frame: its texels made and uploaded only when it changed (the
+        // same bits in every pixel: the shaders see exactly the bytes they saw)
+        let same = |a: &Image, b: &Image| {
+            let bits = |p: &Vec3| p.to_array().map(f32::to_bits);
+            a.width == b.width
+                && a.height == b.height
+                && a.pixels.iter().zip(&b.pixels).all(|(p, q)| bits(p) == bits(q))
+        };
+        let photo = f.photo;
         f.photo_buffer = Some(f.timed(ctx, "upload photograph".into(), || {
-            ctx.resident("photo", bytemuck::cast_slice(&photo_texels), wgpu::BufferUsages::STORAGE)
+            ctx.resident_for("photo", photo, same, wgpu::BufferUsages::STORAGE, |photo| {
+                let texels: Vec<[f32; 4]> = photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
+                bytemuck::cast_slice(&texels).to_vec()
+            })
         }));
         Ok(())
     }
@@ -643,20 +655,28 @@ impl DirRenderer {
                     staged.extend(chain);
                     staged
                 });
-            let words = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                ctx.read_staged(&staged.iter().map(|s| &**s).collect::<Vec<_>>())
-            });
-            let at = 1 + !counts.is_empty() as usize;
-            f.take_counts(if at == 2 { &words[1] } else { &[] }, words.get(at).map(|w| w.as_slice()));
-            let bytes: &[u8] = bytemuck::cast_slice(&words[0]);
-            let start = Instant::now();
-            let composite = {
+            // the image made straight from the mapped bytes (no copy of them first)
+            let mut image_ms = 0.0;
+            let to_image = |bytes: &[u8]| {
                 use rayon::prelude::*;
+                let start = Instant::now();
                 let channel = |b: u8| b as f32 / 255.0;
-                let pixels = bytes.par_chunks_exact(4).map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
-                Image { width, height, pixels: pixels.collect() }
+                let pixels = bytes
+                    .par_chunks_exact(4)
+                    .take((width * height) as usize)
+                    .map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
+                let image = Image { width, height, pixels: pixels.collect() };
+                image_ms = start.elapsed().as_secs_f64() * 1e3;
+                image
             };
-            f.passes.push(PassTime::new("image from the read-back bytes (CPU)", start.elapsed().as_secs_f64() * 1e3));
+            let (composite, words) =
+                timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                    ctx.read_staged_with(&staged[0], &staged[1..].iter().map(|s| &**s).collect::<Vec<_>>(), to_image)
+                });
+            let at = !counts.is_empty() as usize;
+            f.take_counts(if at == 1 { &words[0] } else { &[] }, words.get(at).map(|w| w.as_slice()));
+            let composite = composite.unwrap_or_else(|| Image::filled(width, height, Vec3::ZERO));
+            f.passes.push(PassTime::new("image from the read-back bytes (CPU)", image_ms));
             let empty = Image::filled(0, 0, Vec3::ZERO);
             let virtual_mask = Mask { width, height, values: Vec::new() };
             f.images =
@@ -743,7 +763,7 @@ impl DirRenderer {
         }
         let frame_start = Instant::now();
         ctx.begin_frame();
-        let mut f = FrameTargets::new(ctx, scene, photo, params, state, mode);
+        let mut f = FrameTargets::new(ctx, &self.meshes, scene, photo, params, state, mode);
         f.given_vpls = given_vpls;
         for (_, pass) in PASSES {
             pass(self, &mut f)?;
@@ -775,10 +795,7 @@ impl DirRenderer {
                 bounces: std::mem::take(&mut f.bounce_reports),
                 temporal_smoothing: f.smoothed,
                 memory: ctx.pool_stats(),
-                counters: context::FrameCounters {
-                    cpu_ms: frame_start.elapsed().as_secs_f64() * 1e3,
-                    ..ctx.counters()
-                },
+                counters: ctx.counters().with_cpu_ms(frame_start.elapsed().as_secs_f64() * 1e3),
                 specular: f.traced.take().map(|traced| traced.report),
             },
             vpls: std::mem::take(&mut f.vpls),

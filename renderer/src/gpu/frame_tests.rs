@@ -243,3 +243,65 @@ fn a_resident_buffer_is_kept_while_its_contents_stay_and_never_changed_under_a_h
     assert_eq!(Arc::as_ptr(&third), kept);
     assert_eq!(ctx.read_storage(&third), [7; 8]);
 }
+
+/// A frame's host time split by the context: recording, submitting, waiting and the frame's own
+/// CPU steps add up to `cpu_ms`, each part counted (a frame records and submits passes); the
+/// photograph is uploaded again when any of its bits changed (a zero turned to −0: the same
+/// number, other bytes for the shaders) and not when none did. A device of its own, so that no
+/// other test's work is counted.
+#[test]
+fn a_frames_host_time_is_split_and_the_photograph_kept_while_its_bits_stay() {
+    let r = match DirRenderer::new() {
+        Ok(r) => r,
+        Err(why) => return eprintln!("skipping: no GPU adapter opens ({why})"),
+    };
+    r.ctx.set_pass_waits(false);
+    let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let mut photo = Image::filled(64, 48, Vec3::ZERO);
+    let params = DirParams { vpls: 32, rsm_size: 32, ism_size: 32, ism_points: 256, ..DirParams::default() };
+    let photo_bytes = 64 * 48 * 16;
+    let mut state = LiveState::default();
+    let mut frame = |photo: &Image| r.render_display(&scene, photo, &params, &mut state).unwrap().report.counters;
+    frame(&photo);
+    let kept = frame(&photo);
+    let parts = kept.record_ms + kept.submit_ms + kept.wait_ms + kept.host_steps_ms;
+    assert!((parts - kept.cpu_ms).abs() < 1e-6, "{parts} ms of parts in {} ms", kept.cpu_ms);
+    assert!(kept.record_ms > 0.0 && kept.submit_ms > 0.0 && kept.host_steps_ms > 0.0, "{kept:?}");
+    assert!(kept.upload_bytes < photo_bytes, "the unchanged photograph was uploaded again: {kept:?}");
+    photo.pixels[5].y = -0.0;
+    let changed = frame(&photo);
+    assert!(changed.upload_bytes >= photo_bytes, "a changed photograph was not uploaded: {changed:?}");
+    let again = frame(&photo);
+    assert!(again.upload_bytes < photo_bytes, "the photograph was uploaded twice: {again:?}");
+}
+
+/// The scene's mesh is kept from frame to frame while the scene's geometry stays (nothing of it
+/// uploaded again) and built again when the virtual object moves (as the lab moves it between
+/// live frames): the moved frame uploads its vertices and renders what a renderer that never
+/// kept a mesh renders, byte for byte. Devices of their own, so that no other test's work is
+/// counted.
+#[test]
+fn the_scene_mesh_is_kept_until_an_object_moves() {
+    let (r, fresh) = match (DirRenderer::new(), DirRenderer::new()) {
+        (Ok(r), Ok(fresh)) => (r, fresh),
+        (Err(why), _) | (_, Err(why)) => return eprintln!("skipping: no GPU adapter opens ({why})"),
+    };
+    r.ctx.set_pass_waits(false);
+    let mut scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = DirParams { vpls: 32, rsm_size: 32, ism_size: 32, ism_points: 256, ..DirParams::default() };
+    let vertex_bytes = (mesh::build(&scene).vertices.len() * std::mem::size_of::<mesh::GpuVertex>()) as u64;
+    r.render(&scene, &photo, &params).unwrap();
+    let kept = r.render(&scene, &photo, &params).unwrap().report.counters;
+    assert!(kept.upload_bytes < vertex_bytes, "the unchanged scene's vertices were uploaded again: {kept:?}");
+    let name = scene.objects.iter().find(|o| o.role == crate::scene::Role::Virtual).unwrap().name.clone();
+    assert!(scene.translate_object(&name, Vec3::new(0.05, 0.0, 0.02)));
+    let moved = r.render(&scene, &photo, &params).unwrap();
+    assert!(
+        moved.report.counters.upload_bytes >= vertex_bytes,
+        "the moved object's vertices were not uploaded: {:?}",
+        moved.report.counters
+    );
+    let expected = fresh.render(&scene, &photo, &params).unwrap();
+    assert!(moved.composite == expected.composite, "the moved frame differs from a fresh renderer's");
+}

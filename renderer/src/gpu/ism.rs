@@ -350,7 +350,6 @@ impl Ism {
     /// then copied into `buffer`.
     fn rasterise(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, inputs: &RasterSplats) {
         let RasterSplats { buffer, atlas, layers, position_buffer, vpl_buffer, splats } = *inputs;
-        let device = &ctx.device;
         // from the pool: both layers are rendered with a clear below
         let texture = ctx.texture(&wgpu::TextureDescriptor {
             label: Some("ism atlas"),
@@ -382,7 +381,7 @@ impl Ism {
                 ..Default::default()
             });
             let Some((_, uniform, cdf)) = layers.iter().find(|(l, _, _)| *l == layer) else { continue };
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            let bind_group = ctx.bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("ism"),
                 layout: &self.pipeline.get_bind_group_layout(0),
                 entries: &[

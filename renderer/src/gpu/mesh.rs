@@ -204,3 +204,90 @@ pub fn build(scene: &Scene) -> GpuMesh {
         bounds_radius,
     }
 }
+
+/// What [`build`] reads of a scene, as it was when its mesh was built: per object its name,
+/// role and the primitives and material it draws (a real object's proxy), and each material's
+/// GPU form and delta BSDF.
+struct MeshSource {
+    objects: Vec<(String, Role, usize, Vec<Primitive>)>,
+    materials: Vec<(GpuMaterial, Option<DeltaBsdf>)>,
+}
+
+/// The primitives and material an object is drawn with (a real object's proxy where it has one).
+fn drawn(object: &crate::scene::SceneObject) -> (&[Primitive], usize) {
+    match (&object.proxy, object.role) {
+        (Some((prims, material)), Role::Real) => (prims, *material),
+        _ => (&object.prims, object.material),
+    }
+}
+
+/// Whether two primitives have the same numbers, bit for bit (then they make the same vertices).
+fn same_prim(a: &Primitive, b: &Primitive) -> bool {
+    let bits3 = |v: &[Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+    let bits2 = |v: &[Vec2; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+    match (a, b) {
+        (Primitive::Triangle(s), Primitive::Triangle(t)) => {
+            bits3(&s.p) == bits3(&t.p)
+                && bits2(&s.uv) == bits2(&t.uv)
+                && s.n.as_ref().map(bits3) == t.n.as_ref().map(bits3)
+        }
+        (Primitive::Sphere { center: c, radius: r }, Primitive::Sphere { center: d, radius: q }) => {
+            c.to_array().map(f32::to_bits) == d.to_array().map(f32::to_bits) && r.to_bits() == q.to_bits()
+        }
+        _ => false,
+    }
+}
+
+impl MeshSource {
+    fn of(scene: &Scene) -> MeshSource {
+        MeshSource {
+            objects: scene
+                .objects
+                .iter()
+                .map(|o| {
+                    let (prims, material) = drawn(o);
+                    (o.name.clone(), o.role, material, prims.to_vec())
+                })
+                .collect(),
+            materials: scene.materials.iter().map(|m| (gpu_material(m), m.delta)).collect(),
+        }
+    }
+
+    /// Whether `scene` would build the same mesh: the same objects, primitives (bit for bit)
+    /// and materials.
+    fn matches(&self, scene: &Scene) -> bool {
+        self.objects.len() == scene.objects.len()
+            && self.materials.len() == scene.materials.len()
+            && self.materials.iter().zip(&scene.materials).all(|((gpu, delta), m)| {
+                bytemuck::bytes_of(gpu) == bytemuck::bytes_of(&gpu_material(m)) && *delta == m.delta
+            })
+            && self.objects.iter().zip(&scene.objects).all(|((name, role, material, prims), o)| {
+                let (drawn_prims, drawn_material) = drawn(o);
+                name == &o.name
+                    && *role == o.role
+                    && *material == drawn_material
+                    && prims.len() == drawn_prims.len()
+                    && prims.iter().zip(drawn_prims).all(|(a, b)| same_prim(a, b))
+            })
+    }
+}
+
+/// The last scene's mesh, kept from frame to frame: built again only when the scene's objects or
+/// materials changed (a live frame's scene is the same but for the moved object).
+#[derive(Default)]
+pub struct MeshCache(std::sync::Mutex<Option<(MeshSource, std::sync::Arc<GpuMesh>)>>);
+
+impl MeshCache {
+    /// `scene`'s mesh: the kept one when `scene` matches what it was built from, else built.
+    pub fn get(&self, scene: &Scene) -> std::sync::Arc<GpuMesh> {
+        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((source, mesh)) = kept.as_ref()
+            && source.matches(scene)
+        {
+            return mesh.clone();
+        }
+        let mesh = std::sync::Arc::new(build(scene));
+        *kept = Some((MeshSource::of(scene), mesh.clone()));
+        mesh
+    }
+}

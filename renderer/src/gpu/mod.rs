@@ -52,6 +52,7 @@ pub mod cm;
 pub mod coherent;
 pub mod compose;
 pub mod context;
+mod counters;
 mod frame;
 pub mod indirect;
 pub mod ism;
@@ -329,6 +330,8 @@ pub struct DirRenderer {
     /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
     /// by itself when the candidates exceed one storage buffer).
     cpu_vpls: std::sync::atomic::AtomicBool,
+    /// The last scene's mesh, kept while its geometry stays ([`mesh::MeshCache`]).
+    meshes: mesh::MeshCache,
 }
 
 /// One light's rendered RSMs: the light, a spot's tan of half its field of view, and the
@@ -484,6 +487,7 @@ impl DirRenderer {
             coherent: std::sync::OnceLock::new(),
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
+            meshes: Default::default(),
         }
     }
 

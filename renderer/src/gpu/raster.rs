@@ -257,7 +257,7 @@ impl Raster {
         if !std::ptr::eq(pipeline, &self.shadow) {
             entries.push(wgpu::BindGroupEntry { binding: 1, resource: scene.materials.as_entire_binding() });
         }
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+        ctx.bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
     }
 
     fn depth(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::TextureView {
