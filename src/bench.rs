@@ -5,7 +5,9 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use mrstudy_bench::{Options, Target};
+use mrstudy_bench::Options;
+use mrstudy_bench::Target;
+use mrstudy_server::console::Console;
 
 flags! {
     BenchArgs {
@@ -19,12 +21,6 @@ flags! {
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
-    let measured = mrstudy_bench::run(args.target, &args.options, &crate::progress::Printer::default())?;
-    if let Some(path) = &args.json {
-        crate::write_file(path, &(serde_json::to_string_pretty(&measured.json)? + "\n"))?;
-    }
-    if let Some(dir) = &args.plot_dir {
-        crate::write_into(dir, measured.plots)?;
-    }
-    Ok(())
+    let (console, json, plot_dir) = (Console::default(), args.json.as_deref(), args.plot_dir.as_deref());
+    Ok(mrstudy_bench::run_to_files(args.target, &args.options, json, plot_dir, &|said| console.say(said))?)
 }

@@ -1,14 +1,13 @@
 //! `mrstudy`: the command line. Thin by design: it parses arguments (the clap definitions of
-//! every command live here, the libraries take plain option structs), reads and writes files,
-//! calls the library crates and turns one `anyhow::Result` into an exit code. Errors are printed
-//! to stderr as one sentence.
+//! every command live here, the libraries take plain requests), calls the library crates'
+//! command functions and turns one `anyhow::Result` into an exit code. Errors are printed to
+//! stderr as one sentence.
 
-use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 
 /// A clap struct written compactly (one line per flag under its help: rustfmt leaves a braced
 /// macro call as written), and with `=> Target { … }` its conversion into the library's plain
@@ -35,7 +34,6 @@ mod analyze;
 mod bench;
 mod capture;
 mod export;
-mod progress;
 mod render;
 mod serve;
 mod simulate;
@@ -94,29 +92,6 @@ fn values<T: Copy + Send + Sync + 'static>(
     PossibleValuesParser::new(names).map(move |name| value(name).expect("clap accepts only the names listed"))
 }
 
-/// How `analyze` and `simulate` print their result.
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Format {
-    Table,
-    Json,
-}
-
-/// A file's text, and its name for messages.
-fn read_text(path: &Path) -> Result<(String, String)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok((text, path.display().to_string()))
-}
-
-/// Writes each (file name, text) into `dir`, creating it first.
-fn write_into(dir: &Path, files: impl IntoIterator<Item = (String, String)>) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    files.into_iter().try_for_each(|(name, text)| write_file(&dir.join(name), &text))
-}
-
-fn write_file(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
-}
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -157,7 +132,7 @@ mod tests {
         let Command::Analyze(analyze) = parse(&["analyze", "--trials", "t.csv"]) else { unreachable!() };
         assert_eq!(mrstudy_analysis::analysis::Options::from(analyze.options), Default::default());
         let Command::Render(render) = parse(&["render"]) else { unreachable!() };
-        assert_eq!(mrstudy_renderer::stimulus::RenderKnobs::from(render.knobs), Default::default());
+        assert_eq!(mrstudy_renderer::stimulus::RenderKnobs::from(render.request.knobs), Default::default());
         let Command::Export(export) = parse(&["export", "--study", "s"]) else { unreachable!() };
         assert_eq!(mrstudy_server::export::Include::from(export.include), Default::default());
         let Command::Serve(serve) = parse(&["serve"]) else { unreachable!() };
