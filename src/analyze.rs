@@ -1,7 +1,5 @@
-//! `mrstudy analyze`: reads a trials CSV (paired comparisons, detection trials against the
-//! ground truth, or both) or a task CSV (lab tasks), and optionally a stimulus metrics CSV; runs
-//! the analysis crate and prints a table or the Analysis JSON, and optionally writes the worth,
-//! factor-effect and metric scatter plots.
+//! `mrstudy analyze`: its flags, run by `mrstudy_analysis::command::analyze_request` (a trials
+//! or task CSV, optionally conditions and stimulus metrics) over the files, read and written here.
 
 use std::path::{Path, PathBuf};
 

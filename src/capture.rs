@@ -1,9 +1,9 @@
-//! `mrstudy capture`: its flags into `mrstudy_renderer::command::CaptureRequest`, run by
-//! `command::capture` (the simulated RGB-D capture of a scene's real objects, Rohmer et al.,
-//! Sec. 5, evaluated by `coherent::evaluation`) on the console.
+//! `mrstudy capture`: its flags, run by `mrstudy_renderer::command::capture` (the simulated RGB-D
+//! capture of a scene's real objects, Rohmer et al., Sec. 5, and its errors) on the console.
 
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::Result;
 use mrstudy_renderer::coherent::evaluation::CaptureSettings;
 use mrstudy_renderer::command::{CaptureRequest, capture};
@@ -40,7 +40,6 @@ flags! {
     }
 }
 
-pub fn run(args: CaptureArgs) -> Result<()> {
-    let console = mrstudy_server::console::Console::default();
-    Ok(capture(&args.into(), &|said| console.say(said))?)
+pub fn run(args: CaptureArgs, say: Say) -> Result<()> {
+    Ok(capture(&args.into(), say)?)
 }

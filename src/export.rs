@@ -4,8 +4,8 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::{Context, Result, anyhow};
-use mrstudy_server::console::Console;
 use mrstudy_server::export::Include;
 use mrstudy_server::serve::{ExportFormat, ExportRequest, export_command};
 
@@ -34,8 +34,7 @@ flags! {
     }
 }
 
-pub fn run(args: ExportArgs) -> Result<()> {
-    let console = Console::default();
-    let text = export_command(&args.into(), &|said| console.say(said)).map_err(|message| anyhow!("{message}"))?;
+pub fn run(args: ExportArgs, say: Say) -> Result<()> {
+    let text = export_command(&args.into(), say).map_err(|message| anyhow!("{message}"))?;
     text.map_or(Ok(()), |text| std::io::stdout().write_all(text.as_bytes()).context("cannot write to stdout"))
 }

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::Result;
 use mrstudy_renderer::ca::ParamSource;
 use mrstudy_renderer::cm::{CmMethod, Composition};
@@ -86,11 +87,10 @@ flags! {
     }
 }
 
-pub fn run(args: RenderArgs) -> Result<()> {
+pub fn run(args: RenderArgs, say: Say) -> Result<()> {
     // the study is read only where the sheet is drawn (after the scene is named)
     let sheet = args.request.contact_sheet.is_some() && args.request.scene.is_some() && !args.request.list;
     let conditions =
         args.study.as_deref().filter(|_| sheet).map(mrstudy_server::study::sheet_conditions).transpose()?;
-    let console = mrstudy_server::console::Console::default();
-    Ok(render(&RenderRequest { conditions, ..args.request.into() }, &|said| console.say(said))?)
+    Ok(render(&RenderRequest { conditions, ..args.request.into() }, say)?)
 }

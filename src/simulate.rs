@@ -1,15 +1,13 @@
-//! `mrstudy simulate` and `mrstudy power`: their flags, run by
-//! `mrstudy_server::simulate::command` (the table or JSON, the plots, `power`'s sentences) on
-//! the console.
+//! `mrstudy simulate` and `mrstudy power`: their flags, run by `mrstudy_server::simulate::command`
+//! (the table or JSON, the plots, `power`'s sentences) on the console.
 
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::Result;
-use mrstudy_server::console::Console;
+use mrstudy_analysis::command::Format;
 use mrstudy_server::simulate::command::{StudyRequest, power_command, simulate_command};
 use mrstudy_server::simulate::{self, DesignChoice, Options};
-
-use mrstudy_analysis::command::Format;
 
 flags! {
     /// What `simulate` and `power` share: the study, the truth, the observers, the runs.
@@ -68,13 +66,12 @@ flags! {
     }
 }
 
-pub fn run_simulate(args: SimulateArgs) -> Result<()> {
-    let (console, json) = (Console::default(), args.format == Format::Json);
+pub fn run_simulate(args: SimulateArgs, say: Say) -> Result<()> {
+    let json = args.format == Format::Json;
     let study = args.study.into();
-    Ok(simulate_command(&study, &args.participants, json, args.plot_dir.as_deref(), &|said| console.say(said))?)
+    Ok(simulate_command(&study, &args.participants, json, args.plot_dir.as_deref(), say)?)
 }
 
-pub fn run_power(args: PowerArgs) -> Result<()> {
-    let console = Console::default();
-    Ok(power_command(&args.study.into(), &args.participants, args.target_power, &|said| console.say(said))?)
+pub fn run_power(args: PowerArgs, say: Say) -> Result<()> {
+    Ok(power_command(&args.study.into(), &args.participants, args.target_power, say)?)
 }

@@ -3,8 +3,9 @@
 
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::Result;
-use mrstudy_server::console::{Console, stimulus_bars};
+use mrstudy_server::console::stimulus_bars;
 use mrstudy_server::stimuli::{self, command::StimuliRequest};
 
 flags! {
@@ -22,7 +23,6 @@ flags! {
     }
 }
 
-pub fn run(args: StimuliArgs) -> Result<()> {
-    let console = Console::default();
-    Ok(stimuli::command::stimuli_command(&args.into(), &stimulus_bars(), &|said| console.say(said))?)
+pub fn run(args: StimuliArgs, say: Say) -> Result<()> {
+    Ok(stimuli::command::stimuli_command(&args.into(), &stimulus_bars(), say)?)
 }

@@ -112,17 +112,27 @@ pub enum BenchError {
     Write { path: PathBuf, source: std::io::Error },
 }
 
-/// Runs the benchmark `target` with `options` (as `mrstudy bench`): its table lines, notes and
-/// progress are said as it runs; then its JSON is written to `json` and its plots into
-/// `plot_dir`.
-pub fn run_to_files(
-    target: Target,
-    options: &Options,
-    json: Option<&Path>,
-    plot_dir: Option<&Path>,
-    say: &(dyn Fn(Said) + Sync),
-) -> Result<(), BenchError> {
-    let measured = run(target, options, &Saying(say))?;
+/// `mrstudy bench`'s command line: the benchmark, where its rows and curves go, its options.
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchArgs {
+    #[arg(value_enum)]
+    pub target: Target,
+    /// Write the rows as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write SVG plots of the curves into this directory.
+    #[arg(long)]
+    pub plot_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub options: Options,
+}
+
+/// Runs the benchmark of `args` (as `mrstudy bench`): its table lines, notes and progress are
+/// said as it runs; then its JSON (`{"adapter": ..., "rows": [...]}`, docs/design.md) is
+/// written to `--json` and its curves as SVG into `--plot-dir`.
+pub fn run_to_files(args: &BenchArgs, say: &(dyn Fn(Said) + Sync)) -> Result<(), BenchError> {
+    let measured = run(args.target, &args.options, &Saying(say))?;
+    let (json, plot_dir) = (args.json.as_deref(), args.plot_dir.as_deref());
     let write = |path: &Path, text: &str| {
         std::fs::write(path, text).map_err(|source| BenchError::Write { path: path.to_path_buf(), source })
     };
