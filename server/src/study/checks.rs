@@ -1,7 +1,6 @@
 //! The checks both kinds of study file share: the refusal maker (`Fail`), the name rules
 //! (slug, identifier, condition name), non-empty texts, the reference to a scene for the
-//! renderer, image files and the response-time floor; what a kind that makes a survey table
-//! shares (`kind_table`, `parse_made`, `check_export_fits`).
+//! renderer, image files and the response-time floor; a study kind's own table (`kind_table`).
 
 use std::path::{Path, PathBuf};
 
@@ -35,54 +34,6 @@ pub(crate) fn kind_table<T: serde::de::DeserializeOwned>(
     }
     let raw = table.remove(kind).ok_or_else(|| fail.at(kind, format!("expected a [{kind}] table ({hint})")))?;
     raw.try_into().map_err(|error: toml::de::Error| fail.at(kind, super::one_line(&error.to_string())))
-}
-
-/// The table a study kind made (its own table rewritten as a paired-comparison file's), written
-/// as TOML and read as a survey; a refusal's `design.` key is named under `kind`, the table the
-/// researcher wrote.
-pub(crate) fn parse_made(
-    fail: Fail,
-    table: &toml::Table,
-    kind: &str,
-    file: &Path,
-    base: &Path,
-    file_sha256: String,
-) -> Result<super::Study, StudyError> {
-    let text = toml::to_string(table).map_err(|error| fail.at("", super::one_line(&error.to_string())))?;
-    super::survey::parse(&text, file, base, file_sha256).map_err(|mut error| {
-        if let Some(key) = error.key.strip_prefix("design.") {
-            error.key = format!("{kind}.{key}");
-        }
-        error
-    })
-}
-
-/// A study kind's refusals of what its export cannot hold: more than 1000 trials per
-/// participant (`key` the setting that makes them), a demographic field named like one of its
-/// export's own `columns`.
-pub(crate) fn check_export_fits(
-    fail: Fail,
-    study: &super::Study,
-    key: &str,
-    trials: usize,
-    kind: &str,
-    columns: &[&str],
-) -> Result<(), StudyError> {
-    if trials > 1000 {
-        let expected = format!("expected at most 1000 trials per participant with the catch trials, found {trials}");
-        return Err(fail.at(key, expected));
-    }
-    if let Some(field) = study.demographics.iter().find(|field| columns.contains(&field.name.as_str())) {
-        return Err(fail.at(
-            "demographics",
-            format!(
-                "expected no demographic field named like a column of the {kind} export ({}), found \"{}\"",
-                columns.join(", "),
-                field.name
-            ),
-        ));
-    }
-    Ok(())
 }
 
 /// A study slug: lower-case letters, digits and `-`, not first, at most 64 characters.

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use mrstudy_renderer::stimulus::Factors;
 
 pub mod checks;
+mod made;
 pub mod rating;
 pub mod rating_design;
 #[cfg(test)]

@@ -18,7 +18,8 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::StudyError;
-use super::checks::{Fail, check_export_fits, check_image, is_condition_name, kind_table, parse_made};
+use super::checks::{Fail, check_image, is_condition_name, kind_table};
+use super::made::{check_export_fits, parse_made};
 pub use super::rating_design::{
     CATCH_TOLERANCE, CatchSource, Layout, Method, Presentation, RatingCatch, RatingDesign, RatingScale,
 };

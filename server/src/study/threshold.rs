@@ -23,7 +23,8 @@ use mrstudy_renderer::stimulus::{FactorLevel, Factors};
 use serde::Deserialize;
 
 use super::StudyError;
-use super::checks::{Fail, check_export_fits, kind_table, parse_made};
+use super::checks::{Fail, kind_table};
+use super::made::{check_export_fits, parse_made};
 use super::survey::{GROUND_TRUTH, Study, StudyKind};
 pub use super::threshold_design::{
     DEFAULT_RENDER_AHEAD, Function, Intensity, REGIONS, RenderWhen, Scale, ThresholdDesign,
