@@ -107,9 +107,11 @@ pub fn render(request: &RenderRequest, say: &(dyn Fn(Said) + Sync)) -> Result<()
     let progress = |label, unit, total| progress(say, label, unit, total);
     if let Some(method) = request.gi_method {
         let coherent = CoherentParams { seed: request.seed, ..CoherentParams::new(method, request.quality) };
-        // the representation is built on the GPU where one opens (the frame on the CPU)
+        // the representation and the frame run on the GPU where one opens (the CPU's otherwise)
         let renderer = DirRenderer::new()
-            .inspect_err(|e| say(Said::Note(&format!("note: no GPU ({e}); the representation is built on the CPU"))))
+            .inspect_err(|e| {
+                say(Said::Note(&format!("note: no GPU ({e}); the representation and the frame run on the CPU")))
+            })
             .ok();
         let label = format!("{} {}", scene.name, method.name());
         let progress = progress(&label, "steps", 2 * request.spp + 9);

@@ -224,6 +224,20 @@ impl AppState {
         self.inner.studies.get(slug)?.prepared.get()
     }
 
+    /// The stimulus metrics of served study `slug` as they are now: an on-demand threshold
+    /// study's are read again from the store after each level rendered since it was prepared
+    /// ([`render_queue::RenderQueue::metrics`]); the others' are those read when prepared.
+    pub fn stimulus_metrics(&self, slug: &str) -> Option<Arc<stimuli::StimulusMetricsNow>> {
+        let prepared = self.study(slug)?;
+        self.render_queue().metrics(slug).or_else(|| {
+            Some(Arc::new(stimuli::StimulusMetricsNow {
+                csv: prepared.metrics_csv.clone(),
+                notes: prepared.metrics_notes.clone(),
+                metrics: prepared.stimulus_metrics.clone(),
+            }))
+        })
+    }
+
     /// The served study `slug`: while its stimuli are being prepared a 503 saying it opens in
     /// a few minutes ([`AppError::OpensSoon`]), else (not served) a 404.
     pub fn served_study(&self, slug: &str) -> Result<Arc<PreparedStudy>, AppError> {

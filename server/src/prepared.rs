@@ -5,11 +5,11 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
+use mrstudy_analysis::stimulus_metrics::StimulusMetrics;
 
 use crate::rating::RatedTrial;
 use crate::schedule;
-use crate::stimuli::StimulusPlan;
+use crate::stimuli::{StimulusMetricsNow, StimulusPlan};
 use crate::study::{GROUND_TRUTH, IMAGE_TYPES, StimulusSource, Study};
 use crate::trial::{PlannedKind, PlannedTrial, ScheduledTrial, Side};
 
@@ -161,21 +161,8 @@ impl PreparedStudy {
             }
         }
         let rendered_part = on_demand.then(|| crate::render_queue::rendered_part(plan, store));
-        let (mut metrics_csv, mut metrics_notes) =
-            match crate::stimuli::metrics_csv(&study, rendered_part.as_ref().unwrap_or(plan), store) {
-                Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
-                Err(error) => (None, vec![error.to_string()]),
-            };
-        let stimulus_metrics =
-            match metrics_csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
-                Some(Ok(metrics)) => Some(metrics),
-                Some(Err(error)) => {
-                    metrics_csv = None;
-                    metrics_notes.push(format!("the stimulus metrics cannot be read: {error}"));
-                    None
-                }
-                None => None,
-            };
+        let StimulusMetricsNow { csv: metrics_csv, notes: metrics_notes, metrics: stimulus_metrics } =
+            StimulusMetricsNow::of(&study, rendered_part.as_ref().unwrap_or(plan), store);
         let rating_catch_stimuli = rating_catch_stimuli(&study, &ground_truths, store)?;
         let mut study = study;
         crate::threshold::prepare(&mut study, stimulus_metrics.as_ref())

@@ -26,6 +26,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::PreparedStudy;
+use crate::stimuli::StimulusMetricsNow;
 use crate::stimuli::{PlannedScene, StimulusPlan};
 use crate::study::Study;
 use crate::study::threshold::{RenderWhen, ThresholdDesign};
@@ -56,6 +57,9 @@ pub struct Job {
     pub condition: usize,
     /// `scene / condition`, for the admin page and the log.
     pub label: String,
+    /// Queued ahead of need ([`RenderQueue::prefetch`]): a participant's own request goes
+    /// before it.
+    pub prefetch: bool,
 }
 
 /// Why a level's stimulus is not there for a participant now.
@@ -100,6 +104,9 @@ struct State {
     refused: usize,
     render_seconds: f64,
     studies: HashMap<String, Arc<(Arc<PreparedStudy>, StimulusPlan)>>,
+    /// Slug → the renders done when its metrics were last read, and those metrics.
+    metrics: HashMap<String, (usize, Arc<StimulusMetricsNow>)>,
+    prefetched: usize,
     worker: bool,
 }
 
@@ -160,6 +167,28 @@ impl RenderQueue {
         self.lock().studies.insert(slug, Arc::new((prepared, plan)));
     }
 
+    /// The render job of level `condition` of scene configuration `scene` (realisation
+    /// `realisation`) of study `slug`.
+    fn job(&self, slug: &str, scene: usize, realisation: usize, condition: usize) -> Result<Job, Unready> {
+        let unknown = || Unready::Unknown { slug: slug.to_string(), scene, realisation, condition };
+        let registered = self.lock().studies.get(slug).cloned().ok_or_else(unknown)?;
+        let plan = &registered.1;
+        let planned = plan.scenes.get(scene).and_then(Option::as_ref).ok_or_else(unknown)?;
+        let stimulus = planned.realisation(realisation).and_then(|(_, s)| s.get(condition)).ok_or_else(unknown)?;
+        Ok(Job {
+            key: stimulus.key.clone(),
+            slug: slug.to_string(),
+            scene,
+            realisation,
+            condition,
+            label: match realisation {
+                0 => format!("{} / {}", stimulus.scene, stimulus.condition),
+                r => format!("{} / {} (realisation {r})", stimulus.scene, stimulus.condition),
+            },
+            prefetch: false,
+        })
+    }
+
     /// The stored file name of level `condition` of scene configuration `scene` (realisation
     /// `realisation`) of study `slug`: at once if it is in the store, else after its render
     /// (queued unless it is queued already), waiting at most `wait`.
@@ -171,22 +200,7 @@ impl RenderQueue {
         condition: usize,
         wait: Duration,
     ) -> Result<String, Unready> {
-        let unknown = || Unready::Unknown { slug: slug.to_string(), scene, realisation, condition };
-        let registered = self.lock().studies.get(slug).cloned().ok_or_else(unknown)?;
-        let plan = &registered.1;
-        let planned = plan.scenes.get(scene).and_then(Option::as_ref).ok_or_else(unknown)?;
-        let stimulus = planned.realisation(realisation).and_then(|(_, s)| s.get(condition)).ok_or_else(unknown)?;
-        let job = Job {
-            key: stimulus.key.clone(),
-            slug: slug.to_string(),
-            scene,
-            realisation,
-            condition,
-            label: match realisation {
-                0 => format!("{} / {}", stimulus.scene, stimulus.condition),
-                r => format!("{} / {} (realisation {r})", stimulus.scene, stimulus.condition),
-            },
-        };
+        let job = self.job(slug, scene, realisation, condition)?;
         if let Some(name) = crate::stimuli::lookup(&self.shared.store, &job.key) {
             return Ok(name);
         }
@@ -213,13 +227,71 @@ impl RenderQueue {
         }
     }
 
-    /// Queues `job` unless it is queued, rendering or failed already; refuses it when full.
+    /// Queues level `condition`'s render ahead of need (a level a participant may be shown
+    /// next) when it is missing and the queue is less than half full, behind every request a
+    /// participant waits for; never refused, never counted as a refusal. Whether it was queued.
+    pub fn prefetch(&self, slug: &str, scene: usize, realisation: usize, condition: usize) -> bool {
+        let Ok(job) = self.job(slug, scene, realisation, condition) else { return false };
+        if crate::stimuli::lookup(&self.shared.store, &job.key).is_some() {
+            return false;
+        }
+        {
+            let state = self.lock();
+            if 2 * state.waiting.len() >= self.shared.capacity || self.known(&state, &job.key) {
+                return false;
+            }
+        }
+        let queued = self.enqueue(&Job { prefetch: true, ..job }).is_ok();
+        if queued {
+            self.lock().prefetched += 1;
+        }
+        queued
+    }
+
+    /// Queued, rendering or failed already.
+    fn known(&self, state: &State, key: &str) -> bool {
+        state.failed.contains_key(key)
+            || state.current.as_ref().is_some_and(|(current, _)| current.key == key)
+            || state.waiting.iter().any(|waiting| waiting.key == key)
+    }
+
+    /// The stimulus metrics of on-demand study `slug` now, with the levels rendered since it was
+    /// prepared (read again from the store after each render); `None` for a study the queue does
+    /// not render.
+    pub fn metrics(&self, slug: &str) -> Option<Arc<StimulusMetricsNow>> {
+        let (registered, rendered, cached) = {
+            let state = self.lock();
+            let registered = state.studies.get(slug).cloned()?;
+            (registered, state.rendered, state.metrics.get(slug).cloned())
+        };
+        if let Some((at, metrics)) = cached
+            && at == rendered
+        {
+            return Some(metrics);
+        }
+        let (prepared, plan) = &*registered;
+        let part = rendered_part(plan, &self.shared.store);
+        let metrics = Arc::new(StimulusMetricsNow::of(&prepared.study, &part, &self.shared.store));
+        self.lock().metrics.insert(slug.to_string(), (rendered, metrics.clone()));
+        Some(metrics)
+    }
+
+    /// Queues `job` unless it is queued, rendering or failed already; refuses it when full. A
+    /// participant's request goes before the prefetched renders (and lifts a prefetched render
+    /// of the same level to its place).
     fn enqueue(&self, job: &Job) -> Result<(), Unready> {
         let mut state = self.lock();
-        if state.failed.contains_key(&job.key)
-            || state.current.as_ref().is_some_and(|(current, _)| current.key == job.key)
-            || state.waiting.iter().any(|waiting| waiting.key == job.key)
+        if !job.prefetch
+            && let Some(at) = state.waiting.iter().position(|waiting| waiting.key == job.key && waiting.prefetch)
         {
+            let mut lifted = state.waiting.remove(at).expect("the position is in the queue");
+            lifted.prefetch = false;
+            let first_prefetch =
+                state.waiting.iter().position(|waiting| waiting.prefetch).unwrap_or(state.waiting.len());
+            state.waiting.insert(first_prefetch, lifted);
+            return Ok(());
+        }
+        if self.known(&state, &job.key) {
             return Ok(());
         }
         if state.waiting.len() >= self.shared.capacity {
@@ -232,8 +304,12 @@ impl RenderQueue {
                 retry_after_seconds,
             });
         }
-        state.waiting.push_back(job.clone());
-        tracing::info!(level = %job.label, study = %job.slug, waiting = state.waiting.len(), "render queued");
+        let at = match job.prefetch {
+            true => state.waiting.len(),
+            false => state.waiting.iter().position(|waiting| waiting.prefetch).unwrap_or(state.waiting.len()),
+        };
+        state.waiting.insert(at, job.clone());
+        tracing::info!(level = %job.label, study = %job.slug, waiting = state.waiting.len(), prefetch = job.prefetch, "render queued");
         if !state.worker {
             state.worker = true;
             let queue = self.clone();
@@ -351,10 +427,11 @@ impl RenderQueue {
             None => String::new(),
         };
         format!(
-            "render queue (on-demand levels): {current}; {} waiting of at most {}; {} rendered{mean}; {} refused as full{failed}",
+            "render queue (on-demand levels): {current}; {} waiting of at most {}; {} rendered{mean}; {} queued ahead of need; {} refused as full{failed}",
             state.waiting.len(),
             self.shared.capacity,
             state.rendered,
+            state.prefetched,
             state.refused
         )
     }

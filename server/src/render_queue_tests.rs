@@ -19,6 +19,7 @@ fn prepared(store: &Path) -> (Arc<PreparedStudy>, StimulusPlan) {
     let plan = StimulusPlan::of(&study).unwrap();
     let startup = startup_plan(&study, &plan);
     std::fs::create_dir_all(store.join("rendered")).unwrap();
+    startup.stimuli().for_each(|stimulus| fake_record(store, stimulus));
     let mut keys: Vec<String> = startup.stimuli().map(|stimulus| stimulus.key.clone()).collect();
     keys.extend(plan.scenes.iter().flatten().filter_map(|scene| scene.ground_truth_key.clone()));
     for key in keys {
@@ -31,6 +32,22 @@ fn prepared(store: &Path) -> (Arc<PreparedStudy>, StimulusPlan) {
 fn fake(store: &Path, key: &str) {
     let name = crate::stimuli::store_bytes(key.as_bytes(), "png", store).unwrap();
     std::fs::write(store.join("rendered").join(key), name).unwrap();
+}
+
+/// A stimulus record whose render time is the level's index (its errors left empty).
+fn fake_record(store: &Path, stimulus: &crate::stimuli::PlannedStimulus) {
+    let record = crate::stimuli::StimulusRecord {
+        stimulus: format!("{}.png", stimulus.key),
+        ground_truth: "truth.png".into(),
+        factors: "gi".into(),
+        settings: Default::default(),
+        render_ms: stimulus.condition_index as f64,
+        adapter: "test".into(),
+        reference_seconds: 0.0,
+        errors: Default::default(),
+    };
+    let name = crate::stimuli::store_bytes(&serde_json::to_vec(&record).unwrap(), "json", store).unwrap();
+    std::fs::write(store.join("rendered").join(stimulus.record_key()), name).unwrap();
 }
 
 /// A queue whose renders each wait for a message on the returned sender, and tell each
@@ -46,6 +63,7 @@ fn gated(store: &Path, capacity: usize) -> (RenderQueue, mpsc::Sender<()>, mpsc:
             let stimuli: Vec<_> = plan.stimuli().collect();
             assert_eq!(stimuli.len(), 1, "one stimulus per render");
             fake(store, &stimuli[0].key);
+            fake_record(store, stimuli[0]);
             told.send(stimuli[0].condition_index).unwrap();
             Ok(())
         })
@@ -143,4 +161,100 @@ async fn a_full_queue_refuses_a_level_and_does_not_grow() {
     assert!(matches!(again, Err(Unready::Rendering { .. })), "{again:?}");
     assert_eq!(queue.refused(), 1);
     drop(open);
+}
+
+/// The levels with a stimulus record in `csv` (its `render_ms` rows, which the fake sets to the
+/// level's index), per scene configuration name.
+fn levels_in(csv: &str) -> Vec<(String, usize)> {
+    csv.lines()
+        .skip(1)
+        .filter(|line| line.contains(",render_ms,"))
+        .map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            (fields[1].to_string(), fields[5].parse::<f64>().unwrap() as usize)
+        })
+        .collect()
+}
+
+#[tokio::test]
+async fn a_participants_request_goes_before_levels_queued_ahead_of_need() {
+    let store = tempfile::tempdir().unwrap();
+    let (prepared, plan) = prepared(store.path());
+    let (queue, open, rendered) = gated(store.path(), 8);
+    queue.register(prepared.clone(), plan);
+    let slug = &prepared.study.slug;
+    let missing: Vec<usize> =
+        prepared.stimuli[0].iter().enumerate().filter(|(_, n)| n.is_empty()).map(|(l, _)| l).collect();
+    assert!(missing.len() >= 4, "{missing:?}");
+    // the first prefetch goes to the worker (held at the gate), two more wait
+    assert!(queue.prefetch(slug, 0, 0, missing[0]));
+    while queue.lock().current.is_none() {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    assert!(queue.prefetch(slug, 0, 0, missing[1]));
+    assert!(queue.prefetch(slug, 0, 0, missing[2]));
+    assert!(!queue.prefetch(slug, 0, 0, missing[2]), "a level queued already is not queued again");
+    // a participant's level goes before the waiting prefetches; one already prefetched is lifted
+    let asked = queue.stimulus(slug, 0, 0, missing[3], Duration::from_millis(10)).await;
+    assert!(matches!(asked, Err(Unready::Rendering { position: 1, .. })), "{asked:?}");
+    let lifted = queue.stimulus(slug, 0, 0, missing[2], Duration::from_millis(10)).await;
+    assert!(matches!(lifted, Err(Unready::Rendering { position: 2, .. })), "{lifted:?}");
+    let order: Vec<(usize, bool)> = queue.lock().waiting.iter().map(|job| (job.condition, job.prefetch)).collect();
+    assert_eq!(order, [(missing[3], false), (missing[2], false), (missing[1], true)]);
+    for _ in 0..4 {
+        open.send(()).unwrap();
+    }
+    let done: Vec<usize> = (0..4).map(|_| rendered.recv().unwrap()).collect();
+    assert_eq!(done, [missing[0], missing[3], missing[2], missing[1]]);
+    // rendered now: nothing to prefetch
+    assert!(!queue.prefetch(slug, 0, 0, missing[1]));
+    assert!(queue.summary().contains("3 queued ahead of need"), "{}", queue.summary());
+    assert_eq!(queue.refused(), 0);
+}
+
+#[tokio::test]
+async fn prefetching_leaves_half_the_queue_to_participants() {
+    let store = tempfile::tempdir().unwrap();
+    let (prepared, plan) = prepared(store.path());
+    let (queue, open, _rendered) = gated(store.path(), 4);
+    queue.register(prepared.clone(), plan);
+    let slug = &prepared.study.slug;
+    let missing: Vec<(usize, usize)> = (0..2)
+        .flat_map(|scene| prepared.stimuli[scene].iter().enumerate().map(move |(level, name)| (scene, level, name)))
+        .filter(|(_, _, name)| name.is_empty())
+        .map(|(scene, level, _)| (scene, level))
+        .collect();
+    let queued: Vec<bool> = missing[..4].iter().map(|&(scene, level)| queue.prefetch(slug, scene, 0, level)).collect();
+    // the worker may or may not have taken the first yet: two wait at most
+    assert!(queue.lock().waiting.len() <= 2, "{}", queue.summary());
+    assert!(!queued[3], "{queued:?}");
+    assert_eq!(queue.refused(), 0, "a prefetch is never a refusal");
+    drop(open);
+}
+
+#[tokio::test]
+async fn the_stimulus_metrics_gain_each_level_rendered_on_demand() {
+    let store = tempfile::tempdir().unwrap();
+    let (prepared, plan) = prepared(store.path());
+    let (queue, open, _rendered) = gated(store.path(), 4);
+    queue.register(prepared.clone(), plan);
+    let slug = &prepared.study.slug;
+    let before = levels_in(queue.metrics(slug).unwrap().csv.as_deref().unwrap());
+    let expected: Vec<(String, usize)> = prepared
+        .stimuli
+        .iter()
+        .enumerate()
+        .flat_map(|(scene, names)| {
+            let scene = prepared.study.scenes[scene].name.clone();
+            names.iter().enumerate().filter(|(_, name)| !name.is_empty()).map(move |(level, _)| (scene.clone(), level))
+        })
+        .collect();
+    assert_eq!(before, expected, "the levels rendered at start-up");
+    let missing = prepared.stimuli[1].iter().position(String::is_empty).unwrap();
+    open.send(()).unwrap();
+    queue.stimulus(slug, 1, 0, missing, Duration::from_secs(30)).await.unwrap();
+    let after = levels_in(queue.metrics(slug).unwrap().csv.as_deref().unwrap());
+    assert_eq!(after.len(), before.len() + 1);
+    assert!(after.contains(&(prepared.study.scenes[1].name.clone(), missing)), "{after:?}");
+    assert!(queue.metrics("no-such-study").is_none());
 }

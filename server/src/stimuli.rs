@@ -38,6 +38,7 @@ pub mod lines;
 
 use std::path::{Path, PathBuf};
 
+use mrstudy_analysis::stimulus_metrics::{StimulusMetrics, parse_stimulus_metrics};
 use mrstudy_renderer::gpu::DirRenderer;
 use mrstudy_renderer::metrics::{StimulusErrors, quantized, stimulus_errors};
 use mrstudy_renderer::stimulus::{Factors, StimulusSettings};
@@ -724,6 +725,39 @@ fn store_ground_truth(store: &Path, key: &str, shown: &Image, rendered: &mut Ren
     write_entry(store, key, &name)?;
     rendered.ground_truths += 1;
     Ok(name)
+}
+
+/// The stimulus metrics of a study's rendered stimuli, read from their records in the store:
+/// when the study is prepared, and again for an on-demand threshold study after levels were
+/// rendered (`RenderQueue::metrics`).
+#[derive(Debug, Clone, Default)]
+pub struct StimulusMetricsNow {
+    /// The stimulus metrics CSV (docs/design.md); `None` when no stimulus has a ground truth.
+    pub csv: Option<String>,
+    /// Why a scene configuration has none, or why the records could not be read.
+    pub notes: Vec<String>,
+    /// The CSV parsed for the analysis.
+    pub metrics: Option<StimulusMetrics>,
+}
+
+impl StimulusMetricsNow {
+    /// The metrics of `plan`'s stimuli (those in `store`).
+    pub fn of(study: &Study, plan: &StimulusPlan, store: &Path) -> StimulusMetricsNow {
+        let (mut csv, mut notes) = match metrics_csv(study, plan, store) {
+            Ok((csv, notes)) => (csv.lines().nth(1).is_some().then_some(csv), notes),
+            Err(error) => (None, vec![error.to_string()]),
+        };
+        let metrics = match csv.as_deref().map(|csv| parse_stimulus_metrics(csv, "stimulus metrics CSV")) {
+            Some(Ok(metrics)) => Some(metrics),
+            Some(Err(error)) => {
+                csv = None;
+                notes.push(format!("the stimulus metrics cannot be read: {error}"));
+                None
+            }
+            None => None,
+        };
+        StimulusMetricsNow { csv, notes, metrics }
+    }
 }
 
 /// The study's stimulus metrics CSV (docs/design.md): `stimulus,scene,condition,metric,region,value`,

@@ -51,7 +51,11 @@ async fn fixture_with_admin(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_admin_page_says_what_the_active_design_optimises() {
-    for (target, optimises) in [("effects", "the factor effects"), ("worths", "every condition&#39;s log-worth")] {
+    for (target, optimises) in [
+        ("effects", "the expected drop of the posterior entropy of the factor effects"),
+        ("worths", "the expected drop of the posterior entropy of every condition&#39;s log-worth"),
+        ("both", "the expected drop of the summed posterior variance of the log-worths and of the factor effects"),
+    ] {
         let work = tempfile::tempdir().unwrap();
         let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]";
         let (app, _, admin_token) = fixture_with_admin(work.path(), target, warmup, 6, 2).await;
@@ -59,7 +63,12 @@ async fn the_admin_page_says_what_the_active_design_optimises() {
         assert_eq!(page.status, StatusCode::OK, "{}", page.text());
         let text = page.text();
         let note = text.lines().find(|line| line.contains("Active design")).unwrap_or_default();
-        assert!(note.contains(target) && note.contains(optimises), "target {target}: {note}");
+        assert!(
+            note.contains(&format!("target = &#34;{target}&#34;")) && note.contains(optimises),
+            "target {target}: {note}"
+        );
+        // the demo study's 4 conditions anchored on LQ: 3 warm-up pairs, once
+        assert!(note.contains("after a warm-up of 3 fixed pair trials per participant"), "{note}");
     }
 }
 

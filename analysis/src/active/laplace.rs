@@ -37,14 +37,14 @@ pub fn refit(target: &Target, link: Link, prior_sd: f64, judgments: &[(usize, us
     let directions: Vec<Vec<(usize, f64)>> = observed
         .iter()
         .map(|&(w, l, _)| match target {
-            Target::Worths { .. } => vec![(w, 1.0), (l, -1.0)],
+            Target::Worths { .. } | Target::Both { .. } => vec![(w, 1.0), (l, -1.0)],
             Target::Factors { design } => {
                 design[w].iter().zip(&design[l]).map(|(a, b)| a - b).enumerate().filter(|(_, d)| *d != 0.0).collect()
             }
         })
         .collect();
     let p = match target {
-        Target::Worths { conditions } => *conditions,
+        Target::Worths { .. } | Target::Both { .. } => n,
         Target::Factors { design } => design[0].len(),
     };
     let precision = 1.0 / (prior_sd * prior_sd);

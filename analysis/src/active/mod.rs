@@ -80,6 +80,7 @@
 //! [`simulate`] compares active and random pairs on simulated observers.
 
 pub mod bench;
+pub mod both;
 pub mod laplace;
 pub mod posterior;
 pub mod quadrature;
@@ -129,6 +130,11 @@ pub enum Target {
     /// no intercept column, which paired comparisons cannot inform). Each effect has prior
     /// N(0, σ²).
     Factors { design: Vec<Vec<f64>> },
+    /// Both reported quantities (issue 48): the posterior is over the log-worths, as
+    /// [`Target::Worths`], and pairs are chosen by the A-optimal criterion of [`both`] over the
+    /// centred log-worths and the least-squares factor effects of `design` (as for
+    /// [`Target::Factors`]).
+    Both { design: Vec<Vec<f64>> },
 }
 
 impl Target {
@@ -153,18 +159,19 @@ impl Target {
     pub fn conditions(&self) -> usize {
         match self {
             Target::Worths { conditions } => *conditions,
-            Target::Factors { design } => design.len(),
+            Target::Factors { design } | Target::Both { design } => design.len(),
         }
     }
 
     /// Checks the target: at least 3 conditions; a factor design rectangular, finite, with at
-    /// least one factor and no factor constant over the conditions.
+    /// least one factor and no factor constant over the conditions (for [`Target::Both`] also
+    /// none a combination of the others).
     pub fn check(&self) -> Result<()> {
         let conditions = self.conditions();
         if conditions < 3 {
             return Err(ActiveError::TooFewConditions { conditions });
         }
-        if let Target::Factors { design } = self {
+        if let Target::Factors { design } | Target::Both { design } = self {
             let p = design[0].len();
             if p == 0 {
                 return Err(ActiveError::BadDesign { message: "it has no factor column".into() });
@@ -181,6 +188,9 @@ impl Target {
             if let Some(k) = (0..p).find(|&k| design.iter().all(|row| row[k] == design[0][k])) {
                 let message = format!("factor {k} takes one value over all conditions, so no judgment can inform it");
                 return Err(ActiveError::BadDesign { message });
+            }
+            if let Target::Both { design } = self {
+                both::effect_projection(design)?;
             }
         }
         Ok(())

@@ -50,6 +50,9 @@ pub struct Posterior {
     n_conditions: usize,
     /// `design[condition]` for the factor target; `None` for the log-worths (X = I).
     design: Option<Vec<Vec<f64>>>,
+    /// The `both` target's effect projection ([`super::both::effect_projection`]); `None`
+    /// for the other targets.
+    effects: Option<Vec<Vec<f64>>>,
     mean: Vec<f64>,
     /// Row-major p × p, kept exactly symmetric (every update adds a symmetric product).
     covariance: Vec<f64>,
@@ -97,8 +100,12 @@ impl Posterior {
         }
         let n_conditions = target.conditions();
         let design = match target {
-            Target::Worths { .. } => None,
+            Target::Worths { .. } | Target::Both { .. } => None,
             Target::Factors { design } => Some(design.clone()),
+        };
+        let effects = match target {
+            Target::Both { design } => Some(super::both::effect_projection(design)?),
+            _ => None,
         };
         let p = design.as_ref().map_or(n_conditions, |d| d[0].len());
         let mut covariance = vec![0.0; p * p];
@@ -110,6 +117,7 @@ impl Posterior {
             prior_sd,
             n_conditions,
             design,
+            effects,
             mean: vec![0.0; p],
             covariance,
             judgments: 0,
@@ -391,6 +399,23 @@ impl Posterior {
         if let Some((a, b)) = previous {
             self.check_condition(a)?;
             self.check_condition(b)?;
+        }
+        if let Some(projection) = &self.effects {
+            let input = super::both::BothBatch {
+                link: self.link,
+                rule: &self.update_rule,
+                mean: &self.mean,
+                covariance: &self.covariance,
+                projection,
+                mean_weight: self.effective_mean_weight(),
+                parent: self.parent.clone(),
+                components: self.components,
+            };
+            let last = previous.map(|(a, b)| (a.min(b), a.max(b)));
+            return super::both::best_pairs(input, trials, last, rng).map_err(|error| match error {
+                ActiveError::Degenerate { message, .. } => self.degenerate(message),
+                other => other,
+            });
         }
         let n = self.n_conditions;
         let p = self.mean.len();

@@ -1,11 +1,12 @@
 //! Tests of active pair selection: quadrature and EIG against brute force, the ADF update against
 //! the exact posterior mean by grid integration, replay, the batch rules (no back-to-back
-//! repeat, connectivity), side balance, bad input, the factor target, and active against random
-//! pairs in simulation.
+//! repeat, connectivity), side balance, bad input, the factor target, the `both` target's
+//! criterion (by hand), and active against random pairs in simulation.
 
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
+use super::both::{Criterion, effect_projection};
 use super::laplace::refit;
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES, binary_entropy, normal_pdf};
 use super::simulate::{Design, SimulationConfig, centred_rmse, factorial, judgment_log, normal, simulate, uniform};
@@ -115,7 +116,7 @@ fn eig_matches_monte_carlo_over_the_whole_posterior() {
         for _ in 0..samples {
             let theta = draw(posterior.mean(), &l, &mut rng);
             let lambda = match &target {
-                Target::Worths { .. } => theta,
+                Target::Worths { .. } | Target::Both { .. } => theta,
                 Target::Factors { design } => design.iter().map(|row| posterior::dot(row, &theta)).collect(),
             };
             let d = lambda[i] - lambda[j];
@@ -551,4 +552,77 @@ fn without_a_ramp_the_mean_weight_is_full_from_the_first_judgment() {
         let refused = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD).unwrap().with_mean_ramp(bad);
         assert!(matches!(refused, Err(ActiveError::BadOption { option: "mean_ramp", .. })), "{bad}");
     }
+}
+
+// The `both` target (issue 48).
+
+/// Three conditions, one factor on condition 2 alone: the effect is λ₂ − (λ₀ + λ₁)/2.
+fn three() -> Vec<Vec<f64>> {
+    vec![vec![0.0], vec![0.0], vec![1.0]]
+}
+
+#[test]
+fn the_projection_is_the_least_squares_effect() {
+    let projection = effect_projection(&three()).unwrap();
+    for (got, want) in projection[0].iter().zip([-0.5, -0.5, 1.0]) {
+        assert!((got - want).abs() < 1e-12, "{projection:?}");
+    }
+    // 2² factorial: each main effect is the mean of its level 1 minus the mean of level 0
+    let design = vec![vec![0.0, 0.0], vec![1.0, 0.0], vec![0.0, 1.0], vec![1.0, 1.0]];
+    let projection = effect_projection(&design).unwrap();
+    let want = [[-0.5, 0.5, -0.5, 0.5], [-0.5, -0.5, 0.5, 0.5]];
+    for (row, want) in projection.iter().zip(want) {
+        for (got, want) in row.iter().zip(want) {
+            assert!((got - want).abs() < 1e-12, "{projection:?}");
+        }
+    }
+    // a factor that is another's complement has no estimate of its own
+    let collinear = vec![vec![0.0, 1.0], vec![1.0, 0.0], vec![1.0, 0.0]];
+    let error = effect_projection(&collinear).unwrap_err();
+    assert!(error.to_string().contains("combination of the others"), "{error}");
+    assert!(Target::Both { design: collinear }.check().is_err());
+}
+
+/// At the prior Σ = I (probit, mean 0) every pair's difference has v = 2 and the same
+/// c = (2/π)/(1 + v) = 2/(3π). tr CΣC = 2 and tr PΣPᵀ = 1/4 + 1/4 + 1 = 3/2. (0, 1): ‖C·u‖²
+/// = 2, P·u = 0, score 2/(3π)·1; (0, 2): ‖C·u‖² = 2, P·u = −3/2, score 2/(3π)·(1 + 9/4 / 3/2)
+/// = 5/(3π). A worths-only criterion scores all three alike.
+#[test]
+fn the_criterion_prefers_the_pair_that_also_informs_the_effect_by_hand() {
+    let projection = effect_projection(&three()).unwrap();
+    let covariance = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let rule = Rule::gauss_hermite(48);
+    let criterion = Criterion::new(Link::Probit, &rule, &projection, &covariance).unwrap();
+    let pi = std::f64::consts::PI;
+    for (pair, want) in [((0, 1), 2.0 / (3.0 * pi)), ((0, 2), 5.0 / (3.0 * pi)), ((1, 2), 5.0 / (3.0 * pi))] {
+        let (score, v) = criterion.score(pair, 0.0).unwrap();
+        assert!((v - 2.0).abs() < 1e-12);
+        assert!((score - want).abs() < 1e-12, "{pair:?}: {score} against {want}");
+    }
+    // the posterior's batch takes a pair with condition 2 first, whatever the tie-break
+    let posterior = Posterior::new(&Target::Both { design: three() }, Link::Probit, DEFAULT_PRIOR_SD).unwrap();
+    for seed in 0..20 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let batch = posterior.best_pairs(1, None, &mut rng).unwrap();
+        assert!(batch[0] == (0, 2) || batch[0] == (1, 2), "seed {seed}: {batch:?}");
+    }
+}
+
+/// The posterior of the `both` target is the log-worths' one: the same log gives the same
+/// mean and covariance as the `worths` target.
+#[test]
+fn both_updates_the_log_worths_posterior() {
+    let design = vec![vec![0.0, 0.0], vec![1.0, 0.0], vec![0.0, 1.0], vec![1.0, 1.0]];
+    let mut both = Posterior::new(&Target::Both { design }, Link::Logit, DEFAULT_PRIOR_SD).unwrap();
+    let mut worths = Posterior::new(&Target::Worths { conditions: 4 }, Link::Logit, DEFAULT_PRIOR_SD).unwrap();
+    for (w, l) in [(1, 0), (3, 2), (2, 0), (3, 1), (0, 3)] {
+        both.update(w, l).unwrap();
+        worths.update(w, l).unwrap();
+    }
+    assert_eq!((both.mean(), both.covariance()), (worths.mean(), worths.covariance()));
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let batch = both.best_pairs(5, Some((0, 3)), &mut rng).unwrap();
+    assert_eq!(batch.len(), 5);
+    assert_ne!(batch[0], (0, 3), "the previous pair follows itself");
+    assert!(batch.windows(2).all(|pair| pair[0] != pair[1]), "{batch:?}");
 }

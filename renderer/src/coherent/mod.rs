@@ -30,12 +30,15 @@
 
 mod build;
 pub mod evaluation;
+mod gpu_frame;
 pub mod impostor;
 pub mod query;
 pub mod render;
 pub mod solid;
 pub mod voxel;
 
+#[cfg(test)]
+mod gpu_tests;
 #[cfg(test)]
 mod tests;
 
@@ -226,6 +229,9 @@ pub struct CoherentReport {
     pub albedo_unlit: usize,
     /// Parts of the method a scene did not need, in words.
     pub skipped: Vec<String>,
+    /// What the frame asked of the GPU, where it ran there ([`Coherent::render_preferring_gpu`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub counters: Option<crate::gpu::context::FrameCounters>,
 }
 
 impl CoherentReport {

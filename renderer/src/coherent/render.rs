@@ -40,7 +40,8 @@ pub struct SceneRender {
 
 /// Renders `scene` by `params`: the reference path tracer at `reference` (its photograph is the
 /// frame's input, its ground truth the errors' reference), a capture from 4 poses, then the
-/// frame; with `gpu`, the representation is built there. `progress(done, total)` counts the
+/// frame; with `gpu`, the representation is built there and the frame runs there where it can
+/// ([`Coherent::render_preferring_gpu`]). `progress(done, total)` counts the
 /// reference render's samples per pixel, then the capture's poses and the frame's passes.
 pub fn render_scene(
     scene: &Scene,
@@ -98,20 +99,26 @@ impl CapturedScene {
     }
 
     /// The representation and the frame of `params` over `linear` (the photograph's linear
-    /// radiance), with the build passes — the capture's first — and the frame.
-    /// `progress(done, total)` counts the frame's passes.
+    /// radiance), with the build passes — the capture's first — and the frame. With `gpu`, the
+    /// representation is built there, and with `frame_on_gpu` the frame runs there too
+    /// ([`Coherent::render_preferring_gpu`]). `progress(done, total)` counts the frame's passes.
     fn render(
         &self,
         scene: &Scene,
         params: &CoherentParams,
         linear: &Image,
-        gpu: Option<&DirRenderer>,
+        (gpu, frame_on_gpu): (Option<&DirRenderer>, bool),
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
         let mut build = vec![PassTime::new(format!("capture ({POSES} poses)"), self.ms)];
         let (rep, passes) = self.representation(scene, params, gpu);
         build.extend(passes);
-        let frame = self.frame(scene, &rep, params, linear, progress)?;
+        let frame = match gpu.filter(|_| frame_on_gpu) {
+            Some(gpu) => {
+                Coherent::new(scene, &self.real, &rep, *params).render_preferring_gpu(linear, Some(gpu), progress)?
+            }
+            None => self.frame(scene, &rep, params, linear, progress)?,
+        };
         Ok((build, frame))
     }
 
@@ -152,7 +159,7 @@ pub fn render_over(
     gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<(Vec<PassTime>, CoherentFrame, Image, StimulusErrors)> {
-    let (build, frame) = captured.render(scene, params, &reference.hdr_real, gpu, progress)?;
+    let (build, frame) = captured.render(scene, params, &reference.hdr_real, (gpu, true), progress)?;
     let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
     let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
     Ok((build, frame, stimulus, errors))
@@ -201,7 +208,9 @@ pub fn render_stimulus(
     gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
     let start = Instant::now();
-    let (_, frame) = captured.render(scene, params, photo.linear, gpu, &|_, _| {})?;
+    // a study's stimuli keep the CPU's frame (their bytes unchanged); the representation is
+    // built on the GPU
+    let (_, frame) = captured.render(scene, params, photo.linear, (gpu, false), &|_, _| {})?;
     let (composite, cm) = show(scene, &frame, photo, shown, &mut crate::cm::CmState::default())?;
     Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm })
 }
@@ -429,6 +438,17 @@ pub fn render_to_file(
     }
     for skipped in &report.skipped {
         lines.push(format!("  skipped: {skipped}"));
+    }
+    if let Some(c) = &report.counters {
+        lines.push(format!(
+            "  frame on the GPU: {} submits, {} host waits, {:.3} MB read back, {:.3} MB uploaded, {} allocations, {:.1} ms on the host in the GPU pass",
+            c.submits,
+            c.host_waits,
+            c.readback_bytes as f64 / 1e6,
+            c.upload_bytes as f64 / 1e6,
+            c.allocations,
+            c.cpu_ms
+        ));
     }
     for region in ["affected", "virtual"] {
         let value = |metric: &str| result.errors.value(metric, region);

@@ -248,6 +248,11 @@ fn with_no_virtual_object_every_method_leaves_the_photograph_exact() {
         assert_eq!(frame.composite.pixels, photo.pixels, "{}", method.name());
         assert_eq!(frame.report.object_pixels, 0);
         assert!(frame.report.skipped.iter().any(|s| s.contains("no virtual object")), "{:?}", frame.report.skipped);
+        // the GPU's frame too (where an adapter opens)
+        if let Some(renderer) = crate::test_support::renderer_or_skip() {
+            let frame = Coherent::new(&scene, &real, &rep, p).render_gpu(&photo, renderer).unwrap().unwrap();
+            assert_eq!(frame.composite.pixels, photo.pixels, "{} on the GPU", method.name());
+        }
     }
 }
 

@@ -72,11 +72,11 @@ pub struct BounceReport {
     pub vpls: usize,
 }
 
-/// The scene's triangles as the bounce pass reads them, uploaded once per frame.
+/// The scene's triangles as the bounce pass reads them, uploaded once per scene.
 pub struct BounceScene {
     positions: Arc<wgpu::Buffer>,
     cdf: Arc<wgpu::Buffer>,
-    triangles: u32,
+    pub(super) triangles: u32,
     real_triangles: u32,
 }
 
@@ -86,17 +86,10 @@ impl BounceScene {
         let positions = mesh.positions_with_role();
         let triangles = mesh.vertices.len() / 3;
         let (cdf, _) = super::ism::area_cdf(&positions, 0..triangles)?;
+        // kept from frame to frame while the scene is the same ([`GpuContext::resident`])
         Some(BounceScene {
-            positions: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("bounce positions"),
-                contents: bytemuck::cast_slice(&positions),
-                usage: wgpu::BufferUsages::STORAGE,
-            }),
-            cdf: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("bounce cdf"),
-                contents: bytemuck::cast_slice(&cdf),
-                usage: wgpu::BufferUsages::STORAGE,
-            }),
+            positions: ctx.resident("bounce positions", bytemuck::cast_slice(&positions), wgpu::BufferUsages::STORAGE),
+            cdf: ctx.resident("bounce cdf", bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE),
             triangles: triangles as u32,
             real_triangles: mesh.real_count / 3,
         })
@@ -233,6 +226,30 @@ impl Bounce {
             })
             .collect();
         let n = gpu_slots.len() as u32;
+        let slot_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
+            label: Some("bounce slots"),
+            contents: bytemuck::cast_slice(&gpu_slots),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let hits = self.record_nearest(ctx, &mut encoder, scene, (&slot_buffer, n), search, scene_radius);
+        ctx.submit(encoder);
+        ctx.read_f32(&hits)
+    }
+
+    /// Records the GPU search of `slots.1` slots in the buffer `slots.0` (bounce.wgsl's `Slot`:
+    /// origin with the rotation of its strata in w, normal, direction ω_o); returns the hits'
+    /// buffer, two per slot (nearest of all points, nearest real point: distance or −1, triangle,
+    /// b1, b2). A live frame's chain ([`super::bounce_chain`]) fills the slots on the GPU.
+    pub(super) fn record_nearest(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &BounceScene,
+        (slots, n): (&wgpu::Buffer, u32),
+        search: &BounceSearch,
+        scene_radius: f32,
+    ) -> Arc<wgpu::Buffer> {
         // a minimum distance of a millimetre per metre of scene keeps the source's own surface out
         let min_distance = (1e-3 * scene_radius).max(1e-5);
         let uniform = BounceUniform {
@@ -244,30 +261,26 @@ impl Bounce {
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let slot_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-            label: Some("bounce slots"),
-            contents: bytemuck::cast_slice(&gpu_slots),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
         let hits = ctx.buffer(
             "bounce hits",
             (2 * n as u64) * 16,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             super::pool::Contents::Zeroed,
         );
-        ctx.dispatch(
+        ctx.record_dispatch(
+            encoder,
             "bounce",
             &self.pipeline,
             &[
                 wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: scene.positions.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: scene.cdf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: slot_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: slots.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: hits.as_entire_binding() },
             ],
             [n.min(65535), n.div_ceil(65535)],
         );
-        ctx.read_f32(&hits)
+        hits
     }
 }
 

@@ -84,6 +84,9 @@ pub struct GpuContext {
     /// next frame begins, so that no later pass of the same frame gets one of them from the
     /// pool and overwrites it before the commands reading it have run.
     uploads: Mutex<Vec<Arc<wgpu::Buffer>>>,
+    /// Buffers of a scene's static data, kept from frame to frame ([`GpuContext::resident`]):
+    /// per key, the contents last written and the buffer holding them.
+    resident: Mutex<std::collections::HashMap<String, (Vec<u8>, Arc<wgpu::Buffer>)>>,
 }
 
 /// The structure of the work the host gave the device, counted where it happens (every
@@ -222,6 +225,7 @@ impl GpuContext {
             pool: Default::default(),
             counters: Default::default(),
             uploads: Mutex::new(Vec::new()),
+            resident: Mutex::new(Default::default()),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -392,8 +396,8 @@ impl GpuContext {
 
     /// On (the default): every pass of a frame waits for the device and is timed, so a frame's
     /// report says where its time went. Off: passes are only submitted, in order, and the
-    /// frame waits where it needs data back (the RSMs for the VPLs, the caustic maps'
-    /// candidates, the composite) — a pipelined frame, whose report lists only its CPU steps. The
+    /// frame waits where it needs data back (a stimulus's VPLs and bounces, the composite; a
+    /// live frame only for its image) — a pipelined frame, whose report lists only its CPU steps. The
     /// images are the same either way (wgpu runs submissions in order); only the timing
     /// differs. `bench render --frame-rate` measures both.
     pub fn set_pass_waits(&self, on: bool) {
@@ -481,6 +485,50 @@ impl GpuContext {
         buffer
     }
 
+    /// A buffer holding `contents` (zero-padded to a multiple of 4 bytes) for data that stays
+    /// the same from frame to frame — a scene's mesh, its point clouds' distributions, its
+    /// environment map, the photograph — kept under `key` (one key per use in a frame): when
+    /// the last contents under `key` are these bytes (compared on the host), the same buffer
+    /// again, with no upload and no allocation. Otherwise the bytes are written (an upload)
+    /// into the kept buffer where it has their size, usage and no other holder (every frame
+    /// that used it has submitted its work, which the write is queued after), else into a new
+    /// one (an allocation; a frame still recording keeps the old one).
+    pub fn resident(&self, key: &str, contents: &[u8], usage: wgpu::BufferUsages) -> Arc<wgpu::Buffer> {
+        let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let size = (contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
+        let mut resident = self.resident.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((held, buffer)) = resident.get_mut(key) {
+            if held.as_slice() == contents && buffer.usage() == usage {
+                return buffer.clone();
+            }
+            if buffer.size() == size && buffer.usage() == usage && Arc::strong_count(buffer) == 1 {
+                self.write_padded(buffer, contents, size);
+                *held = contents.to_vec();
+                return buffer.clone();
+            }
+        }
+        let buffer = Arc::new(self.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(key),
+            size,
+            usage,
+            mapped_at_creation: false,
+        }));
+        self.write_padded(&buffer, contents, size);
+        resident.insert(key.to_string(), (contents.to_vec(), buffer.clone()));
+        buffer
+    }
+
+    /// `contents` written at the start of `buffer`, zero-padded to `size` bytes.
+    fn write_padded(&self, buffer: &wgpu::Buffer, contents: &[u8], size: u64) {
+        if contents.len() as u64 == size {
+            self.write_buffer(buffer, 0, contents);
+        } else {
+            let mut padded = contents.to_vec();
+            padded.resize(size as usize, 0);
+            self.write_buffer(buffer, 0, &padded);
+        }
+    }
+
     /// Lets the last frame's uploads go back to the pool ([`GpuContext::upload`]).
     pub(super) fn release_uploads(&self) {
         self.uploads.lock().unwrap_or_else(|e| e.into_inner()).clear();
@@ -553,6 +601,42 @@ impl GpuContext {
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
         self.submit(encoder);
         staging
+    }
+
+    /// Submits the copies of `sources`, one after another, into one staging buffer from the pool
+    /// (`MAP_READ`), without waiting: [`GpuContext::read_staged`] reads it with the frame's other
+    /// read-backs. Each source starts at the sum of the sizes before it.
+    pub fn stage_all(&self, sources: &[&wgpu::Buffer]) -> Arc<wgpu::Buffer> {
+        let size = sources.iter().map(|s| s.size()).sum::<u64>().max(wgpu::COPY_BUFFER_ALIGNMENT);
+        // from the pool: the copies below write every byte read back
+        let staging = self.buffer("readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut at = 0;
+        for source in sources {
+            encoder.copy_buffer_to_buffer(source, 0, &staging, at, source.size());
+            at += source.size();
+        }
+        self.submit(encoder);
+        staging
+    }
+
+    /// Maps several staging buffers with one wait for the device, and copies each once (in
+    /// blocks on all threads) as 32-bit words (`bytemuck::cast_slice` makes them `f32`s or
+    /// bytes).
+    pub fn read_staged(&self, staging: &[&wgpu::Buffer]) -> Vec<Vec<u32>> {
+        for buffer in staging {
+            buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        }
+        self.wait();
+        staging
+            .iter()
+            .map(|buffer| {
+                self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
+                let out = buffer.slice(..).get_mapped_range().ok().map(|view| copy_blocks::<u32>(&view));
+                buffer.unmap();
+                out.unwrap_or_default()
+            })
+            .collect()
     }
 
     /// Maps a staging buffer (waiting for the device) and copies it once, straight into

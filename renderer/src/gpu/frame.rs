@@ -1,9 +1,11 @@
 //! One GPU frame as an explicit, ordered list of passes ([`PASSES`]), each a function over the
 //! frame's resources ([`FrameTargets`]): what a pass makes it leaves in the targets for the
 //! passes after it. A pass records and submits its GPU work and returns; it waits for the
-//! device only where it needs data on the host (the VPLs drawn, a colour mapping's sums, the
-//! final read-back), and, while the context times passes ([`GpuContext::set_pass_waits`]),
-//! after itself to be timed.
+//! device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
+//! reference steps make; a colour mapping's sums; the final read-back, which brings the report's
+//! counts along), and, while the context times passes ([`GpuContext::set_pass_waits`]), after
+//! itself to be timed. A live frame's VPLs are made and consumed on the GPU
+//! ([`bounce_chain`]), so a live frame waits once, for its image.
 //!
 //! The order is the thesis's (Figure 5.3; the module documentation of [`super`] says what each
 //! pass computes): [`FrameTargets::new`] builds the scene's mesh and uploads it, then
@@ -14,6 +16,8 @@
 
 use super::*;
 use crate::ca::CaReport;
+
+mod vpls;
 
 /// A pass of the frame: reads what the passes before it left in the targets, adds its own.
 type Pass = fn(&DirRenderer, &mut FrameTargets) -> Result<()>;
@@ -85,6 +89,15 @@ pub(super) struct FrameTargets<'a> {
     pub impostors: Option<specular::Impostors>,
     pub photon_maps: std::result::Result<specular::PhotonMaps, &'static str>,
     pub vpls: Vec<vpl::GpuVpl>,
+    /// A live frame's VPLs, left on the GPU ([`bounce_chain`]): `vpl_slots` slots, zero where
+    /// none (then `vpls` stays empty).
+    pub gpu_vpls: Option<Arc<wgpu::Buffer>>,
+    pub vpl_slots: u32,
+    /// A live frame's further bounces and budget split, whose plan and counts come back with the
+    /// image for the report.
+    pub chain: Option<bounce_chain::ChainOutput>,
+    /// The VPLs the chain made in all, once read back.
+    pub chain_vpls: Option<usize>,
     pub first_bounce: Option<FirstBounce>,
     pub bounce_reports: Vec<bounce::BounceReport>,
     pub ism_atlas: Option<ism::IsmAtlas>,
@@ -93,6 +106,8 @@ pub(super) struct FrameTargets<'a> {
     pub camera_view: Option<ViewUniform>,
     pub traced: Option<specular::Traced>,
     pub caustic_buffer: Option<Arc<wgpu::Buffer>>,
+    /// The caustic splats' counts, read back with the images into the specular report.
+    pub caustic_counts: Option<Arc<wgpu::Buffer>>,
     pub shade_params: Option<ShadeParams>,
     pub output: Option<shade::ShadeOutput>,
     pub smoothed: bool,
@@ -103,6 +118,14 @@ pub(super) struct FrameTargets<'a> {
     pub composite_buffer: Option<Arc<wgpu::Buffer>>,
     pub images: Option<FrameImages>,
     pub ca_report: Option<CaReport>,
+}
+
+/// The VPLs as the shading pass takes them: a live frame's on the GPU, or the host's.
+fn shade_vpls<'t>(gpu: &'t Option<Arc<wgpu::Buffer>>, host: &'t [vpl::GpuVpl]) -> shade::ShadeVpls<'t> {
+    match gpu {
+        Some(buffer) => shade::ShadeVpls::Gpu(buffer),
+        None => shade::ShadeVpls::Host(host),
+    }
 }
 
 /// What a pass needs from an earlier one (the order of [`PASSES`] guarantees it).
@@ -150,6 +173,10 @@ impl<'a> FrameTargets<'a> {
             impostors: None,
             photon_maps: Err("no mirror or glass"),
             vpls: Vec::new(),
+            gpu_vpls: None,
+            vpl_slots: 0,
+            chain: None,
+            chain_vpls: None,
             first_bounce: None,
             bounce_reports: Vec::new(),
             ism_atlas: None,
@@ -158,6 +185,7 @@ impl<'a> FrameTargets<'a> {
             camera_view: None,
             traced: None,
             caustic_buffer: None,
+            caustic_counts: None,
             shade_params: None,
             output: None,
             smoothed: false,
@@ -169,6 +197,40 @@ impl<'a> FrameTargets<'a> {
             images: None,
             ca_report: None,
         }
+    }
+
+    /// The specular passes' counts, read back with the images (the buffers `pass_readback`
+    /// staged, in its order: the combine pass's five, then the caustic splats' two), into
+    /// their reports; and a live frame's VPL chain's plan and counts into the bounces' reports.
+    fn take_counts(&mut self, words: &[u32], chain: Option<&[u32]>) {
+        if let (Some(out), Some(chain)) = (&self.chain, chain) {
+            let (reports, vpls) = out.report(chain);
+            self.bounce_reports = reports;
+            self.chain_vpls = Some(vpls);
+        }
+        let mut words = words.iter().copied();
+        let mut next = || words.next().unwrap_or(0);
+        if let Some(traced) = self.traced.as_mut() {
+            if traced.counts.is_some() {
+                let report = &mut traced.report;
+                (report.pixels, report.rays, report.back_projected, report.rendered, report.missed) =
+                    (next(), next(), next(), next(), next());
+                // the buffer holds eight words
+                for _ in 5..8 {
+                    next();
+                }
+            }
+            if self.caustic_counts.is_some()
+                && let Some(caustics) = traced.report.caustics.as_mut()
+            {
+                (caustics.photons, caustics.splatted) = (next(), next());
+            }
+        }
+    }
+
+    /// The VPLs the ISMs and the shading go through: the host's, or a live frame's slots on the GPU.
+    pub(super) fn vpl_count(&self) -> u32 {
+        if self.gpu_vpls.is_some() { self.vpl_slots } else { self.vpls.len() as u32 }
     }
 
     /// Records a pass's time under `name` (see [`timed`]).
@@ -310,205 +372,6 @@ impl DirRenderer {
         Ok(())
     }
 
-    /// Step 2: RSMs and VPLs (gi only): every RSM rendered first, then all read at once — by the
-    /// GPU's VPL sampler, or read back for the CPU's reference (one wait, not four per map) —
-    /// with the reflected and refracted VPLs where the caustics land (Figure 5.23).
-    fn pass_vpls(&self, f: &mut FrameTargets) -> Result<()> {
-        let ctx = &self.ctx;
-        let params = f.params;
-        if params.condition == GiLevel::Gi && f.n_lights > 0 && params.vpls > 0 {
-            let rsm_size = params.rsm_size.max(4);
-            let env = *ran(&f.env_view, "environment view");
-            let (buffers, has_virtual) = (&f.buffers, f.has_virtual);
-            // (their targets from the pool: each RSM pass clears them)
-            let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
-                let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
-                let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
-                let label = if subset == Subset::Real { "real" } else { "virtual" };
-                timed(ctx, passes, format!("RSM {name} {label}"), || {
-                    self.raster.rsm(ctx, buffers, view, subset, &distance.create_view(&Default::default()), &targets)
-                });
-                (targets, distance)
-            };
-            let render_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
-                let real = render_rsm(passes, view, name, Subset::Real);
-                let virt = has_virtual.then(|| render_rsm(passes, view, name, Subset::Virtual));
-                (real, virt)
-            };
-            let mut rendered = Vec::new();
-            for (spot, (view, tan_half)) in f.scene.spots.iter().zip(&f.spot_views) {
-                rendered.push((vpl::RsmLight::Spot(spot), *tan_half, render_pair(&mut f.passes, view, &spot.name)));
-            }
-            // the environment's light bounces too: orthographic RSMs along a subset of its
-            // directions (evenly spread over the importance-sampled ones), each standing for
-            // n / k of them
-            let k = (params.env_vpl_directions as usize).min(f.env_dirs.len());
-            for j in 0..k {
-                let (forward, irradiance) = f.env_dirs[j * f.env_dirs.len() / k];
-                let (matrix, eye) = directional_view(forward, env.centre, env.radius, env.depth);
-                let view = ViewUniform::orthographic(matrix, eye, forward);
-                let light = vpl::RsmLight::Directional {
-                    irradiance: irradiance * (f.env_dirs.len() as f32 / k as f32),
-                    texel_area: (2.0 * env.radius / rsm_size as f32).powi(2),
-                };
-                rendered.push((light, 0.0, render_pair(&mut f.passes, &view, &format!("environment {}", j + 1))));
-            }
-            let maps: Vec<vpl::RsmMaps> = rendered
-                .iter()
-                .map(|(light, tan_half_fov, (real, virt))| {
-                    fn textures((t, d): &(SurfaceTargets, Arc<wgpu::Texture>)) -> [&wgpu::Texture; 4] {
-                        [&t.position, &t.normal, &t.albedo, d]
-                    }
-                    vpl::RsmMaps {
-                        light: *light,
-                        tan_half_fov: *tan_half_fov,
-                        size: rsm_size,
-                        real: textures(real),
-                        virt: virt.as_ref().map(textures),
-                    }
-                })
-                .collect();
-            let caustics =
-                f.photon_maps.as_ref().map_or_else(|_| Vec::new(), |maps| self.specular.caustic_sources(maps));
-            let slots = vpl::VplSampler::slots(0, &caustics, &maps);
-            let candidates =
-                if !self.cpu_vpls.load(std::sync::atomic::Ordering::Relaxed) && vpl::VplSampler::fits(ctx, slots) {
-                    let label = format!(
-                        "VPL candidates and their CDF ({slots} slots: {} RSMs, {} caustic maps; GPU)",
-                        rendered.iter().map(|(_, _, (_, virt))| 1 + virt.is_some() as usize).sum::<usize>(),
-                        caustics.len()
-                    );
-                    FirstBounce::Gpu(timed(ctx, &mut f.passes, label, || {
-                        self.vpl_sampler.candidates(ctx, &[], &caustics, &maps)
-                    }))
-                } else {
-                    let caustic_candidates = match &f.photon_maps {
-                        Ok(maps) => timed(ctx, &mut f.passes, "caustic VPL candidates (read back)".into(), || {
-                            self.specular.caustic_vpls(ctx, maps)
-                        }),
-                        Err(_) => Vec::new(),
-                    };
-                    FirstBounce::Cpu(self.cpu_candidates(ctx, &mut f.passes, &rendered, rsm_size, &caustic_candidates))
-                };
-            drop(maps);
-            // the RSM targets go back to the pool for the next frame (the passes reading them are
-            // submitted, so the next frame's RSM passes are queued after those)
-            drop(rendered);
-            f.vpls = match &candidates {
-                // a GPU pass: reported only while passes are timed
-                FirstBounce::Gpu(_) => timed(ctx, &mut f.passes, "VPLs drawn (GPU, read back)".into(), || {
-                    candidates.draw(self, params.vpls)
-                }),
-                FirstBounce::Cpu(_) => {
-                    let start = Instant::now();
-                    let drawn = candidates.draw(self, params.vpls);
-                    f.passes.push(PassTime::new("VPLs drawn (CPU)", start.elapsed().as_secs_f64() * 1e3));
-                    drawn
-                }
-            };
-            f.first_bounce = Some(candidates);
-        }
-        if let Some(given) = f.given_vpls {
-            f.vpls = given.to_vec();
-        }
-        Ok(())
-    }
-
-    /// Step 2a: The multiple-bounce light source (5.2.7), once per further bounce: a pilot over the
-    /// whole budget measures the bounce's flux; the budget is then split by flux over the
-    /// primary lights and the bounces (the third distribution mode) — the thesis takes those
-    /// fluxes from the previous frame, a single stimulus frame measures them first.
-    fn pass_bounces(&self, f: &mut FrameTargets) -> Result<()> {
-        let ctx = &self.ctx;
-        let params = f.params;
-        if params.condition != GiLevel::Gi || params.bounces <= 1 || f.vpls.is_empty() {
-            return Ok(());
-        }
-        let Some(bounce_scene) = bounce::BounceScene::new(ctx, &f.mesh) else { return Ok(()) };
-        let budget = params.vpls.max(1);
-        let mut pilots: Vec<Vec<vpl::GpuVpl>> = Vec::new();
-        let mut sources = f.vpls.clone();
-        for b in 2..=params.bounces.min(MAX_BOUNCES) {
-            let search = bounce::BounceSearch {
-                candidates: params.bounce_candidates,
-                cone_degrees: params.bounce_cone_degrees,
-                seed: b.wrapping_mul(0x9e37_79b9),
-            };
-            let label = format!(
-                "bounce {b} ({budget} slots, {} candidates each, cone {}°)",
-                search.candidates, search.cone_degrees
-            );
-            let at = bounce::BounceInputs {
-                scene: &bounce_scene,
-                mesh: &f.mesh,
-                materials: &f.scene.materials,
-                scene_radius: f.mesh.bounds_radius,
-            };
-            let (next, found, real_only) =
-                timed(ctx, &mut f.passes, label, || self.bounce.spawn(ctx, &at, &sources, budget, &search));
-            f.bounce_reports.push(bounce::BounceReport {
-                bounce: b,
-                slots: budget,
-                found,
-                real_only,
-                flux: vpl::luminance_flux(&next) as f32,
-                vpls: 0,
-            });
-            if next.is_empty() {
-                break;
-            }
-            pilots.push(next.clone());
-            sources = next;
-        }
-        let start = Instant::now();
-        let mut fluxes = vec![vpl::luminance_flux(&f.vpls)];
-        fluxes.extend(pilots.iter().map(|p| vpl::luminance_flux(p)));
-        let counts = vpl::split_budget(budget, &fluxes);
-        if f.given_vpls.is_none() {
-            // no first-bounce candidates: no RSMs were drawn, so there is nothing to draw from
-            f.vpls = f.first_bounce.as_ref().map_or_else(Vec::new, |candidates| candidates.draw(self, counts[0]));
-        }
-        for (k, pilot) in pilots.iter().enumerate() {
-            let drawn = vpl::resample(pilot, counts[k + 1]);
-            f.bounce_reports[k].vpls = drawn.len();
-            f.vpls.extend(drawn);
-        }
-        let drawn_where = match &f.first_bounce {
-            Some(FirstBounce::Gpu(_)) => "; the first bounce's share drawn on the GPU",
-            _ => "",
-        };
-        f.passes.push(PassTime::new(
-            format!("VPL budget split by flux over {} sources (CPU{drawn_where})", fluxes.len()),
-            start.elapsed().as_secs_f64() * 1e3,
-        ));
-        Ok(())
-    }
-
-    /// Step 2b: Imperfect shadow maps: VPL visibility from the real and the virtual point clouds.
-    fn pass_isms(&self, f: &mut FrameTargets) -> Result<()> {
-        let params = f.params;
-        if f.vpls.is_empty() || params.ism_size == 0 || params.ism_points == 0 {
-            return Ok(());
-        }
-        let ctx = &self.ctx;
-        let settings = ism::IsmSettings {
-            points_per_vpl: params.ism_points,
-            tile_size: params.ism_size,
-            max_distance: 2.0 * f.mesh.bounds_radius * 1.01,
-            splatting: params.ism_splatting,
-        };
-        let label = format!(
-            "ISMs ({} VPLs, {}² each, {} points per cloud, {} splatting)",
-            f.vpls.len(),
-            params.ism_size,
-            params.ism_points,
-            params.ism_splatting.name()
-        );
-        let (mesh, vpls) = (&f.mesh, &f.vpls);
-        f.ism_atlas = Some(timed(ctx, &mut f.passes, label, || self.ism.render(ctx, mesh, vpls, &settings)));
-        Ok(())
-    }
-
     /// Step 3: The camera's G-buffer.
     fn pass_gbuffer(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
@@ -541,9 +404,11 @@ impl DirRenderer {
         let mut traced = self.specular.trace(ctx, &self.raster, &mut f.passes, at, &rays, &f.params.specular);
         match &f.photon_maps {
             Ok(maps) => {
-                let (buffer, mut report) = timed(ctx, &mut f.passes, "caustic splats".into(), || {
+                let (buffer, mut report, counts) = timed(ctx, &mut f.passes, "caustic splats".into(), || {
                     self.specular.splat(ctx, maps, f.scene, gbuffer, f.camera_view_proj)
                 });
+                f.caustic_counts = Some(counts);
+                // (a live frame's VPLs stay on the GPU: not counted)
                 report.vpls = f.vpls.iter().filter(|v| v.flux[3] > 0.5).count();
                 f.caustic_buffer = Some(buffer);
                 traced.report.caustics = Some(report);
@@ -566,7 +431,7 @@ impl DirRenderer {
         let ism_atlas = f.ism_atlas.as_ref();
         let shade_params = ShadeParams {
             camera: [scene.camera.position.x, scene.camera.position.y, scene.camera.position.z, 0.0],
-            size: [f.width, f.height, f.n_lights, f.vpls.len() as u32],
+            size: [f.width, f.height, f.n_lights, f.vpl_count()],
             mode: [
                 if f.virtual_maps { condition_code } else { 0 },
                 f.shadow_size,
@@ -580,7 +445,7 @@ impl DirRenderer {
                 0.0,
             ],
         };
-        let label = if params.interleave > 1 && !f.vpls.is_empty() {
+        let label = if params.interleave > 1 && f.vpl_count() > 0 {
             format!("shading (VPLs interleaved {0}×{0})", params.interleave)
         } else {
             "shading".to_string()
@@ -589,7 +454,7 @@ impl DirRenderer {
             gbuffer: ran(&f.gbuffer, "g-buffer"),
             shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
             lights: &f.lights,
-            vpls: &f.vpls,
+            vpls: shade_vpls(&f.gpu_vpls, &f.vpls),
             scene: &f.buffers,
             ism: ism_atlas.map(|a| &*a.buffer),
         };
@@ -657,12 +522,9 @@ impl DirRenderer {
     fn pass_photo(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let photo_texels: Vec<[f32; 4]> = f.photo.pixels.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
+        // kept from frame to frame: uploaded only when it changed
         f.photo_buffer = Some(f.timed(ctx, "upload photograph".into(), || {
-            ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("photo"),
-                contents: bytemuck::cast_slice(&photo_texels),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
+            ctx.resident("photo", bytemuck::cast_slice(&photo_texels), wgpu::BufferUsages::STORAGE)
         }));
         Ok(())
     }
@@ -679,7 +541,7 @@ impl DirRenderer {
                 gbuffer: targets,
                 shadow_maps: f.shadow_maps.as_deref().expect("the shadow maps ran"),
                 lights: &f.lights,
-                vpls: &f.vpls,
+                vpls: shade_vpls(&f.gpu_vpls, &f.vpls),
                 scene: &f.buffers,
                 ism: f.ism_atlas.as_ref().map(|a| &*a.buffer),
             };
@@ -765,14 +627,28 @@ impl DirRenderer {
         let ctx = &self.ctx;
         let (width, height) = (f.width, f.height);
         let composite = ran(&f.composite_buffer, "composition");
+        // the report's counts (specular passes) come back with the images, in the same wait
+        let counts: Vec<&wgpu::Buffer> =
+            [f.traced.as_ref().and_then(|t| t.counts.as_deref()), f.caustic_counts.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect();
+        // and a live frame's VPL plan and bounce counts
+        let chain = f.chain.as_ref().map(|c| ctx.stage_all(&[&c.plan, &c.stats]));
         if f.mode == Frame::Display && f.params.camera_artifacts.is_none() {
             let staged =
                 timed(ctx, &mut f.passes, "readback: packed to 8 bits, copied to staging (GPU)".into(), || {
-                    ctx.stage(&self.compose.pack(ctx, composite, width, height))
+                    let mut staged = vec![ctx.stage(&self.compose.pack(ctx, composite, width, height))];
+                    staged.extend((!counts.is_empty()).then(|| ctx.stage_all(&counts)));
+                    staged.extend(chain);
+                    staged
                 });
-            let bytes = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                ctx.read_buffer(&staged)
+            let words = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                ctx.read_staged(&staged.iter().map(|s| &**s).collect::<Vec<_>>())
             });
+            let at = 1 + !counts.is_empty() as usize;
+            f.take_counts(if at == 2 { &words[1] } else { &[] }, words.get(at).map(|w| w.as_slice()));
+            let bytes: &[u8] = bytemuck::cast_slice(&words[0]);
             let start = Instant::now();
             let composite = {
                 use rayon::prelude::*;
@@ -790,15 +666,26 @@ impl DirRenderer {
         let radiance = f.mode != Frame::Display || f.params.camera_artifacts.is_some();
         let output = ran(&f.output, "shading");
         let staged = timed(ctx, &mut f.passes, "readback: copies to staging (GPU)".into(), || {
-            (ctx.stage(composite), radiance.then(|| ctx.stage(&output.solutions)))
+            let mut staged = vec![ctx.stage(composite)];
+            staged.extend(radiance.then(|| ctx.stage(&output.solutions)));
+            staged.extend((!counts.is_empty()).then(|| ctx.stage_all(&counts)));
+            staged.extend(chain);
+            staged
         });
-        let (composite, solutions) =
-            timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                (ctx.read_staged_f32(&staged.0), staged.1.as_ref().map_or_else(Vec::new, |s| ctx.read_staged_f32(s)))
-            });
+        let words = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+            ctx.read_staged(&staged.iter().map(|s| &**s).collect::<Vec<_>>())
+        });
+        let at = 1 + radiance as usize;
+        let (counts_words, chain_words) = match counts.is_empty() {
+            true => (&[][..], words.get(at)),
+            false => (words[at].as_slice(), words.get(at + 1)),
+        };
+        f.take_counts(counts_words, chain_words.map(|w| w.as_slice()));
+        let composite: &[f32] = bytemuck::cast_slice(&words[0]);
+        let solutions: &[f32] = if radiance { bytemuck::cast_slice(&words[1]) } else { &[] };
         let start = Instant::now();
         let half = solutions.len() / 2;
-        let composite = to_image(width, height, &composite);
+        let composite = to_image(width, height, composite);
         let virtual_mask = Mask {
             width,
             height,
@@ -875,7 +762,11 @@ impl DirRenderer {
                 condition: params.condition,
                 width,
                 height,
-                vpls: f.vpls.len(),
+                vpls: match (&f.gpu_vpls, f.chain_vpls) {
+                    (Some(_), Some(made)) => made,
+                    (Some(_), None) => f.vpl_slots as usize,
+                    (None, _) => f.vpls.len(),
+                },
                 params: params.clone(),
                 passes: std::mem::take(&mut f.passes),
                 ms,

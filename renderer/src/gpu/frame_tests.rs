@@ -126,11 +126,12 @@ fn counters_at_the_thesis_setting() {
     }
 }
 
-/// A live frame that is only shown, after its first: nothing allocated, the composite read back
-/// once as 8-bit RGBA besides the VPLs, and the host waits the frame still has (the VPLs drawn
-/// on the GPU are read back for the bounces and the ISMs; each bounce's VPLs; the specular
-/// passes' counts; the read-back). A device of its
-/// own, so that no other test's work is counted.
+/// A live frame that is only shown, after its first: nothing allocated, nothing uploaded but its
+/// uniforms (the scene and the photograph are kept: `GpuContext::resident`), one host wait and
+/// one read-back — the composite as 8-bit RGBA, with the report's counts (the specular passes',
+/// the VPL chain's plan: under 1 KB) — with further bounces and caustics too: the VPLs are made
+/// and consumed on the GPU (`bounce_chain`). A device of its own, so that no other test's work
+/// is counted.
 #[test]
 fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
     let r = match DirRenderer::new() {
@@ -138,7 +139,7 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
         Err(why) => return eprintln!("skipping: no GPU adapter opens ({why})"),
     };
     r.ctx.set_pass_waits(false);
-    for (name, bounces, waits) in [("dir-lamp-box", 1, 2), ("dir-lamp-box", 3, 5), ("glass-figure", 1, 4)] {
+    for (name, bounces) in [("dir-lamp-box", 1), ("dir-lamp-box", 3), ("glass-figure", 3)] {
         let scene = crate::scene::load(name).unwrap().with_size(64, 48);
         let photo = crate::test_support::grey_photo(&scene);
         let params = DirParams {
@@ -156,17 +157,89 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
         for frame in 0..4 {
             let c = r.render_display(&scene, &photo, &params, &mut state).unwrap().report.counters;
             eprintln!("{name}, {bounces} bounces, frame {frame}: {}", c.cells());
-            // the composite as 8-bit RGBA, and the VPLs drawn on the GPU (48 bytes each, and their
-            // count) that the bounces and the ISMs still take from the host
-            let vpl_bytes = 4 + 48 * params.vpls as u64;
-            // (further bounces read back each bounce's VPLs, the specular passes their counts)
-            if bounces == 1 && name == "dir-lamp-box" {
-                assert!(c.readback_bytes <= 64 * 48 * 4 + vpl_bytes, "{name}: {} bytes read back", c.readback_bytes);
-            }
+            assert!(c.readback_bytes <= 64 * 48 * 4 + 1024, "{name}: {} bytes read back", c.readback_bytes);
+            assert!(c.host_waits <= 1, "{name}, {bounces} bounces: {} host waits", c.host_waits);
             if frame > 0 {
                 assert_eq!(c.allocations, 0, "{name}, frame {frame}: allocated after the first frame");
+                // the uniforms: 4 KB at most (the scene, the photograph: none)
+                assert!(c.upload_bytes < 32 * 1024, "{name}, frame {frame}: {} bytes uploaded", c.upload_bytes);
             }
-            assert!(c.host_waits <= waits, "{name}, {bounces} bounces: {} host waits", c.host_waits);
         }
     }
+}
+
+/// A live frame's VPLs, made and consumed on the GPU (`bounce_chain`: the further bounces and the
+/// budget split there, in `f32`), light the scene as the stimulus frame's, made by the host's
+/// reference steps: the same bounces with the same flux and VPLs, and L_rv and L_r the same to
+/// 2e-3 of the light (measured on lavapipe: under 5e-6; the two could draw a different VPL where
+/// an `f32` CDF rounds another way), on a scene with virtual objects (dir-lamp-box) and one with
+/// caustic VPLs (glass-figure).
+#[test]
+fn a_live_frames_gpu_vpls_light_the_scene_as_the_stimulus_frames() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    for name in ["dir-lamp-box", "glass-figure"] {
+        let scene = crate::scene::load(name).unwrap().with_size(64, 48);
+        let photo = crate::test_support::grey_photo(&scene);
+        let params = DirParams {
+            vpls: 64,
+            rsm_size: 32,
+            ism_size: 32,
+            ism_points: 256,
+            bounce_candidates: 512,
+            specular: specular::SpecularParams { impostor_size: 32, caustic_map_size: 32, ..Default::default() },
+            ..DirParams::default()
+        };
+        let stimulus = r.render(&scene, &photo, &params).unwrap();
+        let live = r.render_with_state(&scene, &photo, &params, &mut LiveState::default()).unwrap();
+        assert!(live.vpls.is_empty(), "{name}: a live frame's VPLs stay on the GPU");
+        assert_eq!(live.report.vpls, stimulus.report.vpls, "{name}: VPLs in all");
+        let (a, b) = (&live.report.bounces, &stimulus.report.bounces);
+        assert_eq!(a.len(), b.len(), "{name}: bounces");
+        for (g, c) in a.iter().zip(b) {
+            eprintln!("{name} bounce {}: GPU {g:?}, host {c:?}", g.bounce);
+            assert!(
+                (g.flux / c.flux - 1.0).abs() < 0.05,
+                "{name} bounce {}: flux {} against {}",
+                g.bounce,
+                g.flux,
+                c.flux
+            );
+            assert!(g.vpls.abs_diff(c.vpls) <= 2 && g.found.abs_diff(c.found) <= 3, "{name}: {g:?} against {c:?}");
+        }
+        for (which, g, c) in [("L_rv", &live.l_rv, &stimulus.l_rv), ("L_r", &live.l_r, &stimulus.l_r)] {
+            let sum = |i: &Image| i.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>();
+            let difference: f64 =
+                g.pixels.iter().zip(&c.pixels).map(|(x, y)| (*x - *y).abs().element_sum() as f64).sum();
+            let relative = difference / sum(c);
+            eprintln!("{name} {which}: mean relative difference {relative:.5}");
+            assert!(relative < 2e-3, "{name} {which}: live and stimulus differ by {relative} of the light");
+        }
+    }
+}
+
+/// A scene's buffer kept from frame to frame (`GpuContext::resident`): the same buffer while its
+/// contents are the same; changed contents written into it when nothing else holds it, else
+/// into a new one, leaving the held one as it was (a frame still recording reads it).
+#[test]
+fn a_resident_buffer_is_kept_while_its_contents_stay_and_never_changed_under_a_holder() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let ctx = &r.ctx;
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let key = "frame_tests resident";
+    let first = ctx.resident(key, &[1, 2, 3, 4, 5, 6, 7, 8], usage);
+    let again = ctx.resident(key, &[1, 2, 3, 4, 5, 6, 7, 8], usage);
+    assert!(Arc::ptr_eq(&first, &again), "the same contents: the same buffer");
+    drop(again);
+    // `first` is held: new contents go into a new buffer
+    let second = ctx.resident(key, &[9; 8], usage);
+    assert!(!Arc::ptr_eq(&first, &second));
+    assert_eq!(ctx.read_storage(&first), [1, 2, 3, 4, 5, 6, 7, 8]);
+    assert_eq!(ctx.read_storage(&second), [9; 8]);
+    drop(first);
+    // nothing holds the kept buffer: written in place
+    let kept = Arc::as_ptr(&second);
+    drop(second);
+    let third = ctx.resident(key, &[7; 8], usage);
+    assert_eq!(Arc::as_ptr(&third), kept);
+    assert_eq!(ctx.read_storage(&third), [7; 8]);
 }

@@ -362,7 +362,8 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
     let scene = red_wall_scene();
     let photo = grey_photo(&scene);
     let p = params(GiLevel::Gi);
-    let single = r.render(&scene, &photo, &p).unwrap();
+    // a live frame without history (its VPLs made on the GPU, not the stimulus's host steps)
+    let single = r.render_with_state(&scene, &photo, &p, &mut LiveState::default()).unwrap();
     let mut state = LiveState::default();
     // the first frame has no history: exactly the single frame
     let first = r.render_with_state(&scene, &photo, &p, &mut state).unwrap();
@@ -383,7 +384,8 @@ fn temporal_smoothing_reuses_a_static_frame_and_forgets_where_objects_move() {
         assert!((second.l_rv.pixels[i] - single.l_rv.pixels[i]).abs().max_element() < 1e-4, "pixel {i}");
     }
     // fewer VPLs in the next frame: the smoothed light stays between the two frames' light
-    let few = r.render(&scene, &photo, &DirParams { vpls: 8, ..p.clone() }).unwrap();
+    let few =
+        r.render_with_state(&scene, &photo, &DirParams { vpls: 8, ..p.clone() }, &mut LiveState::default()).unwrap();
     let smoothed = r.render_with_state(&scene, &photo, &DirParams { vpls: 8, ..p.clone() }, &mut state).unwrap();
     let (mut closer, mut n) = (0, 0);
     for &i in &lit {

@@ -223,10 +223,31 @@ impl Ism {
     /// Renders both atlases for `vpls` by `splatting`. `max_distance` bounds every
     /// VPL-to-surface distance.
     pub fn render(&self, ctx: &GpuContext, mesh: &GpuMesh, vpls: &[GpuVpl], settings: &IsmSettings) -> IsmAtlas {
+        let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
+            label: Some("ism vpls"),
+            contents: bytemuck::cast_slice(if vpls.is_empty() {
+                &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..]
+            } else {
+                vpls
+            }),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        self.render_gpu(ctx, mesh, (&vpl_buffer, vpls.len() as u32), settings)
+    }
+
+    /// [`Ism::render`] for `vpls.1` VPLs already on the GPU in `vpls.0` (a live frame's: slots
+    /// without flux make no splat).
+    pub fn render_gpu(
+        &self,
+        ctx: &GpuContext,
+        mesh: &GpuMesh,
+        (vpl_buffer, vpl_count): (&wgpu::Buffer, u32),
+        settings: &IsmSettings,
+    ) -> IsmAtlas {
         let IsmSettings { points_per_vpl, tile_size, max_distance, splatting } = *settings;
         let device = &ctx.device;
         let limits = device.limits();
-        let n_vpls = vpls.len().max(1) as u32;
+        let n_vpls = vpl_count.max(1);
         let tiles_per_row = ((n_vpls as f64).sqrt().ceil() as u32).max(1);
         // the atlas must fit the device, as a texture and as the buffer of both layers: shrink
         // the tiles if it would not
@@ -252,29 +273,21 @@ impl Ism {
         // every splat's four vertices are numbered in one draw's vertex_index (a base vertex is
         // an i32): at most MAX_SPLATS splats in all
         let points_per_vpl = points_per_vpl.clamp(1, (MAX_SPLATS / n_vpls as u64).max(1) as u32);
-        let position_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-            label: Some("ism positions"),
-            contents: bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-            label: Some("ism vpls"),
-            contents: bytemuck::cast_slice(if vpls.is_empty() {
-                &[GpuVpl { position: [0.0; 4], normal: [0.0, 1.0, 0.0, 0.0], flux: [0.0; 4] }][..]
-            } else {
-                vpls
-            }),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        // the scene's points and their distributions: kept while the scene is the same
+        let position_buffer = ctx.resident(
+            "ism positions",
+            bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
+            wgpu::BufferUsages::STORAGE,
+        );
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
-        let splats = vpls.len() as u32 * points_per_vpl;
+        let splats = vpl_count * points_per_vpl;
         // per layer with a surface and VPLs: its uniform and its area CDF
         let mut points = [0u32; 2];
         let mut splat_radius = [0.0f32; 2];
         let mut layers = Vec::with_capacity(2);
         for (layer, range) in subsets.iter().enumerate() {
             let Some((cdf, area)) = area_cdf(&positions, range.clone()) else { continue };
-            if vpls.is_empty() {
+            if vpl_count == 0 {
                 continue;
             }
             points[layer] = points_per_vpl;
@@ -282,15 +295,12 @@ impl Ism {
             splat_radius[layer] = (2.0 * area / (points_per_vpl as f64 * std::f64::consts::PI)).sqrt() as f32;
             let uniform = IsmUniform {
                 counts: [points_per_vpl, tiles_per_row, tile_size, atlas],
-                subset: [range.start as u32, range.len() as u32, vpls.len() as u32, splats],
+                subset: [range.start as u32, range.len() as u32, vpl_count, splats],
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
                 layer: [layer as u32, 0, 0, 0],
             };
-            let cdf_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("ism cdf"),
-                contents: bytemuck::cast_slice(&cdf),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+            let cdf_buffer =
+                ctx.resident(&format!("ism cdf {layer}"), bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE);
             let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism params"),
                 contents: bytemuck::bytes_of(&uniform),
@@ -326,7 +336,7 @@ impl Ism {
                     atlas,
                     layers: &layers,
                     position_buffer: &position_buffer,
-                    vpl_buffer: &vpl_buffer,
+                    vpl_buffer,
                     splats,
                 };
                 self.rasterise(ctx, &mut encoder, &inputs)

@@ -75,7 +75,9 @@ fn splat_point(instance: u32) -> Splat {
     s.p = a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2);
     let n = cross(b - a, c - a);
     s.n = n / max(length(n), 1e-20);
-    s.culled = abs(dot(s.p - vpls[s.vpl_index].position.xyz, s.n)) < 0.5 * params.scale.y;
+    // (and a VPL slot without flux is no VPL: a live frame's VPLs on the GPU, bounce_chain.wgsl)
+    s.culled = abs(dot(s.p - vpls[s.vpl_index].position.xyz, s.n)) < 0.5 * params.scale.y
+        || all(vpls[s.vpl_index].flux.xyz == vec3<f32>(0.0));
     return s;
 }
 

@@ -46,8 +46,10 @@
 //! reflect diffusely).
 
 pub mod bounce;
+pub mod bounce_chain;
 pub mod ca;
 pub mod cm;
+pub mod coherent;
 pub mod compose;
 pub mod context;
 mod frame;
@@ -315,9 +317,13 @@ pub struct DirRenderer {
     indirect: indirect::IndirectPass,
     pub(crate) artifacts: ca::Artifacts,
     bounce: bounce::Bounce,
+    /// A live frame's further bounces and budget split on the GPU.
+    bounce_chain: bounce_chain::BounceChain,
     specular: specular::Specular,
     /// Rohmer et al.'s representation builds, compiled when a coherent stimulus first asks.
     representation: std::sync::OnceLock<representation::RepresentationBuilder>,
+    /// Rohmer et al.'s frame (queries and shading), compiled when a coherent frame first asks.
+    coherent: std::sync::OnceLock<coherent::CoherentPasses>,
     /// VPL creation on the GPU from the RSMs where they were rendered.
     vpl_sampler: vpl::VplSampler,
     /// Read the RSMs back and create the VPLs on the CPU instead (the reference; for tests, and
@@ -459,6 +465,7 @@ impl DirRenderer {
         let indirect = indirect::IndirectPass::new(&ctx);
         let artifacts = ca::Artifacts::new(&ctx);
         let bounce = bounce::Bounce::new(&ctx);
+        let bounce_chain = bounce_chain::BounceChain::new(&ctx);
         let specular = specular::Specular::new(&ctx);
         let vpl_sampler = vpl::VplSampler::new(&ctx);
         DirRenderer {
@@ -471,8 +478,10 @@ impl DirRenderer {
             indirect,
             artifacts,
             bounce,
+            bounce_chain,
             specular,
             representation: std::sync::OnceLock::new(),
+            coherent: std::sync::OnceLock::new(),
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
         }
@@ -536,6 +545,12 @@ impl DirRenderer {
     /// ([`representation`]), compiled on first use.
     pub fn representation_builder(&self) -> &representation::RepresentationBuilder {
         self.representation.get_or_init(|| representation::RepresentationBuilder::new(&self.ctx))
+    }
+
+    /// The compute passes of Rohmer et al.'s frame on this GPU ([`coherent`]), compiled on
+    /// first use.
+    pub fn coherent_passes(&self) -> &coherent::CoherentPasses {
+        self.coherent.get_or_init(|| coherent::CoherentPasses::new(&self.ctx))
     }
 
     /// Renders `scene` under `params.condition` over `photo` (the camera image of the real

@@ -63,17 +63,15 @@ impl SceneBuffers {
         let zero_material: [GpuMaterial; 1] = [bytemuck::Zeroable::zeroed()];
         let vertices = if mesh.vertices.is_empty() { &zero_vertex[..] } else { &mesh.vertices[..] };
         let materials = if mesh.materials.is_empty() { &zero_material[..] } else { &mesh.materials[..] };
+        // kept from frame to frame while the scene is the same ([`GpuContext::resident`])
         SceneBuffers {
-            vertices: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("vertices"),
-                contents: bytemuck::cast_slice(vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            }),
-            materials: ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some("materials"),
-                contents: bytemuck::cast_slice(materials),
-                usage: wgpu::BufferUsages::STORAGE,
-            }),
+            vertices: ctx.resident(
+                "vertices",
+                bytemuck::cast_slice(vertices),
+                // (storage too: a live frame's bounces read the hit triangles' attributes)
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            ),
+            materials: ctx.resident("materials", bytemuck::cast_slice(materials), wgpu::BufferUsages::STORAGE),
             real_count: mesh.real_count,
             total_count: mesh.vertices.len() as u32,
         }
@@ -154,7 +152,7 @@ pub struct Raster {
     depth_cache: std::sync::Mutex<Vec<((u32, u32), wgpu::TextureView)>>,
 }
 
-pub const SHADER: &str = include_str!("raster.wgsl");
+pub const SHADER: &str = concat!(include_str!("material.wgsl"), include_str!("raster.wgsl"));
 
 /// What one pass of [`Raster::draw`] draws and into what: the objects of `subset`, at `size`,
 /// into `targets` (each a view and the value it is cleared to).

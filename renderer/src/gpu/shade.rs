@@ -51,10 +51,19 @@ pub struct ShadeInputs<'a> {
     pub gbuffer: &'a SurfaceTargets,
     pub shadow_maps: &'a wgpu::Texture,
     pub lights: &'a [GpuLight],
-    pub vpls: &'a [GpuVpl],
+    /// The VPLs on the host (a stimulus frame's), or already on the GPU (a live frame's, slots
+    /// without flux skipped: [`super::bounce_chain`]); `params.size[3]` says how many.
+    pub vpls: ShadeVpls<'a>,
     pub scene: &'a SceneBuffers,
     /// The ISM atlas (None: VPLs unshadowed).
     pub ism: Option<&'a wgpu::Buffer>,
+}
+
+/// Where the shading pass takes its VPLs from.
+#[derive(Clone, Copy)]
+pub enum ShadeVpls<'a> {
+    Host(&'a [GpuVpl]),
+    Gpu(&'a wgpu::Buffer),
 }
 
 impl Shade {
@@ -79,14 +88,23 @@ impl Shade {
             "lights",
             bytemuck::cast_slice(if lights.is_empty() { std::slice::from_ref(&zero_light) } else { lights }),
         );
-        let vpls_buffer =
-            storage("vpls", bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }));
+        let uploaded;
+        let (vpls_buffer, has_vpls) = match vpls {
+            ShadeVpls::Host(vpls) => {
+                uploaded = storage(
+                    "vpls",
+                    bytemuck::cast_slice(if vpls.is_empty() { std::slice::from_ref(&zero_vpl) } else { vpls }),
+                );
+                (&*uploaded, !vpls.is_empty())
+            }
+            ShadeVpls::Gpu(buffer) => (buffer, params.size[3] > 0),
+        };
         let pixels = (params.size[0] * params.size[1]) as u64;
         let output = |label: &str, texels: u64| {
             ctx.buffer(label, texels * 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, Contents::Zeroed)
         };
         let solutions = output("solutions", 2 * pixels);
-        let indirect = output("indirect", if vpls.is_empty() { 1 } else { 2 * pixels });
+        let indirect = output("indirect", if has_vpls { 2 * pixels } else { 1 });
         let uniform = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("shade params"),
             contents: bytemuck::bytes_of(params),
@@ -121,6 +139,6 @@ impl Shade {
             wgpu::BindGroupEntry { binding: 10, resource: indirect.as_entire_binding() },
         ];
         ctx.dispatch("shade", &self.pipeline, &entries, [params.size[0].div_ceil(8), params.size[1].div_ceil(8)]);
-        ShadeOutput { solutions, indirect: (!vpls.is_empty()).then_some(indirect) }
+        ShadeOutput { solutions, indirect: has_vpls.then_some(indirect) }
     }
 }

@@ -210,6 +210,10 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
         var i_r = vec3<f32>(0.0);
         for (var i = (id.x % split) + split * (id.y % split); i < params.size.w; i += classes) {
             let vpl = vpls[i];
+            // a slot without flux is no VPL (a live frame's VPLs on the GPU: bounce_chain.wgsl)
+            if all(vpl.flux.xyz == vec3<f32>(0.0)) {
+                continue;
+            }
             let to_vpl = vpl.position.xyz - p;
             let d2 = max(dot(to_vpl, to_vpl), params.tone.y);   // the clamped geometry term
             let wi = normalize(to_vpl);

@@ -220,6 +220,10 @@ pub struct Traced {
     hits: Arc<wgpu::Buffer>,
     info: Arc<wgpu::Buffer>,
     pub report: SpecularReport,
+    /// The combine pass's counts still on the GPU (pixels, rays, back-projected, rendered,
+    /// missed: five `u32`s), read back with the frame's images into `report` (the frame's
+    /// read-back pass).
+    pub counts: Option<Arc<wgpu::Buffer>>,
     /// Where shading of the hit G-buffers looks from (Blinn–Phong's view direction): the
     /// first specular object's centre.
     pub eye: Vec3,
@@ -327,16 +331,11 @@ impl Specular {
             None => (vec![[0.0; 4]], [1, 1], 0.0),
         };
         let gpu_objects: Vec<GpuSpecularObject> = objects.iter().map(gpu_object).collect();
-        let storage = |label: &str, bytes: &[u8]| {
-            ctx.upload(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
+        // the scene's: kept from frame to frame while it is the same
+        let resident = |key: &str, bytes: &[u8]| ctx.resident(key, bytes, wgpu::BufferUsages::STORAGE);
         Impostors {
-            objects: storage("specular objects", bytemuck::cast_slice(&gpu_objects)),
-            environment: storage("environment", bytemuck::cast_slice(&env_map)),
+            objects: resident("specular objects", bytemuck::cast_slice(&gpu_objects)),
+            environment: resident("environment", bytemuck::cast_slice(&env_map)),
             targets,
             size,
             env_size,

@@ -48,6 +48,7 @@ fn every_shader_parses_and_validates_with_naga() {
         "ca.wgsl",
         "cdf.wgsl",
         "cm.wgsl",
+        "coherent.wgsl",
         "compose.wgsl",
         "indirect.wgsl",
         "ism.wgsl",

@@ -278,15 +278,10 @@ fn cs_scan(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
 @group(0) @binding(4) var<storage, read> draw_total: array<f32>;          // the blocks' offsets; last: total
 @group(0) @binding(5) var<storage, read_write> drawn: array<Vpl>;
 
-@compute @workgroup_size(64)
-fn cs_draw(@builtin(global_invocation_id) id: vec3<u32>) {
-    let count = draw.sizes.z;
-    let n = draw.sizes.x;
-    let total = draw_total[draw.sizes.y];
-    if id.x >= count || n == 0u || !(total > 0.0) {
-        return;
-    }
-    let target_value = (f32(id.x) + 0.5) / f32(count) * total;
+// Stratum `index` of `count` (index < count; slots and a positive total): the first slot whose
+// CDF reaches it, carrying flux · total / (count · weight).
+fn draw_stratum(index: u32, count: u32, n: u32, total: f32) -> Vpl {
+    let target_value = (f32(index) + 0.5) / f32(count) * total;
     // the first slot whose CDF reaches the stratum
     var lo = 0u;
     var hi = n - 1u;
@@ -311,5 +306,31 @@ fn cs_draw(@builtin(global_invocation_id) id: vec3<u32>) {
     var vpl = draw_candidates[slot];
     let scale = total / (f32(count) * weight);
     vpl.flux = vec4<f32>(vpl.flux.rgb * scale, vpl.flux.w);
-    drawn[id.x] = vpl;
+    return vpl;
+}
+
+@compute @workgroup_size(64)
+fn cs_draw(@builtin(global_invocation_id) id: vec3<u32>) {
+    let count = draw.sizes.z;
+    let n = draw.sizes.x;
+    let total = draw_total[draw.sizes.y];
+    if id.x >= count || n == 0u || !(total > 0.0) {
+        return;
+    }
+    drawn[id.x] = draw_stratum(id.x, count, n, total);
+}
+
+// The first bounce's share of a live frame's budget (bounce_chain.wgsl's plan: its first word),
+// drawn on the GPU from a count the host never reads.
+@group(0) @binding(6) var<storage, read> draw_plan: array<u32>;
+
+@compute @workgroup_size(64)
+fn cs_draw_planned(@builtin(global_invocation_id) id: vec3<u32>) {
+    let count = draw_plan[0];
+    let n = draw.sizes.x;
+    let total = draw_total[draw.sizes.y];
+    if id.x >= count || n == 0u || !(total > 0.0) {
+        return;
+    }
+    drawn[id.x] = draw_stratum(id.x, count, n, total);
 }

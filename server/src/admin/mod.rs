@@ -165,18 +165,14 @@ pub(super) async fn stimuli_csv(
     Path(slug): Path<String>,
     _: Admin,
 ) -> AppResult<Response> {
-    let study = state.study(&slug).ok_or_else(|| {
+    let now = state.stimulus_metrics(&slug).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" is not served by this server, so its stimuli are not known here"))
     })?;
-    match &study.metrics_csv {
+    match &now.csv {
         Some(csv) => Ok(download("text/csv; charset=utf-8", format!("{slug}-stimuli.csv"), csv.clone())),
         None => Err(AppError::NotFound(format!(
             "study \"{slug}\" has no stimulus metrics: {}",
-            if study.metrics_notes.is_empty() {
-                "it has no rendered stimuli".to_string()
-            } else {
-                study.metrics_notes.join("; ")
-            }
+            if now.notes.is_empty() { "it has no rendered stimuli".to_string() } else { now.notes.join("; ") }
         ))),
     }
 }

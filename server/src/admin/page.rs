@@ -6,6 +6,7 @@ use crate::AppState;
 use crate::auth::authorize_admin_via as authorize;
 use crate::error::{AppError, AppResult};
 use crate::export::Include;
+use crate::study::ActiveTarget;
 use askama::Template;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
@@ -348,14 +349,21 @@ pub(super) async fn admin_study_page(
         rating_screening: Vec::new(),
     };
     if let Some(active) = state.active(&slug) {
-        let (target, optimises) = state
-            .study(&slug)
-            .and_then(|prepared| prepared.study.design.active.as_ref().map(|design| design.target.describe()))
-            .unwrap_or(("worths", "every condition's log-worth"));
+        let design = state.study(&slug).map(|prepared| prepared.study.design.clone());
+        let target =
+            design.as_ref().and_then(|design| design.active.as_ref()).map_or(ActiveTarget::Worths, |a| a.target);
+        let warmup = design.as_ref().map_or(0, |design| design.pairs.len() * design.repetitions as usize);
+        let warmup = match warmup {
+            0 => String::new(),
+            trials => format!(", after a warm-up of {trials} fixed pair trials per participant"),
+        };
         let active = active.lock().await;
         page.active_note = Some(format!(
-            "Active design (target = \"{target}\"): each participant's trials are chosen by expected information gain about {optimises}, from every judgment so far ({} absorbed when a batch was last chosen); `mrstudy simulate --designs study,active` measures what it trades against the fixed design.",
-            active.judgments()
+            "Active design (target = \"{}\"): each participant's trials are chosen {}, from every judgment so far ({} absorbed when a batch was last chosen){warmup}; `mrstudy simulate --designs study,{}` measures what it trades against the fixed design.",
+            target.describe().0,
+            target.criterion(),
+            active.judgments(),
+            target.simulate_design(),
         ));
         page.active_warning = active.failure.clone();
     }

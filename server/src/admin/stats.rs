@@ -105,7 +105,7 @@ pub async fn stats(state: &AppState, slug: &str) -> AppResult<StudyStats> {
         kind: study.kind,
         open: study.open,
         served: served.is_some(),
-        has_stimulus_metrics: served.is_some_and(|study| study.metrics_csv.is_some()),
+        has_stimulus_metrics: state.stimulus_metrics(slug).is_some_and(|now| now.csv.is_some()),
         trials,
         started,
         finished,
@@ -172,8 +172,8 @@ pub async fn analysis_json(
     let definition = export::definition(pool, slug).await?;
     let trials = export::trials_csv(pool, slug, include).await?;
     let left_out = trials.left_out.sentence(QUERY_HINT);
-    let served = state.study(slug);
-    let stimuli = served.and_then(|study| study.stimulus_metrics.as_ref()).filter(|_| metrics == Metrics::Set);
+    let now = state.stimulus_metrics(slug).filter(|_| metrics == Metrics::Set);
+    let stimuli = now.as_ref().and_then(|now| now.metrics.as_ref());
     let mut analysis =
         crate::live_analysis::run(&trials.content, &definition, include, stimuli, scale).map_err(|error| {
             match (error, &left_out) {
@@ -223,8 +223,8 @@ pub(super) async fn metric_svg(
     Path(slug): Path<String>,
     AdminInclude(include): AdminInclude,
 ) -> AppResult<Response> {
-    let served = state.study(&slug);
-    let stimuli = served.as_ref().and_then(|study| study.stimulus_metrics.as_ref()).ok_or_else(|| {
+    let now = state.stimulus_metrics(&slug);
+    let stimuli = now.as_ref().and_then(|now| now.metrics.as_ref()).ok_or_else(|| {
         AppError::NotFound(format!("study \"{slug}\" has no stimulus metrics on this server (no ground truth)"))
     })?;
     let trials = export::trials_csv(&state.storage().admin, &slug, include).await?;

@@ -16,7 +16,7 @@ use crate::prepared::PreparedStudy;
 use crate::render_queue::Unready;
 use crate::study::GROUND_TRUTH;
 use crate::threshold::Answer;
-use crate::trial::PlannedKind;
+use crate::trial::{PlannedKind, PlannedTrial};
 
 /// A level that is not there: 503 with `Retry-After` while it renders or the queue is full (the
 /// page asks again), a logged internal error when its render failed.
@@ -107,5 +107,47 @@ pub(crate) async fn extend(state: &AppState, prepared: &PreparedStudy, participa
             batch: existing,
         })
         .await?;
+    if crate::render_queue::on_demand(study) && (existing as usize) + 1 < total as usize {
+        prefetch(state, prepared, seed, existing as usize + 1, &chosen, answers);
+    }
     Ok(())
+}
+
+/// Queues, ahead of need, the levels trial `position` can show after the answer to `shown`
+/// (two: one per answer; one after a catch trial, which QUEST+ does not see), so an on-demand
+/// level is usually rendered before the participant asks for it. Off the request's path.
+fn prefetch(
+    state: &AppState,
+    prepared: &PreparedStudy,
+    seed: u64,
+    position: usize,
+    shown: &PlannedTrial,
+    answers: Vec<Answer>,
+) {
+    let study = prepared.study.clone();
+    let intensities = crate::threshold::intensities(&study, prepared.stimulus_metrics.as_ref());
+    let truth = study.conditions.len();
+    let shown_level = match shown.kind {
+        PlannedKind::Pair { left, right } => Some(if left == truth { right } else { left }),
+        PlannedKind::Catch { .. } => None,
+    };
+    let queue = state.render_queue().clone();
+    tokio::task::spawn_blocking(move || {
+        let Ok(intensities) = intensities else { return };
+        let outcomes: Vec<Vec<Answer>> = match shown_level {
+            Some(level) => {
+                [true, false].map(|correct| answers.iter().copied().chain([Answer { level, correct }]).collect()).into()
+            }
+            None => vec![answers],
+        };
+        for answers in outcomes {
+            let Ok(next) = crate::threshold::next_trial(&study, seed, position, &intensities, &answers) else {
+                continue;
+            };
+            if let PlannedKind::Pair { left, right } = next.kind {
+                let (level, scene) = if left == truth { (right, next.right_scene) } else { (left, next.left_scene) };
+                queue.prefetch(&study.slug, scene, next.realisation, level);
+            }
+        }
+    });
 }

@@ -36,7 +36,7 @@ pub struct Versus {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Comparison {
     pub design: DesignChoice,
-    /// What the active design optimises: `worths` or `effects`.
+    /// What the active design optimises: `worths`, `effects` or `both`.
     pub target: &'static str,
     pub participants: usize,
     /// Trials per study of the active and the study design.
@@ -105,7 +105,11 @@ pub(super) fn comparison_lines(comparisons: &[Comparison]) -> String {
         text += &format!(
             "{} (optimises the {}) against the study's design at {} participants ({} vs {} trials){}{}\n",
             c.design.name(),
-            if c.target == "effects" { "factor effects" } else { "log-worths" },
+            match c.target {
+                "effects" => "factor effects",
+                "both" => "log-worths and the factor effects together",
+                _ => "log-worths",
+            },
             c.participants,
             fixed(c.trials, 0),
             fixed(c.study_trials, 0),

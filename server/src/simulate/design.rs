@@ -27,6 +27,11 @@ pub enum DesignChoice {
     Active,
     /// As `active`, with target worths whatever the factors (`active-worths`).
     ActiveWorths,
+    /// The default active design (`active-both`): target both (worths where no factor varies)
+    /// after the default warm-up — the anchored pairs (the study's, else the first and last
+    /// condition as anchors) for about 60 % of the same pair trials, as a study file with
+    /// `pairs = "active"` and neither `target` nor `warmup` gets.
+    ActiveBoth,
 }
 
 impl DesignChoice {
@@ -37,6 +42,7 @@ impl DesignChoice {
             "anchored" => DesignChoice::Anchored,
             "active" => DesignChoice::Active,
             "active-worths" => DesignChoice::ActiveWorths,
+            "active-both" => DesignChoice::ActiveBoth,
             _ => return None,
         })
     }
@@ -48,6 +54,7 @@ impl DesignChoice {
             DesignChoice::Anchored => "anchored",
             DesignChoice::Active => "active",
             DesignChoice::ActiveWorths => "active-worths",
+            DesignChoice::ActiveBoth => "active-both",
         }
     }
 
@@ -83,8 +90,8 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
             variant.design.pairs_rule = PairsRule::Anchored;
             variant.design.active = None;
         }
-        DesignChoice::Active | DesignChoice::ActiveWorths => {
-            if study.design.active.is_none() || choice == DesignChoice::ActiveWorths {
+        DesignChoice::Active | DesignChoice::ActiveWorths | DesignChoice::ActiveBoth => {
+            if study.design.active.is_none() || choice != DesignChoice::Active {
                 if n < 3 {
                     return Err(SimulateError::TooFewConditions { conditions: n });
                 }
@@ -94,10 +101,10 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                 let mut active = ActiveDesign {
                     trials: pair_trials(study) as u32,
                     batch: ACTIVE_BATCH,
-                    target: if varying && choice == DesignChoice::Active {
-                        ActiveTarget::Factors
-                    } else {
-                        ActiveTarget::Worths
+                    target: match choice {
+                        DesignChoice::Active if varying => ActiveTarget::Factors,
+                        DesignChoice::ActiveBoth if varying => ActiveTarget::Both,
+                        _ => ActiveTarget::Worths,
                     },
                     prior_sd: DEFAULT_PRIOR_SD,
                 };
@@ -108,12 +115,24 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                 // The factor target needs a warm-up that connects the conditions (a study file
                 // without one is refused): the anchored pairs once, within the same trials.
                 variant.design.pairs = Vec::new();
+                variant.design.repetitions = 1;
                 if active.target == ActiveTarget::Factors {
                     variant.design.pairs = anchored_pairs(study);
                     active.trials = (active.trials as usize).saturating_sub(variant.design.pairs.len()).max(1) as u32;
                 }
+                // The default design's warm-up, within the same trials: chosen trials 40 % of
+                // them, the warm-up's repetitions by the study files' own default rule.
+                if choice == DesignChoice::ActiveBoth {
+                    let total = active.trials;
+                    variant.design.pairs = anchored_pairs(study);
+                    active.trials = ((0.4 * total as f64).round() as u32).max(1);
+                    let repetitions =
+                        crate::study::survey::default_repetitions(Some(active.trials), variant.design.pairs.len());
+                    variant.design.repetitions = repetitions;
+                    let warmup = repetitions as usize * variant.design.pairs.len();
+                    active.trials = (total as usize).saturating_sub(warmup).max(1) as u32;
+                }
                 variant.design.pairs_rule = PairsRule::Active;
-                variant.design.repetitions = 1;
                 variant.design.active = Some(active);
             }
         }

@@ -48,9 +48,12 @@ pub struct FactorPower {
 pub struct Row {
     pub design: DesignChoice,
     pub pairs: PairsRule,
-    /// What an active design optimises: `worths` or `effects` (absent for a fixed design).
+    /// What an active design optimises: `worths`, `effects` or `both` (absent for a fixed design).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target: Option<&'static str>,
+    /// An active design's choice in words: its warm-up and criterion (absent for a fixed design).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub optimises: Option<String>,
     pub participants: usize,
     pub runs: usize,
     pub failed: usize,
@@ -147,6 +150,16 @@ pub(super) fn summarise(
         design: *choice,
         pairs: variant.design.pairs_rule,
         target: variant.design.active.as_ref().map(|active| active.target.describe().0),
+        optimises: variant.design.active.as_ref().map(|active| {
+            let warmup = variant.design.pairs.len() * variant.design.repetitions as usize;
+            format!(
+                "{} fixed warm-up pair trials, then {} chosen {} (optimises {})",
+                warmup,
+                active.trials,
+                active.target.criterion(),
+                active.target.describe().1
+            )
+        }),
         participants,
         runs: runs.len(),
         failed: runs.iter().filter(|run| run.failure.is_some()).count(),
@@ -249,6 +262,15 @@ impl Report {
             "log-worths as differences to {} (the analysis's reference); ± is the Monte-Carlo standard error over {} runs; power: p < {ALPHA}\n",
             self.reference, self.settings.runs
         );
+        let mut described: Vec<DesignChoice> = Vec::new();
+        for row in &self.rows {
+            if let Some(optimises) = &row.optimises
+                && !described.contains(&row.design)
+            {
+                described.push(row.design);
+                text += &format!("{} per participant: {optimises}\n", row.design.name());
+            }
+        }
         text += &super::compare::comparison_lines(&self.comparisons);
         for row in &self.rows {
             if row.failed == row.runs {

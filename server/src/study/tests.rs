@@ -120,7 +120,7 @@ fn active(design: &str) -> Result<Study, StudyError> {
 
 #[test]
 fn an_active_design_counts_its_warm_up_and_chosen_trials_and_names_each_bad_key() {
-    let study = active("pairs = \"active\"\ntrials = 12").unwrap();
+    let study = active("pairs = \"active\"\ntrials = 12\ntarget = \"worths\"").unwrap();
     let design = study.design.active.as_ref().unwrap();
     assert_eq!((design.trials, design.batch, design.target), (12, 5, ActiveTarget::Worths));
     assert!(study.design.pairs.is_empty());
@@ -183,9 +183,45 @@ fn target_effects_is_the_factor_target_also_spelt_factors_and_the_default_is_wor
     };
     assert_eq!(target("target = \"effects\"\n"), ActiveTarget::Factors);
     assert_eq!(target("target = \"factors\"\n"), ActiveTarget::Factors);
-    assert_eq!(target(""), ActiveTarget::Worths);
-    let error = active("pairs = \"active\"\ntrials = 4\ntarget = \"both\"").unwrap_err();
-    assert!(error.expected.contains("\"effects\" (also spelt \"factors\")"), "{error}");
+    assert_eq!(target("target = \"worths\"\n"), ActiveTarget::Worths);
+    assert_eq!(target("target = \"both\"\n"), ActiveTarget::Both);
+    let error = active("pairs = \"active\"\ntrials = 4\ntarget = \"all\"").unwrap_err();
+    assert_eq!(error.key, "design.target", "{error}");
+    assert!(
+        error.expected.contains("\"worths\", \"effects\" (also spelt \"factors\") or \"both\", found \"all\""),
+        "{error}"
+    );
+}
+
+/// The default active design (issue 48, measured in docs/simulate/active-target/README.md):
+/// target both, and a warm-up of the anchored pairs for about 60 % of the trials. Changing it
+/// must change this test (and the measurement).
+#[test]
+fn the_default_active_design_is_both_after_an_anchored_warm_up() {
+    // no anchors: the first and last condition (LQ, HQ); 1.5 × 12 / 3 pairs = 6 repetitions
+    let study = active("pairs = \"active\"\ntrials = 12").unwrap();
+    let design = study.design.active.as_ref().unwrap();
+    assert_eq!((design.trials, design.target), (12, ActiveTarget::Both));
+    assert_eq!((study.design.pairs.clone(), study.design.repetitions), (vec![(0, 2), (0, 1), (2, 1)], 6));
+    assert_eq!(study.trial_count(), 6 * 3 + 12);
+    // the study's anchors and repetitions when it gives them; `target = "both"` alike
+    let study = active("pairs = \"active\"\ntrials = 2\ntarget = \"both\"\nanchors = [\"GI\"]").unwrap();
+    assert_eq!((study.design.pairs.clone(), study.design.repetitions), (vec![(1, 0), (1, 2)], 2));
+    let study = active("pairs = \"active\"\ntrials = 2\nrepetitions = 1").unwrap();
+    assert_eq!((study.design.pairs.len(), study.design.repetitions), (3, 1));
+    // an explicit warm-up, or an explicit worths or effects target, keeps its own (none by default)
+    let study = active("pairs = \"active\"\ntrials = 2\nwarmup = \"none\"").unwrap();
+    assert!(study.design.pairs.is_empty());
+    assert_eq!(study.design.active.unwrap().target, ActiveTarget::Both);
+    // where no factor the posterior can learn varies, the default target is the log-worths
+    let dir = tempfile::tempdir().unwrap();
+    let body = MINIMAL.replace("levels = { gi = 1, ca = 1 }", "levels = { gi = 1, ca = 0 }").replace(
+        "[design]\npairs = \"anchored\"\nanchors = [\"LQ\", \"HQ\"]\nrepetitions = 2\n",
+        "[design]\npairs = \"active\"\ntrials = 4\n",
+    );
+    let study = load_study(&write_study(dir.path(), &body)).unwrap();
+    assert_eq!(study.design.active.unwrap().target, ActiveTarget::Worths);
+    assert_eq!(study.design.pairs.len(), 3);
 }
 
 fn detection(design: &str) -> Result<Study, StudyError> {

@@ -152,7 +152,9 @@ impl Specular {
     }
 
     /// Caustic maps, second half: splats every photon into the caustic buffer in the camera's
-    /// pixels. Returns the buffer for [`Specular::apply_caustics`] and the report.
+    /// pixels. Returns the buffer for [`Specular::apply_caustics`], the report, and the photons'
+    /// counts still on the GPU (photons, splatted: two `u32`s), read back with the frame's
+    /// images (no wait of their own) into the report's `photons` and `splatted`.
     pub fn splat(
         &self,
         ctx: &GpuContext,
@@ -160,7 +162,7 @@ impl Specular {
         scene: &Scene,
         gbuffer: &SurfaceTargets,
         camera_view_proj: Mat4,
-    ) -> (Arc<wgpu::Buffer>, CausticReport) {
+    ) -> (Arc<wgpu::Buffer>, CausticReport, Arc<wgpu::Buffer>) {
         let (width, height) = (scene.camera.width, scene.camera.height);
         let caustic = ctx.buffer(
             "caustic buffer",
@@ -206,16 +208,15 @@ impl Specular {
             let groups = maps.map_size.div_ceil(8);
             ctx.dispatch("photons", &self.photons, &entries, [groups, groups]);
         }
-        let counts: Vec<u32> = ctx.read_f32(&counts).into_iter().map(f32::to_bits).collect();
         let report = CausticReport {
             map_size: maps.map_size,
             maps: maps.maps.iter().map(|m| m.pair.clone()).collect(),
             skipped: maps.skipped.clone(),
-            photons: counts[0],
-            splatted: counts[1],
+            photons: 0,
+            splatted: 0,
             vpls: 0,
         };
-        (caustic, report)
+        (caustic, report, counts)
     }
 
     /// Adds the caustic buffer's irradiance, as diffuse radiance rho/pi E, to L_rv and (where

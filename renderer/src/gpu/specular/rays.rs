@@ -159,6 +159,7 @@ impl Specular {
             hits: search.hits,
             info: search.info,
             report,
+            counts: None,
             eye: mesh.specular[0].centre,
         }
     }
@@ -200,10 +201,7 @@ impl Specular {
             wgpu::BindGroupEntry { binding: 17, resource: counts.as_entire_binding() },
         ];
         ctx.dispatch("specular combine", &self.combine, &entries, [width.div_ceil(8), height.div_ceil(8)]);
-        let counts: Vec<u32> = ctx.read_f32(&counts).into_iter().map(f32::to_bits).collect();
-        let report = &mut traced.report;
-        (report.pixels, report.rays, report.back_projected, report.rendered, report.missed) =
-            (counts[0], counts[1], counts[2], counts[3], counts[4]);
+        traced.counts = Some(counts);
         base
     }
 }

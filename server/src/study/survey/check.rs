@@ -449,10 +449,20 @@ fn check_design(
         ));
     };
     let active = pairs_rule == "active";
-    let rule = if active { design.warmup.as_deref().unwrap_or("none") } else { pairs_rule.as_str() };
+    // the default warm-up (`target` "both" or omitted, `warmup` omitted): docs/design.md
+    let default_warmup = active && super::active::default_warmup(design);
+    let rule = match (active, design.warmup.as_deref()) {
+        (false, _) => pairs_rule.as_str(),
+        (true, Some(warmup)) => warmup,
+        (true, None) if default_warmup => "anchored",
+        (true, None) => "none",
+    };
     let rule_key = if active { "design.warmup" } else { "design.pairs" };
     let (pairs, fixed_rule) = match rule {
         "all" => (all_pairs(conditions.len()), PairsRule::All),
+        "anchored" if default_warmup && design.anchors.is_empty() => {
+            (first_and_last_anchored(conditions.len()), PairsRule::Anchored)
+        }
         "anchored" => (anchored_pairs(fail, &design.anchors, conditions)?, PairsRule::Anchored),
         "list" => (listed_pairs(fail, &design.list, conditions)?, PairsRule::List),
         "none" if active => (Vec::new(), PairsRule::Active),
@@ -483,6 +493,7 @@ fn check_design(
     }
     let repetitions = match (design.repetitions, active) {
         (Some(repetitions), _) => repetitions,
+        (None, true) if default_warmup => super::active::default_repetitions(design.trials, pairs.len()),
         (None, true) => 1,
         (None, false) => return Err(fail.at("design.repetitions", "expected the number of times each pair is shown")),
     };
@@ -499,7 +510,7 @@ fn check_design(
     if scenes == SceneDraw::Different && scene_count < 2 {
         return Err(fail.at("design.scenes", "expected at least two scene configurations for scenes = \"different\""));
     }
-    let active = if active { Some(check_active(fail, design, &pairs, conditions)?) } else { None };
+    let active = if active { Some(super::active::check_active(fail, design, &pairs, conditions)?) } else { None };
     if active.is_none() {
         for (key, given) in active_keys_given(design) {
             if given {
@@ -606,73 +617,11 @@ fn check_detection(
     })
 }
 
-/// The keys of `pairs = "active"`: trials, batch, target (checked against the conditions by
-/// the posterior's own rules), prior.
-fn check_active(
-    fail: Fail,
-    design: &DesignFile,
-    warmup: &[(usize, usize)],
-    conditions: &[Condition],
-) -> Result<ActiveDesign, StudyError> {
-    let trials = design.trials.ok_or_else(|| {
-        fail.at("design.trials", "expected the number of actively chosen trials per participant (1 to 1000)")
-    })?;
-    if !(1..=1000).contains(&trials) {
-        return Err(fail.at("design.trials", format!("expected 1 to 1000, found {trials}")));
-    }
-    let batch = design.batch.unwrap_or(5);
-    if !(1..=100).contains(&batch) {
-        return Err(fail.at("design.batch", format!("expected 1 to 100, found {batch}")));
-    }
-    let target = match design.target.as_deref().unwrap_or("worths") {
-        "worths" => ActiveTarget::Worths,
-        // `effects` is the issue-48 name; `factors` the first spelling, still accepted
-        "effects" | "factors" => ActiveTarget::Factors,
-        other => {
-            return Err(fail.at(
-                "design.target",
-                format!("expected \"worths\" or \"effects\" (also spelt \"factors\"), found \"{other}\""),
-            ));
-        }
-    };
-    let prior_sd = design.prior_sd.unwrap_or(mrstudy_analysis::active::DEFAULT_PRIOR_SD);
-    if !(prior_sd.is_finite() && (0.05..=10.0).contains(&prior_sd)) {
-        return Err(fail.at("design.prior_sd", format!("expected a number from 0.05 to 10, found {prior_sd}")));
-    }
-    if target == ActiveTarget::Factors && !connects(warmup, conditions.len()) {
-        return Err(fail.at(
-            "design.warmup",
-            "expected a warm-up that connects every condition (\"all\" or \"anchored\") with target = \"effects\" (or \"factors\"): \
-             pairs chosen for the factor effects alone leave the per-condition model of the analysis without a fit \
-             (every simulated study of the thesis design failed; `mrstudy simulate`)",
-        ));
-    }
-    let active = ActiveDesign { trials, batch, target, prior_sd };
-    active_target(&active, conditions)
-        .check()
-        .map_err(|error| fail.at("design.target", format!("an active design this posterior can learn: {error}")))?;
-    Ok(active)
-}
-
-/// Whether `pairs` connect all `count` conditions (union–find).
-fn connects(pairs: &[(usize, usize)], count: usize) -> bool {
-    let mut parent: Vec<usize> = (0..count).collect();
-    fn root(parent: &mut [usize], mut node: usize) -> usize {
-        while parent[node] != node {
-            parent[node] = parent[parent[node]];
-            node = parent[node];
-        }
-        node
-    }
-    let mut groups = count;
-    for &(a, b) in pairs {
-        let (a, b) = (root(&mut parent, a), root(&mut parent, b));
-        if a != b {
-            parent[a] = b;
-            groups -= 1;
-        }
-    }
-    groups <= 1
+/// The default warm-up's pairs without `anchors`: the anchored rule with the first and the last
+/// condition as anchors (the first alone with fewer than two conditions).
+fn first_and_last_anchored(count: usize) -> Vec<(usize, usize)> {
+    let anchors: Vec<usize> = if count < 2 { vec![0] } else { vec![0, count - 1] };
+    anchored_pair_indices(&anchors, count)
 }
 
 /// `pairs = "all"`: every pair of `count` conditions, `(i, j)` with i < j.

@@ -112,7 +112,8 @@ pub(super) struct DesignFile {
     pub(super) anchors: Vec<String>,
     #[serde(default)]
     pub(super) list: Vec<Vec<String>>,
-    /// Required for fixed designs; for `pairs = "active"` it repeats the warm-up (default 1).
+    /// Required for fixed designs; for `pairs = "active"` it repeats the warm-up (default 1; with
+    /// the default warm-up round(1.5 × trials / pairs), `active::default_repetitions`).
     #[serde(default)]
     pub(super) repetitions: Option<u32>,
     pub(super) scenes: String,

@@ -3,10 +3,12 @@
 //! file, resolving it into a [`Study`], and `model` that resolved study, which is also the schema
 //! of the definition stored in the database.
 
+mod active;
 mod check;
 mod file;
 mod model;
 
+pub(crate) use active::default_repetitions;
 pub(super) use check::parse;
 pub(crate) use check::{all_pairs, anchored_pair_indices};
 pub(crate) use model::format_number;

@@ -278,12 +278,16 @@ pub struct SceneConfiguration {
     pub source: StimulusSource,
 }
 
-/// What an active design learns about: every condition's log-worth, or the factor effects.
+/// What an active design learns about: every condition's log-worth, the factor effects, or
+/// both together.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ActiveTarget {
     Worths,
     Factors,
+    /// The log-worths and the factor effects: the summed posterior variance of each, relative
+    /// to its current value (`mrstudy_analysis::active::both`).
+    Both,
 }
 
 impl ActiveTarget {
@@ -292,6 +296,31 @@ impl ActiveTarget {
         match self {
             ActiveTarget::Worths => ("worths", "every condition's log-worth"),
             ActiveTarget::Factors => ("effects", "the factor effects (not the individual log-worths)"),
+            ActiveTarget::Both => ("both", "the log-worths and the factor effects together"),
+        }
+    }
+
+    /// How the pairs are chosen, in words: the criterion and what it is about.
+    pub fn criterion(self) -> String {
+        match self {
+            ActiveTarget::Worths | ActiveTarget::Factors => {
+                // (no "inf" in these words: tests look for it as a sign of a non-finite number)
+                format!("by the expected drop of the posterior entropy of {} (EIG)", self.describe().1)
+            }
+            ActiveTarget::Both => {
+                "by the expected drop of the summed posterior variance of the log-worths and of the factor \
+                 effects, each relative to its current value (A-optimal for both)"
+                    .to_string()
+            }
+        }
+    }
+
+    /// The `mrstudy simulate --designs` name that measures this target against the fixed design.
+    pub fn simulate_design(self) -> &'static str {
+        match self {
+            ActiveTarget::Worths => "active-worths",
+            ActiveTarget::Factors => "active",
+            ActiveTarget::Both => "active-both",
         }
     }
 }
@@ -529,6 +558,9 @@ pub fn active_target(active: &ActiveDesign, conditions: &[Condition]) -> mrstudy
     match active.target {
         ActiveTarget::Worths => mrstudy_analysis::active::Target::Worths { conditions: conditions.len() },
         ActiveTarget::Factors => mrstudy_analysis::active::Target::Factors {
+            design: conditions.iter().map(|condition| condition.levels.clone()).collect(),
+        },
+        ActiveTarget::Both => mrstudy_analysis::active::Target::Both {
             design: conditions.iter().map(|condition| condition.levels.clone()).collect(),
         },
     }
