@@ -1,25 +1,21 @@
-//! `mrstudy analyze`: reads a trials CSV (paired comparisons, detection trials against the
-//! ground truth, or both) or a task CSV (lab tasks), and optionally a stimulus metrics CSV; runs
-//! the analysis crate and prints a table or the Analysis JSON, and optionally writes the worth,
-//! factor-effect and metric scatter plots.
+//! `mrstudy analyze`: its flags, run by `mrstudy_analysis::command::analyze_request` (a trials
+//! or task CSV, optionally conditions and stimulus metrics) over the files, read and written here.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use mrstudy_analysis::analysis::{Options, Scale, Screening};
-use mrstudy_analysis::command::{Drawings, analyze_files};
-
-use crate::Format;
+use mrstudy_analysis::command::{AnalyzeRequest, FileAccess, Format, analyze_request};
 
 flags! {
-    AnalyzeArgs {
+    AnalyzeArgs => AnalyzeRequest {} {
         /// Trials CSV (`participant,left,right,chosen`, as `mrstudy export` writes) or a task CSV (`participant,condition,value`).
         #[arg(long)] trials: PathBuf,
         /// Conditions CSV (`condition,<factor>,…`) for the factor model.
         #[arg(long)] conditions: Option<PathBuf>,
         /// Stimulus metrics CSV (`stimulus,scene,condition,metric,region,value`, as `mrstudy stimuli --metrics` writes): which image error predicts preference.
         #[arg(long)] stimuli: Option<PathBuf>,
-        #[arg(long, value_enum, default_value = "table")] format: Format,
+        #[arg(long, default_value = "table", value_parser = crate::values(Format::NAMES))] format: Format,
         /// Write the worth plot (SVG) here.
         #[arg(long)] plot: Option<PathBuf>,
         /// Write the factor-effect plot (SVG) here.
@@ -46,7 +42,7 @@ flags! {
         /// Seed for the bootstrap and the agreement simulation.
         #[arg(long, default_value_t = Options::default().seed)] seed: u64,
         /// Observer screening (leave-one-out); `auto` runs it for up to 200 conditions.
-        #[arg(long = "screen", default_value = "auto", value_parser = crate::values(SCREENING))] screening: Screening,
+        #[arg(long = "screen", default_value = "auto", value_parser = crate::values(Screening::NAMES))] screening: Screening,
         /// Use Firth's bias-reduced estimate for every model, not only under separation.
         #[arg(long = "firth")] always_firth: bool,
         /// Keep participants marked `pilot = true` in the trials CSV (default: left out, and said so).
@@ -54,7 +50,7 @@ flags! {
         /// Keep participants marked `excluded = true` in the trials CSV (default: left out, and said so).
         #[arg(long)] include_excluded: bool,
         /// `jod`: also pwcmp's JOD scale (Thurstone Case V, 1 JOD = 75 %) per condition, its outlier analysis and, with --bootstrap, its intervals; for a threshold export `log10`, `dB` or `linear` fits on that stimulus scale instead of the export's.
-        #[arg(long, default_value = "bt", value_parser = crate::values(SCALES))] scale: Scale,
+        #[arg(long, default_value = "bt", value_parser = crate::values(Scale::NAMES))] scale: Scale,
         /// Threshold exports: the psychometric function to fit (`weibull`, `logistic`, `normal`) instead of the export's `function`.
         #[arg(long)] function: Option<String>,
         /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
@@ -62,47 +58,13 @@ flags! {
     }
 }
 
-const SCREENING: &[(&str, &str, Screening)] = &[
-    ("auto", "On for designs up to 200 conditions", Screening::Auto),
-    ("on", "", Screening::On),
-    ("off", "", Screening::Off),
-];
-
-const SCALES: &[(&str, &str, Scale)] = &[
-    ("bt", "Bradley–Terry log-worths only", Scale::Bt),
-    ("jod", "Also pwcmp's JOD", Scale::Jod),
-    ("log10", "A threshold export fitted with x = log10 intensity", Scale::Log10),
-    ("dB", "A threshold export fitted with x = 20·log10 intensity", Scale::Db),
-    ("linear", "A threshold export fitted with x = intensity", Scale::Linear),
-];
-
-fn as_pair(file: &(String, String)) -> (&str, &str) {
-    (&file.0, &file.1)
-}
-
 pub fn run(args: AnalyzeArgs) -> Result<()> {
-    let (trials, trials_name) = crate::read_text(&args.trials)?;
-    let conditions = args.conditions.as_ref().map(|path| crate::read_text(path)).transpose()?;
-    let stimuli = args.stimuli.as_ref().map(|path| crate::read_text(path)).transpose()?;
-    let drawings =
-        Drawings { worth: args.plot.is_some(), effects: args.effect_plot.is_some(), scatter: args.plot_dir.is_some() };
-    let printed = analyze_files(
-        (&trials, &trials_name),
-        conditions.as_ref().map(as_pair),
-        stimuli.as_ref().map(as_pair),
-        &args.options.into(),
-        args.format == Format::Json,
-        drawings,
-    )?;
-    // everything was rendered before anything is written: no partial output on error
-    for (path, svg) in
-        args.plot.iter().zip(&printed.worth_plot).chain(args.effect_plot.iter().zip(&printed.effect_plot))
-    {
-        crate::write_file(path, svg)?;
-    }
-    if let Some(folder) = &args.plot_dir {
-        crate::write_into(folder, printed.scatter_plots)?;
-    }
-    print!("{}", printed.text);
+    let read = |path: &Path| std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()));
+    let write = |path: &Path, text: &str| {
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    };
+    let create_dir =
+        |dir: &Path| std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()));
+    print!("{}", analyze_request(&args.into(), FileAccess { read: &read, write: &write, create_dir: &create_dir })?);
     Ok(())
 }

@@ -1,15 +1,16 @@
-//! `mrstudy export`: a study's trials (or JSON, conditions, task) from the database, by
-//! `mrstudy_server::serve::export`, to a file or stdout.
+//! `mrstudy export`: its flags, run by `mrstudy_server::serve::export_command` (a study's
+//! trials, JSON, conditions or task export from the database) to a file or stdout.
 
 use std::io::Write;
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::{Context, Result, anyhow};
 use mrstudy_server::export::Include;
-use mrstudy_server::serve::ExportFormat;
+use mrstudy_server::serve::{ExportFormat, ExportRequest, export_command};
 
 flags! {
-    ExportArgs {
+    ExportArgs => ExportRequest {} {
         /// The study's slug.
         #[arg(long)] study: String,
         /// csv (the trials CSV of docs/design.md), json (every participant with the whole schedule), conditions (the conditions CSV), task (a task study's long CSV), task-trials.
@@ -33,18 +34,7 @@ flags! {
     }
 }
 
-pub fn run(args: ExportArgs) -> Result<()> {
-    let output = mrstudy_server::serve::export(
-        &args.data_dir,
-        args.database.as_deref(),
-        &args.study,
-        args.format,
-        args.include.into(),
-    )
-    .map_err(|message| anyhow!("{message}"))?;
-    output.left_out.iter().for_each(|line| eprintln!("{line}"));
-    match &args.out {
-        Some(path) => crate::write_file(path, &output.text),
-        None => std::io::stdout().write_all(output.text.as_bytes()).context("cannot write to stdout"),
-    }
+pub fn run(args: ExportArgs, say: Say) -> Result<()> {
+    let text = export_command(&args.into(), say).map_err(|message| anyhow!("{message}"))?;
+    text.map_or(Ok(()), |text| std::io::stdout().write_all(text.as_bytes()).context("cannot write to stdout"))
 }

@@ -1,14 +1,13 @@
 //! `mrstudy`: the command line. Thin by design: it parses arguments (the clap definitions of
-//! every command live here, the libraries take plain option structs), reads and writes files,
-//! calls the library crates and turns one `anyhow::Result` into an exit code. Errors are printed
-//! to stderr as one sentence.
+//! every command live here, the libraries take plain requests), calls the library crates'
+//! command functions and turns one `anyhow::Result` into an exit code. Errors are printed to
+//! stderr as one sentence.
 
-use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 
 /// A clap struct written compactly (one line per flag under its help: rustfmt leaves a braced
 /// macro call as written), and with `=> Target { … }` its conversion into the library's plain
@@ -32,10 +31,8 @@ macro_rules! flags {
 }
 
 mod analyze;
-mod bench;
 mod capture;
 mod export;
-mod progress;
 mod render;
 mod serve;
 mod simulate;
@@ -57,7 +54,7 @@ enum Command {
     /// Analyse paired-comparison trials (Bradley–Terry worth, factor effects, agreement) or lab-task results (Friedman tests).
     Analyze(analyze::AnalyzeArgs),
     /// Measure speed (and error against a reference) of a part of mrstudy.
-    Bench(bench::BenchArgs),
+    Bench(mrstudy_bench::BenchArgs),
     /// Simulate an RGB-D capture of a scene's real objects (depth sensor, plane-fit normals, hash grid of environment samples) and report its error against the true geometry.
     Capture(capture::CaptureArgs),
     /// Render a scene: the reference photograph or ground-truth composite (CPU path tracer); `--list` names the built-in scenes.
@@ -94,42 +91,25 @@ fn values<T: Copy + Send + Sync + 'static>(
     PossibleValuesParser::new(names).map(move |name| value(name).expect("clap accepts only the names listed"))
 }
 
-/// How `analyze` and `simulate` print their result.
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Format {
-    Table,
-    Json,
-}
-
-/// A file's text, and its name for messages.
-fn read_text(path: &Path) -> Result<(String, String)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok((text, path.display().to_string()))
-}
-
-/// Writes each (file name, text) into `dir`, creating it first.
-fn write_into(dir: &Path, files: impl IntoIterator<Item = (String, String)>) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    files.into_iter().try_for_each(|(name, text)| write_file(&dir.join(name), &text))
-}
-
-fn write_file(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
-}
+/// Where a command says what it does: the console (`mrstudy_server::console::Console`).
+type Say<'a> = &'a (dyn Fn(mrstudy_renderer::command::Said) + Sync);
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let console = mrstudy_server::console::Console::default();
+    let say = |said: mrstudy_renderer::command::Said<'_>| console.say(said);
     let result = match cli.command {
         Command::Analyze(args) => analyze::run(args),
-        Command::Bench(args) => bench::run(args),
-        Command::Render(args) => render::run(args),
-        Command::Capture(args) => capture::run(args),
+        Command::Bench(args) => mrstudy_bench::run_to_files(&args, &say).map_err(Into::into),
+        Command::Render(args) => render::run(args, &say),
+        Command::Capture(args) => capture::run(args, &say),
         Command::Serve(flags) => serve::run(flags),
-        Command::Export(args) => export::run(args),
-        Command::Stimuli(args) => stimuli::run(args),
-        Command::Simulate(args) => simulate::run_simulate(args),
-        Command::Power(args) => simulate::run_power(args),
+        Command::Export(args) => export::run(args, &say),
+        Command::Stimuli(args) => stimuli::run(args, &say),
+        Command::Simulate(args) => simulate::run_simulate(args, &say),
+        Command::Power(args) => simulate::run_power(args, &say),
     };
+    drop(console); // its bar is cleared before an error is printed
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
@@ -143,40 +123,37 @@ fn main() -> ExitCode {
 
 #[cfg(test)]
 mod tests {
+    use super::{Cli, Command};
     use clap::Parser;
 
     /// Each command's flags, parsed from `args` after the command's name.
-    fn parse(args: &[&str]) -> super::Command {
-        super::Cli::try_parse_from(std::iter::once("mrstudy").chain(args.iter().copied())).unwrap().command
+    fn parse(args: &[&str]) -> Command {
+        Cli::try_parse_from(std::iter::once("mrstudy").chain(args.iter().copied())).unwrap().command
     }
 
     /// The libraries' `Default`s are the flags' defaults: an empty command line gives them.
     #[test]
     fn an_empty_command_line_gives_the_libraries_defaults() {
-        use super::Command;
         let Command::Analyze(analyze) = parse(&["analyze", "--trials", "t.csv"]) else { unreachable!() };
         assert_eq!(mrstudy_analysis::analysis::Options::from(analyze.options), Default::default());
         let Command::Render(render) = parse(&["render"]) else { unreachable!() };
-        assert_eq!(mrstudy_renderer::stimulus::RenderKnobs::from(render.knobs), Default::default());
+        assert_eq!(mrstudy_renderer::stimulus::RenderKnobs::from(render.request.knobs), Default::default());
         let Command::Export(export) = parse(&["export", "--study", "s"]) else { unreachable!() };
         assert_eq!(mrstudy_server::export::Include::from(export.include), Default::default());
         let Command::Serve(serve) = parse(&["serve"]) else { unreachable!() };
         let config = mrstudy_server::serve::ServeConfig::from(serve);
-        assert_eq!(config.limits, Default::default());
-        assert_eq!(config.connections, Default::default());
-        assert_eq!(config.lab, Default::default());
-        assert_eq!(config.log_format, Default::default());
+        assert_eq!((config.limits, config.connections, config.lab, config.log_format), Default::default());
     }
 
     #[test]
     fn serve_refuses_zero_seconds_and_a_path_as_origin() {
         let flags = ["serve", "--join-limit", "0", "--header-timeout", "5", "--origin", "HTTPS://Lab.Example.org/"];
-        let super::Command::Serve(serve) = parse(&flags) else { unreachable!() };
+        let Command::Serve(serve) = parse(&flags) else { unreachable!() };
         let config = mrstudy_server::serve::ServeConfig::from(serve);
         assert_eq!(config.limits.joins_per_minute, 0);
         assert_eq!(config.connections.header_timeout, std::time::Duration::from_secs(5));
         assert_eq!(config.lab.origins, ["https://lab.example.org"]);
-        let refused = |args: &[&str]| super::Cli::try_parse_from(args).map(|_| ()).unwrap_err().to_string();
+        let refused = |args: &[&str]| Cli::try_parse_from(args).map(|_| ()).unwrap_err().to_string();
         let error = refused(&["mrstudy", "serve", "--body-timeout", "0"]);
         assert!(error.contains("`0` is not a whole number of seconds"), "{error}");
         let error = refused(&["mrstudy", "serve", "--origin", "https://a.org/path"]);

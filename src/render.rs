@@ -1,26 +1,30 @@
-//! `mrstudy render`: the flags, then `scene::load_as`, and `reference::render_to_file` (the CPU
-//! reference path tracer: `--photo`, `--reference`) or `stimulus::render_condition_to_file`
-//! (a condition on the GPU over the path-traced photograph) or `coherent::render::render_to_file`
-//! (`--gi-method`: Rohmer et al.'s methods from a simulated capture) with a progress bar;
-//! `--contact-sheet`: `contact_sheet::render` over the web survey's conditions or a study's.
+//! `mrstudy render`: its flags into `mrstudy_renderer::command::RenderRequest` (with a study's
+//! conditions for `--contact-sheet --study`), run by `command::render` on the console.
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use crate::Say;
+use anyhow::Result;
 use mrstudy_renderer::ca::ParamSource;
 use mrstudy_renderer::cm::{CmMethod, Composition};
-use mrstudy_renderer::coherent::{CoherentParams, Method, Quality};
+use mrstudy_renderer::coherent::{Method, Quality};
+use mrstudy_renderer::command::{RenderRequest, render};
 use mrstudy_renderer::gpu::GiLevel;
 use mrstudy_renderer::gpu::ism::IsmSplatting;
-use mrstudy_renderer::reference::{ReferenceParams, Target, render_to_file};
+use mrstudy_renderer::scene;
 use mrstudy_renderer::sensor::SensorParams;
-use mrstudy_renderer::stimulus::{Factors, RenderKnobs, StimulusSettings, render_condition_to_file};
-use mrstudy_renderer::{builtin, contact_sheet, scene};
-
-use crate::progress::progress_bar;
+use mrstudy_renderer::stimulus::{Factors, RenderKnobs};
 
 flags! {
     RenderArgs {
+        #[command(flatten)] request: RenderFlags,
+        /// The conditions of the contact sheet: those of this study file (default: the web survey's eight, LQ … HQ).
+        #[arg(long, value_name = "FILE", requires = "contact_sheet")] study: Option<PathBuf>,
+    }
+}
+
+flags! {
+    RenderFlags => RenderRequest { conditions: None } {
         /// List the built-in scene names, one per line.
         #[arg(long)] list: bool,
         /// A built-in scene name or a scene file (TOML).
@@ -54,8 +58,6 @@ flags! {
         #[arg(long)] print_toml: bool,
         /// Write a contact sheet (PNG): the ground truth, the photograph and the stimulus of each condition side by side, labelled, rendered as a study renders them (default size 200x150).
         #[arg(long, value_name = "FILE.png", conflicts_with_all = ["reference", "photo", "condition", "factors", "gi_method", "out"])] contact_sheet: Option<PathBuf>,
-        /// The conditions of the contact sheet: those of this study file (default: the web survey's eight, LQ … HQ).
-        #[arg(long, value_name = "FILE", requires = "contact_sheet")] study: Option<PathBuf>,
     }
 }
 
@@ -85,127 +87,10 @@ flags! {
     }
 }
 
-/// `--contact-sheet`: the ground truth and every condition of `--study` (or the web survey's).
-fn contact_sheet(args: &RenderArgs, name: &str, out: &std::path::Path) -> Result<()> {
-    let conditions: Vec<(String, Factors)> = match &args.study {
-        None => contact_sheet::rmc_conditions(),
-        Some(file) => match mrstudy_server::study::load_any(file)? {
-            mrstudy_server::study::LoadedStudy::Survey(study) => study
-                .conditions
-                .into_iter()
-                .map(|c| c.factors.map(|f| (c.name.clone(), f)).map_err(|why| anyhow::anyhow!("{}: {why}", c.name)))
-                .collect::<Result<_>>()?,
-            mrstudy_server::study::LoadedStudy::Task(_) => {
-                bail!("{} is a task study; name a paired-comparison study", file.display())
-            }
-        },
-    };
-    let (width, height) = args.size.unwrap_or((200, 150));
-    let settings = StimulusSettings { width, height, spp: args.spp, seed: args.seed, ..StimulusSettings::default() };
-    let scene = scene::load_as(name, Some((width, height)), args.camera.clone())?;
-    scene.warnings.iter().for_each(|warning| eprintln!("warning: {warning}"));
-    let renderer = mrstudy_renderer::gpu::DirRenderer::new()?;
-    let bar =
-        progress_bar(2 * args.spp as u64 + conditions.len() as u64, &format!("{} contact sheet", scene.name), "steps");
-    let sheet =
-        contact_sheet::render(&renderer, &scene, &settings, &conditions, &|done, _| bar.set_position(done as u64));
-    bar.finish_and_clear();
-    sheet?.save_png(out)?;
-    eprintln!(
-        "wrote {} ({} conditions at {width}x{height}, {} spp, on {})",
-        out.display(),
-        conditions.len(),
-        args.spp,
-        renderer.ctx.adapter_name()
-    );
-    Ok(())
-}
-
-pub fn run(args: RenderArgs) -> Result<()> {
-    if args.list {
-        builtin::names().for_each(|name| println!("{name}"));
-        return Ok(());
-    }
-    let name = args.scene.as_deref().context("--scene NAME|FILE is required (see `mrstudy render --list`)")?;
-    if let Some(out) = &args.contact_sheet {
-        return contact_sheet(&args, name, out);
-    }
-    let gpu = args.condition.is_some() || args.factors.is_some() || args.knobs.cm.is_some();
-    // conditions render at 1024x768 unless --size says otherwise
-    let size = args.size.or(gpu.then_some((1024, 768)));
-    let scene = scene::load_as(name, size, args.camera.clone())?;
-    if args.print_toml {
-        print!("{}", scene.desc.to_toml());
-        return Ok(());
-    }
-    scene.warnings.iter().for_each(|warning| eprintln!("warning: {warning}"));
-    let target = args.reference.then_some(Target::GroundTruth).or(args.photo.then_some(Target::Photo));
-    if !gpu && target.is_none() && args.gi_method.is_none() {
-        bail!(
-            "say what to render: --condition gi|shadows|none (GPU), --reference or --photo (CPU reference path tracer), or --gi-method em|dit|vct|off"
-        );
-    }
-    let out = args.out.as_ref().context("--out FILE (.png or .exr) is required")?;
-    let params = ReferenceParams { spp: args.spp, seed: args.seed, ..ReferenceParams::default() };
-    if let Some(method) = args.gi_method {
-        let coherent = CoherentParams { seed: args.seed, ..CoherentParams::new(method, args.quality) };
-        // the representation and the frame run on the GPU where one opens (the CPU's otherwise)
-        let renderer = match mrstudy_renderer::gpu::DirRenderer::new() {
-            Ok(renderer) => Some(renderer),
-            Err(e) => {
-                eprintln!("note: no GPU ({e}); the representation and the frame run on the CPU");
-                None
-            }
-        };
-        let bar = progress_bar(2 * args.spp as u64 + 9, &format!("{} {}", scene.name, method.name()), "steps");
-        let lines = mrstudy_renderer::coherent::render::render_to_file(
-            &scene,
-            &coherent,
-            &params,
-            out,
-            args.buffers.as_deref(),
-            renderer.as_ref(),
-            &|done, _| bar.set_position(done as u64),
-        );
-        bar.finish_and_clear();
-        lines?.iter().for_each(|line| eprintln!("{line}"));
-        return Ok(());
-    }
-    let label =
-        format!("{}{} {}x{}", if gpu { "photo " } else { "" }, scene.name, scene.camera.width, scene.camera.height);
-    let Some(target) = target else {
-        // `--condition` is the gi level alone; `--cm` alone renders every factor off
-        let factors = match args.condition {
-            Some(gi) => Factors { gi, coherent: None, cm: false, ca: false, caustics: true },
-            None => args.factors.unwrap_or(Factors {
-                gi: GiLevel::None,
-                coherent: None,
-                cm: false,
-                ca: false,
-                caustics: true,
-            }),
-        };
-        let bar = progress_bar(args.spp as u64, &label, "spp");
-        let lines = render_condition_to_file(
-            &scene,
-            &factors,
-            &RenderKnobs::from(args.knobs),
-            &params,
-            out,
-            args.buffers.as_deref(),
-            &|done, _| bar.set_position(done as u64),
-        );
-        bar.finish_and_clear();
-        lines?.iter().for_each(|line| eprintln!("{line}"));
-        return Ok(());
-    };
-    let bar = progress_bar(target.progress_total(&params) as u64, &label, "spp");
-    let stats =
-        render_to_file(&scene, &params, target, out, args.buffers.as_deref(), &|done, _| bar.set_position(done as u64));
-    bar.finish_and_clear();
-    let stats = stats?;
-    stats.warnings.iter().filter(|w| w.contains("firefly")).for_each(|warning| eprintln!("warning: {warning}"));
-    eprintln!("wrote {} in {:.1} s ({:.0} samples/s)", out.display(), stats.seconds, stats.samples_per_second);
-    eprintln!("light tracing {} ({} light paths)", stats.light_tracing, stats.light_paths);
-    Ok(())
+pub fn run(args: RenderArgs, say: Say) -> Result<()> {
+    // the study is read only where the sheet is drawn (after the scene is named)
+    let sheet = args.request.contact_sheet.is_some() && args.request.scene.is_some() && !args.request.list;
+    let conditions =
+        args.study.as_deref().filter(|_| sheet).map(mrstudy_server::study::sheet_conditions).transpose()?;
+    Ok(render(&RenderRequest { conditions, ..args.request.into() }, say)?)
 }

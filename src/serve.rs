@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Result;
-use mrstudy_server::lab::{LabConfig, normalise_origin};
+use mrstudy_server::connections::parse_seconds;
+use mrstudy_server::lab::{LabConfig, parse_origin};
 use mrstudy_server::limits::Limits;
 use mrstudy_server::logs::LogFormat;
 use mrstudy_server::serve::{Connections, ServeConfig};
@@ -26,14 +27,9 @@ flags! {
         #[command(flatten)] connections: ConnectionsFlags,
         #[command(flatten)] lab: LabFlags,
         /// How the log on stderr (one line per request, warnings and errors) is written: text or json (one object per line); `RUST_LOG` filters it (unset: info for mrstudy, warn for the rest).
-        #[arg(long, default_value = "text", value_parser = crate::values(LOG_FORMATS))] log_format: LogFormat,
+        #[arg(long, default_value = "text", value_parser = crate::values(LogFormat::NAMES))] log_format: LogFormat,
     }
 }
-
-const LOG_FORMATS: &[(&str, &str, LogFormat)] = &[
-    ("text", "One human-readable line per event", LogFormat::Text),
-    ("json", "One JSON object per line (for a log collector)", LogFormat::Json),
-];
 
 flags! {
     /// [`Limits`]' flags; their defaults are its `Default`.
@@ -53,19 +49,19 @@ flags! {
     /// [`Connections`]' flags (times in whole seconds); their defaults are its `Default` (a test checks).
     ConnectionsFlags => Connections {} {
         /// Seconds a connection may take to send a request's headers, from its start or the end of its last response (also how long an idle keep-alive connection is kept).
-        #[arg(long, default_value = "20", value_parser = seconds)] header_timeout: Duration,
+        #[arg(long, default_value = "20", value_parser = parse_seconds)] header_timeout: Duration,
         /// Seconds a request may take to send its whole body after the headers (else 400, and the connection closes).
-        #[arg(long, default_value = "30", value_parser = seconds)] body_timeout: Duration,
+        #[arg(long, default_value = "30", value_parser = parse_seconds)] body_timeout: Duration,
         /// Seconds a whole request (headers and body together) may take, from the connection's start or the end of its last response; a slower one is cut off and its connection closed.
-        #[arg(long, default_value = "30", value_parser = seconds)] request_timeout: Duration,
+        #[arg(long, default_value = "30", value_parser = parse_seconds)] request_timeout: Duration,
         /// Seconds a response may wait for the client to read any of it before the connection is closed.
-        #[arg(long, default_value = "20", value_parser = seconds)] write_timeout: Duration,
+        #[arg(long, default_value = "20", value_parser = parse_seconds)] write_timeout: Duration,
         /// Connections served at once; when full, a new one takes the place of the oldest connection of the address holding the most (if it holds more than the newcomer's).
         #[arg(long, default_value_t = Connections::default().max_connections)] max_connections: usize,
         /// Connections one client address (an IPv6 /64) may hold at once; more are refused with 503 (0: no cap; behind a reverse proxy every connection comes from the proxy, so there is none).
         #[arg(long, default_value_t = Connections::default().max_connections_per_address)] max_connections_per_address: usize,
         /// Seconds a lab WebSocket session may go without a message before it is closed.
-        #[arg(long, default_value = "600", value_parser = seconds)] lab_idle_timeout: Duration,
+        #[arg(long, default_value = "600", value_parser = parse_seconds)] lab_idle_timeout: Duration,
     }
 }
 
@@ -73,28 +69,13 @@ flags! {
     /// [`LabConfig`]'s flags; their defaults are its `Default`.
     LabFlags => LabConfig {} {
         /// An origin (`https://lab.example.org`, `http://192.0.2.7:8080`) whose pages may open lab sessions, besides the address serve listens on (and, on a loopback or wildcard address, `http://localhost:PORT` and `http://127.0.0.1:PORT`); repeat for more. A browser's WebSocket from any other origin is refused (403), whatever its Host.
-        #[arg(long = "origin", value_parser = origin)] origins: Vec<String>,
+        #[arg(long = "origin", value_parser = parse_origin)] origins: Vec<String>,
         /// Open lab sessions per client address; 0: no cap.
         #[arg(long = "lab-sessions-per-address", default_value_t = LabConfig::default().sessions_per_address)] sessions_per_address: usize,
     }
 }
 
-/// A timeout in whole seconds, at least 1.
-fn seconds(text: &str) -> Result<Duration, String> {
-    match text.trim().parse::<u64>() {
-        Ok(seconds) if seconds >= 1 => Ok(Duration::from_secs(seconds)),
-        _ => Err(format!("`{text}` is not a whole number of seconds, at least 1")),
-    }
-}
-
-/// `--origin`'s value, normalised ([`normalise_origin`]).
-fn origin(text: &str) -> Result<String, String> {
-    normalise_origin(text).ok_or_else(|| {
-        format!("`{text}` is not an origin: expected http:// or https://, a host, an optional port, and nothing after")
-    })
-}
-
 pub fn run(flags: ServeFlags) -> Result<()> {
-    let progress = Some(crate::progress::stimulus_bars());
+    let progress = Some(mrstudy_server::console::stimulus_bars());
     Ok(mrstudy_server::serve::run(ServeConfig { progress, ..flags.into() })?)
 }

@@ -1,20 +1,17 @@
-//! `mrstudy simulate` and `mrstudy power`: read the study and the truth, call
-//! `mrstudy_server::simulate` with a progress bar, print the table or JSON, draw the plots.
+//! `mrstudy simulate` and `mrstudy power`: their flags, run by `mrstudy_server::simulate::command`
+//! (the table or JSON, the plots, `power`'s sentences) on the console.
 
 use std::path::PathBuf;
 
+use crate::Say;
 use anyhow::Result;
-use mrstudy_analysis::plot::line_plot;
-use mrstudy_server::simulate::{self, Config, DesignChoice, Options, Report};
-
-use crate::Format;
-use crate::progress::progress_bar;
-
-mod threshold;
+use mrstudy_analysis::command::Format;
+use mrstudy_server::simulate::command::{StudyRequest, power_command, simulate_command};
+use mrstudy_server::simulate::{self, DesignChoice, Options};
 
 flags! {
     /// What `simulate` and `power` share: the study, the truth, the observers, the runs.
-    StudyArgs {
+    StudyArgs => StudyRequest {} {
         /// The study file (`studies/*.toml`); its scheduler and conditions are simulated.
         #[arg(long)] study: PathBuf,
         /// True factor effects on the logit scale, e.g. `gi=0.3,cm=-0.2,ca=0.4` (a factor not named: 0). Default: the thesis's gi 0.27, cm −0.22, ca 0.43 for a study with factors gi, cm, ca. A threshold study: `threshold=T,slope=B` (x units) of the simulated observers' psychometric function.
@@ -53,7 +50,7 @@ flags! {
         #[command(flatten)] study: StudyArgs,
         /// Participant counts to simulate.
         #[arg(long, value_delimiter = ',', default_value = "10,20,40,80", value_parser = clap::value_parser!(u32).range(1..))] participants: Vec<u32>,
-        #[arg(long, value_enum, default_value = "table")] format: Format,
+        #[arg(long, default_value = "table", value_parser = crate::values(Format::NAMES))] format: Format,
         /// Write the plots (simulate-rmse.svg, simulate-power.svg) into this directory.
         #[arg(long)] plot_dir: Option<PathBuf>,
     }
@@ -69,42 +66,12 @@ flags! {
     }
 }
 
-fn run_simulation(args: StudyArgs, participants: &[u32]) -> Result<Report> {
-    let study = mrstudy_server::study::load_study(&args.study)?;
-    let worths = args.truth_worth.as_deref().map(crate::read_text).transpose()?;
-    let truth =
-        simulate::choose_truth(&study, args.truth.as_deref(), worths.as_ref().map(|(t, n)| (t.as_str(), n.as_str())))?;
-    let participants = participants.iter().map(|&count| count as usize).collect();
-    let config = Config { truth, participants, options: args.options.into() };
-    let bar = progress_bar(0, "simulating", "runs");
-    let report = simulate::simulate(&study, &config, &|done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
-    });
-    bar.finish_and_clear();
-    Ok(report?)
+pub fn run_simulate(args: SimulateArgs, say: Say) -> Result<()> {
+    let json = args.format == Format::Json;
+    let study = args.study.into();
+    Ok(simulate_command(&study, &args.participants, json, args.plot_dir.as_deref(), say)?)
 }
 
-pub fn run_simulate(args: SimulateArgs) -> Result<()> {
-    if let Some(study) = threshold::threshold_study(&args.study)? {
-        return threshold::run_simulate(&args, &study);
-    }
-    let report = run_simulation(args.study, &args.participants)?;
-    match args.format {
-        Format::Table => print!("{}", report.table()),
-        Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-    }
-    if let Some(dir) = &args.plot_dir {
-        crate::write_into(dir, report.plots().into_iter().map(|(name, plot)| (name, line_plot(&plot))))?;
-    }
-    Ok(())
-}
-
-pub fn run_power(args: PowerArgs) -> Result<()> {
-    if let Some(study) = threshold::threshold_study(&args.study)? {
-        return threshold::run_power(&args, &study);
-    }
-    let report = run_simulation(args.study, &args.participants)?;
-    simulate::power_report(&report, args.target_power)?.iter().for_each(|line| println!("{line}"));
-    Ok(())
+pub fn run_power(args: PowerArgs, say: Say) -> Result<()> {
+    Ok(power_command(&args.study.into(), &args.participants, args.target_power, say)?)
 }

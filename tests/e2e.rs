@@ -22,6 +22,8 @@ mod lab_study;
 mod logs;
 #[path = "e2e/rating.rs"]
 mod rating;
+#[path = "../server/tests/support/rating_study.rs"]
+mod rating_study;
 #[path = "e2e/render.rs"]
 mod render;
 #[path = "e2e/render_gpu.rs"]
@@ -52,3 +54,5 @@ mod survey_polish;
 mod survey_return;
 #[path = "e2e/threshold.rs"]
 mod threshold;
+#[path = "../server/tests/support/threshold_study.rs"]
+mod threshold_study;

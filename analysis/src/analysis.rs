@@ -31,6 +31,15 @@ pub enum Screening {
     Off,
 }
 
+impl Screening {
+    /// `--screen`'s values: (name, help, value).
+    pub const NAMES: &[(&str, &str, Screening)] = &[
+        ("auto", "On for designs up to 200 conditions", Screening::Auto),
+        ("on", "", Screening::On),
+        ("off", "", Screening::Off),
+    ];
+}
+
 /// Screening refits the item model once per participant; above this many conditions `Auto`
 /// skips it (and says so).
 pub const SCREENING_AUTO_LIMIT: usize = 200;
@@ -88,6 +97,15 @@ pub enum Scale {
 }
 
 impl Scale {
+    /// `--scale`'s values: (name, help, value).
+    pub const NAMES: &[(&str, &str, Scale)] = &[
+        ("bt", "Bradley–Terry log-worths only", Scale::Bt),
+        ("jod", "Also pwcmp's JOD", Scale::Jod),
+        ("log10", "A threshold export fitted with x = log10 intensity", Scale::Log10),
+        ("dB", "A threshold export fitted with x = 20·log10 intensity", Scale::Db),
+        ("linear", "A threshold export fitted with x = intensity", Scale::Linear),
+    ];
+
     /// The stimulus scale a threshold export is fitted on instead of its own, if this names one.
     pub fn stimulus_scale(self) -> Option<crate::threshold::StimScale> {
         match self {

@@ -1,6 +1,9 @@
 //! `mrstudy analyze` on the texts of its files: a task CSV gets the lab-task analysis
 //! ([`crate::task`]), a trials CSV the [`Report`](crate::report::Report); printed as a table ([`crate::table`]) or
-//! JSON, with the plots asked for made before anything is written.
+//! JSON, with the plots asked for made before anything is written. [`analyze_request`] is the
+//! whole command over its files, read and written by the caller's functions (no IO here).
+
+use std::path::{Path, PathBuf};
 
 use crate::analysis::Options;
 use crate::error::{AnalysisError, Result};
@@ -140,4 +143,80 @@ pub fn analyze_files(
         printed.scatter_plots.extend(metrics.scatter_plots());
     }
     Ok(printed)
+}
+
+/// How `analyze` and `simulate` print their result.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Table,
+    Json,
+}
+
+impl Format {
+    /// `--format`'s values: (name, help, value).
+    pub const NAMES: &[(&str, &str, Format)] = &[("table", "", Format::Table), ("json", "", Format::Json)];
+}
+
+/// `mrstudy analyze`'s request: the files to read, how to print, where the plots go.
+#[derive(Debug, Clone)]
+pub struct AnalyzeRequest {
+    pub trials: PathBuf,
+    pub conditions: Option<PathBuf>,
+    pub stimuli: Option<PathBuf>,
+    pub format: Format,
+    pub plot: Option<PathBuf>,
+    pub effect_plot: Option<PathBuf>,
+    pub plot_dir: Option<PathBuf>,
+    pub options: Options,
+}
+
+/// How [`analyze_request`] reaches the files: the caller's read, write and create-folder.
+#[derive(Clone, Copy)]
+pub struct FileAccess<'a, E> {
+    pub read: &'a dyn Fn(&Path) -> std::result::Result<String, E>,
+    pub write: &'a dyn Fn(&Path, &str) -> std::result::Result<(), E>,
+    pub create_dir: &'a dyn Fn(&Path) -> std::result::Result<(), E>,
+}
+
+/// `mrstudy analyze`: reads the request's files through `files`, analyses them
+/// ([`analyze_files`]), writes the plots (all drawn before any is written: no partial output on
+/// error) and returns the text to print.
+pub fn analyze_request<E: From<AnalysisError>>(
+    request: &AnalyzeRequest,
+    files: FileAccess<'_, E>,
+) -> std::result::Result<String, E> {
+    let read = |path: &PathBuf| (files.read)(path).map(|text| (text, path.display().to_string()));
+    let (trials, conditions, stimuli) = (
+        read(&request.trials)?,
+        request.conditions.as_ref().map(read).transpose()?,
+        request.stimuli.as_ref().map(read).transpose()?,
+    );
+    let drawings = Drawings {
+        worth: request.plot.is_some(),
+        effects: request.effect_plot.is_some(),
+        scatter: request.plot_dir.is_some(),
+    };
+    let trials = (trials.0.as_str(), trials.1.as_str());
+    let printed = analyze_files(
+        trials,
+        named(&conditions),
+        named(&stimuli),
+        &request.options,
+        request.format == Format::Json,
+        drawings,
+    )?;
+    let plots = request.plot.iter().zip(&printed.worth_plot);
+    for (path, svg) in plots.chain(request.effect_plot.iter().zip(&printed.effect_plot)) {
+        (files.write)(path, svg)?;
+    }
+    if let Some(folder) = &request.plot_dir {
+        (files.create_dir)(folder)?;
+        printed.scatter_plots.iter().try_for_each(|(name, svg)| (files.write)(&folder.join(name), svg))?;
+    }
+    Ok(printed.text)
+}
+
+/// A file read as (text, name) borrowed as `analyze_files` takes it.
+fn named(file: &Option<(String, String)>) -> Option<(&str, &str)> {
+    file.as_ref().map(|(text, name)| (text.as_str(), name.as_str()))
 }

@@ -8,7 +8,10 @@
 pub mod server;
 
 use mrstudy_analysis::plot::{LinePlot, LineSeries, line_plot};
+use std::path::{Path, PathBuf};
+
 use mrstudy_renderer::bench::{self as render, Observer, Plot};
+use mrstudy_renderer::command::Said;
 
 /// What `mrstudy bench` measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -103,6 +106,59 @@ pub enum BenchError {
     Server(String),
     #[error("cannot start the benchmark's thread pool: {0}")]
     Threads(#[from] rayon::ThreadPoolBuildError),
+    #[error("cannot create {}", path.display())]
+    CreateDir { path: PathBuf, source: std::io::Error },
+    #[error("cannot write {}", path.display())]
+    Write { path: PathBuf, source: std::io::Error },
+}
+
+/// `mrstudy bench`'s command line: the benchmark, where its rows and curves go, its options.
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchArgs {
+    #[arg(value_enum)]
+    pub target: Target,
+    /// Write the rows as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write SVG plots of the curves into this directory.
+    #[arg(long)]
+    pub plot_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub options: Options,
+}
+
+/// Runs the benchmark of `args` (as `mrstudy bench`): its table lines, notes and progress are
+/// said as it runs; then its JSON (`{"adapter": ..., "rows": [...]}`, docs/design.md) is
+/// written to `--json` and its curves as SVG into `--plot-dir`.
+pub fn run_to_files(args: &BenchArgs, say: &(dyn Fn(Said) + Sync)) -> Result<(), BenchError> {
+    let measured = run(args.target, &args.options, &Saying(say))?;
+    let (json, plot_dir) = (args.json.as_deref(), args.plot_dir.as_deref());
+    let write = |path: &Path, text: &str| {
+        std::fs::write(path, text).map_err(|source| BenchError::Write { path: path.to_path_buf(), source })
+    };
+    if let Some(path) = json {
+        write(path, &(serde_json::to_string_pretty(&measured.json).expect("a JSON value prints") + "\n"))?;
+    }
+    if let Some(dir) = plot_dir {
+        std::fs::create_dir_all(dir).map_err(|source| BenchError::CreateDir { path: dir.to_path_buf(), source })?;
+        measured.plots.iter().try_for_each(|(name, svg)| write(&dir.join(name), svg))?;
+    }
+    Ok(())
+}
+
+/// The renderer benchmarks' [`Observer`] over what a command says.
+struct Saying<'a>(&'a (dyn Fn(Said) + Sync));
+
+impl Observer for Saying<'_> {
+    fn line(&self, text: &str) {
+        (self.0)(Said::Out(&format!("{text}\n")));
+    }
+    fn note(&self, text: &str) {
+        (self.0)(Said::Note(text));
+    }
+    fn progress(&self, label: &str, done: u32, total: u32) {
+        (self.0)(Said::Progress { label, unit: "spp", done: done as u64, total: total as u64 });
+    }
 }
 
 /// Runs the benchmark `target` with `options`; its table lines, notes and progress go to

@@ -27,6 +27,7 @@
 //! - [`stimulus`]: a scene configuration under a study's factor levels (gi, shadows, cm, ca):
 //!   the path-traced photograph, then the GPU frame; a fingerprint for caching.
 //! - [`contact_sheet`]: a scene's ground truth, photograph and stimuli side by side, labelled.
+//! - [`command`]: `mrstudy render` as a function over a plain request, and what a command says.
 //! - [`surface`]: the G-buffer's per-pixel surface flag (nothing, real, virtual).
 //! - [`cm`]: the `cm` factor's CPU reference — Reinhard, statistics-based (Lab E), sample-based
 //!   and Rohmer et al.'s colour mapping, the composition (additive or Debevec's scaled), Lab,
@@ -45,6 +46,7 @@ pub mod camera;
 pub mod capture;
 pub mod cm;
 pub mod coherent;
+pub mod command;
 pub mod contact_sheet;
 pub mod error;
 pub mod geometry;

@@ -65,6 +65,15 @@ fn outward_normal(s: &SurfaceHit) -> Vec3 {
     if s.shading_normal.dot(s.geometric_normal) < 0.0 { -s.shading_normal } else { s.shading_normal }
 }
 
+/// A diffuse or glossy point a path shades: position `p`, shading normal `ns`, geometric normal
+/// `ng`.
+#[derive(Clone, Copy, Debug)]
+struct ShadingPoint {
+    p: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+}
+
 /// How a path arrives at a surface: `wo` the direction back along it, `front` whether it came
 /// from outside, `ng` the geometric normal on its side.
 #[derive(Clone, Copy, Debug)]
@@ -573,7 +582,7 @@ impl World {
             let Some((ns, bsdf, p)) = shade(mat, &s, ng) else { break };
 
             // next-event estimation
-            if let Some((term, shadow, t_max)) = self.next_event(&bsdf, (p, ns, ng), wo, beta, &u) {
+            if let Some((term, shadow, t_max)) = self.next_event(&bsdf, ShadingPoint { p, ns, ng }, wo, beta, &u) {
                 if !self.bvh.occluded(&shadow, RAY_EPSILON, t_max) {
                     l += term;
                     if shared {
@@ -602,14 +611,14 @@ impl World {
         (l, l_twin, first)
     }
 
-    /// Next-event estimation at a diffuse or glossy point `p` (shading normal `ns`, geometric
-    /// normal `ng`, both on the side of `wo`): the contribution of one light sample if nothing
-    /// blocks it, the shadow ray and its length; `None` when the sample cannot contribute.
+    /// Next-event estimation at a diffuse or glossy point `at`, its normals on the side of `wo`:
+    /// the contribution of one light sample if nothing blocks it, the shadow ray and its length;
+    /// `None` when the sample cannot contribute.
     #[inline(always)]
     fn next_event(
         &self,
         bsdf: &Bsdf,
-        (p, ns, ng): (Vec3, Vec3, Vec3),
+        ShadingPoint { p, ns, ng }: ShadingPoint,
         wo: Vec3,
         beta: Vec3,
         u: &[f32; 8],

@@ -29,7 +29,7 @@
 
 use crate::ca::CaParams;
 use crate::cm::{CmMethod, CmParams};
-use crate::coherent::render::CapturedScene;
+use crate::coherent::render::{CapturedScene, Photograph, Presentation};
 use crate::coherent::{CoherentParams, Method, Quality};
 use crate::error::{RenderError, Result};
 use crate::gpu::{DirParams, DirRenderer, GiLevel, GpuRender};
@@ -417,14 +417,10 @@ impl StimulusSettings {
                 // the cm and ca of a DIR stimulus under the same factors
                 let dir = self.params(scene, factors);
                 let captured = captured.get_or_insert_with(|| CapturedScene::new(scene, self.seed, &|_, _| {}));
-                let frame = crate::coherent::render::render_stimulus(
-                    scene,
-                    captured,
-                    (photo, linear),
-                    &params,
-                    (&dir.cm, dir.camera_artifacts.as_ref()),
-                    Some(renderer),
-                )?;
+                let photo = Photograph { display: photo, linear };
+                let shown = Presentation { cm: &dir.cm, ca: dir.camera_artifacts.as_ref() };
+                let frame =
+                    crate::coherent::render::render_stimulus(scene, captured, photo, &params, shown, Some(renderer))?;
                 Ok(StimulusFrame {
                     composite: frame.composite,
                     ms: frame.ms,

@@ -25,6 +25,22 @@ use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::time::{Instant, Sleep};
 
+/// A timeout flag's value that is not a whole number of seconds, at least 1.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+#[error("`{text}` is not a whole number of seconds, at least 1")]
+pub struct SecondsError {
+    pub text: String,
+}
+
+/// A timeout in whole seconds, at least 1 (`serve`'s timeout flags).
+pub fn parse_seconds(text: &str) -> Result<Duration, SecondsError> {
+    match text.trim().parse::<u64>() {
+        Ok(seconds) if seconds >= 1 => Ok(Duration::from_secs(seconds)),
+        _ => Err(SecondsError { text: text.to_string() }),
+    }
+}
+
 /// When a connection's current request began, and how many of its requests are being served
 /// (their responses not yet written whole).
 #[derive(Debug)]

@@ -12,7 +12,8 @@
 //! sessions, results); [`export`] writes the trials CSV and JSON; [`serve`] starts
 //! everything from a data directory; [`simulate`] plans a study by running its scheduler and
 //! analysis on simulated observers. [`app`] builds the router apart from any socket, so tests
-//! drive it with `oneshot`.
+//! drive it with `oneshot`. [`console`] prints what the CLI's commands say and draws their
+//! progress bars.
 //!
 //! [`stimuli`] renders the stimuli of studies that name scenes for the renderer (photograph by
 //! the path tracer, frame by the GPU renderer) into the store, only those that are missing;
@@ -29,6 +30,7 @@
 pub mod admin;
 pub mod auth;
 pub mod connections;
+pub mod console;
 pub mod error;
 pub mod export;
 pub mod lab;

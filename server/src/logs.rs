@@ -40,6 +40,14 @@ pub enum LogFormat {
     Json,
 }
 
+impl LogFormat {
+    /// `--log-format`'s values: (name, help, value).
+    pub const NAMES: &[(&str, &str, LogFormat)] = &[
+        ("text", "One human-readable line per event", LogFormat::Text),
+        ("json", "One JSON object per line (for a log collector)", LogFormat::Json),
+    ];
+}
+
 /// Why the log could not be set up.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]

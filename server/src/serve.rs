@@ -674,6 +674,33 @@ pub struct ExportOutput {
     pub left_out: Option<String>,
 }
 
+/// `mrstudy export`'s request (its flags).
+#[derive(Debug, Clone)]
+pub struct ExportRequest {
+    /// The study's slug.
+    pub study: String,
+    pub format: ExportFormat,
+    /// The file to write; none: the text is returned for stdout.
+    pub out: Option<PathBuf>,
+    pub data_dir: PathBuf,
+    pub database: Option<String>,
+    pub include: crate::export::Include,
+}
+
+/// Runs `request` as `mrstudy export` does ([`export`]): says who was left out, writes the
+/// export to `out`, or returns its text for stdout.
+pub fn export_command(
+    request: &ExportRequest,
+    say: &dyn Fn(mrstudy_renderer::command::Said),
+) -> Result<Option<String>, ExportCommandError> {
+    let database = request.database.as_deref();
+    let output = export(&request.data_dir, database, &request.study, request.format, request.include)?;
+    output.left_out.iter().for_each(|line| say(mrstudy_renderer::command::Said::Note(line)));
+    let Some(path) = &request.out else { return Ok(Some(output.text)) };
+    std::fs::write(path, output.text).map_err(|source| ExportCommandError::Write { path: path.clone(), source })?;
+    Ok(None)
+}
+
 /// `mrstudy export`: the trials CSV, the JSON export or the conditions CSV of one study, read
 /// from `database` (`serve --database`'s value; `None`: `<data-dir>/mrstudy.db`); pilot and
 /// excluded participants only when `include` keeps them.
@@ -755,6 +782,8 @@ pub enum ExportCommandError {
     /// A lab export failed (its sentence).
     #[error("{0}")]
     Lab(crate::error::AppError),
+    #[error("cannot write {}: {source}", path.display())]
+    Write { path: PathBuf, source: std::io::Error },
 }
 
 /// What `mrstudy export` writes.

@@ -33,6 +33,7 @@
 //! renames a uniquely named partial file into place), and a merged store holds the same images,
 //! ground truths and index entries as one rendered on a single machine.
 
+pub mod command;
 pub mod lines;
 
 use std::path::{Path, PathBuf};

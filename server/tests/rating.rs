@@ -15,6 +15,9 @@ use serde_json::{Value, json};
 
 mod support;
 use support::{call, connect, copy_demo_study, demographics, test_database};
+#[path = "support/rating_study.rs"]
+mod rating_study;
+use rating_study::AcrStudy;
 
 const SLUG: &str = "rating-demo";
 
@@ -24,12 +27,7 @@ fn studies_dir(work: &Path) -> std::path::PathBuf {
     let dir = work.join("studies");
     copy_demo_study(&dir);
     let demo = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
-    let body = &demo[demo.find("[texts]").unwrap()..demo.find("[design]").unwrap()];
-    let study = format!(
-        "slug = \"{SLUG}\"\ntitle = \"Ratings\"\nkind = \"rating\"\nquestion = \"How good is this image?\"\n\
-         min_response_ms = 0\n{body}\n[rating]\nmethod = \"acr\"\nseed = 1\n\n[[rating.catch]]\nname = \"broken\"\n\
-         image = \"shadows-demo/catch-bad.png\"\nexpected = 1\n\n[completion]\ncode = \"R-1\"\n"
-    );
+    let study = AcrStudy { slug: SLUG, top_level: "min_response_ms = 0", ..AcrStudy::default() }.toml(&demo);
     std::fs::write(dir.join("rating-demo.toml"), study).unwrap();
     dir
 }

@@ -19,6 +19,9 @@ use sqlx::Row;
 
 mod support;
 use support::{Started, call, repo_studies_dir};
+#[path = "support/threshold_study.rs"]
+mod threshold_study;
+use threshold_study::ThresholdStudy;
 
 const STUDY: &str = "vpls-tiny";
 
@@ -28,47 +31,11 @@ fn write_study(studies: &Path) {
 
 /// The study, with `render` lines added to its `[threshold]` table.
 fn write_study_rendered(studies: &Path, render: &str) {
-    std::fs::create_dir_all(studies.join("img")).unwrap();
-    for (name, from) in [("good.png", "catch-good.png"), ("broken.png", "catch-bad.png")] {
-        std::fs::copy(repo_studies_dir().join("shadows-demo").join(from), studies.join("img").join(name)).unwrap();
-    }
-    let text = format!(
-        r#"slug = "{STUDY}"
-title = "How many VPLs?"
-kind = "threshold"
-question = "In which image was nothing added afterwards?"
-[texts]
-welcome = "w"
-consent = "c"
-instructions = "i"
-[[scenes]]
-name = "one"
-render = "survey-1"
-[[scenes]]
-name = "two"
-render = "survey-2"
-[render]
-size = [32, 24]
-spp = 1
-[[catch]]
-name = "obvious"
-better = "img/good.png"
-worse = "img/broken.png"
-[threshold]
-knob = "vpls"
-levels = [1, 4, 16, 64]
-intensity = "inverse-knob"
-scale = "log10"
-function = "weibull"
-threshold = [-2.0, -1.5, -1.0, -0.5, 0.0]
-slope = [2.0, 3.5]
-lapse = [0.0, 0.02]
-guess = 0.5
-trials = 10
-{render}
-"#
+    ThresholdStudy { slug: STUDY, render, ..ThresholdStudy::default() }.write(
+        studies,
+        "threshold.toml",
+        &repo_studies_dir(),
     );
-    std::fs::write(studies.join("threshold.toml"), text).unwrap();
 }
 
 async fn start(work: &Path) -> Option<(Router, AppState)> {

@@ -232,6 +232,31 @@ pub(super) fn consent_and_demographics(driver: &Driver, gender: &str, age: &str)
     driver.click("#demographics-continue");
 }
 
+/// Consents and continues past the demographics without answering them (a study that asks
+/// none), then waits for the instructions.
+pub(super) fn consent_without_demographics(driver: &Driver) {
+    driver.click("#consent");
+    driver.click("#consent-continue");
+    driver.wait_visible("stage-demographics");
+    driver.click("#demographics-continue");
+    driver.wait_visible("stage-instructions");
+}
+
+/// Answers `trials` (numbered from 1; `last` the study's last) one by one with `answer(trial)`,
+/// waiting after each for the next trial, or the end after the last.
+pub(super) fn answer_trials(
+    driver: &Driver,
+    trials: std::ops::RangeInclusive<u8>,
+    last: u8,
+    mut answer: impl FnMut(u8),
+) {
+    for trial in trials {
+        answer(trial);
+        let next = if trial == last { "done".to_string() } else { (trial + 1).to_string() };
+        driver.wait_trial(&next);
+    }
+}
+
 pub(super) fn screenshot_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
 }

@@ -9,8 +9,11 @@
 use std::path::Path;
 use std::time::Duration;
 
-use super::browser::{Driver, browser_available, consent_and_demographics, screenshot_path};
-use super::support::{Server, copy_demo_study, export};
+use super::browser::{
+    Driver, answer_trials, browser_available, consent_and_demographics, consent_without_demographics, screenshot_path,
+};
+use super::rating_study::AcrStudy;
+use super::support::{Server, column, copy_demo_study, export, split_csv, start_rendered};
 use super::survey_input::{double_click, hold_key, phone, query};
 
 const SLUG: &str = "rating-browser";
@@ -20,27 +23,15 @@ fn write_study(dir: &Path) {
     copy_demo_study(dir);
     let demo = std::fs::read_to_string(dir.join("shadows-demo.toml")).unwrap();
     std::fs::remove_file(dir.join("shadows-demo.toml")).unwrap();
-    let body = &demo[demo.find("[texts]").unwrap()..demo.find("[design]").unwrap()];
-    let study = format!(
-        r#"slug = "{SLUG}"
-title = "Image quality"
-kind = "rating"
-question = "How good is the quality of this image?"
-
-{body}
-[rating]
-method = "acr"
-seed = 5
-
-[[rating.catch]]
-name = "broken"
-image = "shadows-demo/catch-bad.png"
-expected = 1
-
-[completion]
-code = "RATE-1"
-"#
-    );
+    let study = AcrStudy {
+        slug: SLUG,
+        title: "Image quality",
+        question: "How good is the quality of this image?",
+        seed: 5,
+        completion_code: "RATE-1",
+        ..AcrStudy::default()
+    };
+    let study = study.toml(&demo);
     std::fs::write(dir.join(format!("{SLUG}.toml")), study).unwrap();
 }
 
@@ -102,7 +93,7 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
     driver.screenshot(&screenshot_path("rating-desktop.png"));
 
     // the rest by clicks and keys, every rating once
-    for trial in 4..=13u8 {
+    answer_trials(&driver, 4..=13, 13, |trial| {
         let rating = trial % 5 + 1;
         if trial % 2 == 0 {
             driver.click(&format!("#rate-{rating}"));
@@ -110,9 +101,7 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
             driver.type_into("body", &rating.to_string());
         }
         gave.push(rating);
-        let next = if trial == 13 { "done".to_string() } else { (trial + 1).to_string() };
-        driver.wait_trial(&next);
-    }
+    });
     driver.wait_visible("stage-done");
     assert_eq!(driver.text("#completion-code"), "RATE-1");
 
@@ -128,12 +117,10 @@ fn ratings_survive_a_double_click_a_held_key_and_a_reload_and_export_with_their_
     // the export: one row per rating, the catch trial's flagged with its expected rating
     let csv = export(data_dir.path(), SLUG, "csv");
     assert!(!csv.contains('"'), "{csv}");
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
+    let (header, rows) = split_csv(&csv);
+    let column = |name: &str| column(&header, name);
     let tail = &header[column("scene")..column("expected") + 1];
     assert_eq!(tail, ["scene", "condition", "rating", "method", "reference", "scale", "catch", "expected"]);
-    let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
     assert_eq!(rows.len(), 13, "{csv}");
     let mut catch_rows = 0;
     for (row, rating) in rows.iter().zip(&gave) {
@@ -226,22 +213,11 @@ fn sequential_dcr_shows_reference_grey_stimulus_grey_and_takes_the_vote_only_aft
     }
     let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     write_dcr_study(studies.path(), "stimulus_ms = 700\ngrey_ms = 500\nvote_after = true");
-    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
-    match server.wait_open("dcr-browser", Duration::from_secs(300)) {
-        Err(warning) if warning.contains("adapter") => {
-            eprintln!("skipping: no GPU adapter ({warning})");
-            return;
-        }
-        result => result.unwrap(),
-    }
+    let Some(server) = start_rendered(data_dir.path(), studies.path(), "dcr-browser") else { return };
     let driver = Driver::start(1280, 800);
     driver.go(&format!("{}/studies/dcr-browser", server.base));
     driver.wait_visible("stage-welcome");
-    driver.click("#consent");
-    driver.click("#consent-continue");
-    driver.wait_visible("stage-demographics");
-    driver.click("#demographics-continue");
-    driver.wait_visible("stage-instructions");
+    consent_without_demographics(&driver);
     // every phase the page shows, in order, with the trial on screen
     driver.script(
         "window.phases = []; new MutationObserver(() => window.phases.push(document.body.dataset.phase)).observe(document.body, {attributes: true, attributeFilter: ['data-phase']}); return null;",
@@ -272,23 +248,18 @@ fn sequential_dcr_shows_reference_grey_stimulus_grey_and_takes_the_vote_only_aft
     );
     driver.screenshot(&screenshot_path("rating-dcr-vote.png"));
     let mut gave = Vec::new();
-    for trial in 1..=3u8 {
-        driver.wait_trial(&trial.to_string());
+    answer_trials(&driver, 1..=3, 3, |trial| {
         let rating = 6 - trial;
         driver.click(&format!("#rate-{rating}"));
         gave.push(rating);
-        let next = if trial == 3 { "done".to_string() } else { (trial + 1).to_string() };
-        driver.wait_trial(&next);
-    }
+    });
     driver.wait_visible("stage-done");
     let stored = query(data_dir.path(), "SELECT rating FROM responses ORDER BY trial");
     assert_eq!(stored, gave.iter().map(|rating| vec![rating.to_string()]).collect::<Vec<_>>());
 
     let csv = export(data_dir.path(), "dcr-browser", "csv");
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
-    let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
+    let (header, rows) = split_csv(&csv);
+    let column = |name: &str| column(&header, name);
     assert_eq!(rows.len(), 3, "{csv}");
     for row in &rows {
         assert_eq!(
@@ -314,22 +285,11 @@ fn side_by_side_dcr_shows_both_images_at_one_size_on_a_phone() {
     }
     let (data_dir, studies) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     write_dcr_study(studies.path(), "layout = \"side-by-side\"");
-    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
-    match server.wait_open("dcr-browser", Duration::from_secs(300)) {
-        Err(warning) if warning.contains("adapter") => {
-            eprintln!("skipping: no GPU adapter ({warning})");
-            return;
-        }
-        result => result.unwrap(),
-    }
+    let Some(server) = start_rendered(data_dir.path(), studies.path(), "dcr-browser") else { return };
     let phone = phone();
     phone.go(&format!("{}/studies/dcr-browser", server.base));
     phone.wait_visible("stage-welcome");
-    phone.click("#consent");
-    phone.click("#consent-continue");
-    phone.wait_visible("stage-demographics");
-    phone.click("#demographics-continue");
-    phone.wait_visible("stage-instructions");
+    consent_without_demographics(&phone);
     phone.click("#start");
     phone.wait_trial("1");
     assert_eq!(phone.script("return document.body.dataset.phase;"), "both");

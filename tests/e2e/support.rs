@@ -106,6 +106,34 @@ pub fn demo_texts() -> String {
     demo[demo.find("[texts]").unwrap()..demo.find("[[demographics]]").unwrap()].to_string()
 }
 
+/// A server on `studies` whose study `slug` renders its stimuli at start-up, once it is open;
+/// `None` (said on stderr) where no GPU adapter renders them.
+pub fn start_rendered(data_dir: &Path, studies: &Path, slug: &str) -> Option<Server> {
+    let server = Server::try_start(data_dir, "127.0.0.1:0", studies).unwrap();
+    match server.wait_open(slug, std::time::Duration::from_secs(300)) {
+        Err(warning) if warning.contains("adapter") => {
+            eprintln!("skipping: no GPU adapter ({warning})");
+            None
+        }
+        result => {
+            result.unwrap();
+            Some(server)
+        }
+    }
+}
+
+/// An export CSV without quoted cells split plainly: its header and its rows.
+pub fn split_csv(csv: &str) -> (Vec<&str>, Vec<Vec<&str>>) {
+    let mut lines = csv.lines();
+    let header = lines.next().unwrap().split(',').collect();
+    (header, lines.map(|line| line.split(',').collect()).collect())
+}
+
+/// The index of the column `name` in `header`.
+pub fn column(header: &[&str], name: &str) -> usize {
+    header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}: {header:?}"))
+}
+
 /// A studies folder holding only the demo study (copied once per test process): the repository's
 /// folder also holds the thesis survey, whose 48 stimuli `serve` would render at start-up.
 pub fn studies_dir() -> PathBuf {

@@ -4,61 +4,26 @@
 //! and `mrstudy export` writes the threshold columns.
 
 use std::path::Path;
-use std::time::Duration;
 
 use serde_json::Value;
 
-use super::browser::{Driver, browser_available, screenshot_path};
-use super::support::{Server, client, demo_texts, export, repo_studies_dir};
+use super::browser::{Driver, answer_trials, browser_available, consent_without_demographics, screenshot_path};
+use super::support::{client, column, demo_texts, export, repo_studies_dir, split_csv, start_rendered};
+use super::threshold_study::ThresholdStudy;
 
 const SLUG: &str = "vpls-browser";
 
 fn write_study(dir: &Path) {
-    for name in ["catch-good.png", "catch-bad.png"] {
-        std::fs::copy(repo_studies_dir().join("shadows-demo").join(name), dir.join(name)).unwrap();
-    }
     let texts = demo_texts();
-    let study = format!(
-        r#"slug = "{SLUG}"
-title = "How many VPLs?"
-kind = "threshold"
-question = "In which image was nothing added afterwards?"
-
-{texts}
-[render]
-size = [64, 48]
-spp = 1
-
-[[scenes]]
-name = "one"
-render = "survey-1"
-
-[[scenes]]
-name = "two"
-render = "survey-2"
-
-[[catch]]
-name = "obvious"
-better = "catch-good.png"
-worse = "catch-bad.png"
-
-[threshold]
-knob = "vpls"
-levels = [1, 4, 16, 64]
-intensity = "inverse-knob"
-scale = "log10"
-function = "weibull"
-threshold = [-2.0, -1.5, -1.0, -0.5, 0.0]
-slope = [2.0, 3.5]
-lapse = [0.0, 0.02]
-guess = 0.5
-trials = 6
-
-[completion]
-code = "VPLS-1"
-"#
-    );
-    std::fs::write(dir.join(format!("{SLUG}.toml")), study).unwrap();
+    let study = ThresholdStudy {
+        slug: SLUG,
+        texts: &texts,
+        size: [64, 48],
+        trials: 6,
+        after: "[completion]\ncode = \"VPLS-1\"\n",
+        ..ThresholdStudy::default()
+    };
+    study.write(dir, &format!("{SLUG}.toml"), &repo_studies_dir());
 }
 
 #[test]
@@ -69,22 +34,11 @@ fn a_participant_completes_a_threshold_study_in_chromium_and_a_reload_continues_
     let data_dir = tempfile::tempdir().unwrap();
     let studies = tempfile::tempdir().unwrap();
     write_study(studies.path());
-    let server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
-    match server.wait_open(SLUG, Duration::from_secs(300)) {
-        Err(warning) if warning.contains("adapter") => {
-            eprintln!("skipping: no GPU adapter ({warning})");
-            return;
-        }
-        result => result.unwrap(),
-    }
+    let Some(server) = start_rendered(data_dir.path(), studies.path(), SLUG) else { return };
     let driver = Driver::start(1280, 900);
     driver.go(&format!("{}/studies/{SLUG}", server.base));
     driver.wait_visible("stage-welcome");
-    driver.click("#consent");
-    driver.click("#consent-continue");
-    driver.wait_visible("stage-demographics");
-    driver.click("#demographics-continue");
-    driver.wait_visible("stage-instructions");
+    consent_without_demographics(&driver);
     driver.click("#start");
 
     driver.wait_trial("1");
@@ -100,13 +54,10 @@ fn a_participant_completes_a_threshold_study_in_chromium_and_a_reload_continues_
     assert_eq!(driver.text("#trial-progress"), "Trial 3 of 7");
     assert_eq!(driver.script("return document.getElementById('image-left').src;"), shown_before);
     driver.screenshot(&screenshot_path("browser-threshold-trial.png"));
-    for trial in 3..=7 {
-        driver.wait_trial(&trial.to_string());
+    answer_trials(&driver, 3..=7, 7, |trial| {
         let key = if trial % 2 == 0 { "\u{E012}" } else { "\u{E014}" }; // ArrowLeft, ArrowRight
         driver.type_into("body", key);
-        let next = if trial == 7 { "done".to_string() } else { (trial + 1).to_string() };
-        driver.wait_trial(&next);
-    }
+    });
     driver.wait_visible("stage-done");
     assert_eq!(driver.text("#completion-code"), "VPLS-1");
 
@@ -123,10 +74,8 @@ fn a_participant_completes_a_threshold_study_in_chromium_and_a_reload_continues_
     let csv = export(data_dir.path(), SLUG, "csv");
     // no cell of this study holds a comma or a quote: the lines split plainly
     assert!(!csv.contains('"'), "{csv}");
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
-    let rows: Vec<Vec<&str>> = lines.map(|line| line.split(',').collect()).collect();
+    let (header, rows) = split_csv(&csv);
+    let column = |name: &str| column(&header, name);
     assert_eq!(rows.len(), 6, "{csv}");
     for row in &rows {
         assert!(["1", "4", "16", "64"].contains(&row[column("level")]), "{csv}");

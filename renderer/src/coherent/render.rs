@@ -177,40 +177,53 @@ pub struct CoherentStimulus {
     pub cm: crate::cm::CmReport,
 }
 
-/// A stimulus of `scene` by a coherent method from `captured`, shown as a DIR stimulus is:
-/// `photo` is the photograph (display-encoded) and `linear` its linear radiance. The frame's two radiance
-/// buffers — the real surfaces as photographed (`L_r`) and with the differential added
-/// (`L_rv`), the object's radiance on it — go through the colour mapping `cm` (the `cm`
-/// factor's: Reinhard off, the statistics transfer on) and the differential composition over
-/// the photograph, blended by the object's coverage at its edges; `ca`, when the `ca` factor is
-/// on, adds the camera artifacts (the CPU reference of the ca chain).
+/// The photograph a coherent frame is composed over: as shown (display-encoded) and its linear
+/// radiance, the same size.
+#[derive(Clone, Copy, Debug)]
+pub struct Photograph<'a> {
+    pub display: &'a Image,
+    pub linear: &'a Image,
+}
+
+/// How a coherent frame is shown as a DIR stimulus under the same factors: the colour mapping
+/// `cm` (the `cm` factor's: Reinhard off, the statistics transfer on) and, when the `ca` factor
+/// is on, the camera artifacts `ca` (the CPU reference of the ca chain).
+#[derive(Clone, Copy, Debug)]
+pub struct Presentation<'a> {
+    pub cm: &'a crate::cm::CmParams,
+    pub ca: Option<&'a crate::ca::CaParams>,
+}
+
+/// A stimulus of `scene` by a coherent method from `captured`, shown as a DIR stimulus is,
+/// over `photo`. The frame's two radiance buffers — the real surfaces as photographed (`L_r`)
+/// and with the differential added (`L_rv`), the object's radiance on it — go through the
+/// colour mapping of `shown` and the differential composition over the photograph, blended by
+/// the object's coverage at its edges; then the camera artifacts of `shown`, if any.
 pub fn render_stimulus(
     scene: &Scene,
     captured: &CapturedScene,
-    (photo, linear): (&Image, &Image),
+    photo: Photograph,
     params: &CoherentParams,
-    (cm, ca): (&crate::cm::CmParams, Option<&crate::ca::CaParams>),
+    shown: Presentation,
     gpu: Option<&DirRenderer>,
 ) -> Result<CoherentStimulus> {
     let start = Instant::now();
     // a study's stimuli keep the CPU's frame (their bytes unchanged); the representation is
     // built on the GPU
-    let (_, frame) = captured.render(scene, params, linear, (gpu, false), &|_, _| {})?;
-    let (composite, cm) = show(scene, &frame, photo, linear, cm, ca, &mut crate::cm::CmState::default())?;
+    let (_, frame) = captured.render(scene, params, photo.linear, (gpu, false), &|_, _| {})?;
+    let (composite, cm) = show(scene, &frame, photo, shown, &mut crate::cm::CmState::default())?;
     Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm })
 }
 
 /// A coherent frame shown as a DIR stimulus is (see [`render_stimulus`]): its two radiance
-/// buffers through the colour mapping `cm` (with the mapping's history `state`, for live
-/// frames), the differential composition over `photo` (display-encoded; `linear` its linear
-/// radiance), the object blended by its coverage, and the camera artifacts `ca`.
+/// buffers through the colour mapping of `shown` (with the mapping's history `state`, for live
+/// frames), the differential composition over `photo`, the object blended by its coverage, and
+/// the camera artifacts of `shown`.
 fn show(
     scene: &Scene,
     frame: &CoherentFrame,
-    photo: &Image,
-    linear: &Image,
-    cm: &crate::cm::CmParams,
-    ca: Option<&crate::ca::CaParams>,
+    Photograph { display: photo, linear }: Photograph,
+    Presentation { cm, ca }: Presentation,
     state: &mut crate::cm::CmState,
 ) -> Result<(Image, crate::cm::CmReport)> {
     use crate::cm::{CmInput, Composition, compose, cpu_frame};
@@ -364,7 +377,8 @@ impl LiveCoherent {
         let frame = Coherent::new(scene, &self.captured.real, &rep, *params).render(&self.linear, &|_, _| {})?;
         passes.extend(frame.report.passes.iter().cloned());
         let start = Instant::now();
-        let (composite, _) = show(scene, &frame, &self.photo, &self.linear, cm, None, state)?;
+        let photo = Photograph { display: &self.photo, linear: &self.linear };
+        let (composite, _) = show(scene, &frame, photo, Presentation { cm, ca: None }, state)?;
         passes.push(PassTime::new("colour mapping and display", ms_since(start)));
         Ok(LiveFrame { composite, passes })
     }

@@ -6,6 +6,16 @@
 use super::*;
 use crate::test_support::scene_from_toml;
 
+/// The photograph of a coherent stimulus: as shown and linear.
+fn photograph<'a>(display: &'a Image, linear: &'a Image) -> render::Photograph<'a> {
+    render::Photograph { display, linear }
+}
+
+/// How a coherent stimulus is shown: its colour mapping and camera artifacts.
+fn presented<'a>(cm: &'a crate::cm::CmParams, ca: Option<&'a crate::ca::CaParams>) -> render::Presentation<'a> {
+    render::Presentation { cm, ca }
+}
+
 /// A real grey floor under a sky with a bright window, a virtual box on it, a real spot light.
 const FLOOR: &str = r#"
 [camera]
@@ -327,7 +337,9 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let p = CoherentParams::new(Method::Dit, Quality::Low);
     let off = crate::cm::CmParams::default();
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown = render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&off, None), None).unwrap();
+    let shown =
+        render::render_stimulus(&scene, &capture, photograph(&display, &linear), &p, presented(&off, None), None)
+            .unwrap();
     let frame = &shown.frame;
     let (mut object_pixels, mut untouched) = (0, 0);
     for k in 0..display.pixels.len() {
@@ -358,8 +370,15 @@ fn a_coherent_stimulus_is_mapped_and_composed_over_the_photograph_as_a_dir_stimu
     let statistics = crate::cm::CmParams { method: crate::cm::CmMethod::Statistics, ..Default::default() };
     let ca = crate::ca::CaParams::from_sensor(&scene.sensor);
     let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-    let shown =
-        render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&statistics, Some(&ca)), None).unwrap();
+    let shown = render::render_stimulus(
+        &scene,
+        &capture,
+        photograph(&display, &linear),
+        &p,
+        presented(&statistics, Some(&ca)),
+        None,
+    )
+    .unwrap();
     assert_eq!(shown.composite.pixels, display.pixels);
 }
 
@@ -457,7 +476,9 @@ fn a_live_frame_of_the_unmoved_scene_is_its_stimulus_and_follows_the_object_when
     for method in [Method::Em, Method::Dit, Method::Vct] {
         let p = CoherentParams::new(method, Quality::Low);
         let capture = render::CapturedScene::new(&scene, p.seed, &|_, _| {});
-        let stimulus = render::render_stimulus(&scene, &capture, (&display, &linear), &p, (&off, None), None).unwrap();
+        let stimulus =
+            render::render_stimulus(&scene, &capture, photograph(&display, &linear), &p, presented(&off, None), None)
+                .unwrap();
         let frame = live.frame(&scene, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();
         assert_eq!(frame.composite.pixels, stimulus.composite.pixels, "{}", method.name());
         let after = live.frame(&moved, &p, &off, &mut crate::cm::CmState::default(), None).unwrap();

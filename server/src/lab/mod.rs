@@ -258,6 +258,19 @@ impl Default for LabConfig {
     }
 }
 
+/// An `--origin` value that is not an origin.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+#[error("`{text}` is not an origin: expected http:// or https://, a host, an optional port, and nothing after")]
+pub struct OriginError {
+    pub text: String,
+}
+
+/// `--origin`'s value, normalised ([`normalise_origin`]).
+pub fn parse_origin(text: &str) -> Result<String, OriginError> {
+    normalise_origin(text).ok_or_else(|| OriginError { text: text.to_string() })
+}
+
 /// `origin` as the lab compares origins: lower case, without a trailing slash; None when it is
 /// not `http://…` or `https://…` with a host and nothing after it.
 pub fn normalise_origin(origin: &str) -> Option<String> {

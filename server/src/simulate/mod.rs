@@ -49,6 +49,7 @@
 //! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
 //! `[{factor, effect, power, mcse}]`.
 
+pub mod command;
 mod compare;
 mod design;
 pub mod familiarity;

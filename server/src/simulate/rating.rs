@@ -34,7 +34,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::design::DesignChoice;
 use super::observer::{normal, uniform};
-use super::report::{Report, RunOutcome, Settings, summarise};
+use super::report::{Report, RunOutcome, summarise};
 use super::{ALPHA, Config, SimulateError};
 use crate::rating::{RatedTrial, plan};
 use crate::schedule::derived_seed;
@@ -76,22 +76,7 @@ pub(super) fn simulate(
         .zip(&config.participants)
         .map(|(chunk, &participants)| summarise(&variant, participants, chunk, config))
         .collect();
-    Ok(Report {
-        study: study.slug.clone(),
-        reference: study.conditions[0].name.clone(),
-        truth: config.truth.clone(),
-        settings: Settings {
-            observer_sd: config.options.observer_sd,
-            lapse: config.options.lapse,
-            dropout: config.options.dropout,
-            runs: config.options.runs,
-            seed: config.options.seed,
-            bootstrap: config.options.bootstrap,
-            alpha: ALPHA,
-        },
-        rows,
-        comparisons: Vec::new(),
-    })
+    Ok(Report::new(study, config, rows))
 }
 
 /// One simulated observer's rating of a stimulus of quality `quality`.

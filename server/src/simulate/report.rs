@@ -98,6 +98,29 @@ pub struct Report {
     pub comparisons: Vec<Comparison>,
 }
 
+impl Report {
+    /// The report of `rows`, simulated on `study` under `config` (no comparisons yet).
+    pub(super) fn new(study: &Study, config: &Config, rows: Vec<Row>) -> Report {
+        let options = &config.options;
+        Report {
+            study: study.slug.clone(),
+            reference: study.conditions[0].name.clone(),
+            truth: config.truth.clone(),
+            settings: Settings {
+                observer_sd: options.observer_sd,
+                lapse: options.lapse,
+                dropout: options.dropout,
+                runs: options.runs,
+                seed: options.seed,
+                bootstrap: options.bootstrap,
+                alpha: ALPHA,
+            },
+            rows,
+            comparisons: Vec::new(),
+        }
+    }
+}
+
 pub(super) fn summarise(
     (choice, variant): &(DesignChoice, Study),
     participants: usize,

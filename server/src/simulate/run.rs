@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::design::{DesignChoice, design_variant};
 use super::observer::collect_judgments;
-use super::report::{Report, RunOutcome, Settings, summarise};
+use super::report::{Report, RunOutcome, summarise};
 use super::{ALPHA, Config, SimulateError, Z_95};
 
 /// Scores one analysis against the truth.
@@ -153,22 +153,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
     for (chunk, &(v, p, _)) in outcomes.chunks(config.options.runs).zip(jobs.iter().step_by(config.options.runs)) {
         rows.push(summarise(&variants[v], config.participants[p], chunk, config));
     }
-    let mut report = Report {
-        study: study.slug.clone(),
-        reference: study.conditions[0].name.clone(),
-        truth: config.truth.clone(),
-        settings: Settings {
-            observer_sd: config.options.observer_sd,
-            lapse: config.options.lapse,
-            dropout: config.options.dropout,
-            runs: config.options.runs,
-            seed: config.options.seed,
-            bootstrap: config.options.bootstrap,
-            alpha: ALPHA,
-        },
-        rows,
-        comparisons: Vec::new(),
-    };
+    let mut report = Report::new(study, config, rows);
     report.comparisons = report.compare_with_study();
     Ok(report)
 }

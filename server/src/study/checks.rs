@@ -1,6 +1,6 @@
 //! The checks both kinds of study file share: the refusal maker (`Fail`), the name rules
 //! (slug, identifier, condition name), non-empty texts, the reference to a scene for the
-//! renderer, image files and the response-time floor.
+//! renderer, image files and the response-time floor; a study kind's own table (`kind_table`).
 
 use std::path::{Path, PathBuf};
 

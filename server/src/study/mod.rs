@@ -12,7 +12,10 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use mrstudy_renderer::stimulus::Factors;
+
 pub mod checks;
+mod made;
 pub mod rating;
 pub mod rating_design;
 #[cfg(test)]
@@ -73,6 +76,35 @@ pub(crate) fn one_line(message: &str) -> String {
 pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
     hex::encode(sha2::Sha256::digest(bytes))
+}
+
+/// Why a study's conditions cannot go on a contact sheet ([`sheet_conditions`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SheetConditionsError {
+    #[error(transparent)]
+    Study(#[from] StudyError),
+    /// A condition whose levels the renderer has not.
+    #[error("{condition}: {reason}")]
+    Unrenderable { condition: String, reason: String },
+    #[error("{} is a task study; name a paired-comparison study", file.display())]
+    TaskStudy { file: PathBuf },
+}
+
+/// The conditions (name, factors) of the study in `file`, for `mrstudy render --contact-sheet`.
+pub fn sheet_conditions(file: &Path) -> Result<Vec<(String, Factors)>, SheetConditionsError> {
+    match load_any(file)? {
+        LoadedStudy::Survey(study) => study
+            .conditions
+            .into_iter()
+            .map(|c| {
+                c.factors
+                    .map(|f| (c.name.clone(), f))
+                    .map_err(|reason| SheetConditionsError::Unrenderable { condition: c.name, reason })
+            })
+            .collect(),
+        LoadedStudy::Task(_) => Err(SheetConditionsError::TaskStudy { file: file.to_path_buf() }),
+    }
 }
 
 /// A study file of either kind.

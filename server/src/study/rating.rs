@@ -19,6 +19,7 @@ use serde::Deserialize;
 
 use super::StudyError;
 use super::checks::{Fail, check_image, is_condition_name, kind_table};
+use super::made::{check_export_fits, parse_made};
 pub use super::rating_design::{
     CATCH_TOLERANCE, CatchSource, Layout, Method, Presentation, RatingCatch, RatingDesign, RatingScale,
 };
@@ -122,32 +123,11 @@ pub(super) fn parse(
         design.insert("seed".into(), toml::Value::Integer(seed as i64));
     }
     table.insert("design".into(), toml::Value::Table(design));
-    let text = toml::to_string(&table).map_err(|error| fail.at("", super::one_line(&error.to_string())))?;
-    let mut study = super::survey::parse(&text, file, base, file_sha256).map_err(|mut error| {
-        if let Some(key) = error.key.strip_prefix("design.") {
-            error.key = format!("rating.{key}");
-        }
-        error
-    })?;
+    let mut study = parse_made(fail, &table, "rating", file, base, file_sha256)?;
     let catch = check_catch(fail, base, method, &study, &raw.catch)?;
     let rating = RatingDesign { method, repetitions: repetitions as u32, presentation, catch };
     let trials = rating.trial_count(study.scenes.len(), study.conditions.len());
-    if trials > 1000 {
-        return Err(fail.at(
-            "rating.repetitions",
-            format!("expected at most 1000 trials per participant with the catch trials, found {trials}"),
-        ));
-    }
-    if let Some(field) = study.demographics.iter().find(|field| CSV_COLUMNS.contains(&field.name.as_str())) {
-        return Err(fail.at(
-            "demographics",
-            format!(
-                "expected no demographic field named like a column of the rating export ({}), found \"{}\"",
-                CSV_COLUMNS.join(", "),
-                field.name
-            ),
-        ));
-    }
+    check_export_fits(fail, &study, "rating.repetitions", trials, "rating", &CSV_COLUMNS)?;
     study.kind = StudyKind::Rating;
     study.rating = Some(rating);
     Ok(study)

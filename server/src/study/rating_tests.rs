@@ -118,6 +118,19 @@ fn acr_hr_rates_each_ground_truth_once_more_and_dcr_shows_it_first() {
     assert_eq!(design.catch[0].source, CatchSource::GroundTruth { scene: 1 });
 }
 
+/// What a rating study shares with a threshold study (`checks::check_export_fits`): a
+/// demographic field named like a column of the rating export is refused, naming them.
+#[test]
+fn a_demographic_field_named_like_a_column_of_the_rating_export_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = image_study(dir.path(), "[rating]\nmethod = \"acr\"\n");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replacen("name = \"gender\"", "name = \"rating\"", 1)).unwrap();
+    let error = load_study(&file).unwrap_err();
+    assert_eq!(error.key, "demographics", "{error}");
+    assert!(error.expected.contains("a column of the rating export (") && error.expected.ends_with("found \"rating\""));
+}
+
 #[test]
 fn each_bad_rating_key_is_one_sentence_naming_the_file_and_the_key() {
     let dir = tempfile::tempdir().unwrap();

@@ -24,6 +24,7 @@ use serde::Deserialize;
 
 use super::StudyError;
 use super::checks::{Fail, kind_table};
+use super::made::{check_export_fits, parse_made};
 use super::survey::{GROUND_TRUTH, Study, StudyKind};
 pub use super::threshold_design::{
     DEFAULT_RENDER_AHEAD, Function, Intensity, REGIONS, RenderWhen, Scale, ThresholdDesign,
@@ -124,35 +125,14 @@ pub(super) fn parse(
     table.insert("factors".into(), toml::Value::Array(factors));
     table.insert("conditions".into(), toml::Value::Array(conditions));
     table.insert("design".into(), toml::Value::Table(made_design));
-    let text = toml::to_string(&table).map_err(|error| fail.at("", super::one_line(&error.to_string())))?;
     // the detection design's own checks speak of [design]; here its keys are [threshold]'s
-    let mut study = super::survey::parse(&text, file, base, file_sha256).map_err(|mut error| {
-        if let Some(key) = error.key.strip_prefix("design.") {
-            error.key = format!("threshold.{key}");
-        }
-        error
-    })?;
+    let mut study = parse_made(fail, &table, "threshold", file, base, file_sha256)?;
     for (condition, &value) in study.conditions.iter_mut().zip(&design.levels) {
         condition.knob = Some(KnobSetting { knob: design.knob, value });
     }
     study.kind = StudyKind::Threshold;
     let trials = design.trials as usize + study.catch.iter().map(|c| c.repetitions as usize).sum::<usize>();
-    if trials > 1000 {
-        return Err(fail.at(
-            "threshold.trials",
-            format!("expected at most 1000 trials per participant with the catch trials, found {trials}"),
-        ));
-    }
-    if let Some(field) = study.demographics.iter().find(|field| CSV_COLUMNS.contains(&field.name.as_str())) {
-        return Err(fail.at(
-            "demographics",
-            format!(
-                "expected no demographic field named like a column of the threshold export ({}), found \"{}\"",
-                CSV_COLUMNS.join(", "),
-                field.name
-            ),
-        ));
-    }
+    check_export_fits(fail, &study, "threshold.trials", trials, "threshold", &CSV_COLUMNS)?;
     study.threshold = Some(design);
     Ok(study)
 }

@@ -1,20 +1,62 @@
-//! Progress bars (indicatif) for the long commands: one bar with a unit, the two bars of
-//! stimulus rendering (plain lines when stderr is not a terminal, e.g. a service's log:
-//! `mrstudy_server::stimuli::lines`), and the benchmarks' printer.
+//! What the CLI's commands say, on the terminal: [`Console`] prints their lines and notes and
+//! draws their progress as a bar (indicatif); [`stimulus_bars`], the two bars of stimulus
+//! rendering (plain lines when stderr is not a terminal, e.g. a service's log: [`ProgressLines`]).
 
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use crate::stimuli::Progress;
+use crate::stimuli::lines::ProgressLines;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use mrstudy_renderer::bench::Observer;
-use mrstudy_server::stimuli::Progress;
-use mrstudy_server::stimuli::lines::ProgressLines;
+use mrstudy_renderer::command::Said;
 
 /// A bar counting `total` `unit`s under `label`.
-pub fn progress_bar(total: u64, label: &str, unit: &str) -> ProgressBar {
+fn progress_bar(total: u64, label: &str, unit: &str) -> ProgressBar {
     let template = format!("{{msg}} [{{bar:30}}] {{pos}}/{{len}} {unit} {{elapsed_precise}} (eta {{eta}})");
     let style = ProgressStyle::with_template(&template).unwrap_or_else(|_| ProgressStyle::default_bar());
     ProgressBar::new(total).with_style(style.progress_chars("=> ")).with_message(label.to_string())
+}
+
+/// Prints what a command says: [`Said::Out`] to stdout, notes to stderr (after clearing the bar),
+/// progress as one bar, cleared when its work is done or the console is dropped.
+#[derive(Default)]
+pub struct Console {
+    bar: Mutex<Option<(String, ProgressBar)>>,
+}
+
+impl Console {
+    pub fn say(&self, said: Said) {
+        let mut bar = self.bar.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        if let Said::Progress { label, unit, done, total } = said
+            && (done < total || total == 0)
+        {
+            if bar.as_ref().is_none_or(|(shown, _)| shown != unit) {
+                *bar = Some((unit.to_string(), progress_bar(total, label, unit)));
+            }
+            let (_, bar) = bar.as_ref().expect("a bar was just made");
+            bar.set_length(total);
+            bar.set_message(label.to_string());
+            return bar.set_position(done);
+        }
+        clear(&mut bar);
+        match said {
+            Said::Out(text) => print!("{text}"),
+            Said::Note(text) => eprintln!("{text}"),
+            _ => {}
+        }
+    }
+}
+
+impl Drop for Console {
+    fn drop(&mut self) {
+        clear(&mut self.bar.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
+    }
+}
+
+fn clear(bar: &mut Option<(String, ProgressBar)>) {
+    if let Some((_, bar)) = bar.take() {
+        bar.finish_and_clear();
+    }
 }
 
 /// Bars for rendering a study's stimuli: one for the photograph being path-traced, one for
@@ -60,30 +102,4 @@ pub fn stimulus_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
             }
         }
     })
-}
-
-/// Prints a renderer benchmark's table to stdout, its notes to stderr, and a progress bar for
-/// each reference render.
-#[derive(Default)]
-pub struct Printer {
-    bar: Mutex<Option<ProgressBar>>,
-}
-
-impl Observer for Printer {
-    fn line(&self, text: &str) {
-        println!("{text}");
-    }
-    fn note(&self, text: &str) {
-        eprintln!("{text}");
-    }
-    fn progress(&self, label: &str, done: u32, total: u32) {
-        let mut bar = self.bar.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        if done >= total {
-            if let Some(bar) = bar.take() {
-                bar.finish_and_clear();
-            }
-        } else {
-            bar.get_or_insert_with(|| progress_bar(total as u64, label, "spp")).set_position(done as u64);
-        }
-    }
 }
