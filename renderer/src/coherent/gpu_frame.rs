@@ -163,7 +163,10 @@ impl Coherent<'_> {
             Ok(out) => out,
             Err(refused) => return Ok(Err(refused)),
         };
-        report.passes.push(PassTime::new("queries and shading (GPU), read back", ms_since(start)));
+        report.passes.push(PassTime::new(
+            "queries, object shading, material estimation (eq. 5) and differential background (eqs. 8, 9) on the GPU, read back",
+            ms_since(start),
+        ));
         report.counters = Some(out.counters);
 
         let start = Instant::now();
