@@ -74,6 +74,18 @@ pub struct CapturedScene {
     pub ms: f64,
 }
 
+/// Where a capture's representation is built and its frame runs.
+#[derive(Clone, Copy)]
+enum Devices<'a> {
+    /// Both on the CPU (no adapter opened).
+    Cpu,
+    /// The representation on this GPU, the frame on the CPU (a study's stimuli keep the CPU's
+    /// frame, so their bytes do not depend on the adapter).
+    BuildOnGpu(&'a DirRenderer),
+    /// Both on this GPU.
+    Gpu(&'a DirRenderer),
+}
+
 impl CapturedScene {
     /// Captures `scene`'s real world with the capture's random numbers from `seed`;
     /// `progress(done, total)` counts the poses.
@@ -99,25 +111,28 @@ impl CapturedScene {
     }
 
     /// The representation and the frame of `params` over `linear` (the photograph's linear
-    /// radiance), with the build passes — the capture's first — and the frame. With `gpu`, the
-    /// representation is built there, and with `frame_on_gpu` the frame runs there too
-    /// ([`Coherent::render_preferring_gpu`]). `progress(done, total)` counts the frame's passes.
+    /// radiance), with the build passes — the capture's first — and the frame, each where
+    /// `devices` says (a frame on the GPU: [`Coherent::render_preferring_gpu`]). `progress(done, total)` counts the frame's passes.
     fn render(
         &self,
         scene: &Scene,
         params: &CoherentParams,
         linear: &Image,
-        (gpu, frame_on_gpu): (Option<&DirRenderer>, bool),
+        devices: Devices<'_>,
         progress: &(dyn Fn(u32, u32) + Sync),
     ) -> Result<(Vec<PassTime>, CoherentFrame)> {
         let mut build = vec![PassTime::new(format!("capture ({POSES} poses)"), self.ms)];
+        let gpu = match devices {
+            Devices::Cpu => None,
+            Devices::BuildOnGpu(gpu) | Devices::Gpu(gpu) => Some(gpu),
+        };
         let (rep, passes) = self.representation(scene, params, gpu);
         build.extend(passes);
-        let frame = match gpu.filter(|_| frame_on_gpu) {
-            Some(gpu) => {
+        let frame = match devices {
+            Devices::Gpu(gpu) => {
                 Coherent::new(scene, &self.real, &rep, *params).render_preferring_gpu(linear, Some(gpu), progress)?
             }
-            None => self.frame(scene, &rep, params, linear, progress)?,
+            _ => self.frame(scene, &rep, params, linear, progress)?,
         };
         Ok((build, frame))
     }
@@ -159,7 +174,8 @@ pub fn render_over(
     gpu: Option<&DirRenderer>,
     progress: &(dyn Fn(u32, u32) + Sync),
 ) -> Result<(Vec<PassTime>, CoherentFrame, Image, StimulusErrors)> {
-    let (build, frame) = captured.render(scene, params, &reference.hdr_real, (gpu, true), progress)?;
+    let (build, frame) =
+        captured.render(scene, params, &reference.hdr_real, gpu.map_or(Devices::Cpu, Devices::Gpu), progress)?;
     let stimulus = crate::sensor::apply(&frame.composite, &scene.camera, &scene.sensor);
     let errors = stimulus_errors(&reference.ground_truth, &stimulus, &reference.affected_mask, &reference.virtual_mask);
     Ok((build, frame, stimulus, errors))
@@ -210,7 +226,8 @@ pub fn render_stimulus(
     let start = Instant::now();
     // a study's stimuli keep the CPU's frame (their bytes unchanged); the representation is
     // built on the GPU
-    let (_, frame) = captured.render(scene, params, photo.linear, (gpu, false), &|_, _| {})?;
+    let (_, frame) =
+        captured.render(scene, params, photo.linear, gpu.map_or(Devices::Cpu, Devices::BuildOnGpu), &|_, _| {})?;
     let (composite, cm) = show(scene, &frame, photo, shown, &mut crate::cm::CmState::default())?;
     Ok(CoherentStimulus { composite, ms: captured.ms + ms_since(start), frame, cm })
 }
