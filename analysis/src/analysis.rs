@@ -142,6 +142,7 @@ impl Default for Options {
 mod bootstrap;
 mod groups;
 mod output;
+mod robust;
 mod screen;
 mod subset;
 

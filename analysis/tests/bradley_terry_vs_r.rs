@@ -90,8 +90,12 @@ fn check_covariates(analysis: &Analysis, reference: &Value) {
     for (name, expected) in reference["coefficients"].as_object().unwrap() {
         let c = covariates.iter().find(|c| &c.name == name).unwrap_or_else(|| panic!("no covariate {name}"));
         close(&format!("estimate of {name}"), c.estimate, expected.as_f64().unwrap());
-        close(&format!("se of {name}"), c.se, reference["se"][name].as_f64().unwrap());
-        if let Some(z) = reference.get("z") {
+        // BradleyTerry2's standard error, z and p are the model's; the reported `se` (and its z
+        // and p) is the larger of it and the participant-cluster robust one (`robust.rs`
+        // checks that against R), so R's z and p are checked where the model's is the larger.
+        close(&format!("se of {name}"), c.model_se, reference["se"][name].as_f64().unwrap());
+        assert!(c.se >= c.model_se, "se of {name}: {} below the model's {}", c.se, c.model_se);
+        if let Some(z) = reference.get("z").filter(|_| c.se == c.model_se) {
             close(&format!("z of {name}"), c.z, z[name].as_f64().unwrap());
             let p = z[name].as_f64().map(|_| reference["p"][name].as_f64().unwrap()).unwrap();
             assert!(
@@ -99,6 +103,8 @@ fn check_covariates(analysis: &Analysis, reference: &Value) {
                 "p of {name}: {} vs {p}",
                 c.p.p
             );
+        } else if reference.get("z").is_some() {
+            close(&format!("z of {name}"), c.z, c.estimate / c.se);
         }
     }
     assert_eq!(covariates.len(), reference["coefficients"].as_object().unwrap().len());

@@ -113,7 +113,12 @@ impl LrTest {
 pub struct Covariate {
     pub name: String,
     pub estimate: f64,
+    /// The standard error `z`, `p` and the Wald interval use: the larger of `model_se` and the
+    /// participant-cluster robust (sandwich) standard error (docs/analysis.md, "Participants'
+    /// own tastes").
     pub se: f64,
+    /// The model's standard error (inverse Fisher information, as BradleyTerry2's).
+    pub model_se: f64,
     pub z: f64,
     #[serde(flatten)]
     pub p: PValue,

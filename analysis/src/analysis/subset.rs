@@ -11,6 +11,7 @@ use crate::pvalue::PValue;
 use crate::{AnalysisError, Result};
 
 use super::bootstrap::run_bootstrap;
+use super::robust::cluster_robust_covariance;
 use super::screen::screen_observers;
 use super::{
     Analysis, Component, Covariate, CovariateModel, DroppedTerm, Item, LrTest, ModelSummary, Options, Part,
@@ -236,17 +237,25 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
                             "the factor model relates the disconnected components only through its factors".into(),
                         );
                     }
+                    // The participants' own tastes: the larger of the model's and the
+                    // participant-cluster robust standard error (see `robust`).
+                    let robust = (fit.method == Method::Ml)
+                        .then(|| cluster_robust_covariance(&fit, &x, tallies, active))
+                        .flatten();
                     covariates = Some(
                         kept.iter()
                             .enumerate()
                             .map(|(column, &k)| {
                                 let estimate = fit.beta[column];
-                                let se = fit.se(column);
+                                let robust_se = robust.as_ref().map_or(0.0, |v| v[column][column].max(0.0).sqrt());
+                                let model_se = fit.se(column);
+                                let se = model_se.max(robust_se);
                                 let z = if se > 0.0 { estimate / se } else { 0.0 };
                                 Covariate {
                                     name: terms[k].name.clone(),
                                     estimate,
                                     se,
+                                    model_se,
                                     z,
                                     p: PValue::normal_two_sided(z),
                                     ci: None,
