@@ -426,7 +426,7 @@ pub async fn start_lab(state: &AppState, tasks: Vec<TaskStudy>, data_dir: &Path)
 pub fn run(config: ServeConfig) -> Result<(), ServeError> {
     crate::logs::init(config.log_format).map_err(ServeError::Log)?;
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(ServeError::Runtime)?;
-    runtime.block_on(async {
+    let served: Result<(), ServeError> = runtime.block_on(async {
         let database = Database::choose(config.database.as_deref(), &config.data_dir).map_err(OpenError::Choose)?;
         let started = std::time::Instant::now();
         // nothing is rendered before listening: missing stimuli render in the background below
@@ -532,7 +532,16 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
         };
         serve_connections(listener, app(prepared.state), connections, shutdown_signal()).await;
         Ok(())
-    })
+    });
+    // Stimuli still rendering (start-up's blocking tasks) are not waited for: dropping the
+    // runtime would wait for them, minutes after Ctrl-C or SIGTERM. Every file of the store is
+    // renamed into place after it is written and its index entry after it, so a render cut
+    // short leaves nothing half-written, and the next start renders what is missing.
+    runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+    if served.is_ok() {
+        eprintln!("mrstudy serve stopped (stimuli not rendered yet are rendered at the next start)");
+    }
+    served
 }
 
 /// Serves HTTP/1.1 (with upgrades, for the lab's WebSocket) on `listener` until `shutdown`,

@@ -82,3 +82,40 @@ fn serve_listens_while_a_study_is_prepared_and_opens_it_once_its_stimuli_are_ren
         .find(|line| line.starts_with("study \"slow-mini\" is open ("));
     assert!(said.is_some_and(|line| line.ends_with("/studies/slow-mini")));
 }
+
+/// Ctrl-C or SIGTERM while a study's stimuli are still rendering stops the server at once (the
+/// render is left for the next start), with status 0 and a line saying so. Fails where the
+/// server waits for the start-up renders to finish before it exits (here a path-traced
+/// reference render of about a minute).
+#[test]
+fn sigterm_while_stimuli_render_stops_the_server_at_once() {
+    let data_dir = tempfile::tempdir().unwrap();
+    let studies = tempfile::tempdir().unwrap();
+    write_rendered_study(studies.path(), "long-render", "Rendered for a long time", [400, 300], 1024, "LONG");
+    let mut server = Server::try_start(data_dir.path(), "127.0.0.1:0", studies.path()).unwrap();
+    // the render is under way (or has failed for want of an adapter: then it stops at once too)
+    std::thread::sleep(Duration::from_secs(2));
+    let status = std::process::Command::new("kill").args(["-TERM", &server.child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let asked = std::time::Instant::now();
+    let exited = loop {
+        if let Some(status) = server.child.try_wait().unwrap() {
+            break Some(status);
+        }
+        if asked.elapsed() > Duration::from_secs(20) {
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let status = exited.expect("mrstudy serve still running 20 s after SIGTERM");
+    assert!(status.success(), "{status}");
+    let said: Vec<String> = server.stderr.try_iter().collect();
+    assert!(said.iter().any(|line| line.starts_with("mrstudy serve stopped")), "{said:?}");
+    // nothing half-written: every index entry names a file that is there
+    let rendered = data_dir.path().join("stimuli/rendered");
+    let entries = std::fs::read_dir(&rendered).into_iter().flatten().flatten();
+    for entry in entries.filter(|entry| !entry.file_name().to_string_lossy().ends_with(".partial")) {
+        let name = std::fs::read_to_string(entry.path()).unwrap();
+        assert!(data_dir.path().join("stimuli").join(name.trim()).is_file(), "{:?} names {name}", entry.path());
+    }
+}
