@@ -125,20 +125,7 @@ impl Coherent<'_> {
         photo: &Image,
         gpu: &DirRenderer,
     ) -> Result<std::result::Result<CoherentFrame, g::FrameRefused>> {
-        let cam = &self.scene.camera;
-        let (w, h) = (cam.width, cam.height);
-        if photo.width != w || photo.height != h {
-            return Err(RenderError::Unsupported(format!(
-                "the photograph is {}×{} but the scene's camera is {w}×{h}",
-                photo.width, photo.height
-            )));
-        }
-        let mut report = CoherentReport {
-            method: self.params.method.name().into(),
-            quality: self.params.quality.name().into(),
-            representation_bytes: self.rep.bytes(),
-            ..CoherentReport::default()
-        };
+        let (w, h, mut report) = self.frame_start(photo)?;
         let n = (w * h) as usize;
         let start = Instant::now();
         let gbuffer: Vec<(u8, Option<Background>)> = (0..n).into_par_iter().map(|k| self.gbuffer(k)).collect();

@@ -318,9 +318,9 @@ impl<'a> Coherent<'a> {
         Coherent { scene, real, object, rep, params, bounds: virtual_bounds(scene) }
     }
 
-    /// Renders the frame over `photo` (the photograph's linear radiance: the colour-compensated
-    /// camera image of the paper's reference colour space).
-    pub fn render(&self, photo: &Image, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<CoherentFrame> {
+    /// The frame's size, refused unless `photo` has it, and its report before any pass: what
+    /// the CPU frame and the GPU frame ([`Coherent::render_gpu`]) both start with.
+    pub(crate) fn frame_start(&self, photo: &Image) -> Result<(u32, u32, CoherentReport)> {
         let cam = &self.scene.camera;
         let (w, h) = (cam.width, cam.height);
         if photo.width != w || photo.height != h {
@@ -329,12 +329,19 @@ impl<'a> Coherent<'a> {
                 photo.width, photo.height
             )));
         }
-        let mut report = CoherentReport {
+        let report = CoherentReport {
             method: self.params.method.name().into(),
             quality: self.params.quality.name().into(),
             representation_bytes: self.rep.bytes(),
             ..CoherentReport::default()
         };
+        Ok((w, h, report))
+    }
+
+    /// Renders the frame over `photo` (the photograph's linear radiance: the colour-compensated
+    /// camera image of the paper's reference colour space).
+    pub fn render(&self, photo: &Image, progress: &(dyn Fn(u32, u32) + Sync)) -> Result<CoherentFrame> {
+        let (w, h, mut report) = self.frame_start(photo)?;
         let n = (w * h) as usize;
         let steps = 5;
         progress(0, steps);
