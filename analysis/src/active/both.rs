@@ -18,8 +18,8 @@
 //! connected only pairs joining two components are candidates. O(n³·k) per pair of the batch.
 
 use rand_chacha::ChaCha8Rng;
-use rand_chacha::rand_core::Rng;
 
+use super::best_pair::BestPair;
 use super::quadrature::Rule;
 use super::{ActiveError, Link, Result};
 
@@ -168,9 +168,7 @@ pub(super) fn best_pairs(
     let mut batch = Vec::with_capacity(trials);
     while batch.len() < trials {
         let criterion = Criterion::new(input.link, input.rule, input.projection, &covariance)?;
-        let mut best: Option<(usize, usize)> = None;
-        let mut best_score = f64::NEG_INFINITY;
-        let mut ties = 0u64;
+        let mut best = BestPair::new();
         for i in 0..n {
             for j in i + 1..n {
                 if last == Some((i, j))
@@ -179,19 +177,10 @@ pub(super) fn best_pairs(
                     continue;
                 }
                 let (score, _) = criterion.score((i, j), input.mean_weight * (input.mean[i] - input.mean[j]))?;
-                if score > best_score * (1.0 + 1e-12) + 1e-300 {
-                    best = Some((i, j));
-                    best_score = score;
-                    ties = 1;
-                } else if score >= best_score * (1.0 - 1e-12) {
-                    ties += 1;
-                    if rng.next_u64().is_multiple_of(ties) {
-                        best = Some((i, j));
-                    }
-                }
+                best.offer((i, j), score, rng);
             }
         }
-        let (i, j) = best.expect("at least 3 conditions leave a pair besides the last one");
+        let (i, j) = best.pair.expect("at least 3 conditions leave a pair besides the last one");
         batch.push((i, j));
         last = Some((i, j));
         let (ri, rj) = (find(&mut input.parent, i), find(&mut input.parent, j));

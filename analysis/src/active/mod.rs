@@ -80,6 +80,7 @@
 //! [`simulate`] compares active and random pairs on simulated observers.
 
 pub mod bench;
+mod best_pair;
 pub mod both;
 pub mod laplace;
 pub mod posterior;

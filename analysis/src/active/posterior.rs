@@ -4,9 +4,9 @@
 //! greedy batch of pairs for one participant.
 
 use rand_chacha::ChaCha8Rng;
-use rand_chacha::rand_core::Rng;
 use serde::Serialize;
 
+use super::best_pair::BestPair;
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES};
 use super::{ActiveError, Link, Result, Target};
 
@@ -442,9 +442,7 @@ impl Posterior {
         let mut fantasies: Vec<(Vec<f64>, f64)> = Vec::new();
         let mut batch = Vec::with_capacity(trials);
         for _ in 0..trials {
-            let mut best: Option<(usize, usize)> = None;
-            let mut best_score = f64::NEG_INFINITY;
-            let mut ties = 0u64;
+            let mut best = BestPair::new();
             let mut index = 0;
             for i in 0..n {
                 for j in i + 1..n {
@@ -454,19 +452,10 @@ impl Posterior {
                         continue;
                     }
                     let score = self.link.eig(mean_weight * (worth_mean[i] - worth_mean[j]), v, &self.eig_rule);
-                    if score > best_score * (1.0 + 1e-12) + 1e-300 {
-                        best = Some((i, j));
-                        best_score = score;
-                        ties = 1;
-                    } else if score >= best_score * (1.0 - 1e-12) {
-                        ties += 1;
-                        if rng.next_u64().is_multiple_of(ties) {
-                            best = Some((i, j));
-                        }
-                    }
+                    best.offer((i, j), score, rng);
                 }
             }
-            let (i, j) = best.expect("at least 3 conditions leave a pair besides the last one");
+            let (i, j) = best.pair.expect("at least 3 conditions leave a pair besides the last one");
             batch.push((i, j));
             last = Some((i, j));
             if union(&mut parent, i, j) {
