@@ -53,6 +53,7 @@ pub mod command;
 mod compare;
 mod design;
 pub mod familiarity;
+mod marginal;
 mod observer;
 mod power;
 mod rating;
@@ -66,8 +67,9 @@ mod truth;
 
 pub use compare::{Comparison, Versus};
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
+pub use marginal::MarginalTruth;
 pub use power::{PowerAt, PowerNeed, TargetError, parse_target, power_lines, power_needs, power_report};
-pub use report::{Estimate, FactorPower, Report, Row, Settings};
+pub use report::{Bias, Estimate, FactorPower, Report, Row, Settings};
 pub use run::simulate;
 pub use truth::{
     ConditionWorth, FactorEffect, THESIS_EFFECTS, Truth, choose_truth, default_truth, parse_effects,
