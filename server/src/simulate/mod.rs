@@ -46,8 +46,10 @@
 //! `active`), `participants`, `runs`, `failed` (runs whose analysis failed) and `failure` (the
 //! first failure's sentence), `judgments_per_participant` and `trials` (participants × that
 //! mean: judgments per study), and, each `{mean, mcse}` and absent when no run gave it,
-//! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
-//! `[{factor, effect, power, mcse}]`.
+//! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`,
+//! `coverage_log_worth_marginal`, `coverage_effects_marginal` (against the report's
+//! `marginal_truth`, `simulate::marginal`); `power`: `[{factor, effect, power, mcse}]`; `bias_effects`
+//! and `bias_log_worth`: `[{name, truth, bias {mean, mcse}, sd, mean_se}]` ([`Bias`]).
 
 pub mod command;
 mod compare;

@@ -135,7 +135,7 @@ pub struct Report {
     pub reference: String,
     pub truth: Truth,
     /// What the pooled analysis estimates under the observers' taste and lapses
-    /// ([`super::marginal`]); absent with "not sure" answers or collinear factors.
+    /// (`simulate::marginal`); absent with "not sure" answers or collinear factors.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub marginal_truth: Option<MarginalTruth>,
     pub settings: Settings,
@@ -442,7 +442,7 @@ pub(super) struct RunOutcome {
     pub(super) coverage_log_worth: Option<f64>,
     pub(super) rmse_effects: Option<f64>,
     pub(super) coverage_effects: Option<f64>,
-    /// The coverage of the marginal truth ([`super::marginal`]).
+    /// The coverage of the marginal truth (`simulate::marginal`).
     pub(super) coverage_log_worth_marginal: Option<f64>,
     pub(super) coverage_effects_marginal: Option<f64>,
     /// Per truth factor: p < α.
