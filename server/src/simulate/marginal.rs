@@ -14,7 +14,9 @@
 //! are compared (`analysis/reference/attenuation.py`: anchored, all pairs and one-factor pairs
 //! alike, because σ's attenuation under a normal is nearly a constant factor for differences up
 //! to 1). Here the pairs are every pair once, so the marginal truth does not depend on the
-//! design. Absent for studies with "not sure" answers (their Davidson observers are not this
+//! design. (With a truth not additive in the factors, `--truth-worth`, the marginal effects
+//! are the factor model's limit over every pair, not the truth's least-squares projection,
+//! even without taste or lapses.) Absent for studies with "not sure" answers (their Davidson observers are not this
 //! model) and where the factors are collinear.
 
 use mrstudy_analysis::active::quadrature::Rule;
