@@ -17,8 +17,13 @@ pub struct Item {
     /// λ relative to the reference of its component; absent where the condition was never compared.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub log_worth: Option<f64>,
+    /// The standard error of `log_worth` (and of its Wald interval): the larger of `model_se`
+    /// and the participant-cluster robust one (maximum-likelihood fits; see `robust`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub se: Option<f64>,
+    /// The item model's own standard error (inverse Fisher information, BradleyTerry2's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_se: Option<f64>,
     /// exp(λ) / Σ exp(λ) over its component.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub worth: Option<f64>,

@@ -64,18 +64,25 @@ pub(crate) fn cluster_robust_covariance(
     )
 }
 
+/// xᵀ·V·x of a sparse model-matrix row `x` ((column, value) pairs): the robust variance of
+/// that linear combination of the parameters (a log-worth of the item model).
+pub(crate) fn robust_variance_of(covariance: &[Vec<f64>], x: &[(usize, f64)]) -> f64 {
+    x.iter().map(|&(a, xa)| x.iter().map(|&(b, xb)| xa * covariance[a][b] * xb).sum::<f64>()).sum()
+}
+
 #[cfg(test)]
 mod tests {
     use crate::analysis::{Options, Screening, analyze_judgments};
     use crate::data::{ConditionTable, Judgment, Judgments};
 
     /// Six participants with their own tastes (sd 0.6 on four conditions), three of them mostly
-    /// on one pair; the factor model's estimates, model and cluster-robust standard errors from
-    /// R's `glm` and the sandwich by hand (`analysis/reference/cluster_robust.R`).
+    /// on one pair; the factor model's estimates and the item model's log-worths, each with
+    /// model and cluster-robust standard errors, from R's `glm` and the sandwich by hand
+    /// (`analysis/reference/cluster_robust.R`).
     const REFERENCE: &str = include_str!("../../tests/reference/cluster_robust.json");
 
     #[test]
-    fn factor_effects_take_the_larger_of_the_model_and_the_cluster_robust_standard_error() {
+    fn effects_and_log_worths_take_the_larger_of_the_model_and_the_cluster_robust_standard_error() {
         let reference: serde_json::Value = serde_json::from_str(REFERENCE).unwrap();
         let values = |key: &str| -> Vec<f64> {
             reference[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
@@ -125,5 +132,17 @@ mod tests {
         }
         // the fixture's tastes make the robust error the larger one for both effects
         assert!(robust_se.iter().zip(&model_se).all(|(robust, model)| robust > model));
+        // the item model's log-worths (C0 the reference), the same rule
+        let (worth, item_model_se, item_robust_se) =
+            (values("item_log_worth"), values("item_model_se"), values("item_robust_se"));
+        assert!(item_robust_se.iter().zip(&item_model_se).all(|(robust, model)| robust > model));
+        assert_eq!(analysis.items[0].se, Some(0.0));
+        for (c, item) in analysis.items.iter().enumerate().skip(1) {
+            let (log_worth, se, model) = (item.log_worth.unwrap(), item.se.unwrap(), item.model_se.unwrap());
+            assert!((log_worth - worth[c - 1]).abs() < 1e-6, "{}: {log_worth}", item.condition);
+            assert!((model - item_model_se[c - 1]).abs() < 1e-6 * model, "{}: model se {model}", item.condition);
+            let expected = item_model_se[c - 1].max(item_robust_se[c - 1]);
+            assert!((se - expected).abs() < 1e-6 * expected, "{}: se {se} vs {expected}", item.condition);
+        }
     }
 }

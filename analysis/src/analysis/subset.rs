@@ -11,7 +11,7 @@ use crate::pvalue::PValue;
 use crate::{AnalysisError, Result};
 
 use super::bootstrap::run_bootstrap;
-use super::robust::cluster_robust_covariance;
+use super::robust::{cluster_robust_covariance, robust_variance_of};
 use super::screen::screen_observers;
 use super::{
     Analysis, Component, Covariate, CovariateModel, DroppedTerm, Item, LrTest, ModelSummary, Options, Part,
@@ -135,6 +135,7 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
             condition: names[c].clone(),
             log_worth: None,
             se: None,
+            model_se: None,
             worth: None,
             wins: wins[c],
             comparisons: comparisons[c],
@@ -149,13 +150,18 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
     let mut components = Vec::new();
     for (k, (members, component_reference, fit, separated)) in item_fit.components.iter().enumerate() {
         let x = ModelMatrix::items(n_conditions, members, *component_reference);
+        // The participants' own tastes, as for the factor effects below (see `robust`).
+        let robust = (fit.method == Method::Ml).then(|| cluster_robust_covariance(fit, &x, tallies, active)).flatten();
         let lambdas: Vec<f64> = members.iter().map(|&m| x.predict(m, &fit.beta)).collect();
         let max = lambdas.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         let total: f64 = lambdas.iter().map(|l| (l - max).exp()).sum();
         for (&member, &lambda) in members.iter().zip(&lambdas) {
             let item = &mut items[member];
             item.log_worth = Some(lambda + 0.0); // + 0.0 turns −0 into 0
-            item.se = Some(fit.variance_of(&x.rows[member]).sqrt());
+            let model_se = fit.variance_of(&x.rows[member]).sqrt();
+            let robust_se = robust.as_ref().map_or(0.0, |v| robust_variance_of(v, &x.rows[member]).max(0.0).sqrt());
+            item.se = Some(model_se.max(robust_se));
+            item.model_se = Some(model_se);
             item.worth = Some((lambda - max).exp() / total);
             item.component = multiple.then_some(k);
         }

@@ -46,13 +46,16 @@
 //! `active`), `participants`, `runs`, `failed` (runs whose analysis failed) and `failure` (the
 //! first failure's sentence), `judgments_per_participant` and `trials` (participants × that
 //! mean: judgments per study), and, each `{mean, mcse}` and absent when no run gave it,
-//! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`; `power`:
-//! `[{factor, effect, power, mcse}]`.
+//! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`,
+//! `coverage_log_worth_marginal`, `coverage_effects_marginal` (against the report's
+//! `marginal_truth`, `simulate::marginal`); `power`: `[{factor, effect, power, mcse}]`; `bias_effects`
+//! and `bias_log_worth`: `[{name, truth, bias {mean, mcse}, sd, mean_se}]` ([`Bias`]).
 
 pub mod command;
 mod compare;
 mod design;
 pub mod familiarity;
+mod marginal;
 mod observer;
 mod power;
 mod rating;
@@ -66,8 +69,9 @@ mod truth;
 
 pub use compare::{Comparison, Versus};
 pub use design::{ACTIVE_BATCH, DesignChoice, design_variant};
+pub use marginal::MarginalTruth;
 pub use power::{PowerAt, PowerNeed, TargetError, parse_target, power_lines, power_needs, power_report};
-pub use report::{Estimate, FactorPower, Report, Row, Settings};
+pub use report::{Bias, Estimate, FactorPower, Report, Row, Settings};
 pub use run::simulate;
 pub use truth::{
     ConditionWorth, FactorEffect, THESIS_EFFECTS, Truth, choose_truth, default_truth, parse_effects,

@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use super::compare::{Comparison, versus};
 use super::design::DesignChoice;
+use super::marginal::MarginalTruth;
 use super::truth::Truth;
 use super::{ALPHA, Config};
 
@@ -70,7 +71,49 @@ pub struct Row {
     pub coverage_log_worth: Option<Estimate>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage_effects: Option<Estimate>,
+    /// The coverage of the marginal truth (`marginal_truth`): what the pooled analysis estimates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_log_worth_marginal: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_effects_marginal: Option<Estimate>,
     pub power: Vec<FactorPower>,
+    /// Per factor: the signed bias of its estimate (issue 48).
+    pub bias_effects: Vec<Bias>,
+    /// Per condition after the reference: the signed bias of its log-worth (a difference to
+    /// the reference).
+    pub bias_log_worth: Vec<Bias>,
+}
+
+/// The signed error of one reported quantity over the runs that estimated it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Bias {
+    /// The factor or the condition.
+    pub name: String,
+    /// The true value (for a log-worth: its difference to the reference).
+    pub truth: f64,
+    /// Mean of estimate − truth, with its Monte-Carlo standard error.
+    pub bias: Estimate,
+    /// The estimates' standard deviation over the runs (absent with fewer than two).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sd: Option<f64>,
+    /// The mean of the reported standard errors.
+    pub mean_se: f64,
+}
+
+impl Bias {
+    fn of(
+        name: &str,
+        truth: f64,
+        runs: &[RunOutcome],
+        pick: impl Fn(&RunOutcome) -> Option<(f64, f64)>,
+    ) -> Option<Bias> {
+        let pairs: Vec<(f64, f64)> = runs.iter().filter_map(pick).collect();
+        let errors: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let bias = Estimate::of(&errors)?;
+        let sd = bias.mcse.map(|mcse| mcse * (errors.len() as f64).sqrt());
+        let mean_se = pairs.iter().map(|p| p.1).sum::<f64>() / pairs.len() as f64;
+        Some(Bias { name: name.to_string(), truth, bias, sd, mean_se })
+    }
 }
 
 /// The simulation's settings as reported.
@@ -91,6 +134,10 @@ pub struct Report {
     pub study: String,
     pub reference: String,
     pub truth: Truth,
+    /// What the pooled analysis estimates under the observers' taste and lapses
+    /// (`simulate::marginal`); absent with "not sure" answers or collinear factors.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub marginal_truth: Option<MarginalTruth>,
     pub settings: Settings,
     pub rows: Vec<Row>,
     /// Each active design against the study's fixed design (see [`Comparison`]).
@@ -106,6 +153,7 @@ impl Report {
             study: study.slug.clone(),
             reference: study.conditions[0].name.clone(),
             truth: config.truth.clone(),
+            marginal_truth: None,
             settings: Settings {
                 observer_sd: options.observer_sd,
                 lapse: options.lapse,
@@ -170,7 +218,33 @@ pub(super) fn summarise(
         rmse_effects: values(|run| run.rmse_effects),
         coverage_log_worth: values(|run| run.coverage_log_worth),
         coverage_effects: values(|run| run.coverage_effects),
+        coverage_log_worth_marginal: values(|run| run.coverage_log_worth_marginal),
+        coverage_effects_marginal: values(|run| run.coverage_effects_marginal),
         power,
+        bias_effects: config
+            .truth
+            .effects
+            .iter()
+            .enumerate()
+            .filter_map(|(k, effect)| {
+                Bias::of(&effect.factor, effect.effect, runs, |run| run.effect_errors.get(k).copied().flatten())
+            })
+            .collect(),
+        bias_log_worth: {
+            let reference = config.truth.log_worths[0].log_worth;
+            config
+                .truth
+                .log_worths
+                .iter()
+                .enumerate()
+                .skip(1)
+                .filter_map(|(c, worth)| {
+                    Bias::of(&worth.condition, worth.log_worth - reference, runs, |run| {
+                        run.log_worth_errors.get(c - 1).copied().flatten()
+                    })
+                })
+                .collect()
+        },
     }
 }
 
@@ -231,6 +305,10 @@ impl Report {
             "coverage log-worth".into(),
             "coverage effects".into(),
         ];
+        if self.marginal_truth.is_some() {
+            header.push("coverage log-worth (marginal)".into());
+            header.push("coverage effects (marginal)".into());
+        }
         header.extend(self.truth.effects.iter().map(|effect| format!("power {}", effect.factor)));
         let mut lines = vec![header];
         for row in &self.rows {
@@ -247,6 +325,10 @@ impl Report {
                 cell(row.coverage_log_worth, 3),
                 cell(row.coverage_effects, 3),
             ];
+            if self.marginal_truth.is_some() {
+                line.push(cell(row.coverage_log_worth_marginal, 3));
+                line.push(cell(row.coverage_effects_marginal, 3));
+            }
             line.extend(row.power.iter().map(|power| format!("{} ± {}", fixed(power.power, 2), fixed(power.mcse, 2))));
             lines.push(line);
         }
@@ -262,6 +344,9 @@ impl Report {
             "log-worths as differences to {} (the analysis's reference); ± is the Monte-Carlo standard error over {} runs; power: p < {ALPHA}\n",
             self.reference, self.settings.runs
         );
+        if let Some(marginal) = &self.marginal_truth {
+            text += &marginal.line(&self.truth, self.settings.observer_sd, self.settings.lapse);
+        }
         let mut described: Vec<DesignChoice> = Vec::new();
         for row in &self.rows {
             if let Some(optimises) = &row.optimises
@@ -357,6 +442,14 @@ pub(super) struct RunOutcome {
     pub(super) coverage_log_worth: Option<f64>,
     pub(super) rmse_effects: Option<f64>,
     pub(super) coverage_effects: Option<f64>,
+    /// The coverage of the marginal truth (`simulate::marginal`).
+    pub(super) coverage_log_worth_marginal: Option<f64>,
+    pub(super) coverage_effects_marginal: Option<f64>,
     /// Per truth factor: p < α.
     pub(super) significant: Vec<bool>,
+    /// Per truth factor: (estimate − truth, reported se), absent where the analysis gave none.
+    pub(super) effect_errors: Vec<Option<(f64, f64)>>,
+    /// Per condition after the reference: (λ̂ − (λ − λ_ref), reported se), absent where the
+    /// analysis gave none.
+    pub(super) log_worth_errors: Vec<Option<(f64, f64)>>,
 }

@@ -9,46 +9,66 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::design::{DesignChoice, design_variant};
+use super::marginal::{MarginalTruth, marginal_truth};
 use super::observer::collect_judgments;
 use super::report::{Report, RunOutcome, summarise};
 use super::{ALPHA, Config, SimulateError, Z_95};
 
-/// Scores one analysis against the truth.
-pub(super) fn score(analysis: &Analysis, config: &Config, outcome: &mut RunOutcome) {
+/// Whether the 95 % interval of `estimate` (`ci`, else the Wald one of `se`) holds `target`.
+fn covers(estimate: f64, se: f64, ci: Option<[f64; 2]>, target: f64) -> bool {
+    let [low, high] = ci.unwrap_or([estimate - Z_95 * se, estimate + Z_95 * se]);
+    low <= target && target <= high
+}
+
+/// The fraction of `hits` that are true (absent for none).
+fn fraction(hits: &[bool]) -> Option<f64> {
+    (!hits.is_empty()).then(|| hits.iter().filter(|&&hit| hit).count() as f64 / hits.len() as f64)
+}
+
+/// Scores one analysis against the truth (and the coverage against the marginal truth).
+pub(super) fn score(analysis: &Analysis, config: &Config, marginal: Option<&MarginalTruth>, outcome: &mut RunOutcome) {
     let truth = &config.truth;
     let reference = truth.log_worths[0].log_worth;
     // Disconnected: log-worths are relative to each component's reference (`component` set).
     // Under separation alone the analysis reports Firth's estimates, which count.
     if analysis.items.iter().all(|item| item.component.is_none()) {
         let mut squares = Vec::new();
-        let mut covered = 0usize;
-        for (item, true_worth) in analysis.items.iter().zip(&truth.log_worths).skip(1) {
+        let (mut covered, mut covered_marginal) = (Vec::new(), Vec::new());
+        outcome.log_worth_errors = vec![None; truth.log_worths.len().saturating_sub(1)];
+        for (c, (item, true_worth)) in analysis.items.iter().zip(&truth.log_worths).enumerate().skip(1) {
             let (Some(estimate), Some(se)) = (item.log_worth, item.se) else { continue };
             let target = true_worth.log_worth - reference;
+            outcome.log_worth_errors[c - 1] = Some((estimate - target, se));
             squares.push((estimate - target).powi(2));
-            let [low, high] = item.ci.unwrap_or([estimate - Z_95 * se, estimate + Z_95 * se]);
-            covered += usize::from(low <= target && target <= high);
+            covered.push(covers(estimate, se, item.ci, target));
+            if let Some(marginal) = marginal {
+                covered_marginal.push(covers(estimate, se, item.ci, marginal.log_worths[c].log_worth));
+            }
         }
         if squares.len() + 1 == truth.log_worths.len() && !squares.is_empty() {
             outcome.rmse_log_worth = Some((squares.iter().sum::<f64>() / squares.len() as f64).sqrt());
-            outcome.coverage_log_worth = Some(covered as f64 / squares.len() as f64);
+            outcome.coverage_log_worth = fraction(&covered);
+            outcome.coverage_log_worth_marginal = fraction(&covered_marginal);
         }
     }
     if let Some(covariates) = &analysis.covariates {
         let mut squares = Vec::new();
-        let mut covered = 0usize;
+        let (mut covered, mut covered_marginal) = (Vec::new(), Vec::new());
         for (k, effect) in truth.effects.iter().enumerate() {
             let Some(covariate) = covariates.iter().find(|c| c.name == effect.factor) else { continue };
             outcome.significant[k] = covariate.p.p < ALPHA;
-            squares.push((covariate.estimate - effect.effect).powi(2));
-            let [low, high] = covariate
-                .ci
-                .unwrap_or([covariate.estimate - Z_95 * covariate.se, covariate.estimate + Z_95 * covariate.se]);
-            covered += usize::from(low <= effect.effect && effect.effect <= high);
+            let (estimate, se) = (covariate.estimate, covariate.se);
+            outcome.effect_errors[k] = Some((estimate - effect.effect, se));
+            squares.push((estimate - effect.effect).powi(2));
+            covered.push(covers(estimate, se, covariate.ci, effect.effect));
+            if let Some(marginal) = marginal.and_then(|m| m.effects.get(k)) {
+                covered_marginal.push(covers(estimate, se, covariate.ci, marginal.effect));
+            }
         }
         if !squares.is_empty() {
             outcome.rmse_effects = Some((squares.iter().sum::<f64>() / squares.len() as f64).sqrt());
-            outcome.coverage_effects = Some(covered as f64 / squares.len() as f64);
+            outcome.coverage_effects = fraction(&covered);
+            outcome.coverage_effects_marginal = fraction(&covered_marginal);
         }
     }
 }
@@ -58,11 +78,16 @@ pub(super) fn run_once(
     study: &Study,
     table: Option<&ConditionTable>,
     config: &Config,
+    marginal: Option<&MarginalTruth>,
     participants: usize,
     run_seed: u64,
 ) -> RunOutcome {
-    let mut outcome =
-        RunOutcome { participants, significant: vec![false; config.truth.effects.len()], ..Default::default() };
+    let mut outcome = RunOutcome {
+        participants,
+        significant: vec![false; config.truth.effects.len()],
+        effect_errors: vec![None; config.truth.effects.len()],
+        ..Default::default()
+    };
     let (rows, ties) = match collect_judgments(study, config, participants, run_seed) {
         Ok(collected) => collected,
         Err(message) => {
@@ -99,7 +124,7 @@ pub(super) fn run_once(
         ..analysis::Options::default()
     };
     match analyze_judgments_with_ties(&judgments, &ties, table, &options) {
-        Ok(analysis) => score(&analysis, config, &mut outcome),
+        Ok(analysis) => score(&analysis, config, marginal, &mut outcome),
         Err(error) => outcome.failure = Some(error.to_string()),
     }
     outcome
@@ -126,6 +151,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
         .map(|&choice| design_variant(study, choice).map(|variant| (choice, variant)))
         .collect::<Result<_, _>>()?;
     let table = condition_table(study);
+    let marginal = marginal_truth(study, &config.truth, config.options.observer_sd, config.options.lapse);
     let jobs: Vec<(usize, usize, u64)> = (0..variants.len())
         .flat_map(|v| {
             config
@@ -144,7 +170,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
             let participants = config.participants[p];
             let seed =
                 derived_seed(derived_seed(derived_seed(config.options.seed, choice.code()), participants as u64), run);
-            let outcome = run_once(variant, table.as_ref(), config, participants, seed);
+            let outcome = run_once(variant, table.as_ref(), config, marginal.as_ref(), participants, seed);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             outcome
         })
@@ -154,6 +180,7 @@ pub fn simulate(study: &Study, config: &Config, progress: &(dyn Fn(u64, u64) + S
         rows.push(summarise(&variants[v], config.participants[p], chunk, config));
     }
     let mut report = Report::new(study, config, rows);
+    report.marginal_truth = marginal;
     report.comparisons = report.compare_with_study();
     Ok(report)
 }

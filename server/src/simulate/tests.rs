@@ -282,3 +282,39 @@ fn the_twenty_condition_example_loads_with_its_true_log_worths() {
     assert_eq!(report.rows[1].judgments_per_participant.mean, 37.0, "active at equal trials");
     assert!(report.rows.iter().all(|row| row.rmse_log_worth.is_some() && row.power.is_empty()));
 }
+
+/// The signed bias per factor and per log-worth (issue 48 item 6): with many lapses (0.3) the
+/// pooled fit estimates the marginal effect, about 0.7 × the truth, and the bias the report
+/// gives is that gap; without taste or lapses the marginal truth is the truth and both
+/// coverages agree.
+#[test]
+fn the_bias_per_factor_is_the_gap_to_the_marginal_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = factorial_study(dir.path(), ANCHORED);
+    let mut config = config(&study, &[DesignChoice::Study], &[60], 40);
+    config.options.lapse = 0.3;
+    let report = simulate(&study, &config, &quiet).unwrap();
+    let marginal = report.marginal_truth.as_ref().unwrap();
+    let row = &report.rows[0];
+    assert_eq!(row.bias_effects.len(), 2);
+    assert_eq!(row.bias_log_worth.len(), 3);
+    for ((bias, truth), marginal) in row.bias_effects.iter().zip(&report.truth.effects).zip(&marginal.effects) {
+        assert_eq!((bias.name.as_str(), bias.truth), (truth.factor.as_str(), truth.effect));
+        let gap = marginal.effect - truth.effect;
+        assert!(gap < -0.2 * truth.effect, "{}: marginal {} of {}", bias.name, marginal.effect, truth.effect);
+        let mcse = bias.bias.mcse.unwrap();
+        assert!((bias.bias.mean - gap).abs() < 4.0 * mcse + 0.02, "{}: bias {:?} against {gap}", bias.name, bias.bias);
+        assert!(bias.mean_se > 0.0 && bias.sd.unwrap() > 0.0);
+    }
+    for (bias, m) in row.bias_log_worth.iter().zip(&marginal.log_worths[1..]) {
+        let gap = m.log_worth - bias.truth;
+        let mcse = bias.bias.mcse.unwrap();
+        assert!((bias.bias.mean - gap).abs() < 4.0 * mcse + 0.02, "{}: bias {:?} against {gap}", bias.name, bias.bias);
+    }
+    assert!(report.table().contains("marginal truth"), "{}", report.table());
+    config.options.lapse = 0.0;
+    config.options.observer_sd = 0.0;
+    let report = simulate(&study, &config, &quiet).unwrap();
+    let row = &report.rows[0];
+    assert_eq!(row.coverage_effects, row.coverage_effects_marginal);
+}
