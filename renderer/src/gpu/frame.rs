@@ -1,11 +1,12 @@
 //! One GPU frame as an explicit, ordered list of passes ([`PASSES`]), each a function over the
 //! frame's resources ([`FrameTargets`]): what a pass makes it leaves in the targets for the
-//! passes after it. A pass records and submits its GPU work and returns; it waits for the
-//! device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
+//! passes after it. A pass records and submits its GPU work and returns (its command buffers
+//! held with the frame's others and handed to the queue together at the frame's next wait:
+//! [`super::batch`]); it waits for the device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
 //! reference steps make; a colour mapping's sums; the final read-back, which brings the report's
 //! counts along), and, while the context times passes ([`GpuContext::set_pass_waits`]), after
 //! itself to be timed. A live frame's VPLs are made and consumed on the GPU
-//! ([`bounce_chain`]), so a live frame waits once, for its image.
+//! ([`bounce_chain`]), so a live frame waits once, for its image, and makes one submission.
 //!
 //! The order is the thesis's (Figure 5.3; the module documentation of [`super`] says what each
 //! pass computes): [`FrameTargets::new`] builds the scene's mesh and uploads it, then
