@@ -89,8 +89,8 @@ pub struct GpuContext {
     /// per key, what the contents last written were made from and the buffer holding them.
     resident: Mutex<std::collections::HashMap<String, (Held, Arc<wgpu::Buffer>)>>,
     /// Per thread, the frame being recorded: its command buffers, submitted together
-    /// ([`super::batch`]).
-    batches: Mutex<std::collections::HashMap<std::thread::ThreadId, super::batch::Batch>>,
+    /// ([`super::stream`]).
+    pub(super) batches: super::batch::Batches,
 }
 
 /// What a resident buffer's contents were made from ([`GpuContext::resident`],
@@ -184,7 +184,7 @@ impl GpuContext {
             counters: Default::default(),
             uploads: Mutex::new(Vec::new()),
             resident: Mutex::new(Default::default()),
-            batches: Mutex::new(Default::default()),
+            batches: Default::default(),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -231,7 +231,7 @@ impl GpuContext {
     /// and just after it (tiny command buffers in the same submission), for
     /// [`GpuContext::take_gpu_ms`].
     /// Within a frame the command buffer is held and submitted with the frame's others at its
-    /// next wait ([`super::batch`]).
+    /// next wait ([`super::stream`]).
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let commands = self.finish(encoder);
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
@@ -270,13 +270,6 @@ impl GpuContext {
         let start = Instant::now();
         self.queue.submit(commands);
         add_elapsed(&self.counters.submit_ns, start);
-    }
-
-    /// The frames' batches ([`super::batch`]).
-    pub(super) fn batches(
-        &self,
-    ) -> std::sync::MutexGuard<'_, std::collections::HashMap<std::thread::ThreadId, super::batch::Batch>> {
-        self.batches.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// A bind group made anew, its time counted as recording (`record_ms`).
@@ -471,7 +464,7 @@ impl GpuContext {
         let size =
             (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
         let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
-        // just taken from the pool: no pending command uses it ([`super::batch`])
+        // just taken from the pool: no pending command uses it ([`super::stream`])
         if desc.contents.len() as u64 == size {
             self.write_direct(&buffer, 0, desc.contents);
         } else {
@@ -539,7 +532,7 @@ impl GpuContext {
             && buffer.usage() == usage
             && unchanged(held)
         {
-            self.hold_buffer(buffer);
+            self.batches.hold_buffer(buffer);
             return buffer.clone();
         }
         let (contents, held) = make();
@@ -551,7 +544,7 @@ impl GpuContext {
         {
             self.write_padded(buffer, &contents, size);
             *kept = held;
-            self.hold_buffer(buffer);
+            self.batches.hold_buffer(buffer);
             return buffer.clone();
         }
         let buffer = Arc::new(self.create_buffer(&wgpu::BufferDescriptor {
@@ -561,7 +554,7 @@ impl GpuContext {
             mapped_at_creation: false,
         }));
         self.write_padded(&buffer, &contents, size);
-        self.hold_buffer(&buffer);
+        self.batches.hold_buffer(&buffer);
         resident.insert(key.to_string(), (held, buffer.clone()));
         buffer
     }
@@ -590,9 +583,9 @@ impl GpuContext {
     }
 
     /// `queue.write_buffer`, counted as an upload; while this thread's frame holds commands
-    /// not yet submitted, written in the stream's order instead ([`super::batch`]).
+    /// not yet submitted, written in the stream's order instead ([`super::stream`]).
     pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
-        if self.has_pending() {
+        if self.batches.has_pending() {
             self.write_ordered(buffer, offset, data);
         } else {
             self.write_direct(buffer, offset, data);
@@ -846,7 +839,7 @@ impl GpuContext {
                 Contents::Overwritten => {}
             }
         }
-        self.hold_buffer(&buffer);
+        self.batches.hold_buffer(&buffer);
         buffer
     }
 
@@ -857,19 +850,8 @@ impl GpuContext {
         if !reused {
             self.count_allocation();
         }
-        self.hold_texture(&texture);
+        self.batches.hold_texture(&texture);
         texture
-    }
-
-    /// Starts a frame in the pool ([`super::pool::Pool::begin_frame`]) and its counters
-    /// ([`GpuContext::reset_counters`]), and its command stream on this thread: its command
-    /// buffers are submitted together at its waits and when the returned batch is dropped
-    /// ([`super::batch`]).
-    pub fn begin_frame(&self) -> super::batch::FrameBatch<'_> {
-        self.release_uploads();
-        self.pool.begin_frame();
-        self.reset_counters();
-        self.begin_batch()
     }
 
     /// What frames took from the pool since [`GpuContext::begin_frame`].

@@ -2,7 +2,7 @@
 //! frame's resources ([`FrameTargets`]): what a pass makes it leaves in the targets for the
 //! passes after it. A pass records and submits its GPU work and returns (its command buffers
 //! held with the frame's others and handed to the queue together at the frame's next wait:
-//! [`super::batch`]); it waits for the device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
+//! [`super::stream`]); it waits for the device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
 //! reference steps make; a colour mapping's sums; the final read-back, which brings the report's
 //! counts along), and, while the context times passes ([`GpuContext::set_pass_waits`]), after
 //! itself to be timed. A live frame's VPLs are made and consumed on the GPU

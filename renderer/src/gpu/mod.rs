@@ -45,7 +45,7 @@
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely).
 
-pub mod batch;
+mod batch;
 pub mod bounce;
 pub mod bounce_chain;
 pub mod ca;
@@ -63,6 +63,7 @@ pub mod raster;
 pub mod representation;
 pub mod shade;
 pub mod specular;
+pub mod stream;
 pub mod vpl;
 
 use crate::cm::{CmParams, CmReport, CmState, Composition};
