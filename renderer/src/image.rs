@@ -14,6 +14,29 @@ pub struct Image {
     pub pixels: Vec<Vec3>,
 }
 
+/// A display-encoded image in 8 bits a channel: RGBA bytes, row-major, top row first, 4 bytes
+/// a pixel, alpha 255; each channel as [`quantize8`] rounds it (what a live frame that is only
+/// shown reads back from the GPU, [`crate::gpu::DirRenderer::render_display`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgba8 {
+    pub width: u32,
+    pub height: u32,
+    pub bytes: Vec<u8>,
+}
+
+impl Rgba8 {
+    /// `image` (display-encoded) quantised as [`Image::to_rgb8`] does, alpha 255.
+    pub fn from_image(image: &Image) -> Rgba8 {
+        let bytes = image.pixels.iter().flat_map(|p| [quantize8(p.x), quantize8(p.y), quantize8(p.z), 255]).collect();
+        Rgba8 { width: image.width, height: image.height, bytes }
+    }
+
+    /// The RGB bytes, alpha dropped: [`Image::to_rgb8`] of the image these bytes came from.
+    pub fn to_rgb8(&self) -> Vec<u8> {
+        self.bytes.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect()
+    }
+}
+
 /// A scalar image (coverage, region, error map), row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mask {
@@ -235,4 +258,24 @@ pub fn create_buffers_dir(dir: &Path) -> Result<()> {
 pub fn save_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value).expect("JSON values serialise") + "\n";
     std::fs::write(path, text).map_err(|e| RenderError::Write { path: path.to_owned(), reason: e.to_string() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 8-bit frame a live frame hands on has the bytes the old conversion gave the lab: the
+    /// read-back bytes made an image of b / 255, quantised again by `Image::to_rgb8` — for
+    /// every byte value, in every channel.
+    #[test]
+    fn rgba8_bytes_are_those_of_the_old_conversion_through_floats() {
+        let bytes: Vec<u8> = (0..=255u8).flat_map(|b| [b, 255 - b, b / 3, 255]).collect();
+        let frame = Rgba8 { width: 16, height: 16, bytes };
+        // the old path: each byte / 255 as an image, then `to_rgb8`
+        let channel = |b: u8| b as f32 / 255.0;
+        let pixels = frame.bytes.chunks_exact(4).map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
+        let image = Image { width: 16, height: 16, pixels: pixels.collect() };
+        assert_eq!(frame.to_rgb8(), image.to_rgb8());
+        assert_eq!(Rgba8::from_image(&image), frame);
+    }
 }

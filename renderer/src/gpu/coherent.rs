@@ -226,7 +226,7 @@ impl CoherentPasses {
     /// buffers read back (per piece, where the frame's lists exceed what the adapter binds).
     pub fn run(&self, ctx: &GpuContext, input: &FrameInput) -> Result<FrameOutput, FrameRefused> {
         let start = Instant::now();
-        ctx.begin_frame();
+        let _frame = ctx.begin_frame();
         let too_many = |what, count: usize, limit| {
             if count > limit { Err(FrameRefused::TooMany { what, count, limit }) } else { Ok(()) }
         };

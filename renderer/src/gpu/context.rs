@@ -88,6 +88,9 @@ pub struct GpuContext {
     /// Buffers of a scene's static data, kept from frame to frame ([`GpuContext::resident`]):
     /// per key, what the contents last written were made from and the buffer holding them.
     resident: Mutex<std::collections::HashMap<String, (Held, Arc<wgpu::Buffer>)>>,
+    /// Per thread, the frame being recorded: its command buffers, submitted together
+    /// ([`super::stream`]).
+    pub(super) batches: super::batch::Batches,
 }
 
 /// What a resident buffer's contents were made from ([`GpuContext::resident`],
@@ -181,6 +184,7 @@ impl GpuContext {
             counters: Default::default(),
             uploads: Mutex::new(Vec::new()),
             resident: Mutex::new(Default::default()),
+            batches: Default::default(),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -226,19 +230,20 @@ impl GpuContext {
     /// the GPU timer on ([`GpuContext::enable_gpu_timer`]), timestamps are written just before
     /// and just after it (tiny command buffers in the same submission), for
     /// [`GpuContext::take_gpu_ms`].
+    /// Within a frame the command buffer is held and submitted with the frame's others at its
+    /// next wait ([`super::stream`]).
     pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let commands = self.finish(encoder);
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
-        self.count_submit();
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
             drop(guard);
-            self.queue_submit([commands]);
+            self.enqueue(vec![commands]);
             return;
         };
         if timer.written + 2 > TIMER_QUERIES {
             // more submissions than queries: the pass's GPU time is not reported
             timer.written = TIMER_QUERIES + 1;
-            self.queue_submit([commands]);
+            self.enqueue(vec![commands]);
             return;
         }
         let marker = |index: u32| {
@@ -248,7 +253,7 @@ impl GpuContext {
         };
         let (begin, end) = (marker(timer.written), marker(timer.written + 1));
         timer.written += 2;
-        self.queue_submit([begin, commands, end]);
+        self.enqueue(vec![begin, commands, end]);
     }
 
     /// `encoder.finish()`, its time counted as recording (`record_ms`).
@@ -259,9 +264,9 @@ impl GpuContext {
         commands
     }
 
-    /// `queue.submit`, its time counted (`submit_ms`; the submission itself is counted by the
-    /// caller).
-    fn queue_submit<const N: usize>(&self, commands: [wgpu::CommandBuffer; N]) {
+    /// `queue.submit`, counted (`submits`) and its time counted (`submit_ms`).
+    pub(super) fn queue_submit(&self, commands: Vec<wgpu::CommandBuffer>) {
+        self.counters.submits.fetch_add(1, Ordering::Relaxed);
         let start = Instant::now();
         self.queue.submit(commands);
         add_elapsed(&self.counters.submit_ns, start);
@@ -296,8 +301,7 @@ impl GpuContext {
         encoder.resolve_query_set(&timer.queries, 0..written, &timer.resolve, 0);
         encoder.copy_buffer_to_buffer(&timer.resolve, 0, &staging, 0, written as u64 * 8);
         // not through `submit`: this copy is no pass's work (and the timer is locked)
-        self.count_submit();
-        self.queue_submit([self.finish(encoder)]);
+        self.enqueue(vec![self.finish(encoder)]);
         let ticks: Vec<u64> = self.mapped(&staging, |bytes| {
             bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect()
         })?;
@@ -391,17 +395,14 @@ impl GpuContext {
         self.pass_waits.load(Ordering::Relaxed)
     }
 
-    /// Blocks until the GPU has finished all submitted work (counted as a host wait).
+    /// Blocks until the GPU has finished all submitted work (counted as a host wait), this
+    /// thread's frame batch submitted first.
     pub fn wait(&self) {
+        self.flush();
         let start = Instant::now();
         let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
         self.counters.host_waits.fetch_add(1, Ordering::Relaxed);
         self.counters.wait_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
-    }
-
-    /// Counts one queue submission made outside [`GpuContext::submit`].
-    pub(super) fn count_submit(&self) {
-        self.counters.submits.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Forgets the counts ([`GpuContext::counters`]); each frame starts with it.
@@ -463,12 +464,13 @@ impl GpuContext {
         let size =
             (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
         let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
+        // just taken from the pool: no pending command uses it ([`super::stream`])
         if desc.contents.len() as u64 == size {
-            self.write_buffer(&buffer, 0, desc.contents);
+            self.write_direct(&buffer, 0, desc.contents);
         } else {
             let mut padded = desc.contents.to_vec();
             padded.resize(size as usize, 0);
-            self.write_buffer(&buffer, 0, &padded);
+            self.write_direct(&buffer, 0, &padded);
         }
         let mut uploads = self.uploads.lock().unwrap_or_else(|e| e.into_inner());
         if uploads.len() >= MAX_HELD_UPLOADS {
@@ -530,6 +532,7 @@ impl GpuContext {
             && buffer.usage() == usage
             && unchanged(held)
         {
+            self.batches.hold_buffer(buffer);
             return buffer.clone();
         }
         let (contents, held) = make();
@@ -541,6 +544,7 @@ impl GpuContext {
         {
             self.write_padded(buffer, &contents, size);
             *kept = held;
+            self.batches.hold_buffer(buffer);
             return buffer.clone();
         }
         let buffer = Arc::new(self.create_buffer(&wgpu::BufferDescriptor {
@@ -550,6 +554,7 @@ impl GpuContext {
             mapped_at_creation: false,
         }));
         self.write_padded(&buffer, &contents, size);
+        self.batches.hold_buffer(&buffer);
         resident.insert(key.to_string(), (held, buffer.clone()));
         buffer
     }
@@ -577,8 +582,18 @@ impl GpuContext {
         self.device.create_texture(desc)
     }
 
-    /// `queue.write_buffer`, counted as an upload.
+    /// `queue.write_buffer`, counted as an upload; while this thread's frame holds commands
+    /// not yet submitted, written in the stream's order instead ([`super::stream`]).
     pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        if self.batches.has_pending() {
+            self.write_ordered(buffer, offset, data);
+        } else {
+            self.write_direct(buffer, offset, data);
+        }
+    }
+
+    /// `queue.write_buffer`, counted as an upload (it runs before the next submission).
+    pub(super) fn write_direct(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
         self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
         self.queue.write_buffer(buffer, offset, data);
     }
@@ -591,6 +606,8 @@ impl GpuContext {
         layout: wgpu::TexelCopyBufferLayout,
         size: wgpu::Extent3d,
     ) {
+        // it runs before the next submission: after this thread's recorded commands
+        self.flush();
         self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
         self.queue.write_texture(texture, data, layout, size);
     }
@@ -675,6 +692,8 @@ impl GpuContext {
 
     /// Maps staging buffers for reading, with one wait for the device.
     fn map_all(&self, staging: &[&wgpu::Buffer]) {
+        // the copies into them submitted first
+        self.flush();
         for buffer in staging {
             buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
         }
@@ -763,7 +782,7 @@ impl GpuContext {
 /// `bytes` as `T`s, copied once, in blocks of [`READ_BLOCK`] bytes on all threads: reading
 /// mapped memory is slow from one thread (a 1024×768 frame's 38 MB took 10–22 ms on an H200's
 /// host).
-fn copy_blocks<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
+pub(super) fn copy_blocks<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
     let mut out = vec![T::zeroed(); bytes.len() / std::mem::size_of::<T>()];
     let whole = std::mem::size_of_val(out.as_slice());
     bytemuck::cast_slice_mut::<T, u8>(&mut out)
@@ -808,18 +827,19 @@ impl GpuContext {
                 Contents::Zeroed => {
                     let mut encoder = self.device.create_command_encoder(&Default::default());
                     encoder.clear_buffer(&buffer, 0, None);
-                    self.count_submit();
-                    self.queue_submit([self.finish(encoder)]);
+                    self.enqueue(vec![self.finish(encoder)]);
                 }
                 #[cfg(test)]
                 Contents::Overwritten => {
-                    // old contents read by mistake show as NaNs
+                    // old contents read by mistake show as NaNs (just taken: no pending command
+                    // uses it)
                     self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
                 }
                 #[cfg(not(test))]
                 Contents::Overwritten => {}
             }
         }
+        self.batches.hold_buffer(&buffer);
         buffer
     }
 
@@ -830,15 +850,8 @@ impl GpuContext {
         if !reused {
             self.count_allocation();
         }
+        self.batches.hold_texture(&texture);
         texture
-    }
-
-    /// Starts a frame in the pool ([`super::pool::Pool::begin_frame`]) and its counters
-    /// ([`GpuContext::reset_counters`]).
-    pub fn begin_frame(&self) {
-        self.release_uploads();
-        self.pool.begin_frame();
-        self.reset_counters();
     }
 
     /// What frames took from the pool since [`GpuContext::begin_frame`].

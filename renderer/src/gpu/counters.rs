@@ -27,15 +27,16 @@ pub struct FrameCounters {
     /// `host_steps_ms`.
     pub cpu_ms: f64,
     /// Of `cpu_ms`, the time blocked in host waits (on a software adapter this is the device's
-    /// own work, run on the host's cores).
+    /// own work, run on the host's cores): `cpu_ms` − `wait_ms` is the renderer's own host time.
     pub wait_ms: f64,
     /// Of `cpu_ms`, the time recording commands: bind groups made and compute dispatches
     /// recorded through the context ([`super::context::GpuContext::record_dispatch`], [`super::context::GpuContext::bind_group`])
     /// and command encoders' `finish` (where wgpu encodes the recorded passes into the backend's
     /// command buffers; render passes' draws recorded before it count in `host_steps_ms`).
     pub record_ms: f64,
-    /// Of `cpu_ms`, the time inside `queue.submit` (on lavapipe the device's work runs there,
-    /// on the host's cores).
+    /// Of `cpu_ms`, the time inside `queue.submit` (on lavapipe a submission made while earlier
+    /// work runs waits for it there; a frame's one submission, made with the device idle,
+    /// returns after the hand-off and its work shows as `wait_ms`).
     pub submit_ms: f64,
     /// The rest of `cpu_ms` (`cpu_ms` − `record_ms` − `submit_ms` − `wait_ms`): the frame's
     /// CPU steps — the scene's mesh, uniforms and uploads, CPU passes, the read-back's copies.

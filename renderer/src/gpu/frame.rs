@@ -1,11 +1,12 @@
 //! One GPU frame as an explicit, ordered list of passes ([`PASSES`]), each a function over the
 //! frame's resources ([`FrameTargets`]): what a pass makes it leaves in the targets for the
-//! passes after it. A pass records and submits its GPU work and returns; it waits for the
-//! device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
+//! passes after it. A pass records and submits its GPU work and returns (its command buffers
+//! held with the frame's others and handed to the queue together at the frame's next wait:
+//! [`super::stream`]); it waits for the device only where it needs data on the host (a stimulus's VPLs and bounces, which the host's
 //! reference steps make; a colour mapping's sums; the final read-back, which brings the report's
 //! counts along), and, while the context times passes ([`GpuContext::set_pass_waits`]), after
 //! itself to be timed. A live frame's VPLs are made and consumed on the GPU
-//! ([`bounce_chain`]), so a live frame waits once, for its image.
+//! ([`bounce_chain`]), so a live frame waits once, for its image, and makes one submission.
 //!
 //! The order is the thesis's (Figure 5.3; the module documentation of [`super`] says what each
 //! pass computes): [`FrameTargets::new`] builds the scene's mesh and uploads it, then
@@ -58,6 +59,8 @@ pub(super) struct FrameImages {
     pub l_r: Image,
     pub virtual_mask: Mask,
     pub flags: Vec<u32>,
+    /// A frame only shown: the composite as read back in 8 bits (then `composite` is empty).
+    pub display: Option<crate::image::Rgba8>,
 }
 
 /// Everything a frame's passes read and write, filled in pass by pass ([`PASSES`]).
@@ -633,8 +636,8 @@ impl DirRenderer {
     /// The read-back, in two timed steps: the GPU's copies into staging buffers, then the
     /// host's map and copy. A frame only shown (without the ca factor, which needs the
     /// radiance buffers for the virtual objects' mask and works on the composite in floats)
-    /// reads back only the composite packed to 8-bit RGBA: one wait, 4 bytes a pixel; its
-    /// image holds those bytes / 255, which `Image::to_rgb8` turns back into the same bytes.
+    /// reads back only the composite packed to 8-bit RGBA: one wait, 4 bytes a pixel, handed
+    /// on as they are ([`crate::image::Rgba8`]).
     fn pass_readback(&self, f: &mut FrameTargets) -> Result<()> {
         let ctx = &self.ctx;
         let (width, height) = (f.width, f.height);
@@ -655,32 +658,25 @@ impl DirRenderer {
                     staged.extend(chain);
                     staged
                 });
-            // the image made straight from the mapped bytes (no copy of them first)
-            let mut image_ms = 0.0;
-            let to_image = |bytes: &[u8]| {
-                use rayon::prelude::*;
-                let start = Instant::now();
-                let channel = |b: u8| b as f32 / 255.0;
-                let pixels = bytes
-                    .par_chunks_exact(4)
-                    .take((width * height) as usize)
-                    .map(|c| Vec3::new(channel(c[0]), channel(c[1]), channel(c[2])));
-                let image = Image { width, height, pixels: pixels.collect() };
-                image_ms = start.elapsed().as_secs_f64() * 1e3;
-                image
-            };
-            let (composite, words) =
-                timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
-                    ctx.read_staged_with(&staged[0], &staged[1..].iter().map(|s| &**s).collect::<Vec<_>>(), to_image)
-                });
+            // the bytes copied once from the mapped memory, as they are (no image of floats)
+            let pixels = (width * height) as usize * 4;
+            let to_bytes = |bytes: &[u8]| context::copy_blocks::<u8>(&bytes[..pixels.min(bytes.len())]);
+            let (bytes, words) = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
+                ctx.read_staged_with(&staged[0], &staged[1..].iter().map(|s| &**s).collect::<Vec<_>>(), to_bytes)
+            });
             let at = !counts.is_empty() as usize;
             f.take_counts(if at == 1 { &words[0] } else { &[] }, words.get(at).map(|w| w.as_slice()));
-            let composite = composite.unwrap_or_else(|| Image::filled(width, height, Vec3::ZERO));
-            f.passes.push(PassTime::new("image from the read-back bytes (CPU)", image_ms));
+            let bytes = bytes.filter(|b| b.len() == pixels).unwrap_or_else(|| vec![0; pixels]);
             let empty = Image::filled(0, 0, Vec3::ZERO);
             let virtual_mask = Mask { width, height, values: Vec::new() };
-            f.images =
-                Some(FrameImages { composite, l_rv: empty.clone(), l_r: empty, virtual_mask, flags: Vec::new() });
+            f.images = Some(FrameImages {
+                composite: empty.clone(),
+                l_rv: empty.clone(),
+                l_r: empty,
+                virtual_mask,
+                flags: Vec::new(),
+                display: Some(crate::image::Rgba8 { width, height, bytes }),
+            });
             return Ok(());
         }
         let radiance = f.mode != Frame::Display || f.params.camera_artifacts.is_some();
@@ -722,7 +718,7 @@ impl DirRenderer {
             )
         };
         f.passes.push(PassTime::new("images from the read-back buffers (CPU)", start.elapsed().as_secs_f64() * 1e3));
-        f.images = Some(FrameImages { composite, l_rv, l_r, virtual_mask, flags });
+        f.images = Some(FrameImages { composite, l_rv, l_r, virtual_mask, flags, display: None });
         Ok(())
     }
 
@@ -751,6 +747,20 @@ impl DirRenderer {
         state: &mut LiveState,
         mode: Frame,
     ) -> Result<GpuRender> {
+        Ok(self.render_frame_shown(scene, photo, params, given_vpls, state, mode)?.0)
+    }
+
+    /// [`DirRenderer::render_frame`], with a frame only shown's 8-bit composite as read back
+    /// (None for other frames, and where the ca factor made the composite on the host).
+    pub(super) fn render_frame_shown(
+        &self,
+        scene: &Scene,
+        photo: &Image,
+        params: &DirParams,
+        given_vpls: Option<&[vpl::GpuVpl]>,
+        state: &mut LiveState,
+        mode: Frame,
+    ) -> Result<(GpuRender, Option<crate::image::Rgba8>)> {
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         if photo.width != width || photo.height != height {
@@ -762,7 +772,7 @@ impl DirRenderer {
             });
         }
         let frame_start = Instant::now();
-        ctx.begin_frame();
+        let _frame = ctx.begin_frame();
         let mut f = FrameTargets::new(ctx, &self.meshes, scene, photo, params, state, mode);
         f.given_vpls = given_vpls;
         for (_, pass) in PASSES {
@@ -770,7 +780,7 @@ impl DirRenderer {
         }
         let images = f.images.take().expect("the read-back ran");
         let ms = f.passes.iter().map(|p| p.ms).sum();
-        Ok(GpuRender {
+        let render = GpuRender {
             composite: images.composite,
             l_rv: images.l_rv,
             l_r: images.l_r,
@@ -799,6 +809,7 @@ impl DirRenderer {
                 specular: f.traced.take().map(|traced| traced.report),
             },
             vpls: std::mem::take(&mut f.vpls),
-        })
+        };
+        Ok((render, images.display))
     }
 }

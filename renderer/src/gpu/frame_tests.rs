@@ -69,12 +69,20 @@ fn stimulus_frames_equal_the_recorded_hashes() {
     let Some(r) = crate::test_support::renderer_or_skip() else { return };
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu/stimulus_hashes.json");
     let mut hashes = std::collections::BTreeMap::new();
+    // and pipelined (no pass timed: each frame's commands held and submitted together at its
+    // waits, `batch`), on a device of its own: the same bytes
+    let pipelined = DirRenderer::new().unwrap();
+    pipelined.ctx.set_pass_waits(false);
+    let mut pipelined_hashes = std::collections::BTreeMap::new();
     for (name, scene, params) in stimulus_cases() {
         let scene = crate::scene::load(scene).unwrap().with_size(64, 48);
         let photo = crate::test_support::grey_photo(&scene);
         let frame = r.render(&scene, &photo, &params).unwrap();
         hashes.insert(name.to_string(), frame_hash(&frame));
+        let frame = pipelined.render(&scene, &photo, &params).unwrap();
+        pipelined_hashes.insert(name.to_string(), frame_hash(&frame));
     }
+    assert_eq!(pipelined_hashes, hashes, "pipelined stimulus frames differ from timed ones");
     if std::env::var("MRSTUDY_WRITE_HASHES").is_ok_and(|v| v == "1") {
         std::fs::write(&path, serde_json::to_string_pretty(&hashes).unwrap() + "\n").unwrap();
         return;
@@ -127,8 +135,8 @@ fn counters_at_the_thesis_setting() {
 }
 
 /// A live frame that is only shown, after its first: nothing allocated, nothing uploaded but its
-/// uniforms (the scene and the photograph are kept: `GpuContext::resident`), one host wait and
-/// one read-back — the composite as 8-bit RGBA, with the report's counts (the specular passes',
+/// uniforms (the scene and the photograph are kept: `GpuContext::resident`), one submission
+/// (every pass's command buffers together: `batch`), one host wait and one read-back — the composite as 8-bit RGBA, with the report's counts (the specular passes',
 /// the VPL chain's plan: under 1 KB) — with further bounces and caustics too: the VPLs are made
 /// and consumed on the GPU (`bounce_chain`). A device of its own, so that no other test's work
 /// is counted.
@@ -159,6 +167,8 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
             eprintln!("{name}, {bounces} bounces, frame {frame}: {}", c.cells());
             assert!(c.readback_bytes <= 64 * 48 * 4 + 1024, "{name}: {} bytes read back", c.readback_bytes);
             assert!(c.host_waits <= 1, "{name}, {bounces} bounces: {} host waits", c.host_waits);
+            // one command stream: the frame's command buffers in one submission, at its wait
+            assert_eq!(c.submits, 1, "{name}, {bounces} bounces: {} submissions", c.submits);
             if frame > 0 {
                 assert_eq!(c.allocations, 0, "{name}, frame {frame}: allocated after the first frame");
                 // the uniforms: 4 KB at most (the scene, the photograph: none)
@@ -304,4 +314,33 @@ fn the_scene_mesh_is_kept_until_an_object_moves() {
     );
     let expected = fresh.render(&scene, &photo, &params).unwrap();
     assert!(moved.composite == expected.composite, "the moved frame differs from a fresh renderer's");
+}
+
+/// Within a frame, commands are held until the frame's next wait (`batch`), while
+/// `queue.write_buffer` runs before the next submission: a write made after a command was
+/// recorded still lands after it (through a staging copy in the stream), and a pooled buffer a
+/// held command uses is not handed out again before the command is submitted.
+#[test]
+fn a_frames_writes_and_pooled_buffers_keep_the_order_of_its_commands() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let ctx = &r.ctx;
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let clear = |buffer: &wgpu::Buffer| {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(buffer, 0, None);
+        ctx.submit(encoder);
+    };
+    let frame = ctx.begin_frame();
+    let written = ctx.buffer("frame_tests ordered", 16, usage, pool::Contents::Overwritten);
+    clear(&written);
+    ctx.write_buffer(&written, 0, bytemuck::cast_slice(&[1u32, 2, 3, 4]));
+    // a size no other test takes
+    let used = ctx.buffer("frame_tests held", 4 * 1237, usage, pool::Contents::Overwritten);
+    clear(&used);
+    let held = Arc::as_ptr(&used);
+    drop(used);
+    let again = ctx.buffer("frame_tests held", 4 * 1237, usage, pool::Contents::Overwritten);
+    assert_ne!(Arc::as_ptr(&again), held, "a buffer a held command uses was handed out again");
+    drop(frame);
+    assert_eq!(bytemuck::cast_slice::<u8, u32>(&ctx.read_storage(&written)), [1, 2, 3, 4], "the write ran first");
 }

@@ -45,6 +45,7 @@
 //! per-object motion vectors (temporal smoothing reprojects with the camera), glossy VPLs (VPLs
 //! reflect diffusely).
 
+mod batch;
 pub mod bounce;
 pub mod bounce_chain;
 pub mod ca;
@@ -62,6 +63,7 @@ pub mod raster;
 pub mod representation;
 pub mod shade;
 pub mod specular;
+pub mod stream;
 pub mod vpl;
 
 use crate::cm::{CmParams, CmReport, CmState, Composition};
@@ -291,8 +293,8 @@ pub struct LiveState {
 
 /// A live frame that is only shown ([`DirRenderer::render_display`]).
 pub struct DisplayFrame {
-    /// The composite, display-encoded like the photograph.
-    pub composite: Image,
+    /// The composite, display-encoded like the photograph, in 8 bits a channel.
+    pub composite: crate::image::Rgba8,
     pub report: GpuReport,
 }
 
@@ -578,9 +580,11 @@ impl DirRenderer {
     }
 
     /// [`DirRenderer::render_with_state`] for a live frame that is only shown (the lab's): the
-    /// composite is the only image read back (12 MB at 1024×768, not 38 MB with L_rv and L_r),
-    /// with the radiance buffers only where the ca factor needs the virtual objects' mask. The
-    /// composite equals `render_with_state`'s bit for bit.
+    /// composite is the only image read back, packed to 8-bit RGBA on the GPU (3.1 MB at
+    /// 1024×768, not 38 MB of floats with L_rv and L_r) and handed on as those bytes; with the
+    /// ca factor, which needs the virtual objects' mask from the radiance buffers and works on
+    /// the composite in floats, the floats are read back and quantised on the host. Either way
+    /// the bytes are those of `render_with_state`'s composite quantised ([`crate::image::Rgba8::from_image`]).
     pub fn render_display(
         &self,
         scene: &Scene,
@@ -588,8 +592,9 @@ impl DirRenderer {
         params: &DirParams,
         state: &mut LiveState,
     ) -> Result<DisplayFrame> {
-        let frame = self.render_frame(scene, photo, params, None, state, Frame::Display)?;
-        Ok(DisplayFrame { composite: frame.composite, report: frame.report })
+        let (frame, shown) = self.render_frame_shown(scene, photo, params, None, state, Frame::Display)?;
+        let composite = shown.unwrap_or_else(|| crate::image::Rgba8::from_image(&frame.composite));
+        Ok(DisplayFrame { composite, report: frame.report })
     }
 }
 

@@ -150,6 +150,10 @@ pub struct Raster {
     /// clears its depth on load and discards it on store, and the queue runs passes in order);
     /// making a new one per pass cost each of a frame's 60-odd passes a texture allocation.
     depth_cache: std::sync::Mutex<Vec<((u32, u32), wgpu::TextureView)>>,
+    /// The shadow maps' bind groups (one per map, each over its part of the views buffer),
+    /// kept while the views buffer [`Raster::shadow_maps`] uploads into is the same one from the
+    /// pool (a frame of the same scene gets it again): a weak handle to it, its stride, the groups.
+    shadow_groups: std::sync::Mutex<Option<(std::sync::Weak<wgpu::Buffer>, u64, Vec<wgpu::BindGroup>)>>,
 }
 
 pub const SHADER: &str = concat!(include_str!("material.wgsl"), include_str!("raster.wgsl"));
@@ -225,6 +229,7 @@ impl Raster {
                 less,
             ),
             depth_cache: std::sync::Mutex::new(Vec::new()),
+            shadow_groups: std::sync::Mutex::new(None),
         }
     }
 
@@ -390,17 +395,30 @@ impl Raster {
             contents: &contents,
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        for (k, (_, subset, distance)) in maps.iter().enumerate() {
-            let binding = wgpu::BufferBinding {
-                buffer: &views,
-                offset: k as u64 * stride,
-                size: std::num::NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
+        let mut groups = self.shadow_groups.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let kept = groups.as_ref().is_some_and(|(buffer, kept_stride, kept)| {
+            buffer.upgrade().is_some_and(|b| Arc::ptr_eq(&b, &views))
+                && *kept_stride == stride
+                && kept.len() == maps.len()
+        });
+        if !kept {
+            let group = |k: usize| {
+                let binding = wgpu::BufferBinding {
+                    buffer: &views,
+                    offset: k as u64 * stride,
+                    size: std::num::NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
+                };
+                self.bind_group_with(ctx, &self.shadow, scene, wgpu::BindingResource::Buffer(binding))
             };
-            let bind_group = self.bind_group_with(ctx, &self.shadow, scene, wgpu::BindingResource::Buffer(binding));
-            let pass = Pass { subset: *subset, size: (size, size), targets: &[(*distance, 1e30)] };
-            self.record(ctx, &mut encoder, &self.shadow, &bind_group, scene, pass);
+            *groups = Some((Arc::downgrade(&views), stride, (0..maps.len()).map(group).collect()));
         }
+        let bind_groups = &groups.as_ref().expect("made above").2;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for ((_, subset, distance), bind_group) in maps.iter().zip(bind_groups) {
+            let pass = Pass { subset: *subset, size: (size, size), targets: &[(*distance, 1e30)] };
+            self.record(ctx, &mut encoder, &self.shadow, bind_group, scene, pass);
+        }
+        drop(groups);
         ctx.submit(encoder);
     }
 

@@ -24,7 +24,7 @@ use mrstudy_renderer::cm::CmState;
 use mrstudy_renderer::coherent::CoherentParams;
 use mrstudy_renderer::coherent::render::LiveCoherent;
 use mrstudy_renderer::gpu::{DirParams, DirRenderer, GiLevel, LiveState};
-use mrstudy_renderer::image::Image;
+use mrstudy_renderer::image::{Image, Rgba8};
 use mrstudy_renderer::reference::{ReferenceParams, render_photo};
 use mrstudy_renderer::scene::Scene;
 use tokio::sync::oneshot;
@@ -250,7 +250,7 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
             if fresh {
                 *live = LiveState::default();
             }
-            // only the composite is read back: the lab shows it and nothing else
+            // only the composite is read back, in 8 bits: the lab shows it and nothing else
             let render =
                 renderer.render_display(&scene, &lab.photo, &params, &mut live).map_err(|error| error.to_string())?;
             (render.composite, render.report.temporal_smoothing)
@@ -269,7 +269,7 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
             let frame = coherent
                 .frame(&scene, &params, &lab.params.cm, &mut state.coherent_cm, gpu)
                 .map_err(|error| error.to_string())?;
-            (frame.composite, false)
+            (Rgba8::from_image(&frame.composite), false)
         }
     };
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
@@ -282,11 +282,12 @@ fn render_frame(renderer: &DirRenderer, lab: &LabScene, job: &FrameJob) -> Resul
     Ok(Frame { jpeg, width: composite.width, height: composite.height, render_ms, encode_ms, state })
 }
 
-/// A display-encoded image as baseline JPEG.
-pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, LiveError> {
+/// A display-encoded frame in 8 bits as baseline JPEG (of its RGB: the bytes
+/// `Image::to_rgb8` gives the image it was quantised from).
+pub fn encode_jpeg(frame: &Rgba8, quality: u8) -> Result<Vec<u8>, LiveError> {
     let mut bytes = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality.clamp(1, 100))
-        .encode(&image.to_rgb8(), image.width, image.height, image::ExtendedColorType::Rgb8)
+        .encode(&frame.to_rgb8(), frame.width, frame.height, image::ExtendedColorType::Rgb8)
         .map_err(|error| LiveError::Jpeg { reason: error.to_string() })?;
     Ok(bytes)
 }
