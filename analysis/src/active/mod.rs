@@ -87,6 +87,7 @@ pub mod posterior;
 pub mod quadrature;
 pub mod sides;
 pub mod simulate;
+pub mod spread;
 
 #[cfg(test)]
 mod tests;
