@@ -67,7 +67,7 @@ enum Rule {
     /// [`spread::SPREAD_GRID`] (Laplace evidence × the zero-avoiding hyperprior Gamma(2, rate 2)
     /// on τ, Chung et al. 2013), one refit per τ ([`spread::spread_posterior`]), and the pair
     /// score the weighted sum of the per-τ EIGs (`Summed`) or the plain EIG of the mixture's
-    /// moment-matched Gaussian (`Moment`: [`Posterior::with_spread_prior`], the served design).
+    /// moment-matched Gaussian (`Moment`: [`Posterior::with_spread_prior`]).
     Mixture(MixtureScore),
 }
 
@@ -313,7 +313,11 @@ fn main() {
     };
     let n = worths.len();
     // optional: `long` adds a checkpoint at twice the last (random pairs' curve beyond it)
-    let long = args.next().is_some_and(|a| a == "long");
+    // `reference`: score as the study's analysis does instead — the near-MLE (prior sd 10) and
+    // the RMSE of the log-worths as differences to the first condition
+    let flags: Vec<String> = args.next().map(|a| a.split(',').map(str::to_owned).collect()).unwrap_or_default();
+    let long = flags.iter().any(|f| f == "long");
+    let reference = flags.iter().any(|f| f == "reference");
     let mut checkpoints: Vec<usize> = if n >= 20 {
         vec![100, 200, 400, 800]
     } else if n > 8 {
@@ -331,7 +335,11 @@ fn main() {
     let map = |judgments: &[(usize, usize)]| -> laplace::LaplaceFit {
         refit(&target, Link::Probit, DEFAULT_PRIOR_SD, judgments).expect("a refit")
     };
-    println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
+    if reference {
+        println!("{n} conditions, {runs} runs; RMSE of the differences to the first condition, MAP with prior sd 10");
+    } else {
+        println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
+    }
     for (name, rule) in SCHEDULERS {
         if only.as_ref().is_some_and(|parts| !parts.iter().any(|p| name.contains(p.as_str()))) {
             continue;
@@ -529,7 +537,16 @@ fn main() {
                     judgments.push((winner, loser));
                     previous = Some((i, j));
                     if let Some(c) = checkpoints.iter().position(|&c| c == judgments.len()) {
-                        at[c].push(centred_rmse(&map(&judgments).mean, &worths));
+                        let rmse = if reference {
+                            let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
+                            let differences = |v: &[f64]| v.iter().map(|x| x - v[0]).collect::<Vec<f64>>();
+                            let (estimate, truth) = (differences(&fit.mean), differences(&worths));
+                            let squares: f64 = estimate.iter().zip(&truth).skip(1).map(|(e, t)| (e - t).powi(2)).sum();
+                            (squares / (n - 1) as f64).sqrt()
+                        } else {
+                            centred_rmse(&map(&judgments).mean, &worths)
+                        };
+                        at[c].push(rmse);
                     }
                 }
             }

@@ -273,18 +273,11 @@ pub fn plan_detection_v1(study: &Study, seed: u64) -> Vec<PlannedTrial> {
     trials
 }
 
-/// A fresh posterior for the study's active design (`None` for a fixed design). The
-/// `worths` target scores its batches under the hierarchical prior on the log-worths' spread
-/// ([`Posterior::with_spread_prior`], issue 48; the study's `prior_sd` is the spread's prior
-/// mean); `effects` and `both` under the fixed prior sd with the ρ ramp.
+/// A fresh posterior for the study's active design (`None` for a fixed design).
 pub fn active_posterior(study: &Study) -> Option<Result<Posterior, ActiveError>> {
     let active = study.design.active.as_ref()?;
     let target = crate::study::active_target(active, &study.conditions);
-    let posterior = Posterior::new(&target, mrstudy_analysis::active::Link::Logit, active.prior_sd);
-    Some(match target {
-        mrstudy_analysis::active::Target::Worths { .. } => posterior.and_then(Posterior::with_spread_prior),
-        _ => posterior,
-    })
+    Some(Posterior::new(&target, mrstudy_analysis::active::Link::Logit, active.prior_sd))
 }
 
 /// What one participant has been shown so far, as an active batch needs it: the last pair

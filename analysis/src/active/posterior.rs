@@ -160,11 +160,6 @@ impl Posterior {
         Ok(self)
     }
 
-    /// Whether batches are scored under the hierarchical prior on the spread.
-    pub fn spread_prior(&self) -> bool {
-        self.spread
-    }
-
     /// The spread mixture's moment-matched Gaussian at this state (computed once).
     fn spread_fit(&self) -> Result<&super::laplace::LaplaceFit> {
         if let Some(fit) = self.spread_fit.get() {
