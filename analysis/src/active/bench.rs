@@ -163,6 +163,8 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
         let truth = truth(n, 1);
         let log = simulated_log(&truth, Link::Logit, *judgment_counts.last().expect("sizes"), 2);
         let mut posterior = Posterior::new(&Target::Worths { conditions: n }, Link::Logit, super::DEFAULT_PRIOR_SD)?;
+        // the same judgments under the spread prior (absorbed outside the timed loop)
+        let mut spread = posterior.clone().with_spread_prior()?;
         let mut absorbed = 0;
         let mut points = Vec::new();
         for &count in judgment_counts {
@@ -171,6 +173,9 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
                 posterior.update(winner, loser)?;
             }
             let absorb_us = start.elapsed().as_secs_f64() * 1e6 / (count - absorbed) as f64;
+            for &(winner, loser) in &log[absorbed..count] {
+                spread.update(winner, loser)?;
+            }
             absorbed = count;
             let repeats = if n >= 100 { 7 } else { 21 };
             let state = posterior.state_id();
@@ -179,7 +184,6 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
                 median_ms(repeats.div_ceil(3), || posterior.best_pairs(10, Some((0, 1)), &mut tie_stream(3, state, 0)))
                     / 10.0;
             // a clone has no mixture yet: every call computes it (the clone copies the log too)
-            let spread = posterior.clone().with_spread_prior()?;
             let spread_ms_per_pair = median_ms(repeats.div_ceil(3), || {
                 spread.clone().best_pairs(10, Some((0, 1)), &mut tie_stream(3, state, 0))
             }) / 10.0;

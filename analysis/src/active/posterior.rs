@@ -72,7 +72,8 @@ pub struct Posterior {
     /// Whether the batch scores by the hierarchical prior on the log-worths' spread
     /// ([`Posterior::with_spread_prior`]).
     spread: bool,
-    /// Every judgment absorbed, (winner, loser), in order: what the spread's refits read.
+    /// Every judgment absorbed, (winner, loser), in order, kept only under the spread prior:
+    /// what its refits read (the other posteriors stay O(p²) whatever the log).
     log: Vec<(usize, usize)>,
     /// The spread mixture's moment-matched Gaussian at this state, once a batch needed it.
     spread_fit: OnceLock<super::laplace::LaplaceFit>,
@@ -150,6 +151,15 @@ impl Posterior {
     /// posterior, ρ and the ramp are then not used for the choice. Computed once per state
     /// (concurrent participants at one state share it). Only for the log-worths target.
     pub fn with_spread_prior(mut self) -> Result<Posterior> {
+        if self.judgments > 0 {
+            return Err(ActiveError::BadOption {
+                option: "spread_prior",
+                message: format!(
+                    "the hierarchical prior on the spread needs every judgment; set it before the first, not after {}",
+                    self.judgments
+                ),
+            });
+        }
         if self.design.is_some() || self.effects.is_some() {
             return Err(ActiveError::BadOption {
                 option: "spread_prior",
@@ -384,8 +394,10 @@ impl Posterior {
             }
         }
         self.judgments += 1;
-        self.log.push((winner, loser));
-        self.spread_fit = OnceLock::new();
+        if self.spread {
+            self.log.push((winner, loser));
+            self.spread_fit = OnceLock::new();
+        }
         self.fingerprint = mix(self.fingerprint ^ mix(((winner as u64) << 32) | loser as u64));
         if union(&mut self.parent, winner, loser) {
             self.components -= 1;

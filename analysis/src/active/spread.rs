@@ -259,4 +259,11 @@ mod tests {
         let posterior = crate::active::Posterior::new(&Target::Factors { design }, Link::Logit, 1.0).unwrap();
         assert!(matches!(posterior.with_spread_prior(), Err(ActiveError::BadOption { option: "spread_prior", .. })));
     }
+
+    #[test]
+    fn the_spread_prior_is_refused_after_the_first_judgment() {
+        let mut posterior = crate::active::Posterior::new(&Target::Worths { conditions: 4 }, Link::Logit, 1.0).unwrap();
+        posterior.update(0, 1).unwrap();
+        assert!(matches!(posterior.with_spread_prior(), Err(ActiveError::BadOption { option: "spread_prior", .. })));
+    }
 }
