@@ -314,10 +314,12 @@ fn main() {
     let n = worths.len();
     // optional: `long` adds a checkpoint at twice the last (random pairs' curve beyond it)
     // `reference`: score as the study's analysis does instead — the near-MLE (prior sd 10) and
-    // the RMSE of the log-worths as differences to the first condition
+    // the RMSE of the log-worths as differences to the first condition; `mle`: the near-MLE,
+    // centred
     let flags: Vec<String> = args.next().map(|a| a.split(',').map(str::to_owned).collect()).unwrap_or_default();
     let long = flags.iter().any(|f| f == "long");
     let reference = flags.iter().any(|f| f == "reference");
+    let mle = flags.iter().any(|f| f == "mle");
     let mut checkpoints: Vec<usize> = if n >= 20 {
         vec![100, 200, 400, 800]
     } else if n > 8 {
@@ -337,6 +339,8 @@ fn main() {
     };
     if reference {
         println!("{n} conditions, {runs} runs; RMSE of the differences to the first condition, MAP with prior sd 10");
+    } else if mle {
+        println!("{n} conditions, {runs} runs; centred RMSE of the MAP with prior sd 10");
     } else {
         println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
     }
@@ -543,6 +547,9 @@ fn main() {
                             let (estimate, truth) = (differences(&fit.mean), differences(&worths));
                             let squares: f64 = estimate.iter().zip(&truth).skip(1).map(|(e, t)| (e - t).powi(2)).sum();
                             (squares / (n - 1) as f64).sqrt()
+                        } else if mle {
+                            let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
+                            centred_rmse(&fit.mean, &worths)
                         } else {
                             centred_rmse(&map(&judgments).mean, &worths)
                         };
