@@ -76,12 +76,14 @@ enum Rule {
 enum MixtureScore {
     Summed,
     Moment,
+    /// The moment-matched Gaussian scored by EIG(ρ·m, v) with ρ = ½ (no ramp).
+    MomentHalf,
 }
 
 /// The prior sds whose Laplace evidence [`Rule::Evidence`] compares.
 const EVIDENCE_SDS: [f64; 7] = [0.15, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4];
 
-const SCHEDULERS: [(&str, Rule); 20] = [
+const SCHEDULERS: [(&str, Rule); 21] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -102,6 +104,7 @@ const SCHEDULERS: [(&str, Rule); 20] = [
     ("hierarchical τ + ρ ½", Rule::Hierarchical(DEFAULT_MEAN_WEIGHT)),
     ("τ-mixture + summed EIG", Rule::Mixture(MixtureScore::Summed)),
     ("τ-mixture + moment EIG", Rule::Mixture(MixtureScore::Moment)),
+    ("τ-mixture + moment, ρ ½", Rule::Mixture(MixtureScore::MomentHalf)),
 ];
 
 /// A greedy batch scored by Σₖ wₖ·EIGₖ: each τ's mean and covariance, a fantasy update of every
@@ -411,6 +414,17 @@ fn main() {
                         let mixture =
                             spread::spread_posterior(n, Link::Probit, DEFAULT_PRIOR_SD, &judgments).expect("a mixture");
                         summed_batch(&mixture, &judgments, k, previous, &mut ties)
+                    }
+                    Rule::Mixture(MixtureScore::MomentHalf) => {
+                        let mixture =
+                            spread::spread_posterior(n, Link::Probit, DEFAULT_PRIOR_SD, &judgments).expect("a mixture");
+                        posterior.reanchor(&mixture.moment_matched()).expect("a usable mixture");
+                        posterior = posterior
+                            .clone()
+                            .with_mean_weight(DEFAULT_MEAN_WEIGHT)
+                            .and_then(|p| p.with_mean_ramp(0.0))
+                            .expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
                     }
                     Rule::Mixture(MixtureScore::Moment) => {
                         posterior.best_pairs(k, previous, &mut ties).expect("a batch")
