@@ -56,7 +56,7 @@
 //!
 //! **The spread of the log-worths** ([`spread`], issue 48): [`Posterior::with_spread_prior`]
 //! scores under a hierarchical prior instead, τ ~ Gamma(2, 2/σ) on the log-worths' prior sd, by
-//! the plain EIG on the moment-matched Gaussian of the posterior mixture over τ: cautious while
+//! EIG(ρ·m, v) on the moment-matched Gaussian of the posterior mixture over τ: cautious while
 //! the data cannot tell a small spread from a large one, the plain EIG once they can. It meets
 //! issue 48's 20-condition goal under the MAP scorer of the side-by-side with ASAP but is worse
 //! than the ramp in what a study's analysis reports (docs/simulate/README.md), so the server

@@ -147,8 +147,9 @@ impl Posterior {
     /// Scores batches under the hierarchical prior on the log-worths' spread
     /// ([`super::spread`]): before a batch, the posterior over the prior sd τ (hyperprior
     /// Gamma(2, 2/`prior_sd`), one Laplace refit of every judgment per τ of the grid), the
-    /// mixture's moment-matched Gaussian, and the plain EIG (ρ = 1, no ramp) on it; the ADF
-    /// posterior, ρ and the ramp are then not used for the choice. Computed once per state
+    /// mixture's moment-matched Gaussian, and the score EIG(ρ·m, v) on it with ρ_max
+    /// ([`Posterior::with_mean_weight`]; 1: the plain EIG) from the first judgment, no ramp;
+    /// the ADF posterior and the ramp are then not used for the choice. Computed once per state
     /// (concurrent participants at one state share it). Only for the log-worths target.
     pub fn with_spread_prior(mut self) -> Result<Posterior> {
         if self.judgments > 0 {
@@ -474,7 +475,7 @@ impl Posterior {
                 fingerprint: self.fingerprint,
                 parent: self.parent.clone(),
                 components: self.components,
-                mean_weight: 1.0,
+                mean_weight: self.mean_weight,
                 mean_ramp: 0.0,
                 eig_rule: self.eig_rule.clone(),
                 update_rule: self.update_rule.clone(),

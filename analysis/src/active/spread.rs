@@ -8,7 +8,8 @@
 //! hyperprior × τ (the Jacobian of the even ln τ grid); each τ has its own Laplace refit of
 //! every judgment, and the mixture of those Gaussians is summarised by its moment-matched
 //! Gaussian (mean Σ wₖmₖ, covariance Σ wₖ(Cₖ + mₖmₖᵀ) − m·mᵀ), which
-//! [`super::Posterior::with_spread_prior`] scores by the plain EIG. Not served: see below.
+//! [`super::Posterior::with_spread_prior`] scores by EIG(ρ·m, v) (ρ = 1, the plain EIG, in the
+//! measurements below unless they say ρ ½). Not served: see below.
 //!
 //! Why the moment-matched mixture: while the judgments cannot tell a small spread from a large
 //! one, the components' means disagree, the matched covariance carries that disagreement (the
@@ -209,7 +210,12 @@ mod tests {
         let worths = [0.8, -0.3, 0.1, -1.2, 0.6, 0.0];
         let judgments = judged(&worths, 40, 5);
         let target = Target::Worths { conditions: 6 };
-        let mut served = crate::active::Posterior::new(&target, Link::Logit, 1.0).unwrap().with_spread_prior().unwrap();
+        let mut served = crate::active::Posterior::new(&target, Link::Logit, 1.0)
+            .unwrap()
+            .with_mean_weight(1.0)
+            .unwrap()
+            .with_spread_prior()
+            .unwrap();
         for &(w, l) in &judgments {
             served.update(w, l).unwrap();
         }
@@ -242,7 +248,12 @@ mod tests {
         for &(w, l) in &more {
             served.update(w, l).unwrap();
         }
-        let mut fresh = crate::active::Posterior::new(&target, Link::Logit, 1.0).unwrap().with_spread_prior().unwrap();
+        let mut fresh = crate::active::Posterior::new(&target, Link::Logit, 1.0)
+            .unwrap()
+            .with_mean_weight(1.0)
+            .unwrap()
+            .with_spread_prior()
+            .unwrap();
         for &(w, l) in judgments.iter().chain(&more) {
             fresh.update(w, l).unwrap();
         }
