@@ -25,6 +25,7 @@ use std::collections::VecDeque;
 
 use mrstudy_analysis::active::laplace::{self, refit};
 use mrstudy_analysis::active::simulate::{centred_rmse, factorial, mean_and_standard_error};
+use mrstudy_analysis::active::spread;
 use mrstudy_analysis::active::{DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Posterior, Target, tie_stream};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
@@ -62,12 +63,27 @@ enum Rule {
     /// [0.05, 3]), the posterior re-anchored on the refit with that τ, and the EIG with the
     /// mean weight ρ (no ramp).
     Hierarchical(f64),
+    /// Full Bayes over the spread τ (issue 48): the posterior over τ on
+    /// [`spread::SPREAD_GRID`] (Laplace evidence × the zero-avoiding hyperprior Gamma(2, rate 2)
+    /// on τ, Chung et al. 2013), one refit per τ ([`spread::spread_posterior`]), and the pair
+    /// score the weighted sum of the per-τ EIGs (`Summed`) or the plain EIG of the mixture's
+    /// moment-matched Gaussian (`Moment`: [`Posterior::with_spread_prior`]).
+    Mixture(MixtureScore),
+}
+
+/// How [`Rule::Mixture`] scores a pair.
+#[derive(Clone, Copy)]
+enum MixtureScore {
+    Summed,
+    Moment,
+    /// The moment-matched Gaussian scored by EIG(ρ·m, v) with ρ = ½ (no ramp).
+    MomentHalf,
 }
 
 /// The prior sds whose Laplace evidence [`Rule::Evidence`] compares.
 const EVIDENCE_SDS: [f64; 7] = [0.15, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4];
 
-const SCHEDULERS: [(&str, Rule); 18] = [
+const SCHEDULERS: [(&str, Rule); 21] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -86,32 +102,99 @@ const SCHEDULERS: [(&str, Rule); 18] = [
     ("refit + evidence switch 0.7", Rule::Evidence(0.7)),
     ("hierarchical τ + plain EIG", Rule::Hierarchical(1.0)),
     ("hierarchical τ + ρ ½", Rule::Hierarchical(DEFAULT_MEAN_WEIGHT)),
+    ("τ-mixture + summed EIG", Rule::Mixture(MixtureScore::Summed)),
+    ("τ-mixture + moment EIG", Rule::Mixture(MixtureScore::Moment)),
+    ("τ-mixture + moment, ρ ½", Rule::Mixture(MixtureScore::MomentHalf)),
 ];
 
-/// The Laplace approximation of log p(judgments | prior sd) for the Thurstone worths model:
-/// ℓ(θ̂) + log N(θ̂; 0, sd²·I) + (p/2)·log 2π + ½·log|Σ|, at the MAP θ̂ with covariance Σ.
-fn log_evidence(n: usize, sd: f64, judgments: &[(usize, usize)]) -> f64 {
-    let fit = refit(&Target::Worths { conditions: n }, Link::Probit, sd, judgments).expect("a refit");
-    let theta = &fit.mean;
-    let likelihood: f64 = judgments.iter().map(|&(w, l)| Link::Probit.probability(theta[w] - theta[l]).ln()).sum();
-    let two_pi = 2.0 * std::f64::consts::PI;
-    let prior: f64 = theta.iter().map(|t| -0.5 * (t / sd).powi(2) - (sd * two_pi.sqrt()).ln()).sum();
-    // ½·log|Σ| by Cholesky
-    let c = &fit.covariance;
-    let mut l = vec![0.0; n * n];
-    let mut half_log_det = 0.0;
-    for i in 0..n {
-        for j in 0..=i {
-            let sum: f64 = (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum();
-            if i == j {
-                l[i * n + i] = (c[i * n + i] - sum).sqrt();
-                half_log_det += l[i * n + i].ln();
-            } else {
-                l[i * n + j] = (c[i * n + j] - sum) / l[j * n + j];
+/// A greedy batch scored by Σₖ wₖ·EIGₖ: each τ's mean and covariance, a fantasy update of every
+/// τ's covariance (outcome-averaged, as [`Posterior::best_pairs`]) after each pick; no pair
+/// follows itself or `previous`; while the judged pairs and the batch leave components, only
+/// pairs joining two are candidates. Ties by the stream's keys.
+fn summed_batch(
+    mixture: &spread::SpreadPosterior,
+    judgments: &[(usize, usize)],
+    trials: usize,
+    previous: Option<(usize, usize)>,
+    ties: &mut ChaCha8Rng,
+) -> Vec<(usize, usize)> {
+    let n = mixture.fits[0].mean.len();
+    let gauss =
+        mrstudy_analysis::active::quadrature::Rule::gauss_hermite(mrstudy_analysis::active::quadrature::EIG_NODES);
+    let update =
+        mrstudy_analysis::active::quadrature::Rule::gauss_hermite(mrstudy_analysis::active::quadrature::UPDATE_NODES);
+    let kept: Vec<usize> = (0..mixture.weights.len()).filter(|&k| mixture.weights[k] > 1e-6).collect();
+    let mut covariances: Vec<Vec<f64>> = kept.iter().map(|&k| mixture.fits[k].covariance.clone()).collect();
+    let mut parent: Vec<usize> = (0..n).collect();
+    let find = |parent: &mut Vec<usize>, mut x: usize| {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    };
+    let mut components = n;
+    for &(w, l) in judgments {
+        let (a, b) = (find(&mut parent, w), find(&mut parent, l));
+        if a != b {
+            parent[a] = b;
+            components -= 1;
+        }
+    }
+    let mut last = previous;
+    let mut batch = Vec::new();
+    while batch.len() < trials {
+        let mut best: Option<(f64, u64, usize, usize)> = None;
+        for i in 0..n {
+            for j in i + 1..n {
+                if last == Some((i, j)) || (components > 1 && find(&mut parent, i) == find(&mut parent, j)) {
+                    continue;
+                }
+                let score: f64 = kept
+                    .iter()
+                    .zip(&covariances)
+                    .map(|(&k, c)| {
+                        let m = &mixture.fits[k].mean;
+                        let v = c[i * n + i] + c[j * n + j] - 2.0 * c[i * n + j];
+                        mixture.weights[k] * Link::Probit.eig(m[i] - m[j], v.max(f64::MIN_POSITIVE), &gauss)
+                    })
+                    .sum();
+                let key = ties.next_u64();
+                if best.is_none_or(|(s, t, _, _)| score > s * (1.0 + 1e-12) || (score >= s * (1.0 - 1e-12) && key > t))
+                {
+                    best = Some((score, key, i, j));
+                }
+            }
+        }
+        let (_, _, i, j) = best.expect("a candidate");
+        batch.push((i, j));
+        last = Some((i, j));
+        let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+        if a != b {
+            parent[a] = b;
+            components -= 1;
+        }
+        for (&k, c) in kept.iter().zip(covariances.iter_mut()) {
+            let u: Vec<f64> = (0..n).map(|r| c[r * n + i] - c[r * n + j]).collect();
+            let v = u[i] - u[j];
+            let m = mixture.fits[k].mean[i] - mixture.fits[k].mean[j];
+            let (z, _, v_won) = Link::Probit.tilted(m, v, &update);
+            let (_, _, v_lost) = Link::Probit.tilted(-m, v, &update);
+            let shrink = (v - (z * v_won + (1.0 - z) * v_lost)) / (v * v);
+            for r in 0..n {
+                for s in 0..n {
+                    c[r * n + s] -= shrink * u[r] * u[s];
+                }
             }
         }
     }
-    likelihood + prior + 0.5 * n as f64 * two_pi.ln() + half_log_det
+    batch
+}
+
+/// ln p(judgments | prior sd) by Laplace ([`spread::log_evidence`]).
+fn log_evidence(n: usize, sd: f64, judgments: &[(usize, usize)]) -> f64 {
+    let fit = refit(&Target::Worths { conditions: n }, Link::Probit, sd, judgments).expect("a refit");
+    spread::log_evidence(n, Link::Probit, &fit, sd, judgments).expect("an evidence")
 }
 
 /// The prior sd of [`EVIDENCE_SDS`] with the largest Laplace evidence.
@@ -224,10 +307,32 @@ fn main() {
             .map(|line| line.split(',').nth(1).expect("a log_worth").parse().expect("a number"))
             .collect(),
         "8" => factorial(&[0.27, -0.22, 0.43]).1,
-        other => panic!("the study is 20 or 8, not {other}"),
+        path => std::fs::read_to_string(path)
+            .unwrap_or_else(|_| panic!("the study is 20, 8 or a worths CSV, not {path}"))
+            .lines()
+            .skip(1)
+            .map(|line| line.split(',').nth(1).expect("a log_worth").parse().expect("a number"))
+            .collect(),
     };
     let n = worths.len();
-    let checkpoints: Vec<usize> = if n == 20 { vec![100, 200, 400, 800] } else { vec![40, 80, 160, 320] };
+    // optional: `long` adds a checkpoint at twice the last (random pairs' curve beyond it)
+    // `reference`: score as the study's analysis does instead — the near-MLE (prior sd 10) and
+    // the RMSE of the log-worths as differences to the first condition; `mle`: the near-MLE,
+    // centred
+    let flags: Vec<String> = args.next().map(|a| a.split(',').map(str::to_owned).collect()).unwrap_or_default();
+    let long = flags.iter().any(|f| f == "long");
+    let reference = flags.iter().any(|f| f == "reference");
+    let mle = flags.iter().any(|f| f == "mle");
+    let mut checkpoints: Vec<usize> = if n >= 20 {
+        vec![100, 200, 400, 800]
+    } else if n > 8 {
+        vec![60, 120, 240, 480]
+    } else {
+        vec![40, 80, 160, 320]
+    };
+    if long {
+        checkpoints.push(2 * checkpoints[3]);
+    }
     let total = *checkpoints.last().expect("a checkpoint");
     let target = Target::Worths { conditions: n };
     let gauss =
@@ -235,7 +340,13 @@ fn main() {
     let map = |judgments: &[(usize, usize)]| -> laplace::LaplaceFit {
         refit(&target, Link::Probit, DEFAULT_PRIOR_SD, judgments).expect("a refit")
     };
-    println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
+    if reference {
+        println!("{n} conditions, {runs} runs; RMSE of the differences to the first condition, MAP with prior sd 10");
+    } else if mle {
+        println!("{n} conditions, {runs} runs; centred RMSE of the MAP with prior sd 10");
+    } else {
+        println!("{n} conditions, {runs} runs; centred RMSE of the MAP (prior sd 1) ± its standard error");
+    }
     for (name, rule) in SCHEDULERS {
         if only.as_ref().is_some_and(|parts| !parts.iter().any(|p| name.contains(p.as_str()))) {
             continue;
@@ -249,6 +360,9 @@ fn main() {
             let mut posterior = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD)
                 .and_then(|p| p.with_mean_weight(rho))
                 .and_then(|p| p.with_mean_ramp(ramp))
+                .and_then(|p| {
+                    if matches!(rule, Rule::Mixture(MixtureScore::Moment)) { p.with_spread_prior() } else { Ok(p) }
+                })
                 .expect("a posterior");
             let mut outcomes = ChaCha8Rng::seed_from_u64(1000 + run);
             let mut random = ChaCha8Rng::seed_from_u64(5000 + run);
@@ -264,7 +378,11 @@ fn main() {
                 let k = 5.min(total - judgments.len());
                 let reanchor = !matches!(
                     rule,
-                    Rule::Random | Rule::Greedy { reanchor: false, .. } | Rule::Tree | Rule::Hierarchical(_)
+                    Rule::Random
+                        | Rule::Greedy { reanchor: false, .. }
+                        | Rule::Tree
+                        | Rule::Hierarchical(_)
+                        | Rule::Mixture(_)
                 );
                 if reanchor && !judgments.is_empty() {
                     posterior.reanchor(&map(&judgments)).expect("a usable refit");
@@ -290,6 +408,25 @@ fn main() {
                             posterior.reanchor(&fit).expect("a usable refit");
                         }
                         posterior = posterior.clone().with_mean_weight(rho).expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
+                    Rule::Mixture(MixtureScore::Summed) => {
+                        let mixture =
+                            spread::spread_posterior(n, Link::Probit, DEFAULT_PRIOR_SD, &judgments).expect("a mixture");
+                        summed_batch(&mixture, &judgments, k, previous, &mut ties)
+                    }
+                    Rule::Mixture(MixtureScore::MomentHalf) => {
+                        let mixture =
+                            spread::spread_posterior(n, Link::Probit, DEFAULT_PRIOR_SD, &judgments).expect("a mixture");
+                        posterior.reanchor(&mixture.moment_matched()).expect("a usable mixture");
+                        posterior = posterior
+                            .clone()
+                            .with_mean_weight(DEFAULT_MEAN_WEIGHT)
+                            .and_then(|p| p.with_mean_ramp(0.0))
+                            .expect("a weight");
+                        posterior.best_pairs(k, previous, &mut ties).expect("a batch")
+                    }
+                    Rule::Mixture(MixtureScore::Moment) => {
                         posterior.best_pairs(k, previous, &mut ties).expect("a batch")
                     }
                     Rule::Spread(threshold) | Rule::Evidence(threshold) => {
@@ -418,7 +555,19 @@ fn main() {
                     judgments.push((winner, loser));
                     previous = Some((i, j));
                     if let Some(c) = checkpoints.iter().position(|&c| c == judgments.len()) {
-                        at[c].push(centred_rmse(&map(&judgments).mean, &worths));
+                        let rmse = if reference {
+                            let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
+                            let differences = |v: &[f64]| v.iter().map(|x| x - v[0]).collect::<Vec<f64>>();
+                            let (estimate, truth) = (differences(&fit.mean), differences(&worths));
+                            let squares: f64 = estimate.iter().zip(&truth).skip(1).map(|(e, t)| (e - t).powi(2)).sum();
+                            (squares / (n - 1) as f64).sqrt()
+                        } else if mle {
+                            let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
+                            centred_rmse(&fit.mean, &worths)
+                        } else {
+                            centred_rmse(&map(&judgments).mean, &worths)
+                        };
+                        at[c].push(rmse);
                     }
                 }
             }

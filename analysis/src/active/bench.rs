@@ -49,6 +49,10 @@ pub struct ChooseRow {
     pub batch_ms_per_pair: f64,
     /// Mean time to absorb one judgment (ADF), over the judgments added since the last row.
     pub absorb_us: f64,
+    /// Median wall time of a batch of 10 pairs under the hierarchical prior on the spread
+    /// ([`Posterior::with_spread_prior`], measured and not served) at a state whose mixture
+    /// is not computed yet (ten Laplace refits), per pair.
+    pub spread_ms_per_pair: f64,
 }
 
 /// One update method on one simulated log, against the Laplace refit.
@@ -147,8 +151,8 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
 
     // Choose: time of the next pair against conditions × judgments so far.
     line(&format!(
-        "{:<8} {:>10} {:>10} {:>12} {:>16} {:>12}",
-        "bench", "conditions", "judgments", "choose ms", "batch ms / pair", "absorb µs"
+        "{:<8} {:>10} {:>10} {:>12} {:>16} {:>12} {:>18}",
+        "bench", "conditions", "judgments", "choose ms", "batch ms / pair", "absorb µs", "spread ms / pair"
     ));
     let conditions: &[usize] = if quick { &[8, 20, 200] } else { &[8, 20, 50, 100, 200] };
     let judgment_counts: &[usize] =
@@ -159,6 +163,8 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
         let truth = truth(n, 1);
         let log = simulated_log(&truth, Link::Logit, *judgment_counts.last().expect("sizes"), 2);
         let mut posterior = Posterior::new(&Target::Worths { conditions: n }, Link::Logit, super::DEFAULT_PRIOR_SD)?;
+        // the same judgments under the spread prior (absorbed outside the timed loop)
+        let mut spread = posterior.clone().with_spread_prior()?;
         let mut absorbed = 0;
         let mut points = Vec::new();
         for &count in judgment_counts {
@@ -167,6 +173,9 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
                 posterior.update(winner, loser)?;
             }
             let absorb_us = start.elapsed().as_secs_f64() * 1e6 / (count - absorbed) as f64;
+            for &(winner, loser) in &log[absorbed..count] {
+                spread.update(winner, loser)?;
+            }
             absorbed = count;
             let repeats = if n >= 100 { 7 } else { 21 };
             let state = posterior.state_id();
@@ -174,10 +183,22 @@ fn run_active(quick: bool, line: &dyn Fn(&str)) -> Result<Report> {
             let batch_ms_per_pair =
                 median_ms(repeats.div_ceil(3), || posterior.best_pairs(10, Some((0, 1)), &mut tie_stream(3, state, 0)))
                     / 10.0;
-            let row = ChooseRow { bench: "choose", conditions: n, judgments: count, ms, batch_ms_per_pair, absorb_us };
+            // a clone has no mixture yet: every call computes it (the clone copies the log too)
+            let spread_ms_per_pair = median_ms(repeats.div_ceil(3), || {
+                spread.clone().best_pairs(10, Some((0, 1)), &mut tie_stream(3, state, 0))
+            }) / 10.0;
+            let row = ChooseRow {
+                bench: "choose",
+                conditions: n,
+                judgments: count,
+                ms,
+                batch_ms_per_pair,
+                absorb_us,
+                spread_ms_per_pair,
+            };
             line(&format!(
-                "{:<8} {:>10} {:>10} {:>12.3} {:>16.3} {:>12.2}",
-                row.bench, n, count, ms, batch_ms_per_pair, absorb_us
+                "{:<8} {:>10} {:>10} {:>12.3} {:>16.3} {:>12.2} {:>18.3}",
+                row.bench, n, count, ms, batch_ms_per_pair, absorb_us, spread_ms_per_pair
             ));
             points.push((count as f64, ms));
             if count == *judgment_counts.last().expect("sizes") {

@@ -3,6 +3,8 @@
 //! comparison graph's components (union–find), the state's id, the EIG of a pair, and the
 //! greedy batch of pairs for one participant.
 
+use std::sync::OnceLock;
+
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
@@ -67,6 +69,14 @@ pub struct Posterior {
     mean_ramp: f64,
     eig_rule: Rule,
     update_rule: Rule,
+    /// Whether the batch scores by the hierarchical prior on the log-worths' spread
+    /// ([`Posterior::with_spread_prior`]).
+    spread: bool,
+    /// Every judgment absorbed, (winner, loser), in order, kept only under the spread prior:
+    /// what its refits read (the other posteriors stay O(p²) whatever the log).
+    log: Vec<(usize, usize)>,
+    /// The spread mixture's moment-matched Gaussian at this state, once a batch needed it.
+    spread_fit: OnceLock<super::laplace::LaplaceFit>,
 }
 
 /// Union–find root with path halving.
@@ -128,7 +138,51 @@ impl Posterior {
             mean_ramp: super::MEAN_WEIGHT_RAMP,
             eig_rule: Rule::gauss_hermite(EIG_NODES),
             update_rule: Rule::gauss_hermite(UPDATE_NODES),
+            spread: false,
+            log: Vec::new(),
+            spread_fit: OnceLock::new(),
         })
+    }
+
+    /// Scores batches under the hierarchical prior on the log-worths' spread
+    /// ([`super::spread`]): before a batch, the posterior over the prior sd τ (hyperprior
+    /// Gamma(2, 2/`prior_sd`), one Laplace refit of every judgment per τ of the grid), the
+    /// mixture's moment-matched Gaussian, and the score EIG(ρ·m, v) on it with ρ_max
+    /// ([`Posterior::with_mean_weight`]; 1: the plain EIG) from the first judgment, no ramp;
+    /// the ADF posterior and the ramp are then not used for the choice. Computed once per state
+    /// (concurrent participants at one state share it). Only for the log-worths target.
+    pub fn with_spread_prior(mut self) -> Result<Posterior> {
+        if self.judgments > 0 {
+            return Err(ActiveError::BadOption {
+                option: "spread_prior",
+                message: format!(
+                    "the hierarchical prior on the spread needs every judgment; set it before the first, not after {}",
+                    self.judgments
+                ),
+            });
+        }
+        if self.design.is_some() || self.effects.is_some() {
+            return Err(ActiveError::BadOption {
+                option: "spread_prior",
+                message: "the hierarchical prior on the spread applies to the log-worths target only".into(),
+            });
+        }
+        self.spread = true;
+        Ok(self)
+    }
+
+    /// The spread mixture's moment-matched Gaussian at this state (computed once).
+    fn spread_fit(&self) -> Result<&super::laplace::LaplaceFit> {
+        if let Some(fit) = self.spread_fit.get() {
+            return Ok(fit);
+        }
+        let mixture = super::spread::spread_posterior(self.n_conditions, self.link, self.prior_sd, &self.log).map_err(
+            |error| match error {
+                ActiveError::Degenerate { message, .. } => self.degenerate(message),
+                other => other,
+            },
+        )?;
+        Ok(self.spread_fit.get_or_init(|| mixture.moment_matched()))
     }
 
     /// Sets ρ_max, the largest weight of the posterior mean difference in the score of a pair:
@@ -341,6 +395,10 @@ impl Posterior {
             }
         }
         self.judgments += 1;
+        if self.spread {
+            self.log.push((winner, loser));
+            self.spread_fit = OnceLock::new();
+        }
         self.fingerprint = mix(self.fingerprint ^ mix(((winner as u64) << 32) | loser as u64));
         if union(&mut self.parent, winner, loser) {
             self.components -= 1;
@@ -399,6 +457,33 @@ impl Posterior {
         if let Some((a, b)) = previous {
             self.check_condition(a)?;
             self.check_condition(b)?;
+        }
+        if self.spread {
+            let fit = self.spread_fit()?;
+            if fit.mean.iter().chain(&fit.covariance).any(|v| !v.is_finite()) {
+                return Err(self.degenerate("the spread mixture has a non-finite moment".into()));
+            }
+            let scoring = Posterior {
+                link: self.link,
+                prior_sd: self.prior_sd,
+                n_conditions: self.n_conditions,
+                design: None,
+                effects: None,
+                mean: fit.mean.clone(),
+                covariance: fit.covariance.clone(),
+                judgments: self.judgments,
+                fingerprint: self.fingerprint,
+                parent: self.parent.clone(),
+                components: self.components,
+                mean_weight: self.mean_weight,
+                mean_ramp: 0.0,
+                eig_rule: self.eig_rule.clone(),
+                update_rule: self.update_rule.clone(),
+                spread: false,
+                log: Vec::new(),
+                spread_fit: OnceLock::new(),
+            };
+            return scoring.best_pairs(trials, previous, rng);
         }
         if let Some(projection) = &self.effects {
             let input = super::both::BothBatch {
