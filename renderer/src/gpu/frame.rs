@@ -334,14 +334,9 @@ impl DirRenderer {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let layer_view = |layer: u32| {
-            shadow_maps.create_view(&wgpu::TextureViewDescriptor {
-                dimension: Some(wgpu::TextureViewDimension::D2),
-                base_array_layer: layer,
-                array_layer_count: Some(1),
-                ..Default::default()
-            })
-        };
+        // kept from frame to frame while the pool hands out the same texture
+        let layer_views = self.raster.layer_views(&shadow_maps);
+        let layer_view = |layer: u32| &layer_views[layer as usize];
         let (mesh, buffers, virtual_maps) = (&f.mesh, &f.buffers, f.virtual_maps);
         for (i, spot) in scene.spots.iter().enumerate() {
             let (matrix, tan_half) =
@@ -349,11 +344,11 @@ impl DirRenderer {
             let view = ViewUniform::perspective(matrix, spot.position, spot.direction);
             let layer = 2 * i as u32;
             timed(ctx, &mut f.passes, format!("shadow map {} real", spot.name), || {
-                self.raster.shadow_map(ctx, buffers, &view, Subset::Real, &layer_view(layer), size)
+                self.raster.shadow_map(ctx, buffers, &view, Subset::Real, layer_view(layer), size)
             });
             if virtual_maps {
                 timed(ctx, &mut f.passes, format!("shadow map {} virtual", spot.name), || {
-                    self.raster.shadow_map(ctx, buffers, &view, Subset::Virtual, &layer_view(layer + 1), size)
+                    self.raster.shadow_map(ctx, buffers, &view, Subset::Virtual, layer_view(layer + 1), size)
                 });
             }
             f.lights.push(GpuLight {
@@ -403,8 +398,6 @@ impl DirRenderer {
                             info: [1.0, layer as f32, 2.0 * radius / size as f32, 0.0],
                         });
                     }
-                    let maps: Vec<(ViewUniform, Subset, &wgpu::TextureView)> =
-                        maps.iter().map(|(view, subset, target)| (*view, *subset, target)).collect();
                     self.raster.shadow_maps(ctx, buffers, &maps, size);
                 },
             );

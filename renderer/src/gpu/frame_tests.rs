@@ -353,3 +353,31 @@ fn a_frames_writes_and_pooled_buffers_keep_the_order_of_its_commands() {
     drop(frame);
     assert_eq!(bytemuck::cast_slice::<u8, u32>(&ctx.read_storage(&written)), [1, 2, 3, 4], "the write ran first");
 }
+
+/// The shadow maps' layer views and bind groups, kept from frame to frame while the pool hands
+/// the pass the same texture and views buffer (`Raster::layer_views`, `Raster::shadow_maps`),
+/// are never another texture's: frames that alternate between two shadow-map sizes and numbers
+/// of environment lights (so the pool hands out other textures and buffers) equal, byte for
+/// byte, those of renderers that never rendered before.
+#[test]
+fn kept_shadow_map_views_follow_the_texture() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = |size: u32, env_lights: u32| DirParams {
+        condition: GiLevel::Shadows,
+        shadow_map_size: size,
+        env_lights,
+        ..DirParams::default()
+    };
+    let fresh: Vec<Image> = [params(64, 8), params(32, 4)]
+        .iter()
+        .map(|p| DirRenderer::new().unwrap().render(&scene, &photo, p).unwrap().composite)
+        .collect();
+    assert_ne!(fresh[0].pixels, fresh[1].pixels, "the two settings render alike: the test shows nothing");
+    for k in [0, 1, 0, 1] {
+        let p = if k == 0 { params(64, 8) } else { params(32, 4) };
+        let frame = r.render(&scene, &photo, &p).unwrap().composite;
+        assert!(frame.pixels == fresh[k].pixels, "setting {k}: the frame differs from a fresh renderer's");
+    }
+}
