@@ -79,6 +79,8 @@ pub struct GpuContext {
     timer: Mutex<Option<GpuTimer>>,
     /// Buffers and textures kept from frame to frame ([`GpuContext::buffer`]).
     pub(super) pool: super::pool::Pool,
+    /// The pool's textures' default views, kept with them ([`super::pool::Views`]).
+    pub(super) views: super::pool::Views,
     /// What the host asked of the device since [`GpuContext::reset_counters`].
     counters: CounterCells,
     /// The buffers [`GpuContext::upload`] handed out since the frame began: held until the
@@ -181,6 +183,7 @@ impl GpuContext {
             pass_waits: AtomicBool::new(true),
             timer: Mutex::new(None),
             pool: Default::default(),
+            views: Default::default(),
             counters: Default::default(),
             uploads: Mutex::new(Vec::new()),
             resident: Mutex::new(Default::default()),

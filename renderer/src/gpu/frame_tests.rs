@@ -354,30 +354,33 @@ fn a_frames_writes_and_pooled_buffers_keep_the_order_of_its_commands() {
     assert_eq!(bytemuck::cast_slice::<u8, u32>(&ctx.read_storage(&written)), [1, 2, 3, 4], "the write ran first");
 }
 
-/// The shadow maps' layer views and bind groups, kept from frame to frame while the pool hands
-/// the pass the same texture and views buffer (`Raster::layer_views`, `Raster::shadow_maps`),
-/// are never another texture's: frames that alternate between two shadow-map sizes and numbers
-/// of environment lights (so the pool hands out other textures and buffers) equal, byte for
-/// byte, those of renderers that never rendered before.
+/// The views kept from frame to frame while the pool hands a pass the same texture — the
+/// shadow maps' layer views and bind groups (`Raster::layer_views`, `Raster::shadow_maps`), the
+/// RSMs' default views (`pool::Views`) — are never another texture's: frames that alternate
+/// between two shadow-map and RSM sizes and numbers of environment lights (so the pool hands
+/// out other textures and buffers) equal, byte for byte, those of renderers that never rendered
+/// before.
 #[test]
-fn kept_shadow_map_views_follow_the_texture() {
+fn kept_views_follow_their_textures() {
     let Some(r) = crate::test_support::renderer_or_skip() else { return };
     let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(64, 48);
     let photo = crate::test_support::grey_photo(&scene);
-    let params = |size: u32, env_lights: u32| DirParams {
-        condition: GiLevel::Shadows,
-        shadow_map_size: size,
-        env_lights,
+    let params = |k: usize| DirParams {
+        condition: GiLevel::Gi,
+        vpls: 32,
+        rsm_size: [32, 16][k],
+        ism_size: 32,
+        ism_points: 256,
+        bounces: 1,
+        shadow_map_size: [64, 32][k],
+        env_lights: [8, 4][k],
         ..DirParams::default()
     };
-    let fresh: Vec<Image> = [params(64, 8), params(32, 4)]
-        .iter()
-        .map(|p| DirRenderer::new().unwrap().render(&scene, &photo, p).unwrap().composite)
-        .collect();
+    let fresh: Vec<Image> =
+        (0..2).map(|k| DirRenderer::new().unwrap().render(&scene, &photo, &params(k)).unwrap().composite).collect();
     assert_ne!(fresh[0].pixels, fresh[1].pixels, "the two settings render alike: the test shows nothing");
     for k in [0, 1, 0, 1] {
-        let p = if k == 0 { params(64, 8) } else { params(32, 4) };
-        let frame = r.render(&scene, &photo, &p).unwrap().composite;
+        let frame = r.render(&scene, &photo, &params(k)).unwrap().composite;
         assert!(frame.pixels == fresh[k].pixels, "setting {k}: the frame differs from a fresh renderer's");
     }
 }

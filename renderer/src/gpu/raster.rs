@@ -463,8 +463,8 @@ impl Raster {
         targets: &SurfaceTargets,
     ) {
         let size = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        let targets = [(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
+        let targets = [(distance, 1e30), (&*views[0], 0.0), (&*views[1], 0.0), (&*views[2], 0.0)];
         self.draw(ctx, &self.rsm, scene, view, Pass { subset, size, targets: &targets });
     }
 
