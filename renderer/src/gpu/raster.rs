@@ -359,8 +359,8 @@ impl Raster {
     /// The camera's G-buffer (all geometry); position.w is 0 where nothing was drawn.
     pub fn gbuffer(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, targets: &SurfaceTargets) {
         let size = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        let targets = [(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
+        let targets = [(&*views[0], 0.0), (&*views[1], 0.0), (&*views[2], 0.0)];
         self.draw(ctx, &self.gbuffer, scene, view, Pass { subset: Subset::All, size, targets: &targets });
     }
 
@@ -483,7 +483,7 @@ impl Raster {
     ) {
         let pipeline = if farthest { &self.gbuffer_back } else { &self.gbuffer };
         let (width, height) = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
         let bind_groups: Vec<wgpu::BindGroup> =
             draws.iter().map(|draw| self.bind_group(ctx, pipeline, scene, &draw.view)).collect();
         let depth = self.depth(ctx, width, height);
