@@ -149,6 +149,8 @@ pub fn run(scene_name: Option<&str>, quick: bool, observer: &dyn Observer) -> Re
         observer.note(&format!("{name}: the photograph at {width}×{height} (1 spp, path traced)"));
         let (_, photo, _) =
             render_photo(&scene, &ReferenceParams { spp: 1, ..ReferenceParams::default() }, &|_, _| {})?;
+        // shared, as the lab shares it: a live frame given the same one compares none of it
+        let photo = std::sync::Arc::new(photo);
         let specular = scene.specular_object().is_some();
         let rows_of_scene = [
             (GiLevel::None, IsmSplatting::Compute),

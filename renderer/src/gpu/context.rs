@@ -79,6 +79,8 @@ pub struct GpuContext {
     timer: Mutex<Option<GpuTimer>>,
     /// Buffers and textures kept from frame to frame ([`GpuContext::buffer`]).
     pub(super) pool: super::pool::Pool,
+    /// The pool's textures' default views, kept with them ([`super::pool::Views`]).
+    pub(super) views: super::pool::Views,
     /// What the host asked of the device since [`GpuContext::reset_counters`].
     counters: CounterCells,
     /// The buffers [`GpuContext::upload`] handed out since the frame began: held until the
@@ -181,6 +183,7 @@ impl GpuContext {
             pass_waits: AtomicBool::new(true),
             timer: Mutex::new(None),
             pool: Default::default(),
+            views: Default::default(),
             counters: Default::default(),
             uploads: Mutex::new(Vec::new()),
             resident: Mutex::new(Default::default()),
@@ -490,30 +493,34 @@ impl GpuContext {
     /// that used it has submitted its work, which the write is queued after), else into a new
     /// one (an allocation; a frame still recording keeps the old one).
     pub fn resident(&self, key: &str, contents: &[u8], usage: wgpu::BufferUsages) -> Arc<wgpu::Buffer> {
-        let unchanged = |held: &Held| matches!(held, Held::Bytes(bytes) if bytes.as_slice() == contents);
+        let unchanged = |held: &mut Held| matches!(held, Held::Bytes(bytes) if bytes.as_slice() == contents);
         self.resident_where(key, usage, unchanged, || {
             (std::borrow::Cow::Borrowed(contents), Held::Bytes(contents.to_vec()))
         })
     }
 
-    /// As [`GpuContext::resident`], for contents made from `source` by `contents`, which runs
-    /// only when `source` is not `same` as the source of the contents last kept under `key`
-    /// (a copy of it is kept): a frame whose source did not change neither makes nor compares
-    /// the bytes (the photograph's texels: 12.6 MB at 1024×768).
-    pub fn resident_for<S: Clone + Send + 'static>(
+    /// As [`GpuContext::resident`], for contents made from what the frame has, `probe`: `same`
+    /// says whether the value kept under `key` (`S`, what `make` returned with the contents
+    /// last written) still stands for `probe` (and may replace it with an equal one that
+    /// proves it more cheaply next time), and `make` runs only when it does not — so a
+    /// frame whose source did not change neither makes nor compares the bytes (the
+    /// photograph's texels: 12.6 MB at 1024×768), and `same` can prove it cheaply (the
+    /// photograph: the same `Arc`, kept alive here so that it cannot have changed).
+    pub fn resident_for<S: Send + 'static, P: ?Sized>(
         &self,
         key: &str,
-        source: &S,
-        same: fn(&S, &S) -> bool,
+        probe: &P,
+        same: impl Fn(&mut S, &P) -> bool,
         usage: wgpu::BufferUsages,
-        contents: impl FnOnce(&S) -> Vec<u8>,
+        make: impl FnOnce(&P) -> (Vec<u8>, S),
     ) -> Arc<wgpu::Buffer> {
-        let unchanged = |held: &Held| match held {
-            Held::Source(held) => held.downcast_ref::<S>().is_some_and(|held| same(held, source)),
+        let unchanged = |held: &mut Held| match held {
+            Held::Source(held) => held.downcast_mut::<S>().is_some_and(|held| same(held, probe)),
             Held::Bytes(_) => false,
         };
         self.resident_where(key, usage, unchanged, || {
-            (std::borrow::Cow::Owned(contents(source)), Held::Source(Box::new(source.clone())))
+            let (contents, kept) = make(probe);
+            (std::borrow::Cow::Owned(contents), Held::Source(Box::new(kept)))
         })
     }
 
@@ -523,12 +530,12 @@ impl GpuContext {
         &self,
         key: &str,
         usage: wgpu::BufferUsages,
-        unchanged: impl Fn(&Held) -> bool,
+        unchanged: impl FnOnce(&mut Held) -> bool,
         make: impl FnOnce() -> (std::borrow::Cow<'c, [u8]>, Held),
     ) -> Arc<wgpu::Buffer> {
         let usage = usage | wgpu::BufferUsages::COPY_DST;
         let mut resident = self.resident.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((held, buffer)) = resident.get(key)
+        if let Some((held, buffer)) = resident.get_mut(key)
             && buffer.usage() == usage
             && unchanged(held)
         {

@@ -108,7 +108,7 @@ fn counters_at_the_thesis_setting() {
         [("dir-lamp-box", GiLevel::Gi), ("dir-lamp-box", GiLevel::None), ("glass-figure", GiLevel::Gi)]
     {
         let scene = crate::scene::load(name).unwrap().with_size(1024, 768);
-        let photo = crate::test_support::grey_photo(&scene);
+        let photo = Arc::new(crate::test_support::grey_photo(&scene));
         let params = DirParams {
             condition,
             vpls: 256,
@@ -149,7 +149,7 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
     r.ctx.set_pass_waits(false);
     for (name, bounces) in [("dir-lamp-box", 1), ("dir-lamp-box", 3), ("glass-figure", 3)] {
         let scene = crate::scene::load(name).unwrap().with_size(64, 48);
-        let photo = crate::test_support::grey_photo(&scene);
+        let photo = Arc::new(crate::test_support::grey_photo(&scene));
         let params = DirParams {
             vpls: 32,
             rsm_size: 32,
@@ -267,22 +267,31 @@ fn a_frames_host_time_is_split_and_the_photograph_kept_while_its_bits_stay() {
     };
     r.ctx.set_pass_waits(false);
     let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
-    let mut photo = Image::filled(64, 48, Vec3::ZERO);
+    let mut photo = Arc::new(Image::filled(64, 48, Vec3::ZERO));
     let params = DirParams { vpls: 32, rsm_size: 32, ism_size: 32, ism_points: 256, ..DirParams::default() };
     let photo_bytes = 64 * 48 * 16;
     let mut state = LiveState::default();
-    let mut frame = |photo: &Image| r.render_display(&scene, photo, &params, &mut state).unwrap().report.counters;
+    let mut frame = |photo: &Arc<Image>| r.render_display(&scene, photo, &params, &mut state).unwrap();
     frame(&photo);
-    let kept = frame(&photo);
+    let kept = frame(&photo).report.counters;
     let parts = kept.record_ms + kept.submit_ms + kept.wait_ms + kept.host_steps_ms;
     assert!((parts - kept.cpu_ms).abs() < 1e-6, "{parts} ms of parts in {} ms", kept.cpu_ms);
     assert!(kept.record_ms > 0.0 && kept.submit_ms > 0.0 && kept.host_steps_ms > 0.0, "{kept:?}");
     assert!(kept.upload_bytes < photo_bytes, "the unchanged photograph was uploaded again: {kept:?}");
-    photo.pixels[5].y = -0.0;
-    let changed = frame(&photo);
+    // changed through `Arc::make_mut` (the kept buffer holds the `Arc`: this copies it)
+    Arc::make_mut(&mut photo).pixels[5].y = -0.0;
+    let changed = frame(&photo).report.counters;
     assert!(changed.upload_bytes >= photo_bytes, "a changed photograph was not uploaded: {changed:?}");
     let again = frame(&photo);
-    assert!(again.upload_bytes < photo_bytes, "the photograph was uploaded twice: {again:?}");
+    let counted = again.report.counters;
+    assert!(counted.upload_bytes < photo_bytes, "the photograph was uploaded twice: {counted:?}");
+    // the same pixels in another `Arc`: compared, the same, not uploaded
+    let copy = frame(&Arc::new((*photo).clone())).report.counters;
+    assert!(copy.upload_bytes < photo_bytes, "the same pixels were uploaded again: {copy:?}");
+    // a pixel made bright: the frame shows it (no stale photograph)
+    Arc::make_mut(&mut photo).pixels[0] = Vec3::ONE;
+    let bright = frame(&photo);
+    assert_ne!(bright.composite.bytes[..4], again.composite.bytes[..4], "the frame shows the old photograph");
 }
 
 /// The scene's mesh is kept from frame to frame while the scene's geometry stays (nothing of it
@@ -343,4 +352,35 @@ fn a_frames_writes_and_pooled_buffers_keep_the_order_of_its_commands() {
     assert_ne!(Arc::as_ptr(&again), held, "a buffer a held command uses was handed out again");
     drop(frame);
     assert_eq!(bytemuck::cast_slice::<u8, u32>(&ctx.read_storage(&written)), [1, 2, 3, 4], "the write ran first");
+}
+
+/// The views kept from frame to frame while the pool hands a pass the same texture — the
+/// shadow maps' layer views and bind groups (`Raster::layer_views`, `Raster::shadow_maps`), the
+/// RSMs' default views (`pool::Views`) — are never another texture's: frames that alternate
+/// between two shadow-map and RSM sizes and numbers of environment lights (so the pool hands
+/// out other textures and buffers) equal, byte for byte, those of renderers that never rendered
+/// before.
+#[test]
+fn kept_views_follow_their_textures() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let scene = crate::scene::load("dir-env-shadow").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = |k: usize| DirParams {
+        condition: GiLevel::Gi,
+        vpls: 32,
+        rsm_size: [32, 16][k],
+        ism_size: 32,
+        ism_points: 256,
+        bounces: 1,
+        shadow_map_size: [64, 32][k],
+        env_lights: [8, 4][k],
+        ..DirParams::default()
+    };
+    let fresh: Vec<Image> =
+        (0..2).map(|k| DirRenderer::new().unwrap().render(&scene, &photo, &params(k)).unwrap().composite).collect();
+    assert_ne!(fresh[0].pixels, fresh[1].pixels, "the two settings render alike: the test shows nothing");
+    for k in [0, 1, 0, 1] {
+        let frame = r.render(&scene, &photo, &params(k)).unwrap().composite;
+        assert!(frame.pixels == fresh[k].pixels, "setting {k}: the frame differs from a fresh renderer's");
+    }
 }

@@ -131,8 +131,8 @@ impl IndirectPass {
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let gp = inputs.gbuffer.position.create_view(&Default::default());
-        let gn = inputs.gbuffer.normal.create_view(&Default::default());
+        let gp = ctx.views.of(&inputs.gbuffer.position);
+        let gn = ctx.views.of(&inputs.gbuffer.normal);
         ctx.dispatch(
             "indirect",
             &self.pipeline,

@@ -585,14 +585,19 @@ impl DirRenderer {
     /// ca factor, which needs the virtual objects' mask from the radiance buffers and works on
     /// the composite in floats, the floats are read back and quantised on the host. Either way
     /// the bytes are those of `render_with_state`'s composite quantised ([`crate::image::Rgba8::from_image`]).
+    ///
+    /// The photograph comes shared: its kept buffer holds the `Arc`, and a frame given the same
+    /// one uploads and compares nothing of it (a new `Arc`, or one changed through
+    /// `Arc::make_mut`, is compared bit for bit and uploaded when it differs).
     pub fn render_display(
         &self,
         scene: &Scene,
-        photo: &Image,
+        photo: &Arc<Image>,
         params: &DirParams,
         state: &mut LiveState,
     ) -> Result<DisplayFrame> {
-        let (frame, shown) = self.render_frame_shown(scene, photo, params, None, state, Frame::Display)?;
+        let shared = frame::PhotoRef::Shared(photo);
+        let (frame, shown) = self.render_frame_shown(scene, shared, params, None, state, Frame::Display)?;
         let composite = shown.unwrap_or_else(|| crate::image::Rgba8::from_image(&frame.composite));
         Ok(DisplayFrame { composite, report: frame.report })
     }

@@ -165,3 +165,28 @@ impl Pool {
         (texture, false)
     }
 }
+
+/// Each texture's default view ([`Views::of`]), kept while the texture lives: the pool hands a
+/// frame the same textures as the last one, so their views are made once, not every frame (a
+/// live frame with gi made about a hundred: its RSMs' targets, read by the VPL candidates).
+#[derive(Default)]
+pub struct Views {
+    /// A weak handle to each texture (one that went away is never mistaken for a new one at
+    /// the same address: the handle keeps the address taken) and its view.
+    kept: Mutex<Vec<(std::sync::Weak<wgpu::Texture>, Arc<wgpu::TextureView>)>>,
+}
+
+impl Views {
+    /// `texture`'s default view: the one kept for it, or one made now (and the views of
+    /// textures that went away dropped).
+    pub fn of(&self, texture: &Arc<wgpu::Texture>) -> Arc<wgpu::TextureView> {
+        let mut kept = self.kept.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, view)) = kept.iter().find(|(of, _)| std::ptr::eq(of.as_ptr(), Arc::as_ptr(texture))) {
+            return view.clone();
+        }
+        kept.retain(|(of, _)| of.strong_count() > 0);
+        let view = Arc::new(texture.create_view(&Default::default()));
+        kept.push((Arc::downgrade(texture), view.clone()));
+        view
+    }
+}

@@ -154,7 +154,13 @@ pub struct Raster {
     /// kept while the views buffer [`Raster::shadow_maps`] uploads into is the same one from the
     /// pool (a frame of the same scene gets it again): a weak handle to it, its stride, the groups.
     shadow_groups: std::sync::Mutex<Option<(std::sync::Weak<wgpu::Buffer>, u64, Vec<wgpu::BindGroup>)>>,
+    /// A view of each layer of the shadow maps' texture ([`Raster::layer_views`]), kept while
+    /// the pool hands the frame the same texture: a weak handle to it (one that went away is
+    /// never mistaken for a new one), the views.
+    layer_views: std::sync::Mutex<Option<LayerViews>>,
 }
+
+type LayerViews = (std::sync::Weak<wgpu::Texture>, Arc<Vec<wgpu::TextureView>>);
 
 pub const SHADER: &str = concat!(include_str!("material.wgsl"), include_str!("raster.wgsl"));
 
@@ -230,6 +236,7 @@ impl Raster {
             ),
             depth_cache: std::sync::Mutex::new(Vec::new()),
             shadow_groups: std::sync::Mutex::new(None),
+            layer_views: std::sync::Mutex::new(None),
         }
     }
 
@@ -352,8 +359,8 @@ impl Raster {
     /// The camera's G-buffer (all geometry); position.w is 0 where nothing was drawn.
     pub fn gbuffer(&self, ctx: &GpuContext, scene: &SceneBuffers, view: &ViewUniform, targets: &SurfaceTargets) {
         let size = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        let targets = [(&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
+        let targets = [(&*views[0], 0.0), (&*views[1], 0.0), (&*views[2], 0.0)];
         self.draw(ctx, &self.gbuffer, scene, view, Pass { subset: Subset::All, size, targets: &targets });
     }
 
@@ -368,6 +375,28 @@ impl Raster {
         size: u32,
     ) {
         self.draw(ctx, &self.shadow, scene, view, Pass { subset, size: (size, size), targets: &[(distance, 1e30)] });
+    }
+
+    /// A 2D view of each layer of `texture` (the shadow maps' targets), made when the texture is
+    /// not the one the last frame's were made of (64 views a frame at the thesis setting).
+    pub fn layer_views(&self, texture: &Arc<wgpu::Texture>) -> Arc<Vec<wgpu::TextureView>> {
+        let mut kept = self.layer_views.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((of, views)) = kept.as_ref()
+            && of.upgrade().is_some_and(|of| Arc::ptr_eq(&of, texture))
+        {
+            return views.clone();
+        }
+        let view = |layer: u32| {
+            texture.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            })
+        };
+        let views = Arc::new((0..texture.depth_or_array_layers()).map(view).collect::<Vec<_>>());
+        *kept = Some((Arc::downgrade(texture), views.clone()));
+        views
     }
 
     /// Several shadow maps of one size (each a view, a subset and a target), recorded into one
@@ -434,8 +463,8 @@ impl Raster {
         targets: &SurfaceTargets,
     ) {
         let size = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
-        let targets = [(distance, 1e30), (&views[0], 0.0), (&views[1], 0.0), (&views[2], 0.0)];
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
+        let targets = [(distance, 1e30), (&*views[0], 0.0), (&*views[1], 0.0), (&*views[2], 0.0)];
         self.draw(ctx, &self.rsm, scene, view, Pass { subset, size, targets: &targets });
     }
 
@@ -454,7 +483,7 @@ impl Raster {
     ) {
         let pipeline = if farthest { &self.gbuffer_back } else { &self.gbuffer };
         let (width, height) = (targets.position.width(), targets.position.height());
-        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| t.create_view(&Default::default()));
+        let views = [&targets.position, &targets.normal, &targets.albedo].map(|t| ctx.views.of(t));
         let bind_groups: Vec<wgpu::BindGroup> =
             draws.iter().map(|draw| self.bind_group(ctx, pipeline, scene, &draw.view)).collect();
         let depth = self.depth(ctx, width, height);

@@ -110,7 +110,8 @@ impl Shade {
             contents: bytemuck::bytes_of(params),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        // (kept with the pool's textures from frame to frame)
+        let view = |t: &std::sync::Arc<wgpu::Texture>| ctx.views.of(t);
         let (gp, gn, ga) = (view(&gbuffer.position), view(&gbuffer.normal), view(&gbuffer.albedo));
         let shadow_view = shadow_maps.create_view(&wgpu::TextureViewDescriptor {
             dimension: Some(wgpu::TextureViewDimension::D2Array),

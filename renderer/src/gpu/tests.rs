@@ -243,7 +243,7 @@ fn a_gi_frames_vpls_are_the_same_made_on_the_gpu_or_the_cpu() {
 fn a_frame_only_shown_is_the_live_frame_without_its_radiance_buffers() {
     let Some(r) = crate::test_support::renderer_or_skip() else { return };
     let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
-    let photo = crate::test_support::grey_photo(&scene);
+    let photo = Arc::new(crate::test_support::grey_photo(&scene));
     for ca in [false, true] {
         let params = DirParams {
             condition: GiLevel::Gi,

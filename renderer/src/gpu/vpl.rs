@@ -27,6 +27,7 @@
 use crate::light::SpotLight;
 use crate::math::luminance;
 use glam::Vec3;
+use std::sync::Arc;
 
 /// One VPL: matches `Vpl` in common.wgsl.
 #[repr(C)]
@@ -299,8 +300,8 @@ pub struct RsmMaps<'a> {
     /// Half-width of a spot's image plane at unit distance (0 for an environment direction).
     pub tan_half_fov: f32,
     pub size: u32,
-    pub real: [&'a wgpu::Texture; 4],
-    pub virt: Option<[&'a wgpu::Texture; 4]>,
+    pub real: [&'a Arc<wgpu::Texture>; 4],
+    pub virt: Option<[&'a Arc<wgpu::Texture>; 4]>,
 }
 
 /// One caustic map's photons on the GPU (`Specular::caustic_sources`), for
@@ -527,12 +528,9 @@ impl VplSampler {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
             // without a virtual map the real one is bound in its place (the shader does not read it)
-            let views: Vec<wgpu::TextureView> = map
-                .real
-                .iter()
-                .chain(map.virt.as_ref().unwrap_or(&map.real))
-                .map(|t| t.create_view(&Default::default()))
-                .collect();
+            // (kept with the pool's textures from frame to frame)
+            let views: Vec<Arc<wgpu::TextureView>> =
+                map.real.iter().chain(map.virt.as_ref().unwrap_or(&map.real)).map(|t| ctx.views.of(t)).collect();
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
             entries.extend(views.iter().enumerate().map(|(k, view)| wgpu::BindGroupEntry {
                 binding: 1 + k as u32,

@@ -77,7 +77,8 @@ impl std::fmt::Debug for SessionRenderState {
 pub struct LabScene {
     pub slug: String,
     pub scene: Scene,
-    pub photo: Image,
+    /// Shared with the live frames' kept photograph (`DirRenderer::render_display`).
+    pub photo: std::sync::Arc<Image>,
     pub virtual_object: String,
     /// The virtual object's centre in `scene` (frames move it from here).
     pub base_centre: glam::Vec3,
@@ -395,7 +396,7 @@ fn scene_of(study: &TaskStudy, size: [u32; 2], cache_dir: Option<&Path>) -> Resu
     Ok(LabScene {
         slug: study.slug.clone(),
         scene,
-        photo,
+        photo: std::sync::Arc::new(photo),
         virtual_object: study.virtual_object.clone(),
         base_centre,
         layout,

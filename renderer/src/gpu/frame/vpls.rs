@@ -22,7 +22,7 @@ impl DirRenderer {
                 let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
                 timed(ctx, passes, format!("RSM {name} {label}"), || {
-                    self.raster.rsm(ctx, buffers, view, subset, &distance.create_view(&Default::default()), &targets)
+                    self.raster.rsm(ctx, buffers, view, subset, &ctx.views.of(&distance), &targets)
                 });
                 (targets, distance)
             };
@@ -52,7 +52,7 @@ impl DirRenderer {
             let maps: Vec<vpl::RsmMaps> = rendered
                 .iter()
                 .map(|(light, tan_half_fov, (real, virt))| {
-                    fn textures((t, d): &(SurfaceTargets, Arc<wgpu::Texture>)) -> [&wgpu::Texture; 4] {
+                    fn textures((t, d): &(SurfaceTargets, Arc<wgpu::Texture>)) -> [&Arc<wgpu::Texture>; 4] {
                         [&t.position, &t.normal, &t.albedo, d]
                     }
                     vpl::RsmMaps {

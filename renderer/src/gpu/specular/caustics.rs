@@ -175,8 +175,8 @@ impl Specular {
             contents: &[0u8; 16],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        let cam_position = gbuffer.position.create_view(&Default::default());
-        let cam_normal = gbuffer.normal.create_view(&Default::default());
+        let cam_position = ctx.views.of(&gbuffer.position);
+        let cam_normal = ctx.views.of(&gbuffer.normal);
         for map in &maps.maps {
             let light = &map.light;
             let uniform = PhotonUniform {
@@ -193,7 +193,7 @@ impl Specular {
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-            let light_position = map.pgbuf.position.create_view(&Default::default());
+            let light_position = ctx.views.of(&map.pgbuf.position);
             let entries = [
                 wgpu::BindGroupEntry { binding: 0, resource: map.search.params.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&light_position) },
@@ -236,7 +236,7 @@ impl Specular {
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let albedo = gbuffer.albedo.create_view(&Default::default());
+        let albedo = ctx.views.of(&gbuffer.albedo);
         let entries = [
             wgpu::BindGroupEntry { binding: 12, resource: solutions.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 18, resource: uniform.as_entire_binding() },

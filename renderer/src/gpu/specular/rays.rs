@@ -68,7 +68,7 @@ impl Specular {
         };
         let hits = buffer("specular hits", 6 * plane_texels);
         let info = buffer("specular weights", 4 * width as u64 * height as u64);
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let view = |t: &std::sync::Arc<wgpu::Texture>| ctx.views.of(t);
         let texture_views = [
             view(&gbuffer.position),
             view(&gbuffer.normal),
@@ -187,7 +187,7 @@ impl Specular {
             contents: &[0u8; 32],
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        let position = gbuffer.position.create_view(&Default::default());
+        let position = ctx.views.of(&gbuffer.position);
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: traced.params.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&position) },

@@ -181,10 +181,10 @@ fn the_gpu_sampler_draws_the_cpu_references_vpls() {
             light: RsmLight::Spot(&light),
             tan_half_fov: 0.9,
             size,
-            real: real.1.each_ref().map(|t| &**t),
-            virt: Some(virt.1.each_ref().map(|t| &**t)),
+            real: real.1.each_ref(),
+            virt: Some(virt.1.each_ref()),
         },
-        RsmMaps { light: environment, tan_half_fov: 0.0, size, real: real.1.each_ref().map(|t| &**t), virt: None },
+        RsmMaps { light: environment, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None },
     ];
     let sampler = VplSampler::new(ctx);
     let candidates = sampler.candidates(ctx, &extra, &[], &gpu_maps);
@@ -216,7 +216,7 @@ fn the_gpu_sampler_draws_the_cpu_references_vpls() {
     assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");
     // no candidate at all: nothing is drawn
     let dark = RsmLight::Directional { irradiance: Vec3::ZERO, texel_area: 0.003 };
-    let dark = [RsmMaps { light: dark, tan_half_fov: 0.0, size, real: real.1.each_ref().map(|t| &**t), virt: None }];
+    let dark = [RsmMaps { light: dark, tan_half_fov: 0.0, size, real: real.1.each_ref(), virt: None }];
     let none = sampler.candidates(ctx, &[], &[], &dark);
     assert!(sampler.draw(ctx, &none, 16).is_empty());
 }
