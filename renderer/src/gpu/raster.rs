@@ -478,6 +478,31 @@ impl Raster {
         self.draw(ctx, &self.rsm, scene, view, Pass { subset, size, targets: &targets });
     }
 
+    /// Several reflective shadow maps ([`Raster::rsm`] each) recorded into one encoder: one
+    /// `finish` for all of them instead of one a map.
+    pub fn rsms(&self, ctx: &GpuContext, scene: &SceneBuffers, maps: &[RsmDraw<'_>]) {
+        if maps.is_empty() {
+            return;
+        }
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for map in maps {
+            let size = (map.targets.position.width(), map.targets.position.height());
+            let views = [map.distance, &map.targets.position, &map.targets.normal, &map.targets.albedo]
+                .map(|t| ctx.views.of(t));
+            let targets = [(&*views[0], 1e30), (&*views[1], 0.0), (&*views[2], 0.0), (&*views[3], 0.0)];
+            let bind_group = self.bind_group(ctx, &self.rsm, scene, &map.view);
+            self.record(
+                ctx,
+                &mut encoder,
+                &self.rsm,
+                &bind_group,
+                scene,
+                Pass { subset: map.subset, size, targets: &targets },
+            );
+        }
+        ctx.submit(encoder);
+    }
+
     /// G-buffer draws into parts of one set of targets, in one render pass: each draw its own
     /// view, viewport `[x, y, width, height]` and vertex ranges. With `farthest` the depth test
     /// keeps the farthest surface (back faces of closed objects) instead of the nearest.
@@ -542,6 +567,14 @@ impl Raster {
         }
         ctx.submit(encoder);
     }
+}
+
+/// One map of [`Raster::rsms`]: its view, the objects it draws, its targets.
+pub struct RsmDraw<'a> {
+    pub view: ViewUniform,
+    pub subset: Subset,
+    pub distance: &'a Arc<wgpu::Texture>,
+    pub targets: &'a SurfaceTargets,
 }
 
 /// One draw of [`Raster::gbuffer_draws`].
