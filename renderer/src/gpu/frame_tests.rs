@@ -384,3 +384,38 @@ fn kept_views_follow_their_textures() {
         assert!(frame.pixels == fresh[k].pixels, "setting {k}: the frame differs from a fresh renderer's");
     }
 }
+
+/// The raster passes' bind groups are kept by their uniform buffers ([`raster`]'s
+/// `KeptGroups`), whose bytes are written each frame: frames of one renderer with the spot
+/// light moved back and forth (its shadow map's and RSMs' views change, the buffers stay)
+/// equal fresh renderers' frames byte for byte.
+#[test]
+fn kept_bind_groups_follow_a_moved_light() {
+    let Some(r) = crate::test_support::renderer_or_skip() else { return };
+    let scene = crate::scene::load("dir-lamp-box").unwrap().with_size(64, 48);
+    let photo = crate::test_support::grey_photo(&scene);
+    let params = DirParams {
+        condition: GiLevel::Gi,
+        vpls: 32,
+        rsm_size: 32,
+        ism_size: 32,
+        ism_points: 256,
+        bounces: 1,
+        shadow_map_size: 64,
+        env_lights: 4,
+        ..DirParams::default()
+    };
+    let moved = |k: usize| {
+        let mut scene = scene.clone();
+        assert!(!scene.spots.is_empty(), "dir-lamp-box has no spot light: the test shows nothing");
+        scene.spots[0].position += glam::Vec3::new(0.3, 0.0, 0.2) * k as f32;
+        scene
+    };
+    let fresh: Vec<Image> =
+        (0..2).map(|k| DirRenderer::new().unwrap().render(&moved(k), &photo, &params).unwrap().composite).collect();
+    assert_ne!(fresh[0].pixels, fresh[1].pixels, "the moved light renders alike: the test shows nothing");
+    for k in [0, 1, 0, 1] {
+        let frame = r.render(&moved(k), &photo, &params).unwrap().composite;
+        assert!(frame.pixels == fresh[k].pixels, "light {k}: the frame differs from a fresh renderer's");
+    }
+}

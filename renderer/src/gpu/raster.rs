@@ -7,6 +7,8 @@ use super::mesh::{GpuMaterial, GpuMesh, GpuVertex};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
 
+mod groups;
+
 /// G-buffer and RSM attachments: position+flag, normal+exponent, albedo+ks.
 pub const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Shadow maps store the distance to the light (spot) or along the light (directional).
@@ -158,6 +160,9 @@ pub struct Raster {
     /// the pool hands the frame the same texture: a weak handle to it (one that went away is
     /// never mistaken for a new one), the views.
     layer_views: std::sync::Mutex<Option<LayerViews>>,
+    /// The passes' bind groups kept while their view uniform and materials buffers are the
+    /// same ([`groups::KeptGroups`]).
+    kept_groups: groups::KeptGroups,
 }
 
 type LayerViews = (std::sync::Weak<wgpu::Texture>, Arc<Vec<wgpu::TextureView>>);
@@ -237,6 +242,7 @@ impl Raster {
             depth_cache: std::sync::Mutex::new(Vec::new()),
             shadow_groups: std::sync::Mutex::new(None),
             layer_views: std::sync::Mutex::new(None),
+            kept_groups: groups::KeptGroups::default(),
         }
     }
 
@@ -252,7 +258,11 @@ impl Raster {
             contents: bytemuck::bytes_of(view),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        self.bind_group_with(ctx, pipeline, scene, uniform.as_entire_binding())
+        // the uniform's buffer from the pool, written above: a group over it made in an
+        // earlier frame binds the same bytes
+        self.kept_groups.get_or_make(pipeline, &uniform, &scene.materials, || {
+            self.bind_group_with(ctx, pipeline, scene, uniform.as_entire_binding())
+        })
     }
 
     /// The bind group of a pass whose view uniform is `view` (a whole buffer or a part of one).
@@ -468,6 +478,31 @@ impl Raster {
         self.draw(ctx, &self.rsm, scene, view, Pass { subset, size, targets: &targets });
     }
 
+    /// Several reflective shadow maps ([`Raster::rsm`] each) recorded into one encoder: one
+    /// `finish` for all of them instead of one a map.
+    pub fn rsms(&self, ctx: &GpuContext, scene: &SceneBuffers, maps: &[RsmDraw<'_>]) {
+        if maps.is_empty() {
+            return;
+        }
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for map in maps {
+            let size = (map.targets.position.width(), map.targets.position.height());
+            let views = [map.distance, &map.targets.position, &map.targets.normal, &map.targets.albedo]
+                .map(|t| ctx.views.of(t));
+            let targets = [(&*views[0], 1e30), (&*views[1], 0.0), (&*views[2], 0.0), (&*views[3], 0.0)];
+            let bind_group = self.bind_group(ctx, &self.rsm, scene, &map.view);
+            self.record(
+                ctx,
+                &mut encoder,
+                &self.rsm,
+                &bind_group,
+                scene,
+                Pass { subset: map.subset, size, targets: &targets },
+            );
+        }
+        ctx.submit(encoder);
+    }
+
     /// G-buffer draws into parts of one set of targets, in one render pass: each draw its own
     /// view, viewport `[x, y, width, height]` and vertex ranges. With `farthest` the depth test
     /// keeps the farthest surface (back faces of closed objects) instead of the nearest.
@@ -532,6 +567,14 @@ impl Raster {
         }
         ctx.submit(encoder);
     }
+}
+
+/// One map of [`Raster::rsms`]: its view, the objects it draws, its targets.
+pub struct RsmDraw<'a> {
+    pub view: ViewUniform,
+    pub subset: Subset,
+    pub distance: &'a Arc<wgpu::Texture>,
+    pub targets: &'a SurfaceTargets,
 }
 
 /// One draw of [`Raster::gbuffer_draws`].

@@ -16,14 +16,27 @@ impl DirRenderer {
             let rsm_size = params.rsm_size.max(4);
             let env = *ran(&f.env_view, "environment view");
             let (buffers, has_virtual) = (&f.buffers, f.has_virtual);
-            // (their targets from the pool: each RSM pass clears them)
+            // (their targets from the pool: each RSM pass clears them); timed pass by pass, or
+            // else all recorded into one encoder after the loop below (the same commands in the
+            // same order)
+            let one_encoder = !ctx.pass_waits();
+            let queued = std::cell::RefCell::new(Vec::new());
             let render_rsm = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str, subset: Subset| {
                 let targets = SurfaceTargets::new(ctx, rsm_size, rsm_size, "rsm");
                 let distance = raster::texture_2d(ctx, rsm_size, rsm_size, raster::DISTANCE_FORMAT, "rsm distance");
                 let label = if subset == Subset::Real { "real" } else { "virtual" };
-                timed(ctx, passes, format!("RSM {name} {label}"), || {
-                    self.raster.rsm(ctx, buffers, view, subset, &ctx.views.of(&distance), &targets)
-                });
+                if one_encoder {
+                    let kept = SurfaceTargets {
+                        position: targets.position.clone(),
+                        normal: targets.normal.clone(),
+                        albedo: targets.albedo.clone(),
+                    };
+                    queued.borrow_mut().push((*view, subset, distance.clone(), kept));
+                } else {
+                    timed(ctx, passes, format!("RSM {name} {label}"), || {
+                        self.raster.rsm(ctx, buffers, view, subset, &ctx.views.of(&distance), &targets)
+                    });
+                }
                 (targets, distance)
             };
             let render_pair = |passes: &mut Vec<PassTime>, view: &ViewUniform, name: &str| {
@@ -48,6 +61,21 @@ impl DirRenderer {
                     texel_area: (2.0 * env.radius / rsm_size as f32).powi(2),
                 };
                 rendered.push((light, 0.0, render_pair(&mut f.passes, &view, &format!("environment {}", j + 1))));
+            }
+            let queued = queued.into_inner();
+            if !queued.is_empty() {
+                let draws: Vec<raster::RsmDraw> = queued
+                    .iter()
+                    .map(|(view, subset, distance, targets)| raster::RsmDraw {
+                        view: *view,
+                        subset: *subset,
+                        distance,
+                        targets,
+                    })
+                    .collect();
+                timed(ctx, &mut f.passes, format!("RSMs ({}, one encoder)", draws.len()), || {
+                    self.raster.rsms(ctx, buffers, &draws)
+                });
             }
             let maps: Vec<vpl::RsmMaps> = rendered
                 .iter()
