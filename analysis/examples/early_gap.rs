@@ -126,18 +126,9 @@ fn summed_batch(
     let kept: Vec<usize> = (0..mixture.weights.len()).filter(|&k| mixture.weights[k] > 1e-6).collect();
     let mut covariances: Vec<Vec<f64>> = kept.iter().map(|&k| mixture.fits[k].covariance.clone()).collect();
     let mut parent: Vec<usize> = (0..n).collect();
-    let find = |parent: &mut Vec<usize>, mut x: usize| {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    };
     let mut components = n;
     for &(w, l) in judgments {
-        let (a, b) = (find(&mut parent, w), find(&mut parent, l));
-        if a != b {
-            parent[a] = b;
+        if join(&mut parent, w, l) {
             components -= 1;
         }
     }
@@ -169,9 +160,7 @@ fn summed_batch(
         let (_, _, i, j) = best.expect("a candidate");
         batch.push((i, j));
         last = Some((i, j));
-        let (a, b) = (find(&mut parent, i), find(&mut parent, j));
-        if a != b {
-            parent[a] = b;
+        if join(&mut parent, i, j) {
             components -= 1;
         }
         for (&k, c) in kept.iter().zip(covariances.iter_mut()) {
@@ -251,22 +240,31 @@ fn eig_tree(posterior: &Posterior, rng: &mut ChaCha8Rng) -> Vec<(usize, usize)> 
 /// Kruskal's spanning tree over `pairs` sorted best first.
 fn spanning_tree(n: usize, pairs: impl Iterator<Item = (usize, usize)>) -> Vec<(usize, usize)> {
     let mut parent: Vec<usize> = (0..n).collect();
-    let find = |parent: &mut Vec<usize>, mut x: usize| {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    };
     let mut tree = Vec::new();
     for (i, j) in pairs {
-        let (a, b) = (find(&mut parent, i), find(&mut parent, j));
-        if a != b {
-            parent[a] = b;
+        if join(&mut parent, i, j) {
             tree.push((i, j));
         }
     }
     tree
+}
+
+/// Union–find root with path halving.
+fn find(parent: &mut [usize], mut x: usize) -> usize {
+    while parent[x] != x {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    x
+}
+
+/// Joins the components of `a` and `b` (the root of `a`'s under `b`'s); true if they were apart.
+fn join(parent: &mut [usize], a: usize, b: usize) -> bool {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra] = rb;
+    }
+    ra != rb
 }
 
 /// ρ = (1 − (n − 3)·v̄ / Σ(mᵢ − m̄)²)₊^power, v̄ the mean variance of the centred log-worths.
