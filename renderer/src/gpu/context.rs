@@ -229,13 +229,10 @@ impl GpuContext {
         true
     }
 
-    /// Submits one command buffer. While passes are timed ([`GpuContext::set_pass_waits`]) with
-    /// the GPU timer on ([`GpuContext::enable_gpu_timer`]), timestamps are written just before
-    /// and just after it (tiny command buffers in the same submission), for
-    /// [`GpuContext::take_gpu_ms`].
-    /// Within a frame the command buffer is held and submitted with the frame's others at its
-    /// next wait ([`super::stream`]).
-    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
+    /// Submits one pass's own encoder ([`GpuContext::submit`]), between timestamps while passes
+    /// are timed with the GPU timer on. Within a frame the command buffer is held and submitted
+    /// with the frame's others at its next wait ([`super::stream`]).
+    pub(super) fn submit_timed(&self, encoder: wgpu::CommandEncoder) {
         let commands = self.finish(encoder);
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
@@ -259,8 +256,15 @@ impl GpuContext {
         self.enqueue(vec![begin, commands, end]);
     }
 
-    /// `encoder.finish()`, its time counted as recording (`record_ms`).
-    fn finish(&self, encoder: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+    /// Whether passes are timed with GPU timestamps around each one's command buffer (then
+    /// each pass records into an encoder of its own: [`GpuContext::encoder`]).
+    pub(super) fn timestamps_passes(&self) -> bool {
+        self.pass_waits() && self.has_gpu_timer()
+    }
+
+    /// `encoder.finish()`, counted (`encoders`) and its time counted as recording (`record_ms`).
+    pub(super) fn finish(&self, encoder: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+        self.counters.encoders.fetch_add(1, Ordering::Relaxed);
         let start = Instant::now();
         let commands = encoder.finish();
         add_elapsed(&self.counters.record_ns, start);
@@ -349,7 +353,7 @@ impl GpuContext {
         entries: &[wgpu::BindGroupEntry],
         groups: [u32; 2],
     ) {
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         self.record_dispatch(&mut encoder, label, pipeline, entries, groups);
         self.submit(encoder);
     }
@@ -413,6 +417,7 @@ impl GpuContext {
         let c = &self.counters;
         for cell in [
             &c.submits,
+            &c.encoders,
             &c.host_waits,
             &c.readback_bytes,
             &c.upload_bytes,
@@ -431,6 +436,7 @@ impl GpuContext {
         let c = &self.counters;
         FrameCounters {
             submits: c.submits.load(Ordering::Relaxed),
+            encoders: c.encoders.load(Ordering::Relaxed),
             host_waits: c.host_waits.load(Ordering::Relaxed),
             readback_bytes: c.readback_bytes.load(Ordering::Relaxed),
             upload_bytes: c.upload_bytes.load(Ordering::Relaxed),
@@ -652,7 +658,7 @@ impl GpuContext {
     pub fn stage(&self, source: &wgpu::Buffer) -> Arc<wgpu::Buffer> {
         // from the pool: the copy below writes all of it
         let staging = self.buffer("readback", source.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
         self.submit(encoder);
         staging
@@ -665,7 +671,7 @@ impl GpuContext {
         let size = sources.iter().map(|s| s.size()).sum::<u64>().max(wgpu::COPY_BUFFER_ALIGNMENT);
         // from the pool: the copies below write every byte read back
         let staging = self.buffer("readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         let mut at = 0;
         for source in sources {
             encoder.copy_buffer_to_buffer(source, 0, &staging, at, source.size());
@@ -750,7 +756,7 @@ impl GpuContext {
         }
         // from the pool: the copies below write every byte read back (not rows' padding)
         let staging = self.buffer("texture readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         for (&(texture, _), &(offset, _, padded, h)) in textures.iter().zip(&layouts) {
             encoder.copy_texture_to_buffer(
                 texture.as_image_copy(),
@@ -831,11 +837,7 @@ impl GpuContext {
         }
         if reused {
             match contents {
-                Contents::Zeroed => {
-                    let mut encoder = self.device.create_command_encoder(&Default::default());
-                    encoder.clear_buffer(&buffer, 0, None);
-                    self.enqueue(vec![self.finish(encoder)]);
-                }
+                Contents::Zeroed => self.clear_taken(&buffer),
                 #[cfg(test)]
                 Contents::Overwritten => {
                     // old contents read by mistake show as NaNs (just taken: no pending command

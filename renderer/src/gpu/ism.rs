@@ -308,7 +308,7 @@ impl Ism {
             });
             layers.push((layer, uniform_buffer, cdf_buffer));
         }
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         match splatting {
             IsmSplatting::Compute => {
                 // 64 splats per group, in rows of at most 65 535 groups

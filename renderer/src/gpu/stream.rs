@@ -19,9 +19,44 @@
 //!   can use such a buffer.
 //!
 //! Frames on other threads (tests share one context) keep batches of their own (`batch`).
+//!
+//! The passes of a frame also record into one encoder ([`GpuContext::encoder`]): each pass
+//! borrows the frame's encoder, records its commands after the commands recorded so far and
+//! gives it back ([`GpuContext::submit`]), so a frame finishes one encoder per submission (wgpu's
+//! `finish` costs the host 10–20 µs an encoder on lavapipe) instead of one per pass. The order of
+//! the commands is the order of the passes' `submit`s, as with an encoder each. While a pass has
+//! the encoder it records only into it: the context's own recording (a pooled buffer cleared,
+//! an ordered write, a dispatch or copy of its own) waits until the encoder is given back, except
+//! that a buffer just taken from the pool with [`Contents::Zeroed`] is cleared in the batch's
+//! prelude, recorded before all its commands (no held command can use such a buffer); debug
+//! builds panic where a pass breaks this. While passes are timed with GPU timestamps
+//! ([`GpuContext::enable_gpu_timer`]) each pass keeps an encoder of its own, between its
+//! timestamps.
 
 use super::context::GpuContext;
 use super::pool::Contents;
+
+/// An encoder a pass records into ([`GpuContext::encoder`]): within a frame, the frame's own,
+/// lent to the pass until [`GpuContext::submit`] gives it back; else an encoder of its own.
+#[must_use = "a pass's commands reach the device when its encoder is submitted"]
+pub struct PassEncoder {
+    encoder: wgpu::CommandEncoder,
+    /// Whether this is the frame's encoder, lent ([`super::batch::Batches::lend`]).
+    shared: bool,
+}
+
+impl std::ops::Deref for PassEncoder {
+    type Target = wgpu::CommandEncoder;
+    fn deref(&self) -> &wgpu::CommandEncoder {
+        &self.encoder
+    }
+}
+
+impl std::ops::DerefMut for PassEncoder {
+    fn deref_mut(&mut self) -> &mut wgpu::CommandEncoder {
+        &mut self.encoder
+    }
+}
 
 /// The frame's command stream on this thread, submitted when dropped
 /// ([`GpuContext::begin_frame`]).
@@ -49,21 +84,74 @@ impl GpuContext {
         FrameBatch { ctx: self }
     }
 
-    /// Submits `commands` now, or holds them in this thread's frame batch.
+    /// An encoder for a pass's commands, to be handed to [`GpuContext::submit`]: within a frame
+    /// on this thread, the frame's one encoder (see the module documentation), unless passes
+    /// are timed with GPU timestamps; else a new one.
+    pub fn encoder(&self) -> PassEncoder {
+        let make = || self.device.create_command_encoder(&Default::default());
+        if !self.timestamps_passes()
+            && let Some(encoder) = self.batches.lend(make)
+        {
+            return PassEncoder { encoder, shared: true };
+        }
+        PassEncoder { encoder: make(), shared: false }
+    }
+
+    /// Submits a pass's commands: the frame's encoder given back to the frame (its commands
+    /// run at the frame's next submission); an encoder of its own finished and submitted, or
+    /// held in this thread's frame batch. While passes are timed
+    /// ([`GpuContext::set_pass_waits`]) with the GPU timer on ([`GpuContext::enable_gpu_timer`]),
+    /// timestamps are written just before and just after it (tiny command buffers in the same
+    /// submission), for [`GpuContext::take_gpu_ms`].
+    pub fn submit(&self, encoder: PassEncoder) {
+        if encoder.shared {
+            self.batches.give_back(encoder.encoder);
+        } else {
+            self.submit_timed(encoder.encoder);
+        }
+    }
+
+    /// Submits `commands` now, or holds them in this thread's frame batch (after the commands
+    /// its encoder recorded so far, finished first).
     pub(super) fn enqueue(&self, commands: Vec<wgpu::CommandBuffer>) {
-        if let Some(commands) = self.batches.push(commands) {
+        let mut all: Vec<wgpu::CommandBuffer> =
+            self.batches.take_open().map(|open| self.finish(open)).into_iter().collect();
+        all.extend(commands);
+        if let Some(commands) = self.batches.push(all) {
             self.queue_submit(commands);
         }
     }
 
-    /// Submits what this thread's batch holds, in one submission, then lets its resources go
-    /// (later users are ordered after these commands).
+    /// Submits what this thread's batch holds, in one submission (its prelude, its command
+    /// buffers, its encoder), then lets its resources go (later users are ordered after these
+    /// commands).
     pub(super) fn flush(&self) {
-        let (commands, held) = self.batches.take();
+        let taken = self.batches.take();
+        let mut commands: Vec<wgpu::CommandBuffer> = taken.prelude.map(|p| self.finish(p)).into_iter().collect();
+        commands.extend(taken.commands);
+        commands.extend(taken.open.map(|open| self.finish(open)));
         if !commands.is_empty() {
             self.queue_submit(commands);
         }
-        drop(held);
+        drop(taken.held);
+    }
+
+    /// A buffer just taken from the pool cleared to zeros, in the order of the stream; while a
+    /// pass has the frame's encoder, in the batch's prelude (no held command can use the buffer).
+    pub(super) fn clear_taken(&self, buffer: &wgpu::Buffer) {
+        let make = || self.device.create_command_encoder(&Default::default());
+        if self.batches.lent() && self.batches.prelude(make, |e| e.clear_buffer(buffer, 0, None)) {
+            return;
+        }
+        let mut encoder = self.encoder();
+        encoder.clear_buffer(buffer, 0, None);
+        if encoder.shared {
+            self.submit(encoder);
+        } else {
+            // no pass's work: not between timestamps
+            let commands = self.finish(encoder.encoder);
+            self.enqueue(vec![commands]);
+        }
     }
 
     /// `data` written into `buffer` at `offset` in the order of the stream: into a staging
@@ -73,7 +161,7 @@ impl GpuContext {
         let size = data.len() as u64;
         let staging = self.buffer("ordered write", size.max(4), wgpu::BufferUsages::COPY_SRC, Contents::Overwritten);
         self.write_direct(&staging, 0, data);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         encoder.copy_buffer_to_buffer(&staging, 0, buffer, offset, size);
         self.submit(encoder);
     }
