@@ -19,14 +19,26 @@ struct Batch {
     /// Clears of buffers just taken from the pool while the encoder was lent (no held command
     /// uses such a buffer, so they may run first in the submission: [`Batches::prelude`]).
     prelude: Option<wgpu::CommandEncoder>,
+    /// Uploads into buffers just taken from the pool ([`Batches::stage`]): their bytes one
+    /// after another, and where each goes.
+    staged: Staged,
     held: Held,
     /// Frames begun on this thread and not yet ended (a frame inside another ends with it).
     depth: u32,
 }
 
+/// Uploads staged in a batch: their bytes one after another, and per upload its buffer, where
+/// its bytes start and how many there are.
+#[derive(Default)]
+pub(super) struct Staged {
+    pub(super) bytes: Vec<u8>,
+    pub(super) copies: Vec<(Arc<wgpu::Buffer>, u64, u64)>,
+}
+
 /// A batch's commands and resources taken out of it to be submitted ([`Batches::take`]).
 #[derive(Default)]
 pub(super) struct Taken {
+    pub(super) staged: Staged,
     pub(super) prelude: Option<wgpu::CommandEncoder>,
     pub(super) commands: Vec<wgpu::CommandBuffer>,
     pub(super) open: Option<wgpu::CommandEncoder>,
@@ -87,6 +99,7 @@ impl Batches {
             Some(batch) => {
                 debug_assert!(!batch.lent, "the frame's commands submitted while a pass records into its encoder");
                 Taken {
+                    staged: std::mem::take(&mut batch.staged),
                     prelude: batch.prelude.take(),
                     commands: std::mem::take(&mut batch.commands),
                     open: batch.open.take(),
@@ -129,6 +142,20 @@ impl Batches {
         }
     }
 
+    /// Stages `contents`, zero-padded to `size` bytes (a multiple of 4), for `buffer` (just taken
+    /// from the pool: no held command uses it), to be copied into it at the start of the batch's
+    /// submission; false outside a frame.
+    pub(super) fn stage(&self, buffer: &Arc<wgpu::Buffer>, contents: &[u8], size: u64) -> bool {
+        let mut threads = self.lock();
+        let Some(batch) = threads.get_mut(&std::thread::current().id()) else { return false };
+        let staged = &mut batch.staged;
+        let at = staged.bytes.len();
+        staged.bytes.extend_from_slice(contents);
+        staged.bytes.resize(at + size as usize, 0);
+        staged.copies.push((buffer.clone(), at as u64, size));
+        true
+    }
+
     /// Whether this thread's frame encoder is lent to a pass now.
     pub(super) fn lent(&self) -> bool {
         self.lock().get(&std::thread::current().id()).is_some_and(|b| b.lent)
@@ -164,8 +191,8 @@ impl Batches {
 
     /// Whether this thread's batch holds commands not yet submitted.
     pub(super) fn has_pending(&self) -> bool {
-        self.lock()
-            .get(&std::thread::current().id())
-            .is_some_and(|b| !b.commands.is_empty() || b.open.is_some() || b.lent || b.prelude.is_some())
+        self.lock().get(&std::thread::current().id()).is_some_and(|b| {
+            !b.commands.is_empty() || b.open.is_some() || b.lent || b.prelude.is_some() || !b.staged.copies.is_empty()
+        })
     }
 }

@@ -46,6 +46,7 @@
 //! reflect diffusely).
 
 mod batch;
+mod bind_groups;
 pub mod bounce;
 pub mod bounce_chain;
 pub mod ca;
@@ -60,6 +61,7 @@ pub mod ism;
 pub mod mesh;
 pub mod pool;
 pub mod raster;
+mod readback;
 pub mod representation;
 pub mod shade;
 pub mod specular;
