@@ -713,7 +713,7 @@ impl DirRenderer {
                 });
             // the bytes copied once from the mapped memory, as they are (no image of floats)
             let pixels = (width * height) as usize * 4;
-            let to_bytes = |bytes: &[u8]| ctx.copy_mapped(&bytes[..pixels.min(bytes.len())]);
+            let to_bytes = |bytes: &[u8]| readback::copy_blocks::<u8>(&bytes[..pixels.min(bytes.len())]);
             let (bytes, words) = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
                 ctx.read_staged_with(&staged[0], &staged[1..].iter().map(|s| &**s).collect::<Vec<_>>(), to_bytes)
             });

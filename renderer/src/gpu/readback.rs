@@ -2,7 +2,7 @@
 //! [`GpuContext::read_textures`]): copies into staging buffers from the pool, mapped with one
 //! wait for the device and copied once to the host.
 
-use super::context::{AdapterKind, GpuContext};
+use super::context::GpuContext;
 use super::pool::Contents;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -170,19 +170,6 @@ impl GpuContext {
                 .collect()
         })
         .unwrap_or_else(|| vec![Vec::new(); textures.len()])
-    }
-}
-
-impl GpuContext {
-    /// Mapped `bytes` copied once: on a hardware adapter in blocks on all threads
-    /// ([`copy_blocks`]); on a software one in one `memcpy` — its mapped memory is the host's
-    /// own, and waking the other threads costs more than they save (a live frame's 3.1 MB at
-    /// 1024×768 on this 2-core machine's lavapipe: 0.17 ms against 0.26 ms).
-    pub(super) fn copy_mapped(&self, bytes: &[u8]) -> Vec<u8> {
-        match self.kind {
-            AdapterKind::Hardware => copy_blocks::<u8>(bytes),
-            AdapterKind::Software | AdapterKind::Gl => bytes.to_vec(),
-        }
     }
 }
 
