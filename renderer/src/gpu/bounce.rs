@@ -73,6 +73,7 @@ pub struct BounceReport {
 }
 
 /// The scene's triangles as the bounce pass reads them, uploaded once per scene.
+#[derive(Clone)]
 pub struct BounceScene {
     positions: Arc<wgpu::Buffer>,
     cdf: Arc<wgpu::Buffer>,

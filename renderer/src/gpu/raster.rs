@@ -50,6 +50,7 @@ pub enum Subset {
 }
 
 /// The scene's geometry and materials on the GPU.
+#[derive(Clone)]
 pub struct SceneBuffers {
     pub vertices: std::sync::Arc<wgpu::Buffer>,
     pub materials: std::sync::Arc<wgpu::Buffer>,
