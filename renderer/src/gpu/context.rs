@@ -1,7 +1,7 @@
 //! The GPU context: adapter choice (docs/design.md "GPU": a hardware adapter if there is one, else a
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
 //! software|gl` forces a kind), a headless device, and what the host asks of it, counted
-//! (read-backs in [`super::readback`]).
+//! (read-backs in `gpu::readback`).
 
 pub use super::counters::FrameCounters;
 use super::counters::{CounterCells, add_elapsed};
@@ -360,7 +360,7 @@ impl GpuContext {
 
     /// Records one compute pass into `encoder`: `pipeline` over `groups` workgroups (x, y) with
     /// bind group 0 made of `entries` in the pipeline's own layout (kept from frame to frame
-    /// while it binds the same resources: [`super::bind_groups`]).
+    /// while it binds the same resources: `gpu::bind_groups`).
     pub fn record_dispatch(
         &self,
         encoder: &mut wgpu::CommandEncoder,

@@ -154,7 +154,7 @@ pub fn area_cdf(positions: &[[f32; 4]], triangles: std::ops::Range<usize>) -> Op
 }
 
 /// The scene's point clouds as the splats read them, uploaded once per mesh (kept with it in a
-/// frame: [`super::mesh::PerMesh`]): the triangles' positions with their role and, per layer
+/// frame: `mesh::PerMesh`): the triangles' positions with their role and, per layer
 /// (real, virtual) with a surface, its triangles, area CDF and area.
 #[derive(Clone)]
 pub struct IsmClouds {

@@ -15,15 +15,19 @@
 //!   commands were recorded would land before them: while the thread's batch holds commands,
 //!   [`GpuContext::write_buffer`] writes into a fresh staging buffer and records a copy into the
 //!   stream in its place (`GpuContext::write_ordered`). Writes into a buffer just taken from
-//!   the pool ([`GpuContext::upload`]'s uniforms) go straight to the queue: no pending command
-//!   can use such a buffer.
+//!   the pool ([`GpuContext::upload`]'s uniforms) need no such order — no pending command can
+//!   use such a buffer — so within a frame they are staged on the host and written with one
+//!   `queue.write_buffer` when the batch is submitted, and copied into place by the batch's
+//!   prelude, whose commands run first (`GpuContext::write_taken`); outside a frame they go
+//!   straight to the queue.
 //!
 //! Frames on other threads (tests share one context) keep batches of their own (`batch`).
 //!
 //! The passes of a frame also record into one encoder ([`GpuContext::encoder`]): each pass
 //! borrows the frame's encoder, records its commands after the commands recorded so far and
-//! gives it back ([`GpuContext::submit`]), so a frame finishes one encoder per submission (wgpu's
-//! `finish` costs the host 10–20 µs an encoder on lavapipe) instead of one per pass. The order of
+//! gives it back ([`GpuContext::submit`]), so a frame finishes one encoder per submission (and
+//! its prelude) instead of one per pass (about 38 in a live gi frame at the thesis setting; the
+//! one `finish` still encodes every pass: 5–7 µs a pass on lavapipe). The order of
 //! the commands is the order of the passes' `submit`s, as with an encoder each. While a pass has
 //! the encoder it records only into it: the context's own recording (a pooled buffer cleared,
 //! an ordered write, a dispatch or copy of its own) waits until the encoder is given back, except
