@@ -103,6 +103,7 @@ pub fn summarise(frames: &[FrameCounters]) -> FrameCounters {
     let median = |f: &dyn Fn(&FrameCounters) -> f64| quantile(&mut frames.iter().map(f).collect::<Vec<_>>(), 0.5);
     FrameCounters {
         submits: median(&|c| c.submits as f64) as u64,
+        encoders: median(&|c| c.encoders as f64) as u64,
         host_waits: median(&|c| c.host_waits as f64) as u64,
         readback_bytes: median(&|c| c.readback_bytes as f64) as u64,
         upload_bytes: median(&|c| c.upload_bytes as f64) as u64,

@@ -73,6 +73,7 @@ pub struct BounceReport {
 }
 
 /// The scene's triangles as the bounce pass reads them, uploaded once per scene.
+#[derive(Clone)]
 pub struct BounceScene {
     positions: Arc<wgpu::Buffer>,
     cdf: Arc<wgpu::Buffer>,
@@ -231,25 +232,37 @@ impl Bounce {
             contents: bytemuck::cast_slice(&gpu_slots),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let hits = self.record_nearest(ctx, &mut encoder, scene, (&slot_buffer, n), search, scene_radius);
+        let hits = Bounce::hits(ctx, n);
+        let mut encoder = ctx.encoder();
+        self.record_nearest(ctx, &mut encoder, scene, (&slot_buffer, n, &hits), search, scene_radius);
         ctx.submit(encoder);
         ctx.read_f32(&hits)
     }
 
-    /// Records the GPU search of `slots.1` slots in the buffer `slots.0` (bounce.wgsl's `Slot`:
-    /// origin with the rotation of its strata in w, normal, direction ω_o); returns the hits'
-    /// buffer, two per slot (nearest of all points, nearest real point: distance or −1, triangle,
-    /// b1, b2). A live frame's chain ([`super::bounce_chain`]) fills the slots on the GPU.
+    /// The hits' buffer of a search of `n` slots ([`Bounce::record_nearest`]), zeroed: taken
+    /// before the search's encoder (a frame's passes record into one: [`super::stream`]).
+    pub(super) fn hits(ctx: &GpuContext, n: u32) -> Arc<wgpu::Buffer> {
+        ctx.buffer(
+            "bounce hits",
+            (2 * n as u64) * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            super::pool::Contents::Zeroed,
+        )
+    }
+
+    /// Records the GPU search of `n` slots in the buffer `slots` (bounce.wgsl's `Slot`: origin
+    /// with the rotation of its strata in w, normal, direction ω_o) into `hits` ([`Bounce::hits`]),
+    /// two per slot (nearest of all points, nearest real point: distance or −1, triangle, b1,
+    /// b2). A live frame's chain ([`super::bounce_chain`]) fills the slots on the GPU.
     pub(super) fn record_nearest(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         scene: &BounceScene,
-        (slots, n): (&wgpu::Buffer, u32),
+        (slots, n, hits): (&wgpu::Buffer, u32, &wgpu::Buffer),
         search: &BounceSearch,
         scene_radius: f32,
-    ) -> Arc<wgpu::Buffer> {
+    ) {
         // a minimum distance of a millimetre per metre of scene keeps the source's own surface out
         let min_distance = (1e-3 * scene_radius).max(1e-5);
         let uniform = BounceUniform {
@@ -261,12 +274,6 @@ impl Bounce {
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let hits = ctx.buffer(
-            "bounce hits",
-            (2 * n as u64) * 16,
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            super::pool::Contents::Zeroed,
-        );
         ctx.record_dispatch(
             encoder,
             "bounce",
@@ -280,7 +287,6 @@ impl Bounce {
             ],
             [n.min(65535), n.div_ceil(65535)],
         );
-        hits
     }
 }
 

@@ -134,7 +134,9 @@ impl BounceChain {
             })
         };
         let triangles = at.scene.triangles;
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        // each search's hits taken (and cleared) before the chain's commands
+        let hits: Vec<_> = (0..pilots).map(|_| Bounce::hits(ctx, budget)).collect();
+        let mut encoder = ctx.encoder();
         for k in 0..pilots {
             let b = k + 2;
             let seed = b.wrapping_mul(0x9e37_79b9);
@@ -153,13 +155,14 @@ impl BounceChain {
             ];
             ctx.record_dispatch(&mut encoder, "bounce link", &self.link, &entries, [1, 1]);
             let search = BounceSearch { candidates: at.candidates_per_slot, cone_degrees: at.cone_degrees, seed };
-            let hits = bounce.record_nearest(ctx, &mut encoder, at.scene, (&slots, budget), &search, at.scene_radius);
+            let hits = &hits[k as usize];
+            bounce.record_nearest(ctx, &mut encoder, at.scene, (&slots, budget, hits), &search, at.scene_radius);
             let params = uniform([n, budget, seed, k], [triangles, k * pilot_slots, 0, 0]);
             let entries = [
                 entry(0, &params),
                 entry(3, &slots),
                 entry(5, &links),
-                entry(6, &hits),
+                entry(6, hits),
                 entry(7, &at.buffers.vertices),
                 entry(8, &at.buffers.materials),
                 entry(9, &pilot_vpls),

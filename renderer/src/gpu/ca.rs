@@ -175,7 +175,7 @@ impl Artifacts {
         let (pa, pb) = (scratch("ca images a", 2), scratch("ca images b", 2));
         let (oa, ob) = (scratch("ca out a", 1), scratch("ca out b", 1));
 
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
         let mut stage = |k: usize, src: &wgpu::Buffer, aux2: &wgpu::Buffer, dst: &wgpu::Buffer, groups: (u32, u32)| {
             let bind_group = ctx.bind_group(&wgpu::BindGroupDescriptor {

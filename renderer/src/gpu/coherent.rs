@@ -310,7 +310,7 @@ impl CoherentPasses {
         // every query and every pixel writes its own: nothing to clear
         let results = ctx.buffer("coherent results", (queries.len().max(1) * 16) as u64, usage, Contents::Overwritten);
         let frame = ctx.buffer("coherent frame", (n.max(1) * 64) as u64, usage, Contents::Overwritten);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         let query_entries = [
             entry(0, &uniform),
             entry(1, &queries_buffer),

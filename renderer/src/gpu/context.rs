@@ -1,12 +1,12 @@
 //! The GPU context: adapter choice (docs/design.md "GPU": a hardware adapter if there is one, else a
 //! software Vulkan one — Mesa's lavapipe — else GL, e.g. llvmpipe; `MRSTUDY_ADAPTER=hardware|
-//! software|gl` forces a kind), a headless device, and readback of buffers.
+//! software|gl` forces a kind), a headless device, and what the host asks of it, counted
+//! (read-backs in `gpu::readback`).
 
 pub use super::counters::FrameCounters;
 use super::counters::{CounterCells, add_elapsed};
 use super::pool::{BufferKey, Contents, PoolStats};
 use crate::error::{RenderError, Result};
-use rayon::prelude::*;
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -18,9 +18,6 @@ const TIMESTAMPS: wgpu::Features =
 
 /// Uploads held at most outside frames ([`GpuContext::upload`]).
 const MAX_HELD_UPLOADS: usize = 4096;
-
-/// Bytes of mapped memory one thread copies at a time when a buffer is read back.
-const READ_BLOCK: usize = 1 << 18;
 
 /// Which kind of adapter to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,6 +90,8 @@ pub struct GpuContext {
     /// Per thread, the frame being recorded: its command buffers, submitted together
     /// ([`super::stream`]).
     pub(super) batches: super::batch::Batches,
+    /// Compute passes' bind groups kept from frame to frame ([`super::bind_groups`]).
+    pub(super) kept_groups: super::bind_groups::KeptGroups,
 }
 
 /// What a resident buffer's contents were made from ([`GpuContext::resident`],
@@ -188,6 +187,7 @@ impl GpuContext {
             uploads: Mutex::new(Vec::new()),
             resident: Mutex::new(Default::default()),
             batches: Default::default(),
+            kept_groups: Default::default(),
         };
         // lavapipe writes some timestamps without waiting for the compute dispatch before them
         // (the bounce pass's search: 15 ms of wall-clock time at 1024 candidates, 528 ms at
@@ -229,13 +229,10 @@ impl GpuContext {
         true
     }
 
-    /// Submits one command buffer. While passes are timed ([`GpuContext::set_pass_waits`]) with
-    /// the GPU timer on ([`GpuContext::enable_gpu_timer`]), timestamps are written just before
-    /// and just after it (tiny command buffers in the same submission), for
-    /// [`GpuContext::take_gpu_ms`].
-    /// Within a frame the command buffer is held and submitted with the frame's others at its
-    /// next wait ([`super::stream`]).
-    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
+    /// Submits one pass's own encoder ([`GpuContext::submit`]), between timestamps while passes
+    /// are timed with the GPU timer on. Within a frame the command buffer is held and submitted
+    /// with the frame's others at its next wait ([`super::stream`]).
+    pub(super) fn submit_timed(&self, encoder: wgpu::CommandEncoder) {
         let commands = self.finish(encoder);
         let mut guard = self.timer.lock().unwrap_or_else(|e| e.into_inner());
         let Some(timer) = guard.as_mut().filter(|_| self.pass_waits()) else {
@@ -259,8 +256,15 @@ impl GpuContext {
         self.enqueue(vec![begin, commands, end]);
     }
 
-    /// `encoder.finish()`, its time counted as recording (`record_ms`).
-    fn finish(&self, encoder: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+    /// Whether passes are timed with GPU timestamps around each one's command buffer (then
+    /// each pass records into an encoder of its own: [`GpuContext::encoder`]).
+    pub(super) fn timestamps_passes(&self) -> bool {
+        self.pass_waits() && self.has_gpu_timer()
+    }
+
+    /// `encoder.finish()`, counted (`encoders`) and its time counted as recording (`record_ms`).
+    pub(super) fn finish(&self, encoder: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+        self.counters.encoders.fetch_add(1, Ordering::Relaxed);
         let start = Instant::now();
         let commands = encoder.finish();
         add_elapsed(&self.counters.record_ns, start);
@@ -349,13 +353,14 @@ impl GpuContext {
         entries: &[wgpu::BindGroupEntry],
         groups: [u32; 2],
     ) {
-        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut encoder = self.encoder();
         self.record_dispatch(&mut encoder, label, pipeline, entries, groups);
         self.submit(encoder);
     }
 
     /// Records one compute pass into `encoder`: `pipeline` over `groups` workgroups (x, y) with
-    /// bind group 0 made of `entries` in the pipeline's own layout.
+    /// bind group 0 made of `entries` in the pipeline's own layout (kept from frame to frame
+    /// while it binds the same resources: `gpu::bind_groups`).
     pub fn record_dispatch(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -365,10 +370,12 @@ impl GpuContext {
         groups: [u32; 2],
     ) {
         let start = Instant::now();
-        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(label),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries,
+        let bind_group = self.kept_groups.get(pipeline, entries, || {
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries,
+            })
         });
         let mut pass = encoder.begin_compute_pass(&Default::default());
         pass.set_pipeline(pipeline);
@@ -413,6 +420,7 @@ impl GpuContext {
         let c = &self.counters;
         for cell in [
             &c.submits,
+            &c.encoders,
             &c.host_waits,
             &c.readback_bytes,
             &c.upload_bytes,
@@ -431,6 +439,7 @@ impl GpuContext {
         let c = &self.counters;
         FrameCounters {
             submits: c.submits.load(Ordering::Relaxed),
+            encoders: c.encoders.load(Ordering::Relaxed),
             host_waits: c.host_waits.load(Ordering::Relaxed),
             readback_bytes: c.readback_bytes.load(Ordering::Relaxed),
             upload_bytes: c.upload_bytes.load(Ordering::Relaxed),
@@ -468,13 +477,7 @@ impl GpuContext {
             (desc.contents.len() as u64).div_ceil(wgpu::COPY_BUFFER_ALIGNMENT).max(1) * wgpu::COPY_BUFFER_ALIGNMENT;
         let buffer = self.buffer(desc.label.unwrap_or("upload"), size, desc.usage, Contents::Overwritten);
         // just taken from the pool: no pending command uses it ([`super::stream`])
-        if desc.contents.len() as u64 == size {
-            self.write_direct(&buffer, 0, desc.contents);
-        } else {
-            let mut padded = desc.contents.to_vec();
-            padded.resize(size as usize, 0);
-            self.write_direct(&buffer, 0, &padded);
-        }
+        self.write_taken(&buffer, desc.contents, size);
         let mut uploads = self.uploads.lock().unwrap_or_else(|e| e.into_inner());
         if uploads.len() >= MAX_HELD_UPLOADS {
             // work that never begins a frame (tests of single passes): the oldest are long submitted
@@ -599,9 +602,19 @@ impl GpuContext {
         }
     }
 
+    /// Counts `bytes` mapped and copied back to the host.
+    pub(super) fn count_readback(&self, bytes: u64) {
+        self.counters.readback_bytes.fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// Counts `bytes` uploaded.
+    pub(super) fn count_upload(&self, bytes: u64) {
+        self.counters.upload_bytes.fetch_add(bytes, Ordering::Relaxed);
+    }
+
     /// `queue.write_buffer`, counted as an upload (it runs before the next submission).
     pub(super) fn write_direct(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
-        self.counters.upload_bytes.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.count_upload(data.len() as u64);
         self.queue.write_buffer(buffer, offset, data);
     }
 
@@ -623,180 +636,6 @@ impl GpuContext {
     pub(super) fn count_allocation(&self) {
         self.counters.allocations.fetch_add(1, Ordering::Relaxed);
     }
-
-    /// Reads a whole buffer (created with `MAP_READ | COPY_DST`) back to the CPU (copied once,
-    /// in blocks on all threads).
-    pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Vec<u8> {
-        self.mapped(buffer, copy_blocks::<u8>).unwrap_or_default()
-    }
-
-    /// Maps a `MAP_READ` buffer (waiting for the device), hands its bytes to `read` and unmaps
-    /// it; `None` when it cannot be mapped.
-    fn mapped<R>(&self, buffer: &wgpu::Buffer, read: impl FnOnce(&[u8]) -> R) -> Option<R> {
-        self.map_all(&[buffer]);
-        self.take_mapped(buffer, read)
-    }
-
-    /// Copies a storage buffer to a staging buffer (from the pool) and reads it back as `f32`s.
-    pub fn read_f32(&self, source: &wgpu::Buffer) -> Vec<f32> {
-        self.read_staged_f32(&self.stage(source))
-    }
-
-    /// Copies a storage buffer to a staging buffer (from the pool) and reads its bytes back.
-    pub fn read_storage(&self, source: &wgpu::Buffer) -> Vec<u8> {
-        self.read_buffer(&self.stage(source))
-    }
-
-    /// Submits the copy of a storage buffer into a staging buffer from the pool (`MAP_READ`) and
-    /// returns the staging buffer, without waiting: [`GpuContext::read_staged_f32`] reads it.
-    pub fn stage(&self, source: &wgpu::Buffer) -> Arc<wgpu::Buffer> {
-        // from the pool: the copy below writes all of it
-        let staging = self.buffer("readback", source.size(), wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(source, 0, &staging, 0, source.size());
-        self.submit(encoder);
-        staging
-    }
-
-    /// Submits the copies of `sources`, one after another, into one staging buffer from the pool
-    /// (`MAP_READ`), without waiting: [`GpuContext::read_staged`] reads it with the frame's other
-    /// read-backs. Each source starts at the sum of the sizes before it.
-    pub fn stage_all(&self, sources: &[&wgpu::Buffer]) -> Arc<wgpu::Buffer> {
-        let size = sources.iter().map(|s| s.size()).sum::<u64>().max(wgpu::COPY_BUFFER_ALIGNMENT);
-        // from the pool: the copies below write every byte read back
-        let staging = self.buffer("readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        let mut at = 0;
-        for source in sources {
-            encoder.copy_buffer_to_buffer(source, 0, &staging, at, source.size());
-            at += source.size();
-        }
-        self.submit(encoder);
-        staging
-    }
-
-    /// Maps several staging buffers with one wait for the device, and copies each once (in
-    /// blocks on all threads) as 32-bit words (`bytemuck::cast_slice` makes them `f32`s or
-    /// bytes).
-    pub fn read_staged(&self, staging: &[&wgpu::Buffer]) -> Vec<Vec<u32>> {
-        self.map_all(staging);
-        staging.iter().map(|buffer| self.take_mapped(buffer, copy_blocks::<u32>).unwrap_or_default()).collect()
-    }
-
-    /// As [`GpuContext::read_staged`], with the first staging buffer's mapped bytes handed to
-    /// `first` instead of copied (a live frame makes its image straight from them); `None`
-    /// for it when it cannot be mapped.
-    pub fn read_staged_with<R>(
-        &self,
-        first: &wgpu::Buffer,
-        rest: &[&wgpu::Buffer],
-        read: impl FnOnce(&[u8]) -> R,
-    ) -> (Option<R>, Vec<Vec<u32>>) {
-        self.map_all(&[&[first], rest].concat());
-        let out = self.take_mapped(first, read);
-        (out, rest.iter().map(|buffer| self.take_mapped(buffer, copy_blocks::<u32>).unwrap_or_default()).collect())
-    }
-
-    /// Maps staging buffers for reading, with one wait for the device.
-    fn map_all(&self, staging: &[&wgpu::Buffer]) {
-        // the copies into them submitted first
-        self.flush();
-        for buffer in staging {
-            buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        }
-        self.wait();
-    }
-
-    /// A mapped buffer's bytes handed to `read`, then unmapped (counted as read back).
-    fn take_mapped<R>(&self, buffer: &wgpu::Buffer, read: impl FnOnce(&[u8]) -> R) -> Option<R> {
-        self.counters.readback_bytes.fetch_add(buffer.size(), Ordering::Relaxed);
-        let out = buffer.slice(..).get_mapped_range().ok().map(|view| read(&view));
-        buffer.unmap();
-        out
-    }
-
-    /// Maps a staging buffer (waiting for the device) and copies it once, straight into
-    /// `f32`s, in blocks on all threads.
-    pub fn read_staged_f32(&self, staging: &wgpu::Buffer) -> Vec<f32> {
-        self.mapped(staging, copy_blocks::<f32>).unwrap_or_default()
-    }
-
-    /// Reads a 2D texture of 16-byte texels (`Rgba32Float`) back as `[f32; 4]` per texel.
-    pub fn read_texture_rgba32(&self, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
-        self.read_texture(texture, 16).chunks_exact(16).map(|c| *bytemuck::from_bytes::<[f32; 4]>(c)).collect()
-    }
-
-    /// Reads a 2D texture (layer 0) with `texel_bytes` per texel, rows unpadded.
-    pub fn read_texture(&self, texture: &wgpu::Texture, texel_bytes: u32) -> Vec<u8> {
-        self.read_textures(&[(texture, texel_bytes)]).pop().unwrap_or_default()
-    }
-
-    /// Reads several 2D textures (layer 0; each with its bytes per texel) in one copy, one
-    /// submission and one wait; each texture's bytes with rows unpadded.
-    pub fn read_textures(&self, textures: &[(&wgpu::Texture, u32)]) -> Vec<Vec<u8>> {
-        let layouts: Vec<(u64, u32, u32, u32)> = textures
-            .iter()
-            .scan(0u64, |at, &(texture, texel_bytes)| {
-                let row = texture.width() * texel_bytes;
-                let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-                let offset = *at;
-                *at += padded as u64 * texture.height() as u64;
-                Some((offset, row, padded, texture.height()))
-            })
-            .collect();
-        let size = layouts.last().map_or(0, |&(offset, _, padded, h)| offset + padded as u64 * h as u64);
-        if size == 0 {
-            return vec![Vec::new(); textures.len()];
-        }
-        // from the pool: the copies below write every byte read back (not rows' padding)
-        let staging = self.buffer("texture readback", size, wgpu::BufferUsages::MAP_READ, Contents::Overwritten);
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        for (&(texture, _), &(offset, _, padded, h)) in textures.iter().zip(&layouts) {
-            encoder.copy_texture_to_buffer(
-                texture.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &staging,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset,
-                        bytes_per_row: Some(padded),
-                        rows_per_image: Some(h),
-                    },
-                },
-                wgpu::Extent3d { width: texture.width(), height: h, depth_or_array_layers: 1 },
-            );
-        }
-        self.submit(encoder);
-        // rows copied straight from the mapped memory without their padding, on all threads
-        self.mapped(&staging, |view| {
-            layouts
-                .iter()
-                .map(|&(offset, row, padded, h)| {
-                    let mut out = vec![0u8; (row * h) as usize];
-                    if row > 0 {
-                        out.par_chunks_mut(row as usize).enumerate().for_each(|(y, to)| {
-                            let from = offset as usize + y * padded as usize;
-                            to.copy_from_slice(&view[from..from + row as usize]);
-                        });
-                    }
-                    out
-                })
-                .collect()
-        })
-        .unwrap_or_else(|| vec![Vec::new(); textures.len()])
-    }
-}
-
-/// `bytes` as `T`s, copied once, in blocks of [`READ_BLOCK`] bytes on all threads: reading
-/// mapped memory is slow from one thread (a 1024×768 frame's 38 MB took 10–22 ms on an H200's
-/// host).
-pub(super) fn copy_blocks<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
-    let mut out = vec![T::zeroed(); bytes.len() / std::mem::size_of::<T>()];
-    let whole = std::mem::size_of_val(out.as_slice());
-    bytemuck::cast_slice_mut::<T, u8>(&mut out)
-        .par_chunks_mut(READ_BLOCK)
-        .zip(bytes[..whole].par_chunks(READ_BLOCK))
-        .for_each(|(to, from)| to.copy_from_slice(from));
-    out
 }
 
 /// The G-buffer and shadow maps render to `Rgba32Float` and `R32Float` (GL ES often cannot).
@@ -831,18 +670,13 @@ impl GpuContext {
         }
         if reused {
             match contents {
-                Contents::Zeroed => {
-                    let mut encoder = self.device.create_command_encoder(&Default::default());
-                    encoder.clear_buffer(&buffer, 0, None);
-                    self.enqueue(vec![self.finish(encoder)]);
-                }
+                Contents::Zeroed => self.clear_taken(&buffer),
                 #[cfg(test)]
-                Contents::Overwritten => {
+                Contents::Overwritten if self.pool.poisons() => {
                     // old contents read by mistake show as NaNs (just taken: no pending command
                     // uses it)
                     self.queue.write_buffer(&buffer, 0, &vec![0xffu8; key.size as usize]);
                 }
-                #[cfg(not(test))]
                 Contents::Overwritten => {}
             }
         }

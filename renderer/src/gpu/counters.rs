@@ -13,6 +13,9 @@ use std::time::Instant;
 pub struct FrameCounters {
     /// Queue submissions.
     pub submits: u64,
+    /// Command encoders finished (`encoder.finish()`: a frame's passes record into one encoder
+    /// per submission, [`super::stream`]; timed passes one each, with their timestamps').
+    pub encoders: u64,
     /// Blocking waits of the host for the device (a poll that waits, a buffer mapped for reading).
     pub host_waits: u64,
     /// Bytes mapped and copied back to the host.
@@ -46,13 +49,14 @@ pub struct FrameCounters {
 impl FrameCounters {
     /// The header of a table of counters ([`FrameCounters::cells`]).
     pub const HEADER: &str =
-        "submits waits readback MB upload MB allocs  cpu ms  wait ms record ms submit ms host steps ms";
+        "submits encoders waits readback MB upload MB allocs  cpu ms  wait ms record ms submit ms host steps ms";
 
     /// The counters as table cells under [`FrameCounters::HEADER`].
     pub fn cells(&self) -> String {
         format!(
-            "{:>7} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2} {:>9.2} {:>9.2} {:>13.2}",
+            "{:>7} {:>8} {:>5} {:>11.3} {:>9.3} {:>6} {:>7.2} {:>8.2} {:>9.2} {:>9.2} {:>13.2}",
             self.submits,
+            self.encoders,
             self.host_waits,
             self.readback_bytes as f64 / 1e6,
             self.upload_bytes as f64 / 1e6,
@@ -76,6 +80,7 @@ impl FrameCounters {
 #[derive(Default)]
 pub(super) struct CounterCells {
     pub(super) submits: AtomicU64,
+    pub(super) encoders: AtomicU64,
     pub(super) host_waits: AtomicU64,
     pub(super) readback_bytes: AtomicU64,
     pub(super) upload_bytes: AtomicU64,

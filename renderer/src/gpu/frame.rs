@@ -195,21 +195,23 @@ fn ran<'t, T>(value: &'t Option<T>, what: &str) -> &'t T {
 
 impl<'a> FrameTargets<'a> {
     /// Starts a frame: the scene's mesh (CPU; kept in `meshes` while the scene's geometry stays)
-    /// and its upload, before the first pass.
+    /// and its buffers (kept with it: `scene_buffers`), before the first pass.
     pub fn new(
-        ctx: &GpuContext,
-        meshes: &mesh::MeshCache,
+        r: &DirRenderer,
         scene: &'a Scene,
         photo: &'a Image,
         params: &'a DirParams,
         state: &'a mut LiveState,
         mode: Frame,
     ) -> FrameTargets<'a> {
+        let ctx = &r.ctx;
         let mut passes = Vec::new();
         let start = Instant::now();
-        let mesh = meshes.get(scene);
+        let mesh = r.meshes.get(scene);
         passes.push(PassTime::new("scene mesh (CPU)", start.elapsed().as_secs_f64() * 1e3));
-        let buffers = timed(ctx, &mut passes, "upload scene".into(), || SceneBuffers::new(ctx, &mesh));
+        let buffers = timed(ctx, &mut passes, "upload scene".into(), || {
+            r.scene_buffers.get(&mesh, |mesh| SceneBuffers::new(ctx, mesh))
+        });
         let has_virtual = mesh.virtual_count() > 0;
         FrameTargets {
             scene,
@@ -713,7 +715,7 @@ impl DirRenderer {
                 });
             // the bytes copied once from the mapped memory, as they are (no image of floats)
             let pixels = (width * height) as usize * 4;
-            let to_bytes = |bytes: &[u8]| context::copy_blocks::<u8>(&bytes[..pixels.min(bytes.len())]);
+            let to_bytes = |bytes: &[u8]| readback::copy_blocks::<u8>(&bytes[..pixels.min(bytes.len())]);
             let (bytes, words) = timed(ctx, &mut f.passes, "readback: mapped and copied to the host".into(), || {
                 ctx.read_staged_with(&staged[0], &staged[1..].iter().map(|s| &**s).collect::<Vec<_>>(), to_bytes)
             });
@@ -827,7 +829,7 @@ impl DirRenderer {
         }
         let frame_start = Instant::now();
         let _frame = ctx.begin_frame();
-        let mut f = FrameTargets::new(ctx, &self.meshes, scene, photo, params, state, mode);
+        let mut f = FrameTargets::new(self, scene, photo, params, state, mode);
         f.given_vpls = given_vpls;
         f.shared_photo = match shared {
             PhotoRef::Shared(shared) => Some(shared),

@@ -104,6 +104,8 @@ fn stimulus_frames_equal_the_recorded_hashes() {
 #[ignore = "a measurement: several seconds a frame on lavapipe"]
 fn counters_at_the_thesis_setting() {
     let r = DirRenderer::new().unwrap();
+    // the frames as they ship: reused buffers not filled with NaNs first (the tests' own check)
+    r.ctx.pool.hand_out_as_shipped(true);
     for (name, condition) in
         [("dir-lamp-box", GiLevel::Gi), ("dir-lamp-box", GiLevel::None), ("glass-figure", GiLevel::Gi)]
     {
@@ -136,7 +138,8 @@ fn counters_at_the_thesis_setting() {
 
 /// A live frame that is only shown, after its first: nothing allocated, nothing uploaded but its
 /// uniforms (the scene and the photograph are kept: `GpuContext::resident`), one submission
-/// (every pass's command buffers together: `batch`), one host wait and one read-back — the composite as 8-bit RGBA, with the report's counts (the specular passes',
+/// (every pass's commands together: `batch`) of two encoders (every pass recorded into the
+/// frame's, and the prelude that copies its uploads in: `stream`), one host wait and one read-back — the composite as 8-bit RGBA, with the report's counts (the specular passes',
 /// the VPL chain's plan: under 1 KB) — with further bounces and caustics too: the VPLs are made
 /// and consumed on the GPU (`bounce_chain`). A device of its own, so that no other test's work
 /// is counted.
@@ -169,6 +172,9 @@ fn a_shown_frame_allocates_nothing_and_reads_back_one_8_bit_image() {
             assert!(c.host_waits <= 1, "{name}, {bounces} bounces: {} host waits", c.host_waits);
             // one command stream: the frame's command buffers in one submission, at its wait
             assert_eq!(c.submits, 1, "{name}, {bounces} bounces: {} submissions", c.submits);
+            // its passes recorded into one encoder, finished once, after the prelude that copies
+            // the frame's uploads into place (`stream`)
+            assert!(c.encoders <= 2, "{name}, {bounces} bounces: {} encoders finished", c.encoders);
             if frame > 0 {
                 assert_eq!(c.allocations, 0, "{name}, frame {frame}: allocated after the first frame");
                 // the uniforms: 4 KB at most (the scene, the photograph: none)
@@ -335,7 +341,7 @@ fn a_frames_writes_and_pooled_buffers_keep_the_order_of_its_commands() {
     let ctx = &r.ctx;
     let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
     let clear = |buffer: &wgpu::Buffer| {
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         encoder.clear_buffer(buffer, 0, None);
         ctx.submit(encoder);
     };

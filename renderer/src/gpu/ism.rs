@@ -153,6 +153,34 @@ pub fn area_cdf(positions: &[[f32; 4]], triangles: std::ops::Range<usize>) -> Op
     Some((cdf, total))
 }
 
+/// The scene's point clouds as the splats read them, uploaded once per mesh (kept with it in a
+/// frame: `mesh::PerMesh`): the triangles' positions with their role and, per layer
+/// (real, virtual) with a surface, its triangles, area CDF and area.
+#[derive(Clone)]
+pub struct IsmClouds {
+    positions: std::sync::Arc<wgpu::Buffer>,
+    layers: [Option<(std::ops::Range<usize>, std::sync::Arc<wgpu::Buffer>, f64)>; 2],
+}
+
+impl IsmClouds {
+    pub fn new(ctx: &GpuContext, mesh: &GpuMesh) -> IsmClouds {
+        let positions = mesh.positions_with_role();
+        let n_triangles = mesh.vertices.len() / 3;
+        let real_triangles = mesh.real_count as usize / 3;
+        let subsets = [0..real_triangles, real_triangles..n_triangles];
+        // the scene's points and their distributions: kept while the scene is the same
+        let points = if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions };
+        let position_buffer = ctx.resident("ism positions", bytemuck::cast_slice(points), wgpu::BufferUsages::STORAGE);
+        let layers = [0, 1].map(|layer: usize| {
+            let range = subsets[layer].clone();
+            let (cdf, area) = area_cdf(&positions, range.clone())?;
+            let key = format!("ism cdf {layer}");
+            Some((range, ctx.resident(&key, bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE), area))
+        });
+        IsmClouds { positions: position_buffer, layers }
+    }
+}
+
 impl Ism {
     pub fn new(ctx: &GpuContext) -> Self {
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -220,9 +248,9 @@ impl Ism {
         buffer
     }
 
-    /// Renders both atlases for `vpls` by `splatting`. `max_distance` bounds every
-    /// VPL-to-surface distance.
-    pub fn render(&self, ctx: &GpuContext, mesh: &GpuMesh, vpls: &[GpuVpl], settings: &IsmSettings) -> IsmAtlas {
+    /// Renders both atlases for `vpls` by `splatting` over the scene's `clouds`. `max_distance`
+    /// bounds every VPL-to-surface distance.
+    pub fn render(&self, ctx: &GpuContext, clouds: &IsmClouds, vpls: &[GpuVpl], settings: &IsmSettings) -> IsmAtlas {
         let vpl_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
             label: Some("ism vpls"),
             contents: bytemuck::cast_slice(if vpls.is_empty() {
@@ -232,7 +260,7 @@ impl Ism {
             }),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        self.render_gpu(ctx, mesh, (&vpl_buffer, vpls.len() as u32), settings)
+        self.render_gpu(ctx, clouds, (&vpl_buffer, vpls.len() as u32), settings)
     }
 
     /// [`Ism::render`] for `vpls.1` VPLs already on the GPU in `vpls.0` (a live frame's: slots
@@ -240,7 +268,7 @@ impl Ism {
     pub fn render_gpu(
         &self,
         ctx: &GpuContext,
-        mesh: &GpuMesh,
+        clouds: &IsmClouds,
         (vpl_buffer, vpl_count): (&wgpu::Buffer, u32),
         settings: &IsmSettings,
     ) -> IsmAtlas {
@@ -266,27 +294,18 @@ impl Ism {
                 IsmSplatting::Raster => Contents::Overwritten,
             },
         );
-        let positions = mesh.positions_with_role();
-        let n_triangles = mesh.vertices.len() / 3;
-        let real_triangles = mesh.real_count as usize / 3;
-        let subsets = [0..real_triangles, real_triangles..n_triangles];
         // every splat's four vertices are numbered in one draw's vertex_index (a base vertex is
         // an i32): at most MAX_SPLATS splats in all
         let points_per_vpl = points_per_vpl.clamp(1, (MAX_SPLATS / n_vpls as u64).max(1) as u32);
-        // the scene's points and their distributions: kept while the scene is the same
-        let position_buffer = ctx.resident(
-            "ism positions",
-            bytemuck::cast_slice(if positions.is_empty() { &[[0.0f32; 4]][..] } else { &positions }),
-            wgpu::BufferUsages::STORAGE,
-        );
+        let position_buffer = &clouds.positions;
         let inv_max_distance = 1.0 / max_distance.max(1e-6);
         let splats = vpl_count * points_per_vpl;
         // per layer with a surface and VPLs: its uniform and its area CDF
         let mut points = [0u32; 2];
         let mut splat_radius = [0.0f32; 2];
         let mut layers = Vec::with_capacity(2);
-        for (layer, range) in subsets.iter().enumerate() {
-            let Some((cdf, area)) = area_cdf(&positions, range.clone()) else { continue };
+        for (layer, cloud) in clouds.layers.iter().enumerate() {
+            let Some((range, cdf_buffer, area)) = cloud else { continue };
             if vpl_count == 0 {
                 continue;
             }
@@ -299,16 +318,14 @@ impl Ism {
                 scale: [inv_max_distance, splat_radius[layer], 0.0, 0.0],
                 layer: [layer as u32, 0, 0, 0],
             };
-            let cdf_buffer =
-                ctx.resident(&format!("ism cdf {layer}"), bytemuck::cast_slice(&cdf), wgpu::BufferUsages::STORAGE);
             let uniform_buffer = ctx.upload(&wgpu::util::BufferInitDescriptor {
                 label: Some("ism params"),
                 contents: bytemuck::bytes_of(&uniform),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-            layers.push((layer, uniform_buffer, cdf_buffer));
+            layers.push((layer, uniform_buffer, cdf_buffer.clone()));
         }
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         match splatting {
             IsmSplatting::Compute => {
                 // 64 splats per group, in rows of at most 65 535 groups
@@ -331,14 +348,8 @@ impl Ism {
                 }
             }
             IsmSplatting::Raster => {
-                let inputs = RasterSplats {
-                    buffer: &buffer,
-                    atlas,
-                    layers: &layers,
-                    position_buffer: &position_buffer,
-                    vpl_buffer,
-                    splats,
-                };
+                let inputs =
+                    RasterSplats { buffer: &buffer, atlas, layers: &layers, position_buffer, vpl_buffer, splats };
                 self.rasterise(ctx, &mut encoder, &inputs)
             }
         }
@@ -466,9 +477,15 @@ mod tests {
         let mesh = crate::gpu::mesh::build(&scene);
         let vpls = surface_vpls(&mesh, 7);
         assert_eq!(vpls.len(), 7);
-        let one = read_atlas(&r.ctx, &r.ism.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
+        let one = read_atlas(
+            &r.ctx,
+            &r.ism.render(&r.ctx, &IsmClouds::new(&r.ctx, &mesh), &vpls, &settings(100, 32, 20.0, splatting)),
+        );
         let pieces = variant(Ism::new(&r.ctx));
-        let other = read_atlas(&r.ctx, &pieces.render(&r.ctx, &mesh, &vpls, &settings(100, 32, 20.0, splatting)));
+        let other = read_atlas(
+            &r.ctx,
+            &pieces.render(&r.ctx, &IsmClouds::new(&r.ctx, &mesh), &vpls, &settings(100, 32, 20.0, splatting)),
+        );
         (one, other)
     }
 
@@ -514,8 +531,10 @@ mod tests {
             let mut vpls = good.clone();
             vpls[1].position = [bad, 0.0, bad, 1.0];
             for splatting in IsmSplatting::ALL {
-                let atlas = r.ism.render(&r.ctx, &mesh, &vpls, &settings(100, 16, 20.0, splatting));
-                let reference = r.ism.render(&r.ctx, &mesh, &good, &settings(100, 16, 20.0, splatting));
+                let atlas =
+                    r.ism.render(&r.ctx, &IsmClouds::new(&r.ctx, &mesh), &vpls, &settings(100, 16, 20.0, splatting));
+                let reference =
+                    r.ism.render(&r.ctx, &IsmClouds::new(&r.ctx, &mesh), &good, &settings(100, 16, 20.0, splatting));
                 let (with_bad, without) = (read_atlas(&r.ctx, &atlas), read_atlas(&r.ctx, &reference));
                 let width = atlas.width() as usize;
                 let tile_of = |i: usize| {
@@ -547,7 +566,12 @@ mod tests {
             let mesh = crate::gpu::mesh::build(&scene);
             let vpls = surface_vpls(&mesh, 64);
             let render = |splatting| {
-                r.ism.render(&r.ctx, &mesh, &vpls, &settings(1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting))
+                r.ism.render(
+                    &r.ctx,
+                    &IsmClouds::new(&r.ctx, &mesh),
+                    &vpls,
+                    &settings(1024, 64, 2.0 * mesh.bounds_radius * 1.01, splatting),
+                )
             };
             let (compute, raster) = (render(IsmSplatting::Compute), render(IsmSplatting::Raster));
             assert_eq!((compute.tile_size, compute.tiles_per_row), (raster.tile_size, raster.tiles_per_row));

@@ -46,6 +46,7 @@
 //! reflect diffusely).
 
 mod batch;
+mod bind_groups;
 pub mod bounce;
 pub mod bounce_chain;
 pub mod ca;
@@ -60,6 +61,7 @@ pub mod ism;
 pub mod mesh;
 pub mod pool;
 pub mod raster;
+mod readback;
 pub mod representation;
 pub mod shade;
 pub mod specular;
@@ -334,6 +336,10 @@ pub struct DirRenderer {
     cpu_vpls: std::sync::atomic::AtomicBool,
     /// The last scene's mesh, kept while its geometry stays ([`mesh::MeshCache`]).
     meshes: mesh::MeshCache,
+    /// Its buffers and the bounces' triangles, kept with it ([`mesh::PerMesh`]).
+    scene_buffers: mesh::PerMesh<SceneBuffers>,
+    bounce_scenes: mesh::PerMesh<Option<bounce::BounceScene>>,
+    ism_clouds: mesh::PerMesh<ism::IsmClouds>,
 }
 
 /// One light's rendered RSMs: the light, a spot's tan of half its field of view, and the
@@ -490,6 +496,9 @@ impl DirRenderer {
             vpl_sampler,
             cpu_vpls: std::sync::atomic::AtomicBool::new(false),
             meshes: Default::default(),
+            scene_buffers: Default::default(),
+            bounce_scenes: Default::default(),
+            ism_clouds: Default::default(),
         }
     }
 

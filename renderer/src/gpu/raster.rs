@@ -50,6 +50,7 @@ pub enum Subset {
 }
 
 /// The scene's geometry and materials on the GPU.
+#[derive(Clone)]
 pub struct SceneBuffers {
     pub vertices: std::sync::Arc<wgpu::Buffer>,
     pub materials: std::sync::Arc<wgpu::Buffer>,
@@ -312,7 +313,7 @@ impl Raster {
         pass: Pass,
     ) {
         let bind_group = self.bind_group(ctx, pipeline, scene, view);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         self.record(ctx, &mut encoder, pipeline, &bind_group, scene, pass);
         ctx.submit(encoder);
     }
@@ -452,7 +453,7 @@ impl Raster {
             *groups = Some((Arc::downgrade(&views), stride, (0..maps.len()).map(group).collect()));
         }
         let bind_groups = &groups.as_ref().expect("made above").2;
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         for ((_, subset, distance), bind_group) in maps.iter().zip(bind_groups) {
             let pass = Pass { subset: *subset, size: (size, size), targets: &[(*distance, 1e30)] };
             self.record(ctx, &mut encoder, &self.shadow, bind_group, scene, pass);
@@ -484,7 +485,7 @@ impl Raster {
         if maps.is_empty() {
             return;
         }
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         for map in maps {
             let size = (map.targets.position.width(), map.targets.position.height());
             let views = [map.distance, &map.targets.position, &map.targets.normal, &map.targets.albedo]
@@ -536,7 +537,7 @@ impl Raster {
                 })
             })
             .collect();
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("g-buffer draws"),

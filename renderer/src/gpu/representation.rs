@@ -352,7 +352,7 @@ impl RepresentationBuilder {
         let tau = storage(ctx, "solid tau", total * 4);
         let normals = storage(ctx, "solid normals", count * 16);
         let albedos = storage(ctx, "solid albedos", count * 16);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         for buffer in [&tau, &normals, &albedos] {
             encoder.clear_buffer(buffer, 0, None);
         }
@@ -465,9 +465,9 @@ impl RepresentationBuilder {
         let samples_buffer = sample_buffer(ctx, samples);
         let depth = storage(ctx, "impostor distance", texels * 4);
         let radiance = storage(ctx, "impostor radiance", texels * 16);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
         // 0xffffffff: no sample (the bits of a NaN, above every distance's bits)
         ctx.write_buffer(&depth, 0, &vec![0xffu8; texels as usize * 4]);
+        let mut encoder = ctx.encoder();
         encoder.clear_buffer(&radiance, 0, None);
         ctx.submit(encoder);
         // both passes run the one splat function, so both bind all four
@@ -528,7 +528,7 @@ impl RepresentationBuilder {
         let base = (res as u64).pow(3);
         let sums = storage(ctx, "voxel sums", base * 16);
         let levels = storage(ctx, "voxel levels", total * 16);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         encoder.clear_buffer(&sums, 0, None);
         ctx.submit(encoder);
         if count > 0 {

@@ -176,7 +176,7 @@ fn timed_passes_report_the_gpu_time_of_their_own_submissions() {
     r.ctx.set_pass_waits(true);
     assert_eq!(pipelined.unwrap().composite.pixels, frame.composite.pixels);
     assert_eq!(r.ctx.take_gpu_ms(), None, "no timestamps while passes are not timed");
-    r.ctx.submit(r.ctx.device.create_command_encoder(&Default::default()));
+    r.ctx.submit(r.ctx.encoder());
     assert!(r.ctx.take_gpu_ms().is_some_and(|ms| ms >= 0.0));
     assert_eq!(r.ctx.take_gpu_ms(), None, "a submission's time is read once");
 }

@@ -453,7 +453,6 @@ impl VplSampler {
         caustics: &[CausticMap],
         maps: &[RsmMaps],
     ) -> GpuCandidates {
-        let device = &ctx.device;
         let slots = u32::try_from(Self::slots(extra.len(), caustics, maps)).expect("candidate slots fit in u32");
         let blocks = slots.div_ceil(BLOCK).max(1);
         let storage = |label: &str, bytes: u64| {
@@ -477,7 +476,7 @@ impl VplSampler {
             ctx.write_buffer(&out.candidates, 0, bytemuck::cast_slice(extra));
             ctx.write_buffer(&out.weights, 0, bytemuck::cast_slice(&weights));
         }
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         let mut offset = extra.len() as u32;
         for map in caustics {
             let (light, n) = (map.light, map.size);
@@ -611,7 +610,7 @@ impl VplSampler {
     ) -> std::sync::Arc<wgpu::Buffer> {
         let drawn = Self::slots_buffer(ctx, "vpls drawn", count);
         if count > 0 && candidates.slots > 0 {
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let mut encoder = ctx.encoder();
             self.record_draw(ctx, &mut encoder, candidates, count, &drawn, None);
             ctx.submit(encoder);
         }
@@ -640,13 +639,12 @@ impl VplSampler {
         if count == 0 || candidates.slots == 0 {
             return Vec::new();
         }
-        let device = &ctx.device;
         let vpl_bytes = count as u64 * std::mem::size_of::<GpuVpl>() as u64;
         let zeroed = super::pool::Contents::Zeroed;
         let drawn =
             ctx.buffer("vpls drawn", vpl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC, zeroed);
         let staging = ctx.buffer("vpls drawn read back", vpl_bytes + 4, wgpu::BufferUsages::MAP_READ, zeroed);
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = ctx.encoder();
         self.record_draw(ctx, &mut encoder, candidates, count, &drawn, None);
         encoder.copy_buffer_to_buffer(&drawn, 0, &staging, 0, vpl_bytes);
         encoder.copy_buffer_to_buffer(&candidates.offsets, candidates.blocks as u64 * 4, &staging, vpl_bytes, 4);

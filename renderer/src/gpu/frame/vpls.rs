@@ -158,7 +158,8 @@ impl DirRenderer {
         if params.condition != GiLevel::Gi || params.bounces <= 1 || f.vpl_count() == 0 {
             return Ok(());
         }
-        let Some(bounce_scene) = bounce::BounceScene::new(ctx, &f.mesh) else { return Ok(()) };
+        let made = self.bounce_scenes.get(&f.mesh, |mesh| bounce::BounceScene::new(ctx, mesh));
+        let Some(bounce_scene) = made else { return Ok(()) };
         if let (Some(first), Some(FirstBounce::Gpu(candidates))) = (&f.gpu_vpls, &f.first_bounce) {
             let bounces = params.bounces.min(MAX_BOUNCES);
             let inputs = bounce_chain::ChainInputs {
@@ -262,10 +263,11 @@ impl DirRenderer {
             params.ism_points,
             params.ism_splatting.name()
         );
-        let (mesh, vpls, slots) = (&f.mesh, &f.vpls, f.vpl_slots);
+        let (vpls, slots) = (&f.vpls, f.vpl_slots);
+        let clouds = &self.ism_clouds.get(&f.mesh, |mesh| ism::IsmClouds::new(ctx, mesh));
         let atlas = match &f.gpu_vpls {
-            Some(gpu) => timed(ctx, &mut f.passes, label, || self.ism.render_gpu(ctx, mesh, (gpu, slots), &settings)),
-            None => timed(ctx, &mut f.passes, label, || self.ism.render(ctx, mesh, vpls, &settings)),
+            Some(gpu) => timed(ctx, &mut f.passes, label, || self.ism.render_gpu(ctx, clouds, (gpu, slots), &settings)),
+            None => timed(ctx, &mut f.passes, label, || self.ism.render(ctx, clouds, vpls, &settings)),
         };
         f.ism_atlas = Some(atlas);
         Ok(())

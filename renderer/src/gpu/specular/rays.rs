@@ -105,7 +105,6 @@ impl Specular {
     ) -> Traced {
         let FrameScene { scene, mesh, buffers } = at;
         let RayInputs { impostors, gbuffer, view: camera_view, view_proj: camera_view_proj } = *rays;
-        let device = &ctx.device;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let glass: Vec<std::ops::Range<u32>> = mesh
             .specular
@@ -131,7 +130,7 @@ impl Specular {
             let eye = Eye { view_proj: camera_view_proj, position: scene.camera.position, size: (width, height) };
             let search = self.search(ctx, impostors, gbuffer, &back, eye, params);
             let plane_texels = search.stride as u64 * height as u64;
-            let mut encoder = device.create_command_encoder(&Default::default());
+            let mut encoder = ctx.encoder();
             let targets = [&refl.position, &refl.normal, &refl.albedo, &refr.position, &refr.normal, &refr.albedo];
             for (p, texture) in targets.into_iter().enumerate() {
                 encoder.copy_buffer_to_texture(
