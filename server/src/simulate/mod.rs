@@ -33,7 +33,7 @@
 //!
 //! **Reproducible.** Run r of design d at n participants has the seed
 //! `derived_seed(derived_seed(derived_seed(seed, d), n), r)` (d: 0 study, 1 all, 2 anchored,
-//! 3 active, 4 active-worths, 5 active-both); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
+//! 3 active, 4 active-worths, 5 active-both, 6 active-spread); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
 //! answers come from a ChaCha8 stream of `derived_seed(participant seed, 1)`. Runs go in
 //! parallel (rayon) and are collected in order, so the report does not depend on the thread
 //! count.
@@ -132,7 +132,7 @@ pub struct Config {
 /// holds their clap definitions and defaults).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
-    /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both).
+    /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both), `active-spread` (target worths, prior spread: optimises the centred MAP log-worths).
     pub designs: Vec<DesignChoice>,
     /// Per-participant taste noise: sd of each condition's log-worth.
     pub observer_sd: f64,

@@ -204,8 +204,8 @@ pub(super) fn summarise(
                 "{} fixed warm-up pair trials, then {} chosen {} (optimises {})",
                 warmup,
                 active.trials,
-                active.target.criterion(),
-                active.target.describe().1
+                active.criterion(),
+                active.optimises()
             )
         }),
         participants,
