@@ -15,8 +15,8 @@
 //! Laplace evidence — reaches a threshold; and a hierarchical prior on the worths' spread (the
 //! prior sd of largest Laplace evidence before each request, the posterior re-anchored on the
 //! refit with it). Each run's judgments are scored by
-//! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
-//! ([`laplace::refit`]), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
+//! one estimator, the centred MAP of the Thurstone model with prior N(0, 1) per condition
+//! ([`laplace::centred_map_log_worths`], `mrstudy analyze`'s `log_worth_map` on the probit scale), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
 //! `studies/examples/twenty-conditions-worths.csv`; `8`: the thesis's factor effects (gi 0.27,
 //! cm −0.22, ca 0.43) as 8 conditions' log-worths.
@@ -563,7 +563,12 @@ fn main() {
                             let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
                             centred_rmse(&fit.mean, &worths)
                         } else {
-                            centred_rmse(&map(&judgments).mean, &worths)
+                            // the estimate `mrstudy analyze` reports as `log_worth_map` (there
+                            // with the logistic link)
+                            let judged = judgments.iter().map(|&(w, l)| (w, l, 1));
+                            let estimate = laplace::centred_map_log_worths(n, Link::Probit, DEFAULT_PRIOR_SD, judged)
+                                .expect("a refit");
+                            centred_rmse(&estimate, &worths)
                         };
                         at[c].push(rmse);
                     }

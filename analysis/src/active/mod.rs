@@ -59,8 +59,9 @@
 //! EIG(ρ·m, v) on the moment-matched Gaussian of the posterior mixture over τ: cautious while
 //! the data cannot tell a small spread from a large one, the plain EIG once they can. It meets
 //! issue 48's 20-condition goal under the MAP scorer of the side-by-side with ASAP but is worse
-//! than the ramp in what a study's analysis reports (docs/simulate/README.md), so the server
-//! keeps the ramp; the option stays for the benchmark and the `early_gap` example.
+//! than the ramp in what a study's analysis reports (docs/simulate/README.md), so the default
+//! keeps the ramp; a study opts in with `prior = "spread"` (target worths; ρ = 1), and
+//! `mrstudy analyze` reports the centred MAP it optimises as `log_worth_map`.
 //!
 //! [`Posterior::best_pairs`] returns a batch for one participant greedily: the best pair, then
 //! a *fantasy* update (mean unchanged, covariance shrunk by the outcome-averaged ADF update,
