@@ -1,8 +1,8 @@
 //! Issue 14's early gap to ASAP, measured: `cargo run --release -p mrstudy-analysis --example
-//! early_gap -- [RUNS] [20|8] [NAME,NAME…]` (the last: only the schedulers whose
-//! names contain one of these). Schedulers against the same simulated Thurstone observers (no
-//! taste noise, a new participant every 20 trials, requests of 5 pairs): random pairs; the
-//! active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
+//! early_gap -- [RUNS] [20|8] [NAME,NAME…] [FLAG,FLAG…]` (NAME: only the schedulers whose
+//! names contain one of these; FLAG: `long`, `reference`, `mle`, `precise` — 5 decimals).
+//! Schedulers against the same simulated Thurstone observers (no taste noise, a new participant
+//! every 20 trials, requests of 5 pairs): random pairs; the active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
 //! the same posterior re-anchored on a Laplace refit of every judgment before each request
 //! ([`Posterior::reanchor`]) with the plain EIG (ρ = 1 from the start) or with the server's
 //! ramp; the ADF posterior scoring by variance alone (ρ = 0); and four rules tried on top of the refit with the plain EIG: ASAP's batches (the
@@ -321,6 +321,8 @@ fn main() {
     let long = flags.iter().any(|f| f == "long");
     let reference = flags.iter().any(|f| f == "reference");
     let mle = flags.iter().any(|f| f == "mle");
+    // `precise`: the means and standard errors with 5 decimals instead of 3
+    let decimals = if flags.iter().any(|f| f == "precise") { 5 } else { 3 };
     let mut checkpoints: Vec<usize> = if n >= 20 {
         vec![100, 200, 400, 800]
     } else if n > 8 {
@@ -580,7 +582,7 @@ fn main() {
             .zip(&checkpoints)
             .map(|(values, trials)| {
                 let (mean, se) = mean_and_standard_error(values);
-                format!("{trials}: {mean:.3} ± {se:.3}")
+                format!("{trials}: {mean:.decimals$} ± {se:.decimals$}")
             })
             .collect();
         println!("{name:<28} {}", cells.join("   "));
