@@ -12,7 +12,7 @@ use crate::data::Judgments;
 
 /// Most conditions `log_worth_map` is computed for (a dense refit beyond would dominate the
 /// analysis's time).
-pub const MAP_CONDITION_LIMIT: usize = 500;
+pub const MAP_CONDITION_LIMIT: usize = 200;
 
 /// Sets each item's `log_worth_map` from every judgment (ties not among them), or says in the
 /// warnings why it is absent (fewer than 3 conditions: absent without a word).
