@@ -55,6 +55,8 @@ flags! {
         #[arg(long)] function: Option<String>,
         /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
         #[arg(long)] guess: Option<f64>,
+        /// Prior sd of each log-worth for `log_worth_map`, the centred MAP log-worths (a study's `prior_sd`; default 1).
+        #[arg(long, default_value_t = Options::default().prior_sd)] prior_sd: f64,
     }
 }
 

@@ -27,8 +27,8 @@ flags! {
 flags! {
     /// [`simulate::Options`]' flags and their defaults.
     OptionsFlags => Options {} {
-        /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both).
-        #[arg(long, value_delimiter = ',', default_value = "study", value_parser = crate::choice(DesignChoice::parse, "study, all, anchored, active, active-worths, active-both"))] designs: Vec<DesignChoice>,
+        /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both), `active-spread` (target worths, prior spread: optimises the centred MAP log-worths).
+        #[arg(long, value_delimiter = ',', default_value = "study", value_parser = crate::choice(DesignChoice::parse, "study, all, anchored, active, active-worths, active-both, active-spread"))] designs: Vec<DesignChoice>,
         /// Per-participant taste noise: sd of each condition's log-worth (a threshold study: sd of a participant's threshold, x units).
         #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)] observer_sd: f64,
         /// Probability that an answer is a coin flip.

@@ -1,8 +1,8 @@
 //! Issue 14's early gap to ASAP, measured: `cargo run --release -p mrstudy-analysis --example
-//! early_gap -- [RUNS] [20|8] [NAME,NAME…]` (the last: only the schedulers whose
-//! names contain one of these). Schedulers against the same simulated Thurstone observers (no
-//! taste noise, a new participant every 20 trials, requests of 5 pairs): random pairs; the
-//! active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
+//! early_gap -- [RUNS] [20|8] [NAME,NAME…] [FLAG,FLAG…]` (NAME: only the schedulers whose
+//! names contain one of these; FLAG: `long`, `reference`, `mle`, `precise` — 5 decimals).
+//! Schedulers against the same simulated Thurstone observers (no taste noise, a new participant
+//! every 20 trials, requests of 5 pairs): random pairs; the active design as the server runs it (ADF, ρ ramped to ½ over 20 judgments per condition);
 //! the same posterior re-anchored on a Laplace refit of every judgment before each request
 //! ([`Posterior::reanchor`]) with the plain EIG (ρ = 1 from the start) or with the server's
 //! ramp; the ADF posterior scoring by variance alone (ρ = 0); and four rules tried on top of the refit with the plain EIG: ASAP's batches (the
@@ -15,8 +15,8 @@
 //! Laplace evidence — reaches a threshold; and a hierarchical prior on the worths' spread (the
 //! prior sd of largest Laplace evidence before each request, the posterior re-anchored on the
 //! refit with it). Each run's judgments are scored by
-//! one estimator, the MAP of the Thurstone model with prior N(0, 1) per condition
-//! ([`laplace::refit`]), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
+//! one estimator, the centred MAP of the Thurstone model with prior N(0, 1) per condition
+//! ([`laplace::centred_map_log_worths`], `mrstudy analyze`'s `log_worth_map` on the probit scale), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
 //! `studies/examples/twenty-conditions-worths.csv`; `8`: the thesis's factor effects (gi 0.27,
 //! cm −0.22, ca 0.43) as 8 conditions' log-worths.
@@ -321,6 +321,8 @@ fn main() {
     let long = flags.iter().any(|f| f == "long");
     let reference = flags.iter().any(|f| f == "reference");
     let mle = flags.iter().any(|f| f == "mle");
+    // `precise`: the means and standard errors with 5 decimals instead of 3
+    let decimals = if flags.iter().any(|f| f == "precise") { 5 } else { 3 };
     let mut checkpoints: Vec<usize> = if n >= 20 {
         vec![100, 200, 400, 800]
     } else if n > 8 {
@@ -563,7 +565,12 @@ fn main() {
                             let fit = refit(&target, Link::Probit, 10.0, &judgments).expect("a refit");
                             centred_rmse(&fit.mean, &worths)
                         } else {
-                            centred_rmse(&map(&judgments).mean, &worths)
+                            // the estimate `mrstudy analyze` reports as `log_worth_map` (there
+                            // with the logistic link)
+                            let judged = judgments.iter().map(|&(w, l)| (w, l, 1));
+                            let estimate = laplace::centred_map_log_worths(n, Link::Probit, DEFAULT_PRIOR_SD, judged)
+                                .expect("a refit");
+                            centred_rmse(&estimate, &worths)
                         };
                         at[c].push(rmse);
                     }
@@ -575,7 +582,7 @@ fn main() {
             .zip(&checkpoints)
             .map(|(values, trials)| {
                 let (mean, se) = mean_and_standard_error(values);
-                format!("{trials}: {mean:.3} ± {se:.3}")
+                format!("{trials}: {mean:.decimals$} ± {se:.decimals$}")
             })
             .collect();
         println!("{name:<28} {}", cells.join("   "));

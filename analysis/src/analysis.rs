@@ -78,6 +78,8 @@ pub struct Options {
     pub function: Option<String>,
     /// Threshold exports: the guess rate to fit with (e.g. 0.5 for 2AFC) instead of the export's `guess`.
     pub guess: Option<f64>,
+    /// Prior sd of each log-worth for `log_worth_map`, the centred MAP log-worths (a study's `prior_sd`; default 1).
+    pub prior_sd: f64,
 }
 
 /// The scale `--scale` asks for besides the Bradley–Terry log-worths.
@@ -135,12 +137,14 @@ impl Default for Options {
             scale: Scale::Bt,
             function: None,
             guess: None,
+            prior_sd: crate::active::DEFAULT_PRIOR_SD,
         }
     }
 }
 
 mod bootstrap;
 mod groups;
+pub mod map;
 mod output;
 mod robust;
 mod screen;
@@ -213,6 +217,12 @@ pub fn analyze_judgments_with_ties(
             message: format!("{} is not between 0 and 1", options.tolerance),
         });
     }
+    if !(options.prior_sd > 0.0 && options.prior_sd.is_finite()) {
+        return Err(AnalysisError::BadOption {
+            option: "--prior-sd".into(),
+            message: format!("{} is not a positive number", options.prior_sd),
+        });
+    }
     let reference = match &options.reference {
         Some(name) => judgments.conditions.iter().position(|c| c == name).ok_or_else(|| AnalysisError::BadOption {
             option: "reference".into(),
@@ -245,6 +255,7 @@ pub fn analyze_judgments_with_ties(
     let everyone = tallies.present();
     let inputs = Inputs { judgments, table, terms: terms.as_ref(), reference, options };
     let mut analysis = analyze_subset(&inputs, &Subset { tallies: &tallies, active: &everyone, ties })?;
+    map::fill_log_worth_map(judgments, options.prior_sd, &mut analysis);
 
     if !judgments.groups.is_empty() {
         groups::analyze_groups(&inputs, &tallies, &everyone, ties, &mut analysis);

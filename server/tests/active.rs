@@ -51,20 +51,44 @@ async fn fixture_with_admin(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_admin_page_says_what_the_active_design_optimises() {
-    for (target, optimises) in [
-        ("effects", "the expected drop of the posterior entropy of the factor effects"),
-        ("worths", "the expected drop of the posterior entropy of every condition&#39;s log-worth"),
-        ("both", "the expected drop of the summed posterior variance of the log-worths and of the factor effects"),
+    for (target, prior, chosen, optimises) in [
+        (
+            "effects",
+            "fixed",
+            "the expected drop of the posterior entropy of the factor effects",
+            "the factor effects (not the individual log-worths)",
+        ),
+        (
+            "worths",
+            "fixed",
+            "the expected drop of the posterior entropy of every condition&#39;s log-worth",
+            "every condition&#39;s log-worth;",
+        ),
+        (
+            "both",
+            "fixed",
+            "the expected drop of the summed posterior variance of the log-worths and of the factor effects",
+            "the log-worths and the factor effects together",
+        ),
+        (
+            "worths",
+            "spread",
+            "under a hierarchical prior on their spread (prior = &#34;spread&#34;, the spread&#39;s prior mean 1)",
+            "every condition&#39;s log-worth as the centred MAP estimate with prior sd 1 (`log_worth_map` of \
+             `mrstudy analyze`), not the maximum-likelihood log-worths",
+        ),
     ] {
         let work = tempfile::tempdir().unwrap();
-        let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]";
-        let (app, _, admin_token) = fixture_with_admin(work.path(), target, warmup, 6, 2).await;
+        let warmup = format!("warmup = \"anchored\"\nanchors = [\"LQ\"]\nprior = \"{prior}\"");
+        let (app, _, admin_token) = fixture_with_admin(work.path(), target, &warmup, 6, 2).await;
         let page = call(&app, Method::GET, &format!("/admin/studies/{STUDY}"), Some(&admin_token), None).await;
         assert_eq!(page.status, StatusCode::OK, "{}", page.text());
         let text = page.text();
         let note = text.lines().find(|line| line.contains("Active design")).unwrap_or_default();
         assert!(
-            note.contains(&format!("target = &#34;{target}&#34;")) && note.contains(optimises),
+            note.contains(&format!("target = &#34;{target}&#34;, prior = &#34;{prior}&#34;"))
+                && note.contains(chosen)
+                && note.contains(&format!("it optimises {optimises}")),
             "target {target}: {note}"
         );
         // the demo study's 4 conditions anchored on LQ: 3 warm-up pairs, once
@@ -119,9 +143,17 @@ async fn answer_one(app: &Router, state: &AppState, id: &str, token: &str) -> bo
 /// Every stored batch is what `schedule::active_batch` gives for the posterior after the
 /// first N judgments (commit order), the participant's seed and history.
 async fn assert_batches_replay(state: &AppState) -> usize {
-    let pool = &state.storage().read;
     let prepared = state.study(STUDY).unwrap();
-    let study = &prepared.study;
+    let (replayed, differing) = replay_batches(state, &prepared.study).await;
+    assert!(differing.is_empty(), "stored trials the replay does not give: {differing:?}");
+    replayed
+}
+
+/// Replays every stored batch through `study`'s posterior (`schedule::active_posterior`) after
+/// the first N judgments (commit order), the participant's seed and history: the trials
+/// replayed, and those whose conditions or scene configurations differ from the stored ones.
+async fn replay_batches(state: &AppState, study: &mrstudy_server::study::Study) -> (usize, Vec<String>) {
+    let pool = &state.storage().read;
     let index = |name: &str| study.conditions.iter().position(|c| c.name == name);
     let judgments: Vec<(usize, usize)> = sqlx::query(
         "SELECT t.left_condition, t.right_condition, r.chosen FROM responses r
@@ -138,7 +170,7 @@ async fn assert_batches_replay(state: &AppState) -> usize {
     })
     .collect();
     let participants = sqlx::query("SELECT id, seed FROM participants").fetch_all(pool).await.unwrap();
-    let mut replayed = 0;
+    let (mut replayed, mut differing) = (0, Vec::new());
     for participant in participants {
         let (id, seed): (String, i64) = (participant.get("id"), participant.get("seed"));
         let rows = sqlx::query(
@@ -174,21 +206,59 @@ async fn assert_batches_replay(state: &AppState) -> usize {
             let planned = schedule::active_batch(study, &posterior, seed as u64, &mut history, trials.len()).unwrap();
             for (planned, stored) in planned.iter().zip(&trials) {
                 let PlannedKind::Pair { left, right } = planned.kind else { panic!("an active trial is a pair") };
-                assert_eq!(study.conditions[left].name, stored.get::<String, _>("left_condition"));
-                assert_eq!(study.conditions[right].name, stored.get::<String, _>("right_condition"));
-                assert_eq!(study.scenes[planned.left_scene].name, stored.get::<String, _>("left_scene"));
-                assert_eq!(study.scenes[planned.right_scene].name, stored.get::<String, _>("right_scene"));
+                let replay = [
+                    &study.conditions[left].name,
+                    &study.conditions[right].name,
+                    &study.scenes[planned.left_scene].name,
+                    &study.scenes[planned.right_scene].name,
+                ];
+                let kept: [String; 4] = ["left_condition", "right_condition", "left_scene", "right_scene"]
+                    .map(|column| stored.get::<String, _>(column));
+                if replay.iter().zip(&kept).any(|(a, b)| *a != b) {
+                    differing.push(format!("batch {batch} of {id}: replayed {replay:?}, stored {kept:?}"));
+                }
                 replayed += 1;
             }
         }
     }
-    replayed
+    (replayed, differing)
+}
+
+/// Stored active trials that `study`'s posterior would have chosen otherwise.
+async fn differing_batches(state: &AppState, study: &mrstudy_server::study::Study) -> usize {
+    replay_batches(state, study).await.1.len()
 }
 
 #[tokio::test]
 async fn interleaved_participants_get_every_trial_and_every_batch_replays_from_the_database() {
     let work = tempfile::tempdir().unwrap();
-    let (app, state) = fixture(work.path(), "factors", "warmup = \"anchored\"\nanchors = [\"LQ\"]", 10, 3).await;
+    let (_, state) = interleaved(work.path(), "factors", "warmup = \"anchored\"\nanchors = [\"LQ\"]").await;
+    // the admin page says the design is active and has absorbed judgments
+    let judgments = state.active(STUDY).unwrap().lock().await.judgments();
+    assert!(judgments > 0 && state.active(STUDY).unwrap().lock().await.failure.is_none());
+}
+
+/// `prior = "spread"` (issue 48): the hierarchical prior on the log-worths' spread chooses the
+/// batches, and every batch replays from the stored answers through `schedule::active_posterior`
+/// — which a posterior with the fixed prior would not reproduce.
+#[tokio::test]
+async fn with_the_spread_prior_every_batch_replays_and_the_prior_chose_them() {
+    let work = tempfile::tempdir().unwrap();
+    let (_, state) =
+        interleaved(work.path(), "worths", "warmup = \"anchored\"\nanchors = [\"LQ\"]\nprior = \"spread\"").await;
+    let prepared = state.study(STUDY).unwrap();
+    assert_eq!(prepared.study.design.active.as_ref().unwrap().prior, mrstudy_server::study::ActivePrior::Spread);
+    assert!(state.active(STUDY).unwrap().lock().await.failure.is_none());
+    // the same study with the fixed prior replays some batch differently
+    let mut fixed = prepared.study.clone();
+    fixed.design.active.as_mut().unwrap().prior = mrstudy_server::study::ActivePrior::Fixed;
+    assert!(differing_batches(&state, &fixed).await > 0, "the spread prior chose no batch the fixed prior would not");
+}
+
+/// Three participants, interleaved, answer every trial of an active design of 10 trials in
+/// batches of 3 after `warmup`; every stored batch replays. The app and state afterwards.
+async fn interleaved(work: &Path, target: &str, warmup: &str) -> (Router, AppState) {
+    let (app, state) = fixture(work, target, warmup, 10, 3).await;
     let mut participants = Vec::new();
     for _ in 0..3 {
         participants.push(join(&app).await);
@@ -230,9 +300,7 @@ async fn interleaved_participants_get_every_trial_and_every_batch_replays_from_t
     }
     let replayed = assert_batches_replay(&state).await;
     assert_eq!(replayed, 30);
-    // the admin page says the design is active and has absorbed judgments
-    let judgments = state.active(STUDY).unwrap().lock().await.judgments();
-    assert!(judgments > 0 && state.active(STUDY).unwrap().lock().await.failure.is_none());
+    (app, state)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -105,6 +105,27 @@ fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
     assert!(json["covariate_model"]["lr_vs_items"]["p"].is_number());
     assert!(json["agreement"]["u"].is_number());
     assert!(json.get("groups").is_none(), "no groups asked for, none printed");
+    // the centred MAP log-worths beside them, shrunk more with a smaller --prior-sd
+    let map = |json: &serde_json::Value| -> Vec<f64> {
+        json["items"].as_array().unwrap().iter().map(|i| i["log_worth_map"].as_f64().unwrap()).collect()
+    };
+    let wide = map(&json);
+    assert!(wide.iter().sum::<f64>().abs() < 1e-9, "centred: {wide:?}");
+    let out = mrstudy(&[
+        "analyze",
+        "--trials",
+        trials.to_str().unwrap(),
+        "--conditions",
+        conditions.to_str().unwrap(),
+        "--format",
+        "json",
+        "--prior-sd",
+        "0.1",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let narrow = map(&serde_json::from_slice(&out.stdout).unwrap());
+    let spread = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>();
+    assert!(spread(&narrow) < spread(&wide), "{narrow:?} against {wide:?}");
 }
 
 #[test]

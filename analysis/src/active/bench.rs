@@ -50,7 +50,7 @@ pub struct ChooseRow {
     /// Mean time to absorb one judgment (ADF), over the judgments added since the last row.
     pub absorb_us: f64,
     /// Median wall time of a batch of 10 pairs under the hierarchical prior on the spread
-    /// ([`Posterior::with_spread_prior`], measured and not served) at a state whose mixture
+    /// ([`Posterior::with_spread_prior`], served with a study's `prior = "spread"`) at a state whose mixture
     /// is not computed yet (ten Laplace refits), per pair.
     pub spread_ms_per_pair: f64,
 }

@@ -18,18 +18,53 @@ pub struct LaplaceFit {
 /// The MAP and Laplace covariance of `target` under `link` and prior N(0, prior_sd²·I) given
 /// the judgments `(winner, loser)`.
 pub fn refit(target: &Target, link: Link, prior_sd: f64, judgments: &[(usize, usize)]) -> Result<LaplaceFit> {
+    refit_counted(target, link, prior_sd, judgments.iter().map(|&(winner, loser)| (winner, loser, 1)))
+}
+
+/// The centred MAP log-worths of `conditions` conditions under `link` and prior
+/// N(0, prior_sd²) per condition, given judgments `(winner, loser, count)`: the refit's mean
+/// minus its average. The estimate the side-by-side with ASAP scores designs by
+/// (docs/simulate/README.md; `early_gap`'s scorer), which `prior = "spread"` optimises and
+/// `mrstudy analyze` reports as `log_worth_map`. Defined for any judgments (the prior
+/// identifies every log-worth, also of a condition never compared or never beaten).
+pub fn centred_map_log_worths(
+    conditions: usize,
+    link: Link,
+    prior_sd: f64,
+    judgments: impl IntoIterator<Item = (usize, usize, u64)>,
+) -> Result<Vec<f64>> {
+    let fit = refit_counted(&Target::Worths { conditions }, link, prior_sd, judgments)?;
+    let mean = fit.mean.iter().sum::<f64>() / conditions.max(1) as f64;
+    Ok(fit.mean.iter().map(|m| m - mean + 0.0).collect())
+}
+
+/// [`refit`] with judgments `(winner, loser, count)`: `count` identical judgments each.
+pub fn refit_counted(
+    target: &Target,
+    link: Link,
+    prior_sd: f64,
+    judgments: impl IntoIterator<Item = (usize, usize, u64)>,
+) -> Result<LaplaceFit> {
     target.check()?;
+    if !(prior_sd > 0.0 && prior_sd.is_finite()) {
+        return Err(ActiveError::BadOption {
+            option: "prior_sd",
+            message: format!("the prior sd must be positive and finite, got {prior_sd}"),
+        });
+    }
     let n = target.conditions();
     // Directed tallies: wins[w·n + l] = judgments of w over l.
     let mut wins = vec![0u64; n * n];
-    for &(winner, loser) in judgments {
+    let mut total = 0u64;
+    for (winner, loser, count) in judgments {
         if winner >= n || loser >= n {
             return Err(ActiveError::UnknownCondition { condition: winner.max(loser), conditions: n });
         }
         if winner == loser {
             return Err(ActiveError::SameCondition { condition: winner });
         }
-        wins[winner * n + loser] += 1;
+        wins[winner * n + loser] += count;
+        total += count;
     }
     let observed: Vec<(usize, usize, f64)> =
         (0..n * n).filter(|&k| wins[k] > 0).map(|k| (k / n, k % n, wins[k] as f64)).collect();
@@ -60,10 +95,8 @@ pub fn refit(target: &Target, link: Link, prior_sd: f64, judgments: &[(usize, us
                 })
                 .sum::<f64>()
     };
-    let degenerate = |message: String| ActiveError::Degenerate {
-        judgments: judgments.len() as u64,
-        message: format!("Laplace refit: {message}"),
-    };
+    let degenerate =
+        |message: String| ActiveError::Degenerate { judgments: total, message: format!("Laplace refit: {message}") };
     let hessian_at = |theta: &[f64]| -> (Vec<f64>, Vec<f64>) {
         let mut gradient: Vec<f64> = theta.iter().map(|t| -precision * t).collect();
         let mut hessian = vec![0.0; p * p];

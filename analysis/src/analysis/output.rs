@@ -40,6 +40,10 @@ pub struct Item {
     /// Bootstrap interval of `log_worth` (95 %; percentile, widened for few participants).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci: Option<[f64; 2]>,
+    /// The centred MAP log-worth with the prior N(0, `prior_sd`²) per condition (mean 0 over the
+    /// conditions; `analysis::map`): what `prior = "spread"` optimises.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub log_worth_map: Option<f64>,
     /// JOD (`--scale jod`): pwcmp's `pw_scale`, mean about 0.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub jod: Option<f64>,

@@ -143,6 +143,7 @@ pub(super) fn analyze_subset(inputs: &Inputs, subset: &Subset) -> Result<Analysi
             fitted_log_worth: None,
             fitted_worth: None,
             ci: None,
+            log_worth_map: None,
             jod: None,
             jod_ci: None,
         })

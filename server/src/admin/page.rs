@@ -6,7 +6,6 @@ use crate::AppState;
 use crate::auth::authorize_admin_via as authorize;
 use crate::error::{AppError, AppResult};
 use crate::export::Include;
-use crate::study::ActiveTarget;
 use askama::Template;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
@@ -348,22 +347,25 @@ pub(super) async fn admin_study_page(
         mos_rows: Vec::new(),
         rating_screening: Vec::new(),
     };
-    if let Some(active) = state.active(&slug) {
-        let design = state.study(&slug).map(|prepared| prepared.study.design.clone());
-        let target =
-            design.as_ref().and_then(|design| design.active.as_ref()).map_or(ActiveTarget::Worths, |a| a.target);
-        let warmup = design.as_ref().map_or(0, |design| design.pairs.len() * design.repetitions as usize);
+    let design = state.study(&slug).map(|prepared| prepared.study.design.clone());
+    if let Some(active) = state.active(&slug)
+        && let Some(design) = &design
+        && let Some(active_design) = &design.active
+    {
+        let warmup = design.pairs.len() * design.repetitions as usize;
         let warmup = match warmup {
             0 => String::new(),
             trials => format!(", after a warm-up of {trials} fixed pair trials per participant"),
         };
         let active = active.lock().await;
         page.active_note = Some(format!(
-            "Active design (target = \"{}\"): each participant's trials are chosen {}, from every judgment so far ({} absorbed when a batch was last chosen){warmup}; `mrstudy simulate --designs study,{}` measures what it trades against the fixed design.",
-            target.describe().0,
-            target.criterion(),
+            "Active design (target = \"{}\", prior = \"{}\"): each participant's trials are chosen {}, from every judgment so far ({} absorbed when a batch was last chosen){warmup}; it optimises {}; `mrstudy simulate --designs study,{}` measures what it trades against the fixed design.",
+            active_design.target.describe().0,
+            active_design.prior.name(),
+            active_design.criterion(),
             active.judgments(),
-            target.simulate_design(),
+            active_design.optimises(),
+            active_design.simulate_design(),
         ));
         page.active_warning = active.failure.clone();
     }

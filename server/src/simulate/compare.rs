@@ -106,6 +106,10 @@ pub(super) fn comparison_lines(comparisons: &[Comparison]) -> String {
             "{} (optimises the {}) against the study's design at {} participants ({} vs {} trials){}{}\n",
             c.design.name(),
             match c.target {
+                // prior = "spread": not the maximum-likelihood log-worths this RMSE scores
+                _ if c.design == DesignChoice::ActiveSpread => {
+                    "centred MAP log-worths with the prior, not the analysis's maximum-likelihood ones scored here"
+                }
                 "effects" => "factor effects",
                 "both" => "log-worths and the factor effects together",
                 _ => "log-worths",

@@ -1,7 +1,7 @@
 //! The design variants a simulation compares (`--designs`): the study's own, all pairs,
 //! anchored, active; each the study with its design replaced, built by the study's own pair rules.
 
-use crate::study::{ActiveDesign, ActiveTarget, PairsRule, Study, active_target};
+use crate::study::{ActiveDesign, ActivePrior, ActiveTarget, PairsRule, Study, active_target};
 use mrstudy_analysis::active::DEFAULT_PRIOR_SD;
 use serde::Serialize;
 
@@ -32,6 +32,10 @@ pub enum DesignChoice {
     /// condition as anchors) for about 60 % of the same pair trials, as a study file with
     /// `pairs = "active"` and neither `target` nor `warmup` gets.
     ActiveBoth,
+    /// As `active-worths` with `prior = "spread"` (`active-spread`): the hierarchical prior on the
+    /// log-worths' spread, which optimises the centred MAP log-worths, not the analysis's
+    /// maximum-likelihood ones that `simulate` scores.
+    ActiveSpread,
 }
 
 impl DesignChoice {
@@ -43,6 +47,7 @@ impl DesignChoice {
             "active" => DesignChoice::Active,
             "active-worths" => DesignChoice::ActiveWorths,
             "active-both" => DesignChoice::ActiveBoth,
+            "active-spread" => DesignChoice::ActiveSpread,
             _ => return None,
         })
     }
@@ -55,6 +60,7 @@ impl DesignChoice {
             DesignChoice::Active => "active",
             DesignChoice::ActiveWorths => "active-worths",
             DesignChoice::ActiveBoth => "active-both",
+            DesignChoice::ActiveSpread => "active-spread",
         }
     }
 
@@ -90,7 +96,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
             variant.design.pairs_rule = PairsRule::Anchored;
             variant.design.active = None;
         }
-        DesignChoice::Active | DesignChoice::ActiveWorths | DesignChoice::ActiveBoth => {
+        DesignChoice::Active | DesignChoice::ActiveWorths | DesignChoice::ActiveBoth | DesignChoice::ActiveSpread => {
             if study.design.active.is_none() || choice != DesignChoice::Active {
                 if n < 3 {
                     return Err(SimulateError::TooFewConditions { conditions: n });
@@ -107,6 +113,7 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                         _ => ActiveTarget::Worths,
                     },
                     prior_sd: DEFAULT_PRIOR_SD,
+                    prior: ActivePrior::Fixed,
                 };
                 if active_target(&active, &study.conditions).check().is_err() {
                     active.target = ActiveTarget::Worths;
@@ -131,6 +138,9 @@ pub fn design_variant(study: &Study, choice: DesignChoice) -> Result<Study, Simu
                     variant.design.repetitions = repetitions;
                     let warmup = repetitions as usize * variant.design.pairs.len();
                     active.trials = (total as usize).saturating_sub(warmup).max(1) as u32;
+                }
+                if choice == DesignChoice::ActiveSpread {
+                    active.prior = ActivePrior::Spread;
                 }
                 variant.design.pairs_rule = PairsRule::Active;
                 variant.design.active = Some(active);

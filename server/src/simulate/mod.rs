@@ -20,20 +20,22 @@
 //! **Scores, per run.** The analysis pins its reference condition (the study's first) at
 //! log-worth 0, so log-worths are compared as **differences to the reference**: estimate λ̂ᵢ
 //! against λᵢ − λ_ref over the other conditions. `rmse_log_worth` is the root mean square of
-//! those errors; `rmse_effects` of the factor effects' errors; coverage is the fraction of the
-//! 95 % intervals (Wald, estimate ± 1.96 se; the analysis's bootstrap percentile intervals with
-//! `bootstrap` > 0) that hold the truth; power of a factor is whether its p < 0.05. A run whose
-//! analysis fails (or whose comparison graph is disconnected, for the log-worths) has no
-//! scores; it counts as *not significant* for power, whose denominator is every run. Each row
-//! reports the mean over runs with its Monte-Carlo standard error (sd / √runs; for a power
-//! √(p(1 − p)/runs)); a mean over no run is absent, never NaN.
+//! those errors; `rmse_effects` of the factor effects' errors; `rmse_log_worth_map` of the
+//! centred MAP log-worths (the analysis's `log_worth_map`, with the active design's `prior_sd`,
+//! else 1) against the centred truth, the estimate `prior = "spread"` optimises; coverage is
+//! the fraction of the 95 % intervals (Wald, estimate ± 1.96 se; the analysis's bootstrap
+//! percentile intervals with `bootstrap` > 0) that hold the truth; power of a factor is whether
+//! its p < 0.05. A run whose analysis fails (or whose comparison graph is disconnected, for the
+//! log-worths) has no scores; it counts as *not significant* for power, whose denominator is
+//! every run. Each row reports the mean over runs with its Monte-Carlo standard error
+//! (sd / √runs; for a power √(p(1 − p)/runs)); a mean over no run is absent, never NaN.
 //!
 //! **Rating studies** (`kind = "rating"`) are simulated by `simulate::rating`: SUREAL's observers (bias,
 //! inconsistency) rate the study's own plan, and each factor is tested within participants.
 //!
 //! **Reproducible.** Run r of design d at n participants has the seed
 //! `derived_seed(derived_seed(derived_seed(seed, d), n), r)` (d: 0 study, 1 all, 2 anchored,
-//! 3 active, 4 active-worths, 5 active-both); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
+//! 3 active, 4 active-worths, 5 active-both, 6 active-spread); participant k's schedule seed is `derived_seed(run seed, k)` and their taste and
 //! answers come from a ChaCha8 stream of `derived_seed(participant seed, 1)`. Runs go in
 //! parallel (rayon) and are collected in order, so the report does not depend on the thread
 //! count.
@@ -46,7 +48,7 @@
 //! `active`), `participants`, `runs`, `failed` (runs whose analysis failed) and `failure` (the
 //! first failure's sentence), `judgments_per_participant` and `trials` (participants × that
 //! mean: judgments per study), and, each `{mean, mcse}` and absent when no run gave it,
-//! `rmse_log_worth`, `rmse_effects`, `coverage_log_worth`, `coverage_effects`,
+//! `rmse_log_worth`, `rmse_effects`, `rmse_log_worth_map`, `coverage_log_worth`, `coverage_effects`,
 //! `coverage_log_worth_marginal`, `coverage_effects_marginal` (against the report's
 //! `marginal_truth`, `simulate::marginal`); `power`: `[{factor, effect, power, mcse}]`; `bias_effects`
 //! and `bias_log_worth`: `[{name, truth, bias {mean, mcse}, sd, mean_se}]` ([`Bias`]).
@@ -132,7 +134,7 @@ pub struct Config {
 /// holds their clap definitions and defaults).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
-    /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both).
+    /// Designs side by side: `study` (the file's), `all`, `anchored`, `active` (at equal trials; target factors where a factor varies), `active-worths` (target worths), `active-both` (target both), `active-spread` (target worths, prior spread: optimises the centred MAP log-worths).
     pub designs: Vec<DesignChoice>,
     /// Per-participant taste noise: sd of each condition's log-worth.
     pub observer_sd: f64,

@@ -67,6 +67,10 @@ pub struct Row {
     pub rmse_log_worth: Option<Estimate>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rmse_effects: Option<Estimate>,
+    /// The RMSE of the centred MAP log-worths (`log_worth_map`, with the active design's
+    /// `prior_sd`, else 1) against the centred truth: what `prior = "spread"` optimises.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rmse_log_worth_map: Option<Estimate>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage_log_worth: Option<Estimate>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -204,8 +208,8 @@ pub(super) fn summarise(
                 "{} fixed warm-up pair trials, then {} chosen {} (optimises {})",
                 warmup,
                 active.trials,
-                active.target.criterion(),
-                active.target.describe().1
+                active.criterion(),
+                active.optimises()
             )
         }),
         participants,
@@ -216,6 +220,7 @@ pub(super) fn summarise(
         judgments_per_participant,
         rmse_log_worth: values(|run| run.rmse_log_worth),
         rmse_effects: values(|run| run.rmse_effects),
+        rmse_log_worth_map: values(|run| run.rmse_log_worth_map),
         coverage_log_worth: values(|run| run.coverage_log_worth),
         coverage_effects: values(|run| run.coverage_effects),
         coverage_log_worth_marginal: values(|run| run.coverage_log_worth_marginal),
@@ -302,6 +307,7 @@ impl Report {
             "trials".into(),
             "RMSE log-worth".into(),
             "RMSE effects".into(),
+            "RMSE MAP log-worth".into(),
             "coverage log-worth".into(),
             "coverage effects".into(),
         ];
@@ -322,6 +328,7 @@ impl Report {
                 fixed(row.trials, 0),
                 cell(row.rmse_log_worth, 3),
                 cell(row.rmse_effects, 3),
+                cell(row.rmse_log_worth_map, 3),
                 cell(row.coverage_log_worth, 3),
                 cell(row.coverage_effects, 3),
             ];
@@ -441,6 +448,8 @@ pub(super) struct RunOutcome {
     pub(super) rmse_log_worth: Option<f64>,
     pub(super) coverage_log_worth: Option<f64>,
     pub(super) rmse_effects: Option<f64>,
+    /// The centred MAP log-worths' RMSE against the centred truth.
+    pub(super) rmse_log_worth_map: Option<f64>,
     pub(super) coverage_effects: Option<f64>,
     /// The coverage of the marginal truth (`simulate::marginal`).
     pub(super) coverage_log_worth_marginal: Option<f64>,

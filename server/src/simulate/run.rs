@@ -51,6 +51,13 @@ pub(super) fn score(analysis: &Analysis, config: &Config, marginal: Option<&Marg
             outcome.coverage_log_worth_marginal = fraction(&covered_marginal);
         }
     }
+    // The centred MAP log-worths (`log_worth_map`) against the centred truth: what
+    // `prior = "spread"` optimises.
+    let map: Option<Vec<f64>> = analysis.items.iter().map(|item| item.log_worth_map).collect();
+    if let Some(map) = map.filter(|map| map.len() == truth.log_worths.len()) {
+        let true_worths: Vec<f64> = truth.log_worths.iter().map(|worth| worth.log_worth).collect();
+        outcome.rmse_log_worth_map = Some(mrstudy_analysis::active::simulate::centred_rmse(&map, &true_worths));
+    }
     if let Some(covariates) = &analysis.covariates {
         let mut squares = Vec::new();
         let (mut covered, mut covered_marginal) = (Vec::new(), Vec::new());
@@ -121,6 +128,8 @@ pub(super) fn run_once(
         seed: run_seed,
         screening: Screening::Off,
         agreement_simulations: 1,
+        // `log_worth_map` with the active design's prior sd (what `prior = "spread"` optimises)
+        prior_sd: study.design.active.as_ref().map_or(analysis::Options::default().prior_sd, |active| active.prior_sd),
         ..analysis::Options::default()
     };
     match analyze_judgments_with_ties(&judgments, &ties, table, &options) {

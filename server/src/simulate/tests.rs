@@ -203,6 +203,32 @@ fn active_both_is_the_default_design_and_the_table_says_what_it_optimises() {
     );
 }
 
+/// `active-spread`: target worths with `prior = "spread"`, at the study's pair trials and
+/// without a warm-up, as a study file with `target = "worths"` gets; the table says that it
+/// optimises the centred MAP log-worths, not the maximum-likelihood ones it scores.
+#[test]
+fn active_spread_is_the_worths_target_with_the_spread_prior_and_says_what_it_optimises() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = factorial_study(dir.path(), ANCHORED);
+    assert_eq!(DesignChoice::parse("active-spread"), Some(DesignChoice::ActiveSpread));
+    let spread = design_variant(&study, DesignChoice::ActiveSpread).unwrap();
+    let design = spread.design.active.as_ref().unwrap();
+    assert_eq!((design.target, design.prior), (ActiveTarget::Worths, crate::study::ActivePrior::Spread));
+    assert!(spread.design.pairs.is_empty());
+    let report = simulate(&study, &config(&study, &[DesignChoice::ActiveSpread], &[4], 2), &quiet).unwrap();
+    assert_eq!(report.rows[0].target, Some("worths"));
+    let map = report.rows[0].rmse_log_worth_map.unwrap().mean;
+    assert!(map > 0.0 && map < 2.0, "the MAP log-worths' RMSE {map}");
+    let table = report.table();
+    assert!(
+        table.contains("RMSE MAP log-worth")
+            && table.contains("active-spread (target worths)")
+            && table.contains("under a hierarchical prior on their spread")
+            && table.contains("(optimises every condition's log-worth as the centred MAP estimate with prior sd 1"),
+        "{table}"
+    );
+}
+
 #[test]
 fn bad_input_is_refused_with_one_sentence() {
     let dir = tempfile::tempdir().unwrap();

@@ -32,9 +32,10 @@ pub(crate) mod threshold_tests;
 pub use checks::IMAGE_TYPES;
 pub(crate) use survey::format_number;
 pub use survey::{
-    ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, DesignReference, Device,
-    Display, Factor, FieldType, GROUND_TRUTH, Orientation, PairsRule, Participation, RenderDefaults,
-    SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
+    ActiveDesign, ActivePrior, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design,
+    DesignReference, Device, Display, Factor, FieldType, GROUND_TRUTH, Orientation, PairsRule, Participation,
+    RenderDefaults, SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts,
+    active_target,
 };
 pub use task::TaskStudy;
 pub use threshold::ThresholdDesign;

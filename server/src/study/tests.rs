@@ -193,6 +193,33 @@ fn target_effects_is_the_factor_target_also_spelt_factors_and_the_default_is_wor
     );
 }
 
+/// `prior = "spread"` (issue 48): the hierarchical prior on the log-worths' spread, with
+/// `target = "worths"` only; `"fixed"` is the default; anything else, or the spread prior with
+/// another target (given or by default), is refused naming the file and `design.prior`.
+#[test]
+fn prior_spread_is_taken_with_target_worths_only() {
+    let prior = |design: &str| active(design).unwrap().design.active.unwrap().prior;
+    assert_eq!(prior("pairs = \"active\"\ntrials = 4\ntarget = \"worths\"\nprior = \"spread\""), ActivePrior::Spread);
+    assert_eq!(prior("pairs = \"active\"\ntrials = 4\ntarget = \"worths\"\nprior = \"fixed\""), ActivePrior::Fixed);
+    assert_eq!(prior("pairs = \"active\"\ntrials = 4"), ActivePrior::Fixed);
+    for (design, says) in [
+        ("target = \"both\"\nprior = \"spread\"", "expected \"fixed\" with target = \"both\""),
+        ("prior = \"spread\"", "expected \"fixed\" with target = \"both\""),
+        ("target = \"effects\"\nwarmup = \"all\"\nprior = \"spread\"", "applies to target = \"worths\" only"),
+        ("target = \"worths\"\nprior = \"hierarchical\"", "expected \"fixed\" or \"spread\", found \"hierarchical\""),
+    ] {
+        let error = active(&format!("pairs = \"active\"\ntrials = 4\n{design}")).unwrap_err();
+        assert_eq!(error.key, "design.prior", "{design}: {error}");
+        assert!(error.expected.contains(says), "{design}: {error}");
+        assert!(error.to_string().contains("study.toml"), "{error}");
+    }
+    let error = active("pairs = \"all\"\nrepetitions = 1\nprior = \"spread\"").unwrap_err();
+    assert_eq!(
+        (error.key.as_str(), error.expected.as_str()),
+        ("design.prior", "expected only with pairs = \"active\"")
+    );
+}
+
 /// The default active design (issue 48, measured in docs/simulate/active-target/README.md):
 /// target both, and a warm-up of the anchored pairs for about 60 % of the trials. Changing it
 /// must change this test (and the measurement).

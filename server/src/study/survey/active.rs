@@ -1,4 +1,4 @@
-//! The keys of `pairs = "active"` (trials, batch, target, prior) and the default active design
+//! The keys of `pairs = "active"` (trials, batch, target, prior_sd, prior) and the default active design
 //! (issue 48): with `target` omitted the target is `both` where a factor varies (else
 //! `worths`); with `target` omitted or `both` and `warmup` omitted the warm-up is the anchored
 //! pairs (the `anchors` given, else the first and the last condition) repeated
@@ -29,7 +29,7 @@ pub(crate) fn default_repetitions(trials: Option<u32>, pairs: usize) -> u32 {
 }
 
 /// The keys of `pairs = "active"`: trials, batch, target (checked against the conditions by
-/// the posterior's own rules), prior.
+/// the posterior's own rules), prior_sd, prior (`"spread"` with target worths only).
 pub(super) fn check_active(
     fail: Fail,
     design: &DesignFile,
@@ -70,7 +70,24 @@ pub(super) fn check_active(
              (every simulated study of the thesis design failed; `mrstudy simulate`)",
         ));
     }
-    let active = ActiveDesign { trials, batch, target, prior_sd };
+    let prior = match design.prior.as_deref().unwrap_or("fixed") {
+        "fixed" => ActivePrior::Fixed,
+        "spread" if target == ActiveTarget::Worths => ActivePrior::Spread,
+        "spread" => {
+            return Err(fail.at(
+                "design.prior",
+                format!(
+                    "expected \"fixed\" with target = \"{}\": the hierarchical prior on the spread (prior = \"spread\") \
+                     applies to target = \"worths\" only",
+                    target.describe().0
+                ),
+            ));
+        }
+        other => {
+            return Err(fail.at("design.prior", format!("expected \"fixed\" or \"spread\", found \"{other}\"")));
+        }
+    };
+    let active = ActiveDesign { trials, batch, target, prior_sd, prior };
     active_target(&active, conditions)
         .check()
         .map_err(|error| fail.at("design.target", format!("an active design this posterior can learn: {error}")))?;
@@ -106,6 +123,7 @@ fn default_target(conditions: &[Condition]) -> &'static str {
         batch: 1,
         target: ActiveTarget::Both,
         prior_sd: mrstudy_analysis::active::DEFAULT_PRIOR_SD,
+        prior: ActivePrior::Fixed,
     };
     if active_target(&both, conditions).check().is_ok() { "both" } else { "worths" }
 }

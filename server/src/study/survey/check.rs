@@ -532,13 +532,14 @@ fn check_design(
 }
 
 /// The keys of an active design (`pairs = "active"`), each with whether the file gives it.
-fn active_keys_given(design: &DesignFile) -> [(&'static str, bool); 5] {
+fn active_keys_given(design: &DesignFile) -> [(&'static str, bool); 6] {
     [
         ("design.trials", design.trials.is_some()),
         ("design.batch", design.batch.is_some()),
         ("design.target", design.target.is_some()),
         ("design.warmup", design.warmup.is_some()),
         ("design.prior_sd", design.prior_sd.is_some()),
+        ("design.prior", design.prior.is_some()),
     ]
 }
 

@@ -130,6 +130,9 @@ pub(super) struct DesignFile {
     pub(super) warmup: Option<String>,
     #[serde(default)]
     pub(super) prior_sd: Option<f64>,
+    /// `"fixed"` (default) or `"spread"` (`target = "worths"` only).
+    #[serde(default)]
+    pub(super) prior: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]

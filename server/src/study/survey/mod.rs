@@ -13,7 +13,8 @@ pub(super) use check::parse;
 pub(crate) use check::{all_pairs, anchored_pair_indices};
 pub(crate) use model::format_number;
 pub use model::{
-    ActiveDesign, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design, DesignReference, Device,
-    Display, Factor, FieldType, GROUND_TRUTH, MAX_REALISATIONS, Orientation, PairsRule, Participation, RenderDefaults,
-    SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS, Texts, active_target,
+    ActiveDesign, ActivePrior, ActiveTarget, CatchTrial, Completion, Condition, DemographicField, Design,
+    DesignReference, Device, Display, Factor, FieldType, GROUND_TRUTH, MAX_REALISATIONS, Orientation, PairsRule,
+    Participation, RenderDefaults, SceneConfiguration, SceneDraw, StimulusSource, Study, StudyKind, TRIALS_CSV_COLUMNS,
+    Texts, active_target,
 };

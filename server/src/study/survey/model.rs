@@ -336,8 +336,74 @@ pub struct ActiveDesign {
     /// Trials chosen at a time for one participant.
     pub batch: u32,
     pub target: ActiveTarget,
-    /// Prior standard deviation of each log-worth or factor effect (logit scale).
+    /// Prior standard deviation of each log-worth or factor effect (logit scale); with
+    /// `prior = "spread"` the prior mean of the log-worths' spread.
     pub prior_sd: f64,
+    /// `prior`: a fixed prior sd (the default) or the hierarchical prior on the log-worths'
+    /// spread (`target = "worths"` only). Absent in definitions stored before it existed.
+    #[serde(default)]
+    pub prior: ActivePrior,
+}
+
+impl ActiveDesign {
+    /// How the pairs are chosen, in words: the target's criterion, and the prior it is scored
+    /// under where that is the spread prior.
+    pub fn criterion(&self) -> String {
+        match self.prior {
+            ActivePrior::Fixed => self.target.criterion(),
+            ActivePrior::Spread => format!(
+                "{} under a hierarchical prior on their spread (prior = \"spread\", the spread's prior mean {})",
+                self.target.criterion(),
+                format_number(self.prior_sd)
+            ),
+        }
+    }
+
+    /// What the design optimises, in words.
+    pub fn optimises(&self) -> String {
+        match self.prior {
+            ActivePrior::Fixed => self.target.describe().1.to_string(),
+            ActivePrior::Spread => format!(
+                "every condition's log-worth as the centred MAP estimate with prior sd {} (`log_worth_map` of \
+                 `mrstudy analyze`), not the maximum-likelihood log-worths",
+                format_number(self.prior_sd)
+            ),
+        }
+    }
+
+    /// The `mrstudy simulate --designs` name that measures this design against the fixed design.
+    pub fn simulate_design(&self) -> &'static str {
+        match self.prior {
+            ActivePrior::Fixed => self.target.simulate_design(),
+            ActivePrior::Spread => "active-spread",
+        }
+    }
+}
+
+/// The prior an active design scores its pairs under (`design.prior`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActivePrior {
+    /// Every log-worth (or factor effect) N(0, `prior_sd`²), the ADF posterior, the pair score
+    /// EIG(ρ·m, v) with ρ ramped to ½ (`mrstudy_analysis::active`).
+    #[default]
+    Fixed,
+    /// The log-worths' prior sd τ unknown, τ ~ Gamma(2, 2/`prior_sd`): pairs scored by the plain
+    /// EIG on the moment-matched posterior mixture over τ
+    /// (`mrstudy_analysis::active::Posterior::with_spread_prior`). Optimises the centred MAP
+    /// log-worths with prior sd `prior_sd` (`mrstudy analyze`'s `log_worth_map`), not the
+    /// analysis's maximum-likelihood log-worths (docs/simulate/README.md).
+    Spread,
+}
+
+impl ActivePrior {
+    /// The study-file name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ActivePrior::Fixed => "fixed",
+            ActivePrior::Spread => "spread",
+        }
+    }
 }
 
 /// How scene configurations are drawn for the two sides of a trial.
