@@ -82,15 +82,13 @@ fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
         assert!(svg.contains(name), "plot lacks {name}");
     }
 
-    let out = mrstudy(&[
-        "analyze",
-        "--trials",
-        trials.to_str().unwrap(),
-        "--conditions",
-        conditions.to_str().unwrap(),
-        "--format",
-        "json",
-    ]);
+    let analyze_json = |extra: &[&str]| {
+        let mut args = vec!["analyze", "--trials", trials.to_str().unwrap()];
+        args.extend(["--conditions", conditions.to_str().unwrap(), "--format", "json"]);
+        args.extend(extra);
+        mrstudy(&args)
+    };
+    let out = analyze_json(&[]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(!text.contains("NaN") && !text.contains("null") && !text.contains("inf"));
@@ -111,17 +109,7 @@ fn analyze_prints_a_table_and_json_and_draws_the_worth_plot() {
     };
     let wide = map(&json);
     assert!(wide.iter().sum::<f64>().abs() < 1e-9, "centred: {wide:?}");
-    let out = mrstudy(&[
-        "analyze",
-        "--trials",
-        trials.to_str().unwrap(),
-        "--conditions",
-        conditions.to_str().unwrap(),
-        "--format",
-        "json",
-        "--prior-sd",
-        "0.1",
-    ]);
+    let out = analyze_json(&["--prior-sd", "0.1"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let narrow = map(&serde_json::from_slice(&out.stdout).unwrap());
     let spread = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>();
