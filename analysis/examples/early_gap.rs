@@ -27,6 +27,7 @@ use mrstudy_analysis::active::laplace::{self, refit};
 use mrstudy_analysis::active::simulate::{centred_rmse, factorial, mean_and_standard_error};
 use mrstudy_analysis::active::spread;
 use mrstudy_analysis::active::{DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Posterior, Target, tie_stream};
+use mrstudy_analysis::design::{find, union};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 
@@ -128,7 +129,7 @@ fn summed_batch(
     let mut parent: Vec<usize> = (0..n).collect();
     let mut components = n;
     for &(w, l) in judgments {
-        if join(&mut parent, w, l) {
+        if union(&mut parent, w, l) {
             components -= 1;
         }
     }
@@ -160,7 +161,7 @@ fn summed_batch(
         let (_, _, i, j) = best.expect("a candidate");
         batch.push((i, j));
         last = Some((i, j));
-        if join(&mut parent, i, j) {
+        if union(&mut parent, i, j) {
             components -= 1;
         }
         for (&k, c) in kept.iter().zip(covariances.iter_mut()) {
@@ -242,29 +243,11 @@ fn spanning_tree(n: usize, pairs: impl Iterator<Item = (usize, usize)>) -> Vec<(
     let mut parent: Vec<usize> = (0..n).collect();
     let mut tree = Vec::new();
     for (i, j) in pairs {
-        if join(&mut parent, i, j) {
+        if union(&mut parent, i, j) {
             tree.push((i, j));
         }
     }
     tree
-}
-
-/// Union–find root with path halving.
-fn find(parent: &mut [usize], mut x: usize) -> usize {
-    while parent[x] != x {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    x
-}
-
-/// Joins the components of `a` and `b` (the root of `a`'s under `b`'s); true if they were apart.
-fn join(parent: &mut [usize], a: usize, b: usize) -> bool {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra] = rb;
-    }
-    ra != rb
 }
 
 /// ρ = (1 − (n − 3)·v̄ / Σ(mᵢ − m̄)²)₊^power, v̄ the mean variance of the centred log-worths.

@@ -286,26 +286,37 @@ impl Builder {
     }
 }
 
+/// Union–find over conditions (`parent[x] == x` at a root): the root of `x`'s component, with
+/// path halving. The comparison graph's components here and the active designs' pair choice.
+pub fn find(parent: &mut [usize], mut x: usize) -> usize {
+    while parent[x] != x {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    x
+}
+
+/// Joins the components of `a` and `b` (the larger root under the smaller); true if they were
+/// apart.
+pub fn union(parent: &mut [usize], a: usize, b: usize) -> bool {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra == rb {
+        return false;
+    }
+    parent[ra.max(rb)] = ra.min(rb);
+    true
+}
+
 /// Connected components of the comparison graph over the conditions that were compared at
 /// least once. Each component lists its conditions in increasing index order; components are
 /// ordered by their smallest condition. Conditions never compared belong to no component.
 pub fn components(n_conditions: usize, pairs: &[PairTally]) -> Vec<Vec<usize>> {
     let mut parent: Vec<usize> = (0..n_conditions).collect();
-    fn find(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
     let mut compared = vec![false; n_conditions];
     for pair in pairs.iter().filter(|pair| pair.n() > 0) {
         compared[pair.i] = true;
         compared[pair.j] = true;
-        let (a, b) = (find(&mut parent, pair.i), find(&mut parent, pair.j));
-        if a != b {
-            parent[a.max(b)] = a.min(b);
-        }
+        union(&mut parent, pair.i, pair.j);
     }
     let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
     for condition in 0..n_conditions {

@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use super::best_pair::BestPair;
 use super::quadrature::Rule;
 use super::{ActiveError, Link, Result};
+use crate::design::{find, union};
 
 /// P = (X̃ᵀX̃)⁻¹X̃ᵀ (k × n, row-major per effect): the least-squares factor effects of the
 /// log-worths, X̃ the design centred per column. Refused: collinear factors.
@@ -148,14 +149,6 @@ fn expected_drop(link: Link, rule: &Rule, m: f64, v: f64) -> f64 {
     (v - (z * v_won + (1.0 - z) * v_lost)) / (v * v)
 }
 
-fn find(parent: &mut [usize], mut x: usize) -> usize {
-    while parent[x] != x {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    x
-}
-
 /// The batch for the `both` target: `trials` pairs, best first, never `last` back to back.
 pub(super) fn best_pairs(
     mut input: BothBatch,
@@ -183,9 +176,7 @@ pub(super) fn best_pairs(
         let (i, j) = best.pair.expect("at least 3 conditions leave a pair besides the last one");
         batch.push((i, j));
         last = Some((i, j));
-        let (ri, rj) = (find(&mut input.parent, i), find(&mut input.parent, j));
-        if ri != rj {
-            input.parent[ri.max(rj)] = ri.min(rj);
+        if union(&mut input.parent, i, j) {
             input.components -= 1;
         }
         if batch.len() == trials {

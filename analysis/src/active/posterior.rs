@@ -11,6 +11,7 @@ use serde::Serialize;
 use super::best_pair::BestPair;
 use super::quadrature::{EIG_NODES, Rule, UPDATE_NODES};
 use super::{ActiveError, Link, Result, Target};
+use crate::design::{find, union};
 
 /// Names a posterior state: the judgments it absorbed and a 64-bit fingerprint of their
 /// sequence. Equal ids mean the same log (up to 2⁻⁶⁴ odds), hence the same state.
@@ -77,25 +78,6 @@ pub struct Posterior {
     log: Vec<(usize, usize)>,
     /// The spread mixture's moment-matched Gaussian at this state, once a batch needed it.
     spread_fit: OnceLock<super::laplace::LaplaceFit>,
-}
-
-/// Union–find root with path halving.
-fn find(parent: &mut [usize], mut x: usize) -> usize {
-    while parent[x] != x {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    x
-}
-
-/// Joins the components of a and b; true if they were apart.
-fn union(parent: &mut [usize], a: usize, b: usize) -> bool {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra == rb {
-        return false;
-    }
-    parent[ra.max(rb)] = ra.min(rb);
-    true
 }
 
 impl Posterior {
