@@ -14,7 +14,9 @@
 //! ramp to the plain EIG once the worths' sd — by a moment estimate, or the prior sd of largest
 //! Laplace evidence — reaches a threshold; and a hierarchical prior on the worths' spread (the
 //! prior sd of largest Laplace evidence before each request, the posterior re-anchored on the
-//! refit with it). Each run's judgments are scored by
+//! refit with it); and the hybrid served as `prior = "spread"` (the τ-mixture for the first 15
+//! judgments per condition, then the ADF design with its ramp; also switched at 20 and 30).
+//! Each run's judgments are scored by
 //! one estimator, the centred MAP of the Thurstone model with prior N(0, 1) per condition
 //! ([`laplace::centred_map_log_worths`], `mrstudy analyze`'s `log_worth_map` on the probit scale), as docs/simulate/README.md's side-by-side with ASAP scores them; the centred RMSE ±
 //! its Monte-Carlo standard error at each checkpoint. `20`: the 20 log-worths of
@@ -26,7 +28,9 @@ use std::collections::VecDeque;
 use mrstudy_analysis::active::laplace::{self, refit};
 use mrstudy_analysis::active::simulate::{centred_rmse, factorial, mean_and_standard_error};
 use mrstudy_analysis::active::spread;
-use mrstudy_analysis::active::{DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Posterior, Target, tie_stream};
+use mrstudy_analysis::active::{
+    DEFAULT_MEAN_WEIGHT, DEFAULT_PRIOR_SD, Link, Posterior, SPREAD_SWITCH, Target, tie_stream,
+};
 use mrstudy_analysis::design::{find, union};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
@@ -70,6 +74,11 @@ enum Rule {
     /// score the weighted sum of the per-τ EIGs (`Summed`) or the plain EIG of the mixture's
     /// moment-matched Gaussian (`Moment`: [`Posterior::with_spread_prior`]).
     Mixture(MixtureScore),
+    /// The τ-mixture with the moment EIG (ρ = 1) for the first `switch` judgments per
+    /// condition, then the served ADF design with its ρ ramp to ½ on the ADF posterior that
+    /// absorbed every judgment ([`Posterior::with_spread_switch`]; issue 48: the mixture is
+    /// inside the oracle bound early, the ramp late). At 15 it is the served `prior = "spread"`.
+    Hybrid(f64),
 }
 
 /// How [`Rule::Mixture`] scores a pair.
@@ -84,7 +93,7 @@ enum MixtureScore {
 /// The prior sds whose Laplace evidence [`Rule::Evidence`] compares.
 const EVIDENCE_SDS: [f64; 7] = [0.15, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4];
 
-const SCHEDULERS: [(&str, Rule); 21] = [
+const SCHEDULERS: [(&str, Rule); 24] = [
     ("random pairs", Rule::Random),
     ("active (ADF, ρ ramp to ½)", Rule::Greedy { rho: DEFAULT_MEAN_WEIGHT, ramp: 20.0, reanchor: false }),
     ("refit + plain EIG (ρ = 1)", Rule::Greedy { rho: 1.0, ramp: 0.0, reanchor: true }),
@@ -106,6 +115,9 @@ const SCHEDULERS: [(&str, Rule); 21] = [
     ("τ-mixture + summed EIG", Rule::Mixture(MixtureScore::Summed)),
     ("τ-mixture + moment EIG", Rule::Mixture(MixtureScore::Moment)),
     ("τ-mixture + moment, ρ ½", Rule::Mixture(MixtureScore::MomentHalf)),
+    ("hybrid 15/cond → ADF", Rule::Hybrid(SPREAD_SWITCH)),
+    ("hybrid 20/cond → ADF", Rule::Hybrid(20.0)),
+    ("hybrid 30/cond → ADF", Rule::Hybrid(30.0)),
 ];
 
 /// A greedy batch scored by Σₖ wₖ·EIGₖ: each τ's mean and covariance, a fantasy update of every
@@ -343,8 +355,10 @@ fn main() {
             let mut posterior = Posterior::new(&target, Link::Probit, DEFAULT_PRIOR_SD)
                 .and_then(|p| p.with_mean_weight(rho))
                 .and_then(|p| p.with_mean_ramp(ramp))
-                .and_then(|p| {
-                    if matches!(rule, Rule::Mixture(MixtureScore::Moment)) { p.with_spread_prior() } else { Ok(p) }
+                .and_then(|p| match rule {
+                    Rule::Mixture(MixtureScore::Moment) => p.with_spread_prior(),
+                    Rule::Hybrid(switch) => p.with_spread_prior().and_then(|p| p.with_spread_switch(switch)),
+                    _ => Ok(p),
                 })
                 .expect("a posterior");
             let mut outcomes = ChaCha8Rng::seed_from_u64(1000 + run);
@@ -366,6 +380,7 @@ fn main() {
                         | Rule::Tree
                         | Rule::Hierarchical(_)
                         | Rule::Mixture(_)
+                        | Rule::Hybrid(_)
                 );
                 if reanchor && !judgments.is_empty() {
                     posterior.reanchor(&map(&judgments)).expect("a usable refit");
@@ -409,7 +424,7 @@ fn main() {
                             .expect("a weight");
                         posterior.best_pairs(k, previous, &mut ties).expect("a batch")
                     }
-                    Rule::Mixture(MixtureScore::Moment) => {
+                    Rule::Mixture(MixtureScore::Moment) | Rule::Hybrid(_) => {
                         posterior.best_pairs(k, previous, &mut ties).expect("a batch")
                     }
                     Rule::Spread(threshold) | Rule::Evidence(threshold) => {

@@ -1,7 +1,7 @@
 //! The bridge to `mrstudy-analysis`: runs the analysis on a study's trials CSV with the study's
 //! conditions (as the analysis's condition table, not CSV text parsed again), for the admin API
-//! and page, with the same options as `mrstudy analyze`'s defaults, so the live analysis equals
-//! `mrstudy export` fed to `mrstudy analyze --conditions`.
+//! and page, with the same options as `mrstudy analyze`'s defaults and the study's `prior_sd`, so
+//! the live analysis equals `mrstudy export` fed to `mrstudy analyze --conditions --prior-sd`.
 
 use mrstudy_analysis::AnalysisError;
 use mrstudy_analysis::analysis::{Options, Scale};
@@ -36,12 +36,29 @@ fn report(
 ) -> Result<Report, AppError> {
     // a rating study's export is analysed as ratings (MOS, P.910 screening, SUREAL's MLE_CO:
     // the `ratings` section), as `mrstudy analyze` does; the condition table is not used there
-    analyze_with_table(trials_csv, "trials CSV", Some(&condition_table(study)), stimuli, &options(include, scale))
-        .map_err(cannot_run)
+    analyze_with_table(
+        trials_csv,
+        "trials CSV",
+        Some(&condition_table(study)),
+        stimuli,
+        &options(Some(study), include, scale),
+    )
+    .map_err(cannot_run)
 }
 
-fn options(include: Include, scale: Scale) -> Options {
-    Options { include_pilots: include.pilots, include_excluded: include.excluded, scale, ..Options::default() }
+/// `log_worth_map` with the active design's `prior_sd` (what `prior = "spread"` scores under),
+/// as `mrstudy simulate` scores it; 1 without an active design.
+fn options(study: Option<&Study>, include: Include, scale: Scale) -> Options {
+    let prior_sd = study
+        .and_then(|study| study.design.active.as_ref())
+        .map_or(Options::default().prior_sd, |active| active.prior_sd);
+    Options {
+        include_pilots: include.pilots,
+        include_excluded: include.excluded,
+        scale,
+        prior_sd,
+        ..Options::default()
+    }
 }
 
 /// No judgments yet, or a design the models cannot fit: the researcher sees why.
@@ -86,7 +103,7 @@ pub fn best_metric_svg(trials_csv: &str, include: Include, stimuli: &StimulusMet
         trials_csv,
         "trials CSV",
         stimuli,
-        &StimulusOptions::from_analysis(&options(include, Scale::Bt)),
+        &StimulusOptions::from_analysis(&options(None, include, Scale::Bt)),
     )
     .map_err(cannot_run)?;
     metrics.scatter_plots().into_iter().next().map(|(_, svg)| svg).ok_or_else(|| {

@@ -275,17 +275,22 @@ pub fn plan_detection_v1(study: &Study, seed: u64) -> Vec<PlannedTrial> {
 
 /// A fresh posterior for the study's active design (`None` for a fixed design). With
 /// `prior = "spread"` (target worths only) it scores its batches under the hierarchical prior on
-/// the log-worths' spread by the plain EIG ([`Posterior::with_spread_prior`] with ρ = 1, the
-/// rule measured in docs/simulate/README.md; the study's `prior_sd` is the spread's prior mean).
+/// the log-worths' spread by the plain EIG ([`Posterior::with_spread_prior`] with ρ = 1; the
+/// study's `prior_sd` is the spread's prior mean) for the first [`SPREAD_SWITCH`] trials per
+/// condition, then as the fixed prior's design ([`Posterior::with_spread_switch`]): the hybrid
+/// measured in docs/simulate/README.md.
+///
+/// [`SPREAD_SWITCH`]: mrstudy_analysis::active::SPREAD_SWITCH
 pub fn active_posterior(study: &Study) -> Option<Result<Posterior, ActiveError>> {
     let active = study.design.active.as_ref()?;
     let target = crate::study::active_target(active, &study.conditions);
     let posterior = Posterior::new(&target, mrstudy_analysis::active::Link::Logit, active.prior_sd);
     Some(match active.prior {
         crate::study::ActivePrior::Fixed => posterior,
-        crate::study::ActivePrior::Spread => {
-            posterior.and_then(|p| p.with_mean_weight(1.0)).and_then(Posterior::with_spread_prior)
-        }
+        crate::study::ActivePrior::Spread => posterior
+            .and_then(|p| p.with_mean_weight(1.0))
+            .and_then(Posterior::with_spread_prior)
+            .and_then(|p| p.with_spread_switch(mrstudy_analysis::active::SPREAD_SWITCH)),
     })
 }
 

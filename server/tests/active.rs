@@ -73,7 +73,8 @@ async fn the_admin_page_says_what_the_active_design_optimises() {
         (
             "worths",
             "spread",
-            "under a hierarchical prior on their spread (prior = &#34;spread&#34;, the spread&#39;s prior mean 1)",
+            "under a hierarchical prior on their spread (prior = &#34;spread&#34;, the spread&#39;s prior mean 1) for \
+             the first 15 trials per condition, then as with the fixed prior",
             "every condition&#39;s log-worth as the centred MAP estimate with prior sd 1 (`log_worth_map` of \
              `mrstudy analyze`), not the maximum-likelihood log-worths",
         ),
@@ -258,7 +259,13 @@ async fn with_the_spread_prior_every_batch_replays_and_the_prior_chose_them() {
 /// Three participants, interleaved, answer every trial of an active design of 10 trials in
 /// batches of 3 after `warmup`; every stored batch replays. The app and state afterwards.
 async fn interleaved(work: &Path, target: &str, warmup: &str) -> (Router, AppState) {
-    let (app, state) = fixture(work, target, warmup, 10, 3).await;
+    let (app, state, _) = interleaved_with_admin(work, target, warmup).await;
+    (app, state)
+}
+
+/// [`interleaved`], with the admin token.
+async fn interleaved_with_admin(work: &Path, target: &str, warmup: &str) -> (Router, AppState, String) {
+    let (app, state, admin_token) = fixture_with_admin(work, target, warmup, 10, 3).await;
     let mut participants = Vec::new();
     for _ in 0..3 {
         participants.push(join(&app).await);
@@ -300,7 +307,43 @@ async fn interleaved(work: &Path, target: &str, warmup: &str) -> (Router, AppSta
     }
     let replayed = assert_batches_replay(&state).await;
     assert_eq!(replayed, 30);
-    (app, state)
+    (app, state, admin_token)
+}
+
+/// The admin page's analysis reports `log_worth_map` with the study's `prior_sd` (what
+/// `prior = "spread"` scores under), as `mrstudy analyze --prior-sd` of the export does — not
+/// with the default 1.
+#[tokio::test]
+async fn the_live_analysis_reports_the_map_log_worths_with_the_studys_prior_sd() {
+    let work = tempfile::tempdir().unwrap();
+    let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]\nprior = \"spread\"\nprior_sd = 0.4";
+    let (app, _, admin_token) = interleaved_with_admin(work.path(), "worths", warmup).await;
+    let live = call(&app, Method::GET, &format!("/api/admin/studies/{STUDY}/analysis"), Some(&admin_token), None).await;
+    assert_eq!(live.status, StatusCode::OK, "{}", live.text());
+    let export =
+        call(&app, Method::GET, &format!("/api/admin/studies/{STUDY}/export.csv"), Some(&admin_token), None).await;
+    assert_eq!(export.status, StatusCode::OK, "{}", export.text());
+    // by condition: the export lists the conditions in another order than the study
+    let maps = |json: &serde_json::Value| -> Vec<f64> {
+        let mut items: Vec<(String, f64)> = json["items"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|item| (item["condition"].as_str().unwrap().to_owned(), item["log_worth_map"].as_f64().unwrap()))
+            .collect();
+        items.sort_by(|a, b| a.0.cmp(&b.0));
+        items.into_iter().map(|(_, map)| map).collect()
+    };
+    let offline = |prior_sd: f64| {
+        let options = mrstudy_analysis::analysis::Options { prior_sd, ..Default::default() };
+        let analysis = mrstudy_analysis::analysis::analyze(&export.text(), None, &options).unwrap();
+        maps(&serde_json::to_value(&analysis).unwrap())
+    };
+    let (live, at_study, at_one) = (maps(&live.json()), offline(0.4), offline(1.0));
+    assert_eq!(live.len(), 4);
+    let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9);
+    assert!(close(&live, &at_study), "live {live:?}, analyze --prior-sd 0.4 {at_study:?}");
+    assert!(!close(&live, &at_one), "the prior sd made no difference: {live:?}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -119,6 +119,10 @@ pub const DEFAULT_MEAN_WEIGHT: f64 = 0.5;
 /// Judgments per condition over which ρ rises from 0 to its largest value.
 pub const MEAN_WEIGHT_RAMP: f64 = 20.0;
 
+/// Judgments per condition after which the served `prior = "spread"` scores as the fixed prior
+/// does ([`Posterior::with_spread_switch`]; issue 48's hybrid, docs/simulate/README.md).
+pub const SPREAD_SWITCH: f64 = 15.0;
+
 pub use crate::error::ActiveError;
 
 pub type Result<T, E = ActiveError> = std::result::Result<T, E>;

@@ -73,11 +73,14 @@ pub struct Posterior {
     /// Whether the batch scores by the hierarchical prior on the log-worths' spread
     /// ([`Posterior::with_spread_prior`]).
     spread: bool,
+    /// Judgments per condition after which a spread-prior posterior scores as the fixed prior
+    /// does ([`Posterior::with_spread_switch`]); infinite: never.
+    spread_until: f64,
     /// Every judgment absorbed, (winner, loser), in order, kept only under the spread prior:
     /// what its refits read (the other posteriors stay O(p²) whatever the log).
     log: Vec<(usize, usize)>,
     /// The spread mixture's moment-matched Gaussian at this state, once a batch needed it.
-    spread_fit: OnceLock<super::laplace::LaplaceFit>,
+    pub(super) spread_fit: OnceLock<super::laplace::LaplaceFit>,
 }
 
 impl Posterior {
@@ -121,6 +124,7 @@ impl Posterior {
             eig_rule: Rule::gauss_hermite(EIG_NODES),
             update_rule: Rule::gauss_hermite(UPDATE_NODES),
             spread: false,
+            spread_until: f64::INFINITY,
             log: Vec::new(),
             spread_fit: OnceLock::new(),
         })
@@ -151,6 +155,61 @@ impl Posterior {
         }
         self.spread = true;
         Ok(self)
+    }
+
+    /// Under the spread prior, scores by it only for the first `judgments_per_condition` judgments
+    /// per condition, then as the fixed prior's design does: EIG(ρ·m, v) on the ADF posterior
+    /// (which absorbed every judgment from the first) with ρ ramped to [`super::DEFAULT_MEAN_WEIGHT`]
+    /// over [`super::MEAN_WEIGHT_RAMP`] judgments per condition, as that design has it (at 15 per
+    /// condition ρ is ⅜, ½ from 20). The served `prior = "spread"` switches
+    /// at [`super::SPREAD_SWITCH`]: the mixture is the better rule early, the ramp's ρ ½ late
+    /// (issue 48; docs/simulate/README.md). No refit is made after the switch.
+    pub fn with_spread_switch(mut self, judgments_per_condition: f64) -> Result<Posterior> {
+        if !self.spread {
+            return Err(ActiveError::BadOption {
+                option: "spread_switch",
+                message: "the switch from the spread prior needs the spread prior (with_spread_prior) first".into(),
+            });
+        }
+        if !(judgments_per_condition >= 0.0) {
+            return Err(ActiveError::BadOption {
+                option: "spread_switch",
+                message: format!("the switch must not be negative or NaN, got {judgments_per_condition}"),
+            });
+        }
+        self.spread_until = judgments_per_condition;
+        Ok(self)
+    }
+
+    /// Whether the next batch is scored under the spread prior (before its switch).
+    pub fn scores_by_spread(&self) -> bool {
+        self.spread && (self.judgments as f64) < self.spread_until * self.n_conditions as f64
+    }
+
+    /// A posterior for scoring one batch: this one's judgments and comparison graph, with the
+    /// given moments and mean weight, no spread prior.
+    fn scorer(&self, mean: Vec<f64>, covariance: Vec<f64>, mean_weight: f64, mean_ramp: f64) -> Posterior {
+        Posterior {
+            link: self.link,
+            prior_sd: self.prior_sd,
+            n_conditions: self.n_conditions,
+            design: None,
+            effects: None,
+            mean,
+            covariance,
+            judgments: self.judgments,
+            fingerprint: self.fingerprint,
+            parent: self.parent.clone(),
+            components: self.components,
+            mean_weight,
+            mean_ramp,
+            eig_rule: self.eig_rule.clone(),
+            update_rule: self.update_rule.clone(),
+            spread: false,
+            spread_until: f64::INFINITY,
+            log: Vec::new(),
+            spread_fit: OnceLock::new(),
+        }
     }
 
     /// The spread mixture's moment-matched Gaussian at this state (computed once).
@@ -440,31 +499,22 @@ impl Posterior {
             self.check_condition(a)?;
             self.check_condition(b)?;
         }
-        if self.spread {
+        if self.scores_by_spread() {
             let fit = self.spread_fit()?;
             if fit.mean.iter().chain(&fit.covariance).any(|v| !v.is_finite()) {
                 return Err(self.degenerate("the spread mixture has a non-finite moment".into()));
             }
-            let scoring = Posterior {
-                link: self.link,
-                prior_sd: self.prior_sd,
-                n_conditions: self.n_conditions,
-                design: None,
-                effects: None,
-                mean: fit.mean.clone(),
-                covariance: fit.covariance.clone(),
-                judgments: self.judgments,
-                fingerprint: self.fingerprint,
-                parent: self.parent.clone(),
-                components: self.components,
-                mean_weight: self.mean_weight,
-                mean_ramp: 0.0,
-                eig_rule: self.eig_rule.clone(),
-                update_rule: self.update_rule.clone(),
-                spread: false,
-                log: Vec::new(),
-                spread_fit: OnceLock::new(),
-            };
+            let scoring = self.scorer(fit.mean.clone(), fit.covariance.clone(), self.mean_weight, 0.0);
+            return scoring.best_pairs(trials, previous, rng);
+        }
+        if self.spread {
+            // past the switch: the fixed prior's design on the ADF posterior
+            let scoring = self.scorer(
+                self.mean.clone(),
+                self.covariance.clone(),
+                super::DEFAULT_MEAN_WEIGHT,
+                super::MEAN_WEIGHT_RAMP,
+            );
             return scoring.best_pairs(trials, previous, rng);
         }
         if let Some(projection) = &self.effects {

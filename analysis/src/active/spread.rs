@@ -269,6 +269,71 @@ mod tests {
         );
     }
 
+    /// The served hybrid: the spread mixture's batch until the switch, from it on the batch of
+    /// the fixed prior's design (ρ ramped to ½) fed the same judgments — and no refit then.
+    #[test]
+    fn after_the_switch_the_batch_is_the_fixed_priors_batch() {
+        let worths = [0.8, -0.3, 0.1, -1.2, 0.6, 0.0];
+        let target = Target::Worths { conditions: 6 };
+        let spread = || {
+            crate::active::Posterior::new(&target, Link::Logit, 1.0)
+                .unwrap()
+                .with_mean_weight(1.0)
+                .unwrap()
+                .with_spread_prior()
+                .unwrap()
+        };
+        // switch after 5 judgments per condition: 30 judgments
+        let mut hybrid = spread().with_spread_switch(5.0).unwrap();
+        let mut mixture = spread();
+        let mut fixed = crate::active::Posterior::new(&target, Link::Logit, 1.0).unwrap();
+        let judgments = judged(&worths, 60, 3);
+        let batch = |p: &crate::active::Posterior, seed: u64| {
+            p.best_pairs(4, Some((0, 1)), &mut crate::active::tie_stream(seed, p.state_id(), 1)).unwrap()
+        };
+        let (mut before, mut after) = (0, 0);
+        for (count, &(w, l)) in judgments.iter().enumerate() {
+            for p in [&mut hybrid, &mut mixture, &mut fixed] {
+                p.update(w, l).unwrap();
+            }
+            if count % 7 != 0 {
+                continue;
+            }
+            if count + 1 < 30 {
+                assert!(hybrid.scores_by_spread());
+                assert_eq!(batch(&hybrid, count as u64), batch(&mixture, count as u64), "at {}", count + 1);
+                before += 1;
+            } else {
+                assert!(!hybrid.scores_by_spread());
+                assert_eq!(batch(&hybrid, count as u64), batch(&fixed, count as u64), "at {}", count + 1);
+                assert!(hybrid.spread_fit.get().is_none(), "a refit after the switch");
+                after += 1;
+            }
+        }
+        assert!(before >= 4 && after >= 4, "{before} {after}");
+        // the mixture and the fixed prior disagree somewhere after the switch (the test can fail)
+        let differs = (0..8).any(|seed| batch(&mixture, seed) != batch(&fixed, seed));
+        assert!(differs, "the mixture and the fixed prior chose alike: the switch is not tested");
+    }
+
+    #[test]
+    fn the_switch_needs_the_spread_prior_and_a_number() {
+        let target = Target::Worths { conditions: 4 };
+        let fixed = crate::active::Posterior::new(&target, Link::Logit, 1.0).unwrap();
+        assert!(matches!(
+            fixed.clone().with_spread_switch(15.0),
+            Err(ActiveError::BadOption { option: "spread_switch", .. })
+        ));
+        let spread = fixed.with_spread_prior().unwrap();
+        for bad in [f64::NAN, -1.0] {
+            assert!(matches!(
+                spread.clone().with_spread_switch(bad),
+                Err(ActiveError::BadOption { option: "spread_switch", .. })
+            ));
+        }
+        assert!(spread.with_spread_switch(f64::INFINITY).unwrap().scores_by_spread());
+    }
+
     #[test]
     fn the_spread_prior_is_refused_for_factor_effects() {
         let (design, _) = crate::active::simulate::factorial(&[0.3, -0.2]);

@@ -52,6 +52,9 @@ pub struct Row {
     /// What an active design optimises: `worths`, `effects` or `both` (absent for a fixed design).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target: Option<&'static str>,
+    /// An active design's prior, `fixed` or `spread` (absent for a fixed design).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior: Option<&'static str>,
     /// An active design's choice in words: its warm-up and criterion (absent for a fixed design).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub optimises: Option<String>,
@@ -202,6 +205,7 @@ pub(super) fn summarise(
         design: *choice,
         pairs: variant.design.pairs_rule,
         target: variant.design.active.as_ref().map(|active| active.target.describe().0),
+        prior: variant.design.active.as_ref().map(|active| active.prior.name()),
         optimises: variant.design.active.as_ref().map(|active| {
             let warmup = variant.design.pairs.len() * variant.design.repetitions as usize;
             format!(
@@ -319,9 +323,10 @@ impl Report {
         let mut lines = vec![header];
         for row in &self.rows {
             let mut line = vec![
-                match row.target {
-                    Some(target) => format!("{} (target {target})", row.design.name()),
-                    None => row.design.name().to_string(),
+                match (row.target, row.prior) {
+                    (Some(target), Some("spread")) => format!("{} (target {target}, prior spread)", row.design.name()),
+                    (Some(target), _) => format!("{} (target {target})", row.design.name()),
+                    (None, _) => row.design.name().to_string(),
                 },
                 row.participants.to_string(),
                 fixed(row.judgments_per_participant.mean, 1),

@@ -352,9 +352,11 @@ impl ActiveDesign {
         match self.prior {
             ActivePrior::Fixed => self.target.criterion(),
             ActivePrior::Spread => format!(
-                "{} under a hierarchical prior on their spread (prior = \"spread\", the spread's prior mean {})",
+                "{} under a hierarchical prior on their spread (prior = \"spread\", the spread's prior mean {}) for \
+                 the first {} trials per condition, then as with the fixed prior",
                 self.target.criterion(),
-                format_number(self.prior_sd)
+                format_number(self.prior_sd),
+                format_number(mrstudy_analysis::active::SPREAD_SWITCH)
             ),
         }
     }
@@ -390,7 +392,9 @@ pub enum ActivePrior {
     Fixed,
     /// The log-worths' prior sd τ unknown, τ ~ Gamma(2, 2/`prior_sd`): pairs scored by the plain
     /// EIG on the moment-matched posterior mixture over τ
-    /// (`mrstudy_analysis::active::Posterior::with_spread_prior`). Optimises the centred MAP
+    /// (`mrstudy_analysis::active::Posterior::with_spread_prior`) for the first
+    /// `SPREAD_SWITCH` = 15 trials per condition, then as [`ActivePrior::Fixed`] scores them
+    /// (`Posterior::with_spread_switch`). Optimises the centred MAP
     /// log-worths with prior sd `prior_sd` (`mrstudy analyze`'s `log_worth_map`), not the
     /// analysis's maximum-likelihood log-worths (docs/simulate/README.md).
     Spread,
