@@ -57,12 +57,15 @@
 //! **The spread of the log-worths** ([`spread`], issue 48): [`Posterior::with_spread_prior`]
 //! scores under a hierarchical prior instead, τ ~ Gamma(2, 2/σ) on the log-worths' prior sd, by
 //! EIG(ρ·m, v) on the moment-matched Gaussian of the posterior mixture over τ: cautious while
-//! the data cannot tell a small spread from a large one, the plain EIG once they can. Under the
-//! MAP scorer of the side-by-side with ASAP it meets issue 48's 20-condition goal at 100–400
-//! trials and misses it narrowly from 800 (0.731 of random's trials against ≤ 0.727); it is
-//! worse than the ramp in what a study's analysis reports (docs/simulate/README.md), so the
-//! default keeps the ramp; a study opts in with `prior = "spread"` (target worths; ρ = 1), and
-//! `mrstudy analyze` reports the centred MAP it optimises as `log_worth_map`.
+//! the data cannot tell a small spread from a large one, the plain EIG once they can. Alone,
+//! under the MAP scorer of the side-by-side with ASAP, it meets issue 48's 20-condition goal
+//! at 100–400 trials and misses it narrowly from 800 (0.731 of random's trials against
+//! ≤ 0.727), where the ramp is better; [`Posterior::with_spread_switch`] hands over to the ramp
+//! after [`SPREAD_SWITCH`] judgments per condition, and that hybrid meets the goal at every
+//! count from 100 to 1600 (0.70–0.72). In what a study's analysis reports it is worse than the
+//! ramp early (docs/simulate/README.md), so the default keeps the ramp; a study opts in with
+//! `prior = "spread"` (target worths; ρ = 1 before the switch), and `mrstudy analyze` reports
+//! the centred MAP it optimises as `log_worth_map`.
 //!
 //! [`Posterior::best_pairs`] returns a batch for one participant greedily: the best pair, then
 //! a *fantasy* update (mean unchanged, covariance shrunk by the outcome-averaged ADF update,
