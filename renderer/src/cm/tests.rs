@@ -1,6 +1,7 @@
 //! Tests of the CPU colour mapping on synthetic buffers: known transforms recovered, and the
 //! hard cases (uniform proxy, empty mask, too few pairs, singular systems, saturated camera
-//! pixels, HDR input) with their documented fallbacks and no NaN.
+//! pixels, HDR input) with their documented fallbacks and no NaN; and the statistics mapping on
+//! a subsample of a real render against an independent computation (colour-science).
 
 use super::colour::*;
 use super::*;
@@ -354,4 +355,86 @@ fn a_virtual_pixel_shows_its_mapped_colour_whatever_the_mapping_of_black() {
     // in the linear domain (Rohmer) the result is encoded again, as for any pixel
     let linear = compose(true, Composition::Additive, photo, 2, m_rv, offset);
     assert!((linear - crate::cm::colour::gamma_encode(m_rv)).abs().max_element() < 1e-6, "{linear}");
+}
+
+fn fixture_vec3s(value: &serde_json::Value, scale: f32) -> Vec<Vec3> {
+    let f = |v: &serde_json::Value| v.as_f64().expect("a number") as f32 * scale;
+    value.as_array().expect("an array").iter().map(|p| Vec3::new(f(&p[0]), f(&p[1]), f(&p[2]))).collect()
+}
+
+/// The statistics mapping against an independent computation (numpy 2.4.6 and colour-science
+/// 0.4.7 on a 22×16 subsample of dir-lamp-box's gi+cm buffers, `tests/reference/cm_statistics.py`)
+/// — means, ratios, both mapped buffers and the composite — and the diagnosis of docs/renderer.md
+/// pinned: the real surfaces are achromatic, so the Lab a and b of TM(L_r) barely vary, the
+/// ratios σ_cam/σ_r of eqs. 4.37–4.38 are far above 1 as specified, and the virtual red wall's
+/// chroma is multiplied by them and clipped towards magenta.
+#[test]
+fn statistics_matches_an_independent_computation_on_dir_lamp_box() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/reference/cm_statistics.json");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).expect("cm_statistics.json")).expect("valid JSON");
+    let s = &r["subsample"];
+    let (width, height) = (s["width"].as_u64().unwrap() as u32, s["height"].as_u64().unwrap() as u32);
+    let flags: Vec<u32> = s["flags"].as_array().unwrap().iter().map(|f| f.as_u64().unwrap() as u32).collect();
+    let (l_r, l_rv) = (fixture_vec3s(&s["l_r"], 1.0), fixture_vec3s(&s["l_rv"], 1.0));
+    let photo = fixture_vec3s(&s["photo_u8"], 1.0 / 255.0);
+    let input = CmInput { width, height, l_rv: &l_rv, l_r: &l_r, flags: &flags, photo: &photo };
+    let out = cpu_frame(&input, &params(CmMethod::Statistics), 1.0, Composition::Additive, &mut CmState::default());
+    all_finite(&out);
+    assert_eq!(out.report.pairs as u64, s["pixels_used"].as_u64().unwrap());
+    assert!(out.report.fallback.is_none(), "{:?}", out.report.fallback);
+    let Mapping::Statistics { mean_source, mean_target, ratio } = out.report.mapping else {
+        panic!("{:?}", out.report)
+    };
+    let want = |key: &str, c: usize| s[key][c].as_f64().unwrap() as f32;
+    for c in 0..3 {
+        assert!(
+            (mean_source[c] - want("mean_source", c)).abs() < 2e-3,
+            "μ_r {mean_source:?} against {}",
+            s["mean_source"]
+        );
+        assert!(
+            (mean_target[c] - want("mean_target", c)).abs() < 2e-3,
+            "μ_cam {mean_target:?} against {}",
+            s["mean_target"]
+        );
+        assert!((ratio[c] / want("ratio", c) - 1.0).abs() < 1e-3, "ratio {ratio:?} against {}", s["ratio"]);
+    }
+    for (name, got) in [("mapped_rv", &out.mapped_rv), ("mapped_r", &out.mapped_r), ("composite", &out.composite)] {
+        for (i, (g, w)) in got.iter().zip(fixture_vec3s(&s[name], 1.0)).enumerate() {
+            assert!((*g - w).abs().max_element() < 2e-3, "{name} at pixel {i}: {g} against {w}");
+        }
+    }
+    // the diagnosis: lightness kept, chroma contrast multiplied by the camera's chroma noise
+    assert!((0.8..1.25).contains(&ratio[0]) && ratio[1] > 10.0 && ratio[2] > 3.0, "{ratio:?}");
+    let lab_of = |display: Vec3| linear_to_lab(srgb_decode3(display));
+    let mut red = 0;
+    for i in (0..flags.len()).filter(|&i| flags[i] == surface::VIRTUAL) {
+        let (off, mapped) = (Mapping::Off.apply(l_rv[i], 1.0), out.mapped_rv[i]);
+        if off.x > 1.5 * off.y && off.x > 1.5 * off.z {
+            red += 1;
+            // a* more than doubled, and clipped at the gamut's edge: red 1, green 0, more blue
+            let (before, after) = (lab_of(off).y, lab_of(mapped).y);
+            assert!(after > 2.0 * before, "red pixel {i}: a {before} → {after}");
+            assert!(mapped.x > 0.999 && mapped.y < 1e-3 && mapped.z > off.z, "red pixel {i}: {off} → {mapped}");
+        }
+    }
+    assert!(red >= 3, "the subsample has {red} red-wall pixels");
+    // the real pixels that gi changes (the virtual box's shadow and bounce): the shift of a*
+    // from the photograph is multiplied too (the green cast of gi+cm on the real box)
+    let (mut shift_off, mut shift_cm, mut n) = (0.0, 0.0, 0);
+    for i in (0..flags.len()).filter(|&i| flags[i] == surface::REAL && l_rv[i] != l_r[i]) {
+        let off = compose(false, Composition::Additive, photo[i], flags[i], Mapping::Off.apply(l_rv[i], 1.0), {
+            Mapping::Off.apply(l_r[i], 1.0)
+        });
+        shift_off += (lab_of(off).y - lab_of(photo[i]).y).abs();
+        shift_cm += (lab_of(out.composite[i]).y - lab_of(photo[i]).y).abs();
+        n += 1;
+    }
+    assert!(
+        n >= 10 && shift_cm > 3.0 * shift_off,
+        "{n} pixels: mean |Δa*| {} (off) against {} (cm)",
+        shift_off / n as f32,
+        shift_cm / n as f32
+    );
 }
