@@ -256,18 +256,39 @@ async fn with_the_spread_prior_every_batch_replays_and_the_prior_chose_them() {
     assert!(differing_batches(&state, &fixed).await > 0, "the spread prior chose no batch the fixed prior would not");
 }
 
+/// `prior = "spread"` past its switch (15 judgments per condition: 60 for the demo study's 4
+/// conditions): six participants judge 78 pairs, the later batches are chosen on the ADF
+/// posterior, and every batch — before and after the switch — replays from the stored answers.
+#[tokio::test]
+async fn with_the_spread_prior_batches_after_the_switch_replay_too() {
+    let work = tempfile::tempdir().unwrap();
+    let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]\nprior = \"spread\"";
+    let (_, state, _) = interleaved_with_admin(work.path(), "worths", warmup, 6).await;
+    let chosen_by: Vec<String> = sqlx::query("SELECT DISTINCT chosen_by FROM trials WHERE active_batch IS NOT NULL")
+        .fetch_all(&state.storage().read)
+        .await
+        .unwrap()
+        .iter()
+        .map(|row| row.get("chosen_by"))
+        .collect();
+    let absorbed = |state: &String| state.split('-').next().unwrap().parse::<f64>().unwrap();
+    let switch = mrstudy_analysis::active::SPREAD_SWITCH * 4.0;
+    assert!(chosen_by.iter().any(|s| absorbed(s) < switch), "no batch before the switch: {chosen_by:?}");
+    assert!(chosen_by.iter().any(|s| absorbed(s) >= switch), "no batch after the switch: {chosen_by:?}");
+}
+
 /// Three participants, interleaved, answer every trial of an active design of 10 trials in
 /// batches of 3 after `warmup`; every stored batch replays. The app and state afterwards.
 async fn interleaved(work: &Path, target: &str, warmup: &str) -> (Router, AppState) {
-    let (app, state, _) = interleaved_with_admin(work, target, warmup).await;
+    let (app, state, _) = interleaved_with_admin(work, target, warmup, 3).await;
     (app, state)
 }
 
-/// [`interleaved`], with the admin token.
-async fn interleaved_with_admin(work: &Path, target: &str, warmup: &str) -> (Router, AppState, String) {
+/// [`interleaved`] with `count` participants, and the admin token.
+async fn interleaved_with_admin(work: &Path, target: &str, warmup: &str, count: usize) -> (Router, AppState, String) {
     let (app, state, admin_token) = fixture_with_admin(work, target, warmup, 10, 3).await;
     let mut participants = Vec::new();
-    for _ in 0..3 {
+    for _ in 0..count {
         participants.push(join(&app).await);
     }
     // warm-up: the anchor with each of the 3 others, 1 catch trial, then 10 chosen trials
@@ -306,7 +327,7 @@ async fn interleaved_with_admin(work: &Path, target: &str, warmup: &str) -> (Rou
         }
     }
     let replayed = assert_batches_replay(&state).await;
-    assert_eq!(replayed, 30);
+    assert_eq!(replayed, 10 * count);
     (app, state, admin_token)
 }
 
@@ -317,7 +338,7 @@ async fn interleaved_with_admin(work: &Path, target: &str, warmup: &str) -> (Rou
 async fn the_live_analysis_reports_the_map_log_worths_with_the_studys_prior_sd() {
     let work = tempfile::tempdir().unwrap();
     let warmup = "warmup = \"anchored\"\nanchors = [\"LQ\"]\nprior = \"spread\"\nprior_sd = 0.4";
-    let (app, _, admin_token) = interleaved_with_admin(work.path(), "worths", warmup).await;
+    let (app, _, admin_token) = interleaved_with_admin(work.path(), "worths", warmup, 3).await;
     let live = call(&app, Method::GET, &format!("/api/admin/studies/{STUDY}/analysis"), Some(&admin_token), None).await;
     assert_eq!(live.status, StatusCode::OK, "{}", live.text());
     let export =
