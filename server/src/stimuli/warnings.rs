@@ -1,6 +1,6 @@
 //! What a study's stored stimulus records warn of, once per scene configuration: `serve` prints
-//! it at start-up for a study whose stimuli are already rendered (a render prints each
-//! stimulus's warning as it is made: [`super::Progress::Stimulus`]). Today the one warning is
+//! it at start-up for a study whose stimuli are already rendered, `mrstudy stimuli` at its end
+//! (a render prints each stimulus's warning as it is made: [`super::Progress::Stimulus`]). Today the one warning is
 //! the statistics colour mapping's channel ratio outside [0.5, 2]
 //! ([`mrstudy_renderer::cm::statistics::RatioWarning`]).
 
