@@ -410,7 +410,12 @@ impl StimulusSettings {
         match factors.coherent {
             None => {
                 let frame = self.render(renderer, scene, photo, factors)?;
-                Ok(StimulusFrame { composite: frame.composite, ms: frame.report.ms, adapter: frame.report.adapter })
+                Ok(StimulusFrame {
+                    composite: frame.composite,
+                    ms: frame.report.ms,
+                    adapter: frame.report.adapter,
+                    cm_warning: frame.report.cm.warning,
+                })
             }
             Some(level) => {
                 let params = CoherentParams { seed: self.seed, ..CoherentParams::new(level.method, level.quality) };
@@ -424,6 +429,7 @@ impl StimulusSettings {
                 Ok(StimulusFrame {
                     composite: frame.composite,
                     ms: frame.ms,
+                    cm_warning: frame.cm.warning,
                     adapter: format!(
                         "{} (coherent rendering: representation on the GPU, frame on the CPU)",
                         renderer.ctx.adapter_name()
@@ -447,6 +453,7 @@ impl StimulusSettings {
             composite: output.ground_truth,
             ms: output.stats.seconds * 1000.0,
             adapter: "CPU path tracer".into(),
+            cm_warning: None,
         })
     }
 }
@@ -456,6 +463,8 @@ pub struct StimulusFrame {
     pub composite: Image,
     pub ms: f64,
     pub adapter: String,
+    /// The statistics colour mapping's channel ratios outside [0.5, 2], if it found any.
+    pub cm_warning: Option<crate::cm::statistics::RatioWarning>,
 }
 
 /// What a render of one condition outside a study may change from a stimulus's parameters:
@@ -564,16 +573,25 @@ pub fn render_condition_to_file(
     if let Some(estimates) = &ca_estimates {
         lines.push(format!("ca estimates from the photograph: {estimates}"));
     }
+    let method = params.cm.method;
+    // what the colour mapping found: a fallback, a channel ratio outside [0.5, 2]
+    let mut warnings = Vec::new();
+    if let Some(why) = &frame.report.cm.fallback {
+        warnings.push(format!("colour mapping {}: {why}", method.name()));
+    }
+    if let Some(warning) = &frame.report.cm.warning {
+        warnings.push(warning.sentence(&scene.name));
+    }
     crate::image::save_by_extension(out, &frame.composite.srgb_to_linear(), &frame.composite)?;
     if let Some(dir) = buffers {
-        let extra = serde_json::json!({ "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates });
+        let mut extra = serde_json::json!({ "photo_seconds": photo_stats.seconds, "ca_estimates": ca_estimates });
+        if !warnings.is_empty() {
+            extra["warnings"] = serde_json::json!(warnings);
+        }
         frame.write_buffers(dir, &photo, extra)?;
     }
     lines.extend(frame.report.passes.iter().map(|pass| format!("  {:<40} {:>9.2} ms", pass.pass, pass.ms)));
-    let method = params.cm.method;
-    if let Some(why) = &frame.report.cm.fallback {
-        lines.push(format!("warning: colour mapping {}: {why}", method.name()));
-    }
+    lines.extend(warnings.iter().map(|warning| format!("warning: {warning}")));
     let ca = match (factors.ca, knobs.ca_source) {
         (false, _) => "",
         (true, crate::ca::ParamSource::Scene) => ", ca from the scene's camera",

@@ -67,6 +67,9 @@ pub fn stimulus_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
     if !std::io::stderr().is_terminal() {
         let lines = Mutex::new(ProgressLines::default());
         return Arc::new(move |slug: &str, step: &Progress| {
+            if let Progress::Stimulus { warning: Some(warning), .. } = step {
+                eprintln!("warning: {warning}");
+            }
             let line = lines.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).step(slug, step, Instant::now());
             if let Some(line) = line {
                 eprintln!("{line}");
@@ -90,7 +93,10 @@ pub fn stimulus_bars() -> Arc<dyn Fn(&str, &Progress) + Send + Sync> {
                     photo.set_message(format!("photograph {scene}"));
                 }
             }
-            Progress::Stimulus { scene, condition, .. } => {
+            Progress::Stimulus { scene, condition, warning, .. } => {
+                if let Some(warning) = warning {
+                    let _ = bars.println(format!("warning: {warning}"));
+                }
                 if let Some((photo, frames)) = state.as_ref() {
                     frames.inc(1);
                     frames.set_message(format!("{slug}: {scene} {condition}"));

@@ -272,7 +272,7 @@ mod tests {
     }
 
     fn stimulus(ms: f64) -> Progress {
-        Progress::Stimulus { scene: "a".into(), condition: "c".into(), ms }
+        Progress::Stimulus { scene: "a".into(), condition: "c".into(), ms, warning: None }
     }
 
     /// Two scene configurations of two stimuli: a reference of 8 s and stimuli of 2 s each

@@ -45,6 +45,7 @@ fn fake_record(store: &Path, stimulus: &crate::stimuli::PlannedStimulus) {
         adapter: "test".into(),
         reference_seconds: 0.0,
         errors: Default::default(),
+        warnings: Vec::new(),
     };
     let name = crate::stimuli::store_bytes(&serde_json::to_vec(&record).unwrap(), "json", store).unwrap();
     std::fs::write(store.join("rendered").join(stimulus.record_key()), name).unwrap();

@@ -178,6 +178,10 @@ pub struct Prepared {
     /// One line per study served whose stimuli are smaller than its `min_viewport` would show
     /// them ([`small_stimuli`]), to print as a warning.
     pub small: Vec<String>,
+    /// One line per scene configuration of a study served now whose stored stimulus records
+    /// carry a warning (the statistics colour mapping's ratios outside [0.5, 2]:
+    /// [`crate::stimuli::warnings::stored_warnings`]), to print as a warning.
+    pub stimulus_warnings: Vec<String>,
     /// The studies served now, in load order.
     pub slugs: Vec<String>,
     /// Studies whose stimuli are still to render, to serve with [`prepare_pending`] (`state`
@@ -248,6 +252,7 @@ pub async fn load(
     let mut skipped = Vec::new();
     let mut tasks = Vec::new();
     let mut small = Vec::new();
+    let mut stimulus_warnings = Vec::new();
     let mut on_demand = Vec::new();
     for study in studies {
         let study = match study {
@@ -275,8 +280,10 @@ pub async fn load(
                 continue;
             }
         }
+        let warnings = crate::stimuli::warnings::stored_warnings(&study, &plan, &stimuli_dir);
         match PreparedStudy::prepare(study, &plan, &stimuli_dir) {
             Ok(study) => {
+                stimulus_warnings.extend(warnings);
                 let study = Arc::new(study);
                 if crate::render_queue::on_demand(&study.study) {
                     on_demand.push((study.clone(), plan));
@@ -308,7 +315,7 @@ pub async fn load(
     for (study, plan) in on_demand {
         state.render_queue().register(study, plan);
     }
-    Ok(Prepared { state, admin_token, skipped, small, slugs, pending, tasks })
+    Ok(Prepared { state, admin_token, skipped, small, stimulus_warnings, slugs, pending, tasks })
 }
 
 /// A warning when a study's stimuli are smaller than the smallest window it admits
@@ -434,7 +441,7 @@ pub fn run(config: ServeConfig) -> Result<(), ServeError> {
             load(&database, &config.data_dir, &config.studies_dir, config.stimuli_dir.as_deref()).await?;
         // before the state is shared (the lab's start-up task holds a copy)
         prepared.state = prepared.state.with_limits(config.limits);
-        for line in prepared.skipped.iter().chain(&prepared.small) {
+        for line in prepared.skipped.iter().chain(&prepared.small).chain(&prepared.stimulus_warnings) {
             eprintln!("warning: {line}");
         }
         if prepared.slugs.is_empty() && prepared.pending.is_empty() && prepared.tasks.is_empty() {

@@ -35,6 +35,7 @@
 
 pub mod command;
 pub mod lines;
+pub mod warnings;
 
 use std::path::{Path, PathBuf};
 
@@ -196,6 +197,10 @@ pub struct StimulusRecord {
     /// configuration's stimuli.
     pub reference_seconds: f64,
     pub errors: StimulusErrors,
+    /// What the render found that a researcher should know (the statistics colour mapping's
+    /// channel ratios outside [0.5, 2]), one sentence each naming the scene; absent when none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Every stimulus a study needs from the renderer, with its cache key: made once per study (each
@@ -422,8 +427,9 @@ pub enum Progress {
     /// A reference render's samples: `done` of `total` samples per pixel (the photograph's, then
     /// the ground truth's).
     Photo { scene: String, done: u32, total: u32 },
-    /// A stimulus was rendered and stored.
-    Stimulus { scene: String, condition: String, ms: f64 },
+    /// A stimulus was rendered and stored; `warning`, what its render found that a researcher
+    /// should know (the statistics colour mapping's ratios outside [0.5, 2]), one sentence.
+    Stimulus { scene: String, condition: String, ms: f64, warning: Option<String> },
 }
 
 /// The render settings of a study (its `[render]` table; defaults of the renderer otherwise).
@@ -612,6 +618,7 @@ fn render_scenes(
                         scene: stimulus.scene.clone(),
                         condition: stimulus.condition.clone(),
                         ms: 0.0,
+                        warning: None,
                     });
                     continue;
                 }
@@ -619,6 +626,7 @@ fn render_scenes(
                     .settings(plan)
                     .render_stimulus(renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
                     .map_err(render_error)?;
+                let warnings: Vec<String> = frame.cm_warning.iter().map(|w| w.sentence(&scene.name)).collect();
                 let (name, shown) = match stored {
                     Some(name) => {
                         let path = store.join(&name);
@@ -648,6 +656,7 @@ fn render_scenes(
                             &reference.affected_mask,
                             &reference.virtual_mask,
                         ),
+                        warnings: warnings.clone(),
                     };
                     let bytes = serde_json::to_vec_pretty(&record).expect("a stimulus record serialises");
                     let record_name = store_bytes(&bytes, "json", store).map_err(io(store))?;
@@ -658,6 +667,7 @@ fn render_scenes(
                     scene: stimulus.scene.clone(),
                     condition: stimulus.condition.clone(),
                     ms: frame.ms,
+                    warning: warnings.into_iter().next(),
                 });
             }
             Ok(())

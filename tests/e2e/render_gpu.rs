@@ -233,6 +233,15 @@ fn render_factors_gi_cm_maps_colours_with_the_statistics_method_and_times_its_pa
     assert_eq!(gpu["cm"]["mapping"]["kind"], "statistics");
     let passes: Vec<&str> = gpu["passes"].as_array().unwrap().iter().map(|p| p["pass"].as_str().unwrap()).collect();
     assert!(passes.contains(&"cm statistics: reduction") && passes.contains(&"composition"), "{passes:?}");
+    // dir-lamp-box's real surfaces are grey: chroma ratios far above 2 are reported, on stderr
+    // and in report.json, in one sentence naming the scene (docs/renderer.md)
+    let warning = report["warnings"].as_array().and_then(|w| w.iter().find_map(|w| w.as_str()));
+    let warning = warning.unwrap_or_else(|| panic!("no warnings in report.json: {report}"));
+    for part in ["scene \"dir-lamp-box\"", "σ camera", "chroma multiplied about", "docs/renderer.md"] {
+        assert!(warning.contains(part), "{part:?} missing from: {warning}");
+    }
+    assert!(stderr.contains(&format!("warning: {warning}")), "{stderr}");
+    assert!(gpu["cm"]["warning"]["channels"].as_array().is_some_and(|c| !c.is_empty()), "{}", gpu["cm"]);
     // any method by name, Debevec's composition; bad names are refused with the choices
     let out = mrstudy()
         .args([

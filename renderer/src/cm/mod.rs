@@ -21,7 +21,8 @@
 //!   linearised space (gamma 2.2).
 //!
 //! Every failure has a documented fallback that is reported ([`CmReport::fallback`]), never a
-//! NaN: see each method's module.
+//! NaN: see each method's module. The statistics method also reports a channel ratio outside
+//! [0.5, 2] ([`CmReport::warning`], [`statistics::RatioWarning`]) without changing the mapping.
 
 pub mod colour;
 pub mod rohmer;
@@ -218,6 +219,9 @@ pub struct CmReport {
     pub pairs: usize,
     /// Why a simpler mapping was used, if one was.
     pub fallback: Option<String>,
+    /// statistics: a Lab channel ratio outside [0.5, 2] (the mapping as specified, reported).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<statistics::RatioWarning>,
 }
 
 /// One frame's buffers as the colour mapping sees them (row-major, width·height each).
@@ -279,10 +283,12 @@ pub fn cpu_frame(
     composition: Composition,
     state: &mut CmState,
 ) -> CmOutput {
+    let mut warning = None;
     let (mapping, pairs, fallback) = match params.method {
         CmMethod::Off => (Mapping::Off, 0, None),
         CmMethod::Statistics => {
             let sums = statistics::cpu_sums(input, params, exposure);
+            warning = statistics::ratio_warning(&sums);
             statistics::solve(&sums)
         }
         CmMethod::Samples => samples::estimate(input, params, exposure, state, &|colours| {
@@ -303,7 +309,12 @@ pub fn cpu_frame(
     let composite = (0..input.photo.len())
         .map(|i| compose(linear, composition, input.photo[i], input.flags[i], mapped_rv[i], mapped_r[i]))
         .collect();
-    CmOutput { mapped_rv, mapped_r, composite, report: CmReport { method: params.method, mapping, pairs, fallback } }
+    CmOutput {
+        mapped_rv,
+        mapped_r,
+        composite,
+        report: CmReport { method: params.method, mapping, pairs, fallback, warning },
+    }
 }
 
 /// Sums per-pixel contribution vectors in f64 (the CPU side of a GPU reduction).

@@ -121,6 +121,69 @@ fn statistics_transfers_a_known_lab_shift_and_scale() {
         assert!((mean_target[c] - mean_source[c] - shift[c]).abs() < 0.3, "means {mean_source:?} {mean_target:?}");
     }
     assert!(out.report.fallback.is_none());
+    assert!(out.report.warning.is_none(), "ratios 1.2, 0.8, 1.1 warned: {:?}", out.report.warning);
+}
+
+/// The sums of [`statistics::contribution`] over `n` pixels whose Lab channels have the given
+/// (mean, σ) in TM(L_r) and in the camera.
+fn sums_of(n: f64, source: [(f64, f64); 3], target: [(f64, f64); 3]) -> [f64; statistics::K] {
+    let mut sums = [0.0; statistics::K];
+    sums[0] = n;
+    for c in 0..3 {
+        let ((ms, ss), (mt, st)) = (source[c], target[c]);
+        sums[1 + c] = n * ms;
+        sums[4 + c] = n * (ss * ss + ms * ms);
+        sums[7 + c] = n * mt;
+        sums[10 + c] = n * (st * st + mt * mt);
+    }
+    sums
+}
+
+#[test]
+fn statistics_warns_of_ratios_outside_half_to_two_as_on_dir_lamp_box_and_not_on_the_survey_scenes() {
+    // docs/renderer.md's measurement of dir-lamp-box (cm, 256×192): ratios L 1.03, a 19.9, b 8.65
+    let grey =
+        sums_of(29506.0, [(53.09, 9.76), (0.37, 0.146), (0.93, 0.391)], [(58.54, 10.05), (0.55, 2.91), (5.07, 3.38)]);
+    let warning = statistics::ratio_warning(&grey).expect("dir-lamp-box's ratios warn");
+    let named: Vec<&str> = warning.channels.iter().map(|c| c.channel).collect();
+    assert_eq!(named, ["a", "b"], "{warning:?}");
+    let Mapping::Statistics { ratio, .. } = statistics::solve(&grey).0 else { panic!("no statistics mapping") };
+    assert_eq!(
+        [warning.channels[0].ratio, warning.channels[1].ratio],
+        [ratio[1], ratio[2]],
+        "the warning's ratios are the mapping's"
+    );
+    assert!(
+        (warning.channels[0].sd_camera - 2.91).abs() < 1e-4 && (warning.channels[0].sd_render - 0.146).abs() < 1e-4
+    );
+    let sentence = warning.sentence("dir-lamp-box");
+    for part in [
+        "scene \"dir-lamp-box\"",
+        "a 19.9 (σ camera 2.91 / σ render 0.146)",
+        "b 8.64 (σ camera 3.38 / σ render 0.391)",
+        "chroma multiplied about 19.9× (colours may clip)",
+        "docs/renderer.md, \"The statistics mapping on a grey real scene",
+    ] {
+        assert!(sentence.contains(part), "{part:?} missing from: {sentence}");
+    }
+    assert!(!sentence.contains("lightness") && !sentence.contains("NaN") && !sentence.contains("inf"), "{sentence}");
+    // the survey scenes' ratios (L 0.80–0.89, a 0.83–1.41, b 0.80–0.89): no warning
+    let survey = sums_of(20000.0, [(55.0, 12.0), (4.0, 4.0), (12.0, 6.0)], [(50.0, 9.6), (5.0, 5.64), (10.0, 4.8)]);
+    assert!(statistics::ratio_warning(&survey).is_none(), "{:?}", statistics::ratio_warning(&survey));
+    // just outside on either side; a lightness ratio below 0.5 washes out
+    let edges = sums_of(100.0, [(50.0, 10.0), (0.0, 4.0), (0.0, 4.0)], [(50.0, 4.9), (0.0, 8.0), (0.0, 8.1)]);
+    let warning = statistics::ratio_warning(&edges).expect("0.49 and 2.025 warn");
+    let named: Vec<&str> = warning.channels.iter().map(|c| c.channel).collect();
+    assert_eq!(named, ["L", "b"], "{warning:?}");
+    assert!(
+        warning.message.contains("lightness contrast multiplied about 0.490× (colours may wash out)"),
+        "{}",
+        warning.message
+    );
+    // a flat channel (the uniform-proxy fallback, ratio 1) and an empty mask: no warning
+    let flat = sums_of(100.0, [(50.0, 10.0), (1.0, 0.0), (1.0, 0.0)], [(50.0, 10.0), (0.0, 3.0), (0.0, 3.0)]);
+    assert!(statistics::ratio_warning(&flat).is_none());
+    assert!(statistics::ratio_warning(&[0.0; statistics::K]).is_none());
 }
 
 #[test]
@@ -383,6 +446,8 @@ fn statistics_matches_an_independent_computation_on_dir_lamp_box() {
     all_finite(&out);
     assert_eq!(out.report.pairs as u64, s["pixels_used"].as_u64().unwrap());
     assert!(out.report.fallback.is_none(), "{:?}", out.report.fallback);
+    let warned = out.report.warning.as_ref().map(|w| w.channels.iter().map(|c| c.channel).collect::<Vec<_>>());
+    assert_eq!(warned, Some(vec!["a", "b"]), "the chroma ratios are reported: {:?}", out.report.warning);
     let Mapping::Statistics { mean_source, mean_target, ratio } = out.report.mapping else {
         panic!("{:?}", out.report)
     };

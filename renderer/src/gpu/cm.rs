@@ -210,12 +210,17 @@ impl CmPasses {
         let (w, h) = (buffers.width, buffers.height);
         let base = |mode: u32, m: [[f32; 4]; 3]| CmUniform::new(params, exposure, w, h, mode, m);
         let name = params.method.name();
+        let mut warning = None;
         let (mapping, pairs, fallback) = match params.method {
             CmMethod::Off => (Mapping::Off, 0, None),
-            CmMethod::Statistics => timed(ctx, passes, format!("cm {name}: reduction"), || {
-                let sums = self.reduce(ctx, buffers, &base(0, [[0.0; 4]; 3]));
-                statistics::solve(sums[..statistics::K].try_into().expect("K ≥ 13"))
-            }),
+            CmMethod::Statistics => {
+                let sums = timed(ctx, passes, format!("cm {name}: reduction"), || {
+                    self.reduce(ctx, buffers, &base(0, [[0.0; 4]; 3]))
+                });
+                let sums: &[f64; statistics::K] = sums[..statistics::K].try_into().expect("K ≥ 13");
+                warning = statistics::ratio_warning(sums);
+                statistics::solve(sums)
+            }
             CmMethod::Samples => {
                 // the samples and their pairs are picked on the CPU from the read-back buffers
                 let (solutions, input_photo) = timed(ctx, passes, format!("cm {name}: read back L_rv, L_r"), || {
@@ -254,6 +259,6 @@ impl CmPasses {
         let (code, rows) = mapping_rows(&mapping);
         let mapped =
             timed(ctx, passes, format!("cm {name}: map L_rv, L_r"), || self.map(ctx, buffers, &base(code, rows)));
-        (mapped, CmReport { method: params.method, mapping, pairs, fallback })
+        (mapped, CmReport { method: params.method, mapping, pairs, fallback, warning })
     }
 }

@@ -100,6 +100,10 @@ fn every_cm_method_on_the_gpu_agrees_with_the_cpu_reference() {
                 cpu.report,
                 gpu.report.cm
             );
+            let warned = |w: &Option<crate::cm::statistics::RatioWarning>| {
+                w.as_ref().map(|w| w.channels.iter().map(|c| c.channel).collect::<Vec<_>>())
+            };
+            assert_eq!(warned(&cpu.report.warning), warned(&gpu.report.cm.warning), "{method:?}: the ratio warnings");
             let cpu_composite = Image { width: 96, height: 72, pixels: cpu.composite.clone() };
             eprintln!(
                 "{method:?} {composition:?}: mapping CPU {:?} GPU {:?}",

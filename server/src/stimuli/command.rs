@@ -82,6 +82,10 @@ pub fn stimuli_command(
         let written = write_copies(&study, &plan, &store, out).map_err(copies)?;
         note(format!("wrote {written} stimuli into {}", out.display()));
     }
+    // what the stored records warn of (the statistics colour mapping's ratios), once per scene
+    // configuration, also when nothing was rendered this time
+    let warnings = super::warnings::stored_warnings(&study, &plan, &store);
+    warnings.iter().for_each(|line| note(format!("warning: {line}")));
     note(plan.rendered_line(&study, &rendered, &store, request.shard));
     Ok(())
 }

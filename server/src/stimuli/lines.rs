@@ -60,7 +60,7 @@ mod tests {
     use super::*;
 
     fn stimulus() -> Progress {
-        Progress::Stimulus { scene: "a".into(), condition: "c".into(), ms: 1.0 }
+        Progress::Stimulus { scene: "a".into(), condition: "c".into(), ms: 1.0, warning: None }
     }
 
     /// 40 stimuli: a line at the start, at every second stimulus (5 %) and none in between,
