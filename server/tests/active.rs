@@ -74,7 +74,7 @@ async fn the_admin_page_says_what_the_active_design_optimises() {
             "worths",
             "spread",
             "under a hierarchical prior on their spread (prior = &#34;spread&#34;, the spread&#39;s prior mean 1) for \
-             the first 15 trials per condition, then as with the fixed prior",
+             the study&#39;s first 15 trials per condition (all participants together), then as with the fixed prior",
             "every condition&#39;s log-worth as the centred MAP estimate with prior sd 1 (`log_worth_map` of \
              `mrstudy analyze`), not the maximum-likelihood log-worths",
         ),

@@ -223,7 +223,7 @@ fn active_spread_is_the_worths_target_with_the_spread_prior_and_says_what_it_opt
     assert!(
         table.contains("RMSE MAP log-worth")
             && table.contains("active-spread (target worths, prior spread)")
-            && table.contains("for the first 15 trials per condition, then as with the fixed prior")
+            && table.contains("for the study's first 15 trials per condition (all participants together), then as with the fixed prior")
             && table.contains("under a hierarchical prior on their spread")
             && table.contains("(optimises every condition's log-worth as the centred MAP estimate with prior sd 1"),
         "{table}"

@@ -353,7 +353,7 @@ impl ActiveDesign {
             ActivePrior::Fixed => self.target.criterion(),
             ActivePrior::Spread => format!(
                 "{} under a hierarchical prior on their spread (prior = \"spread\", the spread's prior mean {}) for \
-                 the first {} trials per condition, then as with the fixed prior",
+                 the study's first {} trials per condition (all participants together), then as with the fixed prior",
                 self.target.criterion(),
                 format_number(self.prior_sd),
                 format_number(mrstudy_analysis::active::SPREAD_SWITCH)
