@@ -280,10 +280,10 @@ pub async fn load(
                 continue;
             }
         }
-        let warnings = crate::stimuli::warnings::stored_warnings(&study, &plan, &stimuli_dir);
         match PreparedStudy::prepare(study, &plan, &stimuli_dir) {
             Ok(study) => {
-                stimulus_warnings.extend(warnings);
+                // a study still to render warns as it renders, not here
+                stimulus_warnings.extend(crate::stimuli::warnings::stored_warnings(&study.study, &plan, &stimuli_dir));
                 let study = Arc::new(study);
                 if crate::render_queue::on_demand(&study.study) {
                     on_demand.push((study.clone(), plan));

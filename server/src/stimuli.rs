@@ -626,7 +626,7 @@ fn render_scenes(
                     .settings(plan)
                     .render_stimulus(renderer, scene, photo, &linear, &stimulus.factors, &mut captured)
                     .map_err(render_error)?;
-                let warnings: Vec<String> = frame.cm_warning.iter().map(|w| w.sentence(&scene.name)).collect();
+                let warning = frame.cm_warning.as_ref().map(|w| w.sentence(&scene.name));
                 let (name, shown) = match stored {
                     Some(name) => {
                         let path = store.join(&name);
@@ -656,7 +656,7 @@ fn render_scenes(
                             &reference.affected_mask,
                             &reference.virtual_mask,
                         ),
-                        warnings: warnings.clone(),
+                        warnings: warning.iter().cloned().collect(),
                     };
                     let bytes = serde_json::to_vec_pretty(&record).expect("a stimulus record serialises");
                     let record_name = store_bytes(&bytes, "json", store).map_err(io(store))?;
@@ -667,7 +667,7 @@ fn render_scenes(
                     scene: stimulus.scene.clone(),
                     condition: stimulus.condition.clone(),
                     ms: frame.ms,
-                    warning: warnings.into_iter().next(),
+                    warning,
                 });
             }
             Ok(())

@@ -1,7 +1,7 @@
 //! The report of a simulation: rows of means with their Monte-Carlo errors, as JSON, a text
 //! table and a plot.
 
-use crate::study::{PairsRule, Study};
+use crate::study::{ActivePrior, PairsRule, Study};
 use mrstudy_analysis::plot::{LinePlot, LineSeries};
 use mrstudy_analysis::table::fixed;
 use serde::Serialize;
@@ -54,7 +54,7 @@ pub struct Row {
     pub target: Option<&'static str>,
     /// An active design's prior, `fixed` or `spread` (absent for a fixed design).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub prior: Option<&'static str>,
+    pub prior: Option<ActivePrior>,
     /// An active design's choice in words: its warm-up and criterion (absent for a fixed design).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub optimises: Option<String>,
@@ -205,7 +205,7 @@ pub(super) fn summarise(
         design: *choice,
         pairs: variant.design.pairs_rule,
         target: variant.design.active.as_ref().map(|active| active.target.describe().0),
-        prior: variant.design.active.as_ref().map(|active| active.prior.name()),
+        prior: variant.design.active.as_ref().map(|active| active.prior),
         optimises: variant.design.active.as_ref().map(|active| {
             let warmup = variant.design.pairs.len() * variant.design.repetitions as usize;
             format!(
@@ -324,7 +324,9 @@ impl Report {
         for row in &self.rows {
             let mut line = vec![
                 match (row.target, row.prior) {
-                    (Some(target), Some("spread")) => format!("{} (target {target}, prior spread)", row.design.name()),
+                    (Some(target), Some(ActivePrior::Spread)) => {
+                        format!("{} (target {target}, prior spread)", row.design.name())
+                    }
                     (Some(target), _) => format!("{} (target {target})", row.design.name()),
                     (None, _) => row.design.name().to_string(),
                 },

@@ -216,7 +216,10 @@ fn active_spread_is_the_worths_target_with_the_spread_prior_and_says_what_it_opt
     assert_eq!((design.target, design.prior), (ActiveTarget::Worths, crate::study::ActivePrior::Spread));
     assert!(spread.design.pairs.is_empty());
     let report = simulate(&study, &config(&study, &[DesignChoice::ActiveSpread], &[4], 2), &quiet).unwrap();
-    assert_eq!((report.rows[0].target, report.rows[0].prior), (Some("worths"), Some("spread")));
+    assert_eq!(
+        (report.rows[0].target, report.rows[0].prior),
+        (Some("worths"), Some(crate::study::ActivePrior::Spread))
+    );
     let map = report.rows[0].rmse_log_worth_map.unwrap().mean;
     assert!(map > 0.0 && map < 2.0, "the MAP log-worths' RMSE {map}");
     let table = report.table();
